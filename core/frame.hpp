@@ -1,0 +1,61 @@
+// Frame and StereoFrame: images with the timing facts needed to pair them and to look up the
+// pose at mid-exposure, and FrameSource, the interface every image source implements
+// (simulation, replay, Aravis GigE Vision, V4L2).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <string>
+
+#include "core/conventions.hpp"
+#include "core/expected.hpp"
+#include "core/image.hpp"
+
+namespace augrig {
+
+// Cameras of a stereo rig: index into the rig's camera list (0 = left, 1 = right).
+enum class CameraId : std::uint8_t { kLeft = 0, kRight = 1 };
+constexpr int index_of(CameraId id) { return static_cast<int>(id); }
+constexpr std::string_view to_string(CameraId id) { return id == CameraId::kLeft ? "left" : "right"; }
+
+struct Frame {
+  Image image;
+  TimestampNs t_ns = 0;                      // mid-exposure, in `clock`
+  ClockDomain clock = ClockDomain::kUnknown;
+  TimestampNs t_host_ns = 0;                 // CLOCK_MONOTONIC when the frame became available (0: unknown)
+  std::uint64_t sequence = 0;                // per-camera frame counter from the source
+  CameraId camera = CameraId::kLeft;
+  std::int64_t exposure_ns = 0;              // 0: unknown
+};
+
+struct StereoFrame {
+  Frame left;
+  Frame right;
+  TimestampNs t_key_ns = 0;  // the pair's timestamp (mean of both mid-exposures)
+  std::int64_t skew_ns = 0;  // right.t_ns - left.t_ns
+  std::uint64_t pair_sequence = 0;
+
+  Frame& operator[](CameraId id) { return id == CameraId::kLeft ? left : right; }
+  const Frame& operator[](CameraId id) const { return id == CameraId::kLeft ? left : right; }
+};
+
+enum class ReadStatus : std::uint8_t {
+  kFrame,        // `out` holds a new frame
+  kTimeout,      // nothing arrived within the timeout; call again
+  kEndOfStream,  // a finite source (replay, simulation) is exhausted
+};
+
+// A stream of frames from one or more cameras. Sources deliver each camera's frames in
+// sequence order; pairing into StereoFrames happens downstream (capture/stereo_pairer.hpp).
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  // A URI that names the source (sim://..., replay://..., aravis://..., v4l2://...).
+  virtual std::string uri() const = 0;
+  // Blocks up to `timeout` for the next frame of any camera.
+  virtual Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) = 0;
+  // Frames the source knows it lost (camera or transport), for the drop ledger.
+  virtual std::uint64_t frames_dropped() const { return 0; }
+};
+
+}  // namespace augrig

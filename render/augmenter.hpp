@@ -1,0 +1,87 @@
+// Augmenter: renders the virtual boom (and the receiver as a mask-only proxy) into each camera's
+// raw frames, perspective-correct for that camera's intrinsics, distortion and extrinsics, and
+// produces per camera the augmented image, the 8-bit mask (kMaskBoom | kMaskReceiver, decided at
+// the pixel centre) and the receiver depth; per stereo frame the occlusion statistics.
+//
+// Flow per view: the boom's and receiver's projected boxes are found; each object is rasterised
+// by OpenGL into a virtual pinhole image that covers the lens' undistorted field (triangle ids and
+// shaded colour); every raw pixel centre is mapped through the inverse distortion into that image;
+// where the ids around it disagree (silhouettes, boom/receiver crossings) the pixel centre's ray
+// is intersected exactly with the candidate triangles. Raw pixels are never resampled: outside
+// the boom's anti-aliased footprint the augmented image is the raw image, byte for byte.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <vector>
+
+#include "core/expected.hpp"
+#include "core/frame.hpp"
+#include "core/pose.hpp"
+#include "render/models.hpp"
+#include "render/rig.hpp"
+#include "render/stats.hpp"
+
+namespace augrig {
+
+enum class ReceiverDraw { kMaskOnly, kWireframe, kTranslucent };
+
+struct AugmentOptions {
+  ReceiverDraw receiver_draw = ReceiverDraw::kMaskOnly;
+  bool antialias = true;         // blend the boom's edge pixels by their coverage
+  bool receiver_proxy = true;    // render the receiver (mask bit 1, depth, stereo classes)
+  bool stereo_classes = true;    // compute the stereo visibility classes (needs receiver_proxy)
+  StereoClassOptions class_options;
+};
+
+// Where everything is for one stereo frame.
+struct SceneState {
+  BoomArticulation boom;
+  Pose T_body_receiver;          // receiver body frame in the tanker body frame
+  bool receiver_present = true;
+};
+
+struct PixelBox {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // [x0, x1) x [y0, y1)
+  bool empty() const { return x1 <= x0 || y1 <= y0; }
+};
+
+struct ViewResult {
+  Image augmented;             // same format and size as the raw input
+  Image mask;                  // Mono8
+  DepthImage receiver_depth;   // z of the receiver along each pixel centre's ray
+  PixelBox boom_box;           // raw pixels the boom may touch (its anti-aliased footprint)
+};
+
+struct StereoResult {
+  ViewResult left;
+  ViewResult right;
+  OcclusionStats stats;
+  std::vector<std::uint8_t> stereo_classes;  // StereoClass per left pixel (empty if not computed)
+};
+
+// Wall time of each stage of the last augment() call, for bench/.
+struct AugmentTimings {
+  double render_ms = 0;     // GL draw + readback, both views
+  double masks_ms = 0;      // id lookup, exact edge rays, depth
+  double composite_ms = 0;  // augmented images
+  double stats_ms = 0;      // counts and stereo classes
+};
+
+class Augmenter {
+ public:
+  // Needs a current GL context (render/gl_context.hpp). Builds or loads the rig's models.
+  static Expected<std::unique_ptr<Augmenter>> create(const Rig& rig, const AugmentOptions& options = {});
+  virtual ~Augmenter() = default;
+
+  virtual Expected<StereoResult> augment(const StereoFrame& frame, const SceneState& scene) = 0;
+  // One camera only (index into rig.cameras); no statistics.
+  virtual Expected<ViewResult> augment_view(int camera, const Frame& raw, const SceneState& scene) = 0;
+
+  virtual const AugmentTimings& timings() const = 0;
+  virtual const Rig& rig() const = 0;
+  virtual const BoomModel& boom_model() const = 0;
+  virtual const Model& receiver_model() const = 0;
+};
+
+}  // namespace augrig

@@ -1,0 +1,85 @@
+// Rig: the stereo camera rig, the boom and the receiver as configured in a rig file (YAML, see
+// docs/RIG_FORMAT.md). Loading never prints: it returns the Rig or an Error naming the file, line
+// and key, and what was expected. Rig::paper_default() reproduces the seed paper's rig.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/expected.hpp"
+#include "core/pose.hpp"
+#include "render/camera_model.hpp"
+
+namespace augrig {
+
+struct RigCamera {
+  std::string name;          // "left", "right" or as named in the file
+  CameraModel model;
+  Pose T_body_cam;           // camera (OpenCV frame) in the tanker body frame (FRD)
+  double near_m = 1.0;       // no real or virtual object comes nearer than this
+  double far_m = 100.0;
+  std::string source_uri;    // optional, used by live capture (empty: none)
+};
+
+// Axis convention of a model file, converted explicitly on load: which model-file axis points
+// forward, right and down in the object's FRD frame. Each is one of "+x" "-x" "+y" "-y" "+z" "-z".
+struct ModelAxes {
+  std::string forward = "+z";  // glTF 2.0: +Z forward (front of the asset)
+  std::string right = "-x";    // glTF 2.0: -X right
+  std::string down = "-y";     // glTF 2.0: +Y up
+  static ModelAxes gltf() { return {}; }
+  static ModelAxes frd() { return {"+x", "+y", "+z"}; }
+};
+
+struct ModelSource {
+  std::string path;            // empty: the built-in procedural model
+  ModelAxes axes;
+  double scale = 1.0;          // file units -> metres
+};
+
+struct BoomLimits {
+  double elevation_min_rad = 0, elevation_max_rad = 0;  // below the body x-y plane, positive down
+  double azimuth_min_rad = 0, azimuth_max_rad = 0;      // positive towards body +y (starboard)
+  double extension_min_m = 0, extension_max_m = 0;      // telescope extension
+};
+
+struct BoomConfig {
+  Eigen::Vector3d pivot_body_m = Eigen::Vector3d::Zero();
+  ModelSource model;           // a model file is in the boom frame (x along the boom), at extension 0
+  BoomLimits limits;
+};
+
+struct ReceiverConfig {
+  ModelSource model;                                         // receiver body frame (FRD)
+  Eigen::Vector3d receptacle_m = Eigen::Vector3d::Zero();    // in the receiver body frame
+};
+
+struct Rig {
+  std::string source;              // file it came from ("<built-in>" for defaults)
+  std::vector<RigCamera> cameras;  // [0] left, [1] right
+  BoomConfig boom;
+  ReceiverConfig receiver;
+
+  const RigCamera& left() const { return cameras.at(0); }
+  const RigCamera& right() const { return cameras.at(1); }
+  // T_right_left: left-camera coordinates -> right-camera coordinates.
+  Pose T_right_left() const { return right().T_body_cam.inverse() * left().T_body_cam; }
+
+  // The seed paper's rig: 1280x960, 56 deg horizontal FOV, two cameras 0.5 m apart under the
+  // fuselage looking aft 25 deg down, near 1 m, far 100 m; a KC-135-class boom; the built-in receiver.
+  static Rig paper_default();
+};
+
+// R_body_cam for a camera whose optical axis points along yaw/pitch/roll of a "mount" frame
+// (FRD-like, x along the optical axis), e.g. yaw 180 deg, pitch -25 deg: looking aft, 25 deg down.
+Eigen::Matrix3d R_body_cam_from_mount_ypr(double yaw_rad, double pitch_rad, double roll_rad);
+
+Expected<Rig> load_rig(const std::string& path);
+// Parses rig YAML text; `name` is used in error messages (a path, or "<string>").
+Expected<Rig> parse_rig(const std::string& yaml_text, const std::string& name);
+// Writes a rig file that load_rig() reads back to an equal Rig.
+std::string rig_to_yaml(const Rig& rig);
+
+}  // namespace augrig

@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages augrig needs to build, run and test.
+# Idempotent: asks dpkg first and only calls apt-get for what is missing.
+set -euo pipefail
+
+PACKAGES=(
+  # toolchain
+  build-essential cmake ninja-build pkg-config git clang-format
+  # core libraries
+  libyaml-cpp-dev libopencv-dev libeigen3-dev libglm-dev libgeographiclib-dev geographiclib-tools
+  libtinygltf-dev libtinyobjloader-dev nlohmann-json3-dev libstb-dev
+  # OpenGL: EGL surfaceless (Mesa llvmpipe) and GLFW windows
+  libepoxy-dev libegl-dev libgl-dev libegl1 libgl1-mesa-dri libglfw3-dev
+  # tests and benches
+  libgtest-dev libgmock-dev libbenchmark-dev xvfb xauth
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+
+echo "install-deps: installing ${missing[*]}"
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -q
+$SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"

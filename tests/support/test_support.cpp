@@ -1,0 +1,34 @@
+#include "tests/support/test_support.hpp"
+
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+
+namespace augrig::test {
+
+std::string data_path(const std::string& relative) { return std::string(AUGRIG_TEST_DATA_DIR) + "/" + relative; }
+
+std::string output_dir(const std::string& name) {
+  const std::filesystem::path p = std::filesystem::path(AUGRIG_TEST_OUTPUT_DIR) / name;
+  std::filesystem::remove_all(p);
+  std::filesystem::create_directories(p);
+  return p.string();
+}
+
+std::string augrig_binary() { return AUGRIG_BINARY; }
+
+int run_command(const std::string& command, std::string* output) {
+  const std::string full = command + " 2>&1";
+  FILE* pipe = popen(full.c_str(), "r");
+  if (!pipe) return -1;
+  std::array<char, 4096> buf{};
+  std::string out;
+  while (std::fgets(buf.data(), buf.size(), pipe)) out += buf.data();
+  const int status = pclose(pipe);
+  if (output) *output = out;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+}  // namespace augrig::test
