@@ -1,1 +1,801 @@
-// (in progress)
+// The augmenter (render/augmenter.hpp). Per view:
+//   1. everything is moved into the camera frame in double precision (T_cam_body * T_body_obj);
+//   2. OpenGL rasterises the receiver, then the boom depth-tested against it, into the virtual
+//      pinhole image: shaded colour and packed ids (draw id in alpha, gl_PrimitiveID in RGB),
+//      only inside each object's projected box (llvmpipe's cost is per triangle and per pixel);
+//   3. the CPU visits the raw pixels of those boxes: each centre maps into the virtual image;
+//      where the 2x2 ids around it agree the answer is read off (a triangle covering all four
+//      samples covers the centre), elsewhere the centre's exact ray is intersected with the
+//      candidate triangles. Depth comes from the triangle's plane, exactly at the pixel centre;
+//   4. the boom is blended over the raw pixels by its bilinear coverage; pixels it does not touch
+//      are never written, so they stay bit-identical.
+#include "render/augmenter.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <future>
+#include <limits>
+#include <tuple>
+#include <unordered_map>
+
+#include "render/gl_util.hpp"
+#include "render/projection.hpp"
+
+namespace augrig {
+
+namespace {
+
+constexpr char kVertexShader[] = R"(#version 330 core
+layout(location = 0) in vec3 a_pos;
+layout(location = 1) in vec3 a_normal;
+layout(location = 2) in vec2 a_uv;
+uniform mat4 u_cam_from_obj;  // T_cam_obj, camera-relative so float is precise enough
+uniform mat4 u_proj;          // camera frame -> clip (render/projection.hpp)
+out vec3 v_normal_cam;
+out vec2 v_uv;
+void main() {
+  vec4 p = u_cam_from_obj * vec4(a_pos, 1.0);
+  v_normal_cam = mat3(u_cam_from_obj) * a_normal;
+  v_uv = a_uv;
+  gl_Position = u_proj * p;
+}
+)";
+
+// Ids only: the mask-only receiver needs no colour (saves texture fetches and lighting per fragment).
+constexpr char kIdFragmentShader[] = R"(#version 330 core
+uniform uint u_draw_id;
+layout(location = 1) out vec4 o_id;
+void main() {
+  uint prim = uint(gl_PrimitiveID);
+  o_id = vec4(float(prim & 255u), float((prim >> 8) & 255u), float((prim >> 16) & 255u), float(u_draw_id)) / 255.0;
+}
+)";
+
+constexpr char kFragmentShader[] = R"(#version 330 core
+in vec3 v_normal_cam;
+in vec2 v_uv;
+uniform vec3 u_base_color;
+uniform sampler2D u_texture;
+uniform int u_has_texture;
+uniform vec3 u_light_cam;   // unit vector towards the light, camera frame
+uniform uint u_draw_id;     // 1..255, 0 = nothing
+uniform float u_alpha;
+layout(location = 0) out vec4 o_color;
+layout(location = 1) out vec4 o_id;
+void main() {
+  vec3 n = normalize(v_normal_cam);
+  if (!gl_FrontFacing) n = -n;
+  vec3 albedo = u_base_color;
+  if (u_has_texture != 0) albedo *= texture(u_texture, v_uv).rgb;
+  float diffuse = max(dot(n, u_light_cam), 0.0);
+  o_color = vec4(albedo * (0.35 + 0.65 * diffuse), u_alpha);
+  // Exact integers through RGBA8: k / 255 is stored as k.
+  uint prim = uint(gl_PrimitiveID);
+  o_id = vec4(float(prim & 255u), float((prim >> 8) & 255u), float((prim >> 16) & 255u), float(u_draw_id)) / 255.0;
+}
+)";
+
+enum class ObjectKind : std::uint8_t { kBoomFixed, kBoomTelescope, kReceiver };
+
+struct DrawItem {
+  ObjectKind kind;
+  const Mesh* mesh;
+  gl::GpuMesh gpu;
+  std::uint8_t draw_id;    // value written to the id buffer's alpha
+  std::size_t first_tri;   // this mesh's first triangle in ViewState::tris
+  bool cull;               // built-in, consistently wound meshes only
+};
+
+// A triangle in the current view's camera frame, ready for exact ray tests from the origin.
+struct CamTriangle {
+  Eigen::Vector3d v0, e1, e2, n;  // n = e1 x e2
+  double n_dot_v0;
+};
+
+struct MapEntry {
+  std::int32_t idx;  // top-left virtual sample of the bilinear 2x2 (j0 * Wv + i0); -1: no ray
+  float fx, fy;      // bilinear fractions
+};
+
+struct VBox {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool empty() const { return x1 <= x0 || y1 <= y0; }
+};
+
+struct ViewState {
+  const RigCamera* cam = nullptr;
+  VirtualPinhole vp;
+  std::array<float, 16> proj{};
+  std::vector<MapEntry> map;                  // per raw pixel
+  std::vector<std::uint32_t> boom_ids, recv_ids;  // virtual image, packed ids; zero outside the last boxes
+  std::vector<std::uint8_t> boom_rgba, recv_rgba;  // virtual image colour (recv only for overlays)
+  VBox boom_vbox, recv_vbox;                  // last boxes read back
+  std::vector<CamTriangle> tris;              // all draw items' triangles, this frame
+  std::vector<Eigen::Vector3d> scratch_vertices;
+};
+
+constexpr std::uint32_t kDrawShift = 24;
+constexpr std::uint32_t kPrimMask = (1u << 24) - 1;
+
+PixelBox to_pixel_box(const VBox& b) { return {b.x0, b.y0, b.x1, b.y1}; }
+
+VBox intersect(VBox a, const VBox& b) {
+  a.x0 = std::max(a.x0, b.x0), a.y0 = std::max(a.y0, b.y0);
+  a.x1 = std::min(a.x1, b.x1), a.y1 = std::min(a.y1, b.y1);
+  return a;
+}
+VBox unite(const VBox& a, const VBox& b) {
+  if (a.empty()) return b;
+  if (b.empty()) return a;
+  return {std::min(a.x0, b.x0), std::min(a.y0, b.y0), std::max(a.x1, b.x1), std::max(a.y1, b.y1)};
+}
+
+class AugmenterImpl final : public Augmenter {
+ public:
+  AugmenterImpl(const Rig& rig, const AugmentOptions& options) : rig_(rig), options_(options) {}
+  ~AugmenterImpl() override {
+    for (auto& d : draws_) d.gpu.destroy();
+    fb_.destroy();
+    for (Program* p : {&shaded_, &ids_only_})
+      if (p->id) glDeleteProgram(p->id);
+  }
+
+  Status init();
+
+  Status augment(const StereoFrame& frame, const SceneState& scene, StereoResult& out) override;
+  Status augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) override;
+  const AugmentTimings& timings() const override { return timings_; }
+  const Rig& rig() const override { return rig_; }
+  const BoomModel& boom_model() const override { return boom_; }
+  const Model& receiver_model() const override { return receiver_; }
+
+ private:
+  Status check_frame(int camera, const Frame& raw) const;
+  void prepare_view(ViewState& vs, const SceneState& scene);
+  void render_view(ViewState& vs, const SceneState& scene);
+  void resolve_view(ViewState& vs, const Frame& raw, ViewResult& out) const;
+  VBox project_box(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const;
+  VBox raw_box_of(const ViewState& vs, const VBox& vbox) const;
+  double nearest_hit(const ViewState& vs, const std::uint32_t* cands, int n, double x, double y) const;
+  void build_rings();
+  std::uint32_t global_index(std::uint32_t packed) const {
+    return static_cast<std::uint32_t>(draws_[(packed >> kDrawShift) - 1].first_tri + (packed & kPrimMask));
+  }
+  const CamTriangle& triangle(const ViewState& vs, std::uint32_t packed) const { return vs.tris[global_index(packed)]; }
+  bool is_boom(std::uint32_t packed) const {
+    return packed && draws_[(packed >> kDrawShift) - 1].kind != ObjectKind::kReceiver;
+  }
+
+  Rig rig_;
+  AugmentOptions options_;
+  BoomModel boom_;
+  Model receiver_;
+  std::vector<DrawItem> draws_;
+  std::size_t total_tris_ = 0;
+  // Triangles sharing a vertex (welded by position) with each triangle, global indices (CSR):
+  // silhouette triangles seen edge-on are slivers that no sample lands in, but a sampled neighbour does.
+  std::vector<std::uint32_t> ring_offsets_, ring_;
+  std::vector<ViewState> views_;
+  gl::Framebuffer fb_;
+  struct Program {
+    GLuint id = 0;
+    GLint cam_from_obj = -1, proj = -1, base_color = -1, has_texture = -1, light = -1, draw_id = -1, alpha = -1,
+          texture = -1;
+  };
+  Program shaded_, ids_only_;
+  bool zero_to_one_ = false;
+  AugmentTimings timings_;
+
+  // Per-frame state shared by prepare/render.
+  Pose T_body_boom_, T_body_telescope_;
+  bool receiver_on_ = false;
+};
+
+Status AugmenterImpl::init() {
+  if (rig_.cameras.size() != 2) return make_error("Augmenter::create(): the rig needs 2 cameras, has ", rig_.cameras.size());
+  if (options_.boom_model) {
+    boom_ = *options_.boom_model;
+  } else if (rig_.boom.model.path.empty()) {
+    boom_ = make_builtin_boom();
+  } else {
+    auto m = load_model(rig_.boom.model);
+    if (!m) return m.error();
+    boom_.fixed = std::move(*m);  // a user boom is one rigid part (no telescope)
+  }
+  if (options_.receiver_model) {
+    receiver_ = *options_.receiver_model;
+  } else if (rig_.receiver.model.path.empty()) {
+    receiver_ = make_builtin_receiver();
+  } else {
+    auto m = load_model(rig_.receiver.model);
+    if (!m) return m.error();
+    receiver_ = std::move(*m);
+  }
+
+  for (auto [prog, name, fs] : {std::tuple{&shaded_, "augmenter shaded", kFragmentShader},
+                                 std::tuple{&ids_only_, "augmenter ids", kIdFragmentShader}}) {
+    auto id = gl::make_program(name, kVertexShader, fs);
+    if (!id) return id.error();
+    prog->id = *id;
+    prog->cam_from_obj = glGetUniformLocation(*id, "u_cam_from_obj");
+    prog->proj = glGetUniformLocation(*id, "u_proj");
+    prog->base_color = glGetUniformLocation(*id, "u_base_color");
+    prog->has_texture = glGetUniformLocation(*id, "u_has_texture");
+    prog->light = glGetUniformLocation(*id, "u_light_cam");
+    prog->draw_id = glGetUniformLocation(*id, "u_draw_id");
+    prog->alpha = glGetUniformLocation(*id, "u_alpha");
+    prog->texture = glGetUniformLocation(*id, "u_texture");
+  }
+
+  // One draw item per mesh; its id (1..255) goes into the id buffer's alpha byte.
+  auto add = [&](ObjectKind kind, const Model& model, bool cull) -> Status {
+    for (const Mesh& m : model.meshes) {
+      if (draws_.size() >= 255)
+        return make_error("Augmenter::create(): models have more than 255 meshes in total; merge them");
+      if (m.triangle_count() > kPrimMask)
+        return make_error("Augmenter::create(): mesh '", m.name, "' has more than 2^24 triangles");
+      draws_.push_back({kind, &m, gl::upload(m), static_cast<std::uint8_t>(draws_.size() + 1), total_tris_, cull});
+      total_tris_ += m.triangle_count();
+    }
+    return {};
+  };
+  const bool builtin_boom = rig_.boom.model.path.empty() && !options_.boom_model;
+  if (auto s = add(ObjectKind::kBoomFixed, boom_.fixed, builtin_boom); !s) return s;
+  if (auto s = add(ObjectKind::kBoomTelescope, boom_.telescope, builtin_boom); !s) return s;
+  if (auto s = add(ObjectKind::kReceiver, receiver_, rig_.receiver.model.path.empty() && !options_.receiver_model); !s)
+    return s;
+
+  build_rings();
+  zero_to_one_ = gl::has_clip_control();
+  int fw = 0, fh = 0;
+  views_.resize(rig_.cameras.size());
+  for (std::size_t c = 0; c < rig_.cameras.size(); ++c) {
+    ViewState& vs = views_[c];
+    vs.cam = &rig_.cameras[c];
+    const CameraModel& cm = vs.cam->model;
+    vs.vp = make_virtual_pinhole(cm);
+    vs.proj = gl_projection(vs.vp.fx, vs.vp.fy, vs.vp.cx, vs.vp.cy, vs.vp.width, vs.vp.height, vs.cam->near_m,
+                            vs.cam->far_m, zero_to_one_);
+    // Raw pixel centre -> top-left virtual sample of its bilinear neighbourhood.
+    vs.map.resize(vs.vp.ray_xy.size());
+    for (std::size_t i = 0; i < vs.map.size(); ++i) {
+      const Eigen::Vector2f& r = vs.vp.ray_xy[i];
+      if (!std::isfinite(r.x())) {
+        vs.map[i] = {-1, 0, 0};
+        continue;
+      }
+      if (vs.vp.identity) {
+        vs.map[i] = {static_cast<std::int32_t>(i), 0.f, 0.f};
+        continue;
+      }
+      const Eigen::Vector2d p = vs.vp.to_virtual(r.cast<double>());
+      const int i0 = std::clamp(static_cast<int>(std::floor(p.x())), 0, vs.vp.width - 2);
+      const int j0 = std::clamp(static_cast<int>(std::floor(p.y())), 0, vs.vp.height - 2);
+      vs.map[i] = {j0 * vs.vp.width + i0, static_cast<float>(p.x() - i0), static_cast<float>(p.y() - j0)};
+    }
+    const std::size_t vn = static_cast<std::size_t>(vs.vp.width) * vs.vp.height;
+    vs.boom_ids.assign(vn, 0);
+    vs.recv_ids.assign(vn, 0);
+    vs.boom_rgba.assign(vn * 4, 0);
+    if (options_.receiver_draw != ReceiverDraw::kMaskOnly) vs.recv_rgba.assign(vn * 4, 0);
+    vs.tris.resize(total_tris_);
+    fw = std::max(fw, vs.vp.width);
+    fh = std::max(fh, vs.vp.height);
+  }
+  if (auto s = fb_.create(fw, fh); !s) return s;
+  if (auto e = gl::drain_errors(); !e.empty()) return make_error("Augmenter::create(): OpenGL errors:", e);
+  return {};
+}
+
+Status AugmenterImpl::check_frame(int camera, const Frame& raw) const {
+  const CameraModel& cm = rig_.cameras[camera].model;
+  if (raw.image.width() != cm.width_px || raw.image.height() != cm.height_px)
+    return make_error("Augmenter::augment(): ", rig_.cameras[camera].name, " frame is ", raw.image.width(), "x",
+                      raw.image.height(), ", the rig says ", cm.width_px, "x", cm.height_px);
+  return {};
+}
+
+// Camera-frame triangles of every draw item for this frame (double precision end to end).
+void AugmenterImpl::prepare_view(ViewState& vs, const SceneState& scene) {
+  const Pose T_cam_body = vs.cam->T_body_cam.inverse();
+  for (const DrawItem& d : draws_) {
+    const Pose T_cam_obj = T_cam_body * (d.kind == ObjectKind::kReceiver      ? scene.T_body_receiver
+                                         : d.kind == ObjectKind::kBoomFixed ? T_body_boom_
+                                                                            : T_body_telescope_);
+    const Eigen::Matrix3d R = T_cam_obj.R();
+    const Eigen::Vector3d t = T_cam_obj.translation_m;
+    auto& V = vs.scratch_vertices;
+    V.resize(d.mesh->positions_m.size());
+    for (std::size_t i = 0; i < V.size(); ++i) V[i] = R * d.mesh->positions_m[i].cast<double>() + t;
+    const auto& idx = d.mesh->indices;
+    for (std::size_t k = 0; k < d.mesh->triangle_count(); ++k) {
+      CamTriangle& tri = vs.tris[d.first_tri + k];
+      tri.v0 = V[idx[3 * k]];
+      tri.e1 = V[idx[3 * k + 1]] - tri.v0;
+      tri.e2 = V[idx[3 * k + 2]] - tri.v0;
+      tri.n = tri.e1.cross(tri.e2);
+      tri.n_dot_v0 = tri.n.dot(tri.v0);
+    }
+  }
+}
+
+// Virtual-image box of the draw items of `kinds` seen from this camera, from their projected
+// vertices (a mesh's projection lies in the hull of its projected vertices while all are in front);
+// the whole image if any vertex is nearer than the near plane.
+VBox AugmenterImpl::project_box(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const {
+  const VBox full{0, 0, vs.vp.width, vs.vp.height};
+  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+  bool any = false;
+  const double near = vs.cam->near_m;
+  for (const DrawItem& d : draws_) {
+    if (std::find(kinds.begin(), kinds.end(), d.kind) == kinds.end()) continue;
+    // The triangles were moved into this camera's frame by prepare_view().
+    for (std::size_t k = 0; k < d.mesh->triangle_count(); ++k) {
+      const CamTriangle& t = vs.tris[d.first_tri + k];
+      for (const Eigen::Vector3d& p : {t.v0, Eigen::Vector3d(t.v0 + t.e1), Eigen::Vector3d(t.v0 + t.e2)}) {
+        if (p.z() < near) return full;
+        const double qx = vs.vp.fx * p.x() / p.z() + vs.vp.cx, qy = vs.vp.fy * p.y() / p.z() + vs.vp.cy;
+        x0 = std::min(x0, qx), x1 = std::max(x1, qx), y0 = std::min(y0, qy), y1 = std::max(y1, qy);
+        any = true;
+      }
+    }
+  }
+  if (!any || x1 < -2 || y1 < -2 || x0 > vs.vp.width + 2 || y0 > vs.vp.height + 2) return {};
+  // Two samples of margin: every bilinear neighbourhood that touches the object is inside.
+  return intersect({static_cast<int>(std::floor(x0)) - 2, static_cast<int>(std::floor(y0)) - 2,
+                    static_cast<int>(std::ceil(x1)) + 3, static_cast<int>(std::ceil(y1)) + 3},
+                   full);
+}
+
+// Raw pixels whose centres map into a virtual box: the lens maps the box's border to the border
+// of its image, so the border's projections bound it.
+VBox AugmenterImpl::raw_box_of(const ViewState& vs, const VBox& b) const {
+  const CameraModel& cm = vs.cam->model;
+  const VBox full{0, 0, cm.width_px, cm.height_px};
+  if (b.empty()) return {};
+  if (vs.vp.identity) return intersect(b, full);
+  if (b.x0 <= 0 && b.y0 <= 0 && b.x1 >= vs.vp.width && b.y1 >= vs.vp.height) return full;
+  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+  auto visit = [&](double i, double j) -> bool {
+    const auto uv = cm.project({(i - vs.vp.cx) / vs.vp.fx, (j - vs.vp.cy) / vs.vp.fy, 1.0});
+    if (!uv) return false;
+    x0 = std::min(x0, uv->x()), x1 = std::max(x1, uv->x()), y0 = std::min(y0, uv->y()), y1 = std::max(y1, uv->y());
+    return true;
+  };
+  constexpr double kStep = 2.0;
+  for (double i = b.x0; i <= b.x1; i += kStep)
+    if (!visit(i, b.y0) || !visit(i, b.y1)) return full;
+  for (double j = b.y0; j <= b.y1; j += kStep)
+    if (!visit(b.x0, j) || !visit(b.x1, j)) return full;
+  if (!visit(b.x1, b.y1)) return full;
+  return intersect({static_cast<int>(std::floor(x0)) - 2, static_cast<int>(std::floor(y0)) - 2,
+                    static_cast<int>(std::ceil(x1)) + 3, static_cast<int>(std::ceil(y1)) + 3},
+                   full);
+}
+
+void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
+  const Pose T_cam_body = vs.cam->T_body_cam.inverse();
+  const Pose T_cam_boom = T_cam_body * T_body_boom_, T_cam_tele = T_cam_body * T_body_telescope_;
+  const Pose T_cam_recv = T_cam_body * scene.T_body_receiver;
+  const VBox boom_box = project_box(vs, {ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope});
+  const VBox recv_box = receiver_on_ ? project_box(vs, {ObjectKind::kReceiver}) : VBox{};
+
+  glBindFramebuffer(GL_FRAMEBUFFER, fb_.fbo);
+  glViewport(0, 0, vs.vp.width, vs.vp.height);
+  // Light from above the tanker, a little forward and to the right, in this camera's frame.
+  const Eigen::Vector3f light = (T_cam_body.R() * Eigen::Vector3d(0.3, 0.2, -1.0).normalized()).cast<float>();
+  for (const Program* p : {&shaded_, &ids_only_}) {
+    glUseProgram(p->id);
+    glUniformMatrix4fv(p->proj, 1, GL_FALSE, vs.proj.data());
+    if (p->texture >= 0) glUniform1i(p->texture, 0);
+    if (p->light >= 0) glUniform3f(p->light, light.x(), light.y(), light.z());
+    if (p->alpha >= 0) glUniform1f(p->alpha, 1.0f);
+  }
+  // Reversed-Z: depth 1 at the near plane, 0 at far; float depth keeps precision at 100 m.
+  if (zero_to_one_) glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_GREATER);
+  glFrontFace(GL_CW);       // y-down projection (render/projection.hpp)
+  glEnable(GL_SCISSOR_TEST);
+  glDisable(GL_BLEND);
+
+  auto draw_kind = [&](ObjectKind kind, const Pose& T_cam_obj, const Program& p) {
+    glUseProgram(p.id);
+    Eigen::Matrix4f M = T_cam_obj.matrix().cast<float>();
+    glUniformMatrix4fv(p.cam_from_obj, 1, GL_FALSE, M.data());  // Eigen is column-major too
+    for (const DrawItem& d : draws_) {
+      if (d.kind != kind) continue;
+      if (d.cull) glEnable(GL_CULL_FACE); else glDisable(GL_CULL_FACE);
+      const Eigen::Vector3f& c = d.mesh->base_color;
+      glUniform1ui(p.draw_id, d.draw_id);
+      if (p.base_color >= 0) glUniform3f(p.base_color, c.x(), c.y(), c.z());
+      if (p.has_texture >= 0) glUniform1i(p.has_texture, d.gpu.has_texture ? 1 : 0);
+      if (d.gpu.has_texture && p.has_texture >= 0) {
+        glActiveTexture(GL_TEXTURE0);
+        glBindTexture(GL_TEXTURE_2D, d.gpu.texture);
+      }
+      d.gpu.draw();
+    }
+  };
+  auto zero_box = [&](std::vector<std::uint32_t>& ids, const VBox& b) {
+    for (int y = b.y0; y < b.y1; ++y)
+      std::memset(&ids[static_cast<std::size_t>(y) * vs.vp.width + b.x0], 0, (b.x1 - b.x0) * sizeof(std::uint32_t));
+  };
+
+  // Depth is cleared over both boxes: the boom is depth-tested against the receiver.
+  const VBox both = unite(boom_box, recv_box);
+  if (!both.empty()) {
+    glScissor(both.x0, both.y0, both.x1 - both.x0, both.y1 - both.y0);
+    glClearColor(0, 0, 0, 0);
+    glClearDepth(0.0);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  }
+
+  // Receiver pass: ids (and colour for the validation overlays).
+  zero_box(vs.recv_ids, vs.recv_vbox);
+  vs.recv_vbox = recv_box;
+  if (!recv_box.empty()) {
+    glScissor(recv_box.x0, recv_box.y0, recv_box.x1 - recv_box.x0, recv_box.y1 - recv_box.y0);
+    if (options_.receiver_draw == ReceiverDraw::kWireframe) {
+      // Ids from filled triangles; the wireframe colour is drawn after, without touching ids or depth.
+      glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+      draw_kind(ObjectKind::kReceiver, T_cam_recv, ids_only_);
+      glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+      glColorMaski(1, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+      glDepthMask(GL_FALSE);
+      glDepthFunc(GL_GEQUAL);
+      glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
+      draw_kind(ObjectKind::kReceiver, T_cam_recv, shaded_);
+      glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
+      glDepthFunc(GL_GREATER);
+      glDepthMask(GL_TRUE);
+      glColorMaski(1, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    } else if (options_.receiver_draw == ReceiverDraw::kTranslucent) {
+      draw_kind(ObjectKind::kReceiver, T_cam_recv, shaded_);
+    } else {
+      // Mask-only proxy: ids and depth, no colour.
+      glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+      draw_kind(ObjectKind::kReceiver, T_cam_recv, ids_only_);
+      glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    }
+    gl::read_rgba_box(GL_COLOR_ATTACHMENT1, recv_box.x0, recv_box.y0, recv_box.x1, recv_box.y1,
+                      reinterpret_cast<std::uint8_t*>(vs.recv_ids.data()), vs.vp.width);
+    if (!vs.recv_rgba.empty())
+      gl::read_rgba_box(GL_COLOR_ATTACHMENT0, recv_box.x0, recv_box.y0, recv_box.x1, recv_box.y1,
+                        vs.recv_rgba.data(), vs.vp.width);
+  }
+
+  // Boom pass: colour and ids of the boom where it is in front of the receiver.
+  zero_box(vs.boom_ids, vs.boom_vbox);
+  vs.boom_vbox = boom_box;
+  if (!boom_box.empty()) {
+    glScissor(boom_box.x0, boom_box.y0, boom_box.x1 - boom_box.x0, boom_box.y1 - boom_box.y0);
+    glClear(GL_COLOR_BUFFER_BIT);
+    draw_kind(ObjectKind::kBoomFixed, T_cam_boom, shaded_);
+    draw_kind(ObjectKind::kBoomTelescope, T_cam_tele, shaded_);
+    gl::read_rgba_box(GL_COLOR_ATTACHMENT1, boom_box.x0, boom_box.y0, boom_box.x1, boom_box.y1,
+                      reinterpret_cast<std::uint8_t*>(vs.boom_ids.data()), vs.vp.width);
+    gl::read_rgba_box(GL_COLOR_ATTACHMENT0, boom_box.x0, boom_box.y0, boom_box.x1, boom_box.y1,
+                      vs.boom_rgba.data(), vs.vp.width);
+  }
+  glDisable(GL_SCISSOR_TEST);
+}
+
+void AugmenterImpl::build_rings() {
+  // Weld vertices by exact position (meshes duplicate them at creases for flat normals).
+  std::vector<std::vector<std::uint32_t>> tris_of_vertex;
+  std::vector<std::array<std::uint32_t, 3>> tri_vertices(total_tris_);
+  for (const DrawItem& d : draws_) {
+    std::unordered_map<std::uint64_t, std::uint32_t> welded;
+    std::vector<std::uint32_t> id_of(d.mesh->positions_m.size());
+    for (std::size_t i = 0; i < id_of.size(); ++i) {
+      const Eigen::Vector3f& p = d.mesh->positions_m[i];
+      std::uint32_t bits[3];
+      std::memcpy(bits, p.data(), sizeof(bits));
+      const std::uint64_t key = (static_cast<std::uint64_t>(bits[0]) * 0x9E3779B97F4A7C15ull) ^
+                                (static_cast<std::uint64_t>(bits[1]) * 0xC2B2AE3D27D4EB4Full) ^ bits[2];
+      // Hash collisions only merge rings (more candidates), never lose one: harmless.
+      auto [it, fresh] = welded.emplace(key, static_cast<std::uint32_t>(tris_of_vertex.size()));
+      if (fresh) tris_of_vertex.emplace_back();
+      id_of[i] = it->second;
+    }
+    for (std::size_t k = 0; k < d.mesh->triangle_count(); ++k) {
+      const auto g = static_cast<std::uint32_t>(d.first_tri + k);
+      for (int c = 0; c < 3; ++c) {
+        const std::uint32_t v = id_of[d.mesh->indices[3 * k + c]];
+        tri_vertices[g][c] = v;
+        tris_of_vertex[v].push_back(g);
+      }
+    }
+  }
+  ring_offsets_.assign(total_tris_ + 1, 0);
+  ring_.clear();
+  for (std::size_t g = 0; g < total_tris_; ++g) {
+    const std::size_t begin = ring_.size();
+    for (std::uint32_t v : tri_vertices[g])
+      for (std::uint32_t t : tris_of_vertex[v])
+        if (t != g && std::find(ring_.begin() + begin, ring_.end(), t) == ring_.end()) ring_.push_back(t);
+    ring_offsets_[g + 1] = static_cast<std::uint32_t>(ring_.size());
+  }
+}
+
+// Nearest intersection (camera z) of the ray (x, y, 1) with the candidate triangles (packed ids)
+// and, when none of them is hit, with their one-ring neighbours; +inf if none.
+double AugmenterImpl::nearest_hit(const ViewState& vs, const std::uint32_t* cands, int n, double x,
+                                  double y) const {
+  const Eigen::Vector3d d(x, y, 1.0);
+  double best = std::numeric_limits<double>::infinity();
+  // Moller-Trumbore from the origin; the ray parameter is camera z since d.z = 1.
+  auto test = [&](const CamTriangle& t) {
+    const Eigen::Vector3d p = d.cross(t.e2);
+    const double det = t.e1.dot(p);
+    if (std::abs(det) < 1e-300) return;
+    const double inv = 1.0 / det;
+    const Eigen::Vector3d s = -t.v0;
+    const double u = s.dot(p) * inv;
+    if (u < 0.0 || u > 1.0) return;
+    const Eigen::Vector3d q = s.cross(t.e1);
+    const double v = d.dot(q) * inv;
+    if (v < 0.0 || u + v > 1.0) return;
+    const double z = t.e2.dot(q) * inv;
+    if (z > 0.0 && z < best) best = z;
+  };
+  std::uint32_t seen[64];
+  int n_seen = 0;
+  auto first_time = [&](std::uint32_t g) {
+    for (int j = 0; j < n_seen; ++j)
+      if (seen[j] == g) return false;
+    if (n_seen < 64) seen[n_seen++] = g;
+    return true;
+  };
+  for (int k = 0; k < n; ++k)
+    if (cands[k] && first_time(global_index(cands[k]))) test(vs.tris[global_index(cands[k])]);
+  if (std::isfinite(best)) return best;
+  const int direct = n_seen;
+  for (int k = 0; k < direct; ++k) {
+    const std::uint32_t g = seen[k];
+    for (std::uint32_t i = ring_offsets_[g]; i < ring_offsets_[g + 1]; ++i)
+      if (first_time(ring_[i])) test(vs.tris[ring_[i]]);
+  }
+  return best;
+}
+
+void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& out) const {
+  const CameraModel& cm = vs.cam->model;
+  const int W = cm.width_px, H = cm.height_px, Wv = vs.vp.width;
+  const VBox full{0, 0, W, H};
+
+  // Outputs are reused: clear only what the previous frame wrote.
+  if (out.mask.width() != W || out.mask.height() != H || out.mask.format() != PixelFormat::kMono8) {
+    out.mask = Image(W, H, PixelFormat::kMono8);
+    out.boom_box = out.receiver_box = {};
+  }
+  if (out.receiver_depth.width != W || out.receiver_depth.height != H) {
+    out.receiver_depth = {W, H, std::vector<float>(static_cast<std::size_t>(W) * H, DepthImage::kNone)};
+    out.receiver_box = {};
+  }
+  for (const PixelBox& b : {out.boom_box, out.receiver_box}) {
+    const VBox c = intersect({b.x0, b.y0, b.x1, b.y1}, full);
+    for (int y = c.y0; y < c.y1; ++y) {
+      std::memset(out.mask.row(y) + c.x0, 0, c.x1 - c.x0);
+      std::fill_n(&out.receiver_depth.z_m[static_cast<std::size_t>(y) * W + c.x0], c.x1 - c.x0, DepthImage::kNone);
+    }
+  }
+  // The augmented image starts as the raw image, byte for byte.
+  const Image& src = raw.image;
+  if (out.augmented.width() != W || out.augmented.height() != H || out.augmented.format() != src.format())
+    out.augmented = Image(W, H, src.format());
+  const std::size_t row_bytes = static_cast<std::size_t>(W) * bytes_per_pixel(src.format());
+  for (int y = 0; y < H; ++y) std::memcpy(out.augmented.row(y), src.row(y), row_bytes);
+
+  const VBox boom_raw = raw_box_of(vs, vs.boom_vbox);
+  const VBox recv_raw = raw_box_of(vs, vs.recv_vbox);
+  out.boom_box = to_pixel_box(boom_raw);
+  out.receiver_box = to_pixel_box(recv_raw);
+  const VBox work = unite(boom_raw, recv_raw);
+
+  const std::uint32_t* bids = vs.boom_ids.data();
+  const std::uint32_t* rids = vs.recv_ids.data();
+  const bool identity = vs.vp.identity;
+  const PixelFormat fmt = src.format();
+  const int bpp = bytes_per_pixel(fmt);
+  const bool overlay = !vs.recv_rgba.empty();
+
+  for (int v = work.y0; v < work.y1; ++v) {
+    std::uint8_t* mrow = out.mask.row(v);
+    float* drow = &out.receiver_depth.z_m[static_cast<std::size_t>(v) * W];
+    std::uint8_t* arow = out.augmented.row(v);
+    for (int u = work.x0; u < work.x1; ++u) {
+      const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
+      if (e.idx < 0) continue;
+      // Most pixels of a box see nothing: one OR over the samples skips them.
+      const std::uint32_t* pb = bids + e.idx;
+      const std::uint32_t* pr = rids + e.idx;
+      if (identity ? !(pb[0] | pr[0]) : !(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1] | pr[0] | pr[1] | pr[Wv] | pr[Wv + 1]))
+        continue;
+      // The 2x2 samples around the centre (one sample when the grids coincide).
+      const int ns = identity ? 1 : 4;
+      const std::uint32_t off[4] = {0, 1, static_cast<std::uint32_t>(Wv), static_cast<std::uint32_t>(Wv) + 1};
+      std::uint32_t b[4] = {}, r[4] = {};
+      bool b_any = false, b_all = true, b_same = true, r_any = false, r_all = true, r_same = true;
+      for (int k = 0; k < ns; ++k) {
+        b[k] = bids[e.idx + off[k]];
+        r[k] = rids[e.idx + off[k]];
+        b_any |= b[k] != 0, b_all &= b[k] != 0, b_same &= b[k] == b[0];
+        r_any |= r[k] != 0, r_all &= r[k] != 0, r_same &= r[k] == r[0];
+      }
+      if (!b_any && !r_any) continue;
+      const double x = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].x();
+      const double y = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].y();
+      const Eigen::Vector3d d(x, y, 1.0);
+
+      // Receiver at the pixel centre: read off when one triangle covers all samples (it then
+      // covers the centre, triangles being convex), else exact ray tests with the candidates.
+      double z_r = std::numeric_limits<double>::infinity();
+      if (r_any) {
+        if (r_all && r_same) {
+          const CamTriangle& t = triangle(vs, r[0]);
+          z_r = t.n_dot_v0 / t.n.dot(d);
+        } else {
+          z_r = nearest_hit(vs, r, ns, x, y);
+          if (!std::isfinite(z_r) && r_all) {
+            // Covered all around but the centre's triangle is not among the samples' (a sliver):
+            // take the nearest sample's plane.
+            const CamTriangle& t = triangle(vs, r[0]);
+            z_r = t.n_dot_v0 / t.n.dot(d);
+          }
+        }
+      }
+      // Boom, front-most where GL's depth test kept it at the samples; exact at the centre.
+      double z_b = std::numeric_limits<double>::infinity();
+      if (b_any) {
+        if (b_all && b_same) {
+          const CamTriangle& t = triangle(vs, b[0]);
+          z_b = t.n_dot_v0 / t.n.dot(d);
+        } else {
+          z_b = nearest_hit(vs, b, ns, x, y);
+          if (!std::isfinite(z_b) && b_all) {
+            const CamTriangle& t = triangle(vs, b[0]);
+            z_b = t.n_dot_v0 / t.n.dot(d);
+          }
+        }
+      }
+      const bool has_r = std::isfinite(z_r) && z_r > 0;
+      const bool has_b = std::isfinite(z_b) && z_b > 0 && (!has_r || z_b < z_r);
+      mrow[u] = static_cast<std::uint8_t>((has_b ? kMaskBoom : 0) | (has_r ? kMaskReceiver : 0));
+      if (has_r) drow[u] = static_cast<float>(z_r);
+
+      // Composite: the boom's bilinear coverage of the centre, anti-aliasing its edges.
+      float alpha = 0, cr = 0, cg = 0, cb = 0;
+      if (b_any) {
+        const float w[4] = {(1 - e.fx) * (1 - e.fy), e.fx * (1 - e.fy), (1 - e.fx) * e.fy, e.fx * e.fy};
+        for (int k = 0; k < ns; ++k) {
+          if (!b[k]) continue;
+          const float wk = identity ? 1.0f : w[k];
+          const std::uint8_t* c = &vs.boom_rgba[(static_cast<std::size_t>(e.idx) + off[k]) * 4];
+          alpha += wk, cr += wk * c[0], cg += wk * c[1], cb += wk * c[2];
+        }
+        if (!options_.antialias) {
+          const float s = alpha > 0 ? 1.0f / alpha : 0.f;
+          cr *= s, cg *= s, cb *= s;
+          alpha = has_b ? 1.f : 0.f;
+          cr *= alpha, cg *= alpha, cb *= alpha;
+        }
+      }
+      if (overlay && has_r && !has_b) {
+        // Validation overlay: the receiver model drawn translucent (or its wireframe) at its pose.
+        const std::uint8_t* c = &vs.recv_rgba[static_cast<std::size_t>(e.idx) * 4];
+        const float a = options_.receiver_draw == ReceiverDraw::kTranslucent ? 0.45f : (c[3] > 0 ? 1.0f : 0.0f);
+        if (a > 0 && alpha < 1) {
+          const float k = a * (1 - alpha);
+          cr += k * (0.5f * c[0] + 127.f), cg += k * 0.5f * c[1], cb += k * 0.5f * c[2];
+          alpha += k;
+        }
+      }
+      if (alpha <= 0) continue;
+      if (alpha > 1) alpha = 1;
+      std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+      const float ia = 1 - alpha;
+      auto mix = [&](std::uint8_t raw_value, float premult) {
+        return static_cast<std::uint8_t>(std::clamp(raw_value * ia + premult + 0.5f, 0.f, 255.f));
+      };
+      switch (fmt) {
+        case PixelFormat::kRGB8:
+        case PixelFormat::kRGBA8:
+          px[0] = mix(px[0], cr), px[1] = mix(px[1], cg), px[2] = mix(px[2], cb);
+          break;
+        case PixelFormat::kMono8:
+          px[0] = mix(px[0], 0.299f * cr + 0.587f * cg + 0.114f * cb);
+          break;
+        default: {  // Bayer: the site's own colour channel
+          const int ch = bayer_channel(fmt, u, v);
+          px[0] = mix(px[0], ch == 0 ? cr : ch == 1 ? cg : cb);
+        }
+      }
+    }
+  }
+}
+
+Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) {
+  if (camera < 0 || camera >= static_cast<int>(views_.size()))
+    return make_error("Augmenter::augment_view(): no camera ", camera);
+  if (auto s = check_frame(camera, raw); !s) return s;
+  T_body_boom_ = boom_pose(rig_.boom.pivot_body_m, scene.boom);
+  T_body_telescope_ = T_body_boom_ * telescope_pose(scene.boom);
+  receiver_on_ = scene.receiver_present && options_.receiver_proxy;
+  ViewState& vs = views_[camera];
+  prepare_view(vs, scene);
+  render_view(vs, scene);
+  resolve_view(vs, raw, out);
+  return {};
+}
+
+Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene, StereoResult& out) {
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
+  for (int c = 0; c < 2; ++c)
+    if (auto s = check_frame(c, c == 0 ? frame.left : frame.right); !s) return s;
+  T_body_boom_ = boom_pose(rig_.boom.pivot_body_m, scene.boom);
+  T_body_telescope_ = T_body_boom_ * telescope_pose(scene.boom);
+  receiver_on_ = scene.receiver_present && options_.receiver_proxy;
+
+  // GL runs on this thread; the left view's CPU work overlaps the right view's rendering.
+  const auto t0 = Clock::now();
+  prepare_view(views_[0], scene);
+  render_view(views_[0], scene);
+  const auto t1 = Clock::now();
+  auto left_cpu = std::async(std::launch::async, [&] {
+    const auto a = Clock::now();
+    resolve_view(views_[0], frame.left, out.left);
+    return ms(Clock::now() - a);
+  });
+  prepare_view(views_[1], scene);
+  render_view(views_[1], scene);
+  const auto t2 = Clock::now();
+  resolve_view(views_[1], frame.right, out.right);
+  const double right_cpu = ms(Clock::now() - t2);
+  const double left_cpu_ms = left_cpu.get();
+  const auto t3 = Clock::now();
+  timings_.render_ms = ms(t1 - t0) + ms(t2 - t1);
+  timings_.masks_ms = left_cpu_ms + right_cpu;  // masks, depth and composite are one pass per pixel
+  timings_.composite_ms = 0;
+
+  const auto t4 = Clock::now();
+  if (receiver_on_ && options_.stereo_classes) {
+    out.stats = compute_occlusion_stats(frame.t_key_ns, out.left.mask, out.right.mask, out.left.receiver_depth,
+                                        out.right.receiver_depth, rig_.left().model, rig_.right().model,
+                                        rig_.T_right_left(), options_.class_options, &out.stereo_classes);
+  } else {
+    // Without the receiver there is nothing to classify; counts still come from the masks.
+    out.stereo_classes.clear();
+    out.stats = compute_occlusion_stats(frame.t_key_ns, out.left.mask, out.right.mask, out.left.receiver_depth,
+                                        out.right.receiver_depth, rig_.left().model, rig_.right().model,
+                                        rig_.T_right_left(), options_.class_options, nullptr);
+  }
+  timings_.stats_ms = ms(Clock::now() - t4);
+  (void)t3;
+  if (auto e = gl::drain_errors(); !e.empty()) return make_error("Augmenter::augment(): OpenGL errors:", e);
+  return {};
+}
+
+}  // namespace
+
+SceneState scene_at_contact(const Rig& rig, const BoomDimensions& boom, const Eigen::Vector3d& receptacle_m,
+                            const BoomArticulation& a, const Eigen::Vector3d& offset_body_m) {
+  SceneState s;
+  s.boom = a;
+  const Eigen::Vector3d tip_body =
+      boom_pose(rig.boom.pivot_body_m, a) * Eigen::Vector3d(boom.nozzle_tip_m(a.extension_m), 0, 0);
+  s.T_body_receiver = Pose::from(Eigen::Matrix3d::Identity(), tip_body - receptacle_m + offset_body_m);
+  return s;
+}
+
+Expected<std::unique_ptr<Augmenter>> Augmenter::create(const Rig& rig, const AugmentOptions& options) {
+  auto a = std::make_unique<AugmenterImpl>(rig, options);
+  if (auto s = a->init(); !s) return s.error();
+  return std::unique_ptr<Augmenter>(std::move(a));
+}
+
+}  // namespace augrig

@@ -32,6 +32,9 @@ struct AugmentOptions {
   bool receiver_proxy = true;    // render the receiver (mask bit 1, depth, stereo classes)
   bool stereo_classes = true;    // compute the stereo visibility classes (needs receiver_proxy)
   StereoClassOptions class_options;
+  // Models to use instead of the rig's (tests, the simulator); null: build or load the rig's.
+  std::shared_ptr<const BoomModel> boom_model;
+  std::shared_ptr<const Model> receiver_model;
 };
 
 // Where everything is for one stereo frame.
@@ -40,6 +43,11 @@ struct SceneState {
   Pose T_body_receiver;          // receiver body frame in the tanker body frame
   bool receiver_present = true;
 };
+
+// The scene at contact: boom at `a`, the receiver (level, the tanker's attitude) placed so its
+// receptacle (receiver body frame) sits at the nozzle tip, then moved by `offset_body_m`.
+SceneState scene_at_contact(const Rig& rig, const BoomDimensions& boom, const Eigen::Vector3d& receptacle_m,
+                            const BoomArticulation& a, const Eigen::Vector3d& offset_body_m = Eigen::Vector3d::Zero());
 
 struct PixelBox {
   int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // [x0, x1) x [y0, y1)
@@ -51,6 +59,7 @@ struct ViewResult {
   Image mask;                  // Mono8
   DepthImage receiver_depth;   // z of the receiver along each pixel centre's ray
   PixelBox boom_box;           // raw pixels the boom may touch (its anti-aliased footprint)
+  PixelBox receiver_box;       // raw pixels the receiver may cover
 };
 
 struct StereoResult {
@@ -74,9 +83,10 @@ class Augmenter {
   static Expected<std::unique_ptr<Augmenter>> create(const Rig& rig, const AugmentOptions& options = {});
   virtual ~Augmenter() = default;
 
-  virtual Expected<StereoResult> augment(const StereoFrame& frame, const SceneState& scene) = 0;
+  // `out` is reused from frame to frame: its buffers are allocated once, so the hot path allocates nothing.
+  virtual Status augment(const StereoFrame& frame, const SceneState& scene, StereoResult& out) = 0;
   // One camera only (index into rig.cameras); no statistics.
-  virtual Expected<ViewResult> augment_view(int camera, const Frame& raw, const SceneState& scene) = 0;
+  virtual Status augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) = 0;
 
   virtual const AugmentTimings& timings() const = 0;
   virtual const Rig& rig() const = 0;

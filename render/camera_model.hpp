@@ -43,6 +43,8 @@ struct CameraModel {
 
   // 3x3 camera matrix K and the coefficient vector as OpenCV takes them (radtan: 5, fisheye: 4).
   Eigen::Matrix3d K() const;
+  // kRadTan: k1 k2 p1 p2 k3 (cv::projectPoints), kEquidistant: k1..k4 (cv::fisheye), kNone: 5 zeros.
+  Eigen::VectorXd distortion_coeffs() const;
   std::string distortion_name() const;  // "none", "radtan", "equidistant"
 };
 

@@ -21,6 +21,9 @@ struct BoomDimensions {
   double ruddevator_span_m = 2.1;       // each panel, root to tip
   double ruddevator_chord_m = 0.9;
   double ruddevator_dihedral_deg = 37.5;
+  double ruddevator_tip_chord_m = 0.6;
+  double ruddevator_thickness_m = 0.08;  // at the root; the tip keeps the same thickness/chord ratio
+  double fairing_diameter_m = 0.7;       // streamlined root fairing around the pivot
   // Distance from the pivot to the nozzle tip at extension `e`.
   double nozzle_tip_m(double extension_m) const {
     return fixed_tube_length_m + telescope_stick_out_m + extension_m + nozzle_length_m;

@@ -1,1 +1,393 @@
-// (in progress)
+#include "render/stats.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <ostream>
+#include <sstream>
+#include <stdexcept>
+
+namespace augrig {
+namespace {
+
+double pct(std::int64_t part, std::int64_t whole) {
+  return whole > 0 ? 100.0 * static_cast<double>(part) / static_cast<double>(whole) : 0.0;
+}
+
+void check_mask(const Image& m, const char* name) {
+  if (m.format() != PixelFormat::kMono8)
+    throw std::invalid_argument(std::string("compute_occlusion_stats: ") + name + " is not Mono8");
+}
+
+void check_depth(const DepthImage& d, const Image& m, const char* name) {
+  if (d.width != m.width() || d.height != m.height() ||
+      d.z_m.size() != static_cast<std::size_t>(d.width) * static_cast<std::size_t>(d.height))
+    throw std::invalid_argument(std::string("compute_occlusion_stats: ") + name +
+                                " does not match its mask's size");
+}
+
+// Cache of undistorted maps, keyed by every field of the CameraModel: undistort() is an iterative
+// inversion, far too slow to run per receiver pixel per frame, while cameras change rarely.
+struct CachedMap {
+  CameraModel camera;
+  std::shared_ptr<const std::vector<Eigen::Vector2f>> map;
+};
+
+bool same_camera(const CameraModel& a, const CameraModel& b) {
+  return a.width_px == b.width_px && a.height_px == b.height_px && a.fx_px == b.fx_px && a.fy_px == b.fy_px &&
+         a.cx_px == b.cx_px && a.cy_px == b.cy_px && a.distortion == b.distortion && a.coeffs == b.coeffs;
+}
+
+std::shared_ptr<const std::vector<Eigen::Vector2f>> cached_xy_map(const CameraModel& camera) {
+  static std::mutex mutex;
+  static std::vector<CachedMap> cache;  // most recently used last
+  constexpr std::size_t kMaxEntries = 4;
+  std::lock_guard<std::mutex> lock(mutex);
+  for (std::size_t i = 0; i < cache.size(); ++i) {
+    if (same_camera(cache[i].camera, camera)) {
+      std::rotate(cache.begin() + static_cast<std::ptrdiff_t>(i),
+                  cache.begin() + static_cast<std::ptrdiff_t>(i) + 1, cache.end());
+      return cache.back().map;
+    }
+  }
+  auto map = std::make_shared<const std::vector<Eigen::Vector2f>>(undistorted_xy_map(camera));
+  if (cache.size() >= kMaxEntries) cache.erase(cache.begin());
+  cache.push_back({camera, map});
+  return map;
+}
+
+// The CSV / summary columns, in their fixed order, with how to read each from OcclusionStats.
+struct Column {
+  const char* name;
+  bool is_int;
+  double (*get)(const OcclusionStats&);
+};
+
+#define AUGRIG_INT_COL(f)                                                      \
+  Column {                                                                     \
+#f, true, [](const OcclusionStats& s) { return static_cast<double>(s.f); } \
+  }
+#define AUGRIG_PCT_COL(f)                                  \
+  Column {                                                 \
+#f, false, [](const OcclusionStats& s) { return s.f; } \
+  }
+const Column kColumns[] = {
+    AUGRIG_INT_COL(t_ns),
+    AUGRIG_INT_COL(receiver_px_left),
+    AUGRIG_INT_COL(receiver_px_right),
+    AUGRIG_INT_COL(boom_px_left),
+    AUGRIG_INT_COL(boom_px_right),
+    AUGRIG_INT_COL(boom_overlap_px),
+    AUGRIG_PCT_COL(boom_overlap_pct_union),
+    AUGRIG_INT_COL(occluded_px_left),
+    AUGRIG_INT_COL(occluded_px_right),
+    AUGRIG_PCT_COL(occluded_pct_left),
+    AUGRIG_PCT_COL(occluded_pct_right),
+    AUGRIG_INT_COL(stereo_both_px),
+    AUGRIG_INT_COL(left_only_px),
+    AUGRIG_INT_COL(right_only_px),
+    AUGRIG_INT_COL(neither_px),
+    AUGRIG_PCT_COL(receiver_pct_left),
+    AUGRIG_PCT_COL(receiver_pct_right),
+    AUGRIG_PCT_COL(boom_pct_left),
+    AUGRIG_PCT_COL(boom_pct_right),
+};
+#undef AUGRIG_INT_COL
+#undef AUGRIG_PCT_COL
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+std::string fmt_int(std::int64_t v) {
+  return std::to_string(v);
+}
+
+// Counts that need only the masks, in one pass over both. Bit tests, so other bits are ignored.
+// SWAR: 8 pixels per 64-bit word, one byte lane per pixel; the lanes are summed every 255 words
+// before they could overflow (the build targets baseline x86-64, so no reliance on popcnt/AVX).
+struct MaskCounts {
+  std::int64_t rl = 0, rr = 0, bl = 0, br = 0, ov = 0, ol = 0, orr = 0;
+};
+
+constexpr std::uint64_t kLanes = 0x0101010101010101ull;
+
+std::int64_t lane_sum(std::uint64_t v) {
+  // Every lane <= 255: fold the eight lanes into 16-bit lanes, then add those.
+  v = (v & 0x00FF00FF00FF00FFull) + ((v >> 8) & 0x00FF00FF00FF00FFull);
+  return static_cast<std::int64_t>((v * 0x0001000100010001ull) >> 48);
+}
+
+MaskCounts count_masks(const Image& ml, const Image& mr) {
+  const int w = ml.width(), h = ml.height();
+  MaskCounts c;
+  for (int y = 0; y < h; ++y) {
+    const std::uint8_t* a = ml.row(y);
+    const std::uint8_t* b = mr.row(y);
+    int x = 0;
+    while (x + 8 <= w) {
+      std::uint64_t rl = 0, rr = 0, bl = 0, br = 0, ov = 0, ol = 0, orr = 0;
+      for (int k = 0; k < 255 && x + 8 <= w; ++k, x += 8) {
+        std::uint64_t va, vb;
+        std::memcpy(&va, a + x, 8);
+        std::memcpy(&vb, b + x, 8);
+        const std::uint64_t ba = va & kLanes, bb = vb & kLanes;
+        const std::uint64_t ra = (va >> 1) & kLanes, rb = (vb >> 1) & kLanes;
+        bl += ba, br += bb, rl += ra, rr += rb;
+        ov += ba & bb, ol += ba & ra, orr += bb & rb;
+      }
+      c.rl += lane_sum(rl), c.rr += lane_sum(rr), c.bl += lane_sum(bl), c.br += lane_sum(br);
+      c.ov += lane_sum(ov), c.ol += lane_sum(ol), c.orr += lane_sum(orr);
+    }
+    for (; x < w; ++x) {
+      const unsigned va = a[x], vb = b[x];
+      c.bl += va & 1u, c.br += vb & 1u, c.rl += (va >> 1) & 1u, c.rr += (vb >> 1) & 1u;
+      c.ov += va & vb & 1u, c.ol += va & (va >> 1) & 1u, c.orr += vb & (vb >> 1) & 1u;
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
+std::vector<Eigen::Vector2f> undistorted_xy_map(const CameraModel& camera) {
+  const int w = camera.width_px, h = camera.height_px;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::vector<Eigen::Vector2f> map(static_cast<std::size_t>(std::max(w, 0)) * std::max(h, 0));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const auto xy = camera.undistort(Eigen::Vector2d(x, y));
+      map[static_cast<std::size_t>(y) * w + x] = xy ? xy->cast<float>() : Eigen::Vector2f(nan, nan);
+    }
+  return map;
+}
+
+OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left, const Image& mask_right,
+                                       const DepthImage& receiver_depth_left,
+                                       const DepthImage& receiver_depth_right, const CameraModel& left,
+                                       const CameraModel& right, const Pose& T_right_left,
+                                       const StereoClassOptions& options,
+                                       std::vector<std::uint8_t>* classes_out) {
+  check_mask(mask_left, "mask_left");
+  check_mask(mask_right, "mask_right");
+  if (mask_left.width() != mask_right.width() || mask_left.height() != mask_right.height())
+    throw std::invalid_argument("compute_occlusion_stats: left and right masks differ in size");
+  check_depth(receiver_depth_left, mask_left, "receiver_depth_left");
+  check_depth(receiver_depth_right, mask_right, "receiver_depth_right");
+  if (left.width_px != mask_left.width() || left.height_px != mask_left.height() ||
+      right.width_px != mask_right.width() || right.height_px != mask_right.height())
+    throw std::invalid_argument("compute_occlusion_stats: camera size differs from its mask's size");
+
+  const int w = mask_left.width(), h = mask_left.height();
+  const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+  OcclusionStats s;
+  s.t_ns = t_ns;
+  s.width = w;
+  s.height = h;
+  const MaskCounts c = count_masks(mask_left, mask_right);
+  s.receiver_px_left = c.rl;
+  s.receiver_px_right = c.rr;
+  s.boom_px_left = c.bl;
+  s.boom_px_right = c.br;
+  s.boom_overlap_px = c.ov;
+  s.occluded_px_left = c.ol;
+  s.occluded_px_right = c.orr;
+  const std::int64_t area = static_cast<std::int64_t>(n);
+  s.boom_overlap_pct_union = pct(s.boom_overlap_px, s.boom_px_left + s.boom_px_right - s.boom_overlap_px);
+  s.occluded_pct_left = pct(s.occluded_px_left, s.receiver_px_left);
+  s.occluded_pct_right = pct(s.occluded_px_right, s.receiver_px_right);
+  s.receiver_pct_left = pct(s.receiver_px_left, area);
+  s.receiver_pct_right = pct(s.receiver_px_right, area);
+  s.boom_pct_left = pct(s.boom_px_left, area);
+  s.boom_pct_right = pct(s.boom_px_right, area);
+
+  if (classes_out) classes_out->assign(n, static_cast<std::uint8_t>(StereoClass::kNone));
+  if (s.receiver_px_left == 0) return s;
+
+  // Normalised pixel-centre coordinates of the left camera: caller's map or the cached one.
+  std::shared_ptr<const std::vector<Eigen::Vector2f>> owned;
+  const std::vector<Eigen::Vector2f>* rays = options.left_rays_xy;
+  if (rays && rays->size() != n)
+    throw std::invalid_argument("compute_occlusion_stats: left_rays_xy has the wrong size");
+  if (!rays) {
+    owned = cached_xy_map(left);
+    rays = owned.get();
+  }
+
+  // The rig transform as plain scalars: this runs once per receiver pixel.
+  const Eigen::Matrix3d R = T_right_left.R();
+  const double r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2), r10 = R(1, 0), r11 = R(1, 1), r12 = R(1, 2),
+               r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
+  const double tx = T_right_left.translation_m.x(), ty = T_right_left.translation_m.y(),
+               tz = T_right_left.translation_m.z();
+  const double u_max = w - 0.5, v_max = h - 0.5;
+  const double tol_m = options.depth_tolerance_m, tol_rel = options.depth_tolerance_rel;
+  const float* depth_r = receiver_depth_right.z_m.data();
+  // Projections land on exact pixel centres in rectified rigs; float rays put them 1e-5 px off.
+  // Snapping within this keeps the 2x2 neighbourhood from picking up a spurious extra column.
+  constexpr double kSnapPx = 1e-3;
+
+  // Is the left receiver point z * (x, y, 1) the surface the right camera sees?
+  auto visible_right = [&](double z, float x_n, float y_n) {
+    if (!(z < std::numeric_limits<double>::infinity()) || x_n != x_n || y_n != y_n) return false;  // inf/NaN
+    const double px = z * x_n, py = z * y_n;
+    const Eigen::Vector3d p(r00 * px + r01 * py + r02 * z + tx, r10 * px + r11 * py + r12 * z + ty,
+                            r20 * px + r21 * py + r22 * z + tz);
+    const auto uv = right.project(p);
+    if (!uv) return false;
+    const double u = uv->x(), v = uv->y();
+    if (!(u >= -0.5 && u < u_max && v >= -0.5 && v < v_max)) return false;
+    // Left/top pixel centre of the neighbourhood: floor(u + snap) by truncation (u + snap + 2 > 0;
+    // std::floor is a libm call on baseline x86-64). fu in [-snap, 1 - snap) is u's offset from it.
+    const int xa = static_cast<int>(u + kSnapPx + 2.0) - 2, ya = static_cast<int>(v + kSnapPx + 2.0) - 2;
+    const double fu = u - xa, fv = v - ya;
+    // Boom in front of the point in the right view: its bit at the nearest pixel centre.
+    const int un = std::min(xa + (fu >= 0.5), w - 1), vn = std::min(ya + (fv >= 0.5), h - 1);
+    if (mask_right.row(std::max(vn, 0))[std::max(un, 0)] & kMaskBoom) return false;
+    // Self-occlusion: is the right camera's nearest receiver surface around (u, v) this point?
+    // Any of the (up to 2x2) surrounding pixel centres agreeing suffices: sub-pixel slack.
+    const int x0 = std::max(xa, 0), x1 = std::min(fu > kSnapPx ? xa + 1 : xa, w - 1);
+    const int y0 = std::max(ya, 0), y1 = std::min(fv > kSnapPx ? ya + 1 : ya, h - 1);
+    const double zr = p.z(), tol = tol_m + tol_rel * zr;
+    auto near = [&](int xx, int yy) {  // +inf (no receiver there) never passes
+      return std::abs(static_cast<double>(depth_r[static_cast<std::size_t>(yy) * w + xx]) - zr) <= tol;
+    };
+    return near(x0, y0) || (x1 != x0 && near(x1, y0)) ||
+           (y1 != y0 && (near(x0, y1) || (x1 != x0 && near(x1, y1))));
+  };
+
+  std::int64_t counts[5] = {0, 0, 0, 0, 0};  // by StereoClass
+  constexpr std::uint64_t kReceiverLanes = kLanes * kMaskReceiver;
+  for (int y = 0; y < h; ++y) {
+    const std::uint8_t* ml = mask_left.row(y);
+    const float* zl = receiver_depth_left.z_m.data() + static_cast<std::size_t>(y) * w;
+    const Eigen::Vector2f* ry = rays->data() + static_cast<std::size_t>(y) * w;
+    std::uint8_t* cls = classes_out ? classes_out->data() + static_cast<std::size_t>(y) * w : nullptr;
+    for (int x = 0; x < w; ++x) {
+      if ((x & 7) == 0 && x + 8 <= w) {  // skip 8 receiver-free pixels at once
+        std::uint64_t v8;
+        std::memcpy(&v8, ml + x, 8);
+        if (!(v8 & kReceiverLanes)) {
+          x += 7;
+          continue;
+        }
+      }
+      const std::uint8_t m = ml[x];
+      if (!(m & kMaskReceiver)) continue;
+      const bool vis_left = !(m & kMaskBoom);
+      const bool vis_right = visible_right(zl[x], ry[x].x(), ry[x].y());
+      const StereoClass c = vis_left ? (vis_right ? StereoClass::kBoth : StereoClass::kLeftOnly)
+                                     : (vis_right ? StereoClass::kRightOnly : StereoClass::kNeither);
+      ++counts[static_cast<int>(c)];
+      if (cls) cls[x] = static_cast<std::uint8_t>(c);
+    }
+  }
+  const std::int64_t both = counts[static_cast<int>(StereoClass::kBoth)];
+  const std::int64_t left_only = counts[static_cast<int>(StereoClass::kLeftOnly)];
+  const std::int64_t right_only = counts[static_cast<int>(StereoClass::kRightOnly)];
+  const std::int64_t neither = counts[static_cast<int>(StereoClass::kNeither)];
+  s.stereo_both_px = both;
+  s.left_only_px = left_only;
+  s.right_only_px = right_only;
+  s.neither_px = neither;
+  return s;
+}
+
+void write_stats_csv_header(std::ostream& out) {
+  bool first = true;
+  for (const Column& c : kColumns) {
+    if (!first) out << ',';
+    out << c.name;
+    first = false;
+  }
+  out << '\n';
+}
+
+void write_stats_csv_row(std::ostream& out, const OcclusionStats& s) {
+  bool first = true;
+  for (const Column& c : kColumns) {
+    if (!first) out << ',';
+    // Integers straight from the int64 fields (t_ns would lose digits through double).
+    if (c.is_int)
+      out << (std::string_view(c.name) == "t_ns" ? fmt_int(s.t_ns)
+                                                 : fmt_int(static_cast<std::int64_t>(c.get(s))));
+    else
+      out << fmt("%.4f", c.get(s));
+    first = false;
+  }
+  out << '\n';
+}
+
+std::string format_table1(const OcclusionStats& s, const std::string& title) {
+  std::ostringstream o;
+  const std::int64_t area = s.width * s.height;
+  const std::int64_t boom_union = s.boom_px_left + s.boom_px_right - s.boom_overlap_px;
+  o << title << '\n';
+  o << "Image " << s.width << " x " << s.height << " = " << area
+    << " pixels. Counts are pixels (the seed paper counted RGB channel values, 3 per pixel).\n";
+  char line[256];
+  std::snprintf(line, sizeof line, "%-36s %12s %10s  %s\n", "", "Pixels", "Percent", "Percent of");
+  o << line;
+  auto row = [&](const char* name, std::int64_t px, double p, const std::string& of) {
+    std::snprintf(line, sizeof line, "%-36s %12lld %9.2f%%  %s\n", name, static_cast<long long>(px), p,
+                  of.c_str());
+    o << line;
+  };
+  const std::string whole = "whole image (" + std::to_string(area) + " px)";
+  row("Receiver left", s.receiver_px_left, s.receiver_pct_left, whole);
+  row("Receiver right", s.receiver_px_right, s.receiver_pct_right, whole);
+  row("Boom left", s.boom_px_left, s.boom_pct_left, whole);
+  row("Boom right", s.boom_px_right, s.boom_pct_right, whole);
+  row("Boom overlap (both images)", s.boom_overlap_px, s.boom_overlap_pct_union,
+      "boom pixels, left or right (" + std::to_string(boom_union) + " px)");
+  row("Boom occlusion left", s.occluded_px_left, s.occluded_pct_left,
+      "receiver pixels left (" + std::to_string(s.receiver_px_left) + " px)");
+  row("Boom occlusion right", s.occluded_px_right, s.occluded_pct_right,
+      "receiver pixels right (" + std::to_string(s.receiver_px_right) + " px)");
+  const std::string recv_left = "receiver pixels left (" + std::to_string(s.receiver_px_left) + " px)";
+  row("Stereo: visible to both", s.stereo_both_px, pct(s.stereo_both_px, s.receiver_px_left), recv_left);
+  row("Stereo: left only", s.left_only_px, pct(s.left_only_px, s.receiver_px_left), recv_left);
+  row("Stereo: right only", s.right_only_px, pct(s.right_only_px, s.receiver_px_left), recv_left);
+  row("Stereo: neither", s.neither_px, pct(s.neither_px, s.receiver_px_left), recv_left);
+  return o.str();
+}
+
+std::string format_run_summary(const std::vector<OcclusionStats>& frames) {
+  std::ostringstream o;
+  o << "Run summary over " << frames.size() << " stereo frame(s); counts are pixels.\n";
+  if (frames.empty()) return o.str();
+  char line[256];
+  std::snprintf(line, sizeof line, "%-24s %16s %16s %16s\n", "column", "mean", "min", "max");
+  o << line;
+  for (const Column& c : kColumns) {
+    if (std::string_view(c.name) == "t_ns") {
+      std::int64_t lo = frames.front().t_ns, hi = lo;
+      for (const auto& f : frames) lo = std::min(lo, f.t_ns), hi = std::max(hi, f.t_ns);
+      std::snprintf(line, sizeof line, "%-24s %16s %16lld %16lld\n", c.name, "-", static_cast<long long>(lo),
+                    static_cast<long long>(hi));
+      o << line;
+      continue;
+    }
+    double sum = 0, lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (const auto& f : frames) {
+      const double v = c.get(f);
+      sum += v;
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+    const double mean = sum / static_cast<double>(frames.size());
+    if (c.is_int)
+      std::snprintf(line, sizeof line, "%-24s %16.1f %16.0f %16.0f\n", c.name, mean, lo, hi);
+    else
+      std::snprintf(line, sizeof line, "%-24s %16.4f %16.4f %16.4f\n", c.name, mean, lo, hi);
+    o << line;
+  }
+  return o.str();
+}
+
+}  // namespace augrig

@@ -30,19 +30,19 @@ struct DepthImage {
 struct OcclusionStats {
   TimestampNs t_ns = 0;
   std::int64_t width = 0, height = 0;
-  std::int64_t receiver_px_left = 0, receiver_px_right = 0;   // mask bit 1
-  std::int64_t boom_px_left = 0, boom_px_right = 0;           // mask bit 0
-  std::int64_t boom_overlap_px = 0;                           // bit 0 at the same pixel in both images
-  double boom_overlap_pct_union = 0;                          // of |boom_left ∪ boom_right| pixels
-  std::int64_t occluded_px_left = 0, occluded_px_right = 0;   // bits 0 and 1 (mask value 3)
-  double occluded_pct_left = 0, occluded_pct_right = 0;       // of that camera's receiver pixels
+  std::int64_t receiver_px_left = 0, receiver_px_right = 0;  // mask bit 1
+  std::int64_t boom_px_left = 0, boom_px_right = 0;          // mask bit 0
+  std::int64_t boom_overlap_px = 0;                          // bit 0 at the same pixel in both images
+  double boom_overlap_pct_union = 0;                         // of |boom_left ∪ boom_right| pixels
+  std::int64_t occluded_px_left = 0, occluded_px_right = 0;  // bits 0 and 1 (mask value 3)
+  double occluded_pct_left = 0, occluded_pct_right = 0;      // of that camera's receiver pixels
   // Stereo classes over the LEFT camera's receiver pixels (they sum to receiver_px_left):
   std::int64_t stereo_both_px = 0;  // the surface point is visible to both cameras
   std::int64_t left_only_px = 0;    // visible to the left camera only
   std::int64_t right_only_px = 0;   // hidden by the boom in the left, visible to the right
   std::int64_t neither_px = 0;      // visible to neither camera
-  double receiver_pct_left = 0, receiver_pct_right = 0;       // of W*H
-  double boom_pct_left = 0, boom_pct_right = 0;               // of W*H
+  double receiver_pct_left = 0, receiver_pct_right = 0;  // of W*H
+  double boom_pct_left = 0, boom_pct_right = 0;          // of W*H
 };
 
 struct StereoClassOptions {
@@ -50,7 +50,15 @@ struct StereoClassOptions {
   // depth near its projection is within this of the point's own depth (the self-occlusion test).
   double depth_tolerance_m = 0.05;
   double depth_tolerance_rel = 0.005;  // plus this fraction of the depth
+  // Optional: undistorted normalised coordinates (x, y) = ray.xy / ray.z of every LEFT raw pixel
+  // centre, row-major, width*height entries (NaN where undistort() fails), e.g. from
+  // undistorted_xy_map(left). Not owned; must outlive the call. When null, compute_occlusion_stats
+  // builds the map once per distinct left CameraModel and keeps it in a small internal cache.
+  const std::vector<Eigen::Vector2f>* left_rays_xy = nullptr;
 };
+
+// The map StereoClassOptions::left_rays_xy expects: camera.undistort() of every pixel centre.
+std::vector<Eigen::Vector2f> undistorted_xy_map(const CameraModel& camera);
 
 // Per-pixel class image produced alongside the counts (left camera raw pixels).
 enum class StereoClass : std::uint8_t { kNone = 0, kBoth = 1, kLeftOnly = 2, kRightOnly = 3, kNeither = 4 };

@@ -1,0 +1,68 @@
+// The `augrig` command line: a small hand-written argument parser, image file I/O in augrig's
+// pixel formats, and the commands (augment, demo). docs/CLI.md documents every command and flag.
+// Exit codes: 0 ok, 1 runtime error (bad input content, GL failure...), 2 usage error.
+#pragma once
+
+#include <iosfwd>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/expected.hpp"
+#include "core/image.hpp"
+
+namespace augrig::app {
+
+enum ExitCode : int { kExitOk = 0, kExitRuntime = 1, kExitUsage = 2 };
+
+// ---- Argument parsing -------------------------------------------------------------------------
+
+enum class ArgKind {
+  kFlag,           // --name
+  kValue,          // --name VALUE or --name=VALUE
+  kOptionalValue,  // --name or --name=VALUE (never takes the next argument)
+};
+
+struct OptionSpec {
+  std::string name;  // without the leading "--"
+  ArgKind kind = ArgKind::kValue;
+  std::string metavar;  // shown in the help ("RIG.yaml")
+  std::string help;
+  bool required = false;
+};
+
+struct ParsedArgs {
+  std::map<std::string, std::string> values;  // flags map to "" (kOptionalValue without '=' too)
+  bool help = false;
+  bool has(const std::string& name) const { return values.count(name) != 0; }
+  std::string get(const std::string& name, const std::string& fallback = "") const {
+    const auto it = values.find(name);
+    return it == values.end() ? fallback : it->second;
+  }
+};
+
+// Parses long options. Errors (unknown flag, missing value, missing required flag, stray argument)
+// come back as one-line messages; `--help`/`-h` short-circuits the required-flag check.
+Expected<ParsedArgs> parse_args(const std::vector<std::string>& args, const std::vector<OptionSpec>& specs);
+// "Usage: ..." plus one line per option.
+std::string format_help(const std::string& usage, const std::string& summary,
+                        const std::vector<OptionSpec>& specs);
+
+// ---- Images -----------------------------------------------------------------------------------
+
+// Reads an image file as augrig's formats: 8-bit gray -> Mono8 (or `bayer` when given), BGR ->
+// RGB8, BGRA -> RGBA8. Any other depth or channel count, or an unreadable file, is an Error naming it.
+Expected<Image> read_image_file(const std::string& path, std::optional<PixelFormat> bayer = std::nullopt);
+// Writes an image losslessly (PNG): RGB(A) is converted to OpenCV's BGR(A) order, Mono8 and Bayer are
+// written as 8-bit gray. Creates the parent folder.
+Status write_image_file(const std::string& path, const Image& image, int png_compression = 1);
+
+// ---- Commands ---------------------------------------------------------------------------------
+
+// `augrig <args...>`: dispatches to a command; prints errors as "augrig <command>: <what>" to `err`.
+int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_augment(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+}  // namespace augrig::app

@@ -1,0 +1,285 @@
+#include "app/scene_file.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <vector>
+
+#include <yaml-cpp/yaml.h>
+
+#include "core/pose.hpp"
+
+namespace augrig {
+namespace {
+
+// Thrown inside the parser only, so a deep helper can abort with a complete message; the public
+// functions catch it (and every YAML exception) and return an Error instead.
+struct ParseFailure {
+  std::string message;
+};
+
+struct Ctx {
+  std::string prefix;  // "scene::load(): " or "scene::parse(): "
+  std::string name;    // the file name as given, for messages
+};
+
+std::string join_key(const std::string& path, const std::string& key) {
+  return path.empty() ? key : path + "." + key;
+}
+
+std::string location(const Ctx& c, const YAML::Mark& m) {
+  if (m.is_null()) return c.name;
+  return c.name + ":" + std::to_string(m.line + 1) + ":" + std::to_string(m.column + 1);
+}
+
+[[noreturn]] void fail(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
+  const YAML::Mark m = n.IsDefined() ? n.Mark() : YAML::Mark::null_mark();
+  throw ParseFailure{c.prefix + location(c, m) + ": key '" + key + "': " + what};
+}
+
+// "got ..." part of a message: shows the user what the parser actually saw.
+std::string got(const YAML::Node& n) {
+  if (!n.IsDefined() || n.IsNull()) return "got nothing (null)";
+  if (n.IsScalar()) return "got '" + n.Scalar() + "'";
+  if (n.IsSequence()) return "got a list of " + std::to_string(n.size()) + " element(s)";
+  return "got a map";
+}
+
+std::string fmt(double v) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);  // shortest text that reads back exactly
+  return std::string(buf, r.ptr);
+}
+
+// Limits went through deg -> rad -> deg: 9 significant digits hide the rounding.
+std::string fmt_limit(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.9g", v);
+  return buf;
+}
+
+std::string join(const std::vector<std::string>& items) {
+  std::string s;
+  for (const auto& i : items) s += (s.empty() ? "" : ", ") + i;
+  return s;
+}
+
+void expect_map(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
+  if (!n.IsMap()) fail(c, n, key, "expected " + what + ", " + got(n));
+}
+
+// Rejects unknown (typo) and duplicate keys; names the allowed ones so the fix is obvious.
+void check_keys(const Ctx& c, const YAML::Node& map, const std::string& path,
+                const std::vector<std::string>& allowed) {
+  std::set<std::string> seen;
+  for (const auto& kv : map) {
+    const std::string k = kv.first.IsScalar() ? kv.first.Scalar() : "?";
+    const std::string key = join_key(path, k);
+    if (std::find(allowed.begin(), allowed.end(), k) == allowed.end()) {
+      fail(c, kv.first, key, "unknown key; allowed keys here: " + join(allowed));
+    }
+    if (!seen.insert(k).second) fail(c, kv.first, key, "duplicate key");
+  }
+}
+
+YAML::Node require(const Ctx& c, const YAML::Node& map, const std::string& path, const std::string& key,
+                   const std::string& what) {
+  const YAML::Node n = map[key];
+  if (!n.IsDefined()) fail(c, map, join_key(path, key), "missing; expected " + what);
+  return n;
+}
+
+double to_number(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
+  double v = 0;
+  if (!n.IsScalar() || !YAML::convert<double>::decode(n, v) || !std::isfinite(v)) {
+    fail(c, n, key, "expected " + what + ", " + got(n));
+  }
+  return v;
+}
+
+bool to_bool(const Ctx& c, const YAML::Node& n, const std::string& key) {
+  bool v = false;
+  if (!n.IsScalar() || !YAML::convert<bool>::decode(n, v))
+    fail(c, n, key, "expected true or false, " + got(n));
+  return v;
+}
+
+Eigen::Vector3d to_vec3(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
+  const std::string expected = "a list of 3 numbers " + what;
+  if (!n.IsSequence() || n.size() != 3) fail(c, n, key, "expected " + expected + ", " + got(n));
+  Eigen::Vector3d v;
+  for (std::size_t i = 0; i < 3; ++i) {
+    if (!n[i].IsScalar() || !YAML::convert<double>::decode(n[i], v[i]) || !std::isfinite(v[i])) {
+      fail(c, n[i], key, "expected " + expected + ", " + got(n[i]) + " as element " + std::to_string(i));
+    }
+  }
+  return v;
+}
+
+// A boom angle or extension, checked against the rig's limits in the file's own unit.
+double limited(const Ctx& c, const YAML::Node& boom, const std::string& name, double lo, double hi,
+               const std::string& unit) {
+  const std::string key = "boom." + name;
+  const YAML::Node n = require(c, boom, "boom", name, "a number in " + unit);
+  const double v = to_number(c, n, key, "a number in " + unit);
+  // A hair of slack: limits went through deg -> rad -> deg.
+  const double eps = 1e-9 * std::max(1.0, std::max(std::abs(lo), std::abs(hi)));
+  if (v < lo - eps || v > hi + eps) {
+    fail(c, n, key,
+         "expected a value within the rig's limits [" + fmt_limit(lo) + ", " + fmt_limit(hi) + "] " + unit +
+             ", got " + fmt(v));
+  }
+  return v;
+}
+
+BoomArticulation parse_boom(const Ctx& c, const YAML::Node& root, const Rig& rig) {
+  const std::string what = "a map {elevation_deg, azimuth_deg, extension_m}";
+  const YAML::Node boom = require(c, root, "", "boom", what);
+  expect_map(c, boom, "boom", what);
+  check_keys(c, boom, "boom", {"elevation_deg", "azimuth_deg", "extension_m"});
+  const BoomLimits& l = rig.boom.limits;
+  BoomArticulation a;
+  a.elevation_rad = deg_to_rad(limited(c, boom, "elevation_deg", rad_to_deg(l.elevation_min_rad),
+                                       rad_to_deg(l.elevation_max_rad), "degrees"));
+  a.azimuth_rad = deg_to_rad(limited(c, boom, "azimuth_deg", rad_to_deg(l.azimuth_min_rad),
+                                     rad_to_deg(l.azimuth_max_rad), "degrees"));
+  a.extension_m = limited(c, boom, "extension_m", l.extension_min_m, l.extension_max_m, "metres");
+  return a;
+}
+
+Eigen::Matrix3d parse_ypr(const Ctx& c, const YAML::Node& rec) {
+  const YAML::Node n = rec["ypr_deg"];
+  if (!n.IsDefined()) return Eigen::Matrix3d::Identity();
+  const Eigen::Vector3d ypr = to_vec3(c, n, "receiver.ypr_deg", "[yaw, pitch, roll] in degrees");
+  return rotation_from_ypr(deg_to_rad(ypr[0]), deg_to_rad(ypr[1]), deg_to_rad(ypr[2]));
+}
+
+// The receiver map: a pose relative to the body or a camera, or "at contact" with the nozzle.
+void parse_receiver(const Ctx& c, const YAML::Node& root, const Rig& rig, const BoomDimensions& dims,
+                    const Eigen::Vector3d& receptacle_m, SceneState& scene) {
+  const std::string what =
+      "a map {frame: body|left|right, translation_m, ypr_deg} or {at_contact: true, offset_m, ypr_deg}";
+  const YAML::Node rec = require(c, root, "", "receiver", what);
+  expect_map(c, rec, "receiver", what);
+  check_keys(c, rec, "receiver", {"frame", "translation_m", "ypr_deg", "at_contact", "offset_m", "present"});
+  if (const YAML::Node p = rec["present"]; p.IsDefined())
+    scene.receiver_present = to_bool(c, p, "receiver.present");
+
+  const YAML::Node contact = rec["at_contact"];
+  const bool at_contact = contact.IsDefined() && to_bool(c, contact, "receiver.at_contact");
+  if (at_contact) {
+    // The two ways of placing the receiver exclude each other; say which key is in the way.
+    for (const char* k : {"frame", "translation_m"}) {
+      if (rec[k].IsDefined())
+        fail(c, rec[k], std::string("receiver.") + k, "not allowed with at_contact: true");
+    }
+    Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+    if (const YAML::Node o = rec["offset_m"]; o.IsDefined()) {
+      offset = to_vec3(c, o, "receiver.offset_m", "[dx, dy, dz] in metres (tanker body frame)");
+    }
+    // Receptacle at the nozzle tip (plus offset): t_body_recv + R * receptacle = tip + offset.
+    const Eigen::Matrix3d R = parse_ypr(c, rec);
+    const Eigen::Vector3d tip = nozzle_tip_body(rig, dims, scene.boom);
+    scene.T_body_receiver = Pose::from(R, tip + offset - R * receptacle_m);
+    return;
+  }
+
+  if (const YAML::Node o = rec["offset_m"]; o.IsDefined()) {
+    fail(c, o, "receiver.offset_m", "only allowed with at_contact: true");
+  }
+  // A receiver that is not there needs no pose.
+  if (!scene.receiver_present && !rec["frame"].IsDefined() && !rec["translation_m"].IsDefined()) return;
+
+  const YAML::Node fn =
+      require(c, rec, "receiver", "frame", "one of body, left, right (or at_contact: true)");
+  if (!fn.IsScalar()) fail(c, fn, "receiver.frame", "expected one of body, left, right, " + got(fn));
+  const std::string frame = fn.Scalar();
+  Pose T_body_frame;
+  if (frame == "body") {
+    T_body_frame = Pose::identity();
+  } else if (frame == "left" || frame == "right") {
+    if (rig.cameras.size() < 2) fail(c, fn, "receiver.frame", "the rig has fewer than 2 cameras");
+    T_body_frame = (frame == "left" ? rig.left() : rig.right()).T_body_cam;
+  } else {
+    fail(c, fn, "receiver.frame", "expected one of body, left, right, " + got(fn));
+  }
+  const Eigen::Vector3d t =
+      to_vec3(c, require(c, rec, "receiver", "translation_m", "[x, y, z] in metres"),
+              "receiver.translation_m", "[x, y, z] in metres (in frame '" + frame + "')");
+  // T_body_receiver = T_body_frame * T_frame_receiver.
+  scene.T_body_receiver = T_body_frame * Pose::from(parse_ypr(c, rec), t);
+}
+
+SceneState parse_root(const Ctx& c, const YAML::Node& root, const Rig& rig, const BoomDimensions& dims,
+                      const Eigen::Vector3d& receptacle_m, SceneExtras& extras) {
+  if (!root.IsMap()) {
+    fail(c, root, "", "expected a scene file (a map starting with 'augrig_scene: 1'), " + got(root));
+  }
+  check_keys(c, root, "", {"augrig_scene", "t_ns", "boom", "receiver"});
+  const YAML::Node version = require(c, root, "", "augrig_scene", "the format version, augrig_scene: 1");
+  if (!version.IsScalar() || version.Scalar() != "1") {
+    fail(c, version, "augrig_scene", "expected format version 1, " + got(version));
+  }
+  if (const YAML::Node t = root["t_ns"]; t.IsDefined()) {
+    long long v = 0;
+    if (!t.IsScalar() || !YAML::convert<long long>::decode(t, v)) {
+      fail(c, t, "t_ns", "expected an integer timestamp in nanoseconds, " + got(t));
+    }
+    extras.t_ns = static_cast<TimestampNs>(v);
+  }
+  SceneState scene;
+  scene.boom = parse_boom(c, root, rig);
+  parse_receiver(c, root, rig, dims, receptacle_m, scene);
+  return scene;
+}
+
+Expected<SceneState> parse_with(const std::string& text, const Ctx& c, const Rig& rig,
+                                const BoomDimensions& dims, const Eigen::Vector3d& receptacle_m,
+                                SceneExtras* extras) {
+  try {
+    SceneExtras ex;
+    const YAML::Node root = YAML::Load(text);
+    SceneState scene = parse_root(c, root, rig, dims, receptacle_m, ex);
+    if (extras) *extras = ex;
+    return scene;
+  } catch (const ParseFailure& e) {
+    return Error{e.message};
+  } catch (const YAML::ParserException& e) {
+    return make_error(c.prefix, location(c, e.mark), ": YAML syntax error: ", e.msg);
+  } catch (const YAML::Exception& e) {
+    return make_error(c.prefix, location(c, e.mark), ": ", e.msg);
+  } catch (const std::exception& e) {
+    return make_error(c.prefix, c.name, ": ", e.what());
+  }
+}
+
+}  // namespace
+
+Eigen::Vector3d nozzle_tip_body(const Rig& rig, const BoomDimensions& boom, const BoomArticulation& a) {
+  return boom_pose(rig.boom.pivot_body_m, a) * Eigen::Vector3d(boom.nozzle_tip_m(a.extension_m), 0.0, 0.0);
+}
+
+Expected<SceneState> load_scene(const std::string& path, const Rig& rig, const BoomDimensions& boom,
+                                const Eigen::Vector3d& receptacle_m, SceneExtras* extras) {
+  const Ctx c{"scene::load(): ", path};
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return make_error(c.prefix, path, ": cannot open the scene file (", std::strerror(errno), ")");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) return make_error(c.prefix, path, ": cannot read the scene file");
+  return parse_with(ss.str(), c, rig, boom, receptacle_m, extras);
+}
+
+Expected<SceneState> parse_scene(const std::string& yaml_text, const std::string& name, const Rig& rig,
+                                 const BoomDimensions& boom, const Eigen::Vector3d& receptacle_m,
+                                 SceneExtras* extras) {
+  return parse_with(yaml_text, Ctx{"scene::parse(): ", name}, rig, boom, receptacle_m, extras);
+}
+
+}  // namespace augrig

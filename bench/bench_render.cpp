@@ -1,0 +1,139 @@
+// bench_render: per-stage cost of augmenting one 1280x960 stereo frame on this machine
+// (llvmpipe here), for the boom path alone and with the receiver proxy and stereo classes,
+// with and without lens distortion. Prints a table for docs/PERFORMANCE.md.
+//   build/bench_render [--frames N]
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <opencv2/imgproc.hpp>
+
+#include "render/augmenter.hpp"
+#include "render/gl_context.hpp"
+#include "render/visualize.hpp"
+
+using namespace augrig;
+
+namespace {
+
+struct Series {
+  std::vector<double> v;
+  double median() const {
+    auto c = v;
+    std::sort(c.begin(), c.end());
+    return c.empty() ? 0 : c[c.size() / 2];
+  }
+  double p90() const {
+    auto c = v;
+    std::sort(c.begin(), c.end());
+    return c.empty() ? 0 : c[std::min(c.size() - 1, c.size() * 9 / 10)];
+  }
+};
+
+Frame textured_frame(const CameraModel& cm, PixelFormat fmt, CameraId id) {
+  Frame f;
+  f.image = Image(cm.width_px, cm.height_px, fmt);
+  const int bpp = bytes_per_pixel(fmt);
+  for (int y = 0; y < cm.height_px; ++y)
+    for (int x = 0; x < cm.width_px * bpp; ++x) f.image.row(y)[x] = static_cast<std::uint8_t>((x * 13) ^ (y * 7));
+  f.camera = id;
+  return f;
+}
+
+Rig rig_with(bool distorted) {
+  Rig rig = Rig::paper_default();
+  if (distorted)
+    for (RigCamera& c : rig.cameras) {
+      c.model.distortion = DistortionModel::kRadTan;
+      c.model.coeffs = {-0.28, 0.12, 8e-4, -6e-4, -0.02};
+    }
+  return rig;
+}
+
+void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, int frames) {
+  const Rig rig = rig_with(distorted);
+  AugmentOptions opt;
+  opt.receiver_proxy = receiver;
+  opt.stereo_classes = receiver;
+  auto aug = Augmenter::create(rig, opt);
+  if (!aug) {
+    std::fprintf(stderr, "%s\n", aug.error().message.c_str());
+    std::exit(1);
+  }
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  StereoFrame sf;
+  sf.left = textured_frame(rig.left().model, fmt, CameraId::kLeft);
+  sf.right = textured_frame(rig.right().model, fmt, CameraId::kRight);
+  StereoResult out;
+  Series render, masks, stats, total, debayer;
+  for (int i = -5; i < frames; ++i) {  // 5 warm-up frames
+    // Sweep the approach from pre-contact to contact so boxes and coverage vary.
+    const double s = std::max(0, i) / std::max(1.0, frames - 1.0);
+    const SceneState scene = scene_at_contact(rig, (*aug)->boom_model().dims, receptacle,
+                                              {0.50 + 0.04 * s, 0.02, 1.0 + 3.0 * s},
+                                              Eigen::Vector3d(-12.0 * (1 - s), 0, 4.0 * (1 - s)));
+    const auto t0 = std::chrono::steady_clock::now();
+    if (auto st = (*aug)->augment(sf, scene, out); !st) {
+      std::fprintf(stderr, "%s\n", st.error().message.c_str());
+      std::exit(1);
+    }
+    const auto t1 = std::chrono::steady_clock::now();
+    Image rgb_l, rgb_r;
+    if (is_bayer(fmt)) {
+      rgb_l = to_rgb8(out.left.augmented);
+      rgb_r = to_rgb8(out.right.augmented);
+    }
+    const auto t2 = std::chrono::steady_clock::now();
+    if (i < 0) continue;
+    const auto& t = (*aug)->timings();
+    render.v.push_back(t.render_ms);
+    masks.v.push_back(t.masks_ms);
+    stats.v.push_back(t.stats_ms);
+    total.v.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+    debayer.v.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
+  }
+  std::printf("| %-44s | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n", name, render.median(), masks.median(),
+              stats.median(), is_bayer(fmt) ? debayer.median() : 0.0, total.median(), total.p90());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int frames = 60, only = -1;
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc) frames = std::atoi(argv[++i]);
+    else if (std::strcmp(argv[i], "--case") == 0 && i + 1 < argc) only = std::atoi(argv[++i]);
+    else {
+      std::fprintf(stderr, "usage: bench_render [--frames N] [--case 0..4]\n");
+      return 2;
+    }
+  }
+  auto ctx = create_gl_context(GlBackend::kEglHeadless);
+  if (!ctx) {
+    std::fprintf(stderr, "%s\n", ctx.error().message.c_str());
+    return 1;
+  }
+  std::printf("bench_render: 1280x960 stereo, %d frames per case, medians in ms (total: median / p90)\n", frames);
+  std::printf("renderer: %s\n\n", (*ctx)->renderer().c_str());
+  std::printf("| case                                         | render | masks+composite | stats | debayer | total       |\n");
+  std::printf("|----------------------------------------------|--------|--------|--------|--------|----------------|\n");
+  struct Case {
+    const char* name;
+    bool distorted, receiver;
+    PixelFormat fmt;
+  };
+  const Case cases[] = {
+      {"boom path, pinhole, RGB8", false, false, PixelFormat::kRGB8},
+      {"boom path, radtan distortion, RGB8", true, false, PixelFormat::kRGB8},
+      {"boom path, radtan, BayerRG8", true, false, PixelFormat::kBayerRG8},
+      {"boom + receiver + stereo classes, pinhole", false, true, PixelFormat::kRGB8},
+      {"boom + receiver + stereo classes, radtan", true, true, PixelFormat::kRGB8},
+  };
+  for (int i = 0; i < 5; ++i)
+    if (only < 0 || only == i) run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames);
+  return 0;
+}

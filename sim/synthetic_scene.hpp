@@ -1,0 +1,50 @@
+// SyntheticSceneRenderer: renders what a real camera of the rig would record in flight — sky,
+// horizon and ground seen from the tanker's attitude and altitude, and the textured receiver at
+// its pose — as raw images: the lens distortion is applied (rendered in a virtual pinhole, then
+// resampled through each raw pixel's ray), optionally mosaicked to Bayer with sensor noise.
+// These are the stand-in for real flight imagery in the demo and the tests.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+
+#include <Eigen/Core>
+
+#include "core/expected.hpp"
+#include "core/image.hpp"
+#include "core/pose.hpp"
+#include "render/mesh.hpp"
+#include "render/rig.hpp"
+
+namespace augrig {
+
+struct SkyState {
+  Eigen::Matrix3d R_ned_body = Eigen::Matrix3d::Identity();  // tanker attitude
+  double altitude_m = 6000.0;                                 // tanker height above the ground
+  // Tanker's horizontal position over the ground (north, east metres from an arbitrary origin):
+  // the ground texture is fixed in the world, so it moves under a flying tanker.
+  Eigen::Vector2d north_east_m = Eigen::Vector2d::Zero();
+  // Unit vector towards the sun in NED (lights the receiver, glows in the sky).
+  Eigen::Vector3d sun_ned = Eigen::Vector3d(-0.406, 0.406, -0.819);
+};
+
+struct SensorOptions {
+  PixelFormat format = PixelFormat::kRGB8;  // Bayer formats are mosaicked from RGB
+  double noise_sigma = 0.0;                 // additive Gaussian noise, digital numbers
+  std::uint64_t noise_seed = 1;             // the noise of a render depends on this and the camera only
+};
+
+class SyntheticSceneRenderer {
+ public:
+  // Needs a current GL context. `receiver` null: the rig's receiver (the built-in one unless the
+  // rig names a model file, which is then loaded).
+  static Expected<std::unique_ptr<SyntheticSceneRenderer>> create(const Rig& rig,
+                                                                  std::shared_ptr<const Model> receiver = nullptr);
+  virtual ~SyntheticSceneRenderer() = default;
+  // Raw image of camera `camera` (index into rig.cameras) into `out` (reallocated only when needed).
+  // Raw pixels whose ray the lens model cannot invert are black. Byte-identical for equal inputs.
+  virtual Status render(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
+                        const SensorOptions& sensor, Image& out) = 0;
+};
+
+}  // namespace augrig

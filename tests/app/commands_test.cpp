@@ -1,0 +1,337 @@
+// The augrig command, run as a real binary: help and exit codes, one-line errors naming the bad
+// input, and `augment` / `demo` outputs checked against the masks they wrote.
+#include "app/commands.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "tests/support/test_support.hpp"
+
+namespace augrig {
+namespace {
+
+namespace fs = std::filesystem;
+using test::augrig_binary;
+using test::data_path;
+using test::output_dir;
+using test::run_command;
+
+const char* kCsvHeader =
+    "t_ns,receiver_px_left,receiver_px_right,boom_px_left,boom_px_right,boom_overlap_px,boom_overlap_pct_"
+    "union,"
+    "occluded_px_left,occluded_px_right,occluded_pct_left,occluded_pct_right,stereo_both_px,left_only_px,"
+    "right_only_px,neither_px,receiver_pct_left,receiver_pct_right,boom_pct_left,boom_pct_right";
+
+int augrig(const std::string& args, std::string* output = nullptr) {
+  return run_command(augrig_binary() + " " + args, output);
+}
+
+// A deterministic textured image (smooth ramps plus a checker), so "unchanged" is a real test.
+cv::Mat pattern(int w, int h, int type, int seed) {
+  cv::Mat m(h, w, type);
+  const int ch = m.channels();
+  for (int y = 0; y < h; ++y) {
+    auto* row = m.ptr<std::uint8_t>(y);
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < ch; ++c)
+        row[x * ch + c] = static_cast<std::uint8_t>(
+            (x * (3 + c) + y * (5 - c) + seed * 40 + ((x / 16 + y / 16) & 1) * 60) & 255);
+  }
+  return m;
+}
+
+std::vector<std::string> read_lines(const fs::path& p) {
+  std::ifstream in(p);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  return lines;
+}
+
+std::vector<long long> csv_row(const std::string& line) {
+  std::vector<long long> v;
+  std::stringstream ss(line);
+  for (std::string cell; std::getline(ss, cell, ',');) v.push_back(static_cast<long long>(std::stod(cell)));
+  return v;
+}
+
+// ---- In-process: the argument parser ------------------------------------------------------------
+
+TEST(ParseArgs, AcceptsBothValueSpellingsAndFlags) {
+  const std::vector<app::OptionSpec> specs = {{"out", app::ArgKind::kValue, "DIR", "", true},
+                                              {"fast", app::ArgKind::kFlag, "", ""},
+                                              {"bayer", app::ArgKind::kOptionalValue, "", ""}};
+  const auto p = app::parse_args({"--out", "a b", "--fast", "--bayer=GR"}, specs);
+  ASSERT_TRUE(p) << p.error().message;
+  EXPECT_EQ(p->get("out"), "a b");
+  EXPECT_TRUE(p->has("fast"));
+  EXPECT_EQ(p->get("bayer"), "GR");
+  const auto q = app::parse_args({"--out=x", "--bayer"}, specs);
+  ASSERT_TRUE(q);
+  EXPECT_EQ(q->get("out"), "x");
+  EXPECT_TRUE(q->has("bayer"));
+  EXPECT_FALSE(app::parse_args({"--out"}, specs));                     // missing value
+  EXPECT_FALSE(app::parse_args({"--fast"}, specs));                    // missing required
+  EXPECT_FALSE(app::parse_args({"--out", "x", "--out", "y"}, specs));  // twice
+  EXPECT_FALSE(app::parse_args({"--out", "x", "--fast=1"}, specs));    // flag with a value
+  EXPECT_FALSE(app::parse_args({"--out", "x", "stray"}, specs));
+  EXPECT_TRUE(app::parse_args({"--help"}, specs));  // help needs no required options
+}
+
+// ---- The binary: help, exit codes, errors ---------------------------------------------------------
+
+TEST(Cli, HelpAndVersionExitZero) {
+  for (const char* args : {"--help", "-h", "augment --help", "demo --help", "augment -h", "--version"}) {
+    std::string out;
+    EXPECT_EQ(augrig(args, &out), 0) << args << ":\n" << out;
+    EXPECT_FALSE(out.empty()) << args;
+  }
+  std::string out;
+  augrig("--version", &out);
+  EXPECT_NE(out.find("augrig 0."), std::string::npos) << out;
+  augrig("augment --help", &out);
+  for (const char* flag : {"--rig", "--scene", "--left", "--right", "--out", "--format", "--bayer",
+                           "--no-receiver", "--receiver-draw"})
+    EXPECT_NE(out.find(flag), std::string::npos) << flag;
+}
+
+TEST(Cli, UsageErrorsExitTwo) {
+  std::string out;
+  EXPECT_EQ(augrig("", &out), 2);
+  EXPECT_EQ(augrig("frobnicate", &out), 2);
+  EXPECT_NE(out.find("unknown command 'frobnicate'"), std::string::npos) << out;
+  EXPECT_EQ(augrig("augment --rig default --bogus 1", &out), 2);
+  EXPECT_NE(out.find("--bogus"), std::string::npos) << out;
+  EXPECT_EQ(augrig("augment --rig default --scene s.yaml --left l.png --right r.png", &out), 2);
+  EXPECT_NE(out.find("--out"), std::string::npos) << out;  // names the missing flag
+  EXPECT_EQ(augrig("demo --out /tmp/x --frames zero", &out), 2);
+  EXPECT_EQ(augrig("demo --out /tmp/x --receiver-draw solid", &out), 2);
+}
+
+// Test inputs shared by the error tests: a valid pair at the rig's resolution.
+class AugmentInputs : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = output_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    left_ = dir_ + "/left.png";
+    right_ = dir_ + "/right.png";
+    ASSERT_TRUE(cv::imwrite(left_, pattern(1280, 960, CV_8UC3, 0)));
+    ASSERT_TRUE(cv::imwrite(right_, pattern(1280, 960, CV_8UC3, 1)));
+  }
+  std::string args(const std::string& left, const std::string& right, const std::string& rig = "default",
+                   const std::string& scene = data_path("scenes/contact.yaml")) const {
+    return "augment --rig " + rig + " --scene " + scene + " --left " + left + " --right " + right +
+           " --out " + dir_ + "/out";
+  }
+  std::string dir_, left_, right_;
+};
+
+TEST_F(AugmentInputs, MissingImageExitsOneNamingIt) {
+  std::string out;
+  EXPECT_EQ(augrig(args(left_, dir_ + "/nope.png"), &out), 1) << out;
+  EXPECT_NE(out.find("augrig augment: " + dir_ + "/nope.png"), std::string::npos) << out;
+}
+
+TEST_F(AugmentInputs, CorruptPngExitsOneNamingIt) {
+  const std::string bad = dir_ + "/x.png";
+  std::ofstream f(bad, std::ios::binary);
+  std::mt19937 rng(7);
+  for (int i = 0; i < 4096; ++i) f.put(static_cast<char>(rng() & 255));
+  f.close();
+  std::string out;
+  EXPECT_EQ(augrig(args(bad, right_), &out), 1) << out;
+  EXPECT_NE(out.find(bad), std::string::npos) << out;
+}
+
+TEST_F(AugmentInputs, WrongSizeExitsOneNamingBothSizes) {
+  const std::string small = dir_ + "/small.png";
+  ASSERT_TRUE(cv::imwrite(small, pattern(640, 480, CV_8UC3, 0)));
+  std::string out;
+  EXPECT_EQ(augrig(args(left_, small), &out), 1) << out;
+  EXPECT_NE(out.find(small), std::string::npos) << out;
+  EXPECT_NE(out.find("640x480"), std::string::npos) << out;
+  EXPECT_NE(out.find("1280x960"), std::string::npos) << out;
+}
+
+TEST_F(AugmentInputs, SixteenBitImageExitsOne) {
+  const std::string deep = dir_ + "/deep.png";
+  cv::Mat m(960, 1280, CV_16UC1, cv::Scalar(1000));
+  ASSERT_TRUE(cv::imwrite(deep, m));
+  std::string out;
+  EXPECT_EQ(augrig(args(deep, right_), &out), 1) << out;
+  EXPECT_NE(out.find(deep + ": has 16-bit samples"), std::string::npos) << out;
+}
+
+TEST_F(AugmentInputs, BadRigExitsOneNamingFileAndLine) {
+  const std::string rig = dir_ + "/bad_rig.yaml";
+  std::ofstream(rig) << "augrig_rig: 1\ncameras: oops\n";
+  std::string out;
+  EXPECT_EQ(augrig(args(left_, right_, rig), &out), 1) << out;
+  EXPECT_NE(out.find(rig + ":2:"), std::string::npos) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << "one line:\n" << out;
+}
+
+TEST_F(AugmentInputs, BadSceneExitsOneNamingFileLineAndKey) {
+  std::string out;
+  const std::string scene = data_path("scenes/bad_boom_limits.yaml");
+  EXPECT_EQ(augrig(args(left_, right_, "default", scene), &out), 1) << out;
+  EXPECT_NE(out.find("augrig augment: " + scene + ":5:"), std::string::npos) << out;
+  EXPECT_NE(out.find("boom.extension_m"), std::string::npos) << out;
+}
+
+TEST_F(AugmentInputs, FolderCountMismatchNamesBothFolders) {
+  fs::create_directories(dir_ + "/L");
+  fs::create_directories(dir_ + "/R");
+  fs::copy_file(left_, dir_ + "/L/a.png");
+  fs::copy_file(left_, dir_ + "/L/b.png");
+  fs::copy_file(right_, dir_ + "/R/a.png");
+  std::string out;
+  EXPECT_EQ(augrig(args(dir_ + "/L", dir_ + "/R"), &out), 1) << out;
+  EXPECT_NE(out.find(dir_ + "/L has 2"), std::string::npos) << out;
+  EXPECT_NE(out.find(dir_ + "/R has 1"), std::string::npos) << out;
+  EXPECT_EQ(augrig(args(dir_ + "/L", right_), &out), 2) << out;  // folder with a file
+}
+
+// ---- augment: the outputs ------------------------------------------------------------------------
+
+struct MaskCounts {
+  long long receiver_l = 0, receiver_r = 0, boom_l = 0, boom_r = 0, overlap = 0, occluded_l = 0,
+            occluded_r = 0;
+};
+
+// Checks one camera's outputs; returns its mask.
+cv::Mat check_view(const fs::path& out, const std::string& side, const cv::Mat& input) {
+  const cv::Mat aug = cv::imread((out / side / "augmented" / "in.png").string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat mask = cv::imread((out / side / "mask" / "in.png").string(), cv::IMREAD_UNCHANGED);
+  EXPECT_EQ(aug.size(), input.size()) << side;
+  EXPECT_EQ(aug.type(), input.type()) << side;
+  EXPECT_EQ(mask.size(), input.size()) << side;
+  EXPECT_EQ(mask.type(), CV_8UC1) << side;
+  if (aug.size() != input.size() || aug.type() != input.type() || mask.type() != CV_8UC1) return {};
+  long long changed_outside = 0;
+  for (int y = 0; y < mask.rows; ++y) {
+    for (int x = 0; x < mask.cols; ++x) {
+      EXPECT_LE(mask.at<std::uint8_t>(y, x), 3) << side << " mask at " << x << "," << y;
+      // Far from the boom (no boom bit within 1 px) the raw pixel must come through untouched.
+      bool near_boom = false;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int u = x + dx, v = y + dy;
+          if (u >= 0 && v >= 0 && u < mask.cols && v < mask.rows && (mask.at<std::uint8_t>(v, u) & 1))
+            near_boom = true;
+        }
+      if (!near_boom && aug.at<cv::Vec3b>(y, x) != input.at<cv::Vec3b>(y, x)) ++changed_outside;
+    }
+  }
+  EXPECT_EQ(changed_outside, 0) << side << ": pixels changed away from the boom";
+  return mask;
+}
+
+TEST(Augment, SinglePairAtContactWritesConsistentOutputs) {
+  const std::string dir = output_dir("augment_single_pair");
+  const cv::Mat left = pattern(1280, 960, CV_8UC3, 0), right = pattern(1280, 960, CV_8UC3, 1);
+  fs::create_directories(dir + "/in_l");
+  fs::create_directories(dir + "/in_r");
+  ASSERT_TRUE(cv::imwrite(dir + "/in_l/in.png", left));
+  ASSERT_TRUE(cv::imwrite(dir + "/in_r/in.png", right));
+  const fs::path out = dir + "/out";
+  std::string log;
+  ASSERT_EQ(augrig("augment --rig default --scene " + data_path("scenes/contact.yaml") + " --left " + dir +
+                       "/in_l/in.png --right " + dir + "/in_r/in.png --out " + out.string(),
+                   &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("Boom occlusion left"), std::string::npos) << log;  // format_table1 on stdout
+
+  const cv::Mat ml = check_view(out, "left", left), mr = check_view(out, "right", right);
+  ASSERT_FALSE(ml.empty());
+  ASSERT_FALSE(mr.empty());
+  for (const char* vis : {"boom_overlap", "occlusion_left", "occlusion_right", "stereo_classes"}) {
+    const cv::Mat v = cv::imread((out / "vis" / vis / "in.png").string(), cv::IMREAD_UNCHANGED);
+    EXPECT_EQ(v.size(), cv::Size(1280, 960)) << vis;
+    EXPECT_EQ(v.type(), CV_8UC3) << vis;
+  }
+
+  // Brute-force counts over the written masks must equal the CSV.
+  MaskCounts c;
+  for (int y = 0; y < ml.rows; ++y)
+    for (int x = 0; x < ml.cols; ++x) {
+      const int l = ml.at<std::uint8_t>(y, x), r = mr.at<std::uint8_t>(y, x);
+      c.receiver_l += (l & 2) != 0, c.receiver_r += (r & 2) != 0;
+      c.boom_l += l & 1, c.boom_r += r & 1, c.overlap += (l & r & 1);
+      c.occluded_l += l == 3, c.occluded_r += r == 3;
+    }
+  const auto lines = read_lines(out / "stats.csv");
+  ASSERT_EQ(lines.size(), 2u);
+  EXPECT_EQ(lines[0], kCsvHeader);
+  const auto v = csv_row(lines[1]);
+  ASSERT_EQ(v.size(), 19u);
+  EXPECT_EQ(v[0], 1000000000);  // t_ns from the scene file
+  EXPECT_EQ(v[1], c.receiver_l);
+  EXPECT_EQ(v[2], c.receiver_r);
+  EXPECT_EQ(v[3], c.boom_l);
+  EXPECT_EQ(v[4], c.boom_r);
+  EXPECT_EQ(v[5], c.overlap);
+  EXPECT_EQ(v[7], c.occluded_l);
+  EXPECT_EQ(v[8], c.occluded_r);
+  EXPECT_EQ(v[11] + v[12] + v[13] + v[14], c.receiver_l);  // stereo classes partition the left receiver
+  // At contact the boom and receiver are both in view and the boom hides part of the receiver.
+  EXPECT_GT(c.boom_l, 1000);
+  EXPECT_GT(c.receiver_l, 1000);
+  EXPECT_GT(c.occluded_l, 0);
+}
+
+TEST(Augment, FoldersOfBayerPairs) {
+  const std::string dir = output_dir("augment_bayer_folders");
+  for (const char* side : {"L", "R"}) {
+    fs::create_directories(dir + "/" + side);
+    for (int i = 0; i < 2; ++i)
+      ASSERT_TRUE(
+          cv::imwrite(dir + "/" + side + "/f" + std::to_string(i) + ".png", pattern(1280, 960, CV_8UC1, i)));
+  }
+  std::string log;
+  ASSERT_EQ(augrig("augment --rig default --scene " + data_path("scenes/body.yaml") + " --left " + dir +
+                       "/L --right " + dir + "/R --out " + dir + "/out --bayer RG",
+                   &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("Run summary over 2"), std::string::npos) << log;
+  for (const char* f : {"f0", "f1"}) {
+    const cv::Mat aug = cv::imread(dir + "/out/left/augmented/" + f + ".png", cv::IMREAD_UNCHANGED);
+    EXPECT_EQ(aug.type(), CV_8UC1) << f;  // Bayer stays a raw mosaic, written as 8-bit gray
+    EXPECT_EQ(aug.size(), cv::Size(1280, 960)) << f;
+  }
+  const auto lines = read_lines(fs::path(dir) / "out" / "stats.csv");
+  ASSERT_EQ(lines.size(), 3u);
+  EXPECT_EQ(csv_row(lines[1])[0], 0);  // no t_ns in the scene: the frame index
+  EXPECT_EQ(csv_row(lines[2])[0], 1);
+}
+
+// ---- demo ----------------------------------------------------------------------------------------
+
+TEST(Demo, SixFramesWriteStatsAndContactSheet) {
+  const std::string dir = output_dir("demo_six_frames");
+  std::string log;
+  ASSERT_EQ(augrig("demo --frames 6 --out " + dir, &log), 0) << log;
+  const auto lines = read_lines(fs::path(dir) / "stats.csv");
+  ASSERT_EQ(lines.size(), 7u) << log;
+  EXPECT_EQ(lines[0], kCsvHeader);
+  const cv::Mat sheet = cv::imread(dir + "/demo.png", cv::IMREAD_UNCHANGED);
+  EXPECT_EQ(sheet.size(), cv::Size(1280, 960));
+  // Images for frame 0 and the last frame only.
+  EXPECT_TRUE(fs::exists(dir + "/left/augmented/frame_0000.png"));
+  EXPECT_TRUE(fs::exists(dir + "/left/augmented/frame_0005.png"));
+  EXPECT_FALSE(fs::exists(dir + "/left/augmented/frame_0003.png"));
+  EXPECT_NE(log.find("Run summary over 6"), std::string::npos) << log;
+  EXPECT_NE(log.find("ms per stereo frame"), std::string::npos) << log;
+}
+
+}  // namespace
+}  // namespace augrig

@@ -1,0 +1,318 @@
+// The augmenter against independent oracles: OpenCV's projectPoints for projection and
+// distortion, a CPU ray caster (tests/support/ray_caster.hpp) for the masks, brute-force
+// comparison with the raw image for untouched pixels.
+#include "render/augmenter.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "render/gl_context.hpp"
+#include "tests/support/ray_caster.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace augrig {
+namespace {
+
+// The paper's rig with a strongly distorting lens and an off-centre principal point.
+Rig distorted_rig() {
+  Rig rig = Rig::paper_default();
+  for (RigCamera& c : rig.cameras) {
+    c.model.distortion = DistortionModel::kRadTan;
+    c.model.coeffs = {-0.28, 0.12, 8e-4, -6e-4, -0.02};
+    c.model.cx_px += 12.3;
+    c.model.cy_px -= 8.7;
+    c.model.fy_px *= 0.997;
+  }
+  return rig;
+}
+
+SceneState contact_scene(const Rig& rig, const BoomModel& boom, const Eigen::Vector3d& receptacle_m,
+                         BoomArticulation a) {
+  return scene_at_contact(rig, boom.dims, receptacle_m, a);
+}
+
+Frame gradient_frame(const CameraModel& cm, PixelFormat fmt, CameraId id) {
+  Frame f;
+  f.image = Image(cm.width_px, cm.height_px, fmt);
+  const int bpp = bytes_per_pixel(fmt);
+  for (int y = 0; y < cm.height_px; ++y)
+    for (int x = 0; x < cm.width_px; ++x)
+      for (int c = 0; c < bpp; ++c)
+        f.image.row(y)[x * bpp + c] = static_cast<std::uint8_t>((x * 7 + y * 3 + c * 50 + (x ^ y)) & 255);
+  f.camera = id;
+  return f;
+}
+
+class AugmenterTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    auto ctx = create_gl_context(GlBackend::kEglHeadless);
+    ASSERT_TRUE(ctx) << ctx.error().message;
+    ctx_ = std::move(*ctx).release();
+  }
+  static void TearDownTestSuite() {
+    delete ctx_;
+    ctx_ = nullptr;
+  }
+  static GlContext* ctx_;
+};
+GlContext* AugmenterTest::ctx_ = nullptr;
+
+// Writes a diff image (red: ours only, green: oracle only) when masks disagree.
+void write_mask_diff(const std::string& name, const Image& ours, const Image& oracle) {
+  static const std::string dir = test::output_dir("augmenter");
+  cv::Mat diff(ours.height(), ours.width(), CV_8UC3, cv::Scalar(0, 0, 0));
+  for (int y = 0; y < ours.height(); ++y)
+    for (int x = 0; x < ours.width(); ++x) {
+      const int a = ours.row(y)[x], b = oracle.row(y)[x];
+      auto& px = diff.at<cv::Vec3b>(y, x);
+      px = cv::Vec3b(static_cast<uchar>(40 * b), static_cast<uchar>(40 * a), 0);
+      if (a != b) px = (a & ~b) ? cv::Vec3b(0, 0, 255) : cv::Vec3b(0, 255, 0);
+    }
+  cv::imwrite(dir + "/" + name + "_mask_diff.png", diff);
+}
+
+TEST_F(AugmenterTest, MasksAgreeWithRayCasterAtPixelCentres) {
+  const Rig rig = distorted_rig();
+  auto aug = Augmenter::create(rig);
+  ASSERT_TRUE(aug) << aug.error().message;
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  // Two articulations: a contact and a boom off to the side above the receiver.
+  for (const BoomArticulation& a : {BoomArticulation{0.52, 0.03, 3.0}, BoomArticulation{0.40, -0.2, 1.0}}) {
+    SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, a);
+    if (a.extension_m < 2) scene.T_body_receiver.translation_m += Eigen::Vector3d(-1.5, 0.8, 1.2);
+    StereoFrame sf;
+    sf.left = gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+    sf.right = gradient_frame(rig.right().model, PixelFormat::kRGB8, CameraId::kRight);
+    StereoResult out;
+    ASSERT_TRUE((*aug)->augment(sf, scene, out));
+
+    for (int c = 0; c < 2; ++c) {
+      const RigCamera& cam = rig.cameras[c];
+      const Pose T_cam_body = cam.T_body_cam.inverse();
+      const Pose T_body_boom = boom_pose(rig.boom.pivot_body_m, a);
+      test::RayCaster boom, receiver;
+      boom.add((*aug)->boom_model().fixed, T_cam_body * T_body_boom);
+      boom.add((*aug)->boom_model().telescope, T_cam_body * T_body_boom * telescope_pose(a));
+      receiver.add((*aug)->receiver_model(), T_cam_body * scene.T_body_receiver);
+      const Image oracle = test::ray_cast_mask(cam.model, test::opencv_pixel_rays(cam.model), boom, receiver);
+      const Image& ours = c == 0 ? out.left.mask : out.right.mask;
+
+      std::int64_t disagree = 0, far_from_edge = 0, boom_px = 0, recv_px = 0;
+      const int W = ours.width(), H = ours.height();
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+          const int o = oracle.row(y)[x];
+          boom_px += (o & kMaskBoom) != 0;
+          recv_px += (o & kMaskReceiver) != 0;
+          if (ours.row(y)[x] == o) continue;
+          ++disagree;
+          // Within 1 px of a silhouette edge: the oracle changes value in the 3x3 neighbourhood.
+          bool edge = false;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int xx = std::clamp(x + dx, 0, W - 1), yy = std::clamp(y + dy, 0, H - 1);
+              edge |= oracle.row(yy)[xx] != o;
+            }
+          far_from_edge += !edge;
+        }
+      const double agree = 1.0 - static_cast<double>(disagree) / (static_cast<double>(W) * H);
+      std::printf("camera %d: boom %lld px, receiver %lld px, disagree %lld (%.5f%% agree), far from edge %lld\n", c,
+                  static_cast<long long>(boom_px), static_cast<long long>(recv_px), static_cast<long long>(disagree),
+                  100 * agree, static_cast<long long>(far_from_edge));
+      EXPECT_GT(boom_px, 10000) << "the scene must show the boom";
+      EXPECT_GT(recv_px, 50000) << "the scene must show the receiver";
+      EXPECT_GE(agree, 0.9999);
+      EXPECT_EQ(far_from_edge, 0);
+      if (agree < 0.9999 || far_from_edge)
+        write_mask_diff("scene" + std::to_string(a.extension_m < 2) + "_camera" + std::to_string(c), ours, oracle);
+    }
+  }
+}
+
+// A flat disc facing the camera, as a fan of `n` triangles, centred at `centre_cam` (camera frame).
+Mesh disc(const Eigen::Vector3d& centre_cam, double radius_m, int n) {
+  Mesh m;
+  m.name = "marker";
+  const Eigen::Vector3d z = -centre_cam.normalized();  // faces the camera
+  const Eigen::Vector3d x = Eigen::Vector3d::UnitY().cross(z).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  m.positions_m.push_back(centre_cam.cast<float>());
+  for (int i = 0; i < n; ++i) {
+    const double a = 2 * M_PI * i / n;
+    m.positions_m.push_back((centre_cam + radius_m * (std::cos(a) * x + std::sin(a) * y)).cast<float>());
+  }
+  for (int i = 0; i < n; ++i) {
+    // Both windings: culling must not decide the test.
+    m.indices.insert(m.indices.end(), {0u, static_cast<std::uint32_t>(1 + i), static_cast<std::uint32_t>(1 + (i + 1) % n)});
+  }
+  m.normals.assign(m.positions_m.size(), z.cast<float>());
+  return m;
+}
+
+TEST_F(AugmenterTest, ProjectionMatchesOpenCvProjectPoints) {
+  Rig rig = distorted_rig();
+  const RigCamera& cam = rig.left();
+  // Markers all over the image (corners included), 8 to 30 m away, each a 64-gon of ~30 px radius.
+  std::vector<Eigen::Vector3d> centres;
+  for (double v : {0.06, 0.3, 0.5, 0.72, 0.93})
+    for (double u : {0.05, 0.27, 0.5, 0.73, 0.95}) {
+      const double depth = 8 + 22 * u * v;
+      const auto xy = cam.model.undistort({u * cam.model.width_px, v * cam.model.height_px});
+      ASSERT_TRUE(xy);
+      centres.push_back(depth * Eigen::Vector3d(xy->x(), xy->y(), 1.0));
+    }
+  auto receiver = std::make_shared<Model>();
+  const int kSides = 64;
+  for (const auto& c : centres) receiver->meshes.push_back(disc(c, 0.028 * c.z(), kSides));
+  AugmentOptions opt;
+  opt.receiver_model = receiver;
+  opt.stereo_classes = false;
+  auto aug = Augmenter::create(rig, opt);
+  ASSERT_TRUE(aug) << aug.error().message;
+  SceneState scene;
+  scene.boom = {0.35, 0, 0};
+  scene.boom.azimuth_rad = 0.26;  // out of the way
+  scene.T_body_receiver = cam.T_body_cam;  // marker coordinates are left-camera coordinates
+  ViewResult out;
+  ASSERT_TRUE((*aug)->augment_view(0, gradient_frame(cam.model, PixelFormat::kMono8, CameraId::kLeft), scene, out));
+
+  const Eigen::Matrix3d K = cam.model.K();
+  const cv::Matx33d Kcv(K(0, 0), K(0, 1), K(0, 2), K(1, 0), K(1, 1), K(1, 2), K(2, 0), K(2, 1), K(2, 2));
+  const std::vector<double> D(cam.model.coeffs.begin(), cam.model.coeffs.end());
+  double sum_sq = 0, worst = 0;
+  for (std::size_t i = 0; i < centres.size(); ++i) {
+    const Mesh& m = receiver->meshes[i];
+    // Oracle: the projected outline (each straight 3D edge sampled densely, projected by OpenCV),
+    // and the area centroid of that polygon.
+    std::vector<cv::Point3d> outline;
+    for (int k = 0; k < kSides; ++k) {
+      const Eigen::Vector3d a = m.positions_m[1 + k].cast<double>(), b = m.positions_m[1 + (k + 1) % kSides].cast<double>();
+      for (int s = 0; s < 16; ++s) {
+        const Eigen::Vector3d p = a + (b - a) * (s / 16.0);
+        outline.emplace_back(p.x(), p.y(), p.z());
+      }
+    }
+    std::vector<cv::Point2d> img;
+    cv::projectPoints(outline, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), Kcv, D, img);
+    double A = 0, cx = 0, cy = 0;
+    for (std::size_t k = 0; k < img.size(); ++k) {
+      const cv::Point2d& p = img[k];
+      const cv::Point2d& q = img[(k + 1) % img.size()];
+      const double cr = p.x * q.y - q.x * p.y;
+      A += cr, cx += (p.x + q.x) * cr, cy += (p.y + q.y) * cr;
+    }
+    cx /= 3 * A, cy /= 3 * A;
+    // Ours: centroid of the mask's pixel centres in a window around the oracle's centroid.
+    double sx = 0, sy = 0, n = 0;
+    const int r = 60;
+    for (int y = std::max(0, static_cast<int>(cy) - r); y < std::min(cam.model.height_px, static_cast<int>(cy) + r); ++y)
+      for (int x = std::max(0, static_cast<int>(cx) - r); x < std::min(cam.model.width_px, static_cast<int>(cx) + r); ++x)
+        if (out.mask.row(y)[x] & kMaskReceiver) sx += x, sy += y, n += 1;
+    ASSERT_GT(n, 500) << "marker " << i << " not rendered";
+    const double err = std::hypot(sx / n - cx, sy / n - cy);
+    // The mask's area should match the polygon's within the pixel quantisation of its edge.
+    EXPECT_NEAR(n, std::abs(A) / 2, 0.02 * std::abs(A) / 2) << "marker " << i;
+    sum_sq += err * err;
+    worst = std::max(worst, err);
+  }
+  const double rms = std::sqrt(sum_sq / centres.size());
+  std::printf("marker centroids vs cv::projectPoints: rms %.4f px, max %.4f px over %zu markers\n", rms, worst,
+              centres.size());
+  EXPECT_LE(rms, 0.05);
+  EXPECT_LE(worst, 0.1);
+}
+
+TEST_F(AugmenterTest, UntouchedPixelsAreBitIdenticalInEveryFormat) {
+  const Rig rig = distorted_rig();
+  auto aug = Augmenter::create(rig);
+  ASSERT_TRUE(aug) << aug.error().message;
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.05, 2.0});
+  for (PixelFormat fmt : {PixelFormat::kRGB8, PixelFormat::kMono8, PixelFormat::kBayerRG8, PixelFormat::kBayerGB8,
+                          PixelFormat::kRGBA8}) {
+    SCOPED_TRACE(std::string(to_string(fmt)));
+    StereoFrame sf;
+    sf.left = gradient_frame(rig.left().model, fmt, CameraId::kLeft);
+    sf.right = gradient_frame(rig.right().model, fmt, CameraId::kRight);
+    StereoResult out;
+    ASSERT_TRUE((*aug)->augment(sf, scene, out));
+    for (int c = 0; c < 2; ++c) {
+      const Image& raw = c == 0 ? sf.left.image : sf.right.image;
+      const ViewResult& v = c == 0 ? out.left : out.right;
+      ASSERT_EQ(v.augmented.format(), fmt);
+      const int W = raw.width(), H = raw.height(), bpp = bytes_per_pixel(fmt);
+      std::int64_t changed = 0, changed_far = 0, boom_unchanged = 0, boom_px = 0;
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+          const bool diff = std::memcmp(raw.row(y) + x * bpp, v.augmented.row(y) + x * bpp, bpp) != 0;
+          bool near_boom = false;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx)
+              near_boom |= (v.mask.row(std::clamp(y + dy, 0, H - 1))[std::clamp(x + dx, 0, W - 1)] & kMaskBoom) != 0;
+          changed += diff;
+          changed_far += diff && !near_boom;
+          if (v.mask.row(y)[x] & kMaskBoom) {
+            ++boom_px;
+            // Interior boom pixels (all 8 neighbours boom) must carry the boom.
+            bool interior = true;
+            for (int dy = -1; dy <= 1; ++dy)
+              for (int dx = -1; dx <= 1; ++dx)
+                interior &= (v.mask.row(std::clamp(y + dy, 0, H - 1))[std::clamp(x + dx, 0, W - 1)] & kMaskBoom) != 0;
+            boom_unchanged += interior && !diff;
+          }
+        }
+      EXPECT_GT(boom_px, 5000);
+      EXPECT_EQ(changed_far, 0) << "pixels changed farther than 1 px from the boom";
+      // Gradient backgrounds can coincide with the boom colour by chance, rarely.
+      EXPECT_LT(boom_unchanged, boom_px / 100);
+      EXPECT_GE(changed, boom_px - boom_px / 100);
+    }
+  }
+}
+
+TEST_F(AugmenterTest, BoomBehindTheReceiverIsNotDrawn) {
+  const Rig rig = Rig::paper_default();
+  auto aug = Augmenter::create(rig);
+  ASSERT_TRUE(aug) << aug.error().message;
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  // Receiver moved 5 m from the contact point towards the left camera: the boom now pierces it
+  // and its aft part is hidden behind the receiver.
+  SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.52, 0.0, 5.0});
+  const Eigen::Vector3d tip = scene.T_body_receiver * receptacle;
+  scene.T_body_receiver.translation_m += 5.0 * (rig.left().T_body_cam.translation_m - tip).normalized();
+  ViewResult out;
+  ASSERT_TRUE((*aug)->augment_view(0, gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft), scene, out));
+  // Where a ray hits both, the mask's boom bit must agree with which is nearer (ray caster).
+  const RigCamera& cam = rig.left();
+  const Pose T_cam_body = cam.T_body_cam.inverse();
+  const Pose T_body_boom = boom_pose(rig.boom.pivot_body_m, scene.boom);
+  test::RayCaster boom, receiver;
+  boom.add((*aug)->boom_model().fixed, T_cam_body * T_body_boom);
+  boom.add((*aug)->boom_model().telescope, T_cam_body * T_body_boom * telescope_pose(scene.boom));
+  receiver.add((*aug)->receiver_model(), T_cam_body * scene.T_body_receiver);
+  std::int64_t hidden = 0, wrong = 0;
+  for (int y = 0; y < cam.model.height_px; y += 2)
+    for (int x = 0; x < cam.model.width_px; x += 2) {
+      const double xn = (x - cam.model.cx_px) / cam.model.fx_px, yn = (y - cam.model.cy_px) / cam.model.fy_px;
+      const double zb = boom.hit_z(xn, yn), zr = receiver.hit_z(xn, yn);
+      if (!std::isfinite(zb) || !std::isfinite(zr)) continue;
+      const bool boom_in_front = zb < zr;
+      hidden += !boom_in_front;
+      const bool ours = out.mask.row(y)[x] & kMaskBoom;
+      // Skip the 1-px band where the boom pierces the receiver.
+      if (std::abs(zb - zr) > 0.05) wrong += ours != boom_in_front;
+    }
+  EXPECT_GT(hidden, 200) << "the scene should hide part of the boom behind the receiver";
+  EXPECT_EQ(wrong, 0);
+}
+
+}  // namespace
+}  // namespace augrig

@@ -1,0 +1,618 @@
+// Tests of render/stats: every number is checked against an oracle written independently here
+// (brute-force loops over the masks, hand-derived geometry, ray-rectangle intersection).
+#include "render/stats.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace augrig {
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+CameraModel pinhole(int w, int h, double f = 1000.0) {
+  CameraModel c;
+  c.width_px = w;
+  c.height_px = h;
+  c.fx_px = c.fy_px = f;
+  c.cx_px = (w - 1) / 2.0;  // pixel centres at integers: the image centre is (W-1)/2
+  c.cy_px = (h - 1) / 2.0;
+  c.distortion = DistortionModel::kNone;
+  return c;
+}
+
+DepthImage depth_filled(int w, int h, float z) {
+  DepthImage d;
+  d.width = w;
+  d.height = h;
+  d.z_m.assign(static_cast<std::size_t>(w) * h, z);
+  return d;
+}
+
+// Mono8 mask with `pad` garbage bytes at the end of every row (must never be counted).
+Image padded_mask(int w, int h, int pad) {
+  Image m(w, h, PixelFormat::kMono8, static_cast<std::size_t>(w + pad));
+  for (int y = 0; y < h; ++y)
+    for (int p = 0; p < pad; ++p) m.row(y)[w + p] = 0xFF;
+  return m;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Random masks: counts against plain loops.
+
+TEST(OcclusionStats, RandomMasksMatchBruteForceCounts) {
+  const int sizes[][3] = {{1, 1, 0}, {7, 5, 3}, {64, 48, 0}, {333, 77, 5}, {640, 480, 16}};
+  for (unsigned seed : {1u, 2u, 3u, 42u}) {
+    for (const auto& sz : sizes) {
+      const int w = sz[0], h = sz[1], pad = sz[2];
+      std::mt19937 rng(seed * 7919u + static_cast<unsigned>(w));
+      std::uniform_int_distribution<int> byte(0, 255);
+      Image ml = padded_mask(w, h, pad), mr = padded_mask(w, h, pad);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          // Full random bytes: the upper bits must be ignored, only bits 0 and 1 count.
+          ml.row(y)[x] = static_cast<std::uint8_t>(byte(rng));
+          mr.row(y)[x] = static_cast<std::uint8_t>(byte(rng));
+        }
+      // No receiver depth anywhere: no left receiver pixel can be seen by the right camera.
+      const DepthImage dl = depth_filled(w, h, kInf), dr = depth_filled(w, h, kInf);
+      std::vector<std::uint8_t> classes;
+      const OcclusionStats s = compute_occlusion_stats(123, ml, mr, dl, dr, pinhole(w, h), pinhole(w, h),
+                                                       Pose::identity(), {}, &classes);
+
+      std::int64_t rl = 0, rr = 0, bl = 0, br = 0, both_boom = 0, any_boom = 0, ol = 0, orr = 0;
+      std::int64_t lonly = 0, neither = 0;
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const int a = ml.row(y)[x], b = mr.row(y)[x];
+          const bool a_boom = a % 2 == 1, a_recv = (a / 2) % 2 == 1;
+          const bool b_boom = b % 2 == 1, b_recv = (b / 2) % 2 == 1;
+          if (a_recv) ++rl;
+          if (b_recv) ++rr;
+          if (a_boom) ++bl;
+          if (b_boom) ++br;
+          if (a_boom && b_boom) ++both_boom;
+          if (a_boom || b_boom) ++any_boom;
+          if (a_boom && a_recv) ++ol;
+          if (b_boom && b_recv) ++orr;
+          if (a_recv && !a_boom) ++lonly;
+          if (a_recv && a_boom) ++neither;
+          const auto c = static_cast<StereoClass>(classes[static_cast<std::size_t>(y) * w + x]);
+          const StereoClass want = !a_recv  ? StereoClass::kNone
+                                   : a_boom ? StereoClass::kNeither
+                                            : StereoClass::kLeftOnly;
+          EXPECT_EQ(c, want);
+        }
+      SCOPED_TRACE("seed " + std::to_string(seed) + " size " + std::to_string(w) + "x" + std::to_string(h));
+      EXPECT_EQ(s.t_ns, 123);
+      EXPECT_EQ(s.width, w);
+      EXPECT_EQ(s.height, h);
+      EXPECT_EQ(s.receiver_px_left, rl);
+      EXPECT_EQ(s.receiver_px_right, rr);
+      EXPECT_EQ(s.boom_px_left, bl);
+      EXPECT_EQ(s.boom_px_right, br);
+      EXPECT_EQ(s.boom_overlap_px, both_boom);
+      EXPECT_EQ(s.occluded_px_left, ol);
+      EXPECT_EQ(s.occluded_px_right, orr);
+      EXPECT_EQ(s.stereo_both_px, 0);
+      EXPECT_EQ(s.right_only_px, 0);
+      EXPECT_EQ(s.left_only_px, lonly);
+      EXPECT_EQ(s.neither_px, neither);
+      // Percentages re-derived from the brute-force counts.
+      const double area = static_cast<double>(w) * h;
+      EXPECT_NEAR(s.receiver_pct_left, 100.0 * rl / area, 1e-9);
+      EXPECT_NEAR(s.receiver_pct_right, 100.0 * rr / area, 1e-9);
+      EXPECT_NEAR(s.boom_pct_left, 100.0 * bl / area, 1e-9);
+      EXPECT_NEAR(s.boom_pct_right, 100.0 * br / area, 1e-9);
+      EXPECT_NEAR(s.boom_overlap_pct_union, any_boom ? 100.0 * both_boom / any_boom : 0.0, 1e-9);
+      EXPECT_NEAR(s.occluded_pct_left, rl ? 100.0 * ol / rl : 0.0, 1e-9);
+      EXPECT_NEAR(s.occluded_pct_right, rr ? 100.0 * orr / rr : 0.0, 1e-9);
+    }
+  }
+}
+
+TEST(OcclusionStats, RandomDepthsClassesAlwaysPartitionLeftReceiver) {
+  const int w = 97, h = 61;
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> bits(0, 3);
+  std::uniform_real_distribution<float> z(5.0f, 30.0f);
+  Image ml(w, h, PixelFormat::kMono8), mr(w, h, PixelFormat::kMono8);
+  DepthImage dl = depth_filled(w, h, kInf), dr = depth_filled(w, h, kInf);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      ml.row(y)[x] = static_cast<std::uint8_t>(bits(rng));
+      mr.row(y)[x] = static_cast<std::uint8_t>(bits(rng));
+      dl.z_m[static_cast<std::size_t>(y) * w + x] = (ml.row(y)[x] & kMaskReceiver) ? z(rng) : kInf;
+      dr.z_m[static_cast<std::size_t>(y) * w + x] = (mr.row(y)[x] & kMaskReceiver) ? z(rng) : kInf;
+    }
+  Pose T = Pose::from(rotation_from_ypr(0.01, -0.02, 0.005), Eigen::Vector3d(-0.3, 0.01, 0.02));
+  std::vector<std::uint8_t> classes;
+  const auto s =
+      compute_occlusion_stats(0, ml, mr, dl, dr, pinhole(w, h, 80), pinhole(w, h, 80), T, {}, &classes);
+  EXPECT_EQ(s.stereo_both_px + s.left_only_px + s.right_only_px + s.neither_px, s.receiver_px_left);
+  std::int64_t counted[5] = {0, 0, 0, 0, 0};
+  for (auto c : classes) ++counted[c];
+  EXPECT_EQ(counted[1], s.stereo_both_px);
+  EXPECT_EQ(counted[2], s.left_only_px);
+  EXPECT_EQ(counted[3], s.right_only_px);
+  EXPECT_EQ(counted[4], s.neither_px);
+  EXPECT_EQ(counted[0], static_cast<std::int64_t>(w) * h - s.receiver_px_left);
+}
+
+TEST(OcclusionStats, EmptyMasksGiveZerosNotNaN) {
+  Image ml(16, 8, PixelFormat::kMono8), mr(16, 8, PixelFormat::kMono8);
+  const auto d = depth_filled(16, 8, kInf);
+  const auto s = compute_occlusion_stats(0, ml, mr, d, d, pinhole(16, 8), pinhole(16, 8), Pose::identity());
+  EXPECT_EQ(s.boom_overlap_pct_union, 0.0);
+  EXPECT_EQ(s.occluded_pct_left, 0.0);
+  EXPECT_EQ(s.occluded_pct_right, 0.0);
+  EXPECT_EQ(s.receiver_pct_left, 0.0);
+}
+
+TEST(OcclusionStats, RejectsMismatchedInputs) {
+  Image m(16, 8, PixelFormat::kMono8), other(15, 8, PixelFormat::kMono8), rgb(16, 8, PixelFormat::kRGB8);
+  const auto d = depth_filled(16, 8, kInf), d_small = depth_filled(15, 8, kInf);
+  const auto c = pinhole(16, 8);
+  EXPECT_THROW(compute_occlusion_stats(0, m, other, d, d, c, c, {}), std::invalid_argument);
+  EXPECT_THROW(compute_occlusion_stats(0, rgb, m, d, d, c, c, {}), std::invalid_argument);
+  EXPECT_THROW(compute_occlusion_stats(0, m, m, d_small, d, c, c, {}), std::invalid_argument);
+  EXPECT_THROW(compute_occlusion_stats(0, m, m, d, d, pinhole(15, 8), c, {}), std::invalid_argument);
+  m.row(0)[0] = kMaskReceiver;
+  std::vector<Eigen::Vector2f> wrong(3);
+  StereoClassOptions o;
+  o.left_rays_xy = &wrong;
+  EXPECT_THROW(compute_occlusion_stats(0, m, m, d, d, c, c, {}, o), std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The seed paper's Table 1 as a regression of the arithmetic. Its "pixels" are channel values
+// (3 per RGB pixel): 1164420 / (3 * 1280 * 960) = 31.59 %. Masks with those counts, as pixels,
+// must give count / (W*H) here, and count / (3*W*H) reproduces the paper's whole-image column.
+// The other percentages are ratios of counts, where the factor 3 cancels.
+
+TEST(OcclusionStats, SeedPaperTable1Arithmetic) {
+  const int W = 1280, H = 960, N = W * H;
+  // Pixel index sets built from intervals [a, b), chosen so that every Table 1 count comes out:
+  //   left receiver [0, 1164420); left boom [0, 2866) (on receiver) + [1164420, 1202524) (off).
+  //   right receiver [63817, N); right boom [0, 39440) (off receiver) + [1199781, 1203051) (on).
+  //   boom overlap = [0, 2866) + [1199781, 1202524) = 2866 + 2743 = 5609.
+  auto in = [](int i, int a, int b) { return i >= a && i < b; };
+  Image ml(W, H, PixelFormat::kMono8), mr(W, H, PixelFormat::kMono8);
+  for (int i = 0; i < N; ++i) {
+    std::uint8_t l = 0, r = 0;
+    if (in(i, 0, 1164420)) l |= kMaskReceiver;
+    if (in(i, 0, 2866) || in(i, 1164420, 1202524)) l |= kMaskBoom;
+    if (in(i, 63817, N)) r |= kMaskReceiver;
+    if (in(i, 0, 39440) || in(i, 1199781, 1203051)) r |= kMaskBoom;
+    ml.row(i / W)[i % W] = l;
+    mr.row(i / W)[i % W] = r;
+  }
+  const auto d = depth_filled(W, H, kInf);
+  const auto c = pinhole(W, H);
+  const auto s = compute_occlusion_stats(0, ml, mr, d, d, c, c, Pose::identity());
+  EXPECT_EQ(s.receiver_px_left, 1164420);
+  EXPECT_EQ(s.receiver_px_right, 1164983);
+  EXPECT_EQ(s.boom_px_left, 40970);
+  EXPECT_EQ(s.boom_px_right, 42710);
+  EXPECT_EQ(s.boom_overlap_px, 5609);
+  EXPECT_EQ(s.occluded_px_left, 2866);
+  EXPECT_EQ(s.occluded_px_right, 3270);
+
+  // Ours, of W*H pixels: e.g. 40970 / 1228800 = 3.334 %.
+  EXPECT_NEAR(s.receiver_pct_left, 94.7607, 1e-4);
+  EXPECT_NEAR(s.receiver_pct_right, 94.8066, 1e-4);
+  EXPECT_NEAR(s.boom_pct_left, 3.3342, 1e-4);
+  EXPECT_NEAR(s.boom_pct_right, 3.4758, 1e-4);
+  // The paper's whole-image percentages are these divided by 3 (channel values over 3*W*H).
+  auto paper_round = [](double p) { return std::round(p * 100.0) / 100.0; };
+  EXPECT_DOUBLE_EQ(paper_round(s.receiver_pct_left / 3), 31.59);
+  EXPECT_DOUBLE_EQ(paper_round(s.receiver_pct_right / 3), 31.60);
+  EXPECT_DOUBLE_EQ(paper_round(s.boom_pct_left / 3), 1.11);
+  EXPECT_DOUBLE_EQ(paper_round(s.boom_pct_right / 3), 1.16);
+  // Ratios of counts: identical to the paper. 5609 / (40970 + 42710 - 5609) = 7.18 %.
+  EXPECT_DOUBLE_EQ(paper_round(s.boom_overlap_pct_union), 7.18);
+  EXPECT_DOUBLE_EQ(paper_round(s.occluded_pct_left), 0.25);
+  EXPECT_DOUBLE_EQ(paper_round(s.occluded_pct_right), 0.28);
+
+  const std::string table = format_table1(s, "Seed paper Table 1 counts");
+  EXPECT_NE(table.find("1164420"), std::string::npos);
+  EXPECT_NE(table.find("7.18%"), std::string::npos);
+  EXPECT_NE(table.find("3.33%"), std::string::npos);
+  EXPECT_NE(table.find("channel"), std::string::npos);  // says that ours are pixels, not channels
+  EXPECT_NE(table.find("whole image (1228800 px)"), std::string::npos);
+  EXPECT_NE(table.find("78071 px"), std::string::npos);  // the overlap's base: |L u R|
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stereo classes on analytic scenes. Everything is built here by ray casting against
+// fronto-parallel rectangles given in the LEFT camera frame; the classes are then derived from
+// continuous geometry (segment-rectangle tests), independently of the masks and of stats.cpp.
+
+struct Rect {
+  double z, x0, x1, y0, y1;  // plane z = const in the left camera frame, x in [x0,x1], y in [y0,y1]
+  bool boom;
+};
+
+struct Rig {
+  CameraModel cam;
+  Pose T_left_right;  // right camera in the left frame
+  Pose T_right_left() const { return T_left_right.inverse(); }
+};
+
+struct View {
+  Image mask;
+  DepthImage depth;
+};
+
+// Hit of the ray o + s*d (d.z of the camera ray in its own frame is 1, so s is the camera depth).
+bool hit(const Rect& r, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& s) {
+  if (std::abs(d.z()) < 1e-12) return false;
+  s = (r.z - o.z()) / d.z();
+  if (s <= 0) return false;
+  const Eigen::Vector3d p = o + s * d;
+  return p.x() >= r.x0 && p.x() <= r.x1 && p.y() >= r.y0 && p.y() <= r.y1;
+}
+
+// Direction (x, y, 1) of a pixel centre's ray: by hand for pinholes; through the lens model's
+// ray() (tested with camera_model) when there is distortion.
+Eigen::Vector3d pixel_dir(const CameraModel& c, int x, int y) {
+  if (c.distortion == DistortionModel::kNone) return {(x - c.cx_px) / c.fx_px, (y - c.cy_px) / c.fy_px, 1.0};
+  const auto r = c.ray(Eigen::Vector2d(x, y));
+  return r ? Eigen::Vector3d(*r / r->z()) : Eigen::Vector3d(0, 0, 0);
+}
+
+View render_view(const std::vector<Rect>& scene, const CameraModel& c, const Pose& T_left_cam) {
+  View v{Image(c.width_px, c.height_px, PixelFormat::kMono8), depth_filled(c.width_px, c.height_px, kInf)};
+  const Eigen::Matrix3d R = T_left_cam.R();
+  const Eigen::Vector3d o = T_left_cam.translation_m;
+  for (int y = 0; y < c.height_px; ++y)
+    for (int x = 0; x < c.width_px; ++x) {
+      const Eigen::Vector3d d = R * pixel_dir(c, x, y);
+      double recv = kInf, boom = kInf, s;
+      for (const Rect& r : scene)
+        if (hit(r, o, d, s)) (r.boom ? boom : recv) = std::min(r.boom ? boom : recv, s);
+      std::uint8_t m = 0;
+      if (recv < kInf) m |= kMaskReceiver;
+      if (boom < recv) m |= kMaskBoom;
+      v.mask.row(y)[x] = m;
+      v.depth.z_m[static_cast<std::size_t>(y) * c.width_px + x] = static_cast<float>(recv);
+    }
+  return v;
+}
+
+// Class of every left pixel from geometry: the point on the front-most receiver rectangle, seen by
+// the right camera when it projects inside the image and no rectangle cuts the segment to it.
+std::vector<std::uint8_t> oracle_classes(const std::vector<Rect>& scene, const Rig& rig) {
+  const CameraModel& c = rig.cam;
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(c.width_px) * c.height_px, 0);
+  const Eigen::Vector3d c_right = rig.T_left_right.translation_m;
+  const Pose T_rl = rig.T_right_left();
+  for (int y = 0; y < c.height_px; ++y)
+    for (int x = 0; x < c.width_px; ++x) {
+      const Eigen::Vector3d d = pixel_dir(c, x, y);
+      double recv = kInf, boom = kInf, s;
+      for (const Rect& r : scene)
+        if (hit(r, Eigen::Vector3d::Zero(), d, s)) (r.boom ? boom : recv) = std::min(r.boom ? boom : recv, s);
+      if (recv == kInf) continue;
+      const Eigen::Vector3d p = recv * d;
+      const bool vis_left = !(boom < recv);
+      bool vis_right = false;
+      const Eigen::Vector3d pr = T_rl * p;
+      double u = c.cx_px + c.fx_px * pr.x() / pr.z(), v = c.cy_px + c.fy_px * pr.y() / pr.z();
+      if (c.distortion != DistortionModel::kNone) {
+        const auto uv = c.project(pr);
+        u = uv ? uv->x() : -1e9;
+        v = uv ? uv->y() : -1e9;
+      }
+      if (pr.z() > 0 && u >= -0.5 && u < c.width_px - 0.5 && v >= -0.5 && v < c.height_px - 0.5) {
+        vis_right = true;
+        for (const Rect& r : scene) {
+          const double t = (r.z - c_right.z()) / (p.z() - c_right.z());  // segment parameter
+          if (t <= 0 || t >= 1 - 1e-9) continue;
+          const Eigen::Vector3d q = c_right + t * (p - c_right);
+          if (q.x() >= r.x0 && q.x() <= r.x1 && q.y() >= r.y0 && q.y() <= r.y1) vis_right = false;
+        }
+      }
+      const StereoClass k = vis_left && vis_right ? StereoClass::kBoth
+                            : vis_left            ? StereoClass::kLeftOnly
+                            : vis_right           ? StereoClass::kRightOnly
+                                                  : StereoClass::kNeither;
+      out[static_cast<std::size_t>(y) * c.width_px + x] = static_cast<std::uint8_t>(k);
+    }
+  return out;
+}
+
+struct SceneResult {
+  OcclusionStats stats;
+  std::vector<std::uint8_t> classes, oracle;
+  std::int64_t mismatches = 0;
+};
+
+SceneResult run_scene(const std::vector<Rect>& scene, const Rig& rig, const StereoClassOptions& o = {}) {
+  const View l = render_view(scene, rig.cam, Pose::identity());
+  const View r = render_view(scene, rig.cam, rig.T_left_right);
+  SceneResult res;
+  res.stats = compute_occlusion_stats(1, l.mask, r.mask, l.depth, r.depth, rig.cam, rig.cam,
+                                      rig.T_right_left(), o, &res.classes);
+  res.oracle = oracle_classes(scene, rig);
+  for (std::size_t i = 0; i < res.classes.size(); ++i) res.mismatches += res.classes[i] != res.oracle[i];
+  return res;
+}
+
+std::int64_t count_class(const std::vector<std::uint8_t>& v, StereoClass c) {
+  return std::count(v.begin(), v.end(), static_cast<std::uint8_t>(c));
+}
+
+// 640x480, fx = fy = 1000, right camera 0.5 m to the right: disparity at z = 20 m is 25 px.
+Rig rectified_rig() {
+  return {pinhole(640, 480), Pose::from(Eigen::Matrix3d::Identity(), {0.5, 0, 0})};
+}
+
+// Receiver plane at 20 m, x in [-2, 2] (columns u - cx = 50 x: 200 columns), y in [-1.5, 1.5]
+// (150 rows). Boom bar at 10 m, x in [0, 0.3], all rows.
+//   Left:  the bar hides receiver x in [0, 0.6]            (u - cx in [0, 30]: 30 columns).
+//   Right: the ray from (0.5, 0, 0) to (x, ., 20) meets the bar when x in [-0.5, 0.1]: 30 columns.
+//   Hence neither: x in [0, 0.1] 5 columns; left only: [-0.5, 0) 25; right only: (0.1, 0.6] 25;
+//   both: 200 - 55 = 145 columns; everything times 150 rows.
+std::vector<Rect> basic_scene() {
+  return {{20, -2, 2, -1.5, 1.5, false}, {10, 0, 0.3, -100, 100, true}};
+}
+
+TEST(StereoClasses, RectifiedPlaneWithBoomBar) {
+  const auto res = run_scene(basic_scene(), rectified_rig());
+  const auto& s = res.stats;
+  EXPECT_EQ(s.receiver_px_left, 200 * 150);
+  EXPECT_EQ(s.receiver_px_right, 200 * 150);
+  EXPECT_EQ(s.boom_px_left, 30 * 480);
+  EXPECT_EQ(s.boom_px_right, 30 * 480);
+  EXPECT_EQ(s.boom_overlap_px, 0);  // bar columns 320..349 (left) vs 270..299 (right)
+  EXPECT_EQ(s.occluded_px_left, 30 * 150);
+  EXPECT_EQ(s.occluded_px_right, 30 * 150);
+  EXPECT_EQ(s.stereo_both_px, 145 * 150);
+  EXPECT_EQ(s.left_only_px, 25 * 150);
+  EXPECT_EQ(s.right_only_px, 25 * 150);
+  EXPECT_EQ(s.neither_px, 5 * 150);
+  EXPECT_EQ(res.mismatches, 0);
+  // Spot checks, columns from u = cx + 50 x (cx = 319.5) at the centre row 240.
+  auto at = [&](int x) { return static_cast<StereoClass>(res.classes[240 * 640 + x]); };
+  EXPECT_EQ(at(300), StereoClass::kLeftOnly);   // x = -0.39
+  EXPECT_EQ(at(322), StereoClass::kNeither);    // x = 0.05
+  EXPECT_EQ(at(340), StereoClass::kRightOnly);  // x = 0.41
+  EXPECT_EQ(at(400), StereoClass::kBoth);       // x = 1.61
+  EXPECT_EQ(at(100), StereoClass::kNone);       // off the receiver
+}
+
+// A nearer receiver part (z = 15 m, x in [1, 1.5], y in [-1, 1]) hides a strip of the far plane
+// from the right camera only: far points with x in [1.1667, 1.8333] are behind it for the right
+// camera, and the left camera still sees those with x in [1.1667, 1.3333) (u - cx in [58.3, 66.7):
+// 9 columns) over |y| <= 1.3333 (134 rows): 1206 more left-only pixels than the basic scene.
+TEST(StereoClasses, SelfOcclusionByNearerReceiverPart) {
+  auto scene = basic_scene();
+  scene.push_back({15, 1, 1.5, -1, 1, false});
+  const auto res = run_scene(scene, rectified_rig());
+  const auto& s = res.stats;
+  EXPECT_EQ(res.mismatches, 0);
+  EXPECT_EQ(s.left_only_px, 25 * 150 + 9 * 134);
+  EXPECT_EQ(s.stereo_both_px, 145 * 150 - 9 * 134);
+  EXPECT_EQ(s.right_only_px, 25 * 150);
+  EXPECT_EQ(s.neither_px, 5 * 150);
+  EXPECT_EQ(static_cast<StereoClass>(res.classes[240 * 640 + 382]), StereoClass::kLeftOnly);  // x = 1.25
+  // With a tolerance larger than the 5 m step the occluder no longer counts as in front.
+  StereoClassOptions loose;
+  loose.depth_tolerance_m = 6.0;
+  EXPECT_EQ(run_scene(scene, rectified_rig(), loose).stats.left_only_px, 25 * 150);
+}
+
+// Receiver at x in [-7, -5] (left columns 0..69); the right camera sees it 25 px further left, so
+// left columns 0..24 fall outside the right image: 25 * 150 left-only, 45 * 150 both.
+TEST(StereoClasses, OutOfRightImage) {
+  const auto res = run_scene({{20, -7, -5, -1.5, 1.5, false}}, rectified_rig());
+  EXPECT_EQ(res.mismatches, 0);
+  EXPECT_EQ(res.stats.receiver_px_left, 70 * 150);
+  EXPECT_EQ(res.stats.left_only_px, 25 * 150);
+  EXPECT_EQ(res.stats.stereo_both_px, 45 * 150);
+  EXPECT_EQ(res.stats.right_only_px + res.stats.neither_px, 0);
+}
+
+// Depth disagreement between the views: within tolerance counts as seen, beyond it as hidden.
+TEST(StereoClasses, DepthTolerance) {
+  const Rig rig = rectified_rig();
+  const std::vector<Rect> scene = {{20, -2, 2, -1.5, 1.5, false}};
+  View l = render_view(scene, rig.cam, Pose::identity());
+  View r = render_view(scene, rig.cam, rig.T_left_right);
+  StereoClassOptions o;  // tol = 0.05 + 0.005 * 20 = 0.15 m
+  for (float& z : r.depth.z_m) z = std::isfinite(z) ? z - 0.14f : z;
+  auto s =
+      compute_occlusion_stats(0, l.mask, r.mask, l.depth, r.depth, rig.cam, rig.cam, rig.T_right_left(), o);
+  EXPECT_EQ(s.stereo_both_px, 200 * 150);
+  for (float& z : r.depth.z_m) z = std::isfinite(z) ? z - 0.02f : z;  // now 0.16 m in front
+  s = compute_occlusion_stats(0, l.mask, r.mask, l.depth, r.depth, rig.cam, rig.cam, rig.T_right_left(), o);
+  EXPECT_EQ(s.stereo_both_px, 0);
+  EXPECT_EQ(s.left_only_px, 200 * 150);
+}
+
+// A converging, slightly pitched rig: projections no longer land on pixel centres, so the
+// discrete test may differ from the continuous oracle only along boundaries (a few px per row).
+TEST(StereoClasses, RotatedRigAgreesWithOracleUpToBoundaryPixels) {
+  Rig rig = rectified_rig();
+  rig.T_left_right =
+      Pose::from(rotation_from_ypr(deg_to_rad(-1.5), deg_to_rad(0.3), deg_to_rad(0.2)), {0.5, 0.02, 0.1});
+  auto scene = basic_scene();
+  scene.push_back({15, 1, 1.5, -1, 1, false});
+  const auto res = run_scene(scene, rig);
+  const auto& s = res.stats;
+  EXPECT_EQ(s.stereo_both_px + s.left_only_px + s.right_only_px + s.neither_px, s.receiver_px_left);
+  const std::int64_t rows = 150;
+  EXPECT_LE(res.mismatches, 2 * rows) << "mismatches " << res.mismatches;  // a few boundary columns
+  for (auto c : {StereoClass::kBoth, StereoClass::kLeftOnly, StereoClass::kRightOnly, StereoClass::kNeither})
+    EXPECT_NEAR(count_class(res.classes, c), count_class(res.oracle, c), rows);
+  EXPECT_GT(s.right_only_px, 0);
+  EXPECT_GT(s.neither_px, 0);
+}
+
+// Barrel distortion on both cameras: the left pixel's point must come from undistort() and the
+// right projection from project(); a pinhole shortcut would misplace points by many pixels near
+// the corners and turn visible points into "left only".
+TEST(StereoClasses, DistortedCamerasAgreeWithOracle) {
+  Rig rig = rectified_rig();
+  rig.cam.distortion = DistortionModel::kRadTan;
+  rig.cam.coeffs = {-0.25, 0.08, 0.0005, -0.0003, 0.0};
+  // A receiver wall filling most of the view, and the boom bar.
+  const std::vector<Rect> wall = {{20, -6, 6, -4.5, 4.5, false}};
+  const auto plain = run_scene(wall, rig);
+  EXPECT_EQ(plain.mismatches, 0);
+  EXPECT_EQ(plain.stats.right_only_px + plain.stats.neither_px, 0);
+  EXPECT_EQ(plain.stats.left_only_px,
+            count_class(plain.oracle, StereoClass::kLeftOnly));  // out of the right image
+  EXPECT_GT(plain.stats.stereo_both_px, plain.stats.receiver_px_left * 9 / 10);
+  auto scene = wall;
+  scene.push_back({10, 0, 0.3, -100, 100, true});
+  const auto res = run_scene(scene, rig);
+  EXPECT_LE(res.mismatches, 2 * 480) << "mismatches " << res.mismatches;  // boundary pixels only
+  EXPECT_GT(res.stats.right_only_px, 0);
+  EXPECT_GT(res.stats.neither_px, 0);
+  // The same wall with pinhole rays passed in (distortion ignored on the left): wrong points, and
+  // the test notices.
+  std::vector<Eigen::Vector2f> pinhole_rays(640 * 480);
+  for (int y = 0; y < 480; ++y)
+    for (int x = 0; x < 640; ++x)
+      pinhole_rays[y * 640 + x] = Eigen::Vector2f((x - 319.5f) / 1000.f, (y - 239.5f) / 1000.f);
+  StereoClassOptions wrong;
+  wrong.left_rays_xy = &pinhole_rays;
+  const auto bad = run_scene(scene, rig, wrong);
+  EXPECT_GT(bad.mismatches, 4 * res.mismatches) << bad.mismatches << " vs " << res.mismatches;
+}
+
+TEST(StereoClasses, CallerRaysEqualCachedRays) {
+  const Rig rig = rectified_rig();
+  const View l = render_view(basic_scene(), rig.cam, Pose::identity());
+  const View r = render_view(basic_scene(), rig.cam, rig.T_left_right);
+  const std::vector<Eigen::Vector2f> rays = undistorted_xy_map(rig.cam);
+  ASSERT_EQ(rays.size(), 640u * 480u);
+  EXPECT_NEAR(rays[240 * 640 + 400].x(), (400 - 319.5) / 1000.0, 1e-6);
+  EXPECT_NEAR(rays[240 * 640 + 400].y(), (240 - 239.5) / 1000.0, 1e-6);
+  StereoClassOptions o;
+  o.left_rays_xy = &rays;
+  std::vector<std::uint8_t> a, b;
+  const auto sa = compute_occlusion_stats(0, l.mask, r.mask, l.depth, r.depth, rig.cam, rig.cam,
+                                          rig.T_right_left(), o, &a);
+  const auto sb = compute_occlusion_stats(0, l.mask, r.mask, l.depth, r.depth, rig.cam, rig.cam,
+                                          rig.T_right_left(), {}, &b);
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(sa.stereo_both_px, sb.stereo_both_px);
+}
+
+// 1280x960 with a receiver over ~30 % of the image and a boom bar: how long one frame takes.
+TEST(StereoClasses, TimingFullResolution) {
+  Rig rig{pinhole(1280, 960), Pose::from(Eigen::Matrix3d::Identity(), {0.5, 0, 0})};
+  // 780 x 480 px of receiver (30.5 %): x in [-7.8, 7.8] m and y in [-4.8, 4.8] m at 20 m.
+  const std::vector<Rect> scene = {{20, -7.8, 7.8, -4.8, 4.8, false}, {10, 0, 0.5, -100, 100, true}};
+  const View l = render_view(scene, rig.cam, Pose::identity());
+  const View r = render_view(scene, rig.cam, rig.T_left_right);
+  const auto rays = undistorted_xy_map(rig.cam);
+  StereoClassOptions o;
+  o.left_rays_xy = &rays;
+  std::vector<std::uint8_t> classes;
+  OcclusionStats s;
+  double best_ms = 1e9;
+  for (int i = 0; i < 5; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    s = compute_occlusion_stats(0, l.mask, r.mask, l.depth, r.depth, rig.cam, rig.cam, rig.T_right_left(), o,
+                                &classes);
+    best_ms = std::min(
+        best_ms, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  }
+  std::cout << "compute_occlusion_stats 1280x960, receiver " << s.receiver_pct_left << " %: " << best_ms
+            << " ms\n";
+  EXPECT_NEAR(s.receiver_pct_left, 100.0 * 780 * 480 / (1280 * 960), 1e-9);
+  EXPECT_EQ(s.stereo_both_px + s.left_only_px + s.right_only_px + s.neither_px, s.receiver_px_left);
+  EXPECT_LT(best_ms, 1000.0);  // only catches pathologies; the number above is what matters
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output formats.
+
+TEST(StatsCsv, HeaderIsExact) {
+  std::ostringstream o;
+  write_stats_csv_header(o);
+  EXPECT_EQ(o.str(),
+            "t_ns,receiver_px_left,receiver_px_right,boom_px_left,boom_px_right,boom_overlap_px,"
+            "boom_overlap_pct_union,occluded_px_left,occluded_px_right,occluded_pct_left,occluded_pct_right,"
+            "stereo_both_px,left_only_px,right_only_px,neither_px,receiver_pct_left,receiver_pct_right,"
+            "boom_pct_left,boom_pct_right\n");
+}
+
+OcclusionStats sample_stats() {
+  OcclusionStats s;
+  s.t_ns = 1234567890123456789LL;  // needs all 64 bits: must not pass through a double
+  s.width = 1280;
+  s.height = 960;
+  s.receiver_px_left = 1;
+  s.receiver_px_right = 2;
+  s.boom_px_left = 3;
+  s.boom_px_right = 4;
+  s.boom_overlap_px = 5;
+  s.boom_overlap_pct_union = 7.18449;
+  s.occluded_px_left = 6;
+  s.occluded_px_right = 7;
+  s.occluded_pct_left = 0.24613;
+  s.occluded_pct_right = 100;
+  s.stereo_both_px = 8;
+  s.left_only_px = 9;
+  s.right_only_px = 10;
+  s.neither_px = 11;
+  s.receiver_pct_left = 0;
+  s.receiver_pct_right = 1.0 / 3.0;
+  s.boom_pct_left = 3.33416;
+  s.boom_pct_right = 99.99996;
+  return s;
+}
+
+TEST(StatsCsv, RowFormat) {
+  std::ostringstream o;
+  write_stats_csv_row(o, sample_stats());
+  EXPECT_EQ(o.str(),
+            "1234567890123456789,1,2,3,4,5,7.1845,6,7,0.2461,100.0000,8,9,10,11,0.0000,0.3333,3.3342,"
+            "100.0000\n");
+}
+
+TEST(StatsSummary, MeanMinMaxPerColumn) {
+  OcclusionStats a = sample_stats(), b = sample_stats();
+  a.t_ns = 100;
+  b.t_ns = 300;
+  a.receiver_px_left = 10;
+  b.receiver_px_left = 31;
+  a.occluded_pct_left = 1.0;
+  b.occluded_pct_left = 2.5;
+  const std::string t = format_run_summary({a, b});
+  auto line_of = [&](const std::string& col) {
+    const auto p = t.find("\n" + col + " ");
+    EXPECT_NE(p, std::string::npos) << col;
+    return p == std::string::npos ? std::string() : t.substr(p + 1, t.find('\n', p + 1) - p - 1);
+  };
+  std::istringstream r(line_of("receiver_px_left"));
+  std::string name;
+  double mean, lo, hi;
+  r >> name >> mean >> lo >> hi;
+  EXPECT_DOUBLE_EQ(mean, 20.5);
+  EXPECT_DOUBLE_EQ(lo, 10);
+  EXPECT_DOUBLE_EQ(hi, 31);
+  std::istringstream p(line_of("occluded_pct_left"));
+  p >> name >> mean >> lo >> hi;
+  EXPECT_DOUBLE_EQ(mean, 1.75);
+  EXPECT_DOUBLE_EQ(lo, 1.0);
+  EXPECT_DOUBLE_EQ(hi, 2.5);
+  EXPECT_NE(t.find("2 stereo frame"), std::string::npos);
+  EXPECT_NE(format_run_summary({}).find("0 stereo frame"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace augrig
