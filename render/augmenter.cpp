@@ -113,6 +113,10 @@ struct ViewState {
   std::vector<std::uint8_t> boom_rgba, recv_rgba;  // virtual image colour (recv only for overlays)
   VBox boom_vbox, recv_vbox;                  // last boxes read back
   std::vector<CamTriangle> tris;              // all draw items' triangles, this frame
+  struct Plane {
+    double nx, ny, nz, c;  // n . p = c; depth along the ray (x, y, 1) is c / (n . (x, y, 1))
+  };
+  std::vector<Plane> planes;                  // one per triangle, this frame
   std::vector<Eigen::Vector3d> scratch_vertices;
 };
 
@@ -161,7 +165,7 @@ class AugmenterImpl final : public Augmenter {
   double nearest_hit(const ViewState& vs, const std::uint32_t* cands, int n, double x, double y) const;
   void build_rings();
   std::uint32_t global_index(std::uint32_t packed) const {
-    return static_cast<std::uint32_t>(draws_[(packed >> kDrawShift) - 1].first_tri + (packed & kPrimMask));
+    return first_tri_of_draw_[packed >> kDrawShift] + (packed & kPrimMask);
   }
   const CamTriangle& triangle(const ViewState& vs, std::uint32_t packed) const { return vs.tris[global_index(packed)]; }
   bool is_boom(std::uint32_t packed) const {
@@ -177,6 +181,7 @@ class AugmenterImpl final : public Augmenter {
   // Triangles sharing a vertex (welded by position) with each triangle, global indices (CSR):
   // silhouette triangles seen edge-on are slivers that no sample lands in, but a sampled neighbour does.
   std::vector<std::uint32_t> ring_offsets_, ring_;
+  std::array<std::uint32_t, 256> first_tri_of_draw_{};  // by draw id
   std::vector<ViewState> views_;
   gl::Framebuffer fb_;
   struct Program {
@@ -247,6 +252,7 @@ Status AugmenterImpl::init() {
   if (auto s = add(ObjectKind::kReceiver, receiver_, rig_.receiver.model.path.empty() && !options_.receiver_model); !s)
     return s;
 
+  for (const DrawItem& d : draws_) first_tri_of_draw_[d.draw_id] = static_cast<std::uint32_t>(d.first_tri);
   build_rings();
   zero_to_one_ = gl::has_clip_control();
   int fw = 0, fh = 0;
@@ -281,6 +287,7 @@ Status AugmenterImpl::init() {
     vs.boom_rgba.assign(vn * 4, 0);
     if (options_.receiver_draw != ReceiverDraw::kMaskOnly) vs.recv_rgba.assign(vn * 4, 0);
     vs.tris.resize(total_tris_);
+    vs.planes.resize(total_tris_);
     fw = std::max(fw, vs.vp.width);
     fh = std::max(fh, vs.vp.height);
   }
@@ -317,6 +324,7 @@ void AugmenterImpl::prepare_view(ViewState& vs, const SceneState& scene) {
       tri.e2 = V[idx[3 * k + 2]] - tri.v0;
       tri.n = tri.e1.cross(tri.e2);
       tri.n_dot_v0 = tri.n.dot(tri.v0);
+      vs.planes[d.first_tri + k] = {tri.n.x(), tri.n.y(), tri.n.z(), tri.n_dot_v0};
     }
   }
 }
@@ -427,6 +435,7 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
   // Depth is cleared over both boxes: the boom is depth-tested against the receiver.
   const VBox both = unite(boom_box, recv_box);
   if (!both.empty()) {
+    // Scissored: llvmpipe's clear cost is per pixel, the box is much smaller than the image.
     glScissor(both.x0, both.y0, both.x1 - both.x0, both.y1 - both.y0);
     glClearColor(0, 0, 0, 0);
     glClearDepth(0.0);
@@ -615,6 +624,37 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
       const std::uint32_t* pr = rids + e.idx;
       if (identity ? !(pb[0] | pr[0]) : !(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1] | pr[0] | pr[1] | pr[Wv] | pr[Wv + 1]))
         continue;
+      const Eigen::Vector2f& ray = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u];
+      auto plane_depth = [&](std::uint32_t packed) {
+        const ViewState::Plane& pl = vs.planes[global_index(packed)];
+        return pl.c / (pl.nx * ray.x() + pl.ny * ray.y() + pl.nz);
+      };
+      if (identity && !overlay) {
+        // The samples ARE the pixel centres: GL's coverage and depth test are already exact there.
+        const std::uint32_t b0 = pb[0], r0 = pr[0];
+        mrow[u] = static_cast<std::uint8_t>((b0 ? kMaskBoom : 0) | (r0 ? kMaskReceiver : 0));
+        if (r0) drow[u] = static_cast<float>(plane_depth(r0));
+        if (b0) {
+          std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+          const std::uint8_t* c = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
+          switch (fmt) {
+            case PixelFormat::kRGB8:
+            case PixelFormat::kRGBA8: px[0] = c[0], px[1] = c[1], px[2] = c[2]; break;
+            case PixelFormat::kMono8:
+              px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2] + 0.5f);
+              break;
+            default: px[0] = c[bayer_channel(fmt, u, v)];
+          }
+        }
+        continue;
+      }
+      if (!(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1]) && pr[0] == pr[1] && pr[0] == pr[Wv] && pr[0] == pr[Wv + 1] &&
+          !overlay) {
+        // Inside one receiver triangle with no boom around: the most common covered pixel.
+        mrow[u] = kMaskReceiver;
+        drow[u] = static_cast<float>(plane_depth(pr[0]));
+        continue;
+      }
       // The 2x2 samples around the centre (one sample when the grids coincide).
       const int ns = identity ? 1 : 4;
       const std::uint32_t off[4] = {0, 1, static_cast<std::uint32_t>(Wv), static_cast<std::uint32_t>(Wv) + 1};

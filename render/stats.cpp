@@ -177,12 +177,6 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
   check_mask(mask_right, "mask_right");
   if (mask_left.width() != mask_right.width() || mask_left.height() != mask_right.height())
     throw std::invalid_argument("compute_occlusion_stats: left and right masks differ in size");
-  check_depth(receiver_depth_left, mask_left, "receiver_depth_left");
-  check_depth(receiver_depth_right, mask_right, "receiver_depth_right");
-  if (left.width_px != mask_left.width() || left.height_px != mask_left.height() ||
-      right.width_px != mask_right.width() || right.height_px != mask_right.height())
-    throw std::invalid_argument("compute_occlusion_stats: camera size differs from its mask's size");
-
   const int w = mask_left.width(), h = mask_left.height();
   const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
   OcclusionStats s;
@@ -205,6 +199,16 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
   s.receiver_pct_right = pct(s.receiver_px_right, area);
   s.boom_pct_left = pct(s.boom_px_left, area);
   s.boom_pct_right = pct(s.boom_px_right, area);
+
+  if (!options.compute_classes) {
+    if (classes_out) classes_out->clear();
+    return s;
+  }
+  check_depth(receiver_depth_left, mask_left, "receiver_depth_left");
+  check_depth(receiver_depth_right, mask_right, "receiver_depth_right");
+  if (left.width_px != mask_left.width() || left.height_px != mask_left.height() ||
+      right.width_px != mask_right.width() || right.height_px != mask_right.height())
+    throw std::invalid_argument("compute_occlusion_stats: camera size differs from its mask's size");
 
   if (classes_out) classes_out->assign(n, static_cast<std::uint8_t>(StereoClass::kNone));
   if (s.receiver_px_left == 0) return s;

@@ -55,6 +55,9 @@ struct StereoClassOptions {
   // undistorted_xy_map(left). Not owned; must outlive the call. When null, compute_occlusion_stats
   // builds the map once per distinct left CameraModel and keeps it in a small internal cache.
   const std::vector<Eigen::Vector2f>* left_rays_xy = nullptr;
+  // false: only the mask counts; the four class counts stay 0, depth images and cameras are not
+  // read (may be empty) and classes_out is left empty.
+  bool compute_classes = true;
 };
 
 // The map StereoClassOptions::left_rays_xy expects: camera.undistort() of every pixel centre.

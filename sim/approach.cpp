@@ -26,12 +26,16 @@ struct Key {
   double s;
   Eigen::Vector3d offset_m;
 };
-const std::array<Key, 5> kPath = {{
+// Contact is reached a little before the end and held, so the last frame of a clip sampled at
+// t < duration is in contact too.
+constexpr double kContactS = 0.97;
+const std::array<Key, 6> kPath = {{
     {0.00, {-30.0, 2.0, 12.0}},  // observation: aft, right of and below the tip
     {0.10, {-30.0, 2.0, 12.0}},
     {0.45, {-15.0, 0.0, 4.0}},  // pre-contact
     {0.55, {-15.0, 0.0, 4.0}},
-    {1.00, {0.0, 0.0, 0.0}},  // contact: the receptacle at the nozzle tip
+    {kContactS, {0.0, 0.0, 0.0}},  // contact: the receptacle at the nozzle tip
+    {1.00, {0.0, 0.0, 0.0}},
 }};
 
 Eigen::Vector3d path_offset(double s) {
@@ -74,7 +78,7 @@ ApproachTruth approach_truth(const Rig& rig, const BoomDimensions& boom, const E
   BoomArticulation& art = truth.scene.boom;
   art.elevation_rad = kElevationRad;
   art.azimuth_rad = 0.0;
-  art.extension_m = kExtensionStartM + (kExtensionContactM - kExtensionStartM) * smoothstep(0.75, 1.0, s);
+  art.extension_m = kExtensionStartM + (kExtensionContactM - kExtensionStartM) * smoothstep(0.75, kContactS, s);
   const Eigen::Vector3d tip_body =
       boom_pose(rig.boom.pivot_body_m, art) * Eigen::Vector3d(boom.nozzle_tip_m(art.extension_m), 0, 0);
 
@@ -107,7 +111,8 @@ Expected<std::unique_ptr<ApproachSource>> ApproachSource::create(const Rig& rig,
   if (!renderer) return make_error("ApproachSource::create(): ", renderer.error().message);
   src->renderer_ = std::move(*renderer);
 
-  const double duration_s = options.frames / options.fps;
+  // The clip spans the approach: the first frame at its start, the last at contact.
+  const double duration_s = options.frames > 1 ? (options.frames - 1) / options.fps : 0.0;
   src->truths_.resize(static_cast<std::size_t>(options.frames));
   for (std::size_t i = 0; i < src->truths_.size(); ++i) {
     const TimestampNs t_ns = frame_time_ns(i, options.fps);

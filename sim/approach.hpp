@@ -31,10 +31,12 @@ struct ApproachTruth {
 
 // Truth of the scripted approach at time t (seconds since its start), for a rig and boom:
 // tanker straight and level at 6000 m heading 090; boom at 30 deg elevation, azimuth 0, extension
-// 1 m, extending smoothly to 3.5 m over the last 25 %; the receptacle (`receptacle_m`, receiver
-// body frame) flies a C1 path relative to the nozzle tip from observation (30 m aft, 2 m right,
-// 12 m below) through pre-contact (15 m aft, 4 m below) to contact (exactly at the tip at
-// t = duration), with a smooth +-1 deg pitch/roll wobble. t is clamped to [0, duration].
+// 1 m, extending smoothly to 3.5 m from 75 % to 97 % of the duration; the receptacle
+// (`receptacle_m`, receiver body frame) flies a C1 path relative to the nozzle tip from observation
+// (30 m aft, 2 m right, 12 m below) through pre-contact (15 m aft, 4 m below) to contact (exactly at
+// the tip from 97 % of the duration on), with a smooth +-1 deg pitch/roll wobble. t is clamped to
+// [0, duration]. ApproachSource samples it with duration = (frames - 1) / fps: its last frame is
+// at contact.
 // docs/SIMULATION.md describes it.
 ApproachTruth approach_truth(const Rig& rig, const BoomDimensions& boom, const Eigen::Vector3d& receptacle_m,
                              double t_s, double duration_s, double ground_speed_mps = 150.0);

@@ -93,6 +93,11 @@ void main() {
   // Neighbouring fields now and then share a crop: merge pairs along x.
   uint h = hash2(ivec2(cw.x / 2, cw.y), 7u);
   if ((hash2(cw, 9u) & 3u) != 0u) h = hash2(cw, 7u);
+  // ... and others are split in two crops, across or along, so the grid does not read as a checkerboard.
+  uint hs = hash2(cw, 13u);
+  float cut = 0.3 + 0.4 * float((hs >> 4u) & 255u) / 255.0;
+  vec2 fc = wc - vec2(ci);
+  if (((hs & 3u) == 1u && fc.x > cut) || ((hs & 3u) == 2u && fc.y > cut)) h = hash2(cw, 17u);
   vec3 col = field_color(h) * (0.85 + 0.3 * float((h >> 8u) & 255u) / 255.0);
   // Texture inside a field (crops, soil), blotches on top.
   col *= 0.8 + 0.4 * fbm(q * 1024.0 / n, 1024, 21u);
@@ -136,8 +141,9 @@ void main() {
   vec2 p = u_cam_ned.xy + t * d.xy;
   vec2 q = vec2(0.9397 * p.x - 0.3420 * p.y, 0.3420 * p.x + 0.9397 * p.y);
   vec4 g = texture(u_ground, q / u_tile_m);
-  float wood = smoothstep(0.56, 0.62, 0.7 * vnoise(q / 2500.0, 41u, 0) + 0.3 * vnoise(q / 700.0, 42u, 0));
-  vec3 ground = mix(g.rgb, vec3(0.16, 0.24, 0.12) * (0.7 + 0.6 * g.a), wood);
+  float wood = 0.7 * vnoise(q / 2500.0, 41u, 0) + 0.3 * vnoise(q / 700.0, 42u, 0) + 0.1 * (g.a - 0.5);
+  wood = smoothstep(0.60, 0.63, wood);  // ragged edges from the baked texture
+  vec3 ground = mix(g.rgb, vec3(0.18, 0.27, 0.13) * (0.45 + 1.1 * g.a), wood);
   ground *= (0.9 + 0.2 * vnoise(q / 9000.0, 43u, 0)) * (0.75 + 0.35 * max(-u_sun_ned.z, 0.0));
   ground = mix(ground, vec3(0.60, 0.66, 0.74), 1.0 - exp(-t / 30000.0));  // haze
 
