@@ -803,17 +803,14 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   timings_.composite_ms = 0;
 
   const auto t4 = Clock::now();
-  if (receiver_on_ && options_.stereo_classes) {
-    out.stats = compute_occlusion_stats(frame.t_key_ns, out.left.mask, out.right.mask, out.left.receiver_depth,
-                                        out.right.receiver_depth, rig_.left().model, rig_.right().model,
-                                        rig_.T_right_left(), options_.class_options, &out.stereo_classes);
-  } else {
-    // Without the receiver there is nothing to classify; counts still come from the masks.
-    out.stereo_classes.clear();
-    out.stats = compute_occlusion_stats(frame.t_key_ns, out.left.mask, out.right.mask, out.left.receiver_depth,
-                                        out.right.receiver_depth, rig_.left().model, rig_.right().model,
-                                        rig_.T_right_left(), options_.class_options, nullptr);
-  }
+  // The classes reuse this view's own pixel rays (same undistortion as the masks).
+  StereoClassOptions copt = options_.class_options;
+  copt.compute_classes = receiver_on_ && options_.stereo_classes;
+  copt.left_rays_xy = &views_[0].vp.ray_xy;
+  out.stats = compute_occlusion_stats(frame.t_key_ns, out.left.mask, out.right.mask, out.left.receiver_depth,
+                                      out.right.receiver_depth, rig_.left().model, rig_.right().model,
+                                      rig_.T_right_left(), copt, copt.compute_classes ? &out.stereo_classes : nullptr);
+  if (!copt.compute_classes) out.stereo_classes.clear();
   timings_.stats_ms = ms(Clock::now() - t4);
   (void)t3;
   if (auto e = gl::drain_errors(); !e.empty()) return make_error("Augmenter::augment(): OpenGL errors:", e);

@@ -78,7 +78,8 @@ ApproachTruth approach_truth(const Rig& rig, const BoomDimensions& boom, const E
   BoomArticulation& art = truth.scene.boom;
   art.elevation_rad = kElevationRad;
   art.azimuth_rad = 0.0;
-  art.extension_m = kExtensionStartM + (kExtensionContactM - kExtensionStartM) * smoothstep(0.75, kContactS, s);
+  art.extension_m =
+      kExtensionStartM + (kExtensionContactM - kExtensionStartM) * smoothstep(0.75, kContactS, s);
   const Eigen::Vector3d tip_body =
       boom_pose(rig.boom.pivot_body_m, art) * Eigen::Vector3d(boom.nozzle_tip_m(art.extension_m), 0, 0);
 
@@ -94,10 +95,12 @@ ApproachTruth approach_truth(const Rig& rig, const BoomDimensions& boom, const E
 
 ApproachSource::~ApproachSource() = default;
 
-Expected<std::unique_ptr<ApproachSource>> ApproachSource::create(const Rig& rig, const ApproachOptions& options) {
+Expected<std::unique_ptr<ApproachSource>> ApproachSource::create(const Rig& rig,
+                                                                 const ApproachOptions& options) {
   if (rig.cameras.size() != 2)
     return make_error("ApproachSource::create(): the rig needs 2 cameras, has ", rig.cameras.size());
-  if (options.frames <= 0) return make_error("ApproachSource::create(): frames must be > 0, got ", options.frames);
+  if (options.frames <= 0)
+    return make_error("ApproachSource::create(): frames must be > 0, got ", options.frames);
   if (!(options.fps > 0)) return make_error("ApproachSource::create(): fps must be > 0");
   std::unique_ptr<ApproachSource> src(new ApproachSource());
   src->rig_ = rig;
@@ -131,8 +134,8 @@ Expected<ReadStatus> ApproachSource::read(Frame& out, std::chrono::nanoseconds /
   // Each frame its own noise, reproducibly.
   SensorOptions sensor = options_.sensor;
   sensor.noise_seed = options_.sensor.noise_seed * 0x9e3779b97f4a7c15ull + next_;
-  if (auto s = renderer_->render(camera, truth.sky, truth.scene.T_body_receiver, truth.scene.receiver_present, sensor,
-                                 out.image);
+  if (auto s = renderer_->render(camera, truth.sky, truth.scene.T_body_receiver, truth.scene.receiver_present,
+                                 sensor, out.image);
       !s)
     return make_error("ApproachSource::read(): frame ", sequence, " ", to_string(CameraId(camera)), ": ",
                       s.error().message);

@@ -15,17 +15,17 @@
 namespace augrig {
 
 struct ApproachOptions {
-  int frames = 90;                   // stereo frames
+  int frames = 90;  // stereo frames
   double fps = 30.0;
   SensorOptions sensor;
-  double skew_ns = 0;                // right camera's mid-exposure offset from the left
-  BoomDimensions boom;               // the boom whose nozzle the receiver flies to (the built-in one)
-  double ground_speed_mps = 150.0;   // moves the ground texture under the tanker
+  double skew_ns = 0;               // right camera's mid-exposure offset from the left
+  BoomDimensions boom;              // the boom whose nozzle the receiver flies to (the built-in one)
+  double ground_speed_mps = 150.0;  // moves the ground texture under the tanker
 };
 
 struct ApproachTruth {
-  TimestampNs t_ns = 0;              // mid-exposure of the left frame, ClockDomain::kSim
-  SceneState scene;                  // boom articulation and T_body_receiver
+  TimestampNs t_ns = 0;  // mid-exposure of the left frame, ClockDomain::kSim
+  SceneState scene;      // boom articulation and T_body_receiver
   SkyState sky;
 };
 

@@ -20,11 +20,12 @@ namespace augrig {
 
 struct SkyState {
   Eigen::Matrix3d R_ned_body = Eigen::Matrix3d::Identity();  // tanker attitude
-  double altitude_m = 6000.0;                                 // tanker height above the ground
+  double altitude_m = 6000.0;                                // tanker height above the ground
   // Tanker's horizontal position over the ground (north, east metres from an arbitrary origin):
   // the ground texture is fixed in the world, so it moves under a flying tanker.
   Eigen::Vector2d north_east_m = Eigen::Vector2d::Zero();
-  // Unit vector towards the sun in NED (lights the receiver, glows in the sky).
+  // Unit vector towards the sun in NED (lights the receiver, glows in the sky); default: south-east,
+  // 55 deg above the horizon.
   Eigen::Vector3d sun_ned = Eigen::Vector3d(-0.406, 0.406, -0.819);
 };
 
@@ -38,8 +39,8 @@ class SyntheticSceneRenderer {
  public:
   // Needs a current GL context. `receiver` null: the rig's receiver (the built-in one unless the
   // rig names a model file, which is then loaded).
-  static Expected<std::unique_ptr<SyntheticSceneRenderer>> create(const Rig& rig,
-                                                                  std::shared_ptr<const Model> receiver = nullptr);
+  static Expected<std::unique_ptr<SyntheticSceneRenderer>> create(
+      const Rig& rig, std::shared_ptr<const Model> receiver = nullptr);
   virtual ~SyntheticSceneRenderer() = default;
   // Raw image of camera `camera` (index into rig.cameras) into `out` (reallocated only when needed).
   // Raw pixels whose ray the lens model cannot invert are black. Byte-identical for equal inputs.

@@ -2,13 +2,13 @@
 // the nozzle tip, a C1 path, the receiver in both cameras' view), and sample frames to look at.
 #include "sim/approach.hpp"
 
-#include <gtest/gtest.h>
-
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <memory>
+
+#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -134,7 +134,7 @@ TEST(ApproachTruthTest, PathIsSmooth) {
         ypr_from_rotation(approach_truth(rig, BoomDimensions{}, rec, t, duration).scene.T_body_receiver.R());
     max_angle = std::max({max_angle, std::abs(e.pitch_rad), std::abs(e.roll_rad), std::abs(e.yaw_rad)});
   }
-  EXPECT_LT(max_dv, 0.2);  // m/s per ms: no velocity jumps
+  EXPECT_LT(max_dv, 0.2);          // m/s per ms: no velocity jumps
   EXPECT_LT(v_prev.norm(), 0.05);  // arrives at rest relative to the tanker
   EXPECT_LE(max_angle, deg_to_rad(1.0) + 1e-9);
   EXPECT_GT(max_angle, deg_to_rad(0.5));
@@ -192,7 +192,8 @@ TEST_F(ApproachTest, SampleFramesShowTheReceiver) {
       ASSERT_TRUE((*renderer)->render(c, tr.sky, tr.scene.T_body_receiver, true, SensorOptions{}, with));
       ASSERT_TRUE((*renderer)->render(c, tr.sky, tr.scene.T_body_receiver, false, SensorOptions{}, without));
       long changed = 0;
-      for (int y = 0; y < with.height(); ++y) changed += std::memcmp(with.row(y), without.row(y), with.width() * 3) != 0;
+      for (int y = 0; y < with.height(); ++y)
+        changed += std::memcmp(with.row(y), without.row(y), with.width() * 3) != 0;
       EXPECT_GT(changed, 100) << "rows showing the receiver, frame " << seq << " camera " << c;
       write_png(dir + "/approach_" + std::to_string(seq) + (c ? "_right" : "_left") + ".png", with);
     }

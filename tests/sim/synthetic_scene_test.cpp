@@ -2,13 +2,13 @@
 // where the horizon must be, where the receiver must be, the stereo disparity, the sensor formats.
 #include "sim/synthetic_scene.hpp"
 
-#include <gtest/gtest.h>
-
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <cstdio>
+#include <cstring>
 #include <memory>
+
+#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -42,20 +42,26 @@ SkyState horizon_sky() {
 }
 
 // Receiver 22 m aft and 8 m below the cameras, level.
-Pose receiver_pose() { return Pose::from(Eigen::Matrix3d::Identity(), {-22.0, 0.5, 9.0}); }
+Pose receiver_pose() {
+  return Pose::from(Eigen::Matrix3d::Identity(), {-22.0, 0.5, 9.0});
+}
 
 void write_png(const std::string& path, const Image& img) {
   cv::Mat m;
   if (img.format() == PixelFormat::kRGB8) {
-    cv::Mat rgb(img.height(), img.width(), CV_8UC3, const_cast<std::uint8_t*>(img.data()), img.stride_bytes());
+    cv::Mat rgb(img.height(), img.width(), CV_8UC3, const_cast<std::uint8_t*>(img.data()),
+                img.stride_bytes());
     cv::cvtColor(rgb, m, cv::COLOR_RGB2BGR);
   } else {
-    m = cv::Mat(img.height(), img.width(), CV_8UC1, const_cast<std::uint8_t*>(img.data()), img.stride_bytes()).clone();
+    m = cv::Mat(img.height(), img.width(), CV_8UC1, const_cast<std::uint8_t*>(img.data()), img.stride_bytes())
+            .clone();
   }
   cv::imwrite(path, m);
 }
 
-const std::uint8_t* px(const Image& img, int u, int v) { return img.row(v) + u * bytes_per_pixel(img.format()); }
+const std::uint8_t* px(const Image& img, int u, int v) {
+  return img.row(v) + u * bytes_per_pixel(img.format());
+}
 
 // Raw-pixel box of the receiver's vertices (projected with the camera model), inclusive.
 struct Box {
@@ -100,7 +106,8 @@ TEST_F(SyntheticSceneTest, SizesAndFormats) {
   const Rig rig = Rig::paper_default();
   auto r = make(rig);
   ASSERT_TRUE(r);
-  for (PixelFormat f : {PixelFormat::kRGB8, PixelFormat::kMono8, PixelFormat::kRGBA8, PixelFormat::kBayerRG8}) {
+  for (PixelFormat f :
+       {PixelFormat::kRGB8, PixelFormat::kMono8, PixelFormat::kRGBA8, PixelFormat::kBayerRG8}) {
     SensorOptions s;
     s.format = f;
     Image img;
@@ -315,7 +322,8 @@ TEST_F(SyntheticSceneTest, RenderTimeAndSamples) {
     const int n = 6;
     const auto t0 = std::chrono::steady_clock::now();
     for (int i = 0; i < n; ++i) ASSERT_TRUE(r->render(i % 2, SkyState{}, receiver_pose(), true, sensor, img));
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / n;
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / n;
     std::printf("SyntheticSceneRenderer: %s 1280x960 view: %.1f ms\n", name, ms);
     EXPECT_LT(ms, 1000.0);  // generous: shared CI machines; the demo needs a few tens of ms
   }
