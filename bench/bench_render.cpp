@@ -1,12 +1,14 @@
 // bench_render: per-stage cost of augmenting one 1280x960 stereo frame on this machine
 // (llvmpipe here), for the boom path alone and with the receiver proxy and stereo classes,
-// with and without lens distortion. Prints a table for docs/PERFORMANCE.md.
-//   build/bench_render [--frames N]
+// with and without lens distortion, and how much of the image the boom and receiver cover (the
+// cost is per covered pixel on a software rasteriser). Prints tables for docs/PERFORMANCE.md.
+//   build/bench_render [--frames N] [--case K]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <iterator>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -43,8 +45,11 @@ Frame textured_frame(const CameraModel& cm, PixelFormat fmt, CameraId id) {
   return f;
 }
 
-Rig rig_with(bool distorted) {
+// `cameras_forward_m` moves both cameras forward along the body x axis: the cost is per pixel the
+// boom covers, and the default rig's cameras sit only 4 m from the pivot.
+Rig rig_with(bool distorted, double cameras_forward_m = 0) {
   Rig rig = Rig::paper_default();
+  for (RigCamera& c : rig.cameras) c.T_body_cam.translation_m.x() += cameras_forward_m;
   if (distorted)
     for (RigCamera& c : rig.cameras) {
       c.model.distortion = DistortionModel::kRadTan;
@@ -53,11 +58,13 @@ Rig rig_with(bool distorted) {
   return rig;
 }
 
-void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, int frames) {
-  const Rig rig = rig_with(distorted);
+void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, int frames, bool profile,
+              double cameras_forward_m) {
+  const Rig rig = rig_with(distorted, cameras_forward_m);
   AugmentOptions opt;
   opt.receiver_proxy = receiver;
   opt.stereo_classes = receiver;
+  opt.profile_stages = profile;
   auto aug = Augmenter::create(rig, opt);
   if (!aug) {
     std::fprintf(stderr, "%s\n", aug.error().message.c_str());
@@ -69,7 +76,7 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
   sf.left = textured_frame(rig.left().model, fmt, CameraId::kLeft);
   sf.right = textured_frame(rig.right().model, fmt, CameraId::kRight);
   StereoResult out;
-  Series render, masks, stats, total, debayer;
+  Series render, masks, stats, total, debayer, clear, draw, readback, boom_pct, recv_pct;
   for (int i = -5; i < frames; ++i) {  // 5 warm-up frames
     // Sweep the approach from pre-contact to contact so boxes and coverage vary.
     const double s = std::max(0, i) / std::max(1.0, frames - 1.0);
@@ -91,13 +98,23 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
     if (i < 0) continue;
     const auto& t = (*aug)->timings();
     render.v.push_back(t.render_ms);
+    boom_pct.v.push_back(out.stats.boom_pct_left);
+    recv_pct.v.push_back(out.stats.receiver_pct_left);
+    clear.v.push_back(t.gl_clear_ms);
+    draw.v.push_back(t.gl_draw_ms);
+    readback.v.push_back(t.gl_readback_ms);
     masks.v.push_back(t.masks_ms);
     stats.v.push_back(t.stats_ms);
     total.v.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
     debayer.v.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
   }
-  std::printf("| %-44s | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n", name, render.median(), masks.median(),
-              stats.median(), is_bayer(fmt) ? debayer.median() : 0.0, total.median(), total.p90());
+  if (profile) {
+    std::printf("| %-44s | %6.2f | %6.2f | %6.2f |\n", name, clear.median(), draw.median(), readback.median());
+    return;
+  }
+  std::printf("| %-44s | %5.1f%% | %5.1f%% | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n", name, boom_pct.median(),
+              receiver ? recv_pct.median() : 0.0, render.median(), masks.median(), stats.median(),
+              is_bayer(fmt) ? debayer.median() : 0.0, total.median(), total.p90());
 }
 
 }  // namespace
@@ -108,7 +125,7 @@ int main(int argc, char** argv) {
     if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc) frames = std::atoi(argv[++i]);
     else if (std::strcmp(argv[i], "--case") == 0 && i + 1 < argc) only = std::atoi(argv[++i]);
     else {
-      std::fprintf(stderr, "usage: bench_render [--frames N] [--case 0..4]\n");
+      std::fprintf(stderr, "usage: bench_render [--frames N] [--case 0..6]\n");
       return 2;
     }
   }
@@ -119,21 +136,35 @@ int main(int argc, char** argv) {
   }
   std::printf("bench_render: 1280x960 stereo, %d frames per case, medians in ms (total: median / p90)\n", frames);
   std::printf("renderer: %s\n\n", (*ctx)->renderer().c_str());
-  std::printf("| case                                         | render | masks+composite | stats | debayer | total       |\n");
-  std::printf("|----------------------------------------------|--------|--------|--------|--------|----------------|\n");
+  std::printf("| case                                         | boom | receiver | render | masks+composite | stats | debayer | total (median / p90) |\n");
+  std::printf("|----------------------------------------------|-----:|-----:|-------:|-------:|------:|------:|------:|\n");
   struct Case {
     const char* name;
     bool distorted, receiver;
     PixelFormat fmt;
+    double cameras_forward_m;
   };
   const Case cases[] = {
-      {"boom path, pinhole, RGB8", false, false, PixelFormat::kRGB8},
-      {"boom path, radtan distortion, RGB8", true, false, PixelFormat::kRGB8},
-      {"boom path, radtan, BayerRG8", true, false, PixelFormat::kBayerRG8},
-      {"boom + receiver + stereo classes, pinhole", false, true, PixelFormat::kRGB8},
-      {"boom + receiver + stereo classes, radtan", true, true, PixelFormat::kRGB8},
+      {"boom path, pinhole, RGB8", false, false, PixelFormat::kRGB8, 0},
+      {"boom path, radtan distortion, RGB8", true, false, PixelFormat::kRGB8, 0},
+      {"boom path, radtan, BayerRG8", true, false, PixelFormat::kBayerRG8, 0},
+      {"boom + receiver + stereo classes, pinhole", false, true, PixelFormat::kRGB8, 0},
+      {"boom + receiver + stereo classes, radtan", true, true, PixelFormat::kRGB8, 0},
+      {"boom path, radtan, cameras 10 m from pivot", true, false, PixelFormat::kRGB8, 6},
+      {"boom + receiver + classes, radtan, 10 m", true, true, PixelFormat::kRGB8, 6},
   };
-  for (int i = 0; i < 5; ++i)
-    if (only < 0 || only == i) run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames);
+  constexpr int kCases = static_cast<int>(std::size(cases));
+  for (int i = 0; i < kCases; ++i)
+    if (only < 0 || only == i)
+      run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames, false,
+               cases[i].cameras_forward_m);
+  // Where the GL time goes (glFinish between stages, so these sum to more than `render` above).
+  std::printf("\nGL stages, both views (ms, medians, with glFinish between stages):\n\n");
+  std::printf("| case                                         | clear  | draw   | readback |\n");
+  std::printf("|----------------------------------------------|-------:|-------:|-------:|\n");
+  for (int i = 0; i < kCases; ++i)
+    if (only < 0 || only == i)
+      run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames, true,
+               cases[i].cameras_forward_m);
   return 0;
 }

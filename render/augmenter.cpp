@@ -86,6 +86,9 @@ struct DrawItem {
   std::uint8_t draw_id;    // value written to the id buffer's alpha
   std::size_t first_tri;   // this mesh's first triangle in ViewState::tris
   bool cull;               // built-in, consistently wound meshes only
+  // Spatially compact triangle ranges [first, first + count) of the mesh: each gets its own
+  // screen box, so a long diagonal part (the boom's tube) costs its footprint, not its bounding box.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> chunks;
 };
 
 // A triangle in the current view's camera frame, ready for exact ray tests from the origin.
@@ -111,7 +114,7 @@ struct ViewState {
   std::vector<MapEntry> map;                  // per raw pixel
   std::vector<std::uint32_t> boom_ids, recv_ids;  // virtual image, packed ids; zero outside the last boxes
   std::vector<std::uint8_t> boom_rgba, recv_rgba;  // virtual image colour (recv only for overlays)
-  VBox boom_vbox, recv_vbox;                  // last boxes read back
+  std::vector<VBox> boom_vboxes, recv_vboxes;  // boxes rendered and read back this frame
   std::vector<CamTriangle> tris;              // all draw items' triangles, this frame
   struct Plane {
     double nx, ny, nz, c;  // n . p = c; depth along the ray (x, y, 1) is c / (n . (x, y, 1))
@@ -134,6 +137,34 @@ VBox unite(const VBox& a, const VBox& b) {
   if (a.empty()) return b;
   if (b.empty()) return a;
   return {std::min(a.x0, b.x0), std::min(a.y0, b.y0), std::max(a.x1, b.x1), std::max(a.y1, b.y1)};
+}
+
+// Reorders `mesh`'s triangles into up to `max_chunks` slabs along the longest axis of its bounds
+// (by centroid) and returns their ranges. Long parts get several small screen boxes.
+std::vector<std::pair<std::uint32_t, std::uint32_t>> split_into_chunks(Mesh& mesh, int max_chunks) {
+  const auto n = static_cast<std::uint32_t>(mesh.triangle_count());
+  const int k = std::clamp(static_cast<int>(n / 64), 1, max_chunks);
+  if (k == 1) return {{0u, n}};
+  const auto [lo, hi] = mesh.bounds();
+  int axis = 0;
+  (hi - lo).maxCoeff(&axis);
+  std::vector<std::pair<float, std::uint32_t>> order(n);
+  for (std::uint32_t t = 0; t < n; ++t) {
+    float c = 0;
+    for (int j = 0; j < 3; ++j) c += mesh.positions_m[mesh.indices[3 * t + j]][axis];
+    order[t] = {c, t};
+  }
+  std::sort(order.begin(), order.end());
+  std::vector<std::uint32_t> indices(mesh.indices.size());
+  for (std::uint32_t t = 0; t < n; ++t)
+    for (int j = 0; j < 3; ++j) indices[3 * t + j] = mesh.indices[3 * order[t].second + j];
+  mesh.indices = std::move(indices);
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> chunks;
+  for (int c = 0; c < k; ++c) {
+    const std::uint32_t a = n * c / k, b = n * (c + 1) / k;
+    chunks.emplace_back(a, b - a);
+  }
+  return chunks;
 }
 
 class AugmenterImpl final : public Augmenter {
@@ -160,7 +191,7 @@ class AugmenterImpl final : public Augmenter {
   void prepare_view(ViewState& vs, const SceneState& scene);
   void render_view(ViewState& vs, const SceneState& scene);
   void resolve_view(ViewState& vs, const Frame& raw, ViewResult& out) const;
-  VBox project_box(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const;
+  std::vector<VBox> project_boxes(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const;
   VBox raw_box_of(const ViewState& vs, const VBox& vbox) const;
   double nearest_hit(const ViewState& vs, const std::uint32_t* cands, int n, double x, double y) const;
   void build_rings();
@@ -235,13 +266,15 @@ Status AugmenterImpl::init() {
   }
 
   // One draw item per mesh; its id (1..255) goes into the id buffer's alpha byte.
-  auto add = [&](ObjectKind kind, const Model& model, bool cull) -> Status {
-    for (const Mesh& m : model.meshes) {
+  auto add = [&](ObjectKind kind, Model& model, bool cull) -> Status {
+    for (Mesh& m : model.meshes) {
       if (draws_.size() >= 255)
         return make_error("Augmenter::create(): models have more than 255 meshes in total; merge them");
       if (m.triangle_count() > kPrimMask)
         return make_error("Augmenter::create(): mesh '", m.name, "' has more than 2^24 triangles");
-      draws_.push_back({kind, &m, gl::upload(m), static_cast<std::uint8_t>(draws_.size() + 1), total_tris_, cull});
+      auto chunks = split_into_chunks(m, 4);  // before upload: it reorders the triangles
+      draws_.push_back(
+          {kind, &m, gl::upload(m), static_cast<std::uint8_t>(draws_.size() + 1), total_tris_, cull, std::move(chunks)});
       total_tris_ += m.triangle_count();
     }
     return {};
@@ -255,6 +288,9 @@ Status AugmenterImpl::init() {
   for (const DrawItem& d : draws_) first_tri_of_draw_[d.draw_id] = static_cast<std::uint32_t>(d.first_tri);
   build_rings();
   zero_to_one_ = gl::has_clip_control();
+  // Reversed-Z: depth 1 at the near plane, 0 at far; float depth keeps precision at 100 m.
+  // Context state, set once (changing it per view makes llvmpipe revalidate).
+  if (zero_to_one_) glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
   int fw = 0, fh = 0;
   views_.resize(rig_.cameras.size());
   for (std::size_t c = 0; c < rig_.cameras.size(); ++c) {
@@ -329,32 +365,55 @@ void AugmenterImpl::prepare_view(ViewState& vs, const SceneState& scene) {
   }
 }
 
-// Virtual-image box of the draw items of `kinds` seen from this camera, from their projected
-// vertices (a mesh's projection lies in the hull of its projected vertices while all are in front);
-// the whole image if any vertex is nearer than the near plane.
-VBox AugmenterImpl::project_box(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const {
+// Virtual-image boxes of the draw items of `kinds` seen from this camera: one per chunk, from its
+// projected vertices (a mesh's projection lies in the hull of its projected vertices while all are
+// in front), then merged where merging costs little area. The whole image if any vertex is nearer
+// than the near plane.
+std::vector<VBox> AugmenterImpl::project_boxes(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const {
   const VBox full{0, 0, vs.vp.width, vs.vp.height};
-  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
-  bool any = false;
   const double near = vs.cam->near_m;
+  std::vector<VBox> boxes;
   for (const DrawItem& d : draws_) {
     if (std::find(kinds.begin(), kinds.end(), d.kind) == kinds.end()) continue;
-    // The triangles were moved into this camera's frame by prepare_view().
-    for (std::size_t k = 0; k < d.mesh->triangle_count(); ++k) {
-      const CamTriangle& t = vs.tris[d.first_tri + k];
-      for (const Eigen::Vector3d& p : {t.v0, Eigen::Vector3d(t.v0 + t.e1), Eigen::Vector3d(t.v0 + t.e2)}) {
-        if (p.z() < near) return full;
-        const double qx = vs.vp.fx * p.x() / p.z() + vs.vp.cx, qy = vs.vp.fy * p.y() / p.z() + vs.vp.cy;
-        x0 = std::min(x0, qx), x1 = std::max(x1, qx), y0 = std::min(y0, qy), y1 = std::max(y1, qy);
-        any = true;
+    for (const auto& [first, count] : d.chunks) {
+      double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+      // The triangles were moved into this camera's frame by prepare_view().
+      for (std::uint32_t k = first; k < first + count; ++k) {
+        const CamTriangle& t = vs.tris[d.first_tri + k];
+        for (const Eigen::Vector3d& p : {t.v0, Eigen::Vector3d(t.v0 + t.e1), Eigen::Vector3d(t.v0 + t.e2)}) {
+          if (p.z() < near) return {full};
+          const double qx = vs.vp.fx * p.x() / p.z() + vs.vp.cx, qy = vs.vp.fy * p.y() / p.z() + vs.vp.cy;
+          x0 = std::min(x0, qx), x1 = std::max(x1, qx), y0 = std::min(y0, qy), y1 = std::max(y1, qy);
+        }
       }
+      if (x1 < -2 || y1 < -2 || x0 > vs.vp.width + 2 || y0 > vs.vp.height + 2) continue;
+      // Two samples of margin: every bilinear neighbourhood that touches the object is inside.
+      const VBox b = intersect({static_cast<int>(std::floor(x0)) - 2, static_cast<int>(std::floor(y0)) - 2,
+                                static_cast<int>(std::ceil(x1)) + 3, static_cast<int>(std::ceil(y1)) + 3},
+                               full);
+      if (!b.empty()) boxes.push_back(b);
     }
   }
-  if (!any || x1 < -2 || y1 < -2 || x0 > vs.vp.width + 2 || y0 > vs.vp.height + 2) return {};
-  // Two samples of margin: every bilinear neighbourhood that touches the object is inside.
-  return intersect({static_cast<int>(std::floor(x0)) - 2, static_cast<int>(std::floor(y0)) - 2,
-                    static_cast<int>(std::ceil(x1)) + 3, static_cast<int>(std::ceil(y1)) + 3},
-                   full);
+  // Merge pairs whose union adds little area: fewer GL clears and readbacks, each with a fixed cost.
+  auto area = [](const VBox& b) { return static_cast<double>(b.x1 - b.x0) * (b.y1 - b.y0); };
+  for (bool merged = true; merged && boxes.size() > 1;) {
+    merged = false;
+    double best = 0;
+    std::size_t bi = 0, bj = 0;
+    for (std::size_t i = 0; i < boxes.size(); ++i)
+      for (std::size_t j = i + 1; j < boxes.size(); ++j) {
+        const double waste = area(unite(boxes[i], boxes[j])) - area(boxes[i]) - area(boxes[j]);
+        // Always merge beyond 6 boxes; otherwise only when it wastes under 4096 pixels.
+        const double gain = (boxes.size() > 6 ? 1e18 : 4096.0) - waste;
+        if (gain > best) best = gain, bi = i, bj = j;
+      }
+    if (best > 0) {
+      boxes[bi] = unite(boxes[bi], boxes[bj]);
+      boxes.erase(boxes.begin() + static_cast<std::ptrdiff_t>(bj));
+      merged = true;
+    }
+  }
+  return boxes;
 }
 
 // Raw pixels whose centres map into a virtual box: the lens maps the box's border to the border
@@ -387,8 +446,17 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
   const Pose T_cam_body = vs.cam->T_body_cam.inverse();
   const Pose T_cam_boom = T_cam_body * T_body_boom_, T_cam_tele = T_cam_body * T_body_telescope_;
   const Pose T_cam_recv = T_cam_body * scene.T_body_receiver;
-  const VBox boom_box = project_box(vs, {ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope});
-  const VBox recv_box = receiver_on_ ? project_box(vs, {ObjectKind::kReceiver}) : VBox{};
+
+  // What the previous frame read back is zeroed, so the CPU id images are zero outside this frame's boxes.
+  auto zero_boxes = [&](std::vector<std::uint32_t>& ids, const std::vector<VBox>& boxes) {
+    for (const VBox& b : boxes)
+      for (int y = b.y0; y < b.y1; ++y)
+        std::memset(&ids[static_cast<std::size_t>(y) * vs.vp.width + b.x0], 0, (b.x1 - b.x0) * sizeof(std::uint32_t));
+  };
+  zero_boxes(vs.boom_ids, vs.boom_vboxes);
+  zero_boxes(vs.recv_ids, vs.recv_vboxes);
+  vs.boom_vboxes = project_boxes(vs, {ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope});
+  vs.recv_vboxes = receiver_on_ ? project_boxes(vs, {ObjectKind::kReceiver}) : std::vector<VBox>{};
 
   glBindFramebuffer(GL_FRAMEBUFFER, fb_.fbo);
   glViewport(0, 0, vs.vp.width, vs.vp.height);
@@ -401,12 +469,9 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
     if (p->light >= 0) glUniform3f(p->light, light.x(), light.y(), light.z());
     if (p->alpha >= 0) glUniform1f(p->alpha, 1.0f);
   }
-  // Reversed-Z: depth 1 at the near plane, 0 at far; float depth keeps precision at 100 m.
-  if (zero_to_one_) glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
   glEnable(GL_DEPTH_TEST);
-  glDepthFunc(GL_GREATER);
+  glDepthFunc(GL_GREATER);  // reversed-Z
   glFrontFace(GL_CW);       // y-down projection (render/projection.hpp)
-  glEnable(GL_SCISSOR_TEST);
   glDisable(GL_BLEND);
 
   auto draw_kind = [&](ObjectKind kind, const Pose& T_cam_obj, const Program& p) {
@@ -427,26 +492,38 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
       d.gpu.draw();
     }
   };
-  auto zero_box = [&](std::vector<std::uint32_t>& ids, const VBox& b) {
-    for (int y = b.y0; y < b.y1; ++y)
-      std::memset(&ids[static_cast<std::size_t>(y) * vs.vp.width + b.x0], 0, (b.x1 - b.x0) * sizeof(std::uint32_t));
+
+  // Optional stage profile (bench/): wait for the GL to finish each stage.
+  auto last = std::chrono::steady_clock::now();
+  auto stage = [&](double& acc) {
+    if (!options_.profile_stages) return;
+    glFinish();
+    const auto now = std::chrono::steady_clock::now();
+    acc += std::chrono::duration<double, std::milli>(now - last).count();
+    last = now;
   };
 
-  // Depth is cleared over both boxes: the boom is depth-tested against the receiver.
-  const VBox both = unite(boom_box, recv_box);
-  if (!both.empty()) {
-    // Scissored: llvmpipe's clear cost is per pixel, the box is much smaller than the image.
-    glScissor(both.x0, both.y0, both.x1 - both.x0, both.y1 - both.y0);
-    glClearColor(0, 0, 0, 0);
-    glClearDepth(0.0);
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  }
+  // One scissored clear per box of the id targets and depth (the boom is depth-tested against the
+  // receiver). Colours are read only where an id is set, so they need no clear: llvmpipe clears
+  // cost per pixel and per attachment.
+  const GLenum all[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+  const GLenum ids_only[3] = {GL_NONE, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
+  glDrawBuffers(3, ids_only);
+  glEnable(GL_SCISSOR_TEST);
+  glClearColor(0, 0, 0, 0);
+  glClearDepth(0.0);
+  for (const auto* list : {&vs.recv_vboxes, &vs.boom_vboxes})
+    for (const VBox& b : *list) {
+      glScissor(b.x0, b.y0, b.x1 - b.x0, b.y1 - b.y0);
+      glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    }
+  glDisable(GL_SCISSOR_TEST);  // every fragment falls inside its chunk's (cleared) box
+  stage(timings_.gl_clear_ms);
 
-  // Receiver pass: ids (and colour for the validation overlays).
-  zero_box(vs.recv_ids, vs.recv_vbox);
-  vs.recv_vbox = recv_box;
-  if (!recv_box.empty()) {
-    glScissor(recv_box.x0, recv_box.y0, recv_box.x1 - recv_box.x0, recv_box.y1 - recv_box.y0);
+  // Receiver pass: ids into attachment 2 (colour into 3 for the validation overlays).
+  if (!vs.recv_vboxes.empty()) {
+    const GLenum recv_targets[2] = {vs.recv_rgba.empty() ? GL_NONE : GL_COLOR_ATTACHMENT3, GL_COLOR_ATTACHMENT2};
+    glDrawBuffers(2, recv_targets);
     if (options_.receiver_draw == ReceiverDraw::kWireframe) {
       // Ids from filled triangles; the wireframe colour is drawn after, without touching ids or depth.
       glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
@@ -464,32 +541,29 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
     } else if (options_.receiver_draw == ReceiverDraw::kTranslucent) {
       draw_kind(ObjectKind::kReceiver, T_cam_recv, shaded_);
     } else {
-      // Mask-only proxy: ids and depth, no colour.
-      glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
-      draw_kind(ObjectKind::kReceiver, T_cam_recv, ids_only_);
-      glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+      draw_kind(ObjectKind::kReceiver, T_cam_recv, ids_only_);  // mask-only proxy: ids and depth
     }
-    gl::read_rgba_box(GL_COLOR_ATTACHMENT1, recv_box.x0, recv_box.y0, recv_box.x1, recv_box.y1,
-                      reinterpret_cast<std::uint8_t*>(vs.recv_ids.data()), vs.vp.width);
-    if (!vs.recv_rgba.empty())
-      gl::read_rgba_box(GL_COLOR_ATTACHMENT0, recv_box.x0, recv_box.y0, recv_box.x1, recv_box.y1,
-                        vs.recv_rgba.data(), vs.vp.width);
   }
-
   // Boom pass: colour and ids of the boom where it is in front of the receiver.
-  zero_box(vs.boom_ids, vs.boom_vbox);
-  vs.boom_vbox = boom_box;
-  if (!boom_box.empty()) {
-    glScissor(boom_box.x0, boom_box.y0, boom_box.x1 - boom_box.x0, boom_box.y1 - boom_box.y0);
-    glClear(GL_COLOR_BUFFER_BIT);
+  if (!vs.boom_vboxes.empty()) {
+    glDrawBuffers(2, all);
     draw_kind(ObjectKind::kBoomFixed, T_cam_boom, shaded_);
     draw_kind(ObjectKind::kBoomTelescope, T_cam_tele, shaded_);
-    gl::read_rgba_box(GL_COLOR_ATTACHMENT1, boom_box.x0, boom_box.y0, boom_box.x1, boom_box.y1,
-                      reinterpret_cast<std::uint8_t*>(vs.boom_ids.data()), vs.vp.width);
-    gl::read_rgba_box(GL_COLOR_ATTACHMENT0, boom_box.x0, boom_box.y0, boom_box.x1, boom_box.y1,
-                      vs.boom_rgba.data(), vs.vp.width);
   }
-  glDisable(GL_SCISSOR_TEST);
+  stage(timings_.gl_draw_ms);
+
+  for (const VBox& b : vs.recv_vboxes) {
+    gl::read_rgba_box(GL_COLOR_ATTACHMENT2, b.x0, b.y0, b.x1, b.y1, reinterpret_cast<std::uint8_t*>(vs.recv_ids.data()),
+                      vs.vp.width);
+    if (!vs.recv_rgba.empty())
+      gl::read_rgba_box(GL_COLOR_ATTACHMENT3, b.x0, b.y0, b.x1, b.y1, vs.recv_rgba.data(), vs.vp.width);
+  }
+  for (const VBox& b : vs.boom_vboxes) {
+    gl::read_rgba_box(GL_COLOR_ATTACHMENT1, b.x0, b.y0, b.x1, b.y1, reinterpret_cast<std::uint8_t*>(vs.boom_ids.data()),
+                      vs.vp.width);
+    gl::read_rgba_box(GL_COLOR_ATTACHMENT0, b.x0, b.y0, b.x1, b.y1, vs.boom_rgba.data(), vs.vp.width);
+  }
+  stage(timings_.gl_readback_ms);
 }
 
 void AugmenterImpl::build_rings() {
@@ -599,11 +673,15 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   const std::size_t row_bytes = static_cast<std::size_t>(W) * bytes_per_pixel(src.format());
   for (int y = 0; y < H; ++y) std::memcpy(out.augmented.row(y), src.row(y), row_bytes);
 
-  const VBox boom_raw = raw_box_of(vs, vs.boom_vbox);
-  const VBox recv_raw = raw_box_of(vs, vs.recv_vbox);
+  // Raw pixels to visit: the union of the boxes' raw images, row by row, each pixel once.
+  std::vector<VBox> raw_boxes;
+  VBox boom_raw, recv_raw;
+  for (const VBox& b : vs.boom_vboxes) raw_boxes.push_back(raw_box_of(vs, b)), boom_raw = unite(boom_raw, raw_boxes.back());
+  for (const VBox& b : vs.recv_vboxes) raw_boxes.push_back(raw_box_of(vs, b)), recv_raw = unite(recv_raw, raw_boxes.back());
   out.boom_box = to_pixel_box(boom_raw);
   out.receiver_box = to_pixel_box(recv_raw);
   const VBox work = unite(boom_raw, recv_raw);
+  std::vector<std::pair<int, int>> spans;
 
   const std::uint32_t* bids = vs.boom_ids.data();
   const std::uint32_t* rids = vs.recv_ids.data();
@@ -616,7 +694,19 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
     std::uint8_t* mrow = out.mask.row(v);
     float* drow = &out.receiver_depth.z_m[static_cast<std::size_t>(v) * W];
     std::uint8_t* arow = out.augmented.row(v);
-    for (int u = work.x0; u < work.x1; ++u) {
+    spans.clear();
+    for (const VBox& b : raw_boxes)
+      if (v >= b.y0 && v < b.y1 && !b.empty()) spans.emplace_back(b.x0, b.x1);
+    std::sort(spans.begin(), spans.end());
+    std::size_t n_spans = 0;
+    for (const auto& sp : spans) {  // merge overlapping spans in place
+      if (n_spans && sp.first <= spans[n_spans - 1].second)
+        spans[n_spans - 1].second = std::max(spans[n_spans - 1].second, sp.second);
+      else
+        spans[n_spans++] = sp;
+    }
+    for (std::size_t si = 0; si < n_spans; ++si)
+    for (int u = spans[si].first; u < spans[si].second; ++u) {
       const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
       if (e.idx < 0) continue;
       // Most pixels of a box see nothing: one OR over the samples skips them.
@@ -782,6 +872,7 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   receiver_on_ = scene.receiver_present && options_.receiver_proxy;
 
   // GL runs on this thread; the left view's CPU work overlaps the right view's rendering.
+  timings_.gl_clear_ms = timings_.gl_draw_ms = timings_.gl_readback_ms = 0;
   const auto t0 = Clock::now();
   prepare_view(views_[0], scene);
   render_view(views_[0], scene);

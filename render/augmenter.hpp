@@ -32,6 +32,8 @@ struct AugmentOptions {
   bool receiver_proxy = true;    // render the receiver (mask bit 1, depth, stereo classes)
   bool stereo_classes = true;    // compute the stereo visibility classes (needs receiver_proxy)
   StereoClassOptions class_options;
+  // bench/: glFinish between GL stages so AugmentTimings splits clear/draw/readback (slower overall).
+  bool profile_stages = false;
   // Models to use instead of the rig's (tests, the simulator); null: build or load the rig's.
   std::shared_ptr<const BoomModel> boom_model;
   std::shared_ptr<const Model> receiver_model;
@@ -71,7 +73,10 @@ struct StereoResult {
 
 // Wall time of each stage of the last augment() call, for bench/.
 struct AugmentTimings {
-  double render_ms = 0;     // GL draw + readback, both views
+  double render_ms = 0;     // GL clear + draw + readback, both views
+  double gl_clear_ms = 0;   // the three below only with AugmentOptions::profile_stages
+  double gl_draw_ms = 0;
+  double gl_readback_ms = 0;
   double masks_ms = 0;      // id lookup, exact edge rays, depth
   double composite_ms = 0;  // augmented images
   double stats_ms = 0;      // counts and stereo classes

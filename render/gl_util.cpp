@@ -121,6 +121,8 @@ Status Framebuffer::create(int w, int h) {
   };
   color = make_rb(GL_RGBA8, GL_COLOR_ATTACHMENT0);
   ids = make_rb(GL_RGBA8, GL_COLOR_ATTACHMENT1);
+  ids2 = make_rb(GL_RGBA8, GL_COLOR_ATTACHMENT2);
+  color2 = make_rb(GL_RGBA8, GL_COLOR_ATTACHMENT3);
   depth = make_rb(GL_DEPTH_COMPONENT32F, GL_DEPTH_ATTACHMENT);
   const GLenum bufs[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
   glDrawBuffers(2, bufs);
@@ -132,8 +134,8 @@ Status Framebuffer::create(int w, int h) {
 }
 
 void Framebuffer::destroy() {
-  const GLuint rbs[3] = {color, ids, depth};
-  glDeleteRenderbuffers(3, rbs);
+  const GLuint rbs[5] = {color, ids, ids2, color2, depth};
+  glDeleteRenderbuffers(5, rbs);
   if (fbo) glDeleteFramebuffers(1, &fbo);
   *this = {};
 }

@@ -27,9 +27,11 @@ struct GpuMesh {
 };
 GpuMesh upload(const Mesh& mesh);
 
-// Offscreen framebuffer: colour0 RGBA8 (shaded colour), colour1 RGBA8 (packed ids), depth32F.
+// Offscreen framebuffer, all RGBA8 but depth: colour0 shaded colour, colour1 packed ids, and
+// colour2/colour3 a second id and colour target (the augmenter keeps the receiver's there so one
+// clear per frame serves both passes), depth32F.
 struct Framebuffer {
-  GLuint fbo = 0, color = 0, ids = 0, depth = 0;
+  GLuint fbo = 0, color = 0, ids = 0, ids2 = 0, color2 = 0, depth = 0;
   int width = 0, height = 0;
   Status create(int w, int h);
   void destroy();

@@ -314,5 +314,48 @@ TEST_F(AugmenterTest, BoomBehindTheReceiverIsNotDrawn) {
   EXPECT_EQ(wrong, 0);
 }
 
+TEST_F(AugmenterTest, ReceiverOverlaysDrawTheModelButLeaveMasksAlone) {
+  // The paper validates truth poses by drawing the receiver model over the real one.
+  const Rig rig = Rig::paper_default();
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  ViewResult base;
+  {
+    auto aug = Augmenter::create(rig);
+    ASSERT_TRUE(aug) << aug.error().message;
+    const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.0, 2.0});
+    ASSERT_TRUE((*aug)->augment_view(0, gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft), scene, base));
+  }
+  for (ReceiverDraw mode : {ReceiverDraw::kTranslucent, ReceiverDraw::kWireframe}) {
+    AugmentOptions opt;
+    opt.receiver_draw = mode;
+    auto aug = Augmenter::create(rig, opt);
+    ASSERT_TRUE(aug) << aug.error().message;
+    const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.0, 2.0});
+    const Frame raw = gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+    ViewResult out;
+    ASSERT_TRUE((*aug)->augment_view(0, raw, scene, out));
+    EXPECT_TRUE(pixels_equal(out.mask, base.mask)) << "overlays must not change the masks";
+    std::int64_t receiver_only = 0, changed = 0, changed_outside = 0;
+    for (int y = 0; y < raw.image.height(); ++y)
+      for (int x = 0; x < raw.image.width(); ++x) {
+        const bool diff = std::memcmp(raw.image.row(y) + 3 * x, out.augmented.row(y) + 3 * x, 3) != 0;
+        const std::uint8_t m = out.mask.row(y)[x];
+        if (m == kMaskReceiver) receiver_only++, changed += diff;
+        if (m == 0) changed_outside += diff;
+      }
+    ASSERT_GT(receiver_only, 10000);
+    // Translucent tints every receiver pixel; a wireframe touches only its lines.
+    if (mode == ReceiverDraw::kTranslucent) {
+      EXPECT_GT(changed, receiver_only * 95 / 100);
+    } else {
+      EXPECT_GT(changed, receiver_only / 50);
+      EXPECT_LT(changed, receiver_only * 9 / 10);
+    }
+    // Off the receiver only the boom's anti-aliased edge may differ.
+    EXPECT_LT(changed_outside, 6000);
+  }
+}
+
 }  // namespace
 }  // namespace augrig

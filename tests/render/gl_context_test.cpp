@@ -44,3 +44,29 @@ TEST(GlContext, GlfwWithoutDisplayFailsWithAClearMessage) {
 
 }  // namespace
 }  // namespace augrig
+
+namespace augrig {
+namespace {
+
+// Runs under `xvfb-run` (a CTest entry of its own, see tests/CMakeLists.txt): a real window.
+TEST(GlContext, GlfwWindowWhenADisplayIsPresent) {
+  if (!std::getenv("DISPLAY")) GTEST_SKIP() << "no display; CTest runs this under xvfb-run";
+  GlContextOptions opt;
+  opt.window_width = 320;
+  opt.window_height = 240;
+  auto ctx = create_gl_context(GlBackend::kGlfwWindow, opt);
+  ASSERT_TRUE(ctx) << ctx.error().message;
+  EXPECT_STREQ((*ctx)->backend_name(), "glfw");
+  ASSERT_NE((*ctx)->window(), nullptr);
+  EXPECT_GE(epoxy_gl_version(), 33);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glClearColor(0.0f, 1.0f, 0.0f, 1.0f);
+  glClear(GL_COLOR_BUFFER_BIT);
+  unsigned char px[4] = {};
+  glReadPixels(10, 10, 1, 1, GL_RGBA, GL_UNSIGNED_BYTE, px);
+  EXPECT_EQ(px[1], 255);
+  EXPECT_EQ(px[0], 0);
+}
+
+}  // namespace
+}  // namespace augrig
