@@ -7,8 +7,8 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
-#include <string>
 #include <iterator>
+#include <string>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -40,7 +40,8 @@ Frame textured_frame(const CameraModel& cm, PixelFormat fmt, CameraId id) {
   f.image = Image(cm.width_px, cm.height_px, fmt);
   const int bpp = bytes_per_pixel(fmt);
   for (int y = 0; y < cm.height_px; ++y)
-    for (int x = 0; x < cm.width_px * bpp; ++x) f.image.row(y)[x] = static_cast<std::uint8_t>((x * 13) ^ (y * 7));
+    for (int x = 0; x < cm.width_px * bpp; ++x)
+      f.image.row(y)[x] = static_cast<std::uint8_t>((x * 13) ^ (y * 7));
   f.camera = id;
   return f;
 }
@@ -80,9 +81,9 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
   for (int i = -5; i < frames; ++i) {  // 5 warm-up frames
     // Sweep the approach from pre-contact to contact so boxes and coverage vary.
     const double s = std::max(0, i) / std::max(1.0, frames - 1.0);
-    const SceneState scene = scene_at_contact(rig, (*aug)->boom_model().dims, receptacle,
-                                              {0.50 + 0.04 * s, 0.02, 1.0 + 3.0 * s},
-                                              Eigen::Vector3d(-12.0 * (1 - s), 0, 4.0 * (1 - s)));
+    const SceneState scene =
+        scene_at_contact(rig, (*aug)->boom_model().dims, receptacle, {0.50 + 0.04 * s, 0.02, 1.0 + 3.0 * s},
+                         Eigen::Vector3d(-12.0 * (1 - s), 0, 4.0 * (1 - s)));
     const auto t0 = std::chrono::steady_clock::now();
     if (auto st = (*aug)->augment(sf, scene, out); !st) {
       std::fprintf(stderr, "%s\n", st.error().message.c_str());
@@ -109,12 +110,13 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
     debayer.v.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
   }
   if (profile) {
-    std::printf("| %-44s | %6.2f | %6.2f | %6.2f |\n", name, clear.median(), draw.median(), readback.median());
+    std::printf("| %-44s | %6.2f | %6.2f | %6.2f |\n", name, clear.median(), draw.median(),
+                readback.median());
     return;
   }
-  std::printf("| %-44s | %5.1f%% | %5.1f%% | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n", name, boom_pct.median(),
-              receiver ? recv_pct.median() : 0.0, render.median(), masks.median(), stats.median(),
-              is_bayer(fmt) ? debayer.median() : 0.0, total.median(), total.p90());
+  std::printf("| %-44s | %5.1f%% | %5.1f%% | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n", name,
+              boom_pct.median(), receiver ? recv_pct.median() : 0.0, render.median(), masks.median(),
+              stats.median(), is_bayer(fmt) ? debayer.median() : 0.0, total.median(), total.p90());
 }
 
 }  // namespace
@@ -122,8 +124,10 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
 int main(int argc, char** argv) {
   int frames = 60, only = -1;
   for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc) frames = std::atoi(argv[++i]);
-    else if (std::strcmp(argv[i], "--case") == 0 && i + 1 < argc) only = std::atoi(argv[++i]);
+    if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc)
+      frames = std::atoi(argv[++i]);
+    else if (std::strcmp(argv[i], "--case") == 0 && i + 1 < argc)
+      only = std::atoi(argv[++i]);
     else {
       std::fprintf(stderr, "usage: bench_render [--frames N] [--case 0..6]\n");
       return 2;
@@ -134,10 +138,15 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s\n", ctx.error().message.c_str());
     return 1;
   }
-  std::printf("bench_render: 1280x960 stereo, %d frames per case, medians in ms (total: median / p90)\n", frames);
+  std::printf("bench_render: 1280x960 stereo, %d frames per case, medians in ms (total: median / p90)\n",
+              frames);
   std::printf("renderer: %s\n\n", (*ctx)->renderer().c_str());
-  std::printf("| case                                         | boom | receiver | render | masks+composite | stats | debayer | total (median / p90) |\n");
-  std::printf("|----------------------------------------------|-----:|-----:|-------:|-------:|------:|------:|------:|\n");
+  std::printf(
+      "| case                                         | boom | receiver | render | masks+composite | stats | "
+      "debayer | total (median / p90) |\n");
+  std::printf(
+      "|----------------------------------------------|-----:|-----:|-------:|-------:|------:|------:|------"
+      ":|\n");
   struct Case {
     const char* name;
     bool distorted, receiver;

@@ -13,7 +13,7 @@ namespace augrig {
 
 struct PairerStats {
   std::uint64_t pairs = 0;
-  std::uint64_t unpaired_left = 0;   // left frames dropped without a partner
+  std::uint64_t unpaired_left = 0;  // left frames dropped without a partner
   std::uint64_t unpaired_right = 0;
   std::int64_t max_abs_skew_ns = 0;
 };

@@ -48,12 +48,18 @@ enum class ClockDomain : std::uint8_t {
 
 constexpr std::string_view to_string(ClockDomain c) {
   switch (c) {
-    case ClockDomain::kHostMonotonic: return "host_monotonic";
-    case ClockDomain::kHostRealtime: return "host_realtime";
-    case ClockDomain::kDevice: return "device";
-    case ClockDomain::kGps: return "gps";
-    case ClockDomain::kSim: return "sim";
-    case ClockDomain::kUnknown: break;
+    case ClockDomain::kHostMonotonic:
+      return "host_monotonic";
+    case ClockDomain::kHostRealtime:
+      return "host_realtime";
+    case ClockDomain::kDevice:
+      return "device";
+    case ClockDomain::kGps:
+      return "gps";
+    case ClockDomain::kSim:
+      return "sim";
+    case ClockDomain::kUnknown:
+      break;
   }
   return "unknown";
 }
@@ -61,13 +67,21 @@ constexpr std::string_view to_string(ClockDomain c) {
 using TimestampNs = std::int64_t;
 
 inline constexpr double kPi = std::numbers::pi;
-constexpr double deg_to_rad(double deg) { return deg * (kPi / 180.0); }
-constexpr double rad_to_deg(double rad) { return rad * (180.0 / kPi); }
-constexpr double ns_to_s(TimestampNs t_ns) { return static_cast<double>(t_ns) * 1e-9; }
-constexpr TimestampNs s_to_ns(double t_s) { return static_cast<TimestampNs>(t_s * 1e9 + (t_s >= 0 ? 0.5 : -0.5)); }
+constexpr double deg_to_rad(double deg) {
+  return deg * (kPi / 180.0);
+}
+constexpr double rad_to_deg(double rad) {
+  return rad * (180.0 / kPi);
+}
+constexpr double ns_to_s(TimestampNs t_ns) {
+  return static_cast<double>(t_ns) * 1e-9;
+}
+constexpr TimestampNs s_to_ns(double t_s) {
+  return static_cast<TimestampNs>(t_s * 1e9 + (t_s >= 0 ? 0.5 : -0.5));
+}
 
 // Mask image bits (render/augmenter.hpp writes them, render/stats.hpp reads them).
-inline constexpr std::uint8_t kMaskBoom = 1u << 0;      // the boom is the front-most surface at the pixel centre
+inline constexpr std::uint8_t kMaskBoom = 1u << 0;  // the boom is the front-most surface at the pixel centre
 inline constexpr std::uint8_t kMaskReceiver = 1u << 1;  // the receiver lies on the pixel centre's ray
 
 }  // namespace augrig

@@ -15,17 +15,21 @@ namespace augrig {
 
 // Cameras of a stereo rig: index into the rig's camera list (0 = left, 1 = right).
 enum class CameraId : std::uint8_t { kLeft = 0, kRight = 1 };
-constexpr int index_of(CameraId id) { return static_cast<int>(id); }
-constexpr std::string_view to_string(CameraId id) { return id == CameraId::kLeft ? "left" : "right"; }
+constexpr int index_of(CameraId id) {
+  return static_cast<int>(id);
+}
+constexpr std::string_view to_string(CameraId id) {
+  return id == CameraId::kLeft ? "left" : "right";
+}
 
 struct Frame {
   Image image;
-  TimestampNs t_ns = 0;                      // mid-exposure, in `clock`
+  TimestampNs t_ns = 0;  // mid-exposure, in `clock`
   ClockDomain clock = ClockDomain::kUnknown;
-  TimestampNs t_host_ns = 0;                 // CLOCK_MONOTONIC when the frame became available (0: unknown)
-  std::uint64_t sequence = 0;                // per-camera frame counter from the source
+  TimestampNs t_host_ns = 0;   // CLOCK_MONOTONIC when the frame became available (0: unknown)
+  std::uint64_t sequence = 0;  // per-camera frame counter from the source
   CameraId camera = CameraId::kLeft;
-  std::int64_t exposure_ns = 0;              // 0: unknown
+  std::int64_t exposure_ns = 0;  // 0: unknown
 };
 
 struct StereoFrame {

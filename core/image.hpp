@@ -22,9 +22,12 @@ enum class PixelFormat : std::uint8_t {
 
 constexpr int bytes_per_pixel(PixelFormat f) {
   switch (f) {
-    case PixelFormat::kRGB8: return 3;
-    case PixelFormat::kRGBA8: return 4;
-    default: return 1;
+    case PixelFormat::kRGB8:
+      return 3;
+    case PixelFormat::kRGBA8:
+      return 4;
+    default:
+      return 1;
   }
 }
 constexpr bool is_bayer(PixelFormat f) {
@@ -33,13 +36,20 @@ constexpr bool is_bayer(PixelFormat f) {
 }
 constexpr std::string_view to_string(PixelFormat f) {
   switch (f) {
-    case PixelFormat::kMono8: return "Mono8";
-    case PixelFormat::kRGB8: return "RGB8";
-    case PixelFormat::kRGBA8: return "RGBA8";
-    case PixelFormat::kBayerRG8: return "BayerRG8";
-    case PixelFormat::kBayerGR8: return "BayerGR8";
-    case PixelFormat::kBayerGB8: return "BayerGB8";
-    case PixelFormat::kBayerBG8: return "BayerBG8";
+    case PixelFormat::kMono8:
+      return "Mono8";
+    case PixelFormat::kRGB8:
+      return "RGB8";
+    case PixelFormat::kRGBA8:
+      return "RGBA8";
+    case PixelFormat::kBayerRG8:
+      return "BayerRG8";
+    case PixelFormat::kBayerGR8:
+      return "BayerGR8";
+    case PixelFormat::kBayerGB8:
+      return "BayerGB8";
+    case PixelFormat::kBayerBG8:
+      return "BayerBG8";
   }
   return "?";
 }
@@ -54,11 +64,16 @@ constexpr int bayer_channel(PixelFormat f, int x, int y) {
   constexpr int kGB[4] = {1, 2, 0, 1};
   constexpr int kBG[4] = {2, 1, 1, 0};
   switch (f) {
-    case PixelFormat::kBayerRG8: return kRG[cell];
-    case PixelFormat::kBayerGR8: return kGR[cell];
-    case PixelFormat::kBayerGB8: return kGB[cell];
-    case PixelFormat::kBayerBG8: return kBG[cell];
-    default: return -1;
+    case PixelFormat::kBayerRG8:
+      return kRG[cell];
+    case PixelFormat::kBayerGR8:
+      return kGR[cell];
+    case PixelFormat::kBayerGB8:
+      return kGB[cell];
+    case PixelFormat::kBayerBG8:
+      return kBG[cell];
+    default:
+      return -1;
   }
 }
 

@@ -83,9 +83,9 @@ struct DrawItem {
   ObjectKind kind;
   const Mesh* mesh;
   gl::GpuMesh gpu;
-  std::uint8_t draw_id;    // value written to the id buffer's alpha
-  std::size_t first_tri;   // this mesh's first triangle in ViewState::tris
-  bool cull;               // built-in, consistently wound meshes only
+  std::uint8_t draw_id;   // value written to the id buffer's alpha
+  std::size_t first_tri;  // this mesh's first triangle in ViewState::tris
+  bool cull;              // built-in, consistently wound meshes only
   // Spatially compact triangle ranges [first, first + count) of the mesh: each gets its own
   // screen box, so a long diagonal part (the boom's tube) costs its footprint, not its bounding box.
   std::vector<std::pair<std::uint32_t, std::uint32_t>> chunks;
@@ -111,22 +111,24 @@ struct ViewState {
   const RigCamera* cam = nullptr;
   VirtualPinhole vp;
   std::array<float, 16> proj{};
-  std::vector<MapEntry> map;                  // per raw pixel
-  std::vector<std::uint32_t> boom_ids, recv_ids;  // virtual image, packed ids; zero outside the last boxes
+  std::vector<MapEntry> map;                       // per raw pixel
+  std::vector<std::uint32_t> boom_ids, recv_ids;   // virtual image, packed ids; zero outside the last boxes
   std::vector<std::uint8_t> boom_rgba, recv_rgba;  // virtual image colour (recv only for overlays)
-  std::vector<VBox> boom_vboxes, recv_vboxes;  // boxes rendered and read back this frame
-  std::vector<CamTriangle> tris;              // all draw items' triangles, this frame
+  std::vector<VBox> boom_vboxes, recv_vboxes;      // boxes rendered and read back this frame
+  std::vector<CamTriangle> tris;                   // all draw items' triangles, this frame
   struct Plane {
     double nx, ny, nz, c;  // n . p = c; depth along the ray (x, y, 1) is c / (n . (x, y, 1))
   };
-  std::vector<Plane> planes;                  // one per triangle, this frame
+  std::vector<Plane> planes;  // one per triangle, this frame
   std::vector<Eigen::Vector3d> scratch_vertices;
 };
 
 constexpr std::uint32_t kDrawShift = 24;
 constexpr std::uint32_t kPrimMask = (1u << 24) - 1;
 
-PixelBox to_pixel_box(const VBox& b) { return {b.x0, b.y0, b.x1, b.y1}; }
+PixelBox to_pixel_box(const VBox& b) {
+  return {b.x0, b.y0, b.x1, b.y1};
+}
 
 VBox intersect(VBox a, const VBox& b) {
   a.x0 = std::max(a.x0, b.x0), a.y0 = std::max(a.y0, b.y0);
@@ -198,7 +200,9 @@ class AugmenterImpl final : public Augmenter {
   std::uint32_t global_index(std::uint32_t packed) const {
     return first_tri_of_draw_[packed >> kDrawShift] + (packed & kPrimMask);
   }
-  const CamTriangle& triangle(const ViewState& vs, std::uint32_t packed) const { return vs.tris[global_index(packed)]; }
+  const CamTriangle& triangle(const ViewState& vs, std::uint32_t packed) const {
+    return vs.tris[global_index(packed)];
+  }
   bool is_boom(std::uint32_t packed) const {
     return packed && draws_[(packed >> kDrawShift) - 1].kind != ObjectKind::kReceiver;
   }
@@ -217,8 +221,8 @@ class AugmenterImpl final : public Augmenter {
   gl::Framebuffer fb_;
   struct Program {
     GLuint id = 0;
-    GLint cam_from_obj = -1, proj = -1, base_color = -1, has_texture = -1, light = -1, draw_id = -1, alpha = -1,
-          texture = -1;
+    GLint cam_from_obj = -1, proj = -1, base_color = -1, has_texture = -1, light = -1, draw_id = -1,
+          alpha = -1, texture = -1;
   };
   Program shaded_, ids_only_;
   bool zero_to_one_ = false;
@@ -230,7 +234,8 @@ class AugmenterImpl final : public Augmenter {
 };
 
 Status AugmenterImpl::init() {
-  if (rig_.cameras.size() != 2) return make_error("Augmenter::create(): the rig needs 2 cameras, has ", rig_.cameras.size());
+  if (rig_.cameras.size() != 2)
+    return make_error("Augmenter::create(): the rig needs 2 cameras, has ", rig_.cameras.size());
   if (options_.boom_model) {
     boom_ = *options_.boom_model;
   } else if (rig_.boom.model.path.empty()) {
@@ -251,7 +256,7 @@ Status AugmenterImpl::init() {
   }
 
   for (auto [prog, name, fs] : {std::tuple{&shaded_, "augmenter shaded", kFragmentShader},
-                                 std::tuple{&ids_only_, "augmenter ids", kIdFragmentShader}}) {
+                                std::tuple{&ids_only_, "augmenter ids", kIdFragmentShader}}) {
     auto id = gl::make_program(name, kVertexShader, fs);
     if (!id) return id.error();
     prog->id = *id;
@@ -273,8 +278,8 @@ Status AugmenterImpl::init() {
       if (m.triangle_count() > kPrimMask)
         return make_error("Augmenter::create(): mesh '", m.name, "' has more than 2^24 triangles");
       auto chunks = split_into_chunks(m, 4);  // before upload: it reorders the triangles
-      draws_.push_back(
-          {kind, &m, gl::upload(m), static_cast<std::uint8_t>(draws_.size() + 1), total_tris_, cull, std::move(chunks)});
+      draws_.push_back({kind, &m, gl::upload(m), static_cast<std::uint8_t>(draws_.size() + 1), total_tris_,
+                        cull, std::move(chunks)});
       total_tris_ += m.triangle_count();
     }
     return {};
@@ -282,7 +287,9 @@ Status AugmenterImpl::init() {
   const bool builtin_boom = rig_.boom.model.path.empty() && !options_.boom_model;
   if (auto s = add(ObjectKind::kBoomFixed, boom_.fixed, builtin_boom); !s) return s;
   if (auto s = add(ObjectKind::kBoomTelescope, boom_.telescope, builtin_boom); !s) return s;
-  if (auto s = add(ObjectKind::kReceiver, receiver_, rig_.receiver.model.path.empty() && !options_.receiver_model); !s)
+  if (auto s =
+          add(ObjectKind::kReceiver, receiver_, rig_.receiver.model.path.empty() && !options_.receiver_model);
+      !s)
     return s;
 
   for (const DrawItem& d : draws_) first_tri_of_draw_[d.draw_id] = static_cast<std::uint32_t>(d.first_tri);
@@ -335,8 +342,8 @@ Status AugmenterImpl::init() {
 Status AugmenterImpl::check_frame(int camera, const Frame& raw) const {
   const CameraModel& cm = rig_.cameras[camera].model;
   if (raw.image.width() != cm.width_px || raw.image.height() != cm.height_px)
-    return make_error("Augmenter::augment(): ", rig_.cameras[camera].name, " frame is ", raw.image.width(), "x",
-                      raw.image.height(), ", the rig says ", cm.width_px, "x", cm.height_px);
+    return make_error("Augmenter::augment(): ", rig_.cameras[camera].name, " frame is ", raw.image.width(),
+                      "x", raw.image.height(), ", the rig says ", cm.width_px, "x", cm.height_px);
   return {};
 }
 
@@ -344,7 +351,7 @@ Status AugmenterImpl::check_frame(int camera, const Frame& raw) const {
 void AugmenterImpl::prepare_view(ViewState& vs, const SceneState& scene) {
   const Pose T_cam_body = vs.cam->T_body_cam.inverse();
   for (const DrawItem& d : draws_) {
-    const Pose T_cam_obj = T_cam_body * (d.kind == ObjectKind::kReceiver      ? scene.T_body_receiver
+    const Pose T_cam_obj = T_cam_body * (d.kind == ObjectKind::kReceiver    ? scene.T_body_receiver
                                          : d.kind == ObjectKind::kBoomFixed ? T_body_boom_
                                                                             : T_body_telescope_);
     const Eigen::Matrix3d R = T_cam_obj.R();
@@ -369,7 +376,8 @@ void AugmenterImpl::prepare_view(ViewState& vs, const SceneState& scene) {
 // projected vertices (a mesh's projection lies in the hull of its projected vertices while all are
 // in front), then merged where merging costs little area. The whole image if any vertex is nearer
 // than the near plane.
-std::vector<VBox> AugmenterImpl::project_boxes(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const {
+std::vector<VBox> AugmenterImpl::project_boxes(const ViewState& vs,
+                                               std::initializer_list<ObjectKind> kinds) const {
   const VBox full{0, 0, vs.vp.width, vs.vp.height};
   const double near = vs.cam->near_m;
   std::vector<VBox> boxes;
@@ -428,7 +436,8 @@ VBox AugmenterImpl::raw_box_of(const ViewState& vs, const VBox& b) const {
   auto visit = [&](double i, double j) -> bool {
     const auto uv = cm.project({(i - vs.vp.cx) / vs.vp.fx, (j - vs.vp.cy) / vs.vp.fy, 1.0});
     if (!uv) return false;
-    x0 = std::min(x0, uv->x()), x1 = std::max(x1, uv->x()), y0 = std::min(y0, uv->y()), y1 = std::max(y1, uv->y());
+    x0 = std::min(x0, uv->x()), x1 = std::max(x1, uv->x()), y0 = std::min(y0, uv->y()),
+    y1 = std::max(y1, uv->y());
     return true;
   };
   constexpr double kStep = 2.0;
@@ -451,7 +460,8 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
   auto zero_boxes = [&](std::vector<std::uint32_t>& ids, const std::vector<VBox>& boxes) {
     for (const VBox& b : boxes)
       for (int y = b.y0; y < b.y1; ++y)
-        std::memset(&ids[static_cast<std::size_t>(y) * vs.vp.width + b.x0], 0, (b.x1 - b.x0) * sizeof(std::uint32_t));
+        std::memset(&ids[static_cast<std::size_t>(y) * vs.vp.width + b.x0], 0,
+                    (b.x1 - b.x0) * sizeof(std::uint32_t));
   };
   zero_boxes(vs.boom_ids, vs.boom_vboxes);
   zero_boxes(vs.recv_ids, vs.recv_vboxes);
@@ -480,7 +490,10 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
     glUniformMatrix4fv(p.cam_from_obj, 1, GL_FALSE, M.data());  // Eigen is column-major too
     for (const DrawItem& d : draws_) {
       if (d.kind != kind) continue;
-      if (d.cull) glEnable(GL_CULL_FACE); else glDisable(GL_CULL_FACE);
+      if (d.cull)
+        glEnable(GL_CULL_FACE);
+      else
+        glDisable(GL_CULL_FACE);
       const Eigen::Vector3f& c = d.mesh->base_color;
       glUniform1ui(p.draw_id, d.draw_id);
       if (p.base_color >= 0) glUniform3f(p.base_color, c.x(), c.y(), c.z());
@@ -522,7 +535,8 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
 
   // Receiver pass: ids into attachment 2 (colour into 3 for the validation overlays).
   if (!vs.recv_vboxes.empty()) {
-    const GLenum recv_targets[2] = {vs.recv_rgba.empty() ? GL_NONE : GL_COLOR_ATTACHMENT3, GL_COLOR_ATTACHMENT2};
+    const GLenum recv_targets[2] = {vs.recv_rgba.empty() ? GLenum{GL_NONE} : GLenum{GL_COLOR_ATTACHMENT3},
+                                    GL_COLOR_ATTACHMENT2};
     glDrawBuffers(2, recv_targets);
     if (options_.receiver_draw == ReceiverDraw::kWireframe) {
       // Ids from filled triangles; the wireframe colour is drawn after, without touching ids or depth.
@@ -553,14 +567,14 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
   stage(timings_.gl_draw_ms);
 
   for (const VBox& b : vs.recv_vboxes) {
-    gl::read_rgba_box(GL_COLOR_ATTACHMENT2, b.x0, b.y0, b.x1, b.y1, reinterpret_cast<std::uint8_t*>(vs.recv_ids.data()),
-                      vs.vp.width);
+    gl::read_rgba_box(GL_COLOR_ATTACHMENT2, b.x0, b.y0, b.x1, b.y1,
+                      reinterpret_cast<std::uint8_t*>(vs.recv_ids.data()), vs.vp.width);
     if (!vs.recv_rgba.empty())
       gl::read_rgba_box(GL_COLOR_ATTACHMENT3, b.x0, b.y0, b.x1, b.y1, vs.recv_rgba.data(), vs.vp.width);
   }
   for (const VBox& b : vs.boom_vboxes) {
-    gl::read_rgba_box(GL_COLOR_ATTACHMENT1, b.x0, b.y0, b.x1, b.y1, reinterpret_cast<std::uint8_t*>(vs.boom_ids.data()),
-                      vs.vp.width);
+    gl::read_rgba_box(GL_COLOR_ATTACHMENT1, b.x0, b.y0, b.x1, b.y1,
+                      reinterpret_cast<std::uint8_t*>(vs.boom_ids.data()), vs.vp.width);
     gl::read_rgba_box(GL_COLOR_ATTACHMENT0, b.x0, b.y0, b.x1, b.y1, vs.boom_rgba.data(), vs.vp.width);
   }
   stage(timings_.gl_readback_ms);
@@ -663,7 +677,8 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
     const VBox c = intersect({b.x0, b.y0, b.x1, b.y1}, full);
     for (int y = c.y0; y < c.y1; ++y) {
       std::memset(out.mask.row(y) + c.x0, 0, c.x1 - c.x0);
-      std::fill_n(&out.receiver_depth.z_m[static_cast<std::size_t>(y) * W + c.x0], c.x1 - c.x0, DepthImage::kNone);
+      std::fill_n(&out.receiver_depth.z_m[static_cast<std::size_t>(y) * W + c.x0], c.x1 - c.x0,
+                  DepthImage::kNone);
     }
   }
   // The augmented image starts as the raw image, byte for byte.
@@ -676,8 +691,10 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   // Raw pixels to visit: the union of the boxes' raw images, row by row, each pixel once.
   std::vector<VBox> raw_boxes;
   VBox boom_raw, recv_raw;
-  for (const VBox& b : vs.boom_vboxes) raw_boxes.push_back(raw_box_of(vs, b)), boom_raw = unite(boom_raw, raw_boxes.back());
-  for (const VBox& b : vs.recv_vboxes) raw_boxes.push_back(raw_box_of(vs, b)), recv_raw = unite(recv_raw, raw_boxes.back());
+  for (const VBox& b : vs.boom_vboxes)
+    raw_boxes.push_back(raw_box_of(vs, b)), boom_raw = unite(boom_raw, raw_boxes.back());
+  for (const VBox& b : vs.recv_vboxes)
+    raw_boxes.push_back(raw_box_of(vs, b)), recv_raw = unite(recv_raw, raw_boxes.back());
   out.boom_box = to_pixel_box(boom_raw);
   out.receiver_box = to_pixel_box(recv_raw);
   const VBox work = unite(boom_raw, recv_raw);
@@ -706,145 +723,151 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
         spans[n_spans++] = sp;
     }
     for (std::size_t si = 0; si < n_spans; ++si)
-    for (int u = spans[si].first; u < spans[si].second; ++u) {
-      const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
-      if (e.idx < 0) continue;
-      // Most pixels of a box see nothing: one OR over the samples skips them.
-      const std::uint32_t* pb = bids + e.idx;
-      const std::uint32_t* pr = rids + e.idx;
-      if (identity ? !(pb[0] | pr[0]) : !(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1] | pr[0] | pr[1] | pr[Wv] | pr[Wv + 1]))
-        continue;
-      const Eigen::Vector2f& ray = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u];
-      auto plane_depth = [&](std::uint32_t packed) {
-        const ViewState::Plane& pl = vs.planes[global_index(packed)];
-        return pl.c / (pl.nx * ray.x() + pl.ny * ray.y() + pl.nz);
-      };
-      if (identity && !overlay) {
-        // The samples ARE the pixel centres: GL's coverage and depth test are already exact there.
-        const std::uint32_t b0 = pb[0], r0 = pr[0];
-        mrow[u] = static_cast<std::uint8_t>((b0 ? kMaskBoom : 0) | (r0 ? kMaskReceiver : 0));
-        if (r0) drow[u] = static_cast<float>(plane_depth(r0));
-        if (b0) {
-          std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
-          const std::uint8_t* c = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
-          switch (fmt) {
-            case PixelFormat::kRGB8:
-            case PixelFormat::kRGBA8: px[0] = c[0], px[1] = c[1], px[2] = c[2]; break;
-            case PixelFormat::kMono8:
-              px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2] + 0.5f);
-              break;
-            default: px[0] = c[bayer_channel(fmt, u, v)];
+      for (int u = spans[si].first; u < spans[si].second; ++u) {
+        const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
+        if (e.idx < 0) continue;
+        // Most pixels of a box see nothing: one OR over the samples skips them.
+        const std::uint32_t* pb = bids + e.idx;
+        const std::uint32_t* pr = rids + e.idx;
+        if (identity ? !(pb[0] | pr[0])
+                     : !(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1] | pr[0] | pr[1] | pr[Wv] | pr[Wv + 1]))
+          continue;
+        const Eigen::Vector2f& ray = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u];
+        auto plane_depth = [&](std::uint32_t packed) {
+          const ViewState::Plane& pl = vs.planes[global_index(packed)];
+          return pl.c / (pl.nx * ray.x() + pl.ny * ray.y() + pl.nz);
+        };
+        if (identity && !overlay) {
+          // The samples ARE the pixel centres: GL's coverage and depth test are already exact there.
+          const std::uint32_t b0 = pb[0], r0 = pr[0];
+          mrow[u] = static_cast<std::uint8_t>((b0 ? kMaskBoom : 0) | (r0 ? kMaskReceiver : 0));
+          if (r0) drow[u] = static_cast<float>(plane_depth(r0));
+          if (b0) {
+            std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+            const std::uint8_t* c = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
+            switch (fmt) {
+              case PixelFormat::kRGB8:
+              case PixelFormat::kRGBA8:
+                px[0] = c[0], px[1] = c[1], px[2] = c[2];
+                break;
+              case PixelFormat::kMono8:
+                px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2] + 0.5f);
+                break;
+              default:
+                px[0] = c[bayer_channel(fmt, u, v)];
+            }
           }
+          continue;
         }
-        continue;
-      }
-      if (!(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1]) && pr[0] == pr[1] && pr[0] == pr[Wv] && pr[0] == pr[Wv + 1] &&
-          !overlay) {
-        // Inside one receiver triangle with no boom around: the most common covered pixel.
-        mrow[u] = kMaskReceiver;
-        drow[u] = static_cast<float>(plane_depth(pr[0]));
-        continue;
-      }
-      // The 2x2 samples around the centre (one sample when the grids coincide).
-      const int ns = identity ? 1 : 4;
-      const std::uint32_t off[4] = {0, 1, static_cast<std::uint32_t>(Wv), static_cast<std::uint32_t>(Wv) + 1};
-      std::uint32_t b[4] = {}, r[4] = {};
-      bool b_any = false, b_all = true, b_same = true, r_any = false, r_all = true, r_same = true;
-      for (int k = 0; k < ns; ++k) {
-        b[k] = bids[e.idx + off[k]];
-        r[k] = rids[e.idx + off[k]];
-        b_any |= b[k] != 0, b_all &= b[k] != 0, b_same &= b[k] == b[0];
-        r_any |= r[k] != 0, r_all &= r[k] != 0, r_same &= r[k] == r[0];
-      }
-      if (!b_any && !r_any) continue;
-      const double x = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].x();
-      const double y = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].y();
-      const Eigen::Vector3d d(x, y, 1.0);
+        if (!(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1]) && pr[0] == pr[1] && pr[0] == pr[Wv] &&
+            pr[0] == pr[Wv + 1] && !overlay) {
+          // Inside one receiver triangle with no boom around: the most common covered pixel.
+          mrow[u] = kMaskReceiver;
+          drow[u] = static_cast<float>(plane_depth(pr[0]));
+          continue;
+        }
+        // The 2x2 samples around the centre (one sample when the grids coincide).
+        const int ns = identity ? 1 : 4;
+        const std::uint32_t off[4] = {0, 1, static_cast<std::uint32_t>(Wv),
+                                      static_cast<std::uint32_t>(Wv) + 1};
+        std::uint32_t b[4] = {}, r[4] = {};
+        bool b_any = false, b_all = true, b_same = true, r_any = false, r_all = true, r_same = true;
+        for (int k = 0; k < ns; ++k) {
+          b[k] = bids[e.idx + off[k]];
+          r[k] = rids[e.idx + off[k]];
+          b_any |= b[k] != 0, b_all &= b[k] != 0, b_same &= b[k] == b[0];
+          r_any |= r[k] != 0, r_all &= r[k] != 0, r_same &= r[k] == r[0];
+        }
+        if (!b_any && !r_any) continue;
+        const double x = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].x();
+        const double y = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].y();
+        const Eigen::Vector3d d(x, y, 1.0);
 
-      // Receiver at the pixel centre: read off when one triangle covers all samples (it then
-      // covers the centre, triangles being convex), else exact ray tests with the candidates.
-      double z_r = std::numeric_limits<double>::infinity();
-      if (r_any) {
-        if (r_all && r_same) {
-          const CamTriangle& t = triangle(vs, r[0]);
-          z_r = t.n_dot_v0 / t.n.dot(d);
-        } else {
-          z_r = nearest_hit(vs, r, ns, x, y);
-          if (!std::isfinite(z_r) && r_all) {
-            // Covered all around but the centre's triangle is not among the samples' (a sliver):
-            // take the nearest sample's plane.
+        // Receiver at the pixel centre: read off when one triangle covers all samples (it then
+        // covers the centre, triangles being convex), else exact ray tests with the candidates.
+        double z_r = std::numeric_limits<double>::infinity();
+        if (r_any) {
+          if (r_all && r_same) {
             const CamTriangle& t = triangle(vs, r[0]);
             z_r = t.n_dot_v0 / t.n.dot(d);
+          } else {
+            z_r = nearest_hit(vs, r, ns, x, y);
+            if (!std::isfinite(z_r) && r_all) {
+              // Covered all around but the centre's triangle is not among the samples' (a sliver):
+              // take the nearest sample's plane.
+              const CamTriangle& t = triangle(vs, r[0]);
+              z_r = t.n_dot_v0 / t.n.dot(d);
+            }
           }
         }
-      }
-      // Boom, front-most where GL's depth test kept it at the samples; exact at the centre.
-      double z_b = std::numeric_limits<double>::infinity();
-      if (b_any) {
-        if (b_all && b_same) {
-          const CamTriangle& t = triangle(vs, b[0]);
-          z_b = t.n_dot_v0 / t.n.dot(d);
-        } else {
-          z_b = nearest_hit(vs, b, ns, x, y);
-          if (!std::isfinite(z_b) && b_all) {
+        // Boom, front-most where GL's depth test kept it at the samples; exact at the centre.
+        double z_b = std::numeric_limits<double>::infinity();
+        if (b_any) {
+          if (b_all && b_same) {
             const CamTriangle& t = triangle(vs, b[0]);
             z_b = t.n_dot_v0 / t.n.dot(d);
+          } else {
+            z_b = nearest_hit(vs, b, ns, x, y);
+            if (!std::isfinite(z_b) && b_all) {
+              const CamTriangle& t = triangle(vs, b[0]);
+              z_b = t.n_dot_v0 / t.n.dot(d);
+            }
+          }
+        }
+        const bool has_r = std::isfinite(z_r) && z_r > 0;
+        const bool has_b = std::isfinite(z_b) && z_b > 0 && (!has_r || z_b < z_r);
+        mrow[u] = static_cast<std::uint8_t>((has_b ? kMaskBoom : 0) | (has_r ? kMaskReceiver : 0));
+        if (has_r) drow[u] = static_cast<float>(z_r);
+
+        // Composite: the boom's bilinear coverage of the centre, anti-aliasing its edges.
+        float alpha = 0, cr = 0, cg = 0, cb = 0;
+        if (b_any) {
+          const float w[4] = {(1 - e.fx) * (1 - e.fy), e.fx * (1 - e.fy), (1 - e.fx) * e.fy, e.fx * e.fy};
+          for (int k = 0; k < ns; ++k) {
+            if (!b[k]) continue;
+            const float wk = identity ? 1.0f : w[k];
+            const std::uint8_t* c = &vs.boom_rgba[(static_cast<std::size_t>(e.idx) + off[k]) * 4];
+            alpha += wk, cr += wk * c[0], cg += wk * c[1], cb += wk * c[2];
+          }
+          if (!options_.antialias) {
+            const float s = alpha > 0 ? 1.0f / alpha : 0.f;
+            cr *= s, cg *= s, cb *= s;
+            alpha = has_b ? 1.f : 0.f;
+            cr *= alpha, cg *= alpha, cb *= alpha;
+          }
+        }
+        if (overlay && has_r && !has_b) {
+          // Validation overlay: the receiver model drawn translucent (or its wireframe) at its pose.
+          const std::uint8_t* c = &vs.recv_rgba[static_cast<std::size_t>(e.idx) * 4];
+          const float a =
+              options_.receiver_draw == ReceiverDraw::kTranslucent ? 0.45f : (c[3] > 0 ? 1.0f : 0.0f);
+          if (a > 0 && alpha < 1) {
+            const float k = a * (1 - alpha);
+            cr += k * (0.5f * c[0] + 127.f), cg += k * 0.5f * c[1], cb += k * 0.5f * c[2];
+            alpha += k;
+          }
+        }
+        if (alpha <= 0) continue;
+        if (alpha > 1) alpha = 1;
+        std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+        const float ia = 1 - alpha;
+        auto mix = [&](std::uint8_t raw_value, float premult) {
+          return static_cast<std::uint8_t>(std::clamp(raw_value * ia + premult + 0.5f, 0.f, 255.f));
+        };
+        switch (fmt) {
+          case PixelFormat::kRGB8:
+          case PixelFormat::kRGBA8:
+            px[0] = mix(px[0], cr), px[1] = mix(px[1], cg), px[2] = mix(px[2], cb);
+            break;
+          case PixelFormat::kMono8:
+            px[0] = mix(px[0], 0.299f * cr + 0.587f * cg + 0.114f * cb);
+            break;
+          default: {  // Bayer: the site's own colour channel
+            const int ch = bayer_channel(fmt, u, v);
+            px[0] = mix(px[0], ch == 0 ? cr : ch == 1 ? cg : cb);
           }
         }
       }
-      const bool has_r = std::isfinite(z_r) && z_r > 0;
-      const bool has_b = std::isfinite(z_b) && z_b > 0 && (!has_r || z_b < z_r);
-      mrow[u] = static_cast<std::uint8_t>((has_b ? kMaskBoom : 0) | (has_r ? kMaskReceiver : 0));
-      if (has_r) drow[u] = static_cast<float>(z_r);
-
-      // Composite: the boom's bilinear coverage of the centre, anti-aliasing its edges.
-      float alpha = 0, cr = 0, cg = 0, cb = 0;
-      if (b_any) {
-        const float w[4] = {(1 - e.fx) * (1 - e.fy), e.fx * (1 - e.fy), (1 - e.fx) * e.fy, e.fx * e.fy};
-        for (int k = 0; k < ns; ++k) {
-          if (!b[k]) continue;
-          const float wk = identity ? 1.0f : w[k];
-          const std::uint8_t* c = &vs.boom_rgba[(static_cast<std::size_t>(e.idx) + off[k]) * 4];
-          alpha += wk, cr += wk * c[0], cg += wk * c[1], cb += wk * c[2];
-        }
-        if (!options_.antialias) {
-          const float s = alpha > 0 ? 1.0f / alpha : 0.f;
-          cr *= s, cg *= s, cb *= s;
-          alpha = has_b ? 1.f : 0.f;
-          cr *= alpha, cg *= alpha, cb *= alpha;
-        }
-      }
-      if (overlay && has_r && !has_b) {
-        // Validation overlay: the receiver model drawn translucent (or its wireframe) at its pose.
-        const std::uint8_t* c = &vs.recv_rgba[static_cast<std::size_t>(e.idx) * 4];
-        const float a = options_.receiver_draw == ReceiverDraw::kTranslucent ? 0.45f : (c[3] > 0 ? 1.0f : 0.0f);
-        if (a > 0 && alpha < 1) {
-          const float k = a * (1 - alpha);
-          cr += k * (0.5f * c[0] + 127.f), cg += k * 0.5f * c[1], cb += k * 0.5f * c[2];
-          alpha += k;
-        }
-      }
-      if (alpha <= 0) continue;
-      if (alpha > 1) alpha = 1;
-      std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
-      const float ia = 1 - alpha;
-      auto mix = [&](std::uint8_t raw_value, float premult) {
-        return static_cast<std::uint8_t>(std::clamp(raw_value * ia + premult + 0.5f, 0.f, 255.f));
-      };
-      switch (fmt) {
-        case PixelFormat::kRGB8:
-        case PixelFormat::kRGBA8:
-          px[0] = mix(px[0], cr), px[1] = mix(px[1], cg), px[2] = mix(px[2], cb);
-          break;
-        case PixelFormat::kMono8:
-          px[0] = mix(px[0], 0.299f * cr + 0.587f * cg + 0.114f * cb);
-          break;
-        default: {  // Bayer: the site's own colour channel
-          const int ch = bayer_channel(fmt, u, v);
-          px[0] = mix(px[0], ch == 0 ? cr : ch == 1 ? cg : cb);
-        }
-      }
-    }
   }
 }
 
@@ -900,7 +923,8 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   copt.left_rays_xy = &views_[0].vp.ray_xy;
   out.stats = compute_occlusion_stats(frame.t_key_ns, out.left.mask, out.right.mask, out.left.receiver_depth,
                                       out.right.receiver_depth, rig_.left().model, rig_.right().model,
-                                      rig_.T_right_left(), copt, copt.compute_classes ? &out.stereo_classes : nullptr);
+                                      rig_.T_right_left(), copt,
+                                      copt.compute_classes ? &out.stereo_classes : nullptr);
   if (!copt.compute_classes) out.stereo_classes.clear();
   timings_.stats_ms = ms(Clock::now() - t4);
   (void)t3;

@@ -28,9 +28,9 @@ enum class ReceiverDraw { kMaskOnly, kWireframe, kTranslucent };
 
 struct AugmentOptions {
   ReceiverDraw receiver_draw = ReceiverDraw::kMaskOnly;
-  bool antialias = true;         // blend the boom's edge pixels by their coverage
-  bool receiver_proxy = true;    // render the receiver (mask bit 1, depth, stereo classes)
-  bool stereo_classes = true;    // compute the stereo visibility classes (needs receiver_proxy)
+  bool antialias = true;       // blend the boom's edge pixels by their coverage
+  bool receiver_proxy = true;  // render the receiver (mask bit 1, depth, stereo classes)
+  bool stereo_classes = true;  // compute the stereo visibility classes (needs receiver_proxy)
   StereoClassOptions class_options;
   // bench/: glFinish between GL stages so AugmentTimings splits clear/draw/readback (slower overall).
   bool profile_stages = false;
@@ -42,14 +42,15 @@ struct AugmentOptions {
 // Where everything is for one stereo frame.
 struct SceneState {
   BoomArticulation boom;
-  Pose T_body_receiver;          // receiver body frame in the tanker body frame
+  Pose T_body_receiver;  // receiver body frame in the tanker body frame
   bool receiver_present = true;
 };
 
 // The scene at contact: boom at `a`, the receiver (level, the tanker's attitude) placed so its
 // receptacle (receiver body frame) sits at the nozzle tip, then moved by `offset_body_m`.
 SceneState scene_at_contact(const Rig& rig, const BoomDimensions& boom, const Eigen::Vector3d& receptacle_m,
-                            const BoomArticulation& a, const Eigen::Vector3d& offset_body_m = Eigen::Vector3d::Zero());
+                            const BoomArticulation& a,
+                            const Eigen::Vector3d& offset_body_m = Eigen::Vector3d::Zero());
 
 struct PixelBox {
   int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // [x0, x1) x [y0, y1)
@@ -57,11 +58,11 @@ struct PixelBox {
 };
 
 struct ViewResult {
-  Image augmented;             // same format and size as the raw input
-  Image mask;                  // Mono8
-  DepthImage receiver_depth;   // z of the receiver along each pixel centre's ray
-  PixelBox boom_box;           // raw pixels the boom may touch (its anti-aliased footprint)
-  PixelBox receiver_box;       // raw pixels the receiver may cover
+  Image augmented;            // same format and size as the raw input
+  Image mask;                 // Mono8
+  DepthImage receiver_depth;  // z of the receiver along each pixel centre's ray
+  PixelBox boom_box;          // raw pixels the boom may touch (its anti-aliased footprint)
+  PixelBox receiver_box;      // raw pixels the receiver may cover
 };
 
 struct StereoResult {
@@ -73,8 +74,8 @@ struct StereoResult {
 
 // Wall time of each stage of the last augment() call, for bench/.
 struct AugmentTimings {
-  double render_ms = 0;     // GL clear + draw + readback, both views
-  double gl_clear_ms = 0;   // the three below only with AugmentOptions::profile_stages
+  double render_ms = 0;    // GL clear + draw + readback, both views
+  double gl_clear_ms = 0;  // the three below only with AugmentOptions::profile_stages
   double gl_draw_ms = 0;
   double gl_readback_ms = 0;
   double masks_ms = 0;      // id lookup, exact edge rays, depth

@@ -25,8 +25,10 @@ struct StereoCalibration {
   std::string format;  // "opencv", "ros", "kalibr"
 };
 
-Expected<StereoCalibration> import_opencv_stereo(const std::string& path, int width_px = 0, int height_px = 0);
-Expected<StereoCalibration> import_ros_camera_info(const std::string& left_path, const std::string& right_path);
+Expected<StereoCalibration> import_opencv_stereo(const std::string& path, int width_px = 0,
+                                                 int height_px = 0);
+Expected<StereoCalibration> import_ros_camera_info(const std::string& left_path,
+                                                   const std::string& right_path);
 Expected<StereoCalibration> import_kalibr_camchain(const std::string& path);
 
 // Picks the importer by content ("opencv", "ros", "kalibr" or "auto"); for "ros", `path2` is the

@@ -1,9 +1,9 @@
 // Backend selection and the backend-independent parts of GlContext.
 #include "render/gl_context.hpp"
 
-#include <epoxy/gl.h>
-
 #include <cstdio>
+
+#include <epoxy/gl.h>
 
 namespace augrig {
 
@@ -14,8 +14,12 @@ std::string gl_string(GLenum name) {
 }
 }  // namespace
 
-std::string GlContext::renderer() const { return gl_string(GL_RENDERER); }
-std::string GlContext::version() const { return gl_string(GL_VERSION); }
+std::string GlContext::renderer() const {
+  return gl_string(GL_RENDERER);
+}
+std::string GlContext::version() const {
+  return gl_string(GL_VERSION);
+}
 
 Expected<std::unique_ptr<GlContext>> create_gl_context(GlBackend backend, const GlContextOptions& options) {
   auto ctx = backend == GlBackend::kGlfwWindow ? create_glfw_context(options) : create_egl_context(options);

@@ -15,11 +15,11 @@ namespace augrig {
 enum class GlBackend { kAuto, kEglHeadless, kGlfwWindow };
 
 struct GlContextOptions {
-  int window_width = 1280;   // GLFW only
+  int window_width = 1280;  // GLFW only
   int window_height = 720;
   std::string window_title = "augrig";
-  bool visible = true;       // GLFW only
-  bool debug = false;        // request a debug context and log GL errors
+  bool visible = true;  // GLFW only
+  bool debug = false;   // request a debug context and log GL errors
 };
 
 class GlContext {
@@ -28,12 +28,13 @@ class GlContext {
   virtual const char* backend_name() const = 0;  // "egl-surfaceless", "egl-device", "glfw"
   virtual void make_current() = 0;
   virtual GLFWwindow* window() { return nullptr; }  // non-null for the GLFW backend
-  std::string renderer() const;  // GL_RENDERER
-  std::string version() const;   // GL_VERSION
+  std::string renderer() const;                     // GL_RENDERER
+  std::string version() const;                      // GL_VERSION
 };
 
 // kAuto: EGL headless. Logs "GlContext: <backend>, <GL_RENDERER>, <GL_VERSION>" to stderr.
-Expected<std::unique_ptr<GlContext>> create_gl_context(GlBackend backend, const GlContextOptions& options = {});
+Expected<std::unique_ptr<GlContext>> create_gl_context(GlBackend backend,
+                                                       const GlContextOptions& options = {});
 
 // Backend factories, defined in render/backends/gl_context_*.cpp.
 Expected<std::unique_ptr<GlContext>> create_egl_context(const GlContextOptions& options);

@@ -3,11 +3,11 @@
 // context (render/gl_context.hpp).
 #pragma once
 
-#include <epoxy/gl.h>
-
 #include <memory>
 #include <string>
 #include <vector>
+
+#include <epoxy/gl.h>
 
 #include "core/expected.hpp"
 #include "render/mesh.hpp"

@@ -26,11 +26,11 @@ struct Texture {
 struct Mesh {
   std::string name;
   std::vector<Eigen::Vector3f> positions_m;
-  std::vector<Eigen::Vector3f> normals;   // unit, one per position
-  std::vector<Eigen::Vector2f> uvs;       // empty, or one per position (u right, v down into the texture)
-  std::vector<std::uint32_t> indices;     // 3 per triangle
+  std::vector<Eigen::Vector3f> normals;  // unit, one per position
+  std::vector<Eigen::Vector2f> uvs;      // empty, or one per position (u right, v down into the texture)
+  std::vector<std::uint32_t> indices;    // 3 per triangle
   Eigen::Vector3f base_color{0.8f, 0.8f, 0.8f};  // linear 0..1, multiplied with the texture
-  std::shared_ptr<const Texture> texture; // may be null
+  std::shared_ptr<const Texture> texture;        // may be null
 
   std::size_t triangle_count() const { return indices.size() / 3; }
   // Axis-aligned bounds of the positions; {min, max}.

@@ -11,14 +11,14 @@ namespace augrig {
 
 // Boom dimensions in metres (KC-135 class: 8.5 m to 14.3 m from pivot to nozzle tip).
 struct BoomDimensions {
-  double fixed_tube_length_m = 7.0;     // outer tube, pivot to its aft end
+  double fixed_tube_length_m = 7.0;  // outer tube, pivot to its aft end
   double fixed_tube_diameter_m = 0.46;
   double telescope_diameter_m = 0.25;
-  double telescope_length_m = 7.0;      // inner tube; at extension 0 it sticks out `telescope_stick_out_m`
+  double telescope_length_m = 7.0;  // inner tube; at extension 0 it sticks out `telescope_stick_out_m`
   double telescope_stick_out_m = 1.0;
   double nozzle_length_m = 0.5;
-  double ruddevator_station_m = 5.2;    // along the boom, leading edge of the ruddevators
-  double ruddevator_span_m = 2.1;       // each panel, root to tip
+  double ruddevator_station_m = 5.2;  // along the boom, leading edge of the ruddevators
+  double ruddevator_span_m = 2.1;     // each panel, root to tip
   double ruddevator_chord_m = 0.9;
   double ruddevator_dihedral_deg = 37.5;
   double ruddevator_tip_chord_m = 0.6;

@@ -32,7 +32,8 @@ std::array<float, 16> gl_projection(double fx, double fy, double cx, double cy, 
 VirtualPinhole make_virtual_pinhole(const CameraModel& cam, double scale) {
   VirtualPinhole vp;
   const int W = cam.width_px, H = cam.height_px;
-  vp.ray_xy.assign(static_cast<std::size_t>(W) * H, Eigen::Vector2f::Constant(std::numeric_limits<float>::quiet_NaN()));
+  vp.ray_xy.assign(static_cast<std::size_t>(W) * H,
+                   Eigen::Vector2f::Constant(std::numeric_limits<float>::quiet_NaN()));
 
   if (cam.distortion == DistortionModel::kNone && scale == 1.0) {
     // Same grid as the real camera: rasterisation samples exactly the raw pixel centres.

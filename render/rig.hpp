@@ -15,12 +15,12 @@
 namespace augrig {
 
 struct RigCamera {
-  std::string name;          // "left", "right" or as named in the file
+  std::string name;  // "left", "right" or as named in the file
   CameraModel model;
-  Pose T_body_cam;           // camera (OpenCV frame) in the tanker body frame (FRD)
-  double near_m = 1.0;       // no real or virtual object comes nearer than this
+  Pose T_body_cam;      // camera (OpenCV frame) in the tanker body frame (FRD)
+  double near_m = 1.0;  // no real or virtual object comes nearer than this
   double far_m = 100.0;
-  std::string source_uri;    // optional, used by live capture (empty: none)
+  std::string source_uri;  // optional, used by live capture (empty: none)
 };
 
 // Axis convention of a model file, converted explicitly on load: which model-file axis points
@@ -34,9 +34,9 @@ struct ModelAxes {
 };
 
 struct ModelSource {
-  std::string path;            // empty: the built-in procedural model
+  std::string path;  // empty: the built-in procedural model
   ModelAxes axes;
-  double scale = 1.0;          // file units -> metres
+  double scale = 1.0;  // file units -> metres
 };
 
 struct BoomLimits {
@@ -47,13 +47,13 @@ struct BoomLimits {
 
 struct BoomConfig {
   Eigen::Vector3d pivot_body_m = Eigen::Vector3d::Zero();
-  ModelSource model;           // a model file is in the boom frame (x along the boom), at extension 0
+  ModelSource model;  // a model file is in the boom frame (x along the boom), at extension 0
   BoomLimits limits;
 };
 
 struct ReceiverConfig {
-  ModelSource model;                                         // receiver body frame (FRD)
-  Eigen::Vector3d receptacle_m = Eigen::Vector3d::Zero();    // in the receiver body frame
+  ModelSource model;                                       // receiver body frame (FRD)
+  Eigen::Vector3d receptacle_m = Eigen::Vector3d::Zero();  // in the receiver body frame
 };
 
 struct Rig {

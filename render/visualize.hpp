@@ -12,8 +12,8 @@
 
 namespace augrig {
 
-Image visualize_boom_overlap(const Image& mask_left, const Image& mask_right);   // Fig. 7b
-Image visualize_receiver_occlusion(const Image& mask, bool left_camera);          // Fig. 8a / 8b
+Image visualize_boom_overlap(const Image& mask_left, const Image& mask_right);  // Fig. 7b
+Image visualize_receiver_occlusion(const Image& mask, bool left_camera);        // Fig. 8a / 8b
 Image visualize_stereo_classes(const std::vector<std::uint8_t>& classes, int width, int height);
 // Darkened copy of `background` (any format, debayered) with a mask visualisation blended over it.
 Image blend_over(const Image& background, const Image& visualization, float alpha = 0.6f);

@@ -1,13 +1,13 @@
 // EGL headless backend: no display, no window. Uses the NVIDIA EGL device platform when an
 // NVIDIA device is present, else Mesa's surfaceless platform (llvmpipe on CPU-only machines).
 // AUGRIG_EGL_PLATFORM=device|surfaceless forces one.
-#include <epoxy/egl.h>
-#include <epoxy/gl.h>
-
 #include <cstdlib>
 #include <cstring>
 #include <string>
 #include <vector>
+
+#include <epoxy/egl.h>
+#include <epoxy/gl.h>
 
 #include "render/gl_context.hpp"
 
@@ -68,13 +68,15 @@ Expected<std::unique_ptr<GlContext>> create_egl_context(const GlContextOptions& 
       dpy = eglGetPlatformDisplayEXT(EGL_PLATFORM_DEVICE_EXT, dev, nullptr);
       name = "egl-device";
     } else if (want == "device") {
-      return make_error("render::create_egl_context(): AUGRIG_EGL_PLATFORM=device but no NVIDIA EGL device found");
+      return make_error(
+          "render::create_egl_context(): AUGRIG_EGL_PLATFORM=device but no NVIDIA EGL device found");
     }
   }
   if (dpy == EGL_NO_DISPLAY) {
     if (!has_extension(client, "EGL_MESA_platform_surfaceless"))
-      return make_error("render::create_egl_context(): EGL lacks EGL_MESA_platform_surfaceless and no GPU device; "
-                        "install libegl1 and libgl1-mesa-dri (scripts/install-deps.sh)");
+      return make_error(
+          "render::create_egl_context(): EGL lacks EGL_MESA_platform_surfaceless and no GPU device; "
+          "install libegl1 and libgl1-mesa-dri (scripts/install-deps.sh)");
     dpy = eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
     name = "egl-surfaceless";
   }
@@ -86,7 +88,8 @@ Expected<std::unique_ptr<GlContext>> create_egl_context(const GlContextOptions& 
     eglTerminate(dpy);
     return make_error("render::create_egl_context(): eglBindAPI(EGL_OPENGL_API) failed on ", name);
   }
-  const EGLint config_attribs[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
+  const EGLint config_attribs[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT,
+                                   EGL_NONE};
   EGLConfig config = nullptr;
   EGLint n_configs = 0;
   // Surfaceless contexts need no surface type; retry without it if the platform offers none.
@@ -100,9 +103,15 @@ Expected<std::unique_ptr<GlContext>> create_egl_context(const GlContextOptions& 
   // Prefer 4.5 core (glClipControl for reversed-Z), fall back to 3.3 core.
   EGLContext ctx = EGL_NO_CONTEXT;
   for (auto [maj, min] : {std::pair{4, 5}, std::pair{3, 3}}) {
-    const EGLint ctx_attribs[] = {EGL_CONTEXT_MAJOR_VERSION, maj, EGL_CONTEXT_MINOR_VERSION, min,
-                                  EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
-                                  EGL_CONTEXT_OPENGL_DEBUG, options.debug ? EGL_TRUE : EGL_FALSE, EGL_NONE};
+    const EGLint ctx_attribs[] = {EGL_CONTEXT_MAJOR_VERSION,
+                                  maj,
+                                  EGL_CONTEXT_MINOR_VERSION,
+                                  min,
+                                  EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                                  EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                                  EGL_CONTEXT_OPENGL_DEBUG,
+                                  options.debug ? EGL_TRUE : EGL_FALSE,
+                                  EGL_NONE};
     ctx = eglCreateContext(dpy, config, EGL_NO_CONTEXT, ctx_attribs);
     if (ctx != EGL_NO_CONTEXT) break;
   }

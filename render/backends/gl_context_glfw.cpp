@@ -2,10 +2,10 @@
 // xvfb-run). Used by the real-time display.
 #include <epoxy/gl.h>
 // epoxy must come first: it replaces the system GL header GLFW would include.
-#include <GLFW/glfw3.h>
-
 #include <mutex>
 #include <string>
+
+#include <GLFW/glfw3.h>
 
 #include "render/gl_context.hpp"
 
@@ -38,9 +38,10 @@ class GlfwContext final : public GlContext {
 Expected<std::unique_ptr<GlContext>> create_glfw_context(const GlContextOptions& options) {
   glfwSetErrorCallback(on_glfw_error);
   if (!glfwInit())
-    return make_error("render::create_glfw_context(): glfwInit failed (no display? run under xvfb-run or use "
-                      "--headless): ",
-                      g_glfw_error);
+    return make_error(
+        "render::create_glfw_context(): glfwInit failed (no display? run under xvfb-run or use "
+        "--headless): ",
+        g_glfw_error);
   GLFWwindow* w = nullptr;
   for (auto [maj, min] : {std::pair{4, 5}, std::pair{3, 3}}) {
     glfwDefaultWindowHints();
@@ -57,7 +58,8 @@ Expected<std::unique_ptr<GlContext>> create_glfw_context(const GlContextOptions&
   }
   if (!w) {
     glfwTerminate();
-    return make_error("render::create_glfw_context(): cannot create an OpenGL 3.3 core window: ", g_glfw_error);
+    return make_error("render::create_glfw_context(): cannot create an OpenGL 3.3 core window: ",
+                      g_glfw_error);
   }
   glfwMakeContextCurrent(w);
   glfwSwapInterval(1);

@@ -43,9 +43,11 @@ TEST(Conventions, EulerRoundTrip) {
   for (double yaw : {-170.0, -30.0, 0.0, 45.0, 179.0})
     for (double pitch : {-80.0, -10.0, 0.0, 25.0, 89.0})
       for (double roll : {-120.0, 0.0, 15.0, 175.0}) {
-        const auto e = ypr_from_rotation(rotation_from_ypr(deg_to_rad(yaw), deg_to_rad(pitch), deg_to_rad(roll)));
-        EXPECT_TRUE(rotation_from_ypr(e.yaw_rad, e.pitch_rad, e.roll_rad)
-                        .isApprox(rotation_from_ypr(deg_to_rad(yaw), deg_to_rad(pitch), deg_to_rad(roll)), 1e-9));
+        const auto e =
+            ypr_from_rotation(rotation_from_ypr(deg_to_rad(yaw), deg_to_rad(pitch), deg_to_rad(roll)));
+        EXPECT_TRUE(
+            rotation_from_ypr(e.yaw_rad, e.pitch_rad, e.roll_rad)
+                .isApprox(rotation_from_ypr(deg_to_rad(yaw), deg_to_rad(pitch), deg_to_rad(roll)), 1e-9));
         EXPECT_NEAR(e.pitch_rad, deg_to_rad(pitch), 1e-9);
       }
 }

@@ -3,10 +3,10 @@
 // comparison with the raw image for untouched pixels.
 #include "render/augmenter.hpp"
 
-#include <gtest/gtest.h>
-
 #include <cmath>
 #include <memory>
+
+#include <gtest/gtest.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -122,15 +122,17 @@ TEST_F(AugmenterTest, MasksAgreeWithRayCasterAtPixelCentres) {
           far_from_edge += !edge;
         }
       const double agree = 1.0 - static_cast<double>(disagree) / (static_cast<double>(W) * H);
-      std::printf("camera %d: boom %lld px, receiver %lld px, disagree %lld (%.5f%% agree), far from edge %lld\n", c,
-                  static_cast<long long>(boom_px), static_cast<long long>(recv_px), static_cast<long long>(disagree),
-                  100 * agree, static_cast<long long>(far_from_edge));
+      std::printf(
+          "camera %d: boom %lld px, receiver %lld px, disagree %lld (%.5f%% agree), far from edge %lld\n", c,
+          static_cast<long long>(boom_px), static_cast<long long>(recv_px), static_cast<long long>(disagree),
+          100 * agree, static_cast<long long>(far_from_edge));
       EXPECT_GT(boom_px, 10000) << "the scene must show the boom";
       EXPECT_GT(recv_px, 50000) << "the scene must show the receiver";
       EXPECT_GE(agree, 0.9999);
       EXPECT_EQ(far_from_edge, 0);
       if (agree < 0.9999 || far_from_edge)
-        write_mask_diff("scene" + std::to_string(a.extension_m < 2) + "_camera" + std::to_string(c), ours, oracle);
+        write_mask_diff("scene" + std::to_string(a.extension_m < 2) + "_camera" + std::to_string(c), ours,
+                        oracle);
     }
   }
 }
@@ -149,7 +151,8 @@ Mesh disc(const Eigen::Vector3d& centre_cam, double radius_m, int n) {
   }
   for (int i = 0; i < n; ++i) {
     // Both windings: culling must not decide the test.
-    m.indices.insert(m.indices.end(), {0u, static_cast<std::uint32_t>(1 + i), static_cast<std::uint32_t>(1 + (i + 1) % n)});
+    m.indices.insert(m.indices.end(),
+                     {0u, static_cast<std::uint32_t>(1 + i), static_cast<std::uint32_t>(1 + (i + 1) % n)});
   }
   m.normals.assign(m.positions_m.size(), z.cast<float>());
   return m;
@@ -177,10 +180,11 @@ TEST_F(AugmenterTest, ProjectionMatchesOpenCvProjectPoints) {
   ASSERT_TRUE(aug) << aug.error().message;
   SceneState scene;
   scene.boom = {0.35, 0, 0};
-  scene.boom.azimuth_rad = 0.26;  // out of the way
+  scene.boom.azimuth_rad = 0.26;           // out of the way
   scene.T_body_receiver = cam.T_body_cam;  // marker coordinates are left-camera coordinates
   ViewResult out;
-  ASSERT_TRUE((*aug)->augment_view(0, gradient_frame(cam.model, PixelFormat::kMono8, CameraId::kLeft), scene, out));
+  ASSERT_TRUE(
+      (*aug)->augment_view(0, gradient_frame(cam.model, PixelFormat::kMono8, CameraId::kLeft), scene, out));
 
   const Eigen::Matrix3d K = cam.model.K();
   const cv::Matx33d Kcv(K(0, 0), K(0, 1), K(0, 2), K(1, 0), K(1, 1), K(1, 2), K(2, 0), K(2, 1), K(2, 2));
@@ -192,7 +196,8 @@ TEST_F(AugmenterTest, ProjectionMatchesOpenCvProjectPoints) {
     // and the area centroid of that polygon.
     std::vector<cv::Point3d> outline;
     for (int k = 0; k < kSides; ++k) {
-      const Eigen::Vector3d a = m.positions_m[1 + k].cast<double>(), b = m.positions_m[1 + (k + 1) % kSides].cast<double>();
+      const Eigen::Vector3d a = m.positions_m[1 + k].cast<double>(),
+                            b = m.positions_m[1 + (k + 1) % kSides].cast<double>();
       for (int s = 0; s < 16; ++s) {
         const Eigen::Vector3d p = a + (b - a) * (s / 16.0);
         outline.emplace_back(p.x(), p.y(), p.z());
@@ -211,8 +216,10 @@ TEST_F(AugmenterTest, ProjectionMatchesOpenCvProjectPoints) {
     // Ours: centroid of the mask's pixel centres in a window around the oracle's centroid.
     double sx = 0, sy = 0, n = 0;
     const int r = 60;
-    for (int y = std::max(0, static_cast<int>(cy) - r); y < std::min(cam.model.height_px, static_cast<int>(cy) + r); ++y)
-      for (int x = std::max(0, static_cast<int>(cx) - r); x < std::min(cam.model.width_px, static_cast<int>(cx) + r); ++x)
+    for (int y = std::max(0, static_cast<int>(cy) - r);
+         y < std::min(cam.model.height_px, static_cast<int>(cy) + r); ++y)
+      for (int x = std::max(0, static_cast<int>(cx) - r);
+           x < std::min(cam.model.width_px, static_cast<int>(cx) + r); ++x)
         if (out.mask.row(y)[x] & kMaskReceiver) sx += x, sy += y, n += 1;
     ASSERT_GT(n, 500) << "marker " << i << " not rendered";
     const double err = std::hypot(sx / n - cx, sy / n - cy);
@@ -222,8 +229,8 @@ TEST_F(AugmenterTest, ProjectionMatchesOpenCvProjectPoints) {
     worst = std::max(worst, err);
   }
   const double rms = std::sqrt(sum_sq / centres.size());
-  std::printf("marker centroids vs cv::projectPoints: rms %.4f px, max %.4f px over %zu markers\n", rms, worst,
-              centres.size());
+  std::printf("marker centroids vs cv::projectPoints: rms %.4f px, max %.4f px over %zu markers\n", rms,
+              worst, centres.size());
   EXPECT_LE(rms, 0.05);
   EXPECT_LE(worst, 0.1);
 }
@@ -235,8 +242,8 @@ TEST_F(AugmenterTest, UntouchedPixelsAreBitIdenticalInEveryFormat) {
   Eigen::Vector3d receptacle;
   make_builtin_receiver(&receptacle);
   const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.05, 2.0});
-  for (PixelFormat fmt : {PixelFormat::kRGB8, PixelFormat::kMono8, PixelFormat::kBayerRG8, PixelFormat::kBayerGB8,
-                          PixelFormat::kRGBA8}) {
+  for (PixelFormat fmt : {PixelFormat::kRGB8, PixelFormat::kMono8, PixelFormat::kBayerRG8,
+                          PixelFormat::kBayerGB8, PixelFormat::kRGBA8}) {
     SCOPED_TRACE(std::string(to_string(fmt)));
     StereoFrame sf;
     sf.left = gradient_frame(rig.left().model, fmt, CameraId::kLeft);
@@ -255,7 +262,8 @@ TEST_F(AugmenterTest, UntouchedPixelsAreBitIdenticalInEveryFormat) {
           bool near_boom = false;
           for (int dy = -1; dy <= 1; ++dy)
             for (int dx = -1; dx <= 1; ++dx)
-              near_boom |= (v.mask.row(std::clamp(y + dy, 0, H - 1))[std::clamp(x + dx, 0, W - 1)] & kMaskBoom) != 0;
+              near_boom |=
+                  (v.mask.row(std::clamp(y + dy, 0, H - 1))[std::clamp(x + dx, 0, W - 1)] & kMaskBoom) != 0;
           changed += diff;
           changed_far += diff && !near_boom;
           if (v.mask.row(y)[x] & kMaskBoom) {
@@ -264,7 +272,8 @@ TEST_F(AugmenterTest, UntouchedPixelsAreBitIdenticalInEveryFormat) {
             bool interior = true;
             for (int dy = -1; dy <= 1; ++dy)
               for (int dx = -1; dx <= 1; ++dx)
-                interior &= (v.mask.row(std::clamp(y + dy, 0, H - 1))[std::clamp(x + dx, 0, W - 1)] & kMaskBoom) != 0;
+                interior &=
+                    (v.mask.row(std::clamp(y + dy, 0, H - 1))[std::clamp(x + dx, 0, W - 1)] & kMaskBoom) != 0;
             boom_unchanged += interior && !diff;
           }
         }
@@ -289,7 +298,8 @@ TEST_F(AugmenterTest, BoomBehindTheReceiverIsNotDrawn) {
   const Eigen::Vector3d tip = scene.T_body_receiver * receptacle;
   scene.T_body_receiver.translation_m += 5.0 * (rig.left().T_body_cam.translation_m - tip).normalized();
   ViewResult out;
-  ASSERT_TRUE((*aug)->augment_view(0, gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft), scene, out));
+  ASSERT_TRUE((*aug)->augment_view(0, gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft),
+                                   scene, out));
   // Where a ray hits both, the mask's boom bit must agree with which is nearer (ray caster).
   const RigCamera& cam = rig.left();
   const Pose T_cam_body = cam.T_body_cam.inverse();
@@ -324,7 +334,8 @@ TEST_F(AugmenterTest, ReceiverOverlaysDrawTheModelButLeaveMasksAlone) {
     auto aug = Augmenter::create(rig);
     ASSERT_TRUE(aug) << aug.error().message;
     const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.0, 2.0});
-    ASSERT_TRUE((*aug)->augment_view(0, gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft), scene, base));
+    ASSERT_TRUE((*aug)->augment_view(0, gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft),
+                                     scene, base));
   }
   for (ReceiverDraw mode : {ReceiverDraw::kTranslucent, ReceiverDraw::kWireframe}) {
     AugmentOptions opt;

@@ -1,10 +1,10 @@
 // Real OpenGL through EGL surfaceless (Mesa llvmpipe here): no display needed.
 #include "render/gl_context.hpp"
 
+#include <cstdlib>
+
 #include <epoxy/gl.h>
 #include <gtest/gtest.h>
-
-#include <cstdlib>
 
 namespace augrig {
 namespace {

@@ -13,7 +13,9 @@ namespace augrig::test {
 namespace {
 constexpr double kExtent = 3.0;  // normalised coordinates covered by the grid (|x|, |y| <= 3)
 constexpr int kCells = 128;
-int cell_of(double v) { return std::clamp(static_cast<int>((v + kExtent) / (2 * kExtent) * kCells), 0, kCells - 1); }
+int cell_of(double v) {
+  return std::clamp(static_cast<int>((v + kExtent) / (2 * kExtent) * kCells), 0, kCells - 1);
+}
 }  // namespace
 
 void RayCaster::add(const Model& model, const Pose& T_cam_obj) {
@@ -93,8 +95,8 @@ std::vector<Eigen::Vector2d> opencv_pixel_rays(const CameraModel& camera) {
   return out;
 }
 
-Image ray_cast_mask(const CameraModel& camera, const std::vector<Eigen::Vector2d>& rays, const RayCaster& boom,
-                    const RayCaster& receiver) {
+Image ray_cast_mask(const CameraModel& camera, const std::vector<Eigen::Vector2d>& rays,
+                    const RayCaster& boom, const RayCaster& receiver) {
   Image mask(camera.width_px, camera.height_px, PixelFormat::kMono8);
   for (int v = 0; v < camera.height_px; ++v)
     for (int u = 0; u < camera.width_px; ++u) {

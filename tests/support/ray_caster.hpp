@@ -39,7 +39,7 @@ class RayCaster {
 std::vector<Eigen::Vector2d> opencv_pixel_rays(const CameraModel& camera);
 
 // Mask by ray casting: bit 0 where the boom is nearest, bit 1 where the receiver is hit.
-Image ray_cast_mask(const CameraModel& camera, const std::vector<Eigen::Vector2d>& rays, const RayCaster& boom,
-                    const RayCaster& receiver);
+Image ray_cast_mask(const CameraModel& camera, const std::vector<Eigen::Vector2d>& rays,
+                    const RayCaster& boom, const RayCaster& receiver);
 
 }  // namespace augrig::test

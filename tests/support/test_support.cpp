@@ -1,14 +1,16 @@
 #include "tests/support/test_support.hpp"
 
-#include <sys/wait.h>
-
 #include <array>
 #include <cstdio>
 #include <filesystem>
 
+#include <sys/wait.h>
+
 namespace augrig::test {
 
-std::string data_path(const std::string& relative) { return std::string(AUGRIG_TEST_DATA_DIR) + "/" + relative; }
+std::string data_path(const std::string& relative) {
+  return std::string(AUGRIG_TEST_DATA_DIR) + "/" + relative;
+}
 
 std::string output_dir(const std::string& name) {
   const std::filesystem::path p = std::filesystem::path(AUGRIG_TEST_OUTPUT_DIR) / name;
@@ -17,7 +19,9 @@ std::string output_dir(const std::string& name) {
   return p.string();
 }
 
-std::string augrig_binary() { return AUGRIG_BINARY; }
+std::string augrig_binary() {
+  return AUGRIG_BINARY;
+}
 
 int run_command(const std::string& command, std::string* output) {
   const std::string full = command + " 2>&1";
