@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include <opencv2/core.hpp>
@@ -18,6 +19,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "app/scene_file.hpp"
+#include "capture/stereo_pairer.hpp"
 #include "core/frame.hpp"
 #include "render/augmenter.hpp"
 #include "render/gl_context.hpp"
@@ -479,22 +481,23 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
 
   StereoResult result;
   StereoFrame stereo;
+  // Frames go through the same pairing as live capture: by mid-exposure time within half a period.
+  StereoPairer pairer(s_to_ns(0.5 / approach.fps));
   std::vector<OcclusionStats> all;
   double sim_ms = 0, augment_ms = 0, write_ms = 0;
   for (int i = 0; i < frames; ++i) {
-    // The source emits left then right of each stereo frame; pair them and check they belong together.
     auto t0 = Clock::now();
-    stereo.left = next_frame(*source, i);
-    stereo.right = next_frame(*source, i);
-    sim_ms += ms_since(t0);
-    if (stereo.left.camera != CameraId::kLeft || stereo.right.camera != CameraId::kRight ||
-        stereo.left.sequence != stereo.right.sequence) {
-      runtime_error(source->uri() + ": frames out of order at stereo frame " + std::to_string(i));
+    std::optional<StereoFrame> paired;
+    for (int k = 0; !paired; ++k) {
+      if (k > 8) runtime_error(source->uri() + ": no stereo pair at stereo frame " + std::to_string(i));
+      paired = pairer.push(next_frame(*source, i));
     }
-    stereo.pair_sequence = stereo.left.sequence;
-    stereo.t_key_ns = stereo.left.t_ns + (stereo.right.t_ns - stereo.left.t_ns) / 2;
-    stereo.skew_ns = stereo.right.t_ns - stereo.left.t_ns;
-    const ApproachTruth& truth = source->truth(stereo.pair_sequence);
+    stereo = std::move(*paired);
+    sim_ms += ms_since(t0);
+    if (stereo.left.sequence != stereo.right.sequence)
+      runtime_error(source->uri() + ": paired frames of different sequences at stereo frame " +
+                    std::to_string(i));
+    const ApproachTruth& truth = source->truth(stereo.left.sequence);
 
     check(augmenter->augment(stereo, truth.scene, result));
     augment_ms += total_ms(augmenter->timings());
@@ -534,6 +537,10 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
       << " ms per stereo frame (render+masks+composite+stats), "
       << "simulation " << fmt_ms(sim_ms / n) << " ms per stereo frame, PNG writing " << fmt_ms(write_ms)
       << " ms in all, total " << fmt_ms(ms_since(t_start) / 1000.0) << " s\n";
+  pairer.flush();
+  out << "Pairing: " << pairer.stats().pairs << " pairs, unpaired left " << pairer.stats().unpaired_left
+      << ", right " << pairer.stats().unpaired_right << ", max |skew| " << pairer.stats().max_abs_skew_ns
+      << " ns\n";
   out << "Wrote " << (out_dir / "stats.csv").string() << " and " << (out_dir / "demo.png").string() << "\n";
   return kExitOk;
 }
@@ -676,9 +683,15 @@ Status write_image_file(const std::string& path, const Image& image, int png_com
   const int channels = bytes_per_pixel(image.format());
   const cv::Mat m(image.height(), image.width(), CV_8UC(channels), const_cast<std::uint8_t*>(image.data()),
                   image.stride_bytes());
-  cv::Mat bgr = m;
-  if (image.format() == PixelFormat::kRGB8) cv::cvtColor(m, bgr, cv::COLOR_RGB2BGR);  // OpenCV writes BGR
-  if (image.format() == PixelFormat::kRGBA8) cv::cvtColor(m, bgr, cv::COLOR_RGBA2BGRA);
+  // OpenCV writes BGR. Convert into a buffer of its own: `m` wraps the caller's pixels, which must
+  // come back unchanged (the demo builds its contact sheet from frames it has just written).
+  cv::Mat bgr;
+  if (image.format() == PixelFormat::kRGB8)
+    cv::cvtColor(m, bgr, cv::COLOR_RGB2BGR);
+  else if (image.format() == PixelFormat::kRGBA8)
+    cv::cvtColor(m, bgr, cv::COLOR_RGBA2BGRA);
+  else
+    bgr = m;
   std::error_code ec;
   const fs::path parent = fs::path(path).parent_path();
   if (!parent.empty()) fs::create_directories(parent, ec);

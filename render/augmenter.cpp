@@ -115,7 +115,9 @@ struct ViewState {
   std::vector<std::uint32_t> boom_ids, recv_ids;   // virtual image, packed ids; zero outside the last boxes
   std::vector<std::uint8_t> boom_rgba, recv_rgba;  // virtual image colour (recv only for overlays)
   std::vector<VBox> boom_vboxes, recv_vboxes;      // boxes rendered and read back this frame
-  std::vector<CamTriangle> tris;                   // all draw items' triangles, this frame
+  std::vector<VBox> raw_boxes;                     // scratch of resolve_view, kept to avoid allocating
+  std::vector<std::pair<int, int>> spans;
+  std::vector<CamTriangle> tris;  // all draw items' triangles, this frame
   struct Plane {
     double nx, ny, nz, c;  // n . p = c; depth along the ray (x, y, 1) is c / (n . (x, y, 1))
   };
@@ -304,7 +306,8 @@ Status AugmenterImpl::init() {
     ViewState& vs = views_[c];
     vs.cam = &rig_.cameras[c];
     const CameraModel& cm = vs.cam->model;
-    vs.vp = make_virtual_pinhole(cm);
+    // Anti-aliasing samples the virtual image between raw pixel centres (render/projection.hpp).
+    vs.vp = make_virtual_pinhole(cm, 1.0, options_.antialias);
     vs.proj = gl_projection(vs.vp.fx, vs.vp.fy, vs.vp.cx, vs.vp.cy, vs.vp.width, vs.vp.height, vs.cam->near_m,
                             vs.cam->far_m, zero_to_one_);
     // Raw pixel centre -> top-left virtual sample of its bilinear neighbourhood.
@@ -689,7 +692,8 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   for (int y = 0; y < H; ++y) std::memcpy(out.augmented.row(y), src.row(y), row_bytes);
 
   // Raw pixels to visit: the union of the boxes' raw images, row by row, each pixel once.
-  std::vector<VBox> raw_boxes;
+  std::vector<VBox>& raw_boxes = vs.raw_boxes;
+  raw_boxes.clear();
   VBox boom_raw, recv_raw;
   for (const VBox& b : vs.boom_vboxes)
     raw_boxes.push_back(raw_box_of(vs, b)), boom_raw = unite(boom_raw, raw_boxes.back());
@@ -698,7 +702,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   out.boom_box = to_pixel_box(boom_raw);
   out.receiver_box = to_pixel_box(recv_raw);
   const VBox work = unite(boom_raw, recv_raw);
-  std::vector<std::pair<int, int>> spans;
+  std::vector<std::pair<int, int>>& spans = vs.spans;
 
   const std::uint32_t* bids = vs.boom_ids.data();
   const std::uint32_t* rids = vs.recv_ids.data();

@@ -29,13 +29,13 @@ std::array<float, 16> gl_projection(double fx, double fy, double cx, double cy, 
   return out;
 }
 
-VirtualPinhole make_virtual_pinhole(const CameraModel& cam, double scale) {
+VirtualPinhole make_virtual_pinhole(const CameraModel& cam, double scale, bool between_pixels) {
   VirtualPinhole vp;
   const int W = cam.width_px, H = cam.height_px;
   vp.ray_xy.assign(static_cast<std::size_t>(W) * H,
                    Eigen::Vector2f::Constant(std::numeric_limits<float>::quiet_NaN()));
 
-  if (cam.distortion == DistortionModel::kNone && scale == 1.0) {
+  if (cam.distortion == DistortionModel::kNone && scale == 1.0 && !between_pixels) {
     // Same grid as the real camera: rasterisation samples exactly the raw pixel centres.
     vp.fx = cam.fx_px, vp.fy = cam.fy_px, vp.cx = cam.cx_px, vp.cy = cam.cy_px;
     vp.width = W, vp.height = H, vp.identity = true;
@@ -62,8 +62,9 @@ VirtualPinhole make_virtual_pinhole(const CameraModel& cam, double scale) {
   vp.fy = cam.fy_px * scale;
   // Two virtual pixels of margin on each side keep every 2x2 bilinear neighbourhood inside.
   const int margin = 2;
-  vp.cx = -x0 * vp.fx + margin;
-  vp.cy = -y0 * vp.fy + margin;
+  const double shift = between_pixels ? 0.5 : 0.0;
+  vp.cx = -x0 * vp.fx + margin + shift;
+  vp.cy = -y0 * vp.fy + margin + shift;
   vp.width = static_cast<int>(std::ceil((x1 - x0) * vp.fx)) + 2 * margin + 1;
   vp.height = static_cast<int>(std::ceil((y1 - y0) * vp.fy)) + 2 * margin + 1;
   return vp;

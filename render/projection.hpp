@@ -39,7 +39,10 @@ struct VirtualPinhole {
 
 // Builds the virtual pinhole for a camera: undistorts the raw image border to find the field it
 // must cover (capped at +-80 deg off axis), keeps a 2-pixel margin so bilinear neighbourhoods stay
-// inside, and precomputes ray_xy for every raw pixel.
-VirtualPinhole make_virtual_pinhole(const CameraModel& camera, double scale = 1.0);
+// inside, and precomputes ray_xy for every raw pixel. `between_pixels` shifts the virtual grid by
+// half a pixel so that, without distortion, each raw pixel centre lies midway between four samples:
+// their bilinear coverage anti-aliases edges (otherwise the grids coincide: `identity`).
+VirtualPinhole make_virtual_pinhole(const CameraModel& camera, double scale = 1.0,
+                                    bool between_pixels = false);
 
 }  // namespace augrig

@@ -39,8 +39,8 @@ Expected<std::unique_ptr<GlContext>> create_glfw_context(const GlContextOptions&
   glfwSetErrorCallback(on_glfw_error);
   if (!glfwInit())
     return make_error(
-        "render::create_glfw_context(): glfwInit failed (no display? run under xvfb-run or use "
-        "--headless): ",
+        "render::create_glfw_context(): glfwInit failed (no display? run under xvfb-run, or use "
+        "the EGL headless backend): ",
         g_glfw_error);
   GLFWwindow* w = nullptr;
   for (auto [maj, min] : {std::pair{4, 5}, std::pair{3, 3}}) {

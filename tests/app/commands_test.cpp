@@ -87,6 +87,21 @@ TEST(ParseArgs, AcceptsBothValueSpellingsAndFlags) {
 
 // ---- The binary: help, exit codes, errors ---------------------------------------------------------
 
+TEST(ImageFiles, WriteLeavesTheCallersPixelsAloneAndReadsBackEqual) {
+  const std::string dir = test::output_dir("image_files");
+  for (PixelFormat f : {PixelFormat::kRGB8, PixelFormat::kRGBA8, PixelFormat::kMono8}) {
+    Image img(7, 5, f);
+    for (std::size_t i = 0; i < img.size_bytes(); ++i) img.data()[i] = static_cast<std::uint8_t>(37 * i + 11);
+    const Image before = Image::copy_of(img.cview());
+    const std::string path = dir + "/" + std::string(to_string(f)) + ".png";
+    ASSERT_TRUE(app::write_image_file(path, img));
+    EXPECT_TRUE(pixels_equal(img, before)) << "write_image_file changed its input";
+    auto back = app::read_image_file(path);
+    ASSERT_TRUE(back) << back.error().message;
+    EXPECT_TRUE(pixels_equal(*back, before)) << to_string(f);
+  }
+}
+
 TEST(Cli, HelpAndVersionExitZero) {
   for (const char* args : {"--help", "-h", "augment --help", "demo --help", "augment -h", "--version"}) {
     std::string out;

@@ -76,8 +76,11 @@ void write_mask_diff(const std::string& name, const Image& ours, const Image& or
   cv::imwrite(dir + "/" + name + "_mask_diff.png", diff);
 }
 
-TEST_F(AugmenterTest, MasksAgreeWithRayCasterAtPixelCentres) {
-  const Rig rig = distorted_rig();
+class MaskOracleTest : public AugmenterTest, public ::testing::WithParamInterface<bool> {};
+
+// Distorted lens, and a pinhole lens (where anti-aliasing samples between pixel centres).
+TEST_P(MaskOracleTest, MasksAgreeWithRayCasterAtPixelCentres) {
+  const Rig rig = GetParam() ? distorted_rig() : Rig::paper_default();
   auto aug = Augmenter::create(rig);
   ASSERT_TRUE(aug) << aug.error().message;
   Eigen::Vector3d receptacle;
@@ -157,6 +160,9 @@ Mesh disc(const Eigen::Vector3d& centre_cam, double radius_m, int n) {
   m.normals.assign(m.positions_m.size(), z.cast<float>());
   return m;
 }
+
+INSTANTIATE_TEST_SUITE_P(Lenses, MaskOracleTest, ::testing::Bool(),
+                         [](const auto& info) { return info.param ? "radtan" : "pinhole"; });
 
 TEST_F(AugmenterTest, ProjectionMatchesOpenCvProjectPoints) {
   Rig rig = distorted_rig();
@@ -322,6 +328,33 @@ TEST_F(AugmenterTest, BoomBehindTheReceiverIsNotDrawn) {
     }
   EXPECT_GT(hidden, 200) << "the scene should hide part of the boom behind the receiver";
   EXPECT_EQ(wrong, 0);
+}
+
+TEST_F(AugmenterTest, BoomEdgesAreAntiAliasedOnlyWhenAsked) {
+  const Rig rig = Rig::paper_default();  // no distortion: the case where grids could coincide
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  for (bool aa : {true, false}) {
+    AugmentOptions opt;
+    opt.antialias = aa;
+    auto aug = Augmenter::create(rig, opt);
+    ASSERT_TRUE(aug) << aug.error().message;
+    const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.0, 2.0});
+    const Frame raw = gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+    ViewResult out;
+    ASSERT_TRUE((*aug)->augment_view(0, raw, scene, out));
+    // Partly covered edge pixels: centre outside the boom, yet blended with it.
+    std::int64_t blended_outside = 0;
+    for (int y = 0; y < raw.image.height(); ++y)
+      for (int x = 0; x < raw.image.width(); ++x)
+        if (!(out.mask.row(y)[x] & kMaskBoom) &&
+            std::memcmp(raw.image.row(y) + 3 * x, out.augmented.row(y) + 3 * x, 3))
+          ++blended_outside;
+    if (aa)
+      EXPECT_GT(blended_outside, 1000) << "no anti-aliased edge pixels";
+    else
+      EXPECT_EQ(blended_outside, 0) << "without anti-aliasing only boom pixels change";
+  }
 }
 
 TEST_F(AugmenterTest, ReceiverOverlaysDrawTheModelButLeaveMasksAlone) {
