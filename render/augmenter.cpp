@@ -115,7 +115,9 @@ struct ViewState {
   std::vector<std::uint32_t> boom_ids, recv_ids;   // virtual image, packed ids; zero outside the last boxes
   std::vector<std::uint8_t> boom_rgba, recv_rgba;  // virtual image colour (recv only for overlays)
   std::vector<VBox> boom_vboxes, recv_vboxes;      // boxes rendered and read back this frame
-  std::vector<VBox> raw_boxes;                     // scratch of resolve_view, kept to avoid allocating
+  std::vector<std::uint32_t> visit_stamp;          // per triangle: last nearest_hit() call that tested it
+  std::uint32_t stamp = 0;
+  std::vector<VBox> raw_boxes;  // scratch of resolve_view, kept to avoid allocating
   std::vector<std::pair<int, int>> spans;
   std::vector<CamTriangle> tris;  // all draw items' triangles, this frame
   struct Plane {
@@ -197,7 +199,7 @@ class AugmenterImpl final : public Augmenter {
   void resolve_view(ViewState& vs, const Frame& raw, ViewResult& out) const;
   std::vector<VBox> project_boxes(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const;
   VBox raw_box_of(const ViewState& vs, const VBox& vbox) const;
-  double nearest_hit(const ViewState& vs, const std::uint32_t* cands, int n, double x, double y) const;
+  double nearest_hit(ViewState& vs, const std::uint32_t* cands, int n, double x, double y) const;
   void build_rings();
   std::uint32_t global_index(std::uint32_t packed) const {
     return first_tri_of_draw_[packed >> kDrawShift] + (packed & kPrimMask);
@@ -334,6 +336,7 @@ Status AugmenterImpl::init() {
     if (options_.receiver_draw != ReceiverDraw::kMaskOnly) vs.recv_rgba.assign(vn * 4, 0);
     vs.tris.resize(total_tris_);
     vs.planes.resize(total_tris_);
+    vs.visit_stamp.assign(total_tris_, 0);
     fw = std::max(fw, vs.vp.width);
     fh = std::max(fh, vs.vp.height);
   }
@@ -623,7 +626,7 @@ void AugmenterImpl::build_rings() {
 
 // Nearest intersection (camera z) of the ray (x, y, 1) with the candidate triangles (packed ids)
 // and, when none of them is hit, with their one-ring neighbours; +inf if none.
-double AugmenterImpl::nearest_hit(const ViewState& vs, const std::uint32_t* cands, int n, double x,
+double AugmenterImpl::nearest_hit(ViewState& vs, const std::uint32_t* cands, int n, double x,
                                   double y) const {
   const Eigen::Vector3d d(x, y, 1.0);
   double best = std::numeric_limits<double>::infinity();
@@ -642,20 +645,23 @@ double AugmenterImpl::nearest_hit(const ViewState& vs, const std::uint32_t* cand
     const double z = t.e2.dot(q) * inv;
     if (z > 0.0 && z < best) best = z;
   };
-  std::uint32_t seen[64];
-  int n_seen = 0;
+  // Each triangle is tested once per call: a stamp per triangle, no search.
+  if (++vs.stamp == 0) std::fill(vs.visit_stamp.begin(), vs.visit_stamp.end(), 0u), vs.stamp = 1;
   auto first_time = [&](std::uint32_t g) {
-    for (int j = 0; j < n_seen; ++j)
-      if (seen[j] == g) return false;
-    if (n_seen < 64) seen[n_seen++] = g;
+    if (vs.visit_stamp[g] == vs.stamp) return false;
+    vs.visit_stamp[g] = vs.stamp;
     return true;
   };
-  for (int k = 0; k < n; ++k)
-    if (cands[k] && first_time(global_index(cands[k]))) test(vs.tris[global_index(cands[k])]);
+  std::uint32_t direct[4];
+  int n_direct = 0;
+  for (int k = 0; k < n; ++k) {
+    if (!cands[k]) continue;
+    const std::uint32_t g = global_index(cands[k]);
+    if (first_time(g)) test(vs.tris[g]), direct[n_direct++] = g;
+  }
   if (std::isfinite(best)) return best;
-  const int direct = n_seen;
-  for (int k = 0; k < direct; ++k) {
-    const std::uint32_t g = seen[k];
+  for (int k = 0; k < n_direct; ++k) {
+    const std::uint32_t g = direct[k];
     for (std::uint32_t i = ring_offsets_[g]; i < ring_offsets_[g + 1]; ++i)
       if (first_time(ring_[i])) test(vs.tris[ring_[i]]);
   }
@@ -769,6 +775,37 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
           mrow[u] = kMaskReceiver;
           drow[u] = static_cast<float>(plane_depth(pr[0]));
           continue;
+        }
+        if (pb[0] && pb[1] && pb[Wv] && pb[Wv + 1] && !overlay) {
+          const bool recv_none = !(pr[0] | pr[1] | pr[Wv] | pr[Wv + 1]);
+          const bool recv_one = pr[0] && pr[0] == pr[1] && pr[0] == pr[Wv] && pr[0] == pr[Wv + 1];
+          if (recv_none || recv_one) {
+            // Boom all around, in front of the receiver at every sample (GL's depth test) and no
+            // receiver silhouette nearby: an opaque boom pixel, its colour bilinear.
+            mrow[u] = static_cast<std::uint8_t>(kMaskBoom | (recv_one ? kMaskReceiver : 0));
+            if (recv_one) drow[u] = static_cast<float>(plane_depth(pr[0]));
+            const std::uint8_t* c0 = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
+            const std::uint8_t* c2 = c0 + static_cast<std::size_t>(Wv) * 4;
+            const float w0 = (1 - e.fx) * (1 - e.fy), w1 = e.fx * (1 - e.fy), w2 = (1 - e.fx) * e.fy,
+                        w3 = e.fx * e.fy;
+            float c[3];
+            for (int k = 0; k < 3; ++k)
+              c[k] = w0 * c0[k] + w1 * c0[4 + k] + w2 * c2[k] + w3 * c2[4 + k] + 0.5f;
+            std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+            switch (fmt) {
+              case PixelFormat::kRGB8:
+              case PixelFormat::kRGBA8:
+                px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
+                px[2] = static_cast<std::uint8_t>(c[2]);
+                break;
+              case PixelFormat::kMono8:
+                px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]);
+                break;
+              default:
+                px[0] = static_cast<std::uint8_t>(c[bayer_channel(fmt, u, v)]);
+            }
+            continue;
+          }
         }
         // The 2x2 samples around the centre (one sample when the grids coincide).
         const int ns = identity ? 1 : 4;
