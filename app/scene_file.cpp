@@ -14,112 +14,19 @@
 #include <yaml-cpp/yaml.h>
 
 #include "core/pose.hpp"
+#include "core/yaml_reader.hpp"
 
 namespace augrig {
 namespace {
 
-// Thrown inside the parser only, so a deep helper can abort with a complete message; the public
-// functions catch it (and every YAML exception) and return an Error instead.
-struct ParseFailure {
-  std::string message;
-};
-
-struct Ctx {
-  std::string prefix;  // "scene::load(): " or "scene::parse(): "
-  std::string name;    // the file name as given, for messages
-};
-
-std::string join_key(const std::string& path, const std::string& key) {
-  return path.empty() ? key : path + "." + key;
-}
-
-std::string location(const Ctx& c, const YAML::Mark& m) {
-  if (m.is_null()) return c.name;
-  return c.name + ":" + std::to_string(m.line + 1) + ":" + std::to_string(m.column + 1);
-}
-
-[[noreturn]] void fail(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
-  const YAML::Mark m = n.IsDefined() ? n.Mark() : YAML::Mark::null_mark();
-  throw ParseFailure{c.prefix + location(c, m) + ": key '" + key + "': " + what};
-}
-
-// "got ..." part of a message: shows the user what the parser actually saw.
-std::string got(const YAML::Node& n) {
-  if (!n.IsDefined() || n.IsNull()) return "got nothing (null)";
-  if (n.IsScalar()) return "got '" + n.Scalar() + "'";
-  if (n.IsSequence()) return "got a list of " + std::to_string(n.size()) + " element(s)";
-  return "got a map";
-}
-
-std::string fmt(double v) {
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);  // shortest text that reads back exactly
-  return std::string(buf, r.ptr);
-}
+using namespace yaml;  // located errors, key checks, numbers (core/yaml_reader.hpp)
+using Ctx = yaml::Context;
 
 // Limits went through deg -> rad -> deg: 9 significant digits hide the rounding.
 std::string fmt_limit(double v) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.9g", v);
   return buf;
-}
-
-std::string join(const std::vector<std::string>& items) {
-  std::string s;
-  for (const auto& i : items) s += (s.empty() ? "" : ", ") + i;
-  return s;
-}
-
-void expect_map(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
-  if (!n.IsMap()) fail(c, n, key, "expected " + what + ", " + got(n));
-}
-
-// Rejects unknown (typo) and duplicate keys; names the allowed ones so the fix is obvious.
-void check_keys(const Ctx& c, const YAML::Node& map, const std::string& path,
-                const std::vector<std::string>& allowed) {
-  std::set<std::string> seen;
-  for (const auto& kv : map) {
-    const std::string k = kv.first.IsScalar() ? kv.first.Scalar() : "?";
-    const std::string key = join_key(path, k);
-    if (std::find(allowed.begin(), allowed.end(), k) == allowed.end()) {
-      fail(c, kv.first, key, "unknown key; allowed keys here: " + join(allowed));
-    }
-    if (!seen.insert(k).second) fail(c, kv.first, key, "duplicate key");
-  }
-}
-
-YAML::Node require(const Ctx& c, const YAML::Node& map, const std::string& path, const std::string& key,
-                   const std::string& what) {
-  const YAML::Node n = map[key];
-  if (!n.IsDefined()) fail(c, map, join_key(path, key), "missing; expected " + what);
-  return n;
-}
-
-double to_number(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
-  double v = 0;
-  if (!n.IsScalar() || !YAML::convert<double>::decode(n, v) || !std::isfinite(v)) {
-    fail(c, n, key, "expected " + what + ", " + got(n));
-  }
-  return v;
-}
-
-bool to_bool(const Ctx& c, const YAML::Node& n, const std::string& key) {
-  bool v = false;
-  if (!n.IsScalar() || !YAML::convert<bool>::decode(n, v))
-    fail(c, n, key, "expected true or false, " + got(n));
-  return v;
-}
-
-Eigen::Vector3d to_vec3(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
-  const std::string expected = "a list of 3 numbers " + what;
-  if (!n.IsSequence() || n.size() != 3) fail(c, n, key, "expected " + expected + ", " + got(n));
-  Eigen::Vector3d v;
-  for (std::size_t i = 0; i < 3; ++i) {
-    if (!n[i].IsScalar() || !YAML::convert<double>::decode(n[i], v[i]) || !std::isfinite(v[i])) {
-      fail(c, n[i], key, "expected " + expected + ", " + got(n[i]) + " as element " + std::to_string(i));
-    }
-  }
-  return v;
 }
 
 // A boom angle or extension, checked against the rig's limits in the file's own unit.

@@ -18,6 +18,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "core/conventions.hpp"
+#include "core/yaml_reader.hpp"
 #include "render/calib_import.hpp"
 
 namespace augrig {
@@ -25,48 +26,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Thrown inside the parser only, so a deep helper can abort with a complete message; load_rig and
-// parse_rig catch it (and every YAML exception) and return an Error instead.
-struct ParseFailure {
-  std::string message;
+using namespace yaml;  // located errors, key checks, numbers (core/yaml_reader.hpp)
+
+struct Ctx : yaml::Context {
+  fs::path base_dir;  // relative model/calibration paths are resolved against it
 };
-
-struct Ctx {
-  std::string prefix;  // "rig::load(): " or "rig::parse(): "
-  std::string name;    // the file name as given, for messages
-  fs::path base_dir;   // relative model/calibration paths are resolved against it
-};
-
-std::string join_key(const std::string& path, const std::string& key) {
-  return path.empty() ? key : path + "." + key;
-}
-
-std::string location(const Ctx& c, const YAML::Mark& m) {
-  if (m.is_null()) return c.name;
-  return c.name + ":" + std::to_string(m.line + 1) + ":" + std::to_string(m.column + 1);
-}
-
-[[noreturn]] void fail_at(const Ctx& c, const YAML::Mark& m, const std::string& key,
-                          const std::string& what) {
-  throw ParseFailure{c.prefix + location(c, m) + ": key '" + key + "': " + what};
-}
-[[noreturn]] void fail(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
-  fail_at(c, n.IsDefined() ? n.Mark() : YAML::Mark::null_mark(), key, what);
-}
-
-// "got ..." part of a message: shows the user what the parser actually saw.
-std::string got(const YAML::Node& n) {
-  if (!n.IsDefined() || n.IsNull()) return "got nothing (null)";
-  if (n.IsScalar()) return "got '" + n.Scalar() + "'";
-  if (n.IsSequence()) return "got a list of " + std::to_string(n.size()) + " element(s)";
-  return "got a map";
-}
-
-std::string fmt(double v) {
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v + 0.0);  // shortest exact text; -0 -> 0
-  return std::string(buf, r.ptr);
-}
 
 // Rounds values within `tol` of an integer to it: a rotation rebuilt from a quaternion carries
 // 1e-16 noise (-1.0000000000000004) that would only clutter the file; far below the 1e-12 contract.
@@ -85,70 +49,6 @@ std::string fmt_deg(double rad) {
     if (deg_to_rad(deg) == rad) return fmt(deg);
   }
   return fmt(rad_to_deg(rad));
-}
-
-std::string join(const std::vector<std::string>& items) {
-  std::string s;
-  for (const auto& i : items) s += (s.empty() ? "" : ", ") + i;
-  return s;
-}
-
-void expect_map(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
-  if (!n.IsMap()) fail(c, n, key, "expected " + what + ", " + got(n));
-}
-
-// Rejects unknown (typo) and duplicate keys; names the allowed ones so the fix is obvious.
-void check_keys(const Ctx& c, const YAML::Node& map, const std::string& path,
-                const std::vector<std::string>& allowed) {
-  std::set<std::string> seen;
-  for (const auto& kv : map) {
-    const std::string k = kv.first.IsScalar() ? kv.first.Scalar() : "?";
-    const std::string key = join_key(path, k);
-    if (std::find(allowed.begin(), allowed.end(), k) == allowed.end()) {
-      fail(c, kv.first, key, "unknown key; allowed keys here: " + join(allowed));
-    }
-    if (!seen.insert(k).second) fail(c, kv.first, key, "duplicate key");
-  }
-}
-
-YAML::Node require(const Ctx& c, const YAML::Node& map, const std::string& path, const std::string& key,
-                   const std::string& what) {
-  const YAML::Node n = map[key];
-  if (!n.IsDefined()) fail(c, map, join_key(path, key), "missing; expected " + what);
-  return n;
-}
-
-double to_number(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
-  double v = 0;
-  if (!n.IsScalar() || !YAML::convert<double>::decode(n, v) || !std::isfinite(v)) {
-    fail(c, n, key, "expected " + what + ", " + got(n));
-  }
-  return v;
-}
-
-std::vector<double> to_numbers(const Ctx& c, const YAML::Node& n, const std::string& key, std::size_t count,
-                               const std::string& what) {
-  if (!n.IsSequence() || n.size() != count) fail(c, n, key, "expected " + what + ", " + got(n));
-  std::vector<double> v;
-  for (std::size_t i = 0; i < count; ++i) {
-    double x = 0;
-    if (!n[i].IsScalar() || !YAML::convert<double>::decode(n[i], x) || !std::isfinite(x)) {
-      fail(c, n[i], key, "expected " + what + ", " + got(n[i]) + " as element " + std::to_string(i));
-    }
-    v.push_back(x);
-  }
-  return v;
-}
-
-Eigen::Vector3d to_vec3(const Ctx& c, const YAML::Node& n, const std::string& key, const std::string& what) {
-  const auto v = to_numbers(c, n, key, 3, "a list of 3 numbers " + what);
-  return {v[0], v[1], v[2]};
-}
-
-std::string to_string_value(const Ctx& c, const YAML::Node& n, const std::string& key,
-                            const std::string& what) {
-  if (!n.IsScalar()) fail(c, n, key, "expected " + what + ", " + got(n));
-  return n.Scalar();
 }
 
 // [min, max] with min <= max; scaled (deg -> rad) after checking.

@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "render/gl_context.hpp"
+#include "tests/support/gl_test.hpp"
 #include "tests/support/ray_caster.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -47,20 +48,7 @@ Frame gradient_frame(const CameraModel& cm, PixelFormat fmt, CameraId id) {
   return f;
 }
 
-class AugmenterTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    auto ctx = create_gl_context(GlBackend::kEglHeadless);
-    ASSERT_TRUE(ctx) << ctx.error().message;
-    ctx_ = std::move(*ctx).release();
-  }
-  static void TearDownTestSuite() {
-    delete ctx_;
-    ctx_ = nullptr;
-  }
-  static GlContext* ctx_;
-};
-GlContext* AugmenterTest::ctx_ = nullptr;
+class AugmenterTest : public test::GlTest {};
 
 // Writes a diff image (red: ours only, green: oracle only) when masks disagree.
 void write_mask_diff(const std::string& name, const Image& ours, const Image& oracle) {

@@ -14,6 +14,7 @@
 
 #include "render/gl_context.hpp"
 #include "render/models.hpp"
+#include "tests/support/gl_test.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig {
@@ -31,20 +32,7 @@ Eigen::Vector3d nozzle_tip(const Rig& rig, const BoomDimensions& dims, const Boo
   return boom_pose(rig.boom.pivot_body_m, a) * Eigen::Vector3d(dims.nozzle_tip_m(a.extension_m), 0, 0);
 }
 
-class ApproachTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    auto ctx = create_gl_context(GlBackend::kEglHeadless);
-    ASSERT_TRUE(ctx) << ctx.error().message;
-    ctx_ = std::move(*ctx).release();
-  }
-  static void TearDownTestSuite() {
-    delete ctx_;
-    ctx_ = nullptr;
-  }
-  static GlContext* ctx_;
-};
-GlContext* ApproachTest::ctx_ = nullptr;
+class ApproachTest : public test::GlTest {};
 
 TEST_F(ApproachTest, FrameOrderTimestampsAndEndOfStream) {
   ApproachOptions o;

@@ -16,6 +16,7 @@
 #include "render/gl_context.hpp"
 #include "render/models.hpp"
 #include "render/projection.hpp"
+#include "tests/support/gl_test.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig {
@@ -82,25 +83,14 @@ Box project_model(const Model& model, const RigCamera& cam, const Pose& T_body_o
   return b;
 }
 
-class SyntheticSceneTest : public ::testing::Test {
+class SyntheticSceneTest : public test::GlTest {
  protected:
-  static void SetUpTestSuite() {
-    auto ctx = create_gl_context(GlBackend::kEglHeadless);
-    ASSERT_TRUE(ctx) << ctx.error().message;
-    ctx_ = std::move(*ctx).release();
-  }
-  static void TearDownTestSuite() {
-    delete ctx_;
-    ctx_ = nullptr;
-  }
   static std::unique_ptr<SyntheticSceneRenderer> make(const Rig& rig) {
     auto r = SyntheticSceneRenderer::create(rig);
     EXPECT_TRUE(r) << r.error().message;
     return r ? std::move(*r) : nullptr;
   }
-  static GlContext* ctx_;
 };
-GlContext* SyntheticSceneTest::ctx_ = nullptr;
 
 TEST_F(SyntheticSceneTest, SizesAndFormats) {
   const Rig rig = Rig::paper_default();
