@@ -1,12 +1,15 @@
 // The augmenter (render/augmenter.hpp). Per view:
 //   1. everything is moved into the camera frame in double precision (T_cam_body * T_body_obj);
-//   2. OpenGL rasterises the receiver, then the boom depth-tested against it, into the virtual
-//      pinhole image: shaded colour and packed ids (draw id in alpha, gl_PrimitiveID in RGB),
-//      only inside each object's projected box (llvmpipe's cost is per triangle and per pixel);
-//   3. the CPU visits the raw pixels of those boxes: each centre maps into the virtual image;
-//      where the 2x2 ids around it agree the answer is read off (a triangle covering all four
-//      samples covers the centre), elsewhere the centre's exact ray is intersected with the
-//      candidate triangles. Depth comes from the triangle's plane, exactly at the pixel centre;
+//   2. OpenGL rasterises the receiver (ids only), then the boom depth-tested against it (shaded
+//      colour and ids), into the virtual pinhole image; ids pack the draw id in alpha and
+//      gl_PrimitiveID in RGB. Only the projected boxes of spatial chunks of each mesh are cleared
+//      and read back (llvmpipe's cost is per pixel and per triangle);
+//   3. the CPU visits the raw pixels of those boxes: each centre maps into the virtual image
+//      (shifted half a sample when anti-aliasing an undistorted lens); where the 2x2 ids around it
+//      agree the answer is read off (a triangle covering all four samples covers the centre),
+//      elsewhere the centre's exact ray is intersected with the candidate triangles and, when
+//      they miss, their one-ring neighbours (silhouette slivers hold no sample). Depth comes from
+//      the triangle's plane, exactly at the pixel centre;
 //   4. the boom is blended over the raw pixels by its bilinear coverage; pixels it does not touch
 //      are never written, so they stay bit-identical.
 #include "render/augmenter.hpp"
