@@ -50,9 +50,11 @@ void main() {
 constexpr char kIdFragmentShader[] = R"(#version 330 core
 uniform uint u_draw_id;
 layout(location = 1) out vec4 o_id;
+layout(location = 2) out vec4 o_id2;
 void main() {
   uint prim = uint(gl_PrimitiveID);
   o_id = vec4(float(prim & 255u), float((prim >> 8) & 255u), float((prim >> 16) & 255u), float(u_draw_id)) / 255.0;
+  o_id2 = o_id;
 }
 )";
 
@@ -67,6 +69,8 @@ uniform uint u_draw_id;     // 1..255, 0 = nothing
 uniform float u_alpha;
 layout(location = 0) out vec4 o_color;
 layout(location = 1) out vec4 o_id;
+layout(location = 2) out vec4 o_id2;     // same id; which target keeps it is chosen by glColorMaski
+layout(location = 3) out vec4 o_color2;
 void main() {
   vec3 n = normalize(v_normal_cam);
   if (!gl_FrontFacing) n = -n;
@@ -77,6 +81,8 @@ void main() {
   // Exact integers through RGBA8: k / 255 is stored as k.
   uint prim = uint(gl_PrimitiveID);
   o_id = vec4(float(prim & 255u), float((prim >> 8) & 255u), float((prim >> 16) & 255u), float(u_draw_id)) / 255.0;
+  o_id2 = o_id;
+  o_color2 = o_color;
 }
 )";
 
@@ -344,6 +350,9 @@ Status AugmenterImpl::init() {
     fh = std::max(fh, vs.vp.height);
   }
   if (auto s = fb_.create(fw, fh); !s) return s;
+  const GLenum targets[4] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
+                             GL_COLOR_ATTACHMENT3};
+  glDrawBuffers(4, targets);  // framebuffer state: set once, passes choose with colour masks
   if (auto e = gl::drain_errors(); !e.empty()) return make_error("Augmenter::create(): OpenGL errors:", e);
   return {};
 }
@@ -525,12 +534,20 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
     last = now;
   };
 
+  // The four targets stay bound (set once in init); each pass chooses what it writes with colour
+  // masks: 0 boom colour, 1 boom ids, 2 receiver ids, 3 receiver colour (overlays only).
+  auto write_only = [](bool c0, bool c1, bool c2, bool c3) {
+    glColorMaski(0, c0, c0, c0, c0);
+    glColorMaski(1, c1, c1, c1, c1);
+    glColorMaski(2, c2, c2, c2, c2);
+    glColorMaski(3, c3, c3, c3, c3);
+  };
+  const bool overlay = !vs.recv_rgba.empty();
+
   // One scissored clear per box of the id targets and depth (the boom is depth-tested against the
   // receiver). Colours are read only where an id is set, so they need no clear: llvmpipe clears
   // cost per pixel and per attachment.
-  const GLenum all[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
-  const GLenum ids_only[3] = {GL_NONE, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
-  glDrawBuffers(3, ids_only);
+  write_only(false, true, true, false);
   glEnable(GL_SCISSOR_TEST);
   glClearColor(0, 0, 0, 0);
   glClearDepth(0.0);
@@ -542,17 +559,13 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
   glDisable(GL_SCISSOR_TEST);  // every fragment falls inside its chunk's (cleared) box
   stage(timings_.gl_clear_ms);
 
-  // Receiver pass: ids into attachment 2 (colour into 3 for the validation overlays).
+  // Receiver pass: ids into target 2 (colour into 3 for the validation overlays).
   if (!vs.recv_vboxes.empty()) {
-    const GLenum recv_targets[2] = {vs.recv_rgba.empty() ? GLenum{GL_NONE} : GLenum{GL_COLOR_ATTACHMENT3},
-                                    GL_COLOR_ATTACHMENT2};
-    glDrawBuffers(2, recv_targets);
     if (options_.receiver_draw == ReceiverDraw::kWireframe) {
       // Ids from filled triangles; the wireframe colour is drawn after, without touching ids or depth.
-      glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+      write_only(false, false, true, false);
       draw_kind(ObjectKind::kReceiver, T_cam_recv, ids_only_);
-      glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-      glColorMaski(1, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+      write_only(false, false, false, true);
       glDepthMask(GL_FALSE);
       glDepthFunc(GL_GEQUAL);
       glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
@@ -560,19 +573,21 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
       glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
       glDepthFunc(GL_GREATER);
       glDepthMask(GL_TRUE);
-      glColorMaski(1, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
     } else if (options_.receiver_draw == ReceiverDraw::kTranslucent) {
+      write_only(false, false, true, overlay);
       draw_kind(ObjectKind::kReceiver, T_cam_recv, shaded_);
     } else {
+      write_only(false, false, true, false);
       draw_kind(ObjectKind::kReceiver, T_cam_recv, ids_only_);  // mask-only proxy: ids and depth
     }
   }
   // Boom pass: colour and ids of the boom where it is in front of the receiver.
   if (!vs.boom_vboxes.empty()) {
-    glDrawBuffers(2, all);
+    write_only(true, true, false, false);
     draw_kind(ObjectKind::kBoomFixed, T_cam_boom, shaded_);
     draw_kind(ObjectKind::kBoomTelescope, T_cam_tele, shaded_);
   }
+  write_only(true, true, true, true);
   stage(timings_.gl_draw_ms);
 
   for (const VBox& b : vs.recv_vboxes) {
