@@ -174,7 +174,7 @@ class StatsCsv {
 
 // Sum of the augmenter's stages for one stereo frame.
 double total_ms(const AugmentTimings& t) {
-  return t.render_ms + t.masks_ms + t.composite_ms + t.stats_ms;
+  return t.render_ms + t.masks_ms + t.stats_ms;
 }
 
 std::string fmt_ms(double ms) {

@@ -78,9 +78,9 @@ struct AugmentTimings {
   double gl_clear_ms = 0;  // the three below only with AugmentOptions::profile_stages
   double gl_draw_ms = 0;
   double gl_readback_ms = 0;
-  double masks_ms = 0;      // id lookup, exact edge rays, depth
-  double composite_ms = 0;  // augmented images
-  double stats_ms = 0;      // counts and stereo classes
+  double masks_ms = 0;  // CPU pass, both views summed: masks, exact edge rays, depth and the
+                        // composite of the augmented images (one pass over the pixels)
+  double stats_ms = 0;  // counts and stereo classes
 };
 
 class Augmenter {
