@@ -985,6 +985,7 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
                                       copt.compute_classes ? &out.stereo_classes : nullptr);
   if (!copt.compute_classes) out.stereo_classes.clear();
   timings_.stats_ms = ms(Clock::now() - t4);
+  timings_.total_ms = ms(Clock::now() - t0);
   (void)t3;
   if (auto e = gl::drain_errors(); !e.empty()) return make_error("Augmenter::augment(): OpenGL errors:", e);
   return {};

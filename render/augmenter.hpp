@@ -81,6 +81,7 @@ struct AugmentTimings {
   double masks_ms = 0;  // CPU pass, both views summed: masks, exact edge rays, depth and the
                         // composite of the augmented images (one pass over the pixels)
   double stats_ms = 0;  // counts and stereo classes
+  double total_ms = 0;  // wall time of the whole augment() call (the stages above overlap)
 };
 
 class Augmenter {
