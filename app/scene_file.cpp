@@ -149,21 +149,12 @@ SceneState parse_root(const Ctx& c, const YAML::Node& root, const Rig& rig, cons
 Expected<SceneState> parse_with(const std::string& text, const Ctx& c, const Rig& rig,
                                 const BoomDimensions& dims, const Eigen::Vector3d& receptacle_m,
                                 SceneExtras* extras) {
-  try {
+  return guarded(c, [&] {
     SceneExtras ex;
-    const YAML::Node root = YAML::Load(text);
-    SceneState scene = parse_root(c, root, rig, dims, receptacle_m, ex);
+    SceneState scene = parse_root(c, YAML::Load(text), rig, dims, receptacle_m, ex);
     if (extras) *extras = ex;
     return scene;
-  } catch (const ParseFailure& e) {
-    return Error{e.message};
-  } catch (const YAML::ParserException& e) {
-    return make_error(c.prefix, location(c, e.mark), ": YAML syntax error: ", e.msg);
-  } catch (const YAML::Exception& e) {
-    return make_error(c.prefix, location(c, e.mark), ": ", e.msg);
-  } catch (const std::exception& e) {
-    return make_error(c.prefix, c.name, ": ", e.what());
-  }
+  });
 }
 
 }  // namespace

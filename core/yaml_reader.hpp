@@ -5,11 +5,14 @@
 // YAML exception) and return an Error, so nothing escapes as an exception.
 #pragma once
 
+#include <exception>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 #include <yaml-cpp/yaml.h>
+
+#include "core/expected.hpp"
 
 namespace augrig::yaml {
 
@@ -48,5 +51,22 @@ Eigen::Vector3d to_vec3(const Context& c, const YAML::Node& n, const std::string
 bool to_bool(const Context& c, const YAML::Node& n, const std::string& key);
 std::string to_string_value(const Context& c, const YAML::Node& n, const std::string& key,
                             const std::string& what);
+
+// Runs a parser body and turns whatever it throws (ParseFailure, YAML syntax or other errors) into
+// an Error that names the file and, where YAML knows it, the line.
+template <typename F>
+auto guarded(const Context& c, F&& body) -> Expected<decltype(body())> {
+  try {
+    return body();
+  } catch (const ParseFailure& e) {
+    return Error{e.message};
+  } catch (const YAML::ParserException& e) {
+    return make_error(c.prefix, location(c, e.mark), ": YAML syntax error: ", e.msg);
+  } catch (const YAML::Exception& e) {
+    return make_error(c.prefix, location(c, e.mark), ": ", e.msg);
+  } catch (const std::exception& e) {
+    return make_error(c.prefix, c.name, ": ", e.what());
+  }
+}
 
 }  // namespace augrig::yaml

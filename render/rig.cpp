@@ -403,20 +403,11 @@ Rig parse_root(const Ctx& c, const YAML::Node& root) {
 }
 
 Expected<Rig> parse_with(const std::string& text, const Ctx& c) {
-  try {
-    const YAML::Node root = YAML::Load(text);
-    Rig rig = parse_root(c, root);
+  return guarded(c, [&] {
+    Rig rig = parse_root(c, YAML::Load(text));
     rig.source = c.name;
     return rig;
-  } catch (const ParseFailure& e) {
-    return Error{e.message};
-  } catch (const YAML::ParserException& e) {
-    return make_error(c.prefix, location(c, e.mark), ": YAML syntax error: ", e.msg);
-  } catch (const YAML::Exception& e) {
-    return make_error(c.prefix, location(c, e.mark), ": ", e.msg);
-  } catch (const std::exception& e) {
-    return make_error(c.prefix, c.name, ": ", e.what());
-  }
+  });
 }
 
 fs::path absolute_dir_of(const std::string& name) {
