@@ -92,7 +92,7 @@ void parse_receiver(const Ctx& c, const YAML::Node& root, const Rig& rig, const 
     }
     // Receptacle at the nozzle tip (plus offset): t_body_recv + R * receptacle = tip + offset.
     const Eigen::Matrix3d R = parse_ypr(c, rec);
-    const Eigen::Vector3d tip = nozzle_tip_body(rig, dims, scene.boom);
+    const Eigen::Vector3d tip = nozzle_tip_body(rig.boom.pivot_body_m, dims, scene.boom);
     scene.T_body_receiver = Pose::from(R, tip + offset - R * receptacle_m);
     return;
   }
@@ -158,10 +158,6 @@ Expected<SceneState> parse_with(const std::string& text, const Ctx& c, const Rig
 }
 
 }  // namespace
-
-Eigen::Vector3d nozzle_tip_body(const Rig& rig, const BoomDimensions& boom, const BoomArticulation& a) {
-  return boom_pose(rig.boom.pivot_body_m, a) * Eigen::Vector3d(boom.nozzle_tip_m(a.extension_m), 0.0, 0.0);
-}
 
 Expected<SceneState> load_scene(const std::string& path, const Rig& rig, const BoomDimensions& boom,
                                 const Eigen::Vector3d& receptacle_m, SceneExtras* extras) {

@@ -11,6 +11,7 @@
 #include "core/conventions.hpp"
 #include "core/expected.hpp"
 #include "render/augmenter.hpp"
+#include "render/boom_control.hpp"
 #include "render/models.hpp"
 #include "render/rig.hpp"
 
@@ -30,8 +31,5 @@ Expected<SceneState> load_scene(const std::string& path, const Rig& rig, const B
 Expected<SceneState> parse_scene(const std::string& yaml_text, const std::string& name, const Rig& rig,
                                  const BoomDimensions& boom, const Eigen::Vector3d& receptacle_m,
                                  SceneExtras* extras = nullptr);
-
-// Nozzle tip in the tanker body frame for an articulation.
-Eigen::Vector3d nozzle_tip_body(const Rig& rig, const BoomDimensions& boom, const BoomArticulation& a);
 
 }  // namespace augrig
