@@ -1,0 +1,96 @@
+// gps_time: GPS time <-> UTC civil time, without timegm(), time zones or the locale.
+//
+// augrig timestamps in ClockDomain::kGps are int64 nanoseconds since the GPS epoch
+// 1980-01-06 00:00:00 (GPS time has no leap seconds). UTC = GPS - leap_seconds, where leap_seconds
+// is the GPS-UTC offset in whole seconds (18 since 2017-01-01). It is a parameter, not a table:
+// a log is converted with the offset valid when it was recorded.
+//
+// Civil dates use the proleptic Gregorian calendar (H. Hinnant's days_from_civil algorithm).
+#pragma once
+
+#include <cstdint>
+
+#include "core/conventions.hpp"
+
+namespace augrig::nav {
+
+inline constexpr int kDefaultLeapSeconds = 18;  // GPS - UTC since 2017-01-01
+inline constexpr std::int64_t kNsPerSecond = 1'000'000'000;
+inline constexpr std::int64_t kNsPerDay = 86'400 * kNsPerSecond;
+
+struct CivilDate {
+  int year = 1980;
+  int month = 1;  // 1..12
+  int day = 6;    // 1..31
+  friend bool operator==(const CivilDate&, const CivilDate&) = default;
+};
+
+// Days since 1970-01-01 of a Gregorian date (negative before it).
+constexpr std::int64_t days_from_civil(int y, int m, int d) {
+  y -= m <= 2 ? 1 : 0;
+  const std::int64_t era = (y >= 0 ? y : y - 399) / 400;
+  const std::int64_t yoe = y - era * 400;                                    // [0, 399]
+  const std::int64_t doy = (153 * (m > 2 ? m - 3 : m + 9) + 2) / 5 + d - 1;  // [0, 365]
+  const std::int64_t doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;            // [0, 146096]
+  return era * 146097 + doe - 719468;
+}
+constexpr std::int64_t days_from_civil(const CivilDate& c) {
+  return days_from_civil(c.year, c.month, c.day);
+}
+
+// The Gregorian date of a day count since 1970-01-01.
+constexpr CivilDate civil_from_days(std::int64_t z) {
+  z += 719468;
+  const std::int64_t era = (z >= 0 ? z : z - 146096) / 146097;
+  const std::int64_t doe = z - era * 146097;
+  const std::int64_t yoe = (doe - doe / 1460 + doe / 36524 - doe / 146096) / 365;
+  const std::int64_t doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+  const std::int64_t mp = (5 * doy + 2) / 153;
+  const int d = static_cast<int>(doy - (153 * mp + 2) / 5 + 1);
+  const int m = static_cast<int>(mp < 10 ? mp + 3 : mp - 9);
+  const int y = static_cast<int>(yoe + era * 400 + (m <= 2 ? 1 : 0));
+  return {y, m, d};
+}
+
+// Days in a month of a Gregorian year (0 for a month outside 1..12).
+constexpr int days_in_month(int year, int month) {
+  constexpr int kDays[12] = {31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31};
+  if (month < 1 || month > 12) return 0;
+  const bool leap = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
+  return kDays[month - 1] + (month == 2 && leap ? 1 : 0);
+}
+
+constexpr bool is_valid_date(const CivilDate& c) {
+  return c.month >= 1 && c.month <= 12 && c.day >= 1 && c.day <= days_in_month(c.year, c.month);
+}
+
+// 1980-01-06, the GPS epoch, in days since 1970-01-01 (3657).
+inline constexpr std::int64_t kGpsEpochUnixDays = days_from_civil(1980, 1, 6);
+
+// A UTC instant as a date and the nanoseconds since that date's midnight. ns_of_day may reach
+// 86400 s during an inserted leap second (23:59:60).
+struct UtcTime {
+  CivilDate date;
+  std::int64_t ns_of_day = 0;
+};
+
+// GPS ns from a UTC date and time of day: (days - GPS epoch) * 86400 s + ns_of_day + leap seconds.
+constexpr TimestampNs gps_ns_from_utc(const CivilDate& date, std::int64_t ns_of_day,
+                                      int leap_seconds = kDefaultLeapSeconds) {
+  return (days_from_civil(date) - kGpsEpochUnixDays) * kNsPerDay + ns_of_day +
+         static_cast<std::int64_t>(leap_seconds) * kNsPerSecond;
+}
+
+// The UTC date and time of day of a GPS timestamp (ns_of_day in [0, 86400 s)).
+constexpr UtcTime utc_from_gps_ns(TimestampNs t_gps_ns, int leap_seconds = kDefaultLeapSeconds) {
+  const std::int64_t utc_ns = t_gps_ns - static_cast<std::int64_t>(leap_seconds) * kNsPerSecond;
+  std::int64_t days = utc_ns / kNsPerDay;
+  std::int64_t rem = utc_ns % kNsPerDay;
+  if (rem < 0) {
+    rem += kNsPerDay;
+    --days;
+  }
+  return {civil_from_days(days + kGpsEpochUnixDays), rem};
+}
+
+}  // namespace augrig::nav

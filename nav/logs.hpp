@@ -1,0 +1,84 @@
+// logs: the CSV logs of the nav module, IMU increments and per-epoch navigation solutions.
+// Schemas, units and frames: docs/NAV_FORMATS.md.
+//
+// Both are plain CSV with one header line naming the columns (in any order; required columns must
+// be present, unknown ones are an error). Lines starting with '#' are comments; "# key: value"
+// comments are kept as metadata, and "# clock: gps" (a core/conventions.hpp ClockDomain name)
+// states the clock of t_ns. Writers print every double in its shortest exact text
+// (std::to_chars), so a write/read round trip is bit-exact.
+//
+// Readers fail (Expected error) on what makes a file unusable: a missing or bad header, a row with
+// the wrong number of fields, a field that is not a finite number, naming file:line and column.
+// Samples that are out of order or repeat their predecessor's time are dropped and counted in
+// LogIssues; gaps are counted.
+#pragma once
+
+#include <iosfwd>
+#include <limits>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/conventions.hpp"
+#include "core/expected.hpp"
+#include "nav/types.hpp"
+
+namespace augrig::nav {
+
+// IMU CSV: t_ns,dt_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps[,arrival_ns]
+struct ImuLog {
+  std::vector<ImuSample> samples;  // strictly increasing t_ns
+  LogIssues issues;                // gaps: t_ns - previous t_ns > 1.5 dt_s (at least one sample missing)
+  ClockDomain clock = ClockDomain::kGps;        // from "# clock: ...", kGps when not stated
+  std::map<std::string, std::string> metadata;  // "# key: value" comments
+};
+
+// One navigation solution epoch, column for column as in the CSV:
+// t_ns,lat_deg,lon_deg,h_m,vn_mps,ve_mps,vd_mps,yaw_deg,pitch_deg,roll_deg,
+// sigma_n_m,sigma_e_m,sigma_d_m,sigma_yaw_deg,sigma_pitch_deg,sigma_roll_deg
+// Position of the body origin (WGS84, ellipsoidal height), velocity in NED, attitude
+// R_ned_body as yaw-pitch-roll (Z-Y'-X'', core/conventions.hpp), 1-sigma errors. The sigma
+// columns are optional: absent columns or empty fields read as NaN (unknown), and NaN is written
+// as an empty field.
+struct NavSolutionRow {
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+  TimestampNs t_ns = 0;
+  double lat_deg = 0, lon_deg = 0, h_m = 0;
+  double vn_mps = 0, ve_mps = 0, vd_mps = 0;
+  double yaw_deg = 0, pitch_deg = 0, roll_deg = 0;
+  double sigma_n_m = kNaN, sigma_e_m = kNaN, sigma_d_m = kNaN;
+  double sigma_yaw_deg = kNaN, sigma_pitch_deg = kNaN, sigma_roll_deg = kNaN;
+};
+
+struct NavSolutionLog {
+  std::vector<NavSolutionRow> rows;  // strictly increasing t_ns
+  LogIssues issues;                  // gaps: intervals longer than twice the median interval
+  ClockDomain clock = ClockDomain::kGps;
+  std::map<std::string, std::string> metadata;
+};
+
+// Options of both writers.
+struct CsvWriteOptions {
+  ClockDomain clock = ClockDomain::kGps;        // written as "# clock: <name>"
+  std::map<std::string, std::string> metadata;  // more "# key: value" lines (no newlines in them)
+};
+
+// `name` names the stream in messages ("imu.csv:12: ...").
+Expected<ImuLog> parse_imu_csv(std::istream& in, const std::string& name);
+Expected<ImuLog> read_imu_csv(const std::string& path);
+// The arrival_ns column is written when any sample has arrival_ns != 0. Non-finite values are an
+// error (the reader would reject them).
+Status write_imu_csv(std::ostream& out, const std::vector<ImuSample>& samples,
+                     const CsvWriteOptions& options = {});
+Status write_imu_csv(const std::string& path, const std::vector<ImuSample>& samples,
+                     const CsvWriteOptions& options = {});
+
+Expected<NavSolutionLog> parse_nav_solution_csv(std::istream& in, const std::string& name);
+Expected<NavSolutionLog> read_nav_solution_csv(const std::string& path);
+Status write_nav_solution_csv(std::ostream& out, const std::vector<NavSolutionRow>& rows,
+                              const CsvWriteOptions& options = {});
+Status write_nav_solution_csv(const std::string& path, const std::vector<NavSolutionRow>& rows,
+                              const CsvWriteOptions& options = {});
+
+}  // namespace augrig::nav

@@ -1,0 +1,88 @@
+// nmea: NMEA 0183 GPS logs, read into GpsFix epochs and written from them. Format, field meanings,
+// precision and the warning rules: docs/NAV_FORMATS.md.
+//
+// Read: GGA (position, quality, satellites, HDOP, geoid separation), RMC (date, ground speed,
+// course), VTG (ground speed, course), HDT (true heading), GST (position error sigmas), ZDA (date).
+// Sentences sharing a UTC time tag merge into one GpsFix; VTG and HDT carry no time and join the
+// epoch of the last time tag seen. Ellipsoidal height = GGA altitude (MSL) + GGA geoid separation.
+// Every line may start with a host arrival time, "<arrival_ns> $GNGGA,...".
+//
+// Malformed lines never throw and never stop the parse: each is counted in LogIssues with a
+// "file:line: what" message and skipped. An Error comes back only when the file cannot be read,
+// when no GGA sentence could be used, or when malformed lines exceed max_malformed_fraction.
+#pragma once
+
+#include <cstdint>
+#include <iosfwd>
+#include <map>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/expected.hpp"
+#include "nav/gps_time.hpp"
+#include "nav/types.hpp"
+
+namespace augrig::nav {
+
+struct NmeaOptions {
+  int leap_seconds = kDefaultLeapSeconds;  // GPS - UTC, seconds
+  // Date for fixes seen before any ZDA/RMC date; without it such fixes are reported and dropped.
+  std::optional<CivilDate> default_date;
+  // Fraction of non-empty lines that may be malformed (bad checksum, garbage, bad fields) before
+  // the parse fails with an Error. 1.0: never fail for malformed lines.
+  double max_malformed_fraction = 1.0;
+  // Lines longer than this (after the optional arrival prefix) are malformed.
+  std::size_t max_line_length = 1024;
+  // A sentence without "*HH" is malformed when true; when false it is accepted unchecked.
+  bool require_checksum = true;
+  // At most this many messages are kept in LogIssues (the counters stay exact).
+  std::size_t max_messages = 1000;
+};
+
+struct NmeaLog {
+  std::vector<GpsFix> fixes;  // sorted by t_ns, strictly increasing
+  LogIssues issues;
+  // Sentences with a valid checksum, per sentence type ("GGA", "RMC", ..., also unused types).
+  std::map<std::string, std::size_t> sentence_counts;
+  std::size_t lines = 0;               // lines read, including empty ones
+  std::size_t epochs_without_gga = 0;  // time tags seen only in RMC/GST/ZDA (no fix made)
+  std::size_t fixes_without_date = 0;  // fixes before any date and no default_date (dropped)
+  std::size_t unused_sentences = 0;    // valid sentences of types not read (GSV, GSA, ...)
+};
+
+// Parses an NMEA log; `name` is used in messages ("tanker.nmea:12: bad checksum ...").
+Expected<NmeaLog> parse_nmea(std::istream& in, const std::string& name, const NmeaOptions& options = {});
+Expected<NmeaLog> read_nmea_file(const std::string& path, const NmeaOptions& options = {});
+
+struct NmeaWriterOptions {
+  int leap_seconds = kDefaultLeapSeconds;
+  std::string talker = "GN";          // GGA, RMC, VTG, GST, ZDA
+  std::string heading_talker = "GN";  // HDT
+  int time_decimals = 3;              // hhmmss.sss; 0..9
+  bool write_arrival_prefix = false;  // "<arrival_ns> " before each sentence when arrival_ns != 0
+  const char* line_ending = "\r\n";
+  bool rmc = true;  // RMC with the date (and speed/course when known)
+  bool vtg = true;  // VTG when ground_speed_mps is set
+  bool hdt = true;  // HDT when heading_rad is set
+  bool gst = true;  // GST when sigma_ned_m is set
+  bool zda = true;  // ZDA with the date
+};
+
+// XOR of the characters between '$' and '*' (pass them without either).
+std::uint8_t nmea_checksum(std::string_view body);
+// "$" + body + "*HH" (no line ending).
+std::string nmea_sentence(std::string_view body);
+
+// The sentences of one epoch, in the order GGA, GST, RMC, VTG, HDT, ZDA, each as "$...*HH"
+// without line ending or arrival prefix. Position: 8 decimals of arc minutes (< 0.02 mm), heights
+// 4 decimals, GGA altitude = antenna.h_m - geoid_separation_m. A fix with quality kInvalid is
+// written with quality 0 (and RMC status V); NaN coordinates are written as empty fields.
+std::vector<std::string> nmea_sentences(const GpsFix& fix, const NmeaWriterOptions& options = {});
+// All epochs as text, each sentence ended by options.line_ending.
+std::string write_nmea(const std::vector<GpsFix>& fixes, const NmeaWriterOptions& options = {});
+Status write_nmea_file(const std::string& path, const std::vector<GpsFix>& fixes,
+                       const NmeaWriterOptions& options = {});
+
+}  // namespace augrig::nav
