@@ -18,6 +18,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "app/cli.hpp"
 #include "app/scene_file.hpp"
 #include "capture/stereo_pairer.hpp"
 #include "core/frame.hpp"
@@ -35,153 +36,6 @@
 
 namespace augrig::app {
 namespace {
-
-namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-// A command failed for a reason the user can fix in an input (exit 1) or in the flags (exit 2).
-struct CommandError {
-  int code;
-  std::string message;
-};
-[[noreturn]] void runtime_error(const std::string& what) {
-  throw CommandError{kExitRuntime, what};
-}
-[[noreturn]] void usage_error(const std::string& what) {
-  throw CommandError{kExitUsage, what};
-}
-
-// Library errors read "module::function(): file:line: ..."; the CLI prints its own prefix instead,
-// so the user sees "augrig augment: file:line: ...".
-std::string user_message(const Error& e) {
-  const std::string& m = e.message;
-  const auto end = m.find("(): ");
-  if (end != std::string::npos && end < 48) {
-    const std::string head = m.substr(0, end);
-    if (head.find("::") != std::string::npos && head.find(' ') == std::string::npos) return m.substr(end + 4);
-  }
-  return m;
-}
-
-template <typename T>
-T unwrap(Expected<T> e) {
-  if (!e) runtime_error(user_message(e.error()));
-  return std::move(e).value();
-}
-void check(const Status& s) {
-  if (!s) runtime_error(user_message(s.error()));
-}
-
-// ---- Shared flag handling -----------------------------------------------------------------------
-
-// "default" is the seed paper's rig; anything else a rig file.
-Rig load_rig_arg(const std::string& value) {
-  if (value.empty() || value == "default") return Rig::paper_default();
-  return unwrap(load_rig(value));
-}
-
-ReceiverDraw parse_receiver_draw(const std::string& v) {
-  if (v.empty() || v == "mask") return ReceiverDraw::kMaskOnly;
-  if (v == "wireframe") return ReceiverDraw::kWireframe;
-  if (v == "translucent") return ReceiverDraw::kTranslucent;
-  usage_error("--receiver-draw: expected one of mask, wireframe, translucent, got '" + v + "'");
-}
-
-PixelFormat parse_bayer(const std::string& v) {
-  if (v == "RG") return PixelFormat::kBayerRG8;
-  if (v == "GR") return PixelFormat::kBayerGR8;
-  if (v == "GB") return PixelFormat::kBayerGB8;
-  if (v == "BG") return PixelFormat::kBayerBG8;
-  usage_error("--bayer: expected one of RG, GR, GB, BG (colour of the top-left 2x2 cell), got '" + v + "'");
-}
-
-// The receiver model and where its receptacle is: the built-in model knows its own receptacle;
-// a model file relies on the rig's receiver.receptacle_m.
-struct ReceiverSetup {
-  std::shared_ptr<const Model> model;  // null: let the Augmenter load the rig's file
-  Eigen::Vector3d receptacle_m = Eigen::Vector3d::Zero();
-};
-ReceiverSetup receiver_setup(const Rig& rig) {
-  ReceiverSetup r;
-  if (rig.receiver.model.path.empty()) {
-    r.model = std::make_shared<const Model>(make_builtin_receiver(&r.receptacle_m));
-  } else {
-    r.receptacle_m = rig.receiver.receptacle_m;
-  }
-  return r;
-}
-
-std::unique_ptr<GlContext> make_gl_context() {
-  auto ctx = create_gl_context(GlBackend::kEglHeadless);
-  if (!ctx) runtime_error("cannot create an OpenGL context (EGL headless): " + user_message(ctx.error()));
-  return std::move(*ctx);
-}
-
-void make_dirs(const fs::path& dir) {
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) runtime_error(dir.string() + ": cannot create the folder (" + ec.message() + ")");
-}
-
-// ---- Outputs ------------------------------------------------------------------------------------
-
-// Per-frame file names: left/right keep their own stems, the visualisations use the left one.
-struct FrameNames {
-  std::string left, right;
-};
-
-void write_png(const fs::path& path, const Image& image) {
-  check(write_image_file(path.string(), image));
-}
-
-// Everything `augment` writes for one stereo frame (see docs/CLI.md for the layout).
-void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoResult& r) {
-  const std::string l = n.left + ".png", rr = n.right + ".png";
-  write_png(out / "left" / "augmented" / l, r.left.augmented);
-  write_png(out / "right" / "augmented" / rr, r.right.augmented);
-  write_png(out / "left" / "mask" / l, r.left.mask);
-  write_png(out / "right" / "mask" / rr, r.right.mask);
-  write_png(out / "vis" / "boom_overlap" / l, visualize_boom_overlap(r.left.mask, r.right.mask));
-  write_png(out / "vis" / "occlusion_left" / l, visualize_receiver_occlusion(r.left.mask, true));
-  write_png(out / "vis" / "occlusion_right" / rr, visualize_receiver_occlusion(r.right.mask, false));
-  if (!r.stereo_classes.empty()) {
-    write_png(out / "vis" / "stereo_classes" / l,
-              visualize_stereo_classes(r.stereo_classes, r.left.mask.width(), r.left.mask.height()));
-  }
-}
-
-// stats.csv, one row per stereo frame, flushed per row so a failed run keeps what it counted.
-class StatsCsv {
- public:
-  explicit StatsCsv(const fs::path& path) : path_(path), out_(path, std::ios::binary) {
-    if (!out_) runtime_error(path.string() + ": cannot write the statistics file");
-    write_stats_csv_header(out_);
-  }
-  void add(const OcclusionStats& s) {
-    write_stats_csv_row(out_, s);
-    out_.flush();
-    if (!out_) runtime_error(path_.string() + ": write failed");
-  }
-
- private:
-  fs::path path_;
-  std::ofstream out_;
-};
-
-// Wall time of one augment() call (its stages overlap across threads, so they are not summed).
-double total_ms(const AugmentTimings& t) {
-  return t.total_ms;
-}
-
-std::string fmt_ms(double ms) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.1f", ms);
-  return buf;
-}
 
 // ---- augment ------------------------------------------------------------------------------------
 
@@ -351,7 +205,7 @@ int augment(const std::vector<std::string>& args, std::ostream& out) {
     frame.left.sequence = frame.right.sequence = frame.pair_sequence = i;
 
     check(augmenter->augment(frame, sc.scene, result));
-    augment_ms += total_ms(augmenter->timings());
+    augment_ms += augmenter->timings().total_ms;
     result.stats.t_ns = t_ns;
     write_frame_outputs(out_dir, {lp.stem().string(), rp.stem().string()}, result);
     csv.add(result.stats);
@@ -366,182 +220,6 @@ int augment(const std::vector<std::string>& args, std::ostream& out) {
   }
   out << "Wrote " << pairs.size() << " stereo frame(s) to " << out_dir.string() << " (augmenter "
       << fmt_ms(augment_ms / static_cast<double>(pairs.size())) << " ms per stereo frame)\n";
-  return kExitOk;
-}
-
-// ---- demo ---------------------------------------------------------------------------------------
-
-const std::vector<OptionSpec>& demo_specs() {
-  static const std::vector<OptionSpec> specs = {
-      {"out", ArgKind::kValue, "DIR", "output folder (created)", true},
-      {"frames", ArgKind::kValue, "N", "stereo frames of the approach, at 30 fps (default 90)"},
-      {"rig", ArgKind::kValue, "RIG.yaml|default", "rig file, or 'default' for the paper's rig (default)"},
-      {"bayer", ArgKind::kOptionalValue, "[=RG|GR|GB|BG]", "simulate raw Bayer cameras (default pattern RG)"},
-      {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
-       "how the receiver shows in the augmented image (default mask: not drawn)"},
-  };
-  return specs;
-}
-
-const char* kDemoUsage =
-    "augrig demo --out DIR [--frames N] [--rig RIG.yaml] [--bayer] [--receiver-draw MODE]";
-const char* kDemoSummary =
-    "Flies a simulated approach from observation to contact, augments every stereo frame with its\n"
-    "truth, writes stats.csv for every frame, images for every 10th frame and the last, and demo.png\n"
-    "(a contact sheet of the last frame).";
-
-int parse_frames(const std::string& v) {
-  int n = 0;
-  const auto r = std::from_chars(v.data(), v.data() + v.size(), n);
-  if (r.ec != std::errc() || r.ptr != v.data() + v.size() || n < 1 || n > 100000) {
-    usage_error("--frames: expected a whole number from 1 to 100000, got '" + v + "'");
-  }
-  return n;
-}
-
-// Next frame of the source; the simulation never times out, but a source may ask to be called again.
-Frame next_frame(FrameSource& source, int stereo_index) {
-  Frame f;
-  for (int attempt = 0; attempt < 100; ++attempt) {
-    const ReadStatus s = unwrap(source.read(f, std::chrono::milliseconds(100)));
-    if (s == ReadStatus::kFrame) return f;
-    if (s == ReadStatus::kEndOfStream) {
-      runtime_error(source.uri() + ": ended early, at stereo frame " + std::to_string(stereo_index));
-    }
-  }
-  runtime_error(source.uri() + ": no frame for 10 s");
-}
-
-// Half-size RGB copy of an image with a label in its top-left corner.
-cv::Mat contact_tile(const Image& rgb, const std::string& label) {
-  const cv::Mat full(rgb.height(), rgb.width(), CV_8UC3, const_cast<std::uint8_t*>(rgb.data()),
-                     rgb.stride_bytes());
-  cv::Mat half;
-  cv::resize(full, half, cv::Size(rgb.width() / 2, rgb.height() / 2), 0, 0, cv::INTER_AREA);
-  // Dark band under the label keeps it readable over sky and ground alike.
-  const int scale_px = std::max(1, half.rows / 480);
-  cv::rectangle(half, cv::Rect(0, 0, half.cols, 28 * scale_px), cv::Scalar(0, 0, 0), cv::FILLED);
-  cv::putText(half, label, cv::Point(8 * scale_px, 20 * scale_px), cv::FONT_HERSHEY_SIMPLEX, 0.6 * scale_px,
-              cv::Scalar(255, 255, 255), scale_px, cv::LINE_AA);
-  return half;
-}
-
-// demo.png: a 2x2 montage of the last frame (images are RGB here; converted to BGR on write).
-Image contact_sheet(const Frame& raw_left, const StereoResult& r) {
-  const Image raw = to_rgb8(raw_left.image);
-  const cv::Mat tiles[4] = {
-      contact_tile(to_rgb8(r.left.augmented), "left camera, augmented"),
-      contact_tile(to_rgb8(r.right.augmented), "right camera, augmented"),
-      contact_tile(blend_over(raw, visualize_boom_overlap(r.left.mask, r.right.mask)),
-                   "boom: left cyan, right blue, both green"),
-      contact_tile(blend_over(raw, visualize_receiver_occlusion(r.left.mask, true)),
-                   "left: receiver red, boom cyan, boom over receiver white"),
-  };
-  cv::Mat top, bottom, sheet;
-  cv::hconcat(tiles[0], tiles[1], top);
-  cv::hconcat(tiles[2], tiles[3], bottom);
-  cv::vconcat(top, bottom, sheet);
-  Image out(sheet.cols, sheet.rows, PixelFormat::kRGB8);
-  for (int y = 0; y < sheet.rows; ++y) std::copy_n(sheet.ptr<std::uint8_t>(y), 3 * sheet.cols, out.row(y));
-  return out;
-}
-
-int demo(const std::vector<std::string>& args, std::ostream& out) {
-  const ParsedArgs a = [&] {
-    auto p = parse_args(args, demo_specs());
-    if (!p) usage_error(p.error().message);
-    return *p;
-  }();
-  if (a.help) {
-    out << format_help(kDemoUsage, kDemoSummary, demo_specs());
-    return kExitOk;
-  }
-  const int frames = a.has("frames") ? parse_frames(a.get("frames")) : 90;
-  ApproachOptions approach;
-  approach.frames = frames;
-  approach.fps = 30.0;
-  if (a.has("bayer")) approach.sensor.format = parse_bayer(a.get("bayer").empty() ? "RG" : a.get("bayer"));
-  AugmentOptions options;
-  options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
-  const Rig rig = load_rig_arg(a.get("rig", "default"));
-  if (rig.cameras.size() != 2)
-    runtime_error(rig.source + ": the rig needs 2 cameras, has " + std::to_string(rig.cameras.size()));
-
-  const fs::path out_dir = a.get("out");
-  make_dirs(out_dir);
-  StatsCsv csv(out_dir / "stats.csv");
-
-  const auto t_start = Clock::now();
-  const auto gl = make_gl_context();
-  const auto source = unwrap(ApproachSource::create(rig, approach));
-  const auto augmenter = unwrap(Augmenter::create(rig, options));
-  out << "demo: " << frames << " stereo frames of " << source->uri() << ", "
-      << to_string(approach.sensor.format) << ", " << rig.left().model.width_px << "x"
-      << rig.left().model.height_px << " -> " << out_dir.string() << "\n";
-
-  StereoResult result;
-  StereoFrame stereo;
-  // Frames go through the same pairing as live capture: by mid-exposure time within half a period.
-  StereoPairer pairer(s_to_ns(0.5 / approach.fps));
-  std::vector<OcclusionStats> all;
-  double sim_ms = 0, augment_ms = 0, write_ms = 0;
-  for (int i = 0; i < frames; ++i) {
-    auto t0 = Clock::now();
-    std::optional<StereoFrame> paired;
-    for (int k = 0; !paired; ++k) {
-      if (k > 8) runtime_error(source->uri() + ": no stereo pair at stereo frame " + std::to_string(i));
-      paired = pairer.push(next_frame(*source, i));
-    }
-    stereo = std::move(*paired);
-    sim_ms += ms_since(t0);
-    if (stereo.left.sequence != stereo.right.sequence)
-      runtime_error(source->uri() + ": paired frames of different sequences at stereo frame " +
-                    std::to_string(i));
-    const ApproachTruth& truth = source->truth(stereo.left.sequence);
-
-    check(augmenter->augment(stereo, truth.scene, result));
-    augment_ms += total_ms(augmenter->timings());
-    result.stats.t_ns = truth.t_ns;
-    csv.add(result.stats);
-    all.push_back(result.stats);
-
-    // Images for a subset only: PNG encoding costs more than the augmentation itself.
-    const bool last = i + 1 == frames;
-    if (i % 10 == 0 || last) {
-      t0 = Clock::now();
-      char stem[32];
-      std::snprintf(stem, sizeof stem, "frame_%04d", i);
-      write_frame_outputs(out_dir, {stem, stem}, result);
-      write_ms += ms_since(t0);
-    }
-    if ((i + 1) % 10 == 0 || last) {
-      const OcclusionStats& s = result.stats;
-      char line[200];
-      std::snprintf(line, sizeof line,
-                    "frame %4d/%d  t %6.3f s  receiver %7lld px  boom %7lld px  occluded %5.1f%% (left)\n",
-                    i + 1, frames, ns_to_s(truth.t_ns), static_cast<long long>(s.receiver_px_left),
-                    static_cast<long long>(s.boom_px_left), s.occluded_pct_left);
-      out << line << std::flush;
-    }
-  }
-
-  auto t0 = Clock::now();
-  check(write_image_file((out_dir / "demo.png").string(), contact_sheet(stereo.left, result), 3));
-  write_ms += ms_since(t0);
-
-  out << "\n" << format_run_summary(all) << "\n";
-  out << format_table1(all.back(),
-                       "Last frame (contact), t = " + std::to_string(ns_to_s(all.back().t_ns)) + " s");
-  const double n = frames;
-  out << "\nTiming: augmenter " << fmt_ms(augment_ms / n)
-      << " ms per stereo frame (wall time of render, masks, composite and stats), "
-      << "simulation " << fmt_ms(sim_ms / n) << " ms per stereo frame, PNG writing " << fmt_ms(write_ms)
-      << " ms in all, total " << fmt_ms(ms_since(t_start) / 1000.0) << " s\n";
-  pairer.flush();
-  out << "Pairing: " << pairer.stats().pairs << " pairs, unpaired left " << pairer.stats().unpaired_left
-      << ", right " << pairer.stats().unpaired_right << ", max |skew| " << pairer.stats().max_abs_skew_ns
-      << " ns\n";
-  out << "Wrote " << (out_dir / "stats.csv").string() << " and " << (out_dir / "demo.png").string() << "\n";
   return kExitOk;
 }
 
@@ -708,30 +386,8 @@ Status write_image_file(const std::string& path, const Image& image, int png_com
 
 // ---- Commands -----------------------------------------------------------------------------------
 
-namespace {
-// Runs a command body, turning its errors (and anything unexpected) into one stderr line and an exit code.
-template <typename Body>
-int guarded(const std::string& command, std::ostream& err, Body&& body) {
-  try {
-    return body();
-  } catch (const CommandError& e) {
-    // One line: the message, and for usage errors where to look.
-    err << "augrig " << command << ": " << e.message
-        << (e.code == kExitUsage ? " (see augrig " + command + " --help)" : std::string()) << "\n";
-    return e.code;
-  } catch (const std::exception& e) {
-    err << "augrig " << command << ": internal error: " << e.what() << "\n";
-    return kExitRuntime;
-  }
-}
-}  // namespace
-
 int cmd_augment(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   return guarded("augment", err, [&] { return augment(args, out); });
-}
-
-int cmd_demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  return guarded("demo", err, [&] { return demo(args, out); });
 }
 
 int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {

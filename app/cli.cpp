@@ -1,0 +1,143 @@
+#include "app/cli.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include "render/visualize.hpp"
+
+namespace augrig::app {
+
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+void runtime_error(const std::string& what) {
+  throw CommandError{kExitRuntime, what};
+}
+void usage_error(const std::string& what) {
+  throw CommandError{kExitUsage, what};
+}
+
+std::string user_message(const Error& e) {
+  const std::string& m = e.message;
+  const auto end = m.find("(): ");
+  if (end != std::string::npos && end < 48) {
+    const std::string head = m.substr(0, end);
+    if (head.find("::") != std::string::npos && head.find(' ') == std::string::npos) return m.substr(end + 4);
+  }
+  return m;
+}
+
+void check(const Status& s) {
+  if (!s) runtime_error(user_message(s.error()));
+}
+
+// ---- Shared flag handling -----------------------------------------------------------------------
+
+Rig load_rig_arg(const std::string& value) {
+  if (value.empty() || value == "default") return Rig::paper_default();
+  return unwrap(load_rig(value));
+}
+
+ReceiverDraw parse_receiver_draw(const std::string& v) {
+  if (v.empty() || v == "mask") return ReceiverDraw::kMaskOnly;
+  if (v == "wireframe") return ReceiverDraw::kWireframe;
+  if (v == "translucent") return ReceiverDraw::kTranslucent;
+  usage_error("--receiver-draw: expected one of mask, wireframe, translucent, got '" + v + "'");
+}
+
+PixelFormat parse_bayer(const std::string& v) {
+  if (v == "RG") return PixelFormat::kBayerRG8;
+  if (v == "GR") return PixelFormat::kBayerGR8;
+  if (v == "GB") return PixelFormat::kBayerGB8;
+  if (v == "BG") return PixelFormat::kBayerBG8;
+  usage_error("--bayer: expected one of RG, GR, GB, BG (colour of the top-left 2x2 cell), got '" + v + "'");
+}
+
+ReceiverSetup receiver_setup(const Rig& rig) {
+  ReceiverSetup r;
+  if (rig.receiver.model.path.empty()) {
+    r.model = std::make_shared<const Model>(make_builtin_receiver(&r.receptacle_m));
+  } else {
+    r.receptacle_m = rig.receiver.receptacle_m;
+  }
+  return r;
+}
+
+std::unique_ptr<GlContext> make_gl_context() {
+  auto ctx = create_gl_context(GlBackend::kEglHeadless);
+  if (!ctx) runtime_error("cannot create an OpenGL context (EGL headless): " + user_message(ctx.error()));
+  return std::move(*ctx);
+}
+
+void make_dirs(const fs::path& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) runtime_error(dir.string() + ": cannot create the folder (" + ec.message() + ")");
+}
+
+// ---- Outputs ------------------------------------------------------------------------------------
+
+void write_png(const fs::path& path, const Image& image) {
+  check(write_image_file(path.string(), image));
+}
+
+void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoResult& r) {
+  const std::string l = n.left + ".png", rr = n.right + ".png";
+  write_png(out / "left" / "augmented" / l, r.left.augmented);
+  write_png(out / "right" / "augmented" / rr, r.right.augmented);
+  write_png(out / "left" / "mask" / l, r.left.mask);
+  write_png(out / "right" / "mask" / rr, r.right.mask);
+  write_png(out / "vis" / "boom_overlap" / l, visualize_boom_overlap(r.left.mask, r.right.mask));
+  write_png(out / "vis" / "occlusion_left" / l, visualize_receiver_occlusion(r.left.mask, true));
+  write_png(out / "vis" / "occlusion_right" / rr, visualize_receiver_occlusion(r.right.mask, false));
+  if (!r.stereo_classes.empty()) {
+    write_png(out / "vis" / "stereo_classes" / l,
+              visualize_stereo_classes(r.stereo_classes, r.left.mask.width(), r.left.mask.height()));
+  }
+}
+
+StatsCsv::StatsCsv(const fs::path& path) : path_(path), out_(path, std::ios::binary) {
+  if (!out_) runtime_error(path.string() + ": cannot write the statistics file");
+  write_stats_csv_header(out_);
+}
+
+void StatsCsv::add(const OcclusionStats& s) {
+  write_stats_csv_row(out_, s);
+  out_.flush();
+  if (!out_) runtime_error(path_.string() + ": write failed");
+}
+
+std::string fmt_ms(double ms) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f", ms);
+  return buf;
+}
+
+ParsedArgs parse_or_usage(const std::vector<std::string>& args, const std::vector<OptionSpec>& specs) {
+  auto p = parse_args(args, specs);
+  if (!p) usage_error(p.error().message);
+  return *p;
+}
+
+long long parse_integer(const std::string& flag, const std::string& v, long long lo, long long hi) {
+  long long n = 0;
+  const auto r = std::from_chars(v.data(), v.data() + v.size(), n);
+  if (r.ec != std::errc() || r.ptr != v.data() + v.size() || n < lo || n > hi) {
+    usage_error("--" + flag + ": expected a whole number from " + std::to_string(lo) + " to " +
+                std::to_string(hi) + ", got '" + v + "'");
+  }
+  return n;
+}
+
+double parse_real(const std::string& flag, const std::string& v) {
+  char* end = nullptr;
+  const double x = std::strtod(v.c_str(), &end);
+  if (v.empty() || end != v.c_str() + v.size() || !std::isfinite(x))
+    usage_error("--" + flag + ": expected a number, got '" + v + "'");
+  return x;
+}
+
+}  // namespace augrig::app
