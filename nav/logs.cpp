@@ -441,4 +441,134 @@ Status write_nav_solution_csv(const std::string& path, const std::vector<NavSolu
                     [&](std::ostream& o) { return write_nav_solution_csv(o, rows, options); });
 }
 
+namespace {
+
+const std::vector<std::string> kFrameColumns = {"sequence", "camera", "t_ns", "file"};
+const std::vector<std::string> kPoseColumns = {"sequence", "camera", "t_ns", "t_nav_ns", "x_m", "y_m",
+                                               "z_m",      "qw",     "qx",   "qy",       "qz"};
+const std::vector<std::string> kPoseOptional = {"sigma_pos_m",      "sigma_att_deg",    "boom_elevation_deg",
+                                                "boom_azimuth_deg", "boom_extension_m"};
+
+std::uint64_t unsigned_field(const Table& t, const std::vector<std::string_view>& f, int col,
+                             std::size_t line) {
+  const std::int64_t v = t.integer(f, col, line);
+  if (v < 0) t.fail(line, "column '" + kFrameColumns[0] + "': expected a count >= 0, got " + quoted(f[col]));
+  return static_cast<std::uint64_t>(v);
+}
+
+int camera_field(const Table& t, const std::vector<std::string_view>& f, int col, std::size_t line) {
+  const std::int64_t v = t.integer(f, col, line);
+  if (v < 0 || v > 15) t.fail(line, "column 'camera': expected a camera index 0..15, got " + quoted(f[col]));
+  return static_cast<int>(v);
+}
+
+}  // namespace
+
+Expected<FrameIndex> parse_frame_index_csv(std::istream& in, const std::string& name) {
+  const std::string prefix = "nav::parse_frame_index_csv(): ";
+  return guarded(prefix, name, [&]() -> FrameIndex {
+    FrameIndex index;
+    Table t(prefix, name, kFrameColumns, {});
+    t.clock = ClockDomain::kDevice;
+    t.read(in, [&](const std::vector<std::string_view>& f, std::size_t line) {
+      FrameIndexRow r;
+      r.sequence = unsigned_field(t, f, t.column("sequence"), line);
+      r.camera = camera_field(t, f, t.column("camera"), line);
+      r.t_ns = t.integer(f, t.column("t_ns"), line);
+      r.file = std::string(f[t.column("file")]);
+      if (r.file.empty() || r.file.find("..") != std::string::npos || r.file.front() == '/')
+        t.fail(line, "column 'file': expected a path inside the index's folder, got " + quoted(r.file));
+      for (auto it = index.rows.rbegin(); it != index.rows.rend(); ++it) {
+        if (it->camera != r.camera) continue;
+        if (it->sequence >= r.sequence || it->t_ns >= r.t_ns) {
+          t.fail(line, "camera " + std::to_string(r.camera) + ": sequence and t_ns must increase, got " +
+                           std::to_string(r.sequence) + " at " + std::to_string(r.t_ns) + " ns after " +
+                           std::to_string(it->sequence) + " at " + std::to_string(it->t_ns) + " ns");
+        }
+        break;
+      }
+      index.rows.push_back(std::move(r));
+    });
+    index.clock = t.clock;
+    index.metadata = t.metadata;
+    return index;
+  });
+}
+
+Expected<FrameIndex> read_frame_index_csv(const std::string& path) {
+  auto in = open("read_frame_index_csv", path, "frame index");
+  if (!in) return in.error();
+  return parse_frame_index_csv(*in, path);
+}
+
+Status write_frame_index_csv(const std::string& path, const FrameIndex& index) {
+  return write_file("write_frame_index_csv", path, [&](std::ostream& out) -> Status {
+    CsvWriteOptions o;
+    o.clock = index.clock;
+    o.metadata = index.metadata;
+    write_metadata(out, "frame index", o);
+    out << join(kFrameColumns) << '\n';
+    for (const FrameIndexRow& r : index.rows) {
+      if (r.file.find(',') != std::string::npos || r.file.find('\n') != std::string::npos)
+        return make_error("nav::write_frame_index_csv(): file name '", r.file, "' has a comma or newline");
+      out << r.sequence << ',' << r.camera << ',' << r.t_ns << ',' << r.file << '\n';
+    }
+    return {};
+  });
+}
+
+Expected<CameraPoseLog> parse_camera_pose_csv(std::istream& in, const std::string& name) {
+  const std::string prefix = "nav::parse_camera_pose_csv(): ";
+  return guarded(prefix, name, [&]() -> CameraPoseLog {
+    CameraPoseLog log;
+    Table t(prefix, name, kPoseColumns, kPoseOptional);
+    t.read(in, [&](const std::vector<std::string_view>& f, std::size_t line) {
+      CameraPoseRow r;
+      r.sequence = unsigned_field(t, f, t.column("sequence"), line);
+      r.camera = camera_field(t, f, t.column("camera"), line);
+      r.t_ns = t.integer(f, t.column("t_ns"), line);
+      r.t_nav_ns = t.integer(f, t.column("t_nav_ns"), line);
+      double* const v[] = {&r.x_m, &r.y_m, &r.z_m, &r.qw, &r.qx, &r.qy, &r.qz};
+      for (std::size_t i = 0; i < std::size(v); ++i) *v[i] = t.number(f, t.column(kPoseColumns[4 + i]), line);
+      const double qn = std::sqrt(r.qw * r.qw + r.qx * r.qx + r.qy * r.qy + r.qz * r.qz);
+      if (std::abs(qn - 1.0) > 1e-6)
+        t.fail(line, "columns qw..qz: expected a unit quaternion, got norm " + shortest(qn));
+      double* const o[] = {&r.sigma_pos_m, &r.sigma_att_deg, &r.boom_elevation_deg, &r.boom_azimuth_deg,
+                           &r.boom_extension_m};
+      for (std::size_t i = 0; i < std::size(o); ++i)
+        if (const int c = t.column(kPoseOptional[i]); c >= 0) *o[i] = t.number(f, c, line, true);
+      log.rows.push_back(r);
+    });
+    log.metadata = t.metadata;
+    return log;
+  });
+}
+
+Expected<CameraPoseLog> read_camera_pose_csv(const std::string& path) {
+  auto in = open("read_camera_pose_csv", path, "camera pose file");
+  if (!in) return in.error();
+  return parse_camera_pose_csv(*in, path);
+}
+
+Status write_camera_pose_csv(const std::string& path, const std::vector<CameraPoseRow>& rows,
+                             const CsvWriteOptions& options) {
+  return write_file("write_camera_pose_csv", path, [&](std::ostream& out) -> Status {
+    write_metadata(out, "camera poses", options);
+    out << join(kPoseColumns) << ',' << join(kPoseOptional) << '\n';
+    const auto opt = [](double v) { return std::isfinite(v) ? shortest(v) : std::string(); };
+    for (const CameraPoseRow& r : rows) {
+      out << r.sequence << ',' << r.camera << ',' << r.t_ns << ',' << r.t_nav_ns;
+      for (double v : {r.x_m, r.y_m, r.z_m, r.qw, r.qx, r.qy, r.qz}) {
+        if (!std::isfinite(v)) return make_error("nav::write_camera_pose_csv(): a pose value is not finite");
+        out << ',' << shortest(v);
+      }
+      for (double v : {r.sigma_pos_m, r.sigma_att_deg, r.boom_elevation_deg, r.boom_azimuth_deg,
+                       r.boom_extension_m})
+        out << ',' << opt(v);
+      out << '\n';
+    }
+    return {};
+  });
+}
+
 }  // namespace augrig::nav

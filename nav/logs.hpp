@@ -81,4 +81,52 @@ Status write_nav_solution_csv(std::ostream& out, const std::vector<NavSolutionRo
 Status write_nav_solution_csv(const std::string& path, const std::vector<NavSolutionRow>& rows,
                               const CsvWriteOptions& options = {});
 
+// Frame index CSV: one row per delivered camera frame, in delivery order.
+//   sequence,camera,t_ns,file
+// t_ns is the frame's mid-exposure timestamp as the camera stamped it ("# clock: device" usually: the
+// camera's own clock; nav maps it with a configured per-camera offset). `file` is relative to the
+// index's folder (no commas). Frames the camera dropped have no row.
+struct FrameIndexRow {
+  std::uint64_t sequence = 0;  // the camera's frame counter (stereo frames share it)
+  int camera = 0;              // index into the rig's cameras
+  TimestampNs t_ns = 0;
+  std::string file;
+};
+struct FrameIndex {
+  std::vector<FrameIndexRow> rows;
+  ClockDomain clock = ClockDomain::kDevice;
+  std::map<std::string, std::string> metadata;
+};
+Expected<FrameIndex> parse_frame_index_csv(std::istream& in, const std::string& name);
+Expected<FrameIndex> read_frame_index_csv(const std::string& path);
+Status write_frame_index_csv(const std::string& path, const FrameIndex& index);
+
+// Camera pose CSV: the receiver in one camera at one frame (truth written by `augrig sim`, estimates
+// by `augrig nav`):
+//   sequence,camera,t_ns,t_nav_ns,x_m,y_m,z_m,qw,qx,qy,qz[,sigma_pos_m,sigma_att_deg,
+//   boom_elevation_deg,boom_azimuth_deg,boom_extension_m]
+// t_ns is the frame's timestamp as in the frame index, t_nav_ns the same instant in GPS time.
+// (x, y, z) and q are T_cam_receiver (OpenCV camera frame; receiver body FRD): the receiver body
+// origin in the camera and R_cam_receiver as a unit quaternion. Optional columns read as NaN when
+// absent; NaN is written as an empty field.
+struct CameraPoseRow {
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  std::uint64_t sequence = 0;
+  int camera = 0;
+  TimestampNs t_ns = 0;
+  TimestampNs t_nav_ns = 0;
+  double x_m = 0, y_m = 0, z_m = 0;
+  double qw = 1, qx = 0, qy = 0, qz = 0;
+  double sigma_pos_m = kNaN, sigma_att_deg = kNaN;
+  double boom_elevation_deg = kNaN, boom_azimuth_deg = kNaN, boom_extension_m = kNaN;
+};
+struct CameraPoseLog {
+  std::vector<CameraPoseRow> rows;
+  std::map<std::string, std::string> metadata;
+};
+Expected<CameraPoseLog> parse_camera_pose_csv(std::istream& in, const std::string& name);
+Expected<CameraPoseLog> read_camera_pose_csv(const std::string& path);
+Status write_camera_pose_csv(const std::string& path, const std::vector<CameraPoseRow>& rows,
+                             const CsvWriteOptions& options = {});
+
 }  // namespace augrig::nav

@@ -364,5 +364,61 @@ TEST(NavSolutionCsv, BadFilesNameFileLineAndColumn) {
   EXPECT_FALSE(write_nav_solution_csv("/nonexistent/dir/nav.csv", make_nav(1)));
 }
 
+TEST(FrameIndexCsv, RoundTripAndErrors) {
+  FrameIndex index;
+  index.metadata["scenario"] = "demo";
+  index.rows = {{0, 0, 1000, "left/000000.png"}, {0, 1, 1005, "right/000000.png"},
+                {1, 0, 34334, "left/000001.png"}, {2, 1, 67672, "right/000002.png"}};
+  const std::string path = test::output_dir("nav_logs") + "/frame_index.csv";
+  ASSERT_TRUE(write_frame_index_csv(path, index));
+  auto back = read_frame_index_csv(path);
+  ASSERT_TRUE(back) << back.error().message;
+  ASSERT_EQ(back->rows.size(), 4u);
+  EXPECT_EQ(back->clock, ClockDomain::kDevice);
+  EXPECT_EQ(back->metadata.at("scenario"), "demo");
+  for (std::size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(back->rows[i].sequence, index.rows[i].sequence);
+    EXPECT_EQ(back->rows[i].camera, index.rows[i].camera);
+    EXPECT_EQ(back->rows[i].t_ns, index.rows[i].t_ns);
+    EXPECT_EQ(back->rows[i].file, index.rows[i].file);
+  }
+  const std::pair<const char*, const char*> bad[] = {
+      {"sequence,camera,t_ns,file\n0,0,5,a.png\n1,0,5,b.png\n", "idx.csv:3: camera 0: sequence and t_ns must increase"},
+      {"sequence,camera,t_ns,file\n0,99,5,a.png\n", "idx.csv:2: column 'camera': expected a camera index"},
+      {"sequence,camera,t_ns,file\n0,0,5,../a.png\n", "idx.csv:2: column 'file'"},
+      {"sequence,camera,t_ns\n", "idx.csv:1: header: missing column 'file'"},
+      {"sequence,camera,t_ns,file\n0,0,x,a.png\n", "idx.csv:2: column 't_ns': expected an integer"},
+  };
+  for (const auto& [text, expect] : bad) {
+    std::istringstream in(text);
+    auto r = parse_frame_index_csv(in, "idx.csv");
+    ASSERT_FALSE(r) << text;
+    EXPECT_NE(r.error().message.find(expect), std::string::npos) << r.error().message;
+  }
+}
+
+TEST(CameraPoseCsv, RoundTripBitExactAndErrors) {
+  std::vector<CameraPoseRow> rows(2);
+  rows[0] = {3, 0, 100, 200, -1.25, 0.1, 20.123456789012345, 0.5, 0.5, 0.5, 0.5};
+  rows[0].sigma_pos_m = 0.012;
+  rows[1] = {3, 1, 101, 201, 1.0 / 3.0, -2.0, 19.0, 1.0, 0.0, 0.0, 0.0};
+  rows[1].boom_elevation_deg = 30.5;
+  const std::string path = test::output_dir("nav_logs") + "/poses.csv";
+  ASSERT_TRUE(write_camera_pose_csv(path, rows));
+  auto back = read_camera_pose_csv(path);
+  ASSERT_TRUE(back) << back.error().message;
+  ASSERT_EQ(back->rows.size(), 2u);
+  EXPECT_EQ(back->rows[0].z_m, rows[0].z_m);
+  EXPECT_EQ(back->rows[1].x_m, rows[1].x_m);
+  EXPECT_EQ(back->rows[0].sigma_pos_m, 0.012);
+  EXPECT_TRUE(std::isnan(back->rows[0].boom_elevation_deg));
+  EXPECT_EQ(back->rows[1].boom_elevation_deg, 30.5);
+  std::istringstream in("sequence,camera,t_ns,t_nav_ns,x_m,y_m,z_m,qw,qx,qy,qz\n0,0,1,1,0,0,5,1,1,0,0\n");
+  auto r = parse_camera_pose_csv(in, "p.csv");
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("p.csv:2: columns qw..qz: expected a unit quaternion"), std::string::npos)
+      << r.error().message;
+}
+
 }  // namespace
 }  // namespace augrig::nav
