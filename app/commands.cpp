@@ -233,7 +233,9 @@ const char* kTopHelp =
     "\n"
     "Commands:\n"
     "  augment   augment a stereo pair, or folders of pairs, with a scene file\n"
-    "  demo      simulate an approach to contact, augment it, write stats and a contact sheet\n"
+    "  demo      fly a simulated approach end to end: sim, nav fusion, boom tracking, augmentation\n"
+    "  sim       simulate a flight: truth, GPS/IMU logs (NMEA, CSV), rendered stereo frames\n"
+    "  nav       fuse both aircraft's GPS/IMU logs into the receiver's pose in each camera per frame\n"
     "\n"
     "Options:\n"
     "  --help, -h   this help\n"
@@ -407,7 +409,9 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   }
   if (command == "augment") return cmd_augment(rest, out, err);
   if (command == "demo") return cmd_demo(rest, out, err);
-  err << "augrig: unknown command '" << command << "'; commands: augment, demo (see augrig --help)\n";
+  if (command == "sim") return cmd_sim(rest, out, err);
+  if (command == "nav") return cmd_nav(rest, out, err);
+  err << "augrig: unknown command '" << command << "'; commands: augment, demo, sim, nav (see augrig --help)\n";
   return kExitUsage;
 }
 

@@ -64,5 +64,7 @@ Status write_image_file(const std::string& path, const Image& image, int png_com
 int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_augment(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_sim(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_nav(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 }  // namespace augrig::app

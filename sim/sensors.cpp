@@ -199,15 +199,23 @@ Eigen::Vector3d CommonGpsError::ned_m(double t_s) {
                               config_.sigma_vertical_m);
   const double x = std::max(t_s, 0.0) / step_s_;
   const std::size_t i = static_cast<std::size_t>(x);
-  if (grid_.empty()) grid_.push_back(sigma.cwiseProduct(rng_.normal3()));
   const double phi = config_.tau_s > 0 ? std::exp(-step_s_ / config_.tau_s) : 0.0;
   const double q = std::sqrt(std::max(0.0, 1.0 - phi * phi));
+  // Second order: a first-order Gauss-Markov process `drive_` smoothed by a first-order lag of the
+  // same time constant. The lag's output has half the drive's variance (scaled back by sqrt 2) and,
+  // unlike a first-order process, a velocity: sigma / tau, not sigma sqrt(2 / step). Real common-mode
+  // errors (orbit, atmosphere, the base station) wander slowly and smoothly.
+  if (grid_.empty()) {
+    drive_ = sigma.cwiseProduct(rng_.normal3());
+    grid_.push_back(sigma.cwiseProduct(rng_.normal3()) / std::sqrt(2.0));
+  }
   while (grid_.size() < i + 2) {
-    const Eigen::Vector3d next = phi * grid_.back() + q * sigma.cwiseProduct(rng_.normal3());
-    grid_.push_back(next);
+    const Eigen::Vector3d lag = phi * grid_.back() + (1.0 - phi) * drive_;
+    drive_ = phi * drive_ + q * sigma.cwiseProduct(rng_.normal3());
+    grid_.push_back(lag);
   }
   const double f = x - static_cast<double>(i);
-  return (1.0 - f) * grid_[i] + f * grid_[i + 1];
+  return std::sqrt(2.0) * ((1.0 - f) * grid_[i] + f * grid_[i + 1]);
 }
 
 GpsSimulator::GpsSimulator(const GpsConfig& config, std::uint64_t seed, TimestampNs start_gps_ns,

@@ -146,7 +146,8 @@ class ImuSimulator {
 double synthetic_geoid_separation_m(double lat_rad, double lon_rad);
 
 // The slow GPS error common to both aircraft (satellite orbit/clock, atmosphere, base station):
-// a first-order Gauss-Markov process per NED axis, stationary from t = 0.
+// a second-order Gauss-Markov process per NED axis (a first-order one smoothed by a lag of the same
+// time constant), stationary from t = 0, with 1-sigma `sigma_*` and velocity of order sigma / tau.
 struct CommonGpsErrorConfig {
   double sigma_horizontal_m = 0.3;  // per horizontal axis
   double sigma_vertical_m = 0.6;
@@ -155,8 +156,8 @@ struct CommonGpsErrorConfig {
 };
 
 // One realisation of the common error, shared (std::shared_ptr) by the GPS simulators of both
-// aircraft, so both see identical values at equal times whatever order they ask in. It is the exact
-// Gauss-Markov process on a grid (step tau/50, clamped to [0.05, 1] s), linearly interpolated, grown
+// aircraft, so both see identical values at equal times whatever order they ask in. It is the
+// process on a grid (step tau/50, clamped to [0.05, 1] s), linearly interpolated, grown
 // on demand (not thread-safe).
 class CommonGpsError {
  public:
@@ -168,7 +169,8 @@ class CommonGpsError {
   CommonGpsErrorConfig config_;
   Rng rng_;
   double step_s_ = 1.0;
-  std::vector<Eigen::Vector3d> grid_;
+  std::vector<Eigen::Vector3d> grid_;  // the smoothed process / sqrt(2), on the grid
+  Eigen::Vector3d drive_ = Eigen::Vector3d::Zero();  // the first-order process driving it
 };
 
 enum class GpsMode { kSingle, kRtk };

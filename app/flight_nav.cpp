@@ -1,0 +1,253 @@
+#include "app/flight_nav.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/yaml_reader.hpp"
+#include "nav/nmea.hpp"
+
+namespace augrig::app {
+
+namespace fs = std::filesystem;
+
+// ---- aircraft.yaml --------------------------------------------------------------------------------
+
+Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, const std::string& name) {
+  using namespace yaml;
+  const Context c{"aircraft::parse(): ", name};
+  return guarded(c, [&]() -> nav::InsConfig {
+    nav::InsConfig cfg;
+    const YAML::Node root = YAML::Load(yaml_text);
+    if (!root || root.IsNull()) return cfg;  // an empty file: the defaults
+    expect_map(c, root, "", "a map of aircraft nav settings");
+    check_keys(c, root, "",
+               {"lever_arm_m", "imu_time_offset_ns", "gps_time_offset_ns", "imu", "gps", "heading"});
+    auto nonneg = [&](const YAML::Node& n, const std::string& key, const char* what) {
+      const double v = to_number(c, n, key, what);
+      if (v < 0) fail(c, n, key, std::string("expected ") + what + ", got " + got(n));
+      return v;
+    };
+    if (root["lever_arm_m"]) cfg.lever_arm_body_m = to_vec3(c, root["lever_arm_m"], "lever_arm_m", "[x, y, z] in metres, body FRD");
+    if (root["imu_time_offset_ns"])
+      cfg.imu_time_offset_ns = static_cast<TimestampNs>(to_number(c, root["imu_time_offset_ns"], "imu_time_offset_ns", "a time offset in ns"));
+    if (root["gps_time_offset_ns"])
+      cfg.gps_time_offset_ns = static_cast<TimestampNs>(to_number(c, root["gps_time_offset_ns"], "gps_time_offset_ns", "a time offset in ns"));
+    if (const YAML::Node imu = root["imu"]) {
+      expect_map(c, imu, "imu", "a map of IMU noise values");
+      check_keys(c, imu, "imu",
+                 {"gyro_arw_deg_per_sqrt_h", "accel_vrw_mps_per_sqrt_h", "gyro_bias_deg_per_h", "accel_bias_mg",
+                  "bias_tau_s"});
+      if (imu["gyro_arw_deg_per_sqrt_h"])
+        cfg.imu.gyro_arw_rad_psqrts = deg_to_rad(nonneg(imu["gyro_arw_deg_per_sqrt_h"], "imu.gyro_arw_deg_per_sqrt_h", "a number >= 0")) / 60.0;
+      if (imu["accel_vrw_mps_per_sqrt_h"])
+        cfg.imu.accel_vrw_mps_psqrts = nonneg(imu["accel_vrw_mps_per_sqrt_h"], "imu.accel_vrw_mps_per_sqrt_h", "a number >= 0") / 60.0;
+      if (imu["gyro_bias_deg_per_h"])
+        cfg.imu.gyro_bias.sigma = deg_to_rad(nonneg(imu["gyro_bias_deg_per_h"], "imu.gyro_bias_deg_per_h", "a number >= 0")) / 3600.0;
+      if (imu["accel_bias_mg"])
+        cfg.imu.accel_bias.sigma = nonneg(imu["accel_bias_mg"], "imu.accel_bias_mg", "a number >= 0") * 1e-3 * 9.80665;
+      if (imu["bias_tau_s"]) {
+        const double tau = nonneg(imu["bias_tau_s"], "imu.bias_tau_s", "a correlation time >= 0 s");
+        cfg.imu.gyro_bias.tau_s = cfg.imu.accel_bias.tau_s = tau;
+      }
+    }
+    if (const YAML::Node gps = root["gps"]) {
+      expect_map(c, gps, "gps", "a map of GPS noise values");
+      check_keys(c, gps, "gps", {"rtk_fixed_m", "rtk_float_m", "use_gst"});
+      if (gps["rtk_fixed_m"]) cfg.gps.rtk_fixed_m = nonneg(gps["rtk_fixed_m"], "gps.rtk_fixed_m", "a sigma >= 0 m");
+      if (gps["rtk_float_m"]) cfg.gps.rtk_float_m = nonneg(gps["rtk_float_m"], "gps.rtk_float_m", "a sigma >= 0 m");
+      if (gps["use_gst"]) cfg.gps.use_gst = to_bool(c, gps["use_gst"], "gps.use_gst");
+    }
+    if (const YAML::Node h = root["heading"]) {
+      expect_map(c, h, "heading", "a map {use, offset_deg, sigma_deg}");
+      check_keys(c, h, "heading", {"use", "offset_deg", "sigma_deg"});
+      if (h["use"]) cfg.use_heading = to_bool(c, h["use"], "heading.use");
+      if (h["offset_deg"]) cfg.heading_offset_rad = deg_to_rad(to_number(c, h["offset_deg"], "heading.offset_deg", "an angle in degrees"));
+      if (h["sigma_deg"]) cfg.heading_sigma_rad = deg_to_rad(nonneg(h["sigma_deg"], "heading.sigma_deg", "a sigma >= 0 deg"));
+    }
+    return cfg;
+  });
+}
+
+Expected<nav::InsConfig> load_aircraft_config(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return make_error("aircraft::load(): ", path, ": cannot open the aircraft file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_aircraft_config(ss.str(), path);
+}
+
+std::string aircraft_config_to_yaml(const nav::InsConfig& c) {
+  using yaml::fmt;
+  std::ostringstream o;
+  o << "# augrig aircraft nav settings (docs/NAV_FORMATS.md)\n"
+    << "lever_arm_m: [" << fmt(c.lever_arm_body_m.x()) << ", " << fmt(c.lever_arm_body_m.y()) << ", "
+    << fmt(c.lever_arm_body_m.z()) << "]\n"
+    << "imu_time_offset_ns: " << c.imu_time_offset_ns << "\n"
+    << "gps_time_offset_ns: " << c.gps_time_offset_ns << "\n"
+    << "imu:\n"
+    << "  gyro_arw_deg_per_sqrt_h: " << fmt(rad_to_deg(c.imu.gyro_arw_rad_psqrts) * 60.0) << "\n"
+    << "  accel_vrw_mps_per_sqrt_h: " << fmt(c.imu.accel_vrw_mps_psqrts * 60.0) << "\n"
+    << "  gyro_bias_deg_per_h: " << fmt(rad_to_deg(c.imu.gyro_bias.sigma) * 3600.0) << "\n"
+    << "  accel_bias_mg: " << fmt(c.imu.accel_bias.sigma / (1e-3 * 9.80665)) << "\n"
+    << "  bias_tau_s: " << fmt(c.imu.gyro_bias.tau_s) << "\n"
+    << "gps:\n"
+    << "  rtk_fixed_m: " << fmt(c.gps.rtk_fixed_m) << "\n"
+    << "  rtk_float_m: " << fmt(c.gps.rtk_float_m) << "\n"
+    << "  use_gst: " << (c.gps.use_gst ? "true" : "false") << "\n"
+    << "heading:\n"
+    << "  use: " << (c.use_heading ? "true" : "false") << "\n"
+    << "  offset_deg: " << fmt(rad_to_deg(c.heading_offset_rad)) << "\n"
+    << "  sigma_deg: " << fmt(rad_to_deg(c.heading_sigma_rad)) << "\n";
+  return o.str();
+}
+
+// ---- Logs -----------------------------------------------------------------------------------------
+
+Expected<AircraftLogs> load_aircraft_logs(const std::string& folder) {
+  AircraftLogs logs;
+  logs.folder = folder;
+  const fs::path dir(folder);
+  if (!fs::is_directory(dir))
+    return make_error("aircraft::load_logs(): ", folder, ": not a folder (expected gps.nmea, imu.csv, aircraft.yaml)");
+  auto gps = nav::read_nmea_file((dir / "gps.nmea").string());
+  if (!gps) return gps.error();
+  auto imu = nav::read_imu_csv((dir / "imu.csv").string());
+  if (!imu) return imu.error();
+  if (fs::exists(dir / "aircraft.yaml")) {
+    auto cfg = load_aircraft_config((dir / "aircraft.yaml").string());
+    if (!cfg) return cfg.error();
+    logs.config = *cfg;
+  }
+  logs.gps = std::move(gps->fixes);
+  logs.gps_issues = std::move(gps->issues);
+  logs.imu = std::move(imu->samples);
+  logs.imu_issues = std::move(imu->issues);
+  return logs;
+}
+
+Status write_aircraft_logs(const std::string& folder, const std::vector<nav::ImuSample>& imu,
+                           const std::vector<nav::GpsFix>& gps, const nav::InsConfig& config) {
+  std::error_code ec;
+  fs::create_directories(folder, ec);
+  if (ec) return make_error("aircraft::write_logs(): ", folder, ": cannot create the folder (", ec.message(), ")");
+  nav::NmeaWriterOptions nmea;
+  nmea.write_arrival_prefix = true;  // the arrival time is part of what a recorder keeps
+  if (auto s = nav::write_nmea_file((fs::path(folder) / "gps.nmea").string(), gps, nmea); !s) return s;
+  if (auto s = nav::write_imu_csv((fs::path(folder) / "imu.csv").string(), imu); !s) return s;
+  std::ofstream out(fs::path(folder) / "aircraft.yaml", std::ios::binary);
+  out << aircraft_config_to_yaml(config);
+  if (!out) return make_error("aircraft::write_logs(): ", folder, "/aircraft.yaml: write failed");
+  return {};
+}
+
+// ---- Relative navigation --------------------------------------------------------------------------
+
+nav::PoseWithCovariance pose_with_covariance(const nav::NavState& s) {
+  nav::PoseWithCovariance p;
+  p.T_ecef_body = s.T_ecef_body();
+  // Error-state layout [dp 0..2, dv 3..5, dtheta 6..8, ...]: position and attitude blocks.
+  p.cov.topLeftCorner<3, 3>() = s.P.block<3, 3>(0, 0);
+  p.cov.topRightCorner<3, 3>() = s.P.block<3, 3>(0, 6);
+  p.cov.bottomLeftCorner<3, 3>() = s.P.block<3, 3>(6, 0);
+  p.cov.bottomRightCorner<3, 3>() = s.P.block<3, 3>(6, 6);
+  return p;
+}
+
+RelativeNav::RelativeNav(nav::NavTrajectory tanker, nav::NavTrajectory receiver, Rig rig, BoomDimensions boom,
+                         Eigen::Vector3d receptacle_m, std::vector<TimestampNs> camera_offset_ns)
+    : tanker_(std::move(tanker)),
+      receiver_(std::move(receiver)),
+      rig_(std::move(rig)),
+      boom_(boom),
+      receptacle_m_(receptacle_m),
+      camera_offset_ns_(std::move(camera_offset_ns)) {}
+
+Expected<FramePose> RelativeNav::at(int camera, TimestampNs t_camera_ns) const {
+  if (camera < 0 || camera >= static_cast<int>(rig_.cameras.size()))
+    return make_error("RelativeNav::at(): no camera ", camera, " in the rig");
+  FramePose f;
+  const TimestampNs offset =
+      camera < static_cast<int>(camera_offset_ns_.size()) ? camera_offset_ns_[camera] : 0;
+  f.t_nav_ns = t_camera_ns - offset;
+  auto tk = tanker_.at(f.t_nav_ns);
+  if (!tk) return make_error("RelativeNav::at(): tanker: ", tk.error().message);
+  auto rx = receiver_.at(f.t_nav_ns);
+  if (!rx) return make_error("RelativeNav::at(): receiver: ", rx.error().message);
+  // Camera-relative in double before anything narrows to float (render/ does that).
+  f.body = nav::relative_pose(pose_with_covariance(*tk), pose_with_covariance(*rx));
+  f.camera = nav::in_frame(rig_.cameras[camera].T_body_cam.inverse(), f.body);
+  f.boom = track_point(f.body.T_a_receiver * receptacle_m_, rig_.boom.pivot_body_m, boom_, rig_.boom.limits);
+  return f;
+}
+
+nav::CameraPoseRow FramePose::row(std::uint64_t sequence, int camera_index, TimestampNs t_camera_ns) const {
+  nav::CameraPoseRow r;
+  r.sequence = sequence;
+  r.camera = camera_index;
+  r.t_ns = t_camera_ns;
+  r.t_nav_ns = t_nav_ns;
+  const Eigen::Vector3d& t = camera.T_a_receiver.translation_m;
+  const Eigen::Quaterniond& q = camera.T_a_receiver.rotation;
+  r.x_m = t.x(), r.y_m = t.y(), r.z_m = t.z();
+  r.qw = q.w(), r.qx = q.x(), r.qy = q.y(), r.qz = q.z();
+  r.sigma_pos_m = camera.sigma_position_m();
+  r.sigma_att_deg = rad_to_deg(camera.sigma_attitude_rad());
+  r.boom_elevation_deg = rad_to_deg(boom.articulation.elevation_rad);
+  r.boom_azimuth_deg = rad_to_deg(boom.articulation.azimuth_rad);
+  r.boom_extension_m = boom.articulation.extension_m;
+  return r;
+}
+
+PoseErrorStats compare_poses(const std::vector<nav::CameraPoseRow>& estimate,
+                             const std::vector<nav::CameraPoseRow>& truth) {
+  std::map<std::pair<std::uint64_t, int>, const nav::CameraPoseRow*> by_key;
+  for (const nav::CameraPoseRow& t : truth) by_key[{t.sequence, t.camera}] = &t;
+  PoseErrorStats s;
+  double sum_p2 = 0, sum_a2 = 0;
+  std::size_t inside = 0;
+  for (const nav::CameraPoseRow& e : estimate) {
+    const auto it = by_key.find({e.sequence, e.camera});
+    if (it == by_key.end()) continue;
+    const nav::CameraPoseRow& t = *it->second;
+    const double dp = (Eigen::Vector3d(e.x_m, e.y_m, e.z_m) - Eigen::Vector3d(t.x_m, t.y_m, t.z_m)).norm();
+    const Eigen::Quaterniond qe(e.qw, e.qx, e.qy, e.qz), qt(t.qw, t.qx, t.qy, t.qz);
+    const double da = rad_to_deg(qe.angularDistance(qt));
+    ++s.matched;
+    sum_p2 += dp * dp, sum_a2 += da * da;
+    s.pos_max_m = std::max(s.pos_max_m, dp);
+    s.att_max_deg = std::max(s.att_max_deg, da);
+    if (std::isfinite(e.sigma_pos_m) && dp <= e.sigma_pos_m) ++inside;
+  }
+  if (s.matched) {
+    s.pos_rms_m = std::sqrt(sum_p2 / s.matched);
+    s.att_rms_deg = std::sqrt(sum_a2 / s.matched);
+    s.within_1sigma = static_cast<double>(inside) / s.matched;
+  }
+  return s;
+}
+
+std::string describe(const PoseErrorStats& s) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf,
+                "%zu frames: position RMS %.1f mm, max %.1f mm; attitude RMS %.4f deg, max %.4f deg; "
+                "%.0f%% within the reported 1-sigma",
+                s.matched, 1e3 * s.pos_rms_m, 1e3 * s.pos_max_m, s.att_rms_deg, s.att_max_deg,
+                100.0 * s.within_1sigma);
+  return buf;
+}
+
+std::string describe(const std::string& who, const nav::FusionReport& r) {
+  std::ostringstream o;
+  o << who << ": " << r.imu_samples << " IMU samples (" << r.imu_gaps << " gaps), " << r.fixes << " fixes: "
+    << r.fixes_used << " used, " << r.fixes_rejected << " rejected by the gate, " << r.fixes_invalid
+    << " invalid, " << r.fixes_outside << " outside the IMU data; " << r.heading_updates << " heading updates; "
+    << r.outages << " outages (longest gap " << yaml::fmt(std::round(r.longest_fix_gap_s * 1000) / 1000)
+    << " s); " << r.epochs << " epochs" << (r.smoothed ? ", smoothed" : ", forward only");
+  return o.str();
+}
+
+}  // namespace augrig::app

@@ -1,0 +1,85 @@
+#include "sim/flight_source.hpp"
+
+#include <algorithm>
+
+#include "nav/geodesy.hpp"
+
+namespace augrig::sim {
+
+std::vector<FrameTruth> frame_truths(const Scenario& scenario, const Flight& flight,
+                                     const std::vector<std::vector<CameraFrameTime>>& cameras) {
+  std::vector<FrameTruth> out;
+  for (std::size_t c = 0; c < cameras.size() && c < scenario.rig.cameras.size(); ++c) {
+    const Pose T_cam_body = scenario.rig.cameras[c].T_body_cam.inverse();
+    for (const CameraFrameTime& f : cameras[c]) {
+      if (f.dropped) continue;  // never delivered: the drop ledger counts it, nothing else sees it
+      FrameTruth t;
+      t.sequence = f.sequence;
+      t.camera = static_cast<int>(c);
+      t.t_camera_ns = f.t_camera_ns;
+      t.t_true_s = f.t_true_s;
+      t.t_gps_ns = scenario.start_gps_ns + s_to_ns(f.t_true_s);
+      t.T_body_receiver = flight.T_tanker_receiver(f.t_true_s);
+      t.T_cam_receiver = T_cam_body * t.T_body_receiver;
+      t.boom = flight.boom(f.t_true_s);
+      t.phase = flight.phase(f.t_true_s);
+      out.push_back(std::move(t));
+    }
+  }
+  // Delivery order: by camera timestamp, left before right on ties.
+  std::stable_sort(out.begin(), out.end(), [](const FrameTruth& a, const FrameTruth& b) {
+    return a.t_camera_ns != b.t_camera_ns ? a.t_camera_ns < b.t_camera_ns : a.camera < b.camera;
+  });
+  return out;
+}
+
+SkyState sky_at(const Scenario& scenario, const Flight& flight, double t_s) {
+  const KinematicState k = flight.tanker(t_s);
+  const nav::Geodetic g = nav::geodetic_from_ecef(k.p_ecef_m);
+  SkyState sky;
+  sky.R_ned_body = nav::R_ecef_ned(g.lat_rad, g.lon_rad).transpose() * k.R_ecef_body();
+  sky.altitude_m = g.h_m;  // the ground is the ellipsoid: flat terrain at height 0
+  // The ground texture is fixed to the Earth: north/east of the start point, in its NED frame
+  // (only the texture uses this, so the tangent-plane approximation is harmless).
+  const Eigen::Vector3d d_ned = nav::R_ecef_ned(scenario.start.lat_rad, scenario.start.lon_rad).transpose() *
+                                (k.p_ecef_m - nav::ecef_from_geodetic(scenario.start));
+  sky.north_east_m = d_ned.head<2>();
+  return sky;
+}
+
+Expected<std::unique_ptr<FlightSource>> FlightSource::create(const Scenario& scenario, const Flight& flight,
+                                                             std::vector<FrameTruth> frames, int every) {
+  std::unique_ptr<FlightSource> s(new FlightSource());
+  s->scenario_ = scenario;
+  s->flight_ = &flight;
+  if (every > 1) {
+    std::erase_if(frames, [every](const FrameTruth& f) { return f.sequence % every != 0; });
+  }
+  s->frames_ = std::move(frames);
+  auto renderer = SyntheticSceneRenderer::create(scenario.rig);
+  if (!renderer) return renderer.error();
+  s->renderer_ = std::move(*renderer);
+  s->sensor_.format = scenario.sensors.cameras.format;
+  s->sensor_.noise_sigma = scenario.sensors.cameras.noise_sigma;
+  return s;
+}
+
+Expected<ReadStatus> FlightSource::read(Frame& out, std::chrono::nanoseconds) {
+  if (next_ >= frames_.size()) return ReadStatus::kEndOfStream;
+  const FrameTruth& t = frames_[next_];
+  // Sensor noise differs per frame but is reproducible: seeded by the scenario and the frame.
+  SensorOptions sensor = sensor_;
+  sensor.noise_seed = derive_seed(scenario_.seed, "camera-noise") ^ (t.sequence * 0x9E3779B97F4A7C15ull);
+  if (auto s = renderer_->render(t.camera, sky_at(scenario_, *flight_, t.t_true_s), t.T_body_receiver, true,
+                                 sensor, out.image);
+      !s)
+    return s.error();
+  out.camera = t.camera == 0 ? CameraId::kLeft : CameraId::kRight;
+  out.sequence = t.sequence;
+  out.t_ns = t.t_camera_ns;
+  out.clock = ClockDomain::kDevice;
+  ++next_;
+  return ReadStatus::kFrame;
+}
+
+}  // namespace augrig::sim

@@ -1,0 +1,62 @@
+// FlightSource: a simulated flight's cameras as a FrameSource (sim://<scenario>). Each delivered
+// frame (the camera-timing model's drops are skipped, as a real camera's would be) is rendered by
+// SyntheticSceneRenderer from the truth at its true mid-exposure time: sky, horizon and ground from
+// the tanker's attitude and height, and the textured receiver at its true relative pose. Frames come
+// out in timestamp order, both cameras interleaved, stamped with the camera's own clock
+// (ClockDomain::kDevice). The truth of every frame stays available for checks.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "core/frame.hpp"
+#include "sim/flight.hpp"
+#include "sim/scenario.hpp"
+#include "sim/sensors.hpp"
+#include "sim/synthetic_scene.hpp"
+
+namespace augrig::sim {
+
+// Truth of one delivered camera frame.
+struct FrameTruth {
+  std::uint64_t sequence = 0;
+  int camera = 0;
+  TimestampNs t_camera_ns = 0;  // the camera's stamp (its clock)
+  double t_true_s = 0;          // true mid-exposure, scenario time
+  TimestampNs t_gps_ns = 0;     // the same instant in GPS time
+  Pose T_body_receiver;         // receiver body in the tanker body frame at t_true_s
+  Pose T_cam_receiver;          // ... in this camera
+  BoomArticulation boom;        // the scenario's boom at t_true_s
+  std::string phase;
+};
+
+// The truth of every frame the cameras deliver, in delivery order (by camera timestamp).
+std::vector<FrameTruth> frame_truths(const Scenario& scenario, const Flight& flight,
+                                     const std::vector<std::vector<CameraFrameTime>>& cameras);
+
+// The sky state (tanker attitude, height, ground position) the renderer needs at t_s.
+SkyState sky_at(const Scenario& scenario, const Flight& flight, double t_s);
+
+class FlightSource final : public FrameSource {
+ public:
+  // Needs a current GL context. `frames` from frame_truths(); only those with
+  // `every`-th sequence numbers (sequence % every == 0) are rendered and delivered.
+  static Expected<std::unique_ptr<FlightSource>> create(const Scenario& scenario, const Flight& flight,
+                                                        std::vector<FrameTruth> frames, int every = 1);
+  std::string uri() const override { return "sim://" + scenario_.name; }
+  Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
+  // Truth of the frame read() returned last.
+  const FrameTruth& last_truth() const { return frames_.at(next_ - 1); }
+  std::size_t frame_count() const { return frames_.size(); }
+
+ private:
+  FlightSource() = default;
+  Scenario scenario_;
+  const Flight* flight_ = nullptr;
+  std::vector<FrameTruth> frames_;
+  std::unique_ptr<SyntheticSceneRenderer> renderer_;
+  SensorOptions sensor_;
+  std::size_t next_ = 0;
+};
+
+}  // namespace augrig::sim
