@@ -1,25 +1,32 @@
-// augrig demo: the main job. (Rewritten as a whole simulated flight in issue 3.)
-#include <charconv>
+// augrig demo: the main job, a simulated flight end to end, headless:
+//   sim        the built-in "demo" scenario (or --scenario): truth, GPS/IMU logs, camera timing;
+//   logs       written in their real formats (NMEA, IMU CSV) and read back through the parsers;
+//   nav        each aircraft fused (error-state Kalman filter + RTS smoother), never the truth;
+//   boom       tracks the receptacle from the fused relative pose, within its limits;
+//   cameras    frames rendered from the truth, paired by timestamp like live capture;
+//   augment    every selected stereo frame, with statistics; the pose error against truth.
 #include <optional>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "app/cli.hpp"
+#include "app/flight_nav.hpp"
 #include "capture/stereo_pairer.hpp"
 #include "render/visualize.hpp"
-#include "sim/approach.hpp"
+#include "sim/flight_source.hpp"
+#include "sim/scenario.hpp"
 
 namespace augrig::app {
-namespace {
 
-// ---- demo ---------------------------------------------------------------------------------------
+namespace {
 
 const std::vector<OptionSpec>& demo_specs() {
   static const std::vector<OptionSpec> specs = {
       {"out", ArgKind::kValue, "DIR", "output folder (created)", true},
-      {"frames", ArgKind::kValue, "N", "stereo frames of the approach, at 30 fps (default 90)"},
-      {"rig", ArgKind::kValue, "RIG.yaml|default", "rig file, or 'default' for the paper's rig (default)"},
+      {"scenario", ArgKind::kValue, "NAME|FILE.yaml", "the flight (default: the built-in 'demo', 28 s)"},
+      {"every", ArgKind::kValue, "K", "augment every K-th camera frame (default 3: 10 of the 30 per second)"},
+      {"frames", ArgKind::kValue, "N", "augment only the last N selected stereo frames (default: all)"},
       {"bayer", ArgKind::kOptionalValue, "[=RG|GR|GB|BG]", "simulate raw Bayer cameras (default pattern RG)"},
       {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
        "how the receiver shows in the augmented image (default mask: not drawn)"},
@@ -28,33 +35,12 @@ const std::vector<OptionSpec>& demo_specs() {
 }
 
 const char* kDemoUsage =
-    "augrig demo --out DIR [--frames N] [--rig RIG.yaml] [--bayer] [--receiver-draw MODE]";
+    "augrig demo --out DIR [--scenario NAME|FILE] [--every K] [--frames N] [--bayer] [--receiver-draw MODE]";
 const char* kDemoSummary =
-    "Flies a simulated approach from observation to contact, augments every stereo frame with its\n"
-    "truth, writes stats.csv for every frame, images for every 10th frame and the last, and demo.png\n"
-    "(a contact sheet of the last frame).";
-
-int parse_frames(const std::string& v) {
-  int n = 0;
-  const auto r = std::from_chars(v.data(), v.data() + v.size(), n);
-  if (r.ec != std::errc() || r.ptr != v.data() + v.size() || n < 1 || n > 100000) {
-    usage_error("--frames: expected a whole number from 1 to 100000, got '" + v + "'");
-  }
-  return n;
-}
-
-// Next frame of the source; the simulation never times out, but a source may ask to be called again.
-Frame next_frame(FrameSource& source, int stereo_index) {
-  Frame f;
-  for (int attempt = 0; attempt < 100; ++attempt) {
-    const ReadStatus s = unwrap(source.read(f, std::chrono::milliseconds(100)));
-    if (s == ReadStatus::kFrame) return f;
-    if (s == ReadStatus::kEndOfStream) {
-      runtime_error(source.uri() + ": ended early, at stereo frame " + std::to_string(stereo_index));
-    }
-  }
-  runtime_error(source.uri() + ": no frame for 10 s");
-}
+    "Flies a simulated approach end to end: the simulator writes GPS/IMU logs, nav fusion turns them\n"
+    "into the receiver's pose in each camera, the boom tracks the receptacle, and every selected stereo\n"
+    "frame is augmented. Writes stats.csv, poses.csv (estimates), truth_poses.csv, images for every\n"
+    "10th augmented frame and the last, and demo.png; prints the statistics and the pose error.";
 
 // Half-size RGB copy of an image with a label in its top-left corner.
 cv::Mat contact_tile(const Image& rgb, const std::string& label) {
@@ -90,64 +76,138 @@ Image contact_sheet(const Frame& raw_left, const StereoResult& r) {
   return out;
 }
 
+// Next frame of the source; the simulation never times out.
+Frame next_frame(FrameSource& source, int stereo_index) {
+  Frame f;
+  const ReadStatus s = unwrap(source.read(f, std::chrono::milliseconds(100)));
+  if (s != ReadStatus::kFrame)
+    runtime_error(source.uri() + ": ended early, at stereo frame " + std::to_string(stereo_index));
+  return f;
+}
+
+nav::CameraPoseRow truth_row(const sim::FrameTruth& t) {
+  nav::CameraPoseRow r;
+  r.sequence = t.sequence, r.camera = t.camera, r.t_ns = t.t_camera_ns, r.t_nav_ns = t.t_gps_ns;
+  const Eigen::Vector3d& p = t.T_cam_receiver.translation_m;
+  const Eigen::Quaterniond& q = t.T_cam_receiver.rotation;
+  r.x_m = p.x(), r.y_m = p.y(), r.z_m = p.z(), r.qw = q.w(), r.qx = q.x(), r.qy = q.y(), r.qz = q.z();
+  r.sigma_pos_m = 0, r.sigma_att_deg = 0;
+  return r;
+}
+
 int demo(const std::vector<std::string>& args, std::ostream& out) {
-  const ParsedArgs a = [&] {
-    auto p = parse_args(args, demo_specs());
-    if (!p) usage_error(p.error().message);
-    return *p;
-  }();
+  const ParsedArgs a = parse_or_usage(args, demo_specs());
   if (a.help) {
     out << format_help(kDemoUsage, kDemoSummary, demo_specs());
     return kExitOk;
   }
-  const int frames = a.has("frames") ? parse_frames(a.get("frames")) : 90;
-  ApproachOptions approach;
-  approach.frames = frames;
-  approach.fps = 30.0;
-  if (a.has("bayer")) approach.sensor.format = parse_bayer(a.get("bayer").empty() ? "RG" : a.get("bayer"));
+  const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000)) : 3;
+  const long long max_frames = a.has("frames") ? parse_integer("frames", a.get("frames"), 1, 1000000) : -1;
   AugmentOptions options;
   options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
-  const Rig rig = load_rig_arg(a.get("rig", "default"));
+  const std::string which = a.get("scenario", "demo");
+  const bool is_file = which.find('/') != std::string::npos || which.ends_with(".yaml");
+  sim::Scenario scenario = unwrap(is_file ? sim::load_scenario(which) : sim::builtin_scenario(which));
+  if (a.has("bayer"))
+    scenario.sensors.cameras.format = parse_bayer(a.get("bayer").empty() ? "RG" : a.get("bayer"));
+  const Rig& rig = scenario.rig;
   if (rig.cameras.size() != 2)
     runtime_error(rig.source + ": the rig needs 2 cameras, has " + std::to_string(rig.cameras.size()));
 
   const fs::path out_dir = a.get("out");
   make_dirs(out_dir);
-  StatsCsv csv(out_dir / "stats.csv");
-
   const auto t_start = Clock::now();
+
+  // 1. The flight and its sensors; the logs go to disk in their real formats.
+  const sim::Flight flight = unwrap(sim::Flight::create(scenario));
+  const sim::SensorLogs logs = sim::simulate_sensors(scenario, flight);
+  check(write_aircraft_logs((out_dir / "nav" / "tanker").string(), logs.tanker_imu, logs.tanker_gps,
+                            ins_config_for(scenario.sensors.tanker)));
+  check(write_aircraft_logs((out_dir / "nav" / "receiver").string(), logs.receiver_imu, logs.receiver_gps,
+                            ins_config_for(scenario.sensors.receiver)));
+  const double sim_ms = ms_since(t_start);
+
+  // 2. Nav from the logs as read back (never from the truth).
+  auto t0 = Clock::now();
+  const AircraftLogs tk_logs = unwrap(load_aircraft_logs((out_dir / "nav" / "tanker").string()));
+  const AircraftLogs rx_logs = unwrap(load_aircraft_logs((out_dir / "nav" / "receiver").string()));
+  nav::NavTrajectory tk = unwrap(nav::fuse(tk_logs.imu, tk_logs.gps, tk_logs.config));
+  nav::NavTrajectory rx = unwrap(nav::fuse(rx_logs.imu, rx_logs.gps, rx_logs.config));
+  const double nav_ms = ms_since(t0);
+  out << "demo: scenario '" << scenario.name << "', " << scenario.duration_s << " s; "
+      << describe("tanker nav", tk.report()) << "\n  " << describe("receiver nav", rx.report()) << "\n";
+  // The cameras' clock offsets to GPS time are calibration, known here from the scenario.
+  std::vector<TimestampNs> offsets = scenario.sensors.cameras.clock_offset_ns;
+  offsets.resize(2, 0);
+  const RelativeNav rel(std::move(tk), std::move(rx), rig, scenario.boom, flight.receptacle_m(), offsets);
+
+  // 3. The frames to augment: every K-th of those delivered with a nav pose, the last N of them.
+  std::vector<sim::FrameTruth> truths = sim::frame_truths(scenario, flight, logs.cameras);
+  std::erase_if(truths, [&](const sim::FrameTruth& f) { return !rel.at(f.camera, f.t_camera_ns); });
+  {
+    // Keep only sequences both cameras delivered, so every selected frame pairs.
+    std::map<std::uint64_t, int> cams;
+    for (const auto& f : truths) cams[f.sequence] |= 1 << f.camera;
+    std::erase_if(truths, [&](const sim::FrameTruth& f) { return cams[f.sequence] != 3 || f.sequence % every; });
+  }
+  if (max_frames > 0 && truths.size() > 2 * static_cast<std::size_t>(max_frames))
+    truths.erase(truths.begin(), truths.end() - 2 * max_frames);
+  const int frames = static_cast<int>(truths.size() / 2);
+  if (frames == 0) runtime_error("scenario '" + scenario.name + "': no stereo frame has a nav pose");
+
   const auto gl = make_gl_context();
-  const auto source = unwrap(ApproachSource::create(rig, approach));
+  auto source = unwrap(sim::FlightSource::create(scenario, flight, truths));
+  const ReceiverSetup recv = receiver_setup(rig);
+  options.receiver_model = recv.model;
   const auto augmenter = unwrap(Augmenter::create(rig, options));
-  out << "demo: " << frames << " stereo frames of " << source->uri() << ", "
-      << to_string(approach.sensor.format) << ", " << rig.left().model.width_px << "x"
+  out << "demo: " << frames << " stereo frames (every " << every << ") of " << source->uri() << ", "
+      << to_string(scenario.sensors.cameras.format) << ", " << rig.left().model.width_px << "x"
       << rig.left().model.height_px << " -> " << out_dir.string() << "\n";
 
+  StatsCsv csv(out_dir / "stats.csv");
+  std::vector<nav::CameraPoseRow> est_rows, true_rows;
   StereoResult result;
   StereoFrame stereo;
   // Frames go through the same pairing as live capture: by mid-exposure time within half a period.
-  StereoPairer pairer(s_to_ns(0.5 / approach.fps));
+  StereoPairer pairer(s_to_ns(0.5 / scenario.sensors.cameras.fps));
   std::vector<OcclusionStats> all;
-  double sim_ms = 0, augment_ms = 0, write_ms = 0;
+  double render_ms = 0, augment_ms = 0, write_ms = 0, worst_miss_m = 0;
+  std::map<std::pair<std::uint64_t, int>, sim::FrameTruth> truth_of;
+  for (const auto& t : truths) truth_of[{t.sequence, t.camera}] = t;
   for (int i = 0; i < frames; ++i) {
-    auto t0 = Clock::now();
+    t0 = Clock::now();
     std::optional<StereoFrame> paired;
     for (int k = 0; !paired; ++k) {
       if (k > 8) runtime_error(source->uri() + ": no stereo pair at stereo frame " + std::to_string(i));
       paired = pairer.push(next_frame(*source, i));
     }
     stereo = std::move(*paired);
-    sim_ms += ms_since(t0);
-    if (stereo.left.sequence != stereo.right.sequence)
-      runtime_error(source->uri() + ": paired frames of different sequences at stereo frame " +
-                    std::to_string(i));
-    const ApproachTruth& truth = source->truth(stereo.left.sequence);
+    render_ms += ms_since(t0);
 
-    check(augmenter->augment(stereo, truth.scene, result));
+    // The scene from nav: the receiver where the fused poses put it, at the left frame's time (the
+    // right one is within the pairing tolerance; the relative motion in that time is sub-mm), and
+    // the boom tracking its receptacle.
+    const FramePose left = unwrap(rel.at(0, stereo.left.t_ns));
+    const FramePose right = unwrap(rel.at(1, stereo.right.t_ns));
+    SceneState scene;
+    scene.T_body_receiver = left.body.T_a_receiver;
+    scene.boom = left.boom.articulation;
+    check(augmenter->augment(stereo, scene, result));
     augment_ms += augmenter->timings().total_ms;
-    result.stats.t_ns = truth.t_ns;
+    result.stats.t_ns = left.t_nav_ns;
     csv.add(result.stats);
     all.push_back(result.stats);
+    est_rows.push_back(left.row(stereo.left.sequence, 0, stereo.left.t_ns));
+    est_rows.push_back(right.row(stereo.right.sequence, 1, stereo.right.t_ns));
+    const sim::FrameTruth& tl = truth_of.at({stereo.left.sequence, 0});
+    true_rows.push_back(truth_row(tl));
+    true_rows.push_back(truth_row(truth_of.at({stereo.right.sequence, 1})));
+    // Where the tracked nozzle tip is against where the true receptacle is.
+    const Eigen::Vector3d true_receptacle = tl.T_body_receiver * flight.receptacle_m();
+    const double miss_m =
+        (nozzle_tip_body(rig.boom.pivot_body_m, scenario.boom, scene.boom) - true_receptacle).norm();
+    if (tl.phase.find("contact") != std::string::npos && tl.phase.find("to-") != 0)
+      worst_miss_m = std::max(worst_miss_m, miss_m);
 
     // Images for a subset only: PNG encoding costs more than the augmentation itself.
     const bool last = i + 1 == frames;
@@ -158,34 +218,50 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
       write_frame_outputs(out_dir, {stem, stem}, result);
       write_ms += ms_since(t0);
     }
-    if ((i + 1) % 10 == 0 || last) {
+    if ((i + 1) % 30 == 0 || last) {
       const OcclusionStats& s = result.stats;
-      char line[200];
+      char line[240];
       std::snprintf(line, sizeof line,
-                    "frame %4d/%d  t %6.3f s  receiver %7lld px  boom %7lld px  occluded %5.1f%% (left)\n",
-                    i + 1, frames, ns_to_s(truth.t_ns), static_cast<long long>(s.receiver_px_left),
-                    static_cast<long long>(s.boom_px_left), s.occluded_pct_left);
+                    "frame %4d/%d  t %6.2f s  %-15s receiver %7lld px  boom %7lld px  occluded %5.1f%%  "
+                    "pose err %5.1f mm\n",
+                    i + 1, frames, tl.t_true_s, tl.phase.c_str(), static_cast<long long>(s.receiver_px_left),
+                    static_cast<long long>(s.boom_px_left), s.occluded_pct_left,
+                    1e3 * (left.camera.T_a_receiver.translation_m - tl.T_cam_receiver.translation_m).norm());
       out << line << std::flush;
     }
   }
-
-  auto t0 = Clock::now();
+  t0 = Clock::now();
   check(write_image_file((out_dir / "demo.png").string(), contact_sheet(stereo.left, result), 3));
+  nav::CsvWriteOptions po;
+  po.metadata["content"] = "estimate: T_cam_receiver from GPS/INS fusion of the simulated logs";
+  check(nav::write_camera_pose_csv((out_dir / "poses.csv").string(), est_rows, po));
+  po.metadata["content"] = "truth: T_cam_receiver";
+  check(nav::write_camera_pose_csv((out_dir / "truth_poses.csv").string(), true_rows, po));
   write_ms += ms_since(t0);
 
   out << "\n" << format_run_summary(all) << "\n";
-  out << format_table1(all.back(),
-                       "Last frame (contact), t = " + std::to_string(ns_to_s(all.back().t_ns)) + " s");
+  out << format_table1(all.back(), "Last frame, t = " + std::to_string(ns_to_s(all.back().t_ns)) + " s (GPS)");
+  out << "\nNav against truth (receiver in each camera): " << describe(compare_poses(est_rows, true_rows))
+      << "\n";
+  if (worst_miss_m > 0) {
+    char line[160];
+    std::snprintf(line, sizeof line,
+                  "Boom tracking: the nozzle tip (aimed from nav) lies at most %.1f mm from the true receptacle "
+                  "in pre-contact and contact\n",
+                  1e3 * worst_miss_m);
+    out << line;
+  }
   const double n = frames;
-  out << "\nTiming: augmenter " << fmt_ms(augment_ms / n)
-      << " ms per stereo frame (wall time of render, masks, composite and stats), "
-      << "simulation " << fmt_ms(sim_ms / n) << " ms per stereo frame, PNG writing " << fmt_ms(write_ms)
-      << " ms in all, total " << fmt_ms(ms_since(t_start) / 1000.0) << " s\n";
+  out << "\nTiming: simulation and logs " << fmt_ms(sim_ms) << " ms, nav fusion of both aircraft " << fmt_ms(nav_ms)
+      << " ms, camera rendering " << fmt_ms(render_ms / n) << " ms and augmenter " << fmt_ms(augment_ms / n)
+      << " ms per stereo frame, PNG writing " << fmt_ms(write_ms) << " ms in all, total "
+      << fmt_ms(ms_since(t_start) / 1000.0) << " s\n";
   pairer.flush();
   out << "Pairing: " << pairer.stats().pairs << " pairs, unpaired left " << pairer.stats().unpaired_left
       << ", right " << pairer.stats().unpaired_right << ", max |skew| " << pairer.stats().max_abs_skew_ns
       << " ns\n";
-  out << "Wrote " << (out_dir / "stats.csv").string() << " and " << (out_dir / "demo.png").string() << "\n";
+  out << "Wrote " << (out_dir / "stats.csv").string() << ", poses.csv, truth_poses.csv and "
+      << (out_dir / "demo.png").string() << "\n";
   return kExitOk;
 }
 

@@ -17,26 +17,6 @@
 
 namespace augrig::app {
 
-// The nav settings a user would write for a simulated aircraft: the surveyed lever arm and the IMU's
-// datasheet noise (the sim's own model; zero noise keeps a small floor so the filter stays regular).
-nav::InsConfig ins_config_for(const sim::AircraftSensors& s) {
-  nav::InsConfig c;
-  c.lever_arm_body_m = s.gps.lever_arm_m;
-  const auto& g = s.imu.errors.gyro;
-  const auto& a = s.imu.errors.accel;
-  c.imu.gyro_arw_rad_psqrts = std::max(g.arw_rad_per_sqrt_s, 1e-7);
-  c.imu.accel_vrw_mps_psqrts = std::max(a.vrw_mps_per_sqrt_s, 1e-6);
-  c.imu.gyro_bias.sigma = std::max(std::hypot(g.bias_instability_radps, g.turn_on_bias_radps), 1e-8);
-  c.imu.gyro_bias.tau_s = g.bias_tau_s;
-  c.imu.accel_bias.sigma = std::max(std::hypot(a.bias_instability_mps2, a.turn_on_bias_mps2), 1e-6);
-  c.imu.accel_bias.tau_s = a.bias_tau_s;
-  c.gps.rtk_fixed_m = std::max(s.gps.sigma_horizontal_m, 1e-3);
-  c.gps.rtk_float_m = std::max(s.gps.float_sigma_horizontal_m, 1e-3);
-  c.use_heading = s.gps.heading;
-  c.heading_sigma_rad = std::max(s.gps.heading_sigma_rad, 1e-6);
-  return c;
-}
-
 namespace {
 
 const std::vector<OptionSpec>& sim_specs() {

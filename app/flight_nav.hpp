@@ -18,6 +18,7 @@
 #include "nav/types.hpp"
 #include "render/boom_control.hpp"
 #include "render/rig.hpp"
+#include "sim/scenario.hpp"
 
 namespace augrig::app {
 
@@ -32,6 +33,10 @@ namespace augrig::app {
 Expected<nav::InsConfig> load_aircraft_config(const std::string& path);
 Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, const std::string& name);
 std::string aircraft_config_to_yaml(const nav::InsConfig& c);
+
+// The nav settings a user would write for a simulated aircraft: the surveyed lever arm and the IMU's
+// datasheet noise (the sim's own model; zero noise keeps a small floor so the filter stays regular).
+nav::InsConfig ins_config_for(const sim::AircraftSensors& s);
 
 struct AircraftLogs {
   std::string folder;

@@ -61,7 +61,7 @@ receiver:
   turbulence: {sigma_m: [0.15, 0.1, 0.15], sigma_deg: [0.4, 0.3, 0.3], length_scale_m: 500}
 sensors:
   tanker:
-    imu: {preset: tactical, rate_hz: 200}
+    imu: {preset: navigation, rate_hz: 200}
     gps: {rate_hz: 10, lever_arm_m: [5.0, 0.0, -3.5], latency_s: 0.03, heading: true}
   receiver:
     imu: {preset: tactical, rate_hz: 200}
@@ -426,7 +426,7 @@ void parse_imu(const Ctx& c, const YAML::Node& parent, const std::string& parent
   imu = ImuConfig{};
   if (!n.IsDefined()) return;
   if (const YAML::Node p = n["preset"]; p.IsDefined()) {
-    const std::string name = choice(c, n, path, "preset", "tactical", {"noise_free", "tactical", "consumer"});
+    const std::string name = choice(c, n, path, "preset", "tactical", {"noise_free", "navigation", "tactical", "consumer"});
     imu.errors = *imu_preset(name);
   }
   imu.rate_hz = number(c, n, path, "rate_hz", imu.rate_hz, {100.0, 400.0}, "Hz");

@@ -97,13 +97,19 @@ Expected<ImuErrorModel> imu_preset(std::string_view name) {
     m.accel = {0.05 / 60.0, 0.5 * kMg, 300.0, 0.05 * kMg / 60.0, 1.0 * kMg};
     return m;
   }
+  if (name == "navigation") {
+    // Navigation grade, as in a tanker's embedded GPS/INS (EGI): ring-laser gyros, servo accelerometers.
+    m.gyro = {deg_per_sqrt_h(0.002), deg_per_h(0.003), 3600.0, deg_per_h(0.001) / 60.0, deg_per_h(0.005)};
+    m.accel = {0.005 / 60.0, 0.025 * kMg, 3600.0, 0.001 * kMg / 60.0, 0.05 * kMg};
+    return m;
+  }
   if (name == "consumer") {
     m.gyro = {deg_per_sqrt_h(0.5), deg_per_h(10.0), 100.0, deg_per_h(20.0) / 60.0, deg_per_h(500.0)};
     m.accel = {0.1 / 60.0, 2.0 * kMg, 100.0, 1.0 * kMg / 60.0, 20.0 * kMg};
     return m;
   }
   return make_error("imu_preset(): unknown preset '", std::string(name),
-                    "'; expected one of noise_free, tactical, consumer");
+                    "'; expected one of noise_free, navigation, tactical, consumer");
 }
 
 Eigen::Vector3d specific_force_body(const KinematicState& s) {

@@ -83,7 +83,7 @@ struct ImuErrorModel {
   bool operator==(const ImuErrorModel&) const = default;
 };
 
-// "noise_free", "tactical" (gyro: ARW 0.1 deg/sqrt(h), bias instability 1 deg/h; accel: VRW
+// "noise_free", "navigation" (a tanker's EGI: gyro 0.003 deg/h, accel 25 ug), "tactical" (gyro: ARW 0.1 deg/sqrt(h), bias instability 1 deg/h; accel: VRW
 // 0.05 m/s/sqrt(h), bias instability 0.5 mg) or "consumer" (MEMS). docs/SIMULATION.md lists them.
 Expected<ImuErrorModel> imu_preset(std::string_view name);
 

@@ -53,7 +53,8 @@ TEST(ScenarioTest, BuiltinsParseAndFly) {
   ASSERT_TRUE(demo);
   EXPECT_EQ(demo->duration_s, 28.0);
   EXPECT_EQ(demo->tanker.pattern, TankerPattern::kStraight);
-  EXPECT_EQ(demo->sensors.tanker.imu.errors, *imu_preset("tactical"));
+  EXPECT_EQ(demo->sensors.tanker.imu.errors, *imu_preset("navigation"));
+  EXPECT_EQ(demo->sensors.receiver.imu.errors, *imu_preset("tactical"));
   EXPECT_EQ(demo->sensors.tanker.gps.mode, GpsMode::kRtk);
   EXPECT_EQ(demo->receiver.phases.size(), 5u);
   EXPECT_TRUE(demo->receiver.phases.back().attached);
@@ -216,7 +217,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadScenario{"bad_outage.yaml", 5, "sensors.receiver.gps.outages[1]", "t0_s <= t1_s, got [35, 30]"},
         BadScenario{"bad_utc.yaml", 3, "start.utc", "YYYY-MM-DDTHH:MM:SS"},
         BadScenario{"bad_preset.yaml", 4, "sensors.tanker.imu.preset",
-                    "one of noise_free, tactical, consumer"},
+                    "one of noise_free, navigation, tactical, consumer"},
         BadScenario{"bad_bayer.yaml", 5, "sensors.cameras.bayer", "RGGB, GRBG, GBRG, BGGR, got 'RGBG'"},
         BadScenario{"bad_camera_list.yaml", 4, "sensors.cameras.clock_offset_ns", "one per rig camera (2)"},
         BadScenario{"bad_roll_in.yaml", 6, "tanker.roll_in_s", "expected at most"},
