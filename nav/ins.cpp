@@ -1,0 +1,839 @@
+#include "nav/ins.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+#include <utility>
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+
+namespace augrig::nav {
+
+using Eigen::Matrix3d;
+using Eigen::Quaterniond;
+using Eigen::Vector3d;
+
+namespace {
+
+constexpr double kGM = 3.986004418e14;  // WGS84 m^3/s^2
+constexpr double kG0 = 9.80665;
+
+Matrix3d skew(const Vector3d& v) {
+  Matrix3d S;
+  S << 0, -v.z(), v.y(),  //
+      v.z(), 0, -v.x(),   //
+      -v.y(), v.x(), 0;
+  return S;
+}
+
+Quaterniond quat_exp(const Vector3d& phi) {
+  const double a2 = phi.squaredNorm();
+  if (a2 < 1e-24) return Quaterniond(1.0, 0.5 * phi.x(), 0.5 * phi.y(), 0.5 * phi.z()).normalized();
+  const double a = std::sqrt(a2);
+  const double s = std::sin(0.5 * a) / a;
+  return Quaterniond(std::cos(0.5 * a), s * phi.x(), s * phi.y(), s * phi.z());
+}
+
+Vector3d quat_log(const Quaterniond& q_in) {
+  Quaterniond q = q_in;
+  if (q.w() < 0) q.coeffs() = -q.coeffs();
+  const double n = q.vec().norm();
+  if (n < 1e-12) return 2.0 * q.vec();
+  return (2.0 * std::atan2(n, q.w()) / n) * q.vec();
+}
+
+// A small rotation in NED (left-multiplied) = M * (d yaw, d pitch, d roll) for Euler ZYX angles.
+Matrix3d euler_to_rotation_jacobian(double yaw, double pitch) {
+  const double sy = std::sin(yaw), cy = std::cos(yaw);
+  const double sp = std::sin(pitch), cp = std::cos(pitch);
+  Matrix3d M;
+  M << 0, -sy, cy * cp,  //
+      0, cy, sy * cp,    //
+      1, 0, -sp;
+  return M;
+}
+
+double wrap_pi(double a) {
+  a = std::remainder(a, 2 * kPi);
+  return a;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Error-state algebra
+
+InertialState boxplus(const InertialState& x, const Vector15d& dx) {
+  InertialState y = x;
+  y.p_ecef_m += dx.segment<3>(kErrPos);
+  y.v_ecef_mps += dx.segment<3>(kErrVel);
+  y.q_ecef_body = (quat_exp(dx.segment<3>(kErrAtt)) * x.q_ecef_body).normalized();
+  y.gyro_bias_radps += dx.segment<3>(kErrGyroBias);
+  y.accel_bias_mps2 += dx.segment<3>(kErrAccelBias);
+  return y;
+}
+
+Vector15d boxminus(const InertialState& a, const InertialState& b) {
+  Vector15d d;
+  d.segment<3>(kErrPos) = a.p_ecef_m - b.p_ecef_m;
+  d.segment<3>(kErrVel) = a.v_ecef_mps - b.v_ecef_mps;
+  d.segment<3>(kErrAtt) = quat_log(a.q_ecef_body * b.q_ecef_body.conjugate());
+  d.segment<3>(kErrGyroBias) = a.gyro_bias_radps - b.gyro_bias_radps;
+  d.segment<3>(kErrAccelBias) = a.accel_bias_mps2 - b.accel_bias_mps2;
+  return d;
+}
+
+Matrix3d gravity_gradient_ecef(const Vector3d& p_ecef_m) {
+  const double r = p_ecef_m.norm();
+  const Vector3d u = p_ecef_m / r;
+  Matrix3d G = -(kGM / (r * r * r)) * (Matrix3d::Identity() - 3.0 * u * u.transpose());
+  const double w2 = kEarthRate_radps * kEarthRate_radps;
+  G(0, 0) += w2;
+  G(1, 1) += w2;
+  return G;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Strapdown
+
+void Strapdown::reset(const InertialState& x, const History& history) {
+  x_ = x;
+  history_ = history;
+  have_ref_ = false;
+  last_R_ = x.q_ecef_body.toRotationMatrix();
+  last_dv_ecef_.setZero();
+}
+
+void Strapdown::refresh_gravity(const Vector3d& p_ecef_m) {
+  p_ref_ = p_ecef_m;
+  g_ref_ = gravity_ecef(p_ref_);
+  G_ref_ = gravity_gradient_ecef(p_ref_);
+  have_ref_ = true;
+}
+
+void Strapdown::step(const Vector3d& dtheta_rad, const Vector3d& dv_mps, TimestampNs t_end_ns) {
+  const double dt = ns_to_s(t_end_ns - x_.t_ns);
+  const Vector3d a = dtheta_rad - x_.gyro_bias_radps * dt;
+  const Vector3d u = dv_mps - x_.accel_bias_mps2 * dt;
+
+  // Coning and sculling from the previous increment, scaled to this interval's length.
+  Vector3d phi = a;
+  Vector3d dv_b = u + 0.5 * a.cross(u);
+  if (history_.dt_s > 0) {
+    const double s = dt / history_.dt_s;
+    const Vector3d ap = s * history_.dtheta_rad, up = s * history_.dv_mps;
+    phi += ap.cross(a) * (1.0 / 12.0);
+    dv_b += (ap.cross(u) + up.cross(a)) * (1.0 / 12.0);
+  }
+  history_ = {a, u, dt};
+
+  const Vector3d w = earth_rate_ecef();
+  const Matrix3d R = x_.q_ecef_body.toRotationMatrix();
+  Vector3d dv_e = R * dv_b;
+  dv_e -= (0.5 * dt) * w.cross(dv_e);  // the ECEF frame turns under the body during the interval
+
+  const Vector3d p = x_.p_ecef_m;
+  const Vector3d v = x_.v_ecef_mps;
+  const Vector3d p_mid = p + (0.5 * dt) * v + (0.125 * dt) * dv_e;
+  if (!have_ref_ || (p_mid - p_ref_).squaredNorm() > 200.0 * 200.0) refresh_gravity(p_mid);
+  const Vector3d g = g_ref_ + G_ref_ * (p_mid - p_ref_);
+  Vector3d v_new = v + dv_e + (g - 2.0 * w.cross(v)) * dt;
+  const Vector3d v_mid = 0.5 * (v + v_new);
+  v_new = v + dv_e + (g - 2.0 * w.cross(v_mid)) * dt;
+
+  x_.p_ecef_m = p + (0.5 * dt) * (v + v_new);
+  x_.v_ecef_mps = v_new;
+  const double h = 0.5 * kEarthRate_radps * dt;
+  const Quaterniond q_earth(std::cos(h), 0.0, 0.0, -std::sin(h));
+  x_.q_ecef_body = (q_earth * x_.q_ecef_body * quat_exp(phi)).normalized();
+  x_.t_ns = t_end_ns;
+  last_R_ = R;
+  last_dv_ecef_ = dv_e;
+}
+
+// ---------------------------------------------------------------------------------------------
+// IMU increments: splitting one at an arbitrary time
+
+namespace {
+
+// The rate of a stored increment and the time of its midpoint.
+template <typename Inc>
+double mid_s(const Inc& i, TimestampNs t_ref) {
+  return ns_to_s((i.t0_ns - t_ref) + (i.t1_ns - i.t0_ns) / 2);
+}
+
+// Part (a, b] of increment j. The rate inside j is modelled as linear, with its slope from the
+// neighbours' mean rates; the parts of an increment always sum to the whole increment.
+template <typename Inc>
+std::pair<Vector3d, Vector3d> piece(const std::vector<Inc>& imu, std::size_t j, TimestampNs a,
+                                    TimestampNs b) {
+  const Inc& c = imu[j];
+  const double len = ns_to_s(c.t1_ns - c.t0_ns);
+  const double ua = ns_to_s(a - c.t0_ns) / len, ub = ns_to_s(b - c.t0_ns) / len;
+  Vector3d sth = Vector3d::Zero(), sdv = Vector3d::Zero();  // rate slope x len^2
+  const std::size_t lo = j > 0 ? j - 1 : j, hi = j + 1 < imu.size() ? j + 1 : j;
+  if (hi != lo) {
+    const Inc& l = imu[lo];
+    const Inc& h = imu[hi];
+    const double ll = ns_to_s(l.t1_ns - l.t0_ns), lh = ns_to_s(h.t1_ns - h.t0_ns);
+    const double span = mid_s(h, c.t0_ns) - mid_s(l, c.t0_ns);
+    const double k = len * len / span;
+    sth = (h.dtheta_rad / lh - l.dtheta_rad / ll) * k;
+    sdv = (h.dv_mps / lh - l.dv_mps / ll) * k;
+  }
+  const double qa = 0.5 * ua * (ua - 1.0), qb = 0.5 * ub * (ub - 1.0);
+  return {(ub - ua) * c.dtheta_rad + (qb - qa) * sth, (ub - ua) * c.dv_mps + (qb - qa) * sdv};
+}
+
+}  // namespace
+
+template <typename OnStep>
+void NavTrajectory::advance(const std::vector<Increment>& imu, Strapdown& mech, std::size_t& index,
+                            TimestampNs t_end_ns, OnStep&& on_step) {
+  while (mech.state().t_ns < t_end_ns) {
+    const Increment& inc = imu[index];
+    const TimestampNs a = mech.state().t_ns;
+    const TimestampNs b = std::min(inc.t1_ns, t_end_ns);
+    if (a == inc.t0_ns && b == inc.t1_ns) {
+      mech.step(inc.dtheta_rad, inc.dv_mps, b);
+    } else {
+      const auto [dth, dv] = piece(imu, index, a, b);
+      mech.step(dth, dv, b);
+    }
+    on_step(ns_to_s(b - a));
+    if (b == inc.t1_ns) ++index;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The filter
+
+class FusionEngine {
+ public:
+  explicit FusionEngine(const InsConfig& cfg) : cfg_(cfg) {}
+  Expected<NavTrajectory> run(std::span<const ImuSample> imu, std::span<const GpsFix> fixes, bool smooth);
+
+ private:
+  using Increment = NavTrajectory::Increment;
+
+  struct Fix {
+    TimestampNs t_ns = 0;  // time of validity on the nav clock
+    std::size_t index = 0;
+    Vector3d p_ecef_m;  // antenna
+    Matrix3d R_en;      // NED at the antenna
+    Vector3d sigma_ned_m;
+    std::optional<double> heading_rad;
+    std::optional<Eigen::Vector2d> v_ne_mps;  // from speed over ground and course
+  };
+
+  Status prepare_imu(std::span<const ImuSample> imu);
+  Status prepare_fixes(std::span<const GpsFix> fixes);
+  Status initialise();
+  void forward();
+  void smooth();
+  void propagate_covariance();
+  void update_at_fix(const Fix& fix);
+  template <int M>
+  bool kalman_update(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, 15>& H,
+                     const Eigen::Matrix<double, M, M>& R, double gate, bool force);
+  void store_epoch();
+
+  const InsConfig& cfg_;
+  NavTrajectory traj_;
+  std::vector<Fix> fixes_;
+  std::size_t first_fix_ = 0;  // index into fixes_ of the initialisation fix
+
+  Strapdown mech_;
+  std::size_t imu_index_ = 0;
+  Matrix15d P_ = Matrix15d::Zero();
+  Matrix15d Phi_epoch_ = Matrix15d::Identity();
+  // Accumulated over the current covariance step.
+  Matrix3d sum_R_dt_ = Matrix3d::Zero();
+  Vector3d sum_dv_e_ = Vector3d::Zero();
+  double step_dt_ = 0;
+  int rejection_streak_ = 0;
+
+  // Smoother inputs, per epoch k: the predicted state and covariance at k and the transition k-1 -> k.
+  std::vector<InertialState> x_pred_;
+  std::vector<Matrix15d> P_pred_;
+  std::vector<Matrix15d> Phi_;
+};
+
+Status FusionEngine::prepare_imu(std::span<const ImuSample> imu) {
+  if (imu.empty()) return make_error("nav::fuse(): no IMU samples");
+  FusionReport& rep = traj_.report_;
+  rep.imu_samples = imu.size();
+  traj_.imu_.resize(imu.size());
+  for (std::size_t i = 0; i < imu.size(); ++i) {
+    const ImuSample& s = imu[i];
+    if (!s.dtheta_rad.allFinite() || !s.dv_mps.allFinite() || !std::isfinite(s.dt_s))
+      return make_error("nav::fuse(): IMU sample ", i, " at t=", s.t_ns, " ns: non-finite values");
+    if (i > 0 && s.t_ns <= imu[i - 1].t_ns)
+      return make_error("nav::fuse(): IMU sample ", i, " at t=", s.t_ns, " ns is not after sample ", i - 1,
+                        " at t=", imu[i - 1].t_ns, " ns; IMU timestamps must be strictly increasing");
+    Increment& inc = traj_.imu_[i];
+    inc.t1_ns = s.t_ns + cfg_.imu_time_offset_ns;
+    inc.dtheta_rad = s.dtheta_rad;
+    inc.dv_mps = s.dv_mps;
+    if (i == 0) {
+      TimestampNs dt_ns = s_to_ns(s.dt_s);
+      if (dt_ns <= 0 && imu.size() > 1) dt_ns = imu[1].t_ns - s.t_ns;
+      if (dt_ns <= 0) return make_error("nav::fuse(): IMU sample 0 has no positive dt_s");
+      inc.t0_ns = inc.t1_ns - dt_ns;
+    } else {
+      inc.t0_ns = traj_.imu_[i - 1].t1_ns;
+      const double len = ns_to_s(inc.t1_ns - inc.t0_ns);
+      if (s.dt_s > 0 && len > 1.5 * s.dt_s) {  // samples lost: hold this sample's rates over the gap
+        ++rep.imu_gaps;
+        inc.dtheta_rad *= len / s.dt_s;
+        inc.dv_mps *= len / s.dt_s;
+      }
+    }
+  }
+  return {};
+}
+
+Status FusionEngine::prepare_fixes(std::span<const GpsFix> fixes) {
+  FusionReport& rep = traj_.report_;
+  rep.fixes = fixes.size();
+  const TimestampNs t_begin = traj_.imu_.front().t0_ns, t_end = traj_.imu_.back().t1_ns;
+  const GpsNoiseModel& n = cfg_.gps;
+  fixes_.reserve(fixes.size());
+  for (std::size_t i = 0; i < fixes.size(); ++i) {
+    const GpsFix& f = fixes[i];
+    if (i > 0 && f.t_ns <= fixes[i - 1].t_ns)
+      return make_error("nav::fuse(): GPS fix ", i, " at t=", f.t_ns, " ns is not after fix ", i - 1,
+                        " at t=", fixes[i - 1].t_ns, " ns; fix timestamps must be strictly increasing");
+    const bool finite =
+        std::isfinite(f.antenna.lat_rad) && std::isfinite(f.antenna.lon_rad) && std::isfinite(f.antenna.h_m);
+    if (f.quality == FixQuality::kInvalid || f.quality == FixQuality::kDeadReckoning || !finite) {
+      ++rep.fixes_invalid;
+      continue;
+    }
+    Fix x;
+    x.t_ns = f.t_ns + cfg_.gps_time_offset_ns;
+    if (x.t_ns < t_begin || x.t_ns > t_end) {
+      ++rep.fixes_outside;
+      continue;
+    }
+    x.index = i;
+    x.p_ecef_m = ecef_from_geodetic(f.antenna);
+    x.R_en = R_ecef_ned(f.antenna.lat_rad, f.antenna.lon_rad);
+    if (n.use_gst && f.sigma_ned_m && f.sigma_ned_m->allFinite() && (f.sigma_ned_m->array() > 0).all()) {
+      x.sigma_ned_m = *f.sigma_ned_m;
+    } else {
+      double h = n.single_m;
+      switch (f.quality) {
+        case FixQuality::kRtkFixed:
+          h = n.rtk_fixed_m;
+          break;
+        case FixQuality::kRtkFloat:
+          h = n.rtk_float_m;
+          break;
+        case FixQuality::kDgps:
+        case FixQuality::kPps:
+          h = n.dgps_m;
+          break;
+        default:
+          break;
+      }
+      if (n.scale_by_hdop && f.hdop > 0) h *= f.hdop;
+      x.sigma_ned_m = Vector3d(h, h, h * n.vertical_factor);
+    }
+    x.sigma_ned_m = x.sigma_ned_m.cwiseMax(n.floor_m);
+    if (f.heading_rad && std::isfinite(*f.heading_rad)) x.heading_rad = *f.heading_rad;
+    if (f.ground_speed_mps && f.course_rad && std::isfinite(*f.ground_speed_mps) &&
+        std::isfinite(*f.course_rad))
+      x.v_ne_mps = Eigen::Vector2d(*f.ground_speed_mps * std::cos(*f.course_rad),
+                                   *f.ground_speed_mps * std::sin(*f.course_rad));
+    fixes_.push_back(x);
+  }
+  // The initialisation fix must leave IMU data after it.
+  while (first_fix_ < fixes_.size() && fixes_[first_fix_].t_ns >= t_end) ++first_fix_;
+  if (fixes_.empty() || first_fix_ >= fixes_.size())
+    return make_error("nav::fuse(): no valid GPS fix inside the IMU data [", t_begin, ", ", t_end, "] ns (",
+                      fixes.size(), " fixes, ", rep.fixes_invalid, " invalid, ", rep.fixes_outside,
+                      " outside); check the time offsets");
+  if (fixes_.size() > 1) {
+    std::vector<TimestampNs> d(fixes_.size() - 1);
+    for (std::size_t i = 1; i < fixes_.size(); ++i) d[i - 1] = fixes_[i].t_ns - fixes_[i - 1].t_ns;
+    std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+    rep.nominal_fix_period_s = ns_to_s(d[d.size() / 2]);
+  }
+  return {};
+}
+
+Status FusionEngine::initialise() {
+  const Fix& f0 = fixes_[first_fix_];
+  const Geodetic g0 = geodetic_from_ecef(f0.p_ecef_m);
+  const Matrix3d& R_en = f0.R_en;
+  std::string how;
+
+  // Velocity: from the first two fixes (mean velocity between them), else ground speed/course.
+  // The velocity from two fixes shares the first fix's error with the position: cov(p, v) = -S0/dt.
+  Vector3d v_ned = Vector3d::Zero();
+  double sigma_v = cfg_.init_velocity_sigma_mps;
+  Matrix3d P_vv_fix = Matrix3d::Zero(), P_pv_fix = Matrix3d::Zero();  // NED
+  std::optional<std::size_t> second;
+  if (first_fix_ + 1 < fixes_.size() && fixes_[first_fix_ + 1].t_ns - f0.t_ns <= s_to_ns(2.0))
+    second = first_fix_ + 1;
+  if (second) {
+    const Fix& f1 = fixes_[*second];
+    const double dt = ns_to_s(f1.t_ns - f0.t_ns);
+    v_ned = R_en.transpose() * (f1.p_ecef_m - f0.p_ecef_m) / dt;
+    const Vector3d s0 = f0.sigma_ned_m.cwiseAbs2(), s1 = f1.sigma_ned_m.cwiseAbs2();
+    P_vv_fix = Matrix3d((s0 + s1).asDiagonal()) / (dt * dt);
+    P_pv_fix = -Matrix3d(s0.asDiagonal()) / dt;
+    how = "velocity from fixes " + std::to_string(f0.index) + "-" + std::to_string(f1.index);
+  } else if (f0.v_ne_mps) {
+    v_ned = Vector3d(f0.v_ne_mps->x(), f0.v_ne_mps->y(), 0.0);
+    sigma_v = std::max(sigma_v, 2.0);
+    how = "velocity from speed/course";
+  } else {
+    sigma_v = 10.0;
+    how = "velocity unknown (0)";
+  }
+  const double speed_h = std::hypot(v_ned.x(), v_ned.y());
+  const bool stationary = v_ned.norm() < cfg_.stationary_speed_mps && second.has_value();
+
+  // Attitude.
+  double yaw = 0, pitch = 0, roll = 0;
+  double sigma_tilt = cfg_.init_tilt_sigma_rad, sigma_yaw = cfg_.init_yaw_unknown_sigma_rad;
+  if (cfg_.use_heading && f0.heading_rad) {
+    yaw = *f0.heading_rad - cfg_.heading_offset_rad;
+    sigma_yaw = std::max(cfg_.heading_sigma_rad, deg_to_rad(0.05));
+    how += ", yaw from HDT";
+  } else if (speed_h > cfg_.min_ground_speed_mps) {
+    yaw = std::atan2(v_ned.y(), v_ned.x());
+    sigma_yaw = cfg_.init_yaw_from_course_sigma_rad;
+    how += ", yaw from course";
+  } else if (f0.v_ne_mps && f0.v_ne_mps->norm() > cfg_.min_ground_speed_mps) {
+    yaw = std::atan2(f0.v_ne_mps->y(), f0.v_ne_mps->x());
+    sigma_yaw = cfg_.init_yaw_from_course_sigma_rad;
+    how += ", yaw from RMC course";
+  } else {
+    how += ", yaw unknown (0)";
+  }
+  // Mean body rate and specific force over [from, to).
+  const auto& imu = traj_.imu_;
+  auto mean_imu = [&](TimestampNs from, TimestampNs to, Vector3d& w_b, Vector3d& f_b) {
+    Vector3d sum_th = Vector3d::Zero(), sum_dv = Vector3d::Zero();
+    double sum_dt = 0;
+    for (std::size_t i = 0; i < imu.size() && imu[i].t0_ns < to; ++i) {
+      if (imu[i].t1_ns <= from) continue;
+      sum_th += imu[i].dtheta_rad;
+      sum_dv += imu[i].dv_mps;
+      sum_dt += ns_to_s(imu[i].t1_ns - imu[i].t0_ns);
+    }
+    if (sum_dt <= 0) return false;
+    w_b = sum_th / sum_dt;
+    f_b = sum_dv / sum_dt;
+    return true;
+  };
+  Vector3d w_b, f_b;
+  if (stationary && mean_imu(f0.t_ns, f0.t_ns + s_to_ns(1.0), w_b, f_b)) {
+    roll = std::atan2(-f_b.y(), -f_b.z());
+    pitch = std::atan2(f_b.x(), std::hypot(f_b.y(), f_b.z()));
+    sigma_tilt = cfg_.init_level_sigma_rad;
+    how += ", roll/pitch levelled from the accelerometers (1 s)";
+  } else if (!stationary && mean_imu(f0.t_ns, f0.t_ns + s_to_ns(0.2), w_b, f_b)) {
+    // Pitch: the body x axis against the plane normal to the specific force, which in coordinated
+    // flight at constant speed is the horizontal plane tilted about x by the bank.
+    pitch = std::atan2(f_b.x(), std::hypot(f_b.y(), f_b.z()));
+    how += ", pitch from the accelerometers";
+    if (speed_h > cfg_.airborne_speed_mps) {
+      // Roll from the coordinated-turn relation tan(roll) = V * turn rate / g, the turn rate being
+      // the gyro rate projected on the vertical (which itself depends on the roll: iterate).
+      for (int it = 0; it < 8; ++it) {
+        const double sp = std::sin(pitch), cp = std::cos(pitch), sr = std::sin(roll), cr = std::cos(roll);
+        const double turn_rate = -sp * w_b.x() + sr * cp * w_b.y() + cr * cp * w_b.z();
+        roll = std::atan(speed_h * turn_rate / kG0);
+      }
+      sigma_tilt += 0.15 * std::abs(roll);  // wind: ground speed is not airspeed
+      how += ", roll from the turn rate (coordinated turn)";
+    } else {
+      how += ", roll 0";
+    }
+  } else {
+    how += ", roll/pitch 0";
+  }
+
+  InertialState x;
+  x.t_ns = f0.t_ns;
+  x.q_ecef_body = Quaterniond(R_en * rotation_from_ypr(yaw, pitch, roll)).normalized();
+  x.p_ecef_m = f0.p_ecef_m - x.q_ecef_body * cfg_.lever_arm_body_m;
+  x.v_ecef_mps = R_en * v_ned;
+
+  // Initial covariance. The body position inherits the attitude error through the lever arm:
+  // dp = dp_fix + [(R l) x] dtheta.
+  P_.setZero();
+  const Matrix3d M =
+      euler_to_rotation_jacobian(yaw, pitch);  // small rotation in NED per (dyaw, dpitch, droll)
+  const Vector3d se2(sigma_yaw * sigma_yaw, sigma_tilt * sigma_tilt, sigma_tilt * sigma_tilt);
+  const Matrix3d P_att = R_en * M * se2.asDiagonal() * M.transpose() * R_en.transpose();
+  const Matrix3d L = skew(x.q_ecef_body * cfg_.lever_arm_body_m);
+  P_.block<3, 3>(kErrAtt, kErrAtt) = P_att;
+  P_.block<3, 3>(kErrPos, kErrPos) =
+      R_en * f0.sigma_ned_m.cwiseAbs2().asDiagonal() * R_en.transpose() + L * P_att * L.transpose();
+  P_.block<3, 3>(kErrPos, kErrAtt) = L * P_att;
+  P_.block<3, 3>(kErrAtt, kErrPos) = P_.block<3, 3>(kErrPos, kErrAtt).transpose();
+  P_.block<3, 3>(kErrVel, kErrVel) =
+      Matrix3d::Identity() * sigma_v * sigma_v + R_en * P_vv_fix * R_en.transpose();
+  P_.block<3, 3>(kErrPos, kErrVel) = R_en * P_pv_fix * R_en.transpose();
+  P_.block<3, 3>(kErrVel, kErrPos) = P_.block<3, 3>(kErrPos, kErrVel).transpose();
+  P_.block<3, 3>(kErrGyroBias, kErrGyroBias) =
+      Matrix3d::Identity() * cfg_.imu.gyro_bias.sigma * cfg_.imu.gyro_bias.sigma;
+  P_.block<3, 3>(kErrAccelBias, kErrAccelBias) =
+      Matrix3d::Identity() * cfg_.imu.accel_bias.sigma * cfg_.imu.accel_bias.sigma;
+
+  // The increment holding the data just after t0.
+  imu_index_ = static_cast<std::size_t>(
+      std::upper_bound(imu.begin(), imu.end(), x.t_ns,
+                       [](TimestampNs t, const Increment& i) { return t < i.t1_ns; }) -
+      imu.begin());
+  mech_.reset(x);
+  char buf[160];
+  std::snprintf(buf, sizeof buf,
+                "at t=%lld ns from fix %zu (lat %.7f, lon %.7f deg): ", static_cast<long long>(x.t_ns),
+                f0.index, rad_to_deg(g0.lat_rad), rad_to_deg(g0.lon_rad));
+  traj_.report_.init_summary = buf + how;
+  return {};
+}
+
+void FusionEngine::propagate_covariance() {
+  if (step_dt_ <= 0) return;
+  const double T = step_dt_;
+  const Matrix3d Rbar = sum_R_dt_ / T;
+  const Vector3d fbar = sum_dv_e_ / T;
+  const Matrix3d W = skew(earth_rate_ecef());
+  const BiasModel& bg = cfg_.imu.gyro_bias;
+  const BiasModel& ba = cfg_.imu.accel_bias;
+
+  Matrix15d FT = Matrix15d::Zero();
+  FT.block<3, 3>(kErrPos, kErrVel).diagonal().setConstant(T);
+  FT.block<3, 3>(kErrVel, kErrPos) = gravity_gradient_ecef(mech_.state().p_ecef_m) * T;
+  FT.block<3, 3>(kErrVel, kErrVel) = -2.0 * T * W;
+  FT.block<3, 3>(kErrVel, kErrAtt) = -T * skew(fbar);
+  FT.block<3, 3>(kErrVel, kErrAccelBias) = -T * Rbar;
+  FT.block<3, 3>(kErrAtt, kErrAtt) = -T * W;
+  FT.block<3, 3>(kErrAtt, kErrGyroBias) = -T * Rbar;
+  if (bg.tau_s > 0) FT.block<3, 3>(kErrGyroBias, kErrGyroBias).diagonal().setConstant(-T / bg.tau_s);
+  if (ba.tau_s > 0) FT.block<3, 3>(kErrAccelBias, kErrAccelBias).diagonal().setConstant(-T / ba.tau_s);
+  Matrix15d Phi = Matrix15d::Identity() + FT;
+  Phi.noalias() += 0.5 * FT * FT;
+
+  // Half the process noise before the transition, half after (trapezoid).
+  auto bias_q = [](const BiasModel& b) {
+    return b.tau_s > 0 ? 2.0 * b.sigma * b.sigma / b.tau_s : b.random_walk * b.random_walk;
+  };
+  Vector15d q;
+  q.segment<3>(kErrPos).setZero();
+  q.segment<3>(kErrVel).setConstant(cfg_.imu.accel_vrw_mps_psqrts * cfg_.imu.accel_vrw_mps_psqrts);
+  q.segment<3>(kErrAtt).setConstant(cfg_.imu.gyro_arw_rad_psqrts * cfg_.imu.gyro_arw_rad_psqrts);
+  q.segment<3>(kErrGyroBias).setConstant(bias_q(bg));
+  q.segment<3>(kErrAccelBias).setConstant(bias_q(ba));
+  q *= 0.5 * T;
+  P_.diagonal() += q;
+  Matrix15d tmp;
+  tmp.noalias() = Phi * P_;
+  P_.noalias() = tmp * Phi.transpose();
+  P_.diagonal() += q;
+  tmp.noalias() = Phi * Phi_epoch_;
+  Phi_epoch_ = tmp;
+
+  sum_R_dt_.setZero();
+  sum_dv_e_.setZero();
+  step_dt_ = 0;
+}
+
+template <int M>
+bool FusionEngine::kalman_update(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, 15>& H,
+                                 const Eigen::Matrix<double, M, M>& R, double gate, bool force) {
+  const Eigen::Matrix<double, 15, M> PHt = P_ * H.transpose();
+  Eigen::Matrix<double, M, M> S = H * PHt + R;
+  const Eigen::LLT<Eigen::Matrix<double, M, M>> llt(S);
+  if (llt.info() != Eigen::Success) return false;
+  const double chi2 = y.dot(llt.solve(y));
+  if (!force && chi2 > gate) return false;
+  const Eigen::Matrix<double, 15, M> K = llt.solve(PHt.transpose()).transpose();
+  const Vector15d dx = K * y;
+  // Joseph form.
+  Matrix15d IKH = Matrix15d::Identity();
+  IKH.noalias() -= K * H;
+  Matrix15d tmp;
+  tmp.noalias() = IKH * P_;
+  P_.noalias() = tmp * IKH.transpose();
+  P_.noalias() += K * R * K.transpose();
+  P_ = 0.5 * (P_ + P_.transpose()).eval();
+  mech_.state() = boxplus(mech_.state(), dx);
+  return true;
+}
+
+void FusionEngine::update_at_fix(const Fix& fix) {
+  FusionReport& rep = traj_.report_;
+  InertialState& x = mech_.state();
+  const Matrix3d R_eb = x.q_ecef_body.toRotationMatrix();
+  const Vector3d l_e = R_eb * cfg_.lever_arm_body_m;
+
+  // Position of the antenna.
+  {
+    const Vector3d y = fix.p_ecef_m - (x.p_ecef_m + l_e);
+    Eigen::Matrix<double, 3, 15> H = Eigen::Matrix<double, 3, 15>::Zero();
+    H.block<3, 3>(0, kErrPos).setIdentity();
+    H.block<3, 3>(0, kErrAtt) = -skew(l_e);
+    const Matrix3d R = fix.R_en * fix.sigma_ned_m.cwiseAbs2().asDiagonal() * fix.R_en.transpose();
+    // No gating while the filter is still levelling itself (tilt 1-sigma above the threshold): its
+    // innovations are not yet trustworthy enough to call a fix an outlier.
+    const Matrix3d P_att_n = fix.R_en.transpose() * P_.block<3, 3>(kErrAtt, kErrAtt) * fix.R_en;
+    const bool converged =
+        std::max(P_att_n(0, 0), P_att_n(1, 1)) < cfg_.gate_tilt_sigma_rad * cfg_.gate_tilt_sigma_rad;
+    const bool force = !converged || rejection_streak_ >= cfg_.max_consecutive_rejections;
+    if (kalman_update<3>(y, H, R, cfg_.gate_chi2, force)) {
+      ++rep.fixes_used;
+      if (force && converged) ++rep.fixes_forced;
+      rejection_streak_ = 0;
+    } else {
+      ++rep.fixes_rejected;
+      ++rejection_streak_;
+      return;  // a rejected position discredits the rest of the epoch
+    }
+  }
+
+  // HDT heading of the body x axis.
+  if (cfg_.use_heading && fix.heading_rad) {
+    const Matrix3d& R_en = fix.R_en;
+    const Vector3d c = R_en.transpose() * (x.q_ecef_body * Vector3d::UnitX());
+    const double n2 = c.x() * c.x() + c.y() * c.y();
+    if (n2 > 1e-6) {
+      const Eigen::RowVector3d gvec(-c.y() / n2, c.x() / n2, 0.0);
+      Eigen::Matrix<double, 1, 15> H = Eigen::Matrix<double, 1, 15>::Zero();
+      H.block<1, 3>(0, kErrAtt) = -gvec * skew(c) * R_en.transpose();
+      Eigen::Matrix<double, 1, 1> y, R;
+      y(0) = wrap_pi(*fix.heading_rad - cfg_.heading_offset_rad - std::atan2(c.y(), c.x()));
+      R(0) = cfg_.heading_sigma_rad * cfg_.heading_sigma_rad;
+      if (kalman_update<1>(y, H, R, cfg_.heading_gate_chi2, false))
+        ++rep.heading_updates;
+      else
+        ++rep.heading_rejected;
+    }
+  }
+
+  // Speed over ground and course: horizontal velocity of the antenna.
+  if (cfg_.use_ground_velocity && fix.v_ne_mps && fix.v_ne_mps->norm() > cfg_.min_ground_speed_mps) {
+    const Strapdown::History& h = mech_.history();
+    const Vector3d w_b = h.dt_s > 0 ? Vector3d(h.dtheta_rad / h.dt_s) : Vector3d::Zero();
+    const Matrix3d Rb = x.q_ecef_body.toRotationMatrix();
+    const Vector3d le = Rb * cfg_.lever_arm_body_m;
+    const Vector3d wl = Rb * w_b.cross(cfg_.lever_arm_body_m);
+    const Vector3d W = earth_rate_ecef();
+    const Vector3d v_ant = x.v_ecef_mps + wl - W.cross(le);
+    const Eigen::Matrix<double, 2, 3> Rne = fix.R_en.transpose().topRows<2>();
+    Eigen::Matrix<double, 2, 15> H = Eigen::Matrix<double, 2, 15>::Zero();
+    H.block<2, 3>(0, kErrVel) = Rne;
+    H.block<2, 3>(0, kErrAtt) = Rne * (-skew(wl) + skew(W) * skew(le));
+    const Eigen::Vector2d y = *fix.v_ne_mps - Rne * v_ant;
+    const double s2 = cfg_.ground_velocity_sigma_mps * cfg_.ground_velocity_sigma_mps;
+    const Eigen::Matrix2d R = Eigen::Matrix2d::Identity() * s2;
+    if (kalman_update<2>(y, H, R, cfg_.ground_velocity_gate_chi2, false))
+      ++rep.velocity_updates;
+    else
+      ++rep.velocity_rejected;
+  }
+}
+
+void FusionEngine::store_epoch() {
+  traj_.epochs_.push_back({mech_.state(), mech_.history(), imu_index_});
+  traj_.P_.push_back(P_);
+}
+
+void FusionEngine::forward() {
+  const auto t0 = std::chrono::steady_clock::now();
+  FusionReport& rep = traj_.report_;
+  const auto& imu = traj_.imu_;
+  const TimestampNs t_end = imu.back().t1_ns;
+  const TimestampNs max_epoch_ns = s_to_ns(std::max(cfg_.max_epoch_interval_s, 1e-3));
+  const double cov_step = cfg_.covariance_step_s;
+
+  // Reserve for every fix and coasting epoch up front, so the loop does not reallocate.
+  const TimestampNs span = t_end - mech_.state().t_ns;
+  const std::size_t n_est = static_cast<std::size_t>(span / max_epoch_ns) + fixes_.size() + 2;
+  traj_.epochs_.reserve(n_est);
+  traj_.P_.reserve(n_est);
+  x_pred_.reserve(n_est);
+  P_pred_.reserve(n_est);
+  Phi_.reserve(n_est);
+
+  store_epoch();
+  x_pred_.push_back(mech_.state());
+  P_pred_.push_back(P_);
+  Phi_.push_back(Matrix15d::Identity());
+  ++rep.fixes_used;  // the initialisation fix
+  TimestampNs t_last_used = mech_.state().t_ns;
+  auto note_gap = [&](TimestampNs t) {
+    const double gap = ns_to_s(t - t_last_used);
+    rep.longest_fix_gap_s = std::max(rep.longest_fix_gap_s, gap);
+    if (rep.nominal_fix_period_s > 0 && gap > cfg_.outage_factor * rep.nominal_fix_period_s) ++rep.outages;
+    t_last_used = t;
+  };
+
+  auto on_step = [&](double dt) {
+    sum_R_dt_ += mech_.last_R_ecef_body() * dt;
+    sum_dv_e_ += mech_.last_dv_ecef();
+    step_dt_ += dt;
+    if (step_dt_ >= cov_step) propagate_covariance();
+  };
+
+  std::size_t f = first_fix_ + 1;
+  TimestampNs t_epoch = mech_.state().t_ns;
+  while (mech_.state().t_ns < t_end) {
+    TimestampNs target = std::min(t_epoch + max_epoch_ns, t_end);
+    const Fix* fix = nullptr;
+    if (f < fixes_.size() && fixes_[f].t_ns <= target) {
+      fix = &fixes_[f];
+      target = fix->t_ns;
+      ++f;
+    }
+    NavTrajectory::advance(imu, mech_, imu_index_, target, on_step);
+    propagate_covariance();
+    x_pred_.push_back(mech_.state());
+    P_pred_.push_back(P_);
+    Phi_.push_back(Phi_epoch_);
+    Phi_epoch_.setIdentity();
+    if (fix) {
+      const std::size_t used = rep.fixes_used;
+      update_at_fix(*fix);
+      if (rep.fixes_used > used) note_gap(fix->t_ns);
+    }
+    store_epoch();
+    t_epoch = target;
+  }
+  if (rep.nominal_fix_period_s > 0 &&
+      ns_to_s(t_end - t_last_used) > cfg_.outage_factor * rep.nominal_fix_period_s) {
+    ++rep.outages;  // no fix until the end of the data
+    rep.longest_fix_gap_s = std::max(rep.longest_fix_gap_s, ns_to_s(t_end - t_last_used));
+  }
+  rep.fixes_outside += fixes_.size() - f + first_fix_;  // fixes before the first one used, none after
+  rep.epochs = traj_.epochs_.size();
+  rep.forward_s = seconds_since(t0);
+}
+
+void FusionEngine::smooth() {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto& ep = traj_.epochs_;
+  auto& P = traj_.P_;
+  Matrix15d A, C, D, tmp;
+  for (std::size_t k = ep.size() - 1; k-- > 0;) {
+    const Matrix15d& Pp = P_pred_[k + 1];
+    A.noalias() = Phi_[k + 1] * P[k];  // = (P_post Phi^T)^T
+    Eigen::LLT<Matrix15d> llt(Pp);
+    if (llt.info() == Eigen::Success) {
+      C = llt.solve(A).transpose();
+    } else {
+      C = Pp.ldlt().solve(A).transpose();
+    }
+    const Vector15d dx = boxminus(ep[k + 1].x, x_pred_[k + 1]);
+    ep[k].x = boxplus(ep[k].x, C * dx);
+    D = P[k + 1] - Pp;
+    tmp.noalias() = C * D;
+    P[k].noalias() += tmp * C.transpose();
+  }
+  traj_.report_.smoothed = true;
+  traj_.report_.smoother_s = seconds_since(t0);
+}
+
+Expected<NavTrajectory> FusionEngine::run(std::span<const ImuSample> imu, std::span<const GpsFix> fixes,
+                                          bool do_smooth) {
+  if (Status s = prepare_imu(imu); !s) return s.error();
+  if (Status s = prepare_fixes(fixes); !s) return s.error();
+  if (Status s = initialise(); !s) return s.error();
+  forward();
+  if (do_smooth && traj_.epochs_.size() > 1) smooth();
+  // Only the posterior (or smoothed) states are needed from here on.
+  x_pred_ = {};
+  P_pred_ = {};
+  Phi_ = {};
+  return std::move(traj_);
+}
+
+Expected<NavTrajectory> fuse(std::span<const ImuSample> imu, std::span<const GpsFix> fixes,
+                             const InsConfig& config, bool smooth) {
+  FusionEngine engine(config);
+  return engine.run(imu, fixes, smooth);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Queries and output
+
+Expected<NavState> NavTrajectory::at(TimestampNs t_ns) const {
+  if (epochs_.empty() || t_ns < begin_ns() || t_ns > end_ns())
+    return make_error("NavTrajectory::at(): t=", t_ns, " ns is outside the trajectory [", begin_ns(), ", ",
+                      end_ns(), "] ns");
+  const auto it = std::upper_bound(epochs_.begin(), epochs_.end(), t_ns,
+                                   [](TimestampNs t, const Epoch& e) { return t < e.x.t_ns; });
+  const std::size_t k = static_cast<std::size_t>(it - epochs_.begin()) - 1;
+  const Epoch& e = epochs_[k];
+  Strapdown mech(e.x, e.history);
+  std::size_t index = e.imu_index;
+  advance(imu_, mech, index, t_ns, [](double) {});
+  NavState s;
+  static_cast<InertialState&>(s) = mech.state();
+  if (k + 1 < epochs_.size() && t_ns > e.x.t_ns) {
+    const double w =
+        static_cast<double>(t_ns - e.x.t_ns) / static_cast<double>(epochs_[k + 1].x.t_ns - e.x.t_ns);
+    s.P = (1.0 - w) * P_[k] + w * P_[k + 1];
+  } else {
+    s.P = P_[k];
+  }
+  return s;
+}
+
+std::vector<NavState> NavTrajectory::epochs() const {
+  std::vector<NavState> out(epochs_.size());
+  for (std::size_t k = 0; k < epochs_.size(); ++k) {
+    static_cast<InertialState&>(out[k]) = epochs_[k].x;
+    out[k].P = P_[k];
+  }
+  return out;
+}
+
+std::vector<NavSolution> NavTrajectory::solutions() const {
+  std::vector<NavSolution> out;
+  out.reserve(epochs_.size());
+  NavState s;
+  for (std::size_t k = 0; k < epochs_.size(); ++k) {
+    static_cast<InertialState&>(s) = epochs_[k].x;
+    s.P = P_[k];
+    out.push_back(to_solution(s));
+  }
+  return out;
+}
+
+NavSolution to_solution(const NavState& s) {
+  NavSolution o;
+  o.t_ns = s.t_ns;
+  o.position = geodetic_from_ecef(s.p_ecef_m);
+  const Matrix3d R_en = R_ecef_ned(o.position.lat_rad, o.position.lon_rad);
+  o.v_ned_mps = R_en.transpose() * s.v_ecef_mps;
+  const Matrix3d R_nb = R_en.transpose() * s.q_ecef_body.toRotationMatrix();
+  o.attitude = ypr_from_rotation(R_nb);
+  auto sig = [&](int i) {
+    const Matrix3d C = R_en.transpose() * s.P.block<3, 3>(i, i) * R_en;
+    return Vector3d(C.diagonal().cwiseMax(0.0).cwiseSqrt());
+  };
+  o.sigma_pos_ned_m = sig(kErrPos);
+  o.sigma_vel_ned_mps = sig(kErrVel);
+  const Matrix3d M = euler_to_rotation_jacobian(o.attitude.yaw_rad, o.attitude.pitch_rad);
+  const Matrix3d Cn = R_en.transpose() * s.P.block<3, 3>(kErrAtt, kErrAtt) * R_en;
+  const Matrix3d Mi = M.inverse();
+  o.sigma_ypr_rad = (Mi * Cn * Mi.transpose()).diagonal().cwiseMax(0.0).cwiseSqrt();
+  return o;
+}
+
+}  // namespace augrig::nav

@@ -1,0 +1,275 @@
+// ins: loosely coupled GPS/INS fusion for one aircraft, offline, with Rauch-Tung-Striebel smoothing.
+// docs/NAV_FUSION.md derives the equations; this header states what goes in and what comes out.
+//
+//   Strapdown     ECEF strapdown mechanization of IMU increments (coning and sculling corrected,
+//                 Earth rotation, normal gravity incl. centrifugal, Coriolis). Exact on the ellipsoid.
+//   fuse()        15-state error-state Kalman filter (position, velocity, attitude error in ECEF,
+//                 gyro and accelerometer biases) driven by the strapdown, updated by GPS positions at
+//                 their time of validity (lever arm, chi-square gating), HDT heading and optionally
+//                 ground speed/course; then an RTS smoother over the filter's epochs.
+//   NavTrajectory the result: the state at any time inside the data (a camera frame's mid-exposure
+//                 time), per-epoch solutions and a report of what was used and rejected.
+//
+// Frames and conventions: core/conventions.hpp. The error state is
+//   dx = [dp(0..2), dv(3..5), dtheta(6..8), dbg(9..11), dba(12..14)], all ECEF except the biases
+//   (body FRD), with truth = estimate (+) dx:  p = p^ + dp,  v = v^ + dv,  R_ecef_body =
+//   Exp(dtheta) R^_ecef_body,  b = b^ + db.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "core/conventions.hpp"
+#include "core/expected.hpp"
+#include "core/pose.hpp"
+#include "nav/geodesy.hpp"
+#include "nav/types.hpp"
+
+namespace augrig::nav {
+
+using Vector15d = Eigen::Matrix<double, 15, 1>;
+using Matrix15d = Eigen::Matrix<double, 15, 15>;
+
+// Offsets of the error-state blocks.
+inline constexpr int kErrPos = 0, kErrVel = 3, kErrAtt = 6, kErrGyroBias = 9, kErrAccelBias = 12;
+
+// The nominal (whole-value) inertial state.
+struct InertialState {
+  TimestampNs t_ns = 0;
+  Eigen::Vector3d p_ecef_m = Eigen::Vector3d::Zero();               // body origin (= IMU)
+  Eigen::Vector3d v_ecef_mps = Eigen::Vector3d::Zero();             // w.r.t. the Earth, in ECEF axes
+  Eigen::Quaterniond q_ecef_body = Eigen::Quaterniond::Identity();  // R_ecef_body
+  Eigen::Vector3d gyro_bias_radps = Eigen::Vector3d::Zero();        // subtracted from the gyro output
+  Eigen::Vector3d accel_bias_mps2 = Eigen::Vector3d::Zero();  // subtracted from the accelerometer output
+
+  Pose T_ecef_body() const { return {q_ecef_body, p_ecef_m}; }
+};
+
+// The state with its error covariance (15x15, layout above).
+struct NavState : InertialState {
+  Matrix15d P = Matrix15d::Zero();
+};
+
+// x (+) dx and a (-) b (the error that takes b to a), in the error-state convention above.
+InertialState boxplus(const InertialState& x, const Vector15d& dx);
+Vector15d boxminus(const InertialState& a, const InertialState& b);
+
+// Strapdown mechanization in ECEF. One step consumes one IMU increment (or a piece of one):
+//   attitude  R(t+dt) = Exp(-w_ie dt) R(t) Exp(a + a_prev x a / 12)          (coning)
+//   velocity  v(t+dt) = v + (I - w_ie x dt/2) R(t) (u + a x u / 2 + sculling)
+//                         + (g(p_mid) - 2 w_ie x v_mid) dt
+//   position  p(t+dt) = p + (v(t) + v(t+dt)) dt / 2
+// with a, u the bias-corrected delta-angle and delta-velocity. Gravity is the normal field
+// (nav/geodesy.hpp), linearised about a reference point refreshed every 200 m.
+// The strapdown's memory of the previous (bias-corrected) increment, for the coning and sculling
+// corrections.
+struct StrapdownHistory {
+  Eigen::Vector3d dtheta_rad = Eigen::Vector3d::Zero();
+  Eigen::Vector3d dv_mps = Eigen::Vector3d::Zero();
+  double dt_s = 0;  // 0: none yet
+};
+
+class Strapdown {
+ public:
+  using History = StrapdownHistory;
+
+  Strapdown() = default;
+  explicit Strapdown(const InertialState& x, const History& history = {}) { reset(x, history); }
+  void reset(const InertialState& x, const History& history = {});
+
+  // Advances to t_end_ns > state().t_ns with the raw increments measured over that interval (the
+  // state's biases are removed here).
+  void step(const Eigen::Vector3d& dtheta_rad, const Eigen::Vector3d& dv_mps, TimestampNs t_end_ns);
+
+  const InertialState& state() const { return x_; }
+  InertialState& state() { return x_; }
+  const History& history() const { return history_; }
+  // Of the last step, for the error-state transition: R_ecef_body at its start and the specific-force
+  // velocity increment in ECEF.
+  const Eigen::Matrix3d& last_R_ecef_body() const { return last_R_; }
+  const Eigen::Vector3d& last_dv_ecef() const { return last_dv_ecef_; }
+
+ private:
+  void refresh_gravity(const Eigen::Vector3d& p_ecef_m);
+
+  InertialState x_;
+  History history_;
+  Eigen::Matrix3d last_R_ = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d last_dv_ecef_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d p_ref_ = Eigen::Vector3d::Zero(), g_ref_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d G_ref_ = Eigen::Matrix3d::Zero();
+  bool have_ref_ = false;
+};
+
+// Gravity gradient d(gravity_ecef)/dp (spherical term plus centrifugal), 1/s^2.
+Eigen::Matrix3d gravity_gradient_ecef(const Eigen::Vector3d& p_ecef_m);
+
+// A sensor bias: first-order Gauss-Markov with correlation time tau_s (sigma is its steady-state and
+// initial 1-sigma), or, when tau_s <= 0, a random walk of density random_walk (units/sqrt(s)) with
+// initial 1-sigma sigma.
+struct BiasModel {
+  double sigma = 0;
+  double tau_s = 3600;
+  double random_walk = 0;
+};
+
+// Defaults: a tactical-grade IMU (0.15 deg/sqrt(h), 3 deg/h, 0.05 m/s/sqrt(h), 2 mg).
+struct ImuNoiseModel {
+  double gyro_arw_rad_psqrts = deg_to_rad(0.15) / 60.0;  // angle random walk
+  double accel_vrw_mps_psqrts = 0.05 / 60.0;             // velocity random walk
+  BiasModel gyro_bias{deg_to_rad(3.0) / 3600.0, 3600.0, 0.0};
+  BiasModel accel_bias{2e-3 * 9.80665, 3600.0, 0.0};
+};
+
+// GPS position noise, 1-sigma. GST sigmas are used when present; otherwise the horizontal sigma of
+// the fix quality, times vertical_factor for the vertical, times hdop when scale_by_hdop. Never
+// below floor_m.
+struct GpsNoiseModel {
+  double rtk_fixed_m = 0.02;
+  double rtk_float_m = 0.2;
+  double dgps_m = 0.5;  // also PPS
+  double single_m = 2.5;
+  double vertical_factor = 1.7;
+  double floor_m = 0.005;
+  bool use_gst = true;
+  bool scale_by_hdop = false;
+};
+
+struct InsConfig {
+  // Added to each stream's timestamps to put it on the nav clock. A fix is processed at
+  // t_ns + gps_time_offset_ns (its time of validity on the IMU's clock), not at its arrival.
+  TimestampNs imu_time_offset_ns = 0;
+  TimestampNs gps_time_offset_ns = 0;
+
+  Eigen::Vector3d lever_arm_body_m = Eigen::Vector3d::Zero();  // GPS antenna phase centre, body FRD
+  ImuNoiseModel imu;
+  GpsNoiseModel gps;
+  double gate_chi2 = 16.27;  // position innovation gate, chi-square with 3 dof (p = 0.001)
+  // After this many consecutive rejected fixes the next one is accepted unconditionally (counted
+  // as forced), so that a filter that has drifted off cannot lock itself out.
+  int max_consecutive_rejections = 50;
+  // Gating starts once the filter has levelled itself: roll/pitch 1-sigma below this.
+  double gate_tilt_sigma_rad = deg_to_rad(1.0);
+
+  // HDT: heading of the dual-antenna baseline = yaw of the body x axis + heading_offset_rad.
+  bool use_heading = true;
+  double heading_offset_rad = 0;
+  double heading_sigma_rad = deg_to_rad(0.1);
+  double heading_gate_chi2 = 10.83;  // 1 dof, p = 0.001
+
+  // RMC/VTG speed over ground and course as a horizontal velocity measurement of the antenna.
+  bool use_ground_velocity = false;
+  double ground_velocity_sigma_mps = 0.1;
+  double min_ground_speed_mps = 5.0;         // below this the course is meaningless
+  double ground_velocity_gate_chi2 = 13.82;  // 2 dof, p = 0.001
+
+  // The covariance is propagated in steps of at most covariance_step_s (the strapdown runs at every
+  // IMU sample); an epoch (a stored smoother node) is made at every fix and at least every
+  // max_epoch_interval_s.
+  double covariance_step_s = 0.05;
+  double max_epoch_interval_s = 0.1;
+
+  // Initialisation (see docs/NAV_FUSION.md): 1-sigma of the initial attitude and velocity. The
+  // velocity from two fixes gets the fixes' noise plus init_velocity_sigma_mps for the manoeuvre
+  // between them.
+  double init_velocity_sigma_mps = 0.5;
+  double init_tilt_sigma_rad = deg_to_rad(3.0);              // in motion (plus 15 % of the initial roll)
+  double init_level_sigma_rad = deg_to_rad(0.5);             // roll/pitch from accelerometer levelling
+  double init_yaw_from_course_sigma_rad = deg_to_rad(10.0);  // course instead of heading (crab)
+  double init_yaw_unknown_sigma_rad = deg_to_rad(30.0);      // neither HDT nor motion
+  double stationary_speed_mps = 1.0;                         // below: level from the accelerometers
+  double airborne_speed_mps = 40.0;                          // above: roll from the coordinated-turn relation
+
+  double outage_factor = 3.0;  // a gap between used fixes longer than this x nominal period is an outage
+};
+
+struct FusionReport {
+  std::size_t imu_samples = 0;
+  std::size_t imu_gaps = 0;  // intervals longer than 1.5x the sample's dt_s (bridged with its rate)
+  std::size_t fixes = 0;     // all fixes passed in
+  std::size_t fixes_used = 0;
+  std::size_t fixes_rejected = 0;  // failed the innovation gate
+  std::size_t fixes_forced = 0;    // accepted after max_consecutive_rejections
+  std::size_t fixes_invalid = 0;   // quality invalid or dead reckoning
+  std::size_t fixes_outside = 0;   // before the initialisation fix or after the IMU data
+  std::size_t heading_updates = 0;
+  std::size_t heading_rejected = 0;
+  std::size_t velocity_updates = 0;
+  std::size_t velocity_rejected = 0;
+  std::size_t outages = 0;
+  double longest_fix_gap_s = 0;     // between used fixes
+  double nominal_fix_period_s = 0;  // median spacing of the valid fixes
+  std::size_t epochs = 0;
+  bool smoothed = false;
+  double forward_s = 0, smoother_s = 0;  // wall time
+  std::string init_summary;              // how the first state was obtained
+};
+
+// One epoch as a CSV-ready solution: geodetic position of the body origin, NED velocity, Euler
+// angles, and 1-sigma values (position and velocity NED, attitude in yaw/pitch/roll).
+struct NavSolution {
+  TimestampNs t_ns = 0;
+  Geodetic position;
+  Eigen::Vector3d v_ned_mps = Eigen::Vector3d::Zero();
+  YawPitchRoll attitude;
+  Eigen::Vector3d sigma_pos_ned_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d sigma_vel_ned_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d sigma_ypr_rad = Eigen::Vector3d::Zero();
+};
+// nav/logs.hpp writes these as a nav solution CSV (NavSolutionRow).
+NavSolution to_solution(const NavState& s);
+
+class NavTrajectory {
+ public:
+  // The state at t_ns (nav clock), e.g. a camera frame's mid-exposure time: the (smoothed) state of
+  // the last epoch at or before t_ns mechanized forward over the stored IMU increments to exactly
+  // t_ns. P is interpolated linearly between the neighbouring epochs. Error outside
+  // [begin_ns(), end_ns()].
+  Expected<NavState> at(TimestampNs t_ns) const;
+  TimestampNs begin_ns() const { return epochs_.empty() ? 0 : epochs_.front().x.t_ns; }
+  TimestampNs end_ns() const { return imu_.empty() ? 0 : imu_.back().t1_ns; }
+  const FusionReport& report() const { return report_; }
+  // The states at the filter's epochs (smoothed when smoothing ran).
+  std::vector<NavState> epochs() const;
+  std::vector<NavSolution> solutions() const;
+  std::size_t epoch_count() const { return epochs_.size(); }
+
+ private:
+  friend class FusionEngine;
+
+  // One IMU increment over (t0_ns, t1_ns], intervals contiguous.
+  struct Increment {
+    TimestampNs t0_ns = 0, t1_ns = 0;
+    Eigen::Vector3d dtheta_rad, dv_mps;
+  };
+  struct Epoch {
+    InertialState x;             // posterior (smoothed after smoothing)
+    Strapdown::History history;  // strapdown memory at t
+    std::size_t imu_index = 0;   // the increment holding the IMU data just after t
+  };
+
+  // Mechanizes from the current strapdown time to t_end_ns, starting inside increment `index`.
+  // Calls on_step(dt_s) after every strapdown step.
+  template <typename OnStep>
+  static void advance(const std::vector<Increment>& imu, Strapdown& mech, std::size_t& index,
+                      TimestampNs t_end_ns, OnStep&& on_step);
+
+  std::vector<Increment> imu_;
+  std::vector<Epoch> epochs_;
+  std::vector<Matrix15d> P_;  // per epoch
+  FusionReport report_;
+};
+
+// Fuses one aircraft's IMU and GPS logs. Both must be in strictly increasing time order (an Error
+// names the first offending index); at least one valid fix must lie inside the IMU data. With
+// smooth, runs the RTS smoother after the forward filter.
+Expected<NavTrajectory> fuse(std::span<const ImuSample> imu, std::span<const GpsFix> fixes,
+                             const InsConfig& config, bool smooth = true);
+
+}  // namespace augrig::nav
