@@ -346,6 +346,14 @@ TEST(Demo, SixFramesWriteStatsAndContactSheet) {
   EXPECT_FALSE(fs::exists(dir + "/left/augmented/frame_0003.png"));
   EXPECT_NE(log.find("Run summary over 6"), std::string::npos) << log;
   EXPECT_NE(log.find("ms per stereo frame"), std::string::npos) << log;
+  // The scene came from nav fusion of the simulated logs, and the demo says how good it was.
+  EXPECT_TRUE(fs::exists(dir + "/nav/tanker/gps.nmea"));
+  EXPECT_TRUE(fs::exists(dir + "/poses.csv"));
+  EXPECT_TRUE(fs::exists(dir + "/truth_poses.csv"));
+  const auto at = log.find("Nav against truth (receiver in each camera): 12 frames: position RMS ");
+  ASSERT_NE(at, std::string::npos) << log;
+  const double rms_mm = std::stod(log.substr(at + 70));
+  EXPECT_LT(rms_mm, 20.0) << log;
 }
 
 }  // namespace

@@ -1,0 +1,121 @@
+// augrig nav through the real binary, on what augrig sim wrote: poses against truth, stream clock
+// offsets, the report of bad log lines, and errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "nav/logs.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace augrig {
+namespace {
+
+namespace fs = std::filesystem;
+using test::augrig_binary;
+using test::output_dir;
+using test::run_command;
+
+int augrig(const std::string& args, std::string* output = nullptr) {
+  return run_command(augrig_binary() + " " + args + " 2>&1", output);
+}
+
+// One simulated dataset for the whole suite.
+const std::string& dataset() {
+  static const std::string dir = [] {
+    const std::string d = output_dir("cmd_nav_dataset");
+    std::string log;
+    EXPECT_EQ(augrig("sim --scenario demo --no-images --out " + d, &log), 0) << log;
+    return d;
+  }();
+  return dir;
+}
+
+std::string nav_args(const std::string& d, const std::string& out, const std::string& tanker = "",
+                     const std::string& frames = "") {
+  return "nav --tanker " + (tanker.empty() ? d + "/tanker" : tanker) + " --receiver " + d + "/receiver --rig " + d +
+         "/rig.yaml --frames " + (frames.empty() ? d + "/frames/index.csv" : frames) + " --out " + out;
+}
+
+double rms_error_mm(const std::string& estimate, const std::string& truth) {
+  auto e = nav::read_camera_pose_csv(estimate);
+  auto t = nav::read_camera_pose_csv(truth);
+  EXPECT_TRUE(e && t);
+  double s = 0;
+  std::size_t n = 0;
+  for (std::size_t i = 0, j = 0; i < e->rows.size(); ++i) {
+    while (j < t->rows.size() && (t->rows[j].sequence < e->rows[i].sequence ||
+                                  (t->rows[j].sequence == e->rows[i].sequence && t->rows[j].camera < e->rows[i].camera)))
+      ++j;
+    if (j == t->rows.size()) break;
+    const auto& a = e->rows[i];
+    const auto& b = t->rows[j];
+    if (a.sequence != b.sequence || a.camera != b.camera) continue;
+    const double d = std::hypot(a.x_m - b.x_m, a.y_m - b.y_m, a.z_m - b.z_m);
+    s += d * d, ++n;
+  }
+  EXPECT_GT(n, 1000u);
+  return 1e3 * std::sqrt(s / std::max<std::size_t>(n, 1));
+}
+
+TEST(CmdNav, PosesMatchTruthWithTheCameraClockOffsetsAndNotWithout) {
+  const std::string d = dataset();
+  const std::string out = output_dir("cmd_nav_out");
+  std::string log;
+  ASSERT_EQ(augrig(nav_args(d, out + "/poses.csv") + " --camera-offset-ns 1200000,1250000 --truth " + d +
+                       "/truth/poses.csv --solutions " + out + "/solutions",
+                   &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("Against truth"), std::string::npos) << log;
+  const double good = rms_error_mm(out + "/poses.csv", d + "/truth/poses.csv");
+  EXPECT_LT(good, 15.0) << log;
+  EXPECT_TRUE(fs::exists(out + "/solutions/tanker.csv"));
+  // Without the offsets the camera times are 1.2 ms off: the receiver moves relative to the tanker
+  // only slowly, so the error grows but stays small; the tanker's own motion cancels.
+  ASSERT_EQ(augrig(nav_args(d, out + "/poses_no_offset.csv"), &log), 0) << log;
+  const double off = rms_error_mm(out + "/poses_no_offset.csv", d + "/truth/poses.csv");
+  EXPECT_GE(off, good - 0.5);
+  // Forward only (what a real-time filter knows) is worse than smoothed.
+  ASSERT_EQ(augrig(nav_args(d, out + "/poses_fwd.csv") + " --camera-offset-ns 1200000,1250000 --forward-only", &log),
+            0)
+      << log;
+  EXPECT_GT(rms_error_mm(out + "/poses_fwd.csv", d + "/truth/poses.csv"), good);
+}
+
+TEST(CmdNav, MalformedLogLinesAreReportedAndSkipped) {
+  const std::string d = dataset();
+  const std::string bad = output_dir("cmd_nav_bad_lines");
+  fs::copy(d + "/tanker", bad + "/tanker", fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+  {
+    std::ofstream f(bad + "/tanker/gps.nmea", std::ios::app);
+    f << "$GNGGA,garbage*00\r\n\x01\x02 binary junk\r\n";
+  }
+  std::string log;
+  ASSERT_EQ(augrig(nav_args(d, bad + "/poses.csv", bad + "/tanker"), &log), 0)
+      << log;
+  EXPECT_NE(log.find("tanker gps.nmea: 2 malformed lines"), std::string::npos) << log;
+  EXPECT_NE(log.find("gps.nmea:"), std::string::npos) << log;
+}
+
+TEST(CmdNav, BadInputsExitOneWithTheFile) {
+  const std::string d = dataset();
+  const std::string dir = output_dir("cmd_nav_errors");
+  std::string log;
+  EXPECT_EQ(augrig("nav --tanker /nonexistent --receiver " + d + "/receiver --rig default --frames " + d +
+                       "/frames/index.csv --out " + dir + "/p.csv",
+                   &log),
+            1);
+  EXPECT_NE(log.find("/nonexistent: not a folder"), std::string::npos) << log;
+  {
+    std::ofstream f(dir + "/index.csv");
+    f << "sequence,camera,t_ns,file\n0,0,notanumber,a.png\n";
+  }
+  EXPECT_EQ(augrig(nav_args(d, dir + "/p.csv", "", dir + "/index.csv"), &log), 1);
+  EXPECT_NE(log.find("index.csv:2: column 't_ns'"), std::string::npos) << log;
+  EXPECT_EQ(augrig(nav_args(d, dir + "/p.csv") + " --camera-offset-ns 1,2,3", &log), 2);
+}
+
+}  // namespace
+}  // namespace augrig
