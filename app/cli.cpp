@@ -140,4 +140,40 @@ double parse_real(const std::string& flag, const std::string& v) {
   return x;
 }
 
+BoomArg parse_boom_arg(const std::string& v) {
+  BoomArg b;
+  if (v.empty() || v == "track") return b;
+  if (v.rfind("fixed:", 0) == 0) {
+    double x[3];
+    std::size_t pos = 6;
+    for (int i = 0; i < 3; ++i) {
+      const std::size_t end = i < 2 ? v.find(',', pos) : v.size();
+      if (end == std::string::npos) usage_error("--boom fixed: expected fixed:EL_DEG,AZ_DEG,EXT_M, got '" + v + "'");
+      x[i] = parse_real("boom", v.substr(pos, end - pos));
+      pos = end + 1;
+    }
+    b.mode = BoomMode::kFixed;
+    b.fixed = {deg_to_rad(x[0]), deg_to_rad(x[1]), x[2]};
+    return b;
+  }
+  if (v.rfind("script:", 0) == 0) {
+    b.mode = BoomMode::kScripted;
+    b.script = unwrap(load_boom_script(v.substr(7)));
+    return b;
+  }
+  usage_error("--boom: expected track, fixed:EL_DEG,AZ_DEG,EXT_M or script:FILE.csv, got '" + v + "'");
+}
+
+BoomCommand BoomArg::command(double t_s, const BoomCommand& tracked, const BoomLimits& limits) const {
+  switch (mode) {
+    case BoomMode::kFixed:
+      return clamp_to_limits(fixed, limits);
+    case BoomMode::kScripted:
+      return clamp_to_limits(script.at(t_s), limits);
+    case BoomMode::kTrackReceptacle:
+      break;
+  }
+  return tracked;
+}
+
 }  // namespace augrig::app

@@ -16,6 +16,7 @@
 #include "core/expected.hpp"
 #include "core/frame.hpp"
 #include "render/augmenter.hpp"
+#include "render/boom_control.hpp"
 #include "render/gl_context.hpp"
 #include "render/models.hpp"
 #include "render/rig.hpp"
@@ -60,6 +61,17 @@ PixelFormat parse_bayer(const std::string& v);
 // A whole number in [lo, hi] for flag `flag`, else a usage error.
 long long parse_integer(const std::string& flag, const std::string& v, long long lo, long long hi);
 double parse_real(const std::string& flag, const std::string& v);
+
+// --boom: track (the receptacle, from nav), fixed:EL_DEG,AZ_DEG,EXT_M, or script:FILE.csv
+// (render/boom_control.hpp). A script's times are seconds from the run's first frame.
+struct BoomArg {
+  BoomMode mode = BoomMode::kTrackReceptacle;
+  BoomArticulation fixed;
+  BoomScript script;
+  // The articulation for a frame `t_s` after the first, given what tracking would command.
+  BoomCommand command(double t_s, const BoomCommand& tracked, const BoomLimits& limits) const;
+};
+BoomArg parse_boom_arg(const std::string& v);
 
 // The receiver model and where its receptacle is: the built-in model knows its own receptacle;
 // a model file relies on the rig's receiver.receptacle_m.

@@ -27,6 +27,8 @@ const std::vector<OptionSpec>& demo_specs() {
       {"scenario", ArgKind::kValue, "NAME|FILE.yaml", "the flight (default: the built-in 'demo', 28 s)"},
       {"every", ArgKind::kValue, "K", "augment every K-th camera frame (default 3: 10 of the 30 per second)"},
       {"frames", ArgKind::kValue, "N", "augment only the last N selected stereo frames (default: all)"},
+      {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
+       "boom articulation (default track: the nozzle aims at the receptacle from nav)"},
       {"bayer", ArgKind::kOptionalValue, "[=RG|GR|GB|BG]", "simulate raw Bayer cameras (default pattern RG)"},
       {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
        "how the receiver shows in the augmented image (default mask: not drawn)"},
@@ -103,6 +105,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
   }
   const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000)) : 3;
   const long long max_frames = a.has("frames") ? parse_integer("frames", a.get("frames"), 1, 1000000) : -1;
+  const BoomArg boom_arg = parse_boom_arg(a.get("boom"));
   AugmentOptions options;
   options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
   const std::string which = a.get("scenario", "demo");
@@ -192,7 +195,9 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
     const FramePose right = unwrap(rel.at(1, stereo.right.t_ns));
     SceneState scene;
     scene.T_body_receiver = left.body.T_a_receiver;
-    scene.boom = left.boom.articulation;
+    const BoomCommand boom = boom_arg.command(ns_to_s(stereo.left.t_ns - truths.front().t_camera_ns), left.boom,
+                                              rig.boom.limits);
+    scene.boom = boom.articulation;
     check(augmenter->augment(stereo, scene, result));
     augment_ms += augmenter->timings().total_ms;
     result.stats.t_ns = left.t_nav_ns;
@@ -207,7 +212,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
     const Eigen::Vector3d true_receptacle = tl.T_body_receiver * flight.receptacle_m();
     const double miss_m =
         (nozzle_tip_body(rig.boom.pivot_body_m, scenario.boom, scene.boom) - true_receptacle).norm();
-    if (!left.boom.clamped) {  // the receptacle within the boom's reach: the miss is nav error
+    if (boom_arg.mode == BoomMode::kTrackReceptacle && !left.boom.clamped) {  // the receptacle within the boom's reach: the miss is nav error
       worst_miss_m = std::max(worst_miss_m, miss_m);
       ++reachable;
     }

@@ -21,6 +21,8 @@ const std::vector<OptionSpec>& nav_specs() {
       {"out", ArgKind::kValue, "POSES.csv", "output: the receiver in each camera per frame", true},
       {"camera-offset-ns", ArgKind::kValue, "L[,R]",
        "camera clock minus nav (GPS) time, per camera, ns (default 0): t_nav = t_camera - offset"},
+      {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
+       "boom articulation per frame (default track: the nozzle aims at the receptacle)"},
       {"forward-only", ArgKind::kFlag, "", "no RTS smoothing (what a real-time filter would know)"},
       {"truth", ArgKind::kValue, "POSES.csv", "true camera poses (augrig sim's truth/poses.csv): print the error"},
       {"solutions", ArgKind::kValue, "DIR", "also write each aircraft's nav solution per epoch (CSV)"},
@@ -77,6 +79,7 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   const std::vector<TimestampNs> offsets =
       a.has("camera-offset-ns") ? parse_offsets(a.get("camera-offset-ns")) : std::vector<TimestampNs>{};
   // Every input is read and checked before any work.
+  const BoomArg boom = parse_boom_arg(a.get("boom"));
   const Rig rig = load_rig_arg(a.get("rig"));
   const AircraftLogs tanker = unwrap(load_aircraft_logs(a.get("tanker")));
   const AircraftLogs receiver = unwrap(load_aircraft_logs(a.get("receiver")));
@@ -112,6 +115,7 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
       ++outside;  // before the first fix or after the last IMU sample: no pose, said below
       continue;
     }
+    p->boom = boom.command(ns_to_s(f.t_ns - index.rows.front().t_ns), p->boom, rig.boom.limits);
     rows.push_back(p->row(f.sequence, f.camera, f.t_ns));
   }
   const double query_us = rows.empty() ? 0 : 1e3 * ms_since(t1) / static_cast<double>(rows.size());

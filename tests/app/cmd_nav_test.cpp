@@ -99,6 +99,35 @@ TEST(CmdNav, MalformedLogLinesAreReportedAndSkipped) {
   EXPECT_NE(log.find("gps.nmea:"), std::string::npos) << log;
 }
 
+TEST(CmdNav, FixedAndScriptedBoomModes) {
+  const std::string d = dataset();
+  const std::string dir = output_dir("cmd_nav_boom");
+  std::string log;
+  ASSERT_EQ(augrig(nav_args(d, dir + "/fixed.csv") + " --boom fixed:30,-2,4", &log), 0) << log;
+  auto fixed = nav::read_camera_pose_csv(dir + "/fixed.csv");
+  ASSERT_TRUE(fixed);
+  for (const auto& r : fixed->rows) {
+    EXPECT_NEAR(r.boom_elevation_deg, 30.0, 1e-9);
+    EXPECT_NEAR(r.boom_azimuth_deg, -2.0, 1e-9);
+    EXPECT_NEAR(r.boom_extension_m, 4.0, 1e-12);
+  }
+  {
+    std::ofstream f(dir + "/script.csv");
+    f << "t_s,elevation_deg,azimuth_deg,extension_m\n0,25,0,1\n20,35,5,4\n";
+  }
+  ASSERT_EQ(augrig(nav_args(d, dir + "/script.csv.out") + " --boom script:" + dir + "/script.csv", &log), 0) << log;
+  auto scripted = nav::read_camera_pose_csv(dir + "/script.csv.out");
+  ASSERT_TRUE(scripted);
+  EXPECT_NEAR(scripted->rows.front().boom_elevation_deg, 25.0, 0.01);
+  EXPECT_NEAR(scripted->rows.back().boom_extension_m, 4.0, 1e-12);  // held after the script's end
+  // Outside the rig's limits (elevation 20..40 deg): clamped.
+  ASSERT_EQ(augrig(nav_args(d, dir + "/clamped.csv") + " --boom fixed:60,0,1", &log), 0) << log;
+  EXPECT_NEAR(nav::read_camera_pose_csv(dir + "/clamped.csv")->rows.front().boom_elevation_deg, 40.0, 1e-9);
+  EXPECT_EQ(augrig(nav_args(d, dir + "/x.csv") + " --boom wiggle", &log), 2);
+  EXPECT_EQ(augrig(nav_args(d, dir + "/x.csv") + " --boom script:/nonexistent.csv", &log), 1);
+  EXPECT_NE(log.find("/nonexistent.csv"), std::string::npos) << log;
+}
+
 TEST(CmdNav, BadInputsExitOneWithTheFile) {
   const std::string d = dataset();
   const std::string dir = output_dir("cmd_nav_errors");
