@@ -9,6 +9,8 @@ PACKAGES=(
   # core libraries
   libyaml-cpp-dev libopencv-dev libeigen3-dev libglm-dev libgeographiclib-dev geographiclib-tools
   libtinygltf-dev libtinyobjloader-dev nlohmann-json3-dev libstb-dev
+  # recordings: SQLite (WAL) with zstd-compressed frames; sqlite3 to inspect them
+  libsqlite3-dev libzstd-dev sqlite3
   # OpenGL: EGL surfaceless (Mesa llvmpipe) and GLFW windows
   libepoxy-dev libegl-dev libgl-dev libegl1 libgl1-mesa-dri libglfw3-dev
   # tests and benches
