@@ -94,6 +94,9 @@ nav::CameraPoseRow truth_row(const sim::FrameTruth& t) {
   const Eigen::Quaterniond& q = t.T_cam_receiver.rotation;
   r.x_m = p.x(), r.y_m = p.y(), r.z_m = p.z(), r.qw = q.w(), r.qx = q.x(), r.qy = q.y(), r.qz = q.z();
   r.sigma_pos_m = 0, r.sigma_att_deg = 0;
+  r.boom_elevation_deg = rad_to_deg(t.boom.elevation_rad);
+  r.boom_azimuth_deg = rad_to_deg(t.boom.azimuth_rad);
+  r.boom_extension_m = t.boom.extension_m;
   return r;
 }
 
@@ -241,9 +244,11 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
   t0 = Clock::now();
   check(write_image_file((out_dir / "demo.png").string(), contact_sheet(stereo.left, result), 3));
   nav::CsvWriteOptions po;
+  po.clock = ClockDomain::kDevice;  // t_ns is the camera's stamp; t_nav_ns is GPS time
+  po.metadata["t_nav_ns"] = "gps";
   po.metadata["content"] = "estimate: T_cam_receiver from GPS/INS fusion of the simulated logs";
   check(nav::write_camera_pose_csv((out_dir / "poses.csv").string(), est_rows, po));
-  po.metadata["content"] = "truth: T_cam_receiver";
+  po.metadata["content"] = "truth: T_cam_receiver and the scenario's boom";
   check(nav::write_camera_pose_csv((out_dir / "truth_poses.csv").string(), true_rows, po));
   write_ms += ms_since(t0);
 

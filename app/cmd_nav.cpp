@@ -20,7 +20,7 @@ const std::vector<OptionSpec>& nav_specs() {
       {"frames", ArgKind::kValue, "INDEX.csv", "frame index: sequence,camera,t_ns,file", true},
       {"out", ArgKind::kValue, "POSES.csv", "output: the receiver in each camera per frame", true},
       {"camera-offset-ns", ArgKind::kValue, "L[,R]",
-       "camera clock minus nav (GPS) time, per camera, ns (default 0): t_nav = t_camera - offset"},
+       "camera clock minus nav (GPS) time, per camera (one value: both), ns (default 0): t_nav = t_camera - offset"},
       {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
        "boom articulation per frame (default track: the nozzle aims at the receptacle)"},
       {"forward-only", ArgKind::kFlag, "", "no RTS smoothing (what a real-time filter would know)"},
@@ -37,6 +37,7 @@ std::vector<TimestampNs> parse_offsets(const std::string& v) {
   while (std::getline(ss, item, ','))
     out.push_back(parse_integer("camera-offset-ns", item, -(1LL << 50), 1LL << 50));
   if (out.empty() || out.size() > 2) usage_error("--camera-offset-ns: expected one or two values, got '" + v + "'");
+  if (out.size() == 1) out.push_back(out[0]);  // one value: both cameras, as in a scenario file
   return out;
 }
 
@@ -120,6 +121,8 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   }
   const double query_us = rows.empty() ? 0 : 1e3 * ms_since(t1) / static_cast<double>(rows.size());
   nav::CsvWriteOptions o;
+  o.clock = ClockDomain::kDevice;  // t_ns is the camera's stamp; t_nav_ns is GPS time
+  o.metadata["t_nav_ns"] = "gps";
   o.metadata["content"] = "estimate: T_cam_receiver from GPS/INS fusion";
   o.metadata["smoothing"] = smooth ? "rts" : "none";
   check(nav::write_camera_pose_csv(a.get("out"), rows, o));

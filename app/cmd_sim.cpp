@@ -149,7 +149,10 @@ int sim(const std::vector<std::string>& args, std::ostream& out) {
                   static_cast<unsigned long long>(t.sequence));
     index.rows.push_back({t.sequence, t.camera, t.t_camera_ns, name});
   }
-  check(nav::write_camera_pose_csv((dir / "truth" / "poses.csv").string(), pose_rows, truth_opts));
+  nav::CsvWriteOptions pose_opts = truth_opts;
+  pose_opts.clock = ClockDomain::kDevice;  // t_ns is the camera's stamp; t_nav_ns is GPS time
+  pose_opts.metadata["t_nav_ns"] = "gps";
+  check(nav::write_camera_pose_csv((dir / "truth" / "poses.csv").string(), pose_rows, pose_opts));
   make_dirs(dir / "frames");
   check(nav::write_frame_index_csv((dir / "frames" / "index.csv").string(), index));
   out << "sim: scenario '" << scenario.name << "' (" << scenario.source << "), " << scenario.duration_s
