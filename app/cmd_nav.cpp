@@ -49,23 +49,6 @@ void print_issues(std::ostream& out, const std::string& what, const nav::LogIssu
   if (i.messages.size() > 5) out << "    ... " << i.messages.size() - 5 << " more\n";
 }
 
-std::vector<nav::NavSolutionRow> solution_rows(const nav::NavTrajectory& t) {
-  std::vector<nav::NavSolutionRow> rows;
-  for (const nav::NavSolution& s : t.solutions()) {
-    nav::NavSolutionRow r;
-    r.t_ns = s.t_ns;
-    r.lat_deg = rad_to_deg(s.position.lat_rad), r.lon_deg = rad_to_deg(s.position.lon_rad), r.h_m = s.position.h_m;
-    r.vn_mps = s.v_ned_mps.x(), r.ve_mps = s.v_ned_mps.y(), r.vd_mps = s.v_ned_mps.z();
-    r.yaw_deg = rad_to_deg(s.attitude.yaw_rad), r.pitch_deg = rad_to_deg(s.attitude.pitch_rad);
-    r.roll_deg = rad_to_deg(s.attitude.roll_rad);
-    r.sigma_n_m = s.sigma_pos_ned_m.x(), r.sigma_e_m = s.sigma_pos_ned_m.y(), r.sigma_d_m = s.sigma_pos_ned_m.z();
-    r.sigma_yaw_deg = rad_to_deg(s.sigma_ypr_rad.x()), r.sigma_pitch_deg = rad_to_deg(s.sigma_ypr_rad.y());
-    r.sigma_roll_deg = rad_to_deg(s.sigma_ypr_rad.z());
-    rows.push_back(r);
-  }
-  return rows;
-}
-
 int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   const ParsedArgs a = parse_or_usage(args, nav_specs());
   if (a.help) {
@@ -101,8 +84,8 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   if (a.has("solutions")) {
     const fs::path d = a.get("solutions");
     make_dirs(d);
-    check(nav::write_nav_solution_csv((d / "tanker.csv").string(), solution_rows(tk)));
-    check(nav::write_nav_solution_csv((d / "receiver.csv").string(), solution_rows(rx)));
+    check(nav::write_nav_solution_csv((d / "tanker.csv").string(), nav_solution_rows(tk)));
+    check(nav::write_nav_solution_csv((d / "receiver.csv").string(), nav_solution_rows(rx)));
   }
 
   Eigen::Vector3d receptacle = receiver_setup(rig).receptacle_m;

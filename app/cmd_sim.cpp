@@ -1,6 +1,7 @@
 // augrig sim: writes a simulated flight as a flight-test dataset (docs/SIMULATION.md, "Datasets"):
 //   scenario.yaml, rig.yaml                 what was flown, with which rig
-//   tanker/, receiver/                      gps.nmea (with arrival times), imu.csv, aircraft.yaml
+//   tanker/, receiver/                      gps.nmea (with arrival times), imu.csv, aircraft.yaml, and
+//                                           nav.csv (the aircraft's real-time nav solution)
 //   truth/tanker.csv, truth/receiver.csv    both aircraft in the nav-solution CSV format, 50 Hz
 //   truth/poses.csv                         the receiver in each camera at every delivered frame
 //   frames/index.csv, frames/left|right/    the rendered frames and their camera timestamps
@@ -8,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <tuple>
 
 #include "app/cli.hpp"
 #include "app/flight_nav.hpp"
@@ -109,6 +111,17 @@ int sim(const std::vector<std::string>& args, std::ostream& out) {
                             ins_config_for(scenario.sensors.tanker)));
   check(write_aircraft_logs((dir / "receiver").string(), logs.receiver_imu, logs.receiver_gps,
                             ins_config_for(scenario.sensors.receiver)));
+
+  // Each aircraft's own real-time nav solution, as its onboard GPS/INS would log it: the forward
+  // filter alone (no smoothing: onboard, the future is unknown), at the filter's epochs.
+  for (const auto& [who, imu, gps, sensors] :
+       {std::tuple{"tanker", &logs.tanker_imu, &logs.tanker_gps, &scenario.sensors.tanker},
+        std::tuple{"receiver", &logs.receiver_imu, &logs.receiver_gps, &scenario.sensors.receiver}}) {
+    const nav::NavTrajectory onboard = unwrap(nav::fuse(*imu, *gps, ins_config_for(*sensors), false));
+    nav::CsvWriteOptions o;
+    o.metadata["content"] = "onboard real-time nav solution (forward GPS/INS filter)";
+    check(nav::write_nav_solution_csv((dir / who / "nav.csv").string(), nav_solution_rows(onboard), o));
+  }
 
   // Truth of both aircraft at 50 Hz, in the nav-solution format (sigmas 0).
   std::vector<nav::NavSolutionRow> tanker_truth, receiver_truth;

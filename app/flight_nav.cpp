@@ -165,6 +165,23 @@ Status write_aircraft_logs(const std::string& folder, const std::vector<nav::Imu
   return {};
 }
 
+std::vector<nav::NavSolutionRow> nav_solution_rows(const nav::NavTrajectory& t) {
+  std::vector<nav::NavSolutionRow> rows;
+  for (const nav::NavSolution& s : t.solutions()) {
+    nav::NavSolutionRow r;
+    r.t_ns = s.t_ns;
+    r.lat_deg = rad_to_deg(s.position.lat_rad), r.lon_deg = rad_to_deg(s.position.lon_rad), r.h_m = s.position.h_m;
+    r.vn_mps = s.v_ned_mps.x(), r.ve_mps = s.v_ned_mps.y(), r.vd_mps = s.v_ned_mps.z();
+    r.yaw_deg = rad_to_deg(s.attitude.yaw_rad), r.pitch_deg = rad_to_deg(s.attitude.pitch_rad);
+    r.roll_deg = rad_to_deg(s.attitude.roll_rad);
+    r.sigma_n_m = s.sigma_pos_ned_m.x(), r.sigma_e_m = s.sigma_pos_ned_m.y(), r.sigma_d_m = s.sigma_pos_ned_m.z();
+    r.sigma_yaw_deg = rad_to_deg(s.sigma_ypr_rad.x()), r.sigma_pitch_deg = rad_to_deg(s.sigma_ypr_rad.y());
+    r.sigma_roll_deg = rad_to_deg(s.sigma_ypr_rad.z());
+    rows.push_back(r);
+  }
+  return rows;
+}
+
 // ---- Relative navigation --------------------------------------------------------------------------
 
 nav::PoseWithCovariance pose_with_covariance(const nav::NavState& s) {

@@ -51,6 +51,9 @@ Expected<AircraftLogs> load_aircraft_logs(const std::string& folder);
 Status write_aircraft_logs(const std::string& folder, const std::vector<nav::ImuSample>& imu,
                            const std::vector<nav::GpsFix>& gps, const nav::InsConfig& config);
 
+// A trajectory's per-epoch solutions as nav-solution CSV rows (nav/logs.hpp).
+std::vector<nav::NavSolutionRow> nav_solution_rows(const nav::NavTrajectory& t);
+
 // One camera frame's estimate.
 struct FramePose {
   TimestampNs t_nav_ns = 0;

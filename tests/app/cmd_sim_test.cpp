@@ -35,7 +35,7 @@ TEST(CmdSim, DemoScenarioWritesLogsTruthAndIndexThatReadBack) {
   const std::string dir = output_dir("cmd_sim_demo");
   std::string log;
   ASSERT_EQ(augrig("sim --scenario demo --no-images --out " + dir, &log), 0) << log;
-  for (const char* f : {"scenario.yaml", "rig.yaml", "tanker/gps.nmea", "tanker/imu.csv", "tanker/aircraft.yaml",
+  for (const char* f : {"scenario.yaml", "rig.yaml", "tanker/gps.nmea", "tanker/imu.csv", "tanker/aircraft.yaml", "tanker/nav.csv",
                         "receiver/gps.nmea", "receiver/imu.csv", "truth/tanker.csv", "truth/receiver.csv",
                         "truth/poses.csv", "frames/index.csv"})
     EXPECT_TRUE(fs::exists(fs::path(dir) / f)) << f;
@@ -49,6 +49,9 @@ TEST(CmdSim, DemoScenarioWritesLogsTruthAndIndexThatReadBack) {
   auto imu = nav::read_imu_csv(dir + "/receiver/imu.csv");
   ASSERT_TRUE(imu) << imu.error().message;
   EXPECT_EQ(imu->samples.size(), 5600u);
+  auto onboard = nav::read_nav_solution_csv(dir + "/receiver/nav.csv");
+  ASSERT_TRUE(onboard) << onboard.error().message;
+  EXPECT_GT(onboard->rows.size(), 250u);
   auto index = nav::read_frame_index_csv(dir + "/frames/index.csv");
   ASSERT_TRUE(index) << index.error().message;
   auto poses = nav::read_camera_pose_csv(dir + "/truth/poses.csv");

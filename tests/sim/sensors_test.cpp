@@ -430,6 +430,30 @@ TEST(GpsTest, VelocityHeadingGeoidAndDeterminism) {
   EXPECT_NE(xa[3].antenna.h_m, xc[3].antenna.h_m);
 }
 
+// Hand-worked convention: with a 4 deg crab to the right (the nose 4 deg clockwise of the track, as
+// into a wind from the right), HDT's heading is the Euler yaw of R_ned_body (the nose),
+// RMC/VTG's course is the track (the velocity), and they differ by exactly the crab.
+TEST(GpsTest, HeadingIsTheNoseYawCourseIsTheTrack) {
+  Scenario s = builtin("demo-noise-free");
+  s.tanker.heading_rad = deg_to_rad(30.0);
+  s.tanker.crab_rad = deg_to_rad(4.0);
+  const Flight f = flight_of(s);
+  const TruthFunction tanker = [&](double t) { return f.tanker(t); };
+  GpsConfig cfg = quiet_gps(10);
+  cfg.heading = true;
+  GpsSimulator gps(cfg, 1, s.start_gps_ns, nullptr);
+  for (const nav::GpsFix& x : gps.generate(tanker, 2.0)) {
+    EXPECT_NEAR(rad_to_deg(*x.heading_rad), 34.0, 1e-5);
+    EXPECT_NEAR(rad_to_deg(*x.course_rad), 30.0, 1e-5);
+    const KinematicState k = f.tanker(ns_to_s(x.t_ns - s.start_gps_ns));
+    const nav::Geodetic g = nav::geodetic_from_ecef(k.p_ecef_m);
+    const YawPitchRoll e = ypr_from_rotation(nav::R_ecef_ned(g.lat_rad, g.lon_rad).transpose() * k.R_ecef_body());
+    EXPECT_NEAR(rad_to_deg(e.yaw_rad), 34.0, 1e-5);
+    EXPECT_NEAR(rad_to_deg(e.pitch_rad), rad_to_deg(s.tanker.angle_of_attack_rad), 1e-5);  // level flight
+    EXPECT_NEAR(e.roll_rad, 0.0, 1e-9);
+  }
+}
+
 // ---- Cameras ----------------------------------------------------------------------------------
 
 TEST(CameraTimingTest, OffsetsJitterDropsAndDeterminism) {
