@@ -21,10 +21,12 @@ int augrig(const std::string& args, std::string* output = nullptr) {
   return run_command(augrig_binary() + " " + args + " 2>&1", output);
 }
 
-// One simulated dataset for the whole suite.
+// One simulated dataset per test process (CTest runs each test in its own process, in parallel,
+// so each gets its own folder).
 const std::string& dataset() {
   static const std::string dir = [] {
-    const std::string d = output_dir("cmd_nav_dataset");
+    const std::string d =
+        output_dir(std::string("cmd_nav_dataset_") + testing::UnitTest::GetInstance()->current_test_info()->name());
     std::string log;
     EXPECT_EQ(augrig("sim --scenario demo --no-images --out " + d, &log), 0) << log;
     return d;

@@ -250,8 +250,8 @@ TEST(ImuTest, DeterministicPerSeedAndPresets) {
     EXPECT_EQ(xa[i].dv_mps, xb[i].dv_mps);
   }
   EXPECT_NE(xa[7].dv_mps, xc[7].dv_mps);
-  for (const char* p : {"noise_free", "tactical", "consumer"}) EXPECT_TRUE(imu_preset(p)) << p;
-  EXPECT_FALSE(imu_preset("navigation"));
+  for (const char* p : {"noise_free", "navigation", "tactical", "consumer"}) EXPECT_TRUE(imu_preset(p)) << p;
+  EXPECT_FALSE(imu_preset("strategic"));
   const ImuErrorModel tactical = *imu_preset("tactical");
   EXPECT_NEAR(tactical.gyro.arw_rad_per_sqrt_s, deg_to_rad(0.1) / 60.0, 1e-15);
   EXPECT_NEAR(tactical.gyro.bias_instability_radps, deg_to_rad(1.0) / 3600.0, 1e-15);
