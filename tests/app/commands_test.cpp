@@ -13,6 +13,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "recorder/reader.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig {
@@ -354,6 +355,34 @@ TEST(Demo, SixFramesWriteStatsAndContactSheet) {
   ASSERT_NE(at, std::string::npos) << log;
   const double rms_mm = std::stod(log.substr(at + 70));
   EXPECT_LT(rms_mm, 20.0) << log;
+}
+
+TEST(Demo, RecordsWhatItAugmentedAndTheRecordingChecksClean) {
+  const std::string dir = output_dir("demo_record");
+  std::string log;
+  ASSERT_EQ(augrig("demo --frames 4 --out " + dir + "/out --record " + dir + "/rec", &log), 0) << log;
+  EXPECT_NE(log.find("Recording: "), std::string::npos) << log;
+  EXPECT_NE(log.find("4 stereo frames"), std::string::npos) << log;
+  std::string check;
+  EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
+  EXPECT_NE(check.find("frames: 4 (4 intact, 4 augmented, 4 with masks, 4 with statistics)"), std::string::npos)
+      << check;
+  EXPECT_NE(check.find("tanker.gps"), std::string::npos) << check;
+  EXPECT_NE(check.find("problems: none"), std::string::npos) << check;
+  // The recorded augmented frame is the one the demo wrote as PNG: the last frame (index 3).
+  auto rec = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(rec) << rec.error().message;
+  auto last = (*rec)->read_frame(3);
+  ASSERT_TRUE(last) << last.error().message;
+  const cv::Mat png = cv::imread(dir + "/out/left/augmented/frame_0003.png", cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(png.empty());
+  const Image& aug = last->augmented[0];
+  ASSERT_EQ(aug.width(), png.cols);
+  std::size_t differ = 0;
+  for (int y = 0; y < png.rows; ++y)
+    for (int x = 0; x < png.cols; ++x)
+      for (int c = 0; c < 3; ++c) differ += aug.row(y)[3 * x + c] != png.ptr<std::uint8_t>(y)[3 * x + 2 - c];
+  EXPECT_EQ(differ, 0u);
 }
 
 }  // namespace
