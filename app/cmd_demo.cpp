@@ -10,9 +10,12 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <fstream>
+
 #include "app/cli.hpp"
 #include "app/flight_nav.hpp"
 #include "capture/stereo_pairer.hpp"
+#include "recorder/recorder.hpp"
 #include "render/visualize.hpp"
 #include "sim/flight_source.hpp"
 #include "sim/scenario.hpp"
@@ -29,6 +32,8 @@ const std::vector<OptionSpec>& demo_specs() {
       {"frames", ArgKind::kValue, "N", "augment only the last N selected stereo frames (default: all)"},
       {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
        "boom articulation (default track: the nozzle aims at the receptacle from nav)"},
+      {"record", ArgKind::kValue, "DIR",
+       "record the run (raw, augmented and mask frames, poses, stats, nav inputs, drops; docs/RECORDING.md)"},
       {"bayer", ArgKind::kOptionalValue, "[=RG|GR|GB|BG]", "simulate raw Bayer cameras (default pattern RG)"},
       {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
        "how the receiver shows in the augmented image (default mask: not drawn)"},
@@ -170,6 +175,47 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
       << to_string(scenario.sensors.cameras.format) << ", " << rig.left().model.width_px << "x"
       << rig.left().model.height_px << " -> " << out_dir.string() << "\n";
 
+  // Optional recording: everything a flight test keeps, through the same never-blocking recorder a
+  // live run uses. The nav inputs go in exactly as the logs hold them.
+  std::unique_ptr<recorder::Recorder> rec;
+  if (a.has("record")) {
+    recorder::RecordingInfo info;
+    info.rig_yaml = rig_to_yaml(rig);
+    if (auto text = sim::builtin_scenario_text(scenario.name)) info.scene = *text;
+    info.clock_domains = "frames: device (camera clocks; offsets to gps " + std::to_string(offsets[0]) + ", " +
+                         std::to_string(offsets[1]) + " ns); nav inputs: gps";
+    info.extra["source"] = source->uri();
+    rec = unwrap(recorder::Recorder::create(a.get("record"), info));
+    for (const char* who : {"tanker", "receiver"}) {
+      // NMEA lines as received: "<arrival_ns> <sentence>" in the log.
+      std::ifstream nmea(out_dir / "nav" / who / "gps.nmea", std::ios::binary);
+      std::string line;
+      while (std::getline(nmea, line)) {
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        recorder::NavInputRecord r;
+        r.stream = std::string(who) + ".gps";
+        const auto space = line.find(' ');
+        if (space != std::string::npos && line[0] != '$') {
+          r.arrival_ns = std::stoll(line.substr(0, space));
+          line.erase(0, space + 1);
+        }
+        r.data = line;
+        rec->push(std::move(r));
+      }
+      for (const nav::ImuSample& smp : std::string(who) == "tanker" ? tk_logs.imu : rx_logs.imu)
+        rec->push(recorder::imu_input(smp, std::string(who) + ".imu"));
+    }
+    std::uint64_t dropped = 0;
+    TimestampNs first = 0, last = 0;
+    for (const auto& cam : logs.cameras)
+      for (const auto& f : cam)
+        if (f.dropped) {
+          if (!dropped++) first = f.t_camera_ns;
+          last = f.t_camera_ns;
+        }
+    if (dropped) rec->push(recorder::DropRecord{recorder::DropStage::kCamera, dropped, first, last, "the simulated cameras' drop model", "frame"});
+  }
+
   StatsCsv csv(out_dir / "stats.csv");
   std::vector<nav::CameraPoseRow> est_rows, true_rows;
   StereoResult result;
@@ -209,6 +255,20 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
     est_rows.push_back(left.row(stereo.left.sequence, 0, stereo.left.t_ns));
     est_rows.push_back(right.row(stereo.right.sequence, 1, stereo.right.t_ns));
     const sim::FrameTruth& tl = truth_of.at({stereo.left.sequence, 0});
+    if (rec) {
+      recorder::FrameRecord fr;
+      fr.raw = stereo;
+      fr.augmented = {result.left.augmented, result.right.augmented};
+      fr.mask = {result.left.mask, result.right.mask};
+      fr.T_cam_receiver = {left.camera.T_a_receiver, right.camera.T_a_receiver};
+      fr.T_body_receiver = left.body.T_a_receiver;
+      fr.receiver_present = true;
+      fr.sigma_pos_m = left.body.sigma_position_m();
+      fr.sigma_att_deg = rad_to_deg(left.body.sigma_attitude_rad());
+      fr.boom = scene.boom;
+      fr.stats = result.stats;
+      rec->push(std::move(fr));  // never blocks; a drop is counted in the recording's ledger
+    }
     true_rows.push_back(truth_row(tl));
     true_rows.push_back(truth_row(truth_of.at({stereo.right.sequence, 1})));
     // Where the tracked nozzle tip is against where the true receptacle is.
@@ -270,6 +330,16 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
       << " ms per stereo frame, PNG writing " << fmt_ms(write_ms) << " ms in all, total "
       << fmt_ms(ms_since(t_start) / 1000.0) << " s\n";
   pairer.flush();
+  if (rec) {
+    const std::uint64_t unpaired = pairer.stats().unpaired_left + pairer.stats().unpaired_right;
+    if (unpaired) rec->push(recorder::DropRecord{recorder::DropStage::kPairing, unpaired, 0, 0, "no stereo partner", "frame"});
+    const Status closed = rec->close();
+    const recorder::RecorderStats rs = rec->stats();
+    out << "Recording: " << rec->path() << ": " << rs.frames_committed << " stereo frames, "
+        << rs.nav_inputs_committed << " nav inputs, " << rs.frames_dropped << " frames dropped by the recorder";
+    if (rs.image_bytes) out << ", images compressed " << fmt_ms(double(rs.image_bytes) / double(std::max<std::uint64_t>(rs.stored_bytes, 1))) << ":1";
+    out << (closed ? "" : " -- STOPPED: " + user_message(closed.error())) << "\n";
+  }
   out << "Pairing: " << pairer.stats().pairs << " pairs, unpaired left " << pairer.stats().unpaired_left
       << ", right " << pairer.stats().unpaired_right << ", max |skew| " << pairer.stats().max_abs_skew_ns
       << " ns\n";

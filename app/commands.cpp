@@ -236,6 +236,9 @@ const char* kTopHelp =
     "  demo      fly a simulated approach end to end: sim, nav fusion, boom tracking, augmentation\n"
     "  sim       simulate a flight: truth, GPS/IMU logs (NMEA, CSV), rendered stereo frames\n"
     "  nav       fuse both aircraft's GPS/IMU logs into the receiver's pose in each camera per frame\n"
+    "  check     check a recording: what it holds, what is damaged (exit 1 if anything is)\n"
+    "  replay    replay a recording through the augmenter (recorded or another rig and scene)\n"
+    "  export    export a recording as a EuRoC/ASL dataset with poses, statistics and their plot\n"
     "\n"
     "Options:\n"
     "  --help, -h   this help\n"
@@ -411,7 +414,10 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   if (command == "demo") return cmd_demo(rest, out, err);
   if (command == "sim") return cmd_sim(rest, out, err);
   if (command == "nav") return cmd_nav(rest, out, err);
-  err << "augrig: unknown command '" << command << "'; commands: augment, demo, sim, nav (see augrig --help)\n";
+  if (command == "check") return cmd_check(rest, out, err);
+  if (command == "replay") return cmd_replay(rest, out, err);
+  if (command == "export") return cmd_export(rest, out, err);
+  err << "augrig: unknown command '" << command << "'; commands: augment, demo, sim, nav, check, replay, export (see augrig --help)\n";
   return kExitUsage;
 }
 

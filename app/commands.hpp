@@ -66,5 +66,8 @@ int cmd_augment(const std::vector<std::string>& args, std::ostream& out, std::os
 int cmd_demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_sim(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_nav(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_check(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_replay(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_export(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 }  // namespace augrig::app

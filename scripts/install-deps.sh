@@ -11,6 +11,8 @@ PACKAGES=(
   libtinygltf-dev libtinyobjloader-dev nlohmann-json3-dev libstb-dev
   # recordings: SQLite (WAL) with zstd-compressed frames; sqlite3 to inspect them
   libsqlite3-dev libzstd-dev sqlite3
+  # plots of a run's statistics (augrig export)
+  gnuplot-nox
   # OpenGL: EGL surfaceless (Mesa llvmpipe) and GLFW windows
   libepoxy-dev libegl-dev libgl-dev libegl1 libgl1-mesa-dri libglfw3-dev
   # tests and benches

@@ -1,0 +1,382 @@
+// The commands on recordings (docs/REPLAY.md, docs/RECORDING.md):
+//   augrig check DIR                      what a recording holds and what is damaged (exit 1 if any);
+//   augrig replay DIR [options]           the recorded raw frames through the Augmenter again, with
+//                                         the recorded rig and scene or others: stats.csv, images;
+//   augrig export DIR --format euroc OUT  the EuRoC/ASL layout, poses, statistics and their plot.
+// A recording is opened (and so checked to be one) before anything else is done; damaged frames
+// are reported one line each on stderr and skipped, and the command then exits 1.
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+
+#include "app/cli.hpp"
+#include "app/scene_file.hpp"
+#include "recorder/euroc.hpp"
+#include "recorder/reader.hpp"
+#include "recorder/replay_source.hpp"
+
+namespace augrig::app {
+namespace {
+
+// Splits the positional arguments (neither an option nor an option's value) from the options.
+std::vector<std::string> split_positionals(const std::vector<std::string>& args,
+                                           const std::vector<OptionSpec>& specs,
+                                           std::vector<std::string>& options) {
+  std::vector<std::string> pos;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a == "-h" || (a.rfind("--", 0) == 0 && a.size() > 2)) {
+      options.push_back(a);
+      if (a.find('=') != std::string::npos) continue;
+      for (const OptionSpec& s : specs) {
+        if (a.substr(2) == s.name && s.kind == ArgKind::kValue && i + 1 < args.size()) {
+          options.push_back(args[++i]);
+          break;
+        }
+      }
+    } else {
+      pos.push_back(a);
+    }
+  }
+  return pos;
+}
+
+// The flags, and exactly the positionals `names` (for the message).
+ParsedArgs parse_with_positionals(const std::vector<std::string>& args, const std::vector<OptionSpec>& specs,
+                                  const std::vector<std::string>& names,
+                                  std::vector<std::string>& positionals) {
+  std::vector<std::string> options;
+  positionals = split_positionals(args, specs, options);
+  ParsedArgs a = parse_or_usage(options, specs);
+  if (a.help) return a;
+  if (positionals.size() != names.size()) {
+    std::string want;
+    for (const auto& n : names) want += (want.empty() ? "" : " ") + n;
+    std::string got;
+    for (const auto& p : positionals) got += (got.empty() ? "'" : ", '") + p + "'";
+    usage_error("expected " + want + (positionals.empty() ? ", got none" : ", got " + got));
+  }
+  return a;
+}
+
+std::unique_ptr<recorder::RecordingReader> open_recording(const std::string& dir) {
+  return unwrap(recorder::RecordingReader::open(dir));
+}
+
+// ---- check --------------------------------------------------------------------------------------
+
+int check_command(const std::vector<std::string>& args, std::ostream& out) {
+  static const std::vector<OptionSpec> specs;
+  std::vector<std::string> pos;
+  const ParsedArgs a = parse_with_positionals(args, specs, {"DIR"}, pos);
+  if (a.help) {
+    out << format_help(
+        "augrig check DIR",
+        "Reads every frame of a recording and decodes every image (sizes, checksums), runs SQLite's\n"
+        "integrity check and prints what the recording holds and what is damaged. Exit 0 when\n"
+        "everything reads, 1 when something is damaged or the folder is no recording.",
+        specs);
+    return kExitOk;
+  }
+  const auto reader = open_recording(pos[0]);
+  const recorder::CheckReport report = reader->check();
+  const std::string text = report.to_string();
+  out << text;
+  if (!text.empty() && text.back() != '\n') out << "\n";
+  return report.ok() ? kExitOk : kExitRuntime;
+}
+
+// ---- replay -------------------------------------------------------------------------------------
+
+const std::vector<OptionSpec>& replay_specs() {
+  static const std::vector<OptionSpec> specs = {
+      {"rate", ArgKind::kValue, "X",
+       "real rate: recorded time runs X times as fast as wall time (1: as recorded)"},
+      {"fast", ArgKind::kFlag, "", "as fast as the augmenter goes, every frame (the default)"},
+      {"seek", ArgKind::kValue, "T_S", "start at the first frame T_S seconds or more after the first frame"},
+      {"from-frame", ArgKind::kValue, "N", "start at frame N (0: the first)"},
+      {"loop", ArgKind::kValue, "N", "play the range N times in all (default 1)"},
+      {"out", ArgKind::kValue, "DIR", "write stats.csv and the images of every --every-th frame here"},
+      {"every", ArgKind::kValue, "K", "with --out: images of every K-th replayed frame (default 30)"},
+      {"rig", ArgKind::kValue, "RIG.yaml|default", "augment with this rig (default: the recorded rig)"},
+      {"scene", ArgKind::kValue, "SCENE.yaml",
+       "one fixed scene for every frame (default: each frame's recorded boom and receiver pose)"},
+      {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
+       "how the receiver shows in the augmented image (default mask: not drawn)"},
+  };
+  return specs;
+}
+
+// The scene recorded with a frame: its boom articulation and the receiver's pose in the tanker
+// body frame (or, when only the camera-relative pose was recorded, through the recorded rig).
+std::optional<SceneState> recorded_scene(const recorder::FrameRecord& r, const Rig* recorded_rig) {
+  if (!r.boom) return std::nullopt;
+  SceneState s;
+  s.boom = *r.boom;
+  if (r.T_body_receiver) {
+    s.T_body_receiver = *r.T_body_receiver;
+  } else if (r.T_cam_receiver[0] && recorded_rig) {
+    s.T_body_receiver = recorded_rig->left().T_body_cam * *r.T_cam_receiver[0];
+  } else {
+    s.receiver_present = false;
+  }
+  if (r.receiver_present && !*r.receiver_present) s.receiver_present = false;
+  return s;
+}
+
+bool same_counts(const OcclusionStats& a, const OcclusionStats& b) {
+  return a.receiver_px_left == b.receiver_px_left && a.receiver_px_right == b.receiver_px_right &&
+         a.boom_px_left == b.boom_px_left && a.boom_px_right == b.boom_px_right &&
+         a.boom_overlap_px == b.boom_overlap_px && a.occluded_px_left == b.occluded_px_left &&
+         a.occluded_px_right == b.occluded_px_right && a.stereo_both_px == b.stereo_both_px &&
+         a.left_only_px == b.left_only_px && a.right_only_px == b.right_only_px &&
+         a.neither_px == b.neither_px;
+}
+
+int replay_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  std::vector<std::string> pos;
+  const ParsedArgs a = parse_with_positionals(args, replay_specs(), {"DIR"}, pos);
+  if (a.help) {
+    out << format_help(
+        "augrig replay DIR [--rate X|--fast] [--seek T_S|--from-frame N] [--loop N] [--out DIR] [--rig RIG] "
+        "[--scene SCENE.yaml]",
+        "Plays a recording's raw frames back (replay://DIR) through the Augmenter again: with the recorded\n"
+        "rig and each frame's recorded scene (boom and receiver pose), or with another rig or one fixed\n"
+        "scene. Prints the occlusion statistics, how many frames reproduce the recorded statistics, and\n"
+        "with --out writes stats.csv and the images of every K-th frame. Damaged frames are reported and\n"
+        "skipped (exit 1 at the end).",
+        replay_specs());
+    return kExitOk;
+  }
+  if (a.has("rate") && a.has("fast")) usage_error("--rate and --fast exclude each other");
+  if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
+  recorder::ReplayOptions o;
+  if (a.has("rate")) {
+    o.mode = recorder::ReplayMode::kRealRate;
+    o.rate = parse_real("rate", a.get("rate"));
+    if (!(o.rate > 0)) usage_error("--rate: expected a number above 0, got '" + a.get("rate") + "'");
+  }
+  if (a.has("seek")) {
+    const double t = parse_real("seek", a.get("seek"));
+    if (t < 0)
+      usage_error("--seek: expected seconds from the first frame (>= 0), got '" + a.get("seek") + "'");
+    o.start_offset_ns = s_to_ns(t);
+  }
+  if (a.has("from-frame"))
+    o.start_frame = static_cast<std::size_t>(parse_integer("from-frame", a.get("from-frame"), 0, 1LL << 40));
+  o.passes = a.has("loop") ? static_cast<int>(parse_integer("loop", a.get("loop"), 1, 1000000)) : 1;
+  const int every =
+      a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 30;
+  if (a.has("every") && !a.has("out")) usage_error("--every needs --out (where the images go)");
+  AugmentOptions options;
+  options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+
+  // The recording, the rig and the scene are read and checked before the GL context exists.
+  auto source = unwrap(recorder::ReplaySource::open(pos[0], o));
+  const recorder::RecordingReader& reader = source->reader();
+  if (source->frame_count() == 0) runtime_error(reader.path() + ": the recording holds no frames");
+  std::optional<Rig> recorded_rig;
+  if (const std::string yaml = reader.meta("rig_yaml"); !yaml.empty())
+    recorded_rig = unwrap(parse_rig(yaml, reader.path() + " (meta rig_yaml)"));
+  if (!a.has("rig") && !recorded_rig)
+    runtime_error(reader.path() +
+                  ": the recording stores no rig (meta rig_yaml is empty); give one with --rig");
+  const Rig rig = a.has("rig") ? load_rig_arg(a.get("rig")) : *recorded_rig;
+  if (rig.cameras.size() != 2)
+    runtime_error(rig.source + ": the rig needs 2 cameras, has " + std::to_string(rig.cameras.size()));
+  const ReceiverSetup receiver = receiver_setup(rig);
+  options.receiver_model = receiver.model;
+  std::optional<SceneState> fixed_scene;
+  if (a.has("scene")) {
+    fixed_scene = unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, receiver.receptacle_m));
+  } else if (auto first = reader.read_frame_info(source->start_frame()); first && !first->boom) {
+    runtime_error(reader.path() + ": frame " + std::to_string(source->start_frame()) +
+                  " has no recorded scene (boom articulation); give one with --scene SCENE.yaml");
+  }
+
+  const fs::path out_dir = a.get("out");
+  std::optional<StatsCsv> csv;
+  if (a.has("out")) {
+    make_dirs(out_dir);
+    csv.emplace(out_dir / "stats.csv");
+  }
+  out << "replay: " << source->uri() << ", " << source->frame_count() << " stereo frames, from frame "
+      << source->start_frame() << ", "
+      << (o.mode == recorder::ReplayMode::kRealRate ? "real rate x" + fmt_ms(o.rate)
+                                                    : std::string("as fast as possible"))
+      << (o.passes > 1 ? ", " + std::to_string(o.passes) + " passes" : std::string()) << "; rig "
+      << (a.has("rig") ? rig.source : std::string("as recorded")) << ", scene "
+      << (fixed_scene ? a.get("scene") : std::string("as recorded per frame")) << "\n";
+
+  const auto gl = make_gl_context();
+  const auto augmenter = unwrap(Augmenter::create(rig, options));
+
+  StereoResult result;
+  std::vector<OcclusionStats> all;
+  std::size_t damaged = 0, no_scene = 0, one_camera = 0, comparable = 0, reproduced = 0;
+  double augment_ms = 0;
+  bool sizes_checked = false;
+  StereoFrame frame;
+  std::optional<std::size_t> left_index;
+  Frame f;
+  for (;;) {
+    auto st = source->read(f, std::chrono::seconds(1));
+    if (!st) {
+      err << "augrig replay: " << user_message(st.error()) << "\n";
+      ++damaged;
+      continue;
+    }
+    if (*st == ReadStatus::kTimeout) continue;
+    if (*st == ReadStatus::kEndOfStream) break;
+    const recorder::FrameRecord& rec = source->current();
+    if (f.camera == CameraId::kLeft) {
+      if (left_index) ++one_camera;  // the previous stereo frame had no right image
+      frame.left = std::move(f);
+      left_index = source->current_index();
+      if (!rec.raw.right.image.empty()) continue;
+      ++one_camera;
+      left_index.reset();
+      continue;
+    }
+    if (!left_index || *left_index != source->current_index()) {
+      ++one_camera;  // a right image without its left one
+      left_index.reset();
+      continue;
+    }
+    left_index.reset();
+    frame.right = std::move(f);
+    frame.t_key_ns = rec.raw.t_key_ns;
+    frame.skew_ns = rec.raw.skew_ns;
+    frame.pair_sequence = rec.raw.pair_sequence;
+    const std::size_t index = *source->current_index();
+
+    std::optional<SceneState> scene =
+        fixed_scene ? fixed_scene : recorded_scene(rec, recorded_rig ? &*recorded_rig : nullptr);
+    if (!scene) {
+      if (no_scene++ < 5)
+        err << "augrig replay: frame " << index << " has no recorded scene; not augmented\n";
+      continue;
+    }
+    if (!sizes_checked) {
+      for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+        const Image& im = frame[id].image;
+        const RigCamera& cam = rig.cameras[static_cast<std::size_t>(index_of(id))];
+        if (im.width() != cam.model.width_px || im.height() != cam.model.height_px) {
+          runtime_error(reader.path() + ": frame " + std::to_string(index) + ": the " +
+                        std::string(to_string(id)) + " image is " + std::to_string(im.width()) + "x" +
+                        std::to_string(im.height()) + ", the rig's " + cam.name + " camera is " +
+                        std::to_string(cam.model.width_px) + "x" + std::to_string(cam.model.height_px));
+        }
+      }
+      sizes_checked = true;
+    }
+    check(augmenter->augment(frame, *scene, result));
+    augment_ms += augmenter->timings().total_ms;
+    result.stats.t_ns = frame.t_key_ns;
+    if (rec.stats) {
+      ++comparable;
+      reproduced += same_counts(result.stats, *rec.stats);
+    }
+    if (csv) {
+      csv->add(result.stats);
+      if (all.size() % static_cast<std::size_t>(every) == 0) {
+        std::ostringstream stem;
+        if (o.passes > 1) stem << "pass" << source->pass() << "_";
+        stem << std::setw(6) << std::setfill('0') << index;
+        write_frame_outputs(out_dir, {stem.str(), stem.str()}, result);
+      }
+    }
+    all.push_back(result.stats);
+  }
+
+  if (!all.empty()) {
+    out << (all.size() == 1 ? format_table1(all.front(), "Occlusion statistics") : format_run_summary(all));
+  }
+  out << "Replayed " << all.size() << " stereo frame(s)";
+  if (!all.empty())
+    out << " (augmenter " << fmt_ms(augment_ms / static_cast<double>(all.size())) << " ms per stereo frame)";
+  out << "\n";
+  if (comparable)
+    out << "Recorded statistics reproduced exactly (same pixel counts) in " << reproduced << " of "
+        << comparable << " frame(s)\n";
+  if (no_scene) out << no_scene << " frame(s) had no recorded scene and were not augmented (give --scene)\n";
+  if (one_camera)
+    out << one_camera << " recorded frame(s) had only one camera's image and were not augmented\n";
+  if (csv)
+    out << "Wrote " << (out_dir / "stats.csv").string() << " and the images of 1 in " << every << " frames\n";
+  if (damaged)
+    runtime_error(std::to_string(damaged) + " frame(s) could not be read (above); the others were replayed");
+  return kExitOk;
+}
+
+// ---- export -------------------------------------------------------------------------------------
+
+const std::vector<OptionSpec>& export_specs() {
+  static const std::vector<OptionSpec> specs = {
+      {"format", ArgKind::kValue, "euroc", "output layout: euroc (EuRoC/ASL, docs/REPLAY.md)", true},
+      {"rig", ArgKind::kValue, "RIG.yaml|default",
+       "intrinsics and extrinsics for sensor.yaml (default: the recorded rig)"},
+      {"imu-stream", ArgKind::kValue, "NAME",
+       "nav input stream exported as imu0 (default: imu, else tanker.imu)"},
+      {"no-augmented", ArgKind::kFlag, "", "leave out cam0_augmented and cam1_augmented"},
+      {"no-masks", ArgKind::kFlag, "", "leave out cam0_mask and cam1_mask"},
+      {"no-plot", ArgKind::kFlag, "", "do not plot the statistics (stats.png needs gnuplot)"},
+  };
+  return specs;
+}
+
+int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  std::vector<std::string> pos;
+  const ParsedArgs a = parse_with_positionals(args, export_specs(), {"DIR", "OUT"}, pos);
+  if (a.help) {
+    out << format_help(
+        "augrig export DIR --format euroc OUT [options]",
+        "Writes a recording in the EuRoC/ASL layout: OUT/mav0/cam0, cam1 (raw), cam0_augmented,\n"
+        "cam1_augmented, cam0_mask, cam1_mask (data.csv, data/<t_ns>.png, sensor.yaml) and imu0, plus\n"
+        "OUT/poses.csv (recorded T_cam_receiver), OUT/stats.csv and OUT/stats.png (gnuplot).",
+        export_specs());
+    return kExitOk;
+  }
+  if (a.get("format") != "euroc") usage_error("--format: expected euroc, got '" + a.get("format") + "'");
+  recorder::EurocExportOptions o;
+  if (a.has("rig")) o.rig = load_rig_arg(a.get("rig"));
+  o.imu_stream = a.get("imu-stream");
+  o.augmented = !a.has("no-augmented");
+  o.masks = !a.has("no-masks");
+  o.plot = !a.has("no-plot");
+  const auto reader = open_recording(pos[0]);
+  recorder::EurocExportReport r;
+  check(recorder::export_euroc(*reader, pos[1], o, r));
+
+  const fs::path out_dir = pos[1];
+  out << "Exported " << r.frames_written << " of " << r.frames << " stereo frame(s) to "
+      << (out_dir / "mav0").string() << ": cam0, cam1";
+  if (r.augmented_written) out << ", cam0_augmented, cam1_augmented";
+  if (r.masks_written) out << ", cam0_mask, cam1_mask";
+  if (r.imu_samples) out << ", imu0 (" << r.imu_samples << " samples of '" << r.imu_stream << "')";
+  out << "; " << r.rate_hz << " Hz\n";
+  if (r.pose_rows) out << "Wrote " << (out_dir / "poses.csv").string() << " (" << r.pose_rows << " rows)\n";
+  if (r.stats_rows) out << "Wrote " << (out_dir / "stats.csv").string() << " (" << r.stats_rows << " rows)\n";
+  if (r.plotted) out << "Wrote " << (out_dir / "stats.png").string() << "\n";
+  for (const std::string& n : r.notes) out << "note: " << n << "\n";
+  for (const std::string& p : r.problems) err << "augrig export: " << p << "\n";
+  if (!r.problems.empty())
+    runtime_error("the export is incomplete: " + std::to_string(r.problems.size()) + " problem(s) (above)");
+  return kExitOk;
+}
+
+}  // namespace
+
+int cmd_check(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  return guarded("check", err, [&] { return check_command(args, out); });
+}
+
+int cmd_replay(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  return guarded("replay", err, [&] { return replay_command(args, out, err); });
+}
+
+int cmd_export(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  return guarded("export", err, [&] { return export_command(args, out, err); });
+}
+
+}  // namespace augrig::app

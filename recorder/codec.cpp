@@ -1,0 +1,235 @@
+#include "recorder/codec.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <string>
+
+#include <zstd.h>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace augrig::recorder {
+
+int predictor_distance(PixelFormat format) {
+  if (is_bayer(format)) return 2;
+  return bytes_per_pixel(format);
+}
+
+namespace {
+
+std::size_t row_bytes(int width, PixelFormat f) {
+  return static_cast<std::size_t>(width) * static_cast<std::size_t>(bytes_per_pixel(f));
+}
+
+// out[x] = in[x] - in[x - d] (mod 256); the first d bytes are copied.
+void delta_row(const std::uint8_t* __restrict in, std::uint8_t* __restrict out, std::size_t n,
+               std::size_t d) {
+  std::size_t x = 0;
+  for (; x < d && x < n; ++x) out[x] = in[x];
+#if defined(__SSE2__)
+  for (; x + 16 <= n; x += 16) {
+    const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + x));
+    const __m128i b = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + x - d));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + x), _mm_sub_epi8(a, b));
+  }
+#endif
+  for (; x < n; ++x) out[x] = static_cast<std::uint8_t>(in[x] - in[x - d]);
+}
+
+// The inverse of delta_row, in place.
+void undelta_row(std::uint8_t* p, std::size_t n, std::size_t d) {
+  for (std::size_t x = d; x < n; ++x) p[x] = static_cast<std::uint8_t>(p[x] + p[x - d]);
+}
+
+void xor_bytes(const std::uint8_t* __restrict a, const std::uint8_t* __restrict b,
+               std::uint8_t* __restrict out, std::size_t n) {
+  std::size_t x = 0;
+#if defined(__SSE2__)
+  for (; x + 16 <= n; x += 16) {
+    const __m128i va = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a + x));
+    const __m128i vb = _mm_loadu_si128(reinterpret_cast<const __m128i*>(b + x));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + x), _mm_xor_si128(va, vb));
+  }
+#endif
+  for (; x < n; ++x) out[x] = a[x] ^ b[x];
+}
+
+std::uint64_t load64(const std::uint8_t* p) {
+  std::uint64_t v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+
+// Index of the first byte in [0, limit) where a and b differ, or `limit`; eight bytes at a time.
+std::size_t first_difference(const std::uint8_t* a, const std::uint8_t* b, std::size_t limit) {
+  std::size_t i = 0;
+  while (i + 8 <= limit && load64(a + i) == load64(b + i)) i += 8;
+  while (i < limit && a[i] == b[i]) ++i;
+  return i;
+}
+
+// One past the last byte in [floor, n) where a and b differ, or `floor`.
+std::size_t last_difference(const std::uint8_t* a, const std::uint8_t* b, std::size_t n, std::size_t floor) {
+  std::size_t e = n;
+  while (e >= floor + 8 && load64(a + e - 8) == load64(b + e - 8)) e -= 8;
+  while (e > floor && a[e - 1] == b[e - 1]) --e;
+  return e;
+}
+
+Error zstd_error(const char* what, std::size_t code) {
+  return make_error("zstd ", what, ": ", ZSTD_getErrorName(code));
+}
+
+}  // namespace
+
+ChangedBox changed_box(ConstImageView a, ConstImageView b) {
+  ChangedBox box;
+  const std::size_t n = row_bytes(a.width, a.format);
+  const std::size_t bpp = static_cast<std::size_t>(bytes_per_pixel(a.format));
+  std::size_t lo = n, hi = 0;  // byte range [lo, hi) that differs in some row
+  int y0 = -1, y1 = -1;
+  for (int y = 0; y < a.height; ++y) {
+    const std::uint8_t* ra = a.row(y);
+    const std::uint8_t* rb = b.row(y);
+    if (std::memcmp(ra, rb, n) == 0) continue;
+    if (y0 < 0) y0 = y;
+    y1 = y + 1;
+    lo = std::min(lo, first_difference(ra, rb, lo));
+    hi = std::max(hi, last_difference(ra, rb, n, hi));
+  }
+  if (y0 < 0) return box;
+  box.x0 = static_cast<int>(lo / bpp);
+  box.x1 = static_cast<int>((hi + bpp - 1) / bpp);
+  box.y0 = y0;
+  box.y1 = y1;
+  return box;
+}
+
+Encoder::Encoder(int zstd_level) : cctx_(ZSTD_createCCtx()) {
+  ZSTD_CCtx_setParameter(cctx_, ZSTD_c_compressionLevel, zstd_level);
+  ZSTD_CCtx_setParameter(cctx_, ZSTD_c_checksumFlag, 1);
+  ZSTD_CCtx_setParameter(cctx_, ZSTD_c_contentSizeFlag, 1);
+}
+
+Encoder::~Encoder() {
+  ZSTD_freeCCtx(cctx_);
+}
+
+Status Encoder::compress(const std::uint8_t* src, std::size_t n, std::vector<std::uint8_t>& out) {
+  if (!cctx_) return make_error("zstd: could not create a compression context");
+  out.resize(ZSTD_compressBound(n));
+  const std::size_t r = ZSTD_compress2(cctx_, out.data(), out.size(), src, n);
+  if (ZSTD_isError(r)) {
+    out.clear();
+    return zstd_error("compress", r);
+  }
+  out.resize(r);
+  return {};
+}
+
+Status Encoder::encode_image(ConstImageView image, std::vector<std::uint8_t>& out) {
+  if (image.empty()) return make_error("empty image");
+  const std::size_t n = row_bytes(image.width, image.format);
+  const std::size_t d = static_cast<std::size_t>(predictor_distance(image.format));
+  scratch_.resize(n * static_cast<std::size_t>(image.height));
+  for (int y = 0; y < image.height; ++y) delta_row(image.row(y), scratch_.data() + n * y, n, d);
+  return compress(scratch_.data(), scratch_.size(), out);
+}
+
+Status Encoder::encode_mask(ConstImageView mask, std::vector<std::uint8_t>& out) {
+  if (mask.empty()) return make_error("empty mask");
+  if (mask.format != PixelFormat::kMono8)
+    return make_error("mask is ", to_string(mask.format), ", expected Mono8");
+  const std::size_t n = static_cast<std::size_t>(mask.width);
+  if (mask.stride_bytes == n) return compress(mask.data, n * static_cast<std::size_t>(mask.height), out);
+  scratch_.resize(n * static_cast<std::size_t>(mask.height));
+  for (int y = 0; y < mask.height; ++y) std::memcpy(scratch_.data() + n * y, mask.row(y), n);
+  return compress(scratch_.data(), scratch_.size(), out);
+}
+
+Status Encoder::encode_difference(ConstImageView raw, ConstImageView augmented, ChangedBox& box,
+                                  std::vector<std::uint8_t>& out) {
+  if (raw.width != augmented.width || raw.height != augmented.height || raw.format != augmented.format)
+    return make_error("augmented image ", augmented.width, "x", augmented.height, " ",
+                      to_string(augmented.format), " differs from the raw image ", raw.width, "x", raw.height,
+                      " ", to_string(raw.format));
+  box = changed_box(raw, augmented);
+  out.clear();
+  if (box.empty()) return {};
+  const std::size_t bpp = static_cast<std::size_t>(bytes_per_pixel(raw.format));
+  const std::size_t off = static_cast<std::size_t>(box.x0) * bpp;
+  const std::size_t n = static_cast<std::size_t>(box.x1 - box.x0) * bpp;
+  scratch_.resize(n * static_cast<std::size_t>(box.y1 - box.y0));
+  for (int y = box.y0; y < box.y1; ++y)
+    xor_bytes(raw.row(y) + off, augmented.row(y) + off, scratch_.data() + n * (y - box.y0), n);
+  return compress(scratch_.data(), scratch_.size(), out);
+}
+
+Decoder::Decoder() : dctx_(ZSTD_createDCtx()) {}
+
+Decoder::~Decoder() {
+  ZSTD_freeDCtx(dctx_);
+}
+
+Status Decoder::decompress(const std::uint8_t* blob, std::size_t n, std::uint8_t* dst, std::size_t expected) {
+  if (!dctx_) return make_error("zstd: could not create a decompression context");
+  if (blob == nullptr || n == 0)
+    return make_error("empty blob, expected a zstd frame of ", expected, " bytes");
+  const unsigned long long size = ZSTD_getFrameContentSize(blob, n);
+  if (size == ZSTD_CONTENTSIZE_ERROR) return make_error("not a zstd frame (", n, " bytes)");
+  if (size == ZSTD_CONTENTSIZE_UNKNOWN) return make_error("zstd frame without content size");
+  if (size != expected)
+    return make_error("zstd frame holds ", std::to_string(size), " bytes, expected ", expected);
+  const std::size_t frame = ZSTD_findFrameCompressedSize(blob, n);
+  if (ZSTD_isError(frame)) return zstd_error("frame", frame);
+  if (frame != n) return make_error("blob has ", n - frame, " bytes after its zstd frame");
+  const std::size_t r = ZSTD_decompressDCtx(dctx_, dst, expected, blob, n);
+  if (ZSTD_isError(r)) return zstd_error("decompress", r);
+  if (r != expected) return make_error("zstd frame decompressed to ", r, " bytes, expected ", expected);
+  return {};
+}
+
+Status Decoder::decode_image(const std::uint8_t* blob, std::size_t n, int width, int height,
+                             PixelFormat format, Image& out) {
+  if (width <= 0 || height <= 0) return make_error("bad image size ", width, "x", height);
+  const std::size_t rb = row_bytes(width, format);
+  if (out.width() != width || out.height() != height || out.format() != format || out.stride_bytes() != rb)
+    out = Image(width, height, format);
+  if (auto st = decompress(blob, n, out.data(), rb * static_cast<std::size_t>(height)); !st) return st;
+  const std::size_t d = static_cast<std::size_t>(predictor_distance(format));
+  for (int y = 0; y < height; ++y) undelta_row(out.row(y), rb, d);
+  return {};
+}
+
+Status Decoder::decode_mask(const std::uint8_t* blob, std::size_t n, int width, int height, Image& out) {
+  if (width <= 0 || height <= 0) return make_error("bad mask size ", width, "x", height);
+  const std::size_t rb = static_cast<std::size_t>(width);
+  if (out.width() != width || out.height() != height || out.format() != PixelFormat::kMono8 ||
+      out.stride_bytes() != rb)
+    out = Image(width, height, PixelFormat::kMono8);
+  return decompress(blob, n, out.data(), rb * static_cast<std::size_t>(height));
+}
+
+Status Decoder::decode_difference(const std::uint8_t* blob, std::size_t n, const ChangedBox& box,
+                                  const Image& raw, Image& out) {
+  out = Image::copy_of(raw.view());
+  if (box.empty()) {
+    if (n != 0) return make_error("empty change box but a ", n, "-byte blob");
+    return {};
+  }
+  if (box.x0 < 0 || box.y0 < 0 || box.x1 > raw.width() || box.y1 > raw.height())
+    return make_error("change box [", box.x0, ", ", box.x1, ") x [", box.y0, ", ", box.y1, ") outside the ",
+                      raw.width(), "x", raw.height(), " image");
+  const std::size_t bpp = static_cast<std::size_t>(bytes_per_pixel(raw.format()));
+  const std::size_t off = static_cast<std::size_t>(box.x0) * bpp;
+  const std::size_t rb = static_cast<std::size_t>(box.x1 - box.x0) * bpp;
+  scratch_.resize(rb * static_cast<std::size_t>(box.y1 - box.y0));
+  if (auto st = decompress(blob, n, scratch_.data(), scratch_.size()); !st) return st;
+  for (int y = box.y0; y < box.y1; ++y)
+    xor_bytes(raw.row(y) + off, scratch_.data() + rb * (y - box.y0), out.row(y) + off, rb);
+  return {};
+}
+
+}  // namespace augrig::recorder

@@ -1,0 +1,87 @@
+// codec: how a recording stores images, losslessly (docs/RECORDING.md, "Blob encodings").
+//
+//   raw image   rows packed tight, each byte replaced by its difference (mod 256) from the byte
+//               `predictor_distance(format)` to its left in the same row (the same colour site of
+//               a Bayer mosaic, the same channel of RGB8/RGBA8, the left neighbour of Mono8; the
+//               first bytes of each row as they are), then one zstd frame with its content size
+//               and content checksum.
+//   mask        the Mono8 bytes, rows packed tight, as one zstd frame.
+//   augmented   the augmented image XOR the raw image inside `ChangedBox`, the smallest box holding
+//               every byte where they differ (rows of the box packed tight), as one zstd frame;
+//               outside the box the augmented image is the raw image. No change: an empty box and
+//               an empty blob.
+//
+// Every decode checks the frame's content size against the image size and the zstd checksum, so
+// a damaged blob is an error, never a silently wrong image.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "core/expected.hpp"
+#include "core/image.hpp"
+
+typedef struct ZSTD_CCtx_s ZSTD_CCtx;
+typedef struct ZSTD_DCtx_s ZSTD_DCtx;
+
+namespace augrig::recorder {
+
+// Bytes between a byte and its predictor: 2 for Bayer, 1 for Mono8, 3 for RGB8, 4 for RGBA8.
+int predictor_distance(PixelFormat format);
+
+// [x0, x1) x [y0, y1) in pixels.
+struct ChangedBox {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool empty() const { return x1 <= x0 || y1 <= y0; }
+  friend bool operator==(const ChangedBox&, const ChangedBox&) = default;
+};
+
+// The smallest box holding every pixel where `a` and `b` differ in any byte (empty if none).
+// Both must have the same size and format.
+ChangedBox changed_box(ConstImageView a, ConstImageView b);
+
+// One per thread: holds a zstd context and scratch memory, reused from call to call.
+class Encoder {
+ public:
+  explicit Encoder(int zstd_level = 1);
+  ~Encoder();
+  Encoder(const Encoder&) = delete;
+  Encoder& operator=(const Encoder&) = delete;
+
+  // `out` is replaced by the blob.
+  Status encode_image(ConstImageView image, std::vector<std::uint8_t>& out);
+  Status encode_mask(ConstImageView mask, std::vector<std::uint8_t>& out);
+  // `raw` and `augmented`: same size and format. Sets `box`; `out` is empty when nothing changed.
+  Status encode_difference(ConstImageView raw, ConstImageView augmented, ChangedBox& box,
+                           std::vector<std::uint8_t>& out);
+
+ private:
+  Status compress(const std::uint8_t* src, std::size_t n, std::vector<std::uint8_t>& out);
+  ZSTD_CCtx* cctx_ = nullptr;
+  std::vector<std::uint8_t> scratch_;
+};
+
+// One per thread. Errors say what is wrong with the blob ("zstd: ...", "holds N bytes, expected M");
+// the caller adds which file, frame and image.
+class Decoder {
+ public:
+  Decoder();
+  ~Decoder();
+  Decoder(const Decoder&) = delete;
+  Decoder& operator=(const Decoder&) = delete;
+
+  Status decode_image(const std::uint8_t* blob, std::size_t n, int width, int height, PixelFormat format,
+                      Image& out);
+  Status decode_mask(const std::uint8_t* blob, std::size_t n, int width, int height, Image& out);
+  // `out` = `raw` with the box XORed back.
+  Status decode_difference(const std::uint8_t* blob, std::size_t n, const ChangedBox& box, const Image& raw,
+                           Image& out);
+
+ private:
+  Status decompress(const std::uint8_t* blob, std::size_t n, std::uint8_t* dst, std::size_t expected);
+  ZSTD_DCtx* dctx_ = nullptr;
+  std::vector<std::uint8_t> scratch_;
+};
+
+}  // namespace augrig::recorder

@@ -1,0 +1,149 @@
+// EuRoC / ASL dataset layout (docs/REPLAY.md): export of a recording into it, and EurocSource,
+// a FrameSource that plays such a dataset (ours or anyone's) back.
+//
+//   OUT/mav0/cam0/data.csv            "#timestamp [ns],filename", one row per image
+//   OUT/mav0/cam0/data/<t_ns>.png     the left camera's raw images (cam1: the right camera)
+//   OUT/mav0/cam0/sensor.yaml         T_BS, rate_hz, resolution, pinhole intrinsics, distortion
+//   OUT/mav0/cam0_augmented/...       the augmented images, same layout (cam1_augmented)
+//   OUT/mav0/cam0_mask/...            the Mono8 masks (kMaskBoom | kMaskReceiver), same layout
+//   OUT/mav0/imu0/data.csv            "#timestamp [ns],w_RS_S_x [rad s^-1],...,a_RS_S_z [m s^-2]"
+//   OUT/mav0/imu0/sensor.yaml         T_BS (identity: the IMU axes are the body axes), rate_hz
+//   OUT/poses.csv                     the recorded T_cam_receiver per frame and camera
+//                                     (nav/logs.hpp camera pose CSV)
+//   OUT/stats.csv, OUT/stats.png      occlusion statistics (render/stats.hpp) and their plot
+//
+// Frames: the body frame B of every T_BS is the tanker body frame (FRD, core/conventions.hpp);
+// a camera's sensor frame S is its OpenCV frame, so T_BS is the rig's T_body_cam, written as a
+// 4x4 row-major matrix. Pixel coordinates follow OpenCV's (and Kalibr's): the centre of the
+// top-left pixel is (0, 0).
+//
+// Images: PNG, lossless. Mono8 and Bayer mosaics are 8-bit gray PNGs (a Bayer mosaic is written
+// as it is, not debayered; sensor.yaml's `augrig: pixel_format` says which pattern, and
+// EurocSource reads it back as that format), RGB8 a colour PNG, RGBA8 a colour PNG with alpha.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/frame.hpp"
+#include "nav/types.hpp"
+#include "recorder/reader.hpp"
+#include "render/rig.hpp"
+
+namespace augrig::recorder {
+
+// ---- Export ---------------------------------------------------------------------------------------
+
+struct EurocExportOptions {
+  // The cameras' intrinsics and extrinsics; default: the rig stored in the recording (meta
+  // "rig_yaml"). An error when neither is there.
+  std::optional<Rig> rig;
+  bool augmented = true;  // cam0_augmented, cam1_augmented (when the recording has them)
+  bool masks = true;      // cam0_mask, cam1_mask (when the recording has them)
+  // The nav input stream exported as imu0; empty: "imu", else "tanker.imu", else the only stream
+  // whose name ends in "imu". Its rows must be recorder::imu_input() rows.
+  std::string imu_stream;
+  bool plot = true;  // OUT/stats.png through gnuplot (recorder/plot.hpp)
+  int png_compression = 1;
+};
+
+struct EurocExportReport {
+  std::size_t frames = 0;          // in the recording
+  std::size_t frames_written = 0;  // stereo frames exported (raw)
+  std::size_t augmented_written = 0, masks_written = 0;
+  double rate_hz = 0;      // the frames' median rate
+  std::string imu_stream;  // exported as imu0 ("" when none)
+  std::size_t imu_samples = 0;
+  std::size_t pose_rows = 0, stats_rows = 0;
+  bool plotted = false;
+  std::vector<std::string> notes;     // what was left out and why (no augmented images, ...)
+  std::vector<std::string> problems;  // damaged frames skipped, a plot that failed: output incomplete
+};
+
+// Writes the layout above into `out_dir` (created; an existing OUT/mav0 is an error, so two
+// exports never mix). Damaged frames are skipped and listed in report.problems; an error is
+// returned only when the export cannot go on (no rig, a file that cannot be written).
+Status export_euroc(const RecordingReader& reader, const std::string& out_dir,
+                    const EurocExportOptions& options, EurocExportReport& report);
+
+// sensor.yaml text of one camera stream; `stream` is "raw", "augmented" or "mask".
+std::string euroc_camera_yaml(const RigCamera& camera, const std::string& side, const std::string& stream,
+                              double rate_hz, PixelFormat format, ClockDomain clock);
+
+// ---- Reading --------------------------------------------------------------------------------------
+
+struct EurocCsvRow {
+  TimestampNs t_ns = 0;
+  std::string file;  // relative to the stream's data/ folder
+};
+// A camera's data.csv ("#timestamp [ns],filename"); errors name file:line.
+Expected<std::vector<EurocCsvRow>> read_euroc_camera_csv(const std::string& path);
+
+// One row of imu0/data.csv: angular rate (rad/s) and specific force (m/s^2) in the IMU frame.
+struct EurocImuRow {
+  TimestampNs t_ns = 0;
+  Eigen::Vector3d w_rad_s = Eigen::Vector3d::Zero();
+  Eigen::Vector3d a_mps2 = Eigen::Vector3d::Zero();
+};
+Expected<std::vector<EurocImuRow>> read_euroc_imu_csv(const std::string& path);
+// Rates -> the increments nav/ consumes: sample k covers (t[k-1], t[k]] with the trapezoid of the
+// two rates (the first row starts the first interval and yields no sample).
+std::vector<nav::ImuSample> imu_increments(const std::vector<EurocImuRow>& rows);
+
+struct EurocOptions {
+  std::string left_stream = "cam0";  // folder names under mav0/ ("cam0_augmented", ...)
+  std::string right_stream = "cam1";
+  // Largest |t_right - t_left| that pairs; 0: identical timestamps only (EuRoC's convention).
+  std::int64_t pair_tolerance_ns = 0;
+  // What an 8-bit gray PNG is; default: the stream's sensor.yaml `augrig: pixel_format`, else Mono8.
+  std::optional<PixelFormat> gray_format;
+  // The frames' clock; default: sensor.yaml's `augrig: clock`, else kUnknown.
+  std::optional<ClockDomain> clock;
+};
+
+// Plays a EuRoC/ASL dataset: every stereo pair (left then right Frame) in timestamp order, as
+// fast as read() is called. Frames without a partner are not emitted; they are counted in
+// unpaired() and frames_dropped(). sequence is the pair's index (both Frames of a pair share
+// it). An image that cannot be read makes read() return an Error naming the file; that pair is
+// skipped (two Frames in frames_dropped()) and the next read() goes on. sensor.yaml is read
+// only for the optional `augrig:` keys; a missing or unreadable one is ignored.
+class EurocSource final : public FrameSource {
+ public:
+  // `uri_or_dir`: "euroc://DIR", DIR holding mav0/, or the mav0 folder itself.
+  static Expected<std::unique_ptr<EurocSource>> open(const std::string& uri_or_dir,
+                                                     const EurocOptions& options = {});
+  std::string uri() const override { return uri_; }
+  Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
+  std::uint64_t frames_dropped() const override { return unpaired_ + 2 * unreadable_; }
+
+  std::size_t pair_count() const { return pairs_.size(); }
+  std::uint64_t unpaired() const { return unpaired_; }
+  const std::string& mav0() const { return mav0_; }
+  // imu0/data.csv as in the file (empty when the dataset has none), and as increments.
+  const std::vector<EurocImuRow>& imu() const { return imu_; }
+  std::vector<nav::ImuSample> imu_samples() const { return imu_increments(imu_); }
+
+ private:
+  EurocSource() = default;
+  struct Pair {
+    EurocCsvRow left, right;
+  };
+  std::string uri_, mav0_;
+  EurocOptions options_;
+  PixelFormat gray_[2] = {PixelFormat::kMono8, PixelFormat::kMono8};
+  ClockDomain clock_[2] = {ClockDomain::kUnknown, ClockDomain::kUnknown};
+  std::vector<Pair> pairs_;
+  std::vector<EurocImuRow> imu_;
+  std::size_t next_ = 0;
+  bool right_pending_ = false;
+  Frame right_;
+  std::uint64_t unpaired_ = 0;
+  std::uint64_t unreadable_ = 0;
+};
+
+}  // namespace augrig::recorder

@@ -1,0 +1,191 @@
+#include "recorder/plot.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+extern char** environ;
+
+namespace augrig::recorder {
+
+namespace {
+
+bool is_executable_file(const std::string& p) {
+  struct stat st {};
+  return ::stat(p.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::access(p.c_str(), X_OK) == 0;
+}
+
+void append_value(std::string& s, double v) {
+  if (!std::isfinite(v)) {
+    s += "NaN";
+    return;
+  }
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, 9);
+  s.append(buf, r.ptr);
+}
+
+// A gnuplot single-quoted string: '' stands for a quote inside.
+std::string gp_quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("''") : std::string(1, c);
+  return q + "'";
+}
+
+std::string read_text(const std::string& path, std::size_t max) {
+  std::ifstream in(path, std::ios::binary);
+  std::string s((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  while (!s.empty() && (s.back() == '\n' || s.back() == '\r' || s.back() == ' ')) s.pop_back();
+  if (s.size() > max) s = "..." + s.substr(s.size() - max);
+  return s;
+}
+
+std::string script(const std::vector<OcclusionStats>& frames, const std::string& png,
+                   const StatsPlotOptions& o) {
+  std::string s;
+  s += "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {\n  set terminal pngcairo size " +
+       std::to_string(o.width_px) + "," + std::to_string(o.height_px) +
+       " enhanced font 'sans,10'\n} else {\n  set terminal png size " + std::to_string(o.width_px) + "," +
+       std::to_string(o.height_px) + "\n}\n";
+  s += "set output " + gp_quote(png) + "\n";
+  // t_s occl_L occl_R overlap recv_L recv_R boom_L boom_R
+  s += "$stats << EOD\n";
+  const TimestampNs t0 = frames.front().t_ns;
+  for (const OcclusionStats& f : frames) {
+    append_value(s, ns_to_s(f.t_ns - t0));
+    for (double v : {f.occluded_pct_left, f.occluded_pct_right, f.boom_overlap_pct_union, f.receiver_pct_left,
+                     f.receiver_pct_right, f.boom_pct_left, f.boom_pct_right}) {
+      s += ' ';
+      append_value(s, v);
+    }
+    s += '\n';
+  }
+  s += "EOD\n";
+  const bool one = frames.size() == 1;
+  // Small points too, so that a sample between two gaps (non-finite neighbours) still shows.
+  const std::string style = std::string("linespoints pointtype 7 pointsize ") + (one ? "1.2" : "0.35");
+  s += "set multiplot layout 2,1 title " + gp_quote(o.title) + " font ',13'\n";
+  s += "set grid\nset key outside right top\nset lmargin 10\nset rmargin 34\n";
+  s += "set xlabel 'time from the first frame (s)'\n";
+  s += "set ylabel '%'\nset yrange [0:*]\nset offsets 0, 0, graph 0.05, 0\n";
+  s += "set title 'Receiver occlusion by the boom, and boom overlap between the cameras'\n";
+  s += "plot $stats using 1:2 with " + style +
+       " linewidth 2 linecolor rgb '#1f77b4' title 'occluded % left', \\\n"
+       "     $stats using 1:3 with " +
+       style +
+       " linewidth 2 linecolor rgb '#d62728' title 'occluded % right', \\\n"
+       "     $stats using 1:4 with " +
+       style + " linewidth 2 linecolor rgb '#2ca02c' title 'boom overlap % of union'\n";
+  s += "set title 'Coverage of each image (% of its pixels)'\n";
+  s += "plot $stats using 1:5 with " + style +
+       " linewidth 2 linecolor rgb '#1f77b4' title 'receiver left', \\\n"
+       "     $stats using 1:6 with " +
+       style +
+       " linewidth 2 dashtype 2 linecolor rgb '#1f77b4' title 'receiver right', \\\n"
+       "     $stats using 1:7 with " +
+       style +
+       " linewidth 2 linecolor rgb '#ff7f0e' title 'boom left', \\\n"
+       "     $stats using 1:8 with " +
+       style + " linewidth 2 dashtype 2 linecolor rgb '#ff7f0e' title 'boom right'\n";
+  s += "unset multiplot\nset output\n";
+  return s;
+}
+
+}  // namespace
+
+std::string find_gnuplot() {
+  if (const char* e = std::getenv("AUGRIG_GNUPLOT"); e && *e)
+    return is_executable_file(e) ? std::string(e) : "";
+  const char* path = std::getenv("PATH");
+  std::stringstream ss(path ? path : "/usr/bin:/bin");
+  std::string dir;
+  while (std::getline(ss, dir, ':')) {
+    const std::string p = (dir.empty() ? std::string(".") : dir) + "/gnuplot";
+    if (is_executable_file(p)) return p;
+  }
+  return "";
+}
+
+Status plot_occlusion_stats(const std::vector<OcclusionStats>& frames, const std::string& png_path,
+                            const StatsPlotOptions& options) {
+  const std::string where = "recorder::plot_occlusion_stats(): " + png_path + ": ";
+  if (frames.empty()) return make_error(where, "no statistics to plot (no frame has them)");
+  const std::string gnuplot = find_gnuplot();
+  if (gnuplot.empty()) {
+    const char* e = std::getenv("AUGRIG_GNUPLOT");
+    return make_error(where, "cannot plot: gnuplot ",
+                      e && *e ? std::string("($AUGRIG_GNUPLOT=") + e + ") is not an executable file"
+                              : std::string("is not installed (no gnuplot on PATH)"),
+                      "; the statistics plot needs it (Debian: apt-get install gnuplot-nox)");
+  }
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path parent = fs::path(png_path).parent_path();
+  if (!parent.empty()) fs::create_directories(parent, ec);
+  fs::remove(png_path, ec);
+
+  // gnuplot reads the script from a socket (not a pipe): send() with MSG_NOSIGNAL cannot raise
+  // SIGPIPE in this process if gnuplot exits early. Its stderr goes to a temporary file.
+  char err_path[] = "/tmp/augrig-gnuplot-XXXXXX";
+  const int err_fd = ::mkstemp(err_path);
+  if (err_fd < 0) return make_error(where, "cannot create a temporary file for gnuplot's messages");
+  int sv[2];
+  if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) {
+    ::close(err_fd);
+    ::unlink(err_path);
+    return make_error(where, "socketpair() failed");
+  }
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, sv[1], 0);
+  posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_adddup2(&fa, err_fd, 2);
+  std::string arg0 = gnuplot;
+  char* argv[] = {arg0.data(), nullptr};
+  pid_t pid = 0;
+  const int rc = ::posix_spawn(&pid, gnuplot.c_str(), &fa, nullptr, argv, environ);
+  posix_spawn_file_actions_destroy(&fa);
+  ::close(sv[1]);
+  ::close(err_fd);
+  if (rc != 0) {
+    ::close(sv[0]);
+    ::unlink(err_path);
+    return make_error(where, "cannot run ", gnuplot, " (error ", rc, ")");
+  }
+  const std::string text = script(frames, png_path, options);
+  bool sent = true;
+  for (std::size_t off = 0; off < text.size();) {
+    const ssize_t n = ::send(sv[0], text.data() + off, text.size() - off, MSG_NOSIGNAL);
+    if (n <= 0) {
+      if (n < 0 && errno == EINTR) continue;
+      sent = false;
+      break;
+    }
+    off += static_cast<std::size_t>(n);
+  }
+  ::close(sv[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  const std::string messages = read_text(err_path, 600);
+  ::unlink(err_path);
+  const bool ok = sent && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+  if (!ok || !fs::exists(png_path, ec) || fs::file_size(png_path, ec) == 0) {
+    return make_error(where, gnuplot, " failed",
+                      WIFEXITED(status) ? " (exit " + std::to_string(WEXITSTATUS(status)) + ")" : "",
+                      messages.empty() ? std::string() : ": " + messages);
+  }
+  return {};
+}
+
+}  // namespace augrig::recorder

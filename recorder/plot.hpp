@@ -1,0 +1,31 @@
+// plot: the occlusion statistics of a run over time as a PNG, drawn by gnuplot (Debian package
+// gnuplot-nox, or any gnuplot 5 with the pngcairo or png terminal) driven through a pipe. gnuplot
+// is needed only for this plot: without it plot_occlusion_stats() returns an error saying so, and
+// everything else works.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/expected.hpp"
+#include "render/stats.hpp"
+
+namespace augrig::recorder {
+
+// gnuplot's path: $AUGRIG_GNUPLOT when set, else the first `gnuplot` on PATH; empty when none.
+std::string find_gnuplot();
+
+struct StatsPlotOptions {
+  std::string title = "Occlusion statistics";
+  int width_px = 1200;
+  int height_px = 800;
+};
+
+// Two panels over time (seconds from the first frame): occluded % of the receiver in the left and
+// right images and the boom overlap (% of the union of both boom masks); the receiver and boom
+// coverage of each image (% of its pixels). Frames are drawn in the given order; non-finite
+// values leave gaps. Errors: no frames, gnuplot missing, gnuplot failing (its message is quoted).
+Status plot_occlusion_stats(const std::vector<OcclusionStats>& frames, const std::string& png_path,
+                            const StatsPlotOptions& options = {});
+
+}  // namespace augrig::recorder

@@ -1,0 +1,135 @@
+// What a recording holds, item by item: stereo frames (raw, augmented, masks, the poses and boom
+// articulation used, occlusion statistics), nav inputs exactly as received, the drop ledger and
+// free-text events. The Recorder (recorder/recorder.hpp) takes these items and the
+// RecordingReader (recorder/reader.hpp) gives them back; docs/RECORDING.md has the schema.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <variant>
+
+#include "core/conventions.hpp"
+#include "core/frame.hpp"
+#include "core/pose.hpp"
+#include "nav/types.hpp"
+#include "render/models.hpp"
+#include "render/stats.hpp"
+
+namespace augrig::recorder {
+
+// Where in the pipeline an item was lost. Every loss is entered in the drop ledger; none is silent.
+enum class DropStage : std::uint8_t {
+  kCamera,      // the camera skipped frames (sequence gaps, reported by the source)
+  kTransport,   // lost between camera and host (incomplete GigE blocks, USB overruns)
+  kPairing,     // a frame found no stereo partner (capture/stereo_pairer.hpp)
+  kProcessing,  // augmentation or nav could not keep up or failed for a frame
+  kRecorder,    // the recorder's queue was full, or writing failed
+};
+inline constexpr std::array<DropStage, 5> kAllDropStages = {DropStage::kCamera, DropStage::kTransport,
+                                                            DropStage::kPairing, DropStage::kProcessing,
+                                                            DropStage::kRecorder};
+constexpr std::string_view to_string(DropStage s) {
+  switch (s) {
+    case DropStage::kCamera:
+      return "camera";
+    case DropStage::kTransport:
+      return "transport";
+    case DropStage::kPairing:
+      return "pairing";
+    case DropStage::kProcessing:
+      return "processing";
+    case DropStage::kRecorder:
+      return "recorder";
+  }
+  return "?";
+}
+// Parses the names above; false for anything else.
+bool parse_drop_stage(std::string_view name, DropStage& out);
+// Parses core/conventions.hpp's ClockDomain names ("gps", "device", ...); false for anything else.
+bool parse_clock_domain(std::string_view name, ClockDomain& out);
+
+// One stereo frame and what was made of it. Only `raw` is required; everything else is optional
+// and is recorded only when present (an empty Image, std::nullopt or NaN means "not present").
+struct FrameRecord {
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+  // Raw images exactly as captured (any PixelFormat, any stride; both cameras), timestamps,
+  // clocks, sequences, pairing key and skew.
+  StereoFrame raw;
+  // Per camera (index_of(CameraId)): the augmented image, same size and format as the raw one.
+  std::array<Image, 2> augmented;
+  // Per camera: the Mono8 mask (kMaskBoom | kMaskReceiver), same size as the raw image.
+  std::array<Image, 2> mask;
+  // The relative poses the augmentation used: the receiver in each camera (OpenCV camera frame,
+  // receiver body FRD) and in the tanker body frame, with their 1-sigma errors.
+  std::array<std::optional<Pose>, 2> T_cam_receiver;
+  std::optional<Pose> T_body_receiver;
+  std::optional<bool> receiver_present;
+  double sigma_pos_m = kNaN;
+  double sigma_att_deg = kNaN;
+  std::optional<BoomArticulation> boom;
+  std::optional<OcclusionStats> stats;
+};
+
+// One nav input exactly as received: an NMEA line (without its line ending), an IMU sample as the
+// device sent it, a CSV row, ... `data` is stored byte for byte; `binary` says whether it is text
+// (SQLite TEXT) or bytes (BLOB).
+struct NavInputRecord {
+  std::string stream;    // "gps", "imu", "tanker.gps", ...
+  TimestampNs t_ns = 0;  // sensor time of validity (0: unknown), in `clock`
+  ClockDomain clock = ClockDomain::kGps;
+  TimestampNs arrival_ns = 0;  // host arrival time, ClockDomain::kHostMonotonic (0: unknown)
+  std::string data;
+  bool binary = false;
+};
+
+// An IMU sample as one line of the nav IMU CSV (nav/logs.hpp, docs/NAV_FORMATS.md):
+// "t_ns,dt_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps,arrival_ns", every
+// double in its shortest exact text, so the sample reads back bit-exact.
+NavInputRecord imu_input(const nav::ImuSample& sample, std::string stream = "imu");
+// The header line that makes imu_input()'s rows a file nav::parse_imu_csv() reads.
+std::string_view imu_input_header();
+
+// An entry of the drop ledger: `count` items of kind `item` lost at `stage`, the first and last
+// of them stamped `first_t_ns` and `last_t_ns` (their own clock; 0: unknown).
+struct DropRecord {
+  DropStage stage = DropStage::kCamera;
+  std::uint64_t count = 0;
+  TimestampNs first_t_ns = 0;
+  TimestampNs last_t_ns = 0;
+  std::string reason;
+  std::string item = "frame";  // "frame", "nav_input", "event"
+};
+
+struct EventRecord {
+  TimestampNs t_ns = 0;
+  ClockDomain clock = ClockDomain::kHostMonotonic;
+  std::string text;
+};
+
+using RecordItem = std::variant<FrameRecord, NavInputRecord, DropRecord, EventRecord>;
+
+// Which images RecordingReader::read_frame() decodes (a bit set); metadata, poses and statistics
+// always come.
+enum FrameParts : unsigned {
+  kPartsNone = 0,
+  kPartRaw = 1u << 0,
+  kPartAugmented = 1u << 1,  // needs the raw images too; asking for it decodes them
+  kPartMasks = 1u << 2,
+  kPartsAll = kPartRaw | kPartAugmented | kPartMasks,
+};
+
+// What a recording is about, stored once in its `meta` table.
+struct RecordingInfo {
+  std::string rig_yaml;                      // the rig file's text (render/rig.hpp)
+  std::string scene;                         // the scene or scenario file's text, if any
+  std::string clock_domains;                 // free text: which clock each stream uses and known offsets
+  std::map<std::string, std::string> extra;  // more meta keys (must not start with "summary.")
+};
+
+}  // namespace augrig::recorder

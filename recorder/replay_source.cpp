@@ -1,0 +1,268 @@
+#include "recorder/replay_source.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace augrig::recorder {
+
+namespace {
+
+using SteadyClock = std::chrono::steady_clock;
+constexpr std::string_view kScheme = "replay://";
+
+// "module::function(): rest" -> "rest", so that errors read as the replay source's own.
+std::string strip_function(const std::string& m) {
+  const auto p = m.find("(): ");
+  if (p != std::string::npos && p < 64 && m.find(' ') > p) return m.substr(p + 4);
+  return m;
+}
+
+int cameras_with_images(const FrameRecord& r) {
+  return !r.raw.left.image.empty() + !r.raw.right.image.empty();
+}
+
+}  // namespace
+
+ReplaySource::~ReplaySource() = default;
+
+Expected<std::unique_ptr<ReplaySource>> ReplaySource::open(const std::string& uri_or_dir,
+                                                           const ReplayOptions& options) {
+  const std::string where = "recorder::ReplaySource::open(): ";
+  std::string path = uri_or_dir;
+  if (path.rfind(kScheme, 0) == 0) path = path.substr(kScheme.size());
+  if (path.empty())
+    return make_error(where, "'", uri_or_dir, "': expected replay://DIR or a recording folder");
+  if (!(options.rate > 0) || !std::isfinite(options.rate))
+    return make_error(where, path, ": the rate must be a positive number, got ", options.rate);
+  if (options.passes < 0)
+    return make_error(where, path, ": passes must be >= 0 (0: forever), got ", options.passes);
+
+  auto reader = RecordingReader::open(path);
+  if (!reader) return make_error(where, strip_function(reader.error().message));
+
+  std::unique_ptr<ReplaySource> s(new ReplaySource());
+  s->uri_ = std::string(kScheme) + path;
+  s->options_ = options;
+  s->options_.parts |= kPartRaw;
+  s->reader_ = std::move(*reader);
+  const std::size_t n = s->reader_->frame_count();
+  s->t_key_ns_.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    auto info = s->reader_->read_frame_info(i);
+    s->t_key_ns_.push_back(info ? std::optional<TimestampNs>(info->raw.t_key_ns) : std::nullopt);
+  }
+
+  std::optional<TimestampNs> start_t = options.start_t_ns;
+  if (options.start_offset_ns) {
+    const auto first =
+        std::find_if(s->t_key_ns_.begin(), s->t_key_ns_.end(), [](const auto& t) { return t.has_value(); });
+    if (first == s->t_key_ns_.end())
+      return make_error(where, s->reader_->path(), ": no frame has a readable time to seek from");
+    start_t = **first + *options.start_offset_ns;
+  }
+  if (start_t) {
+    const auto it = std::find_if(s->t_key_ns_.begin(), s->t_key_ns_.end(),
+                                 [&](const auto& t) { return t && *t >= *start_t; });
+    if (it == s->t_key_ns_.end()) {
+      std::string last = "no frame has a readable time";
+      for (auto r = s->t_key_ns_.rbegin(); r != s->t_key_ns_.rend(); ++r) {
+        if (*r) {
+          last = "the last frame is at t_ns " + std::to_string(**r);
+          break;
+        }
+      }
+      return make_error(where, s->reader_->path(), ": no frame at or after t_ns ", *start_t, " (", last, ")");
+    }
+    s->start_ = static_cast<std::size_t>(it - s->t_key_ns_.begin());
+  } else {
+    if (options.start_frame > 0 && options.start_frame >= n)
+      return make_error(where, s->reader_->path(), ": start frame ", options.start_frame,
+                        " is past the last frame (", n, " frames)");
+    s->start_ = options.start_frame;
+  }
+  s->cursor_ = s->start_;
+  return s;
+}
+
+std::string ReplaySource::uri() const {
+  return uri_;
+}
+
+std::uint64_t ReplaySource::frames_dropped() const {
+  return dropped_.load();
+}
+
+void ReplaySource::step(std::size_t n) {
+  {
+    std::lock_guard lk(mu_);
+    permits_ += n;
+  }
+  cv_.notify_all();
+}
+
+void ReplaySource::set_paused(bool paused) {
+  {
+    std::lock_guard lk(mu_);
+    if (paused_ && !paused) anchored_ = false;  // real rate resumes from the next frame, not from the past
+    paused_ = paused;
+  }
+  cv_.notify_all();
+}
+
+bool ReplaySource::paused() const {
+  std::lock_guard lk(mu_);
+  return paused_;
+}
+
+Status ReplaySource::seek_frame(std::size_t i) {
+  if (i >= t_key_ns_.size()) {
+    return make_error("recorder::ReplaySource::seek_frame(): ", reader_->path(), ": frame ", i,
+                      " is past the last frame (", t_key_ns_.size(), " frames)");
+  }
+  {
+    std::lock_guard lk(mu_);
+    cursor_ = i;
+    ++seek_gen_;
+    have_pending_ = false;
+    pending_error_.reset();
+    right_pending_ = false;
+    anchored_ = false;
+  }
+  cv_.notify_all();
+  return {};
+}
+
+Status ReplaySource::seek_time(TimestampNs t_ns) {
+  const auto it =
+      std::find_if(t_key_ns_.begin(), t_key_ns_.end(), [&](const auto& t) { return t && *t >= t_ns; });
+  if (it == t_key_ns_.end())
+    return make_error("recorder::ReplaySource::seek_time(): ", reader_->path(),
+                      ": no frame at or after t_ns ", t_ns);
+  return seek_frame(static_cast<std::size_t>(it - t_key_ns_.begin()));
+}
+
+Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds timeout) {
+  const auto start = SteadyClock::now();
+  // Very long timeouts are waited in slices of a day (no overflow of the time point).
+  const auto deadline = start + std::clamp<std::chrono::nanoseconds>(timeout, std::chrono::nanoseconds(0),
+                                                                     std::chrono::hours(24));
+  std::unique_lock lk(mu_);
+
+  // Waits until `tp` or the deadline, whichever comes first, or until a control call wakes it.
+  // false: the deadline has passed (the caller returns kTimeout).
+  auto wait = [&](SteadyClock::time_point tp) {
+    if (SteadyClock::now() >= deadline) return false;
+    cv_.wait_until(lk, std::min(tp, deadline));
+    return true;
+  };
+  auto due = [&](TimestampNs t_ns) {
+    const double dt = static_cast<double>(t_ns - anchor_t_ns_) / options_.rate;
+    return anchor_wall_ + std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(dt)));
+  };
+
+  for (;;) {
+    // 1. The right Frame of the stereo frame whose left Frame went out last.
+    if (right_pending_) {
+      const Frame& f = current_.raw.right;
+      if (options_.mode == ReplayMode::kRealRate && !released_by_step_ && !paused_ && anchored_) {
+        const auto when = due(f.t_ns);
+        if (SteadyClock::now() < when) {
+          if (!wait(when)) return ReadStatus::kTimeout;
+          continue;
+        }
+      }
+      right_pending_ = false;
+      out = f;
+      return ReadStatus::kFrame;
+    }
+
+    // 2. Load the next stereo frame (without the lock: decoding takes a while).
+    if (!have_pending_) {
+      if (cursor_ >= t_key_ns_.size()) {
+        if (options_.passes == 0 || pass_ + 1 < options_.passes) {
+          if (start_ >= t_key_ns_.size()) return ReadStatus::kEndOfStream;  // an empty recording
+          cursor_ = start_;
+          ++pass_;
+          anchored_ = false;
+        } else {
+          return ReadStatus::kEndOfStream;
+        }
+      }
+      const std::size_t i = cursor_;
+      const std::uint64_t gen = seek_gen_;
+      const int pass = pass_;
+      lk.unlock();
+      auto rec = reader_->read_frame(i, options_.parts);
+      lk.lock();
+      if (gen != seek_gen_) continue;  // a seek came in meanwhile
+      cursor_ = i + 1;
+      pending_index_ = i;
+      pending_pass_ = pass;
+      have_pending_ = true;
+      if (rec) {
+        pending_ = std::move(*rec);
+        pending_error_.reset();
+        if (cameras_with_images(pending_) == 0) {  // nothing to emit (not written by the Recorder)
+          have_pending_ = false;
+          continue;
+        }
+      } else {
+        pending_error_ = make_error("recorder::ReplaySource::read(): ", strip_function(rec.error().message),
+                                    "; frame skipped, replay goes on with frame ", i + 1);
+      }
+    }
+
+    // 3. Gates: pause and step, then real-rate timing, both on the stereo frame's first Frame.
+    const bool gated = options_.mode == ReplayMode::kStep || paused_;
+    if (gated && permits_ == 0) {
+      if (!wait(SteadyClock::time_point::max())) return ReadStatus::kTimeout;
+      continue;
+    }
+    if (pending_error_) {
+      if (gated) --permits_;
+      have_pending_ = false;
+      damaged_.fetch_add(1);
+      dropped_.fetch_add(2);
+      Error e = std::move(*pending_error_);
+      pending_error_.reset();
+      return e;
+    }
+    const Frame& first = pending_.raw.left.image.empty() ? pending_.raw.right : pending_.raw.left;
+    if (!gated && options_.mode == ReplayMode::kRealRate) {
+      if (!anchored_) {
+        anchored_ = true;
+        anchor_wall_ = SteadyClock::now();
+        anchor_t_ns_ = first.t_ns;
+      }
+      const auto when = due(first.t_ns);
+      const auto now = SteadyClock::now();
+      if (options_.drop_late && now - when > options_.late_tolerance) {
+        dropped_.fetch_add(static_cast<std::uint64_t>(cameras_with_images(pending_)));
+        have_pending_ = false;
+        continue;
+      }
+      if (now < when) {
+        if (!wait(when)) return ReadStatus::kTimeout;
+        continue;
+      }
+    }
+    if (gated) {
+      --permits_;
+      anchored_ = false;  // after a step or a pause, real rate starts afresh
+    }
+    released_by_step_ = gated;
+
+    // 4. Emit the first Frame; the right one follows on the next read().
+    current_ = std::move(pending_);
+    pending_ = FrameRecord{};
+    current_index_ = pending_index_;
+    current_pass_ = pending_pass_;
+    have_pending_ = false;
+    const bool left = !current_.raw.left.image.empty();
+    out = left ? current_.raw.left : current_.raw.right;
+    right_pending_ = left && !current_.raw.right.image.empty();
+    return ReadStatus::kFrame;
+  }
+}
+
+}  // namespace augrig::recorder

@@ -1,0 +1,155 @@
+// ReplaySource: plays a recording (docs/RECORDING.md) back as a FrameSource, `replay://<dir>`
+// (docs/REPLAY.md).
+//
+//   recorder::ReplayOptions o;
+//   o.mode = recorder::ReplayMode::kRealRate;   // or kFast (lockstep), kStep
+//   auto src = recorder::ReplaySource::open("replay://flight-042", o);
+//   Frame f;
+//   for (;;) {
+//     auto st = (*src)->read(f, 100ms);
+//     if (!st) { log(st.error().message); continue; }   // a damaged frame: skipped, replay goes on
+//     if (*st == ReadStatus::kEndOfStream) break;
+//     if (*st == ReadStatus::kTimeout) continue;
+//     const recorder::FrameRecord& rec = (*src)->current();   // poses, boom, stats of f's frame
+//   }
+//
+// What comes out: for each recorded stereo frame, its left Frame and then its right Frame, exactly
+// as recorded (image bytes, format, size, t_ns, clock, t_host_ns, sequence, camera, exposure).
+// A camera whose recorded image is empty is not emitted. current() is the whole FrameRecord the
+// last emitted Frame came from (metadata, poses, boom, stats, and the images asked for by
+// ReplayOptions::parts), so a consumer can rebuild the recorded StereoFrame or re-augment the
+// recorded scene.
+//
+// Modes:
+//   kFast      as fast as the consumer reads (lockstep: read() never skips a frame);
+//   kRealRate  each Frame is released when wall time since the anchor reaches
+//              (t_ns - anchor t_ns) / rate; the anchor is the first frame emitted after open,
+//              a seek, a loop or a pause. A consumer that falls behind gets the late frames at
+//              once (none skipped) unless drop_late is set;
+//   kStep      a stereo frame is released only for a step() (both its Frames for one step()).
+// set_paused(true) holds any mode; step() then releases single stereo frames as in kStep.
+//
+// Damage: a frame whose row or blobs cannot be read makes read() return an Error naming the
+// recording and the frame ("recorder::ReplaySource::read(): DIR/recording.sqlite: frame 12:
+// ..."); that stereo frame is skipped (counted in damaged_frames() and, two Frames each, in
+// frames_dropped()) and the next read() goes on with the following frame.
+//
+// Threads: read(), current() and the accessors of what was read belong to one thread; step(),
+// set_paused(), seek_frame() and seek_time() may be called from any thread and wake a read()
+// that waits.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/frame.hpp"
+#include "recorder/reader.hpp"
+#include "recorder/store.hpp"
+
+namespace augrig::recorder {
+
+enum class ReplayMode : std::uint8_t { kFast, kRealRate, kStep };
+
+struct ReplayOptions {
+  ReplayMode mode = ReplayMode::kFast;
+  // kRealRate: recorded time runs `rate` times as fast as wall time (2: twice as fast). > 0.
+  double rate = 1.0;
+  // Where playback, and every loop, begins: frame `start_frame`; or, when `start_t_ns` is set, the
+  // first frame (in recording order) whose t_key_ns is at or after it; or, when `start_offset_ns`
+  // is set, at or after the first frame's t_key_ns plus the offset.
+  std::size_t start_frame = 0;
+  std::optional<TimestampNs> start_t_ns;
+  std::optional<std::int64_t> start_offset_ns;
+  // How many times the range [start, last frame] plays; 0: forever.
+  int passes = 1;
+  // FrameParts (recorder/store.hpp) decoded into current(); the raw images are always decoded.
+  unsigned parts = kPartRaw;
+  // kRealRate: a stereo frame whose left Frame is due more than `late_tolerance` ago is skipped
+  // and counted in frames_dropped() (as a live camera would lose it) instead of coming late.
+  bool drop_late = false;
+  std::chrono::nanoseconds late_tolerance = std::chrono::milliseconds(50);
+};
+
+class ReplaySource final : public FrameSource {
+ public:
+  // `uri_or_dir`: "replay://DIR", a recording folder, or its recording.sqlite. Fails when the
+  // recording cannot be opened, the options are invalid, or the start is past the last frame.
+  static Expected<std::unique_ptr<ReplaySource>> open(const std::string& uri_or_dir,
+                                                      const ReplayOptions& options = {});
+  ~ReplaySource() override;
+
+  std::string uri() const override;  // "replay://DIR" as given (the .sqlite path when that was given)
+  Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
+  // Frames not emitted: two per damaged stereo frame, and those drop_late skipped.
+  std::uint64_t frames_dropped() const override;
+
+  // ---- Control (any thread) ----
+  // Releases `n` more stereo frames in kStep mode or while paused.
+  void step(std::size_t n = 1);
+  void set_paused(bool paused);
+  bool paused() const;
+  // The next stereo frame read is frame `i` (a left Frame first); the loop range is unchanged.
+  Status seek_frame(std::size_t i);
+  // The next stereo frame read is the first (in recording order) with t_key_ns >= t_ns.
+  Status seek_time(TimestampNs t_ns);
+
+  // ---- What was read (the reading thread) ----
+  // The recorded stereo frame the last emitted Frame belongs to (empty before the first).
+  const FrameRecord& current() const { return current_; }
+  // Its index in the recording; nullopt before the first Frame.
+  std::optional<std::size_t> current_index() const { return current_index_; }
+  // The pass the last emitted Frame belongs to (0 for the first).
+  int pass() const { return current_pass_; }
+  std::uint64_t damaged_frames() const { return damaged_.load(); }
+
+  // ---- The recording ----
+  std::size_t frame_count() const { return t_key_ns_.size(); }
+  // Every frame's t_key_ns (nullopt where even the frame's metadata could not be read).
+  const std::vector<std::optional<TimestampNs>>& frame_times() const { return t_key_ns_; }
+  std::size_t start_frame() const { return start_; }
+  const RecordingReader& reader() const { return *reader_; }
+
+ private:
+  ReplaySource() = default;
+
+  std::string uri_;
+  ReplayOptions options_;
+  std::unique_ptr<RecordingReader> reader_;
+  std::vector<std::optional<TimestampNs>> t_key_ns_;
+  std::size_t start_ = 0;
+
+  // Under mu_: control, and the stereo frame loaded but not yet (fully) emitted.
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::size_t cursor_ = 0;      // next stereo frame to load
+  std::uint64_t seek_gen_ = 0;  // bumped by every seek: what was loaded before it is discarded
+  std::size_t permits_ = 0;     // step()s not yet used
+  bool paused_ = false;
+  int pass_ = 0;
+  bool anchored_ = false;  // kRealRate: the anchor below is valid
+  std::chrono::steady_clock::time_point anchor_wall_;
+  TimestampNs anchor_t_ns_ = 0;
+  bool have_pending_ = false;  // pending_ (or pending_error_) is loaded; nothing of it emitted yet
+  FrameRecord pending_;
+  std::optional<Error> pending_error_;
+  std::size_t pending_index_ = 0;
+  int pending_pass_ = 0;
+  bool right_pending_ = false;  // current_'s right Frame is still to emit
+  bool released_by_step_ = false;
+
+  // The reading thread's view.
+  FrameRecord current_;
+  std::optional<std::size_t> current_index_;
+  int current_pass_ = 0;
+  std::atomic<std::uint64_t> damaged_{0};
+  std::atomic<std::uint64_t> dropped_{0};
+};
+
+}  // namespace augrig::recorder

@@ -1,0 +1,307 @@
+// augrig check, replay and export through the real binary, on a recording this test writes with
+// recorder::Recorder from frames it augments itself (so the recording holds the real augmenter's
+// images, masks and statistics): replay reproduces the recorded statistics, seeks, loops, paces,
+// re-augments with another scene or rig, reports a damaged frame and goes on; export writes the
+// EuRoC layout; exit codes and messages of bad inputs and flags.
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "app/commands.hpp"
+#include "recorder/plot.hpp"
+#include "recorder/reader.hpp"
+#include "recorder/recorder.hpp"
+#include "recorder/store.hpp"
+#include "render/augmenter.hpp"
+#include "render/gl_context.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace augrig {
+namespace {
+
+namespace fs = std::filesystem;
+using test::augrig_binary;
+using test::output_dir;
+using test::run_command;
+
+constexpr int kFrames = 8;
+constexpr TimestampNs kT0 = 2'000'000'000;
+constexpr TimestampNs kPeriod = 33'000'000;
+
+int augrig(const std::string& args, std::string* output = nullptr) {
+  return run_command(augrig_binary() + " " + args + " 2>&1", output);
+}
+
+Rig small_rig() {
+  Rig rig = Rig::paper_default();
+  for (RigCamera& c : rig.cameras) c.model = CameraModel::pinhole_from_hfov(128, 96, deg_to_rad(56.0));
+  return *parse_rig(rig_to_yaml(rig), "<string>");
+}
+
+Image raw_image(int i, int c) {
+  Image im(128, 96, PixelFormat::kMono8);
+  std::mt19937 rng(static_cast<unsigned>(10 * i + c));
+  for (int y = 0; y < im.height(); ++y)
+    for (int x = 0; x < im.width(); ++x) im.row(y)[x] = static_cast<std::uint8_t>(x + y + rng() % 16);
+  return im;
+}
+
+// A recording of kFrames stereo frames augmented here, with everything the recorder stores.
+std::string write_recording(const std::string& dir) {
+  const Rig rig = small_rig();
+  auto ctx = create_gl_context(GlBackend::kEglHeadless);
+  EXPECT_TRUE(ctx) << ctx.error().message;
+  Eigen::Vector3d receptacle;
+  AugmentOptions options;
+  options.receiver_model = std::make_shared<const Model>(make_builtin_receiver(&receptacle));
+  auto augmenter = Augmenter::create(rig, options);
+  EXPECT_TRUE(augmenter) << augmenter.error().message;
+  recorder::RecordingInfo info;
+  info.rig_yaml = rig_to_yaml(rig);
+  auto rec = recorder::Recorder::create(dir, info);
+  EXPECT_TRUE(rec) << rec.error().message;
+  StereoResult result;
+  for (int i = 0; i < kFrames; ++i) {
+    recorder::FrameRecord r;
+    r.raw.pair_sequence = static_cast<std::uint64_t>(i);
+    r.raw.t_key_ns = kT0 + i * kPeriod;
+    for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+      Frame& f = r.raw[id];
+      f.camera = id;
+      f.t_ns = r.raw.t_key_ns;
+      f.clock = ClockDomain::kSim;
+      f.sequence = static_cast<std::uint64_t>(i);
+      f.image = raw_image(i, index_of(id));
+    }
+    const BoomArticulation a{deg_to_rad(26.0 + i), deg_to_rad(i - 4.0), 1.0 + 0.3 * i};
+    const SceneState scene =
+        scene_at_contact(rig, BoomDimensions{}, receptacle, a, Eigen::Vector3d(0, 0, 0.5));
+    EXPECT_TRUE((*augmenter)->augment(r.raw, scene, result));
+    result.stats.t_ns = r.raw.t_key_ns;
+    for (int c = 0; c < 2; ++c) {
+      const ViewResult& v = c == 0 ? result.left : result.right;
+      r.augmented[c] = v.augmented;
+      r.mask[c] = v.mask;
+      r.T_cam_receiver[c] =
+          rig.cameras[static_cast<std::size_t>(c)].T_body_cam.inverse() * scene.T_body_receiver;
+    }
+    r.T_body_receiver = scene.T_body_receiver;
+    r.receiver_present = scene.receiver_present;
+    r.boom = scene.boom;
+    r.stats = result.stats;
+    EXPECT_TRUE((*rec)->push(std::move(r)));
+  }
+  EXPECT_TRUE((*rec)->close());
+  return dir;
+}
+
+// One recording per test process (CTest runs each test in its own process, in parallel).
+const std::string& recording() {
+  static const std::string dir =
+      write_recording(output_dir(std::string("cmd_recording_") +
+                                 testing::UnitTest::GetInstance()->current_test_info()->name()) +
+                      "/rec");
+  return dir;
+}
+
+// A copy of the recording with frame 3's left raw blob damaged.
+std::string damaged_copy(const std::string& name) {
+  const std::string dir = output_dir(name);
+  fs::copy_file(recording() + "/recording.sqlite", dir + "/recording.sqlite");
+  auto d = recorder::Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+  EXPECT_TRUE(d);
+  EXPECT_TRUE(
+      d->exec("UPDATE frames SET left_raw = CAST(substr(left_raw, 1, 100) || x'00' || "
+              "substr(left_raw, 102) AS BLOB) WHERE pair_sequence = 3"));
+  return dir;
+}
+
+std::size_t lines_of(const std::string& path) {
+  std::ifstream in(path);
+  std::string l;
+  std::size_t n = 0;
+  while (std::getline(in, l)) ++n;
+  return n;
+}
+
+TEST(CmdRecording, TopHelpListsTheCommands) {
+  std::string log;
+  EXPECT_EQ(augrig("--help", &log), 0);
+  for (const char* c : {"  check ", "  replay ", "  export "})
+    EXPECT_NE(log.find(c), std::string::npos) << log;
+}
+
+TEST(CmdRecording, CheckReportsAndExitsByDamage) {
+  std::string log;
+  ASSERT_EQ(augrig("check " + recording(), &log), 0) << log;
+  EXPECT_NE(log.find("frames: 8 (8 intact, 8 augmented, 8 with masks, 8 with statistics)"), std::string::npos)
+      << log;
+  EXPECT_NE(log.find("problems: none"), std::string::npos) << log;
+
+  const std::string bad = damaged_copy("cmd_recording_check_damaged");
+  ASSERT_EQ(augrig("check " + bad, &log), 1) << log;
+  EXPECT_NE(log.find("problems: 1"), std::string::npos) << log;
+  EXPECT_NE(log.find("frame 3: left raw blob"), std::string::npos) << log;
+}
+
+TEST(CmdRecording, CheckErrors) {
+  std::string log;
+  const std::string missing = output_dir("cmd_recording_missing") + "/nope";
+  EXPECT_EQ(augrig("check " + missing, &log), 1) << log;
+  EXPECT_NE(log.find("augrig check: " + missing + ": no such file"), std::string::npos) << log;
+  const std::string empty = output_dir("cmd_recording_empty");
+  EXPECT_EQ(augrig("check " + empty, &log), 1) << log;
+  EXPECT_NE(log.find("recording.sqlite: no such file (a recording folder holds recording.sqlite)"),
+            std::string::npos)
+      << log;
+  const std::string junk = output_dir("cmd_recording_junk");
+  std::ofstream(junk + "/recording.sqlite") << std::string(5000, 'x');
+  EXPECT_EQ(augrig("check " + junk, &log), 1) << log;
+  EXPECT_NE(log.find("augrig check: " + junk + "/recording.sqlite: not a readable augrig recording"),
+            std::string::npos)
+      << log;
+
+  EXPECT_EQ(augrig("check", &log), 2) << log;
+  EXPECT_NE(log.find("augrig check: expected DIR, got none (see augrig check --help)"), std::string::npos)
+      << log;
+  EXPECT_EQ(augrig("check a b", &log), 2) << log;
+  EXPECT_NE(log.find("expected DIR, got 'a', 'b'"), std::string::npos) << log;
+  EXPECT_EQ(augrig("check " + recording() + " --deep", &log), 2) << log;
+  EXPECT_NE(log.find("unknown option '--deep'"), std::string::npos) << log;
+  EXPECT_EQ(augrig("check --help", &log), 0) << log;
+  EXPECT_NE(log.find("Usage: augrig check DIR"), std::string::npos) << log;
+}
+
+TEST(CmdRecording, ReplayReproducesTheRecordedStatistics) {
+  const std::string out = output_dir("cmd_recording_replay");
+  std::string log;
+  ASSERT_EQ(augrig("replay " + recording() + " --out " + out + " --every 3", &log), 0) << log;
+  EXPECT_NE(log.find("Replayed 8 stereo frame(s)"), std::string::npos) << log;
+  EXPECT_NE(log.find("Recorded statistics reproduced exactly (same pixel counts) in 8 of 8 frame(s)"),
+            std::string::npos)
+      << log;
+  EXPECT_EQ(lines_of(out + "/stats.csv"), 9u);
+  for (const char* f : {"000000", "000003", "000006"}) {
+    EXPECT_TRUE(fs::exists(out + "/left/augmented/" + f + ".png")) << f;
+    EXPECT_TRUE(fs::exists(out + "/right/mask/" + f + ".png")) << f;
+  }
+  EXPECT_FALSE(fs::exists(out + "/left/augmented/000001.png"));
+  // The replayed augmented image is the recorded one.
+  auto rd = recorder::RecordingReader::open(recording());
+  ASSERT_TRUE(rd);
+  auto rec = (*rd)->read_frame(3);
+  ASSERT_TRUE(rec) << rec.error().message;
+  auto png = app::read_image_file(out + "/left/augmented/000003.png");
+  ASSERT_TRUE(png) << png.error().message;
+  EXPECT_TRUE(pixels_equal(*png, rec->augmented[0]));
+}
+
+TEST(CmdRecording, ReplaySeekLoopFromFrameAndRate) {
+  std::string log;
+  // Frames are 33 ms apart: 0.1 s after the first is frame 4; 4 frames, twice.
+  ASSERT_EQ(augrig("replay " + recording() + " --seek 0.1 --loop 2 --rate 4", &log), 0) << log;
+  EXPECT_NE(log.find("from frame 4, real rate x4.0, 2 passes"), std::string::npos) << log;
+  EXPECT_NE(log.find("Replayed 8 stereo frame(s)"), std::string::npos) << log;
+  ASSERT_EQ(augrig("replay " + recording() + " --from-frame 6 --fast", &log), 0) << log;
+  EXPECT_NE(log.find("Replayed 2 stereo frame(s)"), std::string::npos) << log;
+  EXPECT_NE(log.find("in 2 of 2 frame(s)"), std::string::npos) << log;
+}
+
+TEST(CmdRecording, ReplayWithAnotherSceneOrRig) {
+  std::string log;
+  ASSERT_EQ(augrig("replay " + recording() + " --scene " + test::data_path("scenes/absent.yaml"), &log), 0)
+      << log;
+  EXPECT_NE(log.find("scene " + test::data_path("scenes/absent.yaml")), std::string::npos) << log;
+  EXPECT_NE(log.find("Replayed 8 stereo frame(s)"), std::string::npos) << log;
+  EXPECT_NE(log.find("in 0 of 8 frame(s)"), std::string::npos) << log;  // no receiver: other counts
+
+  EXPECT_EQ(augrig("replay " + recording() + " --rig default", &log), 1) << log;
+  EXPECT_NE(log.find("frame 0: the left image is 128x96, the rig's left camera is 1280x960"),
+            std::string::npos)
+      << log;
+  EXPECT_EQ(augrig("replay " + recording() + " --scene " + test::data_path("scenes/bad_syntax.yaml"), &log),
+            1)
+      << log;
+  EXPECT_NE(log.find("bad_syntax.yaml"), std::string::npos) << log;
+}
+
+TEST(CmdRecording, ReplayReportsADamagedFrameAndGoesOn) {
+  const std::string bad = damaged_copy("cmd_recording_replay_damaged");
+  std::string log;
+  ASSERT_EQ(augrig("replay " + bad, &log), 1) << log;
+  EXPECT_NE(log.find("augrig replay: " + bad + "/recording.sqlite: frame 3: left raw blob"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("Replayed 7 stereo frame(s)"), std::string::npos) << log;
+  EXPECT_NE(log.find("augrig replay: 1 frame(s) could not be read (above); the others were replayed"),
+            std::string::npos)
+      << log;
+}
+
+TEST(CmdRecording, ReplayFlagErrors) {
+  std::string log;
+  const std::string r = recording();
+  for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
+           {"--rate 2 --fast", "--rate and --fast exclude each other"},
+           {"--rate 0", "--rate: expected a number above 0, got '0'"},
+           {"--rate abc", "--rate: expected a number, got 'abc'"},
+           {"--seek -1", "--seek: expected seconds from the first frame (>= 0), got '-1'"},
+           {"--seek 1 --from-frame 2", "--seek and --from-frame exclude each other"},
+           {"--loop 0", "--loop: expected a whole number from 1 to 1000000, got '0'"},
+           {"--every 2", "--every needs --out"},
+           {"--receiver-draw solid", "--receiver-draw: expected one of mask, wireframe, translucent"},
+           {"--bogus", "unknown option '--bogus'"},
+       }) {
+    EXPECT_EQ(augrig("replay " + r + " " + args, &log), 2) << args << "\n" << log;
+    EXPECT_NE(log.find("augrig replay: " + message), std::string::npos) << args << "\n" << log;
+    EXPECT_NE(log.find("(see augrig replay --help)"), std::string::npos) << log;
+  }
+  EXPECT_EQ(augrig("replay", &log), 2) << log;
+  EXPECT_NE(log.find("expected DIR, got none"), std::string::npos) << log;
+  EXPECT_EQ(augrig("replay " + output_dir("cmd_recording_replay_missing") + "/x", &log), 1) << log;
+  EXPECT_NE(log.find("/x: no such file"), std::string::npos) << log;
+  EXPECT_EQ(augrig("replay " + r + " --seek 100", &log), 1) << log;
+  EXPECT_NE(log.find("no frame at or after t_ns"), std::string::npos) << log;
+  EXPECT_EQ(augrig("replay " + r + " --from-frame 8", &log), 1) << log;
+  EXPECT_NE(log.find("start frame 8 is past the last frame (8 frames)"), std::string::npos) << log;
+}
+
+TEST(CmdRecording, ExportWritesTheEurocLayout) {
+  const std::string out = output_dir("cmd_recording_export");
+  const bool plot = !recorder::find_gnuplot().empty();
+  std::string log;
+  ASSERT_EQ(augrig("export " + recording() + " --format euroc " + out + (plot ? "" : " --no-plot"), &log), 0)
+      << log;
+  EXPECT_NE(log.find("Exported 8 of 8 stereo frame(s) to " + out +
+                     "/mav0: cam0, cam1, cam0_augmented, cam1_augmented, cam0_mask, cam1_mask"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("note: no nav inputs in the recording: imu0 not written"), std::string::npos) << log;
+  EXPECT_EQ(lines_of(out + "/mav0/cam0/data.csv"), 9u);
+  EXPECT_EQ(lines_of(out + "/mav0/cam1_mask/data.csv"), 9u);
+  EXPECT_TRUE(fs::exists(out + "/mav0/cam1/sensor.yaml"));
+  EXPECT_EQ(lines_of(out + "/stats.csv"), 9u);
+  EXPECT_GT(lines_of(out + "/poses.csv"), 16u);
+  if (plot) {
+    EXPECT_TRUE(fs::exists(out + "/stats.png"));
+  }
+
+  EXPECT_EQ(augrig("export " + recording() + " --format euroc " + out, &log), 1) << log;
+  EXPECT_NE(log.find("augrig export: " + out + "/mav0: exists already"), std::string::npos) << log;
+  EXPECT_EQ(augrig("export " + recording() + " --format kitti " + out, &log), 2) << log;
+  EXPECT_NE(log.find("--format: expected euroc, got 'kitti'"), std::string::npos) << log;
+  EXPECT_EQ(augrig("export " + recording() + " " + out, &log), 2) << log;
+  EXPECT_NE(log.find("missing required option --format euroc"), std::string::npos) << log;
+  EXPECT_EQ(augrig("export " + recording() + " --format euroc", &log), 2) << log;
+  EXPECT_NE(log.find("expected DIR OUT, got '" + recording() + "'"), std::string::npos) << log;
+  EXPECT_EQ(
+      augrig("export " + output_dir("cmd_recording_export_missing") + "/x --format=euroc " + out + "2", &log),
+      1)
+      << log;
+  EXPECT_NE(log.find("/x: no such file"), std::string::npos) << log;
+}
+
+}  // namespace
+}  // namespace augrig

@@ -1,0 +1,495 @@
+// EuRoC/ASL export and replay: export a recording, play the export back through EurocSource and
+// get the recorded images and timestamps back exactly (raw, augmented, masks); sensor.yaml read
+// with yaml-cpp holds the rig; imu0 holds the recorded increments as rates; poses.csv and
+// stats.csv; the statistics plot is a real picture; gnuplot missing is a clear error; a foreign
+// EuRoC dataset (OpenCV's %YAML:1.0 header, unpaired and missing images) plays.
+#include "recorder/euroc.hpp"
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <yaml-cpp/yaml.h>
+
+#include "nav/logs.hpp"
+#include "recorder/plot.hpp"
+#include "recorder/recorder.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace augrig::recorder {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+constexpr int kW = 80, kH = 60;
+constexpr TimestampNs kT0 = 1'400'000'000'000'000'000;  // GPS-time-like magnitudes
+constexpr TimestampNs kPeriod = 50'000'000;             // 20 Hz
+constexpr int kFrames = 12;
+
+Rig small_rig() {
+  Rig rig = Rig::paper_default();
+  for (RigCamera& c : rig.cameras) c.model = CameraModel::pinhole_from_hfov(kW, kH, deg_to_rad(56.0));
+  CameraModel& r = rig.cameras[1].model;
+  r.fx_px += 0.25;
+  r.cx_px -= 0.5;
+  r.distortion = DistortionModel::kRadTan;
+  r.coeffs = {-0.12, 0.015, 0.0007, -0.0004, 0.0};
+  return *parse_rig(rig_to_yaml(rig), "<string>");
+}
+
+Image random_image(int w, int h, PixelFormat f, std::uint64_t seed) {
+  Image img(w, h, f);
+  std::mt19937_64 rng(seed);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w * bytes_per_pixel(f); ++x) img.row(y)[x] = static_cast<std::uint8_t>(rng());
+  return img;
+}
+
+FrameRecord frame(int i) {
+  FrameRecord r;
+  r.raw.pair_sequence = static_cast<std::uint64_t>(i);
+  r.raw.t_key_ns = r.raw.left.t_ns = r.raw.right.t_ns = kT0 + i * kPeriod;
+  for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+    Frame& f = r.raw[id];
+    const int c = index_of(id);
+    f.camera = id;
+    f.clock = ClockDomain::kGps;
+    f.sequence = static_cast<std::uint64_t>(i);
+    f.image = random_image(kW, kH, PixelFormat::kBayerRG8, static_cast<std::uint64_t>(10 * i + c));
+    // The augmented image: the raw one with a painted box; the mask: bits in that box.
+    r.augmented[c] = Image::copy_of(f.image.cview());
+    r.mask[c] = Image(kW, kH, PixelFormat::kMono8);
+    for (int y = 10; y < 20 + i; ++y)
+      for (int x = 5 + c; x < 30; ++x) {
+        r.augmented[c].row(y)[x] = 200;
+        r.mask[c].row(y)[x] = (x < 15 ? kMaskBoom : kMaskBoom | kMaskReceiver);
+      }
+    r.T_cam_receiver[c] = Pose::from(rotation_from_ypr(0.1 * i, 0.02, -0.03 * c),
+                                     Eigen::Vector3d(0.1 * c, -2.0, 15.0 + 0.1 * i));
+  }
+  r.sigma_pos_m = 0.05;
+  r.sigma_att_deg = 0.2;
+  r.boom = BoomArticulation{deg_to_rad(30), deg_to_rad(-2), 3.5};
+  OcclusionStats s;
+  s.t_ns = r.raw.t_key_ns;
+  s.width = kW;
+  s.height = kH;
+  s.occluded_pct_left = 10 + 3 * i;
+  s.occluded_pct_right = 40 - 2 * i;
+  s.boom_overlap_pct_union = 50 + (i % 3) * 10;
+  s.receiver_pct_left = 20 + i;
+  s.receiver_pct_right = 22 + i;
+  s.boom_pct_left = 5 + 0.5 * i;
+  s.boom_pct_right = 6 + 0.5 * i;
+  s.boom_px_left = 100 + i;
+  r.stats = s;
+  return r;
+}
+
+nav::ImuSample imu_sample(int k) {
+  nav::ImuSample s;
+  s.dt_s = 0.005;
+  s.t_ns = kT0 + k * 5'000'000;
+  s.dtheta_rad = Eigen::Vector3d(0.01, -0.02 + 1e-4 * k, 0.003) * s.dt_s;
+  s.dv_mps = Eigen::Vector3d(0.5, 0.1 * k, -9.81) * s.dt_s;
+  return s;
+}
+
+std::string make_recording(const std::string& name, bool with_rig = true) {
+  const std::string dir = test::output_dir("euroc/" + name);
+  RecordingInfo info;
+  if (with_rig) info.rig_yaml = rig_to_yaml(small_rig());
+  auto rec = Recorder::create(dir, info);
+  EXPECT_TRUE(rec) << rec.error().message;
+  for (int k = 0; k < 100; ++k) (*rec)->push(imu_input(imu_sample(k), "tanker.imu"));
+  (*rec)->push(NavInputRecord{"tanker.gps", 5, ClockDomain::kGps, 6, "$GPHDT,274.07,T*03", false});
+  for (int i = 0; i < kFrames; ++i) EXPECT_TRUE((*rec)->push(frame(i)));
+  EXPECT_TRUE((*rec)->close());
+  return dir;
+}
+
+struct Exported {
+  std::string recording, out;
+  EurocExportReport report;
+};
+
+// One recording exported once per test process.
+const Exported& exported() {
+  static const Exported e = [] {
+    Exported x;
+    x.recording = make_recording("recording");
+    x.out = test::output_dir("euroc/export");
+    auto rd = RecordingReader::open(x.recording);
+    EXPECT_TRUE(rd) << rd.error().message;
+    auto st = export_euroc(**rd, x.out, {}, x.report);
+    EXPECT_TRUE(st) << st.error().message;
+    return x;
+  }();
+  return e;
+}
+
+std::vector<Frame> read_all(const std::string& dir, const EurocOptions& o = {}) {
+  auto src = EurocSource::open(dir, o);
+  EXPECT_TRUE(src) << src.error().message;
+  std::vector<Frame> frames;
+  if (!src) return frames;
+  Frame f;
+  for (;;) {
+    auto st = (*src)->read(f, 0ns);
+    EXPECT_TRUE(st) << st.error().message;
+    if (!st || *st == ReadStatus::kEndOfStream) break;
+    frames.push_back(f);
+  }
+  return frames;
+}
+
+TEST(EurocExport, ReplayGivesTheRecordedImagesAndTimestampsBack) {
+  const Exported& e = exported();
+  EXPECT_EQ(e.report.frames, static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(e.report.frames_written, static_cast<std::size_t>(kFrames));
+  EXPECT_TRUE(e.report.problems.empty()) << e.report.problems.front();
+  EXPECT_DOUBLE_EQ(e.report.rate_hz, 20.0);
+  for (const char* s : {"cam0", "cam1", "cam0_augmented", "cam1_augmented", "cam0_mask", "cam1_mask"}) {
+    const fs::path d = fs::path(e.out) / "mav0" / s;
+    EXPECT_TRUE(fs::exists(d / "data.csv")) << d;
+    EXPECT_TRUE(fs::exists(d / "sensor.yaml")) << d;
+    EXPECT_TRUE(fs::exists(d / "data" / (std::to_string(kT0) + ".png"))) << d;
+  }
+  std::ifstream csv(fs::path(e.out) / "mav0/cam0/data.csv");
+  std::string header, row;
+  std::getline(csv, header);
+  std::getline(csv, row);
+  EXPECT_EQ(header, "#timestamp [ns],filename");
+  EXPECT_EQ(row, std::to_string(kT0) + "," + std::to_string(kT0) + ".png");
+
+  // Raw: Bayer mosaics come back as Bayer (sensor.yaml's augrig: pixel_format), bit for bit.
+  const auto raw = read_all("euroc://" + e.out);
+  ASSERT_EQ(raw.size(), 2u * kFrames);
+  for (int i = 0; i < kFrames; ++i) {
+    const FrameRecord want = frame(i);
+    for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+      const Frame& got = raw[static_cast<std::size_t>(2 * i + index_of(id))];
+      EXPECT_EQ(got.camera, id);
+      EXPECT_EQ(got.t_ns, want.raw[id].t_ns);
+      EXPECT_EQ(got.clock, ClockDomain::kGps);
+      EXPECT_EQ(got.sequence, static_cast<std::uint64_t>(i));
+      EXPECT_EQ(got.image.format(), PixelFormat::kBayerRG8);
+      EXPECT_TRUE(pixels_equal(got.image, want.raw[id].image)) << "frame " << i;
+    }
+  }
+  // Augmented and masks, through the same source on their folders.
+  EurocOptions o;
+  o.left_stream = "cam0_augmented";
+  o.right_stream = "cam1_augmented";
+  const auto aug = read_all(e.out + "/mav0", o);
+  o.left_stream = "cam0_mask";
+  o.right_stream = "cam1_mask";
+  const auto mask = read_all(e.out, o);
+  ASSERT_EQ(aug.size(), 2u * kFrames);
+  ASSERT_EQ(mask.size(), 2u * kFrames);
+  for (int i = 0; i < kFrames; ++i) {
+    const FrameRecord want = frame(i);
+    for (int c = 0; c < 2; ++c) {
+      const std::size_t k = static_cast<std::size_t>(2 * i + c);
+      EXPECT_TRUE(pixels_equal(aug[k].image, want.augmented[c])) << "frame " << i;
+      EXPECT_EQ(mask[k].image.format(), PixelFormat::kMono8);
+      EXPECT_TRUE(pixels_equal(mask[k].image, want.mask[c])) << "frame " << i;
+      EXPECT_EQ(aug[k].t_ns, want.raw.t_key_ns);
+    }
+  }
+}
+
+TEST(EurocExport, SensorYamlParsesWithYamlCppAndHoldsTheRig) {
+  const Exported& e = exported();
+  const Rig rig = small_rig();
+  for (int c = 0; c < 2; ++c) {
+    for (const char* stream : {"", "_augmented", "_mask"}) {
+      const fs::path p = fs::path(e.out) / "mav0" / ("cam" + std::to_string(c) + stream) / "sensor.yaml";
+      YAML::Node y;
+      ASSERT_NO_THROW(y = YAML::LoadFile(p.string())) << p;
+      const CameraModel& m = rig.cameras[static_cast<std::size_t>(c)].model;
+      EXPECT_EQ(y["sensor_type"].as<std::string>(), "camera");
+      EXPECT_EQ(y["camera_model"].as<std::string>(), "pinhole");
+      EXPECT_DOUBLE_EQ(y["rate_hz"].as<double>(), 20.0);
+      const auto res = y["resolution"].as<std::vector<int>>();
+      EXPECT_EQ(res, (std::vector<int>{kW, kH}));
+      const auto in = y["intrinsics"].as<std::vector<double>>();
+      ASSERT_EQ(in.size(), 4u);
+      EXPECT_EQ(in[0], m.fx_px);  // shortest round-trip text: exact
+      EXPECT_EQ(in[1], m.fy_px);
+      EXPECT_EQ(in[2], m.cx_px);
+      EXPECT_EQ(in[3], m.cy_px);
+      EXPECT_EQ(y["distortion_model"].as<std::string>(), "radial-tangential");
+      const auto d = y["distortion_coefficients"].as<std::vector<double>>();
+      ASSERT_EQ(d.size(), 4u);
+      for (int k = 0; k < 4; ++k)
+        EXPECT_EQ(d[static_cast<std::size_t>(k)], m.coeffs[static_cast<std::size_t>(k)]);
+      EXPECT_EQ(y["T_BS"]["rows"].as<int>(), 4);
+      EXPECT_EQ(y["T_BS"]["cols"].as<int>(), 4);
+      const auto t = y["T_BS"]["data"].as<std::vector<double>>();
+      ASSERT_EQ(t.size(), 16u);
+      const Eigen::Matrix4d T = rig.cameras[static_cast<std::size_t>(c)].T_body_cam.matrix();
+      for (int r = 0; r < 4; ++r)
+        for (int k = 0; k < 4; ++k)
+          EXPECT_NEAR(t[static_cast<std::size_t>(4 * r + k)], T(r, k), 1e-14) << r << "," << k;
+      EXPECT_EQ(y["augrig"]["pixel_format"].as<std::string>(),
+                *stream == '\0' || std::string(stream) == "_augmented" ? "BayerRG8" : "Mono8");
+    }
+  }
+  // An equidistant lens is written as such.
+  RigCamera fisheye = rig.cameras[0];
+  fisheye.model.distortion = DistortionModel::kEquidistant;
+  fisheye.model.coeffs = {0.1, -0.01, 0.002, -0.0003, 0};
+  const YAML::Node y =
+      YAML::Load(euroc_camera_yaml(fisheye, "left", "raw", 30, PixelFormat::kMono8, ClockDomain::kDevice));
+  EXPECT_EQ(y["distortion_model"].as<std::string>(), "equidistant");
+  EXPECT_EQ(y["distortion_coefficients"].as<std::vector<double>>(),
+            (std::vector<double>{0.1, -0.01, 0.002, -0.0003}));
+}
+
+TEST(EurocExport, ImuIncrementsBecomeRatesAtTheMiddleOfTheirInterval) {
+  const Exported& e = exported();
+  EXPECT_EQ(e.report.imu_stream, "tanker.imu");
+  EXPECT_EQ(e.report.imu_samples, 100u);
+  auto rows = read_euroc_imu_csv(e.out + "/mav0/imu0/data.csv");
+  ASSERT_TRUE(rows) << rows.error().message;
+  ASSERT_EQ(rows->size(), 100u);
+  for (int k = 0; k < 100; ++k) {
+    const nav::ImuSample s = imu_sample(k);
+    const EurocImuRow& r = (*rows)[static_cast<std::size_t>(k)];
+    EXPECT_EQ(r.t_ns, s.t_ns - 2'500'000);
+    EXPECT_NEAR((r.w_rad_s - s.dtheta_rad / s.dt_s).norm(), 0, 1e-12);
+    EXPECT_NEAR((r.a_mps2 - s.dv_mps / s.dt_s).norm(), 0, 1e-12);
+  }
+  std::ifstream csv(e.out + "/mav0/imu0/data.csv");
+  std::string header;
+  std::getline(csv, header);
+  EXPECT_EQ(header.rfind("#timestamp [ns],w_RS_S_x [rad s^-1],", 0), 0u) << header;
+  EXPECT_NE(header.find("a_RS_S_z [m s^-2]"), std::string::npos) << header;
+  const YAML::Node y = YAML::LoadFile(e.out + "/mav0/imu0/sensor.yaml");
+  EXPECT_EQ(y["sensor_type"].as<std::string>(), "imu");
+  EXPECT_DOUBLE_EQ(y["rate_hz"].as<double>(), 200.0);
+
+  // EurocSource reads imu0 back, and turns the rates into increments again.
+  auto src = EurocSource::open(e.out);
+  ASSERT_TRUE(src);
+  EXPECT_EQ((*src)->imu().size(), 100u);
+  const auto inc = (*src)->imu_samples();
+  ASSERT_EQ(inc.size(), 99u);
+  EXPECT_EQ(inc[0].t_ns, (*rows)[1].t_ns);
+  EXPECT_NEAR(inc[0].dt_s, 0.005, 1e-12);
+  EXPECT_NEAR(inc[0].dtheta_rad.x(), 0.01 * 0.005, 1e-15);
+}
+
+TEST(EurocExport, PosesAndStatisticsCsv) {
+  const Exported& e = exported();
+  EXPECT_EQ(e.report.pose_rows, 2u * kFrames);
+  auto poses = nav::read_camera_pose_csv(e.out + "/poses.csv");
+  ASSERT_TRUE(poses) << poses.error().message;
+  ASSERT_EQ(poses->rows.size(), 2u * kFrames);
+  for (const nav::CameraPoseRow& p : poses->rows) {
+    const FrameRecord want = frame(static_cast<int>(p.sequence));
+    const Pose& T = *want.T_cam_receiver[static_cast<std::size_t>(p.camera)];
+    EXPECT_EQ(p.t_ns, want.raw.t_key_ns);
+    EXPECT_NEAR(p.z_m, T.translation_m.z(), 1e-12);
+    EXPECT_NEAR(std::abs(p.qw * T.rotation.w() + p.qx * T.rotation.x() + p.qy * T.rotation.y() +
+                         p.qz * T.rotation.z()),
+                1.0, 1e-12);
+    EXPECT_NEAR(p.boom_elevation_deg, 30.0, 1e-9);
+    EXPECT_NEAR(p.sigma_pos_m, 0.05, 1e-15);
+  }
+  std::ifstream csv(e.out + "/stats.csv");
+  std::string line;
+  std::size_t lines = 0;
+  while (std::getline(csv, line)) ++lines;
+  EXPECT_EQ(lines, static_cast<std::size_t>(kFrames) + 1);
+}
+
+TEST(EurocExport, StatisticsPlotIsARealPicture) {
+  const Exported& e = exported();
+  if (find_gnuplot().empty())
+    GTEST_SKIP() << "gnuplot is not installed (Debian: gnuplot-nox); the plot needs it";
+  ASSERT_TRUE(e.report.plotted);
+  const cv::Mat png = cv::imread(e.out + "/stats.png", cv::IMREAD_COLOR);
+  ASSERT_FALSE(png.empty());
+  EXPECT_EQ(png.cols, 1200);
+  EXPECT_EQ(png.rows, 800);
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(png, mean, stddev);
+  EXPECT_GT(stddev[0] + stddev[1] + stddev[2], 20.0) << "a uniform picture";
+  // The curves' colours are there: blue (occluded % left) and red (right), in BGR.
+  cv::Mat blue, red;
+  cv::inRange(png, cv::Scalar(150, 90, 0), cv::Scalar(210, 140, 60), blue);
+  cv::inRange(png, cv::Scalar(10, 10, 190), cv::Scalar(70, 70, 240), red);
+  EXPECT_GT(cv::countNonZero(blue), 200);
+  EXPECT_GT(cv::countNonZero(red), 100);
+}
+
+TEST(EurocExport, PlotOfOneFrameAndOfGaps) {
+  if (find_gnuplot().empty())
+    GTEST_SKIP() << "gnuplot is not installed (Debian: gnuplot-nox); the plot needs it";
+  const std::string dir = test::output_dir("euroc/plots");
+  auto s = plot_occlusion_stats({frame(0).stats.value()}, dir + "/one.png");
+  ASSERT_TRUE(s) << s.error().message;
+  // No receiver at all in some frames (NaN percentages), and a whole column NaN.
+  std::vector<OcclusionStats> stats;
+  for (int i = 0; i < 6; ++i) {
+    OcclusionStats o = frame(i).stats.value();
+    if (i % 2) o.occluded_pct_left = std::numeric_limits<double>::quiet_NaN();
+    o.occluded_pct_right = std::numeric_limits<double>::quiet_NaN();
+    stats.push_back(o);
+  }
+  s = plot_occlusion_stats(stats, dir + "/gaps.png");
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_FALSE(cv::imread(dir + "/gaps.png").empty());
+}
+
+TEST(EurocExport, MissingGnuplotIsAClearError) {
+  std::vector<OcclusionStats> stats = {frame(0).stats.value(), frame(1).stats.value()};
+  const std::string out = test::output_dir("euroc/no_gnuplot") + "/stats.png";
+  ::setenv("AUGRIG_GNUPLOT", "/nonexistent/gnuplot", 1);
+  auto s = plot_occlusion_stats(stats, out);
+  ::unsetenv("AUGRIG_GNUPLOT");
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("$AUGRIG_GNUPLOT=/nonexistent/gnuplot) is not an executable file"),
+            std::string::npos)
+      << s.error().message;
+  EXPECT_NE(s.error().message.find("apt-get install gnuplot-nox"), std::string::npos) << s.error().message;
+  const std::string path = std::getenv("PATH") ? std::getenv("PATH") : "";
+  ::setenv("PATH", test::output_dir("euroc/empty_path").c_str(), 1);
+  s = plot_occlusion_stats(stats, out);
+  ::setenv("PATH", path.c_str(), 1);
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("gnuplot is not installed"), std::string::npos) << s.error().message;
+  s = plot_occlusion_stats({}, out);
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("no statistics"), std::string::npos);
+}
+
+TEST(EurocExport, ErrorsAndNotes) {
+  const Exported& e = exported();
+  auto rd = RecordingReader::open(e.recording);
+  ASSERT_TRUE(rd);
+  EurocExportReport r;
+  auto st = export_euroc(**rd, e.out, {}, r);  // again into the same folder
+  ASSERT_FALSE(st);
+  EXPECT_NE(st.error().message.find("mav0: exists already"), std::string::npos) << st.error().message;
+
+  const std::string norig = make_recording("no_rig", false);
+  rd = RecordingReader::open(norig);
+  ASSERT_TRUE(rd);
+  st = export_euroc(**rd, test::output_dir("euroc/no_rig_out"), {}, r);
+  ASSERT_FALSE(st);
+  EXPECT_NE(st.error().message.find("the recording stores no rig"), std::string::npos) << st.error().message;
+  // With a rig given, and without the optional streams.
+  EurocExportOptions o;
+  o.rig = small_rig();
+  o.augmented = o.masks = o.plot = false;
+  o.imu_stream = "tanker.gps";  // not IMU rows: a problem, the rest is exported
+  const std::string out = test::output_dir("euroc/no_rig_out2");
+  st = export_euroc(**rd, out, o, r);
+  ASSERT_TRUE(st) << st.error().message;
+  EXPECT_EQ(r.frames_written, static_cast<std::size_t>(kFrames));
+  EXPECT_FALSE(fs::exists(out + "/mav0/cam0_augmented"));
+  EXPECT_FALSE(fs::exists(out + "/mav0/imu0"));
+  EXPECT_FALSE(fs::exists(out + "/stats.png"));
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_NE(r.problems[0].find("imu0 not exported"), std::string::npos) << r.problems[0];
+}
+
+// A dataset as others write it: OpenCV's "%YAML:1.0" header, a frame only one camera has, a
+// listed image that is missing, 8-bit gray PNGs.
+TEST(EurocSource, ForeignDatasetWithUnpairedAndMissingImages) {
+  const std::string root = test::output_dir("euroc/foreign");
+  const fs::path mav0 = fs::path(root) / "mav0";
+  for (const char* cam : {"cam0", "cam1"}) {
+    fs::create_directories(mav0 / cam / "data");
+    std::ofstream(mav0 / cam / "sensor.yaml") << "%YAML:1.0\nsensor_type: camera\nrate_hz: 20\n";
+  }
+  std::ofstream c0(mav0 / "cam0/data.csv"), c1(mav0 / "cam1/data.csv");
+  c0 << "#timestamp [ns],filename\r\n";
+  c1 << "#timestamp [ns],filename\n";
+  std::vector<cv::Mat> written;
+  for (int i = 0; i < 5; ++i) {
+    const TimestampNs t = 1000 + 100 * i;
+    cv::Mat m(12, 16, CV_8UC1, cv::Scalar(10 * i));
+    m.at<std::uint8_t>(3, 4) = 255;
+    cv::imwrite((mav0 / "cam0/data" / (std::to_string(t) + ".png")).string(), m);
+    c0 << t << ", " << t << ".png\r\n";
+    if (i == 2) continue;  // cam1 lacks frame 2
+    if (i != 3)
+      cv::imwrite((mav0 / "cam1/data" / (std::to_string(t) + ".png")).string(), m);  // frame 3 missing
+    c1 << t << "," << t << ".png\n";
+  }
+  c1 << 5000 << "," << 5000 << ".png\n";  // an image cam0 does not have
+  c0.close();
+  c1.close();
+
+  auto src = EurocSource::open(root);
+  ASSERT_TRUE(src) << src.error().message;
+  EXPECT_EQ((*src)->pair_count(), 4u);
+  EXPECT_EQ((*src)->unpaired(), 2u);
+  EXPECT_TRUE((*src)->imu().empty());
+  std::vector<TimestampNs> times;
+  std::vector<std::string> errors;
+  Frame f;
+  for (;;) {
+    auto st = (*src)->read(f, 0ns);
+    if (!st) {
+      errors.push_back(st.error().message);
+      continue;
+    }
+    if (*st == ReadStatus::kEndOfStream) break;
+    EXPECT_EQ(f.image.format(), PixelFormat::kMono8);
+    EXPECT_EQ(f.clock, ClockDomain::kUnknown);
+    EXPECT_EQ(f.image.row(3)[4], 255);
+    times.push_back(f.t_ns);
+  }
+  EXPECT_EQ(times, (std::vector<TimestampNs>{1000, 1000, 1100, 1100, 1400, 1400}));
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].find("cam1/data/1300.png: no such file"), std::string::npos) << errors[0];
+  EXPECT_EQ((*src)->frames_dropped(), 4u);
+
+  // A tolerance pairs skewed timestamps; errors name the file and line.
+  std::ofstream(mav0 / "cam1/data.csv") << "#timestamp [ns],filename\n1003,1000.png\n1097,1100.png\n";
+  EurocOptions o;
+  o.pair_tolerance_ns = 5;
+  o.gray_format = PixelFormat::kBayerGR8;
+  src = EurocSource::open("euroc://" + root, o);
+  ASSERT_TRUE(src);
+  EXPECT_EQ((*src)->pair_count(), 2u);
+  ASSERT_TRUE((*src)->read(f, 0ns));
+  EXPECT_EQ(f.image.format(), PixelFormat::kBayerGR8);
+  std::ofstream(mav0 / "cam1/data.csv") << "#timestamp [ns],filename\n1003,1000.png\nabc,x.png\n";
+  auto bad = EurocSource::open(root);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("cam1/data.csv:3: timestamp: expected whole nanoseconds, got 'abc'"),
+            std::string::npos)
+      << bad.error().message;
+  bad = EurocSource::open(test::output_dir("euroc/not_a_dataset"));
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("not a EuRoC/ASL dataset"), std::string::npos) << bad.error().message;
+}
+
+TEST(EurocSource, ImuIncrementsAreTrapezoids) {
+  std::vector<EurocImuRow> rows(3);
+  for (int k = 0; k < 3; ++k) {
+    rows[static_cast<std::size_t>(k)].t_ns = 1'000'000'000 + k * 10'000'000;
+    rows[static_cast<std::size_t>(k)].w_rad_s = Eigen::Vector3d(k, 0, 0);
+    rows[static_cast<std::size_t>(k)].a_mps2 = Eigen::Vector3d(0, 0, -9.81 + k);
+  }
+  const auto s = imu_increments(rows);
+  ASSERT_EQ(s.size(), 2u);
+  EXPECT_EQ(s[1].t_ns, rows[2].t_ns);
+  EXPECT_NEAR(s[1].dt_s, 0.01, 1e-15);
+  EXPECT_NEAR(s[1].dtheta_rad.x(), 1.5 * 0.01, 1e-15);
+  EXPECT_NEAR(s[1].dv_mps.z(), (-9.81 + 1.5) * 0.01, 1e-15);
+}
+
+}  // namespace
+}  // namespace augrig::recorder

@@ -1,0 +1,248 @@
+// The RecordingReader on damaged and foreign files: bytes overwritten in the middle of the
+// database and a truncated database give per-frame errors naming the file and the frame while the
+// intact frames still read bit-exact; files that are no recording at all fail open() with an error
+// naming the file; check() reports what a recording holds.
+#include "recorder/reader.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "recorder/recorder.hpp"
+#include "recorder/store.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace augrig::recorder {
+namespace {
+
+namespace fs = std::filesystem;
+
+Image random_bayer(int w, int h, std::uint64_t seed) {
+  Image img(w, h, PixelFormat::kBayerRG8);
+  std::mt19937_64 rng(seed);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) img.row(y)[x] = static_cast<std::uint8_t>(rng());
+  return img;
+}
+
+FrameRecord frame(std::uint64_t i) {
+  FrameRecord r;
+  r.raw.pair_sequence = i;
+  r.raw.t_key_ns = 1'000'000'000 + static_cast<TimestampNs>(i) * 40'000'000;
+  r.raw.left.t_ns = r.raw.right.t_ns = r.raw.t_key_ns;
+  r.raw.left.clock = r.raw.right.clock = ClockDomain::kSim;
+  r.raw.right.camera = CameraId::kRight;
+  // Incompressible 256x256 images: each frame spans a few 64 KiB pages, so damage stays local.
+  r.raw.left.image = random_bayer(256, 256, 2 * i);
+  r.raw.right.image = random_bayer(256, 256, 2 * i + 1);
+  r.mask[0] = Image(256, 256, PixelFormat::kMono8);
+  r.mask[0].row(100)[100] = kMaskBoom;
+  return r;
+}
+
+// A closed recording of `n` frames (about 128 KiB each) in test-output/reader/<name>.
+std::string make_recording(const std::string& name, int n) {
+  const std::string dir = test::output_dir("reader/" + name);
+  auto rec = Recorder::create(dir, RecordingInfo{});
+  EXPECT_TRUE(rec) << rec.error().message;
+  for (int i = 0; i < n; ++i) EXPECT_TRUE((*rec)->push(frame(static_cast<std::uint64_t>(i))));
+  (*rec)->push(NavInputRecord{"gps", 5, ClockDomain::kGps, 6, "$GPHDT,274.07,T*03", false});
+  (*rec)->push(EventRecord{7, ClockDomain::kHostMonotonic, "start"});
+  EXPECT_TRUE((*rec)->close());
+  EXPECT_FALSE(fs::exists(dir + "/recording.sqlite-wal"));
+  return dir;
+}
+
+// Every frame either reads bit-exact or fails with an error naming the file and the frame.
+// Returns how many read.
+std::size_t read_all(const RecordingReader& rd, std::vector<std::string>* errors) {
+  std::size_t good = 0;
+  for (std::size_t i = 0; i < rd.frame_count(); ++i) {
+    auto f = rd.read_frame(i);
+    if (!f) {
+      EXPECT_EQ(f.error().message.rfind("recorder::RecordingReader::read_frame(): " + rd.path() + ": frame " +
+                                            std::to_string(i) + ": ",
+                                        0),
+                0u)
+          << f.error().message;
+      errors->push_back(f.error().message);
+      continue;
+    }
+    const FrameRecord want = frame(f->raw.pair_sequence);
+    EXPECT_TRUE(pixels_equal(f->raw.left.image, want.raw.left.image)) << "frame " << i;
+    EXPECT_TRUE(pixels_equal(f->raw.right.image, want.raw.right.image)) << "frame " << i;
+    EXPECT_TRUE(pixels_equal(f->mask[0], want.mask[0])) << "frame " << i;
+    ++good;
+  }
+  return good;
+}
+
+TEST(RecordingReader, BytesOverwrittenInTheMiddle) {
+  const std::string dir = make_recording("overwritten", 40);
+  const std::string db = dir + "/recording.sqlite";
+  const auto size = fs::file_size(db);
+  ASSERT_GT(size, 4u << 20);
+  {
+    std::fstream f(db, std::ios::in | std::ios::out | std::ios::binary);
+    std::mt19937 rng(3);
+    std::string junk(3000, '\0');
+    for (char& c : junk) c = static_cast<char>(rng());
+    f.seekp(static_cast<std::streamoff>(size / 2));
+    f.write(junk.data(), static_cast<std::streamsize>(junk.size()));
+  }
+  auto rd = RecordingReader::open(dir);
+  ASSERT_TRUE(rd) << rd.error().message;
+  std::vector<std::string> errors;
+  const std::size_t good = read_all(**rd, &errors);
+  EXPECT_GE(good, 30u) << "the damage covers 3000 bytes, at most a frame or two";
+  EXPECT_GE(errors.size() + (*rd)->problems().size(), 1u) << "the damage must be found";
+  const CheckReport report = (*rd)->check();
+  EXPECT_FALSE(report.ok());
+  EXPECT_EQ(report.frames_ok, good);
+  EXPECT_NE(report.to_string().find(db), std::string::npos) << report.to_string();
+}
+
+TEST(RecordingReader, DamagedBlobIsAnErrorForThatFrameOnly) {
+  const std::string dir = make_recording("blob", 6);
+  const std::string db = dir + "/recording.sqlite";
+  {
+    // Damage frame 3's right raw blob in place through SQLite (a bit flip in its zstd payload).
+    auto d = Database::open(db, SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(
+        d->exec("UPDATE frames SET right_raw = CAST(substr(right_raw, 1, 5000) || x'00' || "
+                "substr(right_raw, 5002) AS BLOB) WHERE pair_sequence = 3"));
+  }
+  auto rd = RecordingReader::open(dir);
+  ASSERT_TRUE(rd) << rd.error().message;
+  std::vector<std::string> errors;
+  EXPECT_EQ(read_all(**rd, &errors), 5u);
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].find("frame 3: right raw blob (pair_sequence 3): zstd"), std::string::npos)
+      << errors[0];
+  const CheckReport report = (*rd)->check();
+  ASSERT_EQ(report.problems.size(), 1u) << report.to_string();
+  EXPECT_EQ(report.problems[0], errors[0]);
+  EXPECT_EQ(report.frames, 6u);
+  EXPECT_EQ(report.frames_ok, 5u);
+  // Metadata of the damaged frame still reads.
+  auto info = (*rd)->read_frame_info(3);
+  ASSERT_TRUE(info) << info.error().message;
+  EXPECT_EQ(info->raw.pair_sequence, 3u);
+}
+
+TEST(RecordingReader, TruncatedFile) {
+  const std::string dir = make_recording("truncated", 40);
+  const std::string db = dir + "/recording.sqlite";
+  const auto size = fs::file_size(db);
+  fs::resize_file(db, size * 6 / 10);
+  auto rd = RecordingReader::open(dir);
+  ASSERT_TRUE(rd) << rd.error().message;
+  std::vector<std::string> errors;
+  const std::size_t good = read_all(**rd, &errors);
+  EXPECT_GE(good, 15u) << "the first half of the file holds the first frames";
+  EXPECT_LT(good, 40u);
+  const CheckReport report = (*rd)->check();
+  EXPECT_FALSE(report.ok());
+  EXPECT_EQ(report.frames_ok, good);
+  bool named = false;
+  for (const std::string& p : report.problems) named |= p.find(db) != std::string::npos;
+  EXPECT_TRUE(named) << report.to_string();
+}
+
+TEST(RecordingReader, TruncatedToAFewPagesOrEmpty) {
+  const std::string dir = make_recording("stub", 4);
+  const std::string db = dir + "/recording.sqlite";
+  fs::resize_file(db, 100);  // less than the SQLite header page
+  auto rd = RecordingReader::open(dir);
+  ASSERT_FALSE(rd);
+  EXPECT_EQ(rd.error().message.rfind("recorder::RecordingReader::open(): " + db + ": ", 0), 0u)
+      << rd.error().message;
+  fs::resize_file(db, 0);
+  rd = RecordingReader::open(dir);
+  ASSERT_FALSE(rd);
+  EXPECT_EQ(rd.error().message, "recorder::RecordingReader::open(): " + db + ": the file is empty");
+}
+
+TEST(RecordingReader, NotARecording) {
+  const std::string dir = test::output_dir("reader/foreign");
+  // Missing.
+  auto rd = RecordingReader::open(dir);
+  ASSERT_FALSE(rd);
+  EXPECT_EQ(rd.error().message,
+            "recorder::RecordingReader::open(): " + dir +
+                "/recording.sqlite: no such file (a recording folder holds recording.sqlite)");
+  // Not SQLite.
+  { std::ofstream(dir + "/recording.sqlite") << std::string(5000, 'x'); }
+  rd = RecordingReader::open(dir);
+  ASSERT_FALSE(rd);
+  EXPECT_NE(rd.error().message.find(dir + "/recording.sqlite: not a readable augrig recording: "),
+            std::string::npos)
+      << rd.error().message;
+  EXPECT_NE(rd.error().message.find("SQLITE_NOTADB"), std::string::npos) << rd.error().message;
+  // SQLite, but not a recording.
+  fs::remove(dir + "/recording.sqlite");
+  {
+    auto d = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->exec("CREATE TABLE t (x)"));
+  }
+  rd = RecordingReader::open(dir + "/recording.sqlite");
+  ASSERT_FALSE(rd);
+  EXPECT_NE(rd.error().message.find("not a readable augrig recording: no such table: meta"),
+            std::string::npos)
+      << rd.error().message;
+}
+
+TEST(RecordingReader, NewerSchemaIsRefused) {
+  const std::string dir = make_recording("newer", 1);
+  {
+    auto d = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->exec("UPDATE meta SET value = '99' WHERE key = 'schema_version'"));
+  }
+  auto rd = RecordingReader::open(dir);
+  ASSERT_FALSE(rd);
+  EXPECT_EQ(rd.error().message,
+            "recorder::RecordingReader::open(): " + dir +
+                "/recording.sqlite: schema version 99 is newer than this reader's (1); use a "
+                "newer augrig");
+}
+
+TEST(RecordingReader, CheckReportsWhatTheRecordingHolds) {
+  const std::string dir = make_recording("report", 5);
+  auto rd = RecordingReader::open(dir);
+  ASSERT_TRUE(rd) << rd.error().message;
+  EXPECT_EQ((*rd)->read_frame(5).error().message, "recorder::RecordingReader::read_frame(): " +
+                                                      (*rd)->path() + ": frame 5: out of range (5 frames)");
+  const CheckReport r = (*rd)->check();
+  EXPECT_TRUE(r.ok()) << r.to_string();
+  EXPECT_TRUE(r.closed_cleanly);
+  EXPECT_EQ(r.summary_status, "ok");
+  EXPECT_EQ(r.schema_version, 1);
+  EXPECT_EQ(r.frames, 5u);
+  EXPECT_EQ(r.frames_ok, 5u);
+  EXPECT_EQ(r.frames_with_masks, 5u);
+  EXPECT_EQ(r.frames_augmented, 0u);
+  EXPECT_EQ(r.t_first_ns, 1'000'000'000);
+  EXPECT_EQ(r.t_last_ns, 1'160'000'000);
+  EXPECT_EQ(r.cameras.size(), 2u);
+  EXPECT_EQ(r.cameras.at("right: BayerRG8 256x256, clock sim"), 5u);
+  EXPECT_EQ(r.nav_inputs_by_stream.at("gps"), 1u);
+  EXPECT_EQ(r.events, 1u);
+  EXPECT_EQ(r.drops_by_stage.size(), 5u);
+  EXPECT_EQ(r.image_bytes, 5u * 3 * 256 * 256);
+  const std::string text = r.to_string();
+  EXPECT_NE(text.find("frames: 5 (5 intact, 0 augmented, 5 with masks, 0 with statistics)"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("time span: 1000000000 .. 1160000000 ns (0.160 s)"), std::string::npos) << text;
+  EXPECT_NE(text.find("drops: camera 0 pairing 0 processing 0 recorder 0 transport 0"), std::string::npos)
+      << text;
+  EXPECT_NE(text.find("nav inputs: gps 1"), std::string::npos) << text;
+}
+
+}  // namespace
+}  // namespace augrig::recorder

@@ -1,0 +1,420 @@
+// ReplaySource: what it emits is what was recorded, bit for bit; start, seek, loop, step and pause;
+// real rate measured against the recorded spacing; a damaged frame is an error naming it and the
+// replay goes on; open() errors.
+#include "recorder/replay_source.hpp"
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <random>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "recorder/recorder.hpp"
+#include "recorder/store.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace augrig::recorder {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using SteadyClock = std::chrono::steady_clock;
+
+constexpr TimestampNs kT0 = 5'000'000'000;
+constexpr TimestampNs kPeriod = 20'000'000;  // 50 Hz
+
+Image random_image(int w, int h, PixelFormat f, std::uint64_t seed, std::size_t stride = 0) {
+  Image img(w, h, f, stride);
+  std::mt19937_64 rng(seed);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w * bytes_per_pixel(f); ++x) img.row(y)[x] = static_cast<std::uint8_t>(rng());
+  return img;
+}
+
+// Frame i: a Bayer left image and a padded RGB8 right image (incompressible, so a damaged blob
+// stays local), distinct timestamps, clocks, sequences and exposures per camera.
+FrameRecord frame(std::uint64_t i) {
+  FrameRecord r;
+  r.raw.pair_sequence = i;
+  r.raw.left.t_ns = kT0 + static_cast<TimestampNs>(i) * kPeriod;
+  r.raw.right.t_ns = r.raw.left.t_ns + 1500;
+  r.raw.t_key_ns = r.raw.left.t_ns + 750;
+  r.raw.skew_ns = 1500;
+  r.raw.left.clock = r.raw.right.clock = ClockDomain::kDevice;
+  r.raw.left.t_host_ns = 77'000 + static_cast<TimestampNs>(i);
+  r.raw.right.t_host_ns = 88'000 + static_cast<TimestampNs>(i);
+  r.raw.left.sequence = 1000 + i;
+  r.raw.right.sequence = 2000 + i;
+  r.raw.left.camera = CameraId::kLeft;
+  r.raw.right.camera = CameraId::kRight;
+  r.raw.left.exposure_ns = 3'000'000;
+  r.raw.right.exposure_ns = 3'100'000;
+  r.raw.left.image = random_image(96, 64, PixelFormat::kBayerGB8, 2 * i);
+  r.raw.right.image = random_image(96, 64, PixelFormat::kRGB8, 2 * i + 1, 96 * 3 + 13);
+  r.boom = BoomArticulation{deg_to_rad(30 + 0.1 * static_cast<double>(i)), deg_to_rad(1), 4.0};
+  r.T_body_receiver =
+      Pose::from(Eigen::Matrix3d::Identity(), Eigen::Vector3d(-20 - static_cast<double>(i), 0, 8));
+  r.receiver_present = true;
+  return r;
+}
+
+std::string make_recording(const std::string& name, int n) {
+  const std::string dir = test::output_dir("replay_source/" + name);
+  auto rec = Recorder::create(dir, RecordingInfo{});
+  EXPECT_TRUE(rec) << rec.error().message;
+  for (int i = 0; i < n; ++i) EXPECT_TRUE((*rec)->push(frame(static_cast<std::uint64_t>(i))));
+  EXPECT_TRUE((*rec)->close());
+  return dir;
+}
+
+// One recording of 10 frames for the tests that only read.
+const std::string& recording10() {
+  static const std::string dir = make_recording("ten", 10);
+  return dir;
+}
+
+std::unique_ptr<ReplaySource> open_or_fail(const std::string& dir, const ReplayOptions& o = {}) {
+  auto s = ReplaySource::open(dir, o);
+  EXPECT_TRUE(s) << s.error().message;
+  return s ? std::move(*s) : nullptr;
+}
+
+void expect_same_frame(const Frame& got, const Frame& want, const std::string& what) {
+  EXPECT_TRUE(pixels_equal(got.image, want.image)) << what;
+  EXPECT_EQ(got.image.format(), want.image.format()) << what;
+  EXPECT_EQ(got.t_ns, want.t_ns) << what;
+  EXPECT_EQ(got.clock, want.clock) << what;
+  EXPECT_EQ(got.t_host_ns, want.t_host_ns) << what;
+  EXPECT_EQ(got.sequence, want.sequence) << what;
+  EXPECT_EQ(got.camera, want.camera) << what;
+  EXPECT_EQ(got.exposure_ns, want.exposure_ns) << what;
+}
+
+// Reads one Frame in kFast mode and returns its recorded index (current_index()).
+std::size_t read_index(ReplaySource& s, CameraId want_camera) {
+  Frame f;
+  auto st = s.read(f, 0ns);
+  EXPECT_TRUE(st && *st == ReadStatus::kFrame);
+  EXPECT_EQ(f.camera, want_camera);
+  return s.current_index().value_or(9999);
+}
+
+TEST(ReplaySource, RawFramesAreBitIdenticalToTheRecording) {
+  auto s = open_or_fail("replay://" + recording10());
+  ASSERT_TRUE(s);
+  EXPECT_EQ(s->uri(), "replay://" + recording10());
+  EXPECT_EQ(s->frame_count(), 10u);
+  EXPECT_FALSE(s->current_index());
+  for (std::uint64_t i = 0; i < 10; ++i) {
+    const FrameRecord want = frame(i);
+    for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+      Frame f;
+      auto st = s->read(f, 1s);
+      ASSERT_TRUE(st) << st.error().message;
+      ASSERT_EQ(*st, ReadStatus::kFrame);
+      expect_same_frame(f, want.raw[id], "frame " + std::to_string(i) + " " + std::string(to_string(id)));
+      // The recorded per-frame data of the frame just emitted.
+      ASSERT_EQ(s->current_index(), i);
+      const FrameRecord& cur = s->current();
+      EXPECT_EQ(cur.raw.t_key_ns, want.raw.t_key_ns);
+      EXPECT_EQ(cur.raw.skew_ns, want.raw.skew_ns);
+      EXPECT_EQ(cur.raw.pair_sequence, i);
+      ASSERT_TRUE(cur.boom);
+      EXPECT_EQ(cur.boom->elevation_rad, want.boom->elevation_rad);
+      ASSERT_TRUE(cur.T_body_receiver);
+      EXPECT_EQ(cur.T_body_receiver->translation_m, want.T_body_receiver->translation_m);
+      EXPECT_TRUE(cur.augmented[0].empty()) << "only the raw images are decoded by default";
+    }
+  }
+  Frame f;
+  auto st = s->read(f, 1s);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(*st, ReadStatus::kEndOfStream);
+  EXPECT_EQ(s->frames_dropped(), 0u);
+}
+
+TEST(ReplaySource, StartOptionsAndSeek) {
+  ReplayOptions o;
+  o.start_frame = 4;
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 4u);
+
+  o = {};
+  o.start_t_ns = kT0 + 6 * kPeriod + 751;  // frame 6's t_key_ns + 1: the first frame at or after it is 7
+  s = open_or_fail(recording10(), o);
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 7u);
+
+  o = {};
+  o.start_offset_ns = 2 * kPeriod;  // t_key of frame 0 + 40 ms: frame 2
+  s = open_or_fail(recording10(), o);
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 2u);
+
+  // Seeks from the middle of a stereo frame: its right Frame is discarded.
+  ASSERT_TRUE(s->seek_frame(8));
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 8u);
+  EXPECT_EQ(read_index(*s, CameraId::kRight), 8u);
+  ASSERT_TRUE(s->seek_time(kT0 + 3 * kPeriod + 750));  // exactly frame 3's t_key_ns
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 3u);
+  ASSERT_TRUE(s->seek_time(0));
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);
+
+  auto bad = s->seek_frame(10);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("frame 10 is past the last frame (10 frames)"), std::string::npos);
+  bad = s->seek_time(kT0 + 100 * kPeriod);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("no frame at or after t_ns"), std::string::npos);
+
+  o = {};
+  o.start_frame = 10;
+  auto e = ReplaySource::open(recording10(), o);
+  ASSERT_FALSE(e);
+  EXPECT_NE(e.error().message.find("start frame 10 is past the last frame"), std::string::npos)
+      << e.error().message;
+  o = {};
+  o.start_t_ns = kT0 + 100 * kPeriod;
+  e = ReplaySource::open(recording10(), o);
+  ASSERT_FALSE(e);
+  EXPECT_NE(e.error().message.find("the last frame is at t_ns"), std::string::npos) << e.error().message;
+}
+
+TEST(ReplaySource, LoopPlaysTheRangeAgain) {
+  ReplayOptions o;
+  o.start_frame = 7;
+  o.passes = 3;
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  std::vector<std::pair<int, std::size_t>> seen;  // (pass, index) of each left Frame
+  Frame f;
+  for (;;) {
+    auto st = s->read(f, 1s);
+    ASSERT_TRUE(st);
+    if (*st == ReadStatus::kEndOfStream) break;
+    expect_same_frame(f, frame(*s->current_index()).raw[f.camera], "loop");
+    if (f.camera == CameraId::kLeft) seen.emplace_back(s->pass(), *s->current_index());
+  }
+  const std::vector<std::pair<int, std::size_t>> want = {{0, 7}, {0, 8}, {0, 9}, {1, 7}, {1, 8},
+                                                         {1, 9}, {2, 7}, {2, 8}, {2, 9}};
+  EXPECT_EQ(seen, want);
+
+  // passes = 0: forever.
+  o.passes = 0;
+  s = open_or_fail(recording10(), o);
+  for (int k = 0; k < 60; ++k) {
+    auto st = s->read(f, 1s);
+    ASSERT_TRUE(st && *st == ReadStatus::kFrame);
+  }
+  EXPECT_EQ(s->pass(), 9);
+}
+
+TEST(ReplaySource, StepModeReleasesOneStereoFramePerStep) {
+  ReplayOptions o;
+  o.mode = ReplayMode::kStep;
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  Frame f;
+  auto st = s->read(f, 20ms);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(*st, ReadStatus::kTimeout);
+  s->step();
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);
+  EXPECT_EQ(read_index(*s, CameraId::kRight), 0u);  // the right Frame comes without another step
+  st = s->read(f, 0ns);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(*st, ReadStatus::kTimeout);
+  s->step(2);
+  for (std::size_t want : {1u, 1u, 2u, 2u}) {
+    st = s->read(f, 0ns);
+    ASSERT_TRUE(st && *st == ReadStatus::kFrame);
+    EXPECT_EQ(s->current_index(), want);
+  }
+
+  // A step from another thread wakes a read() that waits.
+  const auto t0 = SteadyClock::now();
+  auto stepper = std::async(std::launch::async, [&] {
+    std::this_thread::sleep_for(50ms);
+    s->step();
+  });
+  st = s->read(f, 10s);
+  const auto waited = SteadyClock::now() - t0;
+  stepper.get();
+  ASSERT_TRUE(st && *st == ReadStatus::kFrame);
+  EXPECT_EQ(s->current_index(), 3u);
+  EXPECT_GE(waited, 45ms);
+  EXPECT_LT(waited, 5s);
+}
+
+TEST(ReplaySource, PauseHoldsFastModeAndStepReleasesWhilePaused) {
+  auto s = open_or_fail(recording10());
+  ASSERT_TRUE(s);
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);
+  s->set_paused(true);
+  EXPECT_TRUE(s->paused());
+  EXPECT_EQ(read_index(*s, CameraId::kRight), 0u);  // pause acts between stereo frames
+  Frame f;
+  auto st = s->read(f, 10ms);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(*st, ReadStatus::kTimeout);
+  s->step();
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 1u);
+  EXPECT_EQ(read_index(*s, CameraId::kRight), 1u);
+  st = s->read(f, 0ns);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(*st, ReadStatus::kTimeout);
+  s->set_paused(false);
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 2u);
+}
+
+// Wall time from the first to the last left Frame, against the recorded spacing divided by the
+// rate. Not a performance test: the bounds are wide, what matters is that frames are paced.
+double paced_seconds(double rate, int frames) {
+  ReplayOptions o;
+  o.mode = ReplayMode::kRealRate;
+  o.rate = rate;
+  o.passes = 1;
+  auto s = open_or_fail(recording10(), o);
+  Frame f;
+  std::optional<SteadyClock::time_point> first;
+  SteadyClock::time_point last;
+  int lefts = 0;
+  while (lefts < frames) {
+    auto st = s->read(f, 1s);
+    EXPECT_TRUE(st);
+    if (!st || *st == ReadStatus::kEndOfStream) break;
+    if (*st != ReadStatus::kFrame || f.camera != CameraId::kLeft) continue;
+    last = SteadyClock::now();
+    if (!first) first = last;
+    ++lefts;
+  }
+  return std::chrono::duration<double>(last - *first).count();
+}
+
+TEST(ReplaySource, RealRateFollowsTheRecordedSpacing) {
+  // 10 frames 20 ms apart: 180 ms from the first to the last at rate 1, 90 ms at rate 2.
+  // Never early; late only by scheduling (wide bounds: tests run in parallel on 2 cores).
+  const double at1 = paced_seconds(1.0, 10);
+  EXPECT_GE(at1, 0.178);
+  EXPECT_LT(at1, 0.180 * 2 + 0.1);
+  const double at2 = paced_seconds(2.0, 10);
+  EXPECT_GE(at2, 0.089);
+  EXPECT_LT(at2, 0.090 * 2 + 0.1);
+  EXPECT_LT(at2, 0.8 * at1) << "twice the rate, about half the time";
+  const double at_half = paced_seconds(0.5, 4);  // 3 intervals of 40 ms
+  EXPECT_GE(at_half, 0.119);
+  EXPECT_LT(at_half, 0.120 * 2 + 0.1);
+}
+
+TEST(ReplaySource, RealRateTimesOutUntilTheFrameIsDue) {
+  ReplayOptions o;
+  o.mode = ReplayMode::kRealRate;
+  o.rate = 0.1;  // 200 ms between frames
+  auto s = open_or_fail(recording10(), o);
+  Frame f;
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);  // the first frame sets the anchor: at once
+  auto st = s->read(f, 100ms);                     // the right one is 15 us later
+  ASSERT_TRUE(st && *st == ReadStatus::kFrame);
+  EXPECT_EQ(f.camera, CameraId::kRight);
+  st = s->read(f, 20ms);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(*st, ReadStatus::kTimeout);
+  st = s->read(f, 2s);
+  ASSERT_TRUE(st && *st == ReadStatus::kFrame);
+  EXPECT_EQ(s->current_index(), 1u);
+}
+
+TEST(ReplaySource, LateConsumerGetsEveryFrameUnlessDropLate) {
+  ReplayOptions o;
+  o.mode = ReplayMode::kRealRate;
+  o.rate = 4.0;  // 5 ms between frames
+  for (bool drop : {false, true}) {
+    o.drop_late = drop;
+    o.late_tolerance = 2ms;
+    auto s = open_or_fail(recording10(), o);
+    Frame f;
+    std::size_t lefts = 0;
+    for (;;) {
+      auto st = s->read(f, 1s);
+      ASSERT_TRUE(st);
+      if (*st == ReadStatus::kEndOfStream) break;
+      if (f.camera == CameraId::kLeft) {
+        ++lefts;
+        std::this_thread::sleep_for(25ms);  // a consumer five times too slow
+      }
+    }
+    if (!drop) {
+      EXPECT_EQ(lefts, 10u);
+      EXPECT_EQ(s->frames_dropped(), 0u);
+    } else {
+      EXPECT_LT(lefts, 6u);
+      EXPECT_EQ(s->frames_dropped(), 2 * (10 - lefts)) << "every skipped Frame is counted";
+    }
+  }
+}
+
+TEST(ReplaySource, DamagedFrameIsAnErrorNamingItAndReplayGoesOn) {
+  const std::string dir = make_recording("damaged", 6);
+  {
+    auto d = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(
+        d->exec("UPDATE frames SET right_raw = CAST(substr(right_raw, 1, 3000) || x'00' || "
+                "substr(right_raw, 3002) AS BLOB) WHERE pair_sequence = 3"));
+  }
+  auto s = open_or_fail(dir);
+  ASSERT_TRUE(s);
+  std::vector<std::size_t> lefts;
+  std::vector<std::string> errors;
+  Frame f;
+  for (;;) {
+    auto st = s->read(f, 1s);
+    if (!st) {
+      errors.push_back(st.error().message);
+      continue;
+    }
+    if (*st == ReadStatus::kEndOfStream) break;
+    expect_same_frame(f, frame(*s->current_index()).raw[f.camera], "after damage");
+    if (f.camera == CameraId::kLeft) lefts.push_back(*s->current_index());
+  }
+  EXPECT_EQ(lefts, (std::vector<std::size_t>{0, 1, 2, 4, 5}));
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_EQ(errors[0].rfind("recorder::ReplaySource::read(): " + dir + "/recording.sqlite: frame 3: ", 0), 0u)
+      << errors[0];
+  EXPECT_NE(errors[0].find("replay goes on with frame 4"), std::string::npos) << errors[0];
+  EXPECT_EQ(s->damaged_frames(), 1u);
+  EXPECT_EQ(s->frames_dropped(), 2u);
+}
+
+TEST(ReplaySource, OpenErrorsNameThePath) {
+  const std::string missing = test::output_dir("replay_source/missing") + "/nothing-here";
+  auto e = ReplaySource::open("replay://" + missing);
+  ASSERT_FALSE(e);
+  EXPECT_NE(e.error().message.find(missing + ": no such file"), std::string::npos) << e.error().message;
+
+  const std::string empty = test::output_dir("replay_source/empty_folder");
+  e = ReplaySource::open(empty);
+  ASSERT_FALSE(e);
+  EXPECT_NE(e.error().message.find("recording.sqlite: no such file (a recording folder holds"),
+            std::string::npos)
+      << e.error().message;
+
+  const std::string junk = test::output_dir("replay_source/junk");
+  std::ofstream(junk + "/recording.sqlite") << "this is not a database, just some text that is long enough\n";
+  e = ReplaySource::open(junk);
+  ASSERT_FALSE(e);
+  EXPECT_NE(e.error().message.find(junk + "/recording.sqlite"), std::string::npos) << e.error().message;
+
+  e = ReplaySource::open("replay://");
+  ASSERT_FALSE(e);
+  ReplayOptions o;
+  o.rate = 0;
+  e = ReplaySource::open(recording10(), o);
+  ASSERT_FALSE(e);
+  EXPECT_NE(e.error().message.find("rate must be a positive number"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace augrig::recorder

@@ -1,0 +1,207 @@
+// The SQLite side: the schema as documented (the statistics columns carry render/stats' names),
+// a frames row through INSERT and SELECT unchanged (optional groups, NaN), and SQLite errors
+// described with their code.
+#include "recorder/store.hpp"
+
+#include <filesystem>
+#include <set>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "tests/support/test_support.hpp"
+
+namespace augrig::recorder {
+namespace {
+
+Database fresh_db(const std::string& name) {
+  const std::string dir = test::output_dir("recorder_store/" + name);
+  auto db = Database::open(dir + "/t.sqlite", SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
+  EXPECT_TRUE(db) << db.error().message;
+  return std::move(*db);
+}
+
+std::vector<std::string> table_columns(Database& db, const std::string& table) {
+  auto st = Statement::prepare(db.get(), "PRAGMA table_info(" + table + ")");
+  EXPECT_TRUE(st);
+  std::vector<std::string> cols;
+  while (st->step() == SQLITE_ROW)
+    cols.emplace_back(reinterpret_cast<const char*>(sqlite3_column_text(st->get(), 1)));
+  return cols;
+}
+
+TEST(Store, DatabasePath) {
+  const std::string dir = test::output_dir("recorder_store/path");
+  EXPECT_EQ(database_path(dir), dir + "/recording.sqlite");
+  EXPECT_EQ(database_path(dir + "/x.sqlite"), dir + "/x.sqlite");
+}
+
+TEST(Store, SchemaHasTheDocumentedTables) {
+  Database db = fresh_db("schema");
+  ASSERT_TRUE(db.exec(schema_sql()));
+  EXPECT_EQ(table_columns(db, "meta"), (std::vector<std::string>{"key", "value"}));
+  EXPECT_EQ(table_columns(db, "nav_input"),
+            (std::vector<std::string>{"id", "stream", "t_ns", "clock", "arrival_ns", "data"}));
+  EXPECT_EQ(table_columns(db, "drops"),
+            (std::vector<std::string>{"id", "stage", "item", "count", "first_t_ns", "last_t_ns", "reason"}));
+  EXPECT_EQ(table_columns(db, "events"), (std::vector<std::string>{"id", "t_ns", "clock", "text"}));
+  std::vector<std::string> frames = frame_column_names();
+  frames.insert(frames.begin(), "id");
+  EXPECT_EQ(table_columns(db, "frames"), frames);
+  // The blobs come last, so that the small columns never need a blob's overflow pages.
+  const std::vector<std::string> tail(frames.end() - 6, frames.end());
+  EXPECT_EQ(tail, (std::vector<std::string>{"left_mask", "right_mask", "left_aug", "right_aug", "left_raw",
+                                            "right_raw"}));
+  // A stage outside the five is refused.
+  EXPECT_FALSE(
+      db.exec("INSERT INTO drops (stage, item, count, first_t_ns, last_t_ns, reason) "
+              "VALUES ('elsewhere', 'frame', 1, 0, 0, 'x')"));
+}
+
+TEST(Store, StatisticsColumnsAreNamedAsInStatsCsv) {
+  std::ostringstream header;
+  write_stats_csv_header(header);
+  std::string h = header.str();
+  h.pop_back();  // '\n'
+  const std::vector<std::string> names = frame_column_names();
+  const std::set<std::string> have(names.begin(), names.end());
+  std::istringstream in(h);
+  std::string col;
+  int n = 0;
+  while (std::getline(in, col, ',')) {
+    const std::string expect = col == "t_ns" ? "stats_t_ns" : col;  // frames has its own t_ns
+    EXPECT_TRUE(have.count(expect)) << expect;
+    ++n;
+  }
+  EXPECT_GE(n, 19);
+}
+
+TEST(Store, FrameRowRoundTrip) {
+  Database db = fresh_db("row");
+  ASSERT_TRUE(db.exec(schema_sql()));
+  auto ins = Statement::prepare(db.get(), frame_insert_sql());
+  ASSERT_TRUE(ins) << ins.error().message;
+
+  const std::vector<std::uint8_t> bytes = {1, 2, 3, 0, 255};
+  FrameRow full;
+  full.pair_sequence = 0x7fffffffffffffffull;
+  full.t_ns = -5;
+  full.skew_ns = 123;
+  full.cam[0] = {7, 1000, ClockDomain::kDevice, 2000, 3000, PixelFormat::kBayerGB8, 1280, 960, {1, 2, 3, 4}};
+  full.cam[1] = {8, 1001, ClockDomain::kGps, 0, 0, PixelFormat::kRGBA8, 640, 480, {}};
+  full.T_cam_receiver[0] = Pose::from(Eigen::Matrix3d::Identity(), {1.0 / 3, -2.5, 1e-17});
+  full.T_body_receiver = pose_from_ypr({-22, 0.5, 9}, 0.1, -0.2, 0.3);
+  full.receiver_present = false;
+  full.sigma_pos_m = 0.02;  // sigma_att_deg stays NaN
+  full.boom = BoomArticulation{0.5, -0.01, 3.25};
+  full.stats = OcclusionStats{};
+  full.stats->t_ns = 42;
+  full.stats->boom_px_left = 99;
+  full.stats->occluded_pct_right = 12.5;
+  full.raw[0] = {bytes.data(), bytes.size(), true};
+  full.raw[1] = {bytes.data(), 2, true};
+  full.aug[0] = {nullptr, 0, true};  // empty blob: nothing changed
+  full.mask[1] = {bytes.data() + 1, 3, true};
+  ASSERT_TRUE(bind_frame_row(ins->get(), full));
+  ASSERT_EQ(ins->step(), SQLITE_DONE);
+  ins->reset();
+  FrameRow bare;
+  bare.cam[0].format = bare.cam[1].format = PixelFormat::kMono8;
+  bare.raw[0] = bare.raw[1] = {bytes.data(), 1, true};
+  ASSERT_TRUE(bind_frame_row(ins->get(), bare));
+  ASSERT_EQ(ins->step(), SQLITE_DONE);
+
+  auto sel = Statement::prepare(db.get(), frame_select_sql(kPartsAll) + " ORDER BY id");
+  ASSERT_TRUE(sel);
+  ASSERT_EQ(sel->step(), SQLITE_ROW);
+  FrameRow r;
+  ASSERT_TRUE(read_frame_row(sel->get(), r));
+  EXPECT_EQ(r.id, 1);
+  EXPECT_EQ(r.pair_sequence, full.pair_sequence);
+  EXPECT_EQ(r.t_ns, -5);
+  EXPECT_EQ(r.skew_ns, 123);
+  for (int c = 0; c < 2; ++c) {
+    EXPECT_EQ(r.cam[c].sequence, full.cam[c].sequence);
+    EXPECT_EQ(r.cam[c].t_ns, full.cam[c].t_ns);
+    EXPECT_EQ(r.cam[c].clock, full.cam[c].clock);
+    EXPECT_EQ(r.cam[c].t_host_ns, full.cam[c].t_host_ns);
+    EXPECT_EQ(r.cam[c].exposure_ns, full.cam[c].exposure_ns);
+    EXPECT_EQ(r.cam[c].format, full.cam[c].format);
+    EXPECT_EQ(r.cam[c].width, full.cam[c].width);
+    EXPECT_EQ(r.cam[c].height, full.cam[c].height);
+    EXPECT_EQ(r.cam[c].aug_box, full.cam[c].aug_box);
+  }
+  ASSERT_TRUE(r.T_cam_receiver[0]);
+  EXPECT_FALSE(r.T_cam_receiver[1]);
+  EXPECT_EQ(r.T_cam_receiver[0]->translation_m, full.T_cam_receiver[0]->translation_m);
+  ASSERT_TRUE(r.T_body_receiver);
+  EXPECT_EQ(r.T_body_receiver->rotation.coeffs(), full.T_body_receiver->rotation.coeffs());
+  EXPECT_EQ(r.T_body_receiver->translation_m, full.T_body_receiver->translation_m);
+  ASSERT_TRUE(r.receiver_present);
+  EXPECT_FALSE(*r.receiver_present);
+  EXPECT_EQ(r.sigma_pos_m, 0.02);
+  EXPECT_TRUE(std::isnan(r.sigma_att_deg));
+  ASSERT_TRUE(r.boom);
+  EXPECT_EQ(r.boom->extension_m, 3.25);
+  EXPECT_EQ(r.boom->azimuth_rad, -0.01);
+  ASSERT_TRUE(r.stats);
+  EXPECT_EQ(r.stats->t_ns, 42);
+  EXPECT_EQ(r.stats->boom_px_left, 99);
+  EXPECT_EQ(r.stats->occluded_pct_right, 12.5);
+  ASSERT_TRUE(r.raw[0].present);
+  EXPECT_EQ(std::vector<std::uint8_t>(r.raw[0].data, r.raw[0].data + r.raw[0].size), bytes);
+  EXPECT_EQ(r.raw[1].size, 2u);
+  EXPECT_TRUE(r.aug[0].present);
+  EXPECT_EQ(r.aug[0].size, 0u);
+  EXPECT_FALSE(r.aug[1].present);
+  EXPECT_FALSE(r.mask[0].present);
+  EXPECT_EQ(r.mask[1].size, 3u);
+
+  ASSERT_EQ(sel->step(), SQLITE_ROW);
+  ASSERT_TRUE(read_frame_row(sel->get(), r));
+  EXPECT_EQ(r.id, 2);
+  EXPECT_FALSE(r.T_cam_receiver[0] || r.T_cam_receiver[1] || r.T_body_receiver || r.receiver_present ||
+               r.boom || r.stats);
+  EXPECT_TRUE(std::isnan(r.sigma_pos_m));
+  EXPECT_FALSE(r.mask[0].present || r.aug[1].present);
+
+  // Selecting without blobs leaves them NULL and keeps every other column.
+  auto meta_only = Statement::prepare(db.get(), frame_select_sql(kPartsNone) + " WHERE id = 1");
+  ASSERT_TRUE(meta_only);
+  ASSERT_EQ(meta_only->step(), SQLITE_ROW);
+  ASSERT_TRUE(read_frame_row(meta_only->get(), r));
+  EXPECT_FALSE(r.raw[0].present);
+  EXPECT_EQ(r.cam[0].width, 1280);
+}
+
+TEST(Store, BadColumnValuesAreNamed) {
+  Database db = fresh_db("bad");
+  ASSERT_TRUE(db.exec(schema_sql()));
+  auto ins = Statement::prepare(db.get(), frame_insert_sql());
+  FrameRow row;
+  ASSERT_TRUE(bind_frame_row(ins->get(), row));
+  ASSERT_EQ(ins->step(), SQLITE_DONE);
+  ASSERT_TRUE(db.exec("UPDATE frames SET right_format = 'YUV422'"));
+  auto sel = Statement::prepare(db.get(), frame_select_sql(kPartsAll));
+  ASSERT_EQ(sel->step(), SQLITE_ROW);
+  FrameRow r;
+  const Status s = read_frame_row(sel->get(), r);
+  ASSERT_FALSE(s);
+  EXPECT_EQ(s.error().message, "column right_format: unknown pixel format \"YUV422\"");
+}
+
+TEST(Store, ErrorsNameTheSqliteCode) {
+  Database db = fresh_db("full");
+  ASSERT_TRUE(db.exec("PRAGMA page_size=4096; CREATE TABLE t (b BLOB); PRAGMA max_page_count=4;"));
+  const Status s = db.exec("INSERT INTO t VALUES (zeroblob(100000))");
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("SQLITE_FULL"), std::string::npos) << s.error().message;
+  auto bad = Database::open(test::output_dir("recorder_store/none") + "/no/such/dir/x.sqlite",
+                            SQLITE_OPEN_READWRITE);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("x.sqlite: cannot open: "), std::string::npos) << bad.error().message;
+  EXPECT_NE(bad.error().message.find("SQLITE_CANTOPEN"), std::string::npos) << bad.error().message;
+}
+
+}  // namespace
+}  // namespace augrig::recorder
