@@ -12,6 +12,7 @@
 #include "app/cli.hpp"
 #include "app/scene_file.hpp"
 #include "recorder/euroc.hpp"
+#include "recorder/recorder.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/replay_source.hpp"
 
@@ -103,6 +104,9 @@ const std::vector<OptionSpec>& replay_specs() {
        "one fixed scene for every frame (default: each frame's recorded boom and receiver pose)"},
       {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
        "how the receiver shows in the augmented image (default mask: not drawn)"},
+      {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
+       "another boom over the recorded receiver poses (default: the recorded boom)"},
+      {"record", ArgKind::kValue, "DIR", "record the re-augmented run (a new recording, docs/RECORDING.md)"},
   };
   return specs;
 }
@@ -194,6 +198,27 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
                   " has no recorded scene (boom articulation); give one with --scene SCENE.yaml");
   }
 
+  std::optional<BoomArg> boom_arg;
+  if (a.has("boom")) boom_arg = parse_boom_arg(a.get("boom"));
+  const BoomDimensions boom_dims;
+  // A boom script's t_s counts from the recording's first frame.
+  const TimestampNs first_t_ns = [&] {
+    auto f = reader.read_frame_info(0);
+    return f ? f->raw.left.t_ns : TimestampNs{0};
+  }();
+
+  // The re-augmented run as a new recording: the same raw frames, the new augmentation.
+  std::unique_ptr<recorder::Recorder> rec_out;
+  if (a.has("record")) {
+    recorder::RecordingInfo info;
+    info.rig_yaml = rig_to_yaml(rig);
+    info.scene = fixed_scene ? a.get("scene") : std::string("as recorded in ") + reader.path();
+    info.clock_domains = reader.meta("clock_domains");
+    info.extra["re_augmented_from"] = reader.path();
+    if (boom_arg) info.extra["boom"] = a.get("boom");
+    rec_out = unwrap(recorder::Recorder::create(a.get("record"), info));
+  }
+
   const fs::path out_dir = a.get("out");
   std::optional<StatsCsv> csv;
   if (a.has("out")) {
@@ -270,9 +295,30 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
       }
       sizes_checked = true;
     }
+    if (boom_arg) {
+      // Tracking aims at the receptacle where the recorded pose puts it.
+      const BoomCommand tracked = track_point(scene->T_body_receiver * receiver.receptacle_m, rig.boom.pivot_body_m,
+                                              boom_dims, rig.boom.limits);
+      scene->boom =
+          boom_arg->command(ns_to_s(frame.left.t_ns - first_t_ns), tracked, rig.boom.limits)
+              .articulation;
+    }
     check(augmenter->augment(frame, *scene, result));
     augment_ms += augmenter->timings().total_ms;
     result.stats.t_ns = frame.t_key_ns;
+    if (rec_out) {
+      recorder::FrameRecord fr;
+      fr.raw = frame;
+      fr.augmented = {result.left.augmented, result.right.augmented};
+      fr.mask = {result.left.mask, result.right.mask};
+      fr.T_body_receiver = scene->T_body_receiver;
+      fr.receiver_present = scene->receiver_present;
+      for (int c = 0; c < 2; ++c) fr.T_cam_receiver[c] = rig.cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
+      fr.sigma_pos_m = rec.sigma_pos_m, fr.sigma_att_deg = rec.sigma_att_deg;
+      fr.boom = scene->boom;
+      fr.stats = result.stats;
+      rec_out->push(std::move(fr));
+    }
     if (rec.stats) {
       ++comparable;
       reproduced += same_counts(result.stats, *rec.stats);
@@ -304,6 +350,13 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
     out << one_camera << " recorded frame(s) had only one camera's image and were not augmented\n";
   if (csv)
     out << "Wrote " << (out_dir / "stats.csv").string() << " and the images of 1 in " << every << " frames\n";
+  if (rec_out) {
+    const Status closed = rec_out->close();
+    const recorder::RecorderStats rs = rec_out->stats();
+    out << "Recorded " << rs.frames_committed << " stereo frame(s) to " << rec_out->path() << " ("
+        << rs.frames_dropped << " dropped by the recorder)\n";
+    if (!closed) runtime_error("the recording stopped: " + user_message(closed.error()));
+  }
   if (damaged)
     runtime_error(std::to_string(damaged) + " frame(s) could not be read (above); the others were replayed");
   return kExitOk;
