@@ -107,6 +107,8 @@ const std::vector<OptionSpec>& replay_specs() {
       {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
        "another boom over the recorded receiver poses (default: the recorded boom)"},
       {"record", ArgKind::kValue, "DIR", "record the re-augmented run (a new recording, docs/RECORDING.md)"},
+      {"pair-tolerance-ns", ArgKind::kValue, "NS",
+       "EuRoC folders: pair left and right frames whose timestamps differ by at most NS (default 0)"},
   };
   return specs;
 }
@@ -137,6 +139,70 @@ bool same_counts(const OcclusionStats& a, const OcclusionStats& b) {
          a.neither_px == b.neither_px;
 }
 
+// A EuRoC/ASL folder (mav0/cam0, cam1): no recorded scene, so --scene gives it; the rig is --rig
+// (default: the paper's). Pairs by timestamp within --pair-tolerance-ns.
+int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out) {
+  if (!a.has("scene")) usage_error("a EuRoC folder has no recorded scene: give one with --scene SCENE.yaml");
+  recorder::EurocOptions eo;
+  if (a.has("pair-tolerance-ns"))
+    eo.pair_tolerance_ns = parse_integer("pair-tolerance-ns", a.get("pair-tolerance-ns"), 0, 1LL << 40);
+  auto source = unwrap(recorder::EurocSource::open(dir, eo));
+  const Rig rig = load_rig_arg(a.get("rig", "default"));
+  const ReceiverSetup receiver = receiver_setup(rig);
+  const SceneState scene = unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, receiver.receptacle_m));
+  AugmentOptions options;
+  options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+  options.receiver_model = receiver.model;
+  std::optional<StatsCsv> csv;
+  if (a.has("out")) {
+    make_dirs(a.get("out"));
+    csv.emplace(fs::path(a.get("out")) / "stats.csv");
+  }
+  out << "replay: " << source->uri() << ", " << source->pair_count() << " stereo pairs (" << source->unpaired()
+      << " frames without a partner), scene " << a.get("scene") << "\n";
+  const auto gl = make_gl_context();
+  const auto augmenter = unwrap(Augmenter::create(rig, options));
+  std::unique_ptr<recorder::Recorder> rec_out;
+  if (a.has("record")) {
+    recorder::RecordingInfo info;
+    info.rig_yaml = rig_to_yaml(rig);
+    info.scene = a.get("scene");
+    info.extra["re_augmented_from"] = source->uri();
+    rec_out = unwrap(recorder::Recorder::create(a.get("record"), info));
+  }
+  StereoFrame frame;
+  StereoResult result;
+  std::vector<OcclusionStats> all;
+  for (;;) {
+    if (unwrap(source->read(frame.left, std::chrono::seconds(1))) != ReadStatus::kFrame) break;
+    if (unwrap(source->read(frame.right, std::chrono::seconds(1))) != ReadStatus::kFrame) break;
+    frame.t_key_ns = frame.left.t_ns + (frame.right.t_ns - frame.left.t_ns) / 2;
+    frame.skew_ns = frame.right.t_ns - frame.left.t_ns;
+    check(augmenter->augment(frame, scene, result));
+    result.stats.t_ns = frame.t_key_ns;
+    if (csv) csv->add(result.stats);
+    if (rec_out) {
+      recorder::FrameRecord fr;
+      fr.raw = frame;
+      fr.augmented = {result.left.augmented, result.right.augmented};
+      fr.mask = {result.left.mask, result.right.mask};
+      fr.T_body_receiver = scene.T_body_receiver;
+      fr.boom = scene.boom;
+      fr.stats = result.stats;
+      rec_out->push(std::move(fr));
+    }
+    all.push_back(result.stats);
+  }
+  if (!all.empty()) out << format_run_summary(all);
+  out << "Replayed " << all.size() << " stereo frame(s)\n";
+  if (rec_out) {
+    const Status closed = rec_out->close();
+    out << "Recorded " << rec_out->stats().frames_committed << " stereo frame(s) to " << rec_out->path() << "\n";
+    if (!closed) runtime_error("the recording stopped: " + user_message(closed.error()));
+  }
+  return kExitOk;
+}
+
 int replay_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   std::vector<std::string> pos;
   const ParsedArgs a = parse_with_positionals(args, replay_specs(), {"DIR"}, pos);
@@ -144,6 +210,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
     out << format_help(
         "augrig replay DIR [--rate X|--fast] [--seek T_S|--from-frame N] [--loop N] [--out DIR] [--rig RIG] "
         "[--scene SCENE.yaml]",
+        "DIR may also be a EuRoC/ASL folder (mav0/cam0, cam1): then --scene is required.\n"
         "Plays a recording's raw frames back (replay://DIR) through the Augmenter again: with the recorded\n"
         "rig and each frame's recorded scene (boom and receiver pose), or with another rig or one fixed\n"
         "scene. Prints the occlusion statistics, how many frames reproduce the recorded statistics, and\n"
@@ -152,6 +219,9 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
         replay_specs());
     return kExitOk;
   }
+  if (pos[0].rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(pos[0]) / "mav0") ||
+      fs::path(pos[0]).filename() == "mav0")
+    return replay_euroc(pos[0], a, out);
   if (a.has("rate") && a.has("fast")) usage_error("--rate and --fast exclude each other");
   if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
   recorder::ReplayOptions o;
