@@ -92,19 +92,6 @@ Frame next_frame(FrameSource& source, int stereo_index) {
   return f;
 }
 
-nav::CameraPoseRow truth_row(const sim::FrameTruth& t) {
-  nav::CameraPoseRow r;
-  r.sequence = t.sequence, r.camera = t.camera, r.t_ns = t.t_camera_ns, r.t_nav_ns = t.t_gps_ns;
-  const Eigen::Vector3d& p = t.T_cam_receiver.translation_m;
-  const Eigen::Quaterniond& q = t.T_cam_receiver.rotation;
-  r.x_m = p.x(), r.y_m = p.y(), r.z_m = p.z(), r.qw = q.w(), r.qx = q.x(), r.qy = q.y(), r.qz = q.z();
-  r.sigma_pos_m = 0, r.sigma_att_deg = 0;
-  r.boom_elevation_deg = rad_to_deg(t.boom.elevation_rad);
-  r.boom_azimuth_deg = rad_to_deg(t.boom.azimuth_rad);
-  r.boom_extension_m = t.boom.extension_m;
-  return r;
-}
-
 int demo(const std::vector<std::string>& args, std::ostream& out) {
   const ParsedArgs a = parse_or_usage(args, demo_specs());
   if (a.help) {
@@ -269,8 +256,8 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
       fr.stats = result.stats;
       rec->push(std::move(fr));  // never blocks; a drop is counted in the recording's ledger
     }
-    true_rows.push_back(truth_row(tl));
-    true_rows.push_back(truth_row(truth_of.at({stereo.right.sequence, 1})));
+    true_rows.push_back(sim::pose_row(tl));
+    true_rows.push_back(sim::pose_row(truth_of.at({stereo.right.sequence, 1})));
     // Where the tracked nozzle tip is against where the true receptacle is.
     const Eigen::Vector3d true_receptacle = tl.T_body_receiver * flight.receptacle_m();
     const double miss_m =

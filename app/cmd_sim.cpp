@@ -147,16 +147,7 @@ int sim(const std::vector<std::string>& args, std::ostream& out) {
     for (const auto& f : cam) dropped += f.dropped ? 1 : 0;
   for (const sim::FrameTruth& t : truths) {
     if (t.sequence % every != 0) continue;
-    nav::CameraPoseRow r;
-    r.sequence = t.sequence, r.camera = t.camera, r.t_ns = t.t_camera_ns, r.t_nav_ns = t.t_gps_ns;
-    const Eigen::Vector3d& p = t.T_cam_receiver.translation_m;
-    const Eigen::Quaterniond& q = t.T_cam_receiver.rotation;
-    r.x_m = p.x(), r.y_m = p.y(), r.z_m = p.z(), r.qw = q.w(), r.qx = q.x(), r.qy = q.y(), r.qz = q.z();
-    r.sigma_pos_m = 0, r.sigma_att_deg = 0;
-    r.boom_elevation_deg = rad_to_deg(t.boom.elevation_rad);
-    r.boom_azimuth_deg = rad_to_deg(t.boom.azimuth_rad);
-    r.boom_extension_m = t.boom.extension_m;
-    pose_rows.push_back(r);
+    pose_rows.push_back(sim::pose_row(t));
     char name[64];
     std::snprintf(name, sizeof name, "%s/%06llu.png", t.camera == 0 ? "left" : "right",
                   static_cast<unsigned long long>(t.sequence));

@@ -33,6 +33,19 @@ std::vector<FrameTruth> frame_truths(const Scenario& scenario, const Flight& fli
   return out;
 }
 
+nav::CameraPoseRow pose_row(const FrameTruth& t) {
+  nav::CameraPoseRow r;
+  r.sequence = t.sequence, r.camera = t.camera, r.t_ns = t.t_camera_ns, r.t_nav_ns = t.t_gps_ns;
+  const Eigen::Vector3d& p = t.T_cam_receiver.translation_m;
+  const Eigen::Quaterniond& q = t.T_cam_receiver.rotation;
+  r.x_m = p.x(), r.y_m = p.y(), r.z_m = p.z(), r.qw = q.w(), r.qx = q.x(), r.qy = q.y(), r.qz = q.z();
+  r.sigma_pos_m = 0, r.sigma_att_deg = 0;
+  r.boom_elevation_deg = rad_to_deg(t.boom.elevation_rad);
+  r.boom_azimuth_deg = rad_to_deg(t.boom.azimuth_rad);
+  r.boom_extension_m = t.boom.extension_m;
+  return r;
+}
+
 SkyState sky_at(const Scenario& scenario, const Flight& flight, double t_s) {
   const KinematicState k = flight.tanker(t_s);
   const nav::Geodetic g = nav::geodetic_from_ecef(k.p_ecef_m);

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/frame.hpp"
+#include "nav/logs.hpp"
 #include "sim/flight.hpp"
 #include "sim/scenario.hpp"
 #include "sim/sensors.hpp"
@@ -29,6 +30,10 @@ struct FrameTruth {
   BoomArticulation boom;        // the scenario's boom at t_true_s
   std::string phase;
 };
+
+// A frame's truth as a camera pose CSV row (nav/logs.hpp): T_cam_receiver, t_nav_ns = its GPS time,
+// sigmas 0, the scenario's boom.
+nav::CameraPoseRow pose_row(const FrameTruth& t);
 
 // The truth of every frame the cameras deliver, in delivery order (by camera timestamp).
 std::vector<FrameTruth> frame_truths(const Scenario& scenario, const Flight& flight,
