@@ -217,7 +217,7 @@ class AugmenterImpl final : public Augmenter {
     return vs.tris[global_index(packed)];
   }
   bool is_boom(std::uint32_t packed) const {
-    return packed && boom_of_draw_[packed >> kDrawShift];
+    return packed && draws_[(packed >> kDrawShift) - 1].kind != ObjectKind::kReceiver;
   }
 
   Rig rig_;
@@ -229,13 +229,7 @@ class AugmenterImpl final : public Augmenter {
   // Triangles sharing a vertex (welded by position) with each triangle, global indices (CSR):
   // silhouette triangles seen edge-on are slivers that no sample lands in, but a sampled neighbour does.
   std::vector<std::uint32_t> ring_offsets_, ring_;
-  // By id byte (draw id + epoch * draws): the item's first triangle, and whether it is the boom.
-  std::array<std::uint32_t, 256> first_tri_of_draw_{};
-  std::array<bool, 256> boom_of_draw_{};
-  int id_epochs_ = 1;  // distinct epochs the id byte can carry
-  // Epoch of the current render into fb_ (every view of every frame gets the next one): ids carry
-  // it in their id byte, so ids left from earlier renders are recognised and need no clear.
-  int id_epoch_ = -1;
+  std::array<std::uint32_t, 256> first_tri_of_draw_{};  // by draw id
   std::vector<ViewState> views_;
   gl::Framebuffer fb_;
   struct Program {
@@ -311,13 +305,7 @@ Status AugmenterImpl::init() {
       !s)
     return s;
 
-  const int n_draws = static_cast<int>(draws_.size());
-  id_epochs_ = std::max(1, 255 / std::max(1, n_draws));
-  for (int e = 0; e < id_epochs_; ++e)
-    for (const DrawItem& d : draws_) {
-      first_tri_of_draw_[d.draw_id + e * n_draws] = static_cast<std::uint32_t>(d.first_tri);
-      boom_of_draw_[d.draw_id + e * n_draws] = d.kind != ObjectKind::kReceiver;
-    }
+  for (const DrawItem& d : draws_) first_tri_of_draw_[d.draw_id] = static_cast<std::uint32_t>(d.first_tri);
   build_rings();
   zero_to_one_ = gl::has_clip_control();
   // Reversed-Z: depth 1 at the near plane, 0 at far; float depth keeps precision at 100 m.
@@ -514,15 +502,6 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
   glFrontFace(GL_CW);       // y-down projection (render/projection.hpp)
   glDisable(GL_BLEND);
 
-  // Ids of this frame carry its epoch: draw id + epoch * (number of draws), all within one byte.
-  // Ids a box holds from earlier frames are then told apart on readback and dropped, so only depth
-  // is cleared per box; the id targets are cleared whole once per cycle of epochs, when ids could
-  // repeat.
-  id_epoch_ = (id_epoch_ + 1) % id_epochs_;
-  const bool clear_ids_per_box = id_epochs_ < 2;
-  const bool clear_ids_whole = !clear_ids_per_box && id_epoch_ == 0;
-  const std::uint32_t id_base = static_cast<std::uint32_t>(id_epoch_) * static_cast<std::uint32_t>(draws_.size());
-
   auto draw_kind = [&](ObjectKind kind, const Pose& T_cam_obj, const Program& p) {
     glUseProgram(p.id);
     Eigen::Matrix4f M = T_cam_obj.matrix().cast<float>();
@@ -534,7 +513,7 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
       else
         glDisable(GL_CULL_FACE);
       const Eigen::Vector3f& c = d.mesh->base_color;
-      glUniform1ui(p.draw_id, d.draw_id + id_base);
+      glUniform1ui(p.draw_id, d.draw_id);
       if (p.base_color >= 0) glUniform3f(p.base_color, c.x(), c.y(), c.z());
       if (p.has_texture >= 0) glUniform1i(p.has_texture, d.gpu.has_texture ? 1 : 0);
       if (d.gpu.has_texture && p.has_texture >= 0) {
@@ -565,17 +544,13 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
   };
   const bool overlay = !vs.recv_rgba.empty();
 
-  // One scissored clear of depth per box (the boom is depth-tested against the receiver), and of
-  // the id targets only when epochs cannot mark stale ids. Colours are read only where an id is
-  // set, so they need no clear: llvmpipe clears cost per pixel and per attachment.
+  // One scissored clear per box of the id targets and depth (the boom is depth-tested against the
+  // receiver). Colours are read only where an id is set, so they need no clear: llvmpipe clears
+  // cost per pixel and per attachment.
+  write_only(false, true, true, false);
+  glEnable(GL_SCISSOR_TEST);
   glClearColor(0, 0, 0, 0);
   glClearDepth(0.0);
-  if (clear_ids_whole) {
-    write_only(false, true, true, false);
-    glClear(GL_COLOR_BUFFER_BIT);
-  }
-  write_only(false, clear_ids_per_box, clear_ids_per_box, false);
-  glEnable(GL_SCISSOR_TEST);
   for (const auto* list : {&vs.recv_vboxes, &vs.boom_vboxes})
     for (const VBox& b : *list) {
       glScissor(b.x0, b.y0, b.x1 - b.x0, b.y1 - b.y0);
@@ -625,20 +600,6 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
     gl::read_rgba_box(GL_COLOR_ATTACHMENT1, b.x0, b.y0, b.x1, b.y1,
                       reinterpret_cast<std::uint8_t*>(vs.boom_ids.data()), vs.vp.width);
     gl::read_rgba_box(GL_COLOR_ATTACHMENT0, b.x0, b.y0, b.x1, b.y1, vs.boom_rgba.data(), vs.vp.width);
-  }
-  // Drop ids of earlier epochs (pixels this frame drew nothing on).
-  if (!clear_ids_per_box) {
-    const std::uint32_t lo = id_base + 1, n = static_cast<std::uint32_t>(draws_.size());
-    auto scrub = [&](std::vector<std::uint32_t>& ids, const std::vector<VBox>& boxes) {
-      for (const VBox& b : boxes)
-        for (int y = b.y0; y < b.y1; ++y) {
-          std::uint32_t* row = &ids[static_cast<std::size_t>(y) * vs.vp.width];
-          for (int x = b.x0; x < b.x1; ++x)
-            if ((row[x] >> kDrawShift) - lo >= n) row[x] = 0;  // also maps id byte 0 to 0
-        }
-    };
-    scrub(vs.recv_ids, vs.recv_vboxes);
-    scrub(vs.boom_ids, vs.boom_vboxes);
   }
   stage(timings_.gl_readback_ms);
 }
