@@ -118,12 +118,14 @@ struct Exported {
   EurocExportReport report;
 };
 
-// One recording exported once per test process.
+// One recording exported once per test process, in folders of that test's own (CTest runs the
+// tests of this file in parallel processes).
 const Exported& exported() {
   static const Exported e = [] {
+    const std::string name = testing::UnitTest::GetInstance()->current_test_info()->name();
     Exported x;
-    x.recording = make_recording("recording");
-    x.out = test::output_dir("euroc/export");
+    x.recording = make_recording("recording_" + name);
+    x.out = test::output_dir("euroc/export_" + name);
     auto rd = RecordingReader::open(x.recording);
     EXPECT_TRUE(rd) << rd.error().message;
     auto st = export_euroc(**rd, x.out, {}, x.report);

@@ -72,7 +72,8 @@ std::string make_recording(const std::string& name, int n) {
 
 // One recording of 10 frames for the tests that only read.
 const std::string& recording10() {
-  static const std::string dir = make_recording("ten", 10);
+  static const std::string dir =
+      make_recording(std::string("ten_") + testing::UnitTest::GetInstance()->current_test_info()->name(), 10);
   return dir;
 }
 
