@@ -20,6 +20,7 @@
 
 #include "app/cli.hpp"
 #include "app/scene_file.hpp"
+#include "render/image_file.hpp"
 #include "capture/stereo_pairer.hpp"
 #include "core/frame.hpp"
 #include "render/augmenter.hpp"
@@ -362,31 +363,11 @@ Expected<Image> read_image_file(const std::string& path, std::optional<PixelForm
 }
 
 Status write_image_file(const std::string& path, const Image& image, int png_compression) {
-  if (image.empty()) return make_error(path, ": nothing to write (empty image)");
-  const int channels = bytes_per_pixel(image.format());
-  const cv::Mat m(image.height(), image.width(), CV_8UC(channels), const_cast<std::uint8_t*>(image.data()),
-                  image.stride_bytes());
-  // OpenCV writes BGR. Convert into a buffer of its own: `m` wraps the caller's pixels, which must
-  // come back unchanged (the demo builds its contact sheet from frames it has just written).
-  cv::Mat bgr;
-  if (image.format() == PixelFormat::kRGB8)
-    cv::cvtColor(m, bgr, cv::COLOR_RGB2BGR);
-  else if (image.format() == PixelFormat::kRGBA8)
-    cv::cvtColor(m, bgr, cv::COLOR_RGBA2BGRA);
-  else
-    bgr = m;
   std::error_code ec;
   const fs::path parent = fs::path(path).parent_path();
   if (!parent.empty()) fs::create_directories(parent, ec);
   if (ec) return make_error(parent.string(), ": cannot create the folder (", ec.message(), ")");
-  try {
-    if (!cv::imwrite(path, bgr, {cv::IMWRITE_PNG_COMPRESSION, png_compression})) {
-      return make_error(path, ": cannot write the image");
-    }
-  } catch (const cv::Exception& e) {
-    return make_error(path, ": cannot write the image (", e.what(), ")");
-  }
-  return {};
+  return write_png_file(path, image, png_compression);
 }
 
 // ---- Commands -----------------------------------------------------------------------------------

@@ -19,6 +19,7 @@
 #include "recorder/replay_source.hpp"
 #include "render/augmenter.hpp"
 #include "render/gl_context.hpp"
+#include "render/image_file.hpp"
 #include "sim/flight_source.hpp"
 #include "sim/scenario.hpp"
 
@@ -42,9 +43,7 @@ T need(Expected<T> e, const char* what) {
 }
 
 void write_png(const fs::path& p, const Image& im) {
-  const int type = bytes_per_pixel(im.format()) == 3 ? CV_8UC3 : CV_8UC1;
-  const cv::Mat m(im.height(), im.width(), type, const_cast<std::uint8_t*>(im.data()), im.stride_bytes());
-  cv::imwrite(p.string(), m, {cv::IMWRITE_PNG_COMPRESSION, 1});
+  if (!write_png_file(p.string(), im)) std::exit(1);
 }
 
 }  // namespace

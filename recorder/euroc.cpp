@@ -17,6 +17,7 @@
 #include "nav/logs.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/record.hpp"
+#include "render/image_file.hpp"
 
 namespace augrig::recorder {
 
@@ -69,26 +70,6 @@ bool parse_i64(std::string_view s, std::int64_t& v) {
 bool parse_f64(std::string_view s, double& v) {
   const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
   return r.ec == std::errc() && r.ptr == s.data() + s.size() && !s.empty() && std::isfinite(v);
-}
-
-Status write_png(const fs::path& path, const Image& image, int compression) {
-  const int channels = bytes_per_pixel(image.format());
-  const cv::Mat m(image.height(), image.width(), CV_8UC(channels), const_cast<std::uint8_t*>(image.data()),
-                  image.stride_bytes());
-  cv::Mat bgr;
-  if (image.format() == PixelFormat::kRGB8)
-    cv::cvtColor(m, bgr, cv::COLOR_RGB2BGR);
-  else if (image.format() == PixelFormat::kRGBA8)
-    cv::cvtColor(m, bgr, cv::COLOR_RGBA2BGRA);
-  else
-    bgr = m;
-  try {
-    if (!cv::imwrite(path.string(), bgr, {cv::IMWRITE_PNG_COMPRESSION, compression}))
-      return make_error(path.string(), ": cannot write the image");
-  } catch (const cv::Exception& e) {
-    return make_error(path.string(), ": cannot write the image (", e.what(), ")");
-  }
-  return {};
 }
 
 Expected<Image> read_png(const fs::path& path, PixelFormat gray) {
@@ -186,7 +167,7 @@ struct StreamWriter {
       return {};
     }
     const std::string name = std::to_string(f.t_ns) + ".png";
-    if (auto s = write_png(dir / "data" / name, image, compression); !s) return s;
+    if (auto s = write_png_file((dir / "data" / name).string(), image, compression); !s) return s;
     csv << f.t_ns << "," << name << "\n";
     if (!csv) return make_error((dir / "data.csv").string(), ": write failed");
     ++written;
