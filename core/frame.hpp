@@ -49,6 +49,17 @@ enum class ReadStatus : std::uint8_t {
   kEndOfStream,  // a finite source (replay, simulation) is exhausted
 };
 
+// What a live source knows about its device, for the display and the run's summary. Files and
+// simulations are always connected.
+struct SourceHealth {
+  bool connected = true;
+  std::string message;                // plain words: "left camera lost 0.6 s ago, reconnecting"
+  std::uint64_t disconnects = 0;      // times the device was declared lost
+  std::uint64_t reconnects = 0;       // times it came back
+  std::uint64_t camera_drops = 0;     // frames the device skipped (frame-id gaps)
+  std::uint64_t transport_drops = 0;  // frames lost on the way (incomplete blocks, error flags)
+};
+
 // A stream of frames from one or more cameras. Sources deliver each camera's frames in
 // sequence order; pairing into StereoFrames happens downstream (capture/stereo_pairer.hpp).
 class FrameSource {
@@ -60,6 +71,12 @@ class FrameSource {
   virtual Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) = 0;
   // Frames the source knows it lost (camera or transport), for the drop ledger.
   virtual std::uint64_t frames_dropped() const { return 0; }
+  // Device state; sources without a device report connected and their frames_dropped().
+  virtual SourceHealth health() const {
+    SourceHealth h;
+    h.camera_drops = frames_dropped();
+    return h;
+  }
 };
 
 }  // namespace augrig

@@ -13,6 +13,13 @@ PACKAGES=(
   libsqlite3-dev libzstd-dev sqlite3
   # plots of a run's statistics (augrig export)
   gnuplot-nox
+  # live capture: Aravis GigE Vision (its pkg-config needs libusb's), V4L2, MJPEG decoding;
+  # aravis-tools has the fake GigE Vision camera the tests stream from
+  libaravis-dev aravis-tools libusb-1.0-0-dev libv4l-dev libturbojpeg0-dev
+  # live nav inputs: gpsd's client library; gpsd and gpsfake for the tests
+  libgps-dev gpsd gpsd-clients iproute2
+  # the live display
+  libimgui-dev
   # OpenGL: EGL surfaceless (Mesa llvmpipe) and GLFW windows
   libepoxy-dev libegl-dev libgl-dev libegl1 libgl1-mesa-dri libglfw3-dev
   # tests and benches
