@@ -20,11 +20,11 @@
 
 #include "app/cli.hpp"
 #include "app/scene_file.hpp"
-#include "render/image_file.hpp"
 #include "capture/stereo_pairer.hpp"
 #include "core/frame.hpp"
 #include "render/augmenter.hpp"
 #include "render/gl_context.hpp"
+#include "render/image_file.hpp"
 #include "render/models.hpp"
 #include "render/rig.hpp"
 #include "render/stats.hpp"
@@ -240,6 +240,8 @@ const char* kTopHelp =
     "  check     check a recording: what it holds, what is damaged (exit 1 if anything is)\n"
     "  replay    replay a recording through the augmenter (recorded or another rig and scene)\n"
     "  export    export a recording as a EuRoC/ASL dataset with poses, statistics and their plot\n"
+    "  cameras   list the GigE Vision, USB3 Vision and V4L2 cameras this machine sees\n"
+    "  run       the live pipeline from source URIs: capture, pairing, augmentation, recording\n"
     "\n"
     "Options:\n"
     "  --help, -h   this help\n"
@@ -398,7 +400,10 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   if (command == "check") return cmd_check(rest, out, err);
   if (command == "replay") return cmd_replay(rest, out, err);
   if (command == "export") return cmd_export(rest, out, err);
-  err << "augrig: unknown command '" << command << "'; commands: augment, demo, sim, nav, check, replay, export (see augrig --help)\n";
+  if (command == "cameras") return cmd_cameras(rest, out, err);
+  if (command == "run") return cmd_run(rest, out, err);
+  err << "augrig: unknown command '" << command
+      << "'; commands: augment, demo, sim, nav, check, replay, export, cameras, run (see augrig --help)\n";
   return kExitUsage;
 }
 

@@ -17,8 +17,9 @@
 namespace augrig {
 namespace {
 
-// A first frame may take longer than the stall limit: the camera starts its sensor.
-constexpr TimestampNs kFirstFrameGraceNs = 500'000'000;
+// A first frame may take longer than the stall limit: the camera starts its sensor, and a camera
+// just restarted (or a loaded host) may need a moment more.
+constexpr TimestampNs kFirstFrameGraceNs = 2'000'000'000;
 
 TimestampNs monotonic_now_ns() {
   timespec ts{};

@@ -1,0 +1,362 @@
+// augrig cameras: what capture devices this machine sees.
+// augrig run: the live pipeline from source URIs: capture (a thread per camera) -> pairing (clock
+// offsets estimated per camera) -> pose -> augmentation -> statistics and recorder, headless.
+#include <csignal>
+#include <iomanip>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include "app/cli.hpp"
+#include "app/commands.hpp"
+#include "app/scene_file.hpp"
+#include "app/sources.hpp"
+#include "capture/aravis_source.hpp"
+#include "capture/v4l2_source.hpp"
+#include "recorder/recorder.hpp"
+#include "sim/flight_source.hpp"
+#include "sim/scenario.hpp"
+#include "sim/sensors.hpp"
+
+namespace augrig::app {
+namespace {
+
+// ---- cameras ---------------------------------------------------------------------------------
+
+int cameras_command(const std::vector<std::string>& args, std::ostream& out) {
+  const std::vector<OptionSpec> specs = {
+      {"no-open", ArgKind::kFlag, "", "list without opening each camera (no pixel formats)"},
+  };
+  const ParsedArgs a = parse_or_usage(args, specs);
+  if (a.help) {
+    out << format_help(
+        "augrig cameras [--no-open]",
+        "Lists the GigE Vision / USB3 Vision cameras Aravis discovers and the V4L2 capture devices,\n"
+        "with model, serial, address and pixel formats, and the URI that opens each.",
+        specs);
+    return kExitOk;
+  }
+  const std::vector<AravisDeviceInfo> gige = list_aravis_devices(!a.has("no-open"));
+  out << "Aravis (GigE Vision, USB3 Vision): " << gige.size() << " camera(s)\n";
+  for (const AravisDeviceInfo& d : gige) {
+    out << "  aravis://" << (d.address.empty() ? d.id : d.address) << "\n"
+        << "    id " << d.id << ", " << d.vendor << " " << d.model << ", serial " << d.serial << ", "
+        << d.protocol << (d.address.empty() ? "" : ", address " + d.address) << "\n";
+    if (!d.pixel_formats.empty()) {
+      out << "    pixel formats:";
+      for (const std::string& f : d.pixel_formats) out << " " << f;
+      out << "\n";
+    }
+    if (!d.error.empty()) out << "    (not opened: " << d.error << ")\n";
+  }
+  auto v4l2 = list_v4l2_devices();
+  if (!v4l2) {
+    out << "V4L2: " << user_message(v4l2.error()) << "\n";
+    return kExitOk;
+  }
+  out << "V4L2: " << v4l2->size() << " capture device(s)\n";
+  for (const V4l2DeviceInfo& d : *v4l2) {
+    out << "  v4l2://" << d.path << "\n    " << d.card << " (driver " << d.driver << ", bus " << d.bus_info
+        << ")\n";
+    if (!d.error.empty()) out << "    (not opened: " << d.error << ")\n";
+    if (!d.formats.empty()) {
+      out << "    pixel formats:";
+      for (const V4l2FormatInfo& f : d.formats)
+        out << " " << fourcc_to_string(f.fourcc) << (f.supported ? "" : "(unsupported)");
+      out << "\n";
+    }
+  }
+  return kExitOk;
+}
+
+// ---- run -------------------------------------------------------------------------------------
+
+std::atomic<bool> g_stop{false};
+extern "C" void on_stop_signal(int) {
+  g_stop.store(true);
+}
+
+const std::vector<OptionSpec>& run_specs() {
+  static const std::vector<OptionSpec> specs = {
+      {"rig", ArgKind::kValue, "RIG.yaml|default",
+       "the rig (cameras, boom, receiver); its cameras' 'source' keys name the sources. Default: the sim "
+       "scenario's rig for sim://, else the paper's"},
+      {"source", ArgKind::kValue, "URI",
+       "frame source: sim://SCENARIO, replay://DIR, stereo:[..]//{L}{R} (docs/CAPTURE.md); overrides the "
+       "rig's"},
+      {"scene", ArgKind::kValue, "SCENE.yaml",
+       "a fixed scene (boom articulation, receiver pose); sim:// without it uses the simulation's truth"},
+      {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE",
+       "boom articulation (default: the scene's)"},
+      {"record", ArgKind::kValue, "DIR", "record raw, augmented and mask frames with poses and statistics"},
+      {"duration", ArgKind::kValue, "S", "stop after S seconds (default: until the source ends or Ctrl-C)"},
+      {"out", ArgKind::kValue, "DIR", "write stats.csv (and with --every, images) here"},
+      {"every", ArgKind::kValue, "K", "with --out: write the images of every K-th stereo frame"},
+      {"headless", ArgKind::kFlag, "", "no window (the live display is not built yet: always headless)"},
+      {"status-every", ArgKind::kValue, "S", "print a status line every S seconds (default 1; 0: never)"},
+  };
+  return specs;
+}
+
+// The simulation's truth per camera frame, for sim:// runs without a scene.
+struct SimTruth {
+  std::map<std::pair<int, TimestampNs>, sim::FrameTruth> by_frame;
+};
+std::optional<SimTruth> sim_truth(const std::string& scenario_name) {
+  auto s = sim::builtin_scenario(scenario_name);
+  if (!s) s = sim::load_scenario(scenario_name);
+  if (!s) return std::nullopt;
+  auto flight = sim::Flight::create(*s);
+  if (!flight) return std::nullopt;
+  const sim::SensorLogs logs = sim::simulate_sensors(*s, *flight);
+  SimTruth t;
+  for (const sim::FrameTruth& f : sim::frame_truths(*s, *flight, logs.cameras))
+    t.by_frame[{f.camera, f.t_camera_ns}] = f;
+  return t;
+}
+
+std::string fmt_us(std::int64_t ns) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(1) << static_cast<double>(ns) / 1e3;
+  return s.str();
+}
+
+int run_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  const ParsedArgs a = parse_or_usage(args, run_specs());
+  if (a.help) {
+    out << format_help(
+        "augrig run [--rig RIG] [--source URI] [--scene SCENE.yaml] [--record DIR] [--duration S] "
+        "[--headless]",
+        "Runs the live pipeline: each camera captured on its own thread, frames paired by timestamp (each\n"
+        "camera's clock related to host time continuously) or trigger id, the boom rendered into both\n"
+        "views, occlusion statistics, and with --record everything recorded. Nothing is dropped silently:\n"
+        "the summary gives the drops by stage, the pairs' skew and each camera's clock offset.",
+        run_specs());
+    return kExitOk;
+  }
+  const double duration_s = a.has("duration") ? parse_real("duration", a.get("duration")) : 0.0;
+  if (duration_s < 0) usage_error("--duration: expected seconds >= 0");
+  const double status_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 1.0;
+  const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 0;
+  if (every && !a.has("out")) usage_error("--every needs --out");
+
+  // Sources: --source, else the rig's per-camera URIs.
+  std::optional<Rig> rig;
+  if (a.has("rig")) rig = load_rig_arg(a.get("rig"));
+  std::string uri = a.get("source"), right_uri;
+  if (uri.empty()) {
+    if (!rig) usage_error("give --source URI, or --rig RIG whose cameras have 'source' keys");
+    uri = rig->left().source_uri;
+    right_uri = rig->right().source_uri;
+    if (uri.empty() || right_uri.empty())
+      runtime_error(rig->source + ": cameras[0] and cameras[1] need a 'source' URI, or give --source");
+  }
+  OpenedSource opened = unwrap(open_sources(uri, right_uri));
+  const bool is_sim = !opened.scenario.empty();
+  if (!rig) rig = is_sim ? unwrap(sim::builtin_scenario(opened.scenario)).rig : Rig::paper_default();
+  const ReceiverSetup receiver = receiver_setup(*rig);
+  const BoomDimensions boom_dims;
+
+  std::optional<SceneState> fixed_scene;
+  if (a.has("scene"))
+    fixed_scene = unwrap(load_scene(a.get("scene"), *rig, boom_dims, receiver.receptacle_m));
+  std::optional<SimTruth> truth;
+  if (!fixed_scene) {
+    if (!is_sim) usage_error("--scene SCENE.yaml is needed: live nav poses are not wired into `run` yet");
+    truth = sim_truth(opened.scenario);
+    if (!truth) runtime_error("scenario '" + opened.scenario + "': cannot simulate its truth");
+  }
+  std::optional<BoomArg> boom_arg;
+  if (a.has("boom")) boom_arg = parse_boom_arg(a.get("boom"));
+
+  std::unique_ptr<recorder::Recorder> rec;
+  if (a.has("record")) {
+    recorder::RecordingInfo info;
+    info.rig_yaml = rig_to_yaml(*rig);
+    info.scene = fixed_scene ? a.get("scene") : "sim truth of " + opened.scenario;
+    info.clock_domains = opened.live ? "frames: each camera's device clock (t_ns, mid-exposure) and host "
+                                       "CLOCK_MONOTONIC (t_host_ns); offsets in events 'clock_offset'"
+                                     : "frames: the source's clocks as recorded";
+    info.extra["source"] = uri + (right_uri.empty() ? "" : " + " + right_uri);
+    rec = unwrap(recorder::Recorder::create(a.get("record"), info));
+  }
+  std::optional<StatsCsv> csv;
+  if (a.has("out")) {
+    make_dirs(a.get("out"));
+    csv.emplace(fs::path(a.get("out")) / "stats.csv");
+  }
+
+  const auto gl = make_gl_context();
+  AugmentOptions aug_options;
+  aug_options.receiver_model = receiver.model;
+  const auto augmenter = unwrap(Augmenter::create(*rig, aug_options));
+  const bool lossless = opened.options.lossless;
+  auto stereo = unwrap(start_stereo(std::move(opened)));
+  out << "run: " << stereo->uri() << (lossless ? " (lockstep)" : " (live)") << "; rig " << rig->source
+      << "; scene " << (fixed_scene ? a.get("scene") : std::string("simulation truth"))
+      << (rec ? "; recording to " + rec->path() : std::string()) << "\n";
+
+  g_stop = false;
+  std::signal(SIGINT, on_stop_signal);
+  std::signal(SIGTERM, on_stop_signal);
+
+  const auto t0 = Clock::now();
+  auto next_status = t0 + std::chrono::duration<double>(status_s);
+  std::vector<OcclusionStats> all;
+  std::size_t no_pose = 0, processing_drops = 0;
+  double augment_ms = 0;
+  std::vector<std::string> last_health(stereo->sources().size());
+  StereoResult result;
+  TimestampNs first_t_ns = 0;
+  bool source_failed = false;
+  auto log_event = [&](const std::string& text) {
+    out << "  " << text << "\n";
+    if (rec) rec->push(recorder::EventRecord{0, ClockDomain::kHostMonotonic, text});
+  };
+  for (;;) {
+    if (g_stop) {
+      out << "run: stopped by signal\n";
+      break;
+    }
+    if (duration_s > 0 && std::chrono::duration<double>(Clock::now() - t0).count() >= duration_s) break;
+    StereoFrame frame;
+    auto r = stereo->read(frame, std::chrono::milliseconds(200));
+    // Camera state changes are events: printed, and recorded with the frames.
+    const std::vector<SourceHealth> health = stereo->health();
+    for (std::size_t i = 0; i < health.size(); ++i)
+      if (health[i].message != last_health[i]) {
+        if (!last_health[i].empty() || !health[i].connected) log_event(health[i].message);
+        last_health[i] = health[i].message;
+      }
+    if (!r) {
+      err << "augrig run: " << user_message(r.error()) << "\n";
+      source_failed = true;
+      break;
+    }
+    if (*r == ReadStatus::kEndOfStream) break;
+    if (*r == ReadStatus::kFrame) {
+      if (!first_t_ns) first_t_ns = frame.left.t_ns;
+      std::optional<SceneState> scene = fixed_scene;
+      if (!scene) {
+        const auto it = truth->by_frame.find({index_of(frame.left.camera), frame.left.t_ns});
+        if (it != truth->by_frame.end())
+          scene = SceneState{it->second.boom, it->second.T_body_receiver, true};
+      }
+      if (!scene) {
+        ++no_pose;
+      } else {
+        if (boom_arg) {
+          const BoomCommand tracked = track_point(scene->T_body_receiver * receiver.receptacle_m,
+                                                  rig->boom.pivot_body_m, boom_dims, rig->boom.limits);
+          scene->boom = boom_arg->command(ns_to_s(frame.left.t_ns - first_t_ns), tracked, rig->boom.limits)
+                            .articulation;
+        }
+        if (Status s = augmenter->augment(frame, *scene, result); !s) {
+          ++processing_drops;
+          err << "augrig run: frame " << frame.pair_sequence << ": " << user_message(s.error()) << "\n";
+        } else {
+          augment_ms += augmenter->timings().total_ms;
+          result.stats.t_ns = frame.t_key_ns;
+          if (csv) csv->add(result.stats);
+          if (every && all.size() % static_cast<std::size_t>(every) == 0) {
+            std::ostringstream stem;
+            stem << std::setw(6) << std::setfill('0') << frame.pair_sequence;
+            write_frame_outputs(a.get("out"), {stem.str(), stem.str()}, result);
+          }
+          if (rec) {
+            recorder::FrameRecord fr;
+            fr.raw = std::move(frame);
+            fr.augmented = {result.left.augmented, result.right.augmented};
+            fr.mask = {result.left.mask, result.right.mask};
+            fr.T_body_receiver = scene->T_body_receiver;
+            fr.receiver_present = scene->receiver_present;
+            for (int c = 0; c < 2; ++c)
+              fr.T_cam_receiver[c] = rig->cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
+            fr.boom = scene->boom;
+            fr.stats = result.stats;
+            rec->push(std::move(fr));
+          }
+          all.push_back(result.stats);
+        }
+      }
+    }
+    if (status_s > 0 && Clock::now() >= next_status) {
+      next_status += std::chrono::duration<double>(status_s);
+      const StereoSourceStats st = stereo->stats();
+      const double t = std::chrono::duration<double>(Clock::now() - t0).count();
+      out << "  t " << std::fixed << std::setprecision(1) << t << " s: " << all.size() << " pairs ("
+          << std::setprecision(1) << all.size() / std::max(t, 1e-9) << "/s), skew p50/p99 "
+          << fmt_us(st.pairing.skew.p50_abs_ns()) << "/" << fmt_us(st.pairing.skew.p99_abs_ns())
+          << " us, drops camera " << st.camera_drops << " transport " << st.transport_drops << " pairing "
+          << st.pairing.unpaired_left + st.pairing.unpaired_right << " queue "
+          << st.queue_drops[0] + st.queue_drops[1] << "\n";
+      for (const ClockOffsetLog& c : st.clocks) {
+        std::ostringstream e;
+        e << "clock_offset camera=" << to_string(c.camera) << " t_device_ns=" << c.t_device_ns
+          << " offset_ns=" << c.offset_ns << " drift_ppm=" << std::setprecision(3) << c.drift_ppm
+          << " uncertainty_ns=" << c.uncertainty_ns << " samples=" << c.samples << " resets=" << c.resets;
+        if (rec) rec->push(recorder::EventRecord{c.t_host_ns, ClockDomain::kHostMonotonic, e.str()});
+      }
+    }
+  }
+  stereo->stop();
+  const double wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  const StereoSourceStats st = stereo->stats();
+
+  // The summary and the drop ledger: every frame is accounted for, by stage.
+  if (!all.empty()) out << format_run_summary(all);
+  const std::uint64_t pairing = st.pairing.unpaired_left + st.pairing.unpaired_right;
+  const std::uint64_t queue = st.queue_drops[0] + st.queue_drops[1];
+  out << "run: " << all.size() << " stereo frames augmented in " << std::setprecision(1) << wall_s << " s ("
+      << all.size() / std::max(wall_s, 1e-9) << "/s";
+  if (!all.empty())
+    out << ", augmenter " << fmt_ms(augment_ms / static_cast<double>(all.size())) << " ms/frame";
+  out << "); frames read: left " << st.frames[0] << ", right " << st.frames[1] << "\n"
+      << "drops: camera " << st.camera_drops << ", transport " << st.transport_drops << ", pairing "
+      << pairing << ", processing " << queue + processing_drops + no_pose << " (queue " << queue
+      << ", no pose " << no_pose << ", failed " << processing_drops << ")\n";
+  if (st.pairing.skew.count)
+    out << "pair skew: p50 " << fmt_us(st.pairing.skew.p50_abs_ns()) << " us, p99 "
+        << fmt_us(st.pairing.skew.p99_abs_ns()) << " us, max " << fmt_us(st.pairing.skew.max_abs_ns)
+        << " us\n";
+  for (const ClockOffsetLog& c : st.clocks)
+    out << "clock " << to_string(c.camera) << ": host - device " << c.offset_ns << " ns, drift "
+        << std::setprecision(2) << c.drift_ppm << " ppm, +-" << fmt_us(c.uncertainty_ns) << " us ("
+        << c.samples << " samples, " << c.resets << " resets)\n";
+  for (std::size_t i = 0; i < stereo->sources().size(); ++i) {
+    const SourceHealth h = stereo->health()[i];
+    if (h.disconnects)
+      out << stereo->sources()[i]->uri() << ": lost " << h.disconnects << " time(s), reconnected "
+          << h.reconnects << " time(s)\n";
+  }
+  if (rec) {
+    auto ledger = [&](recorder::DropStage stage, std::uint64_t n, const std::string& why) {
+      if (n) rec->push(recorder::DropRecord{stage, n, 0, 0, why, "frame"});
+    };
+    ledger(recorder::DropStage::kCamera, st.camera_drops, "frame-id gaps reported by the cameras");
+    ledger(recorder::DropStage::kTransport, st.transport_drops, "incomplete or failed buffers");
+    ledger(recorder::DropStage::kPairing, pairing, "frames without a stereo partner");
+    ledger(recorder::DropStage::kProcessing, queue, "capture queue full (the pipeline fell behind)");
+    ledger(recorder::DropStage::kProcessing, no_pose, "no pose for the frame");
+    ledger(recorder::DropStage::kProcessing, processing_drops, "augmentation failed");
+    const Status closed = rec->close();
+    const recorder::RecorderStats rs = rec->stats();
+    out << "recorded " << rs.frames_committed << " stereo frames to " << rec->path() << " ("
+        << rs.frames_dropped << " dropped by the recorder)\n";
+    if (!closed) runtime_error("the recording stopped: " + user_message(closed.error()));
+  }
+  if (source_failed) return kExitRuntime;
+  return kExitOk;
+}
+
+}  // namespace
+
+int cmd_cameras(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  return guarded("cameras", err, [&] { return cameras_command(args, out); });
+}
+
+int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  return guarded("run", err, [&] { return run_command(args, out, err); });
+}
+
+}  // namespace augrig::app

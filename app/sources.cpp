@@ -1,0 +1,273 @@
+#include "app/sources.hpp"
+
+#include <thread>
+
+#include <time.h>
+
+#include "capture/aravis_source.hpp"
+#include "capture/v4l2_source.hpp"
+#include "recorder/replay_source.hpp"
+#include "render/gl_context.hpp"
+#include "sim/flight_source.hpp"
+#include "sim/scenario.hpp"
+#include "sim/sensors.hpp"
+
+namespace augrig::app {
+namespace {
+
+TimestampNs monotonic_now_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<TimestampNs>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+Error uri_error(const SourceUri& u, const std::string& what) {
+  return make_error("source URI '", u.text, "': ", what);
+}
+
+// sim://SCENARIO: the simulated flight's cameras, rendered on the capture thread that reads them
+// (the GL context is created there, on the first read), paced to real time unless rate=0.
+class SimSource final : public FrameSource {
+ public:
+  SimSource(std::string uri, sim::Scenario scenario, int every, double rate)
+      : uri_(std::move(uri)), scenario_(std::move(scenario)), every_(every), rate_(rate) {}
+  std::string uri() const override { return uri_; }
+  std::uint64_t frames_dropped() const override { return dropped_; }
+
+  Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds) override {
+    if (!source_) {
+      auto ctx = create_gl_context(GlBackend::kEglHeadless);
+      if (!ctx) return make_error(uri_, ": ", ctx.error().message);
+      ctx_ = std::move(*ctx);
+      auto flight = sim::Flight::create(scenario_);
+      if (!flight) return make_error(uri_, ": ", flight.error().message);
+      flight_ = std::make_unique<sim::Flight>(std::move(*flight));
+      const sim::SensorLogs logs = sim::simulate_sensors(scenario_, *flight_);
+      for (const auto& cam : logs.cameras)
+        for (const auto& f : cam) dropped_ += f.dropped ? 1 : 0;
+      auto src = sim::FlightSource::create(scenario_, *flight_,
+                                           sim::frame_truths(scenario_, *flight_, logs.cameras), every_);
+      if (!src) return make_error(uri_, ": ", src.error().message);
+      source_ = std::move(*src);
+    }
+    ctx_->make_current();
+    auto r = source_->read(out, {});
+    if (!r || *r != ReadStatus::kFrame || rate_ <= 0) return r;
+    // Real time: a frame is not handed out before its time since the first frame.
+    if (!t0_camera_ns_) {
+      t0_camera_ns_ = out.t_ns;
+      t0_host_ns_ = monotonic_now_ns();
+    }
+    const TimestampNs due = t0_host_ns_ + static_cast<TimestampNs>((out.t_ns - *t0_camera_ns_) / rate_);
+    const TimestampNs now = monotonic_now_ns();
+    if (due > now) std::this_thread::sleep_for(std::chrono::nanoseconds(due - now));
+    out.t_host_ns = std::max(due, now);
+    return r;
+  }
+
+ private:
+  std::string uri_;
+  sim::Scenario scenario_;
+  int every_;
+  double rate_;
+  std::unique_ptr<GlContext> ctx_;
+  std::unique_ptr<sim::Flight> flight_;
+  std::unique_ptr<sim::FlightSource> source_;
+  std::uint64_t dropped_ = 0;
+  std::optional<TimestampNs> t0_camera_ns_;
+  TimestampNs t0_host_ns_ = 0;
+};
+
+Expected<sim::Scenario> scenario_of(const SourceUri& u) {
+  if (u.target.find('/') != std::string::npos || u.target.ends_with(".yaml"))
+    return sim::load_scenario(u.target);
+  return sim::builtin_scenario(u.target);
+}
+
+Expected<std::uint32_t> fourcc_of(const SourceUri& u, const std::string& s) {
+  if (s.size() != 4)
+    return uri_error(
+        u, "format: expected a V4L2 fourcc of 4 characters (YUYV, MJPG, GREY, ...), got '" + s + "'");
+  return static_cast<std::uint32_t>(s[0]) | static_cast<std::uint32_t>(s[1]) << 8 |
+         static_cast<std::uint32_t>(s[2]) << 16 | static_cast<std::uint32_t>(s[3]) << 24;
+}
+
+// One camera's source (aravis://, v4l2://).
+Expected<std::unique_ptr<FrameSource>> open_camera(const SourceUri& u, CameraId camera) {
+  if (u.scheme == "aravis") {
+    if (Status s = u.check_known({"format", "fps", "exposure_us", "gain", "roi", "trigger", "ptp",
+                                  "packet_size", "socket_buffer", "packet_socket", "buffers"});
+        !s)
+      return s.error();
+    AravisOptions o;
+    o.device = u.target;
+    o.camera = camera;
+    o.pixel_format = u.get("format");
+    for (const char* key : {"fps", "exposure_us", "gain"}) {
+      if (!u.has(key)) continue;
+      auto v = u.get_number(key, 0);
+      if (!v) return v.error();
+      (std::string(key) == "fps"    ? o.frame_rate_hz
+       : std::string(key) == "gain" ? o.gain
+                                    : o.exposure_us) = *v;
+    }
+    if (u.has("roi")) {
+      RegionOfInterest r;
+      if (std::sscanf(u.get("roi").c_str(), "%d,%d,%d,%d", &r.x, &r.y, &r.width, &r.height) != 4)
+        return uri_error(u, "roi: expected X,Y,WIDTH,HEIGHT in pixels, got '" + u.get("roi") + "'");
+      o.roi = r;
+    }
+    const std::string trigger = u.get("trigger", "free");
+    if (trigger == "software") {
+      o.trigger = TriggerMode::kSoftware;
+    } else if (trigger != "free") {
+      o.trigger = TriggerMode::kLine;
+      o.trigger_line = trigger;
+    }
+    o.ptp = u.get("ptp", "0") == "1";
+    o.packet_socket = u.get("packet_socket", "1") == "1";
+    for (const char* key : {"packet_size", "socket_buffer", "buffers"}) {
+      if (!u.has(key)) continue;
+      auto v = u.get_integer(key, 0);
+      if (!v) return v.error();
+      if (*v <= 0) return uri_error(u, std::string(key) + ": expected a positive integer");
+      (std::string(key) == "packet_size" ? o.packet_size
+       : std::string(key) == "buffers"   ? o.buffers
+                                         : o.socket_buffer_bytes) = static_cast<int>(*v);
+    }
+    auto src = AravisSource::open(o);
+    if (!src) return src.error();
+    return std::unique_ptr<FrameSource>(std::move(*src));
+  }
+  if (u.scheme == "v4l2") {
+    if (Status s = u.check_known({"format", "width", "height", "fps", "buffers", "exposure_us", "gain"}); !s)
+      return s.error();
+    V4l2Options o;
+    o.device_path = u.target;
+    o.camera = camera;
+    if (u.has("format")) {
+      auto f = fourcc_of(u, u.get("format"));
+      if (!f) return f.error();
+      o.pixel_formats = {*f};
+    }
+    auto w = u.get_integer("width", 0), h = u.get_integer("height", 0), b = u.get_integer("buffers", 4);
+    auto fps = u.get_number("fps", 0), exp = u.get_number("exposure_us", -1);
+    auto gain = u.get_integer("gain", -1);
+    for (const auto* e : {&w, &h, &b})
+      if (!*e) return e->error();
+    for (const auto* e : {&fps, &exp})
+      if (!*e) return e->error();
+    if (!gain) return gain.error();
+    o.width_px = static_cast<int>(*w);
+    o.height_px = static_cast<int>(*h);
+    o.buffer_count = static_cast<int>(*b);
+    o.frame_rate_hz = *fps;
+    if (*exp >= 0) o.exposure_ns = static_cast<std::int64_t>(*exp * 1e3);
+    if (*gain >= 0) o.gain = static_cast<std::int32_t>(*gain);
+    auto src = V4l2Source::open(o);
+    if (!src) return src.error();
+    return std::unique_ptr<FrameSource>(std::move(*src));
+  }
+  return uri_error(u, "a camera source must be aravis:// or v4l2://, got " + u.scheme + "://");
+}
+
+}  // namespace
+
+Expected<OpenedSource> open_sources(const std::string& uri, const std::string& right_uri) {
+  auto parsed = parse_source_uri(uri);
+  if (!parsed) return parsed.error();
+  SourceUri u = std::move(*parsed);
+  if (!right_uri.empty()) {
+    auto right = parse_source_uri(right_uri);
+    if (!right) return right.error();
+    SourceUri stereo;
+    stereo.text = "stereo://{" + uri + "}{" + right_uri + "}";
+    stereo.scheme = "stereo";
+    stereo.children = {u, *right};
+    u = std::move(stereo);
+  }
+
+  OpenedSource out;
+  if (u.scheme == "sim") {
+    if (Status s = u.check_known({"every", "rate"}); !s) return s.error();
+    auto scenario = scenario_of(u);
+    if (!scenario) return uri_error(u, scenario.error().message);
+    auto every = u.get_integer("every", 1);
+    auto rate = u.get_number("rate", 1.0);
+    if (!every) return every.error();
+    if (!rate) return rate.error();
+    if (*every < 1) return uri_error(u, "every: expected an integer >= 1");
+    if (*rate < 0) return uri_error(u, "rate: expected >= 0 (0: as fast as possible)");
+    out.scenario = scenario->name;
+    // Both cameras stamp the simulation's device clocks, which differ by their configured offsets.
+    const auto& offs = scenario->sensors.cameras.clock_offset_ns;
+    const std::int64_t skew = offs.size() >= 2 ? std::abs(offs[1] - offs[0]) : 0;
+    out.options.pairing.tolerance_ns =
+        skew + static_cast<std::int64_t>(0.25e9 / scenario->sensors.cameras.fps);
+    out.options.lossless = *rate == 0;
+    out.sources.push_back(
+        std::make_unique<SimSource>(uri, std::move(*scenario), static_cast<int>(*every), *rate));
+    return out;
+  }
+  if (u.scheme == "replay") {
+    if (Status s = u.check_known({"rate", "loop"}); !s) return s.error();
+    recorder::ReplayOptions o;
+    const std::string rate = u.get("rate", "1");
+    if (rate == "fast") {
+      o.mode = recorder::ReplayMode::kFast;
+    } else {
+      auto r = u.get_number("rate", 1.0);
+      if (!r) return r.error();
+      if (*r <= 0) return uri_error(u, "rate: expected a number > 0 or 'fast'");
+      o.mode = recorder::ReplayMode::kRealRate;
+      o.rate = *r;
+      o.drop_late = true;  // live-like: late frames are lost, as a camera's would be
+    }
+    o.passes = u.get("loop", "0") == "1" ? 0 : 1;
+    auto src = recorder::ReplaySource::open(u.target, o);
+    if (!src) return src.error();
+    out.options.lossless = o.mode == recorder::ReplayMode::kFast;
+    // A recording holds pairs already; its frames pair again with the same tolerance.
+    out.options.pairing.tolerance_ns = 20'000'000;
+    out.sources.push_back(std::move(*src));
+    return out;
+  }
+  if (u.scheme == "stereo") {
+    if (Status s = u.check_known({"tolerance_us", "mode", "clock", "queue"}); !s) return s.error();
+    auto tol = u.get_number("tolerance_us", 2000);
+    auto queue = u.get_integer("queue", 8);
+    if (!tol) return tol.error();
+    if (!queue) return queue.error();
+    const std::string mode = u.get("mode", "timestamp"), clock = u.get("clock", "separate");
+    if (mode != "timestamp" && mode != "trigger_id")
+      return uri_error(u, "mode: expected timestamp or trigger_id, got '" + mode + "'");
+    if (clock != "separate" && clock != "shared")
+      return uri_error(
+          u, "clock: expected separate (each camera its own clock) or shared (PTP), got '" + clock + "'");
+    StereoPairerConfig& p = out.options.pairing;
+    p.mode = mode == "timestamp" ? PairingMode::kTimestamp : PairingMode::kTriggerId;
+    p.tolerance_ns = static_cast<std::int64_t>(*tol * 1e3);
+    p.device_clock_shared = clock == "shared";
+    // Separate device clocks are compared on host time, through each camera's estimated offset.
+    if (!p.device_clock_shared) p.clock_offsets = ClockOffsetConfig{};
+    out.options.queue_frames = static_cast<std::size_t>(std::max<long long>(1, *queue));
+    out.live = true;
+    for (int i = 0; i < 2; ++i) {
+      auto cam = open_camera(u.children[i], i == 0 ? CameraId::kLeft : CameraId::kRight);
+      if (!cam) return cam.error();
+      out.sources.push_back(std::move(*cam));
+    }
+    return out;
+  }
+  if (u.scheme == "aravis" || u.scheme == "v4l2")
+    return uri_error(u,
+                     "one camera is not a stereo rig: give both, as stereo:[..]//{LEFT}{RIGHT} or the rig's "
+                     "per-camera 'source' keys");
+  return uri_error(u, "unknown scheme '" + u.scheme + "'; expected aravis, v4l2, sim, replay or stereo");
+}
+
+Expected<std::unique_ptr<StereoSource>> start_stereo(OpenedSource opened) {
+  return StereoSource::create(std::move(opened.sources), opened.options);
+}
+
+}  // namespace augrig::app

@@ -1,0 +1,31 @@
+// Frame sources by URI (capture/source_uri.hpp): opens aravis://, v4l2://, sim:// and replay://
+// sources and composes them into the StereoSource the live pipeline reads. The one place that
+// knows every scheme, so capture/ needs neither the simulator nor the recorder.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "capture/source_uri.hpp"
+#include "capture/stereo_source.hpp"
+#include "core/frame.hpp"
+
+namespace augrig::app {
+
+// What a source URI opened into, with what the pipeline needs to know about it.
+struct OpenedSource {
+  std::vector<std::unique_ptr<FrameSource>> sources;  // one (both cameras) or two (left, right)
+  StereoSourceOptions options;                        // pairing and queueing for these sources
+  bool live = false;                                  // cameras (true) or a file / simulation
+  std::string scenario;                               // sim://: the scenario, for nav truth
+};
+
+// `uri`: one stereo-capable URI (sim://, replay://, stereo:[..]//{L}{R}); or, with `right_uri`, the
+// two cameras' URIs (the rig's per-camera `source` keys) composed with the default pairing.
+Expected<OpenedSource> open_sources(const std::string& uri, const std::string& right_uri = "");
+
+// The StereoSource of an OpenedSource (starts its capture threads).
+Expected<std::unique_ptr<StereoSource>> start_stereo(OpenedSource opened);
+
+}  // namespace augrig::app

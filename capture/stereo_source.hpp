@@ -1,0 +1,67 @@
+// StereoSource: the capture and pairing stages of the live pipeline. Each FrameSource is read on
+// a thread of its own, so a camera never waits for the other camera or for what comes downstream;
+// frames cross to the pairer through a bounded queue per source, and pairs come out of read().
+//
+// Live sources (cameras) never block: when a queue is full its oldest frame is dropped and counted.
+// Finite sources (replay, simulation) run lockstep instead (`lossless`): capture waits for room,
+// so nothing is dropped however slow the consumer is. Every frame is accounted for: delivered in
+// a pair, dropped by the camera or transport (the source's own counts), by a full queue, by the
+// pairer (with its reason), or still pending.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "capture/stereo_pairer.hpp"
+#include "core/expected.hpp"
+#include "core/frame.hpp"
+
+namespace augrig {
+
+struct StereoSourceOptions {
+  StereoPairerConfig pairing;
+  std::size_t queue_frames = 8;  // per source, between its capture thread and the pairer
+  bool lossless = false;         // capture waits for room instead of dropping (finite sources)
+  std::chrono::nanoseconds read_timeout = std::chrono::milliseconds(100);  // per source read()
+};
+
+struct StereoSourceStats {
+  std::uint64_t frames[2] = {0, 0};       // read from the sources, per camera
+  std::uint64_t queue_drops[2] = {0, 0};  // dropped because the pairer's queue was full
+  std::uint64_t camera_drops = 0;         // the sources' own counts (SourceHealth)
+  std::uint64_t transport_drops = 0;
+  PairerStats pairing;
+  std::vector<ClockOffsetLog> clocks;  // the latest clock offset estimate per camera, if estimated
+};
+
+class StereoSource {
+ public:
+  // One source delivering both cameras (sim://, replay://) or two (left, right: each frame's camera
+  // is set by its source's position). Starts the capture threads.
+  static Expected<std::unique_ptr<StereoSource>> create(std::vector<std::unique_ptr<FrameSource>> sources,
+                                                        const StereoSourceOptions& options);
+  ~StereoSource();  // stop()
+  StereoSource(const StereoSource&) = delete;
+  StereoSource& operator=(const StereoSource&) = delete;
+
+  // The next stereo frame. kEndOfStream once every source ended and nothing pairs any more; an
+  // Error when a source failed (its message names it).
+  Expected<ReadStatus> read(StereoFrame& out, std::chrono::nanoseconds timeout);
+  void stop();  // ends the capture threads
+
+  std::string uri() const;
+  StereoSourceStats stats() const;
+  std::vector<SourceHealth> health() const;  // per source
+  // The sources, e.g. to reach a camera's own statistics. Their read() belongs to the threads.
+  const std::vector<std::unique_ptr<FrameSource>>& sources() const;
+
+ private:
+  struct Impl;
+  explicit StereoSource(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace augrig

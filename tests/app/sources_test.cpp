@@ -1,0 +1,86 @@
+// Sources by URI: what each scheme opens into and how its parameters set pairing and queueing.
+#include "app/sources.hpp"
+
+#include <gtest/gtest.h>
+
+#include "tests/support/fake_gv_camera.hpp"
+
+namespace augrig::app {
+namespace {
+
+TEST(Sources, SimIsOneSourceWithBothCamerasPacedOrLockstep) {
+  auto o = open_sources("sim://demo");
+  ASSERT_TRUE(o) << o.error().message;
+  ASSERT_EQ(o->sources.size(), 1u);
+  EXPECT_EQ(o->sources[0]->uri(), "sim://demo");
+  EXPECT_EQ(o->scenario, "demo");
+  EXPECT_FALSE(o->live);
+  EXPECT_FALSE(o->options.lossless) << "real time by default";
+  // The demo's cameras stamp clocks 50 us apart: the tolerance covers that and a quarter period.
+  EXPECT_GT(o->options.pairing.tolerance_ns, 50'000);
+  EXPECT_LT(o->options.pairing.tolerance_ns, 16'000'000);
+  o = open_sources("sim://demo?rate=0&every=3");
+  ASSERT_TRUE(o);
+  EXPECT_TRUE(o->options.lossless);
+}
+
+TEST(Sources, StereoParametersSetThePairing) {
+  test::FakeGvCamera fake("127.0.0.1", "SRCS");
+  ASSERT_TRUE(fake.running());
+  // One camera twice is refused by the camera (one controller), so only the configuration is
+  // checked up to opening the second.
+  auto o = open_sources(
+      "stereo:[tolerance_us=750,mode=trigger_id,clock=shared,queue=3]//{aravis://127.0.0.1}{aravis://"
+      "127.0.0.9}");
+  ASSERT_FALSE(o);
+  EXPECT_NE(o.error().message.find("aravis://127.0.0.9"), std::string::npos) << o.error().message;
+
+  auto ok = open_sources("aravis://127.0.0.1?roi=0,0,64,48", "");
+  ASSERT_FALSE(ok) << "a single camera is not a rig";
+  EXPECT_NE(ok.error().message.find("one camera is not a stereo rig"), std::string::npos);
+}
+
+TEST(Sources, PerCameraUrisComposeIntoAStereoSource) {
+  std::string why;
+  if (!test::ensure_loopback_address("127.0.0.2", &why)) GTEST_SKIP() << why;
+  test::FakeGvCamera left("127.0.0.1", "SRCL"), right("127.0.0.2", "SRCR");
+  ASSERT_TRUE(left.running());
+  ASSERT_TRUE(right.running());
+  auto o = open_sources("aravis://127.0.0.1?roi=0,0,64,48&fps=30", "aravis://SRCR?roi=0,0,64,48&fps=30");
+  ASSERT_TRUE(o) << o.error().message;
+  EXPECT_TRUE(o->live);
+  ASSERT_EQ(o->sources.size(), 2u);
+  EXPECT_EQ(o->options.pairing.mode, PairingMode::kTimestamp);
+  EXPECT_EQ(o->options.pairing.tolerance_ns, 2'000'000);
+  EXPECT_FALSE(o->options.pairing.device_clock_shared) << "two cameras, two clocks";
+  EXPECT_TRUE(o->options.pairing.clock_offsets.has_value());
+  // Two free-running cameras 30 fps apart in phase: pairs come out once the clocks are related.
+  o->options.pairing.tolerance_ns = 17'000'000;
+  auto stereo = start_stereo(std::move(*o));
+  ASSERT_TRUE(stereo) << stereo.error().message;
+  int pairs = 0;
+  for (int i = 0; i < 100 && pairs < 5; ++i) {
+    StereoFrame f;
+    auto r = (*stereo)->read(f, std::chrono::milliseconds(100));
+    ASSERT_TRUE(r) << r.error().message;
+    if (*r == ReadStatus::kFrame) {
+      ++pairs;
+      EXPECT_EQ(f.left.image.width(), 64);
+      EXPECT_EQ(f.right.camera, CameraId::kRight);
+    }
+  }
+  EXPECT_EQ(pairs, 5);
+  EXPECT_EQ((*stereo)->stats().clocks.size(), 2u) << "each camera's clock is estimated";
+}
+
+TEST(Sources, UnknownSchemesAndParametersAreErrors) {
+  for (const char* uri : {"ftp://x", "sim://demo?speed=2", "replay:///no/such/dir",
+                          "stereo://{sim://demo}{sim://demo}", "v4l2:///dev/video99?format=TOOLONG"}) {
+    auto o = open_sources(uri);
+    ASSERT_FALSE(o) << uri;
+    EXPECT_FALSE(o.error().message.empty());
+  }
+}
+
+}  // namespace
+}  // namespace augrig::app
