@@ -211,7 +211,9 @@ struct AravisSource::Impl {
   bool have_last_id = false;
   std::uint64_t last_id = 0;
   std::uint64_t sequence = 0;
-  std::atomic<TimestampNs> trigger_pending_since_ns{0};  // software trigger sent, frame not yet seen
+  std::atomic<TimestampNs> trigger_pending_since_ns{0};
+  TimestampNs counters_read_ns = 0;  // when Aravis' stream counters were last copied into stats  // software
+                                     // trigger sent, frame not yet seen
 
   mutable std::mutex mutex;  // guards what other threads read: stats, health, info
   AravisStats stats;
@@ -346,14 +348,19 @@ Status AravisSource::Impl::connect() {
   if (!stream) return take_error(e, where, "cannot create the stream");
   if (ARV_IS_GV_STREAM(stream.get())) {
     g_object_set(stream.get(), "packet-resend", ARV_GV_STREAM_PACKET_RESEND_ALWAYS, nullptr);
-    if (options.socket_buffer_bytes > 0)
-      g_object_set(stream.get(), "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size",
-                   options.socket_buffer_bytes, nullptr);
-    else
-      g_object_set(stream.get(), "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_AUTO, nullptr);
   }
   const guint payload = arv_camera_get_payload(cam, &e);
   if (e) return take_error(e, where, "payload size");
+  if (ARV_IS_GV_STREAM(stream.get())) {
+    // Aravis' automatic size is one frame, which the kernel's per-datagram overhead overflows at
+    // 8000-byte packets without a packet socket (bench_capture: half the frames lost at 30 fps);
+    // three frames by default (the kernel caps it at net.core.rmem_max).
+    const int bytes = options.socket_buffer_bytes > 0
+                          ? options.socket_buffer_bytes
+                          : static_cast<int>(std::min<guint>(3 * payload, 1u << 30));
+    g_object_set(stream.get(), "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size",
+                 bytes, nullptr);
+  }
   for (int i = 0; i < std::max(2, options.buffers); ++i)
     arv_stream_push_buffer(stream.get(), arv_buffer_new_allocate(payload));
   arv_camera_start_acquisition(cam, &e);
@@ -621,6 +628,11 @@ Expected<ReadStatus> AravisSource::read(Frame& out, std::chrono::nanoseconds tim
       // No device timestamp (some USB cameras): the arrival time is the best there is.
       out.clock = ClockDomain::kHostMonotonic;
       out.t_ns = t_host;
+    }
+    // Aravis' own counters (missing packets, resends, underruns), refreshed a few times a second.
+    if (t_host - m.counters_read_ns > 250'000'000) {
+      m.counters_read_ns = t_host;
+      m.update_stream_counters();
     }
     std::lock_guard lock(m.mutex);
     m.stats.frames++;

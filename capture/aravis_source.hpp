@@ -50,7 +50,7 @@ struct AravisOptions {
   std::string trigger_line = "Line0";
   bool ptp = false;             // enable IEEE 1588 when the camera offers it (a note, not an error, when not)
   int packet_size = 0;          // GVSP packet size in bytes; 0: the largest that gets through (negotiated)
-  int socket_buffer_bytes = 0;  // 0: Aravis sizes it to a frame
+  int socket_buffer_bytes = 0;  // 0: three frames (capped by the kernel at net.core.rmem_max)
   bool packet_socket = true;    // false: plain UDP sockets even where a packet socket is possible
   int buffers = 16;             // stream buffer pool
   // No frame for this long (free-running; at least 3 frame periods) means the camera is lost.

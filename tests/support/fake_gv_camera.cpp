@@ -27,7 +27,8 @@ bool ensure_loopback_address(const std::string& address, std::string* why) {
   return false;
 }
 
-FakeGvCamera::FakeGvCamera(const std::string& address, const std::string& serial) {
+FakeGvCamera::FakeGvCamera(const std::string& address, const std::string& serial)
+    : address_(address), serial_(serial) {
   camera_ = arv_gv_fake_camera_new(address.c_str(), serial.c_str());
   if (camera_)
     arv_fake_camera_set_fill_pattern(arv_gv_fake_camera_get_fake_camera(camera_), &fill_trampoline, this);
@@ -38,7 +39,20 @@ FakeGvCamera::~FakeGvCamera() {
 }
 
 bool FakeGvCamera::running() const {
-  return camera_ && arv_gv_fake_camera_is_running(camera_);
+  if (!camera_ || !arv_gv_fake_camera_is_running(camera_)) return false;
+  // Aravis says "running" even when another process already holds the address's GVCP port; then
+  // discovery answers with that camera's serial. Wait (a while: another run may end) for ours.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (std::chrono::steady_clock::now() < until) {
+    arv_update_device_list();
+    for (unsigned i = 0; i < arv_get_n_devices(); ++i) {
+      const char* serial = arv_get_device_serial_nbr(i);
+      const char* address = arv_get_device_address(i);
+      if (serial && address && serial_ == serial && address_ == address) return true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  return false;
 }
 
 void FakeGvCamera::serve(std::vector<ServedFrame> frames, std::uint64_t loop_period_ns) {

@@ -34,6 +34,7 @@ class FakeGvCamera {
   ~FakeGvCamera();
   FakeGvCamera(const FakeGvCamera&) = delete;
   FakeGvCamera& operator=(const FakeGvCamera&) = delete;
+  // Serving, and answering discovery at its address with its own serial number.
   bool running() const;
 
   // Frames to send, in order, one per frame the camera streams; after the last, the camera sends
@@ -46,6 +47,7 @@ class FakeGvCamera {
   void fill(ArvBuffer* buffer, std::uint32_t pixel_format);
 
  private:
+  std::string address_, serial_;
   ArvGvFakeCamera* camera_ = nullptr;
   mutable std::mutex mutex_;
   std::vector<ServedFrame> frames_;
