@@ -6,11 +6,13 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <deque>
 #include <fstream>
 #include <istream>
 #include <set>
 #include <sstream>
 #include <system_error>
+#include <utility>
 
 namespace augrig::nav {
 namespace {
@@ -342,12 +344,20 @@ FixQuality to_quality(int q) {
   return q >= 1 && q <= 6 ? static_cast<FixQuality>(q) : FixQuality::kInvalid;
 }
 
-class Parser {
- public:
-  Parser(const std::string& prefix, const std::string& name, const NmeaOptions& o)
-      : prefix_(prefix), name_(name), o_(o) {}
+// A fix made from a closed epoch, with the line of its GGA (for messages).
+struct EmittedFix {
+  GpsFix fix;
+  std::size_t line = 0;
+};
 
-  void line(std::string_view s, std::size_t line_no) {
+// The sentence code shared by the batch parser (parse_nmea) and the live NmeaStream: one line at a
+// time in, epochs merged by time tag, fixes out through `out`. Line numbers count every line pushed.
+class SentenceCore {
+ public:
+  SentenceCore(const std::string& name, const NmeaOptions& o) : name_(name), o_(o) {}
+
+  // `arrival_override` (!= 0) replaces the line's own "<arrival_ns> " prefix.
+  void line(std::string_view s, TimestampNs arrival_override = 0) {
     ++log_.lines;
     while (!s.empty() && (s.back() == '\n' || s.back() == '\r' || s.back() == ' ' || s.back() == '\t')) {
       s.remove_suffix(1);
@@ -355,7 +365,7 @@ class Parser {
     while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
     if (s.empty()) return;
     ++nonempty_;
-    line_no_ = line_no;
+    line_no_ = log_.lines;
 
     TimestampNs arrival_ns = 0;
     if (s.front() >= '0' && s.front() <= '9') {
@@ -369,6 +379,8 @@ class Parser {
       s.remove_prefix(sp + 1);
       while (!s.empty() && s.front() == ' ') s.remove_prefix(1);
     }
+    if (arrival_override != 0) arrival_ns = arrival_override;
+    if (arrival_ns != 0) last_arrival_ns_ = arrival_ns;
     if (s.size() > o_.max_line_length) {
       return malformed("line too long (" + std::to_string(s.size()) + " characters, at most " +
                        std::to_string(o_.max_line_length) + ")");
@@ -417,31 +429,21 @@ class Parser {
     sentence(type, f, arrival_ns);
   }
 
-  Expected<NmeaLog> finish() {
+  // Closes the open epoch, if any: its fix (when it makes one) goes to `out`.
+  void close() {
     if (epoch_) close_epoch();
-    count_gaps();
-    const std::string prefix = prefix_ + name_ + ": ";
-    const std::size_t malformed = log_.issues.malformed;
-    if (nonempty_ > 0 && static_cast<double>(malformed) > o_.max_malformed_fraction * nonempty_) {
-      return make_error(prefix, malformed, " of ", nonempty_,
-                        " lines malformed (more than max_malformed_fraction ",
-                        fixed(o_.max_malformed_fraction, 3), "); first: ", first_malformed_);
-    }
-    if (log_.fixes.empty()) {
-      const auto it = log_.sentence_counts.find("GGA");
-      if (it == log_.sentence_counts.end()) {
-        return make_error(prefix, "no valid GGA sentence (", log_.lines, " lines, ", malformed, " malformed",
-                          first_malformed_.empty() ? "" : "; first: " + first_malformed_, ")");
-      }
-      return make_error(prefix, "no usable GGA fix among ", it->second, " GGA sentences (",
-                        log_.fixes_without_date, " before any date: set NmeaOptions::default_date; ",
-                        malformed, " malformed lines",
-                        log_.issues.messages.empty() ? "" : "; first: " + log_.issues.messages.front(), ")");
-    }
-    return std::move(log_);
   }
+  bool epoch_open() const { return epoch_.has_value(); }
+  TimestampNs last_arrival_ns() const { return last_arrival_ns_; }
 
- private:
+  NmeaLog& log() { return log_; }
+  const NmeaLog& log() const { return log_; }
+  std::size_t nonempty_lines() const { return nonempty_; }
+  const std::string& first_malformed() const { return first_malformed_; }
+  const std::string& name() const { return name_; }
+  const NmeaOptions& options() const { return o_; }
+  std::string at(std::size_t line) const { return name_ + ":" + std::to_string(line) + ": "; }
+
   void report(const std::string& what) {
     auto& m = log_.issues.messages;
     if (m.size() < o_.max_messages) {
@@ -450,7 +452,10 @@ class Parser {
       m.push_back(name_ + ": further messages suppressed (the counts stay exact)");
     }
   }
-  std::string at(std::size_t line) const { return name_ + ":" + std::to_string(line) + ": "; }
+
+  std::deque<EmittedFix> out;  // fixes of closed epochs, oldest first
+
+ private:
   void malformed(const std::string& what) {
     ++log_.issues.malformed;
     if (first_malformed_.empty()) first_malformed_ = at(line_no_) + what;
@@ -507,7 +512,11 @@ class Parser {
       std::optional<double> heading;
       if (auto err = type == "VTG" ? parse_vtg(f, v) : parse_hdt(f, heading); !err.empty()) return bad(err);
       if (!epoch_) {
-        report(at(line_no_) + type + " before any time-tagged sentence (it has no time of its own): dropped");
+        // A batch parse closes epochs only when the next one starts, so this happens there only
+        // before the first epoch; a live stream also closes them when the sender goes quiet.
+        report(at(line_no_) + type +
+               (last_tod_ns_ ? " after its epoch was closed (the sender went quiet mid-epoch): dropped"
+                             : " before any time-tagged sentence (it has no time of its own): dropped"));
         return;
       }
       e = &*epoch_;
@@ -572,24 +581,83 @@ class Parser {
       report(at(e.gga_line) + "GGA quality " + std::to_string(g.quality) +
              " (manual/simulated) kept as invalid");
     }
-    if (!log_.fixes.empty()) {
-      const TimestampNs prev = log_.fixes.back().t_ns;
+    if (last_fix_t_ns_) {
+      const TimestampNs prev = *last_fix_t_ns_;
       if (fix.t_ns <= prev) {
         const bool dup = fix.t_ns == prev;
         ++(dup ? log_.issues.duplicates : log_.issues.out_of_order);
         report(at(e.gga_line) + "fix at " + date_text(civil_from_days(*day_)) + " " + clock_text(e.tod_ns) +
                (dup ? " repeats the previous fix's time"
-                    : " is older than the previous fix (line " + std::to_string(fix_lines_.back()) + ")") +
+                    : " is older than the previous fix (line " + std::to_string(last_fix_line_) + ")") +
                ": dropped");
         return;
       }
     }
-    log_.fixes.push_back(fix);
-    fix_lines_.push_back(e.gga_line);
+    last_fix_t_ns_ = fix.t_ns;
+    last_fix_line_ = e.gga_line;
+    out.push_back({fix, e.gga_line});
   }
 
-  void count_gaps() {
-    const auto& fx = log_.fixes;
+  std::string name_;
+  NmeaOptions o_;
+  NmeaLog log_;  // counters and messages; `fixes` stays empty here
+  std::optional<Epoch> epoch_;
+  std::optional<std::int64_t> day_;  // UTC day (days since 1970-01-01) of the current epoch
+  std::optional<std::int64_t> last_tod_ns_;
+  std::optional<TimestampNs> last_fix_t_ns_;
+  std::size_t last_fix_line_ = 0;
+  TimestampNs last_arrival_ns_ = 0;
+  std::set<std::string> unused_types_;
+  std::size_t nonempty_ = 0;
+  std::size_t line_no_ = 0;
+  std::string first_malformed_;
+};
+
+// The batch parser: every line through the core, then the whole-log checks (gaps, the
+// malformed fraction, no usable fix).
+class Parser {
+ public:
+  Parser(const std::string& prefix, const std::string& name, const NmeaOptions& o)
+      : prefix_(prefix), core_(name, o) {}
+
+  void line(std::string_view s) { core_.line(s); }
+
+  Expected<NmeaLog> finish() {
+    core_.close();
+    NmeaLog& log = core_.log();
+    for (EmittedFix& f : core_.out) {
+      log.fixes.push_back(f.fix);
+      fix_lines_.push_back(f.line);
+    }
+    core_.out.clear();
+    count_gaps(log);
+    const NmeaOptions& o = core_.options();
+    const std::string prefix = prefix_ + core_.name() + ": ";
+    const std::size_t malformed = log.issues.malformed;
+    const std::size_t nonempty = core_.nonempty_lines();
+    const std::string& first_malformed = core_.first_malformed();
+    if (nonempty > 0 && static_cast<double>(malformed) > o.max_malformed_fraction * nonempty) {
+      return make_error(prefix, malformed, " of ", nonempty,
+                        " lines malformed (more than max_malformed_fraction ",
+                        fixed(o.max_malformed_fraction, 3), "); first: ", first_malformed);
+    }
+    if (log.fixes.empty()) {
+      const auto it = log.sentence_counts.find("GGA");
+      if (it == log.sentence_counts.end()) {
+        return make_error(prefix, "no valid GGA sentence (", log.lines, " lines, ", malformed, " malformed",
+                          first_malformed.empty() ? "" : "; first: " + first_malformed, ")");
+      }
+      return make_error(prefix, "no usable GGA fix among ", it->second, " GGA sentences (",
+                        log.fixes_without_date, " before any date: set NmeaOptions::default_date; ",
+                        malformed, " malformed lines",
+                        log.issues.messages.empty() ? "" : "; first: " + log.issues.messages.front(), ")");
+    }
+    return std::move(log);
+  }
+
+ private:
+  void count_gaps(NmeaLog& log) {
+    const auto& fx = log.fixes;
     if (fx.size() < 3) return;
     std::vector<TimestampNs> d;
     for (std::size_t i = 1; i < fx.size(); ++i) d.push_back(fx[i].t_ns - fx[i - 1].t_ns);
@@ -598,25 +666,16 @@ class Parser {
     const TimestampNs median = sorted[sorted.size() / 2];
     for (std::size_t i = 0; i < d.size(); ++i) {
       if (d[i] > 2 * median) {
-        ++log_.issues.gaps;
-        report(at(fix_lines_[i + 1]) + "gap of " + fixed(ns_to_s(d[i]), 3) +
-               " s before this fix (median period " + fixed(ns_to_s(median), 3) + " s)");
+        ++log.issues.gaps;
+        core_.report(core_.at(fix_lines_[i + 1]) + "gap of " + fixed(ns_to_s(d[i]), 3) +
+                     " s before this fix (median period " + fixed(ns_to_s(median), 3) + " s)");
       }
     }
   }
 
   std::string prefix_;
-  std::string name_;
-  NmeaOptions o_;
-  NmeaLog log_;
+  SentenceCore core_;
   std::vector<std::size_t> fix_lines_;
-  std::optional<Epoch> epoch_;
-  std::optional<std::int64_t> day_;  // UTC day (days since 1970-01-01) of the current epoch
-  std::optional<std::int64_t> last_tod_ns_;
-  std::set<std::string> unused_types_;
-  std::size_t nonempty_ = 0;
-  std::size_t line_no_ = 0;
-  std::string first_malformed_;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -777,7 +836,10 @@ Expected<NmeaLog> parse(std::istream& in, const std::string& name, const NmeaOpt
     Parser parser(prefix, name, options);
     std::string line;
     std::size_t n = 0;
-    while (std::getline(in, line)) parser.line(line, ++n);
+    while (std::getline(in, line)) {
+      ++n;
+      parser.line(line);
+    }
     if (in.bad()) return make_error(prefix, name, ":", n, ": read error");
     return parser.finish();
   } catch (const std::exception& e) {  // std::bad_alloc on absurd input: still no exception escapes
@@ -798,6 +860,68 @@ Expected<NmeaLog> read_nmea_file(const std::string& path, const NmeaOptions& opt
                       ")");
   }
   return parse(in, path, options, "nav::read_nmea_file(): ");
+}
+
+// ---------------------------------------------------------------------------------------------
+// NmeaStream
+
+struct NmeaStream::Impl {
+  Impl(const std::string& name, const NmeaOptions& o) : core(name, o) {}
+  SentenceCore core;
+};
+
+NmeaStream::NmeaStream(const std::string& name, const NmeaOptions& options)
+    : impl_(std::make_unique<Impl>(name, options)) {}
+NmeaStream::~NmeaStream() = default;
+NmeaStream::NmeaStream(NmeaStream&&) noexcept = default;
+NmeaStream& NmeaStream::operator=(NmeaStream&&) noexcept = default;
+
+void NmeaStream::push_line(std::string_view line, TimestampNs arrival_ns) {
+  try {
+    impl_->core.line(line, arrival_ns);
+  } catch (const std::exception& e) {  // std::bad_alloc: count the line, never throw at a live input
+    impl_->core.report(impl_->core.name() + ": " + e.what());
+    ++impl_->core.log().issues.malformed;
+  }
+}
+
+void NmeaStream::flush() {
+  impl_->core.close();
+}
+
+bool NmeaStream::flush_if_quiet(TimestampNs now_ns, TimestampNs quiet_ns) {
+  const TimestampNs last = impl_->core.last_arrival_ns();
+  if (!impl_->core.epoch_open() || last == 0 || now_ns - last < quiet_ns) return false;
+  impl_->core.close();
+  return true;
+}
+
+bool NmeaStream::epoch_open() const {
+  return impl_->core.epoch_open();
+}
+
+TimestampNs NmeaStream::last_arrival_ns() const {
+  return impl_->core.last_arrival_ns();
+}
+
+std::size_t NmeaStream::ready() const {
+  return impl_->core.out.size();
+}
+
+std::optional<GpsFix> NmeaStream::pop() {
+  auto& out = impl_->core.out;
+  if (out.empty()) return std::nullopt;
+  GpsFix fix = out.front().fix;
+  out.pop_front();
+  return fix;
+}
+
+const NmeaLog& NmeaStream::counters() const {
+  return impl_->core.log();
+}
+
+std::vector<std::string> NmeaStream::take_messages() {
+  return std::exchange(impl_->core.log().issues.messages, {});
 }
 
 }  // namespace augrig::nav

@@ -10,11 +10,16 @@
 // Malformed lines never throw and never stop the parse: each is counted in LogIssues with a
 // "file:line: what" message and skipped. An Error comes back only when the file cannot be read,
 // when no GGA sentence could be used, or when malformed lines exceed max_malformed_fraction.
+//
+// Live inputs (nav/live_input.hpp) use NmeaStream, the same sentence code one line at a time: an
+// epoch becomes a fix as soon as the next time tag arrives, or when the caller says the sender has
+// gone quiet (flush_if_quiet), so no fix is held back longer than that.
 #pragma once
 
 #include <cstdint>
 #include <iosfwd>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -55,6 +60,46 @@ struct NmeaLog {
 // Parses an NMEA log; `name` is used in messages ("tanker.nmea:12: bad checksum ...").
 Expected<NmeaLog> parse_nmea(std::istream& in, const std::string& name, const NmeaOptions& options = {});
 Expected<NmeaLog> read_nmea_file(const std::string& path, const NmeaOptions& options = {});
+
+// The incremental form of parse_nmea for live streams: lines in, GpsFix epochs out, with the same
+// sentence parsing, epoch merging, date tracking and ordering rules (the fixes it yields, pushed the
+// lines of a log, are those parse_nmea gives for the log). Not checked here, being whole-log
+// properties: max_malformed_fraction, gaps, the "no usable fix" error. Line numbers in messages
+// count the lines pushed. Never throws.
+class NmeaStream {
+ public:
+  // `name` is used in messages ("udp://0.0.0.0:10110:12: bad checksum ...").
+  explicit NmeaStream(const std::string& name, const NmeaOptions& options = {});
+  ~NmeaStream();
+  NmeaStream(NmeaStream&&) noexcept;
+  NmeaStream& operator=(NmeaStream&&) noexcept;
+
+  // One line, with or without its line ending. arrival_ns != 0 (the host time the line arrived)
+  // replaces the line's own "<arrival_ns> " prefix, which is accepted and stripped either way.
+  // When the line's time tag differs from the open epoch's, that epoch is closed first.
+  void push_line(std::string_view line, TimestampNs arrival_ns = 0);
+  // Closes the open epoch, if any (end of stream): its fix, if it makes one, becomes ready.
+  void flush();
+  // flush() if an epoch is open and its last line arrived at least quiet_ns before now_ns (both on
+  // the arrival clock); true when it flushed. Never flushes while arrival times are unknown (0).
+  bool flush_if_quiet(TimestampNs now_ns, TimestampNs quiet_ns);
+  bool epoch_open() const;
+  TimestampNs last_arrival_ns() const;  // of the last non-empty line with a known arrival time; 0: none
+
+  // Fixes ready, oldest first (strictly increasing t_ns).
+  std::size_t ready() const;
+  std::optional<GpsFix> pop();
+
+  // The counters so far, as parse_nmea counts them (`fixes` stays empty: fixes leave by pop(),
+  // and `issues.gaps` is not counted); issues.messages holds the messages not yet taken.
+  const NmeaLog& counters() const;
+  // The messages since the last call (at most NmeaOptions::max_messages between two calls).
+  std::vector<std::string> take_messages();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 struct NmeaWriterOptions {
   int leap_seconds = kDefaultLeapSeconds;

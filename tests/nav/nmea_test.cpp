@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -616,6 +617,203 @@ TEST(Nmea, WriteFileRoundTrip) {
   EXPECT_EQ(log->fixes[2].t_ns, fixes[2].t_ns);
   EXPECT_NEAR(log->fixes[2].antenna.h_m, 32, 1e-9);
   EXPECT_FALSE(write_nmea_file("/nonexistent/dir/out.nmea", fixes));
+}
+
+// ------------------------------------------------------------------------------------------
+// NmeaStream: the same sentence code one line at a time
+
+// Every field of two fixes, bit for bit (NaN equal to NaN).
+void expect_same_fix(const GpsFix& a, const GpsFix& b, const std::string& where) {
+  const auto same = [](double x, double y) { return (std::isnan(x) && std::isnan(y)) || x == y; };
+  EXPECT_EQ(a.t_ns, b.t_ns) << where;
+  EXPECT_EQ(a.arrival_ns, b.arrival_ns) << where;
+  EXPECT_TRUE(same(a.antenna.lat_rad, b.antenna.lat_rad)) << where;
+  EXPECT_TRUE(same(a.antenna.lon_rad, b.antenna.lon_rad)) << where;
+  EXPECT_TRUE(same(a.antenna.h_m, b.antenna.h_m)) << where;
+  EXPECT_EQ(a.quality, b.quality) << where;
+  EXPECT_EQ(a.satellites, b.satellites) << where;
+  EXPECT_EQ(a.hdop, b.hdop) << where;
+  EXPECT_EQ(a.geoid_separation_m, b.geoid_separation_m) << where;
+  EXPECT_EQ(a.sigma_ned_m.has_value(), b.sigma_ned_m.has_value()) << where;
+  if (a.sigma_ned_m && b.sigma_ned_m) {
+    EXPECT_EQ(*a.sigma_ned_m, *b.sigma_ned_m) << where;
+  }
+  EXPECT_EQ(a.ground_speed_mps, b.ground_speed_mps) << where;
+  EXPECT_EQ(a.course_rad, b.course_rad) << where;
+  EXPECT_EQ(a.heading_rad, b.heading_rad) << where;
+}
+
+// A log with every sentence type, junk, repeats and reordering, and arrival prefixes.
+std::string mixed_log() {
+  std::vector<GpsFix> fixes;
+  for (int i = 0; i < 40; ++i) {
+    GpsFix f = make_fix(gps_ns_from_utc({2024, 2, 28}, 86390 * kNsPerSecond + i * 250'000'000LL),
+                        51.0 + i * 1e-6, -1.0 - i * 2e-6, 6000 + i * 0.1, 36.5);
+    f.quality = i % 7 == 3 ? FixQuality::kRtkFloat : FixQuality::kRtkFixed;
+    f.ground_speed_mps = 150 + i;
+    f.course_rad = 1.5;
+    if (i % 3 != 0) f.heading_rad = 1.6;
+    if (i % 4 != 0) f.sigma_ned_m = Eigen::Vector3d(0.01, 0.02, 0.03);
+    f.arrival_ns = 5'000'000'000 + i * 250'000'000LL + 30'000'000;
+    fixes.push_back(f);
+  }
+  NmeaWriterOptions wo;
+  wo.write_arrival_prefix = true;
+  std::string text = "# a comment\n" + write_nmea(fixes, wo);
+  // Junk after the 10th GGA, a repeated epoch after the 20th, an older one after the 30th.
+  const auto after_gga = [&](int n, const std::string& insert) {
+    std::size_t at = 0;
+    for (int k = 0; k < n; ++k) at = text.find("GNGGA", at + 1);
+    at = text.find('\n', at) + 1;
+    text.insert(at, insert);
+  };
+  after_gga(10, "$GNGGA,garbage*00\r\n\x01\x02\xff\n" + sentence("GNGSV,1,1,00") + "\r\n");
+  after_gga(20, write_nmea({fixes[19]}) + write_nmea({fixes[5]}));
+  return text;
+}
+
+TEST(NmeaStream, YieldsTheBatchParsersFixesAndCounts) {
+  for (const std::string& text : {mixed_log(), [] {
+                                    std::ifstream in(test::data_path("nav/receiver.nmea"), std::ios::binary);
+                                    std::stringstream ss;
+                                    ss << in.rdbuf();
+                                    return ss.str();
+                                  }()}) {
+    const auto batch = parse_text(text, {}, "log.nmea");
+    ASSERT_TRUE(batch) << batch.error().message;
+    NmeaStream stream("log.nmea");
+    std::vector<GpsFix> live;
+    std::istringstream in(text);
+    std::string line;
+    while (std::getline(in, line)) {
+      stream.push_line(line);
+      while (auto f = stream.pop()) live.push_back(*f);
+    }
+    stream.flush();
+    while (auto f = stream.pop()) live.push_back(*f);
+    ASSERT_EQ(live.size(), batch->fixes.size());
+    for (std::size_t i = 0; i < live.size(); ++i)
+      expect_same_fix(live[i], batch->fixes[i], std::to_string(i));
+    const NmeaLog& c = stream.counters();
+    EXPECT_TRUE(c.fixes.empty());
+    EXPECT_EQ(c.lines, batch->lines);
+    EXPECT_EQ(c.issues.malformed, batch->issues.malformed);
+    EXPECT_EQ(c.issues.duplicates, batch->issues.duplicates);
+    EXPECT_EQ(c.issues.out_of_order, batch->issues.out_of_order);
+    EXPECT_EQ(c.sentence_counts, batch->sentence_counts);
+    EXPECT_EQ(c.unused_sentences, batch->unused_sentences);
+    EXPECT_EQ(c.epochs_without_gga, batch->epochs_without_gga);
+    // The same messages, less the gap reports (a whole-log check the stream does not make).
+    std::vector<std::string> batch_messages;
+    for (const std::string& m : batch->issues.messages)
+      if (m.find(": gap of ") == std::string::npos) batch_messages.push_back(m);
+    EXPECT_EQ(stream.take_messages(), batch_messages);
+    EXPECT_TRUE(stream.take_messages().empty());
+  }
+  // The mixed log has all of it.
+  const auto batch = parse_text(mixed_log());
+  ASSERT_TRUE(batch);
+  EXPECT_EQ(batch->fixes.size(), 40u);
+  EXPECT_GE(batch->issues.malformed, 3u);
+  EXPECT_EQ(batch->issues.duplicates, 1u);
+  EXPECT_EQ(batch->issues.out_of_order, 1u);
+}
+
+TEST(NmeaStream, AnEpochIsOutWhenTheNextTimeTagArrives) {
+  const std::string gga0 = sentence("GNGGA,120000.00,4000.0,N,00500.0,E,4,10,1.0,100.0,M,50.0,M,,");
+  const std::string rmc0 = sentence("GNRMC,120000.00,A,4000.0,N,00500.0,E,2.0,90.0,010321,,,R");
+  const std::string hdt = sentence("GNHDT,45.0,T");
+  const std::string gga1 = sentence("GNGGA,120000.10,4000.0,N,00500.0,E,5,10,1.0,100.0,M,50.0,M,,");
+  NmeaStream s("live");
+  EXPECT_FALSE(s.epoch_open());
+  s.push_line(gga0 + "\r\n", 1000);
+  s.push_line(rmc0, 1500);
+  s.push_line(hdt, 1600);
+  EXPECT_TRUE(s.epoch_open());
+  EXPECT_EQ(s.ready(), 0u);  // it might still grow
+  EXPECT_FALSE(s.pop());
+  s.push_line(gga1, 101'000);
+  ASSERT_EQ(s.ready(), 1u);
+  const std::optional<GpsFix> f = s.pop();
+  ASSERT_TRUE(f);
+  EXPECT_EQ(f->t_ns, gps_ns_from_utc({2021, 3, 1}, 12 * 3600 * kNsPerSecond));
+  EXPECT_EQ(f->arrival_ns, 1000);  // the GGA's
+  EXPECT_EQ(f->quality, FixQuality::kRtkFixed);
+  EXPECT_NEAR(*f->heading_rad, deg_to_rad(45.0), 1e-12);
+  EXPECT_NEAR(*f->ground_speed_mps, 2.0 * kKnot, 1e-12);
+  // The second epoch has no date of its own: it takes the first one's.
+  s.flush();
+  const std::optional<GpsFix> g = s.pop();
+  ASSERT_TRUE(g);
+  EXPECT_EQ(g->t_ns - f->t_ns, 100'000'000);
+  EXPECT_EQ(g->quality, FixQuality::kRtkFloat);
+  EXPECT_FALSE(s.epoch_open());
+  EXPECT_FALSE(s.pop());
+}
+
+TEST(NmeaStream, AQuietGapClosesTheEpoch) {
+  NmeaStream s("live");
+  const std::string zda = sentence("GNZDA,120000.00,01,03,2021,00,00");
+  const std::string gga = sentence("GNGGA,120000.00,4000.0,N,00500.0,E,1,10,1.0,100.0,M,50.0,M,,");
+  EXPECT_FALSE(s.flush_if_quiet(1'000'000'000, 10));  // nothing open
+  s.push_line(zda, 1'000'000'000);
+  s.push_line(gga, 1'002'000'000);
+  EXPECT_EQ(s.last_arrival_ns(), 1'002'000'000);
+  EXPECT_FALSE(s.flush_if_quiet(1'021'999'999, 20'000'000));  // 19.999999 ms quiet: not yet
+  EXPECT_EQ(s.ready(), 0u);
+  EXPECT_TRUE(s.flush_if_quiet(1'022'000'000, 20'000'000));
+  ASSERT_EQ(s.ready(), 1u);
+  EXPECT_EQ(s.pop()->arrival_ns, 1'002'000'000);
+  // A VTG of the closed epoch arriving late is named and dropped.
+  s.push_line(sentence("GNVTG,91.0,T,,M,3.0,N,5.556,K,A"), 1'030'000'000);
+  const std::vector<std::string> m = s.take_messages();
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_NE(m[0].find("live:3: VTG after its epoch was closed"), std::string::npos) << m[0];
+  EXPECT_FALSE(s.epoch_open());
+  // Without arrival times a stream is never closed by quiet.
+  NmeaStream t("file");
+  t.push_line(gga);
+  EXPECT_TRUE(t.epoch_open());
+  EXPECT_FALSE(t.flush_if_quiet(std::numeric_limits<TimestampNs>::max(), 1));
+}
+
+TEST(NmeaStream, ArrivalArgumentReplacesThePrefix) {
+  NmeaOptions o;
+  o.default_date = CivilDate{2021, 3, 1};
+  NmeaStream s("live", o);
+  const std::string gga = sentence("GNGGA,120000.00,4000.0,N,00500.0,E,1,10,1.0,100.0,M,50.0,M,,");
+  s.push_line("777 " + gga, 0);  // the prefix counts when no arrival is given
+  s.flush();
+  EXPECT_EQ(s.pop()->arrival_ns, 777);
+  s.push_line("777 " + sentence("GNGGA,120001.00,4000.0,N,00500.0,E,1,10,1.0,100.0,M,50.0,M,,"), 999);
+  s.flush();
+  EXPECT_EQ(s.pop()->arrival_ns, 999);
+  EXPECT_EQ(s.counters().issues.malformed, 0u);
+  // Line numbers in messages count the lines pushed.
+  s.push_line("");
+  s.push_line("junk");
+  const std::vector<std::string> m = s.take_messages();
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_EQ(m[0].rfind("live:4: ", 0), 0u) << m[0];
+  EXPECT_EQ(s.counters().lines, 4u);
+}
+
+TEST(NmeaStream, ArbitraryBytesNeverThrowAndMessagesStayBounded) {
+  NmeaOptions o;
+  o.max_messages = 5;
+  NmeaStream s("soup", o);
+  std::uint32_t x = 99;
+  const auto next = [&x] { return x = x * 1664525u + 1013904223u; };
+  for (int i = 0; i < 500; ++i) {
+    std::string line;
+    const int n = static_cast<int>(next() % 200);
+    for (int k = 0; k < n; ++k) line += static_cast<char>(next() >> 24);
+    s.push_line(line, 1 + i);
+    while (s.pop()) {
+    }
+  }
+  EXPECT_GT(s.counters().issues.malformed, 400u);
+  EXPECT_LE(s.take_messages().size(), 6u);  // five and the "suppressed" note
 }
 
 }  // namespace
