@@ -1,7 +1,9 @@
 // augrig cameras: what capture devices this machine sees.
 // augrig run: the live pipeline from source URIs: capture (a thread per camera) -> pairing (clock
 // offsets estimated per camera) -> pose -> augmentation -> statistics and recorder, headless.
+#include <atomic>
 #include <csignal>
+#include <deque>
 #include <iomanip>
 #include <map>
 #include <sstream>
@@ -13,6 +15,7 @@
 #include "app/sources.hpp"
 #include "capture/aravis_source.hpp"
 #include "capture/v4l2_source.hpp"
+#include "nav/live_input.hpp"
 #include "recorder/recorder.hpp"
 #include "sim/flight_source.hpp"
 #include "sim/scenario.hpp"
@@ -92,6 +95,9 @@ const std::vector<OptionSpec>& run_specs() {
       {"duration", ArgKind::kValue, "S", "stop after S seconds (default: until the source ends or Ctrl-C)"},
       {"out", ArgKind::kValue, "DIR", "write stats.csv (and with --every, images) here"},
       {"every", ArgKind::kValue, "K", "with --out: write the images of every K-th stereo frame"},
+      {"nav", ArgKind::kValue, "STREAM=URI,...",
+       "live nav inputs recorded as received, e.g. tanker.gps=udp://0.0.0.0:10110?format=nmea,"
+       "tanker.imu=udp://0.0.0.0:10111?format=imu,receiver.gps=gpsd://127.0.0.1 (docs/NAV_LIVE.md)"},
       {"headless", ArgKind::kFlag, "", "no window (the live display is not built yet: always headless)"},
       {"status-every", ArgKind::kValue, "S", "print a status line every S seconds (default 1; 0: never)"},
   };
@@ -120,6 +126,90 @@ std::string fmt_us(std::int64_t ns) {
   s << std::fixed << std::setprecision(1) << static_cast<double>(ns) / 1e3;
   return s.str();
 }
+
+// The run's live nav inputs: "STREAM=URI,..." opened, each read on its own thread, each unit of
+// input pushed to the recorder as received (NavInputRecord: text lines and gpsd reports as TEXT,
+// IMU datagrams as BLOB), the parsed events counted.
+class NavInputs {
+ public:
+  void open(const std::string& spec, recorder::Recorder* rec) {
+    std::size_t pos = 0;
+    while (pos <= spec.size()) {
+      const std::size_t comma = std::min(spec.find(',', pos), spec.size());
+      const std::string item = spec.substr(pos, comma - pos);
+      pos = comma + 1;
+      if (item.empty()) continue;
+      const std::size_t eq = item.find('=');
+      if (eq == std::string::npos || eq == 0)
+        usage_error("--nav: expected STREAM=URI (e.g. tanker.gps=udp://0.0.0.0:10110?format=nmea), got '" +
+                    item + "'");
+      Input in;
+      in.stream = item.substr(0, eq);
+      in.input = unwrap(nav::open_nav_input(item.substr(eq + 1)));
+      inputs_.push_back(std::move(in));
+    }
+    for (Input& in : inputs_) {
+      if (rec) {
+        in.input->set_raw_tap(
+            [rec, stream = in.stream](std::string_view data, TimestampNs arrival_ns, bool binary) {
+              recorder::NavInputRecord r;
+              r.stream = stream;
+              r.clock = ClockDomain::kUnknown;  // the sensor time is inside the data
+              r.arrival_ns = arrival_ns;
+              r.data = std::string(data);
+              r.binary = binary;
+              rec->push(std::move(r));
+            });
+      }
+      in.thread = std::thread([this, &in] {
+        nav::NavEvent e;
+        while (!stop_) {
+          auto r = in.input->read(e, std::chrono::milliseconds(100));
+          if (!r) {
+            in.error = r.error().message;
+            return;
+          }
+          if (*r == nav::NavReadStatus::kEnd) return;
+          if (*r == nav::NavReadStatus::kEvent) (e.is_imu() ? in.imu : in.fixes)++;
+        }
+      });
+    }
+  }
+  void stop() {
+    stop_ = true;
+    for (Input& in : inputs_)
+      if (in.thread.joinable()) in.thread.join();
+  }
+  ~NavInputs() { stop(); }
+  void summary(std::ostream& out) const {
+    for (const Input& in : inputs_) {
+      const nav::NavInputStats st = in.input->stats();
+      out << "nav " << in.stream << " (" << in.input->uri() << "): " << in.fixes << " fixes, " << in.imu
+          << " IMU samples; malformed " << st.malformed << ", oversized " << st.oversized << ", lost "
+          << st.dropped << (in.error.empty() ? "" : "; stopped: " + in.error) << "\n";
+    }
+  }
+  void ledger(recorder::Recorder& rec) const {
+    for (const Input& in : inputs_) {
+      const nav::NavInputStats st = in.input->stats();
+      const std::uint64_t lost = st.malformed + st.oversized + st.dropped;
+      if (lost)
+        rec.push(recorder::DropRecord{recorder::DropStage::kTransport, lost, 0, 0,
+                                      in.stream + ": malformed, oversized or lost nav input", "nav_input"});
+    }
+  }
+
+ private:
+  struct Input {
+    std::string stream;
+    std::unique_ptr<nav::NavInput> input;
+    std::thread thread;
+    std::uint64_t fixes = 0, imu = 0;
+    std::string error;
+  };
+  std::deque<Input> inputs_;  // stable addresses for the threads
+  std::atomic<bool> stop_{false};
+};
 
 int run_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   const ParsedArgs a = parse_or_usage(args, run_specs());
@@ -180,6 +270,10 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     info.extra["source"] = uri + (right_uri.empty() ? "" : " + " + right_uri);
     rec = unwrap(recorder::Recorder::create(a.get("record"), info));
   }
+  // Live nav inputs: each read on a thread of its own; every unit recorded exactly as received.
+  NavInputs nav_inputs;
+  if (a.has("nav")) nav_inputs.open(a.get("nav"), rec.get());
+
   std::optional<StatsCsv> csv;
   if (a.has("out")) {
     make_dirs(a.get("out"));
@@ -300,6 +394,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     }
   }
   stereo->stop();
+  nav_inputs.stop();
   const double wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
   const StereoSourceStats st = stereo->stats();
 
@@ -329,7 +424,9 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
       out << stereo->sources()[i]->uri() << ": lost " << h.disconnects << " time(s), reconnected "
           << h.reconnects << " time(s)\n";
   }
+  nav_inputs.summary(out);
   if (rec) {
+    nav_inputs.ledger(*rec);
     auto ledger = [&](recorder::DropStage stage, std::uint64_t n, const std::string& why) {
       if (n) rec->push(recorder::DropRecord{stage, n, 0, 0, why, "frame"});
     };

@@ -411,7 +411,11 @@ Expected<NavReadStatus> GpsdInput::read(NavEvent& out, std::chrono::nanoseconds 
         merger_.stats().note(uri_ + ": gpsd closed the connection");
         continue;
       }
-      if (n > 0 && message[0] != '\0') merger_.push_report(message, monotonic_now_ns());
+      if (n > 0 && message[0] != '\0') {
+        const TimestampNs arrival_ns = monotonic_now_ns();
+        tap(message, arrival_ns, false);
+        merger_.push_report(message, arrival_ns);
+      }
       continue;
     }
     now = monotonic_now_ns();

@@ -276,6 +276,8 @@ Expected<NavReadStatus> UdpImuInput::read(NavEvent& out, std::chrono::nanosecond
               std::to_string(socket_.options().max_datagram_bytes) + ": dropped");
       continue;
     }
+    tap(std::string_view(reinterpret_cast<const char*>(datagram_.bytes.data()), datagram_.bytes.size()),
+        datagram_.arrival_ns, true);
     decoder_.push(datagram_.bytes, datagram_.arrival_ns, datagram_.source);
   }
 }

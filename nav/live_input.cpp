@@ -274,7 +274,10 @@ Expected<NavReadStatus> UdpNmeaInput::read(NavEvent& out, std::chrono::nanosecon
         const std::size_t nl = std::min(text.find('\n', start), text.size());
         std::string_view line = text.substr(start, nl - start);
         if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-        if (!line.empty()) source_.push_line(line, datagram_.arrival_ns);
+        if (!line.empty()) {
+          tap(line, datagram_.arrival_ns, false);
+          source_.push_line(line, datagram_.arrival_ns);
+        }
         start = nl + 1;
       }
       continue;

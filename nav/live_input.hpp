@@ -16,6 +16,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -98,6 +99,21 @@ class NavInput {
   // Waits at most `timeout` (0: only what has already arrived) for the next event.
   virtual Expected<NavReadStatus> read(NavEvent& out, std::chrono::nanoseconds timeout) = 0;
   virtual NavInputStats stats() const = 0;
+
+  // Called with every unit of input exactly as received, before it is parsed: an NMEA line (no
+  // line ending), an IMU datagram, a gpsd JSON report; with its arrival time and whether it is
+  // binary. For recording the inputs as received. Set it before the first read(); it runs on the
+  // thread that calls read().
+  using RawTap = std::function<void(std::string_view data, TimestampNs arrival_ns, bool binary)>;
+  void set_raw_tap(RawTap tap) { raw_tap_ = std::move(tap); }
+
+ protected:
+  void tap(std::string_view data, TimestampNs arrival_ns, bool binary) const {
+    if (raw_tap_) raw_tap_(data, arrival_ns, binary);
+  }
+
+ private:
+  RawTap raw_tap_;
 };
 
 // Opens an input from its URI (the forms above; the options of each in docs/NAV_LIVE.md).

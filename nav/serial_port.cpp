@@ -179,7 +179,10 @@ void SerialNmeaInput::take_bytes(std::span<const std::uint8_t> bytes, TimestampN
       continue;
     }
     if (c == '\n') {
-      if (!line_.empty()) source_.push_line(line_, line_arrival_ns_);
+      if (!line_.empty()) {
+        tap(line_, line_arrival_ns_, false);
+        source_.push_line(line_, line_arrival_ns_);
+      }
       line_.clear();
       continue;
     }
@@ -214,7 +217,10 @@ Expected<NavReadStatus> SerialNmeaInput::read(NavEvent& out, std::chrono::nanose
     }
     if (r->hung_up) {
       hung_up_ = true;
-      if (!line_.empty() && !discarding_) source_.push_line(line_, line_arrival_ns_);  // what there was
+      if (!line_.empty() && !discarding_) {  // what there was
+        tap(line_, line_arrival_ns_, false);
+        source_.push_line(line_, line_arrival_ns_);
+      }
       line_.clear();
       source_.flush();
       source_.stats().note(uri_ + ": the serial port hung up (device unplugged or the other side closed)");

@@ -4,10 +4,15 @@
 // flags with their exit codes and messages.
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include <gtest/gtest.h>
 
 #include "core/conventions.hpp"
+#include "nav/imu_stream.hpp"
+#include "nav/nmea.hpp"
+#include "nav/udp_socket.hpp"
+#include "recorder/reader.hpp"
 #include "render/rig.hpp"
 #include "tests/support/fake_gv_camera.hpp"
 #include "tests/support/test_support.hpp"
@@ -86,6 +91,64 @@ TEST(CmdRun, TwoGigEVisionCamerasFromTheRigsSourceUris) {
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
 }
 
+// Live nav inputs given with --nav are recorded exactly as received: NMEA lines as text, IMU
+// datagrams as bytes, with their arrival times; malformed input is counted in the ledger.
+TEST(CmdRun, RecordsLiveNavInputsAsReceived) {
+  const std::string dir = output_dir("cmd_run_nav");
+  // Fixed ports: the run binds them; another test binding the same ports would fail loudly.
+  const int nmea_port = 47000 + (getpid() % 1000), imu_port = nmea_port + 1000;
+  std::string out;
+  std::thread run([&] {
+    augrig("run --source 'sim://demo?rate=1&every=30' --duration 4 --status-every 0 --record " + dir +
+               "/rec --nav 'tanker.gps=udp://127.0.0.1:" + std::to_string(nmea_port) +
+               "?format=nmea,tanker.imu=udp://127.0.0.1:" + std::to_string(imu_port) + "?format=imu'",
+           &out);
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // the run has bound its sockets
+  auto tx = nav::UdpSender::open("127.0.0.1", static_cast<std::uint16_t>(nmea_port));
+  ASSERT_TRUE(tx) << tx.error().message;
+  const std::vector<std::string> lines = {
+      nav::nmea_sentence("GPGGA,120000.00,4807.0380,N,01131.0000,E,4,12,0.9,545.4,M,46.9,M,,"),
+      "$GPGGA,120000.20,4807.0381,N,01131.0001,E,4,12,0.9,545.5,M,46.9,M,,*XX",  // bad checksum
+  };
+  for (const std::string& l : lines) ASSERT_TRUE(tx->send(l));
+  auto imu = nav::ImuUdpSender::open("127.0.0.1", static_cast<std::uint16_t>(imu_port), ClockDomain::kGps);
+  ASSERT_TRUE(imu) << imu.error().message;
+  nav::ImuSample sample;
+  sample.t_ns = 1'400'000'000'000'000'000;
+  sample.dt_s = 0.01;
+  sample.dtheta_rad = Eigen::Vector3d(1e-4, -2e-4, 3e-4);
+  sample.dv_mps = Eigen::Vector3d(0.01, 0.0, -0.098);
+  const std::vector<nav::ImuSample> samples = {sample};
+  ASSERT_TRUE(imu->send(samples));
+  run.join();
+  ASSERT_TRUE(contains(out, "nav tanker.gps")) << out;
+  EXPECT_TRUE(contains(out, "malformed 1")) << out;
+
+  auto reader = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  auto inputs = (*reader)->nav_inputs();
+  ASSERT_TRUE(inputs) << inputs.error().message;
+  std::vector<std::string> gps;
+  int imu_datagrams = 0;
+  for (const recorder::NavInputRecord& r : *inputs) {
+    EXPECT_GT(r.arrival_ns, 0);
+    if (r.stream == "tanker.gps") gps.push_back(r.data);
+    if (r.stream == "tanker.imu") {
+      EXPECT_TRUE(r.binary);
+      auto d = nav::decode_imu_datagram(
+          std::span(reinterpret_cast<const std::uint8_t*>(r.data.data()), r.data.size()));
+      ASSERT_TRUE(d) << d.error().message;
+      ASSERT_EQ(d->samples.size(), 1u);
+      EXPECT_EQ(d->samples[0].t_ns, sample.t_ns);
+      EXPECT_EQ(d->samples[0].dv_mps, sample.dv_mps);
+      ++imu_datagrams;
+    }
+  }
+  EXPECT_EQ(gps, lines) << "both lines, the malformed one too, byte for byte";
+  EXPECT_EQ(imu_datagrams, 1);
+}
+
 TEST(CmdRun, BadSourcesAndFlagsSayWhatIsWrong) {
   struct Case {
     std::string args;
@@ -104,6 +167,8 @@ TEST(CmdRun, BadSourcesAndFlagsSayWhatIsWrong) {
            {"run --source 'stereo://{aravis://a?fps=x}{aravis://b}'" + scene, 1, "fps: expected a number"},
            {"run --source 'replay:///nonexistent/rec'" + scene, 1, "/nonexistent/rec"},
            {"run --source 'sim://demo' --duration -1", 2, "--duration"},
+           {"run --source 'sim://demo' --nav 'udp://127.0.0.1:1'", 2, "--nav: expected STREAM=URI"},
+           {"run --source 'sim://demo' --nav 'gps=udp://127.0.0.1:1?format=xml'", 1, "format"},
        }) {
     std::string out;
     EXPECT_EQ(augrig(c.args, &out), c.code) << c.args << "\n" << out;

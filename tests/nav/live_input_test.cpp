@@ -275,6 +275,44 @@ TEST(LiveInput, NmeaDatagramsMayCarrySeveralLines) {
   EXPECT_EQ(st.malformed, 0u);
 }
 
+// The raw tap sees every line exactly as sent (without its line end), with its arrival time, before
+// parsing; malformed lines too, since it is what recording keeps.
+TEST(LiveInput, RawTapSeesEveryLineAsReceived) {
+  const SimLogs logs = sim_nmea(2.0);
+  auto opened = open_nav_input("udp://127.0.0.1:0?format=nmea&quiet_ms=100");
+  ASSERT_TRUE(opened) << opened.error().message;
+  std::vector<std::pair<std::string, TimestampNs>> tapped;
+  (*opened)->set_raw_tap([&](std::string_view data, TimestampNs arrival_ns, bool binary) {
+    EXPECT_FALSE(binary);
+    tapped.emplace_back(std::string(data), arrival_ns);
+  });
+  auto tx = UdpSender::open("127.0.0.1", dynamic_cast<UdpNmeaInput*>(opened->get())->port());
+  ASSERT_TRUE(tx);
+  std::vector<std::string> sent;
+  for (std::string line : lines_of(logs.receiver)) {
+    while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
+    sent.push_back(line);
+  }
+  sent.insert(sent.begin() + 3, "$GPGGA,garbage*00");
+  std::vector<NavEvent> got;
+  for (const std::string& line : sent) {
+    ASSERT_TRUE(tx->send(line));
+    drain(**opened, got);
+  }
+  NavEvent e;
+  while (*(*opened)->read(e, 300ms) == NavReadStatus::kEvent) {
+  }
+  ASSERT_EQ(tapped.size(), sent.size());
+  for (std::size_t i = 0; i < sent.size(); ++i) {
+    EXPECT_EQ(tapped[i].first, sent[i]);
+    EXPECT_GT(tapped[i].second, 0);
+    if (i) {
+      EXPECT_GE(tapped[i].second, tapped[i - 1].second);
+    }
+  }
+  EXPECT_EQ((*opened)->stats().malformed, 1u);
+}
+
 TEST(LiveInput, AnEpochClosesAfterTheQuietGap) {
   auto opened = open_nav_input("udp://127.0.0.1:0?format=nmea&quiet_ms=50");
   ASSERT_TRUE(opened) << opened.error().message;
