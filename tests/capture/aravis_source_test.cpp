@@ -225,6 +225,24 @@ TEST(AravisSource, SoftwareTriggerGivesOneFramePerTrigger) {
   EXPECT_EQ((*src)->stats().frames, 3u);
 
   src = make_error("released");  // the camera takes one controller at a time
+
+  // A hardware line trigger: configured, no frame without an edge, and no false loss meanwhile.
+  AravisOptions line = o;
+  line.trigger = TriggerMode::kLine;
+  line.trigger_line = "Line0";
+  line.ptp = true;  // the fake camera has no PTP: a note, not an error
+  auto src_line = AravisSource::open(line);
+  ASSERT_TRUE(src_line) << src_line.error().message;
+  for (int i = 0; i < 8; ++i) {
+    r = (*src_line)->read(f, 100ms);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(*r, ReadStatus::kTimeout);
+  }
+  EXPECT_TRUE((*src_line)->health().connected);
+  EXPECT_FALSE((*src_line)->info().ptp);
+  ASSERT_EQ((*src_line)->info().notes.size(), 1u);
+  EXPECT_NE((*src_line)->info().notes[0].find("ptp requested"), std::string::npos);
+  src_line = make_error("released");
   AravisOptions free_run = o;
   free_run.trigger = TriggerMode::kFreeRun;
   auto src2 = AravisSource::open(free_run);
