@@ -1,0 +1,983 @@
+#include "app/display.hpp"
+
+#define GLFW_INCLUDE_NONE  // epoxy provides the GL declarations
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <deque>
+#include <filesystem>
+#include <limits>
+#include <system_error>
+#include <utility>
+
+#include <GLFW/glfw3.h>
+#include <backends/imgui_impl_glfw.h>
+#include <backends/imgui_impl_opengl3.h>
+#include <epoxy/gl.h>
+#include <imgui.h>
+
+#include "app/display_hud.hpp"
+#include "app/world_view.hpp"
+#include "core/conventions.hpp"
+#include "render/gl_context.hpp"
+#include "render/gl_util.hpp"
+#include "render/image_file.hpp"
+#include "render/visualize.hpp"
+
+namespace augrig::app {
+
+std::string_view to_string(DisplayBoomMode m) {
+  switch (m) {
+    case DisplayBoomMode::kFixed:
+      return "fixed";
+    case DisplayBoomMode::kScripted:
+      return "scripted";
+    case DisplayBoomMode::kTrackReceptacle:
+      return "track";
+    case DisplayBoomMode::kInteractive:
+      return "interactive";
+  }
+  return "?";
+}
+
+std::string_view to_string(MaskOverlay m) {
+  switch (m) {
+    case MaskOverlay::kOff:
+      return "off";
+    case MaskOverlay::kOcclusion:
+      return "occlusion (Fig. 8)";
+    case MaskOverlay::kBoomOverlap:
+      return "boom overlap (Fig. 7b)";
+  }
+  return "?";
+}
+
+DisplayInput display_input(const StereoResult& result, const Rig& rig, const SceneState& scene,
+                           std::uint64_t frame_id) {
+  DisplayInput in;
+  in.frame_id = frame_id;
+  in.images = {&result.left.augmented, &result.right.augmented};
+  in.masks = {&result.left.mask, &result.right.mask};
+  in.rig = &rig;
+  in.scene = scene;
+  in.hud.occlusion = result.stats;
+  return in;
+}
+
+const std::vector<Shortcut>& display_shortcuts() {
+  static const std::vector<Shortcut> s = {
+      {"F1, H, ?", "show / hide this help"},
+      {"Esc", "close this help"},
+      {"1 2 3 4", "boom mode: fixed, scripted, track receptacle, interactive"},
+      {"Up / Down", "interactive boom up / down (elevation -/+ 0.5 deg)"},
+      {"Left / Right", "interactive boom left / right as seen in the views (azimuth +/- 0.5 deg)"},
+      {"Page Up / Down", "extend / retract the boom's telescope (0.1 m)"},
+      {"Shift + the above", "five times the step"},
+      {"Joystick", "left stick: boom elevation and azimuth; right stick up/down: extension"},
+      {"R", "start / stop recording"},
+      {"Space", "pause / resume the pipeline"},
+      {"S, F12", "screenshot of the window to PNG"},
+      {"C", "start / stop a clip (numbered PNGs in a folder)"},
+      {"M", "mask overlay: off, Fig. 8 occlusion, Fig. 7b boom overlap"},
+      {"V", "truth-validation overlay: the receiver model at its fused pose"},
+      {"Home", "reset the world view's camera"},
+      {"Mouse", "world view: drag to orbit, wheel to zoom"},
+      {"Q", "quit"},
+  };
+  return s;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// The overlay's look is render/visualize's, not a copy of its colours: blend_over() works per
+// channel, so running it once over probe images (every background value 0..255 under every mask
+// class) tabulates exactly what it does: lut[class][channel][background] -> output.
+struct OverlayLut {
+  std::array<std::array<std::array<std::uint8_t, 256>, 3>, 4> out;
+  std::array<Eigen::Vector3f, 4> colour;  // the visualisation's own colour per class, 0..1
+};
+
+// `visualize(masks)` receives probe masks (`class_of(i)` gives mask values for class i, one per
+// probe image) and returns the visualisation.
+template <typename Visualize>
+OverlayLut tabulate(Visualize visualize) {
+  Image bg(4 * 256, 1, PixelFormat::kRGB8);
+  for (int x = 0; x < 4 * 256; ++x) std::fill_n(bg.row(0) + 3 * x, 3, static_cast<std::uint8_t>(x % 256));
+  const Image vis = visualize([](int x) { return x / 256; });
+  const Image out = blend_over(bg, vis);
+  OverlayLut lut;
+  for (int i = 0; i < 4; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      for (int b = 0; b < 256; ++b) lut.out[i][c][b] = out.row(0)[3 * (256 * i + b) + c];
+      lut.colour[i][c] = vis.row(0)[3 * (256 * i) + c] / 255.0f;
+    }
+  }
+  return lut;
+}
+
+template <typename ValueOf>
+Image probe_mask(ValueOf value_of_x) {
+  Image m(4 * 256, 1, PixelFormat::kMono8);
+  for (int x = 0; x < 4 * 256; ++x) m.row(0)[x] = static_cast<std::uint8_t>(value_of_x(x));
+  return m;
+}
+
+const char* kCopyVs = R"(#version 330 core
+uniform int u_flip;
+out vec2 v_uv;
+void main() {
+  vec2 p = vec2((gl_VertexID & 1) != 0 ? 1.0 : -1.0, (gl_VertexID & 2) != 0 ? 1.0 : -1.0);
+  // (0, 0) is the image's top-left; GL-rendered textures (u_flip 1) have row 0 at the bottom.
+  v_uv = vec2(0.5 * (p.x + 1.0), u_flip == 1 ? 0.5 * (p.y + 1.0) : 0.5 * (1.0 - p.y));
+  gl_Position = vec4(p, 0.0, 1.0);
+}
+)";
+
+// A plain textured quad: simple enough for llvmpipe's fast path (about half the cost per pixel of
+// a shader that also decides an overlay), so overlays are composed on the CPU once per frame.
+const char* kCopyFs = R"(#version 330 core
+in vec2 v_uv;
+uniform sampler2D u_image;
+out vec4 o_color;
+void main() { o_color = texture(u_image, v_uv); }
+)";
+
+const char* kLineVs = R"(#version 330 core
+layout(location = 0) in vec2 a_px;
+uniform vec2 u_size;
+void main() {
+  gl_Position = vec4(2.0 * (a_px.x + 0.5) / u_size.x - 1.0, 1.0 - 2.0 * (a_px.y + 0.5) / u_size.y, 0.0, 1.0);
+}
+)";
+
+const char* kLineFs = R"(#version 330 core
+uniform vec4 u_color;
+out vec4 o_color;
+void main() { o_color = u_color; }
+)";
+
+// Unique edges of a model's triangles, in the model frame (the validation wireframe).
+std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> model_edges(const Model& model) {
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> edges;
+  for (const Mesh& m : model.meshes) {
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> e;
+    for (std::size_t t = 0; t + 2 < m.indices.size(); t += 3)
+      for (int k = 0; k < 3; ++k) {
+        const std::uint32_t a = m.indices[t + k], b = m.indices[t + (k + 1) % 3];
+        e.emplace_back(std::min(a, b), std::max(a, b));
+      }
+    std::sort(e.begin(), e.end());
+    e.erase(std::unique(e.begin(), e.end()), e.end());
+    for (const auto& [a, b] : e)
+      edges.emplace_back(m.positions_m[a].cast<double>(), m.positions_m[b].cast<double>());
+  }
+  return edges;
+}
+
+std::string timestamp_name() {
+  const auto now = std::chrono::system_clock::now();
+  const std::time_t t = std::chrono::system_clock::to_time_t(now);
+  const auto ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
+  std::tm tm{};
+  localtime_r(&t, &tm);
+  char b[64];
+  std::snprintf(b, sizeof b, "%04d%02d%02d_%02d%02d%02d_%03d", tm.tm_year + 1900, tm.tm_mon + 1, tm.tm_mday,
+                tm.tm_hour, tm.tm_min, tm.tm_sec, static_cast<int>(ms));
+  return b;
+}
+
+// The image as tightly packed RGBA rows (Bayer demosaiced and Mono8 replicated by to_rgb8), with
+// the overlay composed in: class_of(x, y) picks the LUT row, none when `lut` is null.
+template <typename ClassOf>
+void compose_rgba(const Image& im, const OverlayLut* lut, ClassOf class_of, std::vector<std::uint8_t>& out) {
+  const int w = im.width(), h = im.height();
+  out.resize(static_cast<std::size_t>(w) * h * 4);
+  Image converted;
+  const Image* src = &im;
+  if (im.format() != PixelFormat::kRGB8 && im.format() != PixelFormat::kRGBA8) {
+    converted = to_rgb8(im);
+    src = &converted;
+  }
+  const int bpp = bytes_per_pixel(src->format());
+  for (int y = 0; y < h; ++y) {
+    const std::uint8_t* s = src->row(y);
+    std::uint8_t* d = out.data() + static_cast<std::size_t>(y) * w * 4;
+    if (!lut) {
+      for (int x = 0; x < w; ++x, s += bpp, d += 4) {
+        d[0] = s[0];
+        d[1] = s[1];
+        d[2] = s[2];
+        d[3] = 255;
+      }
+      continue;
+    }
+    for (int x = 0; x < w; ++x, s += bpp, d += 4) {
+      const auto& row = lut->out[class_of(x, y)];
+      d[0] = row[0][s[0]];
+      d[1] = row[1][s[1]];
+      d[2] = row[2][s[2]];
+      d[3] = 255;
+    }
+  }
+}
+
+// Fits a w:h image into a box, keeping its aspect, centred horizontally and aligned to the top.
+PixelRect fit(int bx, int by, int bw, int bh, double aspect) {
+  if (bw <= 0 || bh <= 0) return {bx, by, 0, 0};
+  int w = bw, h = static_cast<int>(std::lround(bw / aspect));
+  if (h > bh) {
+    h = bh;
+    w = static_cast<int>(std::lround(bh * aspect));
+  }
+  return {bx + (bw - w) / 2, by, w, h};
+}
+
+class GlTexture {
+ public:
+  ~GlTexture() { reset(); }
+  void reset() {
+    if (id_) glDeleteTextures(1, &id_);
+    id_ = 0;
+    w_ = h_ = 0;
+  }
+  // RGBA8 w x h, allocated once per size; then sub-image updates only.
+  void upload(int w, int h, const std::uint8_t* rgba) {
+    if (!id_ || w != w_ || h != h_) {
+      reset();
+      glGenTextures(1, &id_);
+      glBindTexture(GL_TEXTURE_2D, id_);
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, w, h, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+      w_ = w, h_ = h;
+    }
+    glBindTexture(GL_TEXTURE_2D, id_);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba);
+  }
+  GLuint id() const { return id_; }
+
+ private:
+  GLuint id_ = 0;
+  int w_ = 0, h_ = 0;
+};
+
+struct ViewState {
+  GlTexture texture;
+  std::vector<std::uint8_t> rgba;
+  int image_w = 0, image_h = 0;  // of the last uploaded image (0: none)
+  std::vector<float> lines_px;   // validation wireframe, image pixels, 2 points per edge
+};
+
+class DisplayImpl final : public Display {
+ public:
+  ~DisplayImpl() override {
+    if (!ctx_) return;
+    ctx_->make_current();
+    if (gl3_backend_) ImGui_ImplOpenGL3_Shutdown();
+    if (glfw_backend_) ImGui_ImplGlfw_Shutdown();
+    if (imgui_) ImGui::DestroyContext(imgui_);
+    world_.reset();
+    for (ViewState& v : views_) v.texture.reset();
+    for (GLuint p : {line_program_, copy_program_})
+      if (p) glDeleteProgram(p);
+    if (empty_vao_) glDeleteVertexArrays(1, &empty_vao_);
+    if (line_vbo_) glDeleteBuffers(1, &line_vbo_);
+    if (line_vao_) glDeleteVertexArrays(1, &line_vao_);
+  }
+
+  Status init(const DisplayOptions& options) {
+    opt_ = options;
+    GlContextOptions go;
+    go.window_width = options.width;
+    go.window_height = options.height;
+    go.window_title = options.title;
+    go.visible = options.visible;
+    auto ctx = create_gl_context(GlBackend::kGlfwWindow, go);
+    if (!ctx) return make_error("app::Display::create(): ", ctx.error().message);
+    ctx_ = std::move(*ctx);
+    win_ = ctx_->window();
+    glfwSetWindowUserPointer(win_, this);
+    // Ours first: ImGui's backend chains to the callbacks installed before it.
+    glfwSetKeyCallback(
+        win_, [](GLFWwindow* w, int key, int, int action, int mods) { self(w)->on_key(key, action, mods); });
+    glfwSetCharCallback(win_, [](GLFWwindow* w, unsigned int c) { self(w)->on_char(c); });
+    glfwSetMouseButtonCallback(win_, [](GLFWwindow* w, int, int, int) { self(w)->events_ = true; });
+    glfwSetScrollCallback(win_, [](GLFWwindow* w, double, double) { self(w)->events_ = true; });
+    glfwSetCursorPosCallback(win_, [](GLFWwindow* w, double, double) { self(w)->events_ = true; });
+    glfwSetWindowRefreshCallback(win_, [](GLFWwindow* w) { self(w)->events_ = true; });
+    glfwSetFramebufferSizeCallback(win_, [](GLFWwindow* w, int, int) { self(w)->events_ = true; });
+
+    receiver_model_ = options.receiver_model ? options.receiver_model
+                                             : std::make_shared<const Model>(make_builtin_receiver());
+    edges_ = model_edges(*receiver_model_);
+    auto world = WorldView::create(options.boom_model, receiver_model_);
+    if (!world) return make_error("app::Display::create(): ", world.error().message);
+    world_ = std::move(*world);
+    frustum_depth_m_ = options.frustum_depth_m;
+
+    auto lp = gl::make_program("app::Display lines", kLineVs, kLineFs);
+    if (!lp) return make_error("app::Display::create(): ", lp.error().message);
+    line_program_ = *lp;
+    auto cp = gl::make_program("app::Display copy", kCopyVs, kCopyFs);
+    if (!cp) return make_error("app::Display::create(): ", cp.error().message);
+    copy_program_ = *cp;
+    glGenVertexArrays(1, &empty_vao_);
+    glGenVertexArrays(1, &line_vao_);
+    glBindVertexArray(line_vao_);
+    glGenBuffers(1, &line_vbo_);
+    glBindBuffer(GL_ARRAY_BUFFER, line_vbo_);
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 2 * sizeof(float), nullptr);
+    glBindVertexArray(0);
+
+    for (bool left : {true, false})
+      occlusion_lut_[left ? 0 : 1] = tabulate(
+          [left](auto class_of) { return visualize_receiver_occlusion(probe_mask(class_of), left); });
+    overlap_lut_ = tabulate([](auto class_of) {
+      return visualize_boom_overlap(probe_mask([&](int x) { return class_of(x) & 1; }),
+                                    probe_mask([&](int x) { return (class_of(x) >> 1) & 1; }));
+    });
+
+    IMGUI_CHECKVERSION();
+    imgui_ = ImGui::CreateContext();
+    ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini in the working directory
+    ImGui::StyleColorsDark();
+    base_style_ = ImGui::GetStyle();
+    glfw_backend_ = ImGui_ImplGlfw_InitForOpenGL(win_, true);
+    if (!glfw_backend_) return make_error("app::Display::create(): the ImGui GLFW backend failed to start");
+    gl3_backend_ = ImGui_ImplOpenGL3_Init("#version 330 core");
+    if (!gl3_backend_)
+      return make_error("app::Display::create(): the ImGui OpenGL 3 backend failed to start");
+    update_scale(true);
+    if (const std::string e = gl::drain_errors(); !e.empty())
+      return make_error("app::Display::create(): OpenGL error during set-up: ", e);
+    start_ = last_frame_ = last_draw_ = fps_since_ = Clock::now();
+    return {};
+  }
+
+  bool frame(const DisplayInput& in) override {
+    ctx_->make_current();
+    hud_mode_ = in.hud.boom_mode;
+    const auto now = Clock::now();
+    const double dt_s = std::min(0.25, std::chrono::duration<double>(now - last_frame_).count());
+    last_frame_ = now;
+    const double t_s = std::chrono::duration<double>(now - start_).count();
+
+    glfwPollEvents();  // runs the callbacks: commands are pending from here on
+    poll_joystick(dt_s);
+    if (glfwWindowShouldClose(win_)) {
+      if (!closed_) pending_.quit = true;
+      closed_ = true;
+      return false;
+    }
+    int fbw = 0, fbh = 0, ww = 0, wh = 0;
+    glfwGetFramebufferSize(win_, &fbw, &fbh);
+    glfwGetWindowSize(win_, &ww, &wh);
+
+    // New images (or another overlay): one composition and upload per view.
+    const bool new_frame = !have_frame_id_ || in.frame_id != frame_id_;
+    if (new_frame) {
+      frame_id_ = in.frame_id;
+      have_frame_id_ = true;
+      if (in.hud.occlusion) history_.add(t_s, *in.hud.occlusion);
+    }
+    bool changed = new_frame;
+    if (new_frame || composed_overlay_ != overlay_) {
+      for (int i = 0; i < 2; ++i) compose_view(i, in);
+      composed_overlay_ = overlay_;
+      changed = true;
+    }
+    const std::optional<Pose> pose = validation_ ? validation_pose(in) : std::nullopt;
+    if (validation_ && (new_frame || !lines_valid_ || !same_pose(pose, lines_pose_))) {
+      for (int i = 0; i < 2; ++i) project_validation(i, in, pose);
+      lines_pose_ = pose;
+      lines_valid_ = true;
+      changed = true;
+    }
+    if (!validation_) lines_valid_ = false;
+    history_.trim(t_s, opt_.plot_seconds);
+    while (!own_messages_.empty() && own_messages_.front().first < t_s - 10.0) own_messages_.pop_front();
+
+    // Redraw only when something changed; the HUD at least every hud_refresh_s. ImGui needs a few
+    // frames after an input to settle (hover, clicks).
+    if (events_) settle_frames_ = 3;
+    const bool due = std::chrono::duration<double>(now - last_draw_).count() >= opt_.hud_refresh_s;
+    if (!changed && !due && settle_frames_ == 0 && !screenshot_pending_ && !clip_active_) return true;
+    if (fbw <= 0 || fbh <= 0 || ww <= 0 || wh <= 0) return true;  // minimised: nothing to draw
+    events_ = false;
+    settle_frames_ = std::max(0, settle_frames_ - 1);
+    last_draw_ = now;
+    ++frames_drawn_;
+    ++fps_frames_;
+    if (const double window_s = std::chrono::duration<double>(now - fps_since_).count(); window_s >= 1.0) {
+      display_fps_ = fps_frames_ / window_s;  // frames drawn per second
+      fps_frames_ = 0;
+      fps_since_ = now;
+    }
+    update_scale(false);
+    const float fb_scale = static_cast<float>(fbw) / static_cast<float>(ww);
+
+    ImGui_ImplOpenGL3_NewFrame();
+    ImGui_ImplGlfw_NewFrame();
+    ImGui::NewFrame();
+    compute_layout(in, fbw, fbh, fb_scale);
+
+    handle_world_mouse(fb_scale);
+    GLuint world_tex = 0;
+    if (!layout_.world.empty()) {
+      WorldViewInput wi;
+      wi.rig = in.rig;
+      wi.scene = in.scene;
+      wi.validation_T_body_receiver = pose;
+      for (int i = 0; i < 2; ++i) wi.image_textures[i] = views_[i].image_w ? views_[i].texture.id() : 0;
+      wi.frustum_rgb = {overlap_lut_.colour[1], overlap_lut_.colour[2]};  // left-only cyan, right-only blue
+      wi.frustum_depth_m = frustum_depth_m_;
+      const double area = static_cast<double>(layout_.world.w) * layout_.world.h;
+      const double k = std::min(1.0, std::sqrt(opt_.world_view_max_px / std::max(area, 1.0)));
+      // Sizes in steps of 16 px, so a window drag re-makes the target rarely.
+      const int w = std::max(16, static_cast<int>(layout_.world.w * k) / 16 * 16);
+      const int h = std::max(16, static_cast<int>(layout_.world.h * k) / 16 * 16);
+      auto tex = world_->render(wi, w, h);
+      if (tex) {
+        world_tex = *tex;
+      } else {
+        note(t_s, tex.error().message);
+      }
+    }
+
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    glViewport(0, 0, fbw, fbh);
+    glDisable(GL_SCISSOR_TEST);
+    glDisable(GL_DEPTH_TEST);
+    glDisable(GL_BLEND);
+    glClearColor(0.09f, 0.09f, 0.10f, 1.0f);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    for (int i = 0; i < 2; ++i)
+      if (views_[i].image_w) draw_texture(views_[i].texture.id(), layout_.views[i], fbh, false);
+    if (validation_) draw_validation(in, fbh);
+    if (world_tex) draw_texture(world_tex, layout_.world, fbh, true);
+    glBindVertexArray(0);
+    glViewport(0, 0, fbw, fbh);
+
+    draw_hud(in, fb_scale);
+    ImGui::Render();
+    ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+
+    if (screenshot_pending_) {
+      screenshot_pending_ = false;
+      const std::string dir = opt_.screenshot_dir.empty() ? "." : opt_.screenshot_dir;
+      const std::string path = dir + "/augrig_" + timestamp_name() + ".png";
+      if (Status s = save_framebuffer(dir, path, fbw, fbh); s) {
+        pending_.screenshots.push_back(path);
+        last_saved_ = path;
+      } else {
+        pending_.errors.push_back(s.error().message);
+        note(t_s, s.error().message);
+      }
+    }
+    if (clip_active_) write_clip_frame(fbw, fbh, t_s);
+    glfwSwapBuffers(win_);
+    return true;
+  }
+
+  DisplayCommands poll_commands() override { return std::exchange(pending_, DisplayCommands{}); }
+
+  void request_screenshot() override { screenshot_pending_ = true; }
+
+  void toggle_clip() override {
+    events_ = true;
+    if (clip_active_) {
+      stop_clip();
+      return;
+    }
+    const std::string dir =
+        (opt_.screenshot_dir.empty() ? "." : opt_.screenshot_dir) + "/clip_" + timestamp_name();
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) {
+      const std::string e = "app::Display: clip folder " + dir + ": cannot create it (" + ec.message() + ")";
+      pending_.errors.push_back(e);
+      note(seconds_now(), e);
+      return;
+    }
+    clip_active_ = true;
+    clip_dir_ = dir;
+    clip_frames_ = 0;
+    pending_.clip_started = dir;
+  }
+
+  void set_mask_overlay(MaskOverlay m) override {
+    events_ = true;
+    if (m == overlay_) return;
+    overlay_ = m;
+    pending_.mask_overlay = m;
+  }
+  MaskOverlay mask_overlay() const override { return overlay_; }
+  void set_validation_overlay(bool on) override {
+    events_ = true;
+    validation_ = on;
+  }
+  bool validation_overlay() const override { return validation_; }
+  void set_help_visible(bool on) override {
+    events_ = true;
+    help_ = on;
+  }
+  bool help_visible() const override { return help_; }
+  bool clip_recording() const override { return clip_active_; }
+  std::uint64_t frames_drawn() const override { return frames_drawn_; }
+  const DisplayLayout& layout() const override { return layout_; }
+  GLFWwindow* window() override { return win_; }
+
+ private:
+  static DisplayImpl* self(GLFWwindow* w) { return static_cast<DisplayImpl*>(glfwGetWindowUserPointer(w)); }
+
+  // ---- Input ------------------------------------------------------------------------------------
+
+  void nudge(double d_el_rad, double d_az_rad, double d_ext_m) {
+    pending_.boom_nudge.elevation_rad += d_el_rad;
+    pending_.boom_nudge.azimuth_rad += d_az_rad;
+    pending_.boom_nudge.extension_m += d_ext_m;
+    // Moving the boom by hand takes it over, as a boom operator would.
+    const DisplayBoomMode current = pending_.boom_mode.value_or(hud_mode_);
+    if (current != DisplayBoomMode::kInteractive) pending_.boom_mode = DisplayBoomMode::kInteractive;
+  }
+
+  void on_key(int key, int action, int mods) {
+    events_ = true;
+    if (action == GLFW_RELEASE) return;
+    if (imgui_ && ImGui::GetIO().WantTextInput) return;
+    const bool repeat = action == GLFW_REPEAT;
+    const double k = (mods & GLFW_MOD_SHIFT) ? 5.0 : 1.0;
+    const double step_rad = deg_to_rad(0.5) * k, step_m = 0.1 * k;
+    switch (key) {
+      case GLFW_KEY_UP:
+        return nudge(-step_rad, 0, 0);
+      case GLFW_KEY_DOWN:
+        return nudge(step_rad, 0, 0);
+      case GLFW_KEY_LEFT:  // the views look aft: image-left is starboard, +azimuth
+        return nudge(0, step_rad, 0);
+      case GLFW_KEY_RIGHT:
+        return nudge(0, -step_rad, 0);
+      case GLFW_KEY_PAGE_UP:
+        return nudge(0, 0, step_m);
+      case GLFW_KEY_PAGE_DOWN:
+        return nudge(0, 0, -step_m);
+      default:
+        break;
+    }
+    if (repeat) return;  // the rest act once per press
+    switch (key) {
+      case GLFW_KEY_F1:
+      case GLFW_KEY_H:
+        help_ = !help_;
+        break;
+      case GLFW_KEY_ESCAPE:
+        help_ = false;
+        break;
+      case GLFW_KEY_1:
+        pending_.boom_mode = DisplayBoomMode::kFixed;
+        break;
+      case GLFW_KEY_2:
+        pending_.boom_mode = DisplayBoomMode::kScripted;
+        break;
+      case GLFW_KEY_3:
+        pending_.boom_mode = DisplayBoomMode::kTrackReceptacle;
+        break;
+      case GLFW_KEY_4:
+        pending_.boom_mode = DisplayBoomMode::kInteractive;
+        break;
+      case GLFW_KEY_R:
+        pending_.toggle_recording = !pending_.toggle_recording;
+        break;
+      case GLFW_KEY_SPACE:
+        pending_.toggle_pause = !pending_.toggle_pause;
+        break;
+      case GLFW_KEY_S:
+      case GLFW_KEY_F12:
+        request_screenshot();
+        break;
+      case GLFW_KEY_C:
+        toggle_clip();
+        break;
+      case GLFW_KEY_M:
+        set_mask_overlay(static_cast<MaskOverlay>((static_cast<int>(overlay_) + 1) % 3));
+        break;
+      case GLFW_KEY_V:
+        validation_ = !validation_;
+        break;
+      case GLFW_KEY_HOME:
+        world_->reset_camera();
+        break;
+      case GLFW_KEY_Q:
+        glfwSetWindowShouldClose(win_, GLFW_TRUE);
+        pending_.quit = true;
+        break;
+      default:
+        break;
+    }
+  }
+
+  void on_char(unsigned int c) {
+    events_ = true;
+    if (imgui_ && ImGui::GetIO().WantTextInput) return;
+    if (c == '?') help_ = !help_;
+  }
+
+  // Stick deflection is a rate: full deflection moves the boom 5 deg/s and extends it 1 m/s.
+  void poll_joystick(double dt_s) {
+    for (int jid = GLFW_JOYSTICK_1; jid <= GLFW_JOYSTICK_LAST; ++jid) {
+      if (!glfwJoystickPresent(jid)) continue;
+      float x = 0, y = 0, ext = 0;
+      GLFWgamepadstate pad;
+      if (glfwJoystickIsGamepad(jid) && glfwGetGamepadState(jid, &pad)) {
+        x = pad.axes[GLFW_GAMEPAD_AXIS_LEFT_X];
+        y = pad.axes[GLFW_GAMEPAD_AXIS_LEFT_Y];
+        ext = pad.axes[GLFW_GAMEPAD_AXIS_RIGHT_Y];
+      } else {
+        int n = 0;
+        const float* axes = glfwGetJoystickAxes(jid, &n);
+        if (!axes || n < 2) continue;
+        x = axes[0];
+        y = axes[1];
+        ext = n > 3 ? axes[3] : n > 2 ? axes[2] : 0.0f;
+      }
+      auto dead = [](float v) { return std::abs(v) < 0.15f ? 0.0 : static_cast<double>(v); };
+      const double el = dead(y), az = dead(x), ex = dead(ext);
+      // Stick forward (GLFW: -y) lowers the boom (+elevation); stick right moves it right in the
+      // views (-azimuth); the right stick forward extends.
+      if (el != 0 || az != 0 || ex != 0) {
+        nudge(-el * deg_to_rad(5.0) * dt_s, -az * deg_to_rad(5.0) * dt_s, -ex * 1.0 * dt_s);
+        events_ = true;
+      }
+      return;  // the first joystick only
+    }
+  }
+
+  void handle_world_mouse(float fb_scale) {
+    const ImGuiIO& io = ImGui::GetIO();
+    const double mx = io.MousePos.x * fb_scale, my = io.MousePos.y * fb_scale;
+    if (io.WantCaptureMouse) {
+      dragging_ = false;
+      return;
+    }
+    const bool inside = layout_.world.contains(mx, my);
+    if (io.MouseClicked[0]) dragging_ = inside;
+    if (!io.MouseDown[0]) dragging_ = false;
+    if (dragging_ && (io.MouseDelta.x != 0 || io.MouseDelta.y != 0))
+      world_->orbit(io.MouseDelta.x / io.DisplaySize.x * 800.0, io.MouseDelta.y / io.DisplaySize.y * 600.0);
+    if (inside && io.MouseWheel != 0) world_->zoom(io.MouseWheel);
+  }
+
+  // ---- Drawing ----------------------------------------------------------------------------------
+
+  void update_scale(bool force) {
+    float sx = 1, sy = 1;
+    glfwGetWindowContentScale(win_, &sx, &sy);
+    const float cs = std::clamp(std::max(sx, sy), 0.5f, 4.0f);
+    if (!force && cs == content_scale_) return;
+    content_scale_ = cs;
+    int fbw = 0, ww = 0, h = 0;
+    glfwGetFramebufferSize(win_, &fbw, &h);
+    glfwGetWindowSize(win_, &ww, &h);
+    const float fb_scale = ww > 0 && fbw > 0 ? static_cast<float>(fbw) / ww : 1.0f;
+    // The font is rasterised at its size in framebuffer pixels and shown at 1/fb_scale of that in
+    // ImGui's (window) coordinates: sharp on X11 (scale in pixels) and on Wayland/macOS (scale in
+    // the framebuffer) alike.
+    ImGuiIO& io = ImGui::GetIO();
+    if (!force) ImGui_ImplOpenGL3_DestroyFontsTexture();
+    io.Fonts->Clear();
+    ImFontConfig cfg;
+    cfg.SizePixels = std::round(13.0f * cs);
+    io.Fonts->AddFontDefault(&cfg);
+    io.FontGlobalScale = 1.0f / fb_scale;
+    if (!force) ImGui_ImplOpenGL3_CreateFontsTexture();
+    ImGui::GetStyle() = base_style_;
+    ImGui::GetStyle().ScaleAllSizes(cs / fb_scale);
+  }
+
+  void compute_layout(const DisplayInput& in, int fbw, int fbh, float fb_scale) {
+    DisplayLayout L;
+    L.framebuffer_w = fbw;
+    L.framebuffer_h = fbh;
+    L.content_scale = content_scale_;
+    const int m = static_cast<int>(std::lround(6 * content_scale_));
+    label_h_ = static_cast<int>(std::ceil(ImGui::GetFontSize() * fb_scale)) + m;
+    const int top_h = fbh * 3 / 5;
+    const int cell_w = fbw / 2;
+    for (int i = 0; i < 2; ++i) {
+      double aspect = 4.0 / 3.0;
+      if (views_[i].image_w)
+        aspect = static_cast<double>(views_[i].image_w) / views_[i].image_h;
+      else if (in.rig && in.rig->cameras.size() > static_cast<std::size_t>(i))
+        aspect = static_cast<double>(in.rig->cameras[i].model.width_px) / in.rig->cameras[i].model.height_px;
+      L.views[i] = fit(i * cell_w + m, label_h_, cell_w - 2 * m, top_h - label_h_ - m, aspect);
+    }
+    const int world_w = fbw * 2 / 5;
+    L.world = {m, top_h + label_h_, world_w - 2 * m, fbh - top_h - label_h_ - m};
+    if (L.world.w < 16 || L.world.h < 16) L.world = {};
+    L.hud = {world_w, top_h, fbw - world_w - m, fbh - top_h - m};
+    layout_ = L;
+  }
+
+  void set_viewport(const PixelRect& r, int fbh) { glViewport(r.x, fbh - r.y - r.h, r.w, r.h); }
+
+  void draw_texture(GLuint tex, const PixelRect& r, int fbh, bool gl_rendered) {
+    if (r.empty()) return;
+    set_viewport(r, fbh);
+    glUseProgram(copy_program_);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, tex);
+    glUniform1i(glGetUniformLocation(copy_program_, "u_image"), 0);
+    glUniform1i(glGetUniformLocation(copy_program_, "u_flip"), gl_rendered ? 1 : 0);
+    glBindVertexArray(empty_vao_);
+    glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+  }
+
+  void compose_view(int i, const DisplayInput& in) {
+    ViewState& v = views_[i];
+    const Image* im = in.images[i];
+    if (!im || im->empty()) {
+      v.image_w = v.image_h = 0;
+      return;
+    }
+    auto fits = [im](const Image* m) {
+      return m && m->format() == PixelFormat::kMono8 && m->width() == im->width() &&
+             m->height() == im->height();
+    };
+    const Image* own = in.masks[i];
+    const Image* left = in.masks[0];
+    const Image* right = in.masks[1];
+    if (overlay_ == MaskOverlay::kOcclusion && fits(own)) {
+      compose_rgba(
+          *im, &occlusion_lut_[i], [own](int x, int y) { return own->row(y)[x] & 3; }, v.rgba);
+    } else if (overlay_ == MaskOverlay::kBoomOverlap && fits(left) && fits(right)) {
+      compose_rgba(
+          *im, &overlap_lut_,
+          [left, right](int x, int y) {
+            return (left->row(y)[x] & kMaskBoom) | ((right->row(y)[x] & kMaskBoom) << 1);
+          },
+          v.rgba);
+    } else {
+      compose_rgba(
+          *im, nullptr, [](int, int) { return 0; }, v.rgba);
+    }
+    v.texture.upload(im->width(), im->height(), v.rgba.data());
+    v.image_w = im->width();
+    v.image_h = im->height();
+  }
+
+  std::optional<Pose> validation_pose(const DisplayInput& in) const {
+    if (in.validation_T_body_receiver) return in.validation_T_body_receiver;
+    if (in.scene.receiver_present) return in.scene.T_body_receiver;
+    return std::nullopt;
+  }
+
+  static bool same_pose(const std::optional<Pose>& a, const std::optional<Pose>& b) {
+    if (!a || !b) return !a && !b;
+    return a->translation_m == b->translation_m && a->rotation.coeffs() == b->rotation.coeffs();
+  }
+
+  // The receiver's edges projected through each camera's own model (distortion included) at the
+  // fused pose: where the real receiver is, the lines must lie on it. Redone per new frame or pose.
+  void project_validation(int i, const DisplayInput& in, const std::optional<Pose>& T_body_receiver) {
+    ViewState& v = views_[i];
+    v.lines_px.clear();
+    if (!in.rig || !T_body_receiver || static_cast<std::size_t>(i) >= in.rig->cameras.size()) return;
+    const RigCamera& cam = in.rig->cameras[i];
+    line_size_[i] = {static_cast<float>(cam.model.width_px), static_cast<float>(cam.model.height_px)};
+    const Pose T_cam_receiver = cam.T_body_cam.inverse() * *T_body_receiver;
+    for (const auto& [a, b] : edges_) {
+      const auto pa = cam.model.project(T_cam_receiver * a);
+      const auto pb = cam.model.project(T_cam_receiver * b);
+      if (!pa || !pb) continue;
+      v.lines_px.insert(v.lines_px.end(), {static_cast<float>(pa->x()), static_cast<float>(pa->y()),
+                                           static_cast<float>(pb->x()), static_cast<float>(pb->y())});
+    }
+  }
+
+  void draw_validation(const DisplayInput&, int fbh) {
+    glEnable(GL_BLEND);
+    glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    glUseProgram(line_program_);
+    glBindVertexArray(line_vao_);
+    glBindBuffer(GL_ARRAY_BUFFER, line_vbo_);
+    for (int i = 0; i < 2; ++i) {
+      const ViewState& v = views_[i];
+      if (!v.image_w || layout_.views[i].empty() || v.lines_px.empty()) continue;
+      glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(v.lines_px.size() * sizeof(float)),
+                   v.lines_px.data(), GL_STREAM_DRAW);
+      set_viewport(layout_.views[i], fbh);
+      glUniform2f(glGetUniformLocation(line_program_, "u_size"), line_size_[i][0], line_size_[i][1]);
+      glUniform4f(glGetUniformLocation(line_program_, "u_color"), 1.0f, 0.85f, 0.1f, 0.55f);
+      glDrawArrays(GL_LINES, 0, static_cast<GLsizei>(v.lines_px.size() / 2));
+    }
+    glBindVertexArray(0);
+    glDisable(GL_BLEND);
+  }
+
+  void draw_hud(const DisplayInput& in, float fb_scale) {
+    const float k = 1.0f / fb_scale;  // framebuffer pixels -> ImGui coordinates
+    const int m = static_cast<int>(std::lround(6 * content_scale_));
+    static const char* kNames[2] = {"left camera, augmented", "right camera, augmented"};
+    for (int i = 0; i < 2; ++i) {
+      const PixelRect& r = layout_.views[i];
+      hud::draw_view_label(kNames[i], in.hud, ImVec2(r.x * k, (r.y - label_h_ + m / 2) * k));
+      if (!views_[i].image_w)
+        ImGui::GetBackgroundDrawList()->AddText(ImVec2((r.x + m) * k, (r.y + m) * k),
+                                                IM_COL32(160, 160, 160, 255), "no image yet");
+    }
+    if (!layout_.world.empty()) {
+      const char* label = "world view (drag: orbit, wheel: zoom, Home: reset)";
+      ImGui::GetBackgroundDrawList()->AddText(
+          ImVec2(layout_.world.x * k, (layout_.world.y - label_h_ + m / 2) * k), IM_COL32(230, 230, 230, 255),
+          label);
+    }
+    hud::PanelState ps;
+    ps.display_fps = display_fps_;
+    ps.overlay = overlay_;
+    ps.validation = validation_;
+    ps.help = help_;
+    ps.clip = clip_active_;
+    ps.clip_frames = clip_frames_;
+    ps.last_screenshot = last_saved_;
+    for (const auto& [t, msg] : own_messages_) ps.own_messages.push_back(msg);
+    ps.boom = in.scene.boom;
+    ps.plot_seconds = opt_.plot_seconds;
+    ps.frustum_depth_m = frustum_depth_m_;
+    const PixelRect& h = layout_.hud;
+    const hud::PanelActions a =
+        hud::draw_status_panel(in.hud, ps, history_, ImVec2(h.x * k, h.y * k), ImVec2(h.w * k, h.h * k));
+    if (a.boom_mode) pending_.boom_mode = a.boom_mode;
+    if (a.toggle_recording) pending_.toggle_recording = !pending_.toggle_recording;
+    if (a.toggle_pause) pending_.toggle_pause = !pending_.toggle_pause;
+    if (a.screenshot) request_screenshot();
+    if (a.clip) toggle_clip();
+    if (a.help) help_ = !help_;
+    if (a.reset_view) world_->reset_camera();
+    if (a.overlay) set_mask_overlay(*a.overlay);
+    if (a.validation) validation_ = *a.validation;
+    if (a.frustum_depth_m) frustum_depth_m_ = *a.frustum_depth_m;
+    layout_.help = {};
+    if (help_) {
+      bool open = true;
+      const auto r = hud::draw_help_overlay(ImGui::GetIO().DisplaySize, &open);
+      help_ = open;
+      layout_.help = {static_cast<int>(r[0] * fb_scale), static_cast<int>(r[1] * fb_scale),
+                      static_cast<int>(r[2] * fb_scale), static_cast<int>(r[3] * fb_scale)};
+    }
+  }
+
+  // ---- Screenshots and clips ----------------------------------------------------------------------
+
+  Status save_framebuffer(const std::string& dir, const std::string& path, int fbw, int fbh) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec)
+      return make_error("app::Display: screenshot folder ", dir, ": cannot create it (", ec.message(), ")");
+    Image shot(fbw, fbh, PixelFormat::kRGBA8);
+    readback_.resize(static_cast<std::size_t>(fbw) * fbh * 4);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glReadBuffer(GL_BACK);
+    glReadPixels(0, 0, fbw, fbh, GL_RGBA, GL_UNSIGNED_BYTE, readback_.data());
+    for (int y = 0; y < fbh; ++y) {  // GL rows run bottom-up
+      const std::uint8_t* s = readback_.data() + static_cast<std::size_t>(fbh - 1 - y) * fbw * 4;
+      std::uint8_t* d = shot.row(y);
+      std::copy_n(s, 4 * fbw, d);
+      for (int x = 0; x < fbw; ++x) d[4 * x + 3] = 255;  // the window is opaque, whatever GL left in alpha
+    }
+    return write_png_file(path, shot, 1);
+  }
+
+  void write_clip_frame(int fbw, int fbh, double t_s) {
+    char name[32];
+    std::snprintf(name, sizeof name, "/frame_%05d.png", clip_frames_);
+    if (Status s = save_framebuffer(clip_dir_, clip_dir_ + name, fbw, fbh); !s) {
+      pending_.errors.push_back(s.error().message);
+      note(t_s, s.error().message);
+      stop_clip();
+      return;
+    }
+    if (++clip_frames_ >= std::max(1, opt_.clip_max_frames)) stop_clip();
+  }
+
+  void stop_clip() {
+    if (!clip_active_) return;
+    clip_active_ = false;
+    pending_.clip_stopped = clip_dir_;
+    last_saved_ = clip_dir_ + " (" + std::to_string(clip_frames_) + " frames)";
+  }
+
+  double seconds_now() const { return std::chrono::duration<double>(Clock::now() - start_).count(); }
+  void note(double t_s, std::string msg) {
+    own_messages_.emplace_back(t_s, std::move(msg));
+    while (own_messages_.size() > 5) own_messages_.pop_front();
+  }
+
+  DisplayOptions opt_;
+  std::unique_ptr<GlContext> ctx_;
+  GLFWwindow* win_ = nullptr;
+  ImGuiContext* imgui_ = nullptr;
+  bool glfw_backend_ = false, gl3_backend_ = false;
+  ImGuiStyle base_style_;
+  float content_scale_ = 1.0f;
+  int label_h_ = 0;
+
+  std::unique_ptr<WorldView> world_;
+  std::shared_ptr<const Model> receiver_model_;
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> edges_;
+  GLuint line_program_ = 0, copy_program_ = 0;
+  GLuint empty_vao_ = 0, line_vao_ = 0, line_vbo_ = 0;
+  std::array<OverlayLut, 2> occlusion_lut_;
+  OverlayLut overlap_lut_;
+  std::array<ViewState, 2> views_;
+  std::array<std::array<float, 2>, 2> line_size_{};
+  std::uint64_t frame_id_ = 0;
+  bool have_frame_id_ = false;
+  MaskOverlay composed_overlay_ = MaskOverlay::kOff;
+  bool lines_valid_ = false;
+  std::optional<Pose> lines_pose_;
+
+  MaskOverlay overlay_ = MaskOverlay::kOff;
+  bool validation_ = false;
+  bool help_ = false;
+  bool screenshot_pending_ = false;
+  bool clip_active_ = false;
+  std::string clip_dir_;
+  int clip_frames_ = 0;
+  std::string last_saved_;
+  std::vector<std::uint8_t> readback_;
+  double frustum_depth_m_ = 25.0;
+  bool dragging_ = false;
+  bool closed_ = false;
+  bool events_ = true;  // something happened that needs a redraw
+  int settle_frames_ = 0;
+  std::uint64_t frames_drawn_ = 0;
+
+  DisplayBoomMode hud_mode_ = DisplayBoomMode::kFixed;
+  DisplayCommands pending_;
+  DisplayLayout layout_;
+  hud::OcclusionHistory history_;
+  std::deque<std::pair<double, std::string>> own_messages_;
+  Clock::time_point start_, last_frame_, last_draw_, fps_since_;
+  int fps_frames_ = 0;
+  double display_fps_ = std::numeric_limits<double>::quiet_NaN();
+};
+
+}  // namespace
+
+Expected<std::unique_ptr<Display>> Display::create(const DisplayOptions& options) {
+  auto d = std::make_unique<DisplayImpl>();
+  if (Status s = d->init(options); !s) return s.error();
+  return std::unique_ptr<Display>(std::move(d));
+}
+
+}  // namespace augrig::app

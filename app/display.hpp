@@ -1,0 +1,193 @@
+// Display: the live window (GLFW + Dear ImGui) of issue 6. It draws, once per frame() call, the
+// left and right augmented views (with an optional mask overlay in the seed paper's colours, and
+// the truth-validation overlay: the receiver model drawn at its fused pose), a third-person world
+// view like the paper's Fig. 1/4/6 (tanker, receiver, camera frusta with the image quads, the boom)
+// and the HUD (rates, skew, drops, nav, occlusion and its recent history, latency, recording,
+// messages). It owns its window and GL context and nothing else: user commands (boom mode, nudges,
+// recording, pause, quit) are returned by poll_commands() for the pipeline's owner to act on.
+// Screenshots and clips are the display's own: it reads back its framebuffer and writes PNGs.
+//
+// Threads: create() makes the window and its GL context current on the calling thread; every
+// later call must come from that thread (GLFW wants it to be the main thread). The display never
+// blocks on the pipeline and keeps its cost low: per new frame (DisplayInput::frame_id) one
+// conversion (with the overlay composed in) and upload per view; a redraw (views as textured
+// quads, the world view at a modest resolution, the HUD) only when something changed: a new
+// frame, an input event, an overlay, or the HUD's refresh interval. docs/DISPLAY.md.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/expected.hpp"
+#include "core/image.hpp"
+#include "core/pose.hpp"
+#include "nav/types.hpp"
+#include "recorder/record.hpp"
+#include "render/augmenter.hpp"
+#include "render/models.hpp"
+#include "render/rig.hpp"
+#include "render/stats.hpp"
+
+struct GLFWwindow;
+
+namespace augrig::app {
+
+// How the boom is flown (render/boom_control.hpp's three modes, plus the operator's hands).
+enum class DisplayBoomMode { kFixed, kScripted, kTrackReceptacle, kInteractive };
+std::string_view to_string(DisplayBoomMode m);
+
+// What the mask overlay shows over both views.
+enum class MaskOverlay {
+  kOff,
+  kOcclusion,    // Fig. 8: receiver red, boom cyan (left) / blue (right), boom over receiver white / magenta
+  kBoomOverlap,  // Fig. 7b: boom in the left image cyan, in the right blue, in both green
+};
+std::string_view to_string(MaskOverlay m);
+
+inline constexpr double kHudUnknown = std::numeric_limits<double>::quiet_NaN();
+
+struct NavHud {
+  std::string status;  // plain words, e.g. "fused (GPS+IMU)", "dead reckoning", "no nav"
+  nav::FixQuality fix = nav::FixQuality::kInvalid;
+  double age_s = kHudUnknown;          // since the last nav update used
+  double sigma_pos_m = kHudUnknown;    // 1-sigma of the relative position
+  double sigma_att_deg = kHudUnknown;  // 1-sigma of the relative attitude
+};
+
+struct LatencyHud {
+  double p50_ms = kHudUnknown, p99_ms = kHudUnknown;  // mid-exposure to the stage
+};
+
+// Everything the HUD shows, filled by the pipeline's owner. NaN: not known (shown as "-").
+struct HudState {
+  std::array<double, 2> fps = {kHudUnknown, kHudUnknown};       // frames per second delivered, per camera
+  double skew_p50_ms = kHudUnknown, skew_p99_ms = kHudUnknown;  // |left - right| mid-exposure of the pairs
+  std::array<std::uint64_t, 5> drops{};  // by recorder::DropStage, in kAllDropStages order
+  NavHud nav;
+  std::optional<OcclusionStats> occlusion;  // the current frame's (also plotted over time)
+  LatencyHud latency_display, latency_recorder;
+  bool recording = false;
+  std::string recording_path;
+  bool paused = false;
+  DisplayBoomMode boom_mode = DisplayBoomMode::kFixed;
+  std::vector<std::string> messages;  // faults in plain words: "left camera lost 0.6 s ago"
+  bool stale_pose = false;            // the receiver pose is older than the pipeline allows
+};
+
+// One call's input. Pointers are not owned and need only live during the frame() call.
+struct DisplayInput {
+  // Changes whenever the images (and masks) change; the same id again re-draws without uploading.
+  std::uint64_t frame_id = 0;
+  std::array<const Image*, 2> images{};  // augmented, any PixelFormat; null: no image yet
+  std::array<const Image*, 2> masks{};   // Mono8 (kMaskBoom | kMaskReceiver), image-sized; may be null
+  const Rig* rig = nullptr;              // null: no world view, no validation overlay
+  SceneState scene;                      // boom articulation and the receiver, as augmented
+  // The receiver's fused pose (tanker body frame) for the truth-validation overlay; unset: the scene's.
+  std::optional<Pose> validation_T_body_receiver;
+  HudState hud;
+};
+
+// Fills images, masks, the scene and the current occlusion from an augmented stereo frame; `result`
+// must outlive the frame() call.
+DisplayInput display_input(const StereoResult& result, const Rig& rig, const SceneState& scene,
+                           std::uint64_t frame_id);
+
+// Boom nudges from the arrow keys or a joystick (summed since the last poll), in the boom's
+// articulation units. The owner adds them to the interactive boom and clamps to the rig's limits.
+struct BoomNudge {
+  double elevation_rad = 0, azimuth_rad = 0, extension_m = 0;
+  bool any() const { return elevation_rad != 0 || azimuth_rad != 0 || extension_m != 0; }
+};
+
+// What the user asked for since the last poll_commands(). The owner acts on the first block; the
+// second reports what the display did itself.
+struct DisplayCommands {
+  std::optional<DisplayBoomMode> boom_mode;  // a nudge while not interactive also selects kInteractive
+  BoomNudge boom_nudge;
+  bool toggle_recording = false;
+  bool toggle_pause = false;
+  bool quit = false;  // the window is closing: frame() returns false from now on
+
+  std::vector<std::string> screenshots;     // PNGs written
+  std::optional<std::string> clip_started;  // folder the clip's numbered PNGs go to
+  std::optional<std::string> clip_stopped;  // that folder, when the clip ended (key, or its length)
+  std::optional<MaskOverlay> mask_overlay;  // the overlay was changed to this
+  std::vector<std::string> errors;          // e.g. a screenshot could not be written
+};
+
+struct DisplayOptions {
+  int width = 1600;  // window size in screen coordinates (scaled on HiDPI monitors)
+  int height = 1000;
+  std::string title = "augrig";
+  bool visible = true;
+  std::string screenshot_dir = ".";   // screenshots and clip folders (created when missing)
+  int clip_max_frames = 150;          // a clip stops by itself after this many frames
+  int world_view_max_px = 640 * 480;  // pixel budget of the world view's offscreen render
+  double plot_seconds = 10.0;         // occlusion history shown
+  double frustum_depth_m = 25.0;      // world view: frusta and image quads this far (<= far plane)
+  double hud_refresh_s = 0.25;        // redraw at least this often for the HUD, even with no new frame
+  // Models drawn in the world view (and the validation overlay); null: the built-in ones.
+  std::shared_ptr<const BoomModel> boom_model;
+  std::shared_ptr<const Model> receiver_model;
+};
+
+// Rectangle in framebuffer pixels, origin at the top-left of the window.
+struct PixelRect {
+  int x = 0, y = 0, w = 0, h = 0;
+  bool empty() const { return w <= 0 || h <= 0; }
+  bool contains(double px, double py) const { return px >= x && py >= y && px < x + w && py < y + h; }
+};
+
+// Where the last frame put things, in framebuffer pixels (what a screenshot holds).
+struct DisplayLayout {
+  int framebuffer_w = 0, framebuffer_h = 0;
+  float content_scale = 1.0f;
+  std::array<PixelRect, 2> views;  // the images' rectangles (aspect kept): image pixel (u, v) centre
+                                   // lies at x + (u + 0.5) * w / image_width, likewise y
+  PixelRect world;                 // the world view
+  PixelRect hud;                   // the status panel
+  PixelRect help;                  // the help overlay; empty when hidden
+};
+
+// Every shortcut, as the help overlay and docs/DISPLAY.md list them: {keys, what}.
+struct Shortcut {
+  const char* keys;
+  const char* action;
+};
+const std::vector<Shortcut>& display_shortcuts();
+
+class Display {
+ public:
+  // Opens the window (needs a display: X11 or Wayland; xvfb-run in CI). Errors say what failed.
+  static Expected<std::unique_ptr<Display>> create(const DisplayOptions& options = {});
+  virtual ~Display() = default;
+
+  // Handles input; when anything changed, draws everything, writes a pending screenshot or clip
+  // frame and swaps (else returns at once: the caller paces its loop). Returns false once the
+  // window was closed (close button, Q, or glfwSetWindowShouldClose).
+  virtual bool frame(const DisplayInput& input) = 0;
+  // Returns and clears what the user asked for since the last call.
+  virtual DisplayCommands poll_commands() = 0;
+
+  // The actions the shortcuts and the HUD's buttons trigger (exposed for owners and tests).
+  virtual void request_screenshot() = 0;  // written by the next frame()
+  virtual void toggle_clip() = 0;
+  virtual void set_mask_overlay(MaskOverlay m) = 0;
+  virtual MaskOverlay mask_overlay() const = 0;
+  virtual void set_validation_overlay(bool on) = 0;
+  virtual bool validation_overlay() const = 0;
+  virtual void set_help_visible(bool on) = 0;
+  virtual bool help_visible() const = 0;
+  virtual bool clip_recording() const = 0;
+  virtual std::uint64_t frames_drawn() const = 0;  // frame() calls that redrew the window
+
+  virtual const DisplayLayout& layout() const = 0;
+  virtual GLFWwindow* window() = 0;
+};
+
+}  // namespace augrig::app
