@@ -1,16 +1,21 @@
 // augrig cameras: what capture devices this machine sees.
 // augrig run: the live pipeline from source URIs: capture (a thread per camera) -> pairing (clock
-// offsets estimated per camera) -> pose -> augmentation -> statistics and recorder, headless.
+// offsets estimated per camera) -> pose -> augmentation -> statistics and recorder; with a display, the
+// live window on the main thread and the pipeline on a worker.
+#include <algorithm>
 #include <atomic>
 #include <csignal>
+#include <cstdlib>
 #include <deque>
 #include <iomanip>
 #include <map>
+#include <mutex>
 #include <sstream>
 #include <thread>
 
 #include "app/cli.hpp"
 #include "app/commands.hpp"
+#include "app/display.hpp"
 #include "app/scene_file.hpp"
 #include "app/sources.hpp"
 #include "capture/aravis_source.hpp"
@@ -98,7 +103,7 @@ const std::vector<OptionSpec>& run_specs() {
       {"nav", ArgKind::kValue, "STREAM=URI,...",
        "live nav inputs recorded as received, e.g. tanker.gps=udp://0.0.0.0:10110?format=nmea,"
        "tanker.imu=udp://0.0.0.0:10111?format=imu,receiver.gps=gpsd://127.0.0.1 (docs/NAV_LIVE.md)"},
-      {"headless", ArgKind::kFlag, "", "no window (the live display is not built yet: always headless)"},
+      {"headless", ArgKind::kFlag, "", "no window even when a display is present (docs/DISPLAY.md)"},
       {"status-every", ArgKind::kValue, "S", "print a status line every S seconds (default 1; 0: never)"},
   };
   return specs;
@@ -119,6 +124,38 @@ std::optional<SimTruth> sim_truth(const std::string& scenario_name) {
   for (const sim::FrameTruth& f : sim::frame_truths(*s, *flight, logs.cameras))
     t.by_frame[{f.camera, f.t_camera_ns}] = f;
   return t;
+}
+
+// The last frames' latencies (ms) for the HUD's p50/p99.
+class RollingLatency {
+ public:
+  void add(double ms) {
+    if (values_.size() == 300) values_.erase(values_.begin());
+    values_.push_back(ms);
+  }
+  LatencyHud hud() const {
+    LatencyHud h;
+    if (values_.empty()) return h;
+    std::vector<double> v = values_;
+    std::sort(v.begin(), v.end());
+    h.p50_ms = v[v.size() / 2];
+    h.p99_ms = v[std::min(v.size() - 1, v.size() * 99 / 100)];
+    return h;
+  }
+
+ private:
+  std::vector<double> values_;
+};
+
+TimestampNs monotonic_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+// When the later of a pair's frames became available on the host (0: unknown).
+TimestampNs pair_available_ns(const StereoFrame& f) {
+  return f.left.t_host_ns > 0 && f.right.t_host_ns > 0 ? std::max(f.left.t_host_ns, f.right.t_host_ns) : 0;
 }
 
 std::string fmt_us(std::int64_t ns) {
@@ -280,15 +317,48 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     csv.emplace(fs::path(a.get("out")) / "stats.csv");
   }
 
-  const auto gl = make_gl_context();
-  AugmentOptions aug_options;
-  aug_options.receiver_model = receiver.model;
-  const auto augmenter = unwrap(Augmenter::create(*rig, aug_options));
   const bool lossless = opened.options.lossless;
   auto stereo = unwrap(start_stereo(std::move(opened)));
   out << "run: " << stereo->uri() << (lossless ? " (lockstep)" : " (live)") << "; rig " << rig->source
       << "; scene " << (fixed_scene ? a.get("scene") : std::string("simulation truth"))
       << (rec ? "; recording to " + rec->path() : std::string()) << "\n";
+
+  // The window, when a display is present and --headless was not given.
+  // The window runs on this thread; the pipeline (augmentation, recording) on a worker with its
+  // own EGL context, handing over each augmented pair (by swap) and the HUD, and taking commands.
+  std::unique_ptr<Display> display;
+  struct Shared {
+    std::mutex mutex;
+    StereoResult result;
+    SceneState scene;
+    std::uint64_t id = 0;
+    HudState hud;
+    DisplayCommands commands;  // from the window, for the pipeline
+    bool done = false;
+  } shared;
+  if (!a.has("headless") && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) {
+    DisplayOptions dopt;
+    dopt.screenshot_dir = a.has("out") ? a.get("out") : ".";
+    dopt.receiver_model = receiver.model;
+    auto d = Display::create(dopt);
+    if (d) {
+      display = std::move(*d);
+      out << "run: live display open (F1 lists the keys)\n";
+    } else {
+      err << "augrig run: no window: " << user_message(d.error()) << "; running headless\n";
+    }
+  }
+  bool recording_on = rec != nullptr, paused = false;
+  DisplayBoomMode boom_mode = !boom_arg ? DisplayBoomMode::kFixed
+                              : boom_arg->mode == BoomMode::kTrackReceptacle
+                                  ? DisplayBoomMode::kTrackReceptacle
+                              : boom_arg->mode == BoomMode::kScripted ? DisplayBoomMode::kScripted
+                                                                      : DisplayBoomMode::kFixed;
+  std::optional<BoomArticulation> interactive_boom;
+  RollingLatency latency_display, latency_recorder;
+  std::uint64_t shown_id = 0;
+  SceneState shown_scene;
+  bool have_shown = false;
 
   g_stop = false;
   std::signal(SIGINT, on_stop_signal);
@@ -307,92 +377,239 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     out << "  " << text << "\n";
     if (rec) rec->push(recorder::EventRecord{0, ClockDomain::kHostMonotonic, text});
   };
-  for (;;) {
-    if (g_stop) {
-      out << "run: stopped by signal\n";
-      break;
-    }
-    if (duration_s > 0 && std::chrono::duration<double>(Clock::now() - t0).count() >= duration_s) break;
-    StereoFrame frame;
-    auto r = stereo->read(frame, std::chrono::milliseconds(200));
-    // Camera state changes are events: printed, and recorded with the frames.
-    const std::vector<SourceHealth> health = stereo->health();
-    for (std::size_t i = 0; i < health.size(); ++i)
-      if (health[i].message != last_health[i]) {
-        if (!last_health[i].empty() || !health[i].connected) log_event(health[i].message);
-        last_health[i] = health[i].message;
+  // The pipeline: its GL context and augmenter live on the thread that runs it.
+  auto pipeline = [&] {
+    const auto gl = make_gl_context();
+    AugmentOptions aug_options;
+    aug_options.receiver_model = receiver.model;
+    const auto augmenter = unwrap(Augmenter::create(*rig, aug_options));
+    for (;;) {
+      if (g_stop) {
+        out << "run: stopped by signal\n";
+        break;
       }
-    if (!r) {
-      err << "augrig run: " << user_message(r.error()) << "\n";
-      source_failed = true;
-      break;
-    }
-    if (*r == ReadStatus::kEndOfStream) break;
-    if (*r == ReadStatus::kFrame) {
-      if (!first_t_ns) first_t_ns = frame.left.t_ns;
-      std::optional<SceneState> scene = fixed_scene;
-      if (!scene) {
-        const auto it = truth->by_frame.find({index_of(frame.left.camera), frame.left.t_ns});
-        if (it != truth->by_frame.end())
-          scene = SceneState{it->second.boom, it->second.T_body_receiver, true};
-      }
-      if (!scene) {
-        ++no_pose;
-      } else {
-        if (boom_arg) {
-          const BoomCommand tracked = track_point(scene->T_body_receiver * receiver.receptacle_m,
-                                                  rig->boom.pivot_body_m, boom_dims, rig->boom.limits);
-          scene->boom = boom_arg->command(ns_to_s(frame.left.t_ns - first_t_ns), tracked, rig->boom.limits)
-                            .articulation;
+      if (duration_s > 0 && std::chrono::duration<double>(Clock::now() - t0).count() >= duration_s) break;
+      StereoFrame frame;
+      auto r = stereo->read(frame, std::chrono::milliseconds(200));
+      // Camera state changes are events: printed, and recorded with the frames.
+      const std::vector<SourceHealth> health = stereo->health();
+      for (std::size_t i = 0; i < health.size(); ++i)
+        if (health[i].message != last_health[i]) {
+          if (!last_health[i].empty() || !health[i].connected) log_event(health[i].message);
+          last_health[i] = health[i].message;
         }
-        if (Status s = augmenter->augment(frame, *scene, result); !s) {
-          ++processing_drops;
-          err << "augrig run: frame " << frame.pair_sequence << ": " << user_message(s.error()) << "\n";
+      if (!r) {
+        err << "augrig run: " << user_message(r.error()) << "\n";
+        source_failed = true;
+        break;
+      }
+      if (*r == ReadStatus::kEndOfStream) break;
+      if (*r == ReadStatus::kFrame) {
+        if (!first_t_ns) first_t_ns = frame.left.t_ns;
+        std::optional<SceneState> scene = fixed_scene;
+        if (!scene) {
+          const auto it = truth->by_frame.find({index_of(frame.left.camera), frame.left.t_ns});
+          if (it != truth->by_frame.end())
+            scene = SceneState{it->second.boom, it->second.T_body_receiver, true};
+        }
+        if (!scene) {
+          ++no_pose;
         } else {
-          augment_ms += augmenter->timings().total_ms;
-          result.stats.t_ns = frame.t_key_ns;
-          if (csv) csv->add(result.stats);
-          if (every && all.size() % static_cast<std::size_t>(every) == 0) {
-            std::ostringstream stem;
-            stem << std::setw(6) << std::setfill('0') << frame.pair_sequence;
-            write_frame_outputs(a.get("out"), {stem.str(), stem.str()}, result);
+          {
+            // The boom: the scene's, the --boom mode's, or the operator's (display commands).
+            const BoomCommand tracked = track_point(scene->T_body_receiver * receiver.receptacle_m,
+                                                    rig->boom.pivot_body_m, boom_dims, rig->boom.limits);
+            const double t_s = ns_to_s(frame.left.t_ns - first_t_ns);
+            switch (boom_mode) {
+              case DisplayBoomMode::kTrackReceptacle:
+                scene->boom = tracked.articulation;
+                break;
+              case DisplayBoomMode::kScripted:
+              case DisplayBoomMode::kFixed:
+                if (boom_arg &&
+                    (boom_mode == DisplayBoomMode::kScripted) == (boom_arg->mode == BoomMode::kScripted))
+                  scene->boom = boom_arg->command(t_s, tracked, rig->boom.limits).articulation;
+                break;
+              case DisplayBoomMode::kInteractive:
+                if (!interactive_boom) interactive_boom = scene->boom;
+                scene->boom = *interactive_boom;
+                break;
+            }
           }
-          if (rec) {
-            recorder::FrameRecord fr;
-            fr.raw = std::move(frame);
-            fr.augmented = {result.left.augmented, result.right.augmented};
-            fr.mask = {result.left.mask, result.right.mask};
-            fr.T_body_receiver = scene->T_body_receiver;
-            fr.receiver_present = scene->receiver_present;
-            for (int c = 0; c < 2; ++c)
-              fr.T_cam_receiver[c] = rig->cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
-            fr.boom = scene->boom;
-            fr.stats = result.stats;
-            rec->push(std::move(fr));
+          if (Status s = augmenter->augment(frame, *scene, result); !s) {
+            ++processing_drops;
+            err << "augrig run: frame " << frame.pair_sequence << ": " << user_message(s.error()) << "\n";
+          } else {
+            augment_ms += augmenter->timings().total_ms;
+            result.stats.t_ns = frame.t_key_ns;
+            if (csv) csv->add(result.stats);
+            if (every && all.size() % static_cast<std::size_t>(every) == 0) {
+              std::ostringstream stem;
+              stem << std::setw(6) << std::setfill('0') << frame.pair_sequence;
+              write_frame_outputs(a.get("out"), {stem.str(), stem.str()}, result);
+            }
+            if (!paused) {
+              shown_id++;
+              shown_scene = *scene;
+              have_shown = true;
+              if (const TimestampNs t = pair_available_ns(frame))
+                latency_display.add((monotonic_ns() - t) / 1e6);
+            }
+            if (rec && recording_on) {
+              if (const TimestampNs t = pair_available_ns(frame))
+                latency_recorder.add((monotonic_ns() - t) / 1e6);
+              recorder::FrameRecord fr;
+              fr.raw = std::move(frame);
+              fr.augmented = {result.left.augmented, result.right.augmented};
+              fr.mask = {result.left.mask, result.right.mask};
+              fr.T_body_receiver = scene->T_body_receiver;
+              fr.receiver_present = scene->receiver_present;
+              for (int c = 0; c < 2; ++c)
+                fr.T_cam_receiver[c] = rig->cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
+              fr.boom = scene->boom;
+              fr.stats = result.stats;
+              rec->push(std::move(fr));
+            }
+            all.push_back(result.stats);
           }
-          all.push_back(result.stats);
+        }
+      }
+      if (display) {
+        // Hand the last augmented pair (frozen while paused) and the HUD to the window; take its
+        // commands.
+        const StereoSourceStats st = stereo->stats();
+        const double t = std::max(1e-9, std::chrono::duration<double>(Clock::now() - t0).count());
+        HudState hud;
+        hud.fps = {st.frames[0] / t, st.frames[1] / t};
+        if (st.pairing.skew.count) {
+          hud.skew_p50_ms = st.pairing.skew.p50_abs_ns() / 1e6;
+          hud.skew_p99_ms = st.pairing.skew.p99_abs_ns() / 1e6;
+        }
+        hud.drops = {st.camera_drops, st.transport_drops,
+                     st.pairing.unpaired_left + st.pairing.unpaired_right,
+                     st.queue_drops[0] + st.queue_drops[1] + no_pose + processing_drops,
+                     rec ? rec->stats().frames_dropped : 0};
+        hud.nav.status = fixed_scene ? "fixed scene (no nav)" : "simulation truth";
+        hud.nav.fix = fixed_scene ? nav::FixQuality::kInvalid : nav::FixQuality::kRtkFixed;
+        if (!fixed_scene) hud.nav.age_s = 0;
+        hud.latency_display = latency_display.hud();
+        hud.latency_recorder = latency_recorder.hud();
+        hud.recording = rec && recording_on;
+        hud.recording_path = rec ? rec->path() : "";
+        hud.paused = paused;
+        hud.boom_mode = boom_mode;
+        for (const SourceHealth& h : stereo->health())
+          if (!h.connected) hud.messages.push_back(h.message);
+        if (rec && !rec->status())
+          hud.messages.push_back("recording stopped: " + user_message(rec->status().error()));
+        DisplayCommands c;
+        {
+          std::lock_guard lock(shared.mutex);
+          if (have_shown && shared.id != shown_id) {
+            std::swap(shared.result, result);
+            shared.scene = shown_scene;
+            shared.id = shown_id;
+          }
+          shared.hud = std::move(hud);
+          c = std::move(shared.commands);
+          shared.commands = {};
+        }
+        if (c.quit) g_stop = true;
+        if (c.toggle_pause) paused = !paused;
+        if (c.toggle_recording && rec) {
+          recording_on = !recording_on;
+          log_event(recording_on ? "recording resumed" : "recording paused");
+        }
+        if (c.boom_mode) boom_mode = *c.boom_mode;
+        if (c.boom_nudge.any() && interactive_boom) {
+          BoomArticulation b = *interactive_boom;
+          b.elevation_rad += c.boom_nudge.elevation_rad;
+          b.azimuth_rad += c.boom_nudge.azimuth_rad;
+          b.extension_m += c.boom_nudge.extension_m;
+          interactive_boom = clamp_to_limits(b, rig->boom.limits).articulation;
+        }
+      }
+      if (status_s > 0 && Clock::now() >= next_status) {
+        next_status += std::chrono::duration<double>(status_s);
+        const StereoSourceStats st = stereo->stats();
+        const double t = std::chrono::duration<double>(Clock::now() - t0).count();
+        out << "  t " << std::fixed << std::setprecision(1) << t << " s: " << all.size() << " pairs ("
+            << std::setprecision(1) << all.size() / std::max(t, 1e-9) << "/s), skew p50/p99 "
+            << fmt_us(st.pairing.skew.p50_abs_ns()) << "/" << fmt_us(st.pairing.skew.p99_abs_ns())
+            << " us, drops camera " << st.camera_drops << " transport " << st.transport_drops << " pairing "
+            << st.pairing.unpaired_left + st.pairing.unpaired_right << " queue "
+            << st.queue_drops[0] + st.queue_drops[1] << "\n";
+        for (const ClockOffsetLog& c : st.clocks) {
+          std::ostringstream e;
+          e << "clock_offset camera=" << to_string(c.camera) << " t_device_ns=" << c.t_device_ns
+            << " offset_ns=" << c.offset_ns << " drift_ppm=" << std::setprecision(3) << c.drift_ppm
+            << " uncertainty_ns=" << c.uncertainty_ns << " samples=" << c.samples << " resets=" << c.resets;
+          if (rec) rec->push(recorder::EventRecord{c.t_host_ns, ClockDomain::kHostMonotonic, e.str()});
         }
       }
     }
-    if (status_s > 0 && Clock::now() >= next_status) {
-      next_status += std::chrono::duration<double>(status_s);
-      const StereoSourceStats st = stereo->stats();
-      const double t = std::chrono::duration<double>(Clock::now() - t0).count();
-      out << "  t " << std::fixed << std::setprecision(1) << t << " s: " << all.size() << " pairs ("
-          << std::setprecision(1) << all.size() / std::max(t, 1e-9) << "/s), skew p50/p99 "
-          << fmt_us(st.pairing.skew.p50_abs_ns()) << "/" << fmt_us(st.pairing.skew.p99_abs_ns())
-          << " us, drops camera " << st.camera_drops << " transport " << st.transport_drops << " pairing "
-          << st.pairing.unpaired_left + st.pairing.unpaired_right << " queue "
-          << st.queue_drops[0] + st.queue_drops[1] << "\n";
-      for (const ClockOffsetLog& c : st.clocks) {
-        std::ostringstream e;
-        e << "clock_offset camera=" << to_string(c.camera) << " t_device_ns=" << c.t_device_ns
-          << " offset_ns=" << c.offset_ns << " drift_ppm=" << std::setprecision(3) << c.drift_ppm
-          << " uncertainty_ns=" << c.uncertainty_ns << " samples=" << c.samples << " resets=" << c.resets;
-        if (rec) rec->push(recorder::EventRecord{c.t_host_ns, ClockDomain::kHostMonotonic, e.str()});
+  };
+  std::vector<std::string> screenshots;
+  if (!display) {
+    pipeline();
+  } else {
+    std::optional<CommandError> failed;
+    std::thread worker([&] {
+      try {
+        pipeline();
+      } catch (const CommandError& e) {
+        failed = e;
+      } catch (const std::exception& e) {
+        failed = CommandError{kExitRuntime, std::string("internal error: ") + e.what()};
       }
+      std::lock_guard lock(shared.mutex);
+      shared.done = true;
+    });
+    // The window's loop, about 60 times a second; it never waits for the pipeline.
+    StereoResult shown;
+    SceneState scene;
+    std::uint64_t id = 0;
+    for (;;) {
+      DisplayInput in;
+      {
+        std::lock_guard lock(shared.mutex);
+        if (shared.done) break;
+        if (shared.id != id) {
+          std::swap(shared.result, shown);
+          scene = shared.scene;
+          id = shared.id;
+        }
+        in.hud = shared.hud;
+      }
+      if (id) {
+        HudState hud = std::move(in.hud);
+        in = display_input(shown, *rig, scene, id);
+        in.hud = std::move(hud);
+      }
+      in.rig = &*rig;
+      const bool open = display->frame(in);
+      DisplayCommands c = display->poll_commands();
+      for (const std::string& shot : c.screenshots) screenshots.push_back(shot);
+      if (!open) c.quit = true;
+      {
+        std::lock_guard lock(shared.mutex);
+        DisplayCommands& q = shared.commands;
+        q.quit = q.quit || c.quit;
+        q.toggle_pause = q.toggle_pause != c.toggle_pause;
+        q.toggle_recording = q.toggle_recording != c.toggle_recording;
+        if (c.boom_mode) q.boom_mode = c.boom_mode;
+        q.boom_nudge.elevation_rad += c.boom_nudge.elevation_rad;
+        q.boom_nudge.azimuth_rad += c.boom_nudge.azimuth_rad;
+        q.boom_nudge.extension_m += c.boom_nudge.extension_m;
+      }
+      if (c.quit) g_stop = true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(16));
     }
+    worker.join();
+    display.reset();
+    if (failed) throw *failed;
   }
+  for (const std::string& shot : screenshots) out << "screenshot " << shot << "\n";
   stereo->stop();
   nav_inputs.stop();
   const double wall_s = std::chrono::duration<double>(Clock::now() - t0).count();

@@ -149,6 +149,30 @@ TEST(CmdRun, RecordsLiveNavInputsAsReceived) {
   EXPECT_EQ(imu_datagrams, 1);
 }
 
+// With a display (Xvfb here) and no --headless, run opens the live window and drives it from the
+// pipeline's own thread; the run ends and summarises as headless.
+TEST(CmdRun, OpensTheLiveWindowWhenADisplayIsPresent) {
+  if (run_command("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run is not installed";
+  const std::string dir = output_dir("cmd_run_window");
+  std::string out;
+  ASSERT_EQ(
+      run_command("xvfb-run -a " + augrig_binary() + " run --source 'sim://demo?rate=0&every=90' --out " +
+                      dir + " --status-every 0 2>&1",
+                  &out),
+      0)
+      << out;
+  EXPECT_TRUE(contains(out, "live display open")) << out;
+  EXPECT_TRUE(contains(out, "stereo frames augmented")) << out;
+  out.clear();
+  ASSERT_EQ(
+      run_command("xvfb-run -a " + augrig_binary() +
+                      " run --headless --source 'sim://demo?rate=0&every=300' " + "--status-every 0 2>&1",
+                  &out),
+      0)
+      << out;
+  EXPECT_FALSE(contains(out, "live display open")) << "--headless keeps it headless";
+}
+
 TEST(CmdRun, BadSourcesAndFlagsSayWhatIsWrong) {
   struct Case {
     std::string args;
