@@ -320,13 +320,18 @@ TEST(AravisSource, KilledCameraIsReportedWithinOneSecondAndReconnects) {
   if (!test::ensure_loopback_address("127.0.0.2", &why)) GTEST_SKIP() << why;
   test::FakeGvProcess proc("127.0.0.1", "AUGKILL");
   ASSERT_TRUE(proc.start()) << "arv-fake-gv-camera-0.8 did not start";
-  FakeGvCamera other_fake("127.0.0.2", "AUGOTHER");
-  ASSERT_TRUE(other_fake.running());
+  // The other camera is a process of its own too, as real cameras are: its sending is not starved
+  // by this process's threads.
+  test::FakeGvProcess other_fake("127.0.0.2", "AUGOTHER");
+  ASSERT_TRUE(other_fake.start()) << "arv-fake-gv-camera-0.8 did not start on 127.0.0.2";
 
   AravisOptions o;
   o.device = "127.0.0.1";
   o.roi = RegionOfInterest{0, 0, 320, 240};
   o.frame_rate_hz = 25;
+  // Plain UDP sockets: with Aravis 0.8.26's packet socket, the other camera's stream stopped getting
+  // buffers (underruns only) in about 1 run in 4 here while this camera was killed (docs/CAPTURE.md).
+  o.packet_socket = false;
   auto src = AravisSource::open(o);
   ASSERT_TRUE(src) << src.error().message;
   o.device = "AUGOTHER";
@@ -367,7 +372,13 @@ TEST(AravisSource, KilledCameraIsReportedWithinOneSecondAndReconnects) {
     ASSERT_TRUE(r);
     EXPECT_EQ(*r, ReadStatus::kTimeout);
   }
-  EXPECT_GT(other_frames.load(), other_before + 5) << "the other camera went on";
+  {
+    const AravisStats os = (*other)->stats();
+    EXPECT_GT(other_frames.load(), other_before + 5)
+        << "the other camera went on (its stats: frames " << os.frames << ", transport drops "
+        << os.transport_drops << ", camera drops " << os.camera_drops << ", underruns " << os.underruns
+        << ", missing packets " << os.missing_packets << ")";
+  }
   std::printf("the other camera delivered %d frames during the outage\n", other_frames.load() - other_before);
 
   ASSERT_TRUE(proc.start());
