@@ -5,12 +5,12 @@
 //   boom       tracks the receptacle from the fused relative pose, within its limits;
 //   cameras    frames rendered from the truth, paired by timestamp like live capture;
 //   augment    every selected stereo frame, with statistics; the pose error against truth.
+#include <cstdlib>
+#include <fstream>
 #include <optional>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
-
-#include <fstream>
 
 #include "app/cli.hpp"
 #include "app/flight_nav.hpp"
@@ -37,6 +37,10 @@ const std::vector<OptionSpec>& demo_specs() {
       {"bayer", ArgKind::kOptionalValue, "[=RG|GR|GB|BG]", "simulate raw Bayer cameras (default pattern RG)"},
       {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
        "how the receiver shows in the augmented image (default mask: not drawn)"},
+      {"headless", ArgKind::kFlag, "",
+       "the batch demo even when a display is present (without it, a display opens the live window)"},
+      {"duration", ArgKind::kValue, "S",
+       "with the live window: stop after S seconds (default: the whole flight)"},
   };
   return specs;
 }
@@ -92,12 +96,28 @@ Frame next_frame(FrameSource& source, int stereo_index) {
   return f;
 }
 
-int demo(const std::vector<std::string>& args, std::ostream& out) {
+int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   const ParsedArgs a = parse_or_usage(args, demo_specs());
   if (a.help) {
     out << format_help(kDemoUsage, kDemoSummary, demo_specs());
     return kExitOk;
   }
+  // With a display: the simulated flight in real time through the live pipeline and its window,
+  // recording on (augrig run). Without one, or with --headless, the batch demo below.
+  if (!a.has("headless") && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) {
+    const fs::path out_dir = a.get("out");
+    std::vector<std::string> run_args = {
+        "--source", "sim://" + a.get("scenario", "demo") + "?every=" + a.get("every", "3"),
+        "--out",    out_dir.string(),
+        "--record", a.has("record") ? a.get("record") : (out_dir / "recording").string()};
+    for (const char* pass : {"boom", "duration"})
+      if (a.has(pass)) run_args.insert(run_args.end(), {std::string("--") + pass, a.get(pass)});
+    out << "demo: a display is present: the flight in real time in the live window (--headless for the batch "
+           "demo)\n";
+    return cmd_run(run_args, out, err);
+  }
+  if (a.has("duration"))
+    usage_error("--duration applies to the live window only (no display here, or --headless)");
   const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000)) : 3;
   const long long max_frames = a.has("frames") ? parse_integer("frames", a.get("frames"), 1, 1000000) : -1;
   const BoomArg boom_arg = parse_boom_arg(a.get("boom"));
@@ -146,7 +166,8 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
     // Keep only sequences both cameras delivered, so every selected frame pairs.
     std::map<std::uint64_t, int> cams;
     for (const auto& f : truths) cams[f.sequence] |= 1 << f.camera;
-    std::erase_if(truths, [&](const sim::FrameTruth& f) { return cams[f.sequence] != 3 || f.sequence % every; });
+    std::erase_if(truths,
+                  [&](const sim::FrameTruth& f) { return cams[f.sequence] != 3 || f.sequence % every; });
   }
   if (max_frames > 0 && truths.size() > 2 * static_cast<std::size_t>(max_frames))
     truths.erase(truths.begin(), truths.end() - 2 * max_frames);
@@ -169,8 +190,8 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
     recorder::RecordingInfo info;
     info.rig_yaml = rig_to_yaml(rig);
     if (auto text = sim::builtin_scenario_text(scenario.name)) info.scene = *text;
-    info.clock_domains = "frames: device (camera clocks; offsets to gps " + std::to_string(offsets[0]) + ", " +
-                         std::to_string(offsets[1]) + " ns); nav inputs: gps";
+    info.clock_domains = "frames: device (camera clocks; offsets to gps " + std::to_string(offsets[0]) +
+                         ", " + std::to_string(offsets[1]) + " ns); nav inputs: gps";
     info.extra["source"] = source->uri();
     rec = unwrap(recorder::Recorder::create(a.get("record"), info));
     for (const char* who : {"tanker", "receiver"}) {
@@ -200,7 +221,9 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
           if (!dropped++) first = f.t_camera_ns;
           last = f.t_camera_ns;
         }
-    if (dropped) rec->push(recorder::DropRecord{recorder::DropStage::kCamera, dropped, first, last, "the simulated cameras' drop model", "frame"});
+    if (dropped)
+      rec->push(recorder::DropRecord{recorder::DropStage::kCamera, dropped, first, last,
+                                     "the simulated cameras' drop model", "frame"});
   }
 
   StatsCsv csv(out_dir / "stats.csv");
@@ -231,8 +254,8 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
     const FramePose right = unwrap(rel.at(1, stereo.right.t_ns));
     SceneState scene;
     scene.T_body_receiver = left.body.T_a_receiver;
-    const BoomCommand boom = boom_arg.command(ns_to_s(stereo.left.t_ns - truths.front().t_camera_ns), left.boom,
-                                              rig.boom.limits);
+    const BoomCommand boom =
+        boom_arg.command(ns_to_s(stereo.left.t_ns - truths.front().t_camera_ns), left.boom, rig.boom.limits);
     scene.boom = boom.articulation;
     check(augmenter->augment(stereo, scene, result));
     augment_ms += augmenter->timings().total_ms;
@@ -262,7 +285,8 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
     const Eigen::Vector3d true_receptacle = tl.T_body_receiver * flight.receptacle_m();
     const double miss_m =
         (nozzle_tip_body(rig.boom.pivot_body_m, scenario.boom, scene.boom) - true_receptacle).norm();
-    if (boom_arg.mode == BoomMode::kTrackReceptacle && !left.boom.clamped) {  // the receptacle within the boom's reach: the miss is nav error
+    if (boom_arg.mode == BoomMode::kTrackReceptacle &&
+        !left.boom.clamped) {  // the receptacle within the boom's reach: the miss is nav error
       worst_miss_m = std::max(worst_miss_m, miss_m);
       ++reachable;
     }
@@ -300,31 +324,38 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
   write_ms += ms_since(t0);
 
   out << "\n" << format_run_summary(all) << "\n";
-  out << format_table1(all.back(), "Last frame, t = " + std::to_string(ns_to_s(all.back().t_ns)) + " s (GPS)");
+  out << format_table1(all.back(),
+                       "Last frame, t = " + std::to_string(ns_to_s(all.back().t_ns)) + " s (GPS)");
   out << "\nNav against truth (receiver in each camera): " << describe(compare_poses(est_rows, true_rows))
       << "\n";
   if (reachable > 0) {
     char line[200];
-    std::snprintf(line, sizeof line,
-                  "Boom tracking: in the %d frames with the receptacle within the boom's reach, the nozzle tip "
-                  "(aimed from nav) lies at most %.1f mm from the true receptacle\n",
-                  reachable, 1e3 * worst_miss_m);
+    std::snprintf(
+        line, sizeof line,
+        "Boom tracking: in the %d frames with the receptacle within the boom's reach, the nozzle tip "
+        "(aimed from nav) lies at most %.1f mm from the true receptacle\n",
+        reachable, 1e3 * worst_miss_m);
     out << line;
   }
   const double n = frames;
-  out << "\nTiming: simulation and logs " << fmt_ms(sim_ms) << " ms, nav fusion of both aircraft " << fmt_ms(nav_ms)
-      << " ms, camera rendering " << fmt_ms(render_ms / n) << " ms and augmenter " << fmt_ms(augment_ms / n)
-      << " ms per stereo frame, PNG writing " << fmt_ms(write_ms) << " ms in all, total "
-      << fmt_ms(ms_since(t_start) / 1000.0) << " s\n";
+  out << "\nTiming: simulation and logs " << fmt_ms(sim_ms) << " ms, nav fusion of both aircraft "
+      << fmt_ms(nav_ms) << " ms, camera rendering " << fmt_ms(render_ms / n) << " ms and augmenter "
+      << fmt_ms(augment_ms / n) << " ms per stereo frame, PNG writing " << fmt_ms(write_ms)
+      << " ms in all, total " << fmt_ms(ms_since(t_start) / 1000.0) << " s\n";
   pairer.flush();
   if (rec) {
     const std::uint64_t unpaired = pairer.stats().unpaired_left + pairer.stats().unpaired_right;
-    if (unpaired) rec->push(recorder::DropRecord{recorder::DropStage::kPairing, unpaired, 0, 0, "no stereo partner", "frame"});
+    if (unpaired)
+      rec->push(
+          recorder::DropRecord{recorder::DropStage::kPairing, unpaired, 0, 0, "no stereo partner", "frame"});
     const Status closed = rec->close();
     const recorder::RecorderStats rs = rec->stats();
     out << "Recording: " << rec->path() << ": " << rs.frames_committed << " stereo frames, "
-        << rs.nav_inputs_committed << " nav inputs, " << rs.frames_dropped << " frames dropped by the recorder";
-    if (rs.image_bytes) out << ", images compressed " << fmt_ms(double(rs.image_bytes) / double(std::max<std::uint64_t>(rs.stored_bytes, 1))) << ":1";
+        << rs.nav_inputs_committed << " nav inputs, " << rs.frames_dropped
+        << " frames dropped by the recorder";
+    if (rs.image_bytes)
+      out << ", images compressed "
+          << fmt_ms(double(rs.image_bytes) / double(std::max<std::uint64_t>(rs.stored_bytes, 1))) << ":1";
     out << (closed ? "" : " -- STOPPED: " + user_message(closed.error())) << "\n";
   }
   out << "Pairing: " << pairer.stats().pairs << " pairs, unpaired left " << pairer.stats().unpaired_left
@@ -338,7 +369,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out) {
 }  // namespace
 
 int cmd_demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  return guarded("demo", err, [&] { return demo(args, out); });
+  return guarded("demo", err, [&] { return demo(args, out, err); });
 }
 
 }  // namespace augrig::app

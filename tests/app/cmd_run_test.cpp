@@ -173,6 +173,25 @@ TEST(CmdRun, OpensTheLiveWindowWhenADisplayIsPresent) {
   EXPECT_FALSE(contains(out, "live display open")) << "--headless keeps it headless";
 }
 
+// augrig demo with a display: the simulated flight in real time in the live window, recording on.
+TEST(CmdRun, DemoOpensTheLiveWindowWhenADisplayIsPresent) {
+  if (run_command("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run is not installed";
+  const std::string dir = output_dir("cmd_run_demo_window");
+  std::string out;
+  ASSERT_EQ(
+      run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir + " --every 15 --duration 4 2>&1",
+                  &out),
+      0)
+      << out;
+  EXPECT_TRUE(contains(out, "the flight in real time in the live window")) << out;
+  EXPECT_TRUE(contains(out, "live display open")) << out;
+  EXPECT_TRUE(contains(out, "recorded ")) << out;
+  std::string check;
+  EXPECT_EQ(augrig("check " + dir + "/recording", &check), 0) << check;
+  // No display: the batch demo refuses the window-only flag.
+  EXPECT_EQ(augrig("demo --out " + dir + "/batch --headless --duration 4", &out), 2) << out;
+}
+
 TEST(CmdRun, BadSourcesAndFlagsSayWhatIsWrong) {
   struct Case {
     std::string args;
