@@ -20,6 +20,7 @@
 #include "app/sources.hpp"
 #include "capture/aravis_source.hpp"
 #include "capture/v4l2_source.hpp"
+#include "core/clock.hpp"
 #include "nav/live_input.hpp"
 #include "recorder/recorder.hpp"
 #include "sim/flight_source.hpp"
@@ -146,12 +147,6 @@ class RollingLatency {
  private:
   std::vector<double> values_;
 };
-
-TimestampNs monotonic_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
 
 // When the later of a pair's frames became available on the host (0: unknown).
 TimestampNs pair_available_ns(const StereoFrame& f) {
@@ -453,11 +448,11 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
               shown_scene = *scene;
               have_shown = true;
               if (const TimestampNs t = pair_available_ns(frame))
-                latency_display.add((monotonic_ns() - t) / 1e6);
+                latency_display.add((monotonic_now_ns() - t) / 1e6);
             }
             if (rec && recording_on) {
               if (const TimestampNs t = pair_available_ns(frame))
-                latency_recorder.add((monotonic_ns() - t) / 1e6);
+                latency_recorder.add((monotonic_now_ns() - t) / 1e6);
               recorder::FrameRecord fr;
               fr.raw = std::move(frame);
               fr.augmented = {result.left.augmented, result.right.augmented};

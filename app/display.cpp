@@ -249,13 +249,7 @@ class GlTexture {
   void upload(int w, int h, const std::uint8_t* rgba) {
     if (!id_ || w != w_ || h != h_) {
       reset();
-      glGenTextures(1, &id_);
-      glBindTexture(GL_TEXTURE_2D, id_);
-      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, w, h, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+      id_ = gl::make_rgba_texture(w, h);
       w_ = w, h_ = h;
     }
     glBindTexture(GL_TEXTURE_2D, id_);

@@ -1,11 +1,13 @@
 #include "app/sources.hpp"
 
+#include <limits>
 #include <thread>
 
 #include <time.h>
 
 #include "capture/aravis_source.hpp"
 #include "capture/v4l2_source.hpp"
+#include "core/clock.hpp"
 #include "recorder/replay_source.hpp"
 #include "render/gl_context.hpp"
 #include "sim/flight_source.hpp"
@@ -14,12 +16,6 @@
 
 namespace augrig::app {
 namespace {
-
-TimestampNs monotonic_now_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<TimestampNs>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 Error uri_error(const SourceUri& u, const std::string& what) {
   return make_error("source URI '", u.text, "': ", what);
@@ -103,13 +99,13 @@ Expected<std::unique_ptr<FrameSource>> open_camera(const SourceUri& u, CameraId 
     o.device = u.target;
     o.camera = camera;
     o.pixel_format = u.get("format");
-    for (const char* key : {"fps", "exposure_us", "gain"}) {
+    // Optional numbers: absent stays unset, a bad value is an error naming it.
+    for (auto [key, field] : {std::pair{"fps", &o.frame_rate_hz}, std::pair{"exposure_us", &o.exposure_us},
+                              std::pair{"gain", &o.gain}}) {
       if (!u.has(key)) continue;
       auto v = u.get_number(key, 0);
       if (!v) return v.error();
-      (std::string(key) == "fps"    ? o.frame_rate_hz
-       : std::string(key) == "gain" ? o.gain
-                                    : o.exposure_us) = *v;
+      *field = *v;
     }
     if (u.has("roi")) {
       RegionOfInterest r;
@@ -126,14 +122,15 @@ Expected<std::unique_ptr<FrameSource>> open_camera(const SourceUri& u, CameraId 
     }
     o.ptp = u.get("ptp", "0") == "1";
     o.packet_socket = u.get("packet_socket", "1") == "1";
-    for (const char* key : {"packet_size", "socket_buffer", "buffers"}) {
+    for (auto [key, field] :
+         {std::pair{"packet_size", &o.packet_size}, std::pair{"socket_buffer", &o.socket_buffer_bytes},
+          std::pair{"buffers", &o.buffers}}) {
       if (!u.has(key)) continue;
       auto v = u.get_integer(key, 0);
       if (!v) return v.error();
-      if (*v <= 0) return uri_error(u, std::string(key) + ": expected a positive integer");
-      (std::string(key) == "packet_size" ? o.packet_size
-       : std::string(key) == "buffers"   ? o.buffers
-                                         : o.socket_buffer_bytes) = static_cast<int>(*v);
+      if (*v <= 0 || *v > std::numeric_limits<int>::max())
+        return uri_error(u, std::string(key) + ": expected a positive integer");
+      *field = static_cast<int>(*v);
     }
     auto src = AravisSource::open(o);
     if (!src) return src.error();

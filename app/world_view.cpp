@@ -129,11 +129,7 @@ void main() {
 }
 )";
 
-struct Vertex {
-  float pos[3];
-  float normal[3];
-  float uv[2];
-};
+using gl::Vertex;
 
 Vertex vtx(const Eigen::Vector3d& p, float u = 0, float v = 0) {
   return {
@@ -215,13 +211,7 @@ struct WorldView::Gpu {
   }
   Status make_target(int w, int h) {
     destroy_target();
-    glGenTextures(1, &color);
-    glBindTexture(GL_TEXTURE_2D, color);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, w, h, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    color = gl::make_rgba_texture(w, h);
     glGenRenderbuffers(1, &depth);
     glBindRenderbuffer(GL_RENDERBUFFER, depth);
     glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, w, h);
@@ -292,15 +282,7 @@ Expected<std::unique_ptr<WorldView>> WorldView::create(std::shared_ptr<const Boo
   glBindVertexArray(g.dyn_vao);
   glGenBuffers(1, &g.dyn_vbo);
   glBindBuffer(GL_ARRAY_BUFFER, g.dyn_vbo);
-  glEnableVertexAttribArray(0);
-  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(Vertex),
-                        reinterpret_cast<void*>(offsetof(Vertex, pos)));
-  glEnableVertexAttribArray(1);
-  glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(Vertex),
-                        reinterpret_cast<void*>(offsetof(Vertex, normal)));
-  glEnableVertexAttribArray(2);
-  glVertexAttribPointer(2, 2, GL_FLOAT, GL_FALSE, sizeof(Vertex),
-                        reinterpret_cast<void*>(offsetof(Vertex, uv)));
+  gl::set_vertex_attributes();
   glBindVertexArray(0);
   if (const std::string e = gl::drain_errors(); !e.empty())
     return make_error("app::WorldView::create(): OpenGL error while uploading the models: ", e);

@@ -50,6 +50,7 @@
 #include <unistd.h>
 
 #include "capture/aravis_source.hpp"
+#include "core/clock.hpp"
 
 using namespace augrig;
 namespace fs = std::filesystem;
@@ -61,12 +62,6 @@ constexpr int kW = 1280, kH = 960;
 const char* g_address = "127.0.0.1";
 // GigE Vision bootstrap register SCPS0 (stream channel 0 packet size; the size in its low 16 bits).
 constexpr guint32 kScps0Register = 0x0d04;
-
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 // What the camera process tells the receiver, in a page both share (mapped before the fork).
 struct Shared {
@@ -121,7 +116,7 @@ void fill(ArvBuffer* buffer, void* data, guint32, guint32, ArvPixelFormat pixel_
   s.shared->packet_size.store(scps & 0xffff);
   s.shared->frames_filled.fetch_add(1);
   // Last: the fake camera sends the leader (with this timestamp) and the data right after.
-  arv_buffer_set_timestamp(buffer, static_cast<guint64>(monotonic_ns()));
+  arv_buffer_set_timestamp(buffer, static_cast<guint64>(monotonic_now_ns()));
 }
 
 // Starts the camera, tells the parent "OK" or "FAIL ..." on `status_fd`, then serves until the
@@ -163,9 +158,9 @@ std::string discover_serial(const char* address, int timeout_ms) {
   std::string serial;
   if (sendto(fd, cmd, sizeof cmd, 0, reinterpret_cast<const sockaddr*>(&to), sizeof to) == sizeof cmd) {
     pollfd p{fd, POLLIN, 0};
-    const std::int64_t until = monotonic_ns() + timeout_ms * 1'000'000LL;
-    while (serial.empty() && monotonic_ns() < until &&
-           poll(&p, 1, static_cast<int>((until - monotonic_ns()) / 1'000'000) + 1) == 1) {
+    const std::int64_t until = monotonic_now_ns() + timeout_ms * 1'000'000LL;
+    while (serial.empty() && monotonic_now_ns() < until &&
+           poll(&p, 1, static_cast<int>((until - monotonic_now_ns()) / 1'000'000) + 1) == 1) {
       std::uint8_t ack[600];
       const ssize_t n = recv(fd, ack, sizeof ack, 0);
       // Ack: status 0, DISCOVERY_ACK 0x0003, length, our id; the bootstrap registers follow, the
@@ -219,8 +214,8 @@ struct Child {
     command_fd = command_pipe[1];
     std::string status;
     pollfd p{status_pipe[0], POLLIN, 0};
-    const std::int64_t give_up = monotonic_ns() + 10'000'000'000LL;
-    while (status.find('\n') == std::string::npos && monotonic_ns() < give_up) {
+    const std::int64_t give_up = monotonic_now_ns() + 10'000'000'000LL;
+    while (status.find('\n') == std::string::npos && monotonic_now_ns() < give_up) {
       if (poll(&p, 1, 200) <= 0) continue;
       char b[256];
       const ssize_t n = read(status_pipe[0], b, sizeof b);
@@ -372,8 +367,8 @@ Result run_case(const Case& c, double seconds, double warmup_s, const std::strin
   r.camera_rate_hz = info.frame_rate_hz;
 
   Frame f;
-  const std::int64_t warm_end = monotonic_ns() + static_cast<std::int64_t>(warmup_s * 1e9);
-  while (monotonic_ns() < warm_end) {
+  const std::int64_t warm_end = monotonic_now_ns() + static_cast<std::int64_t>(warmup_s * 1e9);
+  while (monotonic_now_ns() < warm_end) {
     auto s = src.read(f, std::chrono::milliseconds(100));
     if (!s) {
       r.error = s.error().message;
@@ -383,11 +378,12 @@ Result run_case(const Case& c, double seconds, double warmup_s, const std::strin
   if (!drain(src, r)) return r;
   const AravisStats s0 = src.stats();
   const std::uint64_t sent0 = shared->frames_filled.load();
-  const std::int64_t cpu0 = process_cpu_ns(), cam0 = other_process_cpu_ns(camera_pid), t0 = monotonic_ns();
+  const std::int64_t cpu0 = process_cpu_ns(), cam0 = other_process_cpu_ns(camera_pid),
+                     t0 = monotonic_now_ns();
   const std::int64_t t_end = t0 + static_cast<std::int64_t>(seconds * 1e9);
   std::vector<std::int64_t> latency_ns;
   latency_ns.reserve(static_cast<std::size_t>(seconds * 1100) + 16);
-  while (monotonic_ns() < t_end) {
+  while (monotonic_now_ns() < t_end) {
     auto s = src.read(f, std::chrono::milliseconds(100));
     if (!s) {
       r.error = s.error().message;
@@ -395,7 +391,8 @@ Result run_case(const Case& c, double seconds, double warmup_s, const std::strin
     }
     if (*s == ReadStatus::kFrame) latency_ns.push_back(f.t_host_ns - f.t_ns);
   }
-  const std::int64_t t1 = monotonic_ns(), cpu1 = process_cpu_ns(), cam1 = other_process_cpu_ns(camera_pid);
+  const std::int64_t t1 = monotonic_now_ns(), cpu1 = process_cpu_ns(),
+                     cam1 = other_process_cpu_ns(camera_pid);
   const std::uint64_t sent1 = shared->frames_filled.load();
   r.packet_socket_used = holds_packet_socket();
   if (!drain(src, r)) return r;

@@ -14,18 +14,14 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "core/clock.hpp"
+
 namespace augrig {
 namespace {
 
 // A first frame may take longer than the stall limit: the camera starts its sensor, and a camera
 // just restarted (or a loaded host) may need a moment more.
 constexpr TimestampNs kFirstFrameGraceNs = 2'000'000'000;
-
-TimestampNs monotonic_now_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<TimestampNs>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 // GObject references released on scope exit.
 struct GObjectUnref {
@@ -396,13 +392,7 @@ Status AravisSource::Impl::connect() {
 void AravisSource::Impl::update_stream_counters() {
   if (!stream) return;
   ArvStream* s = stream.get();
-  auto get = [&](const char* name) -> std::uint64_t {
-    for (guint i = 0; i < arv_stream_get_n_infos(s); ++i)
-      if (std::strcmp(arv_stream_get_info_name(s, i), name) == 0 &&
-          arv_stream_get_info_type(s, i) == G_TYPE_UINT64)
-        return arv_stream_get_info_uint64(s, i);
-    return 0;
-  };
+  auto get = [s](const char* name) { return arv_stream_get_info_uint64_by_name(s, name); };
   std::lock_guard lock(mutex);
   stats.underruns = stream_base.underruns + get("n_underruns");
   stats.missing_packets = stream_base.missing_packets + get("n_missing_packets");

@@ -15,6 +15,8 @@
 #include <sys/mman.h>
 #include <turbojpeg.h>
 
+#include "core/clock.hpp"
+
 namespace augrig {
 namespace {
 
@@ -84,12 +86,6 @@ template <std::size_t N>
 std::string field_string(const __u8 (&s)[N]) {
   const auto* p = reinterpret_cast<const char*>(s);
   return std::string(p, strnlen(p, N));
-}
-
-TimestampNs host_monotonic_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<TimestampNs>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
 // Bytes one pixel takes in the V4L2 buffer (0: compressed).
@@ -729,7 +725,7 @@ bool V4l2Source::convert(const v4l2_buffer& buf, Frame& out) {
   std::swap(out.image, work_);
   out.t_ns = t_ns;
   out.clock = clock;
-  out.t_host_ns = host_monotonic_ns();
+  out.t_host_ns = monotonic_now_ns();
   out.sequence = sequence_;
   out.camera = options_.camera;
   out.exposure_ns = info_.exposure_ns;

@@ -10,12 +10,6 @@
 
 namespace augrig::nav {
 
-TimestampNs monotonic_now_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<TimestampNs>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 void NavInputStats::note(std::string message) {
   if (last_errors.size() >= kMaxErrors) last_errors.erase(last_errors.begin());
   last_errors.push_back(std::move(message));

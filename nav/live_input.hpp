@@ -27,6 +27,7 @@
 
 #include <Eigen/Core>
 
+#include "core/clock.hpp"
 #include "core/conventions.hpp"
 #include "core/expected.hpp"
 #include "nav/nmea.hpp"
@@ -35,8 +36,8 @@
 
 namespace augrig::nav {
 
-// CLOCK_MONOTONIC now, ns (ClockDomain::kHostMonotonic): the arrival clock of every live input.
-TimestampNs monotonic_now_ns();
+// monotonic_now_ns() (core/clock.hpp) is the arrival clock of every live input.
+using augrig::monotonic_now_ns;
 
 // One sample from a live input.
 struct NavEvent {

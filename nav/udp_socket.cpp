@@ -14,14 +14,10 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include "core/clock.hpp"
+
 namespace augrig::nav {
 namespace {
-
-TimestampNs now_monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<TimestampNs>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 std::string errno_text(int e) {
   return std::strerror(e);
@@ -63,9 +59,9 @@ Expected<addrinfo*> resolve(AddrInfo& holder, const std::string& host, std::uint
 
 // Waits for `fd` to become readable within `timeout`; false on timeout.
 Expected<bool> wait_readable(int fd, std::chrono::nanoseconds timeout, const std::string& prefix) {
-  const TimestampNs deadline = now_monotonic_ns() + std::max<std::int64_t>(timeout.count(), 0);
+  const TimestampNs deadline = monotonic_now_ns() + std::max<std::int64_t>(timeout.count(), 0);
   for (;;) {
-    const TimestampNs left = std::max<TimestampNs>(deadline - now_monotonic_ns(), 0);
+    const TimestampNs left = std::max<TimestampNs>(deadline - monotonic_now_ns(), 0);
     timespec ts{static_cast<time_t>(left / 1'000'000'000), static_cast<long>(left % 1'000'000'000)};
     pollfd p{fd, POLLIN, 0};
     const int rc = ppoll(&p, 1, &ts, nullptr);
@@ -186,7 +182,7 @@ UdpReceiver::~UdpReceiver() {
 
 Expected<bool> UdpReceiver::receive(UdpDatagram& out, std::chrono::nanoseconds timeout) {
   const std::string prefix = "nav::UdpReceiver::receive(): " + address_ + ": ";
-  const TimestampNs deadline = now_monotonic_ns() + std::max<std::int64_t>(timeout.count(), 0);
+  const TimestampNs deadline = monotonic_now_ns() + std::max<std::int64_t>(timeout.count(), 0);
   for (;;) {
     sockaddr_storage from{};
     iovec iov{buffer_.data(), buffer_.size()};
@@ -205,14 +201,14 @@ Expected<bool> UdpReceiver::receive(UdpDatagram& out, std::chrono::nanoseconds t
       if (errno != EAGAIN && errno != EWOULDBLOCK) {
         return make_error(prefix, "recvmsg() failed: ", errno_text(errno));
       }
-      const TimestampNs left = deadline - now_monotonic_ns();
+      const TimestampNs left = deadline - monotonic_now_ns();
       if (left <= 0) return false;
       auto ready = wait_readable(fd_, std::chrono::nanoseconds(left), prefix);
       if (!ready) return ready.error();
       if (!*ready) return false;
       continue;
     }
-    out.arrival_ns = now_monotonic_ns();
+    out.arrival_ns = monotonic_now_ns();
     out.size = static_cast<std::size_t>(n);
     out.oversized = out.size > options_.max_datagram_bytes;
     if (out.oversized) {

@@ -212,6 +212,22 @@ Expected<FrameRecord> RecordingReader::read_frame(std::size_t i, unsigned parts)
   return f;
 }
 
+// Steps a prepared statement to its end, turning each row into a T with `row(stmt, index)` (an
+// Expected<T>); errors name where and the row.
+template <typename T, typename Row>
+Expected<std::vector<T>> read_rows(sqlite3* db, Statement& st, const std::string& where, Row&& row) {
+  std::vector<T> out;
+  for (;;) {
+    const int rc = st.step();
+    if (rc == SQLITE_DONE) return out;
+    if (rc != SQLITE_ROW)
+      return make_error(where, "read stopped after ", out.size(), " rows: ", describe_sqlite_error(db, rc));
+    Expected<T> t = row(st.get(), out.size());
+    if (!t) return t.error();
+    out.push_back(std::move(*t));
+  }
+}
+
 Expected<std::vector<NavInputRecord>> RecordingReader::nav_inputs(
     const std::optional<std::string>& stream) const {
   const std::string where = "recorder::RecordingReader::nav_inputs(): " + impl_->path + ": ";
@@ -222,27 +238,20 @@ Expected<std::vector<NavInputRecord>> RecordingReader::nav_inputs(
   if (!st) return make_error(where, st.error().message);
   if (stream)
     sqlite3_bind_text(st->get(), 1, stream->data(), static_cast<int>(stream->size()), SQLITE_TRANSIENT);
-  std::vector<NavInputRecord> out;
-  for (;;) {
-    const int rc = st->step();
-    if (rc == SQLITE_DONE) break;
-    if (rc != SQLITE_ROW)
-      return make_error(where, "read stopped after ", out.size(),
-                        " rows: ", describe_sqlite_error(impl_->db.get(), rc));
-    sqlite3_stmt* s = st->get();
-    NavInputRecord n;
-    n.stream = column_text(s, 0);
-    n.t_ns = sqlite3_column_int64(s, 1);
-    if (!parse_clock_domain(column_text(s, 2), n.clock))
-      return make_error(where, "row ", out.size(), ": unknown clock domain \"", column_text(s, 2), "\"");
-    n.arrival_ns = sqlite3_column_int64(s, 3);
-    n.binary = sqlite3_column_type(s, 4) == SQLITE_BLOB;
-    const void* p =
-        n.binary ? sqlite3_column_blob(s, 4) : static_cast<const void*>(sqlite3_column_text(s, 4));
-    n.data.assign(static_cast<const char*>(p), static_cast<std::size_t>(sqlite3_column_bytes(s, 4)));
-    out.push_back(std::move(n));
-  }
-  return out;
+  return read_rows<NavInputRecord>(
+      impl_->db.get(), *st, where, [&](sqlite3_stmt* s, std::size_t i) -> Expected<NavInputRecord> {
+        NavInputRecord n;
+        n.stream = column_text(s, 0);
+        n.t_ns = sqlite3_column_int64(s, 1);
+        if (!parse_clock_domain(column_text(s, 2), n.clock))
+          return make_error(where, "row ", i, ": unknown clock domain \"", column_text(s, 2), "\"");
+        n.arrival_ns = sqlite3_column_int64(s, 3);
+        n.binary = sqlite3_column_type(s, 4) == SQLITE_BLOB;
+        const void* p =
+            n.binary ? sqlite3_column_blob(s, 4) : static_cast<const void*>(sqlite3_column_text(s, 4));
+        n.data.assign(static_cast<const char*>(p), static_cast<std::size_t>(sqlite3_column_bytes(s, 4)));
+        return n;
+      });
 }
 
 Expected<std::vector<DropRecord>> RecordingReader::drops() const {
@@ -250,47 +259,33 @@ Expected<std::vector<DropRecord>> RecordingReader::drops() const {
   auto st = Statement::prepare(
       impl_->db.get(), "SELECT stage, item, count, first_t_ns, last_t_ns, reason FROM drops ORDER BY id");
   if (!st) return make_error(where, st.error().message);
-  std::vector<DropRecord> out;
-  for (;;) {
-    const int rc = st->step();
-    if (rc == SQLITE_DONE) break;
-    if (rc != SQLITE_ROW)
-      return make_error(where, "read stopped after ", out.size(),
-                        " rows: ", describe_sqlite_error(impl_->db.get(), rc));
-    sqlite3_stmt* s = st->get();
-    DropRecord d;
-    if (!parse_drop_stage(column_text(s, 0), d.stage))
-      return make_error(where, "row ", out.size(), ": unknown stage \"", column_text(s, 0), "\"");
-    d.item = column_text(s, 1);
-    d.count = static_cast<std::uint64_t>(sqlite3_column_int64(s, 2));
-    d.first_t_ns = sqlite3_column_int64(s, 3);
-    d.last_t_ns = sqlite3_column_int64(s, 4);
-    d.reason = column_text(s, 5);
-    out.push_back(std::move(d));
-  }
-  return out;
+  return read_rows<DropRecord>(
+      impl_->db.get(), *st, where, [&](sqlite3_stmt* s, std::size_t i) -> Expected<DropRecord> {
+        DropRecord d;
+        if (!parse_drop_stage(column_text(s, 0), d.stage))
+          return make_error(where, "row ", i, ": unknown stage \"", column_text(s, 0), "\"");
+        d.item = column_text(s, 1);
+        d.count = static_cast<std::uint64_t>(sqlite3_column_int64(s, 2));
+        d.first_t_ns = sqlite3_column_int64(s, 3);
+        d.last_t_ns = sqlite3_column_int64(s, 4);
+        d.reason = column_text(s, 5);
+        return d;
+      });
 }
 
 Expected<std::vector<EventRecord>> RecordingReader::events() const {
   const std::string where = "recorder::RecordingReader::events(): " + impl_->path + ": ";
   auto st = Statement::prepare(impl_->db.get(), "SELECT t_ns, clock, text FROM events ORDER BY id");
   if (!st) return make_error(where, st.error().message);
-  std::vector<EventRecord> out;
-  for (;;) {
-    const int rc = st->step();
-    if (rc == SQLITE_DONE) break;
-    if (rc != SQLITE_ROW)
-      return make_error(where, "read stopped after ", out.size(),
-                        " rows: ", describe_sqlite_error(impl_->db.get(), rc));
-    sqlite3_stmt* s = st->get();
-    EventRecord e;
-    e.t_ns = sqlite3_column_int64(s, 0);
-    if (!parse_clock_domain(column_text(s, 1), e.clock))
-      return make_error(where, "row ", out.size(), ": unknown clock domain \"", column_text(s, 1), "\"");
-    e.text = column_text(s, 2);
-    out.push_back(std::move(e));
-  }
-  return out;
+  return read_rows<EventRecord>(
+      impl_->db.get(), *st, where, [&](sqlite3_stmt* s, std::size_t i) -> Expected<EventRecord> {
+        EventRecord e;
+        e.t_ns = sqlite3_column_int64(s, 0);
+        if (!parse_clock_domain(column_text(s, 1), e.clock))
+          return make_error(where, "row ", i, ": unknown clock domain \"", column_text(s, 1), "\"");
+        e.text = column_text(s, 2);
+        return e;
+      });
 }
 
 CheckReport RecordingReader::check() const {

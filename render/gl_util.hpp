@@ -17,6 +17,18 @@ namespace augrig::gl {
 // Compiles and links; errors carry the shader log and `name`.
 Expected<GLuint> make_program(const std::string& name, const char* vertex_src, const char* fragment_src);
 
+// The interleaved vertex every augrig shader reads: location 0 position, 1 normal, 2 uv.
+struct Vertex {
+  float pos[3];
+  float normal[3];
+  float uv[2];
+};
+// Declares Vertex's attributes for the bound vertex array and array buffer.
+void set_vertex_attributes();
+
+// An RGBA8 w x h texture, linear filtering, clamped to its edges, contents undefined; left bound.
+GLuint make_rgba_texture(int w, int h);
+
 // A mesh uploaded once: interleaved position, normal, uv, colour; 32-bit indices.
 struct GpuMesh {
   GLuint vao = 0, vbo = 0, ebo = 0, texture = 0;

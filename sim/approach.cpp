@@ -8,6 +8,7 @@
 #include <cmath>
 #include <ctime>
 
+#include "core/clock.hpp"
 #include "render/models.hpp"
 
 namespace augrig {
@@ -141,9 +142,7 @@ Expected<ReadStatus> ApproachSource::read(Frame& out, std::chrono::nanoseconds /
                       s.error().message);
   out.t_ns = truth.t_ns + (camera == 1 ? static_cast<TimestampNs>(std::llround(options_.skew_ns)) : 0);
   out.clock = ClockDomain::kSim;
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  out.t_host_ns = static_cast<TimestampNs>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
+  out.t_host_ns = monotonic_now_ns();
   out.sequence = sequence;
   out.camera = static_cast<CameraId>(camera);
   out.exposure_ns = 0;

@@ -31,7 +31,7 @@ constexpr TimestampNs kT0 = 2'000'000'000;
 constexpr TimestampNs kPeriod = 33'000'000;
 
 int augrig(const std::string& args, std::string* output = nullptr) {
-  return run_command(augrig_binary() + " " + args + " 2>&1", output);
+  return test::run_augrig(args, output);
 }
 
 Rig small_rig() {

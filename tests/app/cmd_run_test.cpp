@@ -26,7 +26,7 @@ using test::output_dir;
 using test::run_command;
 
 int augrig(const std::string& args, std::string* output = nullptr) {
-  return run_command(augrig_binary() + " " + args + " 2>&1", output);
+  return test::run_augrig(args, output);
 }
 
 bool contains(const std::string& text, const std::string& part) {

@@ -35,4 +35,8 @@ int run_command(const std::string& command, std::string* output) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+int run_augrig(const std::string& args, std::string* output) {
+  return run_command(augrig_binary() + " " + args + " 2>&1", output);
+}
+
 }  // namespace augrig::test

@@ -13,5 +13,7 @@ std::string output_dir(const std::string& name);
 std::string augrig_binary();
 // Runs a shell command, returns its exit status and fills `output` with stdout+stderr.
 int run_command(const std::string& command, std::string* output = nullptr);
+// Runs the augrig binary with `args`; `output` gets its stdout and stderr together.
+int run_augrig(const std::string& args, std::string* output = nullptr);
 
 }  // namespace augrig::test
