@@ -10,6 +10,8 @@
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 
+#include "nav/ins_engine.hpp"
+
 namespace augrig::nav {
 
 using Eigen::Matrix3d;
@@ -215,145 +217,114 @@ void NavTrajectory::advance(const std::vector<Increment>& imu, Strapdown& mech, 
 // ---------------------------------------------------------------------------------------------
 // The filter
 
-class FusionEngine {
- public:
-  explicit FusionEngine(const InsConfig& cfg) : cfg_(cfg) {}
-  Expected<NavTrajectory> run(std::span<const ImuSample> imu, std::span<const GpsFix> fixes, bool smooth);
-
- private:
-  using Increment = NavTrajectory::Increment;
-
-  struct Fix {
-    TimestampNs t_ns = 0;  // time of validity on the nav clock
-    std::size_t index = 0;
-    Vector3d p_ecef_m;  // antenna
-    Matrix3d R_en;      // NED at the antenna
-    Vector3d sigma_ned_m;
-    std::optional<double> heading_rad;
-    std::optional<Eigen::Vector2d> v_ne_mps;  // from speed over ground and course
-  };
-
-  Status prepare_imu(std::span<const ImuSample> imu);
-  Status prepare_fixes(std::span<const GpsFix> fixes);
-  Status initialise();
-  void forward();
-  void smooth();
-  void propagate_covariance();
-  void update_at_fix(const Fix& fix);
-  template <int M>
-  bool kalman_update(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, 15>& H,
-                     const Eigen::Matrix<double, M, M>& R, double gate, bool force);
-  void store_epoch();
-
-  const InsConfig& cfg_;
-  NavTrajectory traj_;
-  std::vector<Fix> fixes_;
-  std::size_t first_fix_ = 0;  // index into fixes_ of the initialisation fix
-
-  Strapdown mech_;
-  std::size_t imu_index_ = 0;
-  Matrix15d P_ = Matrix15d::Zero();
-  Matrix15d Phi_epoch_ = Matrix15d::Identity();
-  // Accumulated over the current covariance step.
-  Matrix3d sum_R_dt_ = Matrix3d::Zero();
-  Vector3d sum_dv_e_ = Vector3d::Zero();
-  double step_dt_ = 0;
-  int rejection_streak_ = 0;
-
-  // Smoother inputs, per epoch k: the predicted state and covariance at k and the transition k-1 -> k.
-  std::vector<InertialState> x_pred_;
-  std::vector<Matrix15d> P_pred_;
-  std::vector<Matrix15d> Phi_;
-};
+// Sample s as an increment over (t0, t1] after `prev` (nullptr: the first; then its dt_s, else the
+// spacing to `next_t1_ns`, gives t0). Lost samples (an interval longer than 1.5 dt_s) are bridged by
+// holding the sample's rates over the gap; `gaps` counts them.
+Expected<NavTrajectory::Increment> FusionEngine::make_increment(const ImuSample& s, std::size_t i,
+                                                                const InsConfig& cfg,
+                                                                const NavTrajectory::Increment* prev,
+                                                                TimestampNs prev_t_ns, TimestampNs next_t_ns,
+                                                                std::size_t& gaps) {
+  if (!s.dtheta_rad.allFinite() || !s.dv_mps.allFinite() || !std::isfinite(s.dt_s))
+    return make_error("nav::fuse(): IMU sample ", i, " at t=", s.t_ns, " ns: non-finite values");
+  if (prev && s.t_ns <= prev_t_ns)
+    return make_error("nav::fuse(): IMU sample ", i, " at t=", s.t_ns, " ns is not after sample ", i - 1,
+                      " at t=", prev_t_ns, " ns; IMU timestamps must be strictly increasing");
+  NavTrajectory::Increment inc;
+  inc.t1_ns = s.t_ns + cfg.imu_time_offset_ns;
+  inc.dtheta_rad = s.dtheta_rad;
+  inc.dv_mps = s.dv_mps;
+  if (!prev) {
+    TimestampNs dt_ns = s_to_ns(s.dt_s);
+    if (dt_ns <= 0 && next_t_ns > s.t_ns) dt_ns = next_t_ns - s.t_ns;
+    if (dt_ns <= 0) return make_error("nav::fuse(): IMU sample ", i, " has no positive dt_s");
+    inc.t0_ns = inc.t1_ns - dt_ns;
+  } else {
+    inc.t0_ns = prev->t1_ns;
+    const double len = ns_to_s(inc.t1_ns - inc.t0_ns);
+    if (s.dt_s > 0 && len > 1.5 * s.dt_s) {
+      ++gaps;
+      inc.dtheta_rad *= len / s.dt_s;
+      inc.dv_mps *= len / s.dt_s;
+    }
+  }
+  return inc;
+}
 
 Status FusionEngine::prepare_imu(std::span<const ImuSample> imu) {
   if (imu.empty()) return make_error("nav::fuse(): no IMU samples");
   FusionReport& rep = traj_.report_;
   rep.imu_samples = imu.size();
-  traj_.imu_.resize(imu.size());
+  traj_.imu_.reserve(imu.size());
   for (std::size_t i = 0; i < imu.size(); ++i) {
-    const ImuSample& s = imu[i];
-    if (!s.dtheta_rad.allFinite() || !s.dv_mps.allFinite() || !std::isfinite(s.dt_s))
-      return make_error("nav::fuse(): IMU sample ", i, " at t=", s.t_ns, " ns: non-finite values");
-    if (i > 0 && s.t_ns <= imu[i - 1].t_ns)
-      return make_error("nav::fuse(): IMU sample ", i, " at t=", s.t_ns, " ns is not after sample ", i - 1,
-                        " at t=", imu[i - 1].t_ns, " ns; IMU timestamps must be strictly increasing");
-    Increment& inc = traj_.imu_[i];
-    inc.t1_ns = s.t_ns + cfg_.imu_time_offset_ns;
-    inc.dtheta_rad = s.dtheta_rad;
-    inc.dv_mps = s.dv_mps;
-    if (i == 0) {
-      TimestampNs dt_ns = s_to_ns(s.dt_s);
-      if (dt_ns <= 0 && imu.size() > 1) dt_ns = imu[1].t_ns - s.t_ns;
-      if (dt_ns <= 0) return make_error("nav::fuse(): IMU sample 0 has no positive dt_s");
-      inc.t0_ns = inc.t1_ns - dt_ns;
-    } else {
-      inc.t0_ns = traj_.imu_[i - 1].t1_ns;
-      const double len = ns_to_s(inc.t1_ns - inc.t0_ns);
-      if (s.dt_s > 0 && len > 1.5 * s.dt_s) {  // samples lost: hold this sample's rates over the gap
-        ++rep.imu_gaps;
-        inc.dtheta_rad *= len / s.dt_s;
-        inc.dv_mps *= len / s.dt_s;
-      }
-    }
+    auto inc = make_increment(imu[i], i, cfg_, i ? &traj_.imu_.back() : nullptr, i ? imu[i - 1].t_ns : 0,
+                              imu.size() > 1 ? imu[1].t_ns : 0, rep.imu_gaps);
+    if (!inc) return inc.error();
+    traj_.imu_.push_back(*inc);
   }
   return {};
+}
+
+std::optional<FusionEngine::Fix> FusionEngine::make_fix(const GpsFix& f, std::size_t index) {
+  const GpsNoiseModel& n = cfg_.gps;
+  const bool finite =
+      std::isfinite(f.antenna.lat_rad) && std::isfinite(f.antenna.lon_rad) && std::isfinite(f.antenna.h_m);
+  if (f.quality == FixQuality::kInvalid || f.quality == FixQuality::kDeadReckoning || !finite) {
+    ++traj_.report_.fixes_invalid;
+    return std::nullopt;
+  }
+  Fix x;
+  x.t_ns = f.t_ns + cfg_.gps_time_offset_ns;
+  x.index = index;
+  x.p_ecef_m = ecef_from_geodetic(f.antenna);
+  x.R_en = R_ecef_ned(f.antenna.lat_rad, f.antenna.lon_rad);
+  if (n.use_gst && f.sigma_ned_m && f.sigma_ned_m->allFinite() && (f.sigma_ned_m->array() > 0).all()) {
+    x.sigma_ned_m = *f.sigma_ned_m;
+  } else {
+    double h = n.single_m;
+    switch (f.quality) {
+      case FixQuality::kRtkFixed:
+        h = n.rtk_fixed_m;
+        break;
+      case FixQuality::kRtkFloat:
+        h = n.rtk_float_m;
+        break;
+      case FixQuality::kDgps:
+      case FixQuality::kPps:
+        h = n.dgps_m;
+        break;
+      default:
+        break;
+    }
+    if (n.scale_by_hdop && f.hdop > 0) h *= f.hdop;
+    x.sigma_ned_m = Vector3d(h, h, h * n.vertical_factor);
+  }
+  x.sigma_ned_m = x.sigma_ned_m.cwiseMax(n.floor_m);
+  if (f.heading_rad && std::isfinite(*f.heading_rad)) x.heading_rad = *f.heading_rad;
+  if (f.ground_speed_mps && f.course_rad && std::isfinite(*f.ground_speed_mps) &&
+      std::isfinite(*f.course_rad))
+    x.v_ne_mps = Eigen::Vector2d(*f.ground_speed_mps * std::cos(*f.course_rad),
+                                 *f.ground_speed_mps * std::sin(*f.course_rad));
+  return x;
 }
 
 Status FusionEngine::prepare_fixes(std::span<const GpsFix> fixes) {
   FusionReport& rep = traj_.report_;
   rep.fixes = fixes.size();
   const TimestampNs t_begin = traj_.imu_.front().t0_ns, t_end = traj_.imu_.back().t1_ns;
-  const GpsNoiseModel& n = cfg_.gps;
   fixes_.reserve(fixes.size());
   for (std::size_t i = 0; i < fixes.size(); ++i) {
     const GpsFix& f = fixes[i];
     if (i > 0 && f.t_ns <= fixes[i - 1].t_ns)
       return make_error("nav::fuse(): GPS fix ", i, " at t=", f.t_ns, " ns is not after fix ", i - 1,
                         " at t=", fixes[i - 1].t_ns, " ns; fix timestamps must be strictly increasing");
-    const bool finite =
-        std::isfinite(f.antenna.lat_rad) && std::isfinite(f.antenna.lon_rad) && std::isfinite(f.antenna.h_m);
-    if (f.quality == FixQuality::kInvalid || f.quality == FixQuality::kDeadReckoning || !finite) {
-      ++rep.fixes_invalid;
-      continue;
-    }
-    Fix x;
-    x.t_ns = f.t_ns + cfg_.gps_time_offset_ns;
-    if (x.t_ns < t_begin || x.t_ns > t_end) {
+    std::optional<Fix> x = make_fix(f, i);
+    if (!x) continue;
+    if (x->t_ns < t_begin || x->t_ns > t_end) {
       ++rep.fixes_outside;
       continue;
     }
-    x.index = i;
-    x.p_ecef_m = ecef_from_geodetic(f.antenna);
-    x.R_en = R_ecef_ned(f.antenna.lat_rad, f.antenna.lon_rad);
-    if (n.use_gst && f.sigma_ned_m && f.sigma_ned_m->allFinite() && (f.sigma_ned_m->array() > 0).all()) {
-      x.sigma_ned_m = *f.sigma_ned_m;
-    } else {
-      double h = n.single_m;
-      switch (f.quality) {
-        case FixQuality::kRtkFixed:
-          h = n.rtk_fixed_m;
-          break;
-        case FixQuality::kRtkFloat:
-          h = n.rtk_float_m;
-          break;
-        case FixQuality::kDgps:
-        case FixQuality::kPps:
-          h = n.dgps_m;
-          break;
-        default:
-          break;
-      }
-      if (n.scale_by_hdop && f.hdop > 0) h *= f.hdop;
-      x.sigma_ned_m = Vector3d(h, h, h * n.vertical_factor);
-    }
-    x.sigma_ned_m = x.sigma_ned_m.cwiseMax(n.floor_m);
-    if (f.heading_rad && std::isfinite(*f.heading_rad)) x.heading_rad = *f.heading_rad;
-    if (f.ground_speed_mps && f.course_rad && std::isfinite(*f.ground_speed_mps) &&
-        std::isfinite(*f.course_rad))
-      x.v_ne_mps = Eigen::Vector2d(*f.ground_speed_mps * std::cos(*f.course_rad),
-                                   *f.ground_speed_mps * std::sin(*f.course_rad));
-    fixes_.push_back(x);
+    fixes_.push_back(*x);
   }
   // The initialisation fix must leave IMU data after it.
   while (first_fix_ < fixes_.size() && fixes_[first_fix_].t_ns >= t_end) ++first_fix_;
@@ -507,18 +478,22 @@ Status FusionEngine::initialise() {
   return {};
 }
 
-void FusionEngine::propagate_covariance() {
-  if (step_dt_ <= 0) return;
-  const double T = step_dt_;
-  const Matrix3d Rbar = sum_R_dt_ / T;
-  const Vector3d fbar = sum_dv_e_ / T;
+namespace {
+
+// One covariance step of length T over which the strapdown accumulated sum(R_ecef_body dt) and
+// sum(dv_ecef): P <- Phi P Phi^T + Q with the first-order error model (docs/NAV_FUSION.md) and a
+// second-order Phi; the transition is also multiplied into *Phi_acc when given.
+void covariance_step(const InsConfig& cfg, const Vector3d& p_ecef_m, const Matrix3d& sum_R_dt,
+                     const Vector3d& sum_dv_e, double T, Matrix15d& P, Matrix15d* Phi_acc) {
+  const Matrix3d Rbar = sum_R_dt / T;
+  const Vector3d fbar = sum_dv_e / T;
   const Matrix3d W = skew(earth_rate_ecef());
-  const BiasModel& bg = cfg_.imu.gyro_bias;
-  const BiasModel& ba = cfg_.imu.accel_bias;
+  const BiasModel& bg = cfg.imu.gyro_bias;
+  const BiasModel& ba = cfg.imu.accel_bias;
 
   Matrix15d FT = Matrix15d::Zero();
   FT.block<3, 3>(kErrPos, kErrVel).diagonal().setConstant(T);
-  FT.block<3, 3>(kErrVel, kErrPos) = gravity_gradient_ecef(mech_.state().p_ecef_m) * T;
+  FT.block<3, 3>(kErrVel, kErrPos) = gravity_gradient_ecef(p_ecef_m) * T;
   FT.block<3, 3>(kErrVel, kErrVel) = -2.0 * T * W;
   FT.block<3, 3>(kErrVel, kErrAtt) = -T * skew(fbar);
   FT.block<3, 3>(kErrVel, kErrAccelBias) = -T * Rbar;
@@ -535,19 +510,27 @@ void FusionEngine::propagate_covariance() {
   };
   Vector15d q;
   q.segment<3>(kErrPos).setZero();
-  q.segment<3>(kErrVel).setConstant(cfg_.imu.accel_vrw_mps_psqrts * cfg_.imu.accel_vrw_mps_psqrts);
-  q.segment<3>(kErrAtt).setConstant(cfg_.imu.gyro_arw_rad_psqrts * cfg_.imu.gyro_arw_rad_psqrts);
+  q.segment<3>(kErrVel).setConstant(cfg.imu.accel_vrw_mps_psqrts * cfg.imu.accel_vrw_mps_psqrts);
+  q.segment<3>(kErrAtt).setConstant(cfg.imu.gyro_arw_rad_psqrts * cfg.imu.gyro_arw_rad_psqrts);
   q.segment<3>(kErrGyroBias).setConstant(bias_q(bg));
   q.segment<3>(kErrAccelBias).setConstant(bias_q(ba));
   q *= 0.5 * T;
-  P_.diagonal() += q;
+  P.diagonal() += q;
   Matrix15d tmp;
-  tmp.noalias() = Phi * P_;
-  P_.noalias() = tmp * Phi.transpose();
-  P_.diagonal() += q;
-  tmp.noalias() = Phi * Phi_epoch_;
-  Phi_epoch_ = tmp;
+  tmp.noalias() = Phi * P;
+  P.noalias() = tmp * Phi.transpose();
+  P.diagonal() += q;
+  if (Phi_acc) {
+    tmp.noalias() = Phi * *Phi_acc;
+    *Phi_acc = tmp;
+  }
+}
 
+}  // namespace
+
+void FusionEngine::propagate_covariance() {
+  if (step_dt_ <= 0) return;
+  covariance_step(cfg_, mech_.state().p_ecef_m, sum_R_dt_, sum_dv_e_, step_dt_, P_, &Phi_epoch_);
   sum_R_dt_.setZero();
   sum_dv_e_.setZero();
   step_dt_ = 0;
@@ -653,13 +636,59 @@ void FusionEngine::store_epoch() {
   traj_.P_.push_back(P_);
 }
 
+void FusionEngine::note_fix_gap(TimestampNs t_ns) {
+  FusionReport& rep = traj_.report_;
+  const double gap = ns_to_s(t_ns - t_last_used_);
+  rep.longest_fix_gap_s = std::max(rep.longest_fix_gap_s, gap);
+  if (rep.nominal_fix_period_s > 0 && gap > cfg_.outage_factor * rep.nominal_fix_period_s) ++rep.outages;
+  t_last_used_ = t_ns;
+}
+
+void FusionEngine::filter_to(TimestampNs t_end, bool batch) {
+  FusionReport& rep = traj_.report_;
+  const TimestampNs max_epoch_ns = s_to_ns(std::max(cfg_.max_epoch_interval_s, 1e-3));
+  const double cov_step = cfg_.covariance_step_s;
+  auto on_step = [&](double dt) {
+    sum_R_dt_ += mech_.last_R_ecef_body() * dt;
+    sum_dv_e_ += mech_.last_dv_ecef();
+    step_dt_ += dt;
+    if (step_dt_ >= cov_step) propagate_covariance();
+  };
+  while (mech_.state().t_ns < t_end) {
+    // The batch ends with a partial epoch at the end of the data; in real time only whole epochs
+    // are run, so that the epochs (and every number) are the batch filter's.
+    TimestampNs target = t_epoch_ + max_epoch_ns;
+    if (batch) target = std::min(target, t_end);
+    const Fix* fix = nullptr;
+    if (next_fix_ < fixes_.size() && fixes_[next_fix_].t_ns <= target) {
+      fix = &fixes_[next_fix_];
+      target = fix->t_ns;
+    }
+    if (target > t_end) break;
+    if (fix) ++next_fix_;
+    NavTrajectory::advance(traj_.imu_, mech_, imu_index_, target, on_step);
+    propagate_covariance();
+    if (batch) {  // the smoother's inputs
+      x_pred_.push_back(mech_.state());
+      P_pred_.push_back(P_);
+      Phi_.push_back(Phi_epoch_);
+    }
+    Phi_epoch_.setIdentity();
+    if (fix) {
+      const std::size_t used = rep.fixes_used;
+      update_at_fix(*fix);
+      if (rep.fixes_used > used) note_fix_gap(fix->t_ns);
+    }
+    store_epoch();
+    t_epoch_ = target;
+  }
+}
+
 void FusionEngine::forward() {
   const auto t0 = std::chrono::steady_clock::now();
   FusionReport& rep = traj_.report_;
-  const auto& imu = traj_.imu_;
-  const TimestampNs t_end = imu.back().t1_ns;
+  const TimestampNs t_end = traj_.imu_.back().t1_ns;
   const TimestampNs max_epoch_ns = s_to_ns(std::max(cfg_.max_epoch_interval_s, 1e-3));
-  const double cov_step = cfg_.covariance_step_s;
 
   // Reserve for every fix and coasting epoch up front, so the loop does not reallocate.
   const TimestampNs span = t_end - mech_.state().t_ns;
@@ -675,51 +704,15 @@ void FusionEngine::forward() {
   P_pred_.push_back(P_);
   Phi_.push_back(Matrix15d::Identity());
   ++rep.fixes_used;  // the initialisation fix
-  TimestampNs t_last_used = mech_.state().t_ns;
-  auto note_gap = [&](TimestampNs t) {
-    const double gap = ns_to_s(t - t_last_used);
-    rep.longest_fix_gap_s = std::max(rep.longest_fix_gap_s, gap);
-    if (rep.nominal_fix_period_s > 0 && gap > cfg_.outage_factor * rep.nominal_fix_period_s) ++rep.outages;
-    t_last_used = t;
-  };
-
-  auto on_step = [&](double dt) {
-    sum_R_dt_ += mech_.last_R_ecef_body() * dt;
-    sum_dv_e_ += mech_.last_dv_ecef();
-    step_dt_ += dt;
-    if (step_dt_ >= cov_step) propagate_covariance();
-  };
-
-  std::size_t f = first_fix_ + 1;
-  TimestampNs t_epoch = mech_.state().t_ns;
-  while (mech_.state().t_ns < t_end) {
-    TimestampNs target = std::min(t_epoch + max_epoch_ns, t_end);
-    const Fix* fix = nullptr;
-    if (f < fixes_.size() && fixes_[f].t_ns <= target) {
-      fix = &fixes_[f];
-      target = fix->t_ns;
-      ++f;
-    }
-    NavTrajectory::advance(imu, mech_, imu_index_, target, on_step);
-    propagate_covariance();
-    x_pred_.push_back(mech_.state());
-    P_pred_.push_back(P_);
-    Phi_.push_back(Phi_epoch_);
-    Phi_epoch_.setIdentity();
-    if (fix) {
-      const std::size_t used = rep.fixes_used;
-      update_at_fix(*fix);
-      if (rep.fixes_used > used) note_gap(fix->t_ns);
-    }
-    store_epoch();
-    t_epoch = target;
-  }
+  t_last_used_ = t_epoch_ = mech_.state().t_ns;
+  next_fix_ = first_fix_ + 1;
+  filter_to(t_end, true);
   if (rep.nominal_fix_period_s > 0 &&
-      ns_to_s(t_end - t_last_used) > cfg_.outage_factor * rep.nominal_fix_period_s) {
+      ns_to_s(t_end - t_last_used_) > cfg_.outage_factor * rep.nominal_fix_period_s) {
     ++rep.outages;  // no fix until the end of the data
-    rep.longest_fix_gap_s = std::max(rep.longest_fix_gap_s, ns_to_s(t_end - t_last_used));
+    rep.longest_fix_gap_s = std::max(rep.longest_fix_gap_s, ns_to_s(t_end - t_last_used_));
   }
-  rep.fixes_outside += fixes_.size() - f + first_fix_;  // fixes before the first one used, none after
+  rep.fixes_outside += fixes_.size() - next_fix_ + first_fix_;  // fixes before the first one used, none after
   rep.epochs = traj_.epochs_.size();
   rep.forward_s = seconds_since(t0);
 }
@@ -760,6 +753,151 @@ Expected<NavTrajectory> FusionEngine::run(std::span<const ImuSample> imu, std::s
   P_pred_ = {};
   Phi_ = {};
   return std::move(traj_);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The same filter in real time (nav/live_fusion.hpp drives it)
+
+Status FusionEngine::append_imu(const ImuSample& s) {
+  std::vector<Increment>& imu = traj_.imu_;
+  auto inc =
+      make_increment(s, imu_seen_, cfg_, imu.empty() ? nullptr : &imu.back(),
+                     imu.empty() ? 0 : imu.back().t1_ns - cfg_.imu_time_offset_ns, 0, traj_.report_.imu_gaps);
+  if (!inc) return inc.error();
+  imu.push_back(*inc);
+  ++imu_seen_;
+  ++traj_.report_.imu_samples;
+  return {};
+}
+
+Status FusionEngine::append_fix(const GpsFix& f) {
+  FusionReport& rep = traj_.report_;
+  const std::size_t index = fixes_seen_++;
+  ++rep.fixes;
+  std::optional<Fix> x = make_fix(f, index);
+  if (!x) return {};
+  if (!fixes_.empty() && x->t_ns <= fixes_.back().t_ns)
+    return make_error("nav::LiveFusion: GPS fix ", index, " at t=", f.t_ns,
+                      " ns is not after the previous fix");
+  if (initialised_ && x->t_ns <= mech_.state().t_ns) {
+    ++rep.fixes_outside;  // the filter is past it: too late to use
+    return make_error("nav::LiveFusion: GPS fix ", index, " at t=", f.t_ns,
+                      " ns arrived after the filter passed ", mech_.state().t_ns, " ns");
+  }
+  fixes_.push_back(*x);
+  // The nominal fix period from the spacing seen so far (for outage detection).
+  if (fixes_.size() >= 2) {
+    const double d = ns_to_s(fixes_.back().t_ns - fixes_[fixes_.size() - 2].t_ns);
+    if (rep.nominal_fix_period_s <= 0 || d < rep.nominal_fix_period_s) rep.nominal_fix_period_s = d;
+  }
+  return {};
+}
+
+bool FusionEngine::try_initialise() {
+  if (initialised_) return true;
+  const std::vector<Increment>& imu = traj_.imu_;
+  if (imu.empty() || fixes_.empty()) return false;
+  // A fix before the IMU data cannot start the filter.
+  while (!fixes_.empty() && fixes_.front().t_ns < imu.front().t0_ns) {
+    fixes_.erase(fixes_.begin());
+    ++traj_.report_.fixes_outside;
+  }
+  if (fixes_.empty()) return false;
+  const TimestampNs t0 = fixes_.front().t_ns, t_imu = imu.back().t1_ns;
+  if (t_imu < t0 + s_to_ns(1.0)) return false;                       // levelling needs 1 s after it
+  if (fixes_.size() < 2 && t_imu < t0 + s_to_ns(2.0)) return false;  // wait for a second fix
+  first_fix_ = 0;
+  if (!initialise()) return false;
+  store_epoch();
+  ++traj_.report_.fixes_used;  // the initialisation fix
+  t_last_used_ = t_epoch_ = mech_.state().t_ns;
+  next_fix_ = 1;
+  initialised_ = true;
+  return true;
+}
+
+void FusionEngine::advance_to(TimestampNs t_ns) {
+  if (!initialised_) return;
+  // Not into the newest increment: the strapdown splits an increment using its successor's rate.
+  filter_to(std::min(t_ns, traj_.imu_.back().t0_ns), false);
+  traj_.report_.epochs = traj_.epochs_.size();
+}
+
+NavState FusionEngine::current() const {
+  NavState s;
+  static_cast<InertialState&>(s) = mech_.state();
+  s.P = P_;
+  return s;
+}
+
+Expected<NavState> FusionEngine::at(TimestampNs t_ns, TimestampNs max_extrapolation_ns) const {
+  const auto& epochs = traj_.epochs_;
+  if (!initialised_ || epochs.empty()) return make_error("nav::LiveFusion::at(): not initialised yet");
+  if (t_ns < epochs.front().x.t_ns)
+    return make_error("nav::LiveFusion::at(): t=", t_ns, " ns is older than the kept history (from ",
+                      epochs.front().x.t_ns, " ns)");
+  const TimestampNs t_imu = imu_end_ns();
+  if (t_ns > t_imu + max_extrapolation_ns)
+    return make_error("nav::LiveFusion::at(): t=", t_ns, " ns is ", ns_to_s(t_ns - t_imu),
+                      " s past the last IMU sample (at most ", ns_to_s(max_extrapolation_ns), " s)");
+  const auto it = std::upper_bound(epochs.begin(), epochs.end(), t_ns,
+                                   [](TimestampNs t, const NavTrajectory::Epoch& e) { return t < e.x.t_ns; });
+  const std::size_t k = static_cast<std::size_t>(it - epochs.begin()) - 1;
+  const NavTrajectory::Epoch& e = epochs[k];
+  Strapdown mech(e.x, e.history);
+  std::size_t index = e.imu_index;
+  NavState s;
+  s.P = traj_.P_[k];
+  Matrix3d sum_R = Matrix3d::Zero();
+  Vector3d sum_dv = Vector3d::Zero();
+  double T = 0;
+  auto on_step = [&](double dt) {
+    sum_R += mech.last_R_ecef_body() * dt;
+    sum_dv += mech.last_dv_ecef();
+    T += dt;
+    if (T >= cfg_.covariance_step_s) {
+      covariance_step(cfg_, mech.state().p_ecef_m, sum_R, sum_dv, T, s.P, nullptr);
+      sum_R.setZero();
+      sum_dv.setZero();
+      T = 0;
+    }
+  };
+  NavTrajectory::advance(traj_.imu_, mech, index, std::min(t_ns, t_imu), on_step);
+  if (t_ns > t_imu) {
+    // Past the data: the last increment's rates held.
+    const Increment& last = traj_.imu_.back();
+    const double r = ns_to_s(t_ns - t_imu) / ns_to_s(last.t1_ns - last.t0_ns);
+    mech.step(last.dtheta_rad * r, last.dv_mps * r, t_ns);
+    on_step(ns_to_s(t_ns - t_imu));
+  }
+  if (T > 0) covariance_step(cfg_, mech.state().p_ecef_m, sum_R, sum_dv, T, s.P, nullptr);
+  static_cast<InertialState&>(s) = mech.state();
+  return s;
+}
+
+void FusionEngine::trim_before(TimestampNs t_ns) {
+  auto& epochs = traj_.epochs_;
+  // Keep the last epoch at or before t_ns (queries at t_ns start there) and the increment before its
+  // IMU index (piece() looks at the neighbours).
+  const auto it = std::upper_bound(epochs.begin(), epochs.end(), t_ns,
+                                   [](TimestampNs t, const NavTrajectory::Epoch& e) { return t < e.x.t_ns; });
+  if (it - epochs.begin() < 2) return;
+  const std::size_t k = static_cast<std::size_t>(it - epochs.begin()) - 1;
+  const std::size_t drop_imu =
+      std::min(epochs[k].imu_index, imu_index_) > 0 ? std::min(epochs[k].imu_index, imu_index_) - 1 : 0;
+  epochs.erase(epochs.begin(), epochs.begin() + static_cast<std::ptrdiff_t>(k));
+  traj_.P_.erase(traj_.P_.begin(), traj_.P_.begin() + static_cast<std::ptrdiff_t>(k));
+  if (drop_imu) {
+    traj_.imu_.erase(traj_.imu_.begin(), traj_.imu_.begin() + static_cast<std::ptrdiff_t>(drop_imu));
+    for (auto& e : epochs) e.imu_index -= drop_imu;
+    imu_index_ -= drop_imu;
+  }
+  // Fixes already processed are no longer needed.
+  if (next_fix_ > 1) {
+    const std::size_t n = next_fix_ - 1;  // keep the last processed one (for append_fix's order check)
+    fixes_.erase(fixes_.begin(), fixes_.begin() + static_cast<std::ptrdiff_t>(n));
+    next_fix_ -= n;
+  }
 }
 
 Expected<NavTrajectory> fuse(std::span<const ImuSample> imu, std::span<const GpsFix> fixes,

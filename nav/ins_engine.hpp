@@ -1,0 +1,115 @@
+// ins_engine: the error-state Kalman filter behind nav::fuse() (batch, nav/ins.hpp) and
+// nav::LiveFusion (real time, nav/live_fusion.hpp). Internal to nav/: the public interfaces are
+// those two. One filter, two drivers:
+//   batch      run(): all IMU and fixes up front, forward filter to the end, RTS smoother;
+//   real time  append_imu() / append_fix() as data arrive, try_initialise(), advance_to(t) over
+//              what is certain, at(t) for any recent time (mechanized from the last epoch before
+//              it, covariance propagated), trim_before(t) to keep memory bounded.
+#pragma once
+
+#include <optional>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nav/ins.hpp"
+
+namespace augrig::nav {
+
+class FusionEngine {
+ public:
+  explicit FusionEngine(const InsConfig& cfg) : cfg_(cfg) {}
+  Expected<NavTrajectory> run(std::span<const ImuSample> imu, std::span<const GpsFix> fixes, bool smooth);
+
+  // ---- real time (no smoother) ----
+  // One more IMU sample, strictly after the last (an Error otherwise, nothing changed).
+  Status append_imu(const ImuSample& s);
+  // One more GPS fix, its time of validity after the last fix's (an Error otherwise); invalid
+  // fixes (no fix, dead reckoning) are only counted. `quality` of the newest fix is kept either way.
+  Status append_fix(const GpsFix& f);
+  bool initialised() const { return initialised_; }
+  // Initialises from the first fix when the data allow it (IMU covering 1 s after it, and a second
+  // fix or 2 s of IMU); fixes before the first IMU sample are discarded. True once initialised.
+  bool try_initialise();
+  // Runs the filter up to t_ns (clamped to the IMU data), processing the fixes up to it in order.
+  void advance_to(TimestampNs t_ns);
+  // The state at t_ns from the last epoch at or before it; past the IMU data the last increment's
+  // rates are held for at most max_extrapolation_ns. The covariance is propagated from the epoch.
+  Expected<NavState> at(TimestampNs t_ns, TimestampNs max_extrapolation_ns) const;
+  // Forgets epochs and IMU increments that no query at or after t_ns needs.
+  void trim_before(TimestampNs t_ns);
+
+  TimestampNs filter_time_ns() const { return mech_.state().t_ns; }
+  TimestampNs imu_end_ns() const { return traj_.imu_.empty() ? 0 : traj_.imu_.back().t1_ns; }
+  TimestampNs last_fix_ns() const { return fixes_.empty() ? 0 : fixes_.back().t_ns; }  // valid ones
+  TimestampNs last_used_fix_ns() const { return t_last_used_; }
+  const FusionReport& report() const { return traj_.report_; }
+  NavState current() const;
+  std::size_t buffered_imu() const { return traj_.imu_.size(); }
+  std::size_t buffered_epochs() const { return traj_.epochs_.size(); }
+
+ private:
+  using Increment = NavTrajectory::Increment;
+
+  struct Fix {
+    TimestampNs t_ns = 0;  // time of validity on the nav clock
+    std::size_t index = 0;
+    Eigen::Vector3d p_ecef_m;  // antenna
+    Eigen::Matrix3d R_en;      // NED at the antenna
+    Eigen::Vector3d sigma_ned_m;
+    std::optional<double> heading_rad;
+    std::optional<Eigen::Vector2d> v_ne_mps;  // from speed over ground and course
+  };
+
+  // Sample s as an increment over (t0, t1] after `prev` (nullptr: the first; then its dt_s, else the
+  // spacing to next_t_ns, gives t0); `i` names it in errors. Lost samples are bridged (counted in gaps).
+  static Expected<Increment> make_increment(const ImuSample& s, std::size_t i, const InsConfig& cfg,
+                                            const Increment* prev, TimestampNs prev_t_ns,
+                                            TimestampNs next_t_ns, std::size_t& gaps);
+  Status prepare_imu(std::span<const ImuSample> imu);
+  Status prepare_fixes(std::span<const GpsFix> fixes);
+  // The filter's view of a valid fix (nullopt, counted, when invalid).
+  std::optional<Fix> make_fix(const GpsFix& f, std::size_t index);
+  Status initialise();
+  void forward();
+  // The forward filter from its current time to t_end_ns: epochs at fixes and at least every
+  // max_epoch_interval_s. batch: a last partial epoch at t_end_ns, and what the RTS smoother needs;
+  // otherwise whole epochs only.
+  void filter_to(TimestampNs t_end_ns, bool batch);
+  void note_fix_gap(TimestampNs t_ns);
+  void smooth();
+  void propagate_covariance();
+  void update_at_fix(const Fix& fix);
+  template <int M>
+  bool kalman_update(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, 15>& H,
+                     const Eigen::Matrix<double, M, M>& R, double gate, bool force);
+  void store_epoch();
+
+  const InsConfig& cfg_;
+  NavTrajectory traj_;
+  std::vector<Fix> fixes_;
+  std::size_t first_fix_ = 0;  // index into fixes_ of the initialisation fix
+  std::size_t next_fix_ = 0;   // the next fix the forward filter will process
+  bool initialised_ = false;
+  std::size_t imu_seen_ = 0, fixes_seen_ = 0;  // real time: samples and fixes appended so far
+  TimestampNs t_last_used_ = 0;                // the last fix used (the initialisation fix first)
+  TimestampNs t_epoch_ = 0;                    // time of the last epoch
+
+  Strapdown mech_;
+  std::size_t imu_index_ = 0;
+  Matrix15d P_ = Matrix15d::Zero();
+  Matrix15d Phi_epoch_ = Matrix15d::Identity();
+  // Accumulated over the current covariance step.
+  Eigen::Matrix3d sum_R_dt_ = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d sum_dv_e_ = Eigen::Vector3d::Zero();
+  double step_dt_ = 0;
+  int rejection_streak_ = 0;
+
+  // Smoother inputs, per epoch k: the predicted state and covariance at k and the transition k-1 -> k.
+  std::vector<InertialState> x_pred_;
+  std::vector<Matrix15d> P_pred_;
+  std::vector<Matrix15d> Phi_;
+};
+
+}  // namespace augrig::nav
