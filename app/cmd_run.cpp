@@ -16,16 +16,21 @@
 #include "app/cli.hpp"
 #include "app/commands.hpp"
 #include "app/display.hpp"
+#include "app/flight_nav.hpp"
+#include "app/live_nav.hpp"
 #include "app/scene_file.hpp"
 #include "app/sources.hpp"
 #include "capture/aravis_source.hpp"
 #include "capture/v4l2_source.hpp"
 #include "core/clock.hpp"
+#include "nav/imu_stream.hpp"
 #include "nav/live_input.hpp"
 #include "recorder/recorder.hpp"
 #include "sim/flight_source.hpp"
+#include "sim/nav_stream.hpp"
 #include "sim/scenario.hpp"
 #include "sim/sensors.hpp"
+#include "sim/sim_clock.hpp"
 
 namespace augrig::app {
 namespace {
@@ -101,9 +106,20 @@ const std::vector<OptionSpec>& run_specs() {
       {"duration", ArgKind::kValue, "S", "stop after S seconds (default: until the source ends or Ctrl-C)"},
       {"out", ArgKind::kValue, "DIR", "write stats.csv (and with --every, images) here"},
       {"every", ArgKind::kValue, "K", "with --out: write the images of every K-th stereo frame"},
-      {"nav", ArgKind::kValue, "STREAM=URI,...",
-       "live nav inputs recorded as received, e.g. tanker.gps=udp://0.0.0.0:10110?format=nmea,"
-       "tanker.imu=udp://0.0.0.0:10111?format=imu,receiver.gps=gpsd://127.0.0.1 (docs/NAV_LIVE.md)"},
+      {"nav", ArgKind::kValue, "STREAM=URI,...|sim",
+       "live nav inputs, recorded as received and, for streams named tanker.* and receiver.*, fused in "
+       "real time into the receiver's pose at each frame's mid-exposure, e.g. tanker.gps=udp://0.0.0.0:10110?"
+       "format=nmea,tanker.imu=udp://0.0.0.0:10111?format=imu,receiver.gps=gpsd://127.0.0.1 "
+       "(docs/NAV_LIVE.md). 'sim' with sim://: the simulated GPS and IMU of both aircraft sent over UDP "
+       "on loopback in real time and received through the same inputs"},
+      {"aircraft", ArgKind::kValue, "tanker=FILE,receiver=FILE",
+       "each aircraft's aircraft.yaml (GPS lever arm, IMU noise, time offsets; docs/NAV_FORMATS.md) for "
+       "the live fusion (default with --nav sim: the scenario's; otherwise the defaults)"},
+      {"nav-stale", ArgKind::kValue, "S",
+       "a frame's pose is stale when a fix or IMU sample of either aircraft is older than S at its "
+       "mid-exposure (default 0.5)"},
+      {"nav-fault", ArgKind::kValue, "STREAM=T0-T1,...",
+       "with --nav sim: mute a simulated stream over scenario seconds [T0, T1], e.g. receiver.gps=10-13"},
       {"headless", ArgKind::kFlag, "", "no window even when a display is present (docs/DISPLAY.md)"},
       {"status-every", ArgKind::kValue, "S", "print a status line every S seconds (default 1; 0: never)"},
   };
@@ -148,11 +164,6 @@ class RollingLatency {
   std::vector<double> values_;
 };
 
-// When the later of a pair's frames became available on the host (0: unknown).
-TimestampNs pair_available_ns(const StereoFrame& f) {
-  return f.left.t_host_ns > 0 && f.right.t_host_ns > 0 ? std::max(f.left.t_host_ns, f.right.t_host_ns) : 0;
-}
-
 std::string fmt_us(std::int64_t ns) {
   std::ostringstream s;
   s << std::fixed << std::setprecision(1) << static_cast<double>(ns) / 1e3;
@@ -161,10 +172,13 @@ std::string fmt_us(std::int64_t ns) {
 
 // The run's live nav inputs: "STREAM=URI,..." opened, each read on its own thread, each unit of
 // input pushed to the recorder as received (NavInputRecord: text lines and gpsd reports as TEXT,
-// IMU datagrams as BLOB), the parsed events counted.
+// IMU datagrams as BLOB), the parsed events counted and, for streams of an aircraft (tanker.*,
+// receiver.*), fed to the live fusion.
 class NavInputs {
  public:
-  void open(const std::string& spec, recorder::Recorder* rec) {
+  // "STREAM=URI,..." split, checked (usage errors name the item).
+  static std::vector<std::pair<std::string, std::string>> parse(const std::string& spec) {
+    std::vector<std::pair<std::string, std::string>> items;
     std::size_t pos = 0;
     while (pos <= spec.size()) {
       const std::size_t comma = std::min(spec.find(',', pos), spec.size());
@@ -175,9 +189,18 @@ class NavInputs {
       if (eq == std::string::npos || eq == 0)
         usage_error("--nav: expected STREAM=URI (e.g. tanker.gps=udp://0.0.0.0:10110?format=nmea), got '" +
                     item + "'");
+      items.emplace_back(item.substr(0, eq), item.substr(eq + 1));
+    }
+    return items;
+  }
+
+  void open(const std::vector<std::pair<std::string, std::string>>& items, recorder::Recorder* rec,
+            LiveNav* live_nav) {
+    for (const auto& [stream, uri] : items) {
       Input in;
-      in.stream = item.substr(0, eq);
-      in.input = unwrap(nav::open_nav_input(item.substr(eq + 1)));
+      in.stream = stream;
+      in.aircraft = aircraft_of_stream(stream);
+      in.input = unwrap(nav::open_nav_input(uri));
       inputs_.push_back(std::move(in));
     }
     for (Input& in : inputs_) {
@@ -193,7 +216,7 @@ class NavInputs {
               rec->push(std::move(r));
             });
       }
-      in.thread = std::thread([this, &in] {
+      in.thread = std::thread([this, &in, live_nav] {
         nav::NavEvent e;
         while (!stop_) {
           auto r = in.input->read(e, std::chrono::milliseconds(100));
@@ -202,10 +225,21 @@ class NavInputs {
             return;
           }
           if (*r == nav::NavReadStatus::kEnd) return;
-          if (*r == nav::NavReadStatus::kEvent) (e.is_imu() ? in.imu : in.fixes)++;
+          if (*r != nav::NavReadStatus::kEvent) continue;
+          (e.is_imu() ? in.imu : in.fixes)++;
+          if (live_nav && in.aircraft) live_nav->add(*in.aircraft, e);
         }
       });
     }
+  }
+  // The UDP port a stream's input is bound to (0: not a UDP input).
+  std::uint16_t port(const std::string& stream) const {
+    for (const Input& in : inputs_) {
+      if (in.stream != stream) continue;
+      if (const auto* u = dynamic_cast<const nav::UdpNmeaInput*>(in.input.get())) return u->port();
+      if (const auto* u = dynamic_cast<const nav::UdpImuInput*>(in.input.get())) return u->port();
+    }
+    return 0;
   }
   void stop() {
     stop_ = true;
@@ -218,7 +252,8 @@ class NavInputs {
       const nav::NavInputStats st = in.input->stats();
       out << "nav " << in.stream << " (" << in.input->uri() << "): " << in.fixes << " fixes, " << in.imu
           << " IMU samples; malformed " << st.malformed << ", oversized " << st.oversized << ", lost "
-          << st.dropped << (in.error.empty() ? "" : "; stopped: " + in.error) << "\n";
+          << st.dropped << (in.error.empty() ? "" : "; stopped: " + in.error)
+          << (st.last_errors.empty() ? "" : "; last problem: " + st.last_errors.back()) << "\n";
     }
   }
   void ledger(recorder::Recorder& rec) const {
@@ -234,6 +269,7 @@ class NavInputs {
  private:
   struct Input {
     std::string stream;
+    std::optional<Aircraft> aircraft;
     std::unique_ptr<nav::NavInput> input;
     std::thread thread;
     std::uint64_t fixes = 0, imu = 0;
@@ -241,6 +277,34 @@ class NavInputs {
   };
   std::deque<Input> inputs_;  // stable addresses for the threads
   std::atomic<bool> stop_{false};
+};
+
+// Latencies (ms) over the whole run in 0.1 ms bins up to 10 s (constant memory), for the summary.
+class LatencyHistogram {
+ public:
+  void add(double ms) {
+    const auto bin = static_cast<std::size_t>(std::clamp(ms * 10.0, 0.0, static_cast<double>(kBins - 1)));
+    ++bins_[bin];
+    ++count_;
+    max_ms_ = std::max(max_ms_, ms);
+  }
+  std::uint64_t count() const { return count_; }
+  double quantile_ms(double q) const {
+    if (!count_) return 0;
+    const auto target = static_cast<std::uint64_t>(std::ceil(q * static_cast<double>(count_)));
+    std::uint64_t seen = 0;
+    for (std::size_t i = 0; i < kBins; ++i)
+      if ((seen += bins_[i]) >= std::max<std::uint64_t>(target, 1))
+        return (static_cast<double>(i) + 0.5) / 10.0;
+    return max_ms_;
+  }
+  double max_ms() const { return max_ms_; }
+
+ private:
+  static constexpr std::size_t kBins = 100000;
+  std::vector<std::uint64_t> bins_ = std::vector<std::uint64_t>(kBins, 0);
+  std::uint64_t count_ = 0;
+  double max_ms_ = 0;
 };
 
 int run_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -279,32 +343,112 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   const ReceiverSetup receiver = receiver_setup(*rig);
   const BoomDimensions boom_dims;
 
+  // Where each frame's receiver pose comes from: a fixed scene, the live nav, or (sim:// without
+  // --nav) the simulation's truth.
   std::optional<SceneState> fixed_scene;
   if (a.has("scene"))
     fixed_scene = unwrap(load_scene(a.get("scene"), *rig, boom_dims, receiver.receptacle_m));
+  const bool nav_sim = a.get("nav") == "sim";
+  if (nav_sim && !is_sim) usage_error("--nav sim needs a sim:// source");
+  if (a.has("nav-fault") && !nav_sim) usage_error("--nav-fault needs --nav sim");
+  std::vector<std::pair<std::string, std::string>> nav_items;
+  if (nav_sim) {
+    // The simulated streams come in through the same UDP inputs as in flight (ports chosen free).
+    for (const char* stream : {"tanker.gps", "tanker.imu", "receiver.gps", "receiver.imu"})
+      nav_items.emplace_back(stream, std::string("udp://127.0.0.1:0?format=") +
+                                         (std::string_view(stream).ends_with("gps") ? "nmea" : "imu"));
+  } else if (a.has("nav")) {
+    nav_items = NavInputs::parse(a.get("nav"));
+  }
+  bool nav_of[2] = {false, false};
+  for (const auto& item : nav_items)
+    if (const auto ac = aircraft_of_stream(item.first)) nav_of[static_cast<int>(*ac)] = true;
+  const bool use_nav = !fixed_scene && nav_of[0] && nav_of[1];
   std::optional<SimTruth> truth;
-  if (!fixed_scene) {
-    if (!is_sim) usage_error("--scene SCENE.yaml is needed: live nav poses are not wired into `run` yet");
+  if (!fixed_scene && !use_nav) {
+    if (!is_sim)
+      usage_error(
+          "a pose source is needed: --scene SCENE.yaml, or --nav with streams of both aircraft "
+          "(tanker.*, receiver.*)");
     truth = sim_truth(opened.scenario);
     if (!truth) runtime_error("scenario '" + opened.scenario + "': cannot simulate its truth");
   }
   std::optional<BoomArg> boom_arg;
   if (a.has("boom")) boom_arg = parse_boom_arg(a.get("boom"));
 
+  // The live fusion: each aircraft's settings from --aircraft, the scenario (--nav sim), or defaults.
+  std::unique_ptr<LiveNav> live_nav;
+  std::optional<sim::SensorLogs> sim_logs;
+  if (use_nav) {
+    nav::InsConfig ins[2];
+    if (nav_sim) {
+      ins[0] = ins_config_for(opened.sim_scenario->sensors.tanker);
+      ins[1] = ins_config_for(opened.sim_scenario->sensors.receiver);
+    }
+    if (a.has("aircraft")) {
+      for (const auto& [who, file] : NavInputs::parse(a.get("aircraft"))) {
+        const auto ac = aircraft_of_stream(who);
+        if (!ac) usage_error("--aircraft: expected tanker=FILE or receiver=FILE, got '" + who + "'");
+        ins[static_cast<int>(*ac)] = unwrap(load_aircraft_config(file));
+      }
+    }
+    LiveNavOptions nopt;
+    if (a.has("nav-stale")) nopt.stale_after_s = parse_real("nav-stale", a.get("nav-stale"));
+    if (!(nopt.stale_after_s > 0)) usage_error("--nav-stale: expected seconds > 0");
+    live_nav = std::make_unique<LiveNav>(*rig, boom_dims, receiver.receptacle_m, ins[0], ins[1], nopt);
+    if (nav_sim) {
+      auto flight = unwrap(sim::Flight::create(*opened.sim_scenario));
+      sim_logs = sim::simulate_sensors(*opened.sim_scenario, flight);
+    }
+  }
+
   std::unique_ptr<recorder::Recorder> rec;
   if (a.has("record")) {
     recorder::RecordingInfo info;
     info.rig_yaml = rig_to_yaml(*rig);
-    info.scene = fixed_scene ? a.get("scene") : "sim truth of " + opened.scenario;
+    info.scene = fixed_scene ? a.get("scene")
+                 : use_nav   ? "live nav (" + a.get("nav") + ")"
+                             : "sim truth of " + opened.scenario;
     info.clock_domains = opened.live ? "frames: each camera's device clock (t_ns, mid-exposure) and host "
                                        "CLOCK_MONOTONIC (t_host_ns); offsets in events 'clock_offset'"
                                      : "frames: the source's clocks as recorded";
+    if (use_nav)
+      info.clock_domains += "; nav inputs: arrival on host CLOCK_MONOTONIC, sensor times inside the data";
     info.extra["source"] = uri + (right_uri.empty() ? "" : " + " + right_uri);
     rec = unwrap(recorder::Recorder::create(a.get("record"), info));
   }
   // Live nav inputs: each read on a thread of its own; every unit recorded exactly as received.
   NavInputs nav_inputs;
-  if (a.has("nav")) nav_inputs.open(a.get("nav"), rec.get());
+  nav_inputs.open(nav_items, rec.get(), live_nav.get());
+  // --nav sim: the streams' sender, started with the first frame (the flight's clock starts there).
+  std::vector<sim::NavStreamTarget> nav_targets;
+  std::unique_ptr<sim::NavStreamer> nav_streamer;
+  if (nav_sim) {
+    nav_targets = sim::loopback_targets(nav_inputs.port("tanker.gps"), nav_inputs.port("tanker.imu"),
+                                        nav_inputs.port("receiver.gps"), nav_inputs.port("receiver.imu"));
+    if (a.has("nav-fault")) {
+      for (const auto& [stream, window] : NavInputs::parse(a.get("nav-fault"))) {
+        double t0 = 0, t1 = 0;
+        char extra = 0;
+        if (std::sscanf(window.c_str(), "%lf-%lf%c", &t0, &t1, &extra) != 2 || !(t1 >= t0))
+          usage_error("--nav-fault: expected STREAM=T0-T1 (scenario seconds), got '" + stream + "=" + window +
+                      "'");
+        auto it = std::find_if(nav_targets.begin(), nav_targets.end(),
+                               [&](const sim::NavStreamTarget& t) { return t.stream == stream; });
+        if (it == nav_targets.end())
+          usage_error("--nav-fault: no stream '" + stream +
+                      "' (tanker.gps, tanker.imu, receiver.gps, receiver.imu)");
+        it->mute_s.emplace_back(t0, t1);
+      }
+    }
+  }
+  // The simulation's cameras are calibrated to GPS time (their clock offsets are known).
+  std::vector<TimestampNs> sim_camera_offsets;
+  if (opened.sim_scenario) {
+    sim_camera_offsets = opened.sim_scenario->sensors.cameras.clock_offset_ns;
+    sim_camera_offsets.resize(2, 0);
+  }
+  const std::shared_ptr<sim::SimClock> sim_clock = opened.sim_clock;
 
   std::optional<StatsCsv> csv;
   if (a.has("out")) {
@@ -315,7 +459,10 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   const bool lossless = opened.options.lossless;
   auto stereo = unwrap(start_stereo(std::move(opened)));
   out << "run: " << stereo->uri() << (lossless ? " (lockstep)" : " (live)") << "; rig " << rig->source
-      << "; scene " << (fixed_scene ? a.get("scene") : std::string("simulation truth"))
+      << "; poses from "
+      << (fixed_scene ? "the scene " + a.get("scene")
+          : use_nav   ? std::string("the live nav (GPS/INS of both aircraft)")
+                      : std::string("the simulation's truth"))
       << (rec ? "; recording to " + rec->path() : std::string()) << "\n";
 
   // The window, when a display is present and --headless was not given.
@@ -330,6 +477,10 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     HudState hud;
     DisplayCommands commands;  // from the window, for the pipeline
     bool done = false;
+    TimestampNs mid_exposure_host_ns = 0;  // of the pair with `id` (0: unknown)
+    // Mid-exposure to the window (or, headless, to the hand-off): the HUD's last frames and the run's.
+    RollingLatency latency_display;
+    LatencyHistogram display_hist;
   } shared;
   if (!a.has("headless") && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) {
     DisplayOptions dopt;
@@ -350,8 +501,10 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
                               : boom_arg->mode == BoomMode::kScripted ? DisplayBoomMode::kScripted
                                                                       : DisplayBoomMode::kFixed;
   std::optional<BoomArticulation> interactive_boom;
-  RollingLatency latency_display, latency_recorder;
+  RollingLatency latency_recorder;
+  LatencyHistogram recorder_hist;
   std::uint64_t shown_id = 0;
+  TimestampNs shown_mid_host_ns = 0;
   SceneState shown_scene;
   bool have_shown = false;
 
@@ -361,8 +514,14 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
 
   const auto t0 = Clock::now();
   auto next_status = t0 + std::chrono::duration<double>(status_s);
-  std::vector<OcclusionStats> all;
-  std::size_t no_pose = 0, processing_drops = 0;
+  auto next_clocks = t0;
+  RunSummary all;
+  std::optional<OcclusionStats> last_stats;
+  std::size_t no_pose = 0, stale_pairs = 0, processing_drops = 0;
+  bool was_stale = false, recorder_failed = false;
+  std::optional<BoomArticulation> last_boom;
+  std::vector<ClockOffsetLog> clocks;  // the cameras' clock estimates, refreshed each second
+  FrameNav frame_nav;
   double augment_ms = 0;
   std::vector<std::string> last_health(stereo->sources().size());
   StereoResult result;
@@ -400,16 +559,73 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
       }
       if (*r == ReadStatus::kEndOfStream) break;
       if (*r == ReadStatus::kFrame) {
-        if (!first_t_ns) first_t_ns = frame.left.t_ns;
+        if (!first_t_ns) {
+          first_t_ns = frame.left.t_ns;
+          // --nav sim: the nav streams start with the flight's first frame (on the same clock).
+          if (sim_logs) {
+            sim::NavStreamOptions so;
+            so.scenario_start_gps_ns = opened.sim_scenario->start_gps_ns;
+            nav_streamer = unwrap(sim::NavStreamer::start(*sim_logs, nav_targets, sim_clock, so));
+          }
+        }
+        // Each camera's mid-exposure on the host clock: the simulation's own clock, the estimated
+        // device-to-host offset, or the kernel's host timestamp (0: unknown, e.g. replay).
+        auto mid_host_ns = [&](const Frame& f) -> TimestampNs {
+          if (sim_clock && sim_clock->paced())
+            return sim_clock->host_ns(f.t_ns - sim_camera_offsets[index_of(f.camera)]);
+          if (f.clock == ClockDomain::kHostMonotonic) return f.t_ns;
+          if (f.clock == ClockDomain::kDevice)
+            for (const ClockOffsetLog& c : clocks)
+              if (c.camera == f.camera && c.samples) return f.t_ns + c.offset_ns;
+          return 0;
+        };
+        const TimestampNs mid_l = mid_host_ns(frame.left), mid_r = mid_host_ns(frame.right);
+        const TimestampNs mid_host =
+            mid_l && mid_r ? std::min(mid_l, mid_r) : 0;  // the earlier: latency not flattered
+
         std::optional<SceneState> scene = fixed_scene;
-        if (!scene) {
+        if (!scene && truth) {
           const auto it = truth->by_frame.find({index_of(frame.left.camera), frame.left.t_ns});
           if (it != truth->by_frame.end())
             scene = SceneState{it->second.boom, it->second.T_body_receiver, true};
         }
+        bool stale = false;
+        if (!scene && live_nav) {
+          // The pose at the left camera's mid-exposure on the nav clock (the right's differs by the skew).
+          std::optional<TimestampNs> t_nav;
+          if (opened.sim_scenario) {
+            t_nav = frame.left.t_ns - sim_camera_offsets[0];
+          } else if (mid_l) {
+            if (auto t = live_nav->host_to_nav(mid_l)) t_nav = *t;
+          }
+          if (t_nav) {
+            frame_nav = live_nav->at(0, *t_nav);
+          } else {
+            frame_nav = FrameNav{};
+            frame_nav.problems.push_back("no nav clock for this frame yet (no GPS fix received)");
+            frame_nav.hud.status = "no pose: " + frame_nav.problems.back();
+          }
+          if (frame_nav.pose)
+            scene = SceneState{frame_nav.pose->boom.articulation, frame_nav.pose->body.T_a_receiver, true};
+          stale = frame_nav.stale;
+        }
+        // Without a pose the frame is still shown and recorded: the boom alone (it needs no nav),
+        // the receiver left out of the masks, and the frame marked.
         if (!scene) {
           ++no_pose;
-        } else {
+          stale = true;
+          scene = SceneState{last_boom ? *last_boom : BoomArticulation{}, Pose::identity(), false};
+        }
+        if (stale) ++stale_pairs;
+        if (stale != was_stale) {
+          std::ostringstream e;
+          e << "nav " << (stale ? "stale" : "good again") << " from pair " << frame.pair_sequence << " (t_ns "
+            << frame.t_key_ns << ")";
+          if (stale && !frame_nav.problems.empty()) e << ": " << frame_nav.problems.front();
+          log_event(e.str());
+          was_stale = stale;
+        }
+        {
           {
             // The boom: the scene's, the --boom mode's, or the operator's (display commands).
             const BoomCommand tracked = track_point(scene->T_body_receiver * receiver.receptacle_m,
@@ -417,7 +633,8 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
             const double t_s = ns_to_s(frame.left.t_ns - first_t_ns);
             switch (boom_mode) {
               case DisplayBoomMode::kTrackReceptacle:
-                scene->boom = tracked.articulation;
+                // Without a receiver pose there is nothing to track: the boom holds still.
+                if (scene->receiver_present) scene->boom = tracked.articulation;
                 break;
               case DisplayBoomMode::kScripted:
               case DisplayBoomMode::kFixed:
@@ -430,6 +647,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
                 scene->boom = *interactive_boom;
                 break;
             }
+            last_boom = scene->boom;
           }
           if (Status s = augmenter->augment(frame, *scene, result); !s) {
             ++processing_drops;
@@ -438,7 +656,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
             augment_ms += augmenter->timings().total_ms;
             result.stats.t_ns = frame.t_key_ns;
             if (csv) csv->add(result.stats);
-            if (every && all.size() % static_cast<std::size_t>(every) == 0) {
+            if (every && all.frames() % static_cast<std::size_t>(every) == 0) {
               std::ostringstream stem;
               stem << std::setw(6) << std::setfill('0') << frame.pair_sequence;
               write_frame_outputs(a.get("out"), {stem.str(), stem.str()}, result);
@@ -446,13 +664,21 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
             if (!paused) {
               shown_id++;
               shown_scene = *scene;
+              shown_mid_host_ns = mid_host;
               have_shown = true;
-              if (const TimestampNs t = pair_available_ns(frame))
-                latency_display.add((monotonic_now_ns() - t) / 1e6);
+              if (!display && mid_host) {  // headless: the hand-off is as far as a frame goes
+                const double ms = static_cast<double>(monotonic_now_ns() - mid_host) / 1e6;
+                std::lock_guard lock(shared.mutex);
+                shared.latency_display.add(ms);
+                shared.display_hist.add(ms);
+              }
             }
             if (rec && recording_on) {
-              if (const TimestampNs t = pair_available_ns(frame))
-                latency_recorder.add((monotonic_now_ns() - t) / 1e6);
+              if (mid_host) {
+                const double ms = static_cast<double>(monotonic_now_ns() - mid_host) / 1e6;
+                latency_recorder.add(ms);
+                recorder_hist.add(ms);
+              }
               recorder::FrameRecord fr;
               fr.raw = std::move(frame);
               fr.augmented = {result.left.augmented, result.right.augmented};
@@ -461,11 +687,15 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
               fr.receiver_present = scene->receiver_present;
               for (int c = 0; c < 2; ++c)
                 fr.T_cam_receiver[c] = rig->cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
+              if (frame_nav.pose && !fixed_scene && live_nav) {
+                fr.sigma_pos_m = frame_nav.hud.sigma_pos_m;
+                fr.sigma_att_deg = frame_nav.hud.sigma_att_deg;
+              }
               fr.boom = scene->boom;
               fr.stats = result.stats;
               rec->push(std::move(fr));
             }
-            all.push_back(result.stats);
+            all.add(result.stats);
           }
         }
       }
@@ -480,14 +710,18 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
           hud.skew_p50_ms = st.pairing.skew.p50_abs_ns() / 1e6;
           hud.skew_p99_ms = st.pairing.skew.p99_abs_ns() / 1e6;
         }
-        hud.drops = {st.camera_drops, st.transport_drops,
-                     st.pairing.unpaired_left + st.pairing.unpaired_right,
-                     st.queue_drops[0] + st.queue_drops[1] + no_pose + processing_drops,
-                     rec ? rec->stats().frames_dropped : 0};
-        hud.nav.status = fixed_scene ? "fixed scene (no nav)" : "simulation truth";
-        hud.nav.fix = fixed_scene ? nav::FixQuality::kInvalid : nav::FixQuality::kRtkFixed;
-        if (!fixed_scene) hud.nav.age_s = 0;
-        hud.latency_display = latency_display.hud();
+        hud.drops = {
+            st.camera_drops, st.transport_drops, st.pairing.unpaired_left + st.pairing.unpaired_right,
+            st.queue_drops[0] + st.queue_drops[1] + processing_drops, rec ? rec->stats().frames_dropped : 0};
+        if (live_nav) {
+          hud.nav = frame_nav.hud;
+          for (const std::string& p : frame_nav.problems) hud.messages.push_back(p);
+        } else {
+          hud.nav.status = fixed_scene ? "fixed scene (no nav)" : "simulation truth";
+          hud.nav.fix = fixed_scene ? nav::FixQuality::kInvalid : nav::FixQuality::kRtkFixed;
+          if (!fixed_scene) hud.nav.age_s = 0;
+        }
+        hud.stale_pose = was_stale;
         hud.latency_recorder = latency_recorder.hud();
         hud.recording = rec && recording_on;
         hud.recording_path = rec ? rec->path() : "";
@@ -504,7 +738,9 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
             std::swap(shared.result, result);
             shared.scene = shown_scene;
             shared.id = shown_id;
+            shared.mid_exposure_host_ns = shown_mid_host_ns;
           }
+          hud.latency_display = shared.latency_display.hud();
           shared.hud = std::move(hud);
           c = std::move(shared.commands);
           shared.commands = {};
@@ -524,12 +760,22 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
           interactive_boom = clamp_to_limits(b, rig->boom.limits).articulation;
         }
       }
+      if (rec && !recorder_failed && !rec->status()) {
+        // Disk full or a write error: the recording ends valid with what it holds; the run goes on.
+        recorder_failed = true;
+        out << "  recording stopped: " << user_message(rec->status().error())
+            << " (what was recorded stays valid; the run goes on)\n";
+      }
+      if (Clock::now() >= next_clocks) {
+        next_clocks += std::chrono::seconds(1);
+        clocks = stereo->stats().clocks;
+      }
       if (status_s > 0 && Clock::now() >= next_status) {
         next_status += std::chrono::duration<double>(status_s);
         const StereoSourceStats st = stereo->stats();
         const double t = std::chrono::duration<double>(Clock::now() - t0).count();
-        out << "  t " << std::fixed << std::setprecision(1) << t << " s: " << all.size() << " pairs ("
-            << std::setprecision(1) << all.size() / std::max(t, 1e-9) << "/s), skew p50/p99 "
+        out << "  t " << std::fixed << std::setprecision(1) << t << " s: " << all.frames() << " pairs ("
+            << std::setprecision(1) << all.frames() / std::max(t, 1e-9) << "/s), skew p50/p99 "
             << fmt_us(st.pairing.skew.p50_abs_ns()) << "/" << fmt_us(st.pairing.skew.p99_abs_ns())
             << " us, drops camera " << st.camera_drops << " transport " << st.transport_drops << " pairing "
             << st.pairing.unpaired_left + st.pairing.unpaired_right << " queue "
@@ -566,6 +812,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     std::uint64_t id = 0;
     for (;;) {
       DisplayInput in;
+      TimestampNs new_mid_host_ns = 0;  // a new pair's mid-exposure, for its latency once drawn
       {
         std::lock_guard lock(shared.mutex);
         if (shared.done) break;
@@ -573,6 +820,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
           std::swap(shared.result, shown);
           scene = shared.scene;
           id = shared.id;
+          new_mid_host_ns = shared.mid_exposure_host_ns;
         }
         in.hud = shared.hud;
       }
@@ -583,6 +831,12 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
       }
       in.rig = &*rig;
       const bool open = display->frame(in);
+      if (new_mid_host_ns) {  // drawn and swapped: on its way to the screen
+        const double ms = static_cast<double>(monotonic_now_ns() - new_mid_host_ns) / 1e6;
+        std::lock_guard lock(shared.mutex);
+        shared.latency_display.add(ms);
+        shared.display_hist.add(ms);
+      }
       DisplayCommands c = display->poll_commands();
       for (const std::string& shot : c.screenshots) screenshots.push_back(shot);
       if (!open) c.quit = true;
@@ -606,22 +860,45 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   }
   for (const std::string& shot : screenshots) out << "screenshot " << shot << "\n";
   stereo->stop();
+  if (nav_streamer) nav_streamer->stop();
   nav_inputs.stop();
   const double wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
   const StereoSourceStats st = stereo->stats();
 
   // The summary and the drop ledger: every frame is accounted for, by stage.
-  if (!all.empty()) out << format_run_summary(all);
+  if (all.frames()) out << all.format();
   const std::uint64_t pairing = st.pairing.unpaired_left + st.pairing.unpaired_right;
   const std::uint64_t queue = st.queue_drops[0] + st.queue_drops[1];
-  out << "run: " << all.size() << " stereo frames augmented in " << std::setprecision(1) << wall_s << " s ("
-      << all.size() / std::max(wall_s, 1e-9) << "/s";
-  if (!all.empty())
-    out << ", augmenter " << fmt_ms(augment_ms / static_cast<double>(all.size())) << " ms/frame";
+  out << "run: " << all.frames() << " stereo frames augmented in " << std::setprecision(1) << wall_s << " s ("
+      << all.frames() / std::max(wall_s, 1e-9) << "/s";
+  if (all.frames())
+    out << ", augmenter " << fmt_ms(augment_ms / static_cast<double>(all.frames())) << " ms/frame";
   out << "); frames read: left " << st.frames[0] << ", right " << st.frames[1] << "\n"
       << "drops: camera " << st.camera_drops << ", transport " << st.transport_drops << ", pairing "
-      << pairing << ", processing " << queue + processing_drops + no_pose << " (queue " << queue
-      << ", no pose " << no_pose << ", failed " << processing_drops << ")\n";
+      << pairing << ", processing " << queue + processing_drops << " (queue " << queue << ", failed "
+      << processing_drops << "), recorder " << (rec ? rec->stats().frames_dropped : 0) << "\n";
+  // Latency from each pair's mid-exposure (the earlier camera's) on the host clock.
+  auto latency_line = [&](const char* what, const LatencyHistogram& h) {
+    if (h.count())
+      out << "latency mid-exposure to " << what << ": p50 " << fmt_ms(h.quantile_ms(0.5)) << " ms, p99 "
+          << fmt_ms(h.quantile_ms(0.99)) << " ms, max " << fmt_ms(h.max_ms()) << " ms (" << h.count()
+          << " pairs)\n";
+  };
+  latency_line(display ? "display" : "display hand-off", shared.display_hist);
+  latency_line("recorder", recorder_hist);
+  if (live_nav) {
+    out << "nav: " << no_pose << " pairs without a pose (boom only), " << stale_pairs
+        << " with a stale or missing pose\n";
+    for (Aircraft ac : {Aircraft::kTanker, Aircraft::kReceiver}) {
+      const nav::LiveFusionStatus ns = live_nav->status(ac);
+      out << "nav " << to_string(ac) << ": " << (ns.initialised ? "fused" : "never initialised") << ", "
+          << ns.imu_samples << " IMU samples (" << ns.imu_refused << " refused), " << ns.fixes
+          << " fixes: " << ns.fixes_used << " used, " << ns.fixes_rejected << " rejected by the gate, "
+          << ns.fixes_invalid << " without a fix, " << ns.fixes_late << " late\n";
+    }
+  } else if (no_pose) {
+    out << "nav: " << no_pose << " pairs without a pose (boom only)\n";
+  }
   if (st.pairing.skew.count)
     out << "pair skew: p50 " << fmt_us(st.pairing.skew.p50_abs_ns()) << " us, p99 "
         << fmt_us(st.pairing.skew.p99_abs_ns()) << " us, max " << fmt_us(st.pairing.skew.max_abs_ns)
@@ -646,7 +923,6 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     ledger(recorder::DropStage::kTransport, st.transport_drops, "incomplete or failed buffers");
     ledger(recorder::DropStage::kPairing, pairing, "frames without a stereo partner");
     ledger(recorder::DropStage::kProcessing, queue, "capture queue full (the pipeline fell behind)");
-    ledger(recorder::DropStage::kProcessing, no_pose, "no pose for the frame");
     ledger(recorder::DropStage::kProcessing, processing_drops, "augmentation failed");
     const Status closed = rec->close();
     const recorder::RecorderStats rs = rec->stats();

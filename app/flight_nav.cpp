@@ -2,9 +2,9 @@
 
 #include <cmath>
 #include <cstdio>
-#include <map>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "core/yaml_reader.hpp"
@@ -32,24 +32,33 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
       if (v < 0) fail(c, n, key, std::string("expected ") + what + ", got " + got(n));
       return v;
     };
-    if (root["lever_arm_m"]) cfg.lever_arm_body_m = to_vec3(c, root["lever_arm_m"], "lever_arm_m", "[x, y, z] in metres, body FRD");
+    if (root["lever_arm_m"])
+      cfg.lever_arm_body_m = to_vec3(c, root["lever_arm_m"], "lever_arm_m", "[x, y, z] in metres, body FRD");
     if (root["imu_time_offset_ns"])
-      cfg.imu_time_offset_ns = static_cast<TimestampNs>(to_number(c, root["imu_time_offset_ns"], "imu_time_offset_ns", "a time offset in ns"));
+      cfg.imu_time_offset_ns = static_cast<TimestampNs>(
+          to_number(c, root["imu_time_offset_ns"], "imu_time_offset_ns", "a time offset in ns"));
     if (root["gps_time_offset_ns"])
-      cfg.gps_time_offset_ns = static_cast<TimestampNs>(to_number(c, root["gps_time_offset_ns"], "gps_time_offset_ns", "a time offset in ns"));
+      cfg.gps_time_offset_ns = static_cast<TimestampNs>(
+          to_number(c, root["gps_time_offset_ns"], "gps_time_offset_ns", "a time offset in ns"));
     if (const YAML::Node imu = root["imu"]) {
       expect_map(c, imu, "imu", "a map of IMU noise values");
       check_keys(c, imu, "imu",
-                 {"gyro_arw_deg_per_sqrt_h", "accel_vrw_mps_per_sqrt_h", "gyro_bias_deg_per_h", "accel_bias_mg",
-                  "bias_tau_s"});
+                 {"gyro_arw_deg_per_sqrt_h", "accel_vrw_mps_per_sqrt_h", "gyro_bias_deg_per_h",
+                  "accel_bias_mg", "bias_tau_s"});
       if (imu["gyro_arw_deg_per_sqrt_h"])
-        cfg.imu.gyro_arw_rad_psqrts = deg_to_rad(nonneg(imu["gyro_arw_deg_per_sqrt_h"], "imu.gyro_arw_deg_per_sqrt_h", "a number >= 0")) / 60.0;
+        cfg.imu.gyro_arw_rad_psqrts = deg_to_rad(nonneg(imu["gyro_arw_deg_per_sqrt_h"],
+                                                        "imu.gyro_arw_deg_per_sqrt_h", "a number >= 0")) /
+                                      60.0;
       if (imu["accel_vrw_mps_per_sqrt_h"])
-        cfg.imu.accel_vrw_mps_psqrts = nonneg(imu["accel_vrw_mps_per_sqrt_h"], "imu.accel_vrw_mps_per_sqrt_h", "a number >= 0") / 60.0;
+        cfg.imu.accel_vrw_mps_psqrts =
+            nonneg(imu["accel_vrw_mps_per_sqrt_h"], "imu.accel_vrw_mps_per_sqrt_h", "a number >= 0") / 60.0;
       if (imu["gyro_bias_deg_per_h"])
-        cfg.imu.gyro_bias.sigma = deg_to_rad(nonneg(imu["gyro_bias_deg_per_h"], "imu.gyro_bias_deg_per_h", "a number >= 0")) / 3600.0;
+        cfg.imu.gyro_bias.sigma =
+            deg_to_rad(nonneg(imu["gyro_bias_deg_per_h"], "imu.gyro_bias_deg_per_h", "a number >= 0")) /
+            3600.0;
       if (imu["accel_bias_mg"])
-        cfg.imu.accel_bias.sigma = nonneg(imu["accel_bias_mg"], "imu.accel_bias_mg", "a number >= 0") * 1e-3 * 9.80665;
+        cfg.imu.accel_bias.sigma =
+            nonneg(imu["accel_bias_mg"], "imu.accel_bias_mg", "a number >= 0") * 1e-3 * 9.80665;
       if (imu["bias_tau_s"]) {
         const double tau = nonneg(imu["bias_tau_s"], "imu.bias_tau_s", "a correlation time >= 0 s");
         cfg.imu.gyro_bias.tau_s = cfg.imu.accel_bias.tau_s = tau;
@@ -58,16 +67,21 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
     if (const YAML::Node gps = root["gps"]) {
       expect_map(c, gps, "gps", "a map of GPS noise values");
       check_keys(c, gps, "gps", {"rtk_fixed_m", "rtk_float_m", "use_gst"});
-      if (gps["rtk_fixed_m"]) cfg.gps.rtk_fixed_m = nonneg(gps["rtk_fixed_m"], "gps.rtk_fixed_m", "a sigma >= 0 m");
-      if (gps["rtk_float_m"]) cfg.gps.rtk_float_m = nonneg(gps["rtk_float_m"], "gps.rtk_float_m", "a sigma >= 0 m");
+      if (gps["rtk_fixed_m"])
+        cfg.gps.rtk_fixed_m = nonneg(gps["rtk_fixed_m"], "gps.rtk_fixed_m", "a sigma >= 0 m");
+      if (gps["rtk_float_m"])
+        cfg.gps.rtk_float_m = nonneg(gps["rtk_float_m"], "gps.rtk_float_m", "a sigma >= 0 m");
       if (gps["use_gst"]) cfg.gps.use_gst = to_bool(c, gps["use_gst"], "gps.use_gst");
     }
     if (const YAML::Node h = root["heading"]) {
       expect_map(c, h, "heading", "a map {use, offset_deg, sigma_deg}");
       check_keys(c, h, "heading", {"use", "offset_deg", "sigma_deg"});
       if (h["use"]) cfg.use_heading = to_bool(c, h["use"], "heading.use");
-      if (h["offset_deg"]) cfg.heading_offset_rad = deg_to_rad(to_number(c, h["offset_deg"], "heading.offset_deg", "an angle in degrees"));
-      if (h["sigma_deg"]) cfg.heading_sigma_rad = deg_to_rad(nonneg(h["sigma_deg"], "heading.sigma_deg", "a sigma >= 0 deg"));
+      if (h["offset_deg"])
+        cfg.heading_offset_rad =
+            deg_to_rad(to_number(c, h["offset_deg"], "heading.offset_deg", "an angle in degrees"));
+      if (h["sigma_deg"])
+        cfg.heading_sigma_rad = deg_to_rad(nonneg(h["sigma_deg"], "heading.sigma_deg", "a sigma >= 0 deg"));
     }
     return cfg;
   });
@@ -133,7 +147,8 @@ Expected<AircraftLogs> load_aircraft_logs(const std::string& folder) {
   logs.folder = folder;
   const fs::path dir(folder);
   if (!fs::is_directory(dir))
-    return make_error("aircraft::load_logs(): ", folder, ": not a folder (expected gps.nmea, imu.csv, aircraft.yaml)");
+    return make_error("aircraft::load_logs(): ", folder,
+                      ": not a folder (expected gps.nmea, imu.csv, aircraft.yaml)");
   auto gps = nav::read_nmea_file((dir / "gps.nmea").string());
   if (!gps) return gps.error();
   auto imu = nav::read_imu_csv((dir / "imu.csv").string());
@@ -154,7 +169,8 @@ Status write_aircraft_logs(const std::string& folder, const std::vector<nav::Imu
                            const std::vector<nav::GpsFix>& gps, const nav::InsConfig& config) {
   std::error_code ec;
   fs::create_directories(folder, ec);
-  if (ec) return make_error("aircraft::write_logs(): ", folder, ": cannot create the folder (", ec.message(), ")");
+  if (ec)
+    return make_error("aircraft::write_logs(): ", folder, ": cannot create the folder (", ec.message(), ")");
   nav::NmeaWriterOptions nmea;
   nmea.write_arrival_prefix = true;  // the arrival time is part of what a recorder keeps
   if (auto s = nav::write_nmea_file((fs::path(folder) / "gps.nmea").string(), gps, nmea); !s) return s;
@@ -170,11 +186,13 @@ std::vector<nav::NavSolutionRow> nav_solution_rows(const nav::NavTrajectory& t) 
   for (const nav::NavSolution& s : t.solutions()) {
     nav::NavSolutionRow r;
     r.t_ns = s.t_ns;
-    r.lat_deg = rad_to_deg(s.position.lat_rad), r.lon_deg = rad_to_deg(s.position.lon_rad), r.h_m = s.position.h_m;
+    r.lat_deg = rad_to_deg(s.position.lat_rad), r.lon_deg = rad_to_deg(s.position.lon_rad),
+    r.h_m = s.position.h_m;
     r.vn_mps = s.v_ned_mps.x(), r.ve_mps = s.v_ned_mps.y(), r.vd_mps = s.v_ned_mps.z();
     r.yaw_deg = rad_to_deg(s.attitude.yaw_rad), r.pitch_deg = rad_to_deg(s.attitude.pitch_rad);
     r.roll_deg = rad_to_deg(s.attitude.roll_rad);
-    r.sigma_n_m = s.sigma_pos_ned_m.x(), r.sigma_e_m = s.sigma_pos_ned_m.y(), r.sigma_d_m = s.sigma_pos_ned_m.z();
+    r.sigma_n_m = s.sigma_pos_ned_m.x(), r.sigma_e_m = s.sigma_pos_ned_m.y(),
+    r.sigma_d_m = s.sigma_pos_ned_m.z();
     r.sigma_yaw_deg = rad_to_deg(s.sigma_ypr_rad.x()), r.sigma_pitch_deg = rad_to_deg(s.sigma_ypr_rad.y());
     r.sigma_roll_deg = rad_to_deg(s.sigma_ypr_rad.z());
     rows.push_back(r);
@@ -204,22 +222,29 @@ RelativeNav::RelativeNav(nav::NavTrajectory tanker, nav::NavTrajectory receiver,
       receptacle_m_(receptacle_m),
       camera_offset_ns_(std::move(camera_offset_ns)) {}
 
+FramePose frame_pose(const nav::NavState& tanker, const nav::NavState& receiver, TimestampNs t_nav_ns,
+                     const Rig& rig, int camera, const BoomDimensions& boom,
+                     const Eigen::Vector3d& receptacle_m) {
+  FramePose f;
+  f.t_nav_ns = t_nav_ns;
+  // Camera-relative in double before anything narrows to float (render/ does that).
+  f.body = nav::relative_pose(pose_with_covariance(tanker), pose_with_covariance(receiver));
+  f.camera = nav::in_frame(rig.cameras[camera].T_body_cam.inverse(), f.body);
+  f.boom = track_point(f.body.T_a_receiver * receptacle_m, rig.boom.pivot_body_m, boom, rig.boom.limits);
+  return f;
+}
+
 Expected<FramePose> RelativeNav::at(int camera, TimestampNs t_camera_ns) const {
   if (camera < 0 || camera >= static_cast<int>(rig_.cameras.size()))
     return make_error("RelativeNav::at(): no camera ", camera, " in the rig");
-  FramePose f;
   const TimestampNs offset =
       camera < static_cast<int>(camera_offset_ns_.size()) ? camera_offset_ns_[camera] : 0;
-  f.t_nav_ns = t_camera_ns - offset;
-  auto tk = tanker_.at(f.t_nav_ns);
+  const TimestampNs t_nav_ns = t_camera_ns - offset;
+  auto tk = tanker_.at(t_nav_ns);
   if (!tk) return make_error("RelativeNav::at(): tanker: ", tk.error().message);
-  auto rx = receiver_.at(f.t_nav_ns);
+  auto rx = receiver_.at(t_nav_ns);
   if (!rx) return make_error("RelativeNav::at(): receiver: ", rx.error().message);
-  // Camera-relative in double before anything narrows to float (render/ does that).
-  f.body = nav::relative_pose(pose_with_covariance(*tk), pose_with_covariance(*rx));
-  f.camera = nav::in_frame(rig_.cameras[camera].T_body_cam.inverse(), f.body);
-  f.boom = track_point(f.body.T_a_receiver * receptacle_m_, rig_.boom.pivot_body_m, boom_, rig_.boom.limits);
-  return f;
+  return frame_pose(*tk, *rx, t_nav_ns, rig_, camera, boom_, receptacle_m_);
 }
 
 nav::CameraPoseRow FramePose::row(std::uint64_t sequence, int camera_index, TimestampNs t_camera_ns) const {
@@ -280,11 +305,12 @@ std::string describe(const PoseErrorStats& s) {
 
 std::string describe(const std::string& who, const nav::FusionReport& r) {
   std::ostringstream o;
-  o << who << ": " << r.imu_samples << " IMU samples (" << r.imu_gaps << " gaps), " << r.fixes << " fixes: "
-    << r.fixes_used << " used, " << r.fixes_rejected << " rejected by the gate, " << r.fixes_invalid
-    << " invalid, " << r.fixes_outside << " outside the IMU data; " << r.heading_updates << " heading updates; "
-    << r.outages << " outages (longest gap " << yaml::fmt(std::round(r.longest_fix_gap_s * 1000) / 1000)
-    << " s); " << r.epochs << " epochs" << (r.smoothed ? ", smoothed" : ", forward only");
+  o << who << ": " << r.imu_samples << " IMU samples (" << r.imu_gaps << " gaps), " << r.fixes
+    << " fixes: " << r.fixes_used << " used, " << r.fixes_rejected << " rejected by the gate, "
+    << r.fixes_invalid << " invalid, " << r.fixes_outside << " outside the IMU data; " << r.heading_updates
+    << " heading updates; " << r.outages << " outages (longest gap "
+    << yaml::fmt(std::round(r.longest_fix_gap_s * 1000) / 1000) << " s); " << r.epochs << " epochs"
+    << (r.smoothed ? ", smoothed" : ", forward only");
   return o.str();
 }
 

@@ -63,6 +63,11 @@ struct FramePose {
   nav::CameraPoseRow row(std::uint64_t sequence, int camera_index, TimestampNs t_camera_ns) const;
 };
 
+// The frame pose from both aircraft's states at t_nav_ns (camera: an index into rig.cameras).
+FramePose frame_pose(const nav::NavState& tanker, const nav::NavState& receiver, TimestampNs t_nav_ns,
+                     const Rig& rig, int camera, const BoomDimensions& boom,
+                     const Eigen::Vector3d& receptacle_m);
+
 class RelativeNav {
  public:
   RelativeNav(nav::NavTrajectory tanker, nav::NavTrajectory receiver, Rig rig, BoomDimensions boom,

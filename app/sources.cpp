@@ -1,5 +1,6 @@
 #include "app/sources.hpp"
 
+#include <atomic>
 #include <limits>
 #include <thread>
 
@@ -13,6 +14,7 @@
 #include "sim/flight_source.hpp"
 #include "sim/scenario.hpp"
 #include "sim/sensors.hpp"
+#include "sim/sim_clock.hpp"
 
 namespace augrig::app {
 namespace {
@@ -25,8 +27,8 @@ Error uri_error(const SourceUri& u, const std::string& what) {
 // (the GL context is created there, on the first read), paced to real time unless rate=0.
 class SimSource final : public FrameSource {
  public:
-  SimSource(std::string uri, sim::Scenario scenario, int every, double rate)
-      : uri_(std::move(uri)), scenario_(std::move(scenario)), every_(every), rate_(rate) {}
+  SimSource(std::string uri, sim::Scenario scenario, int every, std::shared_ptr<sim::SimClock> clock)
+      : uri_(std::move(uri)), scenario_(std::move(scenario)), every_(every), clock_(std::move(clock)) {}
   std::string uri() const override { return uri_; }
   std::uint64_t frames_dropped() const override { return dropped_; }
 
@@ -47,16 +49,32 @@ class SimSource final : public FrameSource {
       source_ = std::move(*src);
     }
     ctx_->make_current();
-    auto r = source_->read(out, {});
-    if (!r || *r != ReadStatus::kFrame || rate_ <= 0) return r;
-    // Real time: a frame is not handed out before its time since the first frame.
-    if (!t0_camera_ns_) {
-      t0_camera_ns_ = out.t_ns;
-      t0_host_ns_ = monotonic_now_ns();
+    if (clock_->paced()) {
+      // Live-like: a frame whose time is more than a frame period past is lost, not rendered late
+      // (a camera does not wait for its reader); counted with the camera's drops.
+      const auto period_ns = static_cast<TimestampNs>(1e9 / std::max(1.0, scenario_.sensors.cameras.fps));
+      // The decision is taken per exposure (the left frame): its right partner shares its fate, so
+      // that a source behind schedule loses whole pairs, not every right frame.
+      while (const sim::FrameTruth* next = source_->peek()) {
+        const bool late = monotonic_now_ns() > clock_->host_ns(next->t_gps_ns) + period_ns;
+        const bool skip = next->camera == 0
+                              ? late
+                              : next->sequence == skipped_left_ || (late && next->sequence != rendered_left_);
+        if (!skip) break;
+        if (next->camera == 0) skipped_left_ = next->sequence;
+        source_->skip();
+        ++dropped_;
+      }
+      if (const sim::FrameTruth* next = source_->peek(); next && next->camera == 0)
+        rendered_left_ = next->sequence;
     }
-    const TimestampNs due = t0_host_ns_ + static_cast<TimestampNs>((out.t_ns - *t0_camera_ns_) / rate_);
+    auto r = source_->read(out, {});
+    if (!r || *r != ReadStatus::kFrame || !clock_->paced()) return r;
+    // Real time on the run's clock (shared with the simulated nav streams): a frame is not handed
+    // out before its mid-exposure instant.
+    const TimestampNs due = clock_->host_ns(source_->last_truth().t_gps_ns);
+    clock_->wait_until(source_->last_truth().t_gps_ns);
     const TimestampNs now = monotonic_now_ns();
-    if (due > now) std::this_thread::sleep_for(std::chrono::nanoseconds(due - now));
     out.t_host_ns = std::max(due, now);
     return r;
   }
@@ -65,13 +83,13 @@ class SimSource final : public FrameSource {
   std::string uri_;
   sim::Scenario scenario_;
   int every_;
-  double rate_;
+  std::shared_ptr<sim::SimClock> clock_;
   std::unique_ptr<GlContext> ctx_;
   std::unique_ptr<sim::Flight> flight_;
   std::unique_ptr<sim::FlightSource> source_;
-  std::uint64_t dropped_ = 0;
-  std::optional<TimestampNs> t0_camera_ns_;
-  TimestampNs t0_host_ns_ = 0;
+  std::atomic<std::uint64_t> dropped_{0};
+  std::uint64_t skipped_left_ = ~0ull,
+                rendered_left_ = ~0ull;  // sequences  // read by the pipeline while the capture thread counts
 };
 
 Expected<sim::Scenario> scenario_of(const SourceUri& u) {
@@ -196,6 +214,8 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     if (*every < 1) return uri_error(u, "every: expected an integer >= 1");
     if (*rate < 0) return uri_error(u, "rate: expected >= 0 (0: as fast as possible)");
     out.scenario = scenario->name;
+    out.sim_scenario = *scenario;
+    out.sim_clock = std::make_shared<sim::SimClock>(scenario->start_gps_ns, *rate);
     // Both cameras stamp the simulation's device clocks, which differ by their configured offsets.
     const auto& offs = scenario->sensors.cameras.clock_offset_ns;
     const std::int64_t skew = offs.size() >= 2 ? std::abs(offs[1] - offs[0]) : 0;
@@ -203,7 +223,7 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
         skew + static_cast<std::int64_t>(0.25e9 / scenario->sensors.cameras.fps);
     out.options.lossless = *rate == 0;
     out.sources.push_back(
-        std::make_unique<SimSource>(uri, std::move(*scenario), static_cast<int>(*every), *rate));
+        std::make_unique<SimSource>(uri, std::move(*scenario), static_cast<int>(*every), out.sim_clock));
     return out;
   }
   if (u.scheme == "replay") {

@@ -4,12 +4,15 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "capture/source_uri.hpp"
 #include "capture/stereo_source.hpp"
 #include "core/frame.hpp"
+#include "sim/scenario.hpp"
+#include "sim/sim_clock.hpp"
 
 namespace augrig::app {
 
@@ -18,7 +21,9 @@ struct OpenedSource {
   std::vector<std::unique_ptr<FrameSource>> sources;  // one (both cameras) or two (left, right)
   StereoSourceOptions options;                        // pairing and queueing for these sources
   bool live = false;                                  // cameras (true) or a file / simulation
-  std::string scenario;                               // sim://: the scenario, for nav truth
+  std::string scenario;                               // sim://: the scenario's name, for nav truth
+  std::optional<sim::Scenario> sim_scenario;          // sim://: the scenario
+  std::shared_ptr<sim::SimClock> sim_clock;           // sim://: GPS time to host time for this run
 };
 
 // `uri`: one stereo-capable URI (sim://, replay://, stereo:[..]//{L}{R}); or, with `right_uri`, the

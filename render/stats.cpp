@@ -361,37 +361,54 @@ std::string format_table1(const OcclusionStats& s, const std::string& title) {
   return o.str();
 }
 
-std::string format_run_summary(const std::vector<OcclusionStats>& frames) {
+RunSummary::RunSummary() {
+  const std::size_t n = std::size(kColumns);
+  sum_.assign(n, 0.0);
+  lo_.assign(n, std::numeric_limits<double>::infinity());
+  hi_.assign(n, -std::numeric_limits<double>::infinity());
+}
+
+void RunSummary::add(const OcclusionStats& s) {
+  ++frames_;
+  for (std::size_t i = 0; i < std::size(kColumns); ++i) {
+    // t_ns as a double would lose nanoseconds: its min and max are kept apart below.
+    const double v = std::string_view(kColumns[i].name) == "t_ns" ? 0.0 : kColumns[i].get(s);
+    sum_[i] += v;
+    lo_[i] = std::min(lo_[i], v);
+    hi_[i] = std::max(hi_[i], v);
+  }
+  t_lo_ = frames_ == 1 ? s.t_ns : std::min(t_lo_, s.t_ns);
+  t_hi_ = frames_ == 1 ? s.t_ns : std::max(t_hi_, s.t_ns);
+}
+
+std::string RunSummary::format() const {
   std::ostringstream o;
-  o << "Run summary over " << frames.size() << " stereo frame(s); counts are pixels.\n";
-  if (frames.empty()) return o.str();
+  o << "Run summary over " << frames_ << " stereo frame(s); counts are pixels.\n";
+  if (!frames_) return o.str();
   char line[256];
   std::snprintf(line, sizeof line, "%-24s %16s %16s %16s\n", "column", "mean", "min", "max");
   o << line;
-  for (const Column& c : kColumns) {
+  for (std::size_t i = 0; i < std::size(kColumns); ++i) {
+    const Column& c = kColumns[i];
     if (std::string_view(c.name) == "t_ns") {
-      std::int64_t lo = frames.front().t_ns, hi = lo;
-      for (const auto& f : frames) lo = std::min(lo, f.t_ns), hi = std::max(hi, f.t_ns);
-      std::snprintf(line, sizeof line, "%-24s %16s %16lld %16lld\n", c.name, "-", static_cast<long long>(lo),
-                    static_cast<long long>(hi));
-      o << line;
-      continue;
+      std::snprintf(line, sizeof line, "%-24s %16s %16lld %16lld\n", c.name, "-",
+                    static_cast<long long>(t_lo_), static_cast<long long>(t_hi_));
+    } else {
+      const double mean = sum_[i] / static_cast<double>(frames_);
+      if (c.is_int)
+        std::snprintf(line, sizeof line, "%-24s %16.1f %16.0f %16.0f\n", c.name, mean, lo_[i], hi_[i]);
+      else
+        std::snprintf(line, sizeof line, "%-24s %16.4f %16.4f %16.4f\n", c.name, mean, lo_[i], hi_[i]);
     }
-    double sum = 0, lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (const auto& f : frames) {
-      const double v = c.get(f);
-      sum += v;
-      lo = std::min(lo, v);
-      hi = std::max(hi, v);
-    }
-    const double mean = sum / static_cast<double>(frames.size());
-    if (c.is_int)
-      std::snprintf(line, sizeof line, "%-24s %16.1f %16.0f %16.0f\n", c.name, mean, lo, hi);
-    else
-      std::snprintf(line, sizeof line, "%-24s %16.4f %16.4f %16.4f\n", c.name, mean, lo, hi);
     o << line;
   }
   return o.str();
+}
+
+std::string format_run_summary(const std::vector<OcclusionStats>& frames) {
+  RunSummary r;
+  for (const OcclusionStats& f : frames) r.add(f);
+  return r.format();
 }
 
 }  // namespace augrig

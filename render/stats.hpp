@@ -84,4 +84,18 @@ std::string format_table1(const OcclusionStats& s, const std::string& title);
 // Mean, min and max over frames of each column, as a printable table.
 std::string format_run_summary(const std::vector<OcclusionStats>& frames);
 
+// The same summary accumulated frame by frame, in constant memory (for live runs of any length).
+class RunSummary {
+ public:
+  RunSummary();
+  void add(const OcclusionStats& s);
+  std::size_t frames() const { return frames_; }
+  std::string format() const;
+
+ private:
+  std::size_t frames_ = 0;
+  std::vector<double> sum_, lo_, hi_;  // per column of docs/STATISTICS.md
+  std::int64_t t_lo_ = 0, t_hi_ = 0;
+};
+
 }  // namespace augrig

@@ -50,6 +50,12 @@ class FlightSource final : public FrameSource {
                                                         std::vector<FrameTruth> frames, int every = 1);
   std::string uri() const override { return "sim://" + scenario_.name; }
   Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
+  // The truth of the frame read() will render next (nullptr at the end), and skipping it unrendered:
+  // a real-time source that has fallen behind loses frames as a camera would.
+  const FrameTruth* peek() const { return next_ < frames_.size() ? &frames_[next_] : nullptr; }
+  void skip() {
+    if (next_ < frames_.size()) ++next_;
+  }
   // Truth of the frame read() returned last.
   const FrameTruth& last_truth() const { return frames_.at(next_ - 1); }
   std::size_t frame_count() const { return frames_.size(); }

@@ -46,7 +46,7 @@ TEST(CmdRun, SimulatedFlightThroughThePipelineIntoARecording) {
   EXPECT_TRUE(contains(out, "drops: camera")) << out;
   EXPECT_TRUE(contains(out, "dropped by the recorder")) << out;
   // Lockstep: everything the simulated cameras delivered pairs (the demo's dropped frames excepted).
-  EXPECT_TRUE(contains(out, "processing 0 (queue 0, no pose 0, failed 0)")) << out;
+  EXPECT_TRUE(contains(out, "processing 0 (queue 0, failed 0), recorder 0")) << out;
   std::string check;
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
   EXPECT_TRUE(fs::exists(dir + "/stats.csv"));

@@ -1,0 +1,134 @@
+#include "app/live_nav.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+namespace augrig::app {
+
+std::string_view to_string(Aircraft a) {
+  return a == Aircraft::kTanker ? "tanker" : "receiver";
+}
+
+std::optional<Aircraft> aircraft_of_stream(std::string_view stream) {
+  const std::string_view head = stream.substr(0, stream.find('.'));
+  if (head == "tanker") return Aircraft::kTanker;
+  if (head == "receiver") return Aircraft::kReceiver;
+  return std::nullopt;
+}
+
+LiveNav::LiveNav(const Rig& rig, const BoomDimensions& boom, const Eigen::Vector3d& receptacle_m,
+                 const nav::InsConfig& tanker, const nav::InsConfig& receiver, const LiveNavOptions& options)
+    : rig_(rig), boom_(boom), receptacle_m_(receptacle_m), options_(options) {
+  fusion_[0] = std::make_unique<nav::LiveFusion>(tanker, options.fusion);
+  fusion_[1] = std::make_unique<nav::LiveFusion>(receiver, options.fusion);
+  // GPS time against host arrival: receivers output fixes some tens of ms late, steadily; a
+  // minute's window follows the host clock's drift.
+  ClockOffsetConfig c;
+  c.window_ns = 60'000'000'000;
+  c.jump_threshold_ns = 200'000'000;
+  gps_to_host_ = *ClockOffsetEstimator::create(c);
+}
+
+void LiveNav::add(Aircraft aircraft, const nav::NavEvent& event) {
+  nav::LiveFusion& f = *fusion_[static_cast<int>(aircraft)];
+  if (event.is_imu()) {
+    f.add_imu(event.imu());
+    return;
+  }
+  const nav::GpsFix& fix = event.gps();
+  f.add_fix(fix);
+  if (fix.arrival_ns > 0) {
+    std::lock_guard lock(clock_mutex_);
+    (void)gps_to_host_.add(fix.t_ns, fix.arrival_ns);  // a refused sample leaves the estimate as it was
+  }
+}
+
+Expected<TimestampNs> LiveNav::host_to_nav(TimestampNs host_ns) const {
+  std::lock_guard lock(clock_mutex_);
+  if (!gps_to_host_.has_estimate())
+    return make_error("LiveNav: no GPS fix yet to relate host time to GPS time");
+  return host_ns - gps_to_host_.estimate().offset_ns;
+}
+
+nav::LiveFusionStatus LiveNav::status(Aircraft aircraft) const {
+  return fusion_[static_cast<int>(aircraft)]->status();
+}
+
+namespace {
+
+std::string seconds(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f s", s);
+  return buf;
+}
+
+}  // namespace
+
+FrameNav LiveNav::at(int camera, TimestampNs t_nav_ns) const {
+  FrameNav out;
+  std::array<nav::LiveFusionStatus, 2> st;
+  std::array<std::optional<nav::NavState>, 2> state;
+  double age_s = 0;  // of the oldest newest-fix of the two aircraft at the frame's time
+  for (int a = 0; a < 2; ++a) {
+    const std::string who(to_string(static_cast<Aircraft>(a)));
+    st[a] = fusion_[a]->status();
+    if (!st[a].initialised) {
+      out.problems.push_back(who + " nav: waiting for " +
+                             (st[a].t_imu_ns == 0 ? std::string("IMU data")
+                              : st[a].t_valid_fix_ns == 0 && st[a].fixes
+                                  ? std::string("a GPS fix (no fix yet)")
+                                  : std::string("GPS and IMU to initialise")));
+      continue;
+    }
+    auto s = fusion_[a]->at(t_nav_ns);
+    if (!s) {
+      out.problems.push_back(who + " nav: " + s.error().message);
+      continue;
+    }
+    state[a] = *s;
+    const double fix_age = ns_to_s(t_nav_ns - st[a].t_valid_fix_ns);
+    const double imu_age = ns_to_s(t_nav_ns - st[a].t_imu_ns);
+    age_s = std::max(age_s, fix_age);
+    if (st[a].fix_quality == nav::FixQuality::kInvalid ||
+        st[a].fix_quality == nav::FixQuality::kDeadReckoning) {
+      if (fix_age > options_.stale_after_s)
+        out.problems.push_back(who + " GPS: no fix for " + seconds(fix_age) + " (dead reckoning)");
+    } else if (fix_age > options_.stale_after_s) {
+      out.problems.push_back(who + " GPS: no data for " + seconds(fix_age) + " (dead reckoning)");
+    }
+    if (imu_age > options_.stale_after_s)
+      out.problems.push_back(who + " IMU: no data for " + seconds(imu_age) + " (pose extrapolated)");
+  }
+  out.hud.fix = std::min(st[0].fix_quality, st[1].fix_quality, [](nav::FixQuality x, nav::FixQuality y) {
+    // The worse of the two: RTK fixed (4) best, then float (5), DGPS/PPS, single, none.
+    auto rank = [](nav::FixQuality q) {
+      switch (q) {
+        case nav::FixQuality::kRtkFixed:
+          return 6;
+        case nav::FixQuality::kRtkFloat:
+          return 5;
+        case nav::FixQuality::kDgps:
+        case nav::FixQuality::kPps:
+          return 4;
+        case nav::FixQuality::kSingle:
+          return 3;
+        default:
+          return 0;
+      }
+    };
+    return rank(x) < rank(y);
+  });
+  if (state[0] && state[1]) {
+    out.pose = frame_pose(*state[0], *state[1], t_nav_ns, rig_, camera, boom_, receptacle_m_);
+    out.stale = !out.problems.empty();
+    out.hud.age_s = age_s;
+    out.hud.sigma_pos_m = out.pose->body.sigma_position_m();
+    out.hud.sigma_att_deg = rad_to_deg(out.pose->body.sigma_attitude_rad());
+    out.hud.status = out.stale ? "STALE: " + out.problems.front() : "fused GPS/INS, both aircraft";
+  } else {
+    out.hud.status = "no pose: " + (out.problems.empty() ? std::string("-") : out.problems.front());
+  }
+  return out;
+}
+
+}  // namespace augrig::app
