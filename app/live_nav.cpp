@@ -68,7 +68,8 @@ FrameNav LiveNav::at(int camera, TimestampNs t_nav_ns) const {
   FrameNav out;
   std::array<nav::LiveFusionStatus, 2> st;
   std::array<std::optional<nav::NavState>, 2> state;
-  double age_s = 0;  // of the oldest newest-fix of the two aircraft at the frame's time
+  double age_s = 0;            // of the oldest newest-fix of the two aircraft at the frame's time
+  std::string no_pose_reason;  // the first aircraft without a state
   for (int a = 0; a < 2; ++a) {
     const std::string who(to_string(static_cast<Aircraft>(a)));
     st[a] = fusion_[a]->status();
@@ -83,6 +84,7 @@ FrameNav LiveNav::at(int camera, TimestampNs t_nav_ns) const {
     auto s = fusion_[a]->at(t_nav_ns);
     if (!s) {
       out.problems.push_back(who + " nav: " + s.error().message);
+      if (no_pose_reason.empty()) no_pose_reason = out.problems.back();
       continue;
     }
     state[a] = *s;
@@ -126,7 +128,7 @@ FrameNav LiveNav::at(int camera, TimestampNs t_nav_ns) const {
     out.hud.sigma_att_deg = rad_to_deg(out.pose->body.sigma_attitude_rad());
     out.hud.status = out.stale ? "STALE: " + out.problems.front() : "fused GPS/INS, both aircraft";
   } else {
-    out.hud.status = "no pose: " + (out.problems.empty() ? std::string("-") : out.problems.front());
+    out.hud.status = "no pose: " + no_pose_reason;
   }
   return out;
 }

@@ -30,7 +30,7 @@ class FusionEngine;
 
 struct LiveFusionOptions {
   double max_fix_latency_s = 0.3;    // how long the filter waits for a fix after its time of validity
-  double max_extrapolation_s = 0.5;  // at(): how far past the newest IMU sample
+  double max_extrapolation_s = 1.0;  // at(): how far past the newest IMU sample (rates held)
   double history_s = 5.0;            // at(): how far back from the filter's time
 };
 

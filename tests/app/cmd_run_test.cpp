@@ -4,6 +4,7 @@
 // flags with their exit codes and messages.
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -14,6 +15,10 @@
 #include "nav/udp_socket.hpp"
 #include "recorder/reader.hpp"
 #include "render/rig.hpp"
+#include "sim/flight.hpp"
+#include "sim/flight_source.hpp"
+#include "sim/scenario.hpp"
+#include "sim/sensors.hpp"
 #include "tests/support/fake_gv_camera.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -147,6 +152,128 @@ TEST(CmdRun, RecordsLiveNavInputsAsReceived) {
   }
   EXPECT_EQ(gps, lines) << "both lines, the malformed one too, byte for byte";
   EXPECT_EQ(imu_datagrams, 1);
+}
+
+// --nav sim: the simulated GPS and IMU of both aircraft go over UDP on loopback, in real time, into
+// the live inputs; the live fusion gives each frame's receiver pose. The recorded poses are checked
+// against the simulator's truth for the same frames.
+TEST(CmdRun, LiveNavPosesFromTheSimulatedStreamsMatchTheTruth) {
+  const std::string dir = output_dir("cmd_run_live_nav");
+  std::string out;
+  ASSERT_EQ(
+      augrig(
+          "run --source 'sim://demo?every=3' --nav sim --duration 8 --headless --status-every 0 --record " +
+              dir + "/rec",
+          &out),
+      0)
+      << out;
+  EXPECT_TRUE(contains(out, "poses from the live nav")) << out;
+  EXPECT_TRUE(contains(out, "nav tanker: fused")) << out;
+  EXPECT_TRUE(contains(out, "nav receiver: fused")) << out;
+  EXPECT_TRUE(contains(out, "latency mid-exposure to recorder: p50")) << out;
+  EXPECT_TRUE(contains(out, "lost 0\n")) << out;
+
+  // The truth of every frame of the flight, by the left camera's timestamp.
+  auto sc = sim::builtin_scenario("demo");
+  ASSERT_TRUE(sc);
+  auto flight = sim::Flight::create(*sc);
+  ASSERT_TRUE(flight);
+  std::map<TimestampNs, sim::FrameTruth> truth;
+  for (const sim::FrameTruth& t :
+       sim::frame_truths(*sc, *flight, sim::simulate_sensors(*sc, *flight).cameras))
+    if (t.camera == 0) truth[t.t_camera_ns] = t;
+
+  auto reader = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  std::size_t checked = 0, without_pose = 0;
+  double max_err_m = 0;
+  for (std::size_t i = 0; i < (*reader)->frame_count(); ++i) {
+    auto f = (*reader)->read_frame_info(i);
+    ASSERT_TRUE(f) << f.error().message;
+    if (!f->receiver_present.value_or(false)) {
+      ++without_pose;  // the filters' first second
+      continue;
+    }
+    const auto it = truth.find(f->raw.left.t_ns);
+    ASSERT_NE(it, truth.end());
+    if (it->second.t_true_s < 3.0) continue;
+    ASSERT_TRUE(f->T_body_receiver);
+    max_err_m = std::max(
+        max_err_m, (f->T_body_receiver->translation_m - it->second.T_body_receiver.translation_m).norm());
+    EXPECT_GT(f->sigma_pos_m, 0.0);
+    ++checked;
+  }
+  std::printf(
+      "  %zu recorded frames after 3 s: receiver position max error %.1f mm; %zu frames without a pose\n",
+      checked, 1e3 * max_err_m, without_pose);
+  EXPECT_GT(checked, 10u);
+  EXPECT_LT(max_err_m, 0.1);
+  EXPECT_LT(without_pose, 25u);
+  std::string check;
+  EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
+}
+
+// Nav faults while running: the receiver's GPS silent for 1.5 s, then its IMU for 0.6 s. The run goes
+// on, every frame is still augmented and recorded, and the stale stretches are events in plain words.
+TEST(CmdRun, StaleNavIsMarkedAndTheRunGoesOn) {
+  const std::string dir = output_dir("cmd_run_stale_nav");
+  std::string out;
+  ASSERT_EQ(
+      augrig("run --source 'sim://demo?every=3' --nav sim --nav-fault receiver.gps=3-4.5,receiver.imu=6-6.6 "
+             "--duration 8 --headless --status-every 0 --record " +
+                 dir + "/rec",
+             &out),
+      0)
+      << out;
+  EXPECT_TRUE(contains(out, "nav stale from pair")) << out;
+  EXPECT_TRUE(contains(out, "receiver GPS: no data for")) << out;
+  EXPECT_TRUE(contains(out, "receiver IMU: no data for")) << out;
+  EXPECT_TRUE(contains(out, "nav good again from pair")) << out;
+  auto reader = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  auto events = (*reader)->events();
+  ASSERT_TRUE(events);
+  int stale = 0, good = 0;
+  for (const recorder::EventRecord& e : *events) {
+    stale += contains(e.text, "nav stale from pair") ? 1 : 0;
+    good += contains(e.text, "nav good again from pair") ? 1 : 0;
+  }
+  EXPECT_GE(stale, 3);  // the start, the GPS silence, the IMU silence
+  EXPECT_GE(good, 3);
+  // Every pair augmented was recorded, stale or not.
+  const std::size_t pos = out.find("stereo frames augmented");
+  ASSERT_NE(pos, std::string::npos);
+  const std::size_t start = out.rfind("run: ", pos) + 5;
+  EXPECT_EQ(std::stoul(out.substr(start)), (*reader)->frame_count()) << out;
+}
+
+// The recorder's disk fills (a file size limit here): the recording stops with a clear error and
+// stays valid, the pipeline goes on to the end of the run.
+TEST(CmdRun, DiskFullEndsTheRecordingNotTheRun) {
+  const std::string dir = output_dir("cmd_run_disk_full");
+  std::string out;
+  // ulimit -f counts 1024-byte blocks: 30 MB, about ten stereo frames.
+  const int code =
+      run_command("ulimit -f 30000 && " + augrig_binary() +
+                      " run --source 'sim://demo?every=3' --duration 8 --headless --status-every 0 "
+                      "--record " +
+                      dir + "/rec 2>&1",
+                  &out);
+  EXPECT_EQ(code, 1) << out;
+  EXPECT_TRUE(contains(out, "recording stopped:")) << out;
+  EXPECT_TRUE(contains(out, "the run goes on")) << out;
+  EXPECT_TRUE(contains(out, "Run summary over")) << out;
+  auto reader = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  const std::size_t recorded = (*reader)->frame_count();
+  const std::size_t pos = out.find("stereo frames augmented");
+  ASSERT_NE(pos, std::string::npos);
+  const std::size_t augmented = std::stoul(out.substr(out.rfind("run: ", pos) + 5));
+  std::printf("  %zu pairs augmented, %zu recorded before the disk filled\n", augmented, recorded);
+  EXPECT_GT(recorded, 0u);
+  EXPECT_GT(augmented, recorded + 10) << "the pipeline ran on after the recorder stopped";
+  std::string check;
+  EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
 }
 
 // With a display (Xvfb here) and no --headless, run opens the live window and drives it from the
