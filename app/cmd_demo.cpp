@@ -103,17 +103,19 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
     return kExitOk;
   }
   // With a display: the simulated flight in real time through the live pipeline and its window,
-  // recording on (augrig run). Without one, or with --headless, the batch demo below.
+  // recording on (augrig run), the poses from the live fusion of the simulated GPS/IMU streams
+  // (--nav sim). Without one, or with --headless, the batch demo below.
   if (!a.has("headless") && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) {
     const fs::path out_dir = a.get("out");
     std::vector<std::string> run_args = {
         "--source", "sim://" + a.get("scenario", "demo") + "?every=" + a.get("every", "3"),
         "--out",    out_dir.string(),
-        "--record", a.has("record") ? a.get("record") : (out_dir / "recording").string()};
+        "--record", a.has("record") ? a.get("record") : (out_dir / "recording").string(),
+        "--nav",    "sim"};
     for (const char* pass : {"boom", "duration"})
       if (a.has(pass)) run_args.insert(run_args.end(), {std::string("--") + pass, a.get(pass)});
-    out << "demo: a display is present: the flight in real time in the live window (--headless for the batch "
-           "demo)\n";
+    out << "demo: a display is present: the flight in real time in the live window, poses from the live "
+           "GPS/INS fusion (--headless for the batch demo)\n";
     return cmd_run(run_args, out, err);
   }
   if (a.has("duration"))

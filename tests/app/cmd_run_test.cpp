@@ -311,6 +311,7 @@ TEST(CmdRun, DemoOpensTheLiveWindowWhenADisplayIsPresent) {
       0)
       << out;
   EXPECT_TRUE(contains(out, "the flight in real time in the live window")) << out;
+  EXPECT_TRUE(contains(out, "poses from the live nav")) << out;
   EXPECT_TRUE(contains(out, "live display open")) << out;
   EXPECT_TRUE(contains(out, "recorded ")) << out;
   std::string check;
