@@ -96,6 +96,54 @@ TEST(CmdRun, TwoGigEVisionCamerasFromTheRigsSourceUris) {
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
 }
 
+// A camera lost mid-run (its process killed) and back (restarted): the run says so in plain words,
+// goes on with the other camera's frames counted, pairs again after the reconnection, and ends
+// with a valid recording.
+TEST(CmdRun, CameraLostMidRunIsReportedAndTheRunGoesOn) {
+  std::string why;
+  if (!test::ensure_loopback_address("127.0.0.2", &why)) GTEST_SKIP() << why;
+  test::FakeGvProcess left("127.0.0.1", "LOSTL"), right("127.0.0.2", "LOSTR");
+  ASSERT_TRUE(left.start());
+  ASSERT_TRUE(right.start());
+  const std::string dir = output_dir("cmd_run_camera_lost");
+  Rig rig = Rig::paper_default();
+  for (RigCamera& c : rig.cameras) c.model = CameraModel::pinhole_from_hfov(160, 120, deg_to_rad(56.0));
+  // Plain UDP sockets: see docs/CAPTURE.md on Aravis' packet socket when a stream dies.
+  rig.cameras[0].source_uri = "aravis://127.0.0.1?fps=20&roi=0,0,160,120&format=BayerRG8&packet_socket=0";
+  rig.cameras[1].source_uri = "aravis://127.0.0.2?fps=20&roi=0,0,160,120&format=BayerRG8&packet_socket=0";
+  {
+    std::ofstream f(dir + "/rig.yaml");
+    f << rig_to_yaml(rig);
+  }
+  std::string out;
+  int code = -1;
+  std::thread run([&] {
+    code = augrig("run --rig " + dir + "/rig.yaml --scene " + test::data_path("scenes/contact.yaml") +
+                      " --duration 9 --headless --status-every 0 --record " + dir + "/rec",
+                  &out);
+  });
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  right.kill();
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  ASSERT_TRUE(right.start());
+  run.join();
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_TRUE(contains(out, "lost")) << out;
+  EXPECT_TRUE(contains(out, "lost 1 time(s), reconnected 1 time(s)")) << out;
+  EXPECT_TRUE(contains(out, "stereo frames augmented")) << out;
+  std::string check;
+  EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
+  auto reader = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  auto events = (*reader)->events();
+  ASSERT_TRUE(events);
+  bool lost_event = false;
+  for (const recorder::EventRecord& e : *events) lost_event = lost_event || contains(e.text, "lost");
+  EXPECT_TRUE(lost_event) << "the loss is an event in the recording";
+  // Frames were paired before the loss and after the reconnection (20 fps for 9 s, 2-3 s lost).
+  EXPECT_GT((*reader)->frame_count(), 60u);
+}
+
 // Live nav inputs given with --nav are recorded exactly as received: NMEA lines as text, IMU
 // datagrams as bytes, with their arrival times; malformed input is counted in the ledger.
 TEST(CmdRun, RecordsLiveNavInputsAsReceived) {
