@@ -23,6 +23,7 @@
 #include "capture/aravis_source.hpp"
 #include "capture/v4l2_source.hpp"
 #include "core/clock.hpp"
+#include "core/thread_name.hpp"
 #include "nav/imu_stream.hpp"
 #include "nav/live_input.hpp"
 #include "recorder/recorder.hpp"
@@ -217,6 +218,7 @@ class NavInputs {
             });
       }
       in.thread = std::thread([this, &in, live_nav] {
+        set_thread_name("augrig-nav");
         nav::NavEvent e;
         while (!stop_) {
           auto r = in.input->read(e, std::chrono::milliseconds(100));
@@ -796,6 +798,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   } else {
     std::optional<CommandError> failed;
     std::thread worker([&] {
+      set_thread_name("augrig-pipe");
       try {
         pipeline();
       } catch (const CommandError& e) {

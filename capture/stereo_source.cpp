@@ -6,6 +6,8 @@
 #include <mutex>
 #include <thread>
 
+#include "core/thread_name.hpp"
+
 namespace augrig {
 namespace {
 // Live: how long a frame waits in its queue for the other camera's before it goes to the pairer
@@ -107,7 +109,11 @@ Expected<std::unique_ptr<StereoSource>> StereoSource::create(
   impl->health.resize(n);
   for (std::size_t i = 0; i < n; ++i) impl->health[i] = impl->sources[i]->health();
   Impl* raw = impl.get();
-  for (std::size_t i = 0; i < n; ++i) impl->threads.emplace_back([raw, i] { raw->capture(i); });
+  for (std::size_t i = 0; i < n; ++i)
+    impl->threads.emplace_back([raw, i] {
+      set_thread_name("augrig-cap" + std::to_string(i));
+      raw->capture(i);
+    });
   return std::unique_ptr<StereoSource>(new StereoSource(std::move(impl)));
 }
 

@@ -17,6 +17,7 @@
 #include <sys/resource.h>
 #include <sys/statvfs.h>
 
+#include "core/thread_name.hpp"
 #include "recorder/codec.hpp"
 #include "recorder/store.hpp"
 
@@ -773,9 +774,18 @@ Expected<std::unique_ptr<Recorder>> Recorder::create(const std::string& dir, con
 
   Impl* p = impl.get();
   for (int i = 0; i < impl->opt.compression_threads; ++i)
-    impl->workers.emplace_back([p] { p->worker_main(); });
-  impl->writer = std::thread([p] { p->writer_main(); });
-  impl->checkpointer = std::thread([p] { p->checkpointer_main(); });
+    impl->workers.emplace_back([p] {
+      set_thread_name("augrig-rec-zstd");
+      p->worker_main();
+    });
+  impl->writer = std::thread([p] {
+    set_thread_name("augrig-rec-write");
+    p->writer_main();
+  });
+  impl->checkpointer = std::thread([p] {
+    set_thread_name("augrig-rec-ckpt");
+    p->checkpointer_main();
+  });
   return std::unique_ptr<Recorder>(new Recorder(std::move(impl)));
 }
 

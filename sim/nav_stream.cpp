@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <span>
 
+#include "core/thread_name.hpp"
 #include "nav/imu_stream.hpp"
 #include "nav/udp_socket.hpp"
 
@@ -157,7 +158,10 @@ Expected<std::unique_ptr<NavStreamer>> NavStreamer::start(const SensorLogs& logs
   s->clock_ = std::move(clock);
   s->options_ = std::move(options);
   for (Lane& lane : s->lanes_) s->plan(lane);
-  s->thread_ = std::thread([p = s.get()] { p->run(); });
+  s->thread_ = std::thread([p = s.get()] {
+    set_thread_name("augrig-simnav");
+    p->run();
+  });
   return s;
 }
 
