@@ -261,14 +261,14 @@ TEST(CmdRun, LiveNavPosesFromTheSimulatedStreamsMatchTheTruth) {
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
 }
 
-// Nav faults while running: the receiver's GPS silent for 1.5 s, then its IMU for 0.6 s. The run goes
+// Nav faults while running: the receiver's GPS silent for 1.5 s, then its IMU for 1 s. The run goes
 // on, every frame is still augmented and recorded, and the stale stretches are events in plain words.
 TEST(CmdRun, StaleNavIsMarkedAndTheRunGoesOn) {
   const std::string dir = output_dir("cmd_run_stale_nav");
   std::string out;
   ASSERT_EQ(
-      augrig("run --source 'sim://demo?every=3' --nav sim --nav-fault receiver.gps=3-4.5,receiver.imu=6-6.6 "
-             "--duration 8 --headless --status-every 0 --record " +
+      augrig("run --source 'sim://demo?every=3' --nav sim --nav-fault receiver.gps=2.5-4,receiver.imu=5-6 "
+             "--duration 10 --headless --status-every 0 --record " +
                  dir + "/rec",
              &out),
       0)
