@@ -127,19 +127,13 @@ const std::vector<OptionSpec>& run_specs() {
   return specs;
 }
 
-// The simulation's truth per camera frame, for sim:// runs without a scene.
+// The simulation's truth per camera frame, for sim:// runs without a scene or nav.
 struct SimTruth {
   std::map<std::pair<int, TimestampNs>, sim::FrameTruth> by_frame;
 };
-std::optional<SimTruth> sim_truth(const std::string& scenario_name) {
-  auto s = sim::builtin_scenario(scenario_name);
-  if (!s) s = sim::load_scenario(scenario_name);
-  if (!s) return std::nullopt;
-  auto flight = sim::Flight::create(*s);
-  if (!flight) return std::nullopt;
-  const sim::SensorLogs logs = sim::simulate_sensors(*s, *flight);
+SimTruth sim_truth(const SimulatedFlight& sim) {
   SimTruth t;
-  for (const sim::FrameTruth& f : sim::frame_truths(*s, *flight, logs.cameras))
+  for (const sim::FrameTruth& f : sim::frame_truths(sim.scenario, *sim.flight, sim.logs.cameras))
     t.by_frame[{f.camera, f.t_camera_ns}] = f;
   return t;
 }
@@ -297,7 +291,8 @@ class LatencyHistogram {
     std::uint64_t seen = 0;
     for (std::size_t i = 0; i < kBins; ++i)
       if ((seen += bins_[i]) >= std::max<std::uint64_t>(target, 1))
-        return (static_cast<double>(i) + 0.5) / 10.0;
+        return std::min(max_ms_,
+                        (static_cast<double>(i) + 0.5) / 10.0);  // a bin's middle, never past the max
     return max_ms_;
   }
   double max_ms() const { return max_ms_; }
@@ -340,8 +335,10 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
       runtime_error(rig->source + ": cameras[0] and cameras[1] need a 'source' URI, or give --source");
   }
   OpenedSource opened = unwrap(open_sources(uri, right_uri));
+  // sim://: the flight (kept here: `opened` is handed to the stereo source below).
+  const std::shared_ptr<const SimulatedFlight> sim_flight = opened.sim;
   const bool is_sim = !opened.scenario.empty();
-  if (!rig) rig = is_sim ? unwrap(sim::builtin_scenario(opened.scenario)).rig : Rig::paper_default();
+  if (!rig) rig = is_sim ? sim_flight->scenario.rig : Rig::paper_default();
   const ReceiverSetup receiver = receiver_setup(*rig);
   const BoomDimensions boom_dims;
 
@@ -372,20 +369,19 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
       usage_error(
           "a pose source is needed: --scene SCENE.yaml, or --nav with streams of both aircraft "
           "(tanker.*, receiver.*)");
-    truth = sim_truth(opened.scenario);
-    if (!truth) runtime_error("scenario '" + opened.scenario + "': cannot simulate its truth");
+    truth = sim_truth(*sim_flight);
   }
   std::optional<BoomArg> boom_arg;
   if (a.has("boom")) boom_arg = parse_boom_arg(a.get("boom"));
 
   // The live fusion: each aircraft's settings from --aircraft, the scenario (--nav sim), or defaults.
   std::unique_ptr<LiveNav> live_nav;
-  std::optional<sim::SensorLogs> sim_logs;
+  const sim::SensorLogs* sim_logs = nullptr;
   if (use_nav) {
     nav::InsConfig ins[2];
     if (nav_sim) {
-      ins[0] = ins_config_for(opened.sim_scenario->sensors.tanker);
-      ins[1] = ins_config_for(opened.sim_scenario->sensors.receiver);
+      ins[0] = ins_config_for(sim_flight->scenario.sensors.tanker);
+      ins[1] = ins_config_for(sim_flight->scenario.sensors.receiver);
     }
     if (a.has("aircraft")) {
       for (const auto& [who, file] : NavInputs::parse(a.get("aircraft"))) {
@@ -398,10 +394,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     if (a.has("nav-stale")) nopt.stale_after_s = parse_real("nav-stale", a.get("nav-stale"));
     if (!(nopt.stale_after_s > 0)) usage_error("--nav-stale: expected seconds > 0");
     live_nav = std::make_unique<LiveNav>(*rig, boom_dims, receiver.receptacle_m, ins[0], ins[1], nopt);
-    if (nav_sim) {
-      auto flight = unwrap(sim::Flight::create(*opened.sim_scenario));
-      sim_logs = sim::simulate_sensors(*opened.sim_scenario, flight);
-    }
+    if (nav_sim) sim_logs = &sim_flight->logs;
   }
 
   std::unique_ptr<recorder::Recorder> rec;
@@ -446,8 +439,8 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   }
   // The simulation's cameras are calibrated to GPS time (their clock offsets are known).
   std::vector<TimestampNs> sim_camera_offsets;
-  if (opened.sim_scenario) {
-    sim_camera_offsets = opened.sim_scenario->sensors.cameras.clock_offset_ns;
+  if (sim_flight) {
+    sim_camera_offsets = sim_flight->scenario.sensors.cameras.clock_offset_ns;
     sim_camera_offsets.resize(2, 0);
   }
   const std::shared_ptr<sim::SimClock> sim_clock = opened.sim_clock;
@@ -566,7 +559,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
           // --nav sim: the nav streams start with the flight's first frame (on the same clock).
           if (sim_logs) {
             sim::NavStreamOptions so;
-            so.scenario_start_gps_ns = opened.sim_scenario->start_gps_ns;
+            so.scenario_start_gps_ns = sim_flight->scenario.start_gps_ns;
             nav_streamer = unwrap(sim::NavStreamer::start(*sim_logs, nav_targets, sim_clock, so));
           }
         }
@@ -595,7 +588,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
         if (!scene && live_nav) {
           // The pose at the left camera's mid-exposure on the nav clock (the right's differs by the skew).
           std::optional<TimestampNs> t_nav;
-          if (opened.sim_scenario) {
+          if (sim_flight) {
             t_nav = frame.left.t_ns - sim_camera_offsets[0];
           } else if (mid_l) {
             if (auto t = live_nav->host_to_nav(mid_l)) t_nav = *t;
@@ -793,6 +786,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     }
   };
   std::vector<std::string> screenshots;
+  bool had_window = false;
   if (!display) {
     pipeline();
   } else {
@@ -859,6 +853,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     }
     worker.join();
     display.reset();
+    had_window = true;
     if (failed) throw *failed;
   }
   for (const std::string& shot : screenshots) out << "screenshot " << shot << "\n";
@@ -872,8 +867,8 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   if (all.frames()) out << all.format();
   const std::uint64_t pairing = st.pairing.unpaired_left + st.pairing.unpaired_right;
   const std::uint64_t queue = st.queue_drops[0] + st.queue_drops[1];
-  out << "run: " << all.frames() << " stereo frames augmented in " << std::setprecision(1) << wall_s << " s ("
-      << all.frames() / std::max(wall_s, 1e-9) << "/s";
+  out << "run: " << all.frames() << " stereo frames augmented in " << std::fixed << std::setprecision(1)
+      << wall_s << " s (" << all.frames() / std::max(wall_s, 1e-9) << "/s";
   if (all.frames())
     out << ", augmenter " << fmt_ms(augment_ms / static_cast<double>(all.frames())) << " ms/frame";
   out << "); frames read: left " << st.frames[0] << ", right " << st.frames[1] << "\n"
@@ -887,7 +882,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
           << fmt_ms(h.quantile_ms(0.99)) << " ms, max " << fmt_ms(h.max_ms()) << " ms (" << h.count()
           << " pairs)\n";
   };
-  latency_line(display ? "display" : "display hand-off", shared.display_hist);
+  latency_line(had_window ? "display" : "display hand-off", shared.display_hist);
   latency_line("recorder", recorder_hist);
   if (live_nav) {
     out << "nav: " << no_pose << " pairs without a pose (boom only), " << stale_pairs

@@ -1,5 +1,6 @@
 #include "app/sources.hpp"
 
+#include <array>
 #include <atomic>
 #include <limits>
 #include <thread>
@@ -27,8 +28,9 @@ Error uri_error(const SourceUri& u, const std::string& what) {
 // (the GL context is created there, on the first read), paced to real time unless rate=0.
 class SimSource final : public FrameSource {
  public:
-  SimSource(std::string uri, sim::Scenario scenario, int every, std::shared_ptr<sim::SimClock> clock)
-      : uri_(std::move(uri)), scenario_(std::move(scenario)), every_(every), clock_(std::move(clock)) {}
+  SimSource(std::string uri, std::shared_ptr<const SimulatedFlight> sim, int every,
+            std::shared_ptr<sim::SimClock> clock)
+      : uri_(std::move(uri)), sim_(std::move(sim)), every_(every), clock_(std::move(clock)) {}
   std::string uri() const override { return uri_; }
   std::uint64_t frames_dropped() const override { return dropped_; }
 
@@ -37,14 +39,9 @@ class SimSource final : public FrameSource {
       auto ctx = create_gl_context(GlBackend::kEglHeadless);
       if (!ctx) return make_error(uri_, ": ", ctx.error().message);
       ctx_ = std::move(*ctx);
-      auto flight = sim::Flight::create(scenario_);
-      if (!flight) return make_error(uri_, ": ", flight.error().message);
-      flight_ = std::make_unique<sim::Flight>(std::move(*flight));
-      const sim::SensorLogs logs = sim::simulate_sensors(scenario_, *flight_);
-      for (const auto& cam : logs.cameras)
-        for (const auto& f : cam) dropped_ += f.dropped ? 1 : 0;
-      auto src = sim::FlightSource::create(scenario_, *flight_,
-                                           sim::frame_truths(scenario_, *flight_, logs.cameras), every_);
+      auto src = sim::FlightSource::create(
+          sim_->scenario, *sim_->flight, sim::frame_truths(sim_->scenario, *sim_->flight, sim_->logs.cameras),
+          every_);
       if (!src) return make_error(uri_, ": ", src.error().message);
       source_ = std::move(*src);
     }
@@ -52,7 +49,8 @@ class SimSource final : public FrameSource {
     if (clock_->paced()) {
       // Live-like: a frame whose time is more than a frame period past is lost, not rendered late
       // (a camera does not wait for its reader); counted with the camera's drops.
-      const auto period_ns = static_cast<TimestampNs>(1e9 / std::max(1.0, scenario_.sensors.cameras.fps));
+      const auto period_ns =
+          static_cast<TimestampNs>(1e9 / std::max(1.0, sim_->scenario.sensors.cameras.fps));
       // The decision is taken per exposure (the left frame): its right partner shares its fate, so
       // that a source behind schedule loses whole pairs, not every right frame.
       while (const sim::FrameTruth* next = source_->peek()) {
@@ -62,6 +60,7 @@ class SimSource final : public FrameSource {
                               : next->sequence == skipped_left_ || (late && next->sequence != rendered_left_);
         if (!skip) break;
         if (next->camera == 0) skipped_left_ = next->sequence;
+        next_sequence_[next->camera] = next->sequence + static_cast<std::uint64_t>(every_);
         source_->skip();
         ++dropped_;
       }
@@ -69,6 +68,13 @@ class SimSource final : public FrameSource {
         rendered_left_ = next->sequence;
     }
     auto r = source_->read(out, {});
+    if (r && *r == ReadStatus::kFrame) {
+      // Frames the simulated camera dropped (its timing model), counted as they are passed, as a
+      // camera's frame-id gaps are. With every=K only every K-th sequence is delivered.
+      std::uint64_t& expect = next_sequence_[index_of(out.camera)];
+      if (out.sequence > expect) dropped_ += (out.sequence - expect) / static_cast<std::uint64_t>(every_);
+      expect = out.sequence + static_cast<std::uint64_t>(every_);
+    }
     if (!r || *r != ReadStatus::kFrame || !clock_->paced()) return r;
     // Real time on the run's clock (shared with the simulated nav streams): a frame is not handed
     // out before its mid-exposure instant.
@@ -81,12 +87,12 @@ class SimSource final : public FrameSource {
 
  private:
   std::string uri_;
-  sim::Scenario scenario_;
+  std::shared_ptr<const SimulatedFlight> sim_;
   int every_;
   std::shared_ptr<sim::SimClock> clock_;
   std::unique_ptr<GlContext> ctx_;
-  std::unique_ptr<sim::Flight> flight_;
   std::unique_ptr<sim::FlightSource> source_;
+  std::array<std::uint64_t, 2> next_sequence_{};  // per camera: the camera model's own drops show as gaps
   std::atomic<std::uint64_t> dropped_{0};
   std::uint64_t skipped_left_ = ~0ull,
                 rendered_left_ = ~0ull;  // sequences  // read by the pipeline while the capture thread counts
@@ -214,7 +220,14 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     if (*every < 1) return uri_error(u, "every: expected an integer >= 1");
     if (*rate < 0) return uri_error(u, "rate: expected >= 0 (0: as fast as possible)");
     out.scenario = scenario->name;
-    out.sim_scenario = *scenario;
+    // The flight and every sensor, simulated once here for the cameras, the nav streams and the truth.
+    auto sim = std::make_shared<SimulatedFlight>();
+    sim->scenario = *scenario;
+    auto flight = sim::Flight::create(sim->scenario);
+    if (!flight) return uri_error(u, flight.error().message);
+    sim->flight = std::make_unique<sim::Flight>(std::move(*flight));
+    sim->logs = sim::simulate_sensors(sim->scenario, *sim->flight);
+    out.sim = sim;
     out.sim_clock = std::make_shared<sim::SimClock>(scenario->start_gps_ns, *rate);
     // Both cameras stamp the simulation's device clocks, which differ by their configured offsets.
     const auto& offs = scenario->sensors.cameras.clock_offset_ns;
@@ -222,8 +235,7 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     out.options.pairing.tolerance_ns =
         skew + static_cast<std::int64_t>(0.25e9 / scenario->sensors.cameras.fps);
     out.options.lossless = *rate == 0;
-    out.sources.push_back(
-        std::make_unique<SimSource>(uri, std::move(*scenario), static_cast<int>(*every), out.sim_clock));
+    out.sources.push_back(std::make_unique<SimSource>(uri, out.sim, static_cast<int>(*every), out.sim_clock));
     return out;
   }
   if (u.scheme == "replay") {

@@ -11,10 +11,20 @@
 #include "capture/source_uri.hpp"
 #include "capture/stereo_source.hpp"
 #include "core/frame.hpp"
+#include "sim/flight.hpp"
 #include "sim/scenario.hpp"
+#include "sim/sensors.hpp"
 #include "sim/sim_clock.hpp"
 
 namespace augrig::app {
+
+// A simulated flight, computed once for the run and shared by the rendered cameras, the simulated
+// nav streams and the truth.
+struct SimulatedFlight {
+  sim::Scenario scenario;
+  std::unique_ptr<sim::Flight> flight;
+  sim::SensorLogs logs;
+};
 
 // What a source URI opened into, with what the pipeline needs to know about it.
 struct OpenedSource {
@@ -22,7 +32,7 @@ struct OpenedSource {
   StereoSourceOptions options;                        // pairing and queueing for these sources
   bool live = false;                                  // cameras (true) or a file / simulation
   std::string scenario;                               // sim://: the scenario's name, for nav truth
-  std::optional<sim::Scenario> sim_scenario;          // sim://: the scenario
+  std::shared_ptr<const SimulatedFlight> sim;         // sim://: the scenario, its truth and sensor logs
   std::shared_ptr<sim::SimClock> sim_clock;           // sim://: GPS time to host time for this run
 };
 
