@@ -348,6 +348,37 @@ TEST(CmdRun, OpensTheLiveWindowWhenADisplayIsPresent) {
   EXPECT_FALSE(contains(out, "live display open")) << "--headless keeps it headless";
 }
 
+// Faults with the window open (Xvfb): the receiver's GPS silent and the disk full in one run. The
+// window keeps being drawn to the end (the display latency counts every pair, far more than the
+// recorder took), the stale stretch is reported, and the recording stays valid.
+TEST(CmdRun, FaultsWithTheWindowOpenKeepItRunning) {
+  if (run_command("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run is not installed";
+  const std::string dir = output_dir("cmd_run_window_faults");
+  std::string out;
+  const int code =
+      run_command("ulimit -f 30000 && xvfb-run -a " + augrig_binary() +
+                      " run --source 'sim://demo?every=3' --nav sim --nav-fault receiver.gps=2.5-4 "
+                      "--duration 9 --status-every 0 --out " +
+                      dir + " --record " + dir + "/rec 2>&1",
+                  &out);
+  EXPECT_EQ(code, 1) << out;  // the recording stopped early
+  EXPECT_TRUE(contains(out, "live display open")) << out;
+  EXPECT_TRUE(contains(out, "recording stopped:")) << out;
+  EXPECT_TRUE(contains(out, "receiver GPS: no data for")) << out;
+  const std::size_t pos = out.find("latency mid-exposure to display: ");
+  ASSERT_NE(pos, std::string::npos) << out;
+  const std::size_t open = out.find('(', pos);
+  ASSERT_NE(open, std::string::npos);
+  const unsigned long drawn = std::stoul(out.substr(open + 1));
+  auto reader = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  std::printf("  %lu pairs drawn in the window, %zu recorded before the disk filled\n", drawn,
+              (*reader)->frame_count());
+  EXPECT_GT(drawn, (*reader)->frame_count() + 10);
+  std::string check;
+  EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
+}
+
 // augrig demo with a display: the simulated flight in real time in the live window, recording on.
 TEST(CmdRun, DemoOpensTheLiveWindowWhenADisplayIsPresent) {
   if (run_command("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run is not installed";
