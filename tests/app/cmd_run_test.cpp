@@ -419,6 +419,15 @@ TEST(CmdRun, BadSourcesAndFlagsSayWhatIsWrong) {
            {"run --source 'sim://demo' --duration -1", 2, "--duration"},
            {"run --source 'sim://demo' --nav 'udp://127.0.0.1:1'", 2, "--nav: expected STREAM=URI"},
            {"run --source 'sim://demo' --nav 'gps=udp://127.0.0.1:1?format=xml'", 1, "format"},
+           {"run --source 'sim://demo' --nav-fault receiver.gps=1-2", 2, "--nav-fault needs --nav sim"},
+           {"run --source 'sim://demo' --nav sim --nav-fault receiver.gps=abc", 2, "expected STREAM=T0-T1"},
+           {"run --source 'sim://demo' --nav sim --nav-fault ground.gps=1-2", 2, "no stream 'ground.gps'"},
+           {"run --source 'sim://demo' --nav sim --aircraft foo=bar", 2,
+            "expected tanker=FILE or receiver=FILE"},
+           {"run --source 'sim://demo' --nav sim --aircraft tanker=/nonexistent.yaml", 1,
+            "/nonexistent.yaml"},
+           {"run --source 'sim://demo' --nav sim --nav-stale 0", 2, "--nav-stale: expected seconds > 0"},
+           {"run --source 'replay:///nonexistent/rec' --nav sim", 1, "/nonexistent/rec"},
        }) {
     std::string out;
     EXPECT_EQ(augrig(c.args, &out), c.code) << c.args << "\n" << out;
