@@ -275,34 +275,9 @@ class NavInputs {
   std::atomic<bool> stop_{false};
 };
 
-// Latencies (ms) over the whole run in 0.1 ms bins up to 10 s (constant memory), for the summary.
-class LatencyHistogram {
- public:
-  void add(double ms) {
-    const auto bin = static_cast<std::size_t>(std::clamp(ms * 10.0, 0.0, static_cast<double>(kBins - 1)));
-    ++bins_[bin];
-    ++count_;
-    max_ms_ = std::max(max_ms_, ms);
-  }
-  std::uint64_t count() const { return count_; }
-  double quantile_ms(double q) const {
-    if (!count_) return 0;
-    const auto target = static_cast<std::uint64_t>(std::ceil(q * static_cast<double>(count_)));
-    std::uint64_t seen = 0;
-    for (std::size_t i = 0; i < kBins; ++i)
-      if ((seen += bins_[i]) >= std::max<std::uint64_t>(target, 1))
-        return std::min(max_ms_,
-                        (static_cast<double>(i) + 0.5) / 10.0);  // a bin's middle, never past the max
-    return max_ms_;
-  }
-  double max_ms() const { return max_ms_; }
-
- private:
-  static constexpr std::size_t kBins = 100000;
-  std::vector<std::uint64_t> bins_ = std::vector<std::uint64_t>(kBins, 0);
-  std::uint64_t count_ = 0;
-  double max_ms_ = 0;
-};
+// Latencies over the whole run, for the summary: SkewStats is a log-binned histogram of |ns|
+// (bins 9 % wide, quantiles capped at the max), constant memory, as good for latency as for skew.
+using LatencyHistogram = SkewStats;
 
 int run_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   const ParsedArgs a = parse_or_usage(args, run_specs());
@@ -353,9 +328,9 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   std::vector<std::pair<std::string, std::string>> nav_items;
   if (nav_sim) {
     // The simulated streams come in through the same UDP inputs as in flight (ports chosen free).
-    for (const char* stream : {"tanker.gps", "tanker.imu", "receiver.gps", "receiver.imu"})
-      nav_items.emplace_back(stream, std::string("udp://127.0.0.1:0?format=") +
-                                         (std::string_view(stream).ends_with("gps") ? "nmea" : "imu"));
+    for (const sim::NavStreamTarget& t : sim::loopback_targets(0, 0, 0, 0))
+      nav_items.emplace_back(t.stream, std::string("udp://127.0.0.1:0?format=") +
+                                           (t.kind == sim::NavStreamKind::kGps ? "nmea" : "imu"));
   } else if (a.has("nav")) {
     nav_items = NavInputs::parse(a.get("nav"));
   }
@@ -662,17 +637,17 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
               shown_mid_host_ns = mid_host;
               have_shown = true;
               if (!display && mid_host) {  // headless: the hand-off is as far as a frame goes
-                const double ms = static_cast<double>(monotonic_now_ns() - mid_host) / 1e6;
+                const TimestampNs ns = monotonic_now_ns() - mid_host;
                 std::lock_guard lock(shared.mutex);
-                shared.latency_display.add(ms);
-                shared.display_hist.add(ms);
+                shared.latency_display.add(static_cast<double>(ns) / 1e6);
+                shared.display_hist.add(ns);
               }
             }
             if (rec && recording_on) {
               if (mid_host) {
-                const double ms = static_cast<double>(monotonic_now_ns() - mid_host) / 1e6;
-                latency_recorder.add(ms);
-                recorder_hist.add(ms);
+                const TimestampNs ns = monotonic_now_ns() - mid_host;
+                latency_recorder.add(static_cast<double>(ns) / 1e6);
+                recorder_hist.add(ns);
               }
               recorder::FrameRecord fr;
               fr.raw = std::move(frame);
@@ -829,10 +804,10 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
       in.rig = &*rig;
       const bool open = display->frame(in);
       if (new_mid_host_ns) {  // drawn and swapped: on its way to the screen
-        const double ms = static_cast<double>(monotonic_now_ns() - new_mid_host_ns) / 1e6;
+        const TimestampNs ns = monotonic_now_ns() - new_mid_host_ns;
         std::lock_guard lock(shared.mutex);
-        shared.latency_display.add(ms);
-        shared.display_hist.add(ms);
+        shared.latency_display.add(static_cast<double>(ns) / 1e6);
+        shared.display_hist.add(ns);
       }
       DisplayCommands c = display->poll_commands();
       for (const std::string& shot : c.screenshots) screenshots.push_back(shot);
@@ -877,9 +852,9 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
       << processing_drops << "), recorder " << (rec ? rec->stats().frames_dropped : 0) << "\n";
   // Latency from each pair's mid-exposure (the earlier camera's) on the host clock.
   auto latency_line = [&](const char* what, const LatencyHistogram& h) {
-    if (h.count())
-      out << "latency mid-exposure to " << what << ": p50 " << fmt_ms(h.quantile_ms(0.5)) << " ms, p99 "
-          << fmt_ms(h.quantile_ms(0.99)) << " ms, max " << fmt_ms(h.max_ms()) << " ms (" << h.count()
+    if (h.count)
+      out << "latency mid-exposure to " << what << ": p50 " << fmt_ms(h.p50_abs_ns() / 1e6) << " ms, p99 "
+          << fmt_ms(h.p99_abs_ns() / 1e6) << " ms, max " << fmt_ms(h.max_abs_ns / 1e6) << " ms (" << h.count
           << " pairs)\n";
   };
   latency_line(had_window ? "display" : "display hand-off", shared.display_hist);

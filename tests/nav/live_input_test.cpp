@@ -18,6 +18,7 @@
 #include "sim/flight.hpp"
 #include "sim/scenario.hpp"
 #include "sim/sensors.hpp"
+#include "tests/support/test_support.hpp"
 
 namespace augrig::nav {
 namespace {
@@ -201,20 +202,8 @@ TEST(LiveInput, NmeaOverUdpGivesTheBatchParsersFixes) {
     EXPECT_GE(live.arrival_ns, prev_arrival) << i;  // CLOCK_MONOTONIC, non-decreasing
     prev_arrival = live.arrival_ns;
     live.arrival_ns = 0;  // the batch log has none
-    const GpsFix& b = tanker.fixes[i];
-    EXPECT_EQ(live.t_ns, b.t_ns) << i;
-    EXPECT_EQ(live.antenna.lat_rad, b.antenna.lat_rad) << i;
-    EXPECT_EQ(live.antenna.lon_rad, b.antenna.lon_rad) << i;
-    EXPECT_EQ(live.antenna.h_m, b.antenna.h_m) << i;
-    EXPECT_EQ(live.quality, b.quality) << i;
-    EXPECT_EQ(live.satellites, b.satellites) << i;
-    EXPECT_EQ(live.hdop, b.hdop) << i;
-    EXPECT_EQ(live.geoid_separation_m, b.geoid_separation_m) << i;
-    EXPECT_EQ(live.sigma_ned_m, b.sigma_ned_m) << i;
-    EXPECT_EQ(live.ground_speed_mps, b.ground_speed_mps) << i;
-    EXPECT_EQ(live.course_rad, b.course_rad) << i;
+    test::expect_same_fix(live, tanker.fixes[i], "fix " + std::to_string(i));
     ASSERT_TRUE(live.heading_rad) << i;  // the tanker has a dual-antenna heading
-    EXPECT_EQ(live.heading_rad, b.heading_rad) << i;
     EXPECT_EQ(got[i].sensor_clock, ClockDomain::kGps);
   }
   EXPECT_LE(prev_arrival, monotonic_now_ns());

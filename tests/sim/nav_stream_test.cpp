@@ -28,6 +28,7 @@
 #include "sim/scenario.hpp"
 #include "sim/sensors.hpp"
 #include "sim/sim_clock.hpp"
+#include "tests/support/test_support.hpp"
 
 namespace augrig::sim {
 namespace {
@@ -162,17 +163,7 @@ void expect_gps_equal(const nav::GpsFix& live, const nav::GpsFix& sim, const nav
   EXPECT_EQ(live.satellites, sim.satellites) << what;
   EXPECT_EQ(live.heading_rad.has_value(), sim.heading_rad.has_value()) << what;
   // And exactly what the batch parser reads from the writer's text.
-  EXPECT_EQ(live.t_ns, batch.t_ns) << what;
-  EXPECT_EQ(live.antenna.lat_rad, batch.antenna.lat_rad) << what;
-  EXPECT_EQ(live.antenna.lon_rad, batch.antenna.lon_rad) << what;
-  EXPECT_EQ(live.antenna.h_m, batch.antenna.h_m) << what;
-  EXPECT_EQ(live.quality, batch.quality) << what;
-  EXPECT_EQ(live.hdop, batch.hdop) << what;
-  EXPECT_EQ(live.geoid_separation_m, batch.geoid_separation_m) << what;
-  EXPECT_EQ(live.sigma_ned_m, batch.sigma_ned_m) << what;
-  EXPECT_EQ(live.ground_speed_mps, batch.ground_speed_mps) << what;
-  EXPECT_EQ(live.course_rad, batch.course_rad) << what;
-  EXPECT_EQ(live.heading_rad, batch.heading_rad) << what;
+  test::expect_same_fix(live, batch, what);
 }
 
 void expect_imu_equal(const nav::ImuSample& live, const nav::ImuSample& sim, const std::string& what) {

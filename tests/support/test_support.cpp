@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 
 namespace augrig::test {
@@ -37,6 +38,21 @@ int run_command(const std::string& command, std::string* output) {
 
 int run_augrig(const std::string& args, std::string* output) {
   return run_command(augrig_binary() + " " + args + " 2>&1", output);
+}
+
+void expect_same_fix(const nav::GpsFix& got, const nav::GpsFix& want, const std::string& what) {
+  EXPECT_EQ(got.t_ns, want.t_ns) << what;
+  EXPECT_EQ(got.antenna.lat_rad, want.antenna.lat_rad) << what;
+  EXPECT_EQ(got.antenna.lon_rad, want.antenna.lon_rad) << what;
+  EXPECT_EQ(got.antenna.h_m, want.antenna.h_m) << what;
+  EXPECT_EQ(got.quality, want.quality) << what;
+  EXPECT_EQ(got.satellites, want.satellites) << what;
+  EXPECT_EQ(got.hdop, want.hdop) << what;
+  EXPECT_EQ(got.geoid_separation_m, want.geoid_separation_m) << what;
+  EXPECT_EQ(got.sigma_ned_m, want.sigma_ned_m) << what;
+  EXPECT_EQ(got.ground_speed_mps, want.ground_speed_mps) << what;
+  EXPECT_EQ(got.course_rad, want.course_rad) << what;
+  EXPECT_EQ(got.heading_rad, want.heading_rad) << what;
 }
 
 }  // namespace augrig::test

@@ -1,7 +1,10 @@
-// Helpers shared by the tests: where test data lives and where outputs (diff images) go.
+// Helpers shared by the tests: where test data lives and where outputs (diff images) go, and
+// comparisons several suites make.
 #pragma once
 
 #include <string>
+
+#include "nav/types.hpp"
 
 namespace augrig::test {
 
@@ -15,5 +18,8 @@ std::string augrig_binary();
 int run_command(const std::string& command, std::string* output = nullptr);
 // Runs the augrig binary with `args`; `output` gets its stdout and stderr together.
 int run_augrig(const std::string& args, std::string* output = nullptr);
+// Every field of two GPS fixes but the arrival time, exactly (one parser's output against another's);
+// `what` names the fix in failure messages.
+void expect_same_fix(const nav::GpsFix& got, const nav::GpsFix& want, const std::string& what);
 
 }  // namespace augrig::test
