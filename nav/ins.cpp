@@ -876,6 +876,16 @@ Expected<NavState> FusionEngine::at(TimestampNs t_ns, TimestampNs max_extrapolat
 }
 
 void FusionEngine::trim_before(TimestampNs t_ns) {
+  if (!initialised_) {
+    // Before the filter starts only the IMU data a first fix at or after t_ns needs are kept.
+    auto& imu = traj_.imu_;
+    const auto end =
+        std::find_if(imu.begin(), imu.end(), [&](const Increment& i) { return i.t1_ns >= t_ns; });
+    imu.erase(imu.begin(), end);
+    fixes_.erase(fixes_.begin(),
+                 std::find_if(fixes_.begin(), fixes_.end(), [&](const Fix& f) { return f.t_ns >= t_ns; }));
+    return;
+  }
   auto& epochs = traj_.epochs_;
   // Keep the last epoch at or before t_ns (queries at t_ns start there) and the increment before its
   // IMU index (piece() looks at the neighbours).

@@ -37,7 +37,8 @@ class FusionEngine {
   // The state at t_ns from the last epoch at or before it; past the IMU data the last increment's
   // rates are held for at most max_extrapolation_ns. The covariance is propagated from the epoch.
   Expected<NavState> at(TimestampNs t_ns, TimestampNs max_extrapolation_ns) const;
-  // Forgets epochs and IMU increments that no query at or after t_ns needs.
+  // Forgets epochs and IMU increments that no query at or after t_ns needs (before initialisation:
+  // the IMU increments and fixes before t_ns).
   void trim_before(TimestampNs t_ns);
 
   TimestampNs filter_time_ns() const { return mech_.state().t_ns; }

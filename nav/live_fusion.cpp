@@ -18,14 +18,11 @@ void LiveFusion::add_imu(const ImuSample& sample) {
     status_.last_error = s.error().message;
     return;
   }
-  ++status_.imu_samples;
-  status_.t_imu_ns = engine_->imu_end_ns();
   run_filter();
 }
 
 void LiveFusion::add_fix(const GpsFix& fix) {
   std::lock_guard lock(mutex_);
-  ++status_.fixes;
   status_.t_fix_ns = fix.t_ns + config_.gps_time_offset_ns;
   status_.fix_quality = fix.quality;
   if (Status s = engine_->append_fix(fix); !s) {
@@ -39,7 +36,12 @@ void LiveFusion::add_fix(const GpsFix& fix) {
 }
 
 void LiveFusion::run_filter() {
-  if (!engine_->try_initialise()) return;
+  if (!engine_->try_initialise()) {
+    // No fix to start from yet (a receiver without a fix): keep only recent IMU data.
+    if (engine_->buffered_imu() > 4096)
+      engine_->trim_before(engine_->imu_end_ns() - s_to_ns(options_.history_s));
+    return;
+  }
   // Certain up to the newest fix (fixes come in order), or up to the newest IMU sample less the
   // longest a fix may take to arrive.
   const TimestampNs t_imu = engine_->imu_end_ns();
@@ -48,17 +50,6 @@ void LiveFusion::run_filter() {
   // Forget what no query will need; in batches, so the erases stay cheap.
   const TimestampNs keep_from = engine_->filter_time_ns() - s_to_ns(options_.history_s);
   if (engine_->buffered_imu() > 4096 || engine_->buffered_epochs() > 512) engine_->trim_before(keep_from);
-
-  const FusionReport& r = engine_->report();
-  status_.initialised = true;
-  status_.init_summary = r.init_summary;
-  status_.t_filter_ns = engine_->filter_time_ns();
-  status_.t_used_fix_ns = engine_->last_used_fix_ns();
-  status_.fixes_used = r.fixes_used;
-  status_.fixes_rejected = r.fixes_rejected;
-  status_.fixes_invalid = r.fixes_invalid;
-  status_.buffered_imu = engine_->buffered_imu();
-  status_.buffered_epochs = engine_->buffered_epochs();
 }
 
 Expected<NavState> LiveFusion::at(TimestampNs t_ns) const {
@@ -68,8 +59,23 @@ Expected<NavState> LiveFusion::at(TimestampNs t_ns) const {
 
 LiveFusionStatus LiveFusion::status() const {
   std::lock_guard lock(mutex_);
+  // What the filter knows is read from it; status_ holds only what arrived and was refused.
   LiveFusionStatus s = status_;
-  s.fixes_invalid = engine_->report().fixes_invalid;
+  const FusionReport& r = engine_->report();
+  s.initialised = engine_->initialised();
+  if (s.initialised) {
+    s.init_summary = r.init_summary;
+    s.t_filter_ns = engine_->filter_time_ns();
+    s.t_used_fix_ns = engine_->last_used_fix_ns();
+  }
+  s.t_imu_ns = engine_->imu_end_ns();
+  s.imu_samples = r.imu_samples;
+  s.fixes = r.fixes;
+  s.fixes_used = r.fixes_used;
+  s.fixes_rejected = r.fixes_rejected;
+  s.fixes_invalid = r.fixes_invalid;
+  s.buffered_imu = engine_->buffered_imu();
+  s.buffered_epochs = engine_->buffered_epochs();
   return s;
 }
 

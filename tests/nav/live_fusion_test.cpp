@@ -203,6 +203,25 @@ TEST(LiveFusion, OutOfOrderAndLateSamplesAreRefusedAndCounted) {
   EXPECT_TRUE(live.at(st.t_filter_ns).has_value());
 }
 
+TEST(LiveFusion, WithoutAnyFixTheImuBufferStaysBounded) {
+  // A receiver that never gets a fix: the filter cannot start, and must not keep every IMU sample.
+  const SimData d = simulate("demo-noise-free", 40.0);
+  LiveFusion live(config_for(d.scenario.sensors.tanker));
+  std::size_t most = 0;
+  for (const ImuSample& s : d.logs.tanker_imu) {
+    live.add_imu(s);
+    most = std::max(most, live.status().buffered_imu);
+  }
+  const LiveFusionStatus st = live.status();
+  EXPECT_FALSE(st.initialised);
+  EXPECT_EQ(st.imu_samples, d.logs.tanker_imu.size());
+  EXPECT_LE(most, 4097u);
+  // A fix now still starts the filter from the recent IMU data.
+  for (const GpsFix& f : d.logs.tanker_gps)
+    if (f.t_ns > st.t_imu_ns - s_to_ns(3.0)) live.add_fix(f);
+  EXPECT_TRUE(live.status().initialised);
+}
+
 TEST(LiveFusion, NoFixQualityIsReportedAndCoastsOnTheImu) {
   const SimData d = simulate("demo-noise-free", 10.0);
   LiveFusion live(config_for(d.scenario.sensors.tanker));
