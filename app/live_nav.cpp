@@ -79,6 +79,7 @@ FrameNav LiveNav::at(int camera, TimestampNs t_nav_ns) const {
                               : st[a].t_valid_fix_ns == 0 && st[a].fixes
                                   ? std::string("a GPS fix (no fix yet)")
                                   : std::string("GPS and IMU to initialise")));
+      if (no_pose_reason.empty()) no_pose_reason = out.problems.back();
       continue;
     }
     auto s = fusion_[a]->at(t_nav_ns);

@@ -191,6 +191,7 @@ TEST(LiveNav, WaitsInPlainWordsAndMapsHostTimeByTheFixesArrivals) {
   EXPECT_FALSE(fn.pose);
   ASSERT_EQ(fn.problems.size(), 2u);
   EXPECT_EQ(fn.problems[0], "tanker nav: waiting for IMU data");
+  EXPECT_EQ(fn.hud.status, "no pose: tanker nav: waiting for IMU data");
   EXPECT_FALSE(nav.host_to_nav(123).has_value());
 
   // Fixes arriving on a host clock 1000 s ahead of GPS time, 30 ms (the sim's latency) to 45 ms late.
