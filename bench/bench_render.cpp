@@ -1,8 +1,9 @@
 // bench_render: per-stage cost of augmenting one 1280x960 stereo frame on this machine
 // (llvmpipe here), for the boom path alone and with the receiver proxy and stereo classes,
 // with and without lens distortion, and how much of the image the boom and receiver cover (the
-// cost is per covered pixel on a software rasteriser). Prints tables for docs/PERFORMANCE.md.
-//   build/bench_render [--frames N] [--case K]
+// cost is per covered pixel on a software rasteriser), with each rasteriser (OpenGL, and the CPU
+// one of render/soft_raster.hpp) in the same run. Prints tables for docs/PERFORMANCE.md.
+//   build/bench_render [--frames N] [--case K] [--raster opengl|cpu|both]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -60,9 +61,10 @@ Rig rig_with(bool distorted, double cameras_forward_m = 0) {
 }
 
 void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, int frames, bool profile,
-              double cameras_forward_m) {
+              double cameras_forward_m, Rasterizer raster) {
   const Rig rig = rig_with(distorted, cameras_forward_m);
   AugmentOptions opt;
+  opt.rasterizer = raster;
   opt.receiver_proxy = receiver;
   opt.stereo_classes = receiver;
   opt.profile_stages = profile;
@@ -114,22 +116,34 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
                 readback.median());
     return;
   }
-  std::printf("| %-44s | %5.1f%% | %5.1f%% | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n", name,
-              boom_pct.median(), receiver ? recv_pct.median() : 0.0, render.median(), masks.median(),
-              stats.median(), is_bayer(fmt) ? debayer.median() : 0.0, total.median(), total.p90());
+  std::printf("| %-44s | %-6s | %5.1f%% | %5.1f%% | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n", name,
+              to_string((*aug)->rasterizer()), boom_pct.median(), receiver ? recv_pct.median() : 0.0,
+              render.median(), masks.median(), stats.median(), is_bayer(fmt) ? debayer.median() : 0.0,
+              total.median(), total.p90());
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   int frames = 60, only = -1;
+  std::vector<Rasterizer> rasters = {Rasterizer::kOpenGl, Rasterizer::kCpu};
   for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc)
+    if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc) {
       frames = std::atoi(argv[++i]);
-    else if (std::strcmp(argv[i], "--case") == 0 && i + 1 < argc)
+    } else if (std::strcmp(argv[i], "--case") == 0 && i + 1 < argc) {
       only = std::atoi(argv[++i]);
-    else {
-      std::fprintf(stderr, "usage: bench_render [--frames N] [--case 0..6]\n");
+    } else if (std::strcmp(argv[i], "--raster") == 0 && i + 1 < argc) {
+      const std::string r = argv[++i];
+      if (r == "opengl")
+        rasters = {Rasterizer::kOpenGl};
+      else if (r == "cpu")
+        rasters = {Rasterizer::kCpu};
+      else if (r != "both")
+        return std::fprintf(stderr, "bench_render: --raster takes opengl, cpu or both, not '%s'\n",
+                            r.c_str()),
+               2;
+    } else {
+      std::fprintf(stderr, "usage: bench_render [--frames N] [--case 0..6] [--raster opengl|cpu|both]\n");
       return 2;
     }
   }
@@ -142,11 +156,13 @@ int main(int argc, char** argv) {
               frames);
   std::printf("renderer: %s\n\n", (*ctx)->renderer().c_str());
   std::printf(
-      "| case                                         | boom | receiver | render | masks+composite | stats | "
-      "debayer | total (median / p90) |\n");
+      "| case                                         | raster | boom | receiver | render | masks+composite "
+      "| "
+      "stats | debayer | total (median / p90) |\n");
   std::printf(
-      "|----------------------------------------------|-----:|-----:|-------:|-------:|------:|------:|------"
-      ":|\n");
+      "|----------------------------------------------|--------|-----:|-----:|-------:|-------:|------:|-----"
+      "-:|"
+      "------:|\n");
   struct Case {
     const char* name;
     bool distorted, receiver;
@@ -164,9 +180,11 @@ int main(int argc, char** argv) {
   };
   constexpr int kCases = static_cast<int>(std::size(cases));
   for (int i = 0; i < kCases; ++i)
-    if (only < 0 || only == i)
-      run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames, false,
-               cases[i].cameras_forward_m);
+    for (const Rasterizer r : rasters)
+      if (only < 0 || only == i)
+        run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames, false,
+                 cases[i].cameras_forward_m, r);
+  if (std::find(rasters.begin(), rasters.end(), Rasterizer::kOpenGl) == rasters.end()) return 0;
   // Where the GL time goes (glFinish between stages, so these sum to more than `render` above).
   std::printf("\nGL stages, both views (ms, medians, with glFinish between stages):\n\n");
   std::printf("| case                                         | clear  | draw   | readback |\n");
@@ -174,6 +192,6 @@ int main(int argc, char** argv) {
   for (int i = 0; i < kCases; ++i)
     if (only < 0 || only == i)
       run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames, true,
-               cases[i].cameras_forward_m);
+               cases[i].cameras_forward_m, Rasterizer::kOpenGl);
   return 0;
 }

@@ -1,9 +1,10 @@
 // The augmenter (render/augmenter.hpp). Per view:
 //   1. everything is moved into the camera frame in double precision (T_cam_body * T_body_obj);
-//   2. OpenGL rasterises the receiver (ids only), then the boom depth-tested against it (shaded
-//      colour and ids), into the virtual pinhole image; ids pack the draw id in alpha and
-//      gl_PrimitiveID in RGB. Only the projected boxes of spatial chunks of each mesh are cleared
-//      and read back (llvmpipe's cost is per pixel and per triangle);
+//   2. the receiver is rasterised (ids only), then the boom depth-tested against it (shaded
+//      colour and ids), into the virtual pinhole image; ids pack the draw id in the top byte and
+//      the triangle in the low 24 bits. OpenGL clears and reads back only the projected boxes of
+//      spatial chunks of each mesh (llvmpipe's cost is per pixel and per triangle); the CPU
+//      rasteriser (render/soft_raster.hpp) writes ids and depth straight into the CPU images;
 //   3. the CPU visits the raw pixels of those boxes: each centre maps into the virtual image
 //      (shifted half a sample when anti-aliasing an undistorted lens); where the 2x2 ids around it
 //      agree the answer is read off (a triangle covering all four samples covers the centre),
@@ -23,8 +24,13 @@
 #include <tuple>
 #include <unordered_map>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "render/gl_util.hpp"
 #include "render/projection.hpp"
+#include "render/soft_raster.hpp"
 
 namespace augrig {
 
@@ -106,6 +112,19 @@ struct CamTriangle {
   double n_dot_v0;
 };
 
+// The boom fragment shader's lighting for one triangle in one view, as functions of the camera-
+// frame ray d = (x, y, 1) (CPU rasteriser: the resolve shades each raw pixel at its centre). The
+// interpolated normal up to a positive factor is M d (normalising removes the factor), so its dot
+// with the light is g . d; the texture's barycentrics are e_k = c_k . d normalised.
+struct BoomShading {
+  float m[9];     // row-major 3x3
+  float g[3];     // M^T light
+  float c[3][3];  // edge planes (textured meshes only)
+  float uv[3][2];
+  float base[3];  // base colour * 255
+  const Texture* texture = nullptr;
+};
+
 struct MapEntry {
   std::int32_t idx;  // top-left virtual sample of the bilinear 2x2 (j0 * Wv + i0); -1: no ray
   float fx, fy;      // bilinear fractions
@@ -123,8 +142,19 @@ struct ViewState {
   std::vector<MapEntry> map;                       // per raw pixel
   std::vector<std::uint32_t> boom_ids, recv_ids;   // virtual image, packed ids; zero outside the last boxes
   std::vector<std::uint8_t> boom_rgba, recv_rgba;  // virtual image colour (recv only for overlays)
-  std::vector<VBox> boom_vboxes, recv_vboxes;      // boxes rendered and read back this frame
-  std::vector<std::uint32_t> visit_stamp;          // per triangle: last nearest_hit() call that tested it
+  std::vector<float> inv_z;          // CPU rasteriser's depth (1/z); zero outside the last boxes
+  std::vector<BoomShading> shading;  // CPU rasteriser: per boom triangle drawn this frame
+  // CPU rasteriser: which kBlock x kBlock blocks of the virtual image it wrote this frame, and per
+  // group of kGroup raw pixels of a row, the blocks their 2x2 sample neighbourhoods lie in.
+  std::vector<std::uint8_t> occupied;
+  int blocks_x = 0;
+  struct BlockRange {
+    std::uint16_t bi0, bi1, bj0, bj1;  // inclusive; bi0 > bi1 when no pixel of the group has a ray
+  };
+  std::vector<BlockRange> groups;
+  int groups_x = 0;
+  std::vector<VBox> boom_vboxes, recv_vboxes;  // boxes rendered and read back this frame
+  std::vector<std::uint32_t> visit_stamp;      // per triangle: last nearest_hit() call that tested it
   std::uint32_t stamp = 0;
   std::vector<VBox> raw_boxes;  // scratch of resolve_view, kept to avoid allocating
   std::vector<std::pair<int, int>> spans;
@@ -137,7 +167,79 @@ struct ViewState {
 };
 
 constexpr std::uint32_t kDrawShift = 24;
+constexpr int kBlockShift = 3;  // virtual image blocks of 8 x 8 samples
+constexpr int kGroup = 32;      // raw pixels per occupancy test
+
+// Whether any sample around the raw pixels of group g of row v may hold an id this frame.
+bool group_occupied(const ViewState& vs, int v, int g) {
+  if (vs.occupied.empty()) return true;  // OpenGL: nothing known
+  const ViewState::BlockRange& r = vs.groups[static_cast<std::size_t>(v) * vs.groups_x + g];
+  for (int bj = r.bj0; bj <= r.bj1; ++bj)
+    for (int bi = r.bi0; bi <= r.bi1; ++bi)
+      if (vs.occupied[static_cast<std::size_t>(bj) * vs.blocks_x + bi]) return true;
+  return false;
+}
 constexpr std::uint32_t kPrimMask = (1u << 24) - 1;
+
+// Four RGBA8 samples blended in one vector (GCC/Clang vector extensions: SSE here, NEON on ARM).
+using F32x4 = float __attribute__((vector_size(16)));
+inline F32x4 load_rgba(const std::uint8_t* p) {
+#if defined(__SSE2__)
+  // Widen u8 -> i32 -> f32 in registers (__builtin_convertvector goes lane by lane on SSE2).
+  std::int32_t v;
+  std::memcpy(&v, p, 4);
+  const __m128i zero = _mm_setzero_si128();
+  const __m128i w = _mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(v), zero), zero);
+  return reinterpret_cast<F32x4>(_mm_cvtepi32_ps(w));
+#else
+  return F32x4{static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2]),
+               static_cast<float>(p[3])};
+#endif
+}
+
+// Bilinear, repeating, as GL samples the boom's texture when magnified (no mipmaps here: the
+// boom is seen from a few metres, its texture is not minified much). RGBA 0..255.
+inline F32x4 sample_texture(const Texture& tex, float u, float v) {
+  // Texel coordinates wrapped into [0, n), the texel and its right/lower neighbour (wrapping).
+  // Floors by truncation: std::floor is a library call on baseline x86-64.
+  auto texel = [](float t, int n, int& i0, int& i1) {
+    const float x = t * static_cast<float>(n) - 0.5f;
+    int i = static_cast<int>(x);
+    i -= x < static_cast<float>(i);
+    const float frac = x - static_cast<float>(i);
+    i %= n;
+    i0 = i < 0 ? i + n : i;
+    i1 = i0 + 1 == n ? 0 : i0 + 1;
+    return frac;
+  };
+  int x0, x1, y0, y1;
+  const float ax = texel(u, tex.width, x0, x1), ay = texel(v, tex.height, y0, y1);
+  const std::uint8_t* r0 = &tex.rgba[static_cast<std::size_t>(y0) * tex.width * 4];
+  const std::uint8_t* r1 = &tex.rgba[static_cast<std::size_t>(y1) * tex.width * 4];
+  return (1 - ay) * ((1 - ax) * load_rgba(r0 + 4 * x0) + ax * load_rgba(r0 + 4 * x1)) +
+         ay * ((1 - ax) * load_rgba(r1 + 4 * x0) + ax * load_rgba(r1 + 4 * x1));
+}
+
+// The boom's colour (0..255, alpha 255) on the ray (x, y, 1) through triangle `s`: ambient 0.35
+// plus diffuse 0.65 of the normalised interpolated normal, times base colour and texture.
+inline F32x4 shade(const BoomShading& s, float x, float y) {
+  const float nx = s.m[0] * x + s.m[1] * y + s.m[2], ny = s.m[3] * x + s.m[4] * y + s.m[5],
+              nz = s.m[6] * x + s.m[7] * y + s.m[8];
+  const float len2 = nx * nx + ny * ny + nz * nz, n_dot_l = s.g[0] * x + s.g[1] * y + s.g[2];
+  const float diffuse = len2 > 0 && n_dot_l > 0 ? n_dot_l / std::sqrt(len2) : 0.f;
+  const float k = 0.35f + 0.65f * diffuse;
+  F32x4 c{s.base[0] * k, s.base[1] * k, s.base[2] * k, 255.f};
+  if (s.texture) {
+    float e[3];
+    for (int j = 0; j < 3; ++j) e[j] = s.c[j][0] * x + s.c[j][1] * y + s.c[j][2];
+    const float sum = e[0] + e[1] + e[2];
+    const float w1 = sum > 0 ? e[1] / sum : 0.f, w2 = sum > 0 ? e[2] / sum : 0.f, w0 = 1 - w1 - w2;
+    c *= sample_texture(*s.texture, w0 * s.uv[0][0] + w1 * s.uv[1][0] + w2 * s.uv[2][0],
+                        w0 * s.uv[0][1] + w1 * s.uv[1][1] + w2 * s.uv[2][1]) *
+         (1.f / 255.f);
+  }
+  return c;
+}
 
 PixelBox to_pixel_box(const VBox& b) {
   return {b.x0, b.y0, b.x1, b.y1};
@@ -154,11 +256,13 @@ VBox unite(const VBox& a, const VBox& b) {
   return {std::min(a.x0, b.x0), std::min(a.y0, b.y0), std::max(a.x1, b.x1), std::max(a.y1, b.y1)};
 }
 
-// Reorders `mesh`'s triangles into up to `max_chunks` slabs along the longest axis of its bounds
-// (by centroid) and returns their ranges. Long parts get several small screen boxes.
-std::vector<std::pair<std::uint32_t, std::uint32_t>> split_into_chunks(Mesh& mesh, int max_chunks) {
+// Reorders `mesh`'s triangles into up to `max_chunks` slabs of at least `min_triangles` along the
+// longest axis of its bounds (by centroid) and returns their ranges. Long parts get several small
+// screen boxes.
+std::vector<std::pair<std::uint32_t, std::uint32_t>> split_into_chunks(Mesh& mesh, int max_chunks,
+                                                                       int min_triangles) {
   const auto n = static_cast<std::uint32_t>(mesh.triangle_count());
-  const int k = std::clamp(static_cast<int>(n / 64), 1, max_chunks);
+  const int k = std::clamp(static_cast<int>(n / min_triangles), 1, max_chunks);
   if (k == 1) return {{0u, n}};
   const auto [lo, hi] = mesh.bounds();
   int axis = 0;
@@ -197,6 +301,7 @@ class AugmenterImpl final : public Augmenter {
   Status augment(const StereoFrame& frame, const SceneState& scene, StereoResult& out) override;
   Status augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) override;
   const AugmentTimings& timings() const override { return timings_; }
+  Rasterizer rasterizer() const override { return cpu_raster_ ? Rasterizer::kCpu : Rasterizer::kOpenGl; }
   const Rig& rig() const override { return rig_; }
   const BoomModel& boom_model() const override { return boom_; }
   const Model& receiver_model() const override { return receiver_; }
@@ -205,6 +310,8 @@ class AugmenterImpl final : public Augmenter {
   Status check_frame(int camera, const Frame& raw) const;
   void prepare_view(ViewState& vs, const SceneState& scene);
   void render_view(ViewState& vs, const SceneState& scene);
+  void raster_view(ViewState& vs, const SceneState& scene) const;
+  void update_boxes(ViewState& vs) const;
   void resolve_view(ViewState& vs, const Frame& raw, ViewResult& out) const;
   std::vector<VBox> project_boxes(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const;
   VBox raw_box_of(const ViewState& vs, const VBox& vbox) const;
@@ -239,6 +346,7 @@ class AugmenterImpl final : public Augmenter {
   };
   Program shaded_, ids_only_;
   bool zero_to_one_ = false;
+  bool cpu_raster_ = false;
   AugmentTimings timings_;
 
   // Per-frame state shared by prepare/render.
@@ -283,6 +391,18 @@ Status AugmenterImpl::init() {
     prog->texture = glGetUniformLocation(*id, "u_texture");
   }
 
+  // A software GL pays per pixel for each attachment it clears, writes and reads back: there the
+  // CPU rasteriser, which writes one id and one depth per covered sample, is faster.
+  const auto* renderer_name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  const std::string renderer = renderer_name ? renderer_name : "";
+  const bool software_gl = renderer.find("llvmpipe") != std::string::npos ||
+                           renderer.find("softpipe") != std::string::npos ||
+                           renderer.find("swrast") != std::string::npos ||
+                           renderer.find("Software Rasterizer") != std::string::npos;
+  cpu_raster_ =
+      options_.receiver_draw == ReceiverDraw::kMaskOnly &&
+      (options_.rasterizer == Rasterizer::kCpu || (options_.rasterizer == Rasterizer::kAuto && software_gl));
+
   // One draw item per mesh; its id (1..255) goes into the id buffer's alpha byte.
   auto add = [&](ObjectKind kind, Model& model, bool cull) -> Status {
     for (Mesh& m : model.meshes) {
@@ -290,7 +410,9 @@ Status AugmenterImpl::init() {
         return make_error("Augmenter::create(): models have more than 255 meshes in total; merge them");
       if (m.triangle_count() > kPrimMask)
         return make_error("Augmenter::create(): mesh '", m.name, "' has more than 2^24 triangles");
-      auto chunks = split_into_chunks(m, 4);  // before upload: it reorders the triangles
+      // Before upload: it reorders the triangles. GL pays a fixed cost per box (a clear and a
+      // readback); the CPU rasteriser does not, so it takes more, smaller boxes.
+      auto chunks = cpu_raster_ ? split_into_chunks(m, 8, 32) : split_into_chunks(m, 4, 64);
       draws_.push_back({kind, &m, gl::upload(m), static_cast<std::uint8_t>(draws_.size() + 1), total_tris_,
                         cull, std::move(chunks)});
       total_tris_ += m.triangle_count();
@@ -343,6 +465,30 @@ Status AugmenterImpl::init() {
     vs.recv_ids.assign(vn, 0);
     vs.boom_rgba.assign(vn * 4, 0);
     if (options_.receiver_draw != ReceiverDraw::kMaskOnly) vs.recv_rgba.assign(vn * 4, 0);
+    if (cpu_raster_) {
+      vs.inv_z.assign(vn, 0.f);
+      vs.shading.resize(total_tris_);
+      vs.blocks_x = (vs.vp.width >> kBlockShift) + 1;
+      vs.occupied.assign(static_cast<std::size_t>(vs.blocks_x) * ((vs.vp.height >> kBlockShift) + 1), 0);
+      const int W = cm.width_px, H = cm.height_px;
+      vs.groups_x = (W + kGroup - 1) / kGroup;
+      vs.groups.assign(static_cast<std::size_t>(vs.groups_x) * H, {1, 0, 1, 0});
+      for (int v = 0; v < H; ++v)
+        for (int u = 0; u < W; ++u) {
+          const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
+          if (e.idx < 0) continue;
+          const int i0 = e.idx % vs.vp.width, j0 = e.idx / vs.vp.width;
+          const auto bi0 = static_cast<std::uint16_t>(i0 >> kBlockShift),
+                     bi1 = static_cast<std::uint16_t>((i0 + 1) >> kBlockShift),
+                     bj0 = static_cast<std::uint16_t>(j0 >> kBlockShift),
+                     bj1 = static_cast<std::uint16_t>((j0 + 1) >> kBlockShift);
+          ViewState::BlockRange& r = vs.groups[static_cast<std::size_t>(v) * vs.groups_x + u / kGroup];
+          if (r.bi0 > r.bi1)
+            r = {bi0, bi1, bj0, bj1};
+          else
+            r = {std::min(r.bi0, bi0), std::max(r.bi1, bi1), std::min(r.bj0, bj0), std::max(r.bj1, bj1)};
+        }
+    }
     vs.tris.resize(total_tris_);
     vs.planes.resize(total_tris_);
     vs.visit_stamp.assign(total_tris_, 0);
@@ -420,7 +566,9 @@ std::vector<VBox> AugmenterImpl::project_boxes(const ViewState& vs,
       if (!b.empty()) boxes.push_back(b);
     }
   }
-  // Merge pairs whose union adds little area: fewer GL clears and readbacks, each with a fixed cost.
+  // Merge pairs whose union adds little area: fewer GL clears and readbacks, each with a fixed cost
+  // (GL: at most 6 boxes); fewer box borders to project and rows to split (CPU rasteriser).
+  const std::size_t max_boxes = cpu_raster_ ? 24 : 6;
   auto area = [](const VBox& b) { return static_cast<double>(b.x1 - b.x0) * (b.y1 - b.y0); };
   for (bool merged = true; merged && boxes.size() > 1;) {
     merged = false;
@@ -429,8 +577,8 @@ std::vector<VBox> AugmenterImpl::project_boxes(const ViewState& vs,
     for (std::size_t i = 0; i < boxes.size(); ++i)
       for (std::size_t j = i + 1; j < boxes.size(); ++j) {
         const double waste = area(unite(boxes[i], boxes[j])) - area(boxes[i]) - area(boxes[j]);
-        // Always merge beyond 6 boxes; otherwise only when it wastes under 4096 pixels.
-        const double gain = (boxes.size() > 6 ? 1e18 : 4096.0) - waste;
+        // Always merge beyond max_boxes; otherwise only when it wastes under 4096 pixels.
+        const double gain = (boxes.size() > max_boxes ? 1e18 : 4096.0) - waste;
         if (gain > best) best = gain, bi = i, bj = j;
       }
     if (best > 0) {
@@ -469,22 +617,92 @@ VBox AugmenterImpl::raw_box_of(const ViewState& vs, const VBox& b) const {
                    full);
 }
 
+// Zeroes what the previous frame wrote into the CPU images (ids, and the CPU rasteriser's depth),
+// so they are zero outside this frame's boxes, and finds this frame's boxes.
+void AugmenterImpl::update_boxes(ViewState& vs) const {
+  auto zero_boxes = [&](auto& image, const std::vector<VBox>& boxes) {
+    for (const VBox& b : boxes)
+      for (int y = b.y0; y < b.y1; ++y)
+        std::fill_n(&image[static_cast<std::size_t>(y) * vs.vp.width + b.x0], b.x1 - b.x0, 0);
+  };
+  zero_boxes(vs.boom_ids, vs.boom_vboxes);
+  zero_boxes(vs.recv_ids, vs.recv_vboxes);
+  if (!vs.inv_z.empty()) zero_boxes(vs.inv_z, vs.boom_vboxes), zero_boxes(vs.inv_z, vs.recv_vboxes);
+  vs.boom_vboxes = project_boxes(vs, {ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope});
+  vs.recv_vboxes = receiver_on_ ? project_boxes(vs, {ObjectKind::kReceiver}) : std::vector<VBox>{};
+}
+
+// The CPU rasteriser: the same passes as render_view() (receiver ids, then the boom's ids and
+// shaded colour, depth-tested against it), written straight into the CPU images. Every sample a
+// triangle covers lies in its chunk's box, so the images stay zero outside this frame's boxes.
+void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
+  update_boxes(vs);
+  const Pose T_cam_body = vs.cam->T_body_cam.inverse();
+  const SampleGrid grid{vs.vp.fx, vs.vp.fy, vs.vp.cx, vs.vp.cy, vs.vp.width, vs.vp.height, vs.cam->near_m};
+  const SampleBox all{0, 0, vs.vp.width, vs.vp.height};
+  float* inv_z = vs.inv_z.data();
+  std::fill(vs.occupied.begin(), vs.occupied.end(), 0);
+  std::uint8_t* occupied = vs.occupied.data();
+  const int blocks_x = vs.blocks_x;
+  // Light from above the tanker, as the GL shader has it.
+  const Eigen::Vector3d light = T_cam_body.R() * Eigen::Vector3d(0.3, 0.2, -1.0).normalized();
+  RasterTriangle rt;
+  for (const ObjectKind kind : {ObjectKind::kReceiver, ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope}) {
+    const bool boom = kind != ObjectKind::kReceiver;
+    if (boom ? vs.boom_vboxes.empty() : vs.recv_vboxes.empty()) continue;
+    const Pose T_cam_obj = T_cam_body * (kind == ObjectKind::kReceiver    ? scene.T_body_receiver
+                                         : kind == ObjectKind::kBoomFixed ? T_body_boom_
+                                                                          : T_body_telescope_);
+    const Eigen::Matrix3d R = T_cam_obj.R();
+    for (const DrawItem& d : draws_) {
+      if (d.kind != kind) continue;
+      const Mesh& m = *d.mesh;
+      std::uint32_t* ids = boom ? vs.boom_ids.data() : vs.recv_ids.data();
+      const std::uint32_t tag = static_cast<std::uint32_t>(d.draw_id) << kDrawShift;
+      const Texture* tex = m.texture && m.texture->width > 0 && !m.uvs.empty() ? m.texture.get() : nullptr;
+      for (std::size_t k = 0; k < m.triangle_count(); ++k) {
+        const CamTriangle& t = vs.tris[d.first_tri + k];
+        if (!rt.setup(grid, t.v0, t.v0 + t.e1, t.v0 + t.e2, d.cull, all)) continue;
+        const std::uint32_t id = tag | static_cast<std::uint32_t>(k);
+        raster(grid, rt, inv_z, [&](std::size_t i, int x, int y) {
+          ids[i] = id;
+          occupied[(y >> kBlockShift) * blocks_x + (x >> kBlockShift)] = 1;
+        });
+        if (!boom) continue;
+        // Its shading, for the resolve (the fragment shader's lighting, at each pixel centre):
+        // the vertex normals (flipped on back faces) interpolated by the edge planes.
+        const std::uint32_t* vi = &m.indices[3 * k];
+        const double facing = t.n_dot_v0 < 0 ? 1.0 : -1.0;
+        const Eigen::Vector3d v[3] = {t.v0, t.v0 + t.e1, t.v0 + t.e2};
+        // The plane through the camera and edge (v_j, v_j+1), signed positive inside, weighs the
+        // opposite vertex (render/soft_raster.hpp): e_i = c[i] . d is vertex i's barycentric
+        // weight times a positive factor.
+        const double sign = t.n_dot_v0 > 0 ? 1.0 : -1.0;
+        Eigen::Vector3d c[3];
+        for (int j = 0; j < 3; ++j) c[(j + 2) % 3] = sign * v[j].cross(v[(j + 1) % 3]);
+        Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+        BoomShading& sh = vs.shading[d.first_tri + k];
+        for (int j = 0; j < 3; ++j) {
+          const Eigen::Vector3d n_j = facing * (R * m.normals[vi[j]].cast<double>());
+          M += n_j * c[j].transpose();
+          for (int a = 0; a < 3; ++a) sh.c[j][a] = static_cast<float>(c[j][a]);
+          sh.uv[j][0] = m.uvs.empty() ? 0.f : m.uvs[vi[j]].x();
+          sh.uv[j][1] = m.uvs.empty() ? 0.f : m.uvs[vi[j]].y();
+        }
+        const Eigen::Vector3d g = M.transpose() * light;
+        for (int a = 0; a < 9; ++a) sh.m[a] = static_cast<float>(M(a / 3, a % 3));
+        for (int a = 0; a < 3; ++a) sh.g[a] = static_cast<float>(g[a]), sh.base[a] = 255.f * m.base_color[a];
+        sh.texture = tex;
+      }
+    }
+  }
+}
+
 void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
   const Pose T_cam_body = vs.cam->T_body_cam.inverse();
   const Pose T_cam_boom = T_cam_body * T_body_boom_, T_cam_tele = T_cam_body * T_body_telescope_;
   const Pose T_cam_recv = T_cam_body * scene.T_body_receiver;
-
-  // What the previous frame read back is zeroed, so the CPU id images are zero outside this frame's boxes.
-  auto zero_boxes = [&](std::vector<std::uint32_t>& ids, const std::vector<VBox>& boxes) {
-    for (const VBox& b : boxes)
-      for (int y = b.y0; y < b.y1; ++y)
-        std::memset(&ids[static_cast<std::size_t>(y) * vs.vp.width + b.x0], 0,
-                    (b.x1 - b.x0) * sizeof(std::uint32_t));
-  };
-  zero_boxes(vs.boom_ids, vs.boom_vboxes);
-  zero_boxes(vs.recv_ids, vs.recv_vboxes);
-  vs.boom_vboxes = project_boxes(vs, {ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope});
-  vs.recv_vboxes = receiver_on_ ? project_boxes(vs, {ObjectKind::kReceiver}) : std::vector<VBox>{};
+  update_boxes(vs);
 
   glBindFramebuffer(GL_FRAMEBUFFER, fb_.fbo);
   glViewport(0, 0, vs.vp.width, vs.vp.height);
@@ -734,6 +952,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   const PixelFormat fmt = src.format();
   const int bpp = bytes_per_pixel(fmt);
   const bool overlay = !vs.recv_rgba.empty();
+  const bool cpu = cpu_raster_;
 
   for (int v = work.y0; v < work.y1; ++v) {
     std::uint8_t* mrow = out.mask.row(v);
@@ -750,182 +969,202 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
       else
         spans[n_spans++] = sp;
     }
-    for (std::size_t si = 0; si < n_spans; ++si)
-      for (int u = spans[si].first; u < spans[si].second; ++u) {
-        const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
-        if (e.idx < 0) continue;
-        // Most pixels of a box see nothing: one OR over the samples skips them.
-        const std::uint32_t* pb = bids + e.idx;
-        const std::uint32_t* pr = rids + e.idx;
-        if (identity ? !(pb[0] | pr[0])
-                     : !(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1] | pr[0] | pr[1] | pr[Wv] | pr[Wv + 1]))
-          continue;
-        const Eigen::Vector2f& ray = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u];
-        auto plane_depth = [&](std::uint32_t packed) {
-          const ViewState::Plane& pl = vs.planes[global_index(packed)];
-          return pl.c / (pl.nx * ray.x() + pl.ny * ray.y() + pl.nz);
-        };
-        if (identity && !overlay) {
-          // The samples ARE the pixel centres: GL's coverage and depth test are already exact there.
-          const std::uint32_t b0 = pb[0], r0 = pr[0];
-          mrow[u] = static_cast<std::uint8_t>((b0 ? kMaskBoom : 0) | (r0 ? kMaskReceiver : 0));
-          if (r0) drow[u] = static_cast<float>(plane_depth(r0));
-          if (b0) {
-            std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
-            const std::uint8_t* c = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
-            switch (fmt) {
-              case PixelFormat::kRGB8:
-              case PixelFormat::kRGBA8:
-                px[0] = c[0], px[1] = c[1], px[2] = c[2];
-                break;
-              case PixelFormat::kMono8:
-                px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2] + 0.5f);
-                break;
-              default:
-                px[0] = c[bayer_channel(fmt, u, v)];
-            }
+    // One raw pixel: mask, receiver depth and composite (every pixel at most once per frame).
+    auto pixel = [&](int u) {
+      const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
+      if (e.idx < 0) return;
+      // Most pixels of a box see nothing: one OR over the samples skips them.
+      const std::uint32_t* pb = bids + e.idx;
+      const std::uint32_t* pr = rids + e.idx;
+      if (identity ? !(pb[0] | pr[0])
+                   : !(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1] | pr[0] | pr[1] | pr[Wv] | pr[Wv + 1]))
+        return;
+      const Eigen::Vector2f& ray = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u];
+      auto plane_depth = [&](std::uint32_t packed) {
+        const ViewState::Plane& pl = vs.planes[global_index(packed)];
+        return pl.c / (pl.nx * ray.x() + pl.ny * ray.y() + pl.nz);
+      };
+      // The boom's colour (0..255) here for the triangle virtual sample `s` holds: GL's shaded
+      // sample, or (CPU rasteriser) that triangle shaded exactly at this pixel's centre.
+      auto boom_colour = [&](std::uint32_t packed, std::size_t s) {
+        return cpu ? shade(vs.shading[global_index(packed)], ray.x(), ray.y())
+                   : load_rgba(&vs.boom_rgba[s * 4]);
+      };
+      if (identity && !overlay) {
+        // The samples ARE the pixel centres: GL's coverage and depth test are already exact there.
+        const std::uint32_t b0 = pb[0], r0 = pr[0];
+        mrow[u] = static_cast<std::uint8_t>((b0 ? kMaskBoom : 0) | (r0 ? kMaskReceiver : 0));
+        if (r0) drow[u] = static_cast<float>(plane_depth(r0));
+        if (b0) {
+          std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+          const F32x4 c = boom_colour(b0, static_cast<std::size_t>(e.idx)) + 0.5f;
+          switch (fmt) {
+            case PixelFormat::kRGB8:
+            case PixelFormat::kRGBA8:
+              px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
+              px[2] = static_cast<std::uint8_t>(c[2]);
+              break;
+            case PixelFormat::kMono8:
+              px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]);
+              break;
+            default:
+              px[0] = static_cast<std::uint8_t>(c[bayer_channel(fmt, u, v)]);
           }
-          continue;
         }
-        if (!(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1]) && pr[0] == pr[1] && pr[0] == pr[Wv] &&
-            pr[0] == pr[Wv + 1] && !overlay) {
-          // Inside one receiver triangle with no boom around: the most common covered pixel.
-          mrow[u] = kMaskReceiver;
-          drow[u] = static_cast<float>(plane_depth(pr[0]));
-          continue;
-        }
-        if (pb[0] && pb[1] && pb[Wv] && pb[Wv + 1] && !overlay) {
-          const bool recv_none = !(pr[0] | pr[1] | pr[Wv] | pr[Wv + 1]);
-          const bool recv_one = pr[0] && pr[0] == pr[1] && pr[0] == pr[Wv] && pr[0] == pr[Wv + 1];
-          if (recv_none || recv_one) {
-            // Boom all around, in front of the receiver at every sample (GL's depth test) and no
-            // receiver silhouette nearby: an opaque boom pixel, its colour bilinear.
-            mrow[u] = static_cast<std::uint8_t>(kMaskBoom | (recv_one ? kMaskReceiver : 0));
-            if (recv_one) drow[u] = static_cast<float>(plane_depth(pr[0]));
+        return;
+      }
+      if (!(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1]) && pr[0] == pr[1] && pr[0] == pr[Wv] &&
+          pr[0] == pr[Wv + 1] && !overlay) {
+        // Inside one receiver triangle with no boom around: the most common covered pixel.
+        mrow[u] = kMaskReceiver;
+        drow[u] = static_cast<float>(plane_depth(pr[0]));
+        return;
+      }
+      if (pb[0] && pb[1] && pb[Wv] && pb[Wv + 1] && !overlay) {
+        const bool recv_none = !(pr[0] | pr[1] | pr[Wv] | pr[Wv + 1]);
+        const bool recv_one = pr[0] && pr[0] == pr[1] && pr[0] == pr[Wv] && pr[0] == pr[Wv + 1];
+        if (recv_none || recv_one) {
+          // Boom all around, in front of the receiver at every sample (GL's depth test) and no
+          // receiver silhouette nearby: an opaque boom pixel, its colour bilinear.
+          mrow[u] = static_cast<std::uint8_t>(kMaskBoom | (recv_one ? kMaskReceiver : 0));
+          if (recv_one) drow[u] = static_cast<float>(plane_depth(pr[0]));
+          F32x4 c;
+          if (cpu) {
+            // Any of the four triangles: the interpolated normal and texture are continuous.
+            c = boom_colour(pb[0], 0) + 0.5f;
+          } else {
             const std::uint8_t* c0 = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
             const std::uint8_t* c2 = c0 + static_cast<std::size_t>(Wv) * 4;
             const float w0 = (1 - e.fx) * (1 - e.fy), w1 = e.fx * (1 - e.fy), w2 = (1 - e.fx) * e.fy,
                         w3 = e.fx * e.fy;
-            float c[3];
-            for (int k = 0; k < 3; ++k)
-              c[k] = w0 * c0[k] + w1 * c0[4 + k] + w2 * c2[k] + w3 * c2[4 + k] + 0.5f;
-            std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
-            switch (fmt) {
-              case PixelFormat::kRGB8:
-              case PixelFormat::kRGBA8:
-                px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
-                px[2] = static_cast<std::uint8_t>(c[2]);
-                break;
-              case PixelFormat::kMono8:
-                px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]);
-                break;
-              default:
-                px[0] = static_cast<std::uint8_t>(c[bayer_channel(fmt, u, v)]);
-            }
-            continue;
+            c = w0 * load_rgba(c0) + w1 * load_rgba(c0 + 4) + w2 * load_rgba(c2) + w3 * load_rgba(c2 + 4) +
+                0.5f;
           }
+          std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+          switch (fmt) {
+            case PixelFormat::kRGB8:
+            case PixelFormat::kRGBA8:
+              px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
+              px[2] = static_cast<std::uint8_t>(c[2]);
+              break;
+            case PixelFormat::kMono8:
+              px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]);
+              break;
+            default:
+              px[0] = static_cast<std::uint8_t>(c[bayer_channel(fmt, u, v)]);
+          }
+          return;
         }
-        // The 2x2 samples around the centre (one sample when the grids coincide).
-        const int ns = identity ? 1 : 4;
-        const std::uint32_t off[4] = {0, 1, static_cast<std::uint32_t>(Wv),
-                                      static_cast<std::uint32_t>(Wv) + 1};
-        std::uint32_t b[4] = {}, r[4] = {};
-        bool b_any = false, b_all = true, b_same = true, r_any = false, r_all = true, r_same = true;
-        for (int k = 0; k < ns; ++k) {
-          b[k] = bids[e.idx + off[k]];
-          r[k] = rids[e.idx + off[k]];
-          b_any |= b[k] != 0, b_all &= b[k] != 0, b_same &= b[k] == b[0];
-          r_any |= r[k] != 0, r_all &= r[k] != 0, r_same &= r[k] == r[0];
-        }
-        if (!b_any && !r_any) continue;
-        const double x = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].x();
-        const double y = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].y();
-        const Eigen::Vector3d d(x, y, 1.0);
+      }
+      // The 2x2 samples around the centre (one sample when the grids coincide).
+      const int ns = identity ? 1 : 4;
+      const std::uint32_t off[4] = {0, 1, static_cast<std::uint32_t>(Wv), static_cast<std::uint32_t>(Wv) + 1};
+      std::uint32_t b[4] = {}, r[4] = {};
+      bool b_any = false, b_all = true, b_same = true, r_any = false, r_all = true, r_same = true;
+      for (int k = 0; k < ns; ++k) {
+        b[k] = bids[e.idx + off[k]];
+        r[k] = rids[e.idx + off[k]];
+        b_any |= b[k] != 0, b_all &= b[k] != 0, b_same &= b[k] == b[0];
+        r_any |= r[k] != 0, r_all &= r[k] != 0, r_same &= r[k] == r[0];
+      }
+      if (!b_any && !r_any) return;
+      const double x = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].x();
+      const double y = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].y();
+      const Eigen::Vector3d d(x, y, 1.0);
 
-        // Receiver at the pixel centre: read off when one triangle covers all samples (it then
-        // covers the centre, triangles being convex), else exact ray tests with the candidates.
-        double z_r = std::numeric_limits<double>::infinity();
-        if (r_any) {
-          if (r_all && r_same) {
+      // Receiver at the pixel centre: read off when one triangle covers all samples (it then
+      // covers the centre, triangles being convex), else exact ray tests with the candidates.
+      double z_r = std::numeric_limits<double>::infinity();
+      if (r_any) {
+        if (r_all && r_same) {
+          const CamTriangle& t = triangle(vs, r[0]);
+          z_r = t.n_dot_v0 / t.n.dot(d);
+        } else {
+          z_r = nearest_hit(vs, r, ns, x, y);
+          if (!std::isfinite(z_r) && r_all) {
+            // Covered all around but the centre's triangle is not among the samples' (a sliver):
+            // take the nearest sample's plane.
             const CamTriangle& t = triangle(vs, r[0]);
             z_r = t.n_dot_v0 / t.n.dot(d);
-          } else {
-            z_r = nearest_hit(vs, r, ns, x, y);
-            if (!std::isfinite(z_r) && r_all) {
-              // Covered all around but the centre's triangle is not among the samples' (a sliver):
-              // take the nearest sample's plane.
-              const CamTriangle& t = triangle(vs, r[0]);
-              z_r = t.n_dot_v0 / t.n.dot(d);
-            }
           }
         }
-        // Boom, front-most where GL's depth test kept it at the samples; exact at the centre.
-        double z_b = std::numeric_limits<double>::infinity();
-        if (b_any) {
-          if (b_all && b_same) {
+      }
+      // Boom, front-most where GL's depth test kept it at the samples; exact at the centre.
+      double z_b = std::numeric_limits<double>::infinity();
+      if (b_any) {
+        if (b_all && b_same) {
+          const CamTriangle& t = triangle(vs, b[0]);
+          z_b = t.n_dot_v0 / t.n.dot(d);
+        } else {
+          z_b = nearest_hit(vs, b, ns, x, y);
+          if (!std::isfinite(z_b) && b_all) {
             const CamTriangle& t = triangle(vs, b[0]);
             z_b = t.n_dot_v0 / t.n.dot(d);
-          } else {
-            z_b = nearest_hit(vs, b, ns, x, y);
-            if (!std::isfinite(z_b) && b_all) {
-              const CamTriangle& t = triangle(vs, b[0]);
-              z_b = t.n_dot_v0 / t.n.dot(d);
-            }
           }
         }
-        const bool has_r = std::isfinite(z_r) && z_r > 0;
-        const bool has_b = std::isfinite(z_b) && z_b > 0 && (!has_r || z_b < z_r);
-        mrow[u] = static_cast<std::uint8_t>((has_b ? kMaskBoom : 0) | (has_r ? kMaskReceiver : 0));
-        if (has_r) drow[u] = static_cast<float>(z_r);
+      }
+      const bool has_r = std::isfinite(z_r) && z_r > 0;
+      const bool has_b = std::isfinite(z_b) && z_b > 0 && (!has_r || z_b < z_r);
+      mrow[u] = static_cast<std::uint8_t>((has_b ? kMaskBoom : 0) | (has_r ? kMaskReceiver : 0));
+      if (has_r) drow[u] = static_cast<float>(z_r);
 
-        // Composite: the boom's bilinear coverage of the centre, anti-aliasing its edges.
-        float alpha = 0, cr = 0, cg = 0, cb = 0;
-        if (b_any) {
-          const float w[4] = {(1 - e.fx) * (1 - e.fy), e.fx * (1 - e.fy), (1 - e.fx) * e.fy, e.fx * e.fy};
-          for (int k = 0; k < ns; ++k) {
-            if (!b[k]) continue;
-            const float wk = identity ? 1.0f : w[k];
-            const std::uint8_t* c = &vs.boom_rgba[(static_cast<std::size_t>(e.idx) + off[k]) * 4];
-            alpha += wk, cr += wk * c[0], cg += wk * c[1], cb += wk * c[2];
-          }
-          if (!options_.antialias) {
-            const float s = alpha > 0 ? 1.0f / alpha : 0.f;
-            cr *= s, cg *= s, cb *= s;
-            alpha = has_b ? 1.f : 0.f;
-            cr *= alpha, cg *= alpha, cb *= alpha;
-          }
+      // Composite: the boom's bilinear coverage of the centre, anti-aliasing its edges.
+      float alpha = 0, cr = 0, cg = 0, cb = 0;
+      if (b_any) {
+        const float w[4] = {(1 - e.fx) * (1 - e.fy), e.fx * (1 - e.fy), (1 - e.fx) * e.fy, e.fx * e.fy};
+        for (int k = 0; k < ns; ++k) {
+          if (!b[k]) continue;
+          const float wk = identity ? 1.0f : w[k];
+          const F32x4 c = boom_colour(b[k], static_cast<std::size_t>(e.idx) + off[k]);
+          alpha += wk, cr += wk * c[0], cg += wk * c[1], cb += wk * c[2];
         }
-        if (overlay && has_r && !has_b) {
-          // Validation overlay: the receiver model drawn translucent (or its wireframe) at its pose.
-          const std::uint8_t* c = &vs.recv_rgba[static_cast<std::size_t>(e.idx) * 4];
-          const float a =
-              options_.receiver_draw == ReceiverDraw::kTranslucent ? 0.45f : (c[3] > 0 ? 1.0f : 0.0f);
-          if (a > 0 && alpha < 1) {
-            const float k = a * (1 - alpha);
-            cr += k * (0.5f * c[0] + 127.f), cg += k * 0.5f * c[1], cb += k * 0.5f * c[2];
-            alpha += k;
-          }
+        if (!options_.antialias) {
+          const float s = alpha > 0 ? 1.0f / alpha : 0.f;
+          cr *= s, cg *= s, cb *= s;
+          alpha = has_b ? 1.f : 0.f;
+          cr *= alpha, cg *= alpha, cb *= alpha;
         }
-        if (alpha <= 0) continue;
-        if (alpha > 1) alpha = 1;
-        std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
-        const float ia = 1 - alpha;
-        auto mix = [&](std::uint8_t raw_value, float premult) {
-          return static_cast<std::uint8_t>(std::clamp(raw_value * ia + premult + 0.5f, 0.f, 255.f));
-        };
-        switch (fmt) {
-          case PixelFormat::kRGB8:
-          case PixelFormat::kRGBA8:
-            px[0] = mix(px[0], cr), px[1] = mix(px[1], cg), px[2] = mix(px[2], cb);
-            break;
-          case PixelFormat::kMono8:
-            px[0] = mix(px[0], 0.299f * cr + 0.587f * cg + 0.114f * cb);
-            break;
-          default: {  // Bayer: the site's own colour channel
-            const int ch = bayer_channel(fmt, u, v);
-            px[0] = mix(px[0], ch == 0 ? cr : ch == 1 ? cg : cb);
-          }
+      }
+      if (overlay && has_r && !has_b) {
+        // Validation overlay: the receiver model drawn translucent (or its wireframe) at its pose.
+        const std::uint8_t* c = &vs.recv_rgba[static_cast<std::size_t>(e.idx) * 4];
+        const float a =
+            options_.receiver_draw == ReceiverDraw::kTranslucent ? 0.45f : (c[3] > 0 ? 1.0f : 0.0f);
+        if (a > 0 && alpha < 1) {
+          const float k = a * (1 - alpha);
+          cr += k * (0.5f * c[0] + 127.f), cg += k * 0.5f * c[1], cb += k * 0.5f * c[2];
+          alpha += k;
         }
+      }
+      if (alpha <= 0) return;
+      if (alpha > 1) alpha = 1;
+      std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+      const float ia = 1 - alpha;
+      auto mix = [&](std::uint8_t raw_value, float premult) {
+        return static_cast<std::uint8_t>(std::clamp(raw_value * ia + premult + 0.5f, 0.f, 255.f));
+      };
+      switch (fmt) {
+        case PixelFormat::kRGB8:
+        case PixelFormat::kRGBA8:
+          px[0] = mix(px[0], cr), px[1] = mix(px[1], cg), px[2] = mix(px[2], cb);
+          break;
+        case PixelFormat::kMono8:
+          px[0] = mix(px[0], 0.299f * cr + 0.587f * cg + 0.114f * cb);
+          break;
+        default: {  // Bayer: the site's own colour channel
+          const int ch = bayer_channel(fmt, u, v);
+          px[0] = mix(px[0], ch == 0 ? cr : ch == 1 ? cg : cb);
+        }
+      }
+    };
+    // Groups of kGroup raw pixels whose virtual samples hold nothing are skipped whole (CPU
+    // rasteriser: it marks the blocks it writes).
+    for (std::size_t si = 0; si < n_spans; ++si)
+      for (int g0 = spans[si].first; g0 < spans[si].second;) {
+        const int g1 = std::min(spans[si].second, (g0 / kGroup + 1) * kGroup);
+        if (group_occupied(vs, v, g0 / kGroup))
+          for (int u = g0; u < g1; ++u) pixel(u);
+        g0 = g1;
       }
   }
 }
@@ -939,7 +1178,10 @@ Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneStat
   receiver_on_ = scene.receiver_present && options_.receiver_proxy;
   ViewState& vs = views_[camera];
   prepare_view(vs, scene);
-  render_view(vs, scene);
+  if (cpu_raster_)
+    raster_view(vs, scene);
+  else
+    render_view(vs, scene);
   resolve_view(vs, raw, out);
   return {};
 }
@@ -953,26 +1195,41 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   T_body_telescope_ = T_body_boom_ * telescope_pose(scene.boom);
   receiver_on_ = scene.receiver_present && options_.receiver_proxy;
 
-  // GL runs on this thread; the left view's CPU work overlaps the right view's rendering.
   timings_.gl_clear_ms = timings_.gl_draw_ms = timings_.gl_readback_ms = 0;
   const auto t0 = Clock::now();
-  prepare_view(views_[0], scene);
-  render_view(views_[0], scene);
-  const auto t1 = Clock::now();
-  auto left_cpu = std::async(std::launch::async, [&] {
-    const auto a = Clock::now();
-    resolve_view(views_[0], frame.left, out.left);
-    return ms(Clock::now() - a);
-  });
-  prepare_view(views_[1], scene);
-  render_view(views_[1], scene);
-  const auto t2 = Clock::now();
-  resolve_view(views_[1], frame.right, out.right);
-  const double right_cpu = ms(Clock::now() - t2);
-  const double left_cpu_ms = left_cpu.get();
-  const auto t3 = Clock::now();
-  timings_.render_ms = ms(t1 - t0) + ms(t2 - t1);
-  timings_.masks_ms = left_cpu_ms + right_cpu;
+  if (cpu_raster_) {
+    // No GL: each view is rasterised and resolved on its own thread.
+    auto view = [&](int c, const Frame& raw, ViewResult& result) {
+      const auto a = Clock::now();
+      prepare_view(views_[c], scene);
+      raster_view(views_[c], scene);
+      const auto b = Clock::now();
+      resolve_view(views_[c], raw, result);
+      return std::pair{ms(b - a), ms(Clock::now() - b)};
+    };
+    auto left = std::async(std::launch::async, view, 0, std::cref(frame.left), std::ref(out.left));
+    const auto [right_raster, right_resolve] = view(1, frame.right, out.right);
+    const auto [left_raster, left_resolve] = left.get();
+    timings_.render_ms = left_raster + right_raster;
+    timings_.masks_ms = left_resolve + right_resolve;
+  } else {
+    // GL runs on this thread; the left view's CPU work overlaps the right view's rendering.
+    prepare_view(views_[0], scene);
+    render_view(views_[0], scene);
+    const auto t1 = Clock::now();
+    auto left_cpu = std::async(std::launch::async, [&] {
+      const auto a = Clock::now();
+      resolve_view(views_[0], frame.left, out.left);
+      return ms(Clock::now() - a);
+    });
+    prepare_view(views_[1], scene);
+    render_view(views_[1], scene);
+    const auto t2 = Clock::now();
+    resolve_view(views_[1], frame.right, out.right);
+    const double right_cpu = ms(Clock::now() - t2);
+    timings_.render_ms = ms(t1 - t0) + ms(t2 - t1);
+    timings_.masks_ms = left_cpu.get() + right_cpu;
+  }
 
   const auto t4 = Clock::now();
   // The classes reuse this view's own pixel rays (same undistortion as the masks).
@@ -986,7 +1243,6 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   if (!copt.compute_classes) out.stereo_classes.clear();
   timings_.stats_ms = ms(Clock::now() - t4);
   timings_.total_ms = ms(Clock::now() - t0);
-  (void)t3;
   if (auto e = gl::drain_errors(); !e.empty()) return make_error("Augmenter::augment(): OpenGL errors:", e);
   return {};
 }
@@ -1001,6 +1257,18 @@ SceneState scene_at_contact(const Rig& rig, const BoomDimensions& boom, const Ei
       boom_pose(rig.boom.pivot_body_m, a) * Eigen::Vector3d(boom.nozzle_tip_m(a.extension_m), 0, 0);
   s.T_body_receiver = Pose::from(Eigen::Matrix3d::Identity(), tip_body - receptacle_m + offset_body_m);
   return s;
+}
+
+const char* to_string(Rasterizer r) {
+  switch (r) {
+    case Rasterizer::kAuto:
+      return "auto";
+    case Rasterizer::kOpenGl:
+      return "opengl";
+    case Rasterizer::kCpu:
+      return "cpu";
+  }
+  return "?";
 }
 
 Expected<std::unique_ptr<Augmenter>> Augmenter::create(const Rig& rig, const AugmentOptions& options) {

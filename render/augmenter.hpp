@@ -4,8 +4,9 @@
 // the pixel centre) and the receiver depth; per stereo frame the occlusion statistics.
 //
 // Flow per view: the boom's and receiver's projected boxes are found; each object is rasterised
-// by OpenGL into a virtual pinhole image that covers the lens' undistorted field (triangle ids and
-// shaded colour); every raw pixel centre is mapped through the inverse distortion into that image;
+// into a virtual pinhole image that covers the lens' undistorted field (triangle ids and shaded
+// colour), by OpenGL or, where OpenGL is itself a software renderer, by render/soft_raster.hpp;
+// every raw pixel centre is mapped through the inverse distortion into that image;
 // where the ids around it disagree (silhouettes, boom/receiver crossings) the pixel centre's ray
 // is intersected exactly with the candidate triangles. Raw pixels are never resampled: outside
 // the boom's anti-aliased footprint the augmented image is the raw image, byte for byte.
@@ -26,12 +27,23 @@ namespace augrig {
 
 enum class ReceiverDraw { kMaskOnly, kWireframe, kTranslucent };
 
+// Who rasterises the virtual image. Both give the same masks: the CPU pass decides every pixel
+// whose samples disagree by exact ray casting, whichever rasteriser produced the samples.
+enum class Rasterizer {
+  kAuto,    // kCpu when GL_RENDERER is a software renderer (llvmpipe, softpipe, swrast), else kOpenGl
+  kOpenGl,  // the current GL context (a GPU: the flight machine)
+  kCpu,     // render/soft_raster.hpp; both views in parallel. Mask-only receiver only: the
+            // validation overlays (ReceiverDraw::kWireframe, kTranslucent) always use OpenGL
+};
+const char* to_string(Rasterizer r);
+
 struct AugmentOptions {
   ReceiverDraw receiver_draw = ReceiverDraw::kMaskOnly;
   bool antialias = true;       // blend the boom's edge pixels by their coverage
   bool receiver_proxy = true;  // render the receiver (mask bit 1, depth, stereo classes)
   bool stereo_classes = true;  // compute the stereo visibility classes (needs receiver_proxy)
   StereoClassOptions class_options;
+  Rasterizer rasterizer = Rasterizer::kAuto;
   // bench/: glFinish between GL stages so AugmentTimings splits clear/draw/readback (slower overall).
   bool profile_stages = false;
   // Models to use instead of the rig's (tests, the simulator); null: build or load the rig's.
@@ -74,7 +86,7 @@ struct StereoResult {
 
 // Wall time of each stage of the last augment() call, for bench/.
 struct AugmentTimings {
-  double render_ms = 0;    // GL clear + draw + readback, both views
+  double render_ms = 0;    // rasterising, both views summed (GL: clear + draw + readback)
   double gl_clear_ms = 0;  // the three below only with AugmentOptions::profile_stages
   double gl_draw_ms = 0;
   double gl_readback_ms = 0;
@@ -96,6 +108,7 @@ class Augmenter {
   virtual Status augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) = 0;
 
   virtual const AugmentTimings& timings() const = 0;
+  virtual Rasterizer rasterizer() const = 0;  // kOpenGl or kCpu: what kAuto chose
   virtual const Rig& rig() const = 0;
   virtual const BoomModel& boom_model() const = 0;
   virtual const Model& receiver_model() const = 0;

@@ -244,6 +244,17 @@ Section circle_x(double x, double r) {
   return ellipse_x(x, 0.0, 0.0, r, r, kBoomSegments);
 }
 
+// A tube of radius r from x0 to x1 in equal sections no longer than kMaxTubeSection_m, u running
+// 0..1 along it: long side triangles would give the renderer's per-chunk screen boxes the whole
+// tube's extent (a long diagonal covers a small part of its box).
+constexpr double kMaxTubeSection_m = 1.5;
+std::vector<std::pair<double, double>> tube_profile(double x0, double x1, double r) {
+  const int n = std::max(1, static_cast<int>(std::ceil((x1 - x0) / kMaxTubeSection_m)));
+  std::vector<std::pair<double, double>> profile;
+  for (int i = 0; i <= n; ++i) profile.emplace_back(x0 + (x1 - x0) * i / n, r);
+  return profile;
+}
+
 // Surface of revolution about the boom x axis through (x, r) profile points.
 Loft lathe(const std::vector<std::pair<double, double>>& profile, std::function<Vector2f(int i, int j)> uv) {
   Loft L;
@@ -307,8 +318,12 @@ BoomModel make_builtin_boom(const BoomDimensions& d) {
     Builder b;
     const double x1 = d.fixed_tube_length_m;
     auto tex = band_texture(0.0, x1, {{x1 - 0.55, x1 - 0.45}, {x1 - 0.30, x1 - 0.20}});
-    Loft L = lathe({{0.0, r_tube}, {x1, r_tube}}, nullptr);
-    L.uv = [N](int i, int j) { return Vector2f(i == 0 ? 0.0f : 1.0f, static_cast<float>(j / N)); };
+    const auto profile = tube_profile(0.0, x1, r_tube);
+    Loft L = lathe(profile, nullptr);
+    const double sections = static_cast<double>(profile.size() - 1);
+    L.uv = [N, sections](int i, int j) {
+      return Vector2f(static_cast<float>(i / sections), static_cast<float>(j / N));
+    };
     loft(b, L);
     boom.fixed.meshes.push_back(b.finish("outer_tube", Vector3f(1, 1, 1), tex));
   }
@@ -332,8 +347,12 @@ BoomModel make_builtin_boom(const BoomDimensions& d) {
                              {t_end - 3.6, t_end - 3.5},
                              {t_end - 1.6, t_end - 1.5},
                              {t_end - 0.45, t_end - 0.30}});
-    Loft L = lathe({{t_start, r}, {t_end, r}}, nullptr);
-    L.uv = [N](int i, int j) { return Vector2f(i == 0 ? 0.0f : 1.0f, static_cast<float>(j / N)); };
+    const auto profile = tube_profile(t_start, t_end, r);
+    Loft L = lathe(profile, nullptr);
+    const double sections = static_cast<double>(profile.size() - 1);
+    L.uv = [N, sections](int i, int j) {
+      return Vector2f(static_cast<float>(i / sections), static_cast<float>(j / N));
+    };
     loft(b, L);
     boom.telescope.meshes.push_back(b.finish("inner_tube", Vector3f(1, 1, 1), tex));
   }

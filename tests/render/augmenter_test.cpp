@@ -1,10 +1,13 @@
 // The augmenter against independent oracles: OpenCV's projectPoints for projection and
 // distortion, a CPU ray caster (tests/support/ray_caster.hpp) for the masks, brute-force
-// comparison with the raw image for untouched pixels.
+// comparison with the raw image for untouched pixels. Each runs with both rasterisers (OpenGL
+// and render/soft_raster.hpp), and the two are compared with each other.
 #include "render/augmenter.hpp"
 
 #include <cmath>
 #include <memory>
+#include <string>
+#include <tuple>
 
 #include <gtest/gtest.h>
 #include <opencv2/calib3d.hpp>
@@ -50,6 +53,19 @@ Frame gradient_frame(const CameraModel& cm, PixelFormat fmt, CameraId id) {
 
 class AugmenterTest : public test::GlTest {};
 
+// Every property below must hold whichever rasteriser produced the virtual image.
+class RasterizerTest : public AugmenterTest, public ::testing::WithParamInterface<Rasterizer> {
+ protected:
+  AugmentOptions options() const {
+    AugmentOptions opt;
+    opt.rasterizer = GetParam();
+    return opt;
+  }
+};
+std::string raster_name(const ::testing::TestParamInfo<Rasterizer>& info) {
+  return to_string(info.param);
+}
+
 // Writes a diff image (red: ours only, green: oracle only) when masks disagree.
 void write_mask_diff(const std::string& name, const Image& ours, const Image& oracle) {
   static const std::string dir = test::output_dir("augmenter");
@@ -64,13 +80,18 @@ void write_mask_diff(const std::string& name, const Image& ours, const Image& or
   cv::imwrite(dir + "/" + name + "_mask_diff.png", diff);
 }
 
-class MaskOracleTest : public AugmenterTest, public ::testing::WithParamInterface<bool> {};
+class MaskOracleTest : public AugmenterTest,
+                       public ::testing::WithParamInterface<std::tuple<bool, Rasterizer>> {};
 
 // Distorted lens, and a pinhole lens (where anti-aliasing samples between pixel centres).
 TEST_P(MaskOracleTest, MasksAgreeWithRayCasterAtPixelCentres) {
-  const Rig rig = GetParam() ? distorted_rig() : Rig::paper_default();
-  auto aug = Augmenter::create(rig);
+  const auto [distorted, raster] = GetParam();
+  const Rig rig = distorted ? distorted_rig() : Rig::paper_default();
+  AugmentOptions opt;
+  opt.rasterizer = raster;
+  auto aug = Augmenter::create(rig, opt);
   ASSERT_TRUE(aug) << aug.error().message;
+  ASSERT_EQ((*aug)->rasterizer(), raster);
   Eigen::Vector3d receptacle;
   make_builtin_receiver(&receptacle);
   // Two articulations: a contact and a boom off to the side above the receiver.
@@ -122,8 +143,9 @@ TEST_P(MaskOracleTest, MasksAgreeWithRayCasterAtPixelCentres) {
       EXPECT_GE(agree, 0.9999);
       EXPECT_EQ(far_from_edge, 0);
       if (agree < 0.9999 || far_from_edge)
-        write_mask_diff("scene" + std::to_string(a.extension_m < 2) + "_camera" + std::to_string(c), ours,
-                        oracle);
+        write_mask_diff(std::string(to_string(raster)) + "_scene" + std::to_string(a.extension_m < 2) +
+                            "_camera" + std::to_string(c),
+                        ours, oracle);
     }
   }
 }
@@ -149,10 +171,18 @@ Mesh disc(const Eigen::Vector3d& centre_cam, double radius_m, int n) {
   return m;
 }
 
-INSTANTIATE_TEST_SUITE_P(Lenses, MaskOracleTest, ::testing::Bool(),
-                         [](const auto& info) { return info.param ? "radtan" : "pinhole"; });
+INSTANTIATE_TEST_SUITE_P(Lenses, MaskOracleTest,
+                         ::testing::Combine(::testing::Bool(),
+                                            ::testing::Values(Rasterizer::kOpenGl, Rasterizer::kCpu)),
+                         [](const auto& info) {
+                           return std::string(std::get<0>(info.param) ? "radtan_" : "pinhole_") +
+                                  to_string(std::get<1>(info.param));
+                         });
 
-TEST_F(AugmenterTest, ProjectionMatchesOpenCvProjectPoints) {
+INSTANTIATE_TEST_SUITE_P(Rasterizers, RasterizerTest,
+                         ::testing::Values(Rasterizer::kOpenGl, Rasterizer::kCpu), raster_name);
+
+TEST_P(RasterizerTest, ProjectionMatchesOpenCvProjectPoints) {
   Rig rig = distorted_rig();
   const RigCamera& cam = rig.left();
   // Markers all over the image (corners included), 8 to 30 m away, each a 64-gon of ~30 px radius.
@@ -167,7 +197,7 @@ TEST_F(AugmenterTest, ProjectionMatchesOpenCvProjectPoints) {
   auto receiver = std::make_shared<Model>();
   const int kSides = 64;
   for (const auto& c : centres) receiver->meshes.push_back(disc(c, 0.028 * c.z(), kSides));
-  AugmentOptions opt;
+  AugmentOptions opt = options();
   opt.receiver_model = receiver;
   opt.stereo_classes = false;
   auto aug = Augmenter::create(rig, opt);
@@ -229,9 +259,9 @@ TEST_F(AugmenterTest, ProjectionMatchesOpenCvProjectPoints) {
   EXPECT_LE(worst, 0.1);
 }
 
-TEST_F(AugmenterTest, UntouchedPixelsAreBitIdenticalInEveryFormat) {
+TEST_P(RasterizerTest, UntouchedPixelsAreBitIdenticalInEveryFormat) {
   const Rig rig = distorted_rig();
-  auto aug = Augmenter::create(rig);
+  auto aug = Augmenter::create(rig, options());
   ASSERT_TRUE(aug) << aug.error().message;
   Eigen::Vector3d receptacle;
   make_builtin_receiver(&receptacle);
@@ -280,9 +310,9 @@ TEST_F(AugmenterTest, UntouchedPixelsAreBitIdenticalInEveryFormat) {
   }
 }
 
-TEST_F(AugmenterTest, BoomBehindTheReceiverIsNotDrawn) {
+TEST_P(RasterizerTest, BoomBehindTheReceiverIsNotDrawn) {
   const Rig rig = Rig::paper_default();
-  auto aug = Augmenter::create(rig);
+  auto aug = Augmenter::create(rig, options());
   ASSERT_TRUE(aug) << aug.error().message;
   Eigen::Vector3d receptacle;
   make_builtin_receiver(&receptacle);
@@ -318,12 +348,12 @@ TEST_F(AugmenterTest, BoomBehindTheReceiverIsNotDrawn) {
   EXPECT_EQ(wrong, 0);
 }
 
-TEST_F(AugmenterTest, BoomEdgesAreAntiAliasedOnlyWhenAsked) {
+TEST_P(RasterizerTest, BoomEdgesAreAntiAliasedOnlyWhenAsked) {
   const Rig rig = Rig::paper_default();  // no distortion: the case where grids could coincide
   Eigen::Vector3d receptacle;
   make_builtin_receiver(&receptacle);
   for (bool aa : {true, false}) {
-    AugmentOptions opt;
+    AugmentOptions opt = options();
     opt.antialias = aa;
     auto aug = Augmenter::create(rig, opt);
     ASSERT_TRUE(aug) << aug.error().message;
@@ -361,8 +391,10 @@ TEST_F(AugmenterTest, ReceiverOverlaysDrawTheModelButLeaveMasksAlone) {
   for (ReceiverDraw mode : {ReceiverDraw::kTranslucent, ReceiverDraw::kWireframe}) {
     AugmentOptions opt;
     opt.receiver_draw = mode;
+    opt.rasterizer = Rasterizer::kCpu;  // overlays need the receiver's colour: always OpenGL
     auto aug = Augmenter::create(rig, opt);
     ASSERT_TRUE(aug) << aug.error().message;
+    EXPECT_EQ((*aug)->rasterizer(), Rasterizer::kOpenGl);
     const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.0, 2.0});
     const Frame raw = gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
     ViewResult out;
@@ -387,6 +419,72 @@ TEST_F(AugmenterTest, ReceiverOverlaysDrawTheModelButLeaveMasksAlone) {
     // Off the receiver only the boom's anti-aliased edge may differ.
     EXPECT_LT(changed_outside, 6000);
   }
+}
+
+// The two rasterisers side by side: the same masks but for a few silhouette pixels, and the same
+// boom colours (GL shades samples and blends four; the CPU path shades each pixel centre).
+TEST_F(AugmenterTest, RasterizersAgreeWithEachOther) {
+  const Rig rig = distorted_rig();
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  StereoResult out[2];
+  for (int k = 0; k < 2; ++k) {
+    AugmentOptions opt;
+    opt.rasterizer = k == 0 ? Rasterizer::kOpenGl : Rasterizer::kCpu;
+    auto aug = Augmenter::create(rig, opt);
+    ASSERT_TRUE(aug) << aug.error().message;
+    const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.03, 2.5});
+    StereoFrame sf;
+    sf.left = gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+    sf.right = gradient_frame(rig.right().model, PixelFormat::kRGB8, CameraId::kRight);
+    ASSERT_TRUE((*aug)->augment(sf, scene, out[k]));
+  }
+  for (int c = 0; c < 2; ++c) {
+    const ViewResult& gl = c == 0 ? out[0].left : out[0].right;
+    const ViewResult& cpu = c == 0 ? out[1].left : out[1].right;
+    std::int64_t mask_diff = 0, interior = 0, colour_far = 0, sum_diff = 0;
+    int worst = 0;
+    const int W = gl.mask.width(), H = gl.mask.height();
+    for (int y = 1; y + 1 < H; ++y)
+      for (int x = 1; x + 1 < W; ++x) {
+        mask_diff += gl.mask.row(y)[x] != cpu.mask.row(y)[x];
+        bool all_boom = true;  // boom pixel with boom all around: opaque in both
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) all_boom &= (gl.mask.row(y + dy)[x + dx] & kMaskBoom) != 0;
+        if (!all_boom) continue;
+        ++interior;
+        int d = 0;
+        for (int ch = 0; ch < 3; ++ch)
+          d = std::max(d, std::abs(gl.augmented.row(y)[3 * x + ch] - cpu.augmented.row(y)[3 * x + ch]));
+        worst = std::max(worst, d);
+        sum_diff += d;
+        // Apart only across the texture's dark bands: GL blends shaded samples of a mipmapped
+        // texture, the CPU path samples it exactly at the centre.
+        colour_far += d > 8;
+      }
+    const double mean_diff =
+        static_cast<double>(sum_diff) / static_cast<double>(std::max<std::int64_t>(interior, 1));
+    std::printf(
+        "camera %d: masks differ at %lld px; boom interior %lld px, colour mean diff %.2f, > 8 apart at "
+        "%lld, "
+        "max %d\n",
+        c, static_cast<long long>(mask_diff), static_cast<long long>(interior), mean_diff,
+        static_cast<long long>(colour_far), worst);
+    EXPECT_GT(interior, 20000);
+    EXPECT_LT(mask_diff, 40) << "both are exact at silhouettes up to a few pixels";
+    EXPECT_LT(mean_diff, 2.0);
+    EXPECT_LT(colour_far, interior / 40);
+  }
+}
+
+// kAuto takes the CPU rasteriser exactly where OpenGL is itself software.
+TEST_F(AugmenterTest, AutoPicksTheCpuRasterizerOnSoftwareGl) {
+  auto aug = Augmenter::create(Rig::paper_default());
+  ASSERT_TRUE(aug) << aug.error().message;
+  const std::string renderer = context()->renderer();
+  const bool software =
+      renderer.find("llvmpipe") != std::string::npos || renderer.find("softpipe") != std::string::npos;
+  EXPECT_EQ((*aug)->rasterizer(), software ? Rasterizer::kCpu : Rasterizer::kOpenGl) << renderer;
 }
 
 }  // namespace

@@ -1,0 +1,52 @@
+// Triangle set-up for render/soft_raster.hpp.
+#include "render/soft_raster.hpp"
+
+#include <Eigen/Geometry>
+
+namespace augrig {
+
+bool RasterTriangle::setup(const SampleGrid& g, const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
+                           const Eigen::Vector3d& p2, bool cull, const SampleBox& clip) {
+  // det(p0, p1, p2) = n . p0 with n = (p1 - p0) x (p2 - p0): negative when the triangle faces the
+  // camera (counter-clockwise from outside, camera at the origin), zero when seen edge-on.
+  const double det = p0.dot(p1.cross(p2));
+  if (det == 0 || !std::isfinite(det)) return false;
+  if (cull && det > 0) return false;
+  const double z_min = std::min({p0.z(), p1.z(), p2.z()}), z_max = std::max({p0.z(), p1.z(), p2.z()});
+  if (z_max < g.near_m) return false;
+  crosses_near = z_min < g.near_m;
+  // Edge k is the plane through the camera centre and the edge (p_k, p_k+1). On the sample's ray
+  // d(X, Y) = ((X - cx) / fx, (Y - cy) / fy, 1) it is affine in X and Y. The sign of det makes
+  // every edge non-negative inside, in front of the camera.
+  const double s = det > 0 ? 1.0 : -1.0;
+  const Eigen::Vector3d c[3] = {s * p0.cross(p1), s * p1.cross(p2), s * p2.cross(p0)};
+  for (int k = 0; k < 3; ++k) {
+    ea[k] = c[k].x() / g.fx;
+    eb[k] = c[k].y() / g.fy;
+    ec[k] = c[k].z() - c[k].x() * g.cx / g.fx - c[k].y() * g.cy / g.fy;
+    inv_ea[k] = ea[k] != 0 ? 1.0 / ea[k] : 0.0;
+  }
+  inv_area = 1.0 / std::abs(det);
+
+  // Bounds: the projected vertices' box when all lie in front of the camera (the projection is
+  // then their convex hull), else the whole clip box (rows outside the triangle are empty spans).
+  SampleBox b{std::max(clip.x0, 0), std::max(clip.y0, 0), std::min(clip.x1, g.width),
+              std::min(clip.y1, g.height)};
+  if (z_min > 0) {
+    double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+    for (const Eigen::Vector3d* p : {&p0, &p1, &p2}) {
+      const double x = g.fx * p->x() / p->z() + g.cx, y = g.fy * p->y() / p->z() + g.cy;
+      x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+    }
+    // One sample of margin against rounding in the projection; spans decide exactly.
+    if (x1 < b.x0 - 1 || y1 < b.y0 - 1 || x0 > b.x1 + 1 || y0 > b.y1 + 1) return false;
+    b.x0 = std::max(b.x0, static_cast<int>(std::floor(x0)) - 1);
+    b.y0 = std::max(b.y0, static_cast<int>(std::floor(y0)) - 1);
+    b.x1 = std::min(b.x1, static_cast<int>(std::ceil(x1)) + 2);
+    b.y1 = std::min(b.y1, static_cast<int>(std::ceil(y1)) + 2);
+  }
+  bounds = b;
+  return b.x1 > b.x0 && b.y1 > b.y0;
+}
+
+}  // namespace augrig
