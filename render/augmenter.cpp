@@ -207,8 +207,11 @@ inline F32x4 sample_texture(const Texture& tex, float u, float v) {
     int i = static_cast<int>(x);
     i -= x < static_cast<float>(i);
     const float frac = x - static_cast<float>(i);
-    i %= n;
-    i0 = i < 0 ? i + n : i;
+    if (static_cast<unsigned>(i) >= static_cast<unsigned>(n)) {  // rarely: a division
+      i %= n;
+      i += i < 0 ? n : 0;
+    }
+    i0 = i;
     i1 = i0 + 1 == n ? 0 : i0 + 1;
     return frac;
   };
@@ -953,6 +956,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   const int bpp = bytes_per_pixel(fmt);
   const bool overlay = !vs.recv_rgba.empty();
   const bool cpu = cpu_raster_;
+  const bool recv = !vs.recv_vboxes.empty();
 
   for (int v = work.y0; v < work.y1; ++v) {
     std::uint8_t* mrow = out.mask.row(v);
@@ -973,12 +977,16 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
     auto pixel = [&](int u) {
       const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
       if (e.idx < 0) return;
-      // Most pixels of a box see nothing: one OR over the samples skips them.
+      // The 2x2 samples' ids, read once (the byte stores below could alias them). One sample
+      // when the grids coincide; no receiver loads when none was drawn.
       const std::uint32_t* pb = bids + e.idx;
       const std::uint32_t* pr = rids + e.idx;
-      if (identity ? !(pb[0] | pr[0])
-                   : !(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1] | pr[0] | pr[1] | pr[Wv] | pr[Wv + 1]))
-        return;
+      const std::size_t o1 = identity ? 0 : 1, o2 = identity ? 0 : Wv, o3 = identity ? 0 : Wv + 1;
+      const std::uint32_t b0 = pb[0], b1 = pb[o1], b2 = pb[o2], b3 = pb[o3];
+      const std::uint32_t r0 = recv ? pr[0] : 0, r1 = recv ? pr[o1] : 0, r2 = recv ? pr[o2] : 0,
+                          r3 = recv ? pr[o3] : 0;
+      // Most pixels of a box see nothing: one OR over the samples skips them.
+      if (!(b0 | b1 | b2 | b3 | r0 | r1 | r2 | r3)) return;
       const Eigen::Vector2f& ray = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u];
       auto plane_depth = [&](std::uint32_t packed) {
         const ViewState::Plane& pl = vs.planes[global_index(packed)];
@@ -992,7 +1000,6 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
       };
       if (identity && !overlay) {
         // The samples ARE the pixel centres: GL's coverage and depth test are already exact there.
-        const std::uint32_t b0 = pb[0], r0 = pr[0];
         mrow[u] = static_cast<std::uint8_t>((b0 ? kMaskBoom : 0) | (r0 ? kMaskReceiver : 0));
         if (r0) drow[u] = static_cast<float>(plane_depth(r0));
         if (b0) {
@@ -1013,25 +1020,24 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
         }
         return;
       }
-      if (!(pb[0] | pb[1] | pb[Wv] | pb[Wv + 1]) && pr[0] == pr[1] && pr[0] == pr[Wv] &&
-          pr[0] == pr[Wv + 1] && !overlay) {
+      if (!(b0 | b1 | b2 | b3) && r0 == r1 && r0 == r2 && r0 == r3 && !overlay) {
         // Inside one receiver triangle with no boom around: the most common covered pixel.
         mrow[u] = kMaskReceiver;
-        drow[u] = static_cast<float>(plane_depth(pr[0]));
+        drow[u] = static_cast<float>(plane_depth(r0));
         return;
       }
-      if (pb[0] && pb[1] && pb[Wv] && pb[Wv + 1] && !overlay) {
-        const bool recv_none = !(pr[0] | pr[1] | pr[Wv] | pr[Wv + 1]);
-        const bool recv_one = pr[0] && pr[0] == pr[1] && pr[0] == pr[Wv] && pr[0] == pr[Wv + 1];
+      if (b0 && b1 && b2 && b3 && !overlay) {
+        const bool recv_none = !(r0 | r1 | r2 | r3);
+        const bool recv_one = r0 && r0 == r1 && r0 == r2 && r0 == r3;
         if (recv_none || recv_one) {
           // Boom all around, in front of the receiver at every sample (GL's depth test) and no
           // receiver silhouette nearby: an opaque boom pixel, its colour bilinear.
           mrow[u] = static_cast<std::uint8_t>(kMaskBoom | (recv_one ? kMaskReceiver : 0));
-          if (recv_one) drow[u] = static_cast<float>(plane_depth(pr[0]));
+          if (recv_one) drow[u] = static_cast<float>(plane_depth(r0));
           F32x4 c;
           if (cpu) {
             // Any of the four triangles: the interpolated normal and texture are continuous.
-            c = boom_colour(pb[0], 0) + 0.5f;
+            c = boom_colour(b0, 0) + 0.5f;
           } else {
             const std::uint8_t* c0 = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
             const std::uint8_t* c2 = c0 + static_cast<std::size_t>(Wv) * 4;
@@ -1236,6 +1242,16 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   StereoClassOptions copt = options_.class_options;
   copt.compute_classes = receiver_on_ && options_.stereo_classes;
   copt.left_rays_xy = &views_[0].vp.ray_xy;
+  // The masks are zero outside the boxes this frame rendered.
+  PixelBox content;
+  for (const PixelBox& b :
+       {out.left.boom_box, out.left.receiver_box, out.right.boom_box, out.right.receiver_box})
+    if (!b.empty())
+      content = content.empty() ? b
+                                : PixelBox{std::min(content.x0, b.x0), std::min(content.y0, b.y0),
+                                           std::max(content.x1, b.x1), std::max(content.y1, b.y1)};
+  copt.content_x0 = content.x0, copt.content_y0 = content.y0;
+  copt.content_x1 = content.x1, copt.content_y1 = content.y1;
   out.stats = compute_occlusion_stats(frame.t_key_ns, out.left.mask, out.right.mask, out.left.receiver_depth,
                                       out.right.receiver_depth, rig_.left().model, rig_.right().model,
                                       rig_.T_right_left(), copt,

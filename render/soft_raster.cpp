@@ -40,10 +40,14 @@ bool RasterTriangle::setup(const SampleGrid& g, const Eigen::Vector3d& p0, const
     }
     // One sample of margin against rounding in the projection; spans decide exactly.
     if (x1 < b.x0 - 1 || y1 < b.y0 - 1 || x0 > b.x1 + 1 || y0 > b.y1 + 1) return false;
-    b.x0 = std::max(b.x0, static_cast<int>(std::floor(x0)) - 1);
-    b.y0 = std::max(b.y0, static_cast<int>(std::floor(y0)) - 1);
-    b.x1 = std::min(b.x1, static_cast<int>(std::ceil(x1)) + 2);
-    b.y1 = std::min(b.y1, static_cast<int>(std::ceil(y1)) + 2);
+    // Clamped as doubles first: a vertex just in front of the camera plane projects beyond int.
+    auto clamp_to = [](double v, const int lo, const int hi) {
+      return std::clamp(v, static_cast<double>(lo) - 2, static_cast<double>(hi) + 2);
+    };
+    b.x0 = std::max(b.x0, static_cast<int>(std::floor(clamp_to(x0, b.x0, b.x1))) - 1);
+    b.y0 = std::max(b.y0, static_cast<int>(std::floor(clamp_to(y0, b.y0, b.y1))) - 1);
+    b.x1 = std::min(b.x1, static_cast<int>(std::ceil(clamp_to(x1, b.x0, b.x1))) + 2);
+    b.y1 = std::min(b.y1, static_cast<int>(std::ceil(clamp_to(y1, b.y0, b.y1))) + 2);
   }
   bounds = b;
   return b.x1 > b.x0 && b.y1 > b.y0;

@@ -123,13 +123,13 @@ std::int64_t lane_sum(std::uint64_t v) {
   return static_cast<std::int64_t>((v * 0x0001000100010001ull) >> 48);
 }
 
-MaskCounts count_masks(const Image& ml, const Image& mr) {
-  const int w = ml.width(), h = ml.height();
+// Rows [y0, y1) and columns [x0, w) of the masks (columns from x0 rounded down to a word).
+MaskCounts count_masks(const Image& ml, const Image& mr, int x0, int y0, int w, int y1) {
   MaskCounts c;
-  for (int y = 0; y < h; ++y) {
+  for (int y = y0; y < y1; ++y) {
     const std::uint8_t* a = ml.row(y);
     const std::uint8_t* b = mr.row(y);
-    int x = 0;
+    int x = x0 & ~7;
     while (x + 8 <= w) {
       std::uint64_t rl = 0, rr = 0, bl = 0, br = 0, ov = 0, ol = 0, orr = 0;
       for (int k = 0; k < 255 && x + 8 <= w; ++k, x += 8) {
@@ -183,7 +183,10 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
   s.t_ns = t_ns;
   s.width = w;
   s.height = h;
-  const MaskCounts c = count_masks(mask_left, mask_right);
+  // Only the content box can hold mask bits.
+  const int cx0 = std::clamp(options.content_x0, 0, w), cx1 = std::clamp(options.content_x1, cx0, w);
+  const int cy0 = std::clamp(options.content_y0, 0, h), cy1 = std::clamp(options.content_y1, cy0, h);
+  const MaskCounts c = count_masks(mask_left, mask_right, cx0, cy0, cx1, cy1);
   s.receiver_px_left = c.rl;
   s.receiver_px_right = c.rr;
   s.boom_px_left = c.bl;
@@ -267,13 +270,13 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
 
   std::int64_t counts[5] = {0, 0, 0, 0, 0};  // by StereoClass
   constexpr std::uint64_t kReceiverLanes = kLanes * kMaskReceiver;
-  for (int y = 0; y < h; ++y) {
+  for (int y = cy0; y < cy1; ++y) {
     const std::uint8_t* ml = mask_left.row(y);
     const float* zl = receiver_depth_left.z_m.data() + static_cast<std::size_t>(y) * w;
     const Eigen::Vector2f* ry = rays->data() + static_cast<std::size_t>(y) * w;
     std::uint8_t* cls = classes_out ? classes_out->data() + static_cast<std::size_t>(y) * w : nullptr;
-    for (int x = 0; x < w; ++x) {
-      if ((x & 7) == 0 && x + 8 <= w) {  // skip 8 receiver-free pixels at once
+    for (int x = cx0 & ~7; x < cx1; ++x) {
+      if ((x & 7) == 0 && x + 8 <= cx1) {  // skip 8 receiver-free pixels at once
         std::uint64_t v8;
         std::memcpy(&v8, ml + x, 8);
         if (!(v8 & kReceiverLanes)) {

@@ -58,6 +58,10 @@ struct StereoClassOptions {
   // false: only the mask counts; the four class counts stay 0, depth images and cameras are not
   // read (may be empty) and classes_out is left empty.
   bool compute_classes = true;
+  // Optional: the box [x0, x1) x [y0, y1) outside which both masks are known to be zero (the
+  // augmenter's boxes); the passes visit only that. Default: the whole image.
+  int content_x0 = 0, content_y0 = 0;
+  int content_x1 = std::numeric_limits<int>::max(), content_y1 = std::numeric_limits<int>::max();
 };
 
 // The map StereoClassOptions::left_rays_xy expects: camera.undistort() of every pixel centre.

@@ -3,6 +3,7 @@
 #include "render/stats.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <iostream>
@@ -116,6 +117,47 @@ TEST(OcclusionStats, RandomMasksMatchBruteForceCounts) {
       EXPECT_NEAR(s.occluded_pct_left, rl ? 100.0 * ol / rl : 0.0, 1e-9);
       EXPECT_NEAR(s.occluded_pct_right, rr ? 100.0 * orr / rr : 0.0, 1e-9);
     }
+  }
+}
+
+// A content box (the augmenter's, outside which its masks are zero) changes nothing: random bits
+// inside odd-aligned boxes of random masks, counted with and without the box.
+TEST(OcclusionStats, ContentBoxGivesTheSameCountsAsTheWholeImage) {
+  const int w = 203, h = 61;
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (const auto& box :
+       {std::array<int, 4>{0, 0, w, h}, std::array<int, 4>{13, 5, 150, 40}, std::array<int, 4>{3, 0, 11, 61},
+        std::array<int, 4>{190, 60, 203, 61}, std::array<int, 4>{50, 20, 50, 30}}) {
+    Image ml = padded_mask(w, h, 3), mr = padded_mask(w, h, 3);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const bool in = x >= box[0] && x < box[2] && y >= box[1] && y < box[3];
+        ml.row(y)[x] = in ? static_cast<std::uint8_t>(byte(rng)) : 0;
+        mr.row(y)[x] = in ? static_cast<std::uint8_t>(byte(rng)) : 0;
+      }
+    const DepthImage dl = depth_filled(w, h, 20.f), dr = depth_filled(w, h, 20.f);
+    std::vector<std::uint8_t> classes_all, classes_box;
+    const OcclusionStats all = compute_occlusion_stats(1, ml, mr, dl, dr, pinhole(w, h), pinhole(w, h),
+                                                       Pose::identity(), {}, &classes_all);
+    StereoClassOptions opt;
+    opt.content_x0 = box[0], opt.content_y0 = box[1], opt.content_x1 = box[2], opt.content_y1 = box[3];
+    const OcclusionStats boxed = compute_occlusion_stats(1, ml, mr, dl, dr, pinhole(w, h), pinhole(w, h),
+                                                         Pose::identity(), opt, &classes_box);
+    SCOPED_TRACE("box " + std::to_string(box[0]) + "," + std::to_string(box[1]) + " - " +
+                 std::to_string(box[2]) + "," + std::to_string(box[3]));
+    EXPECT_EQ(boxed.receiver_px_left, all.receiver_px_left);
+    EXPECT_EQ(boxed.receiver_px_right, all.receiver_px_right);
+    EXPECT_EQ(boxed.boom_px_left, all.boom_px_left);
+    EXPECT_EQ(boxed.boom_px_right, all.boom_px_right);
+    EXPECT_EQ(boxed.boom_overlap_px, all.boom_overlap_px);
+    EXPECT_EQ(boxed.occluded_px_left, all.occluded_px_left);
+    EXPECT_EQ(boxed.occluded_px_right, all.occluded_px_right);
+    EXPECT_EQ(boxed.stereo_both_px, all.stereo_both_px);
+    EXPECT_EQ(boxed.left_only_px, all.left_only_px);
+    EXPECT_EQ(boxed.right_only_px, all.right_only_px);
+    EXPECT_EQ(boxed.neither_px, all.neither_px);
+    EXPECT_EQ(classes_box, classes_all);
   }
 }
 
