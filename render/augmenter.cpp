@@ -110,6 +110,9 @@ struct DrawItem {
 struct CamTriangle {
   Eigen::Vector3d v0, e1, e2, n;  // n = e1 x e2
   double n_dot_v0;
+  // Planes through the camera centre and each edge, signed so that a ray from the camera passes
+  // through the triangle, in front of the camera, iff all three dot products with it are >= 0.
+  Eigen::Vector3d edge[3];
 };
 
 // The boom fragment shader's lighting for one triangle in one view, as functions of the camera-
@@ -318,7 +321,7 @@ class AugmenterImpl final : public Augmenter {
   void resolve_view(ViewState& vs, const Frame& raw, ViewResult& out) const;
   std::vector<VBox> project_boxes(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const;
   VBox raw_box_of(const ViewState& vs, const VBox& vbox) const;
-  double nearest_hit(ViewState& vs, const std::uint32_t* cands, int n, double x, double y) const;
+  double nearest_hit(ViewState& vs, const std::uint32_t* cands, int n, double x, double y, bool rings) const;
   void build_rings();
   std::uint32_t global_index(std::uint32_t packed) const {
     return first_tri_of_draw_[packed >> kDrawShift] + (packed & kPrimMask);
@@ -534,6 +537,10 @@ void AugmenterImpl::prepare_view(ViewState& vs, const SceneState& scene) {
       tri.e2 = V[idx[3 * k + 2]] - tri.v0;
       tri.n = tri.e1.cross(tri.e2);
       tri.n_dot_v0 = tri.n.dot(tri.v0);
+      const Eigen::Vector3d v1 = tri.v0 + tri.e1, v2 = tri.v0 + tri.e2;
+      const double sign = tri.n_dot_v0 >= 0 ? 1.0 : -1.0;  // det(v0, v1, v2) = n . v0
+      tri.edge[0] = sign * tri.v0.cross(v1), tri.edge[1] = sign * v1.cross(v2),
+      tri.edge[2] = sign * v2.cross(tri.v0);
       vs.planes[d.first_tri + k] = {tri.n.x(), tri.n.y(), tri.n.z(), tri.n_dot_v0};
     }
   }
@@ -864,24 +871,18 @@ void AugmenterImpl::build_rings() {
 }
 
 // Nearest intersection (camera z) of the ray (x, y, 1) with the candidate triangles (packed ids)
-// and, when none of them is hit, with their one-ring neighbours; +inf if none.
-double AugmenterImpl::nearest_hit(ViewState& vs, const std::uint32_t* cands, int n, double x,
-                                  double y) const {
+// and, when none of them is hit and `rings`, with their one-ring neighbours; +inf if none.
+double AugmenterImpl::nearest_hit(ViewState& vs, const std::uint32_t* cands, int n, double x, double y,
+                                  bool rings) const {
   const Eigen::Vector3d d(x, y, 1.0);
   double best = std::numeric_limits<double>::infinity();
-  // Moller-Trumbore from the origin; the ray parameter is camera z since d.z = 1.
+  // Rays all start at the camera centre: inside-ness is three signs against the edge planes, and
+  // the hit's camera z (the ray parameter, d.z being 1) comes from the triangle's plane.
   auto test = [&](const CamTriangle& t) {
-    const Eigen::Vector3d p = d.cross(t.e2);
-    const double det = t.e1.dot(p);
-    if (std::abs(det) < 1e-300) return;
-    const double inv = 1.0 / det;
-    const Eigen::Vector3d s = -t.v0;
-    const double u = s.dot(p) * inv;
-    if (u < 0.0 || u > 1.0) return;
-    const Eigen::Vector3d q = s.cross(t.e1);
-    const double v = d.dot(q) * inv;
-    if (v < 0.0 || u + v > 1.0) return;
-    const double z = t.e2.dot(q) * inv;
+    if (t.edge[0].dot(d) < 0 || t.edge[1].dot(d) < 0 || t.edge[2].dot(d) < 0) return;
+    const double n_dot_d = t.n.dot(d);
+    if (n_dot_d == 0) return;  // seen edge-on
+    const double z = t.n_dot_v0 / n_dot_d;
     if (z > 0.0 && z < best) best = z;
   };
   // Each triangle is tested once per call: a stamp per triangle, no search.
@@ -898,7 +899,7 @@ double AugmenterImpl::nearest_hit(ViewState& vs, const std::uint32_t* cands, int
     const std::uint32_t g = global_index(cands[k]);
     if (first_time(g)) test(vs.tris[g]), direct[n_direct++] = g;
   }
-  if (std::isfinite(best)) return best;
+  if (std::isfinite(best) || !rings) return best;
   for (int k = 0; k < n_direct; ++k) {
     const std::uint32_t g = direct[k];
     for (std::uint32_t i = ring_offsets_[g]; i < ring_offsets_[g + 1]; ++i)
@@ -1086,10 +1087,11 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
           const CamTriangle& t = triangle(vs, r[0]);
           z_r = t.n_dot_v0 / t.n.dot(d);
         } else {
-          z_r = nearest_hit(vs, r, ns, x, y);
+          // Covered all around, the centre is covered too: only its depth is sought, and when the
+          // centre's triangle is not among the samples' (a sliver) the nearest sample's plane
+          // gives it. At a silhouette the slivers' neighbours are searched as well.
+          z_r = nearest_hit(vs, r, ns, x, y, !r_all);
           if (!std::isfinite(z_r) && r_all) {
-            // Covered all around but the centre's triangle is not among the samples' (a sliver):
-            // take the nearest sample's plane.
             const CamTriangle& t = triangle(vs, r[0]);
             z_r = t.n_dot_v0 / t.n.dot(d);
           }
@@ -1102,7 +1104,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
           const CamTriangle& t = triangle(vs, b[0]);
           z_b = t.n_dot_v0 / t.n.dot(d);
         } else {
-          z_b = nearest_hit(vs, b, ns, x, y);
+          z_b = nearest_hit(vs, b, ns, x, y, !b_all);
           if (!std::isfinite(z_b) && b_all) {
             const CamTriangle& t = triangle(vs, b[0]);
             z_b = t.n_dot_v0 / t.n.dot(d);
