@@ -262,13 +262,11 @@ VBox unite(const VBox& a, const VBox& b) {
   return {std::min(a.x0, b.x0), std::min(a.y0, b.y0), std::max(a.x1, b.x1), std::max(a.y1, b.y1)};
 }
 
-// Reorders `mesh`'s triangles into up to `max_chunks` slabs of at least `min_triangles` along the
-// longest axis of its bounds (by centroid) and returns their ranges. Long parts get several small
-// screen boxes.
-std::vector<std::pair<std::uint32_t, std::uint32_t>> split_into_chunks(Mesh& mesh, int max_chunks,
-                                                                       int min_triangles) {
+// Reorders `mesh`'s triangles into up to `max_chunks` slabs along the longest axis of its bounds
+// (by centroid) and returns their ranges. Long parts get several small screen boxes.
+std::vector<std::pair<std::uint32_t, std::uint32_t>> split_into_chunks(Mesh& mesh, int max_chunks) {
   const auto n = static_cast<std::uint32_t>(mesh.triangle_count());
-  const int k = std::clamp(static_cast<int>(n / min_triangles), 1, max_chunks);
+  const int k = std::clamp(static_cast<int>(n / 64), 1, max_chunks);
   if (k == 1) return {{0u, n}};
   const auto [lo, hi] = mesh.bounds();
   int axis = 0;
@@ -416,9 +414,7 @@ Status AugmenterImpl::init() {
         return make_error("Augmenter::create(): models have more than 255 meshes in total; merge them");
       if (m.triangle_count() > kPrimMask)
         return make_error("Augmenter::create(): mesh '", m.name, "' has more than 2^24 triangles");
-      // Before upload: it reorders the triangles. GL pays a fixed cost per box (a clear and a
-      // readback); the CPU rasteriser does not, so it takes more, smaller boxes.
-      auto chunks = cpu_raster_ ? split_into_chunks(m, 8, 32) : split_into_chunks(m, 4, 64);
+      auto chunks = split_into_chunks(m, 4);  // before upload: it reorders the triangles
       draws_.push_back({kind, &m, gl::upload(m), static_cast<std::uint8_t>(draws_.size() + 1), total_tris_,
                         cull, std::move(chunks)});
       total_tris_ += m.triangle_count();
@@ -576,9 +572,9 @@ std::vector<VBox> AugmenterImpl::project_boxes(const ViewState& vs,
       if (!b.empty()) boxes.push_back(b);
     }
   }
-  // Merge pairs whose union adds little area: fewer GL clears and readbacks, each with a fixed cost
-  // (GL: at most 6 boxes); fewer box borders to project and rows to split (CPU rasteriser).
-  const std::size_t max_boxes = cpu_raster_ ? 24 : 6;
+  // Merge pairs whose union adds little area: fewer GL clears and readbacks, each with a fixed
+  // cost (the CPU rasteriser: fewer box borders to project; its resolve skips empty blocks).
+  constexpr std::size_t max_boxes = 6;
   auto area = [](const VBox& b) { return static_cast<double>(b.x1 - b.x0) * (b.y1 - b.y0); };
   for (bool merged = true; merged && boxes.size() > 1;) {
     merged = false;

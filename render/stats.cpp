@@ -1,9 +1,11 @@
 #include "render/stats.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <future>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -268,32 +270,42 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
            (y1 != y0 && (near(x0, y1) || (x1 != x0 && near(x1, y1))));
   };
 
-  std::int64_t counts[5] = {0, 0, 0, 0, 0};  // by StereoClass
+  // Every second row from y_begin into counts (by StereoClass): two threads take alternate rows,
+  // which shares the receiver between them wherever it lies in the box.
   constexpr std::uint64_t kReceiverLanes = kLanes * kMaskReceiver;
-  for (int y = cy0; y < cy1; ++y) {
-    const std::uint8_t* ml = mask_left.row(y);
-    const float* zl = receiver_depth_left.z_m.data() + static_cast<std::size_t>(y) * w;
-    const Eigen::Vector2f* ry = rays->data() + static_cast<std::size_t>(y) * w;
-    std::uint8_t* cls = classes_out ? classes_out->data() + static_cast<std::size_t>(y) * w : nullptr;
-    for (int x = cx0 & ~7; x < cx1; ++x) {
-      if ((x & 7) == 0 && x + 8 <= cx1) {  // skip 8 receiver-free pixels at once
-        std::uint64_t v8;
-        std::memcpy(&v8, ml + x, 8);
-        if (!(v8 & kReceiverLanes)) {
-          x += 7;
-          continue;
+  using Counts = std::array<std::int64_t, 5>;
+  auto classify_rows = [&](int y_begin) {
+    Counts counts{};
+    for (int y = y_begin; y < cy1; y += 2) {
+      const std::uint8_t* ml = mask_left.row(y);
+      const float* zl = receiver_depth_left.z_m.data() + static_cast<std::size_t>(y) * w;
+      const Eigen::Vector2f* ry = rays->data() + static_cast<std::size_t>(y) * w;
+      std::uint8_t* cls = classes_out ? classes_out->data() + static_cast<std::size_t>(y) * w : nullptr;
+      for (int x = cx0 & ~7; x < cx1; ++x) {
+        if ((x & 7) == 0 && x + 8 <= cx1) {  // skip 8 receiver-free pixels at once
+          std::uint64_t v8;
+          std::memcpy(&v8, ml + x, 8);
+          if (!(v8 & kReceiverLanes)) {
+            x += 7;
+            continue;
+          }
         }
+        const std::uint8_t m = ml[x];
+        if (!(m & kMaskReceiver)) continue;
+        const bool vis_left = !(m & kMaskBoom);
+        const bool vis_right = visible_right(zl[x], ry[x].x(), ry[x].y());
+        const StereoClass c = vis_left ? (vis_right ? StereoClass::kBoth : StereoClass::kLeftOnly)
+                                       : (vis_right ? StereoClass::kRightOnly : StereoClass::kNeither);
+        ++counts[static_cast<int>(c)];
+        if (cls) cls[x] = static_cast<std::uint8_t>(c);
       }
-      const std::uint8_t m = ml[x];
-      if (!(m & kMaskReceiver)) continue;
-      const bool vis_left = !(m & kMaskBoom);
-      const bool vis_right = visible_right(zl[x], ry[x].x(), ry[x].y());
-      const StereoClass c = vis_left ? (vis_right ? StereoClass::kBoth : StereoClass::kLeftOnly)
-                                     : (vis_right ? StereoClass::kRightOnly : StereoClass::kNeither);
-      ++counts[static_cast<int>(c)];
-      if (cls) cls[x] = static_cast<std::uint8_t>(c);
     }
-  }
+    return counts;
+  };
+  auto even = std::async(std::launch::async, classify_rows, cy0);
+  const Counts odd = classify_rows(cy0 + 1);
+  Counts counts = even.get();
+  for (int k = 0; k < 5; ++k) counts[k] += odd[k];
   const std::int64_t both = counts[static_cast<int>(StereoClass::kBoth)];
   const std::int64_t left_only = counts[static_cast<int>(StereoClass::kLeftOnly)];
   const std::int64_t right_only = counts[static_cast<int>(StereoClass::kRightOnly)];
