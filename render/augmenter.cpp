@@ -115,15 +115,16 @@ struct CamTriangle {
   Eigen::Vector3d edge[3];
 };
 
-// The boom fragment shader's lighting for one triangle in one view, as functions of the camera-
-// frame ray d = (x, y, 1) (CPU rasteriser: the resolve shades each raw pixel at its centre). The
-// interpolated normal up to a positive factor is M d (normalising removes the factor), so its dot
-// with the light is g . d; the texture's barycentrics are e_k = c_k . d normalised.
+// One boom triangle's colour in one view as functions of the camera-frame ray d = (x, y, 1) (CPU
+// rasteriser: the resolve colours each raw pixel at its centre). With e_j = c_j . d the vertices'
+// barycentric weights up to a common positive factor (c_j: the edge planes), any vertex attribute
+// a_j interpolates perspective-correctly as (sum a_j c_j) . d / (sum c_j) . d. The lighting is
+// the GL shader's, evaluated at the vertices and interpolated (Gouraud); the texture coordinates
+// are interpolated per pixel.
 struct BoomShading {
-  float m[9];     // row-major 3x3
-  float g[3];     // M^T light
-  float c[3][3];  // edge planes (textured meshes only)
-  float uv[3][2];
+  float sum[3];    // sum of c_j
+  float light[3];  // sum of k_j c_j, k_j = 0.35 + 0.65 max(n_j . l, 0) at vertex j
+  float u[3], v[3];
   float base[3];  // base colour * 255
   const Texture* texture = nullptr;
 };
@@ -229,21 +230,14 @@ inline F32x4 sample_texture(const Texture& tex, float u, float v) {
 // The boom's colour (0..255, alpha 255) on the ray (x, y, 1) through triangle `s`: ambient 0.35
 // plus diffuse 0.65 of the normalised interpolated normal, times base colour and texture.
 inline F32x4 shade(const BoomShading& s, float x, float y) {
-  const float nx = s.m[0] * x + s.m[1] * y + s.m[2], ny = s.m[3] * x + s.m[4] * y + s.m[5],
-              nz = s.m[6] * x + s.m[7] * y + s.m[8];
-  const float len2 = nx * nx + ny * ny + nz * nz, n_dot_l = s.g[0] * x + s.g[1] * y + s.g[2];
-  const float diffuse = len2 > 0 && n_dot_l > 0 ? n_dot_l / std::sqrt(len2) : 0.f;
-  const float k = 0.35f + 0.65f * diffuse;
+  const float sum = s.sum[0] * x + s.sum[1] * y + s.sum[2];
+  const float inv = sum > 0 ? 1.f / sum : 0.f;
+  const float k = (s.light[0] * x + s.light[1] * y + s.light[2]) * inv;
   F32x4 c{s.base[0] * k, s.base[1] * k, s.base[2] * k, 255.f};
-  if (s.texture) {
-    float e[3];
-    for (int j = 0; j < 3; ++j) e[j] = s.c[j][0] * x + s.c[j][1] * y + s.c[j][2];
-    const float sum = e[0] + e[1] + e[2];
-    const float w1 = sum > 0 ? e[1] / sum : 0.f, w2 = sum > 0 ? e[2] / sum : 0.f, w0 = 1 - w1 - w2;
-    c *= sample_texture(*s.texture, w0 * s.uv[0][0] + w1 * s.uv[1][0] + w2 * s.uv[2][0],
-                        w0 * s.uv[0][1] + w1 * s.uv[1][1] + w2 * s.uv[2][1]) *
+  if (s.texture)
+    c *= sample_texture(*s.texture, (s.u[0] * x + s.u[1] * y + s.u[2]) * inv,
+                        (s.v[0] * x + s.v[1] * y + s.v[2]) * inv) *
          (1.f / 255.f);
-  }
   return c;
 }
 
@@ -675,29 +669,24 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
           occupied[(y >> kBlockShift) * blocks_x + (x >> kBlockShift)] = 1;
         });
         if (!boom) continue;
-        // Its shading, for the resolve (the fragment shader's lighting, at each pixel centre):
-        // the vertex normals (flipped on back faces) interpolated by the edge planes.
+        // Its colour, for the resolve: vertex j's attributes weighted by the edge plane through
+        // the other two (CamTriangle::edge[j + 1]); normals flipped on back faces, as in GL.
         const std::uint32_t* vi = &m.indices[3 * k];
         const double facing = t.n_dot_v0 < 0 ? 1.0 : -1.0;
-        const Eigen::Vector3d v[3] = {t.v0, t.v0 + t.e1, t.v0 + t.e2};
-        // The plane through the camera and edge (v_j, v_j+1), signed positive inside, weighs the
-        // opposite vertex (render/soft_raster.hpp): e_i = c[i] . d is vertex i's barycentric
-        // weight times a positive factor.
-        const double sign = t.n_dot_v0 > 0 ? 1.0 : -1.0;
-        Eigen::Vector3d c[3];
-        for (int j = 0; j < 3; ++j) c[(j + 2) % 3] = sign * v[j].cross(v[(j + 1) % 3]);
-        Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
-        BoomShading& sh = vs.shading[d.first_tri + k];
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero(), lit = sum, u = sum, v = sum;
         for (int j = 0; j < 3; ++j) {
-          const Eigen::Vector3d n_j = facing * (R * m.normals[vi[j]].cast<double>());
-          M += n_j * c[j].transpose();
-          for (int a = 0; a < 3; ++a) sh.c[j][a] = static_cast<float>(c[j][a]);
-          sh.uv[j][0] = m.uvs.empty() ? 0.f : m.uvs[vi[j]].x();
-          sh.uv[j][1] = m.uvs.empty() ? 0.f : m.uvs[vi[j]].y();
+          const Eigen::Vector3d& c = t.edge[(j + 1) % 3];
+          const Eigen::Vector3d n_j = facing * (R * m.normals[vi[j]].cast<double>()).normalized();
+          sum += c;
+          lit += (0.35 + 0.65 * std::max(n_j.dot(light), 0.0)) * c;
+          if (tex) u += m.uvs[vi[j]].x() * c, v += m.uvs[vi[j]].y() * c;
         }
-        const Eigen::Vector3d g = M.transpose() * light;
-        for (int a = 0; a < 9; ++a) sh.m[a] = static_cast<float>(M(a / 3, a % 3));
-        for (int a = 0; a < 3; ++a) sh.g[a] = static_cast<float>(g[a]), sh.base[a] = 255.f * m.base_color[a];
+        BoomShading& sh = vs.shading[d.first_tri + k];
+        for (int a = 0; a < 3; ++a) {
+          sh.sum[a] = static_cast<float>(sum[a]), sh.light[a] = static_cast<float>(lit[a]);
+          sh.u[a] = static_cast<float>(u[a]), sh.v[a] = static_cast<float>(v[a]);
+          sh.base[a] = 255.f * m.base_color[a];
+        }
         sh.texture = tex;
       }
     }

@@ -422,7 +422,8 @@ TEST_F(AugmenterTest, ReceiverOverlaysDrawTheModelButLeaveMasksAlone) {
 }
 
 // The two rasterisers side by side: the same masks but for a few silhouette pixels, and the same
-// boom colours (GL shades samples and blends four; the CPU path shades each pixel centre).
+// boom colours up to the shading model (GL lights each sample and blends four; the CPU path lights
+// the vertices and interpolates to each pixel centre).
 TEST_F(AugmenterTest, RasterizersAgreeWithEachOther) {
   const Rig rig = distorted_rig();
   Eigen::Vector3d receptacle;
@@ -458,8 +459,9 @@ TEST_F(AugmenterTest, RasterizersAgreeWithEachOther) {
           d = std::max(d, std::abs(gl.augmented.row(y)[3 * x + ch] - cpu.augmented.row(y)[3 * x + ch]));
         worst = std::max(worst, d);
         sum_diff += d;
-        // Apart only across the texture's dark bands: GL blends shaded samples of a mipmapped
-        // texture, the CPU path samples it exactly at the centre.
+        // Apart across the texture's dark bands (GL blends samples of a mipmapped texture, the
+        // CPU path samples it at the centre) and where per-vertex lighting departs from
+        // per-sample lighting on the fairing's curved facets.
         colour_far += d > 8;
       }
     const double mean_diff =
@@ -473,7 +475,7 @@ TEST_F(AugmenterTest, RasterizersAgreeWithEachOther) {
     EXPECT_GT(interior, 20000);
     EXPECT_LT(mask_diff, 40) << "both are exact at silhouettes up to a few pixels";
     EXPECT_LT(mean_diff, 2.0);
-    EXPECT_LT(colour_far, interior / 40);
+    EXPECT_LT(colour_far, interior / 20);
   }
 }
 
