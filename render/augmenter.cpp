@@ -909,11 +909,14 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   }
   for (const PixelBox& b : {out.boom_box, out.receiver_box}) {
     const VBox c = intersect({b.x0, b.y0, b.x1, b.y1}, full);
-    for (int y = c.y0; y < c.y1; ++y) {
-      std::memset(out.mask.row(y) + c.x0, 0, c.x1 - c.x0);
+    for (int y = c.y0; y < c.y1; ++y) std::memset(out.mask.row(y) + c.x0, 0, c.x1 - c.x0);
+  }
+  {  // receiver depth is written only where the receiver is, inside its box
+    const VBox c =
+        intersect({out.receiver_box.x0, out.receiver_box.y0, out.receiver_box.x1, out.receiver_box.y1}, full);
+    for (int y = c.y0; y < c.y1; ++y)
       std::fill_n(&out.receiver_depth.z_m[static_cast<std::size_t>(y) * W + c.x0], c.x1 - c.x0,
                   DepthImage::kNone);
-    }
   }
   // The augmented image starts as the raw image, byte for byte.
   const Image& src = raw.image;
