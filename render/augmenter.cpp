@@ -511,6 +511,7 @@ Status AugmenterImpl::check_frame(int camera, const Frame& raw) const {
 void AugmenterImpl::prepare_view(ViewState& vs, const SceneState& scene) {
   const Pose T_cam_body = vs.cam->T_body_cam.inverse();
   for (const DrawItem& d : draws_) {
+    if (d.kind == ObjectKind::kReceiver && !receiver_on_) continue;  // nothing will refer to it
     const Pose T_cam_obj = T_cam_body * (d.kind == ObjectKind::kReceiver    ? scene.T_body_receiver
                                          : d.kind == ObjectKind::kBoomFixed ? T_body_boom_
                                                                             : T_body_telescope_);
