@@ -1,10 +1,11 @@
 // The augmenter (render/augmenter.hpp). Per view:
 //   1. everything is moved into the camera frame in double precision (T_cam_body * T_body_obj);
-//   2. the receiver is rasterised (ids only), then the boom depth-tested against it (shaded
-//      colour and ids), into the virtual pinhole image; ids pack the draw id in the top byte and
-//      the triangle in the low 24 bits. OpenGL clears and reads back only the projected boxes of
-//      spatial chunks of each mesh (llvmpipe's cost is per pixel and per triangle); the CPU
-//      rasteriser (render/soft_raster.hpp) writes ids and depth straight into the CPU images;
+//   2. the receiver is rasterised (ids only), then the boom depth-tested against it (ids, and
+//      with OpenGL its shaded colour), into the virtual pinhole image; ids pack the draw id in
+//      the top byte and the triangle in the low 24 bits. OpenGL clears and reads back only the
+//      projected boxes of spatial chunks of each mesh; where GL is itself software, the CPU
+//      rasteriser (render/soft_raster.hpp) writes ids and depth straight into the CPU images
+//      and the boom is coloured per pixel in step 4 instead;
 //   3. the CPU visits the raw pixels of those boxes: each centre maps into the virtual image
 //      (shifted half a sample when anti-aliasing an undistorted lens); where the 2x2 ids around it
 //      agree the answer is read off (a triangle covering all four samples covers the centre),
