@@ -52,9 +52,9 @@ void feed(LiveNav& nav, const sim::SensorLogs& logs, Before&& before, Keep&& kee
   for (int a = 0; a < 2; ++a) {
     const Aircraft who = a ? Aircraft::kReceiver : Aircraft::kTanker;
     for (const nav::ImuSample& s : a ? logs.receiver_imu : logs.tanker_imu)
-      items.push_back({s.arrival_ns, who, {s}});
+      items.push_back({s.arrival_ns, who, {s, ClockDomain::kGps, std::nullopt}});
     for (const nav::GpsFix& g : a ? logs.receiver_gps : logs.tanker_gps)
-      items.push_back({g.arrival_ns, who, {g}});
+      items.push_back({g.arrival_ns, who, {g, ClockDomain::kGps, std::nullopt}});
   }
   std::stable_sort(items.begin(), items.end(),
                    [](const Item& x, const Item& y) { return x.arrival < y.arrival; });
@@ -148,8 +148,9 @@ TEST(LiveNav, GpsSilenceMakesFramesStaleInPlainWordsThenGoodAgain) {
       EXPECT_NE(fn.hud.status.find("STALE"), std::string::npos) << fn.hud.status;
       stale_seen = true;
     }
-    if (expect_good)
+    if (expect_good) {
       EXPECT_FALSE(fn.stale) << "t " << t << ": " << (fn.problems.empty() ? "" : fn.problems[0]);
+    }
   }
   EXPECT_TRUE(stale_seen);
 }
@@ -197,7 +198,7 @@ TEST(LiveNav, WaitsInPlainWordsAndMapsHostTimeByTheFixesArrivals) {
   // Fixes arriving on a host clock 1000 s ahead of GPS time, 30 ms (the sim's latency) to 45 ms late.
   const TimestampNs host_minus_gps = -s_to_ns(1000.0);
   for (int i = 0; i < 40; ++i) {
-    nav::NavEvent e{f.logs.tanker_gps[static_cast<std::size_t>(i)]};
+    nav::NavEvent e{f.logs.tanker_gps[static_cast<std::size_t>(i)], ClockDomain::kGps, std::nullopt};
     auto& g = std::get<nav::GpsFix>(e.sample);
     g.arrival_ns = g.t_ns + host_minus_gps + 30'000'000 + (i % 4) * 5'000'000;
     nav.add(Aircraft::kTanker, e);
