@@ -224,8 +224,9 @@ inline F32x4 sample_texture(const Texture& tex, float u, float v) {
   const float ax = texel(u, tex.width, x0, x1), ay = texel(v, tex.height, y0, y1);
   const std::uint8_t* r0 = &tex.rgba[static_cast<std::size_t>(y0) * tex.width * 4];
   const std::uint8_t* r1 = &tex.rgba[static_cast<std::size_t>(y1) * tex.width * 4];
-  return (1 - ay) * ((1 - ax) * load_rgba(r0 + 4 * x0) + ax * load_rgba(r0 + 4 * x1)) +
-         ay * ((1 - ax) * load_rgba(r1 + 4 * x0) + ax * load_rgba(r1 + 4 * x1));
+  const std::size_t c0 = 4 * static_cast<std::size_t>(x0), c1 = 4 * static_cast<std::size_t>(x1);
+  return (1 - ay) * ((1 - ax) * load_rgba(r0 + c0) + ax * load_rgba(r0 + c1)) +
+         ay * ((1 - ax) * load_rgba(r1 + c0) + ax * load_rgba(r1 + c1));
 }
 
 // The boom's colour (0..255, alpha 255) on the ray (x, y, 1) through triangle `s`: ambient 0.35
