@@ -990,26 +990,28 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
         return cpu ? shade(vs.shading[global_index(packed)], ray.x(), ray.y())
                    : load_rgba(&vs.boom_rgba[s * 4]);
       };
+      // Writes an opaque boom colour (0..255, rounded here) in the raw pixel's format.
+      auto put_opaque = [&](F32x4 c) __attribute__((always_inline)) {
+        c += 0.5f;
+        std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+        switch (fmt) {
+          case PixelFormat::kRGB8:
+          case PixelFormat::kRGBA8:
+            px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
+            px[2] = static_cast<std::uint8_t>(c[2]);
+            break;
+          case PixelFormat::kMono8:
+            px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]);
+            break;
+          default:
+            px[0] = static_cast<std::uint8_t>(c[bayer_channel(fmt, u, v)]);
+        }
+      };
       if (identity && !overlay) {
         // The samples ARE the pixel centres: GL's coverage and depth test are already exact there.
         mrow[u] = static_cast<std::uint8_t>((b0 ? kMaskBoom : 0) | (r0 ? kMaskReceiver : 0));
         if (r0) drow[u] = static_cast<float>(plane_depth(r0));
-        if (b0) {
-          std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
-          const F32x4 c = boom_colour(b0, static_cast<std::size_t>(e.idx)) + 0.5f;
-          switch (fmt) {
-            case PixelFormat::kRGB8:
-            case PixelFormat::kRGBA8:
-              px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
-              px[2] = static_cast<std::uint8_t>(c[2]);
-              break;
-            case PixelFormat::kMono8:
-              px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]);
-              break;
-            default:
-              px[0] = static_cast<std::uint8_t>(c[bayer_channel(fmt, u, v)]);
-          }
-        }
+        if (b0) put_opaque(boom_colour(b0, static_cast<std::size_t>(e.idx)));
         return;
       }
       if (!(b0 | b1 | b2 | b3) && r0 == r1 && r0 == r2 && r0 == r3 && !overlay) {
@@ -1026,30 +1028,16 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
           // receiver silhouette nearby: an opaque boom pixel, its colour bilinear.
           mrow[u] = static_cast<std::uint8_t>(kMaskBoom | (recv_one ? kMaskReceiver : 0));
           if (recv_one) drow[u] = static_cast<float>(plane_depth(r0));
-          F32x4 c;
           if (cpu) {
             // Any of the four triangles: the interpolated normal and texture are continuous.
-            c = boom_colour(b0, 0) + 0.5f;
+            put_opaque(boom_colour(b0, 0));
           } else {
             const std::uint8_t* c0 = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
             const std::uint8_t* c2 = c0 + static_cast<std::size_t>(Wv) * 4;
             const float w0 = (1 - e.fx) * (1 - e.fy), w1 = e.fx * (1 - e.fy), w2 = (1 - e.fx) * e.fy,
                         w3 = e.fx * e.fy;
-            c = w0 * load_rgba(c0) + w1 * load_rgba(c0 + 4) + w2 * load_rgba(c2) + w3 * load_rgba(c2 + 4) +
-                0.5f;
-          }
-          std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
-          switch (fmt) {
-            case PixelFormat::kRGB8:
-            case PixelFormat::kRGBA8:
-              px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
-              px[2] = static_cast<std::uint8_t>(c[2]);
-              break;
-            case PixelFormat::kMono8:
-              px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]);
-              break;
-            default:
-              px[0] = static_cast<std::uint8_t>(c[bayer_channel(fmt, u, v)]);
+            put_opaque(w0 * load_rgba(c0) + w1 * load_rgba(c0 + 4) + w2 * load_rgba(c2) +
+                       w3 * load_rgba(c2 + 4));
           }
           return;
         }
