@@ -342,7 +342,8 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
   const double n = frames;
   out << "\nTiming: simulation and logs " << fmt_ms(sim_ms) << " ms, nav fusion of both aircraft "
       << fmt_ms(nav_ms) << " ms, camera rendering " << fmt_ms(render_ms / n) << " ms and augmenter "
-      << fmt_ms(augment_ms / n) << " ms per stereo frame, PNG writing " << fmt_ms(write_ms)
+      << fmt_ms(augment_ms / n) << " ms per stereo frame (" << to_string(augmenter->rasterizer())
+      << " rasteriser), PNG writing " << fmt_ms(write_ms)
       << " ms in all, total " << fmt_ms(ms_since(t_start) / 1000.0) << " s\n";
   pairer.flush();
   if (rec) {

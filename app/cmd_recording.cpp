@@ -410,7 +410,8 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   }
   out << "Replayed " << all.size() << " stereo frame(s)";
   if (!all.empty())
-    out << " (augmenter " << fmt_ms(augment_ms / static_cast<double>(all.size())) << " ms per stereo frame)";
+    out << " (augmenter " << fmt_ms(augment_ms / static_cast<double>(all.size())) << " ms per stereo frame, "
+        << to_string(augmenter->rasterizer()) << " rasteriser)";
   out << "\n";
   if (comparable)
     out << "Recorded statistics reproduced exactly (same pixel counts) in " << reproduced << " of "

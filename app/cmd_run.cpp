@@ -493,6 +493,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   std::vector<ClockOffsetLog> clocks;  // the cameras' clock estimates, refreshed each second
   FrameNav frame_nav;
   double augment_ms = 0;
+  Rasterizer rasterizer = Rasterizer::kAuto;  // what the augmenter chose (the summary says)
   std::vector<std::string> last_health(stereo->sources().size());
   StereoResult result;
   TimestampNs first_t_ns = 0;
@@ -507,6 +508,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     AugmentOptions aug_options;
     aug_options.receiver_model = receiver.model;
     const auto augmenter = unwrap(Augmenter::create(*rig, aug_options));
+    rasterizer = augmenter->rasterizer();
     for (;;) {
       if (g_stop) {
         out << "run: stopped by signal\n";
@@ -845,7 +847,8 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   out << "run: " << all.frames() << " stereo frames augmented in " << std::fixed << std::setprecision(1)
       << wall_s << " s (" << all.frames() / std::max(wall_s, 1e-9) << "/s";
   if (all.frames())
-    out << ", augmenter " << fmt_ms(augment_ms / static_cast<double>(all.frames())) << " ms/frame";
+    out << ", augmenter " << fmt_ms(augment_ms / static_cast<double>(all.frames())) << " ms/frame, "
+        << to_string(rasterizer) << " rasteriser";
   out << "); frames read: left " << st.frames[0] << ", right " << st.frames[1] << "\n"
       << "drops: camera " << st.camera_drops << ", transport " << st.transport_drops << ", pairing "
       << pairing << ", processing " << queue + processing_drops << " (queue " << queue << ", failed "

@@ -220,7 +220,8 @@ int augment(const std::vector<std::string>& args, std::ostream& out) {
     out << format_run_summary(all);
   }
   out << "Wrote " << pairs.size() << " stereo frame(s) to " << out_dir.string() << " (augmenter "
-      << fmt_ms(augment_ms / static_cast<double>(pairs.size())) << " ms per stereo frame)\n";
+      << fmt_ms(augment_ms / static_cast<double>(pairs.size())) << " ms per stereo frame, "
+      << to_string(augmenter->rasterizer()) << " rasteriser)\n";
   return kExitOk;
 }
 
