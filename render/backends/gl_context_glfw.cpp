@@ -2,8 +2,11 @@
 // xvfb-run). Used by the real-time display.
 #include <epoxy/gl.h>
 // epoxy must come first: it replaces the system GL header GLFW would include.
+#include <chrono>
+#include <cstdlib>
 #include <mutex>
 #include <string>
+#include <thread>
 
 #include <GLFW/glfw3.h>
 
@@ -37,7 +40,14 @@ class GlfwContext final : public GlContext {
 
 Expected<std::unique_ptr<GlContext>> create_glfw_context(const GlContextOptions& options) {
   glfwSetErrorCallback(on_glfw_error);
-  if (!glfwInit())
+  // A display that is there but refuses a connection for a moment (its server still starting,
+  // or closing the previous client) is retried briefly; with no DISPLAY at all it fails at once.
+  bool ok = glfwInit() == GLFW_TRUE;
+  for (int attempt = 1; !ok && std::getenv("DISPLAY") && attempt <= 4; ++attempt) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100 * attempt));
+    ok = glfwInit() == GLFW_TRUE;
+  }
+  if (!ok)
     return make_error(
         "render::create_glfw_context(): glfwInit failed (no display? run under xvfb-run, or use "
         "the EGL headless backend): ",
