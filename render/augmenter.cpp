@@ -461,7 +461,7 @@ Status AugmenterImpl::init() {
     const std::size_t vn = static_cast<std::size_t>(vs.vp.width) * vs.vp.height;
     vs.boom_ids.assign(vn, 0);
     vs.recv_ids.assign(vn, 0);
-    vs.boom_rgba.assign(vn * 4, 0);
+    if (!cpu_raster_) vs.boom_rgba.assign(vn * 4, 0);  // the CPU rasteriser colours in the resolve
     if (options_.receiver_draw != ReceiverDraw::kMaskOnly) vs.recv_rgba.assign(vn * 4, 0);
     if (cpu_raster_) {
       vs.inv_z.assign(vn, 0.f);
@@ -1058,38 +1058,23 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
       const double y = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].y();
       const Eigen::Vector3d d(x, y, 1.0);
 
-      // Receiver at the pixel centre: read off when one triangle covers all samples (it then
-      // covers the centre, triangles being convex), else exact ray tests with the candidates.
-      double z_r = std::numeric_limits<double>::infinity();
-      if (r_any) {
-        if (r_all && r_same) {
-          const CamTriangle& t = triangle(vs, r[0]);
-          z_r = t.n_dot_v0 / t.n.dot(d);
-        } else {
-          // Covered all around, the centre is covered too: only its depth is sought, and when the
-          // centre's triangle is not among the samples' (a sliver) the nearest sample's plane
-          // gives it. At a silhouette the slivers' neighbours are searched as well.
-          z_r = nearest_hit(vs, r, ns, x, y, !r_all);
-          if (!std::isfinite(z_r) && r_all) {
-            const CamTriangle& t = triangle(vs, r[0]);
-            z_r = t.n_dot_v0 / t.n.dot(d);
-          }
+      // An object's depth at the pixel centre from its samples' ids: read off when one triangle
+      // covers all samples (it then covers the centre, triangles being convex), else exact ray
+      // tests with the candidates. Covered all around, the centre is covered too: only its depth
+      // is sought, and when the centre's triangle is not among the samples' (a sliver) the first
+      // sample's plane gives it. At a silhouette the slivers' neighbours are searched as well.
+      auto centre_depth = [&](const std::uint32_t* ids, bool any, bool all, bool same) {
+        if (!any) return std::numeric_limits<double>::infinity();
+        if (!(all && same)) {
+          const double z = nearest_hit(vs, ids, ns, x, y, !all);
+          if (std::isfinite(z) || !all) return z;
         }
-      }
-      // Boom, front-most where GL's depth test kept it at the samples; exact at the centre.
-      double z_b = std::numeric_limits<double>::infinity();
-      if (b_any) {
-        if (b_all && b_same) {
-          const CamTriangle& t = triangle(vs, b[0]);
-          z_b = t.n_dot_v0 / t.n.dot(d);
-        } else {
-          z_b = nearest_hit(vs, b, ns, x, y, !b_all);
-          if (!std::isfinite(z_b) && b_all) {
-            const CamTriangle& t = triangle(vs, b[0]);
-            z_b = t.n_dot_v0 / t.n.dot(d);
-          }
-        }
-      }
+        const CamTriangle& t = triangle(vs, ids[0]);
+        return t.n_dot_v0 / t.n.dot(d);
+      };
+      const double z_r = centre_depth(r, r_any, r_all, r_same);
+      // Boom, front-most where the rasteriser's depth test kept it at the samples.
+      const double z_b = centre_depth(b, b_any, b_all, b_same);
       const bool has_r = std::isfinite(z_r) && z_r > 0;
       const bool has_b = std::isfinite(z_b) && z_b > 0 && (!has_r || z_b < z_r);
       mrow[u] = static_cast<std::uint8_t>((has_b ? kMaskBoom : 0) | (has_r ? kMaskReceiver : 0));
