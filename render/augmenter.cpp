@@ -1209,13 +1209,10 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   copt.compute_classes = receiver_on_ && options_.stereo_classes;
   copt.left_rays_xy = &views_[0].vp.ray_xy;
   // The masks are zero outside the boxes this frame rendered.
-  PixelBox content;
+  VBox content;
   for (const PixelBox& b :
        {out.left.boom_box, out.left.receiver_box, out.right.boom_box, out.right.receiver_box})
-    if (!b.empty())
-      content = content.empty() ? b
-                                : PixelBox{std::min(content.x0, b.x0), std::min(content.y0, b.y0),
-                                           std::max(content.x1, b.x1), std::max(content.y1, b.y1)};
+    content = unite(content, {b.x0, b.y0, b.x1, b.y1});
   copt.content_x0 = content.x0, copt.content_y0 = content.y0;
   copt.content_x1 = content.x1, copt.content_y1 = content.y1;
   out.stats = compute_occlusion_stats(frame.t_key_ns, out.left.mask, out.right.mask, out.left.receiver_depth,
