@@ -102,6 +102,7 @@ struct DrawItem {
   std::uint8_t draw_id;   // value written to the id buffer's alpha
   std::size_t first_tri;  // this mesh's first triangle in ViewState::tris
   bool cull;              // built-in, consistently wound meshes only
+  bool texture_1d;        // a texture whose rows are all the same (bands along u)
   // Spatially compact triangle ranges [first, first + count) of the mesh: each gets its own
   // screen box, so a long diagonal part (the boom's tube) costs its footprint, not its bounding box.
   std::vector<std::pair<std::uint32_t, std::uint32_t>> chunks;
@@ -116,6 +117,9 @@ struct CamTriangle {
   Eigen::Vector3d edge[3];
 };
 
+// RGBA as four floats (GCC/Clang vector extensions: SSE here, NEON on ARM).
+using F32x4 = float __attribute__((vector_size(16)));
+
 // One boom triangle's colour in one view as functions of the camera-frame ray d = (x, y, 1) (CPU
 // rasteriser: the resolve colours each raw pixel at its centre). With e_j = c_j . d the vertices'
 // barycentric weights up to a common positive factor (c_j: the edge planes), any vertex attribute
@@ -126,8 +130,9 @@ struct BoomShading {
   float sum[3];    // sum of c_j
   float light[3];  // sum of k_j c_j, k_j = 0.35 + 0.65 max(n_j . l, 0) at vertex j
   float u[3], v[3];
-  float base[3];  // base colour * 255
+  F32x4 base;  // base colour * 255 (the alpha lane is not used)
   const Texture* texture = nullptr;
+  bool texture_1d = false;  // its rows are all the same: v is not needed
 };
 
 struct MapEntry {
@@ -187,7 +192,6 @@ bool group_occupied(const ViewState& vs, int v, int g) {
 constexpr std::uint32_t kPrimMask = (1u << 24) - 1;
 
 // Four RGBA8 samples blended in one vector (GCC/Clang vector extensions: SSE here, NEON on ARM).
-using F32x4 = float __attribute__((vector_size(16)));
 inline F32x4 load_rgba(const std::uint8_t* p) {
 #if defined(__SSE2__)
   // Widen u8 -> i32 -> f32 in registers (__builtin_convertvector goes lane by lane on SSE2).
@@ -204,7 +208,8 @@ inline F32x4 load_rgba(const std::uint8_t* p) {
 
 // Bilinear, repeating, as GL samples the boom's texture when magnified (no mipmaps here: the
 // boom is seen from a few metres, its texture is not minified much). RGBA 0..255.
-inline F32x4 sample_texture(const Texture& tex, float u, float v) {
+// `one_row`: all rows are the same (then v is not used).
+inline F32x4 sample_texture(const Texture& tex, float u, float v, bool one_row) {
   // Texel coordinates wrapped into [0, n), the texel and its right/lower neighbour (wrapping).
   // Floors by truncation: std::floor is a library call on baseline x86-64.
   auto texel = [](float t, int n, int& i0, int& i1) {
@@ -221,7 +226,13 @@ inline F32x4 sample_texture(const Texture& tex, float u, float v) {
     return frac;
   };
   int x0, x1, y0, y1;
-  const float ax = texel(u, tex.width, x0, x1), ay = texel(v, tex.height, y0, y1);
+  const float ax = texel(u, tex.width, x0, x1);
+  if (one_row) {
+    const std::uint8_t* r = tex.rgba.data();
+    return (1 - ax) * load_rgba(r + 4 * static_cast<std::size_t>(x0)) +
+           ax * load_rgba(r + 4 * static_cast<std::size_t>(x1));
+  }
+  const float ay = texel(v, tex.height, y0, y1);
   const std::uint8_t* r0 = &tex.rgba[static_cast<std::size_t>(y0) * tex.width * 4];
   const std::uint8_t* r1 = &tex.rgba[static_cast<std::size_t>(y1) * tex.width * 4];
   const std::size_t c0 = 4 * static_cast<std::size_t>(x0), c1 = 4 * static_cast<std::size_t>(x1);
@@ -229,16 +240,17 @@ inline F32x4 sample_texture(const Texture& tex, float u, float v) {
          ay * ((1 - ax) * load_rgba(r1 + c0) + ax * load_rgba(r1 + c1));
 }
 
-// The boom's colour (0..255, alpha 255) on the ray (x, y, 1) through triangle `s`: ambient 0.35
-// plus diffuse 0.65 of the normalised interpolated normal, times base colour and texture.
+// The boom's colour (0..255; alpha lane not set) on the ray (x, y, 1) through triangle `s`:
+// ambient 0.35 plus diffuse 0.65 of the normalised interpolated normal, times base colour and
+// texture.
 inline F32x4 shade(const BoomShading& s, float x, float y) {
   const float sum = s.sum[0] * x + s.sum[1] * y + s.sum[2];
   const float inv = sum > 0 ? 1.f / sum : 0.f;
   const float k = (s.light[0] * x + s.light[1] * y + s.light[2]) * inv;
-  F32x4 c{s.base[0] * k, s.base[1] * k, s.base[2] * k, 255.f};
+  F32x4 c = s.base * k;
   if (s.texture)
     c *= sample_texture(*s.texture, (s.u[0] * x + s.u[1] * y + s.u[2]) * inv,
-                        (s.v[0] * x + s.v[1] * y + s.v[2]) * inv) *
+                        s.texture_1d ? 0.f : (s.v[0] * x + s.v[1] * y + s.v[2]) * inv, s.texture_1d) *
          (1.f / 255.f);
   return c;
 }
@@ -411,8 +423,16 @@ Status AugmenterImpl::init() {
       if (m.triangle_count() > kPrimMask)
         return make_error("Augmenter::create(): mesh '", m.name, "' has more than 2^24 triangles");
       auto chunks = split_into_chunks(m, 4);  // before upload: it reorders the triangles
+      // Rows all equal: bilinear sampling needs one row (the built-in boom's bands).
+      bool texture_1d = m.texture && m.texture->height > 0;
+      if (texture_1d) {
+        const std::size_t row_bytes = static_cast<std::size_t>(m.texture->width) * 4;
+        for (int r = 1; r < m.texture->height && texture_1d; ++r)
+          texture_1d = std::equal(m.texture->rgba.begin(), m.texture->rgba.begin() + row_bytes,
+                                  m.texture->rgba.begin() + r * row_bytes);
+      }
       draws_.push_back({kind, &m, gl::upload(m), static_cast<std::uint8_t>(draws_.size() + 1), total_tris_,
-                        cull, std::move(chunks)});
+                        cull, texture_1d, std::move(chunks)});
       total_tris_ += m.triangle_count();
     }
     return {};
@@ -690,7 +710,9 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
           sh.u[a] = static_cast<float>(u[a]), sh.v[a] = static_cast<float>(v[a]);
           sh.base[a] = 255.f * m.base_color[a];
         }
+        sh.base[3] = 0;
         sh.texture = tex;
+        sh.texture_1d = d.texture_1d;
       }
     }
   }
@@ -926,7 +948,10 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   if (out.augmented.width() != W || out.augmented.height() != H || out.augmented.format() != src.format())
     out.augmented = Image(W, H, src.format());
   const std::size_t row_bytes = static_cast<std::size_t>(W) * bytes_per_pixel(src.format());
-  for (int y = 0; y < H; ++y) std::memcpy(out.augmented.row(y), src.row(y), row_bytes);
+  if (src.stride_bytes() == row_bytes && out.augmented.stride_bytes() == row_bytes)
+    std::memcpy(out.augmented.data(), src.data(), row_bytes * H);  // one copy: streaming stores
+  else
+    for (int y = 0; y < H; ++y) std::memcpy(out.augmented.row(y), src.row(y), row_bytes);
 
   // Raw pixels to visit: the union of the boxes' raw images, row by row, each pixel once.
   std::vector<VBox>& raw_boxes = vs.raw_boxes;
@@ -943,202 +968,215 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
 
   const std::uint32_t* bids = vs.boom_ids.data();
   const std::uint32_t* rids = vs.recv_ids.data();
-  const bool identity = vs.vp.identity;
   const PixelFormat fmt = src.format();
   const int bpp = bytes_per_pixel(fmt);
-  const bool overlay = !vs.recv_rgba.empty();
-  const bool cpu = cpu_raster_;
-  const bool recv = !vs.recv_vboxes.empty();
+  // The rows' code is compiled once per combination of these flags, so that the per-pixel code
+  // carries no tests (nor loads) for what this frame does not have.
+  auto rows = [&](auto overlay_c, auto cpu_c, auto recv_c, auto identity_c) {
+    constexpr bool overlay = decltype(overlay_c)::value;
+    constexpr bool cpu = decltype(cpu_c)::value;
+    constexpr bool recv = decltype(recv_c)::value;
+    constexpr bool identity = decltype(identity_c)::value;
 
-  for (int v = work.y0; v < work.y1; ++v) {
-    std::uint8_t* mrow = out.mask.row(v);
-    float* drow = &out.receiver_depth.z_m[static_cast<std::size_t>(v) * W];
-    std::uint8_t* arow = out.augmented.row(v);
-    spans.clear();
-    for (const VBox& b : raw_boxes)
-      if (v >= b.y0 && v < b.y1 && !b.empty()) spans.emplace_back(b.x0, b.x1);
-    std::sort(spans.begin(), spans.end());
-    std::size_t n_spans = 0;
-    for (const auto& sp : spans) {  // merge overlapping spans in place
-      if (n_spans && sp.first <= spans[n_spans - 1].second)
-        spans[n_spans - 1].second = std::max(spans[n_spans - 1].second, sp.second);
-      else
-        spans[n_spans++] = sp;
-    }
-    // One raw pixel: mask, receiver depth and composite (every pixel at most once per frame).
-    auto pixel = [&](int u) {
-      const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
-      if (e.idx < 0) return;
-      // The 2x2 samples' ids, read once (the byte stores below could alias them). One sample
-      // when the grids coincide; no receiver loads when none was drawn.
-      const std::uint32_t* pb = bids + e.idx;
-      const std::uint32_t* pr = rids + e.idx;
-      const std::size_t o1 = identity ? 0 : 1, o2 = identity ? 0 : Wv, o3 = identity ? 0 : Wv + 1;
-      const std::uint32_t b0 = pb[0], b1 = pb[o1], b2 = pb[o2], b3 = pb[o3];
-      const std::uint32_t r0 = recv ? pr[0] : 0, r1 = recv ? pr[o1] : 0, r2 = recv ? pr[o2] : 0,
-                          r3 = recv ? pr[o3] : 0;
-      // Most pixels of a box see nothing: one OR over the samples skips them.
-      if (!(b0 | b1 | b2 | b3 | r0 | r1 | r2 | r3)) return;
-      const Eigen::Vector2f& ray = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u];
-      auto plane_depth = [&](std::uint32_t packed) {
-        const ViewState::Plane& pl = vs.planes[global_index(packed)];
-        return pl.c / (pl.nx * ray.x() + pl.ny * ray.y() + pl.nz);
-      };
-      // The boom's colour (0..255) here for the triangle virtual sample `s` holds: GL's shaded
-      // sample, or (CPU rasteriser) that triangle shaded exactly at this pixel's centre.
-      auto boom_colour = [&](std::uint32_t packed, std::size_t s) {
-        return cpu ? shade(vs.shading[global_index(packed)], ray.x(), ray.y())
-                   : load_rgba(&vs.boom_rgba[s * 4]);
-      };
-      // Writes an opaque boom colour (0..255, rounded here) in the raw pixel's format.
-      auto put_opaque = [&](F32x4 c) __attribute__((always_inline)) {
-        c += 0.5f;
+    for (int v = work.y0; v < work.y1; ++v) {
+      std::uint8_t* mrow = out.mask.row(v);
+      float* drow = &out.receiver_depth.z_m[static_cast<std::size_t>(v) * W];
+      std::uint8_t* arow = out.augmented.row(v);
+      spans.clear();
+      for (const VBox& b : raw_boxes)
+        if (v >= b.y0 && v < b.y1 && !b.empty()) spans.emplace_back(b.x0, b.x1);
+      std::sort(spans.begin(), spans.end());
+      std::size_t n_spans = 0;
+      for (const auto& sp : spans) {  // merge overlapping spans in place
+        if (n_spans && sp.first <= spans[n_spans - 1].second)
+          spans[n_spans - 1].second = std::max(spans[n_spans - 1].second, sp.second);
+        else
+          spans[n_spans++] = sp;
+      }
+      // One raw pixel: mask, receiver depth and composite (every pixel at most once per frame).
+      auto pixel = [&](int u) __attribute__((always_inline)) {
+        const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
+        if (e.idx < 0) return;
+        // The 2x2 samples' ids, read once (the byte stores below could alias them). One sample
+        // when the grids coincide; no receiver loads when none was drawn.
+        const std::uint32_t* pb = bids + e.idx;
+        const std::uint32_t* pr = rids + e.idx;
+        const std::size_t o1 = identity ? 0 : 1, o2 = identity ? 0 : Wv, o3 = identity ? 0 : Wv + 1;
+        const std::uint32_t b0 = pb[0], b1 = pb[o1], b2 = pb[o2], b3 = pb[o3];
+        const std::uint32_t r0 = recv ? pr[0] : 0, r1 = recv ? pr[o1] : 0, r2 = recv ? pr[o2] : 0,
+                            r3 = recv ? pr[o3] : 0;
+        // Most pixels of a box see nothing: one OR over the samples skips them.
+        if (!(b0 | b1 | b2 | b3 | r0 | r1 | r2 | r3)) return;
+        const Eigen::Vector2f& ray = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u];
+        auto plane_depth = [&](std::uint32_t packed) {
+          const ViewState::Plane& pl = vs.planes[global_index(packed)];
+          return pl.c / (pl.nx * ray.x() + pl.ny * ray.y() + pl.nz);
+        };
+        // The boom's colour (0..255) here for the triangle virtual sample `s` holds: GL's shaded
+        // sample, or (CPU rasteriser) that triangle shaded exactly at this pixel's centre.
+        auto boom_colour = [&](std::uint32_t packed, std::size_t s) {
+          return cpu ? shade(vs.shading[global_index(packed)], ray.x(), ray.y())
+                     : load_rgba(&vs.boom_rgba[s * 4]);
+        };
+        // Writes an opaque boom colour (0..255, rounded here) in the raw pixel's format.
+        auto put_opaque = [&](F32x4 c) __attribute__((always_inline)) {
+          c += 0.5f;
+          std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+          switch (fmt) {
+            case PixelFormat::kRGB8:
+            case PixelFormat::kRGBA8:
+              px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
+              px[2] = static_cast<std::uint8_t>(c[2]);
+              break;
+            case PixelFormat::kMono8:
+              px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]);
+              break;
+            default:
+              px[0] = static_cast<std::uint8_t>(c[bayer_channel(fmt, u, v)]);
+          }
+        };
+        if (identity && !overlay) {
+          // The samples ARE the pixel centres: GL's coverage and depth test are already exact there.
+          mrow[u] = static_cast<std::uint8_t>((b0 ? kMaskBoom : 0) | (r0 ? kMaskReceiver : 0));
+          if (r0) drow[u] = static_cast<float>(plane_depth(r0));
+          if (b0) put_opaque(boom_colour(b0, static_cast<std::size_t>(e.idx)));
+          return;
+        }
+        if (!(b0 | b1 | b2 | b3) && r0 == r1 && r0 == r2 && r0 == r3 && !overlay) {
+          // Inside one receiver triangle with no boom around: the most common covered pixel.
+          mrow[u] = kMaskReceiver;
+          drow[u] = static_cast<float>(plane_depth(r0));
+          return;
+        }
+        if (b0 && b1 && b2 && b3 && !overlay) {
+          const bool recv_none = !(r0 | r1 | r2 | r3);
+          const bool recv_one = r0 && r0 == r1 && r0 == r2 && r0 == r3;
+          if (recv_none || recv_one) {
+            // Boom all around, in front of the receiver at every sample (GL's depth test) and no
+            // receiver silhouette nearby: an opaque boom pixel, its colour bilinear.
+            mrow[u] = static_cast<std::uint8_t>(kMaskBoom | (recv_one ? kMaskReceiver : 0));
+            if (recv_one) drow[u] = static_cast<float>(plane_depth(r0));
+            if (cpu) {
+              // Any of the four triangles: the interpolated normal and texture are continuous.
+              put_opaque(boom_colour(b0, 0));
+            } else {
+              const std::uint8_t* c0 = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
+              const std::uint8_t* c2 = c0 + static_cast<std::size_t>(Wv) * 4;
+              const float w0 = (1 - e.fx) * (1 - e.fy), w1 = e.fx * (1 - e.fy), w2 = (1 - e.fx) * e.fy,
+                          w3 = e.fx * e.fy;
+              put_opaque(w0 * load_rgba(c0) + w1 * load_rgba(c0 + 4) + w2 * load_rgba(c2) +
+                         w3 * load_rgba(c2 + 4));
+            }
+            return;
+          }
+        }
+        // The 2x2 samples around the centre (one sample when the grids coincide).
+        const int ns = identity ? 1 : 4;
+        const std::uint32_t off[4] = {0, 1, static_cast<std::uint32_t>(Wv),
+                                      static_cast<std::uint32_t>(Wv) + 1};
+        std::uint32_t b[4] = {}, r[4] = {};
+        bool b_any = false, b_all = true, b_same = true, r_any = false, r_all = true, r_same = true;
+        for (int k = 0; k < ns; ++k) {
+          b[k] = bids[e.idx + off[k]];
+          r[k] = rids[e.idx + off[k]];
+          b_any |= b[k] != 0, b_all &= b[k] != 0, b_same &= b[k] == b[0];
+          r_any |= r[k] != 0, r_all &= r[k] != 0, r_same &= r[k] == r[0];
+        }
+        if (!b_any && !r_any) return;
+        const double x = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].x();
+        const double y = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].y();
+        const Eigen::Vector3d d(x, y, 1.0);
+
+        // An object's depth at the pixel centre from its samples' ids: read off when one triangle
+        // covers all samples (it then covers the centre, triangles being convex), else exact ray
+        // tests with the candidates. Covered all around, the centre is covered too: only its depth
+        // is sought, and when the centre's triangle is not among the samples' (a sliver) the first
+        // sample's plane gives it. At a silhouette the slivers' neighbours are searched as well.
+        auto centre_depth = [&](const std::uint32_t* ids, bool any, bool all, bool same) {
+          if (!any) return std::numeric_limits<double>::infinity();
+          if (!(all && same)) {
+            const double z = nearest_hit(vs, ids, ns, x, y, !all);
+            if (std::isfinite(z) || !all) return z;
+          }
+          const CamTriangle& t = triangle(vs, ids[0]);
+          return t.n_dot_v0 / t.n.dot(d);
+        };
+        const double z_r = centre_depth(r, r_any, r_all, r_same);
+        // Boom, front-most where the rasteriser's depth test kept it at the samples.
+        const double z_b = centre_depth(b, b_any, b_all, b_same);
+        const bool has_r = std::isfinite(z_r) && z_r > 0;
+        const bool has_b = std::isfinite(z_b) && z_b > 0 && (!has_r || z_b < z_r);
+        mrow[u] = static_cast<std::uint8_t>((has_b ? kMaskBoom : 0) | (has_r ? kMaskReceiver : 0));
+        if (has_r) drow[u] = static_cast<float>(z_r);
+
+        // Composite: the boom's bilinear coverage of the centre, anti-aliasing its edges.
+        float alpha = 0, cr = 0, cg = 0, cb = 0;
+        if (b_any) {
+          const float w[4] = {(1 - e.fx) * (1 - e.fy), e.fx * (1 - e.fy), (1 - e.fx) * e.fy, e.fx * e.fy};
+          for (int k = 0; k < ns; ++k) {
+            if (!b[k]) continue;
+            const float wk = identity ? 1.0f : w[k];
+            const F32x4 c = boom_colour(b[k], static_cast<std::size_t>(e.idx) + off[k]);
+            alpha += wk, cr += wk * c[0], cg += wk * c[1], cb += wk * c[2];
+          }
+          if (!options_.antialias) {
+            const float s = alpha > 0 ? 1.0f / alpha : 0.f;
+            cr *= s, cg *= s, cb *= s;
+            alpha = has_b ? 1.f : 0.f;
+            cr *= alpha, cg *= alpha, cb *= alpha;
+          }
+        }
+        if (overlay && has_r && !has_b) {
+          // Validation overlay: the receiver model drawn translucent (or its wireframe) at its pose.
+          const std::uint8_t* c = &vs.recv_rgba[static_cast<std::size_t>(e.idx) * 4];
+          const float a =
+              options_.receiver_draw == ReceiverDraw::kTranslucent ? 0.45f : (c[3] > 0 ? 1.0f : 0.0f);
+          if (a > 0 && alpha < 1) {
+            const float k = a * (1 - alpha);
+            cr += k * (0.5f * c[0] + 127.f), cg += k * 0.5f * c[1], cb += k * 0.5f * c[2];
+            alpha += k;
+          }
+        }
+        if (alpha <= 0) return;
+        if (alpha > 1) alpha = 1;
         std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+        const float ia = 1 - alpha;
+        auto mix = [&](std::uint8_t raw_value, float premult) {
+          return static_cast<std::uint8_t>(std::clamp(raw_value * ia + premult + 0.5f, 0.f, 255.f));
+        };
         switch (fmt) {
           case PixelFormat::kRGB8:
           case PixelFormat::kRGBA8:
-            px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
-            px[2] = static_cast<std::uint8_t>(c[2]);
+            px[0] = mix(px[0], cr), px[1] = mix(px[1], cg), px[2] = mix(px[2], cb);
             break;
           case PixelFormat::kMono8:
-            px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]);
+            px[0] = mix(px[0], 0.299f * cr + 0.587f * cg + 0.114f * cb);
             break;
-          default:
-            px[0] = static_cast<std::uint8_t>(c[bayer_channel(fmt, u, v)]);
-        }
-      };
-      if (identity && !overlay) {
-        // The samples ARE the pixel centres: GL's coverage and depth test are already exact there.
-        mrow[u] = static_cast<std::uint8_t>((b0 ? kMaskBoom : 0) | (r0 ? kMaskReceiver : 0));
-        if (r0) drow[u] = static_cast<float>(plane_depth(r0));
-        if (b0) put_opaque(boom_colour(b0, static_cast<std::size_t>(e.idx)));
-        return;
-      }
-      if (!(b0 | b1 | b2 | b3) && r0 == r1 && r0 == r2 && r0 == r3 && !overlay) {
-        // Inside one receiver triangle with no boom around: the most common covered pixel.
-        mrow[u] = kMaskReceiver;
-        drow[u] = static_cast<float>(plane_depth(r0));
-        return;
-      }
-      if (b0 && b1 && b2 && b3 && !overlay) {
-        const bool recv_none = !(r0 | r1 | r2 | r3);
-        const bool recv_one = r0 && r0 == r1 && r0 == r2 && r0 == r3;
-        if (recv_none || recv_one) {
-          // Boom all around, in front of the receiver at every sample (GL's depth test) and no
-          // receiver silhouette nearby: an opaque boom pixel, its colour bilinear.
-          mrow[u] = static_cast<std::uint8_t>(kMaskBoom | (recv_one ? kMaskReceiver : 0));
-          if (recv_one) drow[u] = static_cast<float>(plane_depth(r0));
-          if (cpu) {
-            // Any of the four triangles: the interpolated normal and texture are continuous.
-            put_opaque(boom_colour(b0, 0));
-          } else {
-            const std::uint8_t* c0 = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
-            const std::uint8_t* c2 = c0 + static_cast<std::size_t>(Wv) * 4;
-            const float w0 = (1 - e.fx) * (1 - e.fy), w1 = e.fx * (1 - e.fy), w2 = (1 - e.fx) * e.fy,
-                        w3 = e.fx * e.fy;
-            put_opaque(w0 * load_rgba(c0) + w1 * load_rgba(c0 + 4) + w2 * load_rgba(c2) +
-                       w3 * load_rgba(c2 + 4));
+          default: {  // Bayer: the site's own colour channel
+            const int ch = bayer_channel(fmt, u, v);
+            px[0] = mix(px[0], ch == 0 ? cr : ch == 1 ? cg : cb);
           }
-          return;
         }
-      }
-      // The 2x2 samples around the centre (one sample when the grids coincide).
-      const int ns = identity ? 1 : 4;
-      const std::uint32_t off[4] = {0, 1, static_cast<std::uint32_t>(Wv), static_cast<std::uint32_t>(Wv) + 1};
-      std::uint32_t b[4] = {}, r[4] = {};
-      bool b_any = false, b_all = true, b_same = true, r_any = false, r_all = true, r_same = true;
-      for (int k = 0; k < ns; ++k) {
-        b[k] = bids[e.idx + off[k]];
-        r[k] = rids[e.idx + off[k]];
-        b_any |= b[k] != 0, b_all &= b[k] != 0, b_same &= b[k] == b[0];
-        r_any |= r[k] != 0, r_all &= r[k] != 0, r_same &= r[k] == r[0];
-      }
-      if (!b_any && !r_any) return;
-      const double x = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].x();
-      const double y = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].y();
-      const Eigen::Vector3d d(x, y, 1.0);
-
-      // An object's depth at the pixel centre from its samples' ids: read off when one triangle
-      // covers all samples (it then covers the centre, triangles being convex), else exact ray
-      // tests with the candidates. Covered all around, the centre is covered too: only its depth
-      // is sought, and when the centre's triangle is not among the samples' (a sliver) the first
-      // sample's plane gives it. At a silhouette the slivers' neighbours are searched as well.
-      auto centre_depth = [&](const std::uint32_t* ids, bool any, bool all, bool same) {
-        if (!any) return std::numeric_limits<double>::infinity();
-        if (!(all && same)) {
-          const double z = nearest_hit(vs, ids, ns, x, y, !all);
-          if (std::isfinite(z) || !all) return z;
-        }
-        const CamTriangle& t = triangle(vs, ids[0]);
-        return t.n_dot_v0 / t.n.dot(d);
       };
-      const double z_r = centre_depth(r, r_any, r_all, r_same);
-      // Boom, front-most where the rasteriser's depth test kept it at the samples.
-      const double z_b = centre_depth(b, b_any, b_all, b_same);
-      const bool has_r = std::isfinite(z_r) && z_r > 0;
-      const bool has_b = std::isfinite(z_b) && z_b > 0 && (!has_r || z_b < z_r);
-      mrow[u] = static_cast<std::uint8_t>((has_b ? kMaskBoom : 0) | (has_r ? kMaskReceiver : 0));
-      if (has_r) drow[u] = static_cast<float>(z_r);
-
-      // Composite: the boom's bilinear coverage of the centre, anti-aliasing its edges.
-      float alpha = 0, cr = 0, cg = 0, cb = 0;
-      if (b_any) {
-        const float w[4] = {(1 - e.fx) * (1 - e.fy), e.fx * (1 - e.fy), (1 - e.fx) * e.fy, e.fx * e.fy};
-        for (int k = 0; k < ns; ++k) {
-          if (!b[k]) continue;
-          const float wk = identity ? 1.0f : w[k];
-          const F32x4 c = boom_colour(b[k], static_cast<std::size_t>(e.idx) + off[k]);
-          alpha += wk, cr += wk * c[0], cg += wk * c[1], cb += wk * c[2];
+      // Groups of kGroup raw pixels whose virtual samples hold nothing are skipped whole (CPU
+      // rasteriser: it marks the blocks it writes).
+      for (std::size_t si = 0; si < n_spans; ++si)
+        for (int g0 = spans[si].first; g0 < spans[si].second;) {
+          const int g1 = std::min(spans[si].second, (g0 / kGroup + 1) * kGroup);
+          if (group_occupied(vs, v, g0 / kGroup))
+            for (int u = g0; u < g1; ++u) pixel(u);
+          g0 = g1;
         }
-        if (!options_.antialias) {
-          const float s = alpha > 0 ? 1.0f / alpha : 0.f;
-          cr *= s, cg *= s, cb *= s;
-          alpha = has_b ? 1.f : 0.f;
-          cr *= alpha, cg *= alpha, cb *= alpha;
-        }
-      }
-      if (overlay && has_r && !has_b) {
-        // Validation overlay: the receiver model drawn translucent (or its wireframe) at its pose.
-        const std::uint8_t* c = &vs.recv_rgba[static_cast<std::size_t>(e.idx) * 4];
-        const float a =
-            options_.receiver_draw == ReceiverDraw::kTranslucent ? 0.45f : (c[3] > 0 ? 1.0f : 0.0f);
-        if (a > 0 && alpha < 1) {
-          const float k = a * (1 - alpha);
-          cr += k * (0.5f * c[0] + 127.f), cg += k * 0.5f * c[1], cb += k * 0.5f * c[2];
-          alpha += k;
-        }
-      }
-      if (alpha <= 0) return;
-      if (alpha > 1) alpha = 1;
-      std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
-      const float ia = 1 - alpha;
-      auto mix = [&](std::uint8_t raw_value, float premult) {
-        return static_cast<std::uint8_t>(std::clamp(raw_value * ia + premult + 0.5f, 0.f, 255.f));
-      };
-      switch (fmt) {
-        case PixelFormat::kRGB8:
-        case PixelFormat::kRGBA8:
-          px[0] = mix(px[0], cr), px[1] = mix(px[1], cg), px[2] = mix(px[2], cb);
-          break;
-        case PixelFormat::kMono8:
-          px[0] = mix(px[0], 0.299f * cr + 0.587f * cg + 0.114f * cb);
-          break;
-        default: {  // Bayer: the site's own colour channel
-          const int ch = bayer_channel(fmt, u, v);
-          px[0] = mix(px[0], ch == 0 ? cr : ch == 1 ? cg : cb);
-        }
-      }
-    };
-    // Groups of kGroup raw pixels whose virtual samples hold nothing are skipped whole (CPU
-    // rasteriser: it marks the blocks it writes).
-    for (std::size_t si = 0; si < n_spans; ++si)
-      for (int g0 = spans[si].first; g0 < spans[si].second;) {
-        const int g1 = std::min(spans[si].second, (g0 / kGroup + 1) * kGroup);
-        if (group_occupied(vs, v, g0 / kGroup))
-          for (int u = g0; u < g1; ++u) pixel(u);
-        g0 = g1;
-      }
-  }
+    }
+  };
+  using T = std::true_type;
+  using F = std::false_type;
+  auto with = [](bool b, auto f) { return b ? f(T{}) : f(F{}); };
+  with(!vs.recv_rgba.empty(), [&](auto o) {
+    with(cpu_raster_, [&](auto c) {
+      with(!vs.recv_vboxes.empty(), [&](auto r) { with(vs.vp.identity, [&](auto i) { rows(o, c, r, i); }); });
+    });
+  });
 }
 
 Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) {

@@ -27,6 +27,16 @@ bool RasterTriangle::setup(const SampleGrid& g, const Eigen::Vector3d& p0, const
     inv_ea[k] = ea[k] != 0 ? 1.0 / ea[k] : 0.0;
   }
   inv_area = 1.0 / std::abs(det);
+  int n_lo = 0, n_hi = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (ea[k] > 0)
+      lo_k[n_lo++ & 1] = k;
+    else if (ea[k] < 0)
+      hi_k[n_hi++ & 1] = k;
+  }
+  two_sided = n_lo >= 1 && n_hi >= 1 && n_lo + n_hi == 3;
+  if (n_lo == 1) lo_k[1] = lo_k[0];
+  if (n_hi == 1) hi_k[1] = hi_k[0];
 
   // Bounds: the projected vertices' box when all lie in front of the camera (the projection is
   // then their convex hull), else the whole clip box (rows outside the triangle are empty spans).

@@ -38,6 +38,10 @@ struct RasterTriangle {
   double inv_area = 0;         // 1 / |det(p0, p1, p2)|
   bool crosses_near = false;   // some vertex nearer than the near plane: test each sample's depth
   SampleBox bounds;            // samples the triangle may cover, inside the grid
+  // The usual case: one or two edges bound each row's span on the left (ea > 0) and the others
+  // on the right (ea < 0). Their indices, the single one repeated, let rows skip the sign tests.
+  bool two_sided = false;
+  int lo_k[2] = {}, hi_k[2] = {};
 
   // False when no sample can be covered: edge-on to the camera, culled as a back face (`cull`:
   // triangles wind counter-clockwise seen from outside, render/mesh.hpp), entirely nearer than
@@ -67,14 +71,20 @@ void raster(const SampleGrid& g, const RasterTriangle& t, float* inv_z, Write&& 
     double lo = t.bounds.x0, hi = t.bounds.x1 - 1;
     bool empty = false;
     double row_c[3];
-    for (int k = 0; k < 3; ++k) {
-      row_c[k] = t.eb[k] * y + t.ec[k];
-      if (t.ea[k] > 0)
-        lo = std::max(lo, -row_c[k] * t.inv_ea[k]);
-      else if (t.ea[k] < 0)
-        hi = std::min(hi, -row_c[k] * t.inv_ea[k]);
-      else if (row_c[k] < 0)
-        empty = true;
+    if (t.two_sided) {  // the same arithmetic as below, without its per-edge tests
+      for (int k = 0; k < 3; ++k) row_c[k] = t.eb[k] * y + t.ec[k];
+      lo = std::max({lo, -row_c[t.lo_k[0]] * t.inv_ea[t.lo_k[0]], -row_c[t.lo_k[1]] * t.inv_ea[t.lo_k[1]]});
+      hi = std::min({hi, -row_c[t.hi_k[0]] * t.inv_ea[t.hi_k[0]], -row_c[t.hi_k[1]] * t.inv_ea[t.hi_k[1]]});
+    } else {
+      for (int k = 0; k < 3; ++k) {
+        row_c[k] = t.eb[k] * y + t.ec[k];
+        if (t.ea[k] > 0)
+          lo = std::max(lo, -row_c[k] * t.inv_ea[k]);
+        else if (t.ea[k] < 0)
+          hi = std::min(hi, -row_c[k] * t.inv_ea[k]);
+        else if (row_c[k] < 0)
+          empty = true;
+      }
     }
     if (empty || lo > hi) continue;
     // lo and hi lie in the clipped bounds, so are >= 0: truncation is floor (std::ceil and
@@ -84,12 +94,14 @@ void raster(const SampleGrid& g, const RasterTriangle& t, float* inv_z, Write&& 
     const int xe = static_cast<int>(hi);
     const double w0 = (row_c[0] + row_c[1] + row_c[2]) * t.inv_area;
     float* row = inv_z + static_cast<std::size_t>(y) * g.width;
-    for (int x = xs; x <= xe; ++x) {
-      const double w = w0 + wa * x;
+    const std::size_t row_index = static_cast<std::size_t>(y) * g.width;
+    double xd = xs;  // x as a double, counted (exact) rather than converted
+    for (int x = xs; x <= xe; ++x, xd += 1.0) {
+      const double w = w0 + wa * xd;
       if (!(w > row[x])) continue;  // GL_GREATER on 1/z: nearest wins, ties keep the first
       if (t.crosses_near && w > max_inv_z) continue;
       row[x] = static_cast<float>(w);
-      write(static_cast<std::size_t>(y) * g.width + x, x, y);
+      write(row_index + x, x, y);
     }
   }
 }
