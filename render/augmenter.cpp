@@ -20,7 +20,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
-#include <future>
 #include <limits>
 #include <tuple>
 #include <unordered_map>
@@ -29,6 +28,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "core/worker.hpp"
 #include "render/gl_util.hpp"
 #include "render/projection.hpp"
 #include "render/soft_raster.hpp"
@@ -360,6 +360,22 @@ class AugmenterImpl final : public Augmenter {
   bool zero_to_one_ = false;
   bool cpu_raster_ = false;
   AugmentTimings timings_;
+  // Waits for the worker's job however the scope ends: the job uses the scope's locals.
+  struct JoinOnExit {
+    Worker& w;
+    ~JoinOnExit() {
+      try {
+        w.wait();
+      } catch (...) {  // already reported by the explicit wait(), or moot while unwinding
+      }
+    }
+  };
+  // Runs the left view beside the calling thread's right view; started on first use.
+  std::unique_ptr<Worker> worker_;
+  Worker& worker() {
+    if (!worker_) worker_ = std::make_unique<Worker>("augrig-view");
+    return *worker_;
+  }
 
   // Per-frame state shared by prepare/render.
   Pose T_body_boom_, T_body_telescope_;
@@ -972,11 +988,13 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   const int bpp = bytes_per_pixel(fmt);
   // The rows' code is compiled once per combination of these flags, so that the per-pixel code
   // carries no tests (nor loads) for what this frame does not have.
-  auto rows = [&](auto overlay_c, auto cpu_c, auto recv_c, auto identity_c) {
+  auto rows = [&](auto overlay_c, auto cpu_c, auto recv_c, auto identity_c, auto rgb_c) {
     constexpr bool overlay = decltype(overlay_c)::value;
     constexpr bool cpu = decltype(cpu_c)::value;
     constexpr bool recv = decltype(recv_c)::value;
     constexpr bool identity = decltype(identity_c)::value;
+    constexpr bool rgb = decltype(rgb_c)::value;  // RGB8 or RGBA8
+    if constexpr (overlay && cpu) return;         // overlays are drawn by OpenGL only
 
     for (int v = work.y0; v < work.y1; ++v) {
       std::uint8_t* mrow = out.mask.row(v);
@@ -1022,6 +1040,11 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
         auto put_opaque = [&](F32x4 c) __attribute__((always_inline)) {
           c += 0.5f;
           std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+          if constexpr (rgb) {
+            px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
+            px[2] = static_cast<std::uint8_t>(c[2]);
+            return;
+          }
           switch (fmt) {
             case PixelFormat::kRGB8:
             case PixelFormat::kRGBA8:
@@ -1174,7 +1197,12 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   auto with = [](bool b, auto f) { return b ? f(T{}) : f(F{}); };
   with(!vs.recv_rgba.empty(), [&](auto o) {
     with(cpu_raster_, [&](auto c) {
-      with(!vs.recv_vboxes.empty(), [&](auto r) { with(vs.vp.identity, [&](auto i) { rows(o, c, r, i); }); });
+      with(!vs.recv_vboxes.empty(), [&](auto r) {
+        with(vs.vp.identity, [&](auto i) {
+          with(fmt == PixelFormat::kRGB8 || fmt == PixelFormat::kRGBA8,
+               [&](auto rgb) { rows(o, c, r, i, rgb); });
+        });
+      });
     });
   });
 }
@@ -1217,9 +1245,12 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
       resolve_view(views_[c], raw, result);
       return std::pair{ms(b - a), ms(Clock::now() - b)};
     };
-    auto left = std::async(std::launch::async, view, 0, std::cref(frame.left), std::ref(out.left));
+    std::pair<double, double> left_ms;
+    worker().start([&] { left_ms = view(0, frame.left, out.left); });
+    const JoinOnExit join{worker()};
     const auto [right_raster, right_resolve] = view(1, frame.right, out.right);
-    const auto [left_raster, left_resolve] = left.get();
+    worker().wait();
+    const auto [left_raster, left_resolve] = left_ms;
     timings_.render_ms = left_raster + right_raster;
     timings_.masks_ms = left_resolve + right_resolve;
   } else {
@@ -1227,18 +1258,21 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
     prepare_view(views_[0], scene);
     render_view(views_[0], scene);
     const auto t1 = Clock::now();
-    auto left_cpu = std::async(std::launch::async, [&] {
+    double left_cpu_ms = 0;
+    worker().start([&] {
       const auto a = Clock::now();
       resolve_view(views_[0], frame.left, out.left);
-      return ms(Clock::now() - a);
+      left_cpu_ms = ms(Clock::now() - a);
     });
+    const JoinOnExit join{worker()};
     prepare_view(views_[1], scene);
     render_view(views_[1], scene);
     const auto t2 = Clock::now();
     resolve_view(views_[1], frame.right, out.right);
     const double right_cpu = ms(Clock::now() - t2);
     timings_.render_ms = ms(t1 - t0) + ms(t2 - t1);
-    timings_.masks_ms = left_cpu.get() + right_cpu;
+    worker().wait();
+    timings_.masks_ms = left_cpu_ms + right_cpu;
   }
 
   const auto t4 = Clock::now();
