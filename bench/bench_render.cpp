@@ -2,8 +2,10 @@
 // (llvmpipe here), for the boom path alone and with the receiver proxy and stereo classes,
 // with and without lens distortion, and how much of the image the boom and receiver cover (the
 // cost is per covered pixel on a software rasteriser), with each rasteriser (OpenGL, and the CPU
-// one of render/soft_raster.hpp) in the same run. Prints tables for docs/PERFORMANCE.md.
-//   build/bench_render [--frames N] [--case K] [--raster opengl|cpu|both]
+// one of render/soft_raster.hpp) in the same run, and each form of the augmented output (the whole
+// image, a frame-sized copy per camera; or the changed box, AugmentedOutput). Prints tables for
+// docs/PERFORMANCE.md.
+//   build/bench_render [--frames N] [--case K] [--raster opengl|cpu|both] [--augmented whole|box|both]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -61,10 +63,11 @@ Rig rig_with(bool distorted, double cameras_forward_m = 0) {
 }
 
 void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, int frames, bool profile,
-              double cameras_forward_m, Rasterizer raster) {
+              double cameras_forward_m, Rasterizer raster, AugmentedOutput output) {
   const Rig rig = rig_with(distorted, cameras_forward_m);
   AugmentOptions opt;
   opt.rasterizer = raster;
+  opt.augmented_output = output;
   opt.receiver_proxy = receiver;
   opt.stereo_classes = receiver;
   opt.profile_stages = profile;
@@ -93,9 +96,9 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
     }
     const auto t1 = std::chrono::steady_clock::now();
     Image rgb_l, rgb_r;
-    if (is_bayer(fmt)) {
-      rgb_l = to_rgb8(out.left.augmented);
-      rgb_r = to_rgb8(out.right.augmented);
+    if (is_bayer(fmt)) {  // the whole augmented images, for display
+      rgb_l = to_rgb8(whole_augmented(sf.left.image, out.left));
+      rgb_r = to_rgb8(whole_augmented(sf.right.image, out.right));
     }
     const auto t2 = std::chrono::steady_clock::now();
     if (i < 0) continue;
@@ -116,10 +119,11 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
                 readback.median());
     return;
   }
-  std::printf("| %-44s | %-6s | %5.1f%% | %5.1f%% | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n", name,
-              to_string((*aug)->rasterizer()), boom_pct.median(), receiver ? recv_pct.median() : 0.0,
-              render.median(), masks.median(), stats.median(), is_bayer(fmt) ? debayer.median() : 0.0,
-              total.median(), total.p90());
+  std::printf(
+      "| %-44s | %-6s | %-6s | %5.1f%% | %5.1f%% | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n", name,
+      to_string((*aug)->rasterizer()), output == AugmentedOutput::kWholeImage ? "whole" : "box",
+      boom_pct.median(), receiver ? recv_pct.median() : 0.0, render.median(), masks.median(), stats.median(),
+      is_bayer(fmt) ? debayer.median() : 0.0, total.median(), total.p90());
 }
 
 }  // namespace
@@ -127,6 +131,7 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
 int main(int argc, char** argv) {
   int frames = 60, only = -1;
   std::vector<Rasterizer> rasters = {Rasterizer::kOpenGl, Rasterizer::kCpu};
+  std::vector<AugmentedOutput> outputs = {AugmentedOutput::kWholeImage, AugmentedOutput::kChangedBox};
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc) {
       frames = std::atoi(argv[++i]);
@@ -142,8 +147,20 @@ int main(int argc, char** argv) {
         return std::fprintf(stderr, "bench_render: --raster takes opengl, cpu or both, not '%s'\n",
                             r.c_str()),
                2;
+    } else if (std::strcmp(argv[i], "--augmented") == 0 && i + 1 < argc) {
+      const std::string o = argv[++i];
+      if (o == "whole")
+        outputs = {AugmentedOutput::kWholeImage};
+      else if (o == "box")
+        outputs = {AugmentedOutput::kChangedBox};
+      else if (o != "both")
+        return std::fprintf(stderr, "bench_render: --augmented takes whole, box or both, not '%s'\n",
+                            o.c_str()),
+               2;
     } else {
-      std::fprintf(stderr, "usage: bench_render [--frames N] [--case 0..6] [--raster opengl|cpu|both]\n");
+      std::fprintf(stderr,
+                   "usage: bench_render [--frames N] [--case 0..6] [--raster opengl|cpu|both] "
+                   "[--augmented whole|box|both]\n");
       return 2;
     }
   }
@@ -156,13 +173,12 @@ int main(int argc, char** argv) {
               frames);
   std::printf("renderer: %s\n\n", (*ctx)->renderer().c_str());
   std::printf(
-      "| case                                         | raster | boom | receiver | render | masks+composite "
-      "| "
-      "stats | debayer | total (median / p90) |\n");
+      "| case                                         | raster | output | boom | receiver | render | "
+      "masks+composite | stats | debayer | total (median / p90) |\n");
   std::printf(
-      "|----------------------------------------------|--------|-----:|-----:|-------:|-------:|------:|-----"
-      "-:|"
-      "------:|\n");
+      "|----------------------------------------------|--------|--------|-----:|-----:|-------:|-------:|----"
+      "-"
+      "-:|------:|------:|\n");
   struct Case {
     const char* name;
     bool distorted, receiver;
@@ -181,9 +197,10 @@ int main(int argc, char** argv) {
   constexpr int kCases = static_cast<int>(std::size(cases));
   for (int i = 0; i < kCases; ++i)
     for (const Rasterizer r : rasters)
-      if (only < 0 || only == i)
-        run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames, false,
-                 cases[i].cameras_forward_m, r);
+      for (const AugmentedOutput o : outputs)
+        if (only < 0 || only == i)
+          run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames, false,
+                   cases[i].cameras_forward_m, r, o);
   if (std::find(rasters.begin(), rasters.end(), Rasterizer::kOpenGl) == rasters.end()) return 0;
   // Where the GL time goes (glFinish between stages, so these sum to more than `render` above).
   std::printf("\nGL stages, both views (ms, medians, with glFinish between stages):\n\n");
@@ -192,6 +209,6 @@ int main(int argc, char** argv) {
   for (int i = 0; i < kCases; ++i)
     if (only < 0 || only == i)
       run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames, true,
-               cases[i].cameras_forward_m, Rasterizer::kOpenGl);
+               cases[i].cameras_forward_m, Rasterizer::kOpenGl, outputs.back());
   return 0;
 }

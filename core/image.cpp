@@ -23,6 +23,12 @@ Image::Image(int width, int height, PixelFormat format, std::size_t stride_bytes
   bytes_.assign(stride_ * static_cast<std::size_t>(height_), 0);
 }
 
+void Image::reshape(int width, int height, PixelFormat format) {
+  width_ = std::max(width, 0), height_ = std::max(height, 0), format_ = format;
+  stride_ = static_cast<std::size_t>(width_) * bytes_per_pixel(format);
+  bytes_.resize(stride_ * static_cast<std::size_t>(height_));  // never shrinks the capacity
+}
+
 Image Image::copy_of(ConstImageView v) {
   Image img(v.width, v.height, v.format);
   const std::size_t row_bytes = static_cast<std::size_t>(v.width) * bytes_per_pixel(v.format);

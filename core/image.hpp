@@ -115,6 +115,11 @@ class Image {
   // Deep copy of a view (rows repacked to the tightest stride).
   static Image copy_of(ConstImageView v);
 
+  // Makes this a width x height image of `format`, tightly strided, keeping the buffer's
+  // capacity: an image whose size changes every frame reallocates only when it grows. Pixel
+  // values are unspecified afterwards.
+  void reshape(int width, int height, PixelFormat format);
+
   // True when sizes, formats and every pixel byte match (padding bytes are ignored).
   friend bool pixels_equal(const Image& a, const Image& b);
 

@@ -127,9 +127,9 @@ using F32x4 = float __attribute__((vector_size(16)));
 // the GL shader's, evaluated at the vertices and interpolated (Gouraud); the texture coordinates
 // are interpolated per pixel.
 struct BoomShading {
-  float sum[3];    // sum of c_j
-  float light[3];  // sum of k_j c_j, k_j = 0.35 + 0.65 max(n_j . l, 0) at vertex j
-  float u[3], v[3];
+  // Four planes, one per lane, evaluated together as dx x + dy y + d1: the sum of c_j; the sum of
+  // k_j c_j with k_j = 0.35 + 0.65 max(n_j . l, 0) at vertex j; the sums of u_j c_j and v_j c_j.
+  F32x4 dx, dy, d1;
   F32x4 base;  // base colour * 255 (the alpha lane is not used)
   const Texture* texture = nullptr;
   bool texture_1d = false;  // its rows are all the same: v is not needed
@@ -244,14 +244,11 @@ inline F32x4 sample_texture(const Texture& tex, float u, float v, bool one_row) 
 // ambient 0.35 plus diffuse 0.65 of the normalised interpolated normal, times base colour and
 // texture.
 inline F32x4 shade(const BoomShading& s, float x, float y) {
-  const float sum = s.sum[0] * x + s.sum[1] * y + s.sum[2];
-  const float inv = sum > 0 ? 1.f / sum : 0.f;
-  const float k = (s.light[0] * x + s.light[1] * y + s.light[2]) * inv;
-  F32x4 c = s.base * k;
-  if (s.texture)
-    c *= sample_texture(*s.texture, (s.u[0] * x + s.u[1] * y + s.u[2]) * inv,
-                        s.texture_1d ? 0.f : (s.v[0] * x + s.v[1] * y + s.v[2]) * inv, s.texture_1d) *
-         (1.f / 255.f);
+  const F32x4 planes = s.dx * x + s.dy * y + s.d1;
+  const float inv = planes[0] > 0 ? 1.f / planes[0] : 0.f;
+  const F32x4 q = planes * inv;  // 1, light, u, v
+  F32x4 c = s.base * q[1];
+  if (s.texture) c *= sample_texture(*s.texture, q[2], q[3], s.texture_1d) * (1.f / 255.f);
   return c;
 }
 
@@ -721,9 +718,10 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
           if (tex) u += m.uvs[vi[j]].x() * c, v += m.uvs[vi[j]].y() * c;
         }
         BoomShading& sh = vs.shading[d.first_tri + k];
+        F32x4* coeff[3] = {&sh.dx, &sh.dy, &sh.d1};
         for (int a = 0; a < 3; ++a) {
-          sh.sum[a] = static_cast<float>(sum[a]), sh.light[a] = static_cast<float>(lit[a]);
-          sh.u[a] = static_cast<float>(u[a]), sh.v[a] = static_cast<float>(v[a]);
+          *coeff[a] = F32x4{static_cast<float>(sum[a]), static_cast<float>(lit[a]), static_cast<float>(u[a]),
+                            static_cast<float>(v[a])};
           sh.base[a] = 255.f * m.base_color[a];
         }
         sh.base[3] = 0;
@@ -959,16 +957,6 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
       std::fill_n(&out.receiver_depth.z_m[static_cast<std::size_t>(y) * W + c.x0], c.x1 - c.x0,
                   DepthImage::kNone);
   }
-  // The augmented image starts as the raw image, byte for byte.
-  const Image& src = raw.image;
-  if (out.augmented.width() != W || out.augmented.height() != H || out.augmented.format() != src.format())
-    out.augmented = Image(W, H, src.format());
-  const std::size_t row_bytes = static_cast<std::size_t>(W) * bytes_per_pixel(src.format());
-  if (src.stride_bytes() == row_bytes && out.augmented.stride_bytes() == row_bytes)
-    std::memcpy(out.augmented.data(), src.data(), row_bytes * H);  // one copy: streaming stores
-  else
-    for (int y = 0; y < H; ++y) std::memcpy(out.augmented.row(y), src.row(y), row_bytes);
-
   // Raw pixels to visit: the union of the boxes' raw images, row by row, each pixel once.
   std::vector<VBox>& raw_boxes = vs.raw_boxes;
   raw_boxes.clear();
@@ -981,6 +969,27 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   out.receiver_box = to_pixel_box(recv_raw);
   const VBox work = unite(boom_raw, recv_raw);
   std::vector<std::pair<int, int>>& spans = vs.spans;
+
+  // The augmented image starts as the raw image, byte for byte: all of it, or the box where the
+  // boom (and a receiver overlay) may change it. Raw pixel (u, v) is its byte (u - ax0) * bpp of
+  // row v - ay0.
+  const Image& src = raw.image;
+  const bool overlay_drawn = !vs.recv_rgba.empty();
+  const VBox changed = overlay_drawn ? work : boom_raw;
+  out.augmented_box = to_pixel_box(changed);
+  const bool whole = options_.augmented_output == AugmentedOutput::kWholeImage;
+  const VBox copy = whole ? full : changed;
+  const int cw = std::max(copy.x1 - copy.x0, 0), ch = std::max(copy.y1 - copy.y0, 0);
+  if (out.augmented.width() != cw || out.augmented.height() != ch || out.augmented.format() != src.format())
+    out.augmented.reshape(cw, ch, src.format());
+  const std::size_t copy_bytes = static_cast<std::size_t>(cw) * bytes_per_pixel(src.format());
+  if (whole && src.stride_bytes() == copy_bytes && out.augmented.stride_bytes() == copy_bytes)
+    std::memcpy(out.augmented.data(), src.data(), copy_bytes * H);  // one call for the frame
+  else
+    for (int y = 0; y < ch; ++y)
+      std::memcpy(out.augmented.row(y), src.row(copy.y0 + y) + copy.x0 * bytes_per_pixel(src.format()),
+                  copy_bytes);
+  const int ax0 = copy.x0, ay0 = copy.y0;
 
   const std::uint32_t* bids = vs.boom_ids.data();
   const std::uint32_t* rids = vs.recv_ids.data();
@@ -999,7 +1008,8 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
     for (int v = work.y0; v < work.y1; ++v) {
       std::uint8_t* mrow = out.mask.row(v);
       float* drow = &out.receiver_depth.z_m[static_cast<std::size_t>(v) * W];
-      std::uint8_t* arow = out.augmented.row(v);
+      // Null outside the changed box (rows with the receiver alone): nothing is composited there.
+      std::uint8_t* arow = v >= copy.y0 && v < copy.y1 ? out.augmented.row(v - ay0) : nullptr;
       spans.clear();
       for (const VBox& b : raw_boxes)
         if (v >= b.y0 && v < b.y1 && !b.empty()) spans.emplace_back(b.x0, b.x1);
@@ -1039,7 +1049,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
         // Writes an opaque boom colour (0..255, rounded here) in the raw pixel's format.
         auto put_opaque = [&](F32x4 c) __attribute__((always_inline)) {
           c += 0.5f;
-          std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+          std::uint8_t* px = arow + static_cast<std::size_t>(u - ax0) * bpp;
           if constexpr (rgb) {
             px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
             px[2] = static_cast<std::uint8_t>(c[2]);
@@ -1162,7 +1172,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
         }
         if (alpha <= 0) return;
         if (alpha > 1) alpha = 1;
-        std::uint8_t* px = arow + static_cast<std::size_t>(u) * bpp;
+        std::uint8_t* px = arow + static_cast<std::size_t>(u - ax0) * bpp;
         const float ia = 1 - alpha;
         auto mix = [&](std::uint8_t raw_value, float premult) {
           return static_cast<std::uint8_t>(std::clamp(raw_value * ia + premult + 0.5f, 0.f, 255.f));
@@ -1326,6 +1336,17 @@ Expected<std::unique_ptr<Augmenter>> Augmenter::create(const Rig& rig, const Aug
   auto a = std::make_unique<AugmenterImpl>(rig, options);
   if (auto s = a->init(); !s) return s.error();
   return std::unique_ptr<Augmenter>(std::move(a));
+}
+
+Image whole_augmented(const Image& raw, const ViewResult& r) {
+  if (r.augmented.width() == raw.width() && r.augmented.height() == raw.height()) return r.augmented;
+  Image out = Image::copy_of(raw.view());
+  const PixelBox& b = r.augmented_box;
+  if (b.empty()) return out;
+  const std::size_t bpp = static_cast<std::size_t>(bytes_per_pixel(raw.format()));
+  for (int y = b.y0; y < b.y1; ++y)
+    std::memcpy(out.row(y) + b.x0 * bpp, r.augmented.row(y - b.y0), (b.x1 - b.x0) * bpp);
+  return out;
 }
 
 }  // namespace augrig

@@ -37,6 +37,14 @@ enum class Rasterizer {
 };
 const char* to_string(Rasterizer r);
 
+// What ViewResult::augmented holds.
+enum class AugmentedOutput {
+  kWholeImage,  // the raw image with the boom composited in: a frame-sized copy per camera
+  kChangedBox,  // only its part inside ViewResult::augmented_box, the rest being the raw image:
+                // for consumers that keep the raw frame anyway (the recorder stores the augmented
+                // image as that box's difference; a display can upload the raw image and the box)
+};
+
 struct AugmentOptions {
   ReceiverDraw receiver_draw = ReceiverDraw::kMaskOnly;
   bool antialias = true;       // blend the boom's edge pixels by their coverage
@@ -44,6 +52,7 @@ struct AugmentOptions {
   bool stereo_classes = true;  // compute the stereo visibility classes (needs receiver_proxy)
   StereoClassOptions class_options;
   Rasterizer rasterizer = Rasterizer::kAuto;
+  AugmentedOutput augmented_output = AugmentedOutput::kWholeImage;
   // bench/: glFinish between GL stages so AugmentTimings splits clear/draw/readback (slower overall).
   bool profile_stages = false;
   // Models to use instead of the rig's (tests, the simulator); null: build or load the rig's.
@@ -70,12 +79,18 @@ struct PixelBox {
 };
 
 struct ViewResult {
-  Image augmented;            // same format and size as the raw input
+  // The augmented image (raw format): the whole image, or with AugmentedOutput::kChangedBox only
+  // its part inside `augmented_box` (an image of that box's size).
+  Image augmented;
+  PixelBox augmented_box;     // outside it the augmented image is the raw image, byte for byte
   Image mask;                 // Mono8
   DepthImage receiver_depth;  // z of the receiver along each pixel centre's ray
   PixelBox boom_box;          // raw pixels the boom may touch (its anti-aliased footprint)
   PixelBox receiver_box;      // raw pixels the receiver may cover
 };
+
+// The whole augmented image of `r` (either AugmentedOutput) over the raw image it was made from.
+Image whole_augmented(const Image& raw, const ViewResult& r);
 
 struct StereoResult {
   ViewResult left;

@@ -26,6 +26,24 @@ TEST(Image, CopyOfRepacksAndComparesPixelsOnly) {
   EXPECT_FALSE(pixels_equal(copy, padded));
 }
 
+TEST(Image, ReshapeKeepsTheBufferWhenItShrinks) {
+  Image img(100, 50, PixelFormat::kRGB8, 400);
+  const std::uint8_t* buffer = img.data();
+  img.reshape(30, 20, PixelFormat::kMono8);
+  EXPECT_EQ(img.width(), 30);
+  EXPECT_EQ(img.height(), 20);
+  EXPECT_EQ(img.format(), PixelFormat::kMono8);
+  EXPECT_EQ(img.stride_bytes(), 30u);  // tight
+  EXPECT_EQ(img.size_bytes(), 600u);
+  EXPECT_EQ(img.data(), buffer);  // no reallocation
+  img.row(19)[29] = 9;
+  img.reshape(0, 0, PixelFormat::kRGB8);
+  EXPECT_TRUE(img.empty());
+  img.reshape(200, 100, PixelFormat::kRGBA8);  // grows: a larger buffer
+  EXPECT_EQ(img.size_bytes(), 80000u);
+  img.row(99)[799] = 1;
+}
+
 TEST(Image, BayerChannelsFollowPfncNames) {
   // BayerRG8: R G / G B
   EXPECT_EQ(bayer_channel(PixelFormat::kBayerRG8, 0, 0), 0);

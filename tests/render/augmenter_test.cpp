@@ -5,6 +5,7 @@
 #include "render/augmenter.hpp"
 
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <string>
 #include <tuple>
@@ -308,6 +309,58 @@ TEST_P(RasterizerTest, UntouchedPixelsAreBitIdenticalInEveryFormat) {
       EXPECT_GE(changed, boom_px - boom_px / 100);
     }
   }
+}
+
+// AugmentedOutput::kChangedBox: only the box is made, and it is the whole image's box exactly;
+// outside the box the whole image is the raw image.
+TEST_P(RasterizerTest, ChangedBoxOutputIsTheWholeImageInsideItsBox) {
+  const Rig rig = distorted_rig();
+  AugmentOptions whole_opt = options(), box_opt = options();
+  box_opt.augmented_output = AugmentedOutput::kChangedBox;
+  auto whole = Augmenter::create(rig, whole_opt);
+  auto box = Augmenter::create(rig, box_opt);
+  ASSERT_TRUE(whole && box);
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  for (PixelFormat fmt : {PixelFormat::kRGB8, PixelFormat::kBayerGR8}) {
+    StereoFrame sf;
+    sf.left = gradient_frame(rig.left().model, fmt, CameraId::kLeft);
+    sf.right = gradient_frame(rig.right().model, fmt, CameraId::kRight);
+    StereoResult a, b;
+    // Two scenes in a row: the box changes size between frames and its buffer is reused.
+    for (const BoomArticulation art : {BoomArticulation{0.5, 0.05, 2.0}, BoomArticulation{0.6, -0.1, 4.0}}) {
+      SCOPED_TRACE(std::string(to_string(fmt)) + " extension " + std::to_string(art.extension_m));
+      const SceneState scene = contact_scene(rig, (*whole)->boom_model(), receptacle, art);
+      ASSERT_TRUE((*whole)->augment(sf, scene, a));
+      ASSERT_TRUE((*box)->augment(sf, scene, b));
+      for (int c = 0; c < 2; ++c) {
+        const Image& raw = c == 0 ? sf.left.image : sf.right.image;
+        const ViewResult& w = c == 0 ? a.left : a.right;
+        const ViewResult& v = c == 0 ? b.left : b.right;
+        ASSERT_FALSE(v.augmented_box.empty());
+        EXPECT_EQ(v.augmented.width(), v.augmented_box.x1 - v.augmented_box.x0);
+        EXPECT_EQ(v.augmented.height(), v.augmented_box.y1 - v.augmented_box.y0);
+        EXPECT_LT(v.augmented.width() * v.augmented.height(), raw.width() * raw.height() / 2);
+        EXPECT_TRUE(pixels_equal(whole_augmented(raw, v), w.augmented));
+        EXPECT_TRUE(pixels_equal(whole_augmented(raw, w), w.augmented));
+        EXPECT_TRUE(pixels_equal(v.mask, w.mask));
+        // Every change lies in the box.
+        const int bpp = bytes_per_pixel(fmt);
+        std::int64_t outside = 0;
+        for (int y = 0; y < raw.height(); ++y)
+          for (int x = 0; x < raw.width(); ++x) {
+            const PixelBox& k = w.augmented_box;
+            if (x >= k.x0 && x < k.x1 && y >= k.y0 && y < k.y1) continue;
+            outside += std::memcmp(raw.row(y) + x * bpp, w.augmented.row(y) + x * bpp, bpp) != 0;
+          }
+        EXPECT_EQ(outside, 0);
+      }
+    }
+  }
+  // No box (nothing drawn): the whole image is the raw one.
+  const Frame raw = gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+  ViewResult nothing;
+  EXPECT_TRUE(pixels_equal(whole_augmented(raw.image, nothing), raw.image));
 }
 
 TEST_P(RasterizerTest, BoomBehindTheReceiverIsNotDrawn) {
