@@ -1107,15 +1107,12 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
         const int ns = identity ? 1 : 4;
         const std::uint32_t off[4] = {0, 1, static_cast<std::uint32_t>(Wv),
                                       static_cast<std::uint32_t>(Wv) + 1};
-        std::uint32_t b[4] = {}, r[4] = {};
-        bool b_any = false, b_all = true, b_same = true, r_any = false, r_all = true, r_same = true;
-        for (int k = 0; k < ns; ++k) {
-          b[k] = bids[e.idx + off[k]];
-          r[k] = rids[e.idx + off[k]];
-          b_any |= b[k] != 0, b_all &= b[k] != 0, b_same &= b[k] == b[0];
-          r_any |= r[k] != 0, r_all &= r[k] != 0, r_same &= r[k] == r[0];
-        }
-        if (!b_any && !r_any) return;
+        // The ids read above (with one sample, all four are that sample's).
+        const std::uint32_t b[4] = {b0, b1, b2, b3}, r[4] = {r0, r1, r2, r3};
+        const bool b_any = (b0 | b1 | b2 | b3) != 0, b_all = b0 && b1 && b2 && b3,
+                   b_same = b0 == b1 && b0 == b2 && b0 == b3;
+        const bool r_any = (r0 | r1 | r2 | r3) != 0, r_all = r0 && r1 && r2 && r3,
+                   r_same = r0 == r1 && r0 == r2 && r0 == r3;
         const double x = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].x();
         const double y = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].y();
         const Eigen::Vector3d d(x, y, 1.0);
