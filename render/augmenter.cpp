@@ -1287,6 +1287,7 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   StereoClassOptions copt = options_.class_options;
   copt.compute_classes = receiver_on_ && options_.stereo_classes;
   copt.left_rays_xy = &views_[0].vp.ray_xy;
+  copt.worker = &worker();
   // The masks are zero outside the boxes this frame rendered.
   VBox content;
   for (const PixelBox& b :

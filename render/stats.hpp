@@ -16,6 +16,8 @@
 
 namespace augrig {
 
+class Worker;
+
 // Receiver depth per raw pixel centre: z (metres, camera frame, along the optical axis) of the
 // nearest receiver surface on the pixel centre's ray, whether or not the boom hides it;
 // +infinity where the ray misses the receiver.
@@ -62,6 +64,9 @@ struct StereoClassOptions {
   // augmenter's boxes); the passes visit only that. Default: the whole image.
   int content_x0 = 0, content_y0 = 0;
   int content_x1 = std::numeric_limits<int>::max(), content_y1 = std::numeric_limits<int>::max();
+  // Optional: a persistent thread (core/worker.hpp, idle during the call) for half of the classes'
+  // rows; null: a thread is started for them. Not owned.
+  Worker* worker = nullptr;
 };
 
 // The map StereoClassOptions::left_rays_xy expects: camera.undistort() of every pixel centre.

@@ -14,6 +14,8 @@
 
 #include <gtest/gtest.h>
 
+#include "core/worker.hpp"
+
 namespace augrig {
 namespace {
 
@@ -158,6 +160,41 @@ TEST(OcclusionStats, ContentBoxGivesTheSameCountsAsTheWholeImage) {
     EXPECT_EQ(boxed.right_only_px, all.right_only_px);
     EXPECT_EQ(boxed.neither_px, all.neither_px);
     EXPECT_EQ(classes_box, classes_all);
+  }
+}
+
+// Half the classes' rows on a caller's persistent thread: the same counts and classes as on a
+// thread of their own, frame after frame.
+TEST(OcclusionStats, ClassesOnAWorkerEqualThoseWithout) {
+  const int w = 203, h = 61;
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::uniform_real_distribution<float> depth(15.f, 25.f);
+  Worker worker("augrig-test");
+  for (int frame = 0; frame < 5; ++frame) {
+    Image ml = padded_mask(w, h, 3), mr = padded_mask(w, h, 3);
+    DepthImage dl = depth_filled(w, h, 20.f), dr = depth_filled(w, h, 20.f);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        ml.row(y)[x] = static_cast<std::uint8_t>(byte(rng) & 3);
+        mr.row(y)[x] = static_cast<std::uint8_t>(byte(rng) & 3);
+        dl.z_m[static_cast<std::size_t>(y) * w + x] = depth(rng);
+        dr.z_m[static_cast<std::size_t>(y) * w + x] = depth(rng);
+      }
+    const Pose T_right_left = Pose::from(Eigen::Matrix3d::Identity(), Eigen::Vector3d(-0.3, 0, 0));
+    std::vector<std::uint8_t> classes_thread, classes_worker;
+    const OcclusionStats a = compute_occlusion_stats(1, ml, mr, dl, dr, pinhole(w, h), pinhole(w, h),
+                                                     T_right_left, {}, &classes_thread);
+    StereoClassOptions opt;
+    opt.worker = &worker;
+    const OcclusionStats b = compute_occlusion_stats(1, ml, mr, dl, dr, pinhole(w, h), pinhole(w, h),
+                                                     T_right_left, opt, &classes_worker);
+    EXPECT_GT(a.stereo_both_px + a.left_only_px + a.right_only_px + a.neither_px, 0);
+    EXPECT_EQ(b.stereo_both_px, a.stereo_both_px);
+    EXPECT_EQ(b.left_only_px, a.left_only_px);
+    EXPECT_EQ(b.right_only_px, a.right_only_px);
+    EXPECT_EQ(b.neither_px, a.neither_px);
+    EXPECT_EQ(classes_worker, classes_thread);
   }
 }
 
