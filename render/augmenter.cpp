@@ -635,8 +635,9 @@ VBox AugmenterImpl::raw_box_of(const ViewState& vs, const VBox& b) const {
   if (vs.vp.identity) return intersect(b, full);
   if (b.x0 <= 0 && b.y0 <= 0 && b.x1 >= vs.vp.width && b.y1 >= vs.vp.height) return full;
   double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+  const double max_radius = cm.max_valid_radius();
   auto visit = [&](double i, double j) -> bool {
-    const auto uv = cm.project({(i - vs.vp.cx) / vs.vp.fx, (j - vs.vp.cy) / vs.vp.fy, 1.0});
+    const auto uv = cm.project({(i - vs.vp.cx) / vs.vp.fx, (j - vs.vp.cy) / vs.vp.fy, 1.0}, max_radius);
     if (!uv) return false;
     x0 = std::min(x0, uv->x()), x1 = std::max(x1, uv->x()), y0 = std::min(y0, uv->y()),
     y1 = std::max(y1, uv->y());

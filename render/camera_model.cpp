@@ -204,13 +204,17 @@ Eigen::Vector2d CameraModel::distort(const Eigen::Vector2d& xy) const {
 }
 
 std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam) const {
+  return project(p_cam, max_valid_radius());
+}
+
+std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam, double max_radius) const {
   Eigen::Vector2d d;
   if (distortion == DistortionModel::kEquidistant) {
     // Angle from the optical axis via atan2 so points beside or behind the camera work too
     // (a fisheye lens may see beyond 90 degrees).
     const double rxy = std::hypot(p_cam.x(), p_cam.y());
     const double theta = std::atan2(rxy, p_cam.z());
-    if (!(theta < max_valid_radius())) return std::nullopt;
+    if (!(theta < max_radius)) return std::nullopt;
     if (p_cam.z() > 0.0 && rxy <= 1e-8 * p_cam.z()) {
       d = distort(p_cam.head<2>() / p_cam.z());  // matches OpenCV's guard on the axis
     } else if (rxy == 0.0) {
@@ -222,7 +226,7 @@ std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam
   } else {
     if (!(p_cam.z() > 0.0)) return std::nullopt;
     const Eigen::Vector2d xy = p_cam.head<2>() / p_cam.z();
-    if (distortion == DistortionModel::kRadTan && !(xy.norm() < max_valid_radius())) return std::nullopt;
+    if (distortion == DistortionModel::kRadTan && !(xy.norm() < max_radius)) return std::nullopt;
     d = distort(xy);
   }
   return Eigen::Vector2d(fx_px * d.x() + cx_px, fy_px * d.y() + cy_px);

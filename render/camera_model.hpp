@@ -30,6 +30,8 @@ struct CameraModel {
   // Camera-frame point -> raw pixel. nullopt when z <= 0 or the point lies outside the region where
   // the distortion model is monotonic (where it would fold back into the image).
   std::optional<Eigen::Vector2d> project(const Eigen::Vector3d& p_cam) const;
+  // The same, with max_valid_radius() looked up by the caller once: for per-pixel loops.
+  std::optional<Eigen::Vector2d> project(const Eigen::Vector3d& p_cam, double max_valid_radius) const;
   // Raw pixel -> unit ray in the camera frame (iterative inversion, |residual| < 1e-9 px).
   // nullopt when the iteration does not converge (pixel outside the model's valid region).
   std::optional<Eigen::Vector3d> ray(const Eigen::Vector2d& uv_px) const;

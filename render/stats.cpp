@@ -243,13 +243,14 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
   // Snapping within this keeps the 2x2 neighbourhood from picking up a spurious extra column.
   constexpr double kSnapPx = 1e-3;
 
+  const double right_max_radius = right.max_valid_radius();  // once, not per pixel
   // Is the left receiver point z * (x, y, 1) the surface the right camera sees?
   auto visible_right = [&](double z, float x_n, float y_n) {
     if (!(z < std::numeric_limits<double>::infinity()) || x_n != x_n || y_n != y_n) return false;  // inf/NaN
     const double px = z * x_n, py = z * y_n;
     const Eigen::Vector3d p(r00 * px + r01 * py + r02 * z + tx, r10 * px + r11 * py + r12 * z + ty,
                             r20 * px + r21 * py + r22 * z + tz);
-    const auto uv = right.project(p);
+    const auto uv = right.project(p, right_max_radius);
     if (!uv) return false;
     const double u = uv->x(), v = uv->y();
     if (!(u >= -0.5 && u < u_max && v >= -0.5 && v < v_max)) return false;

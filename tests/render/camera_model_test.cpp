@@ -254,6 +254,15 @@ TEST(CameraModel, MaxValidRadiusRadTan) {
   // ... and points behind or in the plane of the camera.
   EXPECT_FALSE(m.project({0.1, 0.1, -1.0}).has_value());
   EXPECT_FALSE(m.project({0.1, 0.1, 0.0}).has_value());
+  // The overload taking the radius gives the same answers.
+  for (const Eigen::Vector3d& p : {Eigen::Vector3d(0.99 * r, 0.0, 1.0), Eigen::Vector3d(1.01 * r, 0.0, 1.0),
+                                   Eigen::Vector3d(0.3, -0.2, 2.0), Eigen::Vector3d(0.1, 0.1, -1.0)}) {
+    const auto a = m.project(p), b = m.project(p, r);
+    ASSERT_EQ(a.has_value(), b.has_value());
+    if (a) {
+      EXPECT_EQ(*a, *b);
+    }
+  }
   // A pixel beyond the fold's image radius has no ray.
   auto f = [&](double rr) {
     return rr * (1 + k[0] * rr * rr + k[1] * std::pow(rr, 4) + k[4] * std::pow(rr, 6));
