@@ -29,14 +29,20 @@ bool RasterTriangle::setup(const SampleGrid& g, const Eigen::Vector3d& p0, const
   inv_area = 1.0 / std::abs(det);
   int n_lo = 0, n_hi = 0;
   for (int k = 0; k < 3; ++k) {
-    if (ea[k] > 0)
-      lo_k[n_lo++ & 1] = k;
-    else if (ea[k] < 0)
-      hi_k[n_hi++ & 1] = k;
+    const double m = -eb[k] * inv_ea[k], q = -ec[k] * inv_ea[k];
+    if (ea[k] > 0) {
+      if (n_lo < 2) lo_m[n_lo] = m, lo_q[n_lo] = q;
+      ++n_lo;
+    } else if (ea[k] < 0) {
+      if (n_hi < 2) hi_m[n_hi] = m, hi_q[n_hi] = q;
+      ++n_hi;
+    }
   }
   two_sided = n_lo >= 1 && n_hi >= 1 && n_lo + n_hi == 3;
-  if (n_lo == 1) lo_k[1] = lo_k[0];
-  if (n_hi == 1) hi_k[1] = hi_k[0];
+  if (n_lo == 1) lo_m[1] = lo_m[0], lo_q[1] = lo_q[0];
+  if (n_hi == 1) hi_m[1] = hi_m[0], hi_q[1] = hi_q[0];
+  wy = (eb[0] + eb[1] + eb[2]) * inv_area;
+  wc = (ec[0] + ec[1] + ec[2]) * inv_area;
 
   // Bounds: the projected vertices' box when all lie in front of the camera (the projection is
   // then their convex hull), else the whole clip box (rows outside the triangle are empty spans).

@@ -39,9 +39,13 @@ struct RasterTriangle {
   bool crosses_near = false;   // some vertex nearer than the near plane: test each sample's depth
   SampleBox bounds;            // samples the triangle may cover, inside the grid
   // The usual case: one or two edges bound each row's span on the left (ea > 0) and the others
-  // on the right (ea < 0). Their indices, the single one repeated, let rows skip the sign tests.
+  // on the right (ea < 0). Edge k's bound on row Y is -(eb Y + ec) / ea = m Y + q with
+  // m = -eb / ea, q = -ec / ea; the single edge of a side is repeated. A shared edge's two
+  // triangles have exactly negated coefficients, so one's left bound is bitwise the other's right
+  // bound: no sample between them is lost. 1/z on row Y at X is wy Y + wc + wa X.
   bool two_sided = false;
-  int lo_k[2] = {}, hi_k[2] = {};
+  double lo_m[2] = {}, lo_q[2] = {}, hi_m[2] = {}, hi_q[2] = {};
+  double wy = 0, wc = 0;
 
   // False when no sample can be covered: edge-on to the camera, culled as a back face (`cull`:
   // triangles wind counter-clockwise seen from outside, render/mesh.hpp), entirely nearer than
@@ -71,10 +75,12 @@ void raster(const SampleGrid& g, const RasterTriangle& t, float* inv_z, Write&& 
     double lo = t.bounds.x0, hi = t.bounds.x1 - 1;
     bool empty = false;
     double row_c[3];
-    if (t.two_sided) {  // the same arithmetic as below, without its per-edge tests
-      for (int k = 0; k < 3; ++k) row_c[k] = t.eb[k] * y + t.ec[k];
-      lo = std::max({lo, -row_c[t.lo_k[0]] * t.inv_ea[t.lo_k[0]], -row_c[t.lo_k[1]] * t.inv_ea[t.lo_k[1]]});
-      hi = std::min({hi, -row_c[t.hi_k[0]] * t.inv_ea[t.hi_k[0]], -row_c[t.hi_k[1]] * t.inv_ea[t.hi_k[1]]});
+    double w0;
+    if (t.two_sided) {  // no per-edge tests
+      const double yd = y;
+      lo = std::max({lo, t.lo_m[0] * yd + t.lo_q[0], t.lo_m[1] * yd + t.lo_q[1]});
+      hi = std::min({hi, t.hi_m[0] * yd + t.hi_q[0], t.hi_m[1] * yd + t.hi_q[1]});
+      w0 = t.wy * yd + t.wc;
     } else {
       for (int k = 0; k < 3; ++k) {
         row_c[k] = t.eb[k] * y + t.ec[k];
@@ -85,6 +91,7 @@ void raster(const SampleGrid& g, const RasterTriangle& t, float* inv_z, Write&& 
         else if (row_c[k] < 0)
           empty = true;
       }
+      w0 = (row_c[0] + row_c[1] + row_c[2]) * t.inv_area;
     }
     if (empty || lo > hi) continue;
     // lo and hi lie in the clipped bounds, so are >= 0: truncation is floor (std::ceil and
@@ -92,7 +99,6 @@ void raster(const SampleGrid& g, const RasterTriangle& t, float* inv_z, Write&& 
     int xs = static_cast<int>(lo);
     xs += xs < lo;
     const int xe = static_cast<int>(hi);
-    const double w0 = (row_c[0] + row_c[1] + row_c[2]) * t.inv_area;
     float* row = inv_z + static_cast<std::size_t>(y) * g.width;
     const std::size_t row_index = static_cast<std::size_t>(y) * g.width;
     double xd = xs;  // x as a double, counted (exact) rather than converted
