@@ -300,10 +300,13 @@ TEST(CmdRun, StaleNavIsMarkedAndTheRunGoesOn) {
 TEST(CmdRun, DiskFullEndsTheRecordingNotTheRun) {
   const std::string dir = output_dir("cmd_run_disk_full");
   std::string out;
-  // ulimit -f counts 1024-byte blocks: 30 MB, about ten stereo frames.
+  // ulimit -f counts 1024-byte blocks: 80 MB, about 20 stereo frames (4 MB each), so that several
+  // commits (every 250 ms) land before it fills whatever the pace (at 30 MB a burst of frames at
+  // the start could fill the first transaction, leaving none committed), and the run goes on
+  // for seconds after.
   const int code =
-      run_command("ulimit -f 30000 && " + augrig_binary() +
-                      " run --source 'sim://demo?every=3' --duration 8 --headless --status-every 0 "
+      run_command("ulimit -f 80000 && " + augrig_binary() +
+                      " run --source 'sim://demo?every=3' --duration 10 --headless --status-every 0 "
                       "--record " +
                       dir + "/rec 2>&1",
                   &out);
