@@ -103,6 +103,9 @@ struct DrawItem {
   std::size_t first_tri;  // this mesh's first triangle in ViewState::tris
   bool cull;              // built-in, consistently wound meshes only
   bool texture_1d;        // a texture whose rows are all the same (bands along u)
+  // Per triangle of a texture_1d mesh: the one RGBA colour (packed) of every texel its bilinear
+  // samples can reach, or -1 where they differ. Such triangles need no texture sampling.
+  std::vector<std::int64_t> flat_texel;
   // Spatially compact triangle ranges [first, first + count) of the mesh: each gets its own
   // screen box, so a long diagonal part (the boom's tube) costs its footprint, not its bounding box.
   std::vector<std::pair<std::uint32_t, std::uint32_t>> chunks;
@@ -444,8 +447,35 @@ Status AugmenterImpl::init() {
           texture_1d = std::equal(m.texture->rgba.begin(), m.texture->rgba.begin() + row_bytes,
                                   m.texture->rgba.begin() + r * row_bytes);
       }
+      std::vector<std::int64_t> flat_texel;
+      if (texture_1d && !m.uvs.empty()) {
+        const Texture& tex = *m.texture;
+        auto texel = [&](long i) {  // packed RGBA of row 0, column i wrapped (repeat)
+          const long w = tex.width, c = ((i % w) + w) % w;
+          std::uint32_t v;
+          std::memcpy(&v, &tex.rgba[static_cast<std::size_t>(c) * 4], 4);
+          return static_cast<std::int64_t>(v);
+        };
+        flat_texel.assign(m.triangle_count(), -1);
+        for (std::size_t t = 0; t < m.triangle_count(); ++t) {
+          double u0 = 1e300, u1 = -1e300;
+          for (int j = 0; j < 3; ++j) {
+            const double u = m.uvs[m.indices[3 * t + j]].x();
+            u0 = std::min(u0, u), u1 = std::max(u1, u);
+          }
+          // Texels i and i + 1 at x = u w - 0.5, i = floor(x), over [u0, u1]; one more each side
+          // for the rounding of the per-pixel u.
+          const double x0 = u0 * tex.width - 0.5, x1 = u1 * tex.width - 0.5;
+          if (!(x1 - x0 < tex.width)) continue;
+          const long i0 = static_cast<long>(std::floor(x0)) - 1, i1 = static_cast<long>(std::floor(x1)) + 2;
+          const std::int64_t first = texel(i0);
+          bool same = true;
+          for (long i = i0 + 1; i <= i1 && same; ++i) same = texel(i) == first;
+          if (same) flat_texel[t] = first;
+        }
+      }
       draws_.push_back({kind, &m, gl::upload(m), static_cast<std::uint8_t>(draws_.size() + 1), total_tris_,
-                        cull, texture_1d, std::move(chunks)});
+                        cull, texture_1d, std::move(flat_texel), std::move(chunks)});
       total_tris_ += m.triangle_count();
     }
     return {};
@@ -728,6 +758,14 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
         sh.base[3] = 0;
         sh.texture = tex;
         sh.texture_1d = d.texture_1d;
+        if (tex && !d.flat_texel.empty() && d.flat_texel[k] >= 0) {
+          // One texel colour over the whole triangle: folded into the base colour.
+          std::uint8_t rgba[4];
+          const auto packed = static_cast<std::uint32_t>(d.flat_texel[k]);
+          std::memcpy(rgba, &packed, 4);
+          for (int a = 0; a < 3; ++a) sh.base[a] *= rgba[a] * (1.f / 255.f);
+          sh.texture = nullptr;
+        }
       }
     }
   }
