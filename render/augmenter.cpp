@@ -113,11 +113,13 @@ struct DrawItem {
 
 // A triangle in the current view's camera frame, ready for exact ray tests from the origin.
 struct CamTriangle {
-  Eigen::Vector3d v0, e1, e2, n;  // n = e1 x e2
-  double n_dot_v0;
+  // First what the ray test reads (two cache lines rather than three).
   // Planes through the camera centre and each edge, signed so that a ray from the camera passes
   // through the triangle, in front of the camera, iff all three dot products with it are >= 0.
   Eigen::Vector3d edge[3];
+  Eigen::Vector3d n;  // n = e1 x e2
+  double n_dot_v0;
+  Eigen::Vector3d v0, e1, e2;
 };
 
 // RGBA as four floats (GCC/Clang vector extensions: SSE here, NEON on ARM).
