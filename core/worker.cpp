@@ -36,6 +36,13 @@ void Worker::wait() {
   if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
 }
 
+Worker::Join::~Join() {
+  try {
+    worker.wait();
+  } catch (...) {  // reported by an explicit wait(), or moot while unwinding
+  }
+}
+
 void Worker::loop() {
   set_thread_name(name_);
   std::unique_lock lock(mutex_);

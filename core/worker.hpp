@@ -25,6 +25,13 @@ class Worker {
   // Returns when the job has finished; rethrows what it threw.
   void wait();
 
+  // Waits for the job when a scope ends, however it ends (a job using the scope's locals must
+  // not outlive them). What the job threw is dropped here: call wait() to see it.
+  struct Join {
+    Worker& worker;
+    ~Join();
+  };
+
  private:
   void loop();
 

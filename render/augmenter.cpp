@@ -362,16 +362,6 @@ class AugmenterImpl final : public Augmenter {
   bool zero_to_one_ = false;
   bool cpu_raster_ = false;
   AugmentTimings timings_;
-  // Waits for the worker's job however the scope ends: the job uses the scope's locals.
-  struct JoinOnExit {
-    Worker& w;
-    ~JoinOnExit() {
-      try {
-        w.wait();
-      } catch (...) {  // already reported by the explicit wait(), or moot while unwinding
-      }
-    }
-  };
   // Runs the left view beside the calling thread's right view; started on first use.
   std::unique_ptr<Worker> worker_;
   Worker& worker() {
@@ -1154,8 +1144,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
                    b_same = b0 == b1 && b0 == b2 && b0 == b3;
         const bool r_any = (r0 | r1 | r2 | r3) != 0, r_all = r0 && r1 && r2 && r3,
                    r_same = r0 == r1 && r0 == r2 && r0 == r3;
-        const double x = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].x();
-        const double y = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u].y();
+        const double x = ray.x(), y = ray.y();
         const Eigen::Vector3d d(x, y, 1.0);
 
         // An object's depth at the pixel centre from its samples' ids: read off when one triangle
@@ -1295,7 +1284,7 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
     };
     std::pair<double, double> left_ms;
     worker().start([&] { left_ms = view(0, frame.left, out.left); });
-    const JoinOnExit join{worker()};
+    const Worker::Join join{worker()};
     const auto [right_raster, right_resolve] = view(1, frame.right, out.right);
     worker().wait();
     const auto [left_raster, left_resolve] = left_ms;
@@ -1312,7 +1301,7 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
       resolve_view(views_[0], frame.left, out.left);
       left_cpu_ms = ms(Clock::now() - a);
     });
-    const JoinOnExit join{worker()};
+    const Worker::Join join{worker()};
     prepare_view(views_[1], scene);
     render_view(views_[1], scene);
     const auto t2 = Clock::now();

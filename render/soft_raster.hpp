@@ -74,7 +74,6 @@ void raster(const SampleGrid& g, const RasterTriangle& t, float* inv_z, Write&& 
     // The row's span: where all three edge functions are >= 0.
     double lo = t.bounds.x0, hi = t.bounds.x1 - 1;
     bool empty = false;
-    double row_c[3];
     double w0;
     if (t.two_sided) {  // no per-edge tests
       const double yd = y;
@@ -82,6 +81,7 @@ void raster(const SampleGrid& g, const RasterTriangle& t, float* inv_z, Write&& 
       hi = std::min({hi, t.hi_m[0] * yd + t.hi_q[0], t.hi_m[1] * yd + t.hi_q[1]});
       w0 = t.wy * yd + t.wc;
     } else {
+      double row_c[3];
       for (int k = 0; k < 3; ++k) {
         row_c[k] = t.eb[k] * y + t.ec[k];
         if (t.ea[k] > 0)
@@ -99,8 +99,8 @@ void raster(const SampleGrid& g, const RasterTriangle& t, float* inv_z, Write&& 
     int xs = static_cast<int>(lo);
     xs += xs < lo;
     const int xe = static_cast<int>(hi);
-    float* row = inv_z + static_cast<std::size_t>(y) * g.width;
     const std::size_t row_index = static_cast<std::size_t>(y) * g.width;
+    float* row = inv_z + row_index;
     double xd = xs;  // x as a double, counted (exact) rather than converted
     for (int x = xs; x <= xe; ++x, xd += 1.0) {
       const double w = w0 + wa * xd;

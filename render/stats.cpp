@@ -305,18 +305,16 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
     }
     return counts;
   };
+  // Even rows on the caller's worker, or a thread of their own; odd rows here.
   Counts counts{};
-  if (options.worker) {
+  std::future<void> even;
+  if (options.worker)
     options.worker->start([&] { counts = classify_rows(cy0); });
-    const Counts odd = classify_rows(cy0 + 1);  // allocates nothing, throws nothing
-    options.worker->wait();
-    for (int k = 0; k < 5; ++k) counts[k] += odd[k];
-  } else {
-    auto even = std::async(std::launch::async, classify_rows, cy0);
-    const Counts odd = classify_rows(cy0 + 1);
-    counts = even.get();
-    for (int k = 0; k < 5; ++k) counts[k] += odd[k];
-  }
+  else
+    even = std::async(std::launch::async, [&] { counts = classify_rows(cy0); });
+  const Counts odd = classify_rows(cy0 + 1);  // allocates nothing, throws nothing
+  options.worker ? options.worker->wait() : even.get();
+  for (int k = 0; k < 5; ++k) counts[k] += odd[k];
   const std::int64_t both = counts[static_cast<int>(StereoClass::kBoth)];
   const std::int64_t left_only = counts[static_cast<int>(StereoClass::kLeftOnly)];
   const std::int64_t right_only = counts[static_cast<int>(StereoClass::kRightOnly)];

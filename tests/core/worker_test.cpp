@@ -69,6 +69,21 @@ TEST(Worker, WaitRethrowsWhatTheJobThrewAndTheWorkerGoesOn) {
   EXPECT_EQ(ran, 1);
 }
 
+TEST(Worker, JoinWaitsWhenItsScopeEndsEvenByAnException) {
+  Worker w("augrig-test");
+  std::atomic<bool> finished{false};
+  try {
+    w.start([&] {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      finished = true;
+    });
+    const Worker::Join join{w};
+    throw std::runtime_error("the caller's own work failed");
+  } catch (const std::runtime_error&) {
+    EXPECT_TRUE(finished);  // the job was over before the scope's locals went
+  }
+}
+
 TEST(Worker, DestructorWaitsForTheJobInProgress) {
   std::atomic<bool> finished{false};
   {
