@@ -127,10 +127,15 @@ std::int64_t lane_sum(std::uint64_t v) {
   return static_cast<std::int64_t>((v * 0x0001000100010001ull) >> 48);
 }
 
-// Rows [y0, y1) and columns [x0, w) of the masks (columns from x0 rounded down to a word).
-MaskCounts count_masks(const Image& ml, const Image& mr, int x0, int y0, int w, int y1) {
+void add(MaskCounts& a, const MaskCounts& b) {
+  a.rl += b.rl, a.rr += b.rr, a.bl += b.bl, a.br += b.br, a.ov += b.ov, a.ol += b.ol, a.orr += b.orr;
+}
+
+// Rows y0, y0 + step, ... below y1 and columns [x0, w) of the masks (columns from x0 rounded down
+// to a word).
+MaskCounts count_masks(const Image& ml, const Image& mr, int x0, int y0, int w, int y1, int step = 1) {
   MaskCounts c;
-  for (int y = y0; y < y1; ++y) {
+  for (int y = y0; y < y1; y += step) {
     const std::uint8_t* a = ml.row(y);
     const std::uint8_t* b = mr.row(y);
     int x = x0 & ~7;
@@ -190,24 +195,26 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
   // Only the content box can hold mask bits.
   const int cx0 = std::clamp(options.content_x0, 0, w), cx1 = std::clamp(options.content_x1, cx0, w);
   const int cy0 = std::clamp(options.content_y0, 0, h), cy1 = std::clamp(options.content_y1, cy0, h);
-  const MaskCounts c = count_masks(mask_left, mask_right, cx0, cy0, cx1, cy1);
-  s.receiver_px_left = c.rl;
-  s.receiver_px_right = c.rr;
-  s.boom_px_left = c.bl;
-  s.boom_px_right = c.br;
-  s.boom_overlap_px = c.ov;
-  s.occluded_px_left = c.ol;
-  s.occluded_px_right = c.orr;
-  const std::int64_t area = static_cast<std::int64_t>(n);
-  s.boom_overlap_pct_union = pct(s.boom_overlap_px, s.boom_px_left + s.boom_px_right - s.boom_overlap_px);
-  s.occluded_pct_left = pct(s.occluded_px_left, s.receiver_px_left);
-  s.occluded_pct_right = pct(s.occluded_px_right, s.receiver_px_right);
-  s.receiver_pct_left = pct(s.receiver_px_left, area);
-  s.receiver_pct_right = pct(s.receiver_px_right, area);
-  s.boom_pct_left = pct(s.boom_px_left, area);
-  s.boom_pct_right = pct(s.boom_px_right, area);
-
+  auto set_mask_counts = [&](const MaskCounts& c) {
+    s.receiver_px_left = c.rl;
+    s.receiver_px_right = c.rr;
+    s.boom_px_left = c.bl;
+    s.boom_px_right = c.br;
+    s.boom_overlap_px = c.ov;
+    s.occluded_px_left = c.ol;
+    s.occluded_px_right = c.orr;
+    const std::int64_t area = static_cast<std::int64_t>(n);
+    s.boom_overlap_pct_union = pct(s.boom_overlap_px, s.boom_px_left + s.boom_px_right - s.boom_overlap_px);
+    s.occluded_pct_left = pct(s.occluded_px_left, s.receiver_px_left);
+    s.occluded_pct_right = pct(s.occluded_px_right, s.receiver_px_right);
+    s.receiver_pct_left = pct(s.receiver_px_left, area);
+    s.receiver_pct_right = pct(s.receiver_px_right, area);
+    s.boom_pct_left = pct(s.boom_px_left, area);
+    s.boom_pct_right = pct(s.boom_px_right, area);
+  };
   if (!options.compute_classes) {
+    // The masks alone: one pass over the content box on this thread.
+    set_mask_counts(count_masks(mask_left, mask_right, cx0, cy0, cx1, cy1));
     if (classes_out) classes_out->clear();
     return s;
   }
@@ -217,8 +224,8 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
       right.width_px != mask_right.width() || right.height_px != mask_right.height())
     throw std::invalid_argument("compute_occlusion_stats: camera size differs from its mask's size");
 
-  if (classes_out) classes_out->assign(n, static_cast<std::uint8_t>(StereoClass::kNone));
-  if (s.receiver_px_left == 0) return s;
+  // Every class is written by the two threads below, row by row (kNone outside the receiver).
+  if (classes_out) classes_out->resize(n);
 
   // Normalised pixel-centre coordinates of the left camera: caller's map or the cached one.
   std::shared_ptr<const std::vector<Eigen::Vector2f>> owned;
@@ -273,17 +280,32 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
            (y1 != y0 && (near(x0, y1) || (x1 != x0 && near(x1, y1))));
   };
 
-  // Every second row from y_begin into counts (by StereoClass): two threads take alternate rows,
-  // which shares the receiver between them wherever it lies in the box.
+  // Every second row from y_begin: the mask counts, the class image and the class counts (by
+  // StereoClass). Two threads take alternate rows, which shares the receiver between them wherever
+  // it lies in the box.
   constexpr std::uint64_t kReceiverLanes = kLanes * kMaskReceiver;
   using Counts = std::array<std::int64_t, 5>;
-  auto classify_rows = [&](int y_begin) {
-    Counts counts{};
+  struct Pass {
+    MaskCounts masks;
+    Counts classes{};
+  };
+  auto classify_rows = [&](int parity) {
+    Pass pass;
+    if (classes_out)
+      for (int y = parity; y < h; y += 2)
+        if (y < cy0 || y >= cy1)
+          std::memset(classes_out->data() + static_cast<std::size_t>(y) * w,
+                      static_cast<int>(StereoClass::kNone), static_cast<std::size_t>(w));
+    const int y_begin = cy0 + ((cy0 & 1) != parity);
+    add(pass.masks, count_masks(mask_left, mask_right, cx0, y_begin, cx1, cy1, 2));
+    if (pass.masks.rl == 0 && !classes_out) return pass;  // no left receiver pixel in these rows
+    Counts& counts = pass.classes;
     for (int y = y_begin; y < cy1; y += 2) {
       const std::uint8_t* ml = mask_left.row(y);
       const float* zl = receiver_depth_left.z_m.data() + static_cast<std::size_t>(y) * w;
       const Eigen::Vector2f* ry = rays->data() + static_cast<std::size_t>(y) * w;
       std::uint8_t* cls = classes_out ? classes_out->data() + static_cast<std::size_t>(y) * w : nullptr;
+      if (cls) std::memset(cls, static_cast<int>(StereoClass::kNone), static_cast<std::size_t>(w));
       for (int x = cx0 & ~7; x < cx1; ++x) {
         if ((x & 7) == 0 && x + 8 <= cx1) {  // skip 8 receiver-free pixels at once
           std::uint64_t v8;
@@ -303,18 +325,22 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
         if (cls) cls[x] = static_cast<std::uint8_t>(c);
       }
     }
-    return counts;
+    return pass;
   };
   // Even rows on the caller's worker, or a thread of their own; odd rows here.
-  Counts counts{};
+  Pass even_pass;
   std::future<void> even;
   if (options.worker)
-    options.worker->start([&] { counts = classify_rows(cy0); });
+    options.worker->start([&] { even_pass = classify_rows(0); });
   else
-    even = std::async(std::launch::async, [&] { counts = classify_rows(cy0); });
-  const Counts odd = classify_rows(cy0 + 1);  // allocates nothing, throws nothing
+    even = std::async(std::launch::async, [&] { even_pass = classify_rows(0); });
+  const Pass odd = classify_rows(1);  // allocates nothing, throws nothing
   options.worker ? options.worker->wait() : even.get();
-  for (int k = 0; k < 5; ++k) counts[k] += odd[k];
+  MaskCounts masks = even_pass.masks;
+  add(masks, odd.masks);
+  set_mask_counts(masks);
+  Counts counts = even_pass.classes;
+  for (int k = 0; k < 5; ++k) counts[k] += odd.classes[k];
   const std::int64_t both = counts[static_cast<int>(StereoClass::kBoth)];
   const std::int64_t left_only = counts[static_cast<int>(StereoClass::kLeftOnly)];
   const std::int64_t right_only = counts[static_cast<int>(StereoClass::kRightOnly)];
