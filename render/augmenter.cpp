@@ -158,8 +158,11 @@ struct ViewState {
   std::vector<std::uint32_t> boom_ids, recv_ids;   // virtual image, packed ids; zero outside the last boxes
   std::vector<std::uint8_t> boom_rgba, recv_rgba;  // virtual image colour (recv only for overlays)
   std::vector<float> inv_z;          // CPU rasteriser's depth (1/z); zero outside the last boxes
+  // A raw row of DepthImage::kNone: copied over depth rows to clear them (a copy is vectorised,
+  // std::fill_n of a float pattern is a scalar loop at -O2).
+  std::vector<float> no_depth_row;
   std::vector<BoomShading> shading;  // CPU rasteriser: per boom triangle drawn this frame
-  // CPU rasteriser: which kBlock x kBlock blocks of the virtual image it wrote this frame, and per
+  // CPU rasteriser: which kBlock x kBlock blocks of the virtual image a triangle's row spans touched this frame, and per
   // group of kGroup raw pixels of a row, the blocks their 2x2 sample neighbourhoods lie in.
   std::vector<std::uint8_t> occupied;
   int blocks_x = 0;
@@ -984,9 +987,10 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   {  // receiver depth is written only where the receiver is, inside its box
     const VBox c =
         intersect({out.receiver_box.x0, out.receiver_box.y0, out.receiver_box.x1, out.receiver_box.y1}, full);
+    if (vs.no_depth_row.size() != static_cast<std::size_t>(W)) vs.no_depth_row.assign(W, DepthImage::kNone);
     for (int y = c.y0; y < c.y1; ++y)
-      std::fill_n(&out.receiver_depth.z_m[static_cast<std::size_t>(y) * W + c.x0], c.x1 - c.x0,
-                  DepthImage::kNone);
+      std::memcpy(&out.receiver_depth.z_m[static_cast<std::size_t>(y) * W + c.x0], vs.no_depth_row.data(),
+                  sizeof(float) * static_cast<std::size_t>(std::max(c.x1 - c.x0, 0)));
   }
   // Raw pixels to visit: the union of the boxes' raw images, row by row, each pixel once.
   std::vector<VBox>& raw_boxes = vs.raw_boxes;
@@ -1219,7 +1223,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
         }
       };
       // Groups of kGroup raw pixels whose virtual samples hold nothing are skipped whole (CPU
-      // rasteriser: it marks the blocks it writes).
+      // rasteriser: it marks the blocks its spans touch).
       for (std::size_t si = 0; si < n_spans; ++si)
         for (int g0 = spans[si].first; g0 < spans[si].second;) {
           const int g1 = std::min(spans[si].second, (g0 / kGroup + 1) * kGroup);
