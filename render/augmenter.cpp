@@ -162,7 +162,7 @@ struct ViewState {
   // std::fill_n of a float pattern is a scalar loop at -O2).
   std::vector<float> no_depth_row;
   std::vector<BoomShading> shading;  // CPU rasteriser: per boom triangle drawn this frame
-  // CPU rasteriser: which kBlock x kBlock blocks of the virtual image a triangle's row spans touched this frame, and per
+  // CPU rasteriser: which kBlock x kBlock blocks of the virtual image it wrote this frame, and per
   // group of kGroup raw pixels of a row, the blocks their 2x2 sample neighbourhoods lie in.
   std::vector<std::uint8_t> occupied;
   int blocks_x = 0;
@@ -1223,7 +1223,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
         }
       };
       // Groups of kGroup raw pixels whose virtual samples hold nothing are skipped whole (CPU
-      // rasteriser: it marks the blocks its spans touch).
+      // rasteriser: it marks the blocks it writes).
       for (std::size_t si = 0; si < n_spans; ++si)
         for (int g0 = spans[si].first; g0 < spans[si].second;) {
           const int g1 = std::min(spans[si].second, (g0 / kGroup + 1) * kGroup);
