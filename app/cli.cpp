@@ -84,10 +84,22 @@ void write_png(const fs::path& path, const Image& image) {
   check(write_image_file(path.string(), image));
 }
 
-void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoResult& r) {
+recorder::FrameRecord frame_record(const StereoResult& r) {
+  recorder::FrameRecord fr;
+  fr.augmented = {r.left.augmented, r.right.augmented};
+  // The changed-box output made only the boxes (an image of the box's size).
+  for (const ViewResult* v : {&r.left, &r.right})
+    if (v->augmented.width() == v->augmented_box.width() && v->augmented.height() == v->augmented_box.height())
+      fr.augmented_box[v == &r.left ? 0 : 1] = v->augmented_box;
+  fr.mask = {r.left.mask, r.right.mask};
+  fr.stats = r.stats;
+  return fr;
+}
+
+void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoFrame& raw, const StereoResult& r) {
   const std::string l = n.left + ".png", rr = n.right + ".png";
-  write_png(out / "left" / "augmented" / l, r.left.augmented);
-  write_png(out / "right" / "augmented" / rr, r.right.augmented);
+  write_png(out / "left" / "augmented" / l, whole_augmented(raw.left.image, r.left));
+  write_png(out / "right" / "augmented" / rr, whole_augmented(raw.right.image, r.right));
   write_png(out / "left" / "mask" / l, r.left.mask);
   write_png(out / "right" / "mask" / rr, r.right.mask);
   write_png(out / "vis" / "boom_overlap" / l, visualize_boom_overlap(r.left.mask, r.right.mask));

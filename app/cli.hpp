@@ -15,6 +15,7 @@
 #include "app/commands.hpp"
 #include "core/expected.hpp"
 #include "core/frame.hpp"
+#include "recorder/record.hpp"
 #include "render/augmenter.hpp"
 #include "render/boom_control.hpp"
 #include "render/gl_context.hpp"
@@ -91,8 +92,14 @@ struct FrameNames {
   std::string left, right;
 };
 void write_png(const fs::path& path, const Image& image);
-// Everything `augment` and `demo` write for one stereo frame (docs/CLI.md gives the layout).
-void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoResult& r);
+// Everything `augment` and `demo` write for one stereo frame (docs/CLI.md gives the layout); `raw`
+// is the frame `r` was made from (its augmented images may be the changed boxes only).
+void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoFrame& raw, const StereoResult& r);
+
+// A frame for the recorder from what the augmenter made: the augmented images as made (whole, or
+// only their changed boxes: AugmentedOutput), the masks and the statistics. The caller adds the
+// raw frame, the poses and the boom.
+recorder::FrameRecord frame_record(const StereoResult& r);
 
 // stats.csv, one row per stereo frame, flushed per row so a failed run keeps what it counted.
 class StatsCsv {

@@ -68,11 +68,11 @@ cv::Mat contact_tile(const Image& rgb, const std::string& label) {
 }
 
 // demo.png: a 2x2 montage of the last frame (images are RGB here; converted to BGR on write).
-Image contact_sheet(const Frame& raw_left, const StereoResult& r) {
-  const Image raw = to_rgb8(raw_left.image);
+Image contact_sheet(const StereoFrame& stereo, const StereoResult& r) {
+  const Image raw = to_rgb8(stereo.left.image);
   const cv::Mat tiles[4] = {
-      contact_tile(to_rgb8(r.left.augmented), "left camera, augmented"),
-      contact_tile(to_rgb8(r.right.augmented), "right camera, augmented"),
+      contact_tile(to_rgb8(whole_augmented(stereo.left.image, r.left)), "left camera, augmented"),
+      contact_tile(to_rgb8(whole_augmented(stereo.right.image, r.right)), "right camera, augmented"),
       contact_tile(blend_over(raw, visualize_boom_overlap(r.left.mask, r.right.mask)),
                    "boom: left cyan, right blue, both green"),
       contact_tile(blend_over(raw, visualize_receiver_occlusion(r.left.mask, true)),
@@ -125,6 +125,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
   const BoomArg boom_arg = parse_boom_arg(a.get("boom"));
   AugmentOptions options;
   options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+  options.augmented_output = AugmentedOutput::kChangedBox;  // whole images only for the PNG files
   const std::string which = a.get("scenario", "demo");
   const bool is_file = which.find('/') != std::string::npos || which.ends_with(".yaml");
   sim::Scenario scenario = unwrap(is_file ? sim::load_scenario(which) : sim::builtin_scenario(which));
@@ -268,17 +269,14 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
     est_rows.push_back(right.row(stereo.right.sequence, 1, stereo.right.t_ns));
     const sim::FrameTruth& tl = truth_of.at({stereo.left.sequence, 0});
     if (rec) {
-      recorder::FrameRecord fr;
+      recorder::FrameRecord fr = frame_record(result);
       fr.raw = stereo;
-      fr.augmented = {result.left.augmented, result.right.augmented};
-      fr.mask = {result.left.mask, result.right.mask};
       fr.T_cam_receiver = {left.camera.T_a_receiver, right.camera.T_a_receiver};
       fr.T_body_receiver = left.body.T_a_receiver;
       fr.receiver_present = true;
       fr.sigma_pos_m = left.body.sigma_position_m();
       fr.sigma_att_deg = rad_to_deg(left.body.sigma_attitude_rad());
       fr.boom = scene.boom;
-      fr.stats = result.stats;
       rec->push(std::move(fr));  // never blocks; a drop is counted in the recording's ledger
     }
     true_rows.push_back(sim::pose_row(tl));
@@ -299,7 +297,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
       t0 = Clock::now();
       char stem[32];
       std::snprintf(stem, sizeof stem, "frame_%04d", i);
-      write_frame_outputs(out_dir, {stem, stem}, result);
+      write_frame_outputs(out_dir, {stem, stem}, stereo, result);
       write_ms += ms_since(t0);
     }
     if ((i + 1) % 30 == 0 || last) {
@@ -315,7 +313,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
     }
   }
   t0 = Clock::now();
-  check(write_image_file((out_dir / "demo.png").string(), contact_sheet(stereo.left, result), 3));
+  check(write_image_file((out_dir / "demo.png").string(), contact_sheet(stereo, result), 3));
   nav::CsvWriteOptions po;
   po.clock = ClockDomain::kDevice;  // t_ns is the camera's stamp; t_nav_ns is GPS time
   po.metadata["t_nav_ns"] = "gps";

@@ -152,6 +152,7 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out)
   const SceneState scene = unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, receiver.receptacle_m));
   AugmentOptions options;
   options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+  options.augmented_output = AugmentedOutput::kChangedBox;  // whole images only for the PNG files
   options.receiver_model = receiver.model;
   std::optional<StatsCsv> csv;
   if (a.has("out")) {
@@ -182,13 +183,10 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out)
     result.stats.t_ns = frame.t_key_ns;
     if (csv) csv->add(result.stats);
     if (rec_out) {
-      recorder::FrameRecord fr;
+      recorder::FrameRecord fr = frame_record(result);
       fr.raw = frame;
-      fr.augmented = {result.left.augmented, result.right.augmented};
-      fr.mask = {result.left.mask, result.right.mask};
       fr.T_body_receiver = scene.T_body_receiver;
       fr.boom = scene.boom;
-      fr.stats = result.stats;
       rec_out->push(std::move(fr));
     }
     all.push_back(result.stats);
@@ -244,6 +242,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (a.has("every") && !a.has("out")) usage_error("--every needs --out (where the images go)");
   AugmentOptions options;
   options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+  options.augmented_output = AugmentedOutput::kChangedBox;  // whole images only for the PNG files
 
   // The recording, the rig and the scene are read and checked before the GL context exists.
   auto source = unwrap(recorder::ReplaySource::open(pos[0], o));
@@ -377,16 +376,13 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
     augment_ms += augmenter->timings().total_ms;
     result.stats.t_ns = frame.t_key_ns;
     if (rec_out) {
-      recorder::FrameRecord fr;
+      recorder::FrameRecord fr = frame_record(result);
       fr.raw = frame;
-      fr.augmented = {result.left.augmented, result.right.augmented};
-      fr.mask = {result.left.mask, result.right.mask};
       fr.T_body_receiver = scene->T_body_receiver;
       fr.receiver_present = scene->receiver_present;
       for (int c = 0; c < 2; ++c) fr.T_cam_receiver[c] = rig.cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
       fr.sigma_pos_m = rec.sigma_pos_m, fr.sigma_att_deg = rec.sigma_att_deg;
       fr.boom = scene->boom;
-      fr.stats = result.stats;
       rec_out->push(std::move(fr));
     }
     if (rec.stats) {
@@ -399,7 +395,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
         std::ostringstream stem;
         if (o.passes > 1) stem << "pass" << source->pass() << "_";
         stem << std::setw(6) << std::setfill('0') << index;
-        write_frame_outputs(out_dir, {stem.str(), stem.str()}, result);
+        write_frame_outputs(out_dir, {stem.str(), stem.str()}, frame, result);
       }
     }
     all.push_back(result.stats);

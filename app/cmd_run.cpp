@@ -507,6 +507,9 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     const auto gl = make_gl_context();
     AugmentOptions aug_options;
     aug_options.receiver_model = receiver.model;
+    // Only the boxes the boom changes: the recorder stores no more; the window and the PNG files
+    // get whole images made for them.
+    aug_options.augmented_output = AugmentedOutput::kChangedBox;
     const auto augmenter = unwrap(Augmenter::create(*rig, aug_options));
     rasterizer = augmenter->rasterizer();
     for (;;) {
@@ -631,7 +634,14 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
             if (every && all.frames() % static_cast<std::size_t>(every) == 0) {
               std::ostringstream stem;
               stem << std::setw(6) << std::setfill('0') << frame.pair_sequence;
-              write_frame_outputs(a.get("out"), {stem.str(), stem.str()}, result);
+              write_frame_outputs(a.get("out"), {stem.str(), stem.str()}, frame, result);
+            }
+            // The recorder takes the boxes (copied here); the window then gets whole images.
+            std::optional<recorder::FrameRecord> fr;
+            if (rec && recording_on) fr = frame_record(result);
+            if (display && !paused) {
+              make_whole_augmented(frame.left.image, result.left);
+              make_whole_augmented(frame.right.image, result.right);
             }
             if (!paused) {
               shown_id++;
@@ -651,21 +661,17 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
                 latency_recorder.add(static_cast<double>(ns) / 1e6);
                 recorder_hist.add(ns);
               }
-              recorder::FrameRecord fr;
-              fr.raw = std::move(frame);
-              fr.augmented = {result.left.augmented, result.right.augmented};
-              fr.mask = {result.left.mask, result.right.mask};
-              fr.T_body_receiver = scene->T_body_receiver;
-              fr.receiver_present = scene->receiver_present;
+              fr->raw = std::move(frame);
+              fr->T_body_receiver = scene->T_body_receiver;
+              fr->receiver_present = scene->receiver_present;
               for (int c = 0; c < 2; ++c)
-                fr.T_cam_receiver[c] = rig->cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
+                fr->T_cam_receiver[c] = rig->cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
               if (frame_nav.pose && !fixed_scene && live_nav) {
-                fr.sigma_pos_m = frame_nav.hud.sigma_pos_m;
-                fr.sigma_att_deg = frame_nav.hud.sigma_att_deg;
+                fr->sigma_pos_m = frame_nav.hud.sigma_pos_m;
+                fr->sigma_att_deg = frame_nav.hud.sigma_att_deg;
               }
-              fr.boom = scene->boom;
-              fr.stats = result.stats;
-              rec->push(std::move(fr));
+              fr->boom = scene->boom;
+              rec->push(std::move(*fr));
             }
             all.add(result.stats);
           }

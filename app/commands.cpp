@@ -208,7 +208,7 @@ int augment(const std::vector<std::string>& args, std::ostream& out) {
     check(augmenter->augment(frame, sc.scene, result));
     augment_ms += augmenter->timings().total_ms;
     result.stats.t_ns = t_ns;
-    write_frame_outputs(out_dir, {lp.stem().string(), rp.stem().string()}, result);
+    write_frame_outputs(out_dir, {lp.stem().string(), rp.stem().string()}, frame, result);
     csv.add(result.stats);
     all.push_back(result.stats);
   }

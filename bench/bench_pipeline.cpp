@@ -1,13 +1,15 @@
 // bench_pipeline: issue 4's end-to-end figure, replay -> augment -> record losslessly (raw,
 // augmented and masks of both cameras, 1280x960), against the naive baseline in the same run:
 // replay -> augment -> every image written as PNG with cv::imwrite.
-//   build/bench_pipeline [--frames N] [--png-frames M]
+//   build/bench_pipeline [--frames N] [--png-frames M] [--format bayer|rgb8|both]
 // The input recording is made first (not timed) from the built-in demo flight's cameras: the
-// synthetic renderer's frames of the approach, with the receiver and boom of the scenario's truth.
+// synthetic renderer's frames of the approach, with the receiver and boom of the scenario's truth,
+// as BayerRG8 (what GigE cameras deliver) and as RGB8 (what the demo renders), one after the other.
 // Timed: ReplaySource reads (as fast as possible) -> Augmenter (boom + receiver + stereo classes)
 // -> Recorder::push (the producer waits while the recorder's queue is full: nothing is dropped),
 // until close() has committed everything.
 #include <chrono>
+#include <ctime>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -29,6 +31,13 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
+// CPU time of the whole process (every thread), seconds.
+double process_cpu_s() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
@@ -46,23 +55,19 @@ void write_png(const fs::path& p, const Image& im) {
   if (!write_png_file(p.string(), im)) std::exit(1);
 }
 
-}  // namespace
+// One format's figures.
+struct Figures {
+  double rec_fps = 0, rec_aug_ms = 0, png_fps = 0, png_aug_ms = 0;
+  double rec_cpu_ms = 0, png_cpu_ms = 0;  // CPU time of all threads per stereo frame
+};
 
-int main(int argc, char** argv) {
-  int frames = 120, png_frames = 20;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string a = argv[i];
-    if (a == "--frames") frames = std::atoi(argv[i + 1]);
-    if (a == "--png-frames") png_frames = std::atoi(argv[i + 1]);
-  }
-  const fs::path dir = fs::temp_directory_path() / "augrig_bench_pipeline";
+// Records the input in `format` (not timed), then times replay -> augment -> Recorder and
+// replay -> augment -> PNG over it.
+Figures run_format(PixelFormat format, int frames, int png_frames, const fs::path& dir) {
   fs::remove_all(dir);
-  auto ctx = need(create_gl_context(GlBackend::kEglHeadless), "GL context");
-  std::printf("bench_pipeline: %s, %u hardware threads\n", ctx->renderer().c_str(),
-              std::thread::hardware_concurrency());
-
   // The input: the demo flight's last `frames` stereo frames, recorded raw (not timed).
   sim::Scenario scenario = need(sim::builtin_scenario("demo"), "scenario");
+  scenario.sensors.cameras.format = format;
   const sim::Flight flight = need(sim::Flight::create(scenario), "flight");
   const sim::SensorLogs logs = sim::simulate_sensors(scenario, flight);
   std::vector<sim::FrameTruth> truths = sim::frame_truths(scenario, flight, logs.cameras);
@@ -84,11 +89,13 @@ int main(int argc, char** argv) {
       fr.raw.right.camera = CameraId::kRight;
       while (!rec->push(recorder::FrameRecord(fr))) std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
-    if (!rec->close()) return 1;
+    if (!rec->close()) std::exit(1);
   }
   const std::size_t n = truths.size() / 2;
-
   AugmentOptions options;
+  // As `augrig run` and `replay` do: the augmenter makes only the boxes the boom changes and the
+  // recorder stores them as they are (the PNG baseline gets whole images made from them).
+  options.augmented_output = AugmentedOutput::kChangedBox;
   Eigen::Vector3d receptacle;
   options.receiver_model = std::make_shared<const Model>(make_builtin_receiver(&receptacle));
   auto augmenter = need(Augmenter::create(scenario.rig, options), "augmenter");
@@ -121,38 +128,81 @@ int main(int argc, char** argv) {
   info.rig_yaml = rig_to_yaml(scenario.rig);
   auto out = need(recorder::Recorder::create((dir / "output").string(), info), "output recording");
   const auto t0 = Clock::now();
+  const double cpu0 = process_cpu_s();
   auto [rec_fps_loop, rec_aug_ms] = run(n, [&](const StereoFrame& f, const StereoResult& r) {
     recorder::FrameRecord fr;
     fr.raw = f;
     fr.augmented = {r.left.augmented, r.right.augmented};
+    fr.augmented_box = {r.left.augmented_box, r.right.augmented_box};
     fr.mask = {r.left.mask, r.right.mask};
     fr.stats = r.stats;
     while (!out->push(std::move(fr))) std::this_thread::sleep_for(std::chrono::microseconds(200));
   });
   (void)rec_fps_loop;
-  if (!out->close()) return 1;
+  if (!out->close()) std::exit(1);
   const double rec_fps = static_cast<double>(n) / seconds_since(t0);
+  const double rec_cpu_ms = 1e3 * (process_cpu_s() - cpu0) / static_cast<double>(n);
 
   // PNG sink: six images per stereo frame.
   const std::size_t m = std::min<std::size_t>(n, static_cast<std::size_t>(png_frames));
   fs::create_directories(dir / "png");
   std::size_t k = 0;
+  const double cpu1 = process_cpu_s();
   auto [png_fps, png_aug_ms] = run(m, [&](const StereoFrame& f, const StereoResult& r) {
     const std::string s = std::to_string(k++);
     write_png(dir / "png" / ("raw_l" + s + ".png"), f.left.image);
     write_png(dir / "png" / ("raw_r" + s + ".png"), f.right.image);
-    write_png(dir / "png" / ("aug_l" + s + ".png"), r.left.augmented);
-    write_png(dir / "png" / ("aug_r" + s + ".png"), r.right.augmented);
+    write_png(dir / "png" / ("aug_l" + s + ".png"), whole_augmented(f.left.image, r.left));
+    write_png(dir / "png" / ("aug_r" + s + ".png"), whole_augmented(f.right.image, r.right));
     write_png(dir / "png" / ("mask_l" + s + ".png"), r.left.mask);
     write_png(dir / "png" / ("mask_r" + s + ".png"), r.right.mask);
   });
 
-  std::printf("%zu stereo frames 1280x960 RGB8 of the demo flight (boom + receiver + stereo classes)\n\n", n);
-  std::printf("| pipeline                                   | stereo fps | augment ms/frame |\n");
-  std::printf("|--------------------------------------------|-----------:|-----------------:|\n");
-  std::printf("| replay -> augment -> Recorder (lossless)   | %10.1f | %16.1f |\n", rec_fps, rec_aug_ms);
-  std::printf("| replay -> augment -> PNG (cv::imwrite) x6  | %10.1f | %16.1f |\n", png_fps, png_aug_ms);
-  std::printf("ratio recorder / PNG: %.1f x; target (issue 4): 120 stereo fps\n", rec_fps / png_fps);
+  const double png_cpu_ms = 1e3 * (process_cpu_s() - cpu1) / static_cast<double>(m);
   fs::remove_all(dir);
+  return {rec_fps, rec_aug_ms, png_fps, png_aug_ms, rec_cpu_ms, png_cpu_ms};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int frames = 120, png_frames = 20;
+  std::vector<PixelFormat> formats = {PixelFormat::kBayerRG8, PixelFormat::kRGB8};
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string a = argv[i];
+    if (a == "--frames") frames = std::atoi(argv[i + 1]);
+    if (a == "--png-frames") png_frames = std::atoi(argv[i + 1]);
+    if (a == "--format") {
+      const std::string f = argv[i + 1];
+      if (f == "bayer")
+        formats = {PixelFormat::kBayerRG8};
+      else if (f == "rgb8")
+        formats = {PixelFormat::kRGB8};
+      else if (f != "both") {
+        std::fprintf(stderr, "bench_pipeline: --format: expected bayer, rgb8 or both, got %s\n", f.c_str());
+        return 2;
+      }
+    }
+  }
+  const fs::path dir = fs::temp_directory_path() / "augrig_bench_pipeline";
+  auto ctx = need(create_gl_context(GlBackend::kEglHeadless), "GL context");
+  std::printf("bench_pipeline: %s, %u hardware threads\n", ctx->renderer().c_str(),
+              std::thread::hardware_concurrency());
+  std::vector<std::pair<PixelFormat, Figures>> all;
+  for (PixelFormat f : formats) all.emplace_back(f, run_format(f, frames, png_frames, dir));
+
+  std::printf("%d stereo frames 1280x960 of the demo flight (boom + receiver + stereo classes)\n\n", frames);
+  std::printf("| raw format | pipeline                                   | stereo fps | augment ms/frame | CPU ms/frame |\n");
+  std::printf("|------------|--------------------------------------------|-----------:|-----------------:|-------------:|\n");
+  for (const auto& [f, g] : all) {
+    const char* name = to_string(f).data();
+    std::printf("| %-10s | replay -> augment -> Recorder (lossless)   | %10.1f | %16.1f | %12.1f |\n", name,
+                g.rec_fps, g.rec_aug_ms, g.rec_cpu_ms);
+    std::printf("| %-10s | replay -> augment -> PNG (cv::imwrite) x6  | %10.1f | %16.1f | %12.1f |\n", name,
+                g.png_fps, g.png_aug_ms, g.png_cpu_ms);
+  }
+  for (const auto& [f, g] : all)
+    std::printf("%s: ratio recorder / PNG %.1f x\n", to_string(f).data(), g.rec_fps / g.png_fps);
+  std::printf("target (issue 4): 120 stereo fps\n");
   return 0;
 }

@@ -92,6 +92,23 @@ struct BasicImageView {
 using ImageView = BasicImageView<std::uint8_t>;
 using ConstImageView = BasicImageView<const std::uint8_t>;
 
+// A box of pixels, [x0, x1) x [y0, y1).
+struct PixelBox {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool empty() const { return x1 <= x0 || y1 <= y0; }
+  int width() const { return empty() ? 0 : x1 - x0; }
+  int height() const { return empty() ? 0 : y1 - y0; }
+  friend bool operator==(const PixelBox&, const PixelBox&) = default;
+};
+
+// The part of `v` inside `box` (which must lie in it).
+template <typename Byte>
+BasicImageView<Byte> sub_view(const BasicImageView<Byte>& v, const PixelBox& box) {
+  return {v.data + static_cast<std::size_t>(box.y0) * v.stride_bytes +
+              static_cast<std::size_t>(box.x0) * static_cast<std::size_t>(bytes_per_pixel(v.format)),
+          box.width(), box.height(), v.stride_bytes, v.format};
+}
+
 class Image {
  public:
   Image() = default;

@@ -158,12 +158,33 @@ Status Encoder::encode_difference(ConstImageView raw, ConstImageView augmented, 
   box = changed_box(raw, augmented);
   out.clear();
   if (box.empty()) return {};
-  const std::size_t bpp = static_cast<std::size_t>(bytes_per_pixel(raw.format));
-  const std::size_t off = static_cast<std::size_t>(box.x0) * bpp;
-  const std::size_t n = static_cast<std::size_t>(box.x1 - box.x0) * bpp;
-  scratch_.resize(n * static_cast<std::size_t>(box.y1 - box.y0));
-  for (int y = box.y0; y < box.y1; ++y)
-    xor_bytes(raw.row(y) + off, augmented.row(y) + off, scratch_.data() + n * (y - box.y0), n);
+  return compress_xor(sub_view(raw, box), sub_view(augmented, box), out);
+}
+
+Status Encoder::encode_difference(ConstImageView raw, ConstImageView part, const PixelBox& within,
+                                  ChangedBox& box, std::vector<std::uint8_t>& out) {
+  if (!within.empty() && part.format != raw.format)
+    return make_error("augmented image's part is ", to_string(part.format), ", the raw image ",
+                      to_string(raw.format));
+  if (!within.empty() && (within.x0 < 0 || within.y0 < 0 || within.x1 > raw.width || within.y1 > raw.height))
+    return make_error("augmented box [", within.x0, ", ", within.x1, ") x [", within.y0, ", ", within.y1,
+                      ") is not inside the raw image ", raw.width, "x", raw.height);
+  if (part.width != within.width() || part.height != within.height())
+    return make_error("augmented image's part ", part.width, "x", part.height, " differs from its box's size ",
+                      within.width(), "x", within.height());
+  out.clear();
+  box = {};
+  if (within.empty()) return {};
+  const ChangedBox b = changed_box(sub_view(raw, within), part);  // in the part's pixels
+  if (b.empty()) return {};
+  box = {b.x0 + within.x0, b.y0 + within.y0, b.x1 + within.x0, b.y1 + within.y0};
+  return compress_xor(sub_view(raw, box), sub_view(part, b), out);
+}
+
+Status Encoder::compress_xor(ConstImageView a, ConstImageView b, std::vector<std::uint8_t>& out) {
+  const std::size_t n = row_bytes(a.width, a.format);
+  scratch_.resize(n * static_cast<std::size_t>(a.height));
+  for (int y = 0; y < a.height; ++y) xor_bytes(a.row(y), b.row(y), scratch_.data() + n * y, n);
   return compress(scratch_.data(), scratch_.size(), out);
 }
 

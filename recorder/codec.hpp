@@ -31,11 +31,7 @@ namespace augrig::recorder {
 int predictor_distance(PixelFormat format);
 
 // [x0, x1) x [y0, y1) in pixels.
-struct ChangedBox {
-  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-  bool empty() const { return x1 <= x0 || y1 <= y0; }
-  friend bool operator==(const ChangedBox&, const ChangedBox&) = default;
-};
+using ChangedBox = PixelBox;
 
 // The smallest box holding every pixel where `a` and `b` differ in any byte (empty if none).
 // Both must have the same size and format.
@@ -55,9 +51,16 @@ class Encoder {
   // `raw` and `augmented`: same size and format. Sets `box`; `out` is empty when nothing changed.
   Status encode_difference(ConstImageView raw, ConstImageView augmented, ChangedBox& box,
                            std::vector<std::uint8_t>& out);
+  // The same blob from the augmented image's part inside `within` (`part`, of that box's size;
+  // outside it the augmented image is `raw`), as the augmenter's changed-box output gives it:
+  // only the box is compared, no whole image is needed.
+  Status encode_difference(ConstImageView raw, ConstImageView part, const PixelBox& within, ChangedBox& box,
+                           std::vector<std::uint8_t>& out);
 
  private:
   Status compress(const std::uint8_t* src, std::size_t n, std::vector<std::uint8_t>& out);
+  // Compresses a XOR b (equal sizes and formats), rows packed tight.
+  Status compress_xor(ConstImageView a, ConstImageView b, std::vector<std::uint8_t>& out);
   ZSTD_CCtx* cctx_ = nullptr;
   std::vector<std::uint8_t> scratch_;
 };

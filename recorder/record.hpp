@@ -61,8 +61,12 @@ struct FrameRecord {
   // Raw images exactly as captured (any PixelFormat, any stride; both cameras), timestamps,
   // clocks, sequences, pairing key and skew.
   StereoFrame raw;
-  // Per camera (index_of(CameraId)): the augmented image, same size and format as the raw one.
+  // Per camera (index_of(CameraId)): the augmented image, same size and format as the raw one;
+  // or, when augmented_box[c] is set, only its part inside that box (an image of the box's size,
+  // as render/augmenter.hpp's AugmentedOutput::kChangedBox makes it), the rest being the raw image.
+  // An empty box then means the augmented image is the raw image.
   std::array<Image, 2> augmented;
+  std::array<std::optional<PixelBox>, 2> augmented_box;
   // Per camera: the Mono8 mask (kMaskBoom | kMaskReceiver), same size as the raw image.
   std::array<Image, 2> mask;
   // The relative poses the augmentation used: the receiver in each camera (OpenCV camera frame,

@@ -90,8 +90,20 @@ std::string validate(const FrameRecord& f) {
     const std::string cam(to_string(id));
     if (raw.empty()) return cam + " raw image is empty";
     const Image& aug = f.augmented[c];
-    if (!aug.empty() &&
-        (aug.width() != raw.width() || aug.height() != raw.height() || aug.format() != raw.format()))
+    if (const auto& box = f.augmented_box[c]) {
+      if (!box->empty() &&
+          (box->x0 < 0 || box->y0 < 0 || box->x1 > raw.width() || box->y1 > raw.height()))
+        return cam + " augmented box [" + std::to_string(box->x0) + ", " + std::to_string(box->x1) + ") x [" +
+               std::to_string(box->y0) + ", " + std::to_string(box->y1) + ") is not inside the raw image " +
+               std::to_string(raw.width()) + "x" + std::to_string(raw.height());
+      if (aug.width() != box->width() || aug.height() != box->height() ||
+          (!box->empty() && aug.format() != raw.format()))
+        return cam + " augmented part " + std::to_string(aug.width()) + "x" + std::to_string(aug.height()) +
+               " " + std::string(to_string(aug.format())) + " differs from its box " +
+               std::to_string(box->width()) + "x" + std::to_string(box->height()) + " of the raw image's " +
+               std::string(to_string(raw.format()));
+    } else if (!aug.empty() &&
+               (aug.width() != raw.width() || aug.height() != raw.height() || aug.format() != raw.format()))
       return cam + " augmented image " + std::to_string(aug.width()) + "x" + std::to_string(aug.height()) +
              " " + std::string(to_string(aug.format())) + " differs from the raw image " +
              std::to_string(raw.width()) + "x" + std::to_string(raw.height()) + " " +
@@ -249,12 +261,18 @@ void Recorder::Impl::encode(Encoder& enc, FrameRecord& f, Encoded& e) {
       return;
     }
     e.image_bytes += image_bytes_of(fr.image);
-    if (!f.augmented[c].empty()) {
-      if (auto s = enc.encode_difference(fr.image.view(), f.augmented[c].cview(), cr.aug_box, e.aug[c]); !s) {
+    // The augmented image, whole or as its changed box: stored the same way.
+    const bool aug_present = !f.augmented[c].empty() || f.augmented_box[c].has_value();
+    if (aug_present) {
+      const Status s = f.augmented_box[c] ? enc.encode_difference(fr.image.view(), f.augmented[c].cview(),
+                                                                  *f.augmented_box[c], cr.aug_box, e.aug[c])
+                                          : enc.encode_difference(fr.image.view(), f.augmented[c].cview(),
+                                                                  cr.aug_box, e.aug[c]);
+      if (!s) {
         e.error = cam + " augmented: " + s.error().message;
         return;
       }
-      e.image_bytes += image_bytes_of(f.augmented[c]);
+      e.image_bytes += image_bytes_of(fr.image);
     }
     if (!f.mask[c].empty()) {
       if (auto s = enc.encode_mask(f.mask[c].cview(), e.mask[c]); !s) {
@@ -264,7 +282,7 @@ void Recorder::Impl::encode(Encoder& enc, FrameRecord& f, Encoded& e) {
       e.image_bytes += image_bytes_of(f.mask[c]);
     }
     r.raw[c] = {e.raw[c].data(), e.raw[c].size(), true};
-    r.aug[c] = {e.aug[c].data(), e.aug[c].size(), !f.augmented[c].empty()};
+    r.aug[c] = {e.aug[c].data(), e.aug[c].size(), aug_present};
     r.mask[c] = {e.mask[c].data(), e.mask[c].size(), !f.mask[c].empty()};
     e.stored_bytes +=
         r.raw[c].size + (r.aug[c].present ? r.aug[c].size : 0) + (r.mask[c].present ? r.mask[c].size : 0);

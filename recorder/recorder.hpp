@@ -91,8 +91,9 @@ class Recorder {
   Recorder& operator=(const Recorder&) = delete;
 
   // Never blocks on I/O (a short mutex only). Frames: false when the frame was dropped (queue full,
-  // recording stopped, invalid: augmented or mask size differing from the raw image); the drop is
-  // counted in the ledger. DropRecords are merged into the ledger. After close(): false.
+  // recording stopped, invalid: augmented or mask size differing from the raw image, an augmented
+  // box outside it); the drop is counted in the ledger. DropRecords are merged into the ledger.
+  // After close(): false.
   bool push(RecordItem&& item);
 
   // OK while recording; the error that stopped the recording otherwise.

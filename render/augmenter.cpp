@@ -1374,11 +1374,15 @@ Image whole_augmented(const Image& raw, const ViewResult& r) {
   if (r.augmented.width() == raw.width() && r.augmented.height() == raw.height()) return r.augmented;
   Image out = Image::copy_of(raw.view());
   const PixelBox& b = r.augmented_box;
-  if (b.empty()) return out;
-  const std::size_t bpp = static_cast<std::size_t>(bytes_per_pixel(raw.format()));
-  for (int y = b.y0; y < b.y1; ++y)
-    std::memcpy(out.row(y) + b.x0 * bpp, r.augmented.row(y - b.y0), (b.x1 - b.x0) * bpp);
+  const std::size_t n = static_cast<std::size_t>(b.width()) * bytes_per_pixel(raw.format());
+  const ImageView inside = sub_view(out.view(), b);
+  for (int y = 0; y < b.height(); ++y) std::memcpy(inside.row(y), r.augmented.row(y), n);
   return out;
+}
+
+void make_whole_augmented(const Image& raw, ViewResult& r) {
+  if (r.augmented.width() != raw.width() || r.augmented.height() != raw.height())
+    r.augmented = whole_augmented(raw, r);
 }
 
 }  // namespace augrig

@@ -73,11 +73,6 @@ SceneState scene_at_contact(const Rig& rig, const BoomDimensions& boom, const Ei
                             const BoomArticulation& a,
                             const Eigen::Vector3d& offset_body_m = Eigen::Vector3d::Zero());
 
-struct PixelBox {
-  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // [x0, x1) x [y0, y1)
-  bool empty() const { return x1 <= x0 || y1 <= y0; }
-};
-
 struct ViewResult {
   // The augmented image (raw format): the whole image, or with AugmentedOutput::kChangedBox only
   // its part inside `augmented_box` (an image of that box's size).
@@ -91,6 +86,9 @@ struct ViewResult {
 
 // The whole augmented image of `r` (either AugmentedOutput) over the raw image it was made from.
 Image whole_augmented(const Image& raw, const ViewResult& r);
+// Makes `r.augmented` the whole augmented image (a no-op when it is already), for consumers that
+// need whole images (a display, PNG files) from a pipeline running the changed-box output.
+void make_whole_augmented(const Image& raw, ViewResult& r);
 
 struct StereoResult {
   ViewResult left;

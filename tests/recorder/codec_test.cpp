@@ -130,6 +130,57 @@ TEST(Codec, DifferenceRoundTripIsBitExact) {
   }
 }
 
+// The augmented image given as its part inside a box (the augmenter's changed-box output): the
+// same box and the same blob as from the whole image, for boxes larger than the change, equal to
+// it, holding no change and empty; boxes that do not fit are errors.
+TEST(Codec, DifferenceFromTheChangedBoxEqualsTheWholeImages) {
+  Encoder enc(1);
+  Decoder dec;
+  std::mt19937 rng(8);
+  for (PixelFormat f : kAllFormats) {
+    SCOPED_TRACE(std::string(to_string(f)));
+    const Image raw = structured_image(120, 90, f, 31);
+    const int bpp = bytes_per_pixel(f);
+    Image aug = raw;
+    for (int y = 30; y < 61; ++y)
+      for (int x = 40 + y / 4; x < 55 + y / 4; ++x)
+        for (int c = 0; c < bpp; ++c) aug.row(y)[x * bpp + c] = static_cast<std::uint8_t>(rng());
+    ChangedBox want_box;
+    std::vector<std::uint8_t> want, blob;
+    ASSERT_TRUE(enc.encode_difference(raw.cview(), aug.cview(), want_box, want));
+    ASSERT_EQ(want_box, (ChangedBox{47, 30, 70, 61}));
+    for (const PixelBox within : {PixelBox{20, 10, 100, 80}, want_box, PixelBox{0, 0, 120, 90}}) {
+      const Image part = Image::copy_of(sub_view(aug.cview(), within));
+      ChangedBox box;
+      ASSERT_TRUE(enc.encode_difference(raw.cview(), part.cview(), within, box, blob));
+      EXPECT_EQ(box, want_box);
+      EXPECT_EQ(blob, want);
+      Image back;
+      ASSERT_TRUE(dec.decode_difference(blob.data(), blob.size(), box, raw, back));
+      EXPECT_TRUE(pixels_equal(aug, back));
+    }
+    // A box where nothing changed, and an empty one: no change.
+    for (const PixelBox within : {PixelBox{0, 0, 30, 20}, PixelBox{}}) {
+      const Image part = within.empty() ? Image() : Image::copy_of(sub_view(aug.cview(), within));
+      ChangedBox box{1, 1, 2, 2};
+      ASSERT_TRUE(enc.encode_difference(raw.cview(), part.cview(), within, box, blob));
+      EXPECT_TRUE(box.empty());
+      EXPECT_TRUE(blob.empty());
+    }
+    // Outside the image, a part of another size or format: errors that say so.
+    ChangedBox box;
+    const Image part(30, 20, f);
+    auto s = enc.encode_difference(raw.cview(), part.cview(), PixelBox{100, 80, 130, 100}, box, blob);
+    ASSERT_FALSE(s);
+    EXPECT_NE(s.error().message.find("is not inside the raw image 120x90"), std::string::npos) << s.error().message;
+    s = enc.encode_difference(raw.cview(), part.cview(), PixelBox{0, 0, 31, 20}, box, blob);
+    ASSERT_FALSE(s);
+    EXPECT_NE(s.error().message.find("differs from its box's size 31x20"), std::string::npos) << s.error().message;
+    const Image other(30, 20, f == PixelFormat::kMono8 ? PixelFormat::kRGB8 : PixelFormat::kMono8);
+    EXPECT_FALSE(enc.encode_difference(raw.cview(), other.cview(), PixelBox{0, 0, 30, 20}, box, blob));
+  }
+}
+
 TEST(Codec, MaskRoundTrip) {
   Encoder enc(1);
   Decoder dec;

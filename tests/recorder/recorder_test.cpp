@@ -2,6 +2,7 @@
 // carries in every pixel format; kill -9 at random moments loses nothing that was committed; a file
 // size limit and a size cap stop the recording cleanly; an overflowing queue and invalid frames are
 // counted in the drop ledger; a recording can be read while it is written.
+#include "recorder/codec.hpp"
 #include "recorder/recorder.hpp"
 
 #include <chrono>
@@ -211,6 +212,23 @@ TEST(Recorder, RoundTripIsBitExactForEveryFormat) {
     sent.push_back(fr);
     ASSERT_TRUE((*rec)->push(std::move(fr)));
   }
+  // The augmented images as the pipeline hands them over, their part inside the augmenter's changed
+  // box (left: a box larger than the change; right: the change's own box, empty on some frames):
+  // they read back whole.
+  for (PixelFormat f : kAllFormats) {
+    for (int k = 0; k < 2; ++k) {
+      FrameRecord fr = make_frame(i++, f, 160, 120, false);
+      sent.push_back(fr);
+      for (int c = 0; c < 2; ++c) {
+        const Image& raw = fr.raw[static_cast<CameraId>(c)].image;
+        const PixelBox box =
+            c == 0 ? PixelBox{0, 30, 160, 90} : changed_box(raw.cview(), fr.augmented[c].cview());
+        fr.augmented[c] = box.empty() ? Image() : Image::copy_of(sub_view(fr.augmented[c].cview(), box));
+        fr.augmented_box[c] = box;
+      }
+      ASSERT_TRUE((*rec)->push(std::move(fr)));
+    }
+  }
   std::vector<NavInputRecord> nav;
   nav.push_back({"tanker.gps", 5'000'000'000, ClockDomain::kGps, 123,
                  "$GNGGA,123519.00,4807.038,N,01131.000,E,4,12,0.9,545.4,M,46.9,M,,*5C", false});
@@ -311,7 +329,7 @@ TEST(Recorder, RoundTripIsBitExactForEveryFormat) {
   EXPECT_EQ(report.drops_by_stage.at("recorder"), 0u);
   EXPECT_EQ(report.nav_inputs_by_stream.at("imu"), 1u);
   EXPECT_EQ(report.events, 1u);
-  EXPECT_EQ(report.cameras.at("left: BayerRG8 160x120, clock device"), 4u);
+  EXPECT_EQ(report.cameras.at("left: BayerRG8 160x120, clock device"), 4u + 2u);  // + 2 with boxes
   EXPECT_GT(report.stored_bytes, 0u);
   const std::string text = report.to_string();
   EXPECT_NE(text.find("problems: none"), std::string::npos) << text;
@@ -373,9 +391,17 @@ TEST(Recorder, InvalidFramesAreDroppedAndCounted) {
   FrameRecord no_raw = make_frame(2, PixelFormat::kBayerRG8, 64, 48, false);
   no_raw.raw.right.image = Image();
   EXPECT_FALSE((*rec)->push(std::move(no_raw)));
+  FrameRecord box_outside = make_frame(4, PixelFormat::kBayerRG8, 64, 48, false);
+  box_outside.augmented[0] = Image(20, 10, PixelFormat::kBayerRG8);
+  box_outside.augmented_box[0] = PixelBox{50, 40, 70, 50};
+  EXPECT_FALSE((*rec)->push(std::move(box_outside)));
+  FrameRecord box_mismatch = make_frame(5, PixelFormat::kBayerRG8, 64, 48, false);
+  box_mismatch.augmented[1] = Image(20, 10, PixelFormat::kBayerRG8);
+  box_mismatch.augmented_box[1] = PixelBox{0, 0, 20, 11};
+  EXPECT_FALSE((*rec)->push(std::move(box_mismatch)));
   EXPECT_TRUE((*rec)->push(make_frame(3, PixelFormat::kBayerRG8, 64, 48, false)));
   ASSERT_TRUE((*rec)->close());
-  EXPECT_EQ((*rec)->stats().frames_dropped, 3u);
+  EXPECT_EQ((*rec)->stats().frames_dropped, 5u);
   auto rd = RecordingReader::open(dir);
   ASSERT_TRUE(rd);
   EXPECT_EQ((*rd)->frame_count(), 1u);
@@ -390,7 +416,10 @@ TEST(Recorder, InvalidFramesAreDroppedAndCounted) {
             (std::set<std::string>{
                 "invalid frame: left mask 10x10 Mono8 is not Mono8 of the raw image's size 64x48",
                 "invalid frame: right augmented image 64x48 RGB8 differs from the raw image 64x48 BayerRG8",
-                "invalid frame: right raw image is empty"}));
+                "invalid frame: right raw image is empty",
+                "invalid frame: left augmented box [50, 70) x [40, 50) is not inside the raw image 64x48",
+                "invalid frame: right augmented part 20x10 BayerRG8 differs from its box 20x11 of the raw "
+                "image's BayerRG8"}));
 }
 
 TEST(Recorder, OverflowingQueueCountsDropsInTheLedger) {
