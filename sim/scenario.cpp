@@ -129,7 +129,7 @@ sensors:
     clock_offset_ns: [1200000, 1250000]
     jitter_ns: 20000
     drop_probability: 0.001
-    bayer: false
+    bayer: RGGB  # GigE machine-vision cameras stream the raw mosaic
     noise: 1.5
 )yaml";
 
