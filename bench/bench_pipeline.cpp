@@ -9,13 +9,13 @@
 // -> Recorder::push (the producer waits while the recorder's queue is full: nothing is dropped),
 // until close() has committed everything.
 #include <chrono>
-#include <ctime>
 #include <cstdio>
 #include <filesystem>
 #include <string>
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "core/clock.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/recorder.hpp"
 #include "recorder/replay_source.hpp"
@@ -30,13 +30,6 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 namespace {
-
-// CPU time of the whole process (every thread), seconds.
-double process_cpu_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
@@ -129,7 +122,7 @@ Figures run_format(PixelFormat format, int frames, int png_frames, const fs::pat
   info.rig_yaml = rig_to_yaml(scenario.rig);
   auto out = need(recorder::Recorder::create((dir / "output").string(), info), "output recording");
   const auto t0 = Clock::now();
-  const double cpu0 = process_cpu_s();
+  const double cpu0 = process_cpu_ms();
   auto [rec_fps_loop, rec_aug_ms] = run(n, [&](const StereoFrame& f, const StereoResult& r) {
     recorder::FrameRecord fr;
     fr.raw = f;
@@ -143,13 +136,13 @@ Figures run_format(PixelFormat format, int frames, int png_frames, const fs::pat
   if (!out->close()) std::exit(1);
   const double encode_cpu_ms = out->stats().encode_ms / static_cast<double>(n);
   const double rec_fps = static_cast<double>(n) / seconds_since(t0);
-  const double rec_cpu_ms = 1e3 * (process_cpu_s() - cpu0) / static_cast<double>(n);
+  const double rec_cpu_ms = (process_cpu_ms() - cpu0) / static_cast<double>(n);
 
   // PNG sink: six images per stereo frame.
   const std::size_t m = std::min<std::size_t>(n, static_cast<std::size_t>(png_frames));
   fs::create_directories(dir / "png");
   std::size_t k = 0;
-  const double cpu1 = process_cpu_s();
+  const double cpu1 = process_cpu_ms();
   auto [png_fps, png_aug_ms] = run(m, [&](const StereoFrame& f, const StereoResult& r) {
     const std::string s = std::to_string(k++);
     write_png(dir / "png" / ("raw_l" + s + ".png"), f.left.image);
@@ -160,7 +153,7 @@ Figures run_format(PixelFormat format, int frames, int png_frames, const fs::pat
     write_png(dir / "png" / ("mask_r" + s + ".png"), r.right.mask);
   });
 
-  const double png_cpu_ms = 1e3 * (process_cpu_s() - cpu1) / static_cast<double>(m);
+  const double png_cpu_ms = (process_cpu_ms() - cpu1) / static_cast<double>(m);
   fs::remove_all(dir);
   return {rec_fps, rec_aug_ms, png_fps, png_aug_ms, rec_cpu_ms, png_cpu_ms, encode_cpu_ms};
 }

@@ -30,6 +30,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include "core/clock.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/recorder.hpp"
 
@@ -46,16 +47,7 @@ double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-// CPU time of the whole process (all threads, user + system), ms.
-double process_cpu_ms() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  auto ms = [](const timeval& t) {
-    return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_usec) * 1e-3;
-  };
-  return ms(u.ru_utime) + ms(u.ru_stime);
-}
-// Its system (kernel) part.
+// The system (kernel) part of the process's CPU time (core/clock.hpp's process_cpu_ms()), ms.
 double process_sys_ms() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);

@@ -5,10 +5,10 @@
 //   build/bench_sim [--frames N]
 #include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <string>
 #include <thread>
 
+#include "core/clock.hpp"
 #include "core/conventions.hpp"
 #include "render/gl_context.hpp"
 #include "render/rig.hpp"
@@ -16,16 +16,6 @@
 
 using namespace augrig;
 using Clock = std::chrono::steady_clock;
-
-namespace {
-
-double process_cpu_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   int frames = 40;
@@ -63,7 +53,7 @@ int main(int argc, char** argv) {
     for (int k = 0; k < 2; ++k)
       if (!(*renderer)->render(k % 2, sky, T_body_receiver, true, sensor, out)) return 1;
     const auto t0 = Clock::now();
-    const double c0 = process_cpu_s();
+    const double c0 = process_cpu_ms();
     for (int i = 0; i < frames; ++i) {
       // Flying: the tanker moves 5.7 m a frame (170 m/s at 30 fps) and banks a little.
       sky.north_east_m = {5.7 * i, 0.0};
@@ -72,7 +62,7 @@ int main(int argc, char** argv) {
       if (!(*renderer)->render(i % 2, sky, T_body_receiver, true, sensor, out)) return 1;
     }
     const double wall_ms = 1e3 * std::chrono::duration<double>(Clock::now() - t0).count() / frames;
-    const double cpu_ms = 1e3 * (process_cpu_s() - c0) / frames;
+    const double cpu_ms = (process_cpu_ms() - c0) / frames;
     std::printf("| %s, noise 1.5 DN | %.1f | %.1f |\n", to_string(f).data(), wall_ms, cpu_ms);
   }
   return 0;

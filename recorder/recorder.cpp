@@ -17,6 +17,7 @@
 #include <sys/resource.h>
 #include <sys/statvfs.h>
 
+#include "core/clock.hpp"
 #include "core/thread_name.hpp"
 #include "recorder/codec.hpp"
 #include "recorder/store.hpp"
@@ -33,13 +34,6 @@ using Clock = std::chrono::steady_clock;
 
 double ms_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
-}
-
-// CPU time of the calling thread: stage costs that preemption by other threads does not inflate.
-double thread_cpu_ms() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
 constexpr int kPageSize = 65536;
