@@ -89,14 +89,16 @@ recorder::FrameRecord frame_record(const StereoResult& r) {
   fr.augmented = {r.left.augmented, r.right.augmented};
   // The changed-box output made only the boxes (an image of the box's size).
   for (const ViewResult* v : {&r.left, &r.right})
-    if (v->augmented.width() == v->augmented_box.width() && v->augmented.height() == v->augmented_box.height())
+    if (v->augmented.width() == v->augmented_box.width() &&
+        v->augmented.height() == v->augmented_box.height())
       fr.augmented_box[v == &r.left ? 0 : 1] = v->augmented_box;
   fr.mask = {r.left.mask, r.right.mask};
   fr.stats = r.stats;
   return fr;
 }
 
-void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoFrame& raw, const StereoResult& r) {
+void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoFrame& raw,
+                         const StereoResult& r) {
   const std::string l = n.left + ".png", rr = n.right + ".png";
   write_png(out / "left" / "augmented" / l, whole_augmented(raw.left.image, r.left));
   write_png(out / "right" / "augmented" / rr, whole_augmented(raw.right.image, r.right));
@@ -160,7 +162,8 @@ BoomArg parse_boom_arg(const std::string& v) {
     std::size_t pos = 6;
     for (int i = 0; i < 3; ++i) {
       const std::size_t end = i < 2 ? v.find(',', pos) : v.size();
-      if (end == std::string::npos) usage_error("--boom fixed: expected fixed:EL_DEG,AZ_DEG,EXT_M, got '" + v + "'");
+      if (end == std::string::npos)
+        usage_error("--boom fixed: expected fixed:EL_DEG,AZ_DEG,EXT_M, got '" + v + "'");
       x[i] = parse_real("boom", v.substr(pos, end - pos));
       pos = end + 1;
     }

@@ -94,7 +94,8 @@ struct FrameNames {
 void write_png(const fs::path& path, const Image& image);
 // Everything `augment` and `demo` write for one stereo frame (docs/CLI.md gives the layout); `raw`
 // is the frame `r` was made from (its augmented images may be the changed boxes only).
-void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoFrame& raw, const StereoResult& r);
+void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoFrame& raw,
+                         const StereoResult& r);
 
 // A frame for the recorder from what the augmenter made: the augmented images as made (whole, or
 // only their changed boxes: AugmentedOutput), the masks and the statistics. The caller adds the

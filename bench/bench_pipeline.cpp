@@ -68,7 +68,8 @@ Figures run_format(PixelFormat format, int frames, int png_frames, const fs::pat
   std::map<std::uint64_t, int> cams;
   for (const auto& f : truths) cams[f.sequence] |= 1 << f.camera;
   std::erase_if(truths, [&](const sim::FrameTruth& f) { return cams[f.sequence] != 3; });
-  if (truths.size() > 2 * static_cast<std::size_t>(frames)) truths.erase(truths.begin(), truths.end() - 2 * frames);
+  if (truths.size() > 2 * static_cast<std::size_t>(frames))
+    truths.erase(truths.begin(), truths.end() - 2 * frames);
   {
     auto source = need(sim::FlightSource::create(scenario, flight, truths), "flight source");
     recorder::RecordingInfo info;
@@ -114,7 +115,8 @@ Figures run_format(PixelFormat format, int frames, int png_frames, const fs::pat
       augment_s += seconds_since(ta);
       sink(frame, result);
     }
-    return std::pair{static_cast<double>(count) / seconds_since(t0), 1e3 * augment_s / static_cast<double>(count)};
+    return std::pair{static_cast<double>(count) / seconds_since(t0),
+                     1e3 * augment_s / static_cast<double>(count)};
   };
 
   // Recorder sink.
@@ -187,8 +189,12 @@ int main(int argc, char** argv) {
   for (PixelFormat f : formats) all.emplace_back(f, run_format(f, frames, png_frames, dir));
 
   std::printf("%d stereo frames 1280x960 of the demo flight (boom + receiver + stereo classes)\n\n", frames);
-  std::printf("| raw format | pipeline                                   | stereo fps | augment ms/frame | CPU ms/frame |\n");
-  std::printf("|------------|--------------------------------------------|-----------:|-----------------:|-------------:|\n");
+  std::printf(
+      "| raw format | pipeline                                   | stereo fps | augment ms/frame | CPU "
+      "ms/frame |\n");
+  std::printf(
+      "|------------|--------------------------------------------|-----------:|-----------------:|-----------"
+      "--:|\n");
   for (const auto& [f, g] : all) {
     const char* name = to_string(f).data();
     std::printf("| %-10s | replay -> augment -> Recorder (lossless)   | %10.1f | %16.1f | %12.1f |\n", name,
@@ -197,8 +203,9 @@ int main(int argc, char** argv) {
                 g.png_fps, g.png_aug_ms, g.png_cpu_ms);
   }
   for (const auto& [f, g] : all)
-    std::printf("%s: ratio recorder / PNG %.1f x; the recorder's compression %.1f of the %.1f CPU ms per frame\n",
-                to_string(f).data(), g.rec_fps / g.png_fps, g.encode_cpu_ms, g.rec_cpu_ms);
+    std::printf(
+        "%s: ratio recorder / PNG %.1f x; the recorder's compression %.1f of the %.1f CPU ms per frame\n",
+        to_string(f).data(), g.rec_fps / g.png_fps, g.encode_cpu_ms, g.rec_cpu_ms);
   std::printf("target (issue 4): 120 stereo fps\n");
   return 0;
 }

@@ -170,8 +170,8 @@ Status Encoder::encode_difference(ConstImageView raw, ConstImageView part, const
     return make_error("augmented box [", within.x0, ", ", within.x1, ") x [", within.y0, ", ", within.y1,
                       ") is not inside the raw image ", raw.width, "x", raw.height);
   if (part.width != within.width() || part.height != within.height())
-    return make_error("augmented image's part ", part.width, "x", part.height, " differs from its box's size ",
-                      within.width(), "x", within.height());
+    return make_error("augmented image's part ", part.width, "x", part.height,
+                      " differs from its box's size ", within.width(), "x", within.height());
   out.clear();
   box = {};
   if (within.empty()) return {};

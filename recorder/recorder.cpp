@@ -85,8 +85,7 @@ std::string validate(const FrameRecord& f) {
     if (raw.empty()) return cam + " raw image is empty";
     const Image& aug = f.augmented[c];
     if (const auto& box = f.augmented_box[c]) {
-      if (!box->empty() &&
-          (box->x0 < 0 || box->y0 < 0 || box->x1 > raw.width() || box->y1 > raw.height()))
+      if (!box->empty() && (box->x0 < 0 || box->y0 < 0 || box->x1 > raw.width() || box->y1 > raw.height()))
         return cam + " augmented box [" + std::to_string(box->x0) + ", " + std::to_string(box->x1) + ") x [" +
                std::to_string(box->y0) + ", " + std::to_string(box->y1) + ") is not inside the raw image " +
                std::to_string(raw.width()) + "x" + std::to_string(raw.height());

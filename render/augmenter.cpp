@@ -157,7 +157,7 @@ struct ViewState {
   std::vector<MapEntry> map;                       // per raw pixel
   std::vector<std::uint32_t> boom_ids, recv_ids;   // virtual image, packed ids; zero outside the last boxes
   std::vector<std::uint8_t> boom_rgba, recv_rgba;  // virtual image colour (recv only for overlays)
-  std::vector<float> inv_z;          // CPU rasteriser's depth (1/z); zero outside the last boxes
+  std::vector<float> inv_z;  // CPU rasteriser's depth (1/z); zero outside the last boxes
   // A raw row of DepthImage::kNone: copied over depth rows to clear them (a copy is vectorised,
   // std::fill_n of a float pattern is a scalar loop at -O2).
   std::vector<float> no_depth_row;

@@ -172,10 +172,12 @@ TEST(Codec, DifferenceFromTheChangedBoxEqualsTheWholeImages) {
     const Image part(30, 20, f);
     auto s = enc.encode_difference(raw.cview(), part.cview(), PixelBox{100, 80, 130, 100}, box, blob);
     ASSERT_FALSE(s);
-    EXPECT_NE(s.error().message.find("is not inside the raw image 120x90"), std::string::npos) << s.error().message;
+    EXPECT_NE(s.error().message.find("is not inside the raw image 120x90"), std::string::npos)
+        << s.error().message;
     s = enc.encode_difference(raw.cview(), part.cview(), PixelBox{0, 0, 31, 20}, box, blob);
     ASSERT_FALSE(s);
-    EXPECT_NE(s.error().message.find("differs from its box's size 31x20"), std::string::npos) << s.error().message;
+    EXPECT_NE(s.error().message.find("differs from its box's size 31x20"), std::string::npos)
+        << s.error().message;
     const Image other(30, 20, f == PixelFormat::kMono8 ? PixelFormat::kRGB8 : PixelFormat::kMono8);
     EXPECT_FALSE(enc.encode_difference(raw.cview(), other.cview(), PixelBox{0, 0, 30, 20}, box, blob));
   }

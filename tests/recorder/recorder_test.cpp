@@ -2,7 +2,6 @@
 // carries in every pixel format; kill -9 at random moments loses nothing that was committed; a file
 // size limit and a size cap stop the recording cleanly; an overflowing queue and invalid frames are
 // counted in the drop ledger; a recording can be read while it is written.
-#include "recorder/codec.hpp"
 #include "recorder/recorder.hpp"
 
 #include <chrono>
@@ -21,6 +20,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "recorder/codec.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/store.hpp"
 #include "tests/support/test_support.hpp"

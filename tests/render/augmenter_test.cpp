@@ -343,6 +343,11 @@ TEST_P(RasterizerTest, ChangedBoxOutputIsTheWholeImageInsideItsBox) {
         EXPECT_LT(v.augmented.width() * v.augmented.height(), raw.width() * raw.height() / 2);
         EXPECT_TRUE(pixels_equal(whole_augmented(raw, v), w.augmented));
         EXPECT_TRUE(pixels_equal(whole_augmented(raw, w), w.augmented));
+        ViewResult made_whole = v;  // in place, as the live pipeline does for its window
+        make_whole_augmented(raw, made_whole);
+        EXPECT_TRUE(pixels_equal(made_whole.augmented, w.augmented));
+        make_whole_augmented(raw, made_whole);  // already whole: unchanged
+        EXPECT_TRUE(pixels_equal(made_whole.augmented, w.augmented));
         EXPECT_TRUE(pixels_equal(v.mask, w.mask));
         // Every change lies in the box.
         const int bpp = bytes_per_pixel(fmt);
