@@ -132,11 +132,7 @@ inline double radtan_dradial_dr2(const std::array<double, 5>& k, double r2) {
   return k[0] + r2 * (2.0 * k[1] + r2 * 3.0 * k[4]);
 }
 
-// theta_d(theta) = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8) and its derivative.
-inline double equi_theta_d(const std::array<double, 5>& k, double th) {
-  const double t = th * th;
-  return th * (1.0 + t * (k[0] + t * (k[1] + t * (k[2] + t * k[3]))));
-}
+// equi_theta_d() (the header) and its derivative.
 inline double equi_dtheta_d(const std::array<double, 5>& k, double th) {
   const double t = th * th;
   return 1.0 + t * (3.0 * k[0] + t * (5.0 * k[1] + t * (7.0 * k[2] + t * 9.0 * k[3])));
@@ -180,56 +176,8 @@ CameraModel CameraModel::pinhole_from_hfov(int width_px, int height_px, double h
   return m;
 }
 
-Eigen::Vector2d CameraModel::distort(const Eigen::Vector2d& xy) const {
-  const double x = xy.x(), y = xy.y();
-  switch (distortion) {
-    case DistortionModel::kNone:
-      return xy;
-    case DistortionModel::kRadTan: {
-      const double k1 = coeffs[0], k2 = coeffs[1], p1 = coeffs[2], p2 = coeffs[3], k3 = coeffs[4];
-      const double r2 = x * x + y * y;
-      const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
-      return {x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
-              y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y};
-    }
-    case DistortionModel::kEquidistant: {
-      // Same small-radius guard as cv::fisheye::projectPoints.
-      const double r = std::sqrt(x * x + y * y);
-      const double theta = std::atan(r);
-      const double scale = r > 1e-8 ? equi_theta_d(coeffs, theta) / r : 1.0;
-      return {x * scale, y * scale};
-    }
-  }
-  return xy;
-}
-
 std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam) const {
   return project(p_cam, max_valid_radius());
-}
-
-std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam, double max_radius) const {
-  Eigen::Vector2d d;
-  if (distortion == DistortionModel::kEquidistant) {
-    // Angle from the optical axis via atan2 so points beside or behind the camera work too
-    // (a fisheye lens may see beyond 90 degrees).
-    const double rxy = std::hypot(p_cam.x(), p_cam.y());
-    const double theta = std::atan2(rxy, p_cam.z());
-    if (!(theta < max_radius)) return std::nullopt;
-    if (p_cam.z() > 0.0 && rxy <= 1e-8 * p_cam.z()) {
-      d = distort(p_cam.head<2>() / p_cam.z());  // matches OpenCV's guard on the axis
-    } else if (rxy == 0.0) {
-      return std::nullopt;  // the zero vector has no direction
-    } else {
-      const double s = equi_theta_d(coeffs, theta) / rxy;
-      d = {p_cam.x() * s, p_cam.y() * s};
-    }
-  } else {
-    if (!(p_cam.z() > 0.0)) return std::nullopt;
-    const Eigen::Vector2d xy = p_cam.head<2>() / p_cam.z();
-    if (distortion == DistortionModel::kRadTan && !(xy.norm() < max_radius)) return std::nullopt;
-    d = distort(xy);
-  }
-  return Eigen::Vector2d(fx_px * d.x() + cx_px, fy_px * d.y() + cy_px);
 }
 
 std::optional<Eigen::Vector3d> CameraModel::ray(const Eigen::Vector2d& uv_px) const {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <optional>
 #include <string>
 
@@ -49,5 +50,62 @@ struct CameraModel {
   Eigen::VectorXd distortion_coeffs() const;
   std::string distortion_name() const;  // "none", "radtan", "equidistant"
 };
+
+// theta_d(theta) = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8): the equidistant
+// model's distorted angle.
+inline double equi_theta_d(const std::array<double, 5>& k, double th) {
+  const double t = th * th;
+  return th * (1.0 + t * (k[0] + t * (k[1] + t * (k[2] + t * k[3]))));
+}
+
+// distort() and project() are defined here so that per-pixel loops (the stereo classes project
+// every receiver pixel) inline them.
+inline Eigen::Vector2d CameraModel::distort(const Eigen::Vector2d& xy) const {
+  const double x = xy.x(), y = xy.y();
+  switch (distortion) {
+    case DistortionModel::kNone:
+      return xy;
+    case DistortionModel::kRadTan: {
+      const double k1 = coeffs[0], k2 = coeffs[1], p1 = coeffs[2], p2 = coeffs[3], k3 = coeffs[4];
+      const double r2 = x * x + y * y;
+      const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+      return {x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+              y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y};
+    }
+    case DistortionModel::kEquidistant: {
+      // Same small-radius guard as cv::fisheye::projectPoints.
+      const double r = std::sqrt(x * x + y * y);
+      const double theta = std::atan(r);
+      const double scale = r > 1e-8 ? equi_theta_d(coeffs, theta) / r : 1.0;
+      return {x * scale, y * scale};
+    }
+  }
+  return xy;
+}
+
+inline std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam, double max_radius) const {
+  Eigen::Vector2d d;
+  if (distortion == DistortionModel::kEquidistant) {
+    // Angle from the optical axis via atan2 so points beside or behind the camera work too
+    // (a fisheye lens may see beyond 90 degrees).
+    const double rxy = std::hypot(p_cam.x(), p_cam.y());
+    const double theta = std::atan2(rxy, p_cam.z());
+    if (!(theta < max_radius)) return std::nullopt;
+    if (p_cam.z() > 0.0 && rxy <= 1e-8 * p_cam.z()) {
+      d = distort(p_cam.head<2>() / p_cam.z());  // matches OpenCV's guard on the axis
+    } else if (rxy == 0.0) {
+      return std::nullopt;  // the zero vector has no direction
+    } else {
+      const double s = equi_theta_d(coeffs, theta) / rxy;
+      d = {p_cam.x() * s, p_cam.y() * s};
+    }
+  } else {
+    if (!(p_cam.z() > 0.0)) return std::nullopt;
+    const Eigen::Vector2d xy = p_cam.head<2>() / p_cam.z();
+    if (distortion == DistortionModel::kRadTan && !(xy.norm() < max_radius)) return std::nullopt;
+    d = distort(xy);
+  }
+  return Eigen::Vector2d(fx_px * d.x() + cx_px, fy_px * d.y() + cy_px);
+}
 
 }  // namespace augrig
