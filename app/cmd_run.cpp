@@ -655,7 +655,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
                 shared.display_hist.add(ns);
               }
             }
-            if (rec && recording_on) {
+            if (fr) {  // recording (fr was made above)
               if (mid_host) {
                 const TimestampNs ns = monotonic_now_ns() - mid_host;
                 latency_recorder.add(static_cast<double>(ns) / 1e6);
