@@ -15,19 +15,6 @@
 namespace augrig::app {
 namespace {
 
-Frame gradient_frame(const CameraModel& cm, PixelFormat fmt, CameraId id) {
-  Frame f;
-  f.image = Image(cm.width_px, cm.height_px, fmt);
-  const int bpp = bytes_per_pixel(fmt);
-  for (int y = 0; y < cm.height_px; ++y)
-    for (int x = 0; x < cm.width_px; ++x)
-      for (int c = 0; c < bpp; ++c)
-        f.image.row(y)[x * bpp + c] = static_cast<std::uint8_t>((x * 5 + y * 11 + c * 70 + (x & y)) & 255);
-  f.camera = id;
-  f.t_ns = 1'000'000'000;
-  return f;
-}
-
 class CliTest : public test::GlTest {};
 
 TEST_F(CliTest, FrameRecordOfEitherOutputRecordsTheWholeAugmentedImages) {
@@ -42,9 +29,9 @@ TEST_F(CliTest, FrameRecordOfEitherOutputRecordsTheWholeAugmentedImages) {
   const SceneState scene =
       scene_at_contact(rig, (*whole)->boom_model().dims, receptacle, BoomArticulation{0.5, 0.05, 3.0});
   StereoFrame sf;
-  sf.left = gradient_frame(rig.left().model, PixelFormat::kBayerRG8, CameraId::kLeft);
-  sf.right = gradient_frame(rig.right().model, PixelFormat::kBayerRG8, CameraId::kRight);
-  sf.t_key_ns = sf.left.t_ns;
+  sf.left = test::gradient_frame(rig.left().model, PixelFormat::kBayerRG8, CameraId::kLeft);
+  sf.right = test::gradient_frame(rig.right().model, PixelFormat::kBayerRG8, CameraId::kRight);
+  sf.left.t_ns = sf.right.t_ns = sf.t_key_ns = 1'000'000'000;
   StereoResult w, b;
   ASSERT_TRUE((*whole)->augment(sf, scene, w));
   ASSERT_TRUE((*box)->augment(sf, scene, b));

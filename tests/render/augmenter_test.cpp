@@ -40,18 +40,6 @@ SceneState contact_scene(const Rig& rig, const BoomModel& boom, const Eigen::Vec
   return scene_at_contact(rig, boom.dims, receptacle_m, a);
 }
 
-Frame gradient_frame(const CameraModel& cm, PixelFormat fmt, CameraId id) {
-  Frame f;
-  f.image = Image(cm.width_px, cm.height_px, fmt);
-  const int bpp = bytes_per_pixel(fmt);
-  for (int y = 0; y < cm.height_px; ++y)
-    for (int x = 0; x < cm.width_px; ++x)
-      for (int c = 0; c < bpp; ++c)
-        f.image.row(y)[x * bpp + c] = static_cast<std::uint8_t>((x * 7 + y * 3 + c * 50 + (x ^ y)) & 255);
-  f.camera = id;
-  return f;
-}
-
 class AugmenterTest : public test::GlTest {};
 
 // Every property below must hold whichever rasteriser produced the virtual image.
@@ -100,8 +88,8 @@ TEST_P(MaskOracleTest, MasksAgreeWithRayCasterAtPixelCentres) {
     SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, a);
     if (a.extension_m < 2) scene.T_body_receiver.translation_m += Eigen::Vector3d(-1.5, 0.8, 1.2);
     StereoFrame sf;
-    sf.left = gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
-    sf.right = gradient_frame(rig.right().model, PixelFormat::kRGB8, CameraId::kRight);
+    sf.left = test::gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+    sf.right = test::gradient_frame(rig.right().model, PixelFormat::kRGB8, CameraId::kRight);
     StereoResult out;
     ASSERT_TRUE((*aug)->augment(sf, scene, out));
 
@@ -208,8 +196,8 @@ TEST_P(RasterizerTest, ProjectionMatchesOpenCvProjectPoints) {
   scene.boom.azimuth_rad = 0.26;           // out of the way
   scene.T_body_receiver = cam.T_body_cam;  // marker coordinates are left-camera coordinates
   ViewResult out;
-  ASSERT_TRUE(
-      (*aug)->augment_view(0, gradient_frame(cam.model, PixelFormat::kMono8, CameraId::kLeft), scene, out));
+  ASSERT_TRUE((*aug)->augment_view(0, test::gradient_frame(cam.model, PixelFormat::kMono8, CameraId::kLeft),
+                                   scene, out));
 
   const Eigen::Matrix3d K = cam.model.K();
   const cv::Matx33d Kcv(K(0, 0), K(0, 1), K(0, 2), K(1, 0), K(1, 1), K(1, 2), K(2, 0), K(2, 1), K(2, 2));
@@ -271,8 +259,8 @@ TEST_P(RasterizerTest, UntouchedPixelsAreBitIdenticalInEveryFormat) {
                           PixelFormat::kBayerGB8, PixelFormat::kRGBA8}) {
     SCOPED_TRACE(std::string(to_string(fmt)));
     StereoFrame sf;
-    sf.left = gradient_frame(rig.left().model, fmt, CameraId::kLeft);
-    sf.right = gradient_frame(rig.right().model, fmt, CameraId::kRight);
+    sf.left = test::gradient_frame(rig.left().model, fmt, CameraId::kLeft);
+    sf.right = test::gradient_frame(rig.right().model, fmt, CameraId::kRight);
     StereoResult out;
     ASSERT_TRUE((*aug)->augment(sf, scene, out));
     for (int c = 0; c < 2; ++c) {
@@ -324,8 +312,8 @@ TEST_P(RasterizerTest, ChangedBoxOutputIsTheWholeImageInsideItsBox) {
   make_builtin_receiver(&receptacle);
   for (PixelFormat fmt : {PixelFormat::kRGB8, PixelFormat::kBayerGR8}) {
     StereoFrame sf;
-    sf.left = gradient_frame(rig.left().model, fmt, CameraId::kLeft);
-    sf.right = gradient_frame(rig.right().model, fmt, CameraId::kRight);
+    sf.left = test::gradient_frame(rig.left().model, fmt, CameraId::kLeft);
+    sf.right = test::gradient_frame(rig.right().model, fmt, CameraId::kRight);
     StereoResult a, b;
     // Two scenes in a row: the box changes size between frames and its buffer is reused.
     for (const BoomArticulation art : {BoomArticulation{0.5, 0.05, 2.0}, BoomArticulation{0.6, -0.1, 4.0}}) {
@@ -363,7 +351,7 @@ TEST_P(RasterizerTest, ChangedBoxOutputIsTheWholeImageInsideItsBox) {
     }
   }
   // No box (nothing drawn): the whole image is the raw one.
-  const Frame raw = gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+  const Frame raw = test::gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
   ViewResult nothing;
   EXPECT_TRUE(pixels_equal(whole_augmented(raw.image, nothing), raw.image));
 }
@@ -380,8 +368,8 @@ TEST_P(RasterizerTest, BoomBehindTheReceiverIsNotDrawn) {
   const Eigen::Vector3d tip = scene.T_body_receiver * receptacle;
   scene.T_body_receiver.translation_m += 5.0 * (rig.left().T_body_cam.translation_m - tip).normalized();
   ViewResult out;
-  ASSERT_TRUE((*aug)->augment_view(0, gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft),
-                                   scene, out));
+  ASSERT_TRUE((*aug)->augment_view(
+      0, test::gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft), scene, out));
   // Where a ray hits both, the mask's boom bit must agree with which is nearer (ray caster).
   const RigCamera& cam = rig.left();
   const Pose T_cam_body = cam.T_body_cam.inverse();
@@ -416,7 +404,7 @@ TEST_P(RasterizerTest, BoomEdgesAreAntiAliasedOnlyWhenAsked) {
     auto aug = Augmenter::create(rig, opt);
     ASSERT_TRUE(aug) << aug.error().message;
     const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.0, 2.0});
-    const Frame raw = gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+    const Frame raw = test::gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
     ViewResult out;
     ASSERT_TRUE((*aug)->augment_view(0, raw, scene, out));
     // Partly covered edge pixels: centre outside the boom, yet blended with it.
@@ -443,8 +431,8 @@ TEST_F(AugmenterTest, ReceiverOverlaysDrawTheModelButLeaveMasksAlone) {
     auto aug = Augmenter::create(rig);
     ASSERT_TRUE(aug) << aug.error().message;
     const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.0, 2.0});
-    ASSERT_TRUE((*aug)->augment_view(0, gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft),
-                                     scene, base));
+    ASSERT_TRUE((*aug)->augment_view(
+        0, test::gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft), scene, base));
   }
   for (ReceiverDraw mode : {ReceiverDraw::kTranslucent, ReceiverDraw::kWireframe}) {
     AugmentOptions opt;
@@ -454,7 +442,7 @@ TEST_F(AugmenterTest, ReceiverOverlaysDrawTheModelButLeaveMasksAlone) {
     ASSERT_TRUE(aug) << aug.error().message;
     EXPECT_EQ((*aug)->rasterizer(), Rasterizer::kOpenGl);
     const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.0, 2.0});
-    const Frame raw = gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+    const Frame raw = test::gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
     ViewResult out;
     ASSERT_TRUE((*aug)->augment_view(0, raw, scene, out));
     EXPECT_TRUE(pixels_equal(out.mask, base.mask)) << "overlays must not change the masks";
@@ -494,8 +482,8 @@ TEST_F(AugmenterTest, RasterizersAgreeWithEachOther) {
     ASSERT_TRUE(aug) << aug.error().message;
     const SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.03, 2.5});
     StereoFrame sf;
-    sf.left = gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
-    sf.right = gradient_frame(rig.right().model, PixelFormat::kRGB8, CameraId::kRight);
+    sf.left = test::gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+    sf.right = test::gradient_frame(rig.right().model, PixelFormat::kRGB8, CameraId::kRight);
     ASSERT_TRUE((*aug)->augment(sf, scene, out[k]));
   }
   for (int c = 0; c < 2; ++c) {

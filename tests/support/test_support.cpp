@@ -55,4 +55,16 @@ void expect_same_fix(const nav::GpsFix& got, const nav::GpsFix& want, const std:
   EXPECT_EQ(got.heading_rad, want.heading_rad) << what;
 }
 
+Frame gradient_frame(const CameraModel& cm, PixelFormat fmt, CameraId id) {
+  Frame f;
+  f.image = Image(cm.width_px, cm.height_px, fmt);
+  const int bpp = bytes_per_pixel(fmt);
+  for (int y = 0; y < cm.height_px; ++y)
+    for (int x = 0; x < cm.width_px; ++x)
+      for (int c = 0; c < bpp; ++c)
+        f.image.row(y)[x * bpp + c] = static_cast<std::uint8_t>((x * 7 + y * 3 + c * 50 + (x ^ y)) & 255);
+  f.camera = id;
+  return f;
+}
+
 }  // namespace augrig::test

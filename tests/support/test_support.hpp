@@ -4,7 +4,9 @@
 
 #include <string>
 
+#include "core/frame.hpp"
 #include "nav/types.hpp"
+#include "render/camera_model.hpp"
 
 namespace augrig::test {
 
@@ -21,5 +23,9 @@ int run_augrig(const std::string& args, std::string* output = nullptr);
 // Every field of two GPS fixes but the arrival time, exactly (one parser's output against another's);
 // `what` names the fix in failure messages.
 void expect_same_fix(const nav::GpsFix& got, const nav::GpsFix& want, const std::string& what);
+
+// A raw frame of camera `id` the size of `cm`, in `fmt`, filled with a gradient and an XOR pattern
+// (every byte differs from its neighbours'): what the augmenter tests composite over.
+Frame gradient_frame(const CameraModel& cm, PixelFormat fmt, CameraId id);
 
 }  // namespace augrig::test
