@@ -155,10 +155,8 @@ Status Encoder::encode_difference(ConstImageView raw, ConstImageView augmented, 
     return make_error("augmented image ", augmented.width, "x", augmented.height, " ",
                       to_string(augmented.format), " differs from the raw image ", raw.width, "x", raw.height,
                       " ", to_string(raw.format));
-  box = changed_box(raw, augmented);
-  out.clear();
-  if (box.empty()) return {};
-  return compress_xor(sub_view(raw, box), sub_view(augmented, box), out);
+  // The whole image is its part inside the whole image's box: one path for both forms.
+  return encode_difference(raw, augmented, PixelBox{0, 0, raw.width, raw.height}, box, out);
 }
 
 Status Encoder::encode_difference(ConstImageView raw, ConstImageView part, const PixelBox& within,
@@ -178,13 +176,11 @@ Status Encoder::encode_difference(ConstImageView raw, ConstImageView part, const
   const ChangedBox b = changed_box(sub_view(raw, within), part);  // in the part's pixels
   if (b.empty()) return {};
   box = {b.x0 + within.x0, b.y0 + within.y0, b.x1 + within.x0, b.y1 + within.y0};
-  return compress_xor(sub_view(raw, box), sub_view(part, b), out);
-}
-
-Status Encoder::compress_xor(ConstImageView a, ConstImageView b, std::vector<std::uint8_t>& out) {
-  const std::size_t n = row_bytes(a.width, a.format);
-  scratch_.resize(n * static_cast<std::size_t>(a.height));
-  for (int y = 0; y < a.height; ++y) xor_bytes(a.row(y), b.row(y), scratch_.data() + n * y, n);
+  // raw XOR augmented inside the box, rows packed tight.
+  const ConstImageView r = sub_view(raw, box), a = sub_view(part, b);
+  const std::size_t n = row_bytes(r.width, r.format);
+  scratch_.resize(n * static_cast<std::size_t>(r.height));
+  for (int y = 0; y < r.height; ++y) xor_bytes(r.row(y), a.row(y), scratch_.data() + n * y, n);
   return compress(scratch_.data(), scratch_.size(), out);
 }
 

@@ -59,8 +59,6 @@ class Encoder {
 
  private:
   Status compress(const std::uint8_t* src, std::size_t n, std::vector<std::uint8_t>& out);
-  // Compresses a XOR b (equal sizes and formats), rows packed tight.
-  Status compress_xor(ConstImageView a, ConstImageView b, std::vector<std::uint8_t>& out);
   ZSTD_CCtx* cctx_ = nullptr;
   std::vector<std::uint8_t> scratch_;
 };
