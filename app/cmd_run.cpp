@@ -309,7 +309,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     if (uri.empty() || right_uri.empty())
       runtime_error(rig->source + ": cameras[0] and cameras[1] need a 'source' URI, or give --source");
   }
-  OpenedSource opened = unwrap(open_sources(uri, right_uri));
+  OpenedSource opened = unwrap(open_sources(uri, right_uri, rig ? rig->pairing : RigPairing{}));
   // sim://: the flight (kept here: `opened` is handed to the stereo source below).
   const std::shared_ptr<const SimulatedFlight> sim_flight = opened.sim;
   const bool is_sim = !opened.scenario.empty();
@@ -427,9 +427,18 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   }
 
   const bool lossless = opened.options.lossless;
+  // Cameras: how their frames pair (the stereo URI's or the rig's `pairing`).
+  std::string pairing_text;
+  if (opened.live) {
+    const StereoPairerConfig& pc = opened.options.pairing;
+    std::ostringstream p;
+    p << "; pairing by " << to_string(pc.mode) << ", tolerance " << fmt_us(pc.tolerance_ns) << " us, "
+      << (pc.clock_offsets ? "each camera's clock to host time" : "one clock");
+    pairing_text = p.str();
+  }
   auto stereo = unwrap(start_stereo(std::move(opened)));
-  out << "run: " << stereo->uri() << (lossless ? " (lockstep)" : " (live)") << "; rig " << rig->source
-      << "; poses from "
+  out << "run: " << stereo->uri() << (lossless ? " (lockstep)" : " (live)") << pairing_text << "; rig "
+      << rig->source << "; poses from "
       << (fixed_scene ? "the scene " + a.get("scene")
           : use_nav   ? std::string("the live nav (GPS/INS of both aircraft)")
                       : std::string("the simulation's truth"))
@@ -883,8 +892,12 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   }
   if (st.pairing.skew.count)
     out << "pair skew: p50 " << fmt_us(st.pairing.skew.p50_abs_ns()) << " us, p99 "
-        << fmt_us(st.pairing.skew.p99_abs_ns()) << " us, max " << fmt_us(st.pairing.skew.max_abs_ns)
-        << " us\n";
+        << fmt_us(st.pairing.skew.p99_abs_ns()) << " us, max " << fmt_us(st.pairing.skew.max_abs_ns) << " us"
+        << (st.pairing.pairs_within_uncertainty
+                ? ", " + std::to_string(st.pairing.pairs_within_uncertainty) +
+                      " pair(s) beyond the tolerance but within the clock estimates' uncertainty"
+                : std::string())
+        << "\n";
   for (const ClockOffsetLog& c : st.clocks)
     out << "clock " << to_string(c.camera) << ": host - device " << c.offset_ns << " ns, drift "
         << std::setprecision(2) << c.drift_ppm << " ppm, +-" << fmt_us(c.uncertainty_ns) << " us ("

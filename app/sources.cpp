@@ -2,7 +2,9 @@
 
 #include <array>
 #include <atomic>
+#include <iomanip>
 #include <limits>
+#include <sstream>
 #include <thread>
 
 #include <time.h>
@@ -194,7 +196,8 @@ Expected<std::unique_ptr<FrameSource>> open_camera(const SourceUri& u, CameraId 
 
 }  // namespace
 
-Expected<OpenedSource> open_sources(const std::string& uri, const std::string& right_uri) {
+Expected<OpenedSource> open_sources(const std::string& uri, const std::string& right_uri,
+                                    const RigPairing& pairing) {
   auto parsed = parse_source_uri(uri);
   if (!parsed) return parsed.error();
   SourceUri u = std::move(*parsed);
@@ -202,8 +205,16 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     auto right = parse_source_uri(right_uri);
     if (!right) return right.error();
     SourceUri stereo;
-    stereo.text = "stereo://{" + uri + "}{" + right_uri + "}";
+    std::ostringstream tolerance;
+    tolerance << std::setprecision(12) << pairing.tolerance_us;
+    stereo.text = "stereo:[tolerance_us=" + tolerance.str() + ",mode=" + pairing.mode +
+                  ",clock=" + pairing.clock + ",queue=" + std::to_string(pairing.queue) + "]//{" + uri +
+                  "}{" + right_uri + "}";
     stereo.scheme = "stereo";
+    stereo.params = {{"tolerance_us", tolerance.str()},
+                     {"mode", pairing.mode},
+                     {"clock", pairing.clock},
+                     {"queue", std::to_string(pairing.queue)}};
     stereo.children = {u, *right};
     u = std::move(stereo);
   }

@@ -11,6 +11,7 @@
 #include "capture/source_uri.hpp"
 #include "capture/stereo_source.hpp"
 #include "core/frame.hpp"
+#include "render/rig.hpp"
 #include "sim/flight.hpp"
 #include "sim/scenario.hpp"
 #include "sim/sensors.hpp"
@@ -37,8 +38,10 @@ struct OpenedSource {
 };
 
 // `uri`: one stereo-capable URI (sim://, replay://, stereo:[..]//{L}{R}); or, with `right_uri`, the
-// two cameras' URIs (the rig's per-camera `source` keys) composed with the default pairing.
-Expected<OpenedSource> open_sources(const std::string& uri, const std::string& right_uri = "");
+// two cameras' URIs (the rig's per-camera `source` keys) composed as stereo:[PAIRING]//{L}{R},
+// PAIRING being the rig's `pairing` section (its defaults are stereo://'s).
+Expected<OpenedSource> open_sources(const std::string& uri, const std::string& right_uri = "",
+                                    const RigPairing& pairing = {});
 
 // The StereoSource of an OpenedSource (starts its capture threads).
 Expected<std::unique_ptr<StereoSource>> start_stereo(OpenedSource opened);

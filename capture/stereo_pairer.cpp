@@ -239,6 +239,21 @@ std::optional<StereoFrame> StereoPairer::push(Frame frame) {
   return config_.mode == PairingMode::kTimestamp ? push_timestamp(std::move(p)) : push_trigger(std::move(p));
 }
 
+// Host times estimated from two device clocks are each off by up to their estimate's uncertainty
+// (large while an estimate is young, or when the host's latency is noisy): refusing a pair whose
+// skew is within that of the tolerance would drop frames for the estimators' noise, not for the
+// cameras'. The widening stays under a quarter of the shorter frame interval, so a frame can
+// never be taken for its neighbour's partner.
+std::int64_t StereoPairer::timestamp_tolerance() const {
+  const std::int64_t tol = config_.tolerance_ns;
+  if (!clock_[0] || !clock_[1] || !clock_[0]->has_estimate() || !clock_[1]->has_estimate()) return tol;
+  if (interval_ns_[0] <= 0 || interval_ns_[1] <= 0) return tol;
+  const std::int64_t cap = std::min(interval_ns_[0], interval_ns_[1]) / 4;
+  const std::int64_t widened =
+      tol + clock_[0]->estimate().uncertainty_ns + clock_[1]->estimate().uncertainty_ns;
+  return std::max(tol, std::min(widened, cap));
+}
+
 std::optional<StereoFrame> StereoPairer::push_timestamp(Pending p) {
   const int me = index_of(p.frame.camera), other = 1 - me;
   std::string why;
@@ -255,16 +270,19 @@ std::optional<StereoFrame> StereoPairer::push_timestamp(Pending p) {
     drop(me, UnpairedReason::kOutOfOrder);
     return std::nullopt;
   }
+  if (last_key_[me]) interval_ns_[me] = p.key_ns - *last_key_[me];
   last_key_[me] = p.key_ns;
 
   // Partners older than this frame by more than the tolerance will never pair: timestamps only grow.
-  const std::int64_t tol = config_.tolerance_ns;
+  const std::int64_t tol = timestamp_tolerance();
   auto& theirs = pending_[other];
   while (!theirs.empty() && theirs.front().key_ns < p.key_ns - tol) {
     theirs.pop_front();
     drop(other, UnpairedReason::kNoPartner);
   }
   if (!theirs.empty() && std::llabs(theirs.front().key_ns - p.key_ns) <= tol) {
+    if (std::llabs(theirs.front().key_ns - p.key_ns) > config_.tolerance_ns)
+      ++stats_.pairs_within_uncertainty;
     Pending partner = std::move(theirs.front());
     theirs.pop_front();
     return make_pair(std::move(p), std::move(partner));

@@ -78,6 +78,9 @@ struct PairerStats {
   SkewStats skew;                    // every pair whose skew is known
   // Trigger mode with timestamps that cannot be compared: paired by id, skew_ns = 0, not in `skew`.
   std::uint64_t pairs_without_skew = 0;
+  // Timestamp mode on host time through clock_offsets: pairs whose |skew| exceeded tolerance_ns
+  // but not the tolerance widened by the two clock estimates' uncertainty (in `skew` too).
+  std::uint64_t pairs_within_uncertainty = 0;
   std::uint64_t frames_left = 0;  // pushed; frames = 2 pairs + unpaired + still pending
   std::uint64_t frames_right = 0;
   // Unpaired frames of both cameras by reason (index: UnpairedReason); sums to unpaired_left +
@@ -94,6 +97,9 @@ struct PairerStats {
 struct StereoPairerConfig {
   PairingMode mode = PairingMode::kTimestamp;
   // Timestamp mode: the largest |t_right - t_left| that pairs (keep it below half the frame period).
+  // Compared on host time through clock_offsets, the tolerance grows by the sum of the two
+  // estimates' uncertainty_ns (a pair is refused only when the clocks can tell that its skew is
+  // too large), up to a quarter of the shorter frame interval.
   // Trigger mode: the id offset is learned from the first frames pairing by timestamp within it,
   // and an id pair whose timestamps (when comparable) differ by more is refused; 0: neither (then
   // trigger_id_offset must be set).
@@ -162,6 +168,8 @@ class StereoPairer {
   void drop_aged(TimestampNs host_now_ns);
   StereoFrame make_pair(Pending mine, Pending theirs);
   std::optional<StereoFrame> push_timestamp(Pending p);
+  // Timestamp mode: the tolerance for this frame (tolerance_ns, widened on estimated host time).
+  std::int64_t timestamp_tolerance() const;
   std::optional<StereoFrame> push_trigger(Pending p);
   std::optional<StereoFrame> learn_trigger_offset(Pending p);
   void enqueue(Pending p);
@@ -169,6 +177,7 @@ class StereoPairer {
   StereoPairerConfig config_;
   std::deque<Pending> pending_[2];
   std::optional<TimestampNs> last_key_[2];
+  std::int64_t interval_ns_[2] = {0, 0};  // each camera's latest frame interval (pairing time)
   std::optional<std::uint64_t> last_sequence_[2];
   std::optional<ClockOffsetEstimator> clock_[2];
   std::optional<ClockDomain> pairing_clock_;

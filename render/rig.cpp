@@ -305,7 +305,7 @@ RigCamera parse_camera(const Ctx& c, const YAML::Node& n, int index, const Stere
 Rig parse_root(const Ctx& c, const YAML::Node& root) {
   if (!root.IsMap())
     fail(c, root, "augrig_rig", "expected a rig map starting with 'augrig_rig: 1', " + got(root));
-  check_keys(c, root, "", {"augrig_rig", "calibration", "cameras", "boom", "receiver"});
+  check_keys(c, root, "", {"augrig_rig", "calibration", "cameras", "pairing", "boom", "receiver"});
   const YAML::Node ver = require(c, root, "", "augrig_rig", "the format version 'augrig_rig: 1'");
   int version = 0;
   if (!ver.IsScalar() || !YAML::convert<int>::decode(ver, version) || version != 1) {
@@ -386,6 +386,34 @@ Rig parse_root(const Ctx& c, const YAML::Node& root) {
                      deg_to_rad(az.second),
                      ex.first,
                      ex.second};
+
+  // The pairing section is optional: free-running cameras, each with its own clock, 2 ms.
+  if (const YAML::Node pn = root["pairing"]; pn.IsDefined()) {
+    expect_map(c, pn, "pairing", "a map {tolerance_us, mode, clock, queue}");
+    check_keys(c, pn, "pairing", {"tolerance_us", "mode", "clock", "queue"});
+    RigPairing& p = rig.pairing;
+    if (const YAML::Node v = pn["tolerance_us"]; v.IsDefined()) {
+      p.tolerance_us = to_number(c, v, "pairing.tolerance_us", "microseconds > 0");
+      if (!(p.tolerance_us > 0)) fail(c, v, "pairing.tolerance_us", "expected microseconds > 0, " + got(v));
+    }
+    if (const YAML::Node v = pn["mode"]; v.IsDefined()) {
+      p.mode = to_string_value(c, v, "pairing.mode", "timestamp or trigger_id");
+      if (p.mode != "timestamp" && p.mode != "trigger_id")
+        fail(c, v, "pairing.mode", "expected timestamp or trigger_id, " + got(v));
+    }
+    if (const YAML::Node v = pn["clock"]; v.IsDefined()) {
+      p.clock = to_string_value(c, v, "pairing.clock", "separate or shared");
+      if (p.clock != "separate" && p.clock != "shared")
+        fail(c, v, "pairing.clock",
+             "expected separate (each camera its own clock) or shared (PTP), " + got(v));
+    }
+    if (const YAML::Node v = pn["queue"]; v.IsDefined()) {
+      const double q = to_number(c, v, "pairing.queue", "an integer >= 1");
+      if (!(q >= 1 && q <= 1024 && q == std::floor(q)))
+        fail(c, v, "pairing.queue", "expected an integer from 1 to 1024, " + got(v));
+      p.queue = static_cast<int>(q);
+    }
+  }
 
   // The receiver section is optional: the built-in receiver with its receptacle.
   rig.receiver.receptacle_m = Eigen::Vector3d(4.0, 0.0, -0.9);
@@ -519,6 +547,9 @@ std::string rig_to_yaml(const Rig& rig) {
     o << "    near_m: " << fmt(cam.near_m) << "\n    far_m: " << fmt(cam.far_m) << "\n";
     if (!cam.source_uri.empty()) o << "    source: " << quote(cam.source_uri) << "\n";
   }
+  const RigPairing& p = rig.pairing;
+  o << "pairing: {tolerance_us: " << fmt(p.tolerance_us) << ", mode: " << p.mode << ", clock: " << p.clock
+    << ", queue: " << p.queue << "}\n";
   const BoomLimits& l = rig.boom.limits;
   o << "boom:\n  pivot_body_m: ";
   write_vec(o, {rig.boom.pivot_body_m.x(), rig.boom.pivot_body_m.y(), rig.boom.pivot_body_m.z()});

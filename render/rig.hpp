@@ -56,9 +56,20 @@ struct ReceiverConfig {
   Eigen::Vector3d receptacle_m = Eigen::Vector3d::Zero();  // in the receiver body frame
 };
 
+// How the cameras' frames pair when they come from the cameras' `source` URIs: the parameters of
+// a stereo:[..]// source URI (docs/CAPTURE.md), checked on load. What the rig's wiring allows:
+// a shared trigger (mode trigger_id), PTP (clock shared), or free-running cameras.
+struct RigPairing {
+  double tolerance_us = 2000.0;    // largest skew that pairs (keep it under half the frame period)
+  std::string mode = "timestamp";  // timestamp | trigger_id
+  std::string clock = "separate";  // separate (each camera its own clock) | shared (PTP)
+  int queue = 8;                   // frames kept per camera while waiting for a partner
+};
+
 struct Rig {
   std::string source;              // file it came from ("<built-in>" for defaults)
   std::vector<RigCamera> cameras;  // [0] left, [1] right
+  RigPairing pairing;
   BoomConfig boom;
   ReceiverConfig receiver;
 

@@ -168,6 +168,7 @@ struct TwoCameraRig {
   TimestampNs device0_ns[2] = {5'000'000'000, 900'000'000'000};
   TimestampNs host0_ns = 77'000'000'000;
   std::uint64_t seed = 3;
+  double latency_mean_ns = 1e6;  // exponential arrival latency
 
   struct Shot {
     Frame frame;
@@ -176,7 +177,7 @@ struct TwoCameraRig {
   // Frames of both cameras in arrival order.
   std::vector<Shot> run(int frames) const {
     std::mt19937_64 rng(seed);
-    std::exponential_distribution<double> latency(1.0 / 1e6);
+    std::exponential_distribution<double> latency(1.0 / latency_mean_ns);
     std::normal_distribution<double> jitter(0.0, 20'000.0);
     std::vector<Shot> out;
     TimestampNs last_arrival[2] = {0, 0};
@@ -235,6 +236,41 @@ TEST(StereoPairer, ClockOffsetsPairIndependentDeviceClocksOnHostTime) {
   // The same frames compared raw, as if the device clocks were one: nothing pairs.
   StereoPairer raw(kPeriod / 2);
   for (const auto& s : shots) EXPECT_FALSE(raw.push(s.frame));
+}
+
+// Triggered cameras (true skew ~20 us) with separate clocks behind a slow, noisy link (latency
+// 5 ms on average): the host-time estimates are off by up to their uncertainty, far more than a
+// 100 us tolerance. Pairs are refused only when the skew exceeds the tolerance beyond that
+// uncertainty, so every frame pairs with its true partner; frames half a period apart never do.
+TEST(StereoPairer, HostTimeToleranceGrowsByTheClockEstimatesUncertainty) {
+  StereoPairerConfig c;
+  c.tolerance_ns = 100'000;
+  c.device_clock_shared = false;
+  c.clock_offsets = ClockOffsetConfig{};
+  TwoCameraRig rig;
+  rig.latency_mean_ns = 5e6;
+  StereoPairer p = make_pairer(c);
+  const auto shots = rig.run(300);
+  for (const auto& s : shots)
+    if (auto sf = p.push(s.frame)) EXPECT_EQ(sf->left.sequence, sf->right.sequence);
+  p.flush();
+  EXPECT_GE(p.stats().pairs, 297u);
+  EXPECT_GT(p.stats().pairs_within_uncertainty, 0u);
+  EXPECT_LE(p.stats().pairs_within_uncertainty, p.stats().pairs);
+  EXPECT_GT(p.stats().skew.max_abs_ns, c.tolerance_ns);  // what the widening let through
+  expect_ledger_balanced(p);
+
+  // The right camera half a period late: the widening stops at a quarter of the frame interval.
+  auto late = shots;
+  for (auto& s : late)
+    if (s.frame.camera == CameraId::kRight) s.frame.t_ns += kPeriod / 2, s.frame.t_host_ns += kPeriod / 2;
+  std::stable_sort(late.begin(), late.end(),
+                   [](const auto& a, const auto& b) { return a.frame.t_host_ns < b.frame.t_host_ns; });
+  StereoPairer q = make_pairer(c);
+  for (const auto& s : late) EXPECT_FALSE(q.push(s.frame));
+  q.flush();
+  EXPECT_EQ(q.stats().pairs, 0u);
+  expect_ledger_balanced(q);
 }
 
 TEST(StereoPairer, DeviceClockResetKeepsPairingOnHostTime) {

@@ -69,6 +69,10 @@ void expect_rig_near(const Rig& a, const Rig& b, double tol) {
   EXPECT_NEAR(la.extension_max_m, lb.extension_max_m, tol);
   expect_source_eq(a.receiver.model, b.receiver.model);
   EXPECT_LT((a.receiver.receptacle_m - b.receiver.receptacle_m).norm(), tol);
+  EXPECT_NEAR(a.pairing.tolerance_us, b.pairing.tolerance_us, tol);
+  EXPECT_EQ(a.pairing.mode, b.pairing.mode);
+  EXPECT_EQ(a.pairing.clock, b.pairing.clock);
+  EXPECT_EQ(a.pairing.queue, b.pairing.queue);
 }
 
 std::string write_file(const std::string& dir, const std::string& name, const std::string& text) {
@@ -171,6 +175,7 @@ TEST(Rig, RoundTripEverything) {
   a.receiver.model.axes = {"-z", "+x", "-y"};
   a.receiver.receptacle_m = {3.3, 0.1, -1.2};
   a.boom.limits.elevation_min_rad = deg_to_rad(12.345);
+  a.pairing = {125.5, "trigger_id", "shared", 3};
   const std::string text = rig_to_yaml(a);
   const auto b = parse_rig(text, "<string>");
   ASSERT_TRUE(b) << b.error().message << "\n" << text;
@@ -395,6 +400,16 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
        "nope.yaml: cannot open"},
       {"calibration format", base_with(1, "augrig_rig: 1\ncalibration: {format: matlab, file: x.mat}"), 2,
        "calibration.format", "expected one of opencv, ros, kalibr"},
+      {"pairing tolerance zero", base_with(1, "augrig_rig: 1\npairing: {tolerance_us: 0}"), 2,
+       "pairing.tolerance_us", "expected microseconds > 0, got '0'"},
+      {"pairing mode", base_with(1, "augrig_rig: 1\npairing: {mode: nearest}"), 2, "pairing.mode",
+       "expected timestamp or trigger_id, got 'nearest'"},
+      {"pairing clock", base_with(1, "augrig_rig: 1\npairing: {clock: gps}"), 2, "pairing.clock",
+       "expected separate (each camera its own clock) or shared (PTP), got 'gps'"},
+      {"pairing queue", base_with(1, "augrig_rig: 1\npairing: {queue: 2.5}"), 2, "pairing.queue",
+       "expected an integer from 1 to 1024"},
+      {"pairing typo", base_with(1, "augrig_rig: 1\npairing: {tolerance: 10}"), 2, "pairing.tolerance",
+       "unknown key"},
   };
   // Only one camera: the right camera's lines removed.
   std::vector<BadRig> all = cases;
