@@ -333,6 +333,7 @@ class AugmenterImpl final : public Augmenter {
   std::vector<VBox> project_boxes(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const;
   VBox raw_box_of(const ViewState& vs, const VBox& vbox) const;
   double nearest_hit(ViewState& vs, const std::uint32_t* cands, int n, double x, double y, bool rings) const;
+  double covered_depth(const ViewState& vs, const std::uint32_t* ids, double x, double y) const;
   void build_rings();
   std::uint32_t global_index(std::uint32_t packed) const {
     return first_tri_of_draw_[packed >> kDrawShift] + (packed & kPrimMask);
@@ -966,6 +967,29 @@ double AugmenterImpl::nearest_hit(ViewState& vs, const std::uint32_t* cands, int
   return best;
 }
 
+// Depth at the ray (x, y, 1) where all four samples around it hold one object's triangles (ids
+// not all equal): the centre is covered, and its depth is the nearest of those triangles that
+// contains the ray, or the first sample's plane when a sliver none of them holds does. What
+// nearest_hit() finds without rings, with the few distinct ids told apart directly; out of line,
+// so that the per-pixel loop stays small.
+__attribute__((noinline)) double AugmenterImpl::covered_depth(const ViewState& vs, const std::uint32_t* ids,
+                                                              double x, double y) const {
+  const Eigen::Vector3d d(x, y, 1.0);
+  double best = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 4; ++k) {
+    if ((k > 0 && ids[k] == ids[0]) || (k > 1 && ids[k] == ids[1]) || (k > 2 && ids[k] == ids[2])) continue;
+    const CamTriangle& t = triangle(vs, ids[k]);
+    if (t.edge[0].dot(d) < 0 || t.edge[1].dot(d) < 0 || t.edge[2].dot(d) < 0) continue;
+    const double n_dot_d = t.n.dot(d);
+    if (n_dot_d == 0) continue;  // seen edge-on
+    const double z = t.n_dot_v0 / n_dot_d;
+    if (z > 0.0 && z < best) best = z;
+  }
+  if (std::isfinite(best)) return best;
+  const CamTriangle& t = triangle(vs, ids[0]);
+  return t.n_dot_v0 / t.n.dot(d);
+}
+
 void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& out) const {
   const CameraModel& cm = vs.cam->model;
   const int W = cm.width_px, H = cm.height_px, Wv = vs.vp.width;
@@ -1158,6 +1182,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
         // sample's plane gives it. At a silhouette the slivers' neighbours are searched as well.
         auto centre_depth = [&](const std::uint32_t* ids, bool any, bool all, bool same) {
           if (!any) return std::numeric_limits<double>::infinity();
+          if (all && !same && !identity) return covered_depth(vs, ids, x, y);
           if (!(all && same)) {
             const double z = nearest_hit(vs, ids, ns, x, y, !all);
             if (std::isfinite(z) || !all) return z;
