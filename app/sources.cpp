@@ -207,14 +207,14 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     SourceUri stereo;
     std::ostringstream tolerance;
     tolerance << std::setprecision(12) << pairing.tolerance_us;
-    stereo.text = "stereo:[tolerance_us=" + tolerance.str() + ",mode=" + pairing.mode +
-                  ",clock=" + pairing.clock + ",queue=" + std::to_string(pairing.queue) + "]//{" + uri +
-                  "}{" + right_uri + "}";
     stereo.scheme = "stereo";
     stereo.params = {{"tolerance_us", tolerance.str()},
                      {"mode", pairing.mode},
                      {"clock", pairing.clock},
                      {"queue", std::to_string(pairing.queue)}};
+    std::string params;
+    for (const auto& [key, value] : stereo.params) params += (params.empty() ? "" : ",") + key + "=" + value;
+    stereo.text = "stereo:[" + params + "]//{" + uri + "}{" + right_uri + "}";
     stereo.children = {u, *right};
     u = std::move(stereo);
   }

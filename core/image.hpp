@@ -98,6 +98,10 @@ struct PixelBox {
   bool empty() const { return x1 <= x0 || y1 <= y0; }
   int width() const { return empty() ? 0 : x1 - x0; }
   int height() const { return empty() ? 0 : y1 - y0; }
+  // Whether it lies in a width x height image (an empty box lies anywhere).
+  bool inside(int width, int height) const {
+    return empty() || (x0 >= 0 && y0 >= 0 && x1 <= width && y1 <= height);
+  }
   friend bool operator==(const PixelBox&, const PixelBox&) = default;
 };
 

@@ -164,7 +164,7 @@ Status Encoder::encode_difference(ConstImageView raw, ConstImageView part, const
   if (!within.empty() && part.format != raw.format)
     return make_error("augmented image's part is ", to_string(part.format), ", the raw image ",
                       to_string(raw.format));
-  if (!within.empty() && (within.x0 < 0 || within.y0 < 0 || within.x1 > raw.width || within.y1 > raw.height))
+  if (!within.inside(raw.width, raw.height))
     return make_error("augmented box [", within.x0, ", ", within.x1, ") x [", within.y0, ", ", within.y1,
                       ") is not inside the raw image ", raw.width, "x", raw.height);
   if (part.width != within.width() || part.height != within.height())

@@ -85,7 +85,7 @@ std::string validate(const FrameRecord& f) {
     if (raw.empty()) return cam + " raw image is empty";
     const Image& aug = f.augmented[c];
     if (const auto& box = f.augmented_box[c]) {
-      if (!box->empty() && (box->x0 < 0 || box->y0 < 0 || box->x1 > raw.width() || box->y1 > raw.height()))
+      if (!box->inside(raw.width(), raw.height()))
         return cam + " augmented box [" + std::to_string(box->x0) + ", " + std::to_string(box->x1) + ") x [" +
                std::to_string(box->y0) + ", " + std::to_string(box->y1) + ") is not inside the raw image " +
                std::to_string(raw.width()) + "x" + std::to_string(raw.height());
@@ -257,10 +257,11 @@ void Recorder::Impl::encode(Encoder& enc, FrameRecord& f, Encoded& e) {
     // The augmented image, whole or as its changed box: stored the same way.
     const bool aug_present = !f.augmented[c].empty() || f.augmented_box[c].has_value();
     if (aug_present) {
-      const Status s = f.augmented_box[c] ? enc.encode_difference(fr.image.view(), f.augmented[c].cview(),
-                                                                  *f.augmented_box[c], cr.aug_box, e.aug[c])
-                                          : enc.encode_difference(fr.image.view(), f.augmented[c].cview(),
-                                                                  cr.aug_box, e.aug[c]);
+      // A whole augmented image is its part inside the whole image's box.
+      const PixelBox within =
+          f.augmented_box[c].value_or(PixelBox{0, 0, fr.image.width(), fr.image.height()});
+      const Status s =
+          enc.encode_difference(fr.image.view(), f.augmented[c].cview(), within, cr.aug_box, e.aug[c]);
       if (!s) {
         e.error = cam + " augmented: " + s.error().message;
         return;

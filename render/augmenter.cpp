@@ -122,6 +122,17 @@ struct CamTriangle {
   Eigen::Vector3d v0, e1, e2;
 };
 
+// Camera z where the ray d = (x, y, 1) from the camera centre hits `t`, or +inf: inside-ness is
+// three signs against the edge planes, and z (the ray parameter, d.z being 1) comes from the plane.
+inline double ray_hit_z(const CamTriangle& t, const Eigen::Vector3d& d) {
+  constexpr double kMiss = std::numeric_limits<double>::infinity();
+  if (t.edge[0].dot(d) < 0 || t.edge[1].dot(d) < 0 || t.edge[2].dot(d) < 0) return kMiss;
+  const double n_dot_d = t.n.dot(d);
+  if (n_dot_d == 0) return kMiss;  // seen edge-on
+  const double z = t.n_dot_v0 / n_dot_d;
+  return z > 0.0 ? z : kMiss;
+}
+
 // RGBA as four floats (GCC/Clang vector extensions: SSE here, NEON on ARM).
 using F32x4 = float __attribute__((vector_size(16)));
 
@@ -935,15 +946,7 @@ double AugmenterImpl::nearest_hit(ViewState& vs, const std::uint32_t* cands, int
                                   bool rings) const {
   const Eigen::Vector3d d(x, y, 1.0);
   double best = std::numeric_limits<double>::infinity();
-  // Rays all start at the camera centre: inside-ness is three signs against the edge planes, and
-  // the hit's camera z (the ray parameter, d.z being 1) comes from the triangle's plane.
-  auto test = [&](const CamTriangle& t) {
-    if (t.edge[0].dot(d) < 0 || t.edge[1].dot(d) < 0 || t.edge[2].dot(d) < 0) return;
-    const double n_dot_d = t.n.dot(d);
-    if (n_dot_d == 0) return;  // seen edge-on
-    const double z = t.n_dot_v0 / n_dot_d;
-    if (z > 0.0 && z < best) best = z;
-  };
+  auto test = [&](const CamTriangle& t) { best = std::min(best, ray_hit_z(t, d)); };
   // Each triangle is tested once per call: a stamp per triangle, no search.
   if (++vs.stamp == 0) std::fill(vs.visit_stamp.begin(), vs.visit_stamp.end(), 0u), vs.stamp = 1;
   auto first_time = [&](std::uint32_t g) {
@@ -978,12 +981,7 @@ __attribute__((noinline)) double AugmenterImpl::covered_depth(const ViewState& v
   double best = std::numeric_limits<double>::infinity();
   for (int k = 0; k < 4; ++k) {
     if ((k > 0 && ids[k] == ids[0]) || (k > 1 && ids[k] == ids[1]) || (k > 2 && ids[k] == ids[2])) continue;
-    const CamTriangle& t = triangle(vs, ids[k]);
-    if (t.edge[0].dot(d) < 0 || t.edge[1].dot(d) < 0 || t.edge[2].dot(d) < 0) continue;
-    const double n_dot_d = t.n.dot(d);
-    if (n_dot_d == 0) continue;  // seen edge-on
-    const double z = t.n_dot_v0 / n_dot_d;
-    if (z > 0.0 && z < best) best = z;
+    best = std::min(best, ray_hit_z(triangle(vs, ids[k]), d));
   }
   if (std::isfinite(best)) return best;
   const CamTriangle& t = triangle(vs, ids[0]);

@@ -19,22 +19,20 @@ class CliTest : public test::GlTest {};
 
 TEST_F(CliTest, FrameRecordOfEitherOutputRecordsTheWholeAugmentedImages) {
   const Rig rig = Rig::paper_default();
-  AugmentOptions whole_opt, box_opt;
-  box_opt.augmented_output = AugmentedOutput::kChangedBox;
-  auto whole = Augmenter::create(rig, whole_opt);
-  auto box = Augmenter::create(rig, box_opt);
-  ASSERT_TRUE(whole && box);
+  auto augmenters = test::whole_and_box_augmenters(rig, AugmentOptions{});
+  ASSERT_TRUE(augmenters) << augmenters.error().message;
+  Augmenter &whole = *augmenters->whole, &box = *augmenters->box;
   Eigen::Vector3d receptacle;
   make_builtin_receiver(&receptacle);
   const SceneState scene =
-      scene_at_contact(rig, (*whole)->boom_model().dims, receptacle, BoomArticulation{0.5, 0.05, 3.0});
+      scene_at_contact(rig, whole.boom_model().dims, receptacle, BoomArticulation{0.5, 0.05, 3.0});
   StereoFrame sf;
   sf.left = test::gradient_frame(rig.left().model, PixelFormat::kBayerRG8, CameraId::kLeft);
   sf.right = test::gradient_frame(rig.right().model, PixelFormat::kBayerRG8, CameraId::kRight);
   sf.left.t_ns = sf.right.t_ns = sf.t_key_ns = 1'000'000'000;
   StereoResult w, b;
-  ASSERT_TRUE((*whole)->augment(sf, scene, w));
-  ASSERT_TRUE((*box)->augment(sf, scene, b));
+  ASSERT_TRUE(whole.augment(sf, scene, w));
+  ASSERT_TRUE(box.augment(sf, scene, b));
 
   // The box output goes to the recorder as boxes, the whole one as whole images.
   recorder::FrameRecord from_box = frame_record(b);

@@ -251,8 +251,11 @@ TEST(StereoPairer, HostTimeToleranceGrowsByTheClockEstimatesUncertainty) {
   rig.latency_mean_ns = 5e6;
   StereoPairer p = make_pairer(c);
   const auto shots = rig.run(300);
-  for (const auto& s : shots)
-    if (auto sf = p.push(s.frame)) EXPECT_EQ(sf->left.sequence, sf->right.sequence);
+  for (const auto& s : shots) {
+    if (auto sf = p.push(s.frame)) {
+      EXPECT_EQ(sf->left.sequence, sf->right.sequence);
+    }
+  }
   p.flush();
   EXPECT_GE(p.stats().pairs, 297u);
   EXPECT_GT(p.stats().pairs_within_uncertainty, 0u);

@@ -303,11 +303,9 @@ TEST_P(RasterizerTest, UntouchedPixelsAreBitIdenticalInEveryFormat) {
 // outside the box the whole image is the raw image.
 TEST_P(RasterizerTest, ChangedBoxOutputIsTheWholeImageInsideItsBox) {
   const Rig rig = distorted_rig();
-  AugmentOptions whole_opt = options(), box_opt = options();
-  box_opt.augmented_output = AugmentedOutput::kChangedBox;
-  auto whole = Augmenter::create(rig, whole_opt);
-  auto box = Augmenter::create(rig, box_opt);
-  ASSERT_TRUE(whole && box);
+  auto augmenters = test::whole_and_box_augmenters(rig, options());
+  ASSERT_TRUE(augmenters) << augmenters.error().message;
+  Augmenter &whole = *augmenters->whole, &box = *augmenters->box;
   Eigen::Vector3d receptacle;
   make_builtin_receiver(&receptacle);
   for (PixelFormat fmt : {PixelFormat::kRGB8, PixelFormat::kBayerGR8}) {
@@ -318,9 +316,9 @@ TEST_P(RasterizerTest, ChangedBoxOutputIsTheWholeImageInsideItsBox) {
     // Two scenes in a row: the box changes size between frames and its buffer is reused.
     for (const BoomArticulation art : {BoomArticulation{0.5, 0.05, 2.0}, BoomArticulation{0.6, -0.1, 4.0}}) {
       SCOPED_TRACE(std::string(to_string(fmt)) + " extension " + std::to_string(art.extension_m));
-      const SceneState scene = contact_scene(rig, (*whole)->boom_model(), receptacle, art);
-      ASSERT_TRUE((*whole)->augment(sf, scene, a));
-      ASSERT_TRUE((*box)->augment(sf, scene, b));
+      const SceneState scene = contact_scene(rig, whole.boom_model(), receptacle, art);
+      ASSERT_TRUE(whole.augment(sf, scene, a));
+      ASSERT_TRUE(box.augment(sf, scene, b));
       for (int c = 0; c < 2; ++c) {
         const Image& raw = c == 0 ? sf.left.image : sf.right.image;
         const ViewResult& w = c == 0 ? a.left : a.right;

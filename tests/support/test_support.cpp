@@ -67,4 +67,15 @@ Frame gradient_frame(const CameraModel& cm, PixelFormat fmt, CameraId id) {
   return f;
 }
 
+Expected<WholeAndBoxAugmenters> whole_and_box_augmenters(const Rig& rig, AugmentOptions options) {
+  WholeAndBoxAugmenters a;
+  options.augmented_output = AugmentedOutput::kWholeImage;
+  auto whole = Augmenter::create(rig, options);
+  if (!whole) return whole.error();
+  options.augmented_output = AugmentedOutput::kChangedBox;
+  auto box = Augmenter::create(rig, options);
+  if (!box) return box.error();
+  return WholeAndBoxAugmenters{std::move(*whole), std::move(*box)};
+}
+
 }  // namespace augrig::test

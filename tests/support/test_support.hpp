@@ -6,6 +6,7 @@
 
 #include "core/frame.hpp"
 #include "nav/types.hpp"
+#include "render/augmenter.hpp"
 #include "render/camera_model.hpp"
 
 namespace augrig::test {
@@ -27,5 +28,12 @@ void expect_same_fix(const nav::GpsFix& got, const nav::GpsFix& want, const std:
 // A raw frame of camera `id` the size of `cm`, in `fmt`, filled with a gradient and an XOR pattern
 // (every byte differs from its neighbours'): what the augmenter tests composite over.
 Frame gradient_frame(const CameraModel& cm, PixelFormat fmt, CameraId id);
+
+// Two augmenters of `rig` with `options` but for AugmentOptions::augmented_output: one makes whole
+// augmented images, the other only their changed boxes. For tests that compare the two forms.
+struct WholeAndBoxAugmenters {
+  std::unique_ptr<Augmenter> whole, box;
+};
+Expected<WholeAndBoxAugmenters> whole_and_box_augmenters(const Rig& rig, AugmentOptions options);
 
 }  // namespace augrig::test
