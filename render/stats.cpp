@@ -251,15 +251,9 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
   constexpr double kSnapPx = 1e-3;
 
   const double right_max_radius = right.max_valid_radius();  // once, not per pixel
-  // Is the left receiver point z * (x, y, 1) the surface the right camera sees?
-  auto visible_right = [&](double z, float x_n, float y_n) {
-    if (!(z < std::numeric_limits<double>::infinity()) || x_n != x_n || y_n != y_n) return false;  // inf/NaN
-    const double px = z * x_n, py = z * y_n;
-    const Eigen::Vector3d p(r00 * px + r01 * py + r02 * z + tx, r10 * px + r11 * py + r12 * z + ty,
-                            r20 * px + r21 * py + r22 * z + tz);
-    const auto uv = right.project(p, right_max_radius);
-    if (!uv) return false;
-    const double u = uv->x(), v = uv->y();
+  // Is the right camera's surface at its pixel (u, v), for a point at depth zr in its frame, that
+  // point: in the image, no boom in front of it, and the receiver's depth there zr?
+  auto seen_at = [&](double u, double v, double zr) {
     if (!(u >= -0.5 && u < u_max && v >= -0.5 && v < v_max)) return false;
     // Left/top pixel centre of the neighbourhood: floor(u + snap) by truncation (u + snap + 2 > 0;
     // std::floor is a libm call on baseline x86-64). fu in [-snap, 1 - snap) is u's offset from it.
@@ -272,12 +266,58 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
     // Any of the (up to 2x2) surrounding pixel centres agreeing suffices: sub-pixel slack.
     const int x0 = std::max(xa, 0), x1 = std::min(fu > kSnapPx ? xa + 1 : xa, w - 1);
     const int y0 = std::max(ya, 0), y1 = std::min(fv > kSnapPx ? ya + 1 : ya, h - 1);
-    const double zr = p.z(), tol = tol_m + tol_rel * zr;
+    const double tol = tol_m + tol_rel * zr;
     auto near = [&](int xx, int yy) {  // +inf (no receiver there) never passes
       return std::abs(static_cast<double>(depth_r[static_cast<std::size_t>(yy) * w + xx]) - zr) <= tol;
     };
     return near(x0, y0) || (x1 != x0 && near(x1, y0)) ||
            (y1 != y0 && (near(x0, y1) || (x1 != x0 && near(x1, y1))));
+  };
+  // Is the left receiver point z * (x, y, 1) the surface the right camera sees? Any lens model.
+  auto visible_right = [&](double z, float x_n, float y_n) {
+    if (!(z < std::numeric_limits<double>::infinity()) || x_n != x_n || y_n != y_n) return false;  // inf/NaN
+    const double px = z * x_n, py = z * y_n;
+    const Eigen::Vector3d p(r00 * px + r01 * py + r02 * z + tx, r10 * px + r11 * py + r12 * z + ty,
+                            r20 * px + r21 * py + r22 * z + tz);
+    const auto uv = right.project(p, right_max_radius);
+    return uv && seen_at(uv->x(), uv->y(), p.z());
+  };
+  // The same for pixels xs[0..n) of one row (depths zl, rays ry) into vis[], two at a time (SSE2
+  // doubles, GCC/Clang vector extensions) for a pinhole or radial-tangential right camera: the
+  // projection is most of the per-pixel cost. The same operations in the same order as
+  // CameraModel::project(), so the same answers.
+  const bool batched =
+      right.distortion == DistortionModel::kNone || right.distortion == DistortionModel::kRadTan;
+  const double k1 = right.coeffs[0], k2 = right.coeffs[1], p1 = right.coeffs[2], p2 = right.coeffs[3],
+               k3 = right.coeffs[4];
+  const bool radtan = right.distortion == DistortionModel::kRadTan;
+  const double fx = right.fx_px, fy = right.fy_px, cxr = right.cx_px, cyr = right.cy_px;
+  auto visible_right_batch = [&](const int* xs, int n, const float* zl, const Eigen::Vector2f* ry,
+                                 bool* vis) {
+    using F64x2 = double __attribute__((vector_size(16)));
+    for (int i = 0; i < n; i += 2) {
+      const int xa = xs[i], xb = xs[i + 1 < n ? i + 1 : i];
+      const F64x2 z{zl[xa], zl[xb]};
+      const F64x2 xn{ry[xa].x(), ry[xb].x()}, yn{ry[xa].y(), ry[xb].y()};
+      const F64x2 px = z * xn, py = z * yn;
+      const F64x2 X = r00 * px + r01 * py + r02 * z + tx, Y = r10 * px + r11 * py + r12 * z + ty,
+                  Z = r20 * px + r21 * py + r22 * z + tz;
+      const F64x2 x = X / Z, y = Y / Z;
+      F64x2 u = x, v = y;
+      if (radtan) {
+        const F64x2 r2 = x * x + y * y;
+        const F64x2 radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        u = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+        v = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+      }
+      u = fx * u + cxr, v = fy * v + cyr;
+      for (int l = 0; l < 2 && i + l < n; ++l) {
+        // The lanes' guards, as in visible_right() and CameraModel::project().
+        const bool ok = z[l] < std::numeric_limits<double>::infinity() && xn[l] == xn[l] && yn[l] == yn[l] &&
+                        Z[l] > 0.0 && (!radtan || std::sqrt(x[l] * x[l] + y[l] * y[l]) < right_max_radius);
+        vis[i + l] = ok && seen_at(u[l], v[l], Z[l]);
+      }
+    }
   };
 
   // Every second row from y_begin: the mask counts, the class image and the class counts (by
@@ -306,6 +346,26 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
       const Eigen::Vector2f* ry = rays->data() + static_cast<std::size_t>(y) * w;
       std::uint8_t* cls = classes_out ? classes_out->data() + static_cast<std::size_t>(y) * w : nullptr;
       if (cls) std::memset(cls, static_cast<int>(StereoClass::kNone), static_cast<std::size_t>(w));
+      // The row's left receiver pixels, a batch at a time: x, then whether the right camera sees
+      // the same point.
+      constexpr int kBatch = 64;
+      int xs[kBatch];
+      bool vis[kBatch];
+      int nb = 0;
+      auto flush = [&] {
+        if (batched)
+          visible_right_batch(xs, nb, zl, ry, vis);
+        else
+          for (int i = 0; i < nb; ++i) vis[i] = visible_right(zl[xs[i]], ry[xs[i]].x(), ry[xs[i]].y());
+        for (int i = 0; i < nb; ++i) {
+          const bool vis_left = !(ml[xs[i]] & kMaskBoom);
+          const StereoClass c = vis_left ? (vis[i] ? StereoClass::kBoth : StereoClass::kLeftOnly)
+                                         : (vis[i] ? StereoClass::kRightOnly : StereoClass::kNeither);
+          ++counts[static_cast<int>(c)];
+          if (cls) cls[xs[i]] = static_cast<std::uint8_t>(c);
+        }
+        nb = 0;
+      };
       for (int x = cx0 & ~7; x < cx1; ++x) {
         if ((x & 7) == 0 && x + 8 <= cx1) {  // skip 8 receiver-free pixels at once
           std::uint64_t v8;
@@ -315,15 +375,11 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
             continue;
           }
         }
-        const std::uint8_t m = ml[x];
-        if (!(m & kMaskReceiver)) continue;
-        const bool vis_left = !(m & kMaskBoom);
-        const bool vis_right = visible_right(zl[x], ry[x].x(), ry[x].y());
-        const StereoClass c = vis_left ? (vis_right ? StereoClass::kBoth : StereoClass::kLeftOnly)
-                                       : (vis_right ? StereoClass::kRightOnly : StereoClass::kNeither);
-        ++counts[static_cast<int>(c)];
-        if (cls) cls[x] = static_cast<std::uint8_t>(c);
+        if (!(ml[x] & kMaskReceiver)) continue;
+        xs[nb++] = x;
+        if (nb == kBatch) flush();
       }
+      flush();
     }
     return pass;
   };
