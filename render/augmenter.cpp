@@ -17,9 +17,11 @@
 #include "render/augmenter.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <limits>
 #include <tuple>
 #include <unordered_map>
@@ -183,16 +185,24 @@ struct ViewState {
   std::vector<BlockRange> groups;
   int groups_x = 0;
   std::vector<VBox> boom_vboxes, recv_vboxes;  // boxes rendered and read back this frame
-  std::vector<std::uint32_t> visit_stamp;      // per triangle: last nearest_hit() call that tested it
-  std::uint32_t stamp = 0;
-  std::vector<VBox> raw_boxes;  // scratch of resolve_view, kept to avoid allocating
-  std::vector<std::pair<int, int>> spans;
+  // This frame's resolve, set by begin_resolve(): the raw boxes of the rendered boxes, the raw
+  // pixels to visit (their union's box) and the part of the raw image the augmented image holds.
+  std::vector<VBox> raw_boxes;
+  VBox work, copy;
   std::vector<CamTriangle> tris;  // all draw items' triangles, this frame
   struct Plane {
     double nx, ny, nz, c;  // n . p = c; depth along the ray (x, y, 1) is c / (n . (x, y, 1))
   };
   std::vector<Plane> planes;  // one per triangle, this frame
   std::vector<Eigen::Vector3d> scratch_vertices;
+};
+
+// What a thread resolving rows (of either view) keeps for itself: rows of one view may be
+// resolved by both threads at once.
+struct RowScratch {
+  std::vector<std::uint32_t> visit_stamp;  // per triangle: last nearest_hit() call that tested it
+  std::uint32_t stamp = 0;
+  std::vector<std::pair<int, int>> spans;  // the row's spans of raw boxes
 };
 
 constexpr std::uint32_t kDrawShift = 24;
@@ -340,10 +350,21 @@ class AugmenterImpl final : public Augmenter {
   void render_view(ViewState& vs, const SceneState& scene);
   void raster_view(ViewState& vs, const SceneState& scene) const;
   void update_boxes(ViewState& vs) const;
-  void resolve_view(ViewState& vs, const Frame& raw, ViewResult& out) const;
+  // The CPU pass per raw pixel (masks, receiver depth, composite) in two steps: begin_resolve()
+  // clears what the last frame wrote and copies the raw box; resolve_rows() then takes chunks of
+  // rows from `next_row` until none is left, so both threads can share one view's rows.
+  void begin_resolve(ViewState& vs, const Frame& raw, ViewResult& out) const;
+  void resolve_rows(const ViewState& vs, const Frame& raw, ViewResult& out, std::atomic<int>& next_row,
+                    RowScratch& scratch) const;
+  void resolve_view(ViewState& vs, const Frame& raw, ViewResult& out, RowScratch& scratch) const {
+    begin_resolve(vs, raw, out);
+    std::atomic<int> next_row{0};
+    resolve_rows(vs, raw, out, next_row, scratch);
+  }
   std::vector<VBox> project_boxes(const ViewState& vs, std::initializer_list<ObjectKind> kinds) const;
   VBox raw_box_of(const ViewState& vs, const VBox& vbox) const;
-  double nearest_hit(ViewState& vs, const std::uint32_t* cands, int n, double x, double y, bool rings) const;
+  double nearest_hit(const ViewState& vs, RowScratch& scratch, const std::uint32_t* cands, int n, double x,
+                     double y, bool rings) const;
   double covered_depth(const ViewState& vs, const std::uint32_t* ids, double x, double y) const;
   void build_rings();
   std::uint32_t global_index(std::uint32_t packed) const {
@@ -367,6 +388,7 @@ class AugmenterImpl final : public Augmenter {
   std::vector<std::uint32_t> ring_offsets_, ring_;
   std::array<std::uint32_t, 256> first_tri_of_draw_{};  // by draw id
   std::vector<ViewState> views_;
+  std::array<RowScratch, 2> row_scratch_;  // one per thread resolving rows
   gl::Framebuffer fb_;
   struct Program {
     GLuint id = 0;
@@ -559,10 +581,10 @@ Status AugmenterImpl::init() {
     }
     vs.tris.resize(total_tris_);
     vs.planes.resize(total_tris_);
-    vs.visit_stamp.assign(total_tris_, 0);
     fw = std::max(fw, vs.vp.width);
     fh = std::max(fh, vs.vp.height);
   }
+  for (RowScratch& r : row_scratch_) r.visit_stamp.assign(total_tris_, 0);
   if (auto s = fb_.create(fw, fh); !s) return s;
   const GLenum targets[4] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
                              GL_COLOR_ATTACHMENT3};
@@ -942,16 +964,17 @@ void AugmenterImpl::build_rings() {
 
 // Nearest intersection (camera z) of the ray (x, y, 1) with the candidate triangles (packed ids)
 // and, when none of them is hit and `rings`, with their one-ring neighbours; +inf if none.
-double AugmenterImpl::nearest_hit(ViewState& vs, const std::uint32_t* cands, int n, double x, double y,
-                                  bool rings) const {
+double AugmenterImpl::nearest_hit(const ViewState& vs, RowScratch& scratch, const std::uint32_t* cands, int n,
+                                  double x, double y, bool rings) const {
   const Eigen::Vector3d d(x, y, 1.0);
   double best = std::numeric_limits<double>::infinity();
   auto test = [&](const CamTriangle& t) { best = std::min(best, ray_hit_z(t, d)); };
   // Each triangle is tested once per call: a stamp per triangle, no search.
-  if (++vs.stamp == 0) std::fill(vs.visit_stamp.begin(), vs.visit_stamp.end(), 0u), vs.stamp = 1;
+  if (++scratch.stamp == 0)
+    std::fill(scratch.visit_stamp.begin(), scratch.visit_stamp.end(), 0u), scratch.stamp = 1;
   auto first_time = [&](std::uint32_t g) {
-    if (vs.visit_stamp[g] == vs.stamp) return false;
-    vs.visit_stamp[g] = vs.stamp;
+    if (scratch.visit_stamp[g] == scratch.stamp) return false;
+    scratch.visit_stamp[g] = scratch.stamp;
     return true;
   };
   std::uint32_t direct[4];
@@ -988,9 +1011,9 @@ __attribute__((noinline)) double AugmenterImpl::covered_depth(const ViewState& v
   return t.n_dot_v0 / t.n.dot(d);
 }
 
-void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& out) const {
+void AugmenterImpl::begin_resolve(ViewState& vs, const Frame& raw, ViewResult& out) const {
   const CameraModel& cm = vs.cam->model;
-  const int W = cm.width_px, H = cm.height_px, Wv = vs.vp.width;
+  const int W = cm.width_px, H = cm.height_px;
   const VBox full{0, 0, W, H};
 
   // Outputs are reused: clear only what the previous frame wrote.
@@ -1025,7 +1048,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   out.boom_box = to_pixel_box(boom_raw);
   out.receiver_box = to_pixel_box(recv_raw);
   const VBox work = unite(boom_raw, recv_raw);
-  std::vector<std::pair<int, int>>& spans = vs.spans;
+  vs.work = work;
 
   // The augmented image starts as the raw image, byte for byte: all of it, or the box where the
   // boom (and a receiver overlay) may change it. Raw pixel (u, v) is its byte (u - ax0) * bpp of
@@ -1036,6 +1059,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
   out.augmented_box = to_pixel_box(changed);
   const bool whole = options_.augmented_output == AugmentedOutput::kWholeImage;
   const VBox copy = whole ? full : changed;
+  vs.copy = copy;
   const int cw = std::max(copy.x1 - copy.x0, 0), ch = std::max(copy.y1 - copy.y0, 0);
   if (out.augmented.width() != cw || out.augmented.height() != ch || out.augmented.format() != src.format())
     out.augmented.reshape(cw, ch, src.format());
@@ -1046,6 +1070,16 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
     for (int y = 0; y < ch; ++y)
       std::memcpy(out.augmented.row(y), src.row(copy.y0 + y) + copy.x0 * bytes_per_pixel(src.format()),
                   copy_bytes);
+}
+
+void AugmenterImpl::resolve_rows(const ViewState& vs, const Frame& raw, ViewResult& out,
+                                 std::atomic<int>& next_row, RowScratch& scratch) const {
+  const CameraModel& cm = vs.cam->model;
+  const int W = cm.width_px, Wv = vs.vp.width;
+  const Image& src = raw.image;
+  const VBox work = vs.work, copy = vs.copy;
+  const std::vector<VBox>& raw_boxes = vs.raw_boxes;
+  std::vector<std::pair<int, int>>& spans = scratch.spans;
   const int ax0 = copy.x0, ay0 = copy.y0;
 
   const std::uint32_t* bids = vs.boom_ids.data();
@@ -1062,7 +1096,16 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
     constexpr bool rgb = decltype(rgb_c)::value;  // RGB8 or RGBA8
     if constexpr (overlay && cpu) return;         // overlays are drawn by OpenGL only
 
-    for (int v = work.y0; v < work.y1; ++v) {
+    // Chunks of rows, first come first served: a thread the machine delays leaves its rows to
+    // the other.
+    constexpr int kChunkRows = 8;
+    int chunk_end = 0;
+    auto take_chunk = [&] {
+      const int first = work.y0 + next_row.fetch_add(kChunkRows, std::memory_order_relaxed);
+      chunk_end = std::min(first + kChunkRows, work.y1);
+      return first;
+    };
+    for (int v = take_chunk(); v < work.y1; v = v + 1 < chunk_end ? v + 1 : take_chunk()) {
       std::uint8_t* mrow = out.mask.row(v);
       float* drow = &out.receiver_depth.z_m[static_cast<std::size_t>(v) * W];
       // Null outside the changed box (rows with the receiver alone): nothing is composited there.
@@ -1182,7 +1225,7 @@ void AugmenterImpl::resolve_view(ViewState& vs, const Frame& raw, ViewResult& ou
           if (!any) return std::numeric_limits<double>::infinity();
           if (all && !same && !identity) return covered_depth(vs, ids, x, y);
           if (!(all && same)) {
-            const double z = nearest_hit(vs, ids, ns, x, y, !all);
+            const double z = nearest_hit(vs, scratch, ids, ns, x, y, !all);
             if (std::isfinite(z) || !all) return z;
           }
           const CamTriangle& t = triangle(vs, ids[0]);
@@ -1284,7 +1327,7 @@ Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneStat
     raster_view(vs, scene);
   else
     render_view(vs, scene);
-  resolve_view(vs, raw, out);
+  resolve_view(vs, raw, out, row_scratch_[0]);
   return {};
 }
 
@@ -1300,23 +1343,48 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   timings_.gl_clear_ms = timings_.gl_draw_ms = timings_.gl_readback_ms = 0;
   const auto t0 = Clock::now();
   if (cpu_raster_) {
-    // No GL: each view is rasterised and resolved on its own thread.
-    auto view = [&](int c, const Frame& raw, ViewResult& result) {
-      const auto a = Clock::now();
-      prepare_view(views_[c], scene);
-      raster_view(views_[c], scene);
-      const auto b = Clock::now();
-      resolve_view(views_[c], raw, result);
-      return std::pair{ms(b - a), ms(Clock::now() - b)};
+    // No GL: each thread rasterises one view and begins its resolve; once both have, both resolve
+    // rows, their own view's first, then what is left of the other's. The views' rows are shared
+    // because the two views rarely cost the same (the receiver fills one more than the other), and
+    // a thread the machine delays would otherwise hold up the frame.
+    const Frame* raws[2] = {&frame.left, &frame.right};
+    ViewResult* results[2] = {&out.left, &out.right};
+    std::atomic<int> next_row[2] = {0, 0};
+    std::atomic<int> begun{0};  // views begun, or failed: the rows wait for 2
+    struct Times {
+      double raster = 0, resolve = 0;
     };
-    std::pair<double, double> left_ms;
-    worker().start([&] { left_ms = view(0, frame.left, out.left); });
+    auto both = [&](int c, Times& t) {
+      std::exception_ptr error;
+      try {
+        const auto a = Clock::now();
+        prepare_view(views_[c], scene);
+        raster_view(views_[c], scene);
+        const auto b = Clock::now();
+        begin_resolve(views_[c], *raws[c], *results[c]);
+        t.raster = ms(b - a), t.resolve = ms(Clock::now() - b);
+      } catch (...) {
+        error = std::current_exception();
+        next_row[c].store(1 << 30);  // nobody resolves a view that was not begun
+      }
+      // Both views begun (an exception must still arrive here: the other thread waits for it).
+      if (begun.fetch_add(1) + 1 == 2)
+        begun.notify_all();
+      else
+        for (int n = begun.load(); n < 2; n = begun.load()) begun.wait(n);
+      if (error) std::rethrow_exception(error);
+      const auto a = Clock::now();
+      for (const int v : {c, 1 - c})
+        resolve_rows(views_[v], *raws[v], *results[v], next_row[v], row_scratch_[c]);
+      t.resolve += ms(Clock::now() - a);
+    };
+    Times left, right;
+    worker().start([&] { both(0, left); });
     const Worker::Join join{worker()};
-    const auto [right_raster, right_resolve] = view(1, frame.right, out.right);
+    both(1, right);
     worker().wait();
-    const auto [left_raster, left_resolve] = left_ms;
-    timings_.render_ms = left_raster + right_raster;
-    timings_.masks_ms = left_resolve + right_resolve;
+    timings_.render_ms = left.raster + right.raster;
+    timings_.masks_ms = left.resolve + right.resolve;
   } else {
     // GL runs on this thread; the left view's CPU work overlaps the right view's rendering.
     prepare_view(views_[0], scene);
@@ -1325,14 +1393,14 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
     double left_cpu_ms = 0;
     worker().start([&] {
       const auto a = Clock::now();
-      resolve_view(views_[0], frame.left, out.left);
+      resolve_view(views_[0], frame.left, out.left, row_scratch_[0]);
       left_cpu_ms = ms(Clock::now() - a);
     });
     const Worker::Join join{worker()};
     prepare_view(views_[1], scene);
     render_view(views_[1], scene);
     const auto t2 = Clock::now();
-    resolve_view(views_[1], frame.right, out.right);
+    resolve_view(views_[1], frame.right, out.right, row_scratch_[1]);
     const double right_cpu = ms(Clock::now() - t2);
     timings_.render_ms = ms(t1 - t0) + ms(t2 - t1);
     worker().wait();
