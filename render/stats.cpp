@@ -284,7 +284,7 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
   };
   // The same for pixels xs[0..n) of one row (depths zl, rays ry) into vis[], two at a time (SSE2
   // doubles, GCC/Clang vector extensions) for a pinhole or radial-tangential right camera: the
-  // projection is most of the per-pixel cost. The same operations in the same order as
+  // projection is the largest part of the per-pixel cost. The same operations in the same order as
   // CameraModel::project(), so the same answers.
   const bool batched =
       right.distortion == DistortionModel::kNone || right.distortion == DistortionModel::kRadTan;

@@ -591,6 +591,22 @@ TEST(StereoClasses, DistortedCamerasAgreeWithOracle) {
             << bad.mismatches << "\n";
 }
 
+// Equidistant (fisheye) cameras: the right projection takes the per-pixel path (the classes
+// project two pixels at a time only for pinhole and radial-tangential lenses). The same oracle.
+TEST(StereoClasses, FisheyeCamerasAgreeWithOracle) {
+  Rig rig = rectified_rig();
+  rig.cam.distortion = DistortionModel::kEquidistant;
+  rig.cam.coeffs = {-0.02, 0.004, -0.001, 0.0002, 0.0};
+  const std::vector<Rect> scene = {
+      {20, -6, 6, -4.5, 4.5, false}, {10, 0, 0.3, -100, 100, true}, {10, 2.5, 2.8, -100, 100, true}};
+  const auto res = run_scene(scene, rig);
+  EXPECT_LE(res.mismatches, 2 * 480) << "mismatches " << res.mismatches;  // boundary pixels only
+  EXPECT_GT(res.stats.right_only_px, 0);
+  EXPECT_GT(res.stats.neither_px, 0);
+  EXPECT_GT(res.stats.left_only_px, 0);
+  EXPECT_GT(res.stats.stereo_both_px, res.stats.receiver_px_left / 2);
+}
+
 TEST(StereoClasses, CallerRaysEqualCachedRays) {
   const Rig rig = rectified_rig();
   const View l = render_view(basic_scene(), rig.cam, Pose::identity());
