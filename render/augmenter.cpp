@@ -21,7 +21,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
-#include <exception>
 #include <limits>
 #include <tuple>
 #include <unordered_map>
@@ -1343,19 +1342,22 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   timings_.gl_clear_ms = timings_.gl_draw_ms = timings_.gl_readback_ms = 0;
   const auto t0 = Clock::now();
   if (cpu_raster_) {
-    // No GL: each thread rasterises one view and begins its resolve; once both have, both resolve
-    // rows, their own view's first, then what is left of the other's. The views' rows are shared
-    // because the two views rarely cost the same (the receiver fills one more than the other), and
-    // a thread the machine delays would otherwise hold up the frame.
+    // No GL: each thread rasterises one view, begins its resolve and resolves its rows, chunk by
+    // chunk; then it helps with what is left of the other view's rows, once that view has begun.
+    // The views rarely cost the same (the receiver fills one more than the other), and a thread
+    // the machine delays would otherwise hold up the frame.
     const Frame* raws[2] = {&frame.left, &frame.right};
     ViewResult* results[2] = {&out.left, &out.right};
-    std::atomic<int> next_row[2] = {0, 0};
-    std::atomic<int> begun{0};  // views begun, or failed: the rows wait for 2
+    enum : int { kNotYet, kBegun, kFailed };
+    struct alignas(64) Shared {  // a cache line per view: each thread mostly takes its own rows
+      std::atomic<int> next_row{0};
+      std::atomic<int> state{kNotYet};  // of the view's resolve
+    };
+    Shared view_state[2];
     struct Times {
       double raster = 0, resolve = 0;
     };
     auto both = [&](int c, Times& t) {
-      std::exception_ptr error;
       try {
         const auto a = Clock::now();
         prepare_view(views_[c], scene);
@@ -1364,18 +1366,19 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
         begin_resolve(views_[c], *raws[c], *results[c]);
         t.raster = ms(b - a), t.resolve = ms(Clock::now() - b);
       } catch (...) {
-        error = std::current_exception();
-        next_row[c].store(1 << 30);  // nobody resolves a view that was not begun
+        view_state[c].state.store(kFailed);  // the other thread must not wait for this view, nor resolve it
+        view_state[c].state.notify_all();
+        throw;
       }
-      // Both views begun (an exception must still arrive here: the other thread waits for it).
-      if (begun.fetch_add(1) + 1 == 2)
-        begun.notify_all();
-      else
-        for (int n = begun.load(); n < 2; n = begun.load()) begun.wait(n);
-      if (error) std::rethrow_exception(error);
+      view_state[c].state.store(kBegun);
+      view_state[c].state.notify_all();
       const auto a = Clock::now();
-      for (const int v : {c, 1 - c})
-        resolve_rows(views_[v], *raws[v], *results[v], next_row[v], row_scratch_[c]);
+      resolve_rows(views_[c], *raws[c], *results[c], view_state[c].next_row, row_scratch_[c]);
+      const int o = 1 - c;
+      for (int s = view_state[o].state.load(); s == kNotYet; s = view_state[o].state.load())
+        view_state[o].state.wait(s);
+      if (view_state[o].state.load() == kBegun)
+        resolve_rows(views_[o], *raws[o], *results[o], view_state[o].next_row, row_scratch_[c]);
       t.resolve += ms(Clock::now() - a);
     };
     Times left, right;
