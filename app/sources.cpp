@@ -274,14 +274,16 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
   }
   if (u.scheme == "stereo") {
     if (Status s = u.check_known({"tolerance_us", "mode", "clock", "queue"}); !s) return s.error();
-    auto tol = u.get_number("tolerance_us", 2000);
-    auto queue = u.get_integer("queue", 8);
+    // The same parameters, defaults and values as a rig's `pairing` section.
+    const RigPairing defaults;
+    auto tol = u.get_number("tolerance_us", defaults.tolerance_us);
+    auto queue = u.get_integer("queue", defaults.queue);
     if (!tol) return tol.error();
     if (!queue) return queue.error();
-    const std::string mode = u.get("mode", "timestamp"), clock = u.get("clock", "separate");
-    if (mode != "timestamp" && mode != "trigger_id")
+    const std::string mode = u.get("mode", defaults.mode), clock = u.get("clock", defaults.clock);
+    if (!RigPairing::known_mode(mode))
       return uri_error(u, "mode: expected timestamp or trigger_id, got '" + mode + "'");
-    if (clock != "separate" && clock != "shared")
+    if (!RigPairing::known_clock(clock))
       return uri_error(
           u, "clock: expected separate (each camera its own clock) or shared (PTP), got '" + clock + "'");
     StereoPairerConfig& p = out.options.pairing;

@@ -398,12 +398,12 @@ Rig parse_root(const Ctx& c, const YAML::Node& root) {
     }
     if (const YAML::Node v = pn["mode"]; v.IsDefined()) {
       p.mode = to_string_value(c, v, "pairing.mode", "timestamp or trigger_id");
-      if (p.mode != "timestamp" && p.mode != "trigger_id")
+      if (!RigPairing::known_mode(p.mode))
         fail(c, v, "pairing.mode", "expected timestamp or trigger_id, " + got(v));
     }
     if (const YAML::Node v = pn["clock"]; v.IsDefined()) {
       p.clock = to_string_value(c, v, "pairing.clock", "separate or shared");
-      if (p.clock != "separate" && p.clock != "shared")
+      if (!RigPairing::known_clock(p.clock))
         fail(c, v, "pairing.clock",
              "expected separate (each camera its own clock) or shared (PTP), " + got(v));
     }

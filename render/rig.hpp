@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <Eigen/Core>
@@ -64,6 +65,8 @@ struct RigPairing {
   std::string mode = "timestamp";  // timestamp | trigger_id
   std::string clock = "separate";  // separate (each camera its own clock) | shared (PTP)
   int queue = 8;                   // frames kept per camera while waiting for a partner
+  static bool known_mode(std::string_view m) { return m == "timestamp" || m == "trigger_id"; }
+  static bool known_clock(std::string_view c) { return c == "separate" || c == "shared"; }
 };
 
 struct Rig {

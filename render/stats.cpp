@@ -273,27 +273,18 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
     return near(x0, y0) || (x1 != x0 && near(x1, y0)) ||
            (y1 != y0 && (near(x0, y1) || (x1 != x0 && near(x1, y1))));
   };
-  // Is the left receiver point z * (x, y, 1) the surface the right camera sees? Any lens model.
-  auto visible_right = [&](double z, float x_n, float y_n) {
-    if (!(z < std::numeric_limits<double>::infinity()) || x_n != x_n || y_n != y_n) return false;  // inf/NaN
-    const double px = z * x_n, py = z * y_n;
-    const Eigen::Vector3d p(r00 * px + r01 * py + r02 * z + tx, r10 * px + r11 * py + r12 * z + ty,
-                            r20 * px + r21 * py + r22 * z + tz);
-    const auto uv = right.project(p, right_max_radius);
-    return uv && seen_at(uv->x(), uv->y(), p.z());
-  };
-  // The same for pixels xs[0..n) of one row (depths zl, rays ry) into vis[], two at a time (SSE2
-  // doubles, GCC/Clang vector extensions) for a pinhole or radial-tangential right camera: the
-  // projection is the largest part of the per-pixel cost. The same operations in the same order as
-  // CameraModel::project(), so the same answers.
+  // For the left receiver points zl[x] * (x_n, y_n, 1) of pixels xs[0..n) of one row (rays ry),
+  // whether each is the surface the right camera sees, into vis[]. The points move into the right
+  // camera's frame two at a time (SSE2 doubles, GCC/Clang vector extensions), and so does their
+  // projection for a pinhole or radial-tangential lens, in the same operations and order as
+  // CameraModel::project() (the same answers); other lenses project one point at a time.
   const bool batched =
       right.distortion == DistortionModel::kNone || right.distortion == DistortionModel::kRadTan;
+  const bool radtan = right.distortion == DistortionModel::kRadTan;
   const double k1 = right.coeffs[0], k2 = right.coeffs[1], p1 = right.coeffs[2], p2 = right.coeffs[3],
                k3 = right.coeffs[4];
-  const bool radtan = right.distortion == DistortionModel::kRadTan;
   const double fx = right.fx_px, fy = right.fy_px, cxr = right.cx_px, cyr = right.cy_px;
-  auto visible_right_batch = [&](const int* xs, int n, const float* zl, const Eigen::Vector2f* ry,
-                                 bool* vis) {
+  auto visible_right = [&](const int* xs, int n, const float* zl, const Eigen::Vector2f* ry, bool* vis) {
     using F64x2 = double __attribute__((vector_size(16)));
     for (int i = 0; i < n; i += 2) {
       const int xa = xs[i], xb = xs[i + 1 < n ? i + 1 : i];
@@ -312,10 +303,17 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
       }
       u = fx * u + cxr, v = fy * v + cyr;
       for (int l = 0; l < 2 && i + l < n; ++l) {
-        // The lanes' guards, as in visible_right() and CameraModel::project().
-        const bool ok = z[l] < std::numeric_limits<double>::infinity() && xn[l] == xn[l] && yn[l] == yn[l] &&
-                        Z[l] > 0.0 && (!radtan || std::sqrt(x[l] * x[l] + y[l] * y[l]) < right_max_radius);
-        vis[i + l] = ok && seen_at(u[l], v[l], Z[l]);
+        // No receiver (inf) or no ray (NaN) at the left pixel: not seen.
+        bool ok = z[l] < std::numeric_limits<double>::infinity() && xn[l] == xn[l] && yn[l] == yn[l];
+        double ul = u[l], vl = v[l];
+        if (batched) {  // project()'s guards
+          ok = ok && Z[l] > 0.0 && (!radtan || std::sqrt(x[l] * x[l] + y[l] * y[l]) < right_max_radius);
+        } else if (ok) {
+          const auto uv = right.project(Eigen::Vector3d(X[l], Y[l], Z[l]), right_max_radius);
+          ok = uv.has_value();
+          if (ok) ul = uv->x(), vl = uv->y();
+        }
+        vis[i + l] = ok && seen_at(ul, vl, Z[l]);
       }
     }
   };
@@ -353,10 +351,7 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
       bool vis[kBatch];
       int nb = 0;
       auto flush = [&] {
-        if (batched)
-          visible_right_batch(xs, nb, zl, ry, vis);
-        else
-          for (int i = 0; i < nb; ++i) vis[i] = visible_right(zl[xs[i]], ry[xs[i]].x(), ry[xs[i]].y());
+        visible_right(xs, nb, zl, ry, vis);
         for (int i = 0; i < nb; ++i) {
           const bool vis_left = !(ml[xs[i]] & kMaskBoom);
           const StereoClass c = vis_left ? (vis[i] ? StereoClass::kBoth : StereoClass::kLeftOnly)

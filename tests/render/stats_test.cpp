@@ -591,8 +591,9 @@ TEST(StereoClasses, DistortedCamerasAgreeWithOracle) {
             << bad.mismatches << "\n";
 }
 
-// Equidistant (fisheye) cameras: the right projection takes the per-pixel path (the classes
-// project two pixels at a time only for pinhole and radial-tangential lenses). The same oracle.
+// Equidistant (fisheye) cameras: the right projection goes through CameraModel::project() one
+// point at a time (the classes project two at a time only for pinhole and radial-tangential
+// lenses). The same oracle.
 TEST(StereoClasses, FisheyeCamerasAgreeWithOracle) {
   Rig rig = rectified_rig();
   rig.cam.distortion = DistortionModel::kEquidistant;
