@@ -190,8 +190,17 @@ Decoder::~Decoder() {
   ZSTD_freeDCtx(dctx_);
 }
 
-Status Decoder::decompress(const std::uint8_t* blob, std::size_t n, std::uint8_t* dst, std::size_t expected) {
-  if (!dctx_) return make_error("zstd: could not create a decompression context");
+namespace {
+
+// The largest image side a recording may hold. No camera comes near it, and the largest image it
+// allows (65535^2 RGBA8, 17 GB) still fits in size_t; a damaged or hostile row's size beyond it is
+// refused before anything is allocated.
+constexpr int kMaxImageSide = 65535;
+
+// The zstd frame's header against the bytes expected, before any memory is allocated for them:
+// a row's width and height say what to allocate, and only the frame's declared content size
+// says whether the blob can fill it.
+Status check_frame(const std::uint8_t* blob, std::size_t n, std::size_t expected) {
   if (blob == nullptr || n == 0)
     return make_error("empty blob, expected a zstd frame of ", expected, " bytes");
   const unsigned long long size = ZSTD_getFrameContentSize(blob, n);
@@ -199,6 +208,29 @@ Status Decoder::decompress(const std::uint8_t* blob, std::size_t n, std::uint8_t
   if (size == ZSTD_CONTENTSIZE_UNKNOWN) return make_error("zstd frame without content size");
   if (size != expected)
     return make_error("zstd frame holds ", std::to_string(size), " bytes, expected ", expected);
+  return {};
+}
+
+// The bytes of a width x height image of `format`, rows packed tight, when the size is sane.
+Expected<std::size_t> image_bytes(const char* what, int width, int height, PixelFormat format) {
+  if (width <= 0 || height <= 0 || width > kMaxImageSide || height > kMaxImageSide)
+    return make_error("bad ", what, " size ", width, "x", height, " (each side 1..", kMaxImageSide, ")");
+  return row_bytes(width, format) * static_cast<std::size_t>(height);
+}
+
+// check_frame() with the image's size in the message.
+Status check_image_frame(const char* what, const std::uint8_t* blob, std::size_t n, int width, int height,
+                         PixelFormat format, std::size_t expected) {
+  if (auto st = check_frame(blob, n, expected); !st)
+    return make_error(st.error().message, " (a ", width, "x", height, " ", to_string(format), " ", what, ")");
+  return {};
+}
+
+}  // namespace
+
+Status Decoder::decompress(const std::uint8_t* blob, std::size_t n, std::uint8_t* dst, std::size_t expected) {
+  if (!dctx_) return make_error("zstd: could not create a decompression context");
+  if (auto st = check_frame(blob, n, expected); !st) return st;
   const std::size_t frame = ZSTD_findFrameCompressedSize(blob, n);
   if (ZSTD_isError(frame)) return zstd_error("frame", frame);
   if (frame != n) return make_error("blob has ", n - frame, " bytes after its zstd frame");
@@ -210,23 +242,28 @@ Status Decoder::decompress(const std::uint8_t* blob, std::size_t n, std::uint8_t
 
 Status Decoder::decode_image(const std::uint8_t* blob, std::size_t n, int width, int height,
                              PixelFormat format, Image& out) {
-  if (width <= 0 || height <= 0) return make_error("bad image size ", width, "x", height);
+  const auto bytes = image_bytes("image", width, height, format);
+  if (!bytes) return bytes.error();
+  if (auto st = check_image_frame("image", blob, n, width, height, format, *bytes); !st) return st;
   const std::size_t rb = row_bytes(width, format);
   if (out.width() != width || out.height() != height || out.format() != format || out.stride_bytes() != rb)
     out = Image(width, height, format);
-  if (auto st = decompress(blob, n, out.data(), rb * static_cast<std::size_t>(height)); !st) return st;
+  if (auto st = decompress(blob, n, out.data(), *bytes); !st) return st;
   const std::size_t d = static_cast<std::size_t>(predictor_distance(format));
   for (int y = 0; y < height; ++y) undelta_row(out.row(y), rb, d);
   return {};
 }
 
 Status Decoder::decode_mask(const std::uint8_t* blob, std::size_t n, int width, int height, Image& out) {
-  if (width <= 0 || height <= 0) return make_error("bad mask size ", width, "x", height);
+  const auto bytes = image_bytes("mask", width, height, PixelFormat::kMono8);
+  if (!bytes) return bytes.error();
+  if (auto st = check_image_frame("mask", blob, n, width, height, PixelFormat::kMono8, *bytes); !st)
+    return st;
   const std::size_t rb = static_cast<std::size_t>(width);
   if (out.width() != width || out.height() != height || out.format() != PixelFormat::kMono8 ||
       out.stride_bytes() != rb)
     out = Image(width, height, PixelFormat::kMono8);
-  return decompress(blob, n, out.data(), rb * static_cast<std::size_t>(height));
+  return decompress(blob, n, out.data(), *bytes);
 }
 
 Status Decoder::decode_difference(const std::uint8_t* blob, std::size_t n, const ChangedBox& box,

@@ -246,5 +246,54 @@ TEST(Codec, DamagedBlobsAreErrors) {
   }
 }
 
+// A row's width and height say what to allocate. A damaged or hostile row (20000x20000 for a
+// small blob) must be refused from the blob's header, before the image is allocated; an absurd
+// size (2e9 x 2e9, 16 EB) must be an error, not bad_alloc.
+TEST(Codec, RowSizeIsCheckedBeforeAllocating) {
+  Encoder enc(1);
+  Decoder dec;
+  std::vector<std::uint8_t> blob;
+  const Image img = structured_image(10, 10, PixelFormat::kMono8, 3);
+  ASSERT_TRUE(enc.encode_image(img.cview(), blob));
+  std::vector<std::uint8_t> mask_blob;
+  ASSERT_TRUE(enc.encode_mask(img.cview(), mask_blob));
+  {
+    Image back;
+    const Status s = dec.decode_image(blob.data(), blob.size(), 20000, 20000, PixelFormat::kMono8, back);
+    ASSERT_FALSE(s);
+    EXPECT_NE(s.error().message.find("holds 100 bytes, expected 400000000"), std::string::npos)
+        << s.error().message;
+    EXPECT_NE(s.error().message.find("20000x20000"), std::string::npos) << s.error().message;
+    EXPECT_EQ(back.size_bytes(), 0u) << "allocated before the blob was checked";
+  }
+  {
+    Image back;
+    const Status s = dec.decode_mask(mask_blob.data(), mask_blob.size(), 20000, 20000, back);
+    ASSERT_FALSE(s);
+    EXPECT_NE(s.error().message.find("20000x20000"), std::string::npos) << s.error().message;
+    EXPECT_EQ(back.size_bytes(), 0u) << "allocated before the blob was checked";
+  }
+  for (const auto& [w, h] : {std::pair{2000000000, 2000000000}, std::pair{70000, 10}, std::pair{10, 65536},
+                             std::pair{0, 10}, std::pair{10, -5}}) {
+    Image back;
+    Status s;
+    ASSERT_NO_THROW(s = dec.decode_image(blob.data(), blob.size(), w, h, PixelFormat::kRGBA8, back));
+    ASSERT_FALSE(s);
+    EXPECT_NE(s.error().message.find("bad image size " + std::to_string(w) + "x" + std::to_string(h)),
+              std::string::npos)
+        << s.error().message;
+    ASSERT_NO_THROW(s = dec.decode_mask(mask_blob.data(), mask_blob.size(), w, h, back));
+    ASSERT_FALSE(s);
+    EXPECT_NE(s.error().message.find("bad mask size"), std::string::npos) << s.error().message;
+    EXPECT_EQ(back.size_bytes(), 0u);
+  }
+  // The largest side allowed still decodes.
+  const Image wide = structured_image(65535, 1, PixelFormat::kMono8, 4);
+  ASSERT_TRUE(enc.encode_image(wide.cview(), blob));
+  Image back;
+  ASSERT_TRUE(dec.decode_image(blob.data(), blob.size(), 65535, 1, PixelFormat::kMono8, back));
+  EXPECT_TRUE(pixels_equal(wide, back));
+}
+
 }  // namespace
 }  // namespace augrig::recorder
