@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 
 #include "core/conventions.hpp"
 
@@ -67,6 +68,35 @@ constexpr bool is_valid_date(const CivilDate& c) {
 // 1980-01-06, the GPS epoch, in days since 1970-01-01 (3657).
 inline constexpr std::int64_t kGpsEpochUnixDays = days_from_civil(1980, 1, 6);
 
+// ---- The range augrig's timestamps may take (docs/NAV_FORMATS.md, "Time range") ----
+//
+// int64 nanoseconds reach only about 292 years either side of their epoch. Every timestamp read
+// from a file or the network is kept within +-kMaxAbsTimestampNs (about 126.8 years) and every time
+// offset within +-kMaxAbsTimeOffsetNs, so that any difference of two timestamps and any timestamp
+// plus an offset stay inside int64 (no overflow, which would be undefined behaviour). Civil dates
+// (NMEA ZDA/RMC, gpsd times, scenario start times) must lie in the years kMinYear..kMaxYear, whose
+// GPS times are well inside that bound.
+inline constexpr int kMinYear = 1980;
+inline constexpr int kMaxYear = 2099;
+inline constexpr const char* kYearRangeText = "1980..2099";
+inline constexpr std::int64_t kMaxAbsTimestampNs = 4'000'000'000'000'000'000;  // 4e18 ns, ~126.8 years
+inline constexpr std::int64_t kMaxAbsTimeOffsetNs = 500'000'000'000'000'000;   // 5e17 ns, ~15.8 years
+inline constexpr const char* kTimestampRangeText = "-4e18..4e18 ns";
+inline constexpr const char* kTimeOffsetRangeText = "-5e17..5e17 ns (about 15.8 years)";
+
+constexpr bool is_supported_year(int year) {
+  return year >= kMinYear && year <= kMaxYear;
+}
+constexpr bool is_supported_timestamp(std::int64_t t_ns) {
+  return t_ns >= -kMaxAbsTimestampNs && t_ns <= kMaxAbsTimestampNs;
+}
+constexpr bool is_supported_time_offset(std::int64_t offset_ns) {
+  return offset_ns >= -kMaxAbsTimeOffsetNs && offset_ns <= kMaxAbsTimeOffsetNs;
+}
+// Days since 1970-01-01 of the first day of kMinYear and of the day after kMaxYear ends.
+inline constexpr std::int64_t kFirstSupportedUnixDay = days_from_civil(kMinYear, 1, 1);
+inline constexpr std::int64_t kEndSupportedUnixDay = days_from_civil(kMaxYear + 1, 1, 1);
+
 // A UTC instant as a date and the nanoseconds since that date's midnight. ns_of_day may reach
 // 86400 s during an inserted leap second (23:59:60).
 struct UtcTime {
@@ -75,9 +105,34 @@ struct UtcTime {
 };
 
 // GPS ns from a UTC date and time of day: (days - GPS epoch) * 86400 s + ns_of_day + leap seconds.
+// Only for dates of supported years (is_supported_year()), a ns_of_day within a day (plus a leap
+// second) and leap seconds within +-1000: outside those the sum may overflow.
 constexpr TimestampNs gps_ns_from_utc(const CivilDate& date, std::int64_t ns_of_day,
                                       int leap_seconds = kDefaultLeapSeconds) {
   return (days_from_civil(date) - kGpsEpochUnixDays) * kNsPerDay + ns_of_day +
+         static_cast<std::int64_t>(leap_seconds) * kNsPerSecond;
+}
+
+// gps_ns_from_utc() for any input: nullopt when the date is invalid or its year outside
+// kMinYear..kMaxYear, ns_of_day outside [0, 86401 s) or |leap_seconds| > 1000.
+constexpr std::optional<TimestampNs> gps_ns_from_utc_checked(const CivilDate& date, std::int64_t ns_of_day,
+                                                             int leap_seconds = kDefaultLeapSeconds) {
+  if (!is_supported_year(date.year) || !is_valid_date(date) || ns_of_day < 0 ||
+      ns_of_day >= kNsPerDay + kNsPerSecond || leap_seconds < -1000 || leap_seconds > 1000) {
+    return std::nullopt;
+  }
+  return gps_ns_from_utc(date, ns_of_day, leap_seconds);
+}
+
+// GPS ns of a UTC time given as seconds and nanoseconds since 1970-01-01 (a timespec), or nullopt
+// when it falls outside the supported years or the nanoseconds outside [0, 1 s).
+constexpr std::optional<TimestampNs> gps_ns_from_unix_checked(std::int64_t unix_s, std::int64_t ns,
+                                                              int leap_seconds = kDefaultLeapSeconds) {
+  if (unix_s < kFirstSupportedUnixDay * 86'400 || unix_s >= kEndSupportedUnixDay * 86'400 || ns < 0 ||
+      ns >= kNsPerSecond || leap_seconds < -1000 || leap_seconds > 1000) {
+    return std::nullopt;
+  }
+  return (unix_s - kGpsEpochUnixDays * 86'400) * kNsPerSecond + ns +
          static_cast<std::int64_t>(leap_seconds) * kNsPerSecond;
 }
 

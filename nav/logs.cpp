@@ -13,10 +13,14 @@
 #include <sstream>
 #include <system_error>
 
+#include "core/file_check.hpp"
+#include "nav/gps_time.hpp"
+
 namespace augrig::nav {
 namespace {
 
 constexpr std::size_t kMaxMessages = 1000;
+constexpr double kMaxImuDtS = 60.0;  // an IMU sample interval longer than a minute is not an IMU's
 
 constexpr std::array kClockDomains = {ClockDomain::kUnknown,      ClockDomain::kHostMonotonic,
                                       ClockDomain::kHostRealtime, ClockDomain::kDevice,
@@ -153,6 +157,17 @@ class Table {
     return v;
   }
 
+  // A time in ns, bounded (nav/gps_time.hpp) so that differences of two times and a time plus a
+  // clock offset cannot overflow int64.
+  TimestampNs timestamp(const std::vector<std::string_view>& f, int col, std::size_t line) const {
+    const std::int64_t v = integer(f, col, line);
+    if (!is_supported_timestamp(v)) {
+      fail(line, "column '" + header_[col] + "': expected a time in " + kTimestampRangeText + ", got " +
+                     quoted(f[col]));
+    }
+    return v;
+  }
+
  private:
   void comment(std::string_view s, std::size_t line) {
     const std::size_t colon = s.find(':');
@@ -243,15 +258,17 @@ Expected<ImuLog> parse_imu(std::istream& in, const std::string& name, const std:
     std::size_t prev_line = 0;
     t.read(in, [&](const std::vector<std::string_view>& f, std::size_t line) {
       ImuSample s;
-      s.t_ns = t.integer(f, t.column("t_ns"), line);
+      s.t_ns = t.timestamp(f, t.column("t_ns"), line);
       s.dt_s = t.number(f, t.column("dt_s"), line);
-      if (s.dt_s <= 0)
-        t.fail(line, "column 'dt_s': expected an interval > 0, got " + quoted(f[t.column("dt_s")]));
+      // Bounded above too: fusion turns dt_s into int64 ns, which 1e300 s would overflow.
+      if (!(s.dt_s > 0 && s.dt_s <= kMaxImuDtS))
+        t.fail(line,
+               "column 'dt_s': expected an interval > 0 s and <= 60 s, got " + quoted(f[t.column("dt_s")]));
       for (int i = 0; i < 3; ++i) {
         s.dtheta_rad[i] = t.number(f, t.column(kImuColumns[2 + i]), line);
         s.dv_mps[i] = t.number(f, t.column(kImuColumns[5 + i]), line);
       }
-      if (const int c = t.column("arrival_ns"); c >= 0) s.arrival_ns = t.integer(f, c, line);
+      if (const int c = t.column("arrival_ns"); c >= 0) s.arrival_ns = t.timestamp(f, c, line);
       if (!log.samples.empty()) {
         const ImuSample& p = log.samples.back();
         if (!check_order(log.issues, t, name, p.t_ns, s.t_ns, prev_line, line)) return;
@@ -279,7 +296,7 @@ Expected<NavSolutionLog> parse_nav(std::istream& in, const std::string& name, co
     std::vector<std::size_t> lines;
     t.read(in, [&](const std::vector<std::string_view>& f, std::size_t line) {
       NavSolutionRow r;
-      r.t_ns = t.integer(f, t.column("t_ns"), line);
+      r.t_ns = t.timestamp(f, t.column("t_ns"), line);
       double* const values[] = {&r.lat_deg, &r.lon_deg, &r.h_m,       &r.vn_mps,  &r.ve_mps,
                                 &r.vd_mps,  &r.yaw_deg, &r.pitch_deg, &r.roll_deg};
       for (std::size_t i = 0; i < std::size(values); ++i)
@@ -312,7 +329,7 @@ Expected<NavSolutionLog> parse_nav(std::istream& in, const std::string& name, co
       std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
       const TimestampNs median = sorted[sorted.size() / 2];
       for (std::size_t i = 0; i < d.size(); ++i) {
-        if (d[i] <= 2 * median) continue;
+        if (d[i] - median <= median) continue;  // d[i] <= 2 * median without overflowing
         ++log.issues.gaps;
         report(log.issues, name,
                t.at(lines[i + 1]) + "gap of " + shortest(ns_to_s(d[i])) +
@@ -347,6 +364,7 @@ Status write_file(const char* fn, const std::string& path, Writer&& write) {
 }
 
 Expected<std::ifstream> open(const char* fn, const std::string& path, const char* what) {
+  if (auto d = check_not_directory(std::string("nav::") + fn + "(): ", path); !d) return d.error();
   std::ifstream in(path, std::ios::binary);
   if (!in)
     return make_error("nav::", fn, "(): ", path, ": cannot open the ", what, " (", std::strerror(errno), ")");
@@ -446,7 +464,7 @@ namespace {
 const std::vector<std::string> kFrameColumns = {"sequence", "camera", "t_ns", "file"};
 const std::vector<std::string> kPoseColumns = {"sequence", "camera", "t_ns", "t_nav_ns", "x_m", "y_m",
                                                "z_m",      "qw",     "qx",   "qy",       "qz"};
-const std::vector<std::string> kPoseOptional = {"sigma_pos_m",      "sigma_att_deg",    "boom_elevation_deg",
+const std::vector<std::string> kPoseOptional = {"sigma_pos_m", "sigma_att_deg", "boom_elevation_deg",
                                                 "boom_azimuth_deg", "boom_extension_m"};
 
 std::uint64_t unsigned_field(const Table& t, const std::vector<std::string_view>& f, int col,
@@ -474,7 +492,7 @@ Expected<FrameIndex> parse_frame_index_csv(std::istream& in, const std::string& 
       FrameIndexRow r;
       r.sequence = unsigned_field(t, f, t.column("sequence"), line);
       r.camera = camera_field(t, f, t.column("camera"), line);
-      r.t_ns = t.integer(f, t.column("t_ns"), line);
+      r.t_ns = t.timestamp(f, t.column("t_ns"), line);
       r.file = std::string(f[t.column("file")]);
       if (r.file.empty() || r.file.find("..") != std::string::npos || r.file.front() == '/')
         t.fail(line, "column 'file': expected a path inside the index's folder, got " + quoted(r.file));
@@ -526,8 +544,8 @@ Expected<CameraPoseLog> parse_camera_pose_csv(std::istream& in, const std::strin
       CameraPoseRow r;
       r.sequence = unsigned_field(t, f, t.column("sequence"), line);
       r.camera = camera_field(t, f, t.column("camera"), line);
-      r.t_ns = t.integer(f, t.column("t_ns"), line);
-      r.t_nav_ns = t.integer(f, t.column("t_nav_ns"), line);
+      r.t_ns = t.timestamp(f, t.column("t_ns"), line);
+      r.t_nav_ns = t.timestamp(f, t.column("t_nav_ns"), line);
       double* const v[] = {&r.x_m, &r.y_m, &r.z_m, &r.qw, &r.qx, &r.qy, &r.qz};
       for (std::size_t i = 0; i < std::size(v); ++i) *v[i] = t.number(f, t.column(kPoseColumns[4 + i]), line);
       const double qn = std::sqrt(r.qw * r.qw + r.qx * r.qx + r.qy * r.qy + r.qz * r.qz);
@@ -562,8 +580,8 @@ Status write_camera_pose_csv(const std::string& path, const std::vector<CameraPo
         if (!std::isfinite(v)) return make_error("nav::write_camera_pose_csv(): a pose value is not finite");
         out << ',' << shortest(v);
       }
-      for (double v : {r.sigma_pos_m, r.sigma_att_deg, r.boom_elevation_deg, r.boom_azimuth_deg,
-                       r.boom_extension_m})
+      for (double v :
+           {r.sigma_pos_m, r.sigma_att_deg, r.boom_elevation_deg, r.boom_azimuth_deg, r.boom_extension_m})
         out << ',' << opt(v);
       out << '\n';
     }

@@ -14,6 +14,8 @@
 #include <system_error>
 #include <utility>
 
+#include "core/file_check.hpp"
+
 namespace augrig::nav {
 namespace {
 
@@ -321,6 +323,11 @@ std::string parse_zda(const Fields& f, std::int64_t& tod, CivilDate& date) {
                        "expected day,month,year (dd,mm,yyyy), got " +
                            quoted(std::string(f[2]) + "," + std::string(f[3]) + "," + std::string(f[4])));
   }
+  // Later or earlier years would overflow the int64 ns of GPS time (nav/gps_time.hpp).
+  if (!is_supported_year(date.year)) {
+    return field_error(4, "year",
+                       std::string("expected a year in ") + kYearRangeText + ", got " + quoted(f[4]));
+  }
   return {};
 }
 
@@ -565,8 +572,20 @@ class SentenceCore {
     }
     const Gga& g = *e.gga;
     GpsFix fix;
-    fix.t_ns = (*day_ - kGpsEpochUnixDays) * kNsPerDay + e.tod_ns +
-               static_cast<std::int64_t>(o_.leap_seconds) * kNsPerSecond;
+    // Checked: a default date, or a date carried past midnights, outside the supported years
+    // would overflow the int64 ns (nav/gps_time.hpp).
+    const auto t_ns = gps_ns_from_utc_checked(civil_from_days(*day_), e.tod_ns, o_.leap_seconds);
+    if (!t_ns) {
+      ++log_.issues.malformed;
+      const std::string what = at(e.gga_line) + "GGA at " + date_text(civil_from_days(*day_)) + " " +
+                               clock_text(e.tod_ns) + ": expected a date in the years " + kYearRangeText +
+                               " and leap seconds within +-1000 (got " + std::to_string(o_.leap_seconds) +
+                               "): dropped";
+      if (first_malformed_.empty()) first_malformed_ = what;
+      report(what);
+      return;
+    }
+    fix.t_ns = *t_ns;
     fix.arrival_ns = e.gga_arrival_ns != 0 ? e.gga_arrival_ns : e.first_arrival_ns;
     fix.antenna = {deg_to_rad(g.lat_deg), deg_to_rad(g.lon_deg), g.alt_msl_m + g.separation_m};
     fix.quality = to_quality(g.quality);
@@ -665,7 +684,7 @@ class Parser {
     std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
     const TimestampNs median = sorted[sorted.size() / 2];
     for (std::size_t i = 0; i < d.size(); ++i) {
-      if (d[i] > 2 * median) {
+      if (d[i] - median > median) {  // d[i] > 2 * median without overflowing
         ++log.issues.gaps;
         core_.report(core_.at(fix_lines_[i + 1]) + "gap of " + fixed(ns_to_s(d[i]), 3) +
                      " s before this fix (median period " + fixed(ns_to_s(median), 3) + " s)");
@@ -854,6 +873,7 @@ Expected<NmeaLog> parse_nmea(std::istream& in, const std::string& name, const Nm
 }
 
 Expected<NmeaLog> read_nmea_file(const std::string& path, const NmeaOptions& options) {
+  if (auto d = check_not_directory("nav::read_nmea_file(): ", path); !d) return d.error();
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     return make_error("nav::read_nmea_file(): ", path, ": cannot open the NMEA log (", std::strerror(errno),

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -226,6 +227,64 @@ TEST(ImuCsv, BadFilesNameFileLineAndColumn) {
   EXPECT_NE(missing.error().message.find("/nonexistent/imu.csv"), std::string::npos);
 }
 
+// Times whose differences would overflow int64 (a span beyond 292 years) or that would overflow
+// once a clock offset is added are rejected by line and column, as is an absurd dt_s.
+TEST(ImuCsv, TimesOutsideTheSupportedRangeAreRejected) {
+  const struct {
+    std::string text;
+    std::vector<std::string> parts;
+  } cases[] = {
+      {std::string(kImuHeader) +
+           "-9223372036854775807,0.01,0,0,0,0,0,0\n9223372036854775807,0.01,0,0,0,0,0,0\n",
+       {"imu.csv:2: ", "column 't_ns'", "expected a time in -4e18..4e18 ns"}},
+      {std::string(kImuHeader) + "1,0.01,0,0,0,0,0,0\n4000000000000000001,0.01,0,0,0,0,0,0\n",
+       {"imu.csv:3: ", "column 't_ns'", "4000000000000000001"}},
+      {"t_ns,dt_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps,arrival_ns\n"
+       "1,0.01,0,0,0,0,0,0,-9223372036854775808\n",
+       {"imu.csv:2: ", "column 'arrival_ns'", "expected a time in"}},
+      {std::string(kImuHeader) + "1,1e300,0,0,0,0,0,0\n", {"imu.csv:2: ", "column 'dt_s'", "<= 60 s"}},
+  };
+  for (const auto& c : cases) {
+    const auto log = imu_from(c.text);
+    ASSERT_FALSE(log) << c.text;
+    for (const std::string& p : c.parts)
+      EXPECT_NE(log.error().message.find(p), std::string::npos)
+          << "'" << p << "' not in: " << log.error().message;
+  }
+  // The bounds themselves are accepted, and their difference is computed without overflow.
+  const auto ok = imu_from(std::string(kImuHeader) + "-4000000000000000000,0.01,0,0,0,0,0,0\n" +
+                           "4000000000000000000,0.01,0,0,0,0,0,0\n");
+  ASSERT_TRUE(ok) << ok.error().message;
+  EXPECT_EQ(ok->issues.gaps, 1u);
+  // The other CSV logs bound their times the same way.
+  const auto nav = nav_from(
+      "t_ns,lat_deg,lon_deg,h_m,vn_mps,ve_mps,vd_mps,yaw_deg,pitch_deg,roll_deg\n"
+      "-9000000000000000000,0,0,0,0,0,0,0,0,0\n");
+  ASSERT_FALSE(nav);
+  EXPECT_NE(nav.error().message.find("nav.csv:2: column 't_ns': expected a time in"), std::string::npos)
+      << nav.error().message;
+  std::istringstream frames("sequence,camera,t_ns,file\n0,0,9000000000000000000,a.png\n");
+  const auto index = parse_frame_index_csv(frames, "frames.csv");
+  ASSERT_FALSE(index);
+  EXPECT_NE(index.error().message.find("frames.csv:2: column 't_ns'"), std::string::npos)
+      << index.error().message;
+}
+
+// A directory where the log should be is named as such (it used to read as "imu.csv:0: read error").
+TEST(ImuCsv, DirectoryIsNotAFile) {
+  const std::string dir = test::output_dir("imu_csv_dir") + "/imu.csv";
+  std::filesystem::create_directories(dir);
+  const auto log = read_imu_csv(dir);
+  ASSERT_FALSE(log);
+  EXPECT_EQ(log.error().message, "nav::read_imu_csv(): " + dir + ": is a directory, expected a file");
+  const auto nav = read_nav_solution_csv(dir);
+  ASSERT_FALSE(nav);
+  EXPECT_NE(nav.error().message.find("is a directory, expected a file"), std::string::npos);
+  const auto frames = read_frame_index_csv(dir);
+  ASSERT_FALSE(frames);
+  EXPECT_NE(frames.error().message.find("is a directory, expected a file"), std::string::npos);
+}
+
 TEST(ImuCsv, WriterRejectsNonFiniteValues) {
   std::vector<ImuSample> v = make_imu(3, false);
   v[1].dv_mps.z() = std::numeric_limits<double>::quiet_NaN();
@@ -367,8 +426,10 @@ TEST(NavSolutionCsv, BadFilesNameFileLineAndColumn) {
 TEST(FrameIndexCsv, RoundTripAndErrors) {
   FrameIndex index;
   index.metadata["scenario"] = "demo";
-  index.rows = {{0, 0, 1000, "left/000000.png"}, {0, 1, 1005, "right/000000.png"},
-                {1, 0, 34334, "left/000001.png"}, {2, 1, 67672, "right/000002.png"}};
+  index.rows = {{0, 0, 1000, "left/000000.png"},
+                {0, 1, 1005, "right/000000.png"},
+                {1, 0, 34334, "left/000001.png"},
+                {2, 1, 67672, "right/000002.png"}};
   const std::string path = test::output_dir("nav_logs") + "/frame_index.csv";
   ASSERT_TRUE(write_frame_index_csv(path, index));
   auto back = read_frame_index_csv(path);
@@ -383,7 +444,8 @@ TEST(FrameIndexCsv, RoundTripAndErrors) {
     EXPECT_EQ(back->rows[i].file, index.rows[i].file);
   }
   const std::pair<const char*, const char*> bad[] = {
-      {"sequence,camera,t_ns,file\n0,0,5,a.png\n1,0,5,b.png\n", "idx.csv:3: camera 0: sequence and t_ns must increase"},
+      {"sequence,camera,t_ns,file\n0,0,5,a.png\n1,0,5,b.png\n",
+       "idx.csv:3: camera 0: sequence and t_ns must increase"},
       {"sequence,camera,t_ns,file\n0,99,5,a.png\n", "idx.csv:2: column 'camera': expected a camera index"},
       {"sequence,camera,t_ns,file\n0,0,5,../a.png\n", "idx.csv:2: column 'file'"},
       {"sequence,camera,t_ns\n", "idx.csv:1: header: missing column 'file'"},

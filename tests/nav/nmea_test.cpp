@@ -383,6 +383,39 @@ TEST(Nmea, FixesBeforeAnyDate) {
   EXPECT_NE(none.error().message.find("default_date"), std::string::npos) << none.error().message;
 }
 
+// Years whose GPS ns would overflow int64 (9999) or leave the documented range (1700, 2250) are
+// rejected by name, never turned into a wrapped-around time; a fix among them keeps its own date.
+TEST(Nmea, DatesOutsideTheSupportedYearsAreRejected) {
+  const auto gga = [](const char* t) {
+    return sentence(std::string("GNGGA,") + t + ",4000.0,N,00500.0,E,1,10,1.0,100.0,M,50.0,M,,") + "\n";
+  };
+  for (const char* year : {"9999", "1700", "2250", "1979", "2100", "0000"}) {
+    const std::string text = sentence(std::string("GNZDA,120000.00,01,01,") + year + ",00,00") + "\n" +
+                             gga("120000.00") + gga("120001.00");
+    const auto log = parse_text(text, {}, "far.nmea");
+    ASSERT_FALSE(log) << year;
+    EXPECT_NE(log.error().message.find("far.nmea:1: "), std::string::npos) << log.error().message;
+    EXPECT_NE(log.error().message.find("field 4 (year): expected a year in 1980..2099"), std::string::npos)
+        << log.error().message;
+  }
+  // Two dates far apart in one log: the second is rejected, so no difference of times overflows.
+  const std::string mixed = sentence("GNZDA,120000.00,01,01,2024,00,00") + "\n" + gga("120000.00") +
+                            gga("120001.00") + sentence("GNZDA,120002.00,01,01,2250,00,00") + "\n" +
+                            gga("120002.00") + gga("120003.00");
+  const auto log = parse_text(mixed, {}, "mixed.nmea");
+  ASSERT_TRUE(log) << log.error().message;
+  EXPECT_EQ(log->fixes.size(), 4u);  // the 2250 ZDA dropped: its GGAs keep 2024's date
+  EXPECT_EQ(log->issues.malformed, 1u);
+  EXPECT_EQ(utc_from_gps_ns(log->fixes.back().t_ns).date, (CivilDate{2024, 1, 1}));
+  // A default date outside the range: the fixes are dropped with a message, not overflowed.
+  NmeaOptions o;
+  o.default_date = CivilDate{9999, 12, 31};
+  const auto far = parse_text(gga("120000.00") + gga("120001.00"), o, "default.nmea");
+  ASSERT_FALSE(far);
+  EXPECT_NE(far.error().message.find("expected a date in the years 1980..2099"), std::string::npos)
+      << far.error().message;
+}
+
 TEST(Nmea, LeapSecondsShiftGpsTime) {
   const std::string text = sentence("GNGGA,120000.00,4000.0,N,00500.0,E,1,10,1.0,100.0,M,50.0,M,,") + "\n" +
                            sentence("GNZDA,120000.00,01,07,2015,00,00") + "\n";
