@@ -11,6 +11,8 @@
 #include <opencv2/core.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include "core/file_check.hpp"
+
 namespace augrig {
 namespace {
 
@@ -38,13 +40,15 @@ std::string num(double v) {
   throw ImportFailure{c.prefix + where + ": " + (key.empty() ? "" : "key '" + key + "': ") + what};
 }
 
-bool read_text(const std::string& path, std::string* text) {
+// Empty on success, else why not: a directory, cannot open, a read error.
+std::string read_text(const std::string& path, std::string* text) {
+  if (auto d = check_not_directory("", path); !d) return "is a directory, expected a file";
   std::ifstream in(path, std::ios::binary);
-  if (!in) return false;
+  if (!in) return "cannot open the file";
   std::stringstream ss;
   ss << in.rdbuf();
   *text = ss.str();
-  return !in.bad();
+  return in.bad() ? "cannot read the file (read error)" : "";
 }
 
 // Shared checks on what every importer produces, so all formats reject the same nonsense.
@@ -58,6 +62,8 @@ void check_camera(const Ctx& c, const CameraModel& m, const std::string& key, in
          "expected a positive image size, got " + std::to_string(m.width_px) + "x" +
              std::to_string(m.height_px));
   }
+  // Upper bounds too (fx 1e308 or coefficients 1e300 overflow every projection).
+  if (const std::string p = camera_model_problem(m); !p.empty()) fail(c, line, col, key, p);
 }
 
 // Rotation check shared by all formats: |R^T R - I| small and det +1.
@@ -120,7 +126,7 @@ std::string ystring(const Ctx& c, const YAML::Node& n, const std::string& key, c
 
 YAML::Node yload(const Ctx& c, const std::string& path) {
   std::string text;
-  if (!read_text(path, &text)) fail(c, 0, 0, "", "cannot open the file");
+  if (const std::string why = read_text(path, &text); !why.empty()) fail(c, 0, 0, "", why);
   try {
     YAML::Node root = YAML::Load(text);
     if (!root.IsMap()) yfail(c, root, "", "expected a YAML map at the top level, " + got(root));
@@ -157,12 +163,21 @@ void set_distortion(const Ctx& c, const YAML::Node& model_node, const std::strin
     std::copy(d.begin(), d.end(), cam.coeffs.begin());
   } else if (model == "none") {
     cam.distortion = DistortionModel::kNone;
+    return;
   } else {
     yfail(c, model_node, model_key,
           "unsupported distortion model; expected " +
               std::string(kalibr ? "radtan, equidistant or none"
                                  : "plumb_bob, rational_polynomial, equidistant (fisheye) or none") +
               ", " + got(model_node));
+  }
+  // Bounded like every camera model (render/camera_model.hpp): 1e300 overflows every projection.
+  for (std::size_t i = 0; i < cam.coeffs.size(); ++i) {
+    if (!(std::abs(cam.coeffs[i]) <= kMaxDistortionCoefficient)) {
+      yfail(c, coeffs_node, coeffs_key,
+            "expected distortion coefficients in [-1000, 1000], got " + num(cam.coeffs[i]) + " as element " +
+                std::to_string(i));
+    }
   }
 }
 
@@ -271,11 +286,16 @@ CameraModel kalibr_camera(const Ctx& c, const YAML::Node& root, const std::strin
   m.cy_px = k[3];
   const YAML::Node res = yrequire(c, n, cam, "resolution", "[width, height]");
   const auto wh = ynumbers(c, res, cam + ".resolution", {2}, "a list of 2 integers [width, height]");
+  // Range first: casting 1e10 to int is undefined.
+  for (std::size_t i = 0; i < 2; ++i) {
+    if (!(wh[i] >= 1 && wh[i] <= kMaxImageSidePx && wh[i] == std::floor(wh[i]))) {
+      yfail(c, res[i], cam + ".resolution",
+            "expected 2 integers [width, height] in 1.." + std::to_string(kMaxImageSidePx) + ", " +
+                got(res[i]) + " as element " + std::to_string(i));
+    }
+  }
   m.width_px = static_cast<int>(wh[0]);
   m.height_px = static_cast<int>(wh[1]);
-  if (wh[0] != m.width_px || wh[1] != m.height_px) {
-    yfail(c, res, cam + ".resolution", "expected 2 integers [width, height], " + got(res));
-  }
   const YAML::Node dm = yrequire(c, n, cam, "distortion_model", "radtan or equidistant");
   const std::string model = ystring(c, dm, cam + ".distortion_model", "radtan or equidistant");
   const YAML::Node dc = n["distortion_coeffs"];
@@ -386,10 +406,14 @@ std::pair<int, int> opencv_size(const Ctx& c, const cv::FileStorage& fs, const s
   for (const auto& [kw, kh] :
        {std::pair<const char*, const char*>{"image_width", "image_height"}, {"width", "height"}}) {
     if (!fs[kw].empty() && !fs[kh].empty()) {
-      if (!(fs[kw].isInt() && fs[kh].isInt()) || static_cast<int>(fs[kw]) <= 0 ||
-          static_cast<int>(fs[kh]) <= 0) {
-        fail(c, opencv_key_line(text, kw), 0, kw,
-             "expected positive integers " + std::string(kw) + ", " + kh);
+      // Compared as doubles: OpenCV reads 1e10 as a real, and a cast to int would be undefined.
+      for (const char* k : {kw, kh}) {
+        const cv::FileNode n = fs[k];
+        const double v = n.isInt() || n.isReal() ? n.real() : 0.0;
+        if (!n.isInt() || !(v >= 1 && v <= kMaxImageSidePx)) {
+          fail(c, opencv_key_line(text, k), 0, k,
+               "expected an integer in 1.." + std::to_string(kMaxImageSidePx) + " (pixels), " + cv_got(n));
+        }
       }
       return {static_cast<int>(fs[kw]), static_cast<int>(fs[kh])};
     }
@@ -397,8 +421,13 @@ std::pair<int, int> opencv_size(const Ctx& c, const cv::FileStorage& fs, const s
   for (const char* k : {"imageSize", "image_size"}) {
     if (!fs[k].empty()) {
       const auto v = cv_numbers(c, fs, text, k, "[width, height]");
-      if (v.size() != 2 || v[0] <= 0 || v[1] <= 0 || v[0] != std::floor(v[0]) || v[1] != std::floor(v[1])) {
-        fail(c, opencv_key_line(text, k), 0, k, "expected 2 positive integers [width, height]");
+      // Range before the cast to int (1e10 would be undefined behaviour).
+      if (v.size() != 2 || !(v[0] >= 1 && v[0] <= kMaxImageSidePx && v[1] >= 1 && v[1] <= kMaxImageSidePx) ||
+          v[0] != std::floor(v[0]) || v[1] != std::floor(v[1])) {
+        fail(c, opencv_key_line(text, k), 0, k,
+             "expected 2 integers [width, height] in 1.." + std::to_string(kMaxImageSidePx) + ", got " +
+                 (v.size() == 2 ? "[" + num(v[0]) + ", " + num(v[1]) + "]"
+                                : std::to_string(v.size()) + " numbers"));
       }
       return {static_cast<int>(v[0]), static_cast<int>(v[1])};
     }
@@ -423,7 +452,7 @@ Expected<StereoCalibration> import_opencv_stereo(const std::string& path, int wi
   return guarded([&]() -> Expected<StereoCalibration> {
     const Ctx c{"calib::import_opencv_stereo(): ", path};
     std::string text;
-    if (!read_text(path, &text)) fail(c, 0, 0, "", "cannot open the file");
+    if (const std::string why = read_text(path, &text); !why.empty()) fail(c, 0, 0, "", why);
     cv::FileStorage fs;
     try {
       if (!fs.open(path, cv::FileStorage::READ))
@@ -534,8 +563,8 @@ Expected<StereoCalibration> import_calibration(const std::string& format, const 
     // Sniff the content: OpenCV files carry %YAML:1.0 / opencv-matrix / XML, Kalibr has cam0,
     // a ROS camera_info has camera_matrix (or K in a dumped message).
     std::string text;
-    if (!read_text(path, &text))
-      return make_error("calib::import_calibration(): ", path, ": cannot open the file");
+    if (const std::string why = read_text(path, &text); !why.empty())
+      return make_error("calib::import_calibration(): ", path, ": ", why);
     if (text.rfind("%YAML:1.0", 0) == 0 || text.find("opencv-matrix") != std::string::npos ||
         text.find("<opencv_storage>") != std::string::npos) {
       f = "opencv";

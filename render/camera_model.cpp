@@ -1,6 +1,7 @@
 #include "render/camera_model.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -164,6 +165,38 @@ double solve_monotone(F f, DF df, double target, double hi, double x0, double to
 }
 
 }  // namespace
+
+std::string camera_model_problem(const CameraModel& m) {
+  const auto num = [](double v) {
+    char buf[64];
+    const auto r = std::to_chars(buf, buf + sizeof buf, v + 0.0);  // shortest exact text
+    return std::string(buf, r.ptr);
+  };
+  if (m.width_px < 1 || m.width_px > kMaxImageSidePx || m.height_px < 1 || m.height_px > kMaxImageSidePx) {
+    return "expected an image size in 1.." + std::to_string(kMaxImageSidePx) + " x 1.." +
+           std::to_string(kMaxImageSidePx) + " pixels, got " + std::to_string(m.width_px) + "x" +
+           std::to_string(m.height_px);
+  }
+  if (!(m.fx_px > 0 && m.fx_px <= kMaxFocalPx && m.fy_px > 0 && m.fy_px <= kMaxFocalPx)) {
+    return "expected focal lengths fx, fy in (0, 1e7] pixels, got " + num(m.fx_px) + ", " + num(m.fy_px);
+  }
+  const double w = m.width_px, h = m.height_px;
+  if (!(m.cx_px >= -w && m.cx_px <= 2 * w && m.cy_px >= -h && m.cy_px <= 2 * h)) {
+    return "expected the principal point within one image size of the image (cx in [" + num(-w) + ", " +
+           num(2 * w) + "], cy in [" + num(-h) + ", " + num(2 * h) + "]), got (" + num(m.cx_px) + ", " +
+           num(m.cy_px) + ")";
+  }
+  const std::size_t n = m.distortion == DistortionModel::kNone          ? 0
+                        : m.distortion == DistortionModel::kEquidistant ? 4
+                                                                        : 5;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!(std::abs(m.coeffs[i]) <= kMaxDistortionCoefficient)) {
+      return "expected " + m.distortion_name() + " distortion coefficients in [-1000, 1000], got " +
+             num(m.coeffs[i]) + " as coefficient " + std::to_string(i);
+    }
+  }
+  return {};
+}
 
 CameraModel CameraModel::pinhole_from_hfov(int width_px, int height_px, double hfov_rad) {
   CameraModel m;

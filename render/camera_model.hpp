@@ -51,6 +51,17 @@ struct CameraModel {
   std::string distortion_name() const;  // "none", "radtan", "equidistant"
 };
 
+// What a camera model read from a file must satisfy (docs/RIG_FORMAT.md, "Plausible values"):
+// beyond these a projection overflows or the rendering tables no longer fit in memory.
+inline constexpr int kMaxImageSidePx = 32768;                // width and height in 1..32768
+inline constexpr double kMaxFocalPx = 1e7;                   // fx, fy in (0, 1e7]
+inline constexpr double kMaxDistortionCoefficient = 1000.0;  // |k|, |p| <= 1000
+// Empty when `m` is plausible: image size in 1..kMaxImageSidePx, finite fx, fy in
+// (0, kMaxFocalPx], principal point within one image size of the image (cx in [-W, 2W], cy in
+// [-H, 2H]), finite distortion coefficients of magnitude <= kMaxDistortionCoefficient. Else what
+// is wrong, with the value and the range expected ("expected fx, fy in (0, 1e+07], got ...").
+std::string camera_model_problem(const CameraModel& m);
+
 // theta_d(theta) = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8): the equidistant
 // model's distorted angle.
 inline double equi_theta_d(const std::array<double, 5>& k, double th) {
@@ -83,7 +94,8 @@ inline Eigen::Vector2d CameraModel::distort(const Eigen::Vector2d& xy) const {
   return xy;
 }
 
-inline std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam, double max_radius) const {
+inline std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d& p_cam,
+                                                           double max_radius) const {
   Eigen::Vector2d d;
   if (distortion == DistortionModel::kEquidistant) {
     // Angle from the optical axis via atan2 so points beside or behind the camera work too

@@ -28,12 +28,17 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <set>
+#include <sstream>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -617,9 +622,56 @@ Expected<Model> load_gltf(const std::string& path, bool binary) {
 // ----------------------------------------------------------------------------------------------
 // Wavefront OBJ
 
+// What tinyobjloader lets through silently, checked on the text so messages can name the line:
+// it reads a number it cannot parse ("nan", "inf", "abc") as 0 and a float-overflowing one as inf,
+// and it only notes a missing material library among its warnings. Non-finite or unparsable
+// v/vn/vt numbers are an Error; a missing mtllib is a warning on stderr (the model still loads,
+// with the default material). `dir` is where tinyobjloader looks for the .mtl files.
+Expected<void> check_obj_text(const std::string& path, const std::filesystem::path& dir) {
+  namespace fs = std::filesystem;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return make_error(kWhere, path, ": cannot open the file (", std::strerror(errno), ")");
+  std::string line;
+  for (std::size_t no = 1; std::getline(in, line); ++no) {
+    std::istringstream ls(line.substr(0, line.find('#')));
+    std::string key;
+    if (!(ls >> key)) continue;
+    if (key == "v" || key == "vn" || key == "vt") {
+      std::string tok;
+      for (int i = 1; ls >> tok; ++i) {
+        errno = 0;
+        char* end = nullptr;
+        const double v = std::strtod(tok.c_str(), &end);
+        // Positions are stored as float: beyond its range they would become inf.
+        if (end != tok.c_str() + tok.size() || !std::isfinite(v) ||
+            std::abs(v) > static_cast<double>(std::numeric_limits<float>::max())) {
+          return make_error(kWhere, path, ":", no, ": '", key, "' number ", i,
+                            ": expected a finite number (within the float range), got '", tok.substr(0, 40),
+                            "'");
+        }
+      }
+    } else if (key == "mtllib") {
+      std::string name;
+      while (ls >> name) {
+        const fs::path p = fs::path(name).is_absolute() ? fs::path(name) : dir / name;
+        std::error_code ec;
+        if (!fs::is_regular_file(p, ec)) {
+          std::fprintf(
+              stderr, "%s%s:%zu: warning: material library '%s' %s (%s): using the default material\n",
+              kWhere, path.c_str(), no, name.c_str(),
+              fs::is_directory(p, ec) ? "is a directory, expected a file" : "not found", p.string().c_str());
+        }
+      }
+    }
+  }
+  if (in.bad()) return make_error(kWhere, path, ": read error");
+  return {};
+}
+
 Expected<Model> load_obj(const std::string& path) {
   namespace fs = std::filesystem;
   const fs::path dir = fs::path(path).parent_path();
+  if (auto st = check_obj_text(path, dir); !st) return st.error();
   tinyobj::ObjReaderConfig config;
   // We fan-triangulate ourselves after validating indices: tinyobjloader's own triangulation reads
   // vertex positions through unchecked face indices.
@@ -759,6 +811,7 @@ Expected<Model> load_model(const ModelSource& source) {
     return make_error(kWhere, path, ": scale must be a positive finite number, got ", source.scale);
   }
   std::error_code ec;
+  if (fs::is_directory(path, ec)) return make_error(kWhere, path, ": is a directory, expected a file");
   if (!fs::is_regular_file(path, ec)) return make_error(kWhere, path, ": file not found");
 
   const std::string ext = lower(fs::path(path).extension().string());

@@ -18,6 +18,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "core/conventions.hpp"
+#include "core/file_check.hpp"
 #include "core/yaml_reader.hpp"
 #include "render/calib_import.hpp"
 
@@ -156,17 +157,33 @@ Pose parse_T_body_cam(const Ctx& c, const YAML::Node& n, const std::string& key)
   return Pose::from(R_body_cam_from_mount_ypr(deg_to_rad(ypr[0]), deg_to_rad(ypr[1]), deg_to_rad(ypr[2])), t);
 }
 
-// Resolution [W, H]; both positive integers.
+// Resolution [W, H]; both integers in 1..kMaxImageSidePx (larger images do not fit the
+// rendering tables in memory).
 std::pair<int, int> parse_resolution(const Ctx& c, const YAML::Node& n, const std::string& key) {
-  const std::string what = "a list of 2 positive integers [width, height] in pixels";
+  const std::string what =
+      "a list of 2 positive integers [width, height] in pixels, at most " + std::to_string(kMaxImageSidePx);
   if (!n.IsSequence() || n.size() != 2) fail(c, n, key, "expected " + what + ", " + got(n));
   int wh[2];
   for (std::size_t i = 0; i < 2; ++i) {
-    if (!n[i].IsScalar() || !YAML::convert<int>::decode(n[i], wh[i]) || wh[i] <= 0) {
+    if (!n[i].IsScalar() || !YAML::convert<int>::decode(n[i], wh[i]) || wh[i] <= 0 ||
+        wh[i] > kMaxImageSidePx) {
       fail(c, n[i], key, "expected " + what + ", " + got(n[i]) + " as element " + std::to_string(i));
     }
   }
   return {wh[0], wh[1]};
+}
+
+// Huge coefficients overflow every projection to inf/NaN: bounded like every camera model
+// (render/camera_model.hpp).
+void check_coefficients(const Ctx& c, const YAML::Node& n, const std::string& key,
+                        const std::vector<double>& v) {
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (!(std::abs(v[i]) <= kMaxDistortionCoefficient)) {
+      fail(c, n[i], key,
+           "expected distortion coefficients in [-" + fmt(kMaxDistortionCoefficient) + ", " +
+               fmt(kMaxDistortionCoefficient) + "], " + got(n[i]) + " as element " + std::to_string(i));
+    }
+  }
 }
 
 void parse_distortion(const Ctx& c, const YAML::Node& n, const std::string& key, CameraModel& model) {
@@ -190,6 +207,7 @@ void parse_distortion(const Ctx& c, const YAML::Node& n, const std::string& key,
     if (!cn.IsDefined()) fail(c, n, ck, "missing; expected a list of 4 or 5 numbers [k1, k2, p1, p2, (k3)]");
     const std::size_t count = cn.IsSequence() && cn.size() == 5 ? 5 : 4;
     const auto v = to_numbers(c, cn, ck, count, "a list of 4 or 5 numbers [k1, k2, p1, p2, (k3)]");
+    check_coefficients(c, cn, ck, v);
     std::copy(v.begin(), v.end(), model.coeffs.begin());
     return;
   }
@@ -197,6 +215,7 @@ void parse_distortion(const Ctx& c, const YAML::Node& n, const std::string& key,
     model.distortion = DistortionModel::kEquidistant;
     if (!cn.IsDefined()) fail(c, n, ck, "missing; expected a list of 4 numbers [k1, k2, k3, k4]");
     const auto v = to_numbers(c, cn, ck, 4, "a list of 4 numbers [k1, k2, k3, k4]");
+    check_coefficients(c, cn, ck, v);
     std::copy(v.begin(), v.end(), model.coeffs.begin());
     return;
   }
@@ -246,8 +265,11 @@ RigCamera parse_camera(const Ctx& c, const YAML::Node& n, int index, const Stere
     if (in.IsDefined()) {
       const std::string ik = key + ".intrinsics";
       const auto v = to_numbers(c, in, ik, 4, "a list of 4 numbers [fx, fy, cx, cy]");
-      if (!(v[0] > 0 && v[1] > 0)) {
-        fail(c, in, ik, "expected positive focal lengths fx, fy, got " + fmt(v[0]) + ", " + fmt(v[1]));
+      // Bounded above too: a focal length of 1e308 overflows every projection.
+      if (!(v[0] > 0 && v[0] <= kMaxFocalPx && v[1] > 0 && v[1] <= kMaxFocalPx)) {
+        fail(c, in, ik,
+             "expected positive focal lengths fx, fy of at most " + fmt(kMaxFocalPx) + " pixels, got " +
+                 fmt(v[0]) + ", " + fmt(v[1]));
       }
       // Pixel centres are integers, so the image spans [-0.5, W - 0.5] (core/conventions.hpp).
       if (!(v[2] >= -0.5 && v[2] <= w - 0.5 && v[3] >= -0.5 && v[3] <= h - 0.5)) {
@@ -273,6 +295,9 @@ RigCamera parse_camera(const Ctx& c, const YAML::Node& n, int index, const Stere
     if (const YAML::Node d = n["distortion"]; d.IsDefined())
       parse_distortion(c, d, key + ".distortion", cam.model);
   }
+  // What the keys above do not check one by one (an hfov_deg that makes fx too large, a
+  // calibration's model): the same bounds as every camera model.
+  if (const std::string p = camera_model_problem(cam.model); !p.empty()) fail(c, n, key, p);
 
   const YAML::Node T = n["T_body_cam"];
   if (calib && index == 1) {
@@ -501,20 +526,17 @@ Rig Rig::paper_default() {
 }
 
 Expected<Rig> load_rig(const std::string& path) {
-  Ctx c{"rig::load(): ", path, absolute_dir_of(path)};
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return make_error(c.prefix, path, ": cannot open the rig file (", std::strerror(errno), ")");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) return make_error(c.prefix, path, ": cannot read the rig file");
-  return parse_with(ss.str(), c);
+  Ctx c{{"rig::load(): ", path}, absolute_dir_of(path)};
+  auto text = read_text_file(c.prefix, path, "rig file");
+  if (!text) return text.error();
+  return parse_with(*text, c);
 }
 
 Expected<Rig> parse_rig(const std::string& yaml_text, const std::string& name) {
   std::error_code ec;
   // A real path names the directory for relative paths; "<string>" and the like use the cwd.
   const fs::path base = !name.empty() && name[0] != '<' ? absolute_dir_of(name) : fs::current_path(ec);
-  return parse_with(yaml_text, Ctx{"rig::parse(): ", name, base});
+  return parse_with(yaml_text, Ctx{{"rig::parse(): ", name}, base});
 }
 
 std::string rig_to_yaml(const Rig& rig) {

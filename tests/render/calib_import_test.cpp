@@ -3,6 +3,7 @@
 // extrinsic) and Kalibr camchains; bad files give errors naming file, line/key and expectation.
 #include "render/calib_import.hpp"
 
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -151,6 +152,28 @@ TEST(CalibImport, OpenCVImageSizeFromArguments) {
   ASSERT_TRUE(c) << c.error().message;
   EXPECT_EQ(c->right.width_px, 640);
   EXPECT_EQ(c->right.height_px, 480);
+}
+
+// Image sizes are range-checked as numbers before they become ints (1e10 was undefined behaviour).
+TEST(CalibImport, OpenCVHugeImageSizes) {
+  const std::string dir = test::output_dir("calib_opencv_huge");
+  std::ifstream in(test::data_path("calib/opencv_stereo.yml"));
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string good = ss.str();
+  const auto with = [&](const std::string& to, const std::string& name) {
+    std::string t = good;
+    const std::string from = "imageSize: [ 1280, 960 ]";
+    t.replace(t.find(from), from.size(), to);
+    return write_text(dir + "/" + name, t);
+  };
+  const std::string a = with("imageSize: [ 1e10, 960 ]", "image_size.yml");
+  expect_error(import_opencv_stereo(a), {a + ":5: key 'imageSize'", "in 1..32768", "got [1e+10, 960]"});
+  const std::string b = with("image_width: 1e10\nimage_height: 960", "width_real.yml");
+  expect_error(import_opencv_stereo(b), {b + ":5: key 'image_width'", "an integer in 1..32768"});
+  const std::string c = with("image_width: 1280\nimage_height: 99999", "height_big.yml");
+  expect_error(import_opencv_stereo(c),
+               {c + ":6: key 'image_height'", "an integer in 1..32768", "got 99999"});
 }
 
 TEST(CalibImport, OpenCVErrors) {
@@ -387,6 +410,32 @@ TEST(CalibImport, KalibrErrors) {
   {
     const std::string p = with("intrinsics: [1205.1,", "intrinsics: [-1205.1,", "negf.yaml");
     expect_error(import_kalibr_camchain(p), {p, "key 'cam1.intrinsics'", "positive focal"});
+  }
+  {
+    // 1e10 used to be cast to int before any check (undefined behaviour).
+    const std::string p = with("  resolution: [1280, 960]", "  resolution: [1e10, 960]", "huge_res.yaml");
+    expect_error(import_kalibr_camchain(p),
+                 {p + ":" + std::to_string(line_of(p, "  resolution: [1e10")) + ":16",
+                  "key 'cam0.resolution'", "in 1..32768", "got '1e10' as element 0"});
+  }
+  {
+    const std::string p = with("intrinsics: [1205.1, 1204.2,", "intrinsics: [1e308, 1e308,", "huge_f.yaml");
+    expect_error(import_kalibr_camchain(p), {p, "key 'cam1.intrinsics'", "fx, fy in (0, 1e7]"});
+  }
+  {
+    const std::string p =
+        with("[-0.12, 0.05, 0.0008, -0.0004]", "[-0.12, 1e300, 0.0008, -0.0004]", "huge_k.yaml");
+    expect_error(import_kalibr_camchain(p), {p, "key 'cam0.distortion_coeffs'",
+                                             "coefficients in [-1000, 1000]", "got 1e+300 as element 1"});
+  }
+  {
+    // A directory where the file should be.
+    const std::string d = dir + "/camchain.yaml";
+    std::filesystem::create_directories(d);
+    expect_error(import_kalibr_camchain(d),
+                 {"calib::import_kalibr_camchain(): " + d, "is a directory, expected a file"});
+    expect_error(import_opencv_stereo(d), {d, "is a directory, expected a file"});
+    expect_error(import_calibration("auto", d), {d, "is a directory, expected a file"});
   }
   {
     const std::string p = write_text(dir + "/syntax.yaml", "cam0:\n  intrinsics: [1, 2\n");

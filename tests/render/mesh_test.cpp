@@ -3,7 +3,9 @@
 // Test models: tests/data/models (written by make_test_models.py there).
 #include "render/mesh.hpp"
 
+#include <filesystem>
 #include <string>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -243,6 +245,44 @@ INSTANTIATE_TEST_SUITE_P(
         if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
       return n;
     });
+
+// tinyobjloader reads "nan" as 0 and 1e39 as inf (positions are float): both are errors naming
+// the file and line, as glTF's non-finite values are.
+TEST(LoadObj, NonFiniteNumbersNameTheLine) {
+  for (const auto& [file, line, token] :
+       {std::tuple<const char*, int, const char*>{"broken_nan.obj", 4, "nan"},
+        {"broken_float_overflow.obj", 2, "1e39"}}) {
+    const std::string path = test::data_path(std::string("models/") + file);
+    auto model = load_model(ModelSource{path, ModelAxes::gltf(), 1.0});
+    ASSERT_FALSE(model) << file;
+    EXPECT_EQ(model.error().message,
+              "mesh::load_model(): " + path + ":" + std::to_string(line) +
+                  ": 'v' number 1: expected a finite number (within the float range), got '" + token + "'");
+  }
+}
+
+// A missing material library is a warning naming it on stderr; the model loads with the default.
+TEST(LoadObj, MissingMaterialLibraryWarnsAndLoads) {
+  const std::string path = test::data_path("models/missing_mtllib.obj");
+  testing::internal::CaptureStderr();
+  auto model = load_model(ModelSource{path, ModelAxes::gltf(), 1.0});
+  const std::string err = testing::internal::GetCapturedStderr();
+  ASSERT_TRUE(model) << model.error().message;
+  EXPECT_EQ(model->triangle_count(), 1u);
+  EXPECT_NE(err.find("mesh::load_model(): " + path +
+                     ":2: warning: material library 'no_such_library.mtl' not found"),
+            std::string::npos)
+      << err;
+}
+
+// A directory where the model file should be.
+TEST(LoadModel, DirectoryIsNotAModel) {
+  const std::string dir = test::output_dir("mesh_dir") + "/model.obj";
+  std::filesystem::create_directories(dir);
+  auto model = load_model(ModelSource{dir, ModelAxes::gltf(), 1.0});
+  ASSERT_FALSE(model);
+  EXPECT_EQ(model.error().message, "mesh::load_model(): " + dir + ": is a directory, expected a file");
+}
 
 TEST(LoadModel, BadAxesNameFileAndAxes) {
   const std::string path = test::data_path("models/box.gltf");

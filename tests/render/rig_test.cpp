@@ -410,6 +410,23 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
        "expected an integer from 1 to 1024"},
       {"pairing typo", base_with(1, "augrig_rig: 1\npairing: {tolerance: 10}"), 2, "pairing.tolerance",
        "unknown key"},
+      // Implausible values: finite, but every projection with them overflows.
+      {"huge focal", base_with(11, "    intrinsics: [1e308, 1e308, 639.5, 479.5]"), 11,
+       "cameras[1].intrinsics",
+       "expected positive focal lengths fx, fy of at most 1e+07 pixels, got 1e+308, 1e+308"},
+      {"huge resolution", base_with(10, "    resolution: [10000000000, 960]"), 10, "cameras[1].resolution",
+       "at most 32768, got '10000000000' as element 0"},
+      {"resolution above the limit", base_with(4, "    resolution: [40000, 960]"), 4, "cameras[0].resolution",
+       "at most 32768"},
+      {"huge equidistant coefficients",
+       base_with(12, "    distortion: {model: equidistant, coeffs: [1e300, 1e300, 1e300, 1e300]}"), 12,
+       "cameras[1].distortion.coeffs",
+       "expected distortion coefficients in [-1000, 1000], got '1e300' as element 0"},
+      {"huge radtan coefficient",
+       base_with(12, "    distortion: {model: radtan, coeffs: [0, 0, 0, 0, -1e9]}"), 12,
+       "cameras[1].distortion.coeffs", "as element 4"},
+      {"tiny hfov", base_with(5, "    hfov_deg: 1e-300"), 3, "cameras[0]",
+       "expected focal lengths fx, fy in (0, 1e7]"},
   };
   // Only one camera: the right camera's lines removed.
   std::vector<BadRig> all = cases;
@@ -434,6 +451,38 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
     EXPECT_NE(m.find(c.message), std::string::npos) << m;
   }
   EXPECT_GE(all.size(), 10u);
+}
+
+// A directory given as the rig file used to read as an empty document ("got nothing (null)").
+TEST(Rig, DirectoryIsNotARigFile) {
+  const std::string dir = test::output_dir("rig_test_dir") + "/rig.yaml";
+  fs::create_directories(dir);
+  const auto rig = load_rig(dir);
+  ASSERT_FALSE(rig);
+  EXPECT_EQ(rig.error().message, "rig::load(): " + dir + ": is a directory, expected a file");
+}
+
+// The camera model's own bounds, shared by the rig and the calibration importers.
+TEST(Rig, CameraModelProblemNamesTheValueAndRange) {
+  CameraModel m = CameraModel::pinhole_from_hfov(1280, 960, deg_to_rad(56));
+  EXPECT_EQ(camera_model_problem(m), "");
+  m.fx_px = 1e308;
+  EXPECT_NE(camera_model_problem(m).find("fx, fy in (0, 1e7] pixels, got 1e+308"), std::string::npos);
+  m.fx_px = std::nan("");
+  EXPECT_NE(camera_model_problem(m), "");
+  m = CameraModel::pinhole_from_hfov(1280, 960, deg_to_rad(56));
+  m.cx_px = 1e9;
+  EXPECT_NE(camera_model_problem(m).find("principal point"), std::string::npos);
+  m = CameraModel::pinhole_from_hfov(1280, 960, deg_to_rad(56));
+  m.distortion = DistortionModel::kEquidistant;
+  m.coeffs = {1e300, 1e300, 1e300, 1e300, 0};
+  EXPECT_NE(camera_model_problem(m).find("equidistant distortion coefficients in [-1000, 1000], got 1e+300"),
+            std::string::npos);
+  m.coeffs[4] = 1e300;  // the 5th is unused by equidistant
+  m.coeffs[0] = m.coeffs[1] = m.coeffs[2] = m.coeffs[3] = 0.1;
+  EXPECT_EQ(camera_model_problem(m), "");
+  m.width_px = 40000;
+  EXPECT_NE(camera_model_problem(m).find("image size"), std::string::npos);
 }
 
 TEST(Rig, ParseRigErrorsUseParsePrefix) {
