@@ -2,11 +2,18 @@
 #   make demo   install what is missing, configure, build, run the built-in simulated flight
 #   make test   install what is missing, build, run every test (CTest)
 #   make bench  build and run the benchmarks
+#   make sanitize  build everything with ASan+UBSan (build-asan/) and run every test under them
+#   make fuzz   build the libFuzzer targets with clang (build-fuzz/) and run each FUZZ_SECONDS
 BUILD ?= build
 JOBS ?= $(shell nproc)
 DEMO_OUT ?= out/demo
+SANITIZE_BUILD ?= build-asan
+FUZZ_BUILD ?= build-fuzz
+FUZZ_SECONDS ?= 30
+# Hardening builds run niced: they are long and should not starve an interactive build.
+NICE ?= nice -n 10
 
-.PHONY: all deps configure build demo test bench format tidy clean
+.PHONY: all deps configure build demo test bench sanitize fuzz format tidy clean
 
 all: build
 
@@ -29,6 +36,24 @@ test: build
 
 bench: build
 	./$(BUILD)/bench_render
+
+# Every test under AddressSanitizer (leaks included) and UndefinedBehaviorSanitizer; the first report
+# fails its test. Children (the tests that run the augrig binary) inherit the options. Leak
+# suppressions, each justified: scripts/lsan.supp (system libraries only).
+SANITIZE_ENV = ASAN_OPTIONS=halt_on_error=1:detect_leaks=1 \
+  UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
+  LSAN_OPTIONS=suppressions=$(CURDIR)/scripts/lsan.supp:print_suppressions=0
+sanitize: deps
+	$(NICE) cmake -S . -B $(SANITIZE_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DAUGRIG_SANITIZE=ON
+	$(NICE) cmake --build $(SANITIZE_BUILD) -j $(JOBS)
+	cd $(SANITIZE_BUILD) && $(SANITIZE_ENV) $(NICE) ctest --output-on-failure -j $(JOBS)
+
+# libFuzzer needs clang; -O1 and line tables keep the instrumented build quick and the stacks exact.
+fuzz: deps
+	CC=clang CXX=clang++ $(NICE) cmake -S . -B $(FUZZ_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+	  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -gline-tables-only" -DAUGRIG_FUZZ=ON
+	$(NICE) cmake --build $(FUZZ_BUILD) -j $(JOBS) --target fuzz_all
+	$(NICE) bash fuzz/run.sh $(FUZZ_BUILD) $(FUZZ_SECONDS)
 
 format:
 	clang-format -i $$(git ls-files '*.cpp' '*.hpp')

@@ -6,6 +6,8 @@ set -euo pipefail
 PACKAGES=(
   # toolchain
   build-essential cmake ninja-build pkg-config git clang-format
+  # clang and its sanitizer runtimes (libFuzzer): the clang build and `make fuzz`
+  clang libclang-rt-14-dev
   # core libraries
   libyaml-cpp-dev libopencv-dev libeigen3-dev libglm-dev libgeographiclib-dev geographiclib-tools
   libtinygltf-dev libtinyobjloader-dev nlohmann-json3-dev libstb-dev
