@@ -11,6 +11,7 @@
 
 #include <fcntl.h>
 #include <netdb.h>
+#include <nlohmann/json.hpp>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -45,8 +46,15 @@ std::optional<double> json_number(std::string_view json, std::string_view key) {
   return v;
 }
 
-// "2024-06-01T12:00:00.800Z" (UTC) -> ns since 1970-01-01.
-std::optional<std::int64_t> parse_iso8601_utc_ns(std::string_view s) {
+// A UTC time as seconds and nanoseconds since 1970-01-01 (kept apart: the ns of year 9999 overflow
+// int64; gps_ns_from_unix_checked() bounds them).
+struct UnixTime {
+  std::int64_t s = 0;
+  std::int64_t ns = 0;
+};
+
+// "2024-06-01T12:00:00.800Z" (UTC) -> seconds and ns since 1970-01-01.
+std::optional<UnixTime> parse_iso8601_utc(std::string_view s) {
   const auto num = [&](std::size_t at, std::size_t len, int& v) {
     if (at + len > s.size()) return false;
     v = 0;
@@ -72,11 +80,24 @@ std::optional<std::int64_t> parse_iso8601_utc_ns(std::string_view s) {
     }
   }
   if (i >= s.size() || s[i] != 'Z') return std::nullopt;
-  return days_from_civil(y, mo, d) * kNsPerDay + ((h * 60 + mi) * 60 + se) * kNsPerSecond + frac_ns;
+  return UnixTime{days_from_civil(y, mo, d) * 86'400 + (h * 60 + mi) * 60 + se, frac_ns};
 }
 
-std::int64_t unix_ns(const timespec& t) {
-  return static_cast<std::int64_t>(t.tv_sec) * kNsPerSecond + t.tv_nsec;
+UnixTime unix_time(const timespec& t) {
+  return {static_cast<std::int64_t>(t.tv_sec), static_cast<std::int64_t>(t.tv_nsec)};
+}
+
+// The report's "class" when it is one well-formed JSON object with a string "class"; else nullopt.
+// Checked before libgps sees a report: libgps 3.22 loops forever in gps_unpack() on some malformed
+// ones (the 16 bytes {s"class":"TPV"}), and a gpsd peer must not be able to stall the input.
+std::optional<std::string> report_class(std::string_view json, std::optional<std::string>* device) {
+  const nlohmann::json j = nlohmann::json::parse(json.begin(), json.end(), nullptr, false);
+  if (j.is_discarded() || !j.is_object()) return std::nullopt;
+  const auto cls = j.find("class");
+  if (cls == j.end() || !cls->is_string()) return std::nullopt;
+  if (const auto dev = j.find("device"); dev != j.end() && dev->is_string())
+    *device = dev->get<std::string>();
+  return cls->get<std::string>();
 }
 
 FixQuality quality_of(int mode, int status) {
@@ -118,20 +139,30 @@ void GpsdReportMerger::push_report(std::string_view json, TimestampNs arrival_ns
   ++stats_.lines;
   stats_.bytes += json.size();
   while (!json.empty() && (json.back() == '\n' || json.back() == '\r')) json.remove_suffix(1);
-  const auto cls = json_string(json, "class");
-  if (json.empty() || json.front() != '{' || json.back() != '}' || !cls) {
+  std::optional<std::string> device;
+  std::optional<std::string> cls = report_class(json, &device);
+  // gpsd 3.22 writes ATT reports that carry a time as broken JSON (",," and a missing comma):
+  // those alone are read from the text, without libgps.
+  bool text_only = false;
+  if (!cls && json.size() > 1 && json.front() == '{' && json.back() == '}' &&
+      json_string(json, "class") == std::string_view("ATT")) {
+    cls = "ATT";
+    if (const auto dev = json_string(json, "device")) device = std::string(*dev);
+    text_only = true;
+  }
+  if (!cls) {
     ++stats_.malformed;
     stats_.note(name_ + ": report " + std::to_string(stats_.lines) +
-                ": expected a JSON object with a \"class\", got '" + std::string(json.substr(0, 60)) + "'");
+                ": expected a JSON object with a string \"class\", got '" + std::string(json.substr(0, 60)) +
+                "': dropped");
     return;
   }
-  if (!options_.device.empty()) {
-    const auto dev = json_string(json, "device");
-    if (dev && *dev != options_.device) return;  // another device's report
-  }
-  std::string buffer(json);
+  if (!options_.device.empty() && device && *device != options_.device) return;  // another device's report
   gps_->data.set = 0;
-  gps_unpack(buffer.data(), &gps_->data);  // never fails on its own: see the checks per class
+  if (!text_only) {
+    std::string buffer(json);
+    gps_unpack(buffer.data(), &gps_->data);  // never fails on its own: see the checks per class
+  }
   if (*cls == "TPV") {
     on_tpv(json, arrival_ns);
   } else if (*cls == "GST") {
@@ -151,7 +182,9 @@ void GpsdReportMerger::push_report(std::string_view json, TimestampNs arrival_ns
 GpsdReportMerger::Pending& GpsdReportMerger::epoch_at(TimestampNs t_ns, TimestampNs arrival_ns) {
   if (pending_ && pending_->t_ns != t_ns) emit();
   if (!pending_) {
-    pending_.emplace();
+    // Assigned, not emplace()d: clang 14 decides is_constructible<Pending> while the enclosing
+    // class is incomplete (Pending has default member initialisers) and rejects emplace().
+    pending_ = Pending{};
     pending_->t_ns = t_ns;
   }
   pending_->last_report_ns = arrival_ns;
@@ -175,8 +208,9 @@ void GpsdReportMerger::on_tpv(std::string_view json, TimestampNs arrival_ns) {
     }
     return;
   }
-  const int leap = gps_->data.leap_seconds > 0 ? gps_->data.leap_seconds : options_.leap_seconds;
-  const TimestampNs t_ns = unix_ns(f.time) - kGpsEpochUnixDays * kNsPerDay + leap * kNsPerSecond;
+  const auto t = gps_time(f.time.tv_sec, f.time.tv_nsec, "TPV");
+  if (!t) return;
+  const TimestampNs t_ns = *t;
   Pending& p = epoch_at(t_ns, arrival_ns);
   if (!p.fix) p.arrival_ns = arrival_ns;
   GpsFix fix;
@@ -217,36 +251,49 @@ void GpsdReportMerger::on_gst(TimestampNs arrival_ns) {
     }
     return;
   }
-  const int leap = gps_->data.leap_seconds > 0 ? gps_->data.leap_seconds : options_.leap_seconds;
-  const TimestampNs t_ns = unix_ns(g.utctime) - kGpsEpochUnixDays * kNsPerDay + leap * kNsPerSecond;
-  epoch_at(t_ns, arrival_ns).sigma_ned_m = sigma;
+  const auto t_ns = gps_time(g.utctime.tv_sec, g.utctime.tv_nsec, "GST");
+  if (!t_ns) return;
+  epoch_at(*t_ns, arrival_ns).sigma_ned_m = sigma;
 }
 
 void GpsdReportMerger::on_att(std::string_view json, TimestampNs arrival_ns) {
   // libgps first; gpsd 3.22 writes ATT reports that have a time as broken JSON
   // ({..."device":"x",,"time":"...""heading":...}), which libgps drops: read the text then.
   std::optional<double> heading_deg;
-  std::optional<std::int64_t> utc_ns;
+  std::optional<UnixTime> utc;
   const attitude_t& a = gps_->data.attitude;
   if ((gps_->data.set & ATTITUDE_SET) && std::isfinite(a.heading)) {
     heading_deg = a.heading;
-    if (a.mtime.tv_sec != 0) utc_ns = unix_ns(a.mtime);
+    if (a.mtime.tv_sec != 0) utc = unix_time(a.mtime);
   } else {
     heading_deg = json_number(json, "heading");
-    if (const auto t = json_string(json, "time")) utc_ns = parse_iso8601_utc_ns(*t);
+    if (const auto t = json_string(json, "time")) utc = parse_iso8601_utc(*t);
   }
   if (!heading_deg) return;  // an ATT without heading (a compass, a tilt sensor)
   const double heading_rad = deg_to_rad(*heading_deg);
-  if (!utc_ns) {  // the open epoch's, if any
+  if (!utc) {  // the open epoch's, if any
     if (pending_) {
       pending_->heading_rad = heading_rad;
       pending_->last_report_ns = arrival_ns;
     }
     return;
   }
+  const auto t_ns = gps_time(utc->s, utc->ns, "ATT");
+  if (!t_ns) return;
+  epoch_at(*t_ns, arrival_ns).heading_rad = heading_rad;
+}
+
+std::optional<TimestampNs> GpsdReportMerger::gps_time(std::int64_t unix_s, std::int64_t ns, const char* cls) {
   const int leap = gps_->data.leap_seconds > 0 ? gps_->data.leap_seconds : options_.leap_seconds;
-  const TimestampNs t_ns = *utc_ns - kGpsEpochUnixDays * kNsPerDay + leap * kNsPerSecond;
-  epoch_at(t_ns, arrival_ns).heading_rad = heading_rad;
+  // Checked: the ns of a year like 9999 overflow int64 (nav/gps_time.hpp).
+  const auto t_ns = gps_ns_from_unix_checked(unix_s, ns, leap);
+  if (!t_ns) {
+    ++stats_.malformed;
+    stats_.note(name_ + ": report " + std::to_string(stats_.lines) + ": a " + cls +
+                " time outside the years " + kYearRangeText + " (or leap seconds " + std::to_string(leap) +
+                " outside +-1000): dropped");
+  }
+  return t_ns;
 }
 
 void GpsdReportMerger::on_sky() {
@@ -306,7 +353,11 @@ constexpr int kGpsdMessageBytes = 16384;
 
 struct GpsdInput::Connection {
   gps_data_t data{};
-  char message[kGpsdMessageBytes + 1] = {};  // the report gps_read() unpacked, as text
+  // Reports are read from the socket here, not with gps_read(): gps_read() hands every line to
+  // gps_unpack(), which libgps 3.22 never returns from on some malformed reports. push_report()
+  // checks each line first.
+  std::string buffer;     // bytes received, not yet a whole line
+  bool overlong = false;  // dropping the rest of a line longer than kGpsdMessageBytes
   bool open = false;
   ~Connection() {
     if (open) {
@@ -390,32 +441,70 @@ Expected<std::unique_ptr<GpsdInput>> GpsdInput::open(const GpsdOptions& options,
   return std::unique_ptr<GpsdInput>(new GpsdInput(std::move(c), std::move(uri), options));
 }
 
+bool GpsdInput::next_line(std::string& line) {
+  std::string& b = connection_->buffer;
+  for (;;) {
+    const std::size_t nl = b.find('\n');
+    if (nl == std::string::npos) {
+      if (b.size() > static_cast<std::size_t>(kGpsdMessageBytes)) {  // no report is this long
+        if (!connection_->overlong) {
+          ++merger_.stats().malformed;
+          merger_.stats().note(uri_ + ": a report longer than " + std::to_string(kGpsdMessageBytes) +
+                               " bytes: dropped");
+        }
+        connection_->overlong = true;
+        b.clear();
+      }
+      return false;
+    }
+    const bool skip = connection_->overlong;  // the tail of an overlong report
+    connection_->overlong = false;
+    line.assign(b, 0, nl);
+    b.erase(0, nl + 1);
+    if (!skip) return true;
+  }
+}
+
 Expected<NavReadStatus> GpsdInput::read(NavEvent& out, std::chrono::nanoseconds timeout) {
   const TimestampNs deadline = monotonic_now_ns() + std::max<std::int64_t>(timeout.count(), 0);
-  char* message = connection_->message;
+  std::string line;
   for (;;) {
     if (merger_.pop(out)) return NavReadStatus::kEvent;
     if (ended_) return NavReadStatus::kEnd;
     TimestampNs now = monotonic_now_ns();
     merger_.poll_quiet(now);
     if (merger_.pop(out)) return NavReadStatus::kEvent;
+    if (next_line(line)) {
+      if (!line.empty() && line != "\r") {
+        const TimestampNs arrival_ns = monotonic_now_ns();
+        tap(line, arrival_ns, false);
+        merger_.push_report(line, arrival_ns);
+      }
+      continue;
+    }
     TimestampNs wait = std::max<TimestampNs>(deadline - now, 0);
     if (const auto q = merger_.quiet_deadline_ns()) wait = std::min(wait, std::max<TimestampNs>(*q - now, 0));
-    const int wait_us = static_cast<int>(std::min<TimestampNs>(wait / 1000, INT_MAX));
-    if (gps_waiting(&connection_->data, wait_us)) {
-      message[0] = '\0';
-      const int n = gps_read(&connection_->data, message, kGpsdMessageBytes);
-      if (n < 0) {
+    pollfd p{connection_->data.gps_fd, POLLIN, 0};
+    const timespec ts{static_cast<time_t>(wait / kNsPerSecond), static_cast<long>(wait % kNsPerSecond)};
+    const int rc = ::ppoll(&p, 1, &ts, nullptr);
+    if (rc > 0) {
+      char chunk[4096];
+      const ssize_t n = ::recv(connection_->data.gps_fd, chunk, sizeof chunk, MSG_DONTWAIT);
+      if (n > 0) {
+        connection_->buffer.append(chunk, static_cast<std::size_t>(n));
+      } else if (n == 0 || (errno != EINTR && errno != EAGAIN && errno != EWOULDBLOCK)) {
         ended_ = true;
         merger_.flush();
-        merger_.stats().note(uri_ + ": gpsd closed the connection");
-        continue;
+        merger_.stats().note(
+            uri_ + (n == 0 ? ": gpsd closed the connection"
+                           : ": reading from gpsd failed (" + std::string(std::strerror(errno)) + ")"));
       }
-      if (n > 0 && message[0] != '\0') {
-        const TimestampNs arrival_ns = monotonic_now_ns();
-        tap(message, arrival_ns, false);
-        merger_.push_report(message, arrival_ns);
-      }
+      continue;
+    }
+    if (rc < 0 && errno != EINTR) {
+      ended_ = true;
+      merger_.flush();
+      merger_.stats().note(uri_ + ": waiting for gpsd failed (" + std::string(std::strerror(errno)) + ")");
       continue;
     }
     now = monotonic_now_ns();

@@ -10,6 +10,10 @@
 //   SKY  satellites used and HDOP, applied to the fixes that follow.
 // An epoch's fix is emitted when a report of a later time arrives or after quiet_ns without
 // reports. docs/NAV_LIVE.md has the details.
+// Every report must be one well-formed JSON object with a string "class" before libgps sees it
+// (libgps 3.22 never returns from gps_unpack() on some malformed ones, e.g. {s"class":"TPV"}), so
+// the client reads gpsd's socket itself rather than through gps_read(); others are counted as
+// malformed and dropped. Times outside the years 1980..2099 (nav/gps_time.hpp) are dropped too.
 #pragma once
 
 #include <chrono>
@@ -40,7 +44,8 @@ struct GpsdOptions {
 };
 
 // The report logic without a connection: gpsd JSON reports in (one object per call, as gpsd sends
-// them), fixes out. Parsed with libgps (gps_unpack), so tests can feed reports gpsd would send.
+// them), fixes out. Checked as JSON, then parsed with libgps (gps_unpack), so tests can feed
+// reports gpsd would send.
 class GpsdReportMerger {
  public:
   GpsdReportMerger(std::string name, const GpsdOptions& options);
@@ -74,6 +79,9 @@ class GpsdReportMerger {
   void on_gst(TimestampNs arrival_ns);
   void on_att(std::string_view json, TimestampNs arrival_ns);
   void on_sky();
+  // GPS ns of a report's UTC time, or nullopt (counted as malformed, with a note naming the class)
+  // outside the supported years (nav/gps_time.hpp).
+  std::optional<TimestampNs> gps_time(std::int64_t unix_s, std::int64_t ns, const char* cls);
 
   std::string name_;
   GpsdOptions options_;
@@ -99,6 +107,8 @@ class GpsdInput : public NavInput {
  private:
   struct Connection;
   GpsdInput(std::unique_ptr<Connection> connection, std::string uri, const GpsdOptions& options);
+  // The next whole report line received (without its '\n'); false when none is buffered yet.
+  bool next_line(std::string& line);
 
   std::unique_ptr<Connection> connection_;
   std::string uri_;

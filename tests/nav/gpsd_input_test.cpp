@@ -13,12 +13,15 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <map>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include <arpa/inet.h>
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
@@ -196,6 +199,130 @@ TEST(GpsdInput, DeviceFilterSkyLeapSecondsVelocityAndBadReports) {
   EXPECT_TRUE(contains(all, "gpsd says: Can't open /dev/ttyACM0.")) << all;
   EXPECT_TRUE(contains(all, "a TPV without time")) << all;
   EXPECT_TRUE(contains(all, "report 5: expected a JSON object")) << all;
+}
+
+// libgps 3.22 never returns from gps_unpack() on the 16 bytes {s"class":"TPV"}: the merger must
+// reject it (and any report that is not a JSON object with a string "class") before libgps. Run in
+// a thread so that a regression fails the test instead of hanging it.
+TEST(GpsdInput, MalformedJsonNeverReachesLibgps) {
+  auto m = std::make_shared<GpsdReportMerger>("gpsd://test", GpsdOptions{});
+  auto done = std::make_shared<std::promise<void>>();
+  std::future<void> finished = done->get_future();
+  std::thread([m, done] {
+    m->push_report(R"({s"class":"TPV"})", 1);
+    m->push_report(R"({"class":["TPV"],"mode":3})", 2);           // class not a string
+    m->push_report(R"(["class","TPV"])", 3);                      // not an object
+    m->push_report(R"({"class":"TPV","mode":3}})", 4);            // trailing garbage
+    m->push_report(R"({"klass":"TPV","x":{"class":"TPV"}})", 5);  // "class" only nested
+    done->set_value();
+  }).detach();
+  ASSERT_EQ(finished.wait_for(10s), std::future_status::ready) << "push_report() hangs (libgps gps_unpack)";
+  const NavInputStats& st = m->stats();
+  EXPECT_EQ(st.malformed, 5u);
+  std::string all;
+  for (const std::string& e : st.last_errors) all += e + "\n";
+  EXPECT_TRUE(
+      contains(all, R"(report 1: expected a JSON object with a string "class", got '{s"class":"TPV"}')"))
+      << all;
+  m->flush();
+  EXPECT_TRUE(pop_all(*m).empty());
+}
+
+// Times in years whose ns overflow int64 (9999) are dropped with a note, not wrapped around.
+TEST(GpsdInput, TimesOutsideTheSupportedYearsAreDropped) {
+  GpsdReportMerger m("gpsd://test", GpsdOptions{});
+  m.push_report(R"({"class":"TPV","mode":3,"time":"9999-12-31T23:59:59.000Z","lat":1,"lon":2,"altHAE":3})",
+                1);
+  m.push_report(R"({"class":"GST","time":"9999-12-31T23:59:59.000Z","lat":0.1,"lon":0.1,"alt":0.2})", 2);
+  m.push_report(R"({"class":"ATT","device":"x",,"time":"9999-12-31T23:59:59.000Z""heading":90.0})", 3);
+  m.push_report(R"({"class":"ATT","time":"9999-12-31T23:59:59.000Z","heading":90.0})", 4);
+  m.push_report(R"({"class":"TPV","mode":3,"time":"2024-06-01T12:00:00.000Z","lat":1,"lon":2,"altHAE":3})",
+                5);
+  m.flush();
+  const std::vector<NavEvent> ev = pop_all(m);
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_EQ(ev[0].gps().t_ns, kNoon);
+  EXPECT_FALSE(ev[0].gps().heading_rad);  // the 9999 ATT did not land in the 2024 epoch
+  const NavInputStats& st = m.stats();
+  EXPECT_GE(st.malformed, 3u);  // the TPV and both ATTs (libgps may not read the GST's time)
+  std::string all;
+  for (const std::string& e : st.last_errors) all += e + "\n";
+  EXPECT_TRUE(contains(all, "report 1: a TPV time outside the years 1980..2099")) << all;
+  EXPECT_TRUE(contains(all, "report 3: a ATT time outside the years 1980..2099")) << all;
+}
+
+// The live client reads gpsd's socket itself and checks each report before libgps: a gpsd peer
+// that sends the report libgps hangs on must not stall the input.
+TEST(GpsdInput, ClientSurvivesAReportThatHangsLibgps) {
+  const int srv = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(srv, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof a;
+  ASSERT_EQ(::bind(srv, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  ASSERT_EQ(::listen(srv, 4), 0);
+  ASSERT_EQ(getsockname(srv, reinterpret_cast<sockaddr*>(&a), &len), 0);
+  const std::uint16_t port = ntohs(a.sin_port);
+  // A fake gpsd: the probe connection sends nothing and closes; the client's sends ?WATCH, and
+  // gets the evil report, then a good epoch.
+  std::thread server([srv] {
+    for (int i = 0; i < 4; ++i) {
+      const int c = ::accept(srv, nullptr, nullptr);
+      if (c < 0) return;
+      char buf[512];
+      const ssize_t n = ::recv(c, buf, sizeof buf, 0);
+      if (n > 0) {
+        const std::string reports =
+            "{\"class\":\"VERSION\",\"release\":\"3.22\",\"proto_major\":3,\"proto_minor\":14}\r\n"
+            "{s\"class\":\"TPV\"}\r\n"
+            "{\"class\":\"TPV\",\"mode\":3,\"time\":\"2024-06-01T12:00:00.000Z\",\"lat\":1,\"lon\":2,"
+            "\"altHAE\":3}\r\n";
+        (void)!::send(c, reports.data(), reports.size(), MSG_NOSIGNAL);
+        std::this_thread::sleep_for(300ms);
+        ::close(c);
+        return;
+      }
+      ::close(c);
+    }
+  });
+  GpsdOptions o;
+  o.host = "127.0.0.1";
+  o.port = port;
+  auto in = GpsdInput::open(o);
+  if (!in) {
+    ::shutdown(srv, SHUT_RDWR);  // ends the server's accept()
+    server.join();
+    ::close(srv);
+    FAIL() << in.error().message;
+  }
+  auto done = std::make_shared<std::promise<std::vector<NavEvent>>>();
+  std::future<std::vector<NavEvent>> result = done->get_future();
+  GpsdInput* input = in->get();
+  std::thread reader([input, done] {
+    std::vector<NavEvent> got;
+    for (int i = 0; i < 50; ++i) {
+      NavEvent e;
+      auto r = input->read(e, 100ms);
+      if (!r || *r == NavReadStatus::kEnd) break;
+      if (*r == NavReadStatus::kEvent) got.push_back(e);
+    }
+    done->set_value(got);
+  });
+  if (result.wait_for(20s) != std::future_status::ready) {
+    reader.detach();  // stuck in libgps: fail rather than hang
+    server.join();
+    ::close(srv);
+    (void)in->release();  // the stuck thread still uses it
+    FAIL() << "GpsdInput::read() hangs on a malformed report";
+  }
+  reader.join();
+  server.join();
+  ::close(srv);
+  const std::vector<NavEvent> got = result.get();
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].gps().t_ns, kNoon);
+  EXPECT_EQ((*in)->stats().malformed, 1u);
 }
 
 // ---- A real gpsd, fed by gpsfake --------------------------------------------------------------
