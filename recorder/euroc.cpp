@@ -14,6 +14,8 @@
 #include <opencv2/imgproc.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include "core/file_check.hpp"
+#include "nav/gps_time.hpp"
 #include "nav/logs.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/record.hpp"
@@ -494,6 +496,7 @@ Status export_euroc(const RecordingReader& reader, const std::string& out_dir,
 
 Expected<std::vector<EurocCsvRow>> read_euroc_camera_csv(const std::string& path) {
   const std::string where = "recorder::read_euroc_camera_csv(): ";
+  if (auto d = check_not_directory(where, path); !d) return d.error();
   std::ifstream in(path, std::ios::binary);
   if (!in) return make_error(where, path, ": cannot open the file");
   std::vector<EurocCsvRow> rows;
@@ -509,6 +512,9 @@ Expected<std::vector<EurocCsvRow>> read_euroc_camera_csv(const std::string& path
     if (!parse_i64(f[0], r.t_ns))
       return make_error(where, path, ":", no, ": timestamp: expected whole nanoseconds, got '",
                         std::string(f[0]), "'");
+    if (!nav::is_supported_timestamp(r.t_ns))
+      return make_error(where, path, ":", no, ": timestamp: expected a time in ", nav::kTimestampRangeText,
+                        ", got '", std::string(f[0]), "'");
     if (f[1].empty()) return make_error(where, path, ":", no, ": filename is empty");
     r.file = std::string(f[1]);
     rows.push_back(std::move(r));
@@ -518,6 +524,7 @@ Expected<std::vector<EurocCsvRow>> read_euroc_camera_csv(const std::string& path
 
 Expected<std::vector<EurocImuRow>> read_euroc_imu_csv(const std::string& path) {
   const std::string where = "recorder::read_euroc_imu_csv(): ";
+  if (auto d = check_not_directory(where, path); !d) return d.error();
   std::ifstream in(path, std::ios::binary);
   if (!in) return make_error(where, path, ": cannot open the file");
   std::vector<EurocImuRow> rows;
@@ -530,9 +537,13 @@ Expected<std::vector<EurocImuRow>> read_euroc_imu_csv(const std::string& path) {
       return make_error(where, path, ":", no, ": expected 7 fields (timestamp, w_RS_S xyz, a_RS_S xyz), got ",
                         f.size());
     EurocImuRow r;
+    // Bounded (nav/gps_time.hpp) so that the intervals between rows cannot overflow int64.
     if (!parse_i64(f[0], r.t_ns))
       return make_error(where, path, ":", no, ": timestamp: expected whole nanoseconds, got '",
                         std::string(f[0]), "'");
+    if (!nav::is_supported_timestamp(r.t_ns))
+      return make_error(where, path, ":", no, ": timestamp: expected a time in ", nav::kTimestampRangeText,
+                        ", got '", std::string(f[0]), "'");
     for (int k = 0; k < 6; ++k) {
       double v = 0;
       if (!parse_f64(f[static_cast<std::size_t>(k + 1)], v))

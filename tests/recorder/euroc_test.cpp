@@ -493,5 +493,27 @@ TEST(EurocSource, ImuIncrementsAreTrapezoids) {
   EXPECT_NEAR(s[1].dv_mps.z(), (-9.81 + 1.5) * 0.01, 1e-15);
 }
 
+// Timestamps whose intervals would overflow int64 are rejected by line (imu_increments() takes
+// their differences); a directory where data.csv should be is named as such.
+TEST(EurocSource, ImuCsvTimesOutOfRangeAndDirectories) {
+  const std::string dir = test::output_dir("euroc/imu_range");
+  const std::string path = dir + "/data.csv";
+  std::ofstream(path) << "#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z\n"
+                      << "-9000000000000000000,0,0,0,0,0,0\n9000000000000000000,0,0,0,0,0,0\n";
+  auto rows = read_euroc_imu_csv(path);
+  ASSERT_FALSE(rows);
+  EXPECT_NE(rows.error().message.find(path + ":2: timestamp: expected a time in -4e18..4e18 ns"),
+            std::string::npos)
+      << rows.error().message;
+  std::filesystem::create_directories(dir + "/imu.csv");
+  rows = read_euroc_imu_csv(dir + "/imu.csv");
+  ASSERT_FALSE(rows);
+  EXPECT_EQ(rows.error().message,
+            "recorder::read_euroc_imu_csv(): " + dir + "/imu.csv: is a directory, expected a file");
+  auto cams = read_euroc_camera_csv(dir + "/imu.csv");
+  ASSERT_FALSE(cams);
+  EXPECT_NE(cams.error().message.find("is a directory, expected a file"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace augrig::recorder
