@@ -14,7 +14,9 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "core/file_check.hpp"
 #include "core/yaml_reader.hpp"
+#include "nav/gps_time.hpp"
 
 namespace augrig::sim {
 
@@ -139,9 +141,17 @@ struct Range {
   double lo = -kInf, hi = kInf;
   bool lo_open = false, hi_open = false;
 };
-constexpr Range kAny{};
-constexpr Range kNonNegative{0.0, kInf, false, false};
-constexpr Range kPositive{0.0, kInf, true, false};
+// Even the open-ended ranges stop at 1e9 (of the key's unit): beyond that a value is a typo, and
+// 1e300 metres or seconds overflow the simulation's sums and its int64 ns (docs/SIMULATION.md).
+constexpr double kMaxMagnitude = 1e9;
+constexpr Range kAny{-kMaxMagnitude, kMaxMagnitude, false, false};
+constexpr Range kNonNegative{0.0, kMaxMagnitude, false, false};
+constexpr Range kPositive{0.0, kMaxMagnitude, true, false};
+// A receiver phase's offset from the contact point: within 10 km (the relative geometry is a few
+// hundred metres; 1e300 made every sample non-finite).
+constexpr Range kOffsetM{-1e4, 1e4, false, false};
+// One phase lasts at most a day, like the whole scenario.
+constexpr Range kPhaseDurationS{0.0, 86400.0, true, false};
 
 std::string describe(const Range& r, const std::string& unit) {
   const std::string u = unit.empty() ? "" : " " + unit;
@@ -237,6 +247,11 @@ YAML::Node optional_map(const Ctx& c, const YAML::Node& map, const std::string& 
 
 // ---- Sections ---------------------------------------------------------------------------------
 
+// The latest start: the end of nav::kMaxYear less a day (a scenario lasts at most one), so that
+// every simulated time stays inside the supported range (nav/gps_time.hpp).
+constexpr std::int64_t kMaxStartGpsNs =
+    nav::gps_ns_from_utc({nav::kMaxYear + 1, 1, 1}, 0, 0) - nav::kNsPerDay;
+
 void parse_start(const Ctx& c, const YAML::Node& root, Scenario& s) {
   const YAML::Node n =
       optional_map(c, root, "", "start",
@@ -252,15 +267,23 @@ void parse_start(const Ctx& c, const YAML::Node& root, Scenario& s) {
   if (n["gps_tow_s"].IsDefined() && !n["gps_week"].IsDefined())
     fail(c, n["gps_tow_s"], "start.gps_tow_s", "needs start.gps_week");
   if (const YAML::Node u = n["utc"]; u.IsDefined()) {
-    const std::string what = "a UTC date-time \"YYYY-MM-DDTHH:MM:SS[.fraction][Z]\" from 1980-01-06 on";
+    const std::string what = std::string(
+                                 "a UTC date-time \"YYYY-MM-DDTHH:MM:SS[.fraction][Z]\" from 1980-01-06 "
+                                 "through the year ") +
+                             std::to_string(nav::kMaxYear);
     const auto t = gps_ns_from_utc(to_string_value(c, u, "start.utc", what));
     if (!t) fail(c, u, "start.utc", "expected " + what + ", " + got(u));
     s.start_gps_ns = *t;
   } else if (const YAML::Node g = n["gps_time_ns"]; g.IsDefined()) {
-    s.start_gps_ns = integer_of(c, g, "start.gps_time_ns", 0, std::numeric_limits<std::int64_t>::max() / 2,
-                                "an integer >= 0 (ns since the GPS epoch)");
+    s.start_gps_ns =
+        integer_of(c, g, "start.gps_time_ns", 0, kMaxStartGpsNs,
+                   "an integer in [0, " + std::to_string(kMaxStartGpsNs) +
+                       "] (ns since the GPS epoch, through the year " + std::to_string(nav::kMaxYear) + ")");
   } else if (const YAML::Node w = n["gps_week"]; w.IsDefined()) {
-    const std::int64_t week = integer_of(c, w, "start.gps_week", 0, 100000, "an integer GPS week >= 0");
+    const std::int64_t week =
+        integer_of(c, w, "start.gps_week", 0, kMaxStartGpsNs / (604800 * nav::kNsPerSecond) - 1,
+                   "an integer GPS week in [0, " +
+                       std::to_string(kMaxStartGpsNs / (604800 * nav::kNsPerSecond) - 1) + "]");
     const double tow = number(c, n, "start", "gps_tow_s", 0.0, {0.0, 604800.0, false, true}, "s");
     s.start_gps_ns = week * 604800 * 1000000000LL + s_to_ns(tow);
   }
@@ -391,9 +414,9 @@ void parse_receiver(const Ctx& c, const YAML::Node& root, Scenario& s) {
       if (const YAML::Node nm = p["name"]; nm.IsDefined())
         ph.name = to_string_value(c, nm, path + ".name", "a name");
       ph.duration_s = checked(c, require(c, p, path, "duration_s", "a number > 0 s"), path + ".duration_s",
-                              kPositive, "s");
-      offset =
-          vec3(c, p, path, "offset_m", offset, "[x, y, z] in metres (tanker body, from the contact point)");
+                              kPhaseDurationS, "s");
+      offset = vec3(c, p, path, "offset_m", offset,
+                    "[x, y, z] in metres (tanker body, from the contact point)", 1.0, kOffsetM);
       ypr = vec3(c, p, path, "ypr_deg", ypr, "[yaw, pitch, roll] in degrees", deg_to_rad(1.0), {-30.0, 30.0});
       ph.offset_m = offset;
       ph.ypr_rad = ypr;
@@ -426,7 +449,8 @@ void parse_imu(const Ctx& c, const YAML::Node& parent, const std::string& parent
   imu = ImuConfig{};
   if (!n.IsDefined()) return;
   if (const YAML::Node p = n["preset"]; p.IsDefined()) {
-    const std::string name = choice(c, n, path, "preset", "tactical", {"noise_free", "navigation", "tactical", "consumer"});
+    const std::string name =
+        choice(c, n, path, "preset", "tactical", {"noise_free", "navigation", "tactical", "consumer"});
     imu.errors = *imu_preset(name);
   }
   imu.rate_hz = number(c, n, path, "rate_hz", imu.rate_hz, {100.0, 400.0}, "Hz");
@@ -536,7 +560,9 @@ std::vector<T> per_camera(const Ctx& c, const YAML::Node& map, const std::string
     if (integral) {
       return static_cast<T>(integer_of(c, e, k, -1000000000000LL, 1000000000000LL, what));
     }
-    return static_cast<T>(to_number(c, e, k, what));
+    const double v = to_number(c, e, k, what);
+    if (!in_range(kAny, v)) fail(c, e, k, "expected " + describe(kAny, unit) + ", got " + fmt(v));
+    return static_cast<T>(v);
   };
   if (n.IsScalar()) return std::vector<T>(cameras, one(n));
   if (!n.IsSequence() || n.size() != cameras) fail(c, n, k, "expected " + what + ", " + got(n));
@@ -662,8 +688,8 @@ std::int64_t days_from_civil(std::int64_t y, unsigned m, unsigned d) {
 Expected<TimestampNs> gps_ns_from_utc(std::string_view utc) {
   const auto bad = [&] {
     return make_error(
-        "gps_ns_from_utc(): expected \"YYYY-MM-DDTHH:MM:SS[.fraction][Z]\" from 1980-01-06 on, got '",
-        std::string(utc), "'");
+        "gps_ns_from_utc(): expected \"YYYY-MM-DDTHH:MM:SS[.fraction][Z]\" from 1980-01-06 through the year ",
+        nav::kMaxYear, ", got '", std::string(utc), "'");
   };
   std::string_view s = utc;
   if (!s.empty() && (s.back() == 'Z' || s.back() == 'z')) s.remove_suffix(1);
@@ -692,6 +718,8 @@ Expected<TimestampNs> gps_ns_from_utc(std::string_view utc) {
   if (mo < 1 || mo > 12 || d < 1 || d > kDays[static_cast<std::size_t>(mo - 1)] ||
       (mo == 2 && d == 29 && !leap_year) || h > 23 || mi > 59 || se > 59)
     return bad();
+  // Years past nav::kMaxYear would overflow the int64 ns (9999 did; nav/gps_time.hpp).
+  if (y > nav::kMaxYear) return bad();
   const std::int64_t days = days_from_civil(y, static_cast<unsigned>(mo), static_cast<unsigned>(d));
   const std::int64_t gps_epoch = days_from_civil(1980, 1, 6);
   if (days < gps_epoch) return bad();
@@ -731,12 +759,9 @@ Expected<Scenario> load_scenario(const std::string& path) {
   c.prefix = "scenario::load(): ";
   c.name = path;
   c.base_dir = absolute_dir_of(path);
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return make_error(c.prefix, path, ": cannot open the scenario file (", std::strerror(errno), ")");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) return make_error(c.prefix, path, ": cannot read the scenario file");
-  return parse_with(ss.str(), c);
+  auto text = read_text_file(c.prefix, path, "scenario file");
+  if (!text) return text.error();
+  return parse_with(*text, c);
 }
 
 Expected<Scenario> parse_scenario(const std::string& yaml_text, const std::string& name) {

@@ -2,6 +2,7 @@
 // defaults, and every bad input gives a located error naming the key.
 #include "sim/scenario.hpp"
 
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -169,8 +170,9 @@ TEST(ScenarioTest, UtcToGpsTime) {
   EXPECT_EQ(*gps_ns_from_utc("1980-01-06T00:00:01.25"), 1250000000);
   // Just before and after the 2016-12-31 leap second.
   EXPECT_EQ(*gps_ns_from_utc("2017-01-01T00:00:00Z") - *gps_ns_from_utc("2016-12-31T23:59:59Z"), 2000000000);
-  for (const char* bad : {"2024-13-01T00:00:00Z", "2023-02-29T00:00:00Z", "1979-12-31T00:00:00Z",
-                          "2024-06-01", "2024-06-01T12:00:00.Z", "2024-06-01T25:00:00Z"}) {
+  for (const char* bad :
+       {"2024-13-01T00:00:00Z", "2023-02-29T00:00:00Z", "1979-12-31T00:00:00Z", "2024-06-01",
+        "2024-06-01T12:00:00.Z", "2024-06-01T25:00:00Z", "9999-12-31T23:59:59Z", "2100-01-01T00:00:00Z"}) {
     EXPECT_FALSE(gps_ns_from_utc(bad)) << bad;
   }
   EXPECT_TRUE(gps_ns_from_utc("2024-02-29T00:00:00Z"));
@@ -222,11 +224,25 @@ INSTANTIATE_TEST_SUITE_P(
         BadScenario{"bad_camera_list.yaml", 4, "sensors.cameras.clock_offset_ns", "one per rig camera (2)"},
         BadScenario{"bad_roll_in.yaml", 6, "tanker.roll_in_s", "expected at most"},
         BadScenario{"bad_two_start_times.yaml", 3, "start", "only one of utc, gps_time_ns"},
-        BadScenario{"bad_drop_probability.yaml", 3, "sensors.cameras.drop_probability", "[0, 1], got 1.5"}),
+        BadScenario{"bad_drop_probability.yaml", 3, "sensors.cameras.drop_probability", "[0, 1], got 1.5"},
+        // Values whose arithmetic overflows: year 9999 in int64 ns, 1e300 m in every sample.
+        BadScenario{"bad_utc_year_9999.yaml", 3, "start.utc", "from 1980-01-06 through the year 2099"},
+        BadScenario{"bad_gps_time_ns.yaml", 3, "start.gps_time_ns", "through the year 2099"},
+        BadScenario{"bad_phase_offset.yaml", 5, "receiver.phases[1].offset_m",
+                    "expected a number in [-10000, 10000] as element 0, got -1e+300"},
+        BadScenario{"bad_huge_leg.yaml", 3, "tanker.leg_length_m", "expected a number in (0, 1e+09] metres"}),
     [](const auto& info) {
       std::string n = info.param.file;
       return n.substr(0, n.find('.'));
     });
+
+TEST(ScenarioTest, DirectoryIsNotAScenarioFile) {
+  const std::string dir = test::output_dir("scenario_dir") + "/s.yaml";
+  std::filesystem::create_directories(dir);
+  auto s = load_scenario(dir);
+  ASSERT_FALSE(s);
+  EXPECT_EQ(s.error().message, "scenario::load(): " + dir + ": is a directory, expected a file");
+}
 
 TEST(ScenarioTest, MissingFileAndMissingRigFileMessages) {
   auto s = load_scenario("/nonexistent/scenario.yaml");
