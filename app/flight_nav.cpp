@@ -7,13 +7,17 @@
 #include <map>
 #include <sstream>
 
+#include "core/file_check.hpp"
 #include "core/yaml_reader.hpp"
+#include "nav/gps_time.hpp"
 #include "nav/nmea.hpp"
 #include "sim/scenario.hpp"
 
 namespace augrig::app {
 
 namespace fs = std::filesystem;
+
+constexpr double kMaxLeverArmM = 1000.0;  // an antenna farther than 1 km from the IMU is a typo
 
 // ---- aircraft.yaml --------------------------------------------------------------------------------
 
@@ -27,40 +31,60 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
     expect_map(c, root, "", "a map of aircraft nav settings");
     check_keys(c, root, "",
                {"lever_arm_m", "imu_time_offset_ns", "gps_time_offset_ns", "imu", "gps", "heading"});
-    auto nonneg = [&](const YAML::Node& n, const std::string& key, const char* what) {
-      const double v = to_number(c, n, key, what);
-      if (v < 0) fail(c, n, key, std::string("expected ") + what + ", got " + got(n));
+    // Every value has an upper bound too (docs/NAV_FORMATS.md): 1e300 would square to inf in the
+    // filter's covariances, and a time offset must stay inside int64 once added to a timestamp.
+    auto nonneg = [&](const YAML::Node& n, const std::string& key, const char* what, double max) {
+      const std::string expected = std::string(what) + " and <= " + fmt(max);
+      const double v = to_number(c, n, key, expected);
+      if (!(v >= 0 && v <= max)) fail(c, n, key, "expected " + expected + ", got " + got(n));
       return v;
     };
-    if (root["lever_arm_m"])
-      cfg.lever_arm_body_m = to_vec3(c, root["lever_arm_m"], "lever_arm_m", "[x, y, z] in metres, body FRD");
-    if (root["imu_time_offset_ns"])
-      cfg.imu_time_offset_ns = static_cast<TimestampNs>(
-          to_number(c, root["imu_time_offset_ns"], "imu_time_offset_ns", "a time offset in ns"));
-    if (root["gps_time_offset_ns"])
-      cfg.gps_time_offset_ns = static_cast<TimestampNs>(
-          to_number(c, root["gps_time_offset_ns"], "gps_time_offset_ns", "a time offset in ns"));
+    if (root["lever_arm_m"]) {
+      const YAML::Node n = root["lever_arm_m"];
+      cfg.lever_arm_body_m = to_vec3(c, n, "lever_arm_m", "[x, y, z] in metres, body FRD");
+      for (int i = 0; i < 3; ++i) {
+        if (!(std::abs(cfg.lever_arm_body_m[i]) <= kMaxLeverArmM)) {
+          fail(c, n[i], "lever_arm_m",
+               "expected each component within +-" + fmt(kMaxLeverArmM) + " m, got " + got(n[i]) +
+                   " as element " + std::to_string(i));
+        }
+      }
+    }
+    // Checked before the cast to int64: 1e30 would wrap around (undefined behaviour).
+    auto offset_ns = [&](const char* key) {
+      const YAML::Node n = root[key];
+      const double v = to_number(c, n, key, "a time offset in ns");
+      if (!(std::abs(v) <= static_cast<double>(nav::kMaxAbsTimeOffsetNs))) {
+        fail(c, n, key,
+             std::string("expected a time offset in ") + nav::kTimeOffsetRangeText + ", " + got(n));
+      }
+      return static_cast<TimestampNs>(v);
+    };
+    if (root["imu_time_offset_ns"]) cfg.imu_time_offset_ns = offset_ns("imu_time_offset_ns");
+    if (root["gps_time_offset_ns"]) cfg.gps_time_offset_ns = offset_ns("gps_time_offset_ns");
     if (const YAML::Node imu = root["imu"]) {
       expect_map(c, imu, "imu", "a map of IMU noise values");
       check_keys(c, imu, "imu",
                  {"gyro_arw_deg_per_sqrt_h", "accel_vrw_mps_per_sqrt_h", "gyro_bias_deg_per_h",
                   "accel_bias_mg", "bias_tau_s"});
       if (imu["gyro_arw_deg_per_sqrt_h"])
-        cfg.imu.gyro_arw_rad_psqrts = deg_to_rad(nonneg(imu["gyro_arw_deg_per_sqrt_h"],
-                                                        "imu.gyro_arw_deg_per_sqrt_h", "a number >= 0")) /
-                                      60.0;
+        cfg.imu.gyro_arw_rad_psqrts =
+            deg_to_rad(
+                nonneg(imu["gyro_arw_deg_per_sqrt_h"], "imu.gyro_arw_deg_per_sqrt_h", "a number >= 0", 1e4)) /
+            60.0;
       if (imu["accel_vrw_mps_per_sqrt_h"])
         cfg.imu.accel_vrw_mps_psqrts =
-            nonneg(imu["accel_vrw_mps_per_sqrt_h"], "imu.accel_vrw_mps_per_sqrt_h", "a number >= 0") / 60.0;
+            nonneg(imu["accel_vrw_mps_per_sqrt_h"], "imu.accel_vrw_mps_per_sqrt_h", "a number >= 0", 1e4) /
+            60.0;
       if (imu["gyro_bias_deg_per_h"])
         cfg.imu.gyro_bias.sigma =
-            deg_to_rad(nonneg(imu["gyro_bias_deg_per_h"], "imu.gyro_bias_deg_per_h", "a number >= 0")) /
+            deg_to_rad(nonneg(imu["gyro_bias_deg_per_h"], "imu.gyro_bias_deg_per_h", "a number >= 0", 1e6)) /
             3600.0;
       if (imu["accel_bias_mg"])
         cfg.imu.accel_bias.sigma =
-            nonneg(imu["accel_bias_mg"], "imu.accel_bias_mg", "a number >= 0") * 1e-3 * 9.80665;
+            nonneg(imu["accel_bias_mg"], "imu.accel_bias_mg", "a number >= 0", 1e6) * 1e-3 * 9.80665;
       if (imu["bias_tau_s"]) {
-        const double tau = nonneg(imu["bias_tau_s"], "imu.bias_tau_s", "a correlation time >= 0 s");
+        const double tau = nonneg(imu["bias_tau_s"], "imu.bias_tau_s", "a correlation time >= 0 s", 1e9);
         cfg.imu.gyro_bias.tau_s = cfg.imu.accel_bias.tau_s = tau;
       }
     }
@@ -68,31 +92,35 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
       expect_map(c, gps, "gps", "a map of GPS noise values");
       check_keys(c, gps, "gps", {"rtk_fixed_m", "rtk_float_m", "use_gst"});
       if (gps["rtk_fixed_m"])
-        cfg.gps.rtk_fixed_m = nonneg(gps["rtk_fixed_m"], "gps.rtk_fixed_m", "a sigma >= 0 m");
+        cfg.gps.rtk_fixed_m = nonneg(gps["rtk_fixed_m"], "gps.rtk_fixed_m", "a sigma >= 0 m", 1e6);
       if (gps["rtk_float_m"])
-        cfg.gps.rtk_float_m = nonneg(gps["rtk_float_m"], "gps.rtk_float_m", "a sigma >= 0 m");
+        cfg.gps.rtk_float_m = nonneg(gps["rtk_float_m"], "gps.rtk_float_m", "a sigma >= 0 m", 1e6);
       if (gps["use_gst"]) cfg.gps.use_gst = to_bool(c, gps["use_gst"], "gps.use_gst");
     }
     if (const YAML::Node h = root["heading"]) {
       expect_map(c, h, "heading", "a map {use, offset_deg, sigma_deg}");
       check_keys(c, h, "heading", {"use", "offset_deg", "sigma_deg"});
       if (h["use"]) cfg.use_heading = to_bool(c, h["use"], "heading.use");
-      if (h["offset_deg"])
-        cfg.heading_offset_rad =
-            deg_to_rad(to_number(c, h["offset_deg"], "heading.offset_deg", "an angle in degrees"));
+      if (h["offset_deg"]) {
+        const double deg = to_number(c, h["offset_deg"], "heading.offset_deg", "an angle in degrees");
+        if (!(std::abs(deg) <= 360)) {
+          fail(c, h["offset_deg"], "heading.offset_deg",
+               "expected an angle in degrees within +-360, " + got(h["offset_deg"]));
+        }
+        cfg.heading_offset_rad = deg_to_rad(deg);
+      }
       if (h["sigma_deg"])
-        cfg.heading_sigma_rad = deg_to_rad(nonneg(h["sigma_deg"], "heading.sigma_deg", "a sigma >= 0 deg"));
+        cfg.heading_sigma_rad =
+            deg_to_rad(nonneg(h["sigma_deg"], "heading.sigma_deg", "a sigma >= 0 deg", 180));
     }
     return cfg;
   });
 }
 
 Expected<nav::InsConfig> load_aircraft_config(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return make_error("aircraft::load(): ", path, ": cannot open the aircraft file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_aircraft_config(ss.str(), path);
+  auto text = read_text_file("aircraft::load(): ", path, "aircraft file");
+  if (!text) return text.error();
+  return parse_aircraft_config(*text, path);
 }
 
 std::string aircraft_config_to_yaml(const nav::InsConfig& c) {

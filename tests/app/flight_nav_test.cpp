@@ -3,10 +3,10 @@
 // the tanker body frame and each camera. Truth comes from sim::Flight, an independent analytic model.
 #include "app/flight_nav.hpp"
 
-#include <gtest/gtest.h>
-
 #include <cmath>
 #include <filesystem>
+
+#include <gtest/gtest.h>
 
 #include "sim/flight.hpp"
 #include "sim/flight_source.hpp"
@@ -31,7 +31,8 @@ struct Errors {
 // Linear interpolation of one aircraft's antenna fixes to t, lever arm removed with the true attitude
 // (which favours the baseline): what a system without an INS would have.
 Eigen::Vector3d interpolated_origin(const std::vector<nav::GpsFix>& fixes, TimestampNs t,
-                                    const Eigen::Vector3d& lever_arm, const Eigen::Matrix3d& R_ecef_body_true) {
+                                    const Eigen::Vector3d& lever_arm,
+                                    const Eigen::Matrix3d& R_ecef_body_true) {
   auto it = std::lower_bound(fixes.begin(), fixes.end(), t,
                              [](const nav::GpsFix& f, TimestampNs x) { return f.t_ns < x; });
   if (it == fixes.begin()) it = fixes.begin() + 1;
@@ -85,8 +86,10 @@ Errors fly(sim::Scenario scenario, const std::string& tag, double skip_s, Timest
         rad_to_deg(p->body.T_a_receiver.rotation.angularDistance(t.T_body_receiver.rotation));
     const TimestampNs t_fix = t.t_gps_ns + gps_offset_ns;  // the baseline sees the same clock error
     const Eigen::Vector3d base =
-        interpolated_origin(logs.receiver_gps, t_fix, scenario.sensors.receiver.gps.lever_arm_m, rx_true.R_ecef_body()) -
-        interpolated_origin(logs.tanker_gps, t_fix, scenario.sensors.tanker.gps.lever_arm_m, tk_true.R_ecef_body());
+        interpolated_origin(logs.receiver_gps, t_fix, scenario.sensors.receiver.gps.lever_arm_m,
+                            rx_true.R_ecef_body()) -
+        interpolated_origin(logs.tanker_gps, t_fix, scenario.sensors.tanker.gps.lever_arm_m,
+                            tk_true.R_ecef_body());
     const double d_base = (base - d_true).norm();
     ++e.frames;
     s_rel += d_rel * d_rel, s_body += d_body * d_body, s_cam += d_cam * d_cam, s_base += d_base * d_base;
@@ -96,10 +99,12 @@ Errors fly(sim::Scenario scenario, const std::string& tag, double skip_s, Timest
   const double n = std::max<std::size_t>(e.frames, 1);
   e.rel_pos_rms_m = std::sqrt(s_rel / n), e.body_pos_rms_m = std::sqrt(s_body / n);
   e.cam_pos_rms_m = std::sqrt(s_cam / n), e.baseline_rel_pos_rms_m = std::sqrt(s_base / n);
-  std::printf("[%s] %zu frames: relative position RMS %.2f mm (max %.2f mm at %.1f s), in the tanker body %.2f mm, in the "
-              "left camera %.2f mm; relative attitude max %.5f deg; GPS-interpolation baseline %.2f mm\n",
-              tag.c_str(), e.frames, 1e3 * e.rel_pos_rms_m, 1e3 * e.rel_pos_max_m, e.t_max_s, 1e3 * e.body_pos_rms_m,
-              1e3 * e.cam_pos_rms_m, e.att_max_deg, 1e3 * e.baseline_rel_pos_rms_m);
+  std::printf(
+      "[%s] %zu frames: relative position RMS %.2f mm (max %.2f mm at %.1f s), in the tanker body %.2f mm, "
+      "in the "
+      "left camera %.2f mm; relative attitude max %.5f deg; GPS-interpolation baseline %.2f mm\n",
+      tag.c_str(), e.frames, 1e3 * e.rel_pos_rms_m, 1e3 * e.rel_pos_max_m, e.t_max_s, 1e3 * e.body_pos_rms_m,
+      1e3 * e.cam_pos_rms_m, e.att_max_deg, 1e3 * e.baseline_rel_pos_rms_m);
   return e;
 }
 
@@ -130,6 +135,23 @@ TEST(FlightNav, TenMillisecondGpsClockOffsetShowsAndVanishesWhenConfigured) {
   EXPECT_LE(fixed.body_pos_rms_m, 1.5 * clean.body_pos_rms_m + 1e-4);
 }
 
+// A folder named aircraft.yaml used to read as an empty file (the defaults, exit 0).
+TEST(FlightNav, AircraftYamlThatIsADirectoryIsAnError) {
+  const std::string dir = test::output_dir("flight_nav_yaml_dir");
+  std::filesystem::create_directories(dir + "/aircraft.yaml");
+  auto cfg = load_aircraft_config(dir + "/aircraft.yaml");
+  ASSERT_FALSE(cfg);
+  EXPECT_EQ(cfg.error().message,
+            "aircraft::load(): " + dir + "/aircraft.yaml: is a directory, expected a file");
+  auto logs = load_aircraft_logs(dir);  // gps.nmea missing first; then the same for a folder there
+  ASSERT_FALSE(logs);
+  std::filesystem::create_directories(dir + "/gps.nmea");
+  logs = load_aircraft_logs(dir);
+  ASSERT_FALSE(logs);
+  EXPECT_NE(logs.error().message.find("gps.nmea: is a directory, expected a file"), std::string::npos)
+      << logs.error().message;
+}
+
 TEST(FlightNav, AircraftConfigRoundTripAndErrors) {
   nav::InsConfig c;
   c.lever_arm_body_m = {5, -0.25, -3.5};
@@ -153,6 +175,25 @@ TEST(FlightNav, AircraftConfigRoundTripAndErrors) {
     ASSERT_FALSE(r) << text;
     EXPECT_NE(r.error().message.find(expect), std::string::npos) << r.error().message;
   }
+  // Values beyond their documented ranges: 1e30 ns used to wrap around in the cast to int64.
+  const std::pair<const char*, const char*> out_of_range[] = {
+      {"imu_time_offset_ns: 1e30\n",
+       "<bad>:1:21: key 'imu_time_offset_ns': expected a time offset in -5e17..5e17"},
+      {"gps_time_offset_ns: -6e17\n", "<bad>:1:21: key 'gps_time_offset_ns': expected a time offset in"},
+      {"lever_arm_m: [0, 1e300, 0]\n", "key 'lever_arm_m': expected each component within +-1000 m"},
+      {"imu: {gyro_bias_deg_per_h: 1e300}\n", "key 'imu.gyro_bias_deg_per_h': expected a number >= 0 and <="},
+      {"gps: {rtk_float_m: 1e300}\n", "key 'gps.rtk_float_m': expected a sigma >= 0 m and <="},
+      {"heading: {offset_deg: 1e300}\n",
+       "key 'heading.offset_deg': expected an angle in degrees within +-360"},
+  };
+  for (const auto& [text, expect] : out_of_range) {
+    auto r = parse_aircraft_config(text, "<bad>");
+    ASSERT_FALSE(r) << text;
+    EXPECT_NE(r.error().message.find(expect), std::string::npos) << r.error().message;
+  }
+  auto edge = parse_aircraft_config("imu_time_offset_ns: -5e17\n", "<ok>");
+  ASSERT_TRUE(edge) << edge.error().message;
+  EXPECT_EQ(edge->imu_time_offset_ns, -500'000'000'000'000'000);
   auto missing = load_aircraft_logs("/nonexistent/tanker");
   ASSERT_FALSE(missing);
   EXPECT_NE(missing.error().message.find("/nonexistent/tanker: not a folder"), std::string::npos);
