@@ -43,8 +43,10 @@ bench: build
 SANITIZE_ENV = ASAN_OPTIONS=halt_on_error=1:detect_leaks=1 \
   UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
   LSAN_OPTIONS=suppressions=$(CURDIR)/scripts/lsan.supp:print_suppressions=0
+# -O1 and -g1 (line tables) build about twice as fast as -O2 -g and still give exact stacks.
 sanitize: deps
-	$(NICE) cmake -S . -B $(SANITIZE_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DAUGRIG_SANITIZE=ON
+	$(NICE) cmake -S . -B $(SANITIZE_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+	  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DAUGRIG_SANITIZE=ON
 	$(NICE) cmake --build $(SANITIZE_BUILD) -j $(JOBS)
 	cd $(SANITIZE_BUILD) && $(SANITIZE_ENV) $(NICE) ctest --output-on-failure -j $(JOBS)
 

@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <set>
@@ -57,6 +58,13 @@ class Input {
   const std::uint8_t* p_;
   std::size_t n_;
 };
+
+// AUGRIG_FUZZ_VERBOSE=1: targets print what their parsers said, to check that seeds get as far
+// as meant (run the target on one seed file).
+inline bool verbose() {
+  static const bool v = std::getenv("AUGRIG_FUZZ_VERBOSE") != nullptr;
+  return v;
+}
 
 // Loaders that only take a path read the input from this file: one per process and name, in /tmp,
 // rewritten on every run (the name keeps the extension the loader dispatches on).

@@ -7,6 +7,7 @@
 // its value: 0 NULL, 1 i64, 2 i16, 3 f64, 4 a known name (pixel format, clock, drop stage; index
 // byte), 5 text (length byte), 6 blob (u16 length), 7 blob compressed to a valid zstd frame
 // (u16 length), so that the image decoders see frames that pass their header checks.
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -118,14 +119,21 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   sqlite3_close(db);
 
   auto reader = recorder::RecordingReader::open(path);
-  if (!reader) return 0;
+  if (!reader) {
+    if (fuzz::verbose()) std::fprintf(stderr, "open: %s\n", reader.error().message.c_str());
+    return 0;
+  }
   for (std::size_t i = 0; i < (*reader)->frame_count(); ++i) {
-    (void)(*reader)->read_frame(i, recorder::kPartsAll);
+    const auto f = (*reader)->read_frame(i, recorder::kPartsAll);
+    if (fuzz::verbose()) std::fprintf(stderr, "frame %zu: %s\n", i, f ? "ok" : f.error().message.c_str());
     (void)(*reader)->read_frame_info(i);
   }
-  (void)(*reader)->nav_inputs();
-  (void)(*reader)->drops();
-  (void)(*reader)->events();
-  (void)(*reader)->check().to_string();
+  const auto nav = (*reader)->nav_inputs();
+  const auto drops = (*reader)->drops();
+  const auto events = (*reader)->events();
+  const std::string report = (*reader)->check().to_string();
+  if (fuzz::verbose())
+    std::fprintf(stderr, "nav inputs %zu, drops %zu, events %zu\n%s\n", nav ? nav->size() : 0,
+                 drops ? drops->size() : 0, events ? events->size() : 0, report.c_str());
   return 0;
 }
