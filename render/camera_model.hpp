@@ -117,7 +117,10 @@ inline std::optional<Eigen::Vector2d> CameraModel::project(const Eigen::Vector3d
     if (distortion == DistortionModel::kRadTan && !(xy.norm() < max_radius)) return std::nullopt;
     d = distort(xy);
   }
-  return Eigen::Vector2d(fx_px * d.x() + cx_px, fy_px * d.y() + cy_px);
+  const Eigen::Vector2d uv(fx_px * d.x() + cx_px, fy_px * d.y() + cy_px);
+  // Huge coefficients or focal lengths overflow to inf/NaN: no pixel rather than a non-finite one.
+  if (!(std::isfinite(uv.x()) && std::isfinite(uv.y()))) return std::nullopt;
+  return uv;
 }
 
 }  // namespace augrig
