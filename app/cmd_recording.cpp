@@ -5,6 +5,7 @@
 //   augrig export DIR --format euroc OUT  the EuRoC/ASL layout, poses, statistics and their plot.
 // A recording is opened (and so checked to be one) before anything else is done; damaged frames
 // are reported one line each on stderr and skipped, and the command then exits 1.
+#include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
@@ -12,8 +13,8 @@
 #include "app/cli.hpp"
 #include "app/scene_file.hpp"
 #include "recorder/euroc.hpp"
-#include "recorder/recorder.hpp"
 #include "recorder/reader.hpp"
+#include "recorder/recorder.hpp"
 #include "recorder/replay_source.hpp"
 
 namespace augrig::app {
@@ -62,6 +63,11 @@ ParsedArgs parse_with_positionals(const std::vector<std::string>& args, const st
 
 std::unique_ptr<recorder::RecordingReader> open_recording(const std::string& dir) {
   return unwrap(recorder::RecordingReader::open(dir));
+}
+
+// A problem of the recording as a whole (RecordingReader::problems()), naming its file.
+std::string recording_problem(const recorder::RecordingReader& reader, const std::string& problem) {
+  return problem.rfind(reader.path(), 0) == 0 ? problem : reader.path() + ": " + problem;
 }
 
 // ---- check --------------------------------------------------------------------------------------
@@ -159,8 +165,8 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out)
     make_dirs(a.get("out"));
     csv.emplace(fs::path(a.get("out")) / "stats.csv");
   }
-  out << "replay: " << source->uri() << ", " << source->pair_count() << " stereo pairs (" << source->unpaired()
-      << " frames without a partner), scene " << a.get("scene") << "\n";
+  out << "replay: " << source->uri() << ", " << source->pair_count() << " stereo pairs ("
+      << source->unpaired() << " frames without a partner), scene " << a.get("scene") << "\n";
   const auto gl = make_gl_context();
   const auto augmenter = unwrap(Augmenter::create(rig, options));
   std::unique_ptr<recorder::Recorder> rec_out;
@@ -195,7 +201,8 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out)
   out << "Replayed " << all.size() << " stereo frame(s)\n";
   if (rec_out) {
     const Status closed = rec_out->close();
-    out << "Recorded " << rec_out->stats().frames_committed << " stereo frame(s) to " << rec_out->path() << "\n";
+    out << "Recorded " << rec_out->stats().frames_committed << " stereo frame(s) to " << rec_out->path()
+        << "\n";
     if (!closed) runtime_error("the recording stopped: " + user_message(closed.error()));
   }
   return kExitOk;
@@ -247,7 +254,13 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   // The recording, the rig and the scene are read and checked before the GL context exists.
   auto source = unwrap(recorder::ReplaySource::open(pos[0], o));
   const recorder::RecordingReader& reader = source->reader();
-  if (source->frame_count() == 0) runtime_error(reader.path() + ": the recording holds no frames");
+  // A truncated or damaged recording: what is missing is said now, the readable frames are
+  // replayed, and the exit status is 1.
+  for (const std::string& p : reader.problems())
+    err << "augrig replay: " << recording_problem(reader, p) << "\n";
+  if (source->frame_count() == 0)
+    runtime_error(reader.path() + ": the recording holds no readable frames" +
+                  (reader.problems().empty() ? std::string() : " (above: what is damaged or missing)"));
   std::optional<Rig> recorded_rig;
   if (const std::string yaml = reader.meta("rig_yaml"); !yaml.empty())
     recorded_rig = unwrap(parse_rig(yaml, reader.path() + " (meta rig_yaml)"));
@@ -366,11 +379,10 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
     }
     if (boom_arg) {
       // Tracking aims at the receptacle where the recorded pose puts it.
-      const BoomCommand tracked = track_point(scene->T_body_receiver * receiver.receptacle_m, rig.boom.pivot_body_m,
-                                              boom_dims, rig.boom.limits);
+      const BoomCommand tracked = track_point(scene->T_body_receiver * receiver.receptacle_m,
+                                              rig.boom.pivot_body_m, boom_dims, rig.boom.limits);
       scene->boom =
-          boom_arg->command(ns_to_s(frame.left.t_ns - first_t_ns), tracked, rig.boom.limits)
-              .articulation;
+          boom_arg->command(ns_to_s(frame.left.t_ns - first_t_ns), tracked, rig.boom.limits).articulation;
     }
     check(augmenter->augment(frame, *scene, result));
     augment_ms += augmenter->timings().total_ms;
@@ -380,7 +392,8 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
       fr.raw = frame;
       fr.T_body_receiver = scene->T_body_receiver;
       fr.receiver_present = scene->receiver_present;
-      for (int c = 0; c < 2; ++c) fr.T_cam_receiver[c] = rig.cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
+      for (int c = 0; c < 2; ++c)
+        fr.T_cam_receiver[c] = rig.cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
       fr.sigma_pos_m = rec.sigma_pos_m, fr.sigma_att_deg = rec.sigma_att_deg;
       fr.boom = scene->boom;
       rec_out->push(std::move(fr));
@@ -424,6 +437,11 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
         << rs.frames_dropped << " dropped by the recorder)\n";
     if (!closed) runtime_error("the recording stopped: " + user_message(closed.error()));
   }
+  if (!reader.problems().empty())
+    runtime_error(
+        "the recording is incomplete (above); " +
+        (damaged ? std::to_string(damaged) + " listed frame(s) could not be read, " : std::string()) +
+        "the others were replayed");
   if (damaged)
     runtime_error(std::to_string(damaged) + " frame(s) could not be read (above); the others were replayed");
   return kExitOk;
@@ -465,12 +483,36 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   o.masks = !a.has("no-masks");
   o.plot = !a.has("no-plot");
   const auto reader = open_recording(pos[0]);
-  recorder::EurocExportReport r;
-  check(recorder::export_euroc(*reader, pos[1], o, r));
-
   const fs::path out_dir = pos[1];
-  out << "Exported " << r.frames_written << " of " << r.frames << " stereo frame(s) to "
-      << (out_dir / "mav0").string() << ": cam0, cam1";
+  // OUT/INCOMPLETE exists until the export has finished without a problem: a killed or failed
+  // export is marked as such, and what is missing is written into it.
+  const fs::path marker = out_dir / "INCOMPLETE";
+  auto write_marker = [&](const std::vector<std::string>& lines) {
+    std::ofstream m(marker);
+    m << "augrig export " << pos[0] << " -> " << pos[1] << " is incomplete";
+    m << (lines.empty() ? ": it was still running or was stopped before the end\n" : ":\n");
+    for (const std::string& l : lines) m << l << "\n";
+    if (!m) runtime_error(marker.string() + ": cannot be written");
+  };
+  if (!fs::exists(out_dir / "mav0")) {  // export_euroc refuses an existing mav0: no marker for that
+    make_dirs(out_dir);
+    write_marker({});
+  }
+  recorder::EurocExportReport r;
+  if (Status s = recorder::export_euroc(*reader, pos[1], o, r); !s) {
+    if (fs::exists(marker)) write_marker({user_message(s.error())});
+    check(s);
+  }
+  // The recording's own damage (a truncated file: frames its summary counts but no row holds).
+  for (auto p = reader->problems().rbegin(); p != reader->problems().rend(); ++p)
+    r.problems.insert(r.problems.begin(), recording_problem(*reader, *p));
+
+  const std::string summary_frames = reader->meta("summary.frames");
+  out << "Exported " << r.frames_written << " of "
+      << (summary_frames.empty() || summary_frames == std::to_string(r.frames)
+              ? std::to_string(r.frames)
+              : std::to_string(r.frames) + " readable (" + summary_frames + " recorded)")
+      << " stereo frame(s) to " << (out_dir / "mav0").string() << ": cam0, cam1";
   if (r.augmented_written) out << ", cam0_augmented, cam1_augmented";
   if (r.masks_written) out << ", cam0_mask, cam1_mask";
   if (r.imu_samples) out << ", imu0 (" << r.imu_samples << " samples of '" << r.imu_stream << "')";
@@ -480,8 +522,12 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (r.plotted) out << "Wrote " << (out_dir / "stats.png").string() << "\n";
   for (const std::string& n : r.notes) out << "note: " << n << "\n";
   for (const std::string& p : r.problems) err << "augrig export: " << p << "\n";
-  if (!r.problems.empty())
-    runtime_error("the export is incomplete: " + std::to_string(r.problems.size()) + " problem(s) (above)");
+  if (!r.problems.empty()) {
+    write_marker(r.problems);
+    runtime_error("the export is incomplete: " + std::to_string(r.problems.size()) +
+                  " problem(s) (above; listed in " + marker.string() + ")");
+  }
+  fs::remove(marker);
   return kExitOk;
 }
 

@@ -117,6 +117,21 @@ Expected<std::unique_ptr<RecordingReader>> RecordingReader::open(const std::stri
     }
     impl->ids.push_back(sqlite3_column_int64(ids->get(), 0));
   }
+  // A closed recording says how many frames it committed: fewer listed means frames are missing
+  // (a truncated or damaged file), even where SQLite itself found nothing wrong.
+  if (const auto n = impl->meta.find("summary.frames"); n != impl->meta.end()) {
+    std::uint64_t want = 0;
+    const std::string& t = n->second;
+    const auto [p, e] = std::from_chars(t.data(), t.data() + t.size(), want);
+    if (e != std::errc() || p != t.data() + t.size())
+      impl->problems.push_back("meta: summary.frames \"" + t + "\" is not a count");
+    else if (want != impl->ids.size())
+      impl->problems.push_back(
+          "frames: the recording's summary says " + t + " frames were recorded, " +
+          std::to_string(impl->ids.size()) + " can be read: " +
+          std::to_string(want > impl->ids.size() ? want - impl->ids.size() : impl->ids.size() - want) +
+          (want > impl->ids.size() ? " missing" : " more than it says"));
+  }
   return std::unique_ptr<RecordingReader>(new RecordingReader(std::move(impl)));
 }
 

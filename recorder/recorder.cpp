@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <condition_variable>
 #include <csignal>
+#include <cstring>
 #include <ctime>
 #include <deque>
 #include <filesystem>
@@ -14,8 +16,10 @@
 #include <variant>
 #include <vector>
 
+#include <fcntl.h>
 #include <sys/resource.h>
 #include <sys/statvfs.h>
+#include <unistd.h>
 
 #include "core/clock.hpp"
 #include "core/thread_name.hpp"
@@ -157,10 +161,31 @@ std::string diagnose_write_failure(const std::string& path, const std::string& s
   return s;
 }
 
+// Space held back for closing: a file of this size is allocated next to the database when the
+// recording starts and deleted just before close() writes the drop ledger and the summary. On a
+// full disk the last transaction's WAL pages (64 KiB each) then still fit, so that a recording
+// stopped by a full disk is closed with its true ledger like any other.
+constexpr char kReserveFile[] = "recording.reserve";
+constexpr std::int64_t kReserveBytes = 2 << 20;
+
+// Allocates `path` with `bytes` of real blocks (posix_fallocate, not a sparse file).
+Status reserve_space(const std::string& path, std::int64_t bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Error{std::strerror(errno)};
+  const int rc = posix_fallocate(fd, 0, bytes);
+  ::close(fd);
+  if (rc != 0) {
+    ::unlink(path.c_str());
+    return Error{std::strerror(rc)};
+  }
+  return {};
+}
+
 }  // namespace
 
 struct Recorder::Impl {
   std::string dir, path;
+  std::string reserve_path;  // the space held back for close() (empty once released)
   RecorderOptions opt;
   Database db;       // the writer's connection (create/close on the caller's thread, else the writer's)
   Database ckpt_db;  // the checkpointer's
@@ -224,6 +249,10 @@ struct Recorder::Impl {
   Status insert_ledger(std::map<LedgerKey, Tally>& rows);
   Status put_meta(const std::string& key, const std::string& value);
   Status write_summary();
+  void release_reserve() {
+    if (!reserve_path.empty()) ::unlink(reserve_path.c_str());
+    reserve_path.clear();
+  }
 };
 
 void Recorder::Impl::encode(Encoder& enc, FrameRecord& f, Encoded& e) {
@@ -686,8 +715,8 @@ Expected<std::unique_ptr<Recorder>> Recorder::create(const std::string& dir, con
     return make_error(where, dir, ": cannot create the folder: ", ec.message());
   impl->path = (fs::path(dir) / kDatabaseFile).string();
   const std::string& path = impl->path;
-  for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
-    const std::string p = path + suffix;
+  const std::string reserve_path = (fs::path(dir) / kReserveFile).string();
+  for (const std::string& p : {path, path + "-wal", path + "-shm", path + "-journal", reserve_path}) {
     if (!fs::exists(p, ec)) continue;
     if (!options.overwrite)
       return make_error(
@@ -700,13 +729,39 @@ Expected<std::unique_ptr<Recorder>> Recorder::create(const std::string& dir, con
   struct sigaction sa {};
   if (sigaction(SIGXFSZ, nullptr, &sa) == 0 && sa.sa_handler == SIG_DFL) signal(SIGXFSZ, SIG_IGN);
 
+  // The space close() needs, first: on a disk already full the recording is refused here, before
+  // any of its files exist.
+  if (auto s = reserve_space(reserve_path, kReserveBytes); !s) {
+    std::string why = s.error().message;
+    struct statvfs v {};
+    if (statvfs(dir.c_str(), &v) == 0)
+      why += " (" + std::to_string(static_cast<std::uint64_t>(v.f_bavail) * v.f_frsize) + " bytes free)";
+    return make_error(where, reserve_path, ": cannot set aside the ", kReserveBytes >> 20,
+                      " MiB a recording keeps for closing: ", why);
+  }
+  impl->reserve_path = reserve_path;
+
+  // A recording either is created whole (schema and meta) or leaves no file behind.
+  auto remove_files = [&] {
+    impl->ckpt_db.close();
+    impl->db.close();
+    for (const std::string& p : {path, path + "-wal", path + "-shm", path + "-journal"}) fs::remove(p, ec);
+    impl->release_reserve();
+  };
   auto db = Database::open(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
-  if (!db) return make_error(where, db.error().message);
+  if (!db) {
+    remove_files();
+    return make_error(where, db.error().message);
+  }
   impl->db = std::move(*db);
   Database& d = impl->db;
   auto fail = [&](const std::string& what, const Error& e) -> Error {
-    impl->db.close();
-    return make_error(where, path, ": ", what, ": ", e.message);
+    std::string why = e.message;
+    struct statvfs v {};
+    if (statvfs(dir.c_str(), &v) == 0 && static_cast<std::uint64_t>(v.f_bavail) * v.f_frsize < 4u * kPageSize)
+      why += " (the file system is full)";
+    remove_files();
+    return make_error(where, path, ": ", what, ": ", why, "; nothing was left behind");
   };
   sqlite3_busy_timeout(d.get(), 5000);
   if (auto s = d.exec("PRAGMA page_size=" + std::to_string(kPageSize)); !s)
@@ -900,6 +955,8 @@ Status Recorder::close() {
   I.checkpointer.join();
   I.ckpt_db.close();
 
+  // The reserved space becomes the room for the ledger, the summary and the final checkpoint.
+  I.release_reserve();
   Status result;
   Status summary = I.write_summary();
   if (!I.failed.load() && !summary) {

@@ -49,7 +49,7 @@ Image raw_image(int i, int c) {
 }
 
 // A recording of kFrames stereo frames augmented here, with everything the recorder stores.
-std::string write_recording(const std::string& dir) {
+std::string write_recording(const std::string& dir, int frames = kFrames) {
   const Rig rig = small_rig();
   auto ctx = create_gl_context(GlBackend::kEglHeadless);
   EXPECT_TRUE(ctx) << ctx.error().message;
@@ -63,7 +63,7 @@ std::string write_recording(const std::string& dir) {
   auto rec = recorder::Recorder::create(dir, info);
   EXPECT_TRUE(rec) << rec.error().message;
   StereoResult result;
-  for (int i = 0; i < kFrames; ++i) {
+  for (int i = 0; i < frames; ++i) {
     recorder::FrameRecord r;
     r.raw.pair_sequence = static_cast<std::uint64_t>(i);
     r.raw.t_key_ns = kT0 + i * kPeriod;
@@ -75,7 +75,7 @@ std::string write_recording(const std::string& dir) {
       f.sequence = static_cast<std::uint64_t>(i);
       f.image = raw_image(i, index_of(id));
     }
-    const BoomArticulation a{deg_to_rad(26.0 + i), deg_to_rad(i - 4.0), 1.0 + 0.3 * i};
+    const BoomArticulation a{deg_to_rad(26.0 + i % 8), deg_to_rad(i % 8 - 4.0), 1.0 + 0.3 * (i % 8)};
     const SceneState scene =
         scene_at_contact(rig, BoomDimensions{}, receptacle, a, Eigen::Vector3d(0, 0, 0.5));
     EXPECT_TRUE((*augmenter)->augment(r.raw, scene, result));
@@ -305,8 +305,8 @@ TEST(CmdRecording, ReplaysAnExportedEurocFolderWithAScene) {
   }
   EXPECT_EQ(augrig("replay " + dir + "/euroc --rig " + dir + "/rig.yaml", &log), 2) << log;  // no --scene
   EXPECT_NE(log.find("--scene"), std::string::npos) << log;
-  ASSERT_EQ(augrig("replay " + dir + "/euroc --rig " + dir + "/rig.yaml --scene " + test::data_path("scenes/body.yaml") +
-                       " --record " + dir + "/rec",
+  ASSERT_EQ(augrig("replay " + dir + "/euroc --rig " + dir + "/rig.yaml --scene " +
+                       test::data_path("scenes/body.yaml") + " --record " + dir + "/rec",
                    &log),
             0)
       << log;
@@ -358,6 +358,85 @@ TEST(CmdRecording, ExportWritesTheEurocLayout) {
       1)
       << log;
   EXPECT_NE(log.find("/x: no such file"), std::string::npos) << log;
+}
+
+// The first `bytes` of a recording's database, as `head -c` leaves a file copied half-way.
+std::string truncated_copy(const std::string& from, const std::string& name, std::uintmax_t bytes) {
+  const std::string dir = output_dir(name);
+  std::ifstream in(from + "/recording.sqlite", std::ios::binary);
+  std::string data(bytes, '\0');
+  in.read(data.data(), static_cast<std::streamsize>(bytes));
+  data.resize(static_cast<std::size_t>(in.gcount()));
+  std::ofstream(dir + "/recording.sqlite", std::ios::binary) << data;
+  return dir;
+}
+
+const std::string& long_recording() {
+  // Per test, as recording(): CTest runs the tests of this file in parallel processes.
+  static const std::string dir =
+      write_recording(output_dir(std::string("cmd_recording_long_") +
+                                 testing::UnitTest::GetInstance()->current_test_info()->name()) +
+                          "/rec",
+                      60);
+  return dir;
+}
+
+// A recording cut in half: replay and export said "Replayed 99" / "Exported 99 of 99" and exited
+// 0 while the summary said 201. They must say what is missing and exit 1; export marks its output.
+TEST(CmdRecording, ReplayAndExportOfATruncatedRecordingSayWhatIsMissing) {
+  const std::uintmax_t size = fs::file_size(long_recording() + "/recording.sqlite");
+  const std::string half = truncated_copy(long_recording(), "cmd_recording_truncated", size / 2);
+  std::string log;
+  EXPECT_EQ(augrig("check " + half, &log), 1) << log;
+  EXPECT_NE(log.find("the recording's summary says 60 frames were recorded"), std::string::npos) << log;
+
+  ASSERT_EQ(augrig("replay " + half, &log), 1) << log;
+  EXPECT_NE(log.find("the recording's summary says 60 frames were recorded"), std::string::npos) << log;
+  EXPECT_NE(log.find("augrig replay: the recording is incomplete (above)"), std::string::npos) << log;
+
+  const std::string out = output_dir("cmd_recording_truncated_export");
+  ASSERT_EQ(augrig("export " + half + " --format euroc " + out + " --no-plot", &log), 1) << log;
+  EXPECT_NE(log.find("readable (60 recorded) stereo frame(s)"), std::string::npos) << log;
+  EXPECT_NE(log.find("the export is incomplete"), std::string::npos) << log;
+  std::ifstream marker(out + "/INCOMPLETE");
+  ASSERT_TRUE(marker) << "the output is not marked incomplete";
+  const std::string text((std::istreambuf_iterator<char>(marker)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("summary says 60 frames were recorded"), std::string::npos) << text;
+
+  // Cut before the first frame: nothing to replay or export, and both say so with exit 1.
+  const std::string head = truncated_copy(long_recording(), "cmd_recording_truncated_head", 3 * 65536);
+  EXPECT_EQ(augrig("replay " + head, &log), 1) << log;
+  EXPECT_EQ(log.find("Replayed"), std::string::npos) << log;
+  const std::string out2 = output_dir("cmd_recording_truncated_head_export");
+  EXPECT_EQ(augrig("export " + head + " --format euroc " + out2 + " --no-plot", &log), 1) << log;
+  if (fs::exists(out2 + "/mav0")) {
+    EXPECT_TRUE(fs::exists(out2 + "/INCOMPLETE")) << log;
+  }
+}
+
+// A finished export leaves no marker; one killed part-way leaves OUT/INCOMPLETE next to what it
+// wrote (it once left PNGs and empty data.csv files that looked like a finished export).
+TEST(CmdRecording, AKilledExportIsMarkedIncomplete) {
+  const std::string done = output_dir("cmd_recording_export_done");
+  std::string log;
+  ASSERT_EQ(augrig("export " + long_recording() + " --format euroc " + done + " --no-plot", &log), 0) << log;
+  EXPECT_FALSE(fs::exists(done + "/INCOMPLETE"));
+  int killed = 0;
+  for (const char* after : {"0.15", "0.3", "0.6"}) {
+    const std::string out = output_dir(std::string("cmd_recording_export_killed_") + after);
+    const int rc = run_command("timeout -s KILL " + std::string(after) + " " + augrig_binary() + " export " +
+                                   long_recording() + " --format euroc " + out + " --no-plot",
+                               &log);
+    if (rc == 0) {
+      EXPECT_FALSE(fs::exists(out + "/INCOMPLETE"));
+      continue;
+    }
+    ++killed;
+    if (fs::exists(out + "/mav0")) {
+      EXPECT_TRUE(fs::exists(out + "/INCOMPLETE")) << "killed after " << after << " s";
+    }
+  }
+  EXPECT_GT(killed, 0) << "no export was killed part-way: the test did not test";
 }
 
 }  // namespace

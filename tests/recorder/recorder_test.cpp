@@ -24,6 +24,7 @@
 #include "recorder/reader.hpp"
 #include "recorder/store.hpp"
 #include "tests/support/test_support.hpp"
+#include "tests/support/tmpfs.hpp"
 
 namespace augrig::recorder {
 namespace {
@@ -564,6 +565,86 @@ TEST(Recorder, SizeCapStopsTheRecordingCleanly) {
     ASSERT_TRUE(f) << f.error().message;
     expect_same_frame(make_frame(f->raw.pair_sequence, PixelFormat::kBayerRG8, 160, 120, true), *f);
   }
+}
+
+// A full disk (a real tmpfs) stops the recording either in a transaction (rolled back) or in a
+// WAL checkpoint (the database cannot grow). Either way close() writes the summary and the whole
+// drop ledger, the ledger rows pushed after the stop included, into the space the recorder held
+// back at create(). Rounds with different checkpoint intervals meet both kinds of stop.
+TEST(Recorder, FullDiskClosesWithTheTrueLedger) {
+  int stopped_by_checkpoint = 0, stopped_in_transaction = 0;
+  for (int round = 0; round < 6; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    const test::ScopedTmpfs fs(test::output_dir("recorder/disk_full_mnt"), 6u << 20);
+    if (!fs.mounted()) GTEST_SKIP() << fs.error();
+    const std::string dir = fs.dir() + "/rec";
+    RecorderOptions opt;
+    opt.commit_interval = std::chrono::milliseconds(10 + 20 * round);
+    opt.checkpoint_interval = std::chrono::milliseconds(round % 2 ? 5 : 300);
+    auto rec = Recorder::create(dir, test_info(), opt);
+    ASSERT_TRUE(rec) << rec.error().message;
+    EXPECT_TRUE(std::filesystem::exists(dir + "/recording.reserve"));
+    (*rec)->push(DropRecord{DropStage::kCamera, 3, 100, 200, "frame-id gaps", "frame"});
+    std::uint64_t i = 0;
+    for (; i < 3000 && (*rec)->status(); ++i) {
+      (*rec)->push(make_frame(i, PixelFormat::kBayerRG8, 160, 120, /*random=*/true));
+      std::this_thread::sleep_for(1ms);
+    }
+    ASSERT_FALSE((*rec)->status()) << "a 6 MiB file system must fill up";
+    const std::string why = (*rec)->status().error().message;
+    (why.find("checkpoint") != std::string::npos ? stopped_by_checkpoint : stopped_in_transaction) += 1;
+    // After the stop: more frames (dropped by the recorder) and the pipeline's own ledger rows.
+    for (int k = 0; k < 10; ++k)
+      EXPECT_FALSE((*rec)->push(make_frame(i++, PixelFormat::kBayerRG8, 160, 120, true)));
+    (*rec)->push(DropRecord{DropStage::kPairing, 42, 300, 400, "frames without a stereo partner", "frame"});
+    (*rec)->push(DropRecord{DropStage::kProcessing, 5, 500, 600, "pending when the run stopped", "frame"});
+    const Status closed = (*rec)->close();
+    EXPECT_FALSE(closed);
+    const RecorderStats st = (*rec)->stats();
+    EXPECT_FALSE(std::filesystem::exists(dir + "/recording.reserve"));
+
+    auto rd = RecordingReader::open(dir);
+    ASSERT_TRUE(rd) << rd.error().message;
+    EXPECT_EQ((*rd)->meta("summary.status"), why) << "the recording was not closed";
+    EXPECT_EQ((*rd)->meta("summary.frames"), std::to_string(st.frames_committed));
+    EXPECT_EQ((*rd)->meta("summary.drops.camera"), "3");
+    EXPECT_EQ((*rd)->meta("summary.drops.pairing"), "42");
+    EXPECT_EQ((*rd)->meta("summary.drops.processing"), "5");
+    EXPECT_EQ((*rd)->meta("summary.drops.recorder"),
+              std::to_string(st.frames_dropped + st.small_items_dropped));
+    EXPECT_GE(st.frames_dropped, 10u);
+    const CheckReport report = (*rd)->check();
+    EXPECT_TRUE(report.ok()) << report.to_string();
+    EXPECT_EQ(report.drops_by_stage.at("camera"), 3u);
+    EXPECT_EQ(report.drops_by_stage.at("pairing"), 42u);
+    EXPECT_EQ(report.drops_by_stage.at("processing"), 5u);
+    EXPECT_EQ(report.drops_by_stage.at("recorder"), st.frames_dropped + st.small_items_dropped);
+    EXPECT_EQ(report.frames, st.frames_committed);
+    auto drops = (*rd)->drops();
+    ASSERT_TRUE(drops) << drops.error().message;
+    for (const DropRecord& d : *drops)
+      if (d.stage == DropStage::kPairing) {
+        EXPECT_EQ(d.first_t_ns, 300);
+        EXPECT_EQ(d.last_t_ns, 400);
+      }
+  }
+  std::printf("stops by checkpoint %d, in a transaction %d\n", stopped_by_checkpoint, stopped_in_transaction);
+}
+
+// On a disk already full the recording is refused at create(), naming the file and the space, and
+// leaves no file behind (it once left a 64 KiB database without tables).
+TEST(Recorder, CreateOnAFullDiskFailsAndLeavesNothing) {
+  const test::ScopedTmpfs fs(test::output_dir("recorder/full_at_create_mnt"), 1u << 20);
+  if (!fs.mounted()) GTEST_SKIP() << fs.error();
+  fs.fill(64 << 10);
+  const std::string dir = fs.dir() + "/rec";
+  auto rec = Recorder::create(dir, test_info());
+  ASSERT_FALSE(rec);
+  EXPECT_NE(rec.error().message.find(dir + "/recording.reserve"), std::string::npos) << rec.error().message;
+  EXPECT_NE(rec.error().message.find("No space left on device"), std::string::npos) << rec.error().message;
+  for (const char* f :
+       {"recording.sqlite", "recording.sqlite-wal", "recording.sqlite-shm", "recording.reserve"})
+    EXPECT_FALSE(std::filesystem::exists(dir + "/" + f)) << f;
 }
 
 // ---- child processes ----------------------------------------------------------------------------
