@@ -341,15 +341,17 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
   out << "\nTiming: simulation and logs " << fmt_ms(sim_ms) << " ms, nav fusion of both aircraft "
       << fmt_ms(nav_ms) << " ms, camera rendering " << fmt_ms(render_ms / n) << " ms and augmenter "
       << fmt_ms(augment_ms / n) << " ms per stereo frame (" << to_string(augmenter->rasterizer())
-      << " rasteriser), PNG writing " << fmt_ms(write_ms)
-      << " ms in all, total " << fmt_ms(ms_since(t_start) / 1000.0) << " s\n";
+      << " rasteriser), PNG writing " << fmt_ms(write_ms) << " ms in all, total "
+      << fmt_ms(ms_since(t_start) / 1000.0) << " s\n";
   pairer.flush();
+  std::optional<Status> recording_closed;
   if (rec) {
-    const std::uint64_t unpaired = pairer.stats().unpaired_left + pairer.stats().unpaired_right;
-    if (unpaired)
-      rec->push(
-          recorder::DropRecord{recorder::DropStage::kPairing, unpaired, 0, 0, "no stereo partner", "frame"});
+    const TimeSpan& unpaired = pairer.stats().unpaired_t;
+    if (unpaired.count)
+      rec->push(recorder::DropRecord{recorder::DropStage::kPairing, unpaired.count, unpaired.first_t_ns,
+                                     unpaired.last_t_ns, "no stereo partner", "frame"});
     const Status closed = rec->close();
+    recording_closed = closed;
     const recorder::RecorderStats rs = rec->stats();
     out << "Recording: " << rec->path() << ": " << rs.frames_committed << " stereo frames, "
         << rs.nav_inputs_committed << " nav inputs, " << rs.frames_dropped
@@ -364,6 +366,10 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
       << " ns\n";
   out << "Wrote " << (out_dir / "stats.csv").string() << ", poses.csv, truth_poses.csv and "
       << (out_dir / "demo.png").string() << "\n";
+  // A recording that stopped (a full disk) fails the run, as in augrig run: what it holds is valid.
+  if (recording_closed && !*recording_closed)
+    runtime_error("the recording stopped: " + user_message(recording_closed->error()) +
+                  " (what it holds stays valid; the other outputs were written)");
   return kExitOk;
 }
 

@@ -403,8 +403,10 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
         if (std::sscanf(window.c_str(), "%lf-%lf%c", &t0, &t1, &extra) != 2 || !(t1 >= t0))
           usage_error("--nav-fault: expected STREAM=T0-T1 (scenario seconds), got '" + stream + "=" + window +
                       "'");
+        // A named copy: clang 14 cannot capture a structured binding in a lambda.
+        const std::string& name = stream;
         auto it = std::find_if(nav_targets.begin(), nav_targets.end(),
-                               [&](const sim::NavStreamTarget& t) { return t.stream == stream; });
+                               [&](const sim::NavStreamTarget& t) { return t.stream == name; });
         if (it == nav_targets.end())
           usage_error("--nav-fault: no stream '" + stream +
                       "' (tanker.gps, tanker.imu, receiver.gps, receiver.imu)");
@@ -495,8 +497,8 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   auto next_status = t0 + std::chrono::duration<double>(status_s);
   auto next_clocks = t0;
   RunSummary all;
-  std::optional<OcclusionStats> last_stats;
   std::size_t no_pose = 0, stale_pairs = 0, processing_drops = 0;
+  TimeSpan processing_failed_t;  // the pairs whose augmentation failed (t_key_ns), for the ledger
   bool was_stale = false, recorder_failed = false;
   std::optional<BoomArticulation> last_boom;
   std::vector<ClockOffsetLog> clocks;  // the cameras' clock estimates, refreshed each second
@@ -509,7 +511,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   bool source_failed = false;
   auto log_event = [&](const std::string& text) {
     out << "  " << text << "\n";
-    if (rec) rec->push(recorder::EventRecord{0, ClockDomain::kHostMonotonic, text});
+    if (rec) rec->push(recorder::EventRecord{monotonic_now_ns(), ClockDomain::kHostMonotonic, text});
   };
   // The pipeline: its GL context and augmenter live on the thread that runs it.
   auto pipeline = [&] {
@@ -635,6 +637,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
           }
           if (Status s = augmenter->augment(frame, *scene, result); !s) {
             ++processing_drops;
+            processing_failed_t.add(frame.t_key_ns);
             err << "augrig run: frame " << frame.pair_sequence << ": " << user_message(s.error()) << "\n";
           } else {
             augment_ms += augmenter->timings().total_ms;
@@ -859,15 +862,21 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   if (all.frames()) out << all.format();
   const std::uint64_t pairing = st.pairing.unpaired_left + st.pairing.unpaired_right;
   const std::uint64_t queue = st.queue_drops[0] + st.queue_drops[1];
+  const std::uint64_t pending = st.pending.count;
   out << "run: " << all.frames() << " stereo frames augmented in " << std::fixed << std::setprecision(1)
       << wall_s << " s (" << all.frames() / std::max(wall_s, 1e-9) << "/s";
   if (all.frames())
     out << ", augmenter " << fmt_ms(augment_ms / static_cast<double>(all.frames())) << " ms/frame, "
         << to_string(rasterizer) << " rasteriser";
-  out << "); frames read: left " << st.frames[0] << ", right " << st.frames[1] << "\n"
+  // Every frame read is in a pair or a ledger row: read = 2 pairs + pairing + queue + pending.
+  const std::uint64_t pairs_read = all.frames() + processing_drops;
+  out << "); frames read: left " << st.frames[0] << ", right " << st.frames[1] << " = 2 x " << pairs_read
+      << " pairs + " << pairing << " unpaired + " << queue << " dropped from full queues + " << pending
+      << " pending at the stop\n"
       << "drops: camera " << st.camera_drops << ", transport " << st.transport_drops << ", pairing "
-      << pairing << ", processing " << queue + processing_drops << " (queue " << queue << ", failed "
-      << processing_drops << "), recorder " << (rec ? rec->stats().frames_dropped : 0) << "\n";
+      << pairing << ", processing " << queue + processing_drops * 2 + pending << " (queue " << queue
+      << ", failed " << processing_drops << " pairs, pending at the stop " << pending << "), recorder "
+      << (rec ? rec->stats().frames_dropped : 0) << "\n";
   // Latency from each pair's mid-exposure (the earlier camera's) on the host clock.
   auto latency_line = [&](const char* what, const LatencyHistogram& h) {
     if (h.count)
@@ -902,28 +911,42 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     out << "clock " << to_string(c.camera) << ": host - device " << c.offset_ns << " ns, drift "
         << std::setprecision(2) << c.drift_ppm << " ppm, +-" << fmt_us(c.uncertainty_ns) << " us ("
         << c.samples << " samples, " << c.resets << " resets)\n";
+  std::vector<std::string> lost_for_good;  // cameras not connected at the end: the run failed
   for (std::size_t i = 0; i < stereo->sources().size(); ++i) {
     const SourceHealth h = stereo->health()[i];
     if (h.disconnects)
       out << stereo->sources()[i]->uri() << ": lost " << h.disconnects << " time(s), reconnected "
-          << h.reconnects << " time(s)\n";
+          << h.reconnects << " time(s)" << (h.connected ? "" : "; not connected at the end") << "\n";
+    if (!h.connected)
+      lost_for_good.push_back(stereo->sources()[i]->uri() + " was lost and never came back (" + h.message +
+                              ")");
   }
   nav_inputs.summary(out);
   if (rec) {
     nav_inputs.ledger(*rec);
-    auto ledger = [&](recorder::DropStage stage, std::uint64_t n, const std::string& why) {
-      if (n) rec->push(recorder::DropRecord{stage, n, 0, 0, why, "frame"});
+    // The sources count their own gaps without timestamps; every other row has the first and last
+    // frame time of what it counts.
+    auto ledger = [&](recorder::DropStage stage, std::uint64_t n, const TimeSpan& t, const std::string& why) {
+      if (n) rec->push(recorder::DropRecord{stage, n, t.first_t_ns, t.last_t_ns, why, "frame"});
     };
-    ledger(recorder::DropStage::kCamera, st.camera_drops, "frame-id gaps reported by the cameras");
-    ledger(recorder::DropStage::kTransport, st.transport_drops, "incomplete or failed buffers");
-    ledger(recorder::DropStage::kPairing, pairing, "frames without a stereo partner");
-    ledger(recorder::DropStage::kProcessing, queue, "capture queue full (the pipeline fell behind)");
-    ledger(recorder::DropStage::kProcessing, processing_drops, "augmentation failed");
+    ledger(recorder::DropStage::kCamera, st.camera_drops, {}, "frame-id gaps reported by the cameras");
+    ledger(recorder::DropStage::kTransport, st.transport_drops, {}, "incomplete or failed buffers");
+    ledger(recorder::DropStage::kPairing, pairing, st.pairing.unpaired_t, "frames without a stereo partner");
+    ledger(recorder::DropStage::kProcessing, queue, st.queue_drop_t,
+           "capture queue full (the pipeline fell behind)");
+    ledger(recorder::DropStage::kProcessing, processing_drops * 2, processing_failed_t,
+           "augmentation failed (both frames of the pair)");
+    ledger(recorder::DropStage::kProcessing, pending, st.pending,
+           "pending in the capture queues or the pairer when the run stopped");
     const Status closed = rec->close();
     const recorder::RecorderStats rs = rec->stats();
     out << "recorded " << rs.frames_committed << " stereo frames to " << rec->path() << " ("
         << rs.frames_dropped << " dropped by the recorder)\n";
     if (!closed) runtime_error("the recording stopped: " + user_message(closed.error()));
+  }
+  if (!lost_for_good.empty()) {
+    for (std::size_t i = 1; i < lost_for_good.size(); ++i) err << "augrig run: " << lost_for_good[i] << "\n";
+    runtime_error(lost_for_good.front());
   }
   if (source_failed) return kExitRuntime;
   return kExitOk;

@@ -126,9 +126,17 @@ const ClockOffsetEstimator* StereoPairer::clock_estimator(CameraId camera) const
   return c ? &*c : nullptr;
 }
 
-void StereoPairer::drop(int cam, UnpairedReason reason, std::uint64_t n) {
-  (cam == 0 ? stats_.unpaired_left : stats_.unpaired_right) += n;
-  stats_.unpaired_by_reason[static_cast<std::size_t>(reason)] += n;
+void StereoPairer::drop(const Frame& frame, UnpairedReason reason) {
+  (frame.camera == CameraId::kLeft ? stats_.unpaired_left : stats_.unpaired_right) += 1;
+  stats_.unpaired_by_reason[static_cast<std::size_t>(reason)] += 1;
+  stats_.unpaired_t.add(frame.t_ns);
+}
+
+TimeSpan StereoPairer::pending_t() const {
+  TimeSpan s;
+  for (const auto& q : pending_)
+    for (const Pending& p : q) s.add(p.frame.t_ns);
+  return s;
 }
 
 void StereoPairer::note(const Frame& frame, const std::string& what) {
@@ -172,10 +180,11 @@ void StereoPairer::drop_aged(TimestampNs host_now_ns) {
   if (config_.max_age_ns <= 0 || host_now_ns <= 0) return;
   for (int cam = 0; cam < 2; ++cam) {
     auto& q = pending_[cam];
-    const auto old = std::remove_if(q.begin(), q.end(), [&](const Pending& p) {
-      return p.frame.t_host_ns > 0 && host_now_ns - p.frame.t_host_ns > config_.max_age_ns;
+    // stable_partition, not remove_if: the dropped frames are still read (their timestamps).
+    const auto old = std::stable_partition(q.begin(), q.end(), [&](const Pending& p) {
+      return !(p.frame.t_host_ns > 0 && host_now_ns - p.frame.t_host_ns > config_.max_age_ns);
     });
-    drop(cam, UnpairedReason::kMaxAge, static_cast<std::uint64_t>(q.end() - old));
+    drop_all(old, q.end(), UnpairedReason::kMaxAge);
     q.erase(old, q.end());
   }
 }
@@ -184,8 +193,8 @@ void StereoPairer::enqueue(Pending p) {
   const int me = index_of(p.frame.camera);
   pending_[me].push_back(std::move(p));
   if (pending_[me].size() > config_.max_pending) {
+    drop(pending_[me].front().frame, UnpairedReason::kMaxPending);
     pending_[me].pop_front();
-    drop(me, UnpairedReason::kMaxPending);
   }
 }
 
@@ -226,7 +235,7 @@ std::optional<StereoFrame> StereoPairer::push(Frame frame) {
     const Expected<ClockSampleResult> r = est.add(p.frame.t_ns, p.frame.t_host_ns);
     if (!r) {
       note(p.frame, r.error().message);
-      drop(me, UnpairedReason::kBadTime);
+      drop(p.frame, UnpairedReason::kBadTime);
       return std::nullopt;
     }
     if (r->reset)
@@ -259,7 +268,7 @@ std::optional<StereoFrame> StereoPairer::push_timestamp(Pending p) {
   std::string why;
   if (!comparable_domain(p.key_clock, why)) {
     note(p.frame, why);
-    drop(me, UnpairedReason::kClockMismatch);
+    drop(p.frame, UnpairedReason::kClockMismatch);
     return std::nullopt;
   }
   if (last_key_[me] && p.key_ns <= *last_key_[me]) {
@@ -267,7 +276,7 @@ std::optional<StereoFrame> StereoPairer::push_timestamp(Pending p) {
     note(p.frame, make_error("not later than the previous ", to_string(p.frame.camera), " frame (t ",
                              *last_key_[me], " ", to_string(p.key_clock), ")")
                       .message);
-    drop(me, UnpairedReason::kOutOfOrder);
+    drop(p.frame, UnpairedReason::kOutOfOrder);
     return std::nullopt;
   }
   if (last_key_[me]) interval_ns_[me] = p.key_ns - *last_key_[me];
@@ -277,8 +286,8 @@ std::optional<StereoFrame> StereoPairer::push_timestamp(Pending p) {
   const std::int64_t tol = timestamp_tolerance();
   auto& theirs = pending_[other];
   while (!theirs.empty() && theirs.front().key_ns < p.key_ns - tol) {
+    drop(theirs.front().frame, UnpairedReason::kNoPartner);
     theirs.pop_front();
-    drop(other, UnpairedReason::kNoPartner);
   }
   if (!theirs.empty() && std::llabs(theirs.front().key_ns - p.key_ns) <= tol) {
     if (std::llabs(theirs.front().key_ns - p.key_ns) > config_.tolerance_ns)
@@ -289,7 +298,7 @@ std::optional<StereoFrame> StereoPairer::push_timestamp(Pending p) {
   }
   // The other camera is already past this frame: its partner was lost.
   if (last_key_[other] && *last_key_[other] > p.key_ns + tol) {
-    drop(me, UnpairedReason::kNoPartner);
+    drop(p.frame, UnpairedReason::kNoPartner);
     return std::nullopt;
   }
   enqueue(std::move(p));
@@ -308,7 +317,7 @@ std::optional<StereoFrame> StereoPairer::push_trigger(Pending p) {
                              " pending frame(s) of this camera dropped",
                              config_.trigger_id_offset ? "" : "; the trigger id offset is learned again")
                       .message);
-    drop(me, UnpairedReason::kRestart, mine.size());
+    drop_all(mine.begin(), mine.end(), UnpairedReason::kRestart);
     mine.clear();
     if (!config_.trigger_id_offset) id_offset_.reset();
   }
@@ -320,8 +329,8 @@ std::optional<StereoFrame> StereoPairer::push_trigger(Pending p) {
   const std::int64_t id = id_of(me, p.frame.sequence);
   // The other camera's frames with smaller ids will not pair: this camera is past them.
   while (!theirs.empty() && id_of(other, theirs.front().frame.sequence) < id) {
+    drop(theirs.front().frame, UnpairedReason::kNoPartner);
     theirs.pop_front();
-    drop(other, UnpairedReason::kNoPartner);
   }
   if (!theirs.empty() && id_of(other, theirs.front().frame.sequence) == id) {
     Pending partner = std::move(theirs.front());
@@ -337,9 +346,9 @@ std::optional<StereoFrame> StereoPairer::push_trigger(Pending p) {
                                config_.trigger_id_offset ? "both dropped"
                                                          : "the older dropped, the offset is learned again")
                         .message);
-      drop(index_of(older.frame.camera), UnpairedReason::kSkewCheck);
+      drop(older.frame, UnpairedReason::kSkewCheck);
       if (config_.trigger_id_offset) {
-        drop(index_of((mine_newer ? p : partner).frame.camera), UnpairedReason::kSkewCheck);
+        drop((mine_newer ? p : partner).frame, UnpairedReason::kSkewCheck);
         return std::nullopt;
       }
       id_offset_.reset();
@@ -353,7 +362,7 @@ std::optional<StereoFrame> StereoPairer::push_trigger(Pending p) {
   }
   // The other camera is already past this id: its partner was lost.
   if (last_sequence_[other] && id_of(other, *last_sequence_[other]) > id) {
-    drop(me, UnpairedReason::kNoPartner);
+    drop(p.frame, UnpairedReason::kNoPartner);
     return std::nullopt;
   }
   enqueue(std::move(p));
@@ -370,17 +379,17 @@ std::optional<StereoFrame> StereoPairer::learn_trigger_offset(Pending p) {
   if (!comparable_domain(p.key_clock, why)) {
     note(p.frame,
          "cannot learn the trigger id offset from timestamps: " + why + " (or set trigger_id_offset)");
-    drop(me, UnpairedReason::kClockMismatch);
+    drop(p.frame, UnpairedReason::kClockMismatch);
     return std::nullopt;
   }
   // Frames queued while the offset was known may be of another domain (no timestamps needed then).
   const auto foreign =
-      std::remove_if(theirs.begin(), theirs.end(), [&](const Pending& q) { return !comparable(q, p); });
-  drop(other, UnpairedReason::kClockMismatch, static_cast<std::uint64_t>(theirs.end() - foreign));
+      std::stable_partition(theirs.begin(), theirs.end(), [&](const Pending& q) { return comparable(q, p); });
+  drop_all(foreign, theirs.end(), UnpairedReason::kClockMismatch);
   theirs.erase(foreign, theirs.end());
   while (!theirs.empty() && theirs.front().key_ns < p.key_ns - tol) {
+    drop(theirs.front().frame, UnpairedReason::kNoPartner);
     theirs.pop_front();
-    drop(other, UnpairedReason::kNoPartner);
   }
   if (theirs.empty() || std::llabs(theirs.front().key_ns - p.key_ns) > tol) {
     enqueue(std::move(p));
@@ -394,14 +403,14 @@ std::optional<StereoFrame> StereoPairer::learn_trigger_offset(Pending p) {
   ++stats_.trigger_offsets_learned;
   note(p.frame, make_error("trigger id offset learned: right id = right sequence + ", *id_offset_).message);
   // This camera's older frames have ids below the pair's, and the other camera is past them.
-  drop(me, UnpairedReason::kNoPartner, mine.size());
+  drop_all(mine.begin(), mine.end(), UnpairedReason::kNoPartner);
   mine.clear();
   return make_pair(std::move(p), std::move(partner));
 }
 
 void StereoPairer::flush() {
   for (int cam = 0; cam < 2; ++cam) {
-    drop(cam, UnpairedReason::kFlushed, pending_[cam].size());
+    drop_all(pending_[cam].begin(), pending_[cam].end(), UnpairedReason::kFlushed);
     pending_[cam].clear();
   }
 }

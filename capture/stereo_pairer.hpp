@@ -86,7 +86,8 @@ struct PairerStats {
   // Unpaired frames of both cameras by reason (index: UnpairedReason); sums to unpaired_left +
   // unpaired_right.
   std::array<std::uint64_t, kUnpairedReasonCount> unpaired_by_reason{};
-  std::uint64_t sequence_restarts = 0;        // trigger mode: a camera's sequence went backwards
+  TimeSpan unpaired_t;                  // every unpaired frame's t_ns (both cameras), for the drop ledger
+  std::uint64_t sequence_restarts = 0;  // trigger mode: a camera's sequence went backwards
   std::uint64_t trigger_offsets_learned = 0;  // trigger mode: times the id offset was (re)learned
   // What was refused or restarted and why, "StereoPairer::push(): ..." (at most max_messages).
   std::vector<std::string> messages;
@@ -151,6 +152,8 @@ class StereoPairer {
   // The camera's clock offset estimator; nullptr without clock_offsets.
   const ClockOffsetEstimator* clock_estimator(CameraId camera) const;
   std::size_t pending(CameraId camera) const { return pending_[index_of(camera)].size(); }
+  // The frames waiting for a partner, both cameras (for a ledger at a stop without flush()).
+  TimeSpan pending_t() const;
 
  private:
   struct Pending {
@@ -159,7 +162,11 @@ class StereoPairer {
     ClockDomain key_clock;  // its domain
   };
   explicit StereoPairer(const StereoPairerConfig& config);
-  void drop(int cam, UnpairedReason reason, std::uint64_t n = 1);
+  void drop(const Frame& frame, UnpairedReason reason);
+  template <class It>
+  void drop_all(It begin, It end, UnpairedReason reason) {
+    for (; begin != end; ++begin) drop(begin->frame, reason);
+  }
   void note(const Frame& frame, const std::string& what);
   // Whether a time in `clock` can be compared with the other camera's; sets the pairing domain.
   bool comparable_domain(ClockDomain clock, std::string& why);

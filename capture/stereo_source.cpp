@@ -69,10 +69,14 @@ struct StereoSource::Impl {
       if (q.size() >= options.queue_frames) {
         if (options.lossless) {
           changed.wait(lock, [&] { return stopping || q.size() < options.queue_frames; });
-          if (stopping) return;
+          if (stopping) {  // kept (over the bound) so that the stop's pending count has it
+            q.push_back({std::move(frame), std::chrono::steady_clock::now()});
+            return;
+          }
         } else {
           // Live: the oldest frame goes, so what reaches the display is the newest.
           counts.queue_drops[index_of(q.front().frame.camera)]++;
+          counts.queue_drop_t.add(q.front().frame.t_ns);
           q.pop_front();
         }
       }
@@ -203,6 +207,8 @@ StereoSourceStats StereoSource::stats() const {
   {
     std::lock_guard lock(impl_->mutex);
     s = impl_->counts;
+    for (const auto& q : impl_->queues)
+      for (const Impl::Queued& f : q) s.pending.add(f.frame.t_ns);
     for (const SourceHealth& h : impl_->health) {
       s.camera_drops += h.camera_drops;
       s.transport_drops += h.transport_drops;
@@ -210,6 +216,8 @@ StereoSourceStats StereoSource::stats() const {
   }
   // The pairer belongs to the consumer thread, which is the one asking.
   s.pairing = impl_->pairer.stats();
+  s.pending.add(impl_->pairer.pending_t());
+  for (const StereoFrame& p : impl_->pairs) s.pending.add(p.left.t_ns), s.pending.add(p.right.t_ns);
   for (CameraId c : {CameraId::kLeft, CameraId::kRight})
     if (const ClockOffsetEstimator* e = impl_->pairer.clock_estimator(c); e && e->has_estimate())
       s.clocks.push_back(e->log(c));

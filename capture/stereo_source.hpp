@@ -31,7 +31,12 @@ struct StereoSourceOptions {
 struct StereoSourceStats {
   std::uint64_t frames[2] = {0, 0};       // read from the sources, per camera
   std::uint64_t queue_drops[2] = {0, 0};  // dropped because the pairer's queue was full
-  std::uint64_t camera_drops = 0;         // the sources' own counts (SourceHealth)
+  TimeSpan queue_drop_t;                  // their t_ns, both cameras
+  // Frames read but not (yet) paired, dropped or returned: in the capture queues, waiting in the
+  // pairer for a partner, or paired and not yet read (two per pair). After stop() these are the
+  // frames a stopped run never got to: frames = 2 pairs read + unpaired + queue drops + pending.
+  TimeSpan pending;
+  std::uint64_t camera_drops = 0;  // the sources' own counts (SourceHealth)
   std::uint64_t transport_drops = 0;
   PairerStats pairing;
   std::vector<ClockOffsetLog> clocks;  // the latest clock offset estimate per camera, if estimated

@@ -3,6 +3,7 @@
 // (simulation, replay, Aravis GigE Vision, V4L2).
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <string>
@@ -41,6 +42,24 @@ struct StereoFrame {
 
   Frame& operator[](CameraId id) { return id == CameraId::kLeft ? left : right; }
   const Frame& operator[](CameraId id) const { return id == CameraId::kLeft ? left : right; }
+};
+
+// How many items were counted, and the earliest and latest of their timestamps (each in its own
+// frame's clock): the drop ledger's rows (count, first_t_ns, last_t_ns).
+struct TimeSpan {
+  std::uint64_t count = 0;
+  TimestampNs first_t_ns = 0, last_t_ns = 0;
+  void add(TimestampNs t_ns) {
+    first_t_ns = count == 0 ? t_ns : std::min(first_t_ns, t_ns);
+    last_t_ns = count == 0 ? t_ns : std::max(last_t_ns, t_ns);
+    ++count;
+  }
+  void add(const TimeSpan& o) {
+    if (o.count == 0) return;
+    first_t_ns = count == 0 ? o.first_t_ns : std::min(first_t_ns, o.first_t_ns);
+    last_t_ns = count == 0 ? o.last_t_ns : std::max(last_t_ns, o.last_t_ns);
+    count += o.count;
+  }
 };
 
 enum class ReadStatus : std::uint8_t {

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <regex>
 #include <thread>
 
@@ -22,6 +23,7 @@
 #include "sim/sensors.hpp"
 #include "tests/support/fake_gv_camera.hpp"
 #include "tests/support/test_support.hpp"
+#include "tests/support/tmpfs.hpp"
 
 namespace augrig {
 namespace {
@@ -39,6 +41,21 @@ bool contains(const std::string& text, const std::string& part) {
   return text.find(part) != std::string::npos;
 }
 
+// The summary's "frames read: left L, right R = 2 x P pairs + U unpaired + Q dropped from full
+// queues + N pending at the stop" line, as numbers.
+struct FrameAccount {
+  std::uint64_t left = 0, right = 0, pairs = 0, unpaired = 0, queue = 0, pending = 0;
+};
+std::optional<FrameAccount> frame_account(const std::string& out) {
+  static const std::regex re(
+      "frames read: left ([0-9]+), right ([0-9]+) = 2 x ([0-9]+) pairs \\+ ([0-9]+) unpaired \\+ ([0-9]+) "
+      "dropped from full queues \\+ ([0-9]+) pending at the stop");
+  std::smatch m;
+  if (!std::regex_search(out, m, re)) return std::nullopt;
+  return FrameAccount{std::stoull(m[1]), std::stoull(m[2]), std::stoull(m[3]),
+                      std::stoull(m[4]), std::stoull(m[5]), std::stoull(m[6])};
+}
+
 TEST(CmdRun, SimulatedFlightThroughThePipelineIntoARecording) {
   const std::string dir = output_dir("cmd_run_sim");
   std::string out;
@@ -52,7 +69,8 @@ TEST(CmdRun, SimulatedFlightThroughThePipelineIntoARecording) {
   EXPECT_TRUE(contains(out, "drops: camera")) << out;
   EXPECT_TRUE(contains(out, "dropped by the recorder")) << out;
   // Lockstep: everything the simulated cameras delivered pairs (the demo's dropped frames excepted).
-  EXPECT_TRUE(contains(out, "processing 0 (queue 0, failed 0), recorder 0")) << out;
+  EXPECT_TRUE(contains(out, "processing 0 (queue 0, failed 0 pairs, pending at the stop 0), recorder 0"))
+      << out;
   std::string check;
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
   EXPECT_TRUE(fs::exists(dir + "/stats.csv"));
@@ -154,6 +172,43 @@ TEST(CmdRun, CameraLostMidRunIsReportedAndTheRunGoesOn) {
   EXPECT_TRUE(lost_event) << "the loss is an event in the recording";
   // Frames were paired before the loss and after the reconnection (20 fps for 9 s, 2-3 s lost).
   EXPECT_GT((*reader)->frame_count(), 60u);
+}
+
+// A camera that is lost and never comes back fails the run (exit 1, naming it); it exited 0 with
+// "reconnected 0 time(s)". The frames read still add up.
+TEST(CmdRun, CameraLostForGoodFailsTheRun) {
+  std::string why;
+  if (!test::ensure_loopback_address("127.0.0.2", &why)) GTEST_SKIP() << why;
+  test::FakeGvProcess left("127.0.0.1", "GONEL"), right("127.0.0.2", "GONER");
+  ASSERT_TRUE(left.start());
+  ASSERT_TRUE(right.start());
+  const std::string dir = output_dir("cmd_run_camera_gone");
+  Rig rig = Rig::paper_default();
+  for (RigCamera& c : rig.cameras) c.model = CameraModel::pinhole_from_hfov(160, 120, deg_to_rad(56.0));
+  rig.cameras[0].source_uri = "aravis://127.0.0.1?fps=20&roi=0,0,160,120&format=BayerRG8&packet_socket=0";
+  rig.cameras[1].source_uri = "aravis://127.0.0.2?fps=20&roi=0,0,160,120&format=BayerRG8&packet_socket=0";
+  {
+    std::ofstream f(dir + "/rig.yaml");
+    f << rig_to_yaml(rig);
+  }
+  std::string out;
+  int code = -1;
+  std::thread run([&] {
+    code = augrig("run --rig " + dir + "/rig.yaml --scene " + test::data_path("scenes/contact.yaml") +
+                      " --duration 6 --headless --status-every 0 --record " + dir + "/rec",
+                  &out);
+  });
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  right.kill();
+  run.join();
+  EXPECT_EQ(code, 1) << out;
+  EXPECT_TRUE(contains(out, "aravis://127.0.0.2")) << out;
+  EXPECT_TRUE(contains(out, "was lost and never came back")) << out;
+  const auto acc = frame_account(out);
+  ASSERT_TRUE(acc) << out;
+  EXPECT_EQ(acc->left + acc->right, 2 * acc->pairs + acc->unpaired + acc->queue + acc->pending) << out;
+  std::string check;
+  EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
 }
 
 // Live nav inputs given with --nav are recorded exactly as received: NMEA lines as text, IMU
@@ -337,6 +392,88 @@ TEST(CmdRun, DiskFullEndsTheRecordingNotTheRun) {
   EXPECT_GT(augmented, recorded + 10) << "the pipeline ran on after the recorder stopped";
   std::string check;
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
+}
+
+// Every frame read is in a pair or in a ledger row with its first and last timestamps, the frames
+// still queued when a run is stopped by --duration included (they were in no row: read - 2 pairs -
+// ledger was 4 in every run); events carry their time.
+TEST(CmdRun, StoppedRunsLedgerAddsUpWithTimestamps) {
+  const std::string dir = output_dir("cmd_run_ledger");
+  std::string out;
+  ASSERT_EQ(augrig("run --source 'sim://demo?every=3' --duration 4 --headless --status-every 0 --record " +
+                       dir + "/rec",
+                   &out),
+            0)
+      << out;
+  const auto acc = frame_account(out);
+  ASSERT_TRUE(acc) << out;
+  EXPECT_EQ(acc->left + acc->right, 2 * acc->pairs + acc->unpaired + acc->queue + acc->pending) << out;
+  auto reader = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  auto drops = (*reader)->drops();
+  ASSERT_TRUE(drops) << drops.error().message;
+  std::uint64_t ledger = 0;
+  for (const recorder::DropRecord& d : *drops) {
+    if (d.item != "frame") continue;
+    if (d.stage == recorder::DropStage::kPairing || d.stage == recorder::DropStage::kProcessing) {
+      ledger += d.count;
+      EXPECT_GT(d.first_t_ns, 0) << d.reason;
+      EXPECT_GE(d.last_t_ns, d.first_t_ns) << d.reason;
+    }
+  }
+  EXPECT_EQ((*reader)->frame_count(), acc->pairs) << out;
+  EXPECT_EQ(acc->left + acc->right, 2 * (*reader)->frame_count() + ledger) << out;
+  auto events = (*reader)->events();
+  ASSERT_TRUE(events);
+  for (const recorder::EventRecord& e : *events) EXPECT_GT(e.t_ns, 0) << e.text;
+}
+
+// A full disk (a 20 MB tmpfs) stops the recording; whether the stop comes from a transaction or from
+// the WAL checkpoint, the recording is closed with the ledger the terminal shows.
+TEST(CmdRun, FullDiskRecordingIsClosedWithTheTrueLedger) {
+  for (int round = 0; round < 2; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    const test::ScopedTmpfs fs(output_dir("cmd_run_full_disk_mnt"), 20u << 20);
+    if (!fs.mounted()) GTEST_SKIP() << fs.error();
+    std::string out;
+    EXPECT_EQ(
+        augrig("run --source 'sim://demo?every=3&rate=0' --duration 5 --headless --status-every 0 --record " +
+                   fs.dir() + "/rec",
+               &out),
+        1)
+        << out;
+    EXPECT_TRUE(contains(out, "recording stopped:")) << out;
+    static const std::regex dropped(
+        "recorded ([0-9]+) stereo frames to .* \\(([0-9]+) dropped by the recorder\\)");
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(out, m, dropped)) << out;
+    auto reader = recorder::RecordingReader::open(fs.dir() + "/rec");
+    ASSERT_TRUE(reader) << reader.error().message;
+    EXPECT_NE((*reader)->meta("summary.status"), "") << "not closed";
+    EXPECT_EQ((*reader)->meta("summary.frames"), m[1].str());
+    EXPECT_EQ((*reader)->meta("summary.drops.recorder"), m[2].str());
+    std::string check;
+    EXPECT_EQ(augrig("check " + fs.dir() + "/rec", &check), 0) << check;
+  }
+}
+
+// The batch demo with --record on a full disk exits 1, as run does (it exited 0).
+TEST(CmdRun, DemoRecordingOnAFullDiskFailsTheDemo) {
+  const test::ScopedTmpfs fs(output_dir("cmd_run_demo_full_disk_mnt"), 12u << 20);
+  if (!fs.mounted()) GTEST_SKIP() << fs.error();
+  const std::string out_dir = output_dir("cmd_run_demo_full_disk_out");
+  std::string out;
+  EXPECT_EQ(
+      augrig("demo --headless --frames 40 --every 30 --out " + out_dir + " --record " + fs.dir() + "/rec",
+             &out),
+      1)
+      << out;
+  EXPECT_TRUE(contains(out, "augrig demo: the recording stopped:")) << out;
+  EXPECT_TRUE(fs::exists(out_dir + "/stats.csv"));
+  auto reader = recorder::RecordingReader::open(fs.dir() + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  EXPECT_NE((*reader)->meta("summary.status"), "") << "not closed";
+  EXPECT_NE((*reader)->meta("summary.status"), "ok");
 }
 
 // With a display (Xvfb here) and no --headless, run opens the live window and drives it from the
