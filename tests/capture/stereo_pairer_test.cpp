@@ -64,6 +64,30 @@ TEST(StereoPairer, PairsWithinToleranceAndRecordsSkew) {
   EXPECT_EQ(p.stats().max_abs_skew_ns, 400'000);
 }
 
+// Unpaired frames carry their time span into the drop ledger (it was written with 0, 0), and the
+// frames still waiting are counted with theirs.
+TEST(StereoPairer, UnpairedAndPendingFramesHaveTheirTimeSpans) {
+  StereoPairer p(1'000'000);
+  EXPECT_FALSE(p.push(make(CameraId::kLeft, 100 * kPeriod, 0)));
+  EXPECT_FALSE(p.push(make(CameraId::kLeft, 101 * kPeriod, 1)));
+  EXPECT_TRUE(p.push(make(CameraId::kRight, 101 * kPeriod + 5, 1)));  // left 100 has no partner
+  EXPECT_FALSE(p.push(make(CameraId::kLeft, 103 * kPeriod, 3)));
+  EXPECT_FALSE(p.push(make(CameraId::kRight, 104 * kPeriod, 4)));  // left 103 goes unpaired
+  const TimeSpan& u = p.stats().unpaired_t;
+  EXPECT_EQ(u.count, p.stats().unpaired_left + p.stats().unpaired_right);
+  EXPECT_EQ(u.count, 2u);
+  EXPECT_EQ(u.first_t_ns, 100 * kPeriod);
+  EXPECT_EQ(u.last_t_ns, 103 * kPeriod);
+  const TimeSpan w = p.pending_t();
+  EXPECT_EQ(w.count, 1u);
+  EXPECT_EQ(w.first_t_ns, 104 * kPeriod);
+  p.flush();
+  EXPECT_EQ(p.stats().unpaired_t.count, 3u);
+  EXPECT_EQ(p.stats().unpaired_t.last_t_ns, 104 * kPeriod);
+  EXPECT_EQ(p.pending_t().count, 0u);
+  expect_ledger_balanced(p);
+}
+
 TEST(StereoPairer, RightFirstAlsoPairs) {
   StereoPairer p(1'000'000);
   EXPECT_FALSE(p.push(make(CameraId::kRight, 50, 0)));

@@ -118,6 +118,39 @@ TEST(StereoSource, LiveCaptureNeverWaitsAndCountsWhatItDrops) {
       << "every frame is paired or counted";
 }
 
+// Stopped part-way (a run's --duration), the frames read but neither returned in a pair nor
+// dropped are counted as pending, with their time span: read = 2 pairs + unpaired + queue + pending.
+TEST(StereoSource, StoppedPartWayCountsThePendingFrames) {
+  for (bool lossless : {true, false}) {
+    SCOPED_TRACE(lossless ? "lossless" : "live");
+    auto s = StereoSource::create(two(400), options(lossless, 4));
+    ASSERT_TRUE(s);
+    std::size_t pairs = 0;
+    for (int k = 0; k < 10; ++k) {
+      StereoFrame f;
+      auto r = (*s)->read(f, 2s);
+      ASSERT_TRUE(r) << r.error().message;
+      pairs += *r == ReadStatus::kFrame;
+    }
+    std::this_thread::sleep_for(100ms);
+    (*s)->stop();
+    const StereoSourceStats st = (*s)->stats();
+    const std::uint64_t read = st.frames[0] + st.frames[1];
+    const std::uint64_t queue = st.queue_drops[0] + st.queue_drops[1];
+    // Live capture ran dry into its bounded queues and ten reads may have taken all that was left.
+    if (lossless) {
+      EXPECT_GT(st.pending.count, 0u);
+    }
+    EXPECT_EQ(read,
+              2 * pairs + st.pairing.unpaired_left + st.pairing.unpaired_right + queue + st.pending.count);
+    EXPECT_EQ(st.queue_drop_t.count, queue);
+    EXPECT_LE(st.pending.first_t_ns, st.pending.last_t_ns);
+    if (st.pending.count) {
+      EXPECT_GT(st.pending.first_t_ns, 0);
+    }
+  }
+}
+
 TEST(StereoSource, LosslessCaptureWaitsForTheConsumer) {
   auto s = StereoSource::create(two(200), options(true, 2));
   ASSERT_TRUE(s);
