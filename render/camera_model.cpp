@@ -177,8 +177,9 @@ std::string camera_model_problem(const CameraModel& m) {
            std::to_string(kMaxImageSidePx) + " pixels, got " + std::to_string(m.width_px) + "x" +
            std::to_string(m.height_px);
   }
-  if (!(m.fx_px > 0 && m.fx_px <= kMaxFocalPx && m.fy_px > 0 && m.fy_px <= kMaxFocalPx)) {
-    return "expected focal lengths fx, fy in (0, 1e7] pixels, got " + num(m.fx_px) + ", " + num(m.fy_px);
+  if (!(m.fx_px >= kMinFocalPx && m.fx_px <= kMaxFocalPx && m.fy_px >= kMinFocalPx &&
+        m.fy_px <= kMaxFocalPx)) {
+    return "expected focal lengths fx, fy in [1, 1e7] pixels, got " + num(m.fx_px) + ", " + num(m.fy_px);
   }
   const double w = m.width_px, h = m.height_px;
   if (!(m.cx_px >= -w && m.cx_px <= 2 * w && m.cy_px >= -h && m.cy_px <= 2 * h)) {

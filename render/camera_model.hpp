@@ -53,13 +53,16 @@ struct CameraModel {
 
 // What a camera model read from a file must satisfy (docs/RIG_FORMAT.md, "Plausible values"):
 // beyond these a projection overflows or the rendering tables no longer fit in memory.
-inline constexpr int kMaxImageSidePx = 32768;                // width and height in 1..32768
-inline constexpr double kMaxFocalPx = 1e7;                   // fx, fy in (0, 1e7]
+inline constexpr int kMaxImageSidePx = 32768;  // width and height in 1..32768
+// fx, fy in [1, 1e7]: below a pixel a whole hemisphere falls on a few pixels (and the augmenter's
+// virtual pinhole image would need billions of them), above 1e7 projections overflow.
+inline constexpr double kMinFocalPx = 1.0;
+inline constexpr double kMaxFocalPx = 1e7;
 inline constexpr double kMaxDistortionCoefficient = 1000.0;  // |k|, |p| <= 1000
 // Empty when `m` is plausible: image size in 1..kMaxImageSidePx, finite fx, fy in
-// (0, kMaxFocalPx], principal point within one image size of the image (cx in [-W, 2W], cy in
+// [kMinFocalPx, kMaxFocalPx], principal point within one image size of the image (cx in [-W, 2W], cy in
 // [-H, 2H]), finite distortion coefficients of magnitude <= kMaxDistortionCoefficient. Else what
-// is wrong, with the value and the range expected ("expected fx, fy in (0, 1e+07], got ...").
+// is wrong, with the value and the range expected ("expected fx, fy in [1, 1e7] pixels, got ...").
 std::string camera_model_problem(const CameraModel& m);
 
 // theta_d(theta) = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8): the equidistant

@@ -266,10 +266,10 @@ RigCamera parse_camera(const Ctx& c, const YAML::Node& n, int index, const Stere
       const std::string ik = key + ".intrinsics";
       const auto v = to_numbers(c, in, ik, 4, "a list of 4 numbers [fx, fy, cx, cy]");
       // Bounded above too: a focal length of 1e308 overflows every projection.
-      if (!(v[0] > 0 && v[0] <= kMaxFocalPx && v[1] > 0 && v[1] <= kMaxFocalPx)) {
+      if (!(v[0] >= kMinFocalPx && v[0] <= kMaxFocalPx && v[1] >= kMinFocalPx && v[1] <= kMaxFocalPx)) {
         fail(c, in, ik,
-             "expected positive focal lengths fx, fy of at most " + fmt(kMaxFocalPx) + " pixels, got " +
-                 fmt(v[0]) + ", " + fmt(v[1]));
+             "expected positive focal lengths fx, fy of at least " + fmt(kMinFocalPx) + " and at most " +
+                 fmt(kMaxFocalPx) + " pixels, got " + fmt(v[0]) + ", " + fmt(v[1]));
       }
       // Pixel centres are integers, so the image spans [-0.5, W - 0.5] (core/conventions.hpp).
       if (!(v[2] >= -0.5 && v[2] <= w - 0.5 && v[3] >= -0.5 && v[3] <= h - 0.5)) {

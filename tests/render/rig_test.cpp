@@ -413,7 +413,11 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
       // Implausible values: finite, but every projection with them overflows.
       {"huge focal", base_with(11, "    intrinsics: [1e308, 1e308, 639.5, 479.5]"), 11,
        "cameras[1].intrinsics",
-       "expected positive focal lengths fx, fy of at most 1e+07 pixels, got 1e+308, 1e+308"},
+       "expected positive focal lengths fx, fy of at least 1 and at most 1e+07 pixels, got 1e+308, 1e+308"},
+      // Below a pixel the augmenter's virtual pinhole image would need billions of pixels.
+      {"tiny focal", base_with(11, "    intrinsics: [1e-300, 0.001, 639.5, 479.5]"), 11,
+       "cameras[1].intrinsics",
+       "expected positive focal lengths fx, fy of at least 1 and at most 1e+07 pixels, got 1e-300, 0.001"},
       {"huge resolution", base_with(10, "    resolution: [10000000000, 960]"), 10, "cameras[1].resolution",
        "at most 32768, got '10000000000' as element 0"},
       {"resolution above the limit", base_with(4, "    resolution: [40000, 960]"), 4, "cameras[0].resolution",
@@ -426,7 +430,7 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
        base_with(12, "    distortion: {model: radtan, coeffs: [0, 0, 0, 0, -1e9]}"), 12,
        "cameras[1].distortion.coeffs", "as element 4"},
       {"tiny hfov", base_with(5, "    hfov_deg: 1e-300"), 3, "cameras[0]",
-       "expected focal lengths fx, fy in (0, 1e7]"},
+       "expected focal lengths fx, fy in [1, 1e7]"},
   };
   // Only one camera: the right camera's lines removed.
   std::vector<BadRig> all = cases;
@@ -467,7 +471,7 @@ TEST(Rig, CameraModelProblemNamesTheValueAndRange) {
   CameraModel m = CameraModel::pinhole_from_hfov(1280, 960, deg_to_rad(56));
   EXPECT_EQ(camera_model_problem(m), "");
   m.fx_px = 1e308;
-  EXPECT_NE(camera_model_problem(m).find("fx, fy in (0, 1e7] pixels, got 1e+308"), std::string::npos);
+  EXPECT_NE(camera_model_problem(m).find("fx, fy in [1, 1e7] pixels, got 1e+308"), std::string::npos);
   m.fx_px = std::nan("");
   EXPECT_NE(camera_model_problem(m), "");
   m = CameraModel::pinhole_from_hfov(1280, 960, deg_to_rad(56));
