@@ -1,18 +1,15 @@
 #include "app/scene_file.hpp"
 
 #include <algorithm>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
-#include <fstream>
 #include <set>
-#include <sstream>
 #include <vector>
 
 #include <yaml-cpp/yaml.h>
 
+#include "core/file_check.hpp"
 #include "core/pose.hpp"
 #include "core/yaml_reader.hpp"
 
@@ -162,12 +159,10 @@ Expected<SceneState> parse_with(const std::string& text, const Ctx& c, const Rig
 Expected<SceneState> load_scene(const std::string& path, const Rig& rig, const BoomDimensions& boom,
                                 const Eigen::Vector3d& receptacle_m, SceneExtras* extras) {
   const Ctx c{"scene::load(): ", path};
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return make_error(c.prefix, path, ": cannot open the scene file (", std::strerror(errno), ")");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) return make_error(c.prefix, path, ": cannot read the scene file");
-  return parse_with(ss.str(), c, rig, boom, receptacle_m, extras);
+  // A directory would open and read as an empty document ("got nothing (null)").
+  auto text = read_text_file(c.prefix, path, "scene file");
+  if (!text) return text.error();
+  return parse_with(*text, c, rig, boom, receptacle_m, extras);
 }
 
 Expected<SceneState> parse_scene(const std::string& yaml_text, const std::string& name, const Rig& rig,

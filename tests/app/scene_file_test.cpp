@@ -2,6 +2,7 @@
 // error naming the file, the line and the key.
 #include "app/scene_file.hpp"
 
+#include <filesystem>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -105,6 +106,15 @@ TEST(SceneFile, MissingFileNamesIt) {
   const auto s = load("no_such_scene.yaml");
   ASSERT_FALSE(s);
   EXPECT_NE(s.error().message.find("no_such_scene.yaml"), std::string::npos) << s.error().message;
+}
+
+// A directory given as the scene file used to read as an empty document ("got nothing (null)").
+TEST(SceneFile, DirectoryIsNotASceneFile) {
+  const std::string dir = test::output_dir("scene_file_test_dir") + "/scene.yaml";
+  std::filesystem::create_directories(dir);
+  const auto s = load_scene(dir, Rig::paper_default(), BoomDimensions{}, kReceptacle);
+  ASSERT_FALSE(s);
+  EXPECT_EQ(s.error().message, "scene::load(): " + dir + ": is a directory, expected a file");
 }
 
 struct BadScene {
