@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <sstream>
 
+#include "core/file_check.hpp"
 #include "core/pose.hpp"
 
 namespace augrig {
@@ -19,8 +19,8 @@ BoomCommand clamp_to_limits(const BoomArticulation& a, const BoomLimits& l) {
   c.articulation.elevation_rad = std::clamp(a.elevation_rad, l.elevation_min_rad, l.elevation_max_rad);
   c.articulation.azimuth_rad = std::clamp(a.azimuth_rad, l.azimuth_min_rad, l.azimuth_max_rad);
   c.articulation.extension_m = std::clamp(a.extension_m, l.extension_min_m, l.extension_max_m);
-  c.clamped = c.articulation.elevation_rad != a.elevation_rad || c.articulation.azimuth_rad != a.azimuth_rad ||
-              c.articulation.extension_m != a.extension_m;
+  c.clamped = c.articulation.elevation_rad != a.elevation_rad ||
+              c.articulation.azimuth_rad != a.azimuth_rad || c.articulation.extension_m != a.extension_m;
   return c;
 }
 
@@ -51,7 +51,8 @@ BoomArticulation BoomScript::at(double t_s) const {
   const BoomScriptPoint& a = *(it - 1);
   const double w = (t_s - a.t_s) / (b.t_s - a.t_s);
   BoomArticulation r;
-  r.elevation_rad = a.articulation.elevation_rad + w * (b.articulation.elevation_rad - a.articulation.elevation_rad);
+  r.elevation_rad =
+      a.articulation.elevation_rad + w * (b.articulation.elevation_rad - a.articulation.elevation_rad);
   r.azimuth_rad = a.articulation.azimuth_rad + w * (b.articulation.azimuth_rad - a.articulation.azimuth_rad);
   r.extension_m = a.articulation.extension_m + w * (b.articulation.extension_m - a.articulation.extension_m);
   return r;
@@ -98,7 +99,8 @@ Expected<BoomScript> parse_boom_script(const std::string& text, const std::strin
       for (std::size_t i = 0; is_header && i < 4; ++i) is_header = fields[i] == kColumns[i];
       if (!is_header) {
         return make_error(kPrefix, name, ":", line_no,
-                          ": expected the header 't_s,elevation_deg,azimuth_deg,extension_m', got '", line, "'");
+                          ": expected the header 't_s,elevation_deg,azimuth_deg,extension_m', got '", line,
+                          "'");
       }
       continue;
     }
@@ -108,8 +110,8 @@ Expected<BoomScript> parse_boom_script(const std::string& text, const std::strin
     double v[4];
     for (int i = 0; i < 4; ++i) {
       if (!parse_double(fields[i], v[i])) {
-        return make_error(kPrefix, name, ":", line_no, ": column '", kColumns[i], "': expected a number, got '",
-                          fields[i], "'");
+        return make_error(kPrefix, name, ":", line_no, ": column '", kColumns[i],
+                          "': expected a number, got '", fields[i], "'");
       }
     }
     if (!script.points.empty() && v[0] <= script.points.back().t_s) {
@@ -118,16 +120,16 @@ Expected<BoomScript> parse_boom_script(const std::string& text, const std::strin
     }
     script.points.push_back({v[0], {deg_to_rad(v[1]), deg_to_rad(v[2]), v[3]}});
   }
-  if (script.points.empty()) return make_error(kPrefix, name, ": no boom positions (expected at least one row)");
+  if (script.points.empty())
+    return make_error(kPrefix, name, ": no boom positions (expected at least one row)");
   return script;
 }
 
 Expected<BoomScript> load_boom_script(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return make_error("boom_script::load(): ", path, ": cannot open the file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_boom_script(ss.str(), path);
+  // A directory would open and read as an empty script ("no boom positions").
+  auto text = read_text_file("boom_script::load(): ", path, "boom script");
+  if (!text) return text.error();
+  return parse_boom_script(*text, path);
 }
 
 std::string_view to_string(BoomMode m) {

@@ -2,9 +2,10 @@
 // interpolate and reject bad files with located errors.
 #include "render/boom_control.hpp"
 
-#include <gtest/gtest.h>
-
+#include <filesystem>
 #include <random>
+
+#include <gtest/gtest.h>
 
 #include "tests/support/test_support.hpp"
 
@@ -60,7 +61,8 @@ TEST(BoomControl, UnreachableTargetsAreClampedAndReported) {
   EXPECT_DOUBLE_EQ(c.articulation.extension_m, l.extension_max_m);
   EXPECT_GT(c.miss_m, 20.0);
   // The clamped articulation is the one the miss distance was measured for.
-  EXPECT_NEAR(c.miss_m, (nozzle_tip_body(rig.boom.pivot_body_m, dims, c.articulation) - target).norm(), 1e-12);
+  EXPECT_NEAR(c.miss_m, (nozzle_tip_body(rig.boom.pivot_body_m, dims, c.articulation) - target).norm(),
+              1e-12);
 }
 
 TEST(BoomControl, ScriptInterpolatesAndHoldsEnds) {
@@ -86,8 +88,10 @@ TEST(BoomControl, BadScriptsNameLineAndColumn) {
   const Case cases[] = {
       {"time,el,az,ext\n0,1,2,3\n", "<bad>:1: expected the header"},
       {"t_s,elevation_deg,azimuth_deg,extension_m\n0,20,0\n", "<bad>:2: expected 4 columns, got 3"},
-      {"t_s,elevation_deg,azimuth_deg,extension_m\n0,20,x,1\n", "<bad>:2: column 'azimuth_deg': expected a number"},
-      {"t_s,elevation_deg,azimuth_deg,extension_m\n1,20,0,1\n1,21,0,1\n", "<bad>:3: column 't_s': times must increase"},
+      {"t_s,elevation_deg,azimuth_deg,extension_m\n0,20,x,1\n",
+       "<bad>:2: column 'azimuth_deg': expected a number"},
+      {"t_s,elevation_deg,azimuth_deg,extension_m\n1,20,0,1\n1,21,0,1\n",
+       "<bad>:3: column 't_s': times must increase"},
       {"t_s,elevation_deg,azimuth_deg,extension_m\n", "no boom positions"},
       {"", "no boom positions"},
   };
@@ -99,6 +103,15 @@ TEST(BoomControl, BadScriptsNameLineAndColumn) {
   auto missing = load_boom_script("/nonexistent/boom.csv");
   ASSERT_FALSE(missing);
   EXPECT_NE(missing.error().message.find("/nonexistent/boom.csv"), std::string::npos);
+}
+
+// A directory given as the boom script used to read as an empty script ("no boom positions").
+TEST(BoomControl, DirectoryIsNotABoomScript) {
+  const std::string dir = test::output_dir("boom_control_test_dir") + "/boom.csv";
+  std::filesystem::create_directories(dir);
+  const auto s = load_boom_script(dir);
+  ASSERT_FALSE(s);
+  EXPECT_EQ(s.error().message, "boom_script::load(): " + dir + ": is a directory, expected a file");
 }
 
 TEST(BoomControl, ModeNames) {
