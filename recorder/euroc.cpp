@@ -177,24 +177,27 @@ struct StreamWriter {
   }
 };
 
-// Reads sensor.yaml's optional `augrig:` keys, ignoring a missing or unreadable file.
-void read_augrig_keys(const fs::path& yaml, std::optional<PixelFormat>& format,
-                      std::optional<ClockDomain>& clock) {
+// Reads sensor.yaml's optional `augrig:` keys, ignoring a missing or unreadable file. A directory
+// there is an error: it would open and read as an empty file, silently.
+Status read_augrig_keys(const fs::path& yaml, std::optional<PixelFormat>& format,
+                        std::optional<ClockDomain>& clock) {
+  if (auto d = check_not_directory("", yaml.string()); !d) return d;
   std::ifstream in(yaml, std::ios::binary);
-  if (!in) return;
+  if (!in) return {};
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   if (text.rfind("%YAML:", 0) == 0)
     text = text.substr(std::min(text.size(), text.find('\n')));  // OpenCV's header
   try {
     const YAML::Node root = YAML::Load(text);
     const YAML::Node a = root["augrig"];
-    if (!a || !a.IsMap()) return;
+    if (!a || !a.IsMap()) return {};
     PixelFormat f;
     if (a["pixel_format"] && parse_pixel_format(a["pixel_format"].as<std::string>(), f)) format = f;
     ClockDomain c;
     if (a["clock"] && parse_clock_domain(a["clock"].as<std::string>(), c)) clock = c;
   } catch (const std::exception&) {
   }
+  return {};
 }
 
 }  // namespace
@@ -603,7 +606,8 @@ Expected<std::unique_ptr<EurocSource>> EurocSource::open(const std::string& uri_
                      [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
     std::optional<PixelFormat> f;
     std::optional<ClockDomain> clock;
-    read_augrig_keys(mav0 / names[c] / "sensor.yaml", f, clock);
+    if (auto k = read_augrig_keys(mav0 / names[c] / "sensor.yaml", f, clock); !k)
+      return make_error(where, k.error().message);
     s->gray_[c] = options.gray_format.value_or(f.value_or(PixelFormat::kMono8));
     s->clock_[c] = options.clock.value_or(clock.value_or(ClockDomain::kUnknown));
   }

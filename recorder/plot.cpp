@@ -14,6 +14,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "core/file_check.hpp"
+
 extern char** environ;
 
 namespace augrig::recorder {
@@ -120,6 +122,9 @@ Status plot_occlusion_stats(const std::vector<OcclusionStats>& frames, const std
                             const StatsPlotOptions& options) {
   const std::string where = "recorder::plot_occlusion_stats(): " + png_path + ": ";
   if (frames.empty()) return make_error(where, "no statistics to plot (no frame has them)");
+  // A directory there would be deleted by the fs::remove() below when empty, or left for gnuplot
+  // to fail on.
+  if (auto d = check_not_directory("recorder::plot_occlusion_stats(): ", png_path); !d) return d.error();
   const std::string gnuplot = find_gnuplot();
   if (gnuplot.empty()) {
     const char* e = std::getenv("AUGRIG_GNUPLOT");

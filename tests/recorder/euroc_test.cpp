@@ -373,6 +373,19 @@ TEST(EurocExport, MissingGnuplotIsAClearError) {
   EXPECT_NE(s.error().message.find("no statistics"), std::string::npos);
 }
 
+// A directory where the PNG should go is named as such, and left alone (an empty one used to be
+// removed and replaced by the plot).
+TEST(EurocExport, PlotPathThatIsADirectory) {
+  const std::vector<OcclusionStats> stats = {frame(0).stats.value(), frame(1).stats.value()};
+  const std::string out = test::output_dir("euroc/plot_dir") + "/stats.png";
+  fs::create_directories(out);
+  const auto s = plot_occlusion_stats(stats, out);
+  ASSERT_FALSE(s);
+  EXPECT_EQ(s.error().message,
+            "recorder::plot_occlusion_stats(): " + out + ": is a directory, expected a file");
+  EXPECT_TRUE(fs::is_directory(out));
+}
+
 TEST(EurocExport, ErrorsAndNotes) {
   const Exported& e = exported();
   auto rd = RecordingReader::open(e.recording);
@@ -476,6 +489,22 @@ TEST(EurocSource, ForeignDatasetWithUnpairedAndMissingImages) {
   bad = EurocSource::open(test::output_dir("euroc/not_a_dataset"));
   ASSERT_FALSE(bad);
   EXPECT_NE(bad.error().message.find("not a EuRoC/ASL dataset"), std::string::npos) << bad.error().message;
+}
+
+// sensor.yaml is optional, but a directory in its place is named, not read as an empty file.
+TEST(EurocSource, SensorYamlThatIsADirectory) {
+  const std::string root = test::output_dir("euroc/sensor_yaml_dir");
+  const fs::path mav0 = fs::path(root) / "mav0";
+  for (const char* cam : {"cam0", "cam1"}) {
+    fs::create_directories(mav0 / cam);
+    std::ofstream(mav0 / cam / "data.csv") << "#timestamp [ns],filename\n";
+  }
+  ASSERT_TRUE(EurocSource::open(root));  // no sensor.yaml: fine
+  fs::create_directories(mav0 / "cam1/sensor.yaml");
+  const auto bad = EurocSource::open(root);
+  ASSERT_FALSE(bad);
+  EXPECT_EQ(bad.error().message, "recorder::EurocSource::open(): " + (mav0 / "cam1/sensor.yaml").string() +
+                                     ": is a directory, expected a file");
 }
 
 TEST(EurocSource, ImuIncrementsAreTrapezoids) {
