@@ -13,6 +13,7 @@
 
 #include "app/cli.hpp"
 #include "app/flight_nav.hpp"
+#include "core/file_check.hpp"
 #include "nav/logs.hpp"
 #include "sim/flight_source.hpp"
 #include "sim/scenario.hpp"
@@ -24,7 +25,8 @@ namespace {
 const std::vector<OptionSpec>& sim_specs() {
   static const std::vector<OptionSpec> specs = {
       {"scenario", ArgKind::kValue, "NAME|FILE.yaml",
-       "a built-in scenario (demo, demo-noise-free, contact-10min, contact-10min-noise-free) or a file", true},
+       "a built-in scenario (demo, demo-noise-free, contact-10min, contact-10min-noise-free) or a file",
+       true},
       {"out", ArgKind::kValue, "DIR", "output folder (created)", true},
       {"seed", ArgKind::kValue, "N", "random seed (default: the scenario's)"},
       {"no-images", ArgKind::kFlag, "", "write truth and logs only, no rendered frames"},
@@ -48,7 +50,8 @@ nav::NavSolutionRow truth_row(const sim::KinematicState& k, TimestampNs t_ns) {
   r.t_ns = t_ns;
   r.lat_deg = rad_to_deg(g.lat_rad), r.lon_deg = rad_to_deg(g.lon_rad), r.h_m = g.h_m;
   r.vn_mps = v.x(), r.ve_mps = v.y(), r.vd_mps = v.z();
-  r.yaw_deg = rad_to_deg(e.yaw_rad), r.pitch_deg = rad_to_deg(e.pitch_rad), r.roll_deg = rad_to_deg(e.roll_rad);
+  r.yaw_deg = rad_to_deg(e.yaw_rad), r.pitch_deg = rad_to_deg(e.pitch_rad),
+  r.roll_deg = rad_to_deg(e.roll_rad);
   r.sigma_n_m = r.sigma_e_m = r.sigma_d_m = 0;
   r.sigma_yaw_deg = r.sigma_pitch_deg = r.sigma_roll_deg = 0;
   return r;
@@ -86,8 +89,14 @@ int sim(const std::vector<std::string>& args, std::ostream& out) {
   }
   const std::string which = a.get("scenario");
   const bool is_file = which.find('/') != std::string::npos || which.ends_with(".yaml");
-  sim::Scenario scenario = unwrap(is_file ? sim::load_scenario(which) : sim::builtin_scenario(which));
-  if (a.has("seed")) scenario.seed = static_cast<std::uint64_t>(parse_integer("seed", a.get("seed"), 0, 1LL << 62));
+  // A scenario file is read once: the text flown is the text copied to scenario.yaml (a second read
+  // could differ, fail unseen, or block for ever on a FIFO). read_text_file() names a directory.
+  const std::string file_text =
+      is_file ? unwrap(read_text_file("scenario::load(): ", which, "scenario file")) : std::string();
+  sim::Scenario scenario =
+      unwrap(is_file ? sim::parse_scenario(file_text, which) : sim::builtin_scenario(which));
+  if (a.has("seed"))
+    scenario.seed = static_cast<std::uint64_t>(parse_integer("seed", a.get("seed"), 0, 1LL << 62));
   const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000)) : 1;
 
   const fs::path dir = a.get("out");
@@ -98,8 +107,7 @@ int sim(const std::vector<std::string>& args, std::ostream& out) {
 
   // What was flown: the scenario as text (a file is copied; a built-in written out) and the rig.
   if (is_file) {
-    std::ifstream in(which, std::ios::binary);
-    write_text(dir / "scenario.yaml", std::string(std::istreambuf_iterator<char>(in), {}));
+    write_text(dir / "scenario.yaml", file_text);
   } else {
     const std::string base = which.ends_with("-noise-free") ? which.substr(0, which.size() - 11) : which;
     std::string text = unwrap(sim::builtin_scenario_text(base));
@@ -161,7 +169,8 @@ int sim(const std::vector<std::string>& args, std::ostream& out) {
   check(nav::write_frame_index_csv((dir / "frames" / "index.csv").string(), index));
   out << "sim: scenario '" << scenario.name << "' (" << scenario.source << "), " << scenario.duration_s
       << " s, seed " << scenario.seed << "\n"
-      << "  tanker: " << logs.tanker_imu.size() << " IMU samples, " << logs.tanker_gps.size() << " GPS fixes\n"
+      << "  tanker: " << logs.tanker_imu.size() << " IMU samples, " << logs.tanker_gps.size()
+      << " GPS fixes\n"
       << "  receiver: " << logs.receiver_imu.size() << " IMU samples, " << logs.receiver_gps.size()
       << " GPS fixes\n"
       << "  cameras: " << index.rows.size() << " frames indexed, " << dropped << " dropped by the cameras\n";

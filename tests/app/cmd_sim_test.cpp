@@ -1,11 +1,11 @@
 // augrig sim through the real binary: the dataset it writes, its determinism, and its errors.
-#include <gtest/gtest.h>
-
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
+#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
+#include <sys/stat.h>
 
 #include "nav/logs.hpp"
 #include "nav/nmea.hpp"
@@ -35,9 +35,9 @@ TEST(CmdSim, DemoScenarioWritesLogsTruthAndIndexThatReadBack) {
   const std::string dir = output_dir("cmd_sim_demo");
   std::string log;
   ASSERT_EQ(augrig("sim --scenario demo --no-images --out " + dir, &log), 0) << log;
-  for (const char* f : {"scenario.yaml", "rig.yaml", "tanker/gps.nmea", "tanker/imu.csv", "tanker/aircraft.yaml", "tanker/nav.csv",
-                        "receiver/gps.nmea", "receiver/imu.csv", "truth/tanker.csv", "truth/receiver.csv",
-                        "truth/poses.csv", "frames/index.csv"})
+  for (const char* f : {"scenario.yaml", "rig.yaml", "tanker/gps.nmea", "tanker/imu.csv",
+                        "tanker/aircraft.yaml", "tanker/nav.csv", "receiver/gps.nmea", "receiver/imu.csv",
+                        "truth/tanker.csv", "truth/receiver.csv", "truth/poses.csv", "frames/index.csv"})
     EXPECT_TRUE(fs::exists(fs::path(dir) / f)) << f;
   // The logs read back through the real parsers, clean: 28 s at 10 Hz and 200 Hz.
   auto gps = nav::read_nmea_file(dir + "/tanker/gps.nmea");
@@ -79,8 +79,10 @@ TEST(CmdSim, DeterministicForASeedAndDifferentForAnother) {
 TEST(CmdSim, RendersEveryIndexedFrame) {
   const std::string dir = output_dir("cmd_sim_render");
   std::string log;
-  ASSERT_EQ(augrig("sim --scenario " + data_path("scenarios/short_approach.yaml") + " --every 10 --out " + dir, &log),
-            0)
+  ASSERT_EQ(
+      augrig("sim --scenario " + data_path("scenarios/short_approach.yaml") + " --every 10 --out " + dir,
+             &log),
+      0)
       << log;
   auto index = nav::read_frame_index_csv(dir + "/frames/index.csv");
   ASSERT_TRUE(index) << index.error().message;
@@ -105,6 +107,27 @@ TEST(CmdSim, BadInputGivesLocatedErrors) {
   EXPECT_NE(log.find("--every"), std::string::npos) << log;
   EXPECT_EQ(augrig("sim --out " + dir, &log), 2);
   EXPECT_EQ(augrig("sim --scenario demo --out /proc/forbidden/x", &log), 1);
+}
+
+// The scenario file is read once, so the text flown is the text copied to scenario.yaml: a FIFO,
+// which reads once only, used to block the copy for ever. A directory is named as such.
+TEST(CmdSim, ScenarioFileIsReadOnceAndADirectoryIsNamed) {
+  const std::string dir = output_dir("cmd_sim_read_once");
+  const std::string scenario = data_path("scenarios/short_approach.yaml");
+  const std::string fifo = dir + "/scenario.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::string log;
+  // The writer and augrig both under `timeout`: neither can hang the test.
+  const int rc = run_command("(timeout 60 sh -c 'cat " + scenario + " > " + fifo +
+                                 "' </dev/null >/dev/null 2>&1 &); timeout 60 " + augrig_binary() +
+                                 " sim --scenario " + fifo + " --no-images --out " + dir + "/out",
+                             &log);
+  ASSERT_EQ(rc, 0) << log;
+  EXPECT_EQ(slurp(fs::path(dir) / "out/scenario.yaml"), slurp(scenario));
+
+  fs::create_directories(dir + "/dir.yaml");
+  EXPECT_EQ(augrig("sim --scenario " + dir + "/dir.yaml --out " + dir + "/out2", &log), 1);
+  EXPECT_EQ(log, "augrig sim: " + dir + "/dir.yaml: is a directory, expected a file\n");
 }
 
 }  // namespace
