@@ -2,9 +2,13 @@
 
 #include <algorithm>
 #include <bit>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <string>
 #include <utility>
+
+#include "nav/gps_time.hpp"
 
 namespace augrig::nav {
 namespace {
@@ -54,6 +58,24 @@ bool finite_sample(const ImuSample& s) {
   return std::isfinite(s.dt_s) && s.dtheta_rad.allFinite() && s.dv_mps.allFinite();
 }
 
+// As for the IMU CSV log (nav/logs.cpp): fusion turns dt_s into int64 ns, which 1e300 s would
+// overflow, and differences of t_ns must stay inside int64 (nav/gps_time.hpp).
+constexpr double kMaxImuDtS = 60.0;
+
+// Why sample k cannot be sent or received, or "" when it can. The encoder and the decoder refuse
+// the same samples.
+std::string sample_problem(std::size_t k, const ImuSample& s) {
+  const std::string at = "sample " + std::to_string(k) + " (t_ns " + std::to_string(s.t_ns) + "): ";
+  if (!is_supported_timestamp(s.t_ns)) return at + "t_ns: expected a time in " + kTimestampRangeText;
+  if (!finite_sample(s)) return at + "a value is not finite";
+  if (!(s.dt_s > 0 && s.dt_s <= kMaxImuDtS)) {
+    char dt[32];
+    const auto r = std::to_chars(dt, dt + sizeof dt, s.dt_s);  // shortest text that reads back exactly
+    return at + "expected dt_s > 0 and <= 60 s, got " + std::string(dt, r.ptr);
+  }
+  return {};
+}
+
 constexpr std::uint8_t kMaxClockDomain = static_cast<std::uint8_t>(ClockDomain::kSim);
 
 }  // namespace
@@ -81,9 +103,7 @@ Expected<std::vector<std::uint8_t>> encode_imu_datagram(std::span<const ImuSampl
   }
   for (std::size_t k = 0; k < samples.size(); ++k) {
     const ImuSample& s = samples[k];
-    if (!finite_sample(s))
-      return make_error(prefix, "sample ", k, " (t_ns ", s.t_ns, "): a value is not finite");
-    if (!(s.dt_s > 0)) return make_error(prefix, "sample ", k, " (t_ns ", s.t_ns, "): expected dt_s > 0");
+    if (const std::string why = sample_problem(k, s); !why.empty()) return make_error(prefix, why);
     if (k > 0 && s.t_ns <= samples[k - 1].t_ns) {
       return make_error(prefix, "sample ", k, ": t_ns ", s.t_ns, " is not after the previous sample's");
     }
@@ -152,8 +172,8 @@ Expected<ImuDatagram> decode_imu_datagram(std::span<const std::uint8_t> b) {
     s.dt_s = get_f64(q + 8);
     for (int i = 0; i < 3; ++i) s.dtheta_rad[i] = get_f64(q + 16 + 8 * i);
     for (int i = 0; i < 3; ++i) s.dv_mps[i] = get_f64(q + 40 + 8 * i);
-    if (!finite_sample(s)) return make_error("sample ", k, " (t_ns ", s.t_ns, "): a value is not finite");
-    if (!(s.dt_s > 0)) return make_error("sample ", k, " (t_ns ", s.t_ns, "): expected dt_s > 0");
+    // t_ns bounded like the logs' (a difference of two int64 must not overflow downstream).
+    if (const std::string why = sample_problem(k, s); !why.empty()) return make_error(why);
     if (k > 0 && s.t_ns <= d.samples[k - 1].t_ns) {
       return make_error("sample ", k, ": t_ns ", s.t_ns, " is not after the previous sample's");
     }

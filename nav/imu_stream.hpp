@@ -51,7 +51,8 @@ std::uint32_t crc32_ieee(std::span<const std::uint8_t> bytes);
 
 // One datagram of 1..kImuMaxSamplesPerDatagram samples; the sequence of samples[k] is
 // first_sequence + k. An Error for no samples, too many, or values the decoder would refuse
-// (non-finite, dt_s <= 0, t_ns not increasing). arrival_ns is not sent.
+// (t_ns outside nav/gps_time.hpp's -4e18..4e18 ns, non-finite, dt_s outside (0, 60] s, t_ns not
+// increasing). arrival_ns is not sent.
 Expected<std::vector<std::uint8_t>> encode_imu_datagram(std::span<const ImuSample> samples,
                                                         std::uint64_t first_sequence,
                                                         ClockDomain clock = ClockDomain::kGps);
