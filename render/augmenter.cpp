@@ -452,7 +452,9 @@ Status AugmenterImpl::init() {
     vs.cam = &rig_.cameras[c];
     const CameraModel& cm = vs.cam->model;
     // Anti-aliasing samples the virtual image between raw pixel centres (render/projection.hpp).
-    vs.vp = make_virtual_pinhole(cm, 1.0, options_.antialias);
+    auto vp = make_virtual_pinhole(cm, 1.0, options_.antialias, vs.cam->name);
+    if (!vp) return vp.error();
+    vs.vp = std::move(*vp);
     vs.proj = gl_projection(vs.vp.fx, vs.vp.fy, vs.vp.cx, vs.vp.cy, vs.vp.width, vs.vp.height, vs.cam->near_m,
                             vs.cam->far_m, zero_to_one_);
     // Raw pixel centre -> top-left virtual sample of its bilinear neighbourhood.

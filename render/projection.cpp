@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace augrig {
@@ -29,9 +30,12 @@ std::array<float, 16> gl_projection(double fx, double fy, double cx, double cy, 
   return out;
 }
 
-VirtualPinhole make_virtual_pinhole(const CameraModel& cam, double scale, bool between_pixels) {
+Expected<VirtualPinhole> make_virtual_pinhole(const CameraModel& cam, double scale, bool between_pixels,
+                                              const std::string& name) {
+  const std::string where = "render::make_virtual_pinhole(): camera '" + name + "': ";
   VirtualPinhole vp;
   const int W = cam.width_px, H = cam.height_px;
+  if (W <= 0 || H <= 0) return make_error(where, "no image size (", W, "x", H, ")");
   vp.ray_xy.assign(static_cast<std::size_t>(W) * H,
                    Eigen::Vector2f::Constant(std::numeric_limits<float>::quiet_NaN()));
 
@@ -58,6 +62,12 @@ VirtualPinhole make_virtual_pinhole(const CameraModel& cam, double scale, bool b
       y0 = std::min(y0, xy->y()), y1 = std::max(y1, xy->y());
     }
   }
+  // Without a single ray the extents stay at +-1e9 and the size below would be negative or huge.
+  if (x0 > x1 || y0 > y1) {
+    return make_error(where, "no pixel of the ", W, "x", H,
+                      " image undistorts to a ray in front of the camera (within 80 deg of its axis): "
+                      "check the distortion coefficients");
+  }
   vp.fx = cam.fx_px * scale;
   vp.fy = cam.fy_px * scale;
   // Two virtual pixels of margin on each side keep every 2x2 bilinear neighbourhood inside.
@@ -65,8 +75,19 @@ VirtualPinhole make_virtual_pinhole(const CameraModel& cam, double scale, bool b
   const double shift = between_pixels ? 0.5 : 0.0;
   vp.cx = -x0 * vp.fx + margin + shift;
   vp.cy = -y0 * vp.fy + margin + shift;
-  vp.width = static_cast<int>(std::ceil((x1 - x0) * vp.fx)) + 2 * margin + 1;
-  vp.height = static_cast<int>(std::ceil((y1 - y0) * vp.fy)) + 2 * margin + 1;
+  // In double first: a size beyond int would make the cast undefined.
+  const double w = std::ceil((x1 - x0) * vp.fx) + 2 * margin + 1;
+  const double h = std::ceil((y1 - y0) * vp.fy) + 2 * margin + 1;
+  if (!(w >= 1 && w <= kMaxVirtualSidePx && h >= 1 && h <= kMaxVirtualSidePx &&
+        w * h <= static_cast<double>(kMaxVirtualPixels))) {
+    char size[64];
+    std::snprintf(size, sizeof size, "%.6g x %.6g", w, h);
+    return make_error(where, "the undistorted image would need ", size, " pixels (at most ",
+                      kMaxVirtualSidePx,
+                      " on a side and 2^28 in all): check the focal lengths and the distortion coefficients");
+  }
+  vp.width = static_cast<int>(w);
+  vp.height = static_cast<int>(h);
   return vp;
 }
 

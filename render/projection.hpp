@@ -11,10 +11,12 @@
 
 #include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "core/expected.hpp"
 #include "render/camera_model.hpp"
 
 namespace augrig {
@@ -42,7 +44,13 @@ struct VirtualPinhole {
 // inside, and precomputes ray_xy for every raw pixel. `between_pixels` shifts the virtual grid by
 // half a pixel so that, without distortion, each raw pixel centre lies midway between four samples:
 // their bilinear coverage anti-aliases edges (otherwise the grids coincide: `identity`).
-VirtualPinhole make_virtual_pinhole(const CameraModel& camera, double scale = 1.0,
-                                    bool between_pixels = false);
+// An Error "render::make_virtual_pinhole(): camera '<name>': ..." when the camera has no image size,
+// when no pixel undistorts to a ray within 80 deg of the axis (distortion coefficients that fold
+// the whole image), or when the virtual image would exceed kMaxVirtualSidePx on a side or
+// kMaxVirtualPixels in all (focal lengths or distortion far from a real lens).
+inline constexpr int kMaxVirtualSidePx = kMaxImageSidePx;
+inline constexpr std::int64_t kMaxVirtualPixels = std::int64_t{1} << 28;
+Expected<VirtualPinhole> make_virtual_pinhole(const CameraModel& camera, double scale = 1.0,
+                                              bool between_pixels = false, const std::string& name = "");
 
 }  // namespace augrig

@@ -312,7 +312,9 @@ Status SyntheticSceneRendererImpl::init(std::shared_ptr<const Model> receiver) {
     if (cm.width_px <= 0 || cm.height_px <= 0)
       return make_error("SyntheticSceneRenderer::create(): camera ", c, " has no image size");
     View& v = views_[c];
-    v.vp = make_virtual_pinhole(cm);
+    auto vp = make_virtual_pinhole(cm, 1.0, false, cam.name);
+    if (!vp) return vp.error();
+    v.vp = std::move(*vp);
     v.proj = gl_projection(v.vp.fx, v.vp.fy, v.vp.cx, v.vp.cy, v.vp.width, v.vp.height, cam.near_m, cam.far_m,
                            zero_to_one_);
     if (!v.vp.identity) {

@@ -273,7 +273,7 @@ TEST_F(SyntheticSceneTest, DistortedCameraHasNoHoles) {
   const Rig rig = distorted_rig();
   auto r = make(rig);
   ASSERT_TRUE(r);
-  const VirtualPinhole vp = make_virtual_pinhole(rig.left().model);
+  const VirtualPinhole vp = make_virtual_pinhole(rig.left().model).value();
   // Background only: sky and hazy ground are never near black, so a dark pixel is a hole.
   Image img;
   ASSERT_TRUE(r->render(0, horizon_sky(), receiver_pose(), false, SensorOptions{}, img));
