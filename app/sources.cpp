@@ -126,10 +126,17 @@ Expected<std::unique_ptr<FrameSource>> open_camera(const SourceUri& u, CameraId 
     o.camera = camera;
     o.pixel_format = u.get("format");
     // Optional numbers: absent stays unset, a bad value is an error naming it.
-    for (auto [key, field] : {std::pair{"fps", &o.frame_rate_hz}, std::pair{"exposure_us", &o.exposure_us},
-                              std::pair{"gain", &o.gain}}) {
+    // Ranges beyond any camera: 0.001..10000 fps, exposures up to 100 s, gains up to 1000 dB.
+    struct Setting {
+      const char* key;
+      std::optional<double>* field;
+      double lo, hi;
+    };
+    for (auto [key, field, lo, hi] :
+         {Setting{"fps", &o.frame_rate_hz, 1e-3, 1e4}, Setting{"exposure_us", &o.exposure_us, 0, 1e8},
+          Setting{"gain", &o.gain, -1e3, 1e3}}) {
       if (!u.has(key)) continue;
-      auto v = u.get_number(key, 0);
+      auto v = u.get_number(key, 0, lo, hi);
       if (!v) return v.error();
       *field = *v;
     }
@@ -173,9 +180,11 @@ Expected<std::unique_ptr<FrameSource>> open_camera(const SourceUri& u, CameraId 
       if (!f) return f.error();
       o.pixel_formats = {*f};
     }
-    auto w = u.get_integer("width", 0), h = u.get_integer("height", 0), b = u.get_integer("buffers", 4);
-    auto fps = u.get_number("fps", 0), exp = u.get_number("exposure_us", -1);
-    auto gain = u.get_integer("gain", -1);
+    // Checked ranges before the casts to int below (32768: the largest image side augrig takes).
+    auto w = u.get_integer("width", 0, 0, 32768), h = u.get_integer("height", 0, 0, 32768),
+         b = u.get_integer("buffers", 4, 1, 64);
+    auto fps = u.get_number("fps", 0, 0, 1e4), exp = u.get_number("exposure_us", -1, -1, 1e8);
+    auto gain = u.get_integer("gain", -1, -1, std::numeric_limits<std::int32_t>::max());
     for (const auto* e : {&w, &h, &b})
       if (!*e) return e->error();
     for (const auto* e : {&fps, &exp})
@@ -224,8 +233,8 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     if (Status s = u.check_known({"every", "rate"}); !s) return s.error();
     auto scenario = scenario_of(u);
     if (!scenario) return uri_error(u, scenario.error().message);
-    auto every = u.get_integer("every", 1);
-    auto rate = u.get_number("rate", 1.0);
+    auto every = u.get_integer("every", 1, 1, 1'000'000);
+    auto rate = u.get_number("rate", 1.0, 0, 1e6);
     if (!every) return every.error();
     if (!rate) return rate.error();
     if (*every < 1) return uri_error(u, "every: expected an integer >= 1");
@@ -256,7 +265,7 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     if (rate == "fast") {
       o.mode = recorder::ReplayMode::kFast;
     } else {
-      auto r = u.get_number("rate", 1.0);
+      auto r = u.get_number("rate", 1.0, 0, 1e6);
       if (!r) return r.error();
       if (*r <= 0) return uri_error(u, "rate: expected a number > 0 or 'fast'");
       o.mode = recorder::ReplayMode::kRealRate;
@@ -276,8 +285,9 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     if (Status s = u.check_known({"tolerance_us", "mode", "clock", "queue"}); !s) return s.error();
     // The same parameters, defaults and values as a rig's `pairing` section.
     const RigPairing defaults;
-    auto tol = u.get_number("tolerance_us", defaults.tolerance_us);
-    auto queue = u.get_integer("queue", defaults.queue);
+    // The rig's pairing section takes the same ranges (render/rig.cpp).
+    auto tol = u.get_number("tolerance_us", defaults.tolerance_us, 0, kMaxPairingToleranceUs);
+    auto queue = u.get_integer("queue", defaults.queue, 1, 1024);
     if (!tol) return tol.error();
     if (!queue) return queue.error();
     const std::string mode = u.get("mode", defaults.mode), clock = u.get("clock", defaults.clock);

@@ -1,7 +1,10 @@
 #include "capture/source_uri.hpp"
 
 #include <cerrno>
+#include <cmath>
 #include <cstdlib>
+#include <iomanip>
+#include <sstream>
 
 namespace augrig {
 namespace {
@@ -51,25 +54,38 @@ std::string SourceUri::get(const std::string& key, const std::string& fallback) 
   return it == params.end() ? fallback : it->second;
 }
 
-Expected<double> SourceUri::get_number(const std::string& key, double fallback) const {
+namespace {
+std::string range_text(double lo, double hi) {
+  std::ostringstream o;
+  o << std::setprecision(15) << "[" << lo << ", " << hi << "]";
+  return o.str();
+}
+}  // namespace
+
+Expected<double> SourceUri::get_number(const std::string& key, double fallback, double lo, double hi) const {
   const auto it = params.find(key);
   if (it == params.end()) return fallback;
   errno = 0;
   char* end = nullptr;
   const double v = std::strtod(it->second.c_str(), &end);
-  if (it->second.empty() || *end != '\0' || errno != 0)
-    return uri_error(text, key + ": expected a number, got '" + it->second + "'");
+  // strtod reads "nan", "inf" and 1e999 (as inf): none is a setting, and each would overflow
+  // whatever converts it to nanoseconds or pixels.
+  if (it->second.empty() || *end != '\0' || errno != 0 || !std::isfinite(v) || v < lo || v > hi)
+    return uri_error(text,
+                     key + ": expected a number in " + range_text(lo, hi) + ", got '" + it->second + "'");
   return v;
 }
 
-Expected<long long> SourceUri::get_integer(const std::string& key, long long fallback) const {
+Expected<long long> SourceUri::get_integer(const std::string& key, long long fallback, long long lo,
+                                           long long hi) const {
   const auto it = params.find(key);
   if (it == params.end()) return fallback;
   errno = 0;
   char* end = nullptr;
   const long long v = std::strtoll(it->second.c_str(), &end, 10);
-  if (it->second.empty() || *end != '\0' || errno != 0)
-    return uri_error(text, key + ": expected an integer, got '" + it->second + "'");
+  if (it->second.empty() || *end != '\0' || errno != 0 || v < lo || v > hi)
+    return uri_error(text, key + ": expected an integer in [" + std::to_string(lo) + ", " +
+                               std::to_string(hi) + "], got '" + it->second + "'");
   return v;
 }
 

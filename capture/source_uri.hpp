@@ -30,8 +30,12 @@ struct SourceUri {
   bool has(const std::string& key) const { return params.count(key) != 0; }
   // The value of `key`; `fallback` when absent.
   std::string get(const std::string& key, const std::string& fallback = "") const;
-  Expected<double> get_number(const std::string& key, double fallback) const;
-  Expected<long long> get_integer(const std::string& key, long long fallback) const;
+  // A finite number (nan, inf and overflowing text are errors) in [lo, hi]; `fallback` when
+  // absent. The error names the URI, the key, the range and the text.
+  Expected<double> get_number(const std::string& key, double fallback, double lo = -1e15,
+                              double hi = 1e15) const;
+  Expected<long long> get_integer(const std::string& key, long long fallback, long long lo = -(1LL << 53),
+                                  long long hi = 1LL << 53) const;
   // Error naming the URI and every parameter not in `known`.
   Status check_known(std::initializer_list<std::string_view> known) const;
 };

@@ -419,7 +419,8 @@ Rig parse_root(const Ctx& c, const YAML::Node& root) {
     RigPairing& p = rig.pairing;
     if (const YAML::Node v = pn["tolerance_us"]; v.IsDefined()) {
       p.tolerance_us = to_number(c, v, "pairing.tolerance_us", "microseconds > 0");
-      if (!(p.tolerance_us > 0)) fail(c, v, "pairing.tolerance_us", "expected microseconds > 0, " + got(v));
+      if (!(p.tolerance_us > 0 && p.tolerance_us <= kMaxPairingToleranceUs))
+        fail(c, v, "pairing.tolerance_us", "expected microseconds > 0 and at most 1e7 (10 s), " + got(v));
     }
     if (const YAML::Node v = pn["mode"]; v.IsDefined()) {
       p.mode = to_string_value(c, v, "pairing.mode", "timestamp or trigger_id");

@@ -60,6 +60,10 @@ struct ReceiverConfig {
 // How the cameras' frames pair when they come from the cameras' `source` URIs: the parameters of
 // a stereo:[..]// source URI (docs/CAPTURE.md), checked on load. What the rig's wiring allows:
 // a shared trigger (mode trigger_id), PTP (clock shared), or free-running cameras.
+// Largest pairing tolerance, microseconds (10 s: far beyond any frame period; a bound so that it
+// converts to nanoseconds without overflow).
+inline constexpr double kMaxPairingToleranceUs = 1e7;
+
 struct RigPairing {
   double tolerance_us = 2000.0;    // largest skew that pairs (keep it under half the frame period)
   std::string mode = "timestamp";  // timestamp | trigger_id

@@ -75,10 +75,21 @@ TEST(Sources, PerCameraUrisComposeIntoAStereoSource) {
 
 TEST(Sources, UnknownSchemesAndParametersAreErrors) {
   for (const char* uri : {"ftp://x", "sim://demo?speed=2", "replay:///no/such/dir",
-                          "stereo://{sim://demo}{sim://demo}", "v4l2:///dev/video99?format=TOOLONG"}) {
+                          "stereo://{sim://demo}{sim://demo}", "v4l2:///dev/video99?format=TOOLONG",
+                          // Out of range or not finite: each would overflow a conversion to ns or to int.
+                          "stereo:[tolerance_us=1e300]//{aravis://127.0.0.1}{aravis://127.0.0.2}",
+                          "stereo:[tolerance_us=nan]//{aravis://127.0.0.1}{aravis://127.0.0.2}",
+                          "stereo:[queue=99999999999]//{aravis://127.0.0.1}{aravis://127.0.0.2}",
+                          "stereo://{v4l2:///dev/video99?width=99999999999}{v4l2:///dev/video98}",
+                          "stereo://{v4l2:///dev/video99?exposure_us=1e300}{v4l2:///dev/video98}",
+                          "sim://demo?rate=inf", "sim://demo?every=99999999999", "replay:///tmp?rate=nan"}) {
     auto o = open_sources(uri);
     ASSERT_FALSE(o) << uri;
     EXPECT_FALSE(o.error().message.empty());
+    if (std::string(uri).find("=") != std::string::npos &&
+        std::string(uri).find("TOOLONG") == std::string::npos) {
+      EXPECT_NE(o.error().message.find("expected"), std::string::npos) << o.error().message;
+    }
   }
 }
 

@@ -401,7 +401,7 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
       {"calibration format", base_with(1, "augrig_rig: 1\ncalibration: {format: matlab, file: x.mat}"), 2,
        "calibration.format", "expected one of opencv, ros, kalibr"},
       {"pairing tolerance zero", base_with(1, "augrig_rig: 1\npairing: {tolerance_us: 0}"), 2,
-       "pairing.tolerance_us", "expected microseconds > 0, got '0'"},
+       "pairing.tolerance_us", "expected microseconds > 0 and at most 1e7 (10 s), got '0'"},
       {"pairing mode", base_with(1, "augrig_rig: 1\npairing: {mode: nearest}"), 2, "pairing.mode",
        "expected timestamp or trigger_id, got 'nearest'"},
       {"pairing clock", base_with(1, "augrig_rig: 1\npairing: {clock: gps}"), 2, "pairing.clock",
