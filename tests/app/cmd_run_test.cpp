@@ -126,6 +126,24 @@ TEST(CmdRun, TwoGigEVisionCamerasFromTheRigsSourceUris) {
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
 }
 
+// `augrig run` for `seconds` on the two fake GigE cameras at 127.0.0.1 and 127.0.0.2 (160x120
+// BayerRG8 at 20 fps, named by the rig's source URIs), recording into DIR/rec.
+int run_two_fake_cameras(const std::string& dir, int seconds, std::string* out) {
+  Rig rig = Rig::paper_default();
+  for (RigCamera& c : rig.cameras) c.model = CameraModel::pinhole_from_hfov(160, 120, deg_to_rad(56.0));
+  // Plain UDP sockets: see docs/CAPTURE.md on Aravis' packet socket when a stream dies.
+  rig.cameras[0].source_uri = "aravis://127.0.0.1?fps=20&roi=0,0,160,120&format=BayerRG8&packet_socket=0";
+  rig.cameras[1].source_uri = "aravis://127.0.0.2?fps=20&roi=0,0,160,120&format=BayerRG8&packet_socket=0";
+  {
+    std::ofstream f(dir + "/rig.yaml");
+    f << rig_to_yaml(rig);
+  }
+  return augrig("run --rig " + dir + "/rig.yaml --scene " + test::data_path("scenes/contact.yaml") +
+                    " --duration " + std::to_string(seconds) + " --headless --status-every 0 --record " +
+                    dir + "/rec",
+                out);
+}
+
 // A camera lost mid-run (its process killed) and back (restarted): the run says so in plain words,
 // goes on with the other camera's frames counted, pairs again after the reconnection, and ends
 // with a valid recording.
@@ -136,22 +154,9 @@ TEST(CmdRun, CameraLostMidRunIsReportedAndTheRunGoesOn) {
   ASSERT_TRUE(left.start());
   ASSERT_TRUE(right.start());
   const std::string dir = output_dir("cmd_run_camera_lost");
-  Rig rig = Rig::paper_default();
-  for (RigCamera& c : rig.cameras) c.model = CameraModel::pinhole_from_hfov(160, 120, deg_to_rad(56.0));
-  // Plain UDP sockets: see docs/CAPTURE.md on Aravis' packet socket when a stream dies.
-  rig.cameras[0].source_uri = "aravis://127.0.0.1?fps=20&roi=0,0,160,120&format=BayerRG8&packet_socket=0";
-  rig.cameras[1].source_uri = "aravis://127.0.0.2?fps=20&roi=0,0,160,120&format=BayerRG8&packet_socket=0";
-  {
-    std::ofstream f(dir + "/rig.yaml");
-    f << rig_to_yaml(rig);
-  }
   std::string out;
   int code = -1;
-  std::thread run([&] {
-    code = augrig("run --rig " + dir + "/rig.yaml --scene " + test::data_path("scenes/contact.yaml") +
-                      " --duration 9 --headless --status-every 0 --record " + dir + "/rec",
-                  &out);
-  });
+  std::thread run([&] { code = run_two_fake_cameras(dir, 9, &out); });
   std::this_thread::sleep_for(std::chrono::seconds(3));
   right.kill();
   std::this_thread::sleep_for(std::chrono::seconds(2));
@@ -183,21 +188,9 @@ TEST(CmdRun, CameraLostForGoodFailsTheRun) {
   ASSERT_TRUE(left.start());
   ASSERT_TRUE(right.start());
   const std::string dir = output_dir("cmd_run_camera_gone");
-  Rig rig = Rig::paper_default();
-  for (RigCamera& c : rig.cameras) c.model = CameraModel::pinhole_from_hfov(160, 120, deg_to_rad(56.0));
-  rig.cameras[0].source_uri = "aravis://127.0.0.1?fps=20&roi=0,0,160,120&format=BayerRG8&packet_socket=0";
-  rig.cameras[1].source_uri = "aravis://127.0.0.2?fps=20&roi=0,0,160,120&format=BayerRG8&packet_socket=0";
-  {
-    std::ofstream f(dir + "/rig.yaml");
-    f << rig_to_yaml(rig);
-  }
   std::string out;
   int code = -1;
-  std::thread run([&] {
-    code = augrig("run --rig " + dir + "/rig.yaml --scene " + test::data_path("scenes/contact.yaml") +
-                      " --duration 6 --headless --status-every 0 --record " + dir + "/rec",
-                  &out);
-  });
+  std::thread run([&] { code = run_two_fake_cameras(dir, 6, &out); });
   std::this_thread::sleep_for(std::chrono::seconds(2));
   right.kill();
   run.join();
