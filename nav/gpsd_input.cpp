@@ -87,12 +87,30 @@ UnixTime unix_time(const timespec& t) {
   return {static_cast<std::int64_t>(t.tv_sec), static_cast<std::int64_t>(t.tv_nsec)};
 }
 
-// The report's "class" when it is one well-formed JSON object with a string "class"; else nullopt.
-// Checked before libgps sees a report: libgps 3.22 loops forever in gps_unpack() on some malformed
-// ones (the 16 bytes {s"class":"TPV"}), and a gpsd peer must not be able to stall the input.
+// The report's "class" when it is one well-formed JSON object with a string "class" and no key
+// repeated within an object; else nullopt. Checked before libgps sees a report: libgps 3.22 loops
+// forever in gps_unpack() on some malformed ones (the 16 bytes {s"class":"TPV"}, and
+// {"class":"TPV","class":"VERSION"}, found by fuzz/fuzz_gpsd), and a gpsd peer must not be able to
+// stall the input.
 std::optional<std::string> report_class(std::string_view json, std::optional<std::string>* device) {
-  const nlohmann::json j = nlohmann::json::parse(json.begin(), json.end(), nullptr, false);
-  if (j.is_discarded() || !j.is_object()) return std::nullopt;
+  // nlohmann keeps the last of repeated keys silently: its parse callback sees every key, per object.
+  std::vector<std::vector<std::string>> keys;  // per open object
+  bool repeated = false;
+  const nlohmann::json::parser_callback_t watch = [&](int, nlohmann::json::parse_event_t event,
+                                                      nlohmann::json& parsed) {
+    using E = nlohmann::json::parse_event_t;
+    if (event == E::object_start) keys.emplace_back();
+    if (event == E::object_end && !keys.empty()) keys.pop_back();
+    if (event == E::key && !keys.empty() && parsed.is_string()) {
+      std::vector<std::string>& k = keys.back();
+      const std::string& name = parsed.get_ref<const std::string&>();
+      repeated = repeated || std::find(k.begin(), k.end(), name) != k.end();
+      k.push_back(name);
+    }
+    return true;
+  };
+  const nlohmann::json j = nlohmann::json::parse(json.begin(), json.end(), watch, false);
+  if (repeated || j.is_discarded() || !j.is_object()) return std::nullopt;
   const auto cls = j.find("class");
   if (cls == j.end() || !cls->is_string()) return std::nullopt;
   if (const auto dev = j.find("device"); dev != j.end() && dev->is_string())
@@ -153,8 +171,8 @@ void GpsdReportMerger::push_report(std::string_view json, TimestampNs arrival_ns
   if (!cls) {
     ++stats_.malformed;
     stats_.note(name_ + ": report " + std::to_string(stats_.lines) +
-                ": expected a JSON object with a string \"class\", got '" + std::string(json.substr(0, 60)) +
-                "': dropped");
+                ": expected a JSON object with a string \"class\" and no key repeated, got '" +
+                std::string(json.substr(0, 60)) + "': dropped");
     return;
   }
   if (!options_.device.empty() && device && *device != options_.device) return;  // another device's report

@@ -345,6 +345,16 @@ std::vector<double> cv_numbers(const Ctx& c, const cv::FileStorage& fs, const st
       }
       if (rows) *rows = 1;
     } else if (n.isMap()) {
+      // Checked before OpenCV reads it: cv::read allocates rows x cols as the file says (2e9
+      // columns asked for 48 GB). A calibration matrix or vector is small.
+      const cv::FileNode rn = n["rows"], cn = n["cols"], dn = n["data"];
+      const int r = rn.isInt() ? static_cast<int>(rn) : 0, k = cn.isInt() ? static_cast<int>(cn) : 0;
+      if (r < 1 || r > 64 || k < 1 || k > 64 || !dn.isSeq() ||
+          dn.size() != static_cast<std::size_t>(r) * static_cast<std::size_t>(k))
+        fail(c, line, 0, key,
+             "expected " + what +
+                 " as an !!opencv-matrix of 1..64 rows and cols with rows x cols numbers in "
+                 "'data'");
       cv::Mat m;
       n >> m;
       if (m.empty() || m.channels() != 1) fail(c, line, 0, key, "expected " + what + ", got an empty matrix");

@@ -174,6 +174,15 @@ TEST(CalibImport, OpenCVHugeImageSizes) {
   const std::string c = with("image_width: 1280\nimage_height: 99999", "height_big.yml");
   expect_error(import_opencv_stereo(c),
                {c + ":6: key 'image_height'", "an integer in 1..32768", "got 99999"});
+  // A matrix whose header asks for 2e9 columns: OpenCV allocated 48 GB for it (fuzz/fuzz_calib).
+  for (const char* dims : {"rows: 3\n   cols: 2000000000", "rows: 3\n   cols: 4", "rows: -3\n   cols: 3"}) {
+    std::string t = good;
+    const std::string from = "rows: 3\n   cols: 3";
+    t.replace(t.find(from), from.size(), dims);
+    const std::string p = write_text(dir + "/matrix_dims.yml", t);
+    expect_error(import_opencv_stereo(p),
+                 {p + ":6: key 'M1'", "1..64 rows and cols with rows x cols numbers"});
+  }
 }
 
 TEST(CalibImport, OpenCVErrors) {
