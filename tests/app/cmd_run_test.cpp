@@ -7,6 +7,7 @@
 #include <map>
 #include <optional>
 #include <regex>
+#include <sstream>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -206,6 +207,27 @@ TEST(CmdRun, CameraLostForGoodFailsTheRun) {
 
 // Live nav inputs given with --nav are recorded exactly as received: NMEA lines as text, IMU
 // datagrams as bytes, with their arrival times; malformed input is counted in the ledger.
+// Whether a UDP socket of this machine is bound to `port` (from /proc/net/udp): the child run has
+// bound its inputs. Waits up to `timeout`.
+bool udp_port_bound(int port, std::chrono::seconds timeout) {
+  char hex[8];
+  std::snprintf(hex, sizeof hex, ":%04X ", port);
+  const auto until = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < until) {
+    std::ifstream in("/proc/net/udp");
+    std::string line;
+    while (std::getline(in, line)) {
+      // "  sl  local_address rem_address ...": the local address is the second field.
+      std::istringstream f(line);
+      std::string sl, local;
+      f >> sl >> local;
+      if ((local + " ").find(hex) != std::string::npos) return true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return false;
+}
+
 TEST(CmdRun, RecordsLiveNavInputsAsReceived) {
   const std::string dir = output_dir("cmd_run_nav");
   // Fixed ports: the run binds them; another test binding the same ports would fail loudly.
@@ -217,7 +239,17 @@ TEST(CmdRun, RecordsLiveNavInputsAsReceived) {
                "?format=nmea,tanker.imu=udp://127.0.0.1:" + std::to_string(imu_port) + "?format=imu'",
            &out);
   });
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // the run has bound its sockets
+  // Joined however the test ends (an ASSERT returns early; a joinable thread would abort the binary).
+  struct Joiner {
+    std::thread& t;
+    ~Joiner() {
+      if (t.joinable()) t.join();
+    }
+  } joiner{run};
+  // Sent once the run has bound both inputs (slow to start under the sanitizers, say).
+  ASSERT_TRUE(udp_port_bound(nmea_port, std::chrono::seconds(30)) &&
+              udp_port_bound(imu_port, std::chrono::seconds(30)))
+      << "augrig run never bound its nav input ports";
   auto tx = nav::UdpSender::open("127.0.0.1", static_cast<std::uint16_t>(nmea_port));
   ASSERT_TRUE(tx) << tx.error().message;
   const std::vector<std::string> lines = {
