@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "recorder/reader.hpp"
 #include "render/visualize.hpp"
 
 namespace augrig::app {
@@ -189,6 +190,58 @@ BoomCommand BoomArg::command(double t_s, const BoomCommand& tracked, const BoomL
       break;
   }
   return tracked;
+}
+
+// ---- Positional arguments and recordings --------------------------------------------------------
+
+// Splits the positional arguments (neither an option nor an option's value) from the options.
+static std::vector<std::string> split_positionals(const std::vector<std::string>& args,
+                                           const std::vector<OptionSpec>& specs,
+                                           std::vector<std::string>& options) {
+  std::vector<std::string> pos;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a == "-h" || (a.rfind("--", 0) == 0 && a.size() > 2)) {
+      options.push_back(a);
+      if (a.find('=') != std::string::npos) continue;
+      for (const OptionSpec& s : specs) {
+        if (a.substr(2) == s.name && s.kind == ArgKind::kValue && i + 1 < args.size()) {
+          options.push_back(args[++i]);
+          break;
+        }
+      }
+    } else {
+      pos.push_back(a);
+    }
+  }
+  return pos;
+}
+
+// The flags, and exactly the positionals `names` (for the message).
+ParsedArgs parse_with_positionals(const std::vector<std::string>& args, const std::vector<OptionSpec>& specs,
+                                  const std::vector<std::string>& names,
+                                  std::vector<std::string>& positionals) {
+  std::vector<std::string> options;
+  positionals = split_positionals(args, specs, options);
+  ParsedArgs a = parse_or_usage(options, specs);
+  if (a.help) return a;
+  if (positionals.size() != names.size()) {
+    std::string want;
+    for (const auto& n : names) want += (want.empty() ? "" : " ") + n;
+    std::string got;
+    for (const auto& p : positionals) got += (got.empty() ? "'" : ", '") + p + "'";
+    usage_error("expected " + want + (positionals.empty() ? ", got none" : ", got " + got));
+  }
+  return a;
+}
+
+std::unique_ptr<recorder::RecordingReader> open_recording(const std::string& dir) {
+  return unwrap(recorder::RecordingReader::open(dir));
+}
+
+// A problem of the recording as a whole (RecordingReader::problems()), naming its file.
+std::string recording_problem(const recorder::RecordingReader& reader, const std::string& problem) {
+  return problem.rfind(reader.path(), 0) == 0 ? problem : reader.path() + ": " + problem;
 }
 
 }  // namespace augrig::app

@@ -23,6 +23,10 @@
 #include "render/rig.hpp"
 #include "render/stats.hpp"
 
+namespace augrig::recorder {
+class RecordingReader;
+}
+
 namespace augrig::app {
 
 namespace fs = std::filesystem;
@@ -112,6 +116,17 @@ class StatsCsv {
   fs::path path_;
   std::ofstream out_;
 };
+
+// ---- Positional arguments and recordings ------------------------------------------------------
+
+// Parses the flags of `args` and exactly the positionals `names` (a usage error names what is
+// missing or extra); `positionals` gets them in order.
+ParsedArgs parse_with_positionals(const std::vector<std::string>& args, const std::vector<OptionSpec>& specs,
+                                  const std::vector<std::string>& names, std::vector<std::string>& positionals);
+// Opens a recording, or fails the command naming it.
+std::unique_ptr<recorder::RecordingReader> open_recording(const std::string& dir);
+// A problem of the recording as a whole (RecordingReader::problems()), naming its file.
+std::string recording_problem(const recorder::RecordingReader& reader, const std::string& problem);
 
 // Runs a command body, turning its errors (and anything unexpected) into one stderr line and an exit code.
 template <typename Body>

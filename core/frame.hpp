@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <string>
 
 #include "core/conventions.hpp"
@@ -23,6 +24,13 @@ constexpr std::string_view to_string(CameraId id) {
   return id == CameraId::kLeft ? "left" : "right";
 }
 
+// What a file source knows about a frame beyond its pixels (a recording's poses and stored image
+// bytes, a dataset's row): opaque here, read by whoever knows the type (dynamic_cast). Both Frames
+// of a stereo frame share one; it is never changed after the source made it.
+struct FrameAttachment {
+  virtual ~FrameAttachment() = default;
+};
+
 struct Frame {
   Image image;
   TimestampNs t_ns = 0;  // mid-exposure, in `clock`
@@ -31,6 +39,7 @@ struct Frame {
   std::uint64_t sequence = 0;  // per-camera frame counter from the source
   CameraId camera = CameraId::kLeft;
   std::int64_t exposure_ns = 0;  // 0: unknown
+  std::shared_ptr<const FrameAttachment> attachment;  // null for cameras and simulations
 };
 
 struct StereoFrame {

@@ -258,6 +258,26 @@ Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds tim
     current_index_ = pending_index_;
     current_pass_ = pending_pass_;
     have_pending_ = false;
+    {
+      // Both Frames carry the recorded frame's scene (without images) for consumers downstream.
+      auto att = std::make_shared<RecordedFrame>();
+      att->index = current_index_.value_or(0);
+      att->pass = current_pass_;
+      FrameRecord& m = att->record;
+      m.raw.t_key_ns = current_.raw.t_key_ns;
+      m.raw.skew_ns = current_.raw.skew_ns;
+      m.raw.pair_sequence = current_.raw.pair_sequence;
+      m.augmented_box = current_.augmented_box;
+      m.T_cam_receiver = current_.T_cam_receiver;
+      m.T_body_receiver = current_.T_body_receiver;
+      m.receiver_present = current_.receiver_present;
+      m.sigma_pos_m = current_.sigma_pos_m;
+      m.sigma_att_deg = current_.sigma_att_deg;
+      m.boom = current_.boom;
+      m.stats = current_.stats;
+      current_.raw.left.attachment = att;
+      current_.raw.right.attachment = std::move(att);
+    }
     const bool left = !current_.raw.left.image.empty();
     out = left ? current_.raw.left : current_.raw.right;
     right_pending_ = left && !current_.raw.right.image.empty();

@@ -55,6 +55,15 @@
 
 namespace augrig::recorder {
 
+// Attached to every Frame a ReplaySource emits (Frame::attachment): the recorded stereo frame it
+// came from, so a consumer downstream of queues and pairing still knows its recorded scene.
+// `record` holds the metadata, poses, boom and statistics; its images are left empty.
+struct RecordedFrame final : FrameAttachment {
+  std::size_t index = 0;  // in the recording
+  int pass = 0;           // the loop pass (0: the first)
+  FrameRecord record;
+};
+
 enum class ReplayMode : std::uint8_t { kFast, kRealRate, kStep };
 
 struct ReplayOptions {
