@@ -17,6 +17,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string_view>
 #include <vector>
 
 #include "core/expected.hpp"
@@ -26,6 +27,17 @@ typedef struct ZSTD_CCtx_s ZSTD_CCtx;
 typedef struct ZSTD_DCtx_s ZSTD_DCtx;
 
 namespace augrig::recorder {
+
+// The raw encoding's one-line description, stored as the recording's meta `codec.raw`: a stored raw
+// blob may be copied into a new recording only when its recording says the same.
+inline constexpr std::string_view kRawCodec =
+    "zstd frame of the row-delta residuals: r[x] = p[x] - p[x-d] mod 256, d = 2 Bayer, "
+    "1 Mono8, 3 RGB8, 4 RGBA8; rows packed tight";
+
+// A cheap identity of an image's pixels: a 64-bit hash of its size, format and every 8th row
+// (from row 0), about 1/8 of the bytes. Equal images give equal fingerprints; it tells a frame
+// from another frame and catches edits that span 8 rows or more, not every changed byte.
+std::uint64_t raw_fingerprint(ConstImageView image);
 
 // Bytes between a byte and its predictor: 2 for Bayer, 1 for Mono8, 3 for RGB8, 4 for RGBA8.
 int predictor_distance(PixelFormat format);

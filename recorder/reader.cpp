@@ -34,6 +34,7 @@ struct RecordingReader::Impl {
   std::vector<std::string> problems;
   mutable std::map<unsigned, Statement> selects;  // per FrameParts
   mutable Decoder decoder;
+  bool raw_codec_current = false;  // meta codec.raw is this build's kRawCodec: raw blobs may be copied
 
   Error frame_error(std::size_t i, const std::string& what) const {
     return make_error("recorder::RecordingReader::read_frame(): ", path, ": frame ", i, ": ", what);
@@ -104,6 +105,8 @@ Expected<std::unique_ptr<RecordingReader>> RecordingReader::open(const std::stri
     return make_error(where, path, ": schema version ", impl->schema_version,
                       " is newer than this reader's (", kSchemaVersion, "); use a newer augrig");
 
+  impl->raw_codec_current = impl->meta.count("codec.raw") && impl->meta["codec.raw"] == kRawCodec;
+
   auto ids = Statement::prepare(impl->db.get(), "SELECT id FROM frames ORDER BY id");
   if (!ids) return make_error(where, path, ": the frames table cannot be read: ", ids.error().message);
   for (;;) {
@@ -156,7 +159,13 @@ const std::vector<std::string>& RecordingReader::problems() const {
 }
 
 Expected<FrameRecord> RecordingReader::read_frame(std::size_t i, unsigned parts) const {
+  return read_frame(i, parts, nullptr);
+}
+
+Expected<FrameRecord> RecordingReader::read_frame(std::size_t i, unsigned parts,
+                                                  std::array<StoredRawBlob, 2>* raw_blobs) const {
   Impl& I = *impl_;
+  if (raw_blobs) *raw_blobs = {};
   if (i >= I.ids.size())
     return I.frame_error(i, "out of range (" + std::to_string(I.ids.size()) + " frames)");
   if (parts & kPartAugmented) parts |= kPartRaw;
@@ -211,6 +220,17 @@ Expected<FrameRecord> RecordingReader::read_frame(std::size_t i, unsigned parts)
       if (auto s = I.decoder.decode_image(b.data, b.size, cr.width, cr.height, cr.format, f.raw[id].image);
           !s)
         return I.frame_error(i, cam + " raw blob" + seq + ": " + s.error().message);
+    }
+    // Only with the image decoded: a blob is kept with its image's fingerprint, and a blob
+    // that decoded without error is known to be intact.
+    if (raw_blobs && I.raw_codec_current && (parts & kPartRaw)) {
+      StoredRawBlob& sb = (*raw_blobs)[c];
+      sb.bytes.assign(row.raw[c].data, row.raw[c].data + row.raw[c].size);
+      sb.format = cr.format;
+      sb.width = cr.width;
+      sb.height = cr.height;
+      sb.t_ns = cr.t_ns;
+      sb.fingerprint = raw_fingerprint(f.raw[id].image.cview());
     }
     if ((parts & kPartAugmented) && row.aug[c].present) {
       const BlobRef& b = row.aug[c];

@@ -18,6 +18,7 @@
 // Not thread-safe: one reader per thread.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -75,6 +76,11 @@ class RecordingReader {
   // Frame i (0 <= i < frame_count(), in recording order). `parts`: FrameParts bits of what to
   // decode (record.hpp); metadata, poses and stats always. Images not asked for stay empty.
   Expected<FrameRecord> read_frame(std::size_t i, unsigned parts = kPartsAll) const;
+  // The same, and with `raw_blobs` set, each camera's raw blob as stored, for a Recorder to copy
+  // (record.hpp, StoredRawBlob): its bytes, the image's size, format and t_ns, and with kPartRaw
+  // the decoded image's raw_fingerprint(). A blob's bytes stay empty when the recording's raw
+  // encoding (meta `codec.raw`) is not this build's.
+  Expected<FrameRecord> read_frame(std::size_t i, unsigned parts, std::array<StoredRawBlob, 2>* raw_blobs) const;
   // Frame i's metadata only (no blob is read): raw images empty, everything else filled.
   Expected<FrameRecord> read_frame_info(std::size_t i) const { return read_frame(i, kPartsNone); }
 

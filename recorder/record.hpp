@@ -12,6 +12,7 @@
 #include <string>
 #include <string_view>
 #include <variant>
+#include <vector>
 
 #include "core/conventions.hpp"
 #include "core/frame.hpp"
@@ -78,6 +79,20 @@ struct FrameRecord {
   double sigma_att_deg = kNaN;
   std::optional<BoomArticulation> boom;
   std::optional<OcclusionStats> stats;
+};
+
+// A raw image's blob exactly as a recording stores it (codec.hpp's raw encoding, the recording's
+// `codec.raw` being this build's kRawCodec), with what identifies the image it holds. A replayed
+// Frame carries both of its stereo frame's (replay_source.hpp, RecordedFrame) so that the Recorder
+// can store them again as they are, without decoding or compressing (recorder.hpp, push()).
+struct StoredRawBlob {
+  std::vector<std::uint8_t> bytes;  // empty: no blob (not kept, or another codec)
+  PixelFormat format = PixelFormat::kMono8;
+  int width = 0, height = 0;
+  TimestampNs t_ns = 0;          // the Frame's mid-exposure time
+  std::uint64_t fingerprint = 0;  // raw_fingerprint() (codec.hpp) of the decoded image
+
+  bool empty() const { return bytes.empty(); }
 };
 
 // One nav input exactly as received: an NMEA line (without its line ending), an IMU sample as the

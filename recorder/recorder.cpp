@@ -24,6 +24,7 @@
 #include "core/clock.hpp"
 #include "core/thread_name.hpp"
 #include "recorder/codec.hpp"
+#include "recorder/replay_source.hpp"
 #include "recorder/store.hpp"
 
 #ifndef AUGRIG_VERSION
@@ -62,6 +63,10 @@ struct Encoded {
   std::uint64_t ticket = 0;
   FrameRow row;
   std::array<std::vector<std::uint8_t>, 2> raw, aug, mask;
+  // A raw blob copied from a replayed recording: the row points into the attachment's bytes,
+  // kept alive here until the row is written.
+  std::array<std::shared_ptr<const FrameAttachment>, 2> copied_from;
+  int raw_copied = 0;  // raw blobs stored as they were (0..2)
   TimestampNs t_ns = 0;
   std::uint64_t image_bytes = 0, stored_bytes = 0;
   double encode_ms = 0;
@@ -113,6 +118,21 @@ std::string validate(const FrameRecord& f) {
              std::to_string(raw.width()) + "x" + std::to_string(raw.height());
   }
   return {};
+}
+
+// The stored blob of this very image when `fr` came from a replayed recording of this build's
+// raw encoding (replay_source.hpp, RecordedFrame): size, format and t_ns must match and the
+// image's raw_fingerprint() must equal the one taken when the blob was decoded. Null otherwise.
+const StoredRawBlob* copyable_raw_blob(const Frame& fr, int c) {
+  const auto* rf = dynamic_cast<const RecordedFrame*>(fr.attachment.get());
+  if (rf == nullptr) return nullptr;
+  const StoredRawBlob& b = rf->raw_blobs[static_cast<std::size_t>(c)];
+  const Image& im = fr.image;
+  if (b.empty() || b.format != im.format() || b.width != im.width() || b.height != im.height() ||
+      b.t_ns != fr.t_ns)
+    return nullptr;
+  if (raw_fingerprint(im.cview()) != b.fingerprint) return nullptr;
+  return &b;
 }
 
 std::string utc_now_iso8601() {
@@ -264,6 +284,8 @@ void Recorder::Impl::encode(Encoder& enc, FrameRecord& f, Encoded& e) {
   r.skew_ns = f.raw.skew_ns;
   e.t_ns = f.raw.t_key_ns;
   e.image_bytes = e.stored_bytes = 0;
+  e.raw_copied = 0;
+  e.copied_from = {};
   e.error.clear();
   for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
     const int c = index_of(id);
@@ -278,9 +300,17 @@ void Recorder::Impl::encode(Encoder& enc, FrameRecord& f, Encoded& e) {
     cr.width = fr.image.width();
     cr.height = fr.image.height();
     const std::string cam(to_string(id));
-    if (auto s = enc.encode_image(fr.image.view(), e.raw[c]); !s) {
-      e.error = cam + " raw: " + s.error().message;
-      return;
+    if (const StoredRawBlob* blob = copyable_raw_blob(fr, c)) {
+      // The replayed image's own blob: the same bytes encode_image() would make, without the work.
+      r.raw[c] = {blob->bytes.data(), blob->bytes.size(), true};
+      e.copied_from[c] = fr.attachment;
+      ++e.raw_copied;
+    } else {
+      if (auto s = enc.encode_image(fr.image.view(), e.raw[c]); !s) {
+        e.error = cam + " raw: " + s.error().message;
+        return;
+      }
+      r.raw[c] = {e.raw[c].data(), e.raw[c].size(), true};
     }
     e.image_bytes += image_bytes_of(fr.image);
     // The augmented image, whole or as its changed box: stored the same way.
@@ -304,7 +334,6 @@ void Recorder::Impl::encode(Encoder& enc, FrameRecord& f, Encoded& e) {
       }
       e.image_bytes += image_bytes_of(f.mask[c]);
     }
-    r.raw[c] = {e.raw[c].data(), e.raw[c].size(), true};
     r.aug[c] = {e.aug[c].data(), e.aug[c].size(), aug_present};
     r.mask[c] = {e.mask[c].data(), e.mask[c].size(), !f.mask[c].empty()};
     e.stored_bytes +=
@@ -424,6 +453,7 @@ void Recorder::Impl::writer_main() {
   Clock::time_point txn_start{};
   // What the open transaction holds, for the counters on commit and the ledger on a rollback.
   std::uint64_t t_frames = 0, t_nav = 0, t_events = 0, t_image_bytes = 0, t_stored_bytes = 0;
+  std::uint64_t t_raw_copied = 0;
   TimestampNs t_first = 0, t_last = 0;
 
   // `failing`: frames of the failed statement itself (not counted as written), lost with the rest.
@@ -443,7 +473,7 @@ void Recorder::Impl::writer_main() {
     drop_locked(DropStage::kRecorder, "event", reason, t_events, 0, 0);
     st.frames_written -= std::min(st.frames_written, t_frames);
     txn = false;
-    t_frames = t_nav = t_events = t_image_bytes = t_stored_bytes = 0;
+    t_frames = t_nav = t_events = t_image_bytes = t_stored_bytes = t_raw_copied = 0;
   };
   auto begin = [&]() -> bool {
     if (txn) return true;
@@ -485,10 +515,11 @@ void Recorder::Impl::writer_main() {
     st.events_committed += t_events;
     st.image_bytes += t_image_bytes;
     st.stored_bytes += t_stored_bytes;
+    st.raw_blobs_copied += t_raw_copied;
     st.commits += 1;
     st.commit_ms += ms;
     txn = false;
-    t_frames = t_nav = t_events = t_image_bytes = t_stored_bytes = 0;
+    t_frames = t_nav = t_events = t_image_bytes = t_stored_bytes = t_raw_copied = 0;
   };
   // Between transactions: the checkpoint that lets the next transaction restart the WAL.
   auto restart_checkpoint = [&] {
@@ -570,6 +601,7 @@ void Recorder::Impl::writer_main() {
         } else {
           written = true;
           t_frames += 1;
+          t_raw_copied += static_cast<std::uint64_t>(e->raw_copied);
           t_image_bytes += e->image_bytes;
           t_stored_bytes += e->stored_bytes;
           if (t_first == 0) t_first = e->t_ns;
@@ -578,6 +610,7 @@ void Recorder::Impl::writer_main() {
           st.insert_ms += thread_cpu_ms() - cpu0;
         }
       }
+      e->copied_from = {};  // the replayed frame's blobs are freed here, outside the lock
       std::lock_guard lk(m);
       if (written)
         st.frames_written += 1;
@@ -804,9 +837,7 @@ Expected<std::unique_ptr<Recorder>> Recorder::create(const std::string& dir, con
            " compression_threads=" + std::to_string(impl->opt.compression_threads) +
            " max_bytes=" + std::to_string(impl->opt.max_bytes) + " page_size=" + std::to_string(kPageSize) +
            " synchronous=NORMAL"},
-      {"codec.raw",
-       "zstd frame of the row-delta residuals: r[x] = p[x] - p[x-d] mod 256, d = 2 Bayer, "
-       "1 Mono8, 3 RGB8, 4 RGBA8; rows packed tight"},
+      {"codec.raw", std::string(kRawCodec)},
       {"codec.aug",
        "zstd frame of (augmented XOR raw) inside [x0,x1) x [y0,y1), rows packed tight; "
        "empty blob: no change"},

@@ -72,6 +72,8 @@ struct RecorderStats {
   std::uint64_t checkpoints = 0;
   std::uint64_t image_bytes = 0;   // uncompressed bytes of the images of written frames
   std::uint64_t stored_bytes = 0;  // their blobs' bytes
+  // Raw images of committed frames stored by copying their replayed blob (push()), not compressed.
+  std::uint64_t raw_blobs_copied = 0;
   // Cost per stage, summed over frames, milliseconds.
   double encode_ms = 0;      // CPU time of predictor + zstd of raw, augmented and masks (all workers)
   double insert_ms = 0;      // CPU time of the SQLite INSERTs of the frame rows
@@ -94,6 +96,13 @@ class Recorder {
   // recording stopped, invalid: augmented or mask size differing from the raw image, an augmented
   // box outside it); the drop is counted in the ledger. DropRecords are merged into the ledger.
   // After close(): false.
+  // A raw image is stored by copying its blob from the recording it was replayed from, without
+  // decoding or compressing (counted in RecorderStats::raw_blobs_copied), when its Frame's
+  // `attachment` is a recorder::RecordedFrame (replay_source.hpp; ReplaySource attaches one when
+  // ReplayOptions::keep_raw_blobs is on, the default) whose raw_blobs[c] for that camera position
+  // (0 left, 1 right) is not empty and has the image's format, width, height and the Frame's t_ns,
+  // and whose fingerprint equals raw_fingerprint() (codec.hpp) of the image. Otherwise it is
+  // compressed as usual. Either way the image reads back the same.
   bool push(RecordItem&& item);
 
   // OK while recording; the error that stopped the recording otherwise.

@@ -17,6 +17,18 @@ std::string strip_function(const std::string& m) {
   return m;
 }
 
+// After a Frame was moved out of current(): everything but its image back in place, so that
+// current() still holds the recorded frame's timing.
+void copy_frame_facts(const Frame& from, Frame& to) {
+  to.t_ns = from.t_ns;
+  to.clock = from.clock;
+  to.t_host_ns = from.t_host_ns;
+  to.sequence = from.sequence;
+  to.camera = from.camera;
+  to.exposure_ns = from.exposure_ns;
+  to.attachment = from.attachment;
+}
+
 int cameras_with_images(const FrameRecord& r) {
   return !r.raw.left.image.empty() + !r.raw.right.image.empty();
 }
@@ -172,7 +184,9 @@ Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds tim
         }
       }
       right_pending_ = false;
-      out = f;
+      out = std::move(current_.raw.right);
+      current_.raw.right.image = Image();  // moved out (a moved-from vector is not promised empty)
+      copy_frame_facts(out, current_.raw.right);
       return ReadStatus::kFrame;
     }
 
@@ -192,7 +206,8 @@ Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds tim
       const std::uint64_t gen = seek_gen_;
       const int pass = pass_;
       lk.unlock();
-      auto rec = reader_->read_frame(i, options_.parts);
+      std::array<StoredRawBlob, 2> blobs;
+      auto rec = reader_->read_frame(i, options_.parts, options_.keep_raw_blobs ? &blobs : nullptr);
       lk.lock();
       if (gen != seek_gen_) continue;  // a seek came in meanwhile
       cursor_ = i + 1;
@@ -201,6 +216,7 @@ Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds tim
       have_pending_ = true;
       if (rec) {
         pending_ = std::move(*rec);
+        pending_blobs_ = std::move(blobs);
         pending_error_.reset();
         if (cameras_with_images(pending_) == 0) {  // nothing to emit (not written by the Recorder)
           have_pending_ = false;
@@ -275,12 +291,17 @@ Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds tim
       m.sigma_att_deg = current_.sigma_att_deg;
       m.boom = current_.boom;
       m.stats = current_.stats;
+      att->raw_blobs = std::move(pending_blobs_);
+      pending_blobs_ = {};
       current_.raw.left.attachment = att;
       current_.raw.right.attachment = std::move(att);
     }
     const bool left = !current_.raw.left.image.empty();
-    out = left ? current_.raw.left : current_.raw.right;
     right_pending_ = left && !current_.raw.right.image.empty();
+    Frame& emitted = left ? current_.raw.left : current_.raw.right;
+    out = std::move(emitted);
+    emitted.image = Image();
+    copy_frame_facts(out, emitted);
     return ReadStatus::kFrame;
   }
 }

@@ -18,7 +18,8 @@
 // A camera whose recorded image is empty is not emitted. current() is the whole FrameRecord the
 // last emitted Frame came from (metadata, poses, boom, stats, and the images asked for by
 // ReplayOptions::parts), so a consumer can rebuild the recorded StereoFrame or re-augment the
-// recorded scene.
+// recorded scene. A raw image is moved, not copied, into the Frame that emits it: in current()
+// the raw image of a Frame already emitted is empty (the right one is there until it is emitted).
 //
 // Modes:
 //   kFast      as fast as the consumer reads (lockstep: read() never skips a frame);
@@ -39,6 +40,7 @@
 // that waits.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -58,10 +60,14 @@ namespace augrig::recorder {
 // Attached to every Frame a ReplaySource emits (Frame::attachment): the recorded stereo frame it
 // came from, so a consumer downstream of queues and pairing still knows its recorded scene.
 // `record` holds the metadata, poses, boom and statistics; its images are left empty.
+// `raw_blobs` (index_of(CameraId)) are both cameras' raw images as the recording stores them
+// (ReplayOptions::keep_raw_blobs): a Recorder given a FrameRecord whose raw Frames carry this
+// attachment stores those bytes again as they are, without compressing (recorder.hpp, push()).
 struct RecordedFrame final : FrameAttachment {
   std::size_t index = 0;  // in the recording
   int pass = 0;           // the loop pass (0: the first)
   FrameRecord record;
+  std::array<StoredRawBlob, 2> raw_blobs;
 };
 
 enum class ReplayMode : std::uint8_t { kFast, kRealRate, kStep };
@@ -79,7 +85,11 @@ struct ReplayOptions {
   // How many times the range [start, last frame] plays; 0: forever.
   int passes = 1;
   // FrameParts (recorder/store.hpp) decoded into current(); the raw images are always decoded.
+  // The recorded augmented images and masks are neither read nor decoded unless asked for here.
   unsigned parts = kPartRaw;
+  // Keep each raw image's stored blob in the Frames' RecordedFrame (about 1.2 MB per 1280x960
+  // Bayer stereo frame), so that recording the replayed frames copies them instead of compressing.
+  bool keep_raw_blobs = true;
   // kRealRate: a stereo frame whose left Frame is due more than `late_tolerance` ago is skipped
   // and counted in frames_dropped() (as a live camera would lose it) instead of coming late.
   bool drop_late = false;
@@ -147,6 +157,7 @@ class ReplaySource final : public FrameSource {
   TimestampNs anchor_t_ns_ = 0;
   bool have_pending_ = false;  // pending_ (or pending_error_) is loaded; nothing of it emitted yet
   FrameRecord pending_;
+  std::array<StoredRawBlob, 2> pending_blobs_;
   std::optional<Error> pending_error_;
   std::size_t pending_index_ = 0;
   int pending_pass_ = 0;

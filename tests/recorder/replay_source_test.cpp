@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include "recorder/codec.hpp"
 #include "recorder/recorder.hpp"
 #include "recorder/store.hpp"
 #include "tests/support/test_support.hpp"
@@ -135,6 +136,59 @@ TEST(ReplaySource, RawFramesAreBitIdenticalToTheRecording) {
   ASSERT_TRUE(st);
   EXPECT_EQ(*st, ReadStatus::kEndOfStream);
   EXPECT_EQ(s->frames_dropped(), 0u);
+}
+
+TEST(ReplaySource, AttachmentCarriesTheStoredRawBlobs) {
+  auto s = open_or_fail(recording10());
+  ASSERT_TRUE(s);
+  auto db = Database::open(database_path(recording10()), SQLITE_OPEN_READONLY);
+  ASSERT_TRUE(db) << db.error().message;
+  auto q = Statement::prepare(db->get(), "SELECT left_raw, right_raw FROM frames WHERE id = ?");
+  ASSERT_TRUE(q) << q.error().message;
+  for (std::uint64_t i = 0; i < 10; ++i) {
+    Frame left, right;
+    ASSERT_EQ(*s->read(left, 1s), ReadStatus::kFrame);
+    // The raw images are moved out to the Frames that emit them; the right one waits in current().
+    EXPECT_TRUE(s->current().raw.left.image.empty());
+    EXPECT_FALSE(s->current().raw.right.image.empty());
+    EXPECT_EQ(s->current().raw.left.t_ns, left.t_ns);
+    ASSERT_EQ(*s->read(right, 1s), ReadStatus::kFrame);
+    EXPECT_TRUE(s->current().raw.right.image.empty());
+    ASSERT_EQ(left.attachment, right.attachment) << "both Frames share their stereo frame's attachment";
+    const auto* rf = dynamic_cast<const RecordedFrame*>(left.attachment.get());
+    ASSERT_NE(rf, nullptr);
+    EXPECT_EQ(rf->index, i);
+    sqlite3_bind_int64(q->get(), 1, static_cast<sqlite3_int64>(i + 1));
+    ASSERT_EQ(q->step(), SQLITE_ROW);
+    for (const Frame* f : {&left, &right}) {
+      const int c = index_of(f->camera);
+      const StoredRawBlob& b = rf->raw_blobs[c];
+      const auto* p = static_cast<const std::uint8_t*>(sqlite3_column_blob(q->get(), c));
+      const std::vector<std::uint8_t> want(p, p + sqlite3_column_bytes(q->get(), c));
+      EXPECT_EQ(b.bytes, want) << "frame " << i << " camera " << c << ": the blob as stored";
+      EXPECT_EQ(b.format, f->image.format());
+      EXPECT_EQ(b.width, f->image.width());
+      EXPECT_EQ(b.height, f->image.height());
+      EXPECT_EQ(b.t_ns, f->t_ns);
+      EXPECT_EQ(b.fingerprint, raw_fingerprint(f->image.cview()));
+      Image decoded;
+      Decoder dec;
+      ASSERT_TRUE(dec.decode_image(b.bytes.data(), b.bytes.size(), b.width, b.height, b.format, decoded));
+      EXPECT_TRUE(pixels_equal(decoded, f->image));
+    }
+    q->reset();
+  }
+
+  // Not kept when not asked for.
+  ReplayOptions o;
+  o.keep_raw_blobs = false;
+  auto t = open_or_fail(recording10(), o);
+  ASSERT_TRUE(t);
+  Frame f;
+  ASSERT_EQ(*t->read(f, 1s), ReadStatus::kFrame);
+  const auto* rf = dynamic_cast<const RecordedFrame*>(f.attachment.get());
+  ASSERT_NE(rf, nullptr);
+  EXPECT_TRUE(rf->raw_blobs[0].empty() && rf->raw_blobs[1].empty());
 }
 
 TEST(ReplaySource, StartOptionsAndSeek) {
