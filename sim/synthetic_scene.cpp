@@ -1,4 +1,5 @@
-// The synthetic scene renderer (sim/synthetic_scene.hpp). Per view:
+// The OpenGL synthetic scene renderer (sim/synthetic_scene.hpp, SceneBackend::kOpenGL; the CPU
+// back end is sim/synthetic_scene_cpu.cpp). Per view:
 //   1. a full-screen pass shades sky and ground per virtual-pinhole pixel from its ray in NED
 //      (the world is procedural and fixed in NED metres, so both cameras and all frames agree);
 //   2. the receiver is rasterised over it, camera-relative, reversed-Z as in render/augmenter.cpp;
@@ -21,6 +22,7 @@
 #include "render/gl_util.hpp"
 #include "render/models.hpp"
 #include "render/projection.hpp"
+#include "sim/synthetic_scene_cpu.hpp"
 
 namespace augrig {
 
@@ -578,7 +580,8 @@ Status SyntheticSceneRendererImpl::render(int camera, const SkyState& sky, const
 }  // namespace
 
 Expected<std::unique_ptr<SyntheticSceneRenderer>> SyntheticSceneRenderer::create(
-    const Rig& rig, std::shared_ptr<const Model> receiver) {
+    const Rig& rig, std::shared_ptr<const Model> receiver, const SceneRendererOptions& options) {
+  if (options.backend == SceneBackend::kCpu) return make_cpu_scene_renderer(rig, std::move(receiver), options);
   auto r = std::make_unique<SyntheticSceneRendererImpl>(rig);
   if (auto s = r->init(std::move(receiver)); !s) return s.error();
   return std::unique_ptr<SyntheticSceneRenderer>(std::move(r));

@@ -1,8 +1,9 @@
 // SyntheticSceneRenderer: renders what a real camera of the rig would record in flight — sky,
 // horizon and ground seen from the tanker's attitude and altitude, and the textured receiver at
-// its pose — as raw images: the lens distortion is applied (rendered in a virtual pinhole, then
-// resampled through each raw pixel's ray), optionally mosaicked to Bayer with sensor noise.
-// These are the stand-in for real flight imagery in the demo and the tests.
+// its pose — as raw images through the camera's real lens model, optionally mosaicked to Bayer
+// with sensor noise. These are the stand-in for real flight imagery in the demo and the tests.
+// Two back ends (docs/SIMULATION.md): the CPU renderer (default; no GL context, cheap enough for a
+// live sim:// source) and the earlier OpenGL renderer (needs a current GL context).
 #pragma once
 
 #include <cstdint>
@@ -35,12 +36,25 @@ struct SensorOptions {
   std::uint64_t noise_seed = 1;             // the noise of a render depends on this and the camera only
 };
 
+enum class SceneBackend {
+  // Per raw pixel on the CPU: sky and ground from each pixel's precomputed lens ray, the receiver
+  // rasterised by render/soft_raster with per-vertex lighting; both cores in row bands.
+  kCpu,
+  // OpenGL in a virtual pinhole, read back and resampled through the lens (llvmpipe: ~4x the CPU).
+  kOpenGL,
+};
+
+struct SceneRendererOptions {
+  SceneBackend backend = SceneBackend::kCpu;
+  int threads = 2;  // kCpu: threads per render (row bands), 1..8; the output does not depend on it
+};
+
 class SyntheticSceneRenderer {
  public:
-  // Needs a current GL context. `receiver` null: the rig's receiver (the built-in one unless the
-  // rig names a model file, which is then loaded).
+  // kOpenGL needs a current GL context; kCpu needs none. `receiver` null: the rig's receiver (the
+  // built-in one unless the rig names a model file, which is then loaded).
   static Expected<std::unique_ptr<SyntheticSceneRenderer>> create(
-      const Rig& rig, std::shared_ptr<const Model> receiver = nullptr);
+      const Rig& rig, std::shared_ptr<const Model> receiver = nullptr, const SceneRendererOptions& options = {});
   virtual ~SyntheticSceneRenderer() = default;
   // Raw image of camera `camera` (index into rig.cameras) into `out` (reallocated only when needed).
   // Raw pixels whose ray the lens model cannot invert are black. Byte-identical for equal inputs.

@@ -1,0 +1,1050 @@
+// The CPU synthetic scene renderer (sim/synthetic_scene_cpu.hpp). What does not change per frame
+// is computed once: each raw pixel's ray through the lens (VirtualPinhole::ray_xy), a node grid
+// every kBlock pixels with each node's ray and angular pixel size, the baked ground tile with its
+// mipmaps (once per process), the receiver's textures with their mipmaps. Per view:
+//   1. background, per block of kBlock x kBlock raw pixels: the four corner nodes' rays are
+//      rotated to NED and shaded exactly (sky colour, or the ground point, its footprint, woods,
+//      tint and haze); inside a ground block the ground point is interpolated and the tile sampled
+//      bilinearly in fixed point at the block's mip level; sky blocks interpolate the colour;
+//      blocks the horizon or the lens's invalid border cross are shaded per pixel exactly. Bayer
+//      pixels compute their own channel only;
+//   2. the receiver, rasterised by render/soft_raster at the virtual pinhole's samples (the raw
+//      pixels themselves without distortion), lit per vertex, textured per pixel;
+//   3. sensor noise from a counter-based generator per row, so row bands on several threads give
+//      the same bytes as one.
+// Cameras with equal intrinsics and orientation (a parallel stereo rig) share one background per
+// frame when the ground's disparity between them is below kShareDisparityPx.
+#include "sim/synthetic_scene_cpu.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <condition_variable>
+#include <cstring>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "core/conventions.hpp"
+#include "render/models.hpp"
+#include "render/projection.hpp"
+#include "render/soft_raster.hpp"
+
+namespace augrig {
+
+namespace {
+
+constexpr int kTileTexels = 2048;  // 8 m texels, 16.4 km tile, as the OpenGL back end
+constexpr int kTileShift = 11;
+constexpr int kTileLevels = kTileShift + 1;
+constexpr double kTileM = 16384.0;
+constexpr double kTexelM = kTileM / kTileTexels;
+constexpr int kBlock = 16;                   // background node spacing, raw pixels
+constexpr double kShareDisparityPx = 0.25;   // largest ground disparity dropped by sharing a background
+constexpr double kMaxGroundRangeM = 3.0e5;   // as the OpenGL shader: the ground plane ends here
+constexpr double kHazeRangeM = 30000.0;
+
+// ---- procedural noise: the integer-hashed value noise of the OpenGL shaders ----
+
+inline std::uint32_t hash2(std::int32_t x, std::int32_t y, std::uint32_t seed) {
+  std::uint32_t h = static_cast<std::uint32_t>(x) * 0x8da6b343u ^ static_cast<std::uint32_t>(y) * 0xd8163841u ^
+                    seed * 0xcb1ab31fu;
+  h ^= h >> 13u;
+  h *= 0x5bd1e995u;
+  h ^= h >> 15u;
+  return h;
+}
+inline double h01(std::int32_t x, std::int32_t y, std::uint32_t seed) {
+  return static_cast<double>(hash2(x, y, seed) & 0xffffffu) * (1.0 / 16777215.0);
+}
+// floor for |v| < 2^31 without a library call.
+inline int floor_int(double v) {
+  const int i = static_cast<int>(v);
+  return i - (v < i);
+}
+inline int pmod(int a, int n) { return (a % n + n) % n; }
+
+double vnoise(double x, double y, std::uint32_t seed, int period) {
+  const int ix = floor_int(x), iy = floor_int(y);
+  const double fx = x - ix, fy = y - iy;
+  const double ux = fx * fx * (3.0 - 2.0 * fx), uy = fy * fy * (3.0 - 2.0 * fy);
+  int x0 = ix, x1 = ix + 1, y0 = iy, y1 = iy + 1;
+  if (period > 0) x0 = pmod(x0, period), x1 = pmod(x1, period), y0 = pmod(y0, period), y1 = pmod(y1, period);
+  const double a = h01(x0, y0, seed), b = h01(x1, y0, seed), d = h01(x0, y1, seed), e = h01(x1, y1, seed);
+  const double top = a + (b - a) * ux, bottom = d + (e - d) * ux;
+  return top + (bottom - top) * uy;
+}
+
+double fbm(double x, double y, int period, std::uint32_t seed) {
+  return (0.5 * vnoise(x, y, seed, period) + 0.25 * vnoise(2 * x, 2 * y, seed + 1, 2 * period) +
+          0.125 * vnoise(4 * x, 4 * y, seed + 2, 4 * period)) /
+         0.875;
+}
+
+// ---- the ground tile: the OpenGL bake shader's farmland, on the CPU ----
+
+std::array<double, 3> field_color(std::uint32_t h) {
+  switch (h % 8u) {
+    case 0: return {0.33, 0.42, 0.20};  // pasture
+    case 1: return {0.45, 0.50, 0.26};  // young crop
+    case 2: return {0.55, 0.47, 0.32};  // ploughed
+    case 3: return {0.68, 0.62, 0.40};  // stubble
+    case 4: return {0.27, 0.36, 0.18};  // meadow
+    case 5: return {0.48, 0.40, 0.29};  // bare soil
+    case 6: return {0.58, 0.56, 0.33};  // ripe crop
+    default: return {0.40, 0.46, 0.24};
+  }
+}
+
+inline std::uint8_t unorm8(double v) { return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0, 1.0) * 255.0)); }
+
+// Texel (i, j) of the tile, RGBA8 packed R in the low byte; A is the fine texture under the woods.
+std::uint32_t bake_texel(int i, int j) {
+  const double n = kTileM;
+  const double qx = (i + 0.5) * kTexelM, qy = (j + 0.5) * kTexelM;
+  // Field borders warped a little (585 m noise, 28 cells a tile).
+  const double wx = qx + 40.0 * (vnoise(qx * 28.0 / n, qy * 28.0 / n, 11u, 28) - 0.5);
+  const double wy = qy + 40.0 * (vnoise(qx * 28.0 / n, qy * 28.0 / n, 12u, 28) - 0.5);
+  // 64 x 96 fields a tile (256 m x 171 m).
+  const double wcx = wx / n * 64.0, wcy = wy / n * 96.0;
+  const int cix = floor_int(wcx), ciy = floor_int(wcy);
+  const int cwx = pmod(cix, 64), cwy = pmod(ciy, 96);
+  std::uint32_t h = hash2(cwx / 2, cwy, 7u);  // neighbouring fields now and then share a crop
+  if ((hash2(cwx, cwy, 9u) & 3u) != 0u) h = hash2(cwx, cwy, 7u);
+  const std::uint32_t hs = hash2(cwx, cwy, 13u);  // ... and others are split in two crops
+  const double cut = 0.3 + 0.4 * static_cast<double>((hs >> 4u) & 255u) / 255.0;
+  const double fcx = wcx - cix, fcy = wcy - ciy;
+  if (((hs & 3u) == 1u && fcx > cut) || ((hs & 3u) == 2u && fcy > cut)) h = hash2(cwx, cwy, 17u);
+  std::array<double, 3> col = field_color(h);
+  const double tone = (0.85 + 0.3 * static_cast<double>((h >> 8u) & 255u) / 255.0) *
+                      (0.8 + 0.4 * fbm(qx * 1024.0 / n, qy * 1024.0 / n, 1024, 21u)) *
+                      (0.9 + 0.2 * vnoise(qx * 128.0 / n, qy * 128.0 / n, 31u, 128));
+  // Roads along every 4th column and 3rd row of field borders, 8 m wide, box-filtered over a texel.
+  const double sx = n / 16.0, sy = n / 32.0;
+  auto coverage = [](double w, double spacing) {
+    const double f = w / spacing + 0.5;
+    const double d = std::abs(f - std::floor(f) - 0.5) * spacing;
+    const double hw = 4.0, fp = kTexelM;
+    const double lo = std::max(d - 0.5 * fp, -hw), hi = std::min(d + 0.5 * fp, hw);
+    return std::clamp((hi - lo) / fp, 0.0, 1.0);
+  };
+  const double road = std::max(coverage(wx, sx), coverage(wy, sy));
+  std::uint32_t out = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double c = col[k] * tone;
+    out |= static_cast<std::uint32_t>(unorm8(c + (0.46 - c) * road)) << (8 * k);
+  }
+  return out | static_cast<std::uint32_t>(unorm8(fbm(qx * 512.0 / n, qy * 512.0 / n, 512, 51u))) << 24;
+}
+
+// An RGBA8 texel spread into 16-bit lanes (R, B, G, A from the low bits): bilinear filtering then
+// runs on all four channels in one 64-bit word (lerp64).
+inline std::uint64_t expand(std::uint32_t rgba) {
+  return (rgba & 0x00ff00ffu) | (static_cast<std::uint64_t>((rgba >> 8) & 0x00ff00ffu) << 32);
+}
+constexpr int kLaneShift[4] = {0, 32, 16, 48};  // R, G, B, A in an expanded texel
+constexpr std::uint64_t kLaneMask = 0x00ff00ff00ff00ffull, kLaneHalf = 0x0080008000800080ull;
+// (a (256 - w) + b w) / 256, rounded, per lane; w in 0..255. No lane exceeds 255 * 256 + 128.
+inline std::uint64_t lerp64(std::uint64_t a, std::uint64_t b, std::uint32_t w) {
+  return ((a * (256u - w) + b * w + kLaneHalf) >> 8) & kLaneMask;
+}
+inline int lane(std::uint64_t g, int ch) { return static_cast<int>((g >> kLaneShift[ch]) & 0xffu); }
+
+// 2x2 box average of a packed RGBA8 image (the next mip level), sizes halved down to 1.
+std::vector<std::uint32_t> downsample(const std::vector<std::uint32_t>& src, int w, int h, int& w2, int& h2) {
+  w2 = std::max(1, w / 2), h2 = std::max(1, h / 2);
+  std::vector<std::uint32_t> dst(static_cast<std::size_t>(w2) * h2);
+  for (int y = 0; y < h2; ++y)
+    for (int x = 0; x < w2; ++x) {
+      const int xa = std::min(2 * x, w - 1), xb = std::min(2 * x + 1, w - 1);
+      const int ya = std::min(2 * y, h - 1), yb = std::min(2 * y + 1, h - 1);
+      const std::uint32_t p[4] = {src[static_cast<std::size_t>(ya) * w + xa], src[static_cast<std::size_t>(ya) * w + xb],
+                                  src[static_cast<std::size_t>(yb) * w + xa], src[static_cast<std::size_t>(yb) * w + xb]};
+      std::uint32_t out = 0;
+      for (int k = 0; k < 4; ++k) {
+        std::uint32_t s = 2;
+        for (std::uint32_t v : p) s += (v >> (8 * k)) & 0xffu;
+        out |= (s / 4) << (8 * k);
+      }
+      dst[static_cast<std::size_t>(y) * w2 + x] = out;
+    }
+  return dst;
+}
+
+struct Pyramid {
+  std::vector<int> width, height;
+  std::vector<std::vector<std::uint64_t>> texels;  // expanded, row-major per level
+};
+
+Pyramid make_pyramid(std::vector<std::uint32_t> level0, int w, int h, int max_levels) {
+  Pyramid p;
+  for (int l = 0; l < max_levels; ++l) {
+    p.width.push_back(w), p.height.push_back(h);
+    std::vector<std::uint64_t> e(level0.size());
+    for (std::size_t i = 0; i < e.size(); ++i) e[i] = expand(level0[i]);
+    p.texels.push_back(std::move(e));
+    if (w == 1 && h == 1) break;
+    int w2 = 0, h2 = 0;
+    level0 = downsample(level0, w, h, w2, h2);
+    w = w2, h = h2;
+  }
+  return p;
+}
+
+// The tile is the same for every renderer: baked once per process (about 0.3 s on two cores).
+std::shared_ptr<const Pyramid> ground_tile() {
+  static std::mutex mutex;
+  static std::shared_ptr<const Pyramid> tile;
+  std::lock_guard lock(mutex);
+  if (tile) return tile;
+  std::vector<std::uint32_t> texels(static_cast<std::size_t>(kTileTexels) * kTileTexels);
+  auto bake_rows = [&texels](int j0, int j1) {
+    for (int j = j0; j < j1; ++j)
+      for (int i = 0; i < kTileTexels; ++i) texels[static_cast<std::size_t>(j) * kTileTexels + i] = bake_texel(i, j);
+  };
+  {
+    std::thread other(bake_rows, kTileTexels / 2, kTileTexels);
+    bake_rows(0, kTileTexels / 2);
+    other.join();
+  }
+  tile = std::make_shared<const Pyramid>(make_pyramid(std::move(texels), kTileTexels, kTileTexels, kTileLevels));
+  return tile;
+}
+
+// Bilinear sample of a power-of-two tile level (side 2^shift) at 16.16 fixed-point texel
+// coordinates (texel centres at integers), wrapping: uint32 overflow is a multiple of the period.
+inline std::uint64_t sample_tile(const std::uint64_t* tex, int shift, std::uint32_t s, std::uint32_t t) {
+  const std::uint32_t mask = (1u << shift) - 1u;
+  const std::uint32_t x0 = (s >> 16) & mask, y0 = (t >> 16) & mask;
+  const std::uint32_t x1 = (x0 + 1u) & mask, y1 = (y0 + 1u) & mask;
+  const std::uint64_t* r0 = tex + (static_cast<std::size_t>(y0) << shift);
+  const std::uint64_t* r1 = tex + (static_cast<std::size_t>(y1) << shift);
+  const std::uint32_t wx = (s >> 8) & 0xffu, wy = (t >> 8) & 0xffu;
+  return lerp64(lerp64(r0[x0], r0[x1], wx), lerp64(r1[x0], r1[x1], wx), wy);
+}
+
+inline std::uint32_t to_fixed(double texel) {
+  return static_cast<std::uint32_t>(static_cast<std::int64_t>(std::floor(texel * 65536.0 + 0.5)));
+}
+
+// ---- shading: the OpenGL sky shader's formulas, in 0..255 units ----
+
+constexpr float kWoodA = static_cast<float>(0.1 / 255.0 / 0.03);  // the fine texture's share of the woods edge
+constexpr float kWoodBase[3] = {0.18f * 0.45f * 255.0f, 0.27f * 0.45f * 255.0f, 0.13f * 0.45f * 255.0f};
+constexpr float kWoodSlope[3] = {0.18f * 1.1f, 0.27f * 1.1f, 0.13f * 1.1f};
+constexpr float kHaze[3] = {0.60f * 255.0f, 0.66f * 255.0f, 0.74f * 255.0f};
+
+inline std::uint8_t to_u8(float v) {
+  v += 0.5f;
+  return static_cast<std::uint8_t>(v >= 255.0f ? 255 : v <= 0.0f ? 0 : static_cast<int>(v));
+}
+
+// One channel of a ground pixel from its filtered texel `g` (expanded), the woods weight `sm`, the
+// ground multiplier k1 (tint x sun x (1 - haze)) and the haze fraction h.
+inline float ground_channel(std::uint64_t g, int ch, float a, float sm, float k1, float h) {
+  const float c = static_cast<float>(lane(g, ch));
+  const float wood = kWoodBase[ch] + kWoodSlope[ch] * a;
+  return (c + sm * (wood - c)) * k1 + h * kHaze[ch];
+}
+inline float woods_weight(float wood, float a) {
+  const float z = std::clamp(wood + a * kWoodA, 0.0f, 1.0f);
+  return z * z * (3.0f - 2.0f * z);
+}
+
+struct FrameSky {
+  Eigen::Matrix3d R_ned_cam;
+  Eigen::Vector3d cam_ned;  // north, east (world metres), down
+  Eigen::Vector3d sun;      // unit
+  double sun_factor = 1;    // ground brightness from the sun's height
+};
+
+// What a ray sees, exactly: the corner nodes of the background blocks and the pixels of blocks
+// that cannot be interpolated.
+struct RaySample {
+  bool valid = false, ground = false;
+  double qs = 0, qt = 0;  // ground point in tile metres (the tile is turned 20 deg off north)
+  float lam = 0;          // log2 of the pixel's ground footprint in level-0 texels (the longer axis)
+  float wood = 0;         // (woods field - 0.65) / 0.03: the woods edge before the fine texture
+  float k1 = 0, h = 0;    // ground multiplier (tint x sun x (1 - haze)) and haze fraction
+  std::array<float, 3> sky{};
+};
+
+RaySample sample_ray(const Eigen::Vector3d& ray_cam, double ang_px, const FrameSky& f) {
+  RaySample r;
+  if (!std::isfinite(ray_cam.x()) || !std::isfinite(ray_cam.y())) return r;
+  r.valid = true;
+  const Eigen::Vector3d d = (f.R_ned_cam * ray_cam).normalized();
+  if (d.z() > 0.0) {
+    r.ground = true;
+    const double t = std::min(-f.cam_ned.z() / std::max(d.z(), 1e-5), kMaxGroundRangeM);
+    const double px = f.cam_ned.x() + t * d.x(), py = f.cam_ned.y() + t * d.y();
+    r.qs = 0.9397 * px - 0.3420 * py;
+    r.qt = 0.3420 * px + 0.9397 * py;
+    // Footprint along the range (the longer axis, as OpenGL's isotropic mip selection).
+    r.lam = static_cast<float>(std::log2(std::max(t * ang_px / (std::max(d.z(), 1e-5) * kTexelM), 1e-3)));
+    const double w = 0.7 * vnoise(r.qs / 2500.0, r.qt / 2500.0, 41u, 0) + 0.3 * vnoise(r.qs / 700.0, r.qt / 700.0, 42u, 0);
+    r.wood = static_cast<float>((w - 0.05 - 0.60) / 0.03);
+    const double tint = (0.9 + 0.2 * vnoise(r.qs / 9000.0, r.qt / 9000.0, 43u, 0)) * f.sun_factor;
+    const double haze = 1.0 - std::exp(-t / kHazeRangeM);
+    r.k1 = static_cast<float>(tint * (1.0 - haze));
+    r.h = static_cast<float>(haze);
+    return r;
+  }
+  // Sky: pale at the horizon, deeper blue overhead, a soft glow around the sun.
+  const double el = std::max(-d.z(), 0.0);
+  const double m = std::sqrt(el) * (1.4 - 0.4 * el);
+  const double sun = std::max(d.dot(f.sun), 0.0);
+  const double glow = 0.5 * std::exp(400.0 * (sun - 1.0)) + 0.18 * std::exp(12.0 * (sun - 1.0));
+  const double horizon[3] = {0.80, 0.86, 0.93}, zenith[3] = {0.22, 0.42, 0.78}, glow_col[3] = {1.0, 0.95, 0.85};
+  for (int k = 0; k < 3; ++k)
+    r.sky[k] = static_cast<float>(
+        std::clamp(horizon[k] + (zenith[k] - horizon[k]) * m + glow_col[k] * glow, 0.0, 1.0) * 255.0);
+  return r;
+}
+
+inline int mip_level(float lam) { return std::clamp(static_cast<int>(lam + 0.5f), 0, kTileLevels - 1); }
+
+enum Mode { kModeBayer, kModeMono, kModeRgb, kModeRgba };
+
+template <int kMode>
+inline void put_rgb(std::uint8_t* row, int x, std::uint8_t r, std::uint8_t g, std::uint8_t b) {
+  if constexpr (kMode == kModeMono) {
+    row[x] = static_cast<std::uint8_t>((299 * r + 587 * g + 114 * b + 500) / 1000);
+  } else if constexpr (kMode == kModeRgb) {
+    row[3 * x] = r, row[3 * x + 1] = g, row[3 * x + 2] = b;
+  } else {
+    row[4 * x] = r, row[4 * x + 1] = g, row[4 * x + 2] = b, row[4 * x + 3] = 255;
+  }
+}
+
+// A ground pixel from its filtered texel: only the Bayer site's channel, or all three.
+template <int kMode>
+inline void put_ground(std::uint8_t* row, int x, const int* chan, std::uint64_t g, float wood, float k1, float h) {
+  const float a = static_cast<float>(g >> 48);
+  const float sm = woods_weight(wood, a);
+  if constexpr (kMode == kModeBayer) {
+    row[x] = to_u8(ground_channel(g, chan[x & 1], a, sm, k1, h));
+  } else {
+    put_rgb<kMode>(row, x, to_u8(ground_channel(g, 0, a, sm, k1, h)), to_u8(ground_channel(g, 1, a, sm, k1, h)),
+                   to_u8(ground_channel(g, 2, a, sm, k1, h)));
+  }
+}
+
+template <int kMode>
+inline void put_sky(std::uint8_t* row, int x, const int* chan, const float* c) {
+  if constexpr (kMode == kModeBayer)
+    row[x] = to_u8(c[chan[x & 1]]);
+  else
+    put_rgb<kMode>(row, x, to_u8(c[0]), to_u8(c[1]), to_u8(c[2]));
+}
+
+// ---- per camera, fixed ----
+
+struct CameraTables {
+  int width = 0, height = 0;
+  VirtualPinhole vp;
+  double near_m = 0.1;
+  std::vector<float> col_x, row_y;  // undistorted: ray (col_x[u], row_y[v], 1)
+  int nbx = 0, nby = 0;             // background blocks
+  std::vector<int> node_x, node_y;  // node pixel coordinates, nbx + 1 and nby + 1
+  std::vector<Eigen::Vector3d> node_ray;
+  std::vector<double> node_ang;              // angle between neighbouring pixels at the node, rad
+  std::vector<std::uint8_t> block_valid;     // every pixel of the block has a ray
+  std::vector<std::int32_t> nearest_sample;  // distorted: raw pixel -> nearest virtual sample, -1 none
+  int group = 0;                             // the lowest camera index with the same lens and orientation
+
+  Eigen::Vector3d ray(int x, int y) const {
+    if (vp.identity) return {col_x[x], row_y[y], 1.0};
+    const Eigen::Vector2f& r = vp.ray_xy[static_cast<std::size_t>(y) * width + x];
+    return {r.x(), r.y(), 1.0};
+  }
+};
+
+// A texture of the receiver, with mipmaps, REPEAT wrapping (as OpenGL's default).
+struct ModelTexture {
+  Pyramid levels;
+};
+
+struct ReceiverMesh {
+  const Mesh* mesh = nullptr;
+  int texture = -1;  // index into textures_, -1 none
+  bool cull = false;
+};
+
+struct DrawnTriangle {
+  RasterTriangle rt;
+  std::uint32_t v[3];
+  int mesh = 0;
+  int level = 0;  // texture mip level
+  bool back = false;
+};
+
+class Bands {
+ public:
+  explicit Bands(int n) : n_(std::clamp(n, 1, 8)) {
+    for (int i = 1; i < n_; ++i) workers_.emplace_back([this, i] { loop(i); });
+  }
+  ~Bands() {
+    {
+      std::lock_guard lock(m_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    for (auto& t : workers_) t.join();
+  }
+  int count() const { return n_; }
+  // fn(band) for every band, band 0 on the calling thread; returns when all are done.
+  void run(const std::function<void(int)>& fn) {
+    if (n_ == 1) return fn(0);
+    {
+      std::lock_guard lock(m_);
+      fn_ = &fn;
+      pending_ = n_ - 1;
+      ++generation_;
+    }
+    cv_.notify_all();
+    fn(0);
+    std::unique_lock lock(m_);
+    done_cv_.wait(lock, [this] { return pending_ == 0; });
+    fn_ = nullptr;
+  }
+
+ private:
+  void loop(int band) {
+    std::uint64_t seen = 0;
+    for (;;) {
+      const std::function<void(int)>* fn = nullptr;
+      {
+        std::unique_lock lock(m_);
+        cv_.wait(lock, [&] { return stop_ || generation_ != seen; });
+        if (stop_) return;
+        seen = generation_;
+        fn = fn_;
+      }
+      (*fn)(band);
+      std::lock_guard lock(m_);
+      if (--pending_ == 0) done_cv_.notify_one();
+    }
+  }
+  int n_;
+  std::vector<std::thread> workers_;
+  std::mutex m_;
+  std::condition_variable cv_, done_cv_;
+  const std::function<void(int)>* fn_ = nullptr;
+  int pending_ = 0;
+  std::uint64_t generation_ = 0;
+  bool stop_ = false;
+};
+
+// Inverse of the standard normal CDF by Newton on erfc (used once, for the noise table).
+double normal_quantile(double p) {
+  double x = 0.0;
+  for (int i = 0; i < 60; ++i) {
+    const double cdf = 0.5 * std::erfc(-x / std::sqrt(2.0));
+    const double pdf = std::exp(-0.5 * x * x) / std::sqrt(2.0 * kPi);
+    const double step = (cdf - p) / std::max(pdf, 1e-300);
+    x -= std::clamp(step, -1.0, 1.0);
+    if (std::abs(step) < 1e-12) break;
+  }
+  return x;
+}
+
+inline std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+bool same_lens(const CameraModel& a, const CameraModel& b) {
+  return a.width_px == b.width_px && a.height_px == b.height_px && a.fx_px == b.fx_px && a.fy_px == b.fy_px &&
+         a.cx_px == b.cx_px && a.cy_px == b.cy_px && a.distortion == b.distortion && a.coeffs == b.coeffs;
+}
+
+class CpuSceneRenderer final : public SyntheticSceneRenderer {
+ public:
+  CpuSceneRenderer(const Rig& rig, int threads) : rig_(rig), bands_(threads) {}
+  Status init(std::shared_ptr<const Model> receiver);
+  Status render(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
+                const SensorOptions& sensor, Image& out) override;
+
+ private:
+  template <int kMode>
+  void background_rows(const CameraTables& ct, const FrameSky& f, int by0, int by1, PixelFormat fmt, Image& out) const;
+  void background(const CameraTables& ct, const FrameSky& f, PixelFormat fmt, Image& out);
+  void draw_receiver(const CameraTables& ct, const RigCamera& cam, const FrameSky& f, const Pose& T_body_receiver,
+                     PixelFormat fmt, Image& out);
+  void add_noise(int camera, const SensorOptions& sensor, Image& out);
+
+  Rig rig_;
+  Bands bands_;
+  std::shared_ptr<const Pyramid> tile_;
+  Model receiver_;
+  std::vector<ReceiverMesh> meshes_;
+  std::vector<ModelTexture> textures_;
+  std::vector<CameraTables> cameras_;
+  std::vector<float> gauss_;  // 65536 quantiles of N(0, 1): 16 random bits -> one Gaussian sample
+  std::vector<std::int32_t> noise_q8_;  // gauss_ * sigma in 1/256 DN, + 128 for rounding
+  double noise_q8_sigma_ = -1;
+
+  // Receiver scratch, sized to the largest virtual image: 1/z and triangle id + 1 per sample
+  // (zero outside the last frame's box), and the shaded colour per sample (distorted cameras).
+  std::vector<float> inv_z_;
+  std::vector<std::uint32_t> ids_;
+  std::vector<std::uint32_t> colour_;
+  std::vector<Eigen::Vector3d> verts_cam_;
+  std::vector<Eigen::Vector3f> light_front_, light_back_;
+  std::vector<std::size_t> vert_offset_;
+  std::vector<DrawnTriangle> tris_;
+
+  // The last background of a camera group, for the other cameras of the group in the same frame.
+  struct SharedKey {
+    int group = -1;
+    PixelFormat format = PixelFormat::kRGB8;
+    SkyState sky;
+  };
+  SharedKey shared_key_;
+  std::vector<std::uint8_t> shared_bg_;
+};
+
+Status CpuSceneRenderer::init(std::shared_ptr<const Model> receiver) {
+  if (rig_.cameras.empty()) return make_error("SyntheticSceneRenderer::create(): the rig has no cameras");
+  bool builtin = false;
+  if (receiver) {
+    receiver_ = *receiver;
+  } else if (rig_.receiver.model.path.empty()) {
+    receiver_ = make_builtin_receiver();
+    builtin = true;
+  } else {
+    auto m = load_model(rig_.receiver.model);
+    if (!m) return make_error("SyntheticSceneRenderer::create(): ", m.error().message);
+    receiver_ = std::move(*m);
+  }
+  // Textures with mipmaps, shared between the meshes that share them.
+  std::vector<const Texture*> seen;
+  for (const Mesh& m : receiver_.meshes) {
+    ReceiverMesh rm;
+    rm.mesh = &m;
+    rm.cull = builtin;  // consistently wound built-in meshes can be culled; files may not be
+    if (m.texture && m.texture->width > 0 && m.texture->height > 0 && !m.uvs.empty()) {
+      const auto it = std::find(seen.begin(), seen.end(), m.texture.get());
+      if (it != seen.end()) {
+        rm.texture = static_cast<int>(it - seen.begin());
+      } else {
+        const Texture& t = *m.texture;
+        std::vector<std::uint32_t> packed(static_cast<std::size_t>(t.width) * t.height);
+        for (std::size_t i = 0; i < packed.size(); ++i) std::memcpy(&packed[i], &t.rgba[4 * i], 4);
+        textures_.push_back({make_pyramid(std::move(packed), t.width, t.height, 16)});
+        seen.push_back(m.texture.get());
+        rm.texture = static_cast<int>(textures_.size()) - 1;
+      }
+    }
+    meshes_.push_back(rm);
+  }
+
+  std::size_t max_samples = 0;
+  cameras_.resize(rig_.cameras.size());
+  for (std::size_t c = 0; c < rig_.cameras.size(); ++c) {
+    const RigCamera& cam = rig_.cameras[c];
+    const CameraModel& cm = cam.model;
+    if (cm.width_px <= 0 || cm.height_px <= 0)
+      return make_error("SyntheticSceneRenderer::create(): camera ", c, " has no image size");
+    CameraTables& ct = cameras_[c];
+    ct.width = cm.width_px, ct.height = cm.height_px;
+    ct.near_m = cam.near_m;
+    auto vp = make_virtual_pinhole(cm, 1.0, false, cam.name);
+    if (!vp) return vp.error();
+    ct.vp = std::move(*vp);
+    const int W = ct.width, H = ct.height;
+    if (ct.vp.identity) {
+      ct.col_x.resize(W), ct.row_y.resize(H);
+      for (int u = 0; u < W; ++u) ct.col_x[u] = static_cast<float>((u - ct.vp.cx) / ct.vp.fx);
+      for (int v = 0; v < H; ++v) ct.row_y[v] = static_cast<float>((v - ct.vp.cy) / ct.vp.fy);
+    } else {
+      ct.nearest_sample.resize(static_cast<std::size_t>(W) * H);
+      for (std::size_t i = 0; i < ct.nearest_sample.size(); ++i) {
+        const Eigen::Vector2f& r = ct.vp.ray_xy[i];
+        ct.nearest_sample[i] = -1;
+        if (!std::isfinite(r.x()) || !std::isfinite(r.y())) continue;
+        const Eigen::Vector2d p = ct.vp.to_virtual(r.cast<double>());
+        const long x = std::lround(p.x()), y = std::lround(p.y());
+        if (x >= 0 && y >= 0 && x < ct.vp.width && y < ct.vp.height)
+          ct.nearest_sample[i] = static_cast<std::int32_t>(y * ct.vp.width + x);
+      }
+    }
+    max_samples = std::max(max_samples, static_cast<std::size_t>(ct.vp.width) * ct.vp.height);
+    // Background nodes every kBlock pixels, the last row and column on the image's last pixel.
+    ct.nbx = (W + kBlock - 1) / kBlock, ct.nby = (H + kBlock - 1) / kBlock;
+    for (int k = 0; k <= ct.nbx; ++k) ct.node_x.push_back(std::min(k * kBlock, W - 1));
+    for (int k = 0; k <= ct.nby; ++k) ct.node_y.push_back(std::min(k * kBlock, H - 1));
+    const int nnx = ct.nbx + 1;
+    ct.node_ray.resize(static_cast<std::size_t>(nnx) * (ct.nby + 1));
+    ct.node_ang.resize(ct.node_ray.size());
+    auto unit = [&ct](int x, int y) {
+      const Eigen::Vector3d r = ct.ray(x, y);
+      return std::isfinite(r.x()) && std::isfinite(r.y()) ? Eigen::Vector3d(r.normalized()) : Eigen::Vector3d::Constant(NAN);
+    };
+    for (int j = 0; j <= ct.nby; ++j)
+      for (int i = 0; i < nnx; ++i) {
+        const int x = ct.node_x[i], y = ct.node_y[j];
+        const std::size_t n = static_cast<std::size_t>(j) * nnx + i;
+        ct.node_ray[n] = ct.ray(x, y);
+        // The angle to the neighbouring pixels: the pixel's angular size through the lens.
+        const Eigen::Vector3d d = unit(x, y), dx = unit(x > 0 ? x - 1 : x + 1, y), dy = unit(x, y > 0 ? y - 1 : y + 1);
+        double ang = std::max(std::acos(std::clamp(d.dot(dx), -1.0, 1.0)), std::acos(std::clamp(d.dot(dy), -1.0, 1.0)));
+        ct.node_ang[n] = std::isfinite(ang) ? ang : 1.0 / cm.fx_px;
+      }
+    ct.block_valid.assign(static_cast<std::size_t>(ct.nbx) * ct.nby, 1);
+    if (!ct.vp.identity)
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+          if (!std::isfinite(ct.vp.ray_xy[static_cast<std::size_t>(y) * W + x].x()))
+            ct.block_valid[static_cast<std::size_t>(y / kBlock) * ct.nbx + x / kBlock] = 0;
+    ct.group = static_cast<int>(c);
+    for (std::size_t o = 0; o < c; ++o)
+      if (same_lens(rig_.cameras[o].model, cm) &&
+          (rig_.cameras[o].T_body_cam.R() - cam.T_body_cam.R()).cwiseAbs().maxCoeff() < 1e-12) {
+        ct.group = static_cast<int>(o);
+        break;
+      }
+  }
+  inv_z_.assign(max_samples, 0.0f);
+  ids_.assign(max_samples, 0u);
+  colour_.assign(max_samples, 0u);
+
+  gauss_.resize(65536);
+  for (std::size_t i = 0; i < gauss_.size(); ++i)
+    gauss_[i] = static_cast<float>(normal_quantile((static_cast<double>(i) + 0.5) / 65536.0));
+  tile_ = ground_tile();
+  return {};
+}
+
+// Background of the block rows [by0, by1).
+template <int kMode>
+void CpuSceneRenderer::background_rows(const CameraTables& ct, const FrameSky& f, int by0, int by1, PixelFormat fmt,
+                                       Image& out) const {
+  const int nnx = ct.nbx + 1;
+  // The node rows this band needs, shaded exactly.
+  std::vector<RaySample> nodes(static_cast<std::size_t>(by1 - by0 + 1) * nnx);
+  for (int j = by0; j <= by1; ++j)
+    for (int i = 0; i < nnx; ++i) {
+      const std::size_t n = static_cast<std::size_t>(j) * nnx + i;
+      nodes[static_cast<std::size_t>(j - by0) * nnx + i] = sample_ray(ct.node_ray[n], ct.node_ang[n], f);
+    }
+  for (int by = by0; by < by1; ++by) {
+    const int y0 = by * kBlock, y1 = std::min(y0 + kBlock, ct.height);
+    const int ny0 = ct.node_y[by];
+    const double span_y = std::max(1, ct.node_y[by + 1] - ny0);
+    for (int bx = 0; bx < ct.nbx; ++bx) {
+      const int x0 = bx * kBlock, x1 = std::min(x0 + kBlock, ct.width);
+      const double span_x = std::max(1, ct.node_x[bx + 1] - ct.node_x[bx]);
+      const RaySample* top = &nodes[static_cast<std::size_t>(by - by0) * nnx + bx];
+      const RaySample& c00 = top[0];
+      const RaySample& c10 = top[1];
+      const RaySample& c01 = top[nnx];
+      const RaySample& c11 = top[nnx + 1];
+      const bool valid = ct.block_valid[static_cast<std::size_t>(by) * ct.nbx + bx] && c00.valid && c10.valid &&
+                         c01.valid && c11.valid;
+      const int n_ground = c00.ground + c10.ground + c01.ground + c11.ground;
+      if (valid && n_ground == 4) {
+        // Ground: the tile sampled at the block's coarsest corner level (no aliasing anywhere in
+        // it), its coordinates interpolated from the corners (the ground plane's projection is
+        // smooth over a block), stepped in 16.16 fixed point along each row.
+        const int level = std::max({mip_level(c00.lam), mip_level(c10.lam), mip_level(c01.lam), mip_level(c11.lam)});
+        const int shift = kTileShift - level;
+        const std::uint64_t* tex = tile_->texels[level].data();
+        const double scale = 1.0 / (kTexelM * static_cast<double>(1 << level));
+        // Relative to the block's first corner, so that the doubles stay small.
+        const double s0 = std::floor(c00.qs * scale), t0 = std::floor(c00.qt * scale);
+        auto S = [&](const RaySample& c) { return c.qs * scale - s0 - 0.5; };
+        auto T = [&](const RaySample& c) { return c.qt * scale - t0 - 0.5; };
+        const double s00 = S(c00), s10 = S(c10), s01 = S(c01), s11 = S(c11);
+        const double t00 = T(c00), t10 = T(c10), t01 = T(c01), t11 = T(c11);
+        // The wrap offset in whole tiles: s0 modulo the level's side, so fixed point stays in range.
+        const double side = static_cast<double>(1 << shift);
+        const double s_off = s0 - side * std::floor(s0 / side), t_off = t0 - side * std::floor(t0 / side);
+        for (int y = y0; y < y1; ++y) {
+          const double fy = (y - ny0) / span_y;
+          const double sl = s00 + fy * (s01 - s00), sr = s10 + fy * (s11 - s10);
+          const double tl = t00 + fy * (t01 - t00), tr = t10 + fy * (t11 - t10);
+          const auto fyf = static_cast<float>(fy);
+          float wl = c00.wood + fyf * (c01.wood - c00.wood), wr = c10.wood + fyf * (c11.wood - c10.wood);
+          float kl = c00.k1 + fyf * (c01.k1 - c00.k1), kr = c10.k1 + fyf * (c11.k1 - c10.k1);
+          float hl = c00.h + fyf * (c01.h - c00.h), hr = c10.h + fyf * (c11.h - c10.h);
+          std::uint32_t s = to_fixed(sl + s_off), t = to_fixed(tl + t_off);
+          const auto ds = static_cast<std::uint32_t>(static_cast<std::int32_t>(std::lround((sr - sl) / span_x * 65536.0)));
+          const auto dt = static_cast<std::uint32_t>(static_cast<std::int32_t>(std::lround((tr - tl) / span_x * 65536.0)));
+          const auto inv = static_cast<float>(1.0 / span_x);
+          const float dw = (wr - wl) * inv, dk = (kr - kl) * inv, dh = (hr - hl) * inv;
+          std::uint8_t* row = out.row(y);
+          const int chan[2] = {bayer_channel(fmt, 0, y), bayer_channel(fmt, 1, y)};
+          for (int x = x0; x < x1; ++x) {
+            put_ground<kMode>(row, x, chan, sample_tile(tex, shift, s, t), wl, kl, hl);
+            s += ds, t += dt, wl += dw, kl += dk, hl += dh;
+          }
+        }
+      } else if (valid && n_ground == 0) {
+        // Sky: smooth (the sun's glow is several blocks wide); the colour is interpolated.
+        for (int y = y0; y < y1; ++y) {
+          const auto fy = static_cast<float>((y - ny0) / span_y);
+          float l[3], d[3];
+          for (int k = 0; k < 3; ++k) {
+            l[k] = c00.sky[k] + fy * (c01.sky[k] - c00.sky[k]);
+            d[k] = (c10.sky[k] + fy * (c11.sky[k] - c10.sky[k]) - l[k]) / static_cast<float>(span_x);
+          }
+          std::uint8_t* row = out.row(y);
+          const int chan[2] = {bayer_channel(fmt, 0, y), bayer_channel(fmt, 1, y)};
+          for (int x = x0; x < x1; ++x) {
+            put_sky<kMode>(row, x, chan, l);
+            for (int k = 0; k < 3; ++k) l[k] += d[k];
+          }
+        }
+      } else {
+        // The horizon or the lens's invalid border crosses the block: every pixel exactly.
+        const double ang = ct.node_ang[static_cast<std::size_t>(by) * nnx + bx];
+        for (int y = y0; y < y1; ++y) {
+          std::uint8_t* row = out.row(y);
+          const int chan[2] = {bayer_channel(fmt, 0, y), bayer_channel(fmt, 1, y)};
+          for (int x = x0; x < x1; ++x) {
+            const RaySample r = sample_ray(ct.ray(x, y), ang, f);
+            if (!r.valid) {
+              const float black[3] = {0, 0, 0};
+              put_sky<kMode>(row, x, chan, black);
+            } else if (r.ground) {
+              const int level = mip_level(r.lam);
+              const double scale = 1.0 / (kTexelM * static_cast<double>(1 << level));
+              const int shift = kTileShift - level;
+              const double side = static_cast<double>(1 << shift);
+              auto wrap = [side](double v) { return v - side * std::floor(v / side); };
+              const std::uint64_t g = sample_tile(tile_->texels[level].data(), shift, to_fixed(wrap(r.qs * scale) - 0.5),
+                                                  to_fixed(wrap(r.qt * scale) - 0.5));
+              put_ground<kMode>(row, x, chan, g, r.wood, r.k1, r.h);
+            } else {
+              put_sky<kMode>(row, x, chan, r.sky.data());
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+void CpuSceneRenderer::background(const CameraTables& ct, const FrameSky& f, PixelFormat fmt, Image& out) {
+  const int bands = bands_.count();
+  bands_.run([&](int band) {
+    const int by0 = ct.nby * band / bands, by1 = ct.nby * (band + 1) / bands;
+    if (by0 >= by1) return;
+    if (is_bayer(fmt))
+      background_rows<kModeBayer>(ct, f, by0, by1, fmt, out);
+    else if (fmt == PixelFormat::kMono8)
+      background_rows<kModeMono>(ct, f, by0, by1, fmt, out);
+    else if (fmt == PixelFormat::kRGB8)
+      background_rows<kModeRgb>(ct, f, by0, by1, fmt, out);
+    else
+      background_rows<kModeRgba>(ct, f, by0, by1, fmt, out);
+  });
+}
+
+// Bilinear, REPEAT-wrapped sample of a receiver texture level; `u`, `v` in texture units.
+std::uint64_t sample_texture(const Pyramid& p, int level, float u, float v) {
+  const int w = p.width[level], h = p.height[level];
+  const float x = u * static_cast<float>(w) - 0.5f, y = v * static_cast<float>(h) - 0.5f;
+  const float xf = std::floor(x), yf = std::floor(y);
+  const auto wx = static_cast<std::uint32_t>(std::clamp(static_cast<int>((x - xf) * 256.0f), 0, 255));
+  const auto wy = static_cast<std::uint32_t>(std::clamp(static_cast<int>((y - yf) * 256.0f), 0, 255));
+  const long xi = static_cast<long>(xf), yi = static_cast<long>(yf);
+  const int x0 = static_cast<int>(((xi % w) + w) % w), y0 = static_cast<int>(((yi % h) + h) % h);
+  const int x1 = x0 + 1 == w ? 0 : x0 + 1, y1 = y0 + 1 == h ? 0 : y0 + 1;
+  const std::uint64_t* t = p.texels[level].data();
+  const std::uint64_t* r0 = t + static_cast<std::size_t>(y0) * w;
+  const std::uint64_t* r1 = t + static_cast<std::size_t>(y1) * w;
+  return lerp64(lerp64(r0[x0], r0[x1], wx), lerp64(r1[x0], r1[x1], wx), wy);
+}
+
+void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& cam, const FrameSky& f,
+                                     const Pose& T_body_receiver, PixelFormat fmt, Image& out) {
+  // Camera-relative in double, as the augmenter.
+  const Pose T_cam_obj = cam.T_body_cam.inverse() * T_body_receiver;
+  const Eigen::Matrix3d R_cam_obj = T_cam_obj.R();
+  const Eigen::Matrix3d R_cam_ned = f.R_ned_cam.transpose();
+  const Eigen::Vector3f sun_cam = (R_cam_ned * f.sun).cast<float>();
+  const Eigen::Vector3f up_cam = (R_cam_ned * Eigen::Vector3d(0, 0, -1)).cast<float>();
+  // Per vertex light (Gouraud): the sun (Lambert) and the hemispherical sky/ground ambient of the
+  // OpenGL shader; a back face seen (meshes not culled) is lit from its other side.
+  auto light = [&](const Eigen::Vector3f& n) {
+    const float diffuse = std::max(n.dot(sun_cam), 0.0f);
+    const float sky = 0.5f + 0.5f * n.dot(up_cam);
+    const Eigen::Vector3f ambient = Eigen::Vector3f(0.22f, 0.22f, 0.20f) +
+                                    sky * (Eigen::Vector3f(0.36f, 0.40f, 0.46f) - Eigen::Vector3f(0.22f, 0.22f, 0.20f));
+    return Eigen::Vector3f(Eigen::Vector3f(1.0f, 0.97f, 0.92f) * 0.75f * diffuse + ambient);
+  };
+  verts_cam_.clear(), light_front_.clear(), light_back_.clear(), vert_offset_.clear();
+  const Eigen::Matrix3f R_f = R_cam_obj.cast<float>();
+  for (const ReceiverMesh& m : meshes_) {
+    vert_offset_.push_back(verts_cam_.size());
+    for (std::size_t i = 0; i < m.mesh->positions_m.size(); ++i) {
+      verts_cam_.push_back(T_cam_obj * m.mesh->positions_m[i].cast<double>());
+      const Eigen::Vector3f n = i < m.mesh->normals.size() ? Eigen::Vector3f(R_f * m.mesh->normals[i]) : Eigen::Vector3f::Zero();
+      light_front_.push_back(light(n));
+      light_back_.push_back(light(-n));
+    }
+  }
+  const VirtualPinhole& vp = ct.vp;
+  const SampleGrid grid{vp.fx, vp.fy, vp.cx, vp.cy, vp.width, vp.height, ct.near_m};
+  const SampleBox all{0, 0, vp.width, vp.height};
+  tris_.clear();
+  SampleBox box{vp.width, vp.height, 0, 0};
+  RasterTriangle rt;
+  for (std::size_t mi = 0; mi < meshes_.size(); ++mi) {
+    const ReceiverMesh& m = meshes_[mi];
+    const std::vector<std::uint32_t>& idx = m.mesh->indices;
+    const std::size_t off = vert_offset_[mi];
+    for (std::size_t k = 0; k + 2 < idx.size(); k += 3) {
+      const Eigen::Vector3d& p0 = verts_cam_[off + idx[k]];
+      const Eigen::Vector3d& p1 = verts_cam_[off + idx[k + 1]];
+      const Eigen::Vector3d& p2 = verts_cam_[off + idx[k + 2]];
+      if (!rt.setup(grid, p0, p1, p2, m.cull, all)) continue;
+      DrawnTriangle d;
+      d.rt = rt;
+      d.v[0] = static_cast<std::uint32_t>(off + idx[k]), d.v[1] = static_cast<std::uint32_t>(off + idx[k + 1]),
+      d.v[2] = static_cast<std::uint32_t>(off + idx[k + 2]);
+      d.mesh = static_cast<int>(mi);
+      d.back = p0.dot(p1.cross(p2)) > 0;  // counter-clockwise from outside faces the camera: det < 0
+      if (m.texture >= 0 && p0.z() > 0 && p1.z() > 0 && p2.z() > 0) {
+        // Footprint-aware texture level: texels per pixel over the triangle.
+        const Mesh& mesh = *m.mesh;
+        const Pyramid& tex = textures_[m.texture].levels;
+        const Eigen::Vector2f& a = mesh.uvs[idx[k]];
+        const Eigen::Vector2f& b = mesh.uvs[idx[k + 1]];
+        const Eigen::Vector2f& c = mesh.uvs[idx[k + 2]];
+        const double uv_area = std::abs(static_cast<double>((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x())) *
+                               tex.width[0] * tex.height[0];
+        auto proj = [&](const Eigen::Vector3d& p) { return Eigen::Vector2d(vp.fx * p.x() / p.z(), vp.fy * p.y() / p.z()); };
+        const Eigen::Vector2d q0 = proj(p0), e1 = proj(p1) - q0, e2 = proj(p2) - q0;
+        const double px_area = std::abs(e1.x() * e2.y() - e1.y() * e2.x());
+        if (px_area > 0 && uv_area > px_area)
+          d.level = std::clamp(static_cast<int>(0.5 * std::log2(uv_area / px_area) + 0.5), 0,
+                               static_cast<int>(tex.width.size()) - 1);
+      }
+      tris_.push_back(d);
+      const auto id = static_cast<std::uint32_t>(tris_.size());
+      raster(grid, rt, inv_z_.data(), [&](std::size_t i, int, int) { ids_[i] = id; });
+      box.x0 = std::min(box.x0, rt.bounds.x0), box.y0 = std::min(box.y0, rt.bounds.y0);
+      box.x1 = std::max(box.x1, rt.bounds.x1), box.y1 = std::max(box.y1, rt.bounds.y1);
+    }
+  }
+  if (box.x0 >= box.x1 || box.y0 >= box.y1) return;
+
+  // One channel (0..255) of a covered sample.
+  auto shade = [&](std::uint32_t id, int x, int y, auto&& put) {
+    const DrawnTriangle& d = tris_[id - 1];
+    double w1 = 0, w2 = 0;
+    d.rt.weights(x, y, w1, w2);
+    const auto b1 = static_cast<float>(w1), b2 = static_cast<float>(w2), b0 = 1.0f - b1 - b2;
+    const std::vector<Eigen::Vector3f>& L = d.back ? light_back_ : light_front_;
+    const Eigen::Vector3f lit = b0 * L[d.v[0]] + b1 * L[d.v[1]] + b2 * L[d.v[2]];
+    const ReceiverMesh& m = meshes_[d.mesh];
+    Eigen::Vector3f albedo = m.mesh->base_color * 255.0f;
+    if (m.texture >= 0) {
+      const std::size_t off = vert_offset_[d.mesh];
+      const Eigen::Vector2f uv = b0 * m.mesh->uvs[d.v[0] - off] + b1 * m.mesh->uvs[d.v[1] - off] +
+                                 b2 * m.mesh->uvs[d.v[2] - off];
+      const std::uint64_t g = sample_texture(textures_[m.texture].levels, d.level, uv.x(), uv.y());
+      for (int k = 0; k < 3; ++k) albedo[k] *= static_cast<float>(lane(g, k)) * (1.0f / 255.0f);
+    }
+    put(albedo, lit);
+  };
+  const bool bayer = is_bayer(fmt);
+  if (vp.identity) {
+    for (int y = box.y0; y < box.y1; ++y) {
+      std::uint8_t* row = out.row(y);
+      const std::uint32_t* idr = ids_.data() + static_cast<std::size_t>(y) * vp.width;
+      for (int x = box.x0; x < box.x1; ++x) {
+        if (!idr[x]) continue;
+        shade(idr[x], x, y, [&](const Eigen::Vector3f& albedo, const Eigen::Vector3f& lit) {
+          if (bayer) {
+            const int ch = bayer_channel(fmt, x, y);
+            row[x] = to_u8(albedo[ch] * lit[ch]);
+            return;
+          }
+          const std::uint8_t r = to_u8(albedo[0] * lit[0]), g = to_u8(albedo[1] * lit[1]), b = to_u8(albedo[2] * lit[2]);
+          if (fmt == PixelFormat::kMono8)
+            put_rgb<kModeMono>(row, x, r, g, b);
+          else if (fmt == PixelFormat::kRGB8)
+            put_rgb<kModeRgb>(row, x, r, g, b);
+          else
+            put_rgb<kModeRgba>(row, x, r, g, b);
+        });
+      }
+    }
+  } else {
+    // Shade the virtual samples, then each raw pixel takes its nearest sample's colour.
+    for (int y = box.y0; y < box.y1; ++y)
+      for (int x = box.x0; x < box.x1; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * vp.width + x;
+        if (!ids_[i]) continue;
+        shade(ids_[i], x, y, [&](const Eigen::Vector3f& albedo, const Eigen::Vector3f& lit) {
+          colour_[i] = to_u8(albedo[0] * lit[0]) | static_cast<std::uint32_t>(to_u8(albedo[1] * lit[1])) << 8 |
+                       static_cast<std::uint32_t>(to_u8(albedo[2] * lit[2])) << 16;
+        });
+      }
+    // The raw pixels whose nearest sample lies in the box: the lens image of the box's outline.
+    double u0 = 1e300, v0 = 1e300, u1 = -1e300, v1 = -1e300;
+    bool all_projected = true;
+    auto outline = [&](double x, double y) {
+      const auto uv = cam.model.project(Eigen::Vector3d((x - vp.cx) / vp.fx, (y - vp.cy) / vp.fy, 1.0));
+      if (!uv) {
+        all_projected = false;
+        return;
+      }
+      u0 = std::min(u0, uv->x()), u1 = std::max(u1, uv->x()), v0 = std::min(v0, uv->y()), v1 = std::max(v1, uv->y());
+    };
+    for (int x = box.x0; x <= box.x1; x += 2) outline(x - 0.5, box.y0 - 0.5), outline(x - 0.5, box.y1 + 0.5);
+    for (int y = box.y0; y <= box.y1; y += 2) outline(box.x0 - 0.5, y - 0.5), outline(box.x1 + 0.5, y - 0.5);
+    int rx0 = 0, ry0 = 0, rx1 = ct.width, ry1 = ct.height;
+    if (all_projected) {
+      rx0 = std::max(0, static_cast<int>(std::floor(u0)) - 2), ry0 = std::max(0, static_cast<int>(std::floor(v0)) - 2);
+      rx1 = std::min(ct.width, static_cast<int>(std::ceil(u1)) + 3);
+      ry1 = std::min(ct.height, static_cast<int>(std::ceil(v1)) + 3);
+    }
+    for (int y = ry0; y < ry1; ++y) {
+      std::uint8_t* row = out.row(y);
+      for (int x = rx0; x < rx1; ++x) {
+        const std::int32_t s = ct.nearest_sample[static_cast<std::size_t>(y) * ct.width + x];
+        if (s < 0 || !ids_[static_cast<std::size_t>(s)]) continue;
+        const std::uint32_t c = colour_[static_cast<std::size_t>(s)];
+        const auto r = static_cast<std::uint8_t>(c), g = static_cast<std::uint8_t>(c >> 8),
+                   b = static_cast<std::uint8_t>(c >> 16);
+        if (bayer) {
+          const int ch = bayer_channel(fmt, x, y);
+          row[x] = ch == 0 ? r : ch == 1 ? g : b;
+        } else if (fmt == PixelFormat::kMono8) {
+          put_rgb<kModeMono>(row, x, r, g, b);
+        } else if (fmt == PixelFormat::kRGB8) {
+          put_rgb<kModeRgb>(row, x, r, g, b);
+        } else {
+          put_rgb<kModeRgba>(row, x, r, g, b);
+        }
+      }
+    }
+  }
+  // Leave the scratch clean for the next frame.
+  for (int y = box.y0; y < box.y1; ++y) {
+    const std::size_t i = static_cast<std::size_t>(y) * vp.width + box.x0;
+    std::fill_n(inv_z_.data() + i, box.x1 - box.x0, 0.0f);
+    std::fill_n(ids_.data() + i, box.x1 - box.x0, 0u);
+  }
+}
+
+void CpuSceneRenderer::add_noise(int camera, const SensorOptions& sensor, Image& out) {
+  if (sensor.noise_sigma != noise_q8_sigma_) {
+    noise_q8_.resize(gauss_.size());
+    for (std::size_t i = 0; i < gauss_.size(); ++i)
+      noise_q8_[i] = static_cast<std::int32_t>(std::lround(sensor.noise_sigma * gauss_[i] * 256.0)) + 128;
+    noise_q8_sigma_ = sensor.noise_sigma;
+  }
+  // Counter-based: row y's stream depends on the seed, the camera and y only, so any split of the
+  // rows between threads gives the same image. 16 random bits pick one of 65536 Gaussian quantiles
+  // (fixed point, 1/256 DN).
+  const std::uint64_t key =
+      splitmix64(sensor.noise_seed ^ (0x51ed270b27a3e1f1ull * (static_cast<std::uint64_t>(camera) + 1)));
+  const int bpp = bytes_per_pixel(out.format());
+  const int W = out.width(), H = out.height();
+  const std::int32_t* q = noise_q8_.data();
+  bands_.run([&](int band) {
+    const int y0 = H * band / bands_.count(), y1 = H * (band + 1) / bands_.count();
+    for (int y = y0; y < y1; ++y) {
+      std::uint64_t counter = splitmix64(key ^ (static_cast<std::uint64_t>(y) * 0xd6e8feb86659fd93ull));
+      std::uint8_t* d = out.row(y);
+      auto add = [q](std::uint8_t& v, std::uint64_t bits16) {
+        const int r = ((static_cast<int>(v) << 8) + q[bits16 & 0xffffu]) >> 8;  // rounded
+        v = static_cast<std::uint8_t>(r < 0 ? 0 : r > 255 ? 255 : r);
+      };
+      if (bpp == 4) {  // R G B, alpha stays opaque
+        for (int x = 0; x < W; ++x) {
+          const std::uint64_t bits = splitmix64(counter++);
+          add(d[4 * x], bits), add(d[4 * x + 1], bits >> 16), add(d[4 * x + 2], bits >> 32);
+        }
+        continue;
+      }
+      const std::size_t n = static_cast<std::size_t>(W) * bpp;
+      std::size_t i = 0;
+      for (; i + 4 <= n; i += 4) {
+        const std::uint64_t bits = splitmix64(counter++);
+        add(d[i], bits), add(d[i + 1], bits >> 16), add(d[i + 2], bits >> 32), add(d[i + 3], bits >> 48);
+      }
+      for (std::uint64_t bits = splitmix64(counter++); i < n; ++i, bits >>= 16) add(d[i], bits);
+    }
+  });
+}
+
+bool same_sky(const SkyState& a, const SkyState& b) {
+  return a.R_ned_body == b.R_ned_body && a.altitude_m == b.altitude_m && a.north_east_m == b.north_east_m &&
+         a.sun_ned == b.sun_ned;
+}
+
+Status CpuSceneRenderer::render(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
+                                const SensorOptions& sensor, Image& out) {
+  if (camera < 0 || camera >= static_cast<int>(cameras_.size()))
+    return make_error("SyntheticSceneRenderer::render(): no camera ", camera, " (the rig has ", cameras_.size(), ")");
+  if (!(sky.altitude_m > 0)) return make_error("SyntheticSceneRenderer::render(): altitude must be > 0 m");
+  if (!(sensor.noise_sigma >= 0)) return make_error("SyntheticSceneRenderer::render(): noise_sigma must be >= 0");
+  const CameraTables& ct = cameras_[camera];
+  const RigCamera& cam = rig_.cameras[camera];
+  const PixelFormat fmt = sensor.format;
+  if (out.width() != ct.width || out.height() != ct.height || out.format() != fmt) out = Image(ct.width, ct.height, fmt);
+
+  // The background is seen from the group's first camera when the ground's disparity between the
+  // two (at most f |baseline| / height) is below kShareDisparityPx: then both views of a parallel
+  // stereo pair get the same background, and it is rendered once per pair.
+  const RigCamera& lead = rig_.cameras[ct.group];
+  const double disparity_px = std::max(cam.model.fx_px, cam.model.fy_px) *
+                              (cam.T_body_cam.translation_m - lead.T_body_cam.translation_m).norm() / sky.altitude_m;
+  const bool shared = ct.group != camera && disparity_px < kShareDisparityPx;
+  const int bg_camera = shared ? ct.group : camera;
+  const RigCamera& bg_cam = rig_.cameras[bg_camera];
+
+  FrameSky f;
+  f.R_ned_cam = sky.R_ned_body * cam.T_body_cam.R();
+  // The camera's own offset from the tanker's reference point counts: the ground is in world metres.
+  const Eigen::Vector3d cam_offset_ned = sky.R_ned_body * bg_cam.T_body_cam.translation_m;
+  f.cam_ned = {sky.north_east_m.x() + cam_offset_ned.x(), sky.north_east_m.y() + cam_offset_ned.y(),
+               -sky.altitude_m + cam_offset_ned.z()};
+  f.sun = sky.sun_ned.normalized();
+  f.sun_factor = 0.75 + 0.35 * std::max(-f.sun.z(), 0.0);
+
+  const bool group_shares = [&] {
+    for (const CameraTables& o : cameras_)
+      if (&o != &ct && o.group == ct.group) return true;
+    return false;
+  }();
+  const std::size_t bytes = static_cast<std::size_t>(out.stride_bytes()) * out.height();
+  if (group_shares && shared_key_.group == ct.group && shared_key_.format == fmt && same_sky(shared_key_.sky, sky) &&
+      (shared || bg_camera == ct.group) && shared_bg_.size() == bytes) {
+    std::memcpy(out.data(), shared_bg_.data(), bytes);
+  } else {
+    background(ct, f, fmt, out);
+    if (group_shares && bg_camera == ct.group) {
+      shared_key_ = {ct.group, fmt, sky};
+      shared_bg_.assign(out.data(), out.data() + bytes);
+    }
+  }
+  if (receiver_present && !meshes_.empty()) draw_receiver(ct, cam, f, T_body_receiver, fmt, out);
+  if (sensor.noise_sigma > 0) add_noise(camera, sensor, out);
+  return {};
+}
+
+}  // namespace
+
+Expected<std::unique_ptr<SyntheticSceneRenderer>> make_cpu_scene_renderer(const Rig& rig,
+                                                                          std::shared_ptr<const Model> receiver,
+                                                                          const SceneRendererOptions& options) {
+  if (options.threads < 1 || options.threads > 8)
+    return make_error("SyntheticSceneRenderer::create(): threads must be 1 to 8, got ", options.threads);
+  auto r = std::make_unique<CpuSceneRenderer>(rig, options.threads);
+  if (auto s = r->init(std::move(receiver)); !s) return s.error();
+  return std::unique_ptr<SyntheticSceneRenderer>(std::move(r));
+}
+
+}  // namespace augrig

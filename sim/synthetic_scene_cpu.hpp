@@ -1,0 +1,17 @@
+// The CPU back end of SyntheticSceneRenderer (SceneBackend::kCpu, sim/synthetic_scene.hpp): sky and
+// ground shaded per raw pixel from rays precomputed through the lens model, the receiver rasterised
+// by render/soft_raster, Bayer pixels computed in their own channel only, counter-based noise.
+// Internal to sim/: use SyntheticSceneRenderer::create().
+#pragma once
+
+#include <memory>
+
+#include "sim/synthetic_scene.hpp"
+
+namespace augrig {
+
+Expected<std::unique_ptr<SyntheticSceneRenderer>> make_cpu_scene_renderer(const Rig& rig,
+                                                                          std::shared_ptr<const Model> receiver,
+                                                                          const SceneRendererOptions& options);
+
+}  // namespace augrig
