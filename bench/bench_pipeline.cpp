@@ -1,19 +1,28 @@
-// bench_pipeline: issue 4's end-to-end figure, replay -> augment -> record losslessly (raw,
-// augmented and masks of both cameras, 1280x960), against the naive baseline in the same run:
-// replay -> augment -> every image written as PNG with cv::imwrite.
-//   build/bench_pipeline [--frames N] [--png-frames M] [--format bayer|rgb8|both]
+// bench_pipeline: issue 17's end-to-end figure, replay -> augment -> record losslessly (raw,
+// augmented and masks of both cameras, 1280x960), with every path compared in the same run:
+//   copy        the recorder stores each replayed raw image by copying its recorded blob
+//               (recorder::RecordedFrame::raw_blobs; no decode-and-compress of the raw images);
+//   recompress  the path before: ReplayOptions::keep_raw_blobs off, so the recorder compresses the
+//               raw images again (what any non-replay source gets);
+//   PNG         every image written as PNG with cv::imwrite (six files per stereo frame);
+// and, to split the cost, replay alone and replay -> augment with nothing recorded.
+// Two scenes: "boom" (the receiver absent: SceneState::receiver_present false, so no receiver,
+// no stereo classes) and "receiver" (boom + receiver + stereo classes, as the demo).
+//   build/bench_pipeline [--frames N] [--png-frames M] [--format bayer|rgb8] [--reuse-input]
 // The input recording is made first (not timed) from the built-in demo flight's cameras: the
-// synthetic renderer's frames of the approach, with the receiver and boom of the scenario's truth,
-// as BayerRG8 (what GigE cameras deliver) and as RGB8 (what the demo renders), one after the other.
-// Timed: ReplaySource reads (as fast as possible) -> Augmenter (boom + receiver + stereo classes)
-// -> Recorder::push (the producer waits while the recorder's queue is full: nothing is dropped),
-// until close() has committed everything.
+// synthetic renderer's last N stereo frames, with the boom and receiver of the scenario's truth.
+// --reuse-input keeps it in /tmp/augrig_bench_pipeline and uses it again (for profiling).
+// Timed: ReplaySource (as fast as possible) -> Augmenter (AugmentedOutput::kChangedBox, as `run`
+// and `replay` use it) -> sink. A Recorder sink is timed until close() has committed everything;
+// the producer waits while the recorder's queue is full, so nothing is dropped.
+// CPU: getrusage(RUSAGE_SELF), user + system of every thread, per stereo frame.
+#include <sys/resource.h>
+
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <string>
-
-#include <opencv2/imgcodecs.hpp>
+#include <thread>
 
 #include "core/clock.hpp"
 #include "recorder/reader.hpp"
@@ -35,6 +44,14 @@ double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
+// User + system CPU time of the whole process (all threads), ms.
+double rusage_cpu_ms() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  auto ms = [](const timeval& t) { return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_usec) * 1e-3; };
+  return ms(u.ru_utime) + ms(u.ru_stime);
+}
+
 template <typename T>
 T need(Expected<T> e, const char* what) {
   if (!e) {
@@ -48,164 +65,294 @@ void write_png(const fs::path& p, const Image& im) {
   if (!write_png_file(p.string(), im)) std::exit(1);
 }
 
-// One format's figures.
+enum class Sink { kReplayOnly, kNone, kCopy, kRecompress, kPng };
+const char* sink_name(Sink s) {
+  switch (s) {
+    case Sink::kReplayOnly:
+      return "replay only (decode raw)";
+    case Sink::kNone:
+      return "replay -> augment (nothing recorded)";
+    case Sink::kCopy:
+      return "replay -> augment -> Recorder, raw blobs copied";
+    case Sink::kRecompress:
+      return "replay -> augment -> Recorder, raw recompressed (before)";
+    case Sink::kPng:
+      return "replay -> augment -> PNG (cv::imwrite) x6";
+  }
+  return "?";
+}
+
 struct Figures {
-  double rec_fps = 0, rec_aug_ms = 0, png_fps = 0, png_aug_ms = 0;
-  double rec_cpu_ms = 0, png_cpu_ms = 0;  // CPU time of all threads per stereo frame
-  double encode_cpu_ms = 0;               // of which the recorder's compression (RecorderStats)
+  std::size_t frames = 0;
+  double fps = 0;             // until the last frame is committed
+  double fps_incl_close = 0;  // with the recorder's close()
+  double cpu_ms = 0;          // all threads, per stereo frame
+  double replay_cpu_ms = 0;   // the reading thread's CPU inside ReplaySource::read
+  double augment_ms = 0;      // wall time of augment()
+  double encode_cpu_ms = 0;   // RecorderStats::encode_ms per frame
+  double insert_cpu_ms = 0;   // RecorderStats::insert_ms per frame
+  std::uint64_t raw_copied = 0;
+  double stored_mb = 0;
 };
 
-// Records the input in `format` (not timed), then times replay -> augment -> Recorder and
-// replay -> augment -> PNG over it.
-Figures run_format(PixelFormat format, int frames, int png_frames, const fs::path& dir) {
-  fs::remove_all(dir);
-  // The input: the demo flight's last `frames` stereo frames, recorded raw (not timed).
-  sim::Scenario scenario = need(sim::builtin_scenario("demo"), "scenario");
-  scenario.sensors.cameras.format = format;
+// Makes the input recording: the demo flight's last `frames` stereo frames in `format`.
+void make_input(PixelFormat format, int frames, const fs::path& input, sim::Scenario& scenario) {
   const sim::Flight flight = need(sim::Flight::create(scenario), "flight");
   const sim::SensorLogs logs = sim::simulate_sensors(scenario, flight);
   std::vector<sim::FrameTruth> truths = sim::frame_truths(scenario, flight, logs.cameras);
   std::map<std::uint64_t, int> cams;
   for (const auto& f : truths) cams[f.sequence] |= 1 << f.camera;
   std::erase_if(truths, [&](const sim::FrameTruth& f) { return cams[f.sequence] != 3; });
-  if (truths.size() > 2 * static_cast<std::size_t>(frames))
-    truths.erase(truths.begin(), truths.end() - 2 * frames);
-  {
-    auto source = need(sim::FlightSource::create(scenario, flight, truths), "flight source");
-    recorder::RecordingInfo info;
-    info.rig_yaml = rig_to_yaml(scenario.rig);
-    auto rec = need(recorder::Recorder::create((dir / "input").string(), info), "input recording");
-    for (std::size_t i = 0; i + 1 < truths.size(); i += 2) {
-      recorder::FrameRecord fr;
-      need(source->read(fr.raw.left, {}), "render");
-      fr.boom = source->last_truth().boom;
-      fr.T_body_receiver = source->last_truth().T_body_receiver;
-      need(source->read(fr.raw.right, {}), "render");
-      fr.raw.right.camera = CameraId::kRight;
-      while (!rec->push(recorder::FrameRecord(fr))) std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    if (!rec->close()) std::exit(1);
+  if (truths.size() > 2 * static_cast<std::size_t>(frames)) truths.erase(truths.begin(), truths.end() - 2 * frames);
+  auto source = need(sim::FlightSource::create(scenario, flight, truths), "flight source");
+  recorder::RecordingInfo info;
+  info.rig_yaml = rig_to_yaml(scenario.rig);
+  recorder::RecorderOptions ro;
+  ro.overwrite = true;
+  auto rec = need(recorder::Recorder::create(input.string(), info, ro), "input recording");
+  (void)format;
+  for (std::size_t i = 0; i + 1 < truths.size(); i += 2) {
+    recorder::FrameRecord fr;
+    need(source->read(fr.raw.left, {}), "render");
+    fr.boom = source->last_truth().boom;
+    fr.T_body_receiver = source->last_truth().T_body_receiver;
+    need(source->read(fr.raw.right, {}), "render");
+    fr.raw.right.camera = CameraId::kRight;
+    fr.raw.t_key_ns = (fr.raw.left.t_ns + fr.raw.right.t_ns) / 2;
+    fr.raw.skew_ns = fr.raw.right.t_ns - fr.raw.left.t_ns;
+    fr.raw.pair_sequence = i / 2;
+    while (rec->stats().frames_in_flight >= 32) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    if (!rec->push(std::move(fr))) std::exit(1);
   }
-  const std::size_t n = truths.size() / 2;
-  AugmentOptions options;
-  // As `augrig run` and `replay` do: the augmenter makes only the boxes the boom changes and the
-  // recorder stores them as they are (the PNG baseline gets whole images made from them).
-  options.augmented_output = AugmentedOutput::kChangedBox;
-  Eigen::Vector3d receptacle;
-  options.receiver_model = std::make_shared<const Model>(make_builtin_receiver(&receptacle));
-  auto augmenter = need(Augmenter::create(scenario.rig, options), "augmenter");
+  if (!rec->close()) std::exit(1);
+}
 
-  // One pass: replay -> augment -> sink; returns stereo frames per second.
-  auto run = [&](std::size_t count, auto&& sink) {
+struct Bench {
+  fs::path dir, input;
+  Augmenter* augmenter = nullptr;
+  Rig rig;
+
+  Figures run(Sink sink, bool with_receiver, std::size_t count) {
+    Figures g;
     recorder::ReplayOptions ro;
-    auto replay = need(recorder::ReplaySource::open((dir / "input").string(), ro), "replay");
-    StereoFrame frame;
+    ro.keep_raw_blobs = sink == Sink::kCopy;
+    auto replay = need(recorder::ReplaySource::open(input.string(), ro), "replay");
+    count = std::min(count, replay->frame_count());
+    std::unique_ptr<recorder::Recorder> out;
+    if (sink == Sink::kCopy || sink == Sink::kRecompress) {
+      recorder::RecordingInfo info;
+      info.rig_yaml = rig_to_yaml(rig);
+      recorder::RecorderOptions o;
+      o.overwrite = true;
+      out = need(recorder::Recorder::create((dir / "output").string(), info, o), "output recording");
+    }
+    if (sink == Sink::kPng) {
+      fs::remove_all(dir / "png");
+      fs::create_directories(dir / "png");
+    }
     StereoResult result;
-    double augment_s = 0;
+    double augment_s = 0, replay_cpu = 0;
     const auto t0 = Clock::now();
-    for (std::size_t i = 0; i < count; ++i) {
-      if (need(replay->read(frame.left, std::chrono::seconds(1)), "replay") != ReadStatus::kFrame) break;
-      if (need(replay->read(frame.right, std::chrono::seconds(1)), "replay") != ReadStatus::kFrame) break;
+    const double cpu0 = rusage_cpu_ms();
+    std::size_t n = 0;
+    for (; n < count; ++n) {
+      recorder::FrameRecord fr;
+      const double r0 = thread_cpu_ms();
+      if (need(replay->read(fr.raw.left, std::chrono::seconds(1)), "replay") != ReadStatus::kFrame) break;
+      if (need(replay->read(fr.raw.right, std::chrono::seconds(1)), "replay") != ReadStatus::kFrame) break;
+      replay_cpu += thread_cpu_ms() - r0;
+      if (sink == Sink::kReplayOnly) continue;
       const recorder::FrameRecord& rec = replay->current();
+      fr.raw.t_key_ns = rec.raw.t_key_ns;
+      fr.raw.skew_ns = rec.raw.skew_ns;
+      fr.raw.pair_sequence = rec.raw.pair_sequence;
       SceneState scene;
       scene.boom = *rec.boom;
       scene.T_body_receiver = *rec.T_body_receiver;
+      scene.receiver_present = with_receiver;
       const auto ta = Clock::now();
-      if (!augmenter->augment(frame, scene, result)) std::exit(1);
+      if (auto st = augmenter->augment(fr.raw, scene, result); !st) {
+        std::fprintf(stderr, "bench_pipeline: augment: %s\n", st.error().message.c_str());
+        std::exit(1);
+      }
       augment_s += seconds_since(ta);
-      sink(frame, result);
+      if (out) {
+        fr.augmented = {result.left.augmented, result.right.augmented};
+        fr.augmented_box = {result.left.augmented_box, result.right.augmented_box};
+        fr.mask = {result.left.mask, result.right.mask};
+        fr.stats = result.stats;
+        fr.boom = scene.boom;
+        fr.T_body_receiver = scene.T_body_receiver;
+        fr.receiver_present = with_receiver;
+        // Wait for room first: a refused push would count a drop and lose the frame.
+        while (out->stats().frames_in_flight >= 60) std::this_thread::sleep_for(std::chrono::microseconds(200));
+        if (!out->push(std::move(fr))) {
+          std::fprintf(stderr, "bench_pipeline: a frame was dropped\n");
+          std::exit(1);
+        }
+      } else if (sink == Sink::kPng) {
+        const std::string s = std::to_string(n);
+        write_png(dir / "png" / ("raw_l" + s + ".png"), fr.raw.left.image);
+        write_png(dir / "png" / ("raw_r" + s + ".png"), fr.raw.right.image);
+        write_png(dir / "png" / ("aug_l" + s + ".png"), whole_augmented(fr.raw.left.image, result.left));
+        write_png(dir / "png" / ("aug_r" + s + ".png"), whole_augmented(fr.raw.right.image, result.right));
+        write_png(dir / "png" / ("mask_l" + s + ".png"), result.left.mask);
+        write_png(dir / "png" / ("mask_r" + s + ".png"), result.right.mask);
+      }
     }
-    return std::pair{static_cast<double>(count) / seconds_since(t0),
-                     1e3 * augment_s / static_cast<double>(count)};
-  };
-
-  // Recorder sink.
-  recorder::RecordingInfo info;
-  info.rig_yaml = rig_to_yaml(scenario.rig);
-  auto out = need(recorder::Recorder::create((dir / "output").string(), info), "output recording");
-  const auto t0 = Clock::now();
-  const double cpu0 = process_cpu_ms();
-  auto [rec_fps_loop, rec_aug_ms] = run(n, [&](const StereoFrame& f, const StereoResult& r) {
-    recorder::FrameRecord fr;
-    fr.raw = f;
-    fr.augmented = {r.left.augmented, r.right.augmented};
-    fr.augmented_box = {r.left.augmented_box, r.right.augmented_box};
-    fr.mask = {r.left.mask, r.right.mask};
-    fr.stats = r.stats;
-    while (!out->push(std::move(fr))) std::this_thread::sleep_for(std::chrono::microseconds(200));
-  });
-  (void)rec_fps_loop;
-  if (!out->close()) std::exit(1);
-  const double encode_cpu_ms = out->stats().encode_ms / static_cast<double>(n);
-  const double rec_fps = static_cast<double>(n) / seconds_since(t0);
-  const double rec_cpu_ms = (process_cpu_ms() - cpu0) / static_cast<double>(n);
-
-  // PNG sink: six images per stereo frame.
-  const std::size_t m = std::min<std::size_t>(n, static_cast<std::size_t>(png_frames));
-  fs::create_directories(dir / "png");
-  std::size_t k = 0;
-  const double cpu1 = process_cpu_ms();
-  auto [png_fps, png_aug_ms] = run(m, [&](const StereoFrame& f, const StereoResult& r) {
-    const std::string s = std::to_string(k++);
-    write_png(dir / "png" / ("raw_l" + s + ".png"), f.left.image);
-    write_png(dir / "png" / ("raw_r" + s + ".png"), f.right.image);
-    write_png(dir / "png" / ("aug_l" + s + ".png"), whole_augmented(f.left.image, r.left));
-    write_png(dir / "png" / ("aug_r" + s + ".png"), whole_augmented(f.right.image, r.right));
-    write_png(dir / "png" / ("mask_l" + s + ".png"), r.left.mask);
-    write_png(dir / "png" / ("mask_r" + s + ".png"), r.right.mask);
-  });
-
-  const double png_cpu_ms = (process_cpu_ms() - cpu1) / static_cast<double>(m);
-  fs::remove_all(dir);
-  return {rec_fps, rec_aug_ms, png_fps, png_aug_ms, rec_cpu_ms, png_cpu_ms, encode_cpu_ms};
-}
+    double close_s = 0;
+    if (out) {
+      // Sustained throughput: until the writer has committed the last frame; close() (the final
+      // checkpoint into the database and its fsync, once per recording) is reported apart.
+      while (out->stats().frames_committed + out->stats().frames_dropped < n)
+        std::this_thread::sleep_for(std::chrono::microseconds(500));
+    }
+    const double wall = seconds_since(t0);
+    const double cpu = rusage_cpu_ms() - cpu0;
+    if (out) {
+      const auto tc = Clock::now();
+      if (auto st = out->close(); !st) {
+        std::fprintf(stderr, "bench_pipeline: close: %s\n", st.error().message.c_str());
+        std::exit(1);
+      }
+      close_s = seconds_since(tc);
+    }
+    const double k = static_cast<double>(std::max<std::size_t>(n, 1));
+    g.frames = n;
+    g.fps = static_cast<double>(n) / wall;
+    g.fps_incl_close = static_cast<double>(n) / (wall + close_s);
+    g.cpu_ms = cpu / k;
+    g.replay_cpu_ms = replay_cpu / k;
+    g.augment_ms = 1e3 * augment_s / k;
+    if (out) {
+      const recorder::RecorderStats s = out->stats();
+      g.encode_cpu_ms = s.encode_ms / k;
+      g.insert_cpu_ms = s.insert_ms / k;
+      g.raw_copied = s.raw_blobs_copied;
+      g.stored_mb = static_cast<double>(s.stored_bytes) / 1e6;
+      if (s.frames_committed != n) {
+        std::fprintf(stderr, "bench_pipeline: %llu of %zu frames committed\n",
+                     static_cast<unsigned long long>(s.frames_committed), n);
+        std::exit(1);
+      }
+      // The recording must check clean: the copy is a readable recording.
+      auto rd = need(recorder::RecordingReader::open((dir / "output").string()), "reopen");
+      const recorder::CheckReport report = rd->check();
+      if (!report.ok()) {
+        std::fprintf(stderr, "bench_pipeline: the output recording does not check:\n%s\n",
+                     report.to_string().c_str());
+        std::exit(1);
+      }
+    }
+    return g;
+  }
+};
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  int frames = 120, png_frames = 20;
-  std::vector<PixelFormat> formats = {PixelFormat::kBayerRG8, PixelFormat::kRGB8};
-  for (int i = 1; i + 1 < argc; i += 2) {
+  int frames = 90, png_frames = 15;
+  bool reuse = false;
+  PixelFormat format = PixelFormat::kBayerRG8;
+  for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--frames") frames = std::atoi(argv[i + 1]);
-    if (a == "--png-frames") png_frames = std::atoi(argv[i + 1]);
-    if (a == "--format") {
-      const std::string f = argv[i + 1];
+    const bool has_value = i + 1 < argc;
+    if (a == "--frames" && has_value) {
+      frames = std::atoi(argv[++i]);
+    } else if (a == "--png-frames" && has_value) {
+      png_frames = std::atoi(argv[++i]);
+    } else if (a == "--reuse-input") {
+      reuse = true;
+    } else if (a == "--format" && has_value) {
+      const std::string f = argv[++i];
       if (f == "bayer")
-        formats = {PixelFormat::kBayerRG8};
+        format = PixelFormat::kBayerRG8;
       else if (f == "rgb8")
-        formats = {PixelFormat::kRGB8};
-      else if (f != "both") {
-        std::fprintf(stderr, "bench_pipeline: --format: expected bayer, rgb8 or both, got %s\n", f.c_str());
+        format = PixelFormat::kRGB8;
+      else {
+        std::fprintf(stderr, "bench_pipeline: --format: expected bayer or rgb8, got %s\n", f.c_str());
         return 2;
       }
+    } else {
+      std::fprintf(stderr,
+                   "usage: bench_pipeline [--frames N] [--png-frames M] [--format bayer|rgb8] [--reuse-input]\n");
+      return 2;
     }
   }
-  const fs::path dir = fs::temp_directory_path() / "augrig_bench_pipeline";
+  if (frames < 1 || png_frames < 0) {
+    std::fprintf(stderr, "bench_pipeline: --frames must be >= 1 and --png-frames >= 0\n");
+    return 2;
+  }
   auto ctx = need(create_gl_context(GlBackend::kEglHeadless), "GL context");
   std::printf("bench_pipeline: %s, %u hardware threads\n", ctx->renderer().c_str(),
               std::thread::hardware_concurrency());
-  std::vector<std::pair<PixelFormat, Figures>> all;
-  for (PixelFormat f : formats) all.emplace_back(f, run_format(f, frames, png_frames, dir));
 
-  std::printf("%d stereo frames 1280x960 of the demo flight (boom + receiver + stereo classes)\n\n", frames);
-  std::printf(
-      "| raw format | pipeline                                   | stereo fps | augment ms/frame | CPU "
-      "ms/frame |\n");
-  std::printf(
-      "|------------|--------------------------------------------|-----------:|-----------------:|-----------"
-      "--:|\n");
-  for (const auto& [f, g] : all) {
-    const char* name = to_string(f).data();
-    std::printf("| %-10s | replay -> augment -> Recorder (lossless)   | %10.1f | %16.1f | %12.1f |\n", name,
-                g.rec_fps, g.rec_aug_ms, g.rec_cpu_ms);
-    std::printf("| %-10s | replay -> augment -> PNG (cv::imwrite) x6  | %10.1f | %16.1f | %12.1f |\n", name,
-                g.png_fps, g.png_aug_ms, g.png_cpu_ms);
+  Bench b;
+  b.dir = fs::temp_directory_path() / "augrig_bench_pipeline";
+  b.input = b.dir / (std::string("input_") + std::string(to_string(format)) + "_" + std::to_string(frames));
+  sim::Scenario scenario = need(sim::builtin_scenario("demo"), "scenario");
+  scenario.sensors.cameras.format = format;
+  b.rig = scenario.rig;
+  if (!reuse || !fs::exists(b.input / "recording.sqlite")) {
+    fs::remove_all(b.input);
+    std::printf("making the input recording (not timed) ...\n");
+    std::fflush(stdout);
+    make_input(format, frames, b.input, scenario);
   }
-  for (const auto& [f, g] : all)
-    std::printf(
-        "%s: ratio recorder / PNG %.1f x; the recorder's compression %.1f of the %.1f CPU ms per frame\n",
-        to_string(f).data(), g.rec_fps / g.png_fps, g.encode_cpu_ms, g.rec_cpu_ms);
-  std::printf("target (issue 4): 120 stereo fps\n");
+  AugmentOptions options;
+  options.augmented_output = AugmentedOutput::kChangedBox;
+  Eigen::Vector3d receptacle;
+  options.receiver_model = std::make_shared<const Model>(make_builtin_receiver(&receptacle));
+  auto augmenter = need(Augmenter::create(scenario.rig, options), "augmenter");
+  b.augmenter = augmenter.get();
+  std::printf("rasteriser: %s\n", to_string(augmenter->rasterizer()));
+
+  const std::size_t n = static_cast<std::size_t>(frames);
+  const std::size_t m = static_cast<std::size_t>(png_frames);
+  struct Row {
+    const char* scene;
+    Sink sink;
+    Figures g;
+  };
+  std::vector<Row> rows;
+  rows.push_back({"-", Sink::kReplayOnly, b.run(Sink::kReplayOnly, false, n)});
+  for (bool with_receiver : {false, true}) {
+    const char* scene = with_receiver ? "receiver" : "boom";
+    (void)b.run(Sink::kNone, with_receiver, 5);  // warm up (first-use allocations, thread start)
+    for (Sink s : {Sink::kNone, Sink::kCopy, Sink::kRecompress})
+      rows.push_back({scene, s, b.run(s, with_receiver, n)});
+    if (m > 0) rows.push_back({scene, Sink::kPng, b.run(Sink::kPng, with_receiver, m)});
+  }
+  if (!reuse) fs::remove_all(b.dir);
+
+  std::printf("\n%d stereo frames %s 1280x960 of the demo flight; boom: receiver absent; receiver: boom + "
+              "receiver + stereo classes\n\n",
+              frames, to_string(format).data());
+  std::printf(
+      "| scene | pipeline | frames | stereo fps | fps incl. close | CPU ms/frame (all threads) | replay CPU ms | augment ms (wall) | "
+      "encode CPU ms | insert CPU ms | raw blobs copied | stored MB |\n");
+  std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (const Row& r : rows) {
+    const Figures& g = r.g;
+    std::printf("| %s | %s | %zu | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %llu | %.1f |\n", r.scene,
+                sink_name(r.sink), g.frames, g.fps, g.fps_incl_close, g.cpu_ms, g.replay_cpu_ms, g.augment_ms, g.encode_cpu_ms, g.insert_cpu_ms,
+                static_cast<unsigned long long>(g.raw_copied), g.stored_mb);
+  }
+  std::printf("\n");
+  for (const char* scene : {"boom", "receiver"}) {
+    const Figures *copy = nullptr, *re = nullptr, *png = nullptr;
+    for (const Row& r : rows) {
+      if (std::string(r.scene) != scene) continue;
+      if (r.sink == Sink::kCopy) copy = &r.g;
+      if (r.sink == Sink::kRecompress) re = &r.g;
+      if (r.sink == Sink::kPng) png = &r.g;
+    }
+    if (!copy || !re) continue;
+    std::printf("%s: copy / recompress %.2f x fps, %.2f x CPU per frame", scene, copy->fps / re->fps,
+                copy->cpu_ms / re->cpu_ms);
+    if (png) std::printf("; copy / PNG %.1f x fps", copy->fps / png->fps);
+    std::printf("; target %d stereo fps (%.1f CPU ms per frame on 2 cores)\n", scene == std::string("boom") ? 120 : 60,
+                2000.0 / (scene == std::string("boom") ? 120 : 60));
+  }
   return 0;
 }

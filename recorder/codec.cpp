@@ -38,9 +38,46 @@ void delta_row(const std::uint8_t* __restrict in, std::uint8_t* __restrict out, 
   for (; x < n; ++x) out[x] = static_cast<std::uint8_t>(in[x] - in[x - d]);
 }
 
+#if defined(__SSE2__)
+// The running sums of a row's residuals, 16 bytes at a time for d = 1, 2 and 4 (SSE2 only): the
+// prefix sum with stride d inside the vector (log steps), plus the last d bytes of the previous
+// vector broadcast in the same pattern. Only that broadcast is on the chain from vector to vector.
+template <int D>
+std::size_t undelta_sse2(std::uint8_t* p, std::size_t n) {
+  if (n < 16 + D) return D;
+  __m128i carry = _mm_setzero_si128();
+  // The first D bytes are kept as they are: start at 0 with a zero carry (their sums are themselves).
+  std::size_t x = 0;
+  for (; x + 16 <= n; x += 16) {
+    __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p + x));
+    if constexpr (D == 1) v = _mm_add_epi8(v, _mm_slli_si128(v, 1));
+    if constexpr (D <= 2) v = _mm_add_epi8(v, _mm_slli_si128(v, 2));
+    v = _mm_add_epi8(v, _mm_slli_si128(v, 4));
+    v = _mm_add_epi8(v, _mm_slli_si128(v, 8));
+    v = _mm_add_epi8(v, carry);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(p + x), v);
+    if constexpr (D == 1) {
+      const __m128i b = _mm_unpackhi_epi8(v, v);  // byte 15 in word 7
+      carry = _mm_shuffle_epi32(_mm_shufflehi_epi16(b, 0xFF), 0xFF);
+    } else if constexpr (D == 2) {
+      carry = _mm_shuffle_epi32(_mm_shufflehi_epi16(v, 0xFF), 0xFF);
+    } else {
+      carry = _mm_shuffle_epi32(v, 0xFF);
+    }
+  }
+  return x;  // the scalar loop finishes the row from here
+}
+#endif
+
 // The inverse of delta_row, in place.
 void undelta_row(std::uint8_t* p, std::size_t n, std::size_t d) {
-  for (std::size_t x = d; x < n; ++x) p[x] = static_cast<std::uint8_t>(p[x] + p[x - d]);
+  std::size_t x = d;
+#if defined(__SSE2__)
+  if (d == 1) x = std::max(x, undelta_sse2<1>(p, n));
+  if (d == 2) x = std::max(x, undelta_sse2<2>(p, n));
+  if (d == 4) x = std::max(x, undelta_sse2<4>(p, n));
+#endif
+  for (; x < n; ++x) p[x] = static_cast<std::uint8_t>(p[x] + p[x - d]);
 }
 
 void xor_bytes(const std::uint8_t* __restrict a, const std::uint8_t* __restrict b,
