@@ -5,7 +5,8 @@
 // stereo pair (left then right, the same instant) as FlightSource does; the tanker moves between
 // pairs. Process CPU time (all threads: llvmpipe's and the CPU renderer's bands) per view and per
 // pair, and wall time per pair. On a shared machine trust the CPU figures and the ratios.
-//   build/bench_sim [--frames N] [--backend gl|cpu|both] [--threads T]
+// --write DIR writes each row's last left view as DIR/<back end>_<lens>_<format>.pgm or .ppm.
+//   build/bench_sim [--frames N] [--backend gl|cpu|both] [--threads T] [--write DIR]
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -23,7 +24,7 @@ using Clock = std::chrono::steady_clock;
 
 int main(int argc, char** argv) {
   int pairs = 20, threads = 2;
-  std::string backends = "both";
+  std::string backends = "both", write_dir;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "--frames")
@@ -32,8 +33,10 @@ int main(int argc, char** argv) {
       backends = argv[i + 1];
     else if (a == "--threads")
       threads = std::atoi(argv[i + 1]);
+    else if (a == "--write")
+      write_dir = argv[i + 1];
     else {
-      std::fprintf(stderr, "usage: bench_sim [--frames N] [--backend gl|cpu|both] [--threads T]\n");
+      std::fprintf(stderr, "usage: bench_sim [--frames N] [--backend gl|cpu|both] [--threads T] [--write DIR]\n");
       return 2;
     }
   }
@@ -91,6 +94,18 @@ int main(int argc, char** argv) {
           sensor.noise_seed = static_cast<std::uint64_t>(i);
           for (int camera = 0; camera < 2; ++camera)
             if (!(*renderer)->render(camera, sky, T_body_receiver, true, sensor, out)) return 1;
+        }
+        if (!write_dir.empty()) {
+          if (!(*renderer)->render(0, sky, T_body_receiver, true, sensor, out)) return 1;
+          const std::string path = write_dir + "/" + (backend == SceneBackend::kCpu ? "cpu_" : "gl_") +
+                                   (distorted ? "radtan_" : "none_") + std::string(to_string(f)) +
+                                   (f == PixelFormat::kRGB8 ? ".ppm" : ".pgm");
+          if (FILE* file = std::fopen(path.c_str(), "wb")) {
+            std::fprintf(file, "P%d\n%d %d\n255\n", f == PixelFormat::kRGB8 ? 6 : 5, out.width(), out.height());
+            for (int y = 0; y < out.height(); ++y)
+              std::fwrite(out.row(y), 1, static_cast<std::size_t>(out.width()) * bytes_per_pixel(f), file);
+            std::fclose(file);
+          }
         }
         const double wall_ms = 1e3 * std::chrono::duration<double>(Clock::now() - t0).count() / pairs;
         const double cpu_ms = (process_cpu_ms() - c0) / pairs;

@@ -26,6 +26,10 @@
 #include <thread>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "core/conventions.hpp"
 #include "render/models.hpp"
 #include "render/projection.hpp"
@@ -37,7 +41,7 @@ namespace {
 
 constexpr int kTileTexels = 2048;  // 8 m texels, 16.4 km tile, as the OpenGL back end
 constexpr int kTileShift = 11;
-constexpr int kTileLevels = kTileShift + 1;
+constexpr int kTileLevels = kTileShift - 1;  // down to 4 x 4 texels (2 km): beyond, haze hides all
 constexpr double kTileM = 16384.0;
 constexpr double kTexelM = kTileM / kTileTexels;
 constexpr int kBlock = 16;                   // background node spacing, raw pixels
@@ -192,6 +196,11 @@ Pyramid make_pyramid(std::vector<std::uint32_t> level0, int w, int h, int max_le
   return p;
 }
 
+// Index of texel (x, y) in a tiled level of side 2^shift (shift >= 2).
+inline std::size_t tiled_index(int shift, std::uint32_t x, std::uint32_t y) {
+  return (((static_cast<std::size_t>(y >> 2) << (shift - 2)) + (x >> 2)) << 4) | ((y & 3u) << 2) | (x & 3u);
+}
+
 // The tile is the same for every renderer: baked once per process (about 0.3 s on two cores).
 std::shared_ptr<const Pyramid> ground_tile() {
   static std::mutex mutex;
@@ -208,25 +217,37 @@ std::shared_ptr<const Pyramid> ground_tile() {
     bake_rows(0, kTileTexels / 2);
     other.join();
   }
-  tile = std::make_shared<const Pyramid>(make_pyramid(std::move(texels), kTileTexels, kTileTexels, kTileLevels));
+  Pyramid p = make_pyramid(std::move(texels), kTileTexels, kTileTexels, kTileLevels);
+  // 4 x 4 texel tiles (128 bytes): a bilinear footprint and its neighbours along any direction
+  // stay in a few cache lines, where rows of 16 kB would miss on every texel row.
+  for (std::size_t l = 0; l < p.texels.size(); ++l) {
+    const int side = p.width[l], shift = kTileShift - static_cast<int>(l);
+    std::vector<std::uint64_t> tiled(p.texels[l].size());
+    for (int y = 0; y < side; ++y)
+      for (int x = 0; x < side; ++x) tiled[tiled_index(shift, x, y)] = p.texels[l][static_cast<std::size_t>(y) * side + x];
+    p.texels[l] = std::move(tiled);
+  }
+  tile = std::make_shared<const Pyramid>(std::move(p));
   return tile;
 }
 
-// Bilinear sample of a power-of-two tile level (side 2^shift) at 16.16 fixed-point texel
+// Bilinear sample of a power-of-two, tiled tile level (side 2^shift) at 16.16 fixed-point texel
 // coordinates (texel centres at integers), wrapping: uint32 overflow is a multiple of the period.
 inline std::uint64_t sample_tile(const std::uint64_t* tex, int shift, std::uint32_t s, std::uint32_t t) {
   const std::uint32_t mask = (1u << shift) - 1u;
   const std::uint32_t x0 = (s >> 16) & mask, y0 = (t >> 16) & mask;
   const std::uint32_t x1 = (x0 + 1u) & mask, y1 = (y0 + 1u) & mask;
-  const std::uint64_t* r0 = tex + (static_cast<std::size_t>(y0) << shift);
-  const std::uint64_t* r1 = tex + (static_cast<std::size_t>(y1) << shift);
   const std::uint32_t wx = (s >> 8) & 0xffu, wy = (t >> 8) & 0xffu;
-  return lerp64(lerp64(r0[x0], r0[x1], wx), lerp64(r1[x0], r1[x1], wx), wy);
+  return lerp64(lerp64(tex[tiled_index(shift, x0, y0)], tex[tiled_index(shift, x1, y0)], wx),
+                lerp64(tex[tiled_index(shift, x0, y1)], tex[tiled_index(shift, x1, y1)], wx), wy);
 }
 
-inline std::uint32_t to_fixed(double texel) {
-  return static_cast<std::uint32_t>(static_cast<std::int64_t>(std::floor(texel * 65536.0 + 0.5)));
+inline std::int64_t round_to_int64(double v) {  // without a library call
+  const double r = v + 0.5;
+  const auto i = static_cast<std::int64_t>(r);
+  return i - (r < static_cast<double>(i));
 }
+inline std::uint32_t to_fixed(double texel) { return static_cast<std::uint32_t>(round_to_int64(texel * 65536.0)); }
 
 // ---- shading: the OpenGL sky shader's formulas, in 0..255 units ----
 
@@ -235,9 +256,8 @@ constexpr float kWoodBase[3] = {0.18f * 0.45f * 255.0f, 0.27f * 0.45f * 255.0f, 
 constexpr float kWoodSlope[3] = {0.18f * 1.1f, 0.27f * 1.1f, 0.13f * 1.1f};
 constexpr float kHaze[3] = {0.60f * 255.0f, 0.66f * 255.0f, 0.74f * 255.0f};
 
-inline std::uint8_t to_u8(float v) {
-  v += 0.5f;
-  return static_cast<std::uint8_t>(v >= 255.0f ? 255 : v <= 0.0f ? 0 : static_cast<int>(v));
+inline std::uint8_t to_u8(float v) {  // rounded, clamped; branch-free (minss, maxss)
+  return static_cast<std::uint8_t>(static_cast<int>(std::min(std::max(v, 0.0f) + 0.5f, 255.0f)));
 }
 
 // One channel of a ground pixel from its filtered texel `g` (expanded), the woods weight `sm`, the
@@ -450,6 +470,31 @@ double normal_quantile(double p) {
   return x;
 }
 
+// Sensor noise: a field of 2^23 precomputed samples, each row reading it from a random offset.
+constexpr std::size_t kNoiseField = std::size_t{1} << 23;
+constexpr std::size_t kNoiseTail = 4 * static_cast<std::size_t>(kMaxImageSidePx);  // one RGBA row past the end
+
+// d[i] = clamp(d[i] + noise[i], 0, 255); `skip_alpha`: every 4th byte (RGBA's alpha) stays.
+void add_saturated(std::uint8_t* d, const std::int8_t* noise, std::size_t n, bool skip_alpha) {
+  std::size_t i = 0;
+#if defined(__SSE2__)
+  if (!skip_alpha) {
+    // 16 bytes at a time: offset to signed, saturating add, back (x ^ 0x80 maps 0..255 to -128..127).
+    const __m128i bias = _mm_set1_epi8(static_cast<char>(0x80));
+    for (; i + 16 <= n; i += 16) {
+      const __m128i v = _mm_xor_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(d + i)), bias);
+      const __m128i r = _mm_xor_si128(_mm_adds_epi8(v, _mm_loadu_si128(reinterpret_cast<const __m128i*>(noise + i))), bias);
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(d + i), r);
+    }
+  }
+#endif
+  for (; i < n; ++i) {
+    if (skip_alpha && (i & 3) == 3) continue;
+    const int v = d[i] + noise[i];
+    d[i] = static_cast<std::uint8_t>(v < 0 ? 0 : v > 255 ? 255 : v);
+  }
+}
+
 inline std::uint64_t splitmix64(std::uint64_t x) {
   x += 0x9e3779b97f4a7c15ull;
   x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
@@ -485,8 +530,8 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   std::vector<ModelTexture> textures_;
   std::vector<CameraTables> cameras_;
   std::vector<float> gauss_;  // 65536 quantiles of N(0, 1): 16 random bits -> one Gaussian sample
-  std::vector<std::int32_t> noise_q8_;  // gauss_ * sigma in 1/256 DN, + 128 for rounding
-  double noise_q8_sigma_ = -1;
+  std::vector<std::int8_t> noise_field_;  // sensor noise in whole DN for noise_sigma_ (add_noise)
+  double noise_sigma_ = -1;
 
   // Receiver scratch, sized to the largest virtual image: 1/z and triangle id + 1 per sample
   // (zero outside the last frame's box), and the shaded colour per sample (distorted cameras).
@@ -673,8 +718,8 @@ void CpuSceneRenderer::background_rows(const CameraTables& ct, const FrameSky& f
           float kl = c00.k1 + fyf * (c01.k1 - c00.k1), kr = c10.k1 + fyf * (c11.k1 - c10.k1);
           float hl = c00.h + fyf * (c01.h - c00.h), hr = c10.h + fyf * (c11.h - c10.h);
           std::uint32_t s = to_fixed(sl + s_off), t = to_fixed(tl + t_off);
-          const auto ds = static_cast<std::uint32_t>(static_cast<std::int32_t>(std::lround((sr - sl) / span_x * 65536.0)));
-          const auto dt = static_cast<std::uint32_t>(static_cast<std::int32_t>(std::lround((tr - tl) / span_x * 65536.0)));
+          const auto ds = static_cast<std::uint32_t>(round_to_int64((sr - sl) / span_x * 65536.0));
+          const auto dt = static_cast<std::uint32_t>(round_to_int64((tr - tl) / span_x * 65536.0));
           const auto inv = static_cast<float>(1.0 / span_x);
           const float dw = (wr - wl) * inv, dk = (kr - kl) * inv, dh = (hr - hl) * inv;
           std::uint8_t* row = out.row(y);
@@ -750,11 +795,17 @@ void CpuSceneRenderer::background(const CameraTables& ct, const FrameSky& f, Pix
 std::uint64_t sample_texture(const Pyramid& p, int level, float u, float v) {
   const int w = p.width[level], h = p.height[level];
   const float x = u * static_cast<float>(w) - 0.5f, y = v * static_cast<float>(h) - 0.5f;
-  const float xf = std::floor(x), yf = std::floor(y);
-  const auto wx = static_cast<std::uint32_t>(std::clamp(static_cast<int>((x - xf) * 256.0f), 0, 255));
-  const auto wy = static_cast<std::uint32_t>(std::clamp(static_cast<int>((y - yf) * 256.0f), 0, 255));
-  const long xi = static_cast<long>(xf), yi = static_cast<long>(yf);
-  const int x0 = static_cast<int>(((xi % w) + w) % w), y0 = static_cast<int>(((yi % h) + h) % h);
+  const long xl = static_cast<long>(x) - (x < static_cast<float>(static_cast<long>(x)));  // floor
+  const long yl = static_cast<long>(y) - (y < static_cast<float>(static_cast<long>(y)));
+  const auto wx = static_cast<std::uint32_t>(std::clamp(static_cast<int>((x - static_cast<float>(xl)) * 256.0f), 0, 255));
+  const auto wy = static_cast<std::uint32_t>(std::clamp(static_cast<int>((y - static_cast<float>(yl)) * 256.0f), 0, 255));
+  // REPEAT: coordinates are nearly always within one period of the texture.
+  auto wrap = [](long i, int size) {
+    if (i >= 0 && i < size) return static_cast<int>(i);
+    if (i >= -size && i < 0) return static_cast<int>(i + size);
+    return static_cast<int>(((i % size) + size) % size);
+  };
+  const int x0 = wrap(xl, w), y0 = wrap(yl, h);
   const int x1 = x0 + 1 == w ? 0 : x0 + 1, y1 = y0 + 1 == h ? 0 : y0 + 1;
   const std::uint64_t* t = p.texels[level].data();
   const std::uint64_t* r0 = t + static_cast<std::size_t>(y0) * w;
@@ -938,43 +989,35 @@ void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& ca
 }
 
 void CpuSceneRenderer::add_noise(int camera, const SensorOptions& sensor, Image& out) {
-  if (sensor.noise_sigma != noise_q8_sigma_) {
-    noise_q8_.resize(gauss_.size());
-    for (std::size_t i = 0; i < gauss_.size(); ++i)
-      noise_q8_[i] = static_cast<std::int32_t>(std::lround(sensor.noise_sigma * gauss_[i] * 256.0)) + 128;
-    noise_q8_sigma_ = sensor.noise_sigma;
+  if (sensor.noise_sigma != noise_sigma_) {
+    // The field: kNoiseField samples round(sigma z), z one of 65536 Gaussian quantiles picked by a
+    // fixed stream, so the field (and every image) depends on sigma only. Values beyond +-127 DN
+    // are clipped (sigma > 29 DN).
+    noise_field_.resize(kNoiseField + kNoiseTail);
+    std::uint64_t state = 0x6a09e667f3bcc909ull;
+    for (std::size_t i = 0; i < noise_field_.size(); i += 4) {
+      const std::uint64_t bits = splitmix64(state++);
+      for (std::size_t k = 0; k < 4 && i + k < noise_field_.size(); ++k) {
+        const long v = std::lround(sensor.noise_sigma * gauss_[(bits >> (16 * k)) & 0xffffu]);
+        noise_field_[i + k] = static_cast<std::int8_t>(std::clamp(v, -127L, 127L));
+      }
+    }
+    noise_sigma_ = sensor.noise_sigma;
   }
-  // Counter-based: row y's stream depends on the seed, the camera and y only, so any split of the
-  // rows between threads gives the same image. 16 random bits pick one of 65536 Gaussian quantiles
-  // (fixed point, 1/256 DN).
+  // Row y adds the field's samples from an offset that depends on the seed, the camera and y only,
+  // so any split of the rows between threads gives the same image. Adding round(sigma z) to an
+  // integer is what adding sigma z and rounding gives.
   const std::uint64_t key =
       splitmix64(sensor.noise_seed ^ (0x51ed270b27a3e1f1ull * (static_cast<std::uint64_t>(camera) + 1)));
   const int bpp = bytes_per_pixel(out.format());
-  const int W = out.width(), H = out.height();
-  const std::int32_t* q = noise_q8_.data();
+  const std::size_t n = static_cast<std::size_t>(out.width()) * bpp;
+  const int H = out.height();
   bands_.run([&](int band) {
     const int y0 = H * band / bands_.count(), y1 = H * (band + 1) / bands_.count();
     for (int y = y0; y < y1; ++y) {
-      std::uint64_t counter = splitmix64(key ^ (static_cast<std::uint64_t>(y) * 0xd6e8feb86659fd93ull));
-      std::uint8_t* d = out.row(y);
-      auto add = [q](std::uint8_t& v, std::uint64_t bits16) {
-        const int r = ((static_cast<int>(v) << 8) + q[bits16 & 0xffffu]) >> 8;  // rounded
-        v = static_cast<std::uint8_t>(r < 0 ? 0 : r > 255 ? 255 : r);
-      };
-      if (bpp == 4) {  // R G B, alpha stays opaque
-        for (int x = 0; x < W; ++x) {
-          const std::uint64_t bits = splitmix64(counter++);
-          add(d[4 * x], bits), add(d[4 * x + 1], bits >> 16), add(d[4 * x + 2], bits >> 32);
-        }
-        continue;
-      }
-      const std::size_t n = static_cast<std::size_t>(W) * bpp;
-      std::size_t i = 0;
-      for (; i + 4 <= n; i += 4) {
-        const std::uint64_t bits = splitmix64(counter++);
-        add(d[i], bits), add(d[i + 1], bits >> 16), add(d[i + 2], bits >> 32), add(d[i + 3], bits >> 48);
-      }
-      for (std::uint64_t bits = splitmix64(counter++); i < n; ++i, bits >>= 16) add(d[i], bits);
+      const std::size_t offset =
+          splitmix64(key ^ (static_cast<std::uint64_t>(y) * 0xd6e8feb86659fd93ull)) & (kNoiseField - 1);
+      add_saturated(out.row(y), noise_field_.data() + offset, n, bpp == 4);
     }
   });
 }
