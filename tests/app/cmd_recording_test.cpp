@@ -1,8 +1,8 @@
 // augrig check, replay and export through the real binary, on a recording this test writes with
 // recorder::Recorder from frames it augments itself (so the recording holds the real augmenter's
 // images, masks and statistics): replay reproduces the recorded statistics, seeks, loops, paces,
-// re-augments with another scene or rig, reports a damaged frame and goes on; export writes the
-// EuRoC layout; exit codes and messages of bad inputs and flags.
+// re-augments with another scene or rig, reports a damaged frame and goes on; exit codes and
+// messages of bad inputs and flags. The export command's tests are in tests/app/cmd_export_test.cpp.
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -325,41 +325,6 @@ TEST(CmdRecording, ReplaysAnExportedEurocFolderWithAScene) {
   }
 }
 
-TEST(CmdRecording, ExportWritesTheEurocLayout) {
-  const std::string out = output_dir("cmd_recording_export");
-  const bool plot = !recorder::find_gnuplot().empty();
-  std::string log;
-  ASSERT_EQ(augrig("export " + recording() + " --format euroc " + out + (plot ? "" : " --no-plot"), &log), 0)
-      << log;
-  EXPECT_NE(log.find("Exported 8 of 8 stereo frame(s) to " + out +
-                     "/mav0: cam0, cam1, cam0_augmented, cam1_augmented, cam0_mask, cam1_mask"),
-            std::string::npos)
-      << log;
-  EXPECT_NE(log.find("note: no nav inputs in the recording: imu0 not written"), std::string::npos) << log;
-  EXPECT_EQ(lines_of(out + "/mav0/cam0/data.csv"), 9u);
-  EXPECT_EQ(lines_of(out + "/mav0/cam1_mask/data.csv"), 9u);
-  EXPECT_TRUE(fs::exists(out + "/mav0/cam1/sensor.yaml"));
-  EXPECT_EQ(lines_of(out + "/stats.csv"), 9u);
-  EXPECT_GT(lines_of(out + "/poses.csv"), 16u);
-  if (plot) {
-    EXPECT_TRUE(fs::exists(out + "/stats.png"));
-  }
-
-  EXPECT_EQ(augrig("export " + recording() + " --format euroc " + out, &log), 1) << log;
-  EXPECT_NE(log.find("augrig export: " + out + "/mav0: exists already"), std::string::npos) << log;
-  EXPECT_EQ(augrig("export " + recording() + " --format kitti " + out, &log), 2) << log;
-  EXPECT_NE(log.find("--format: expected euroc, got 'kitti'"), std::string::npos) << log;
-  EXPECT_EQ(augrig("export " + recording() + " " + out, &log), 2) << log;
-  EXPECT_NE(log.find("missing required option --format euroc"), std::string::npos) << log;
-  EXPECT_EQ(augrig("export " + recording() + " --format euroc", &log), 2) << log;
-  EXPECT_NE(log.find("expected DIR OUT, got '" + recording() + "'"), std::string::npos) << log;
-  EXPECT_EQ(
-      augrig("export " + output_dir("cmd_recording_export_missing") + "/x --format=euroc " + out + "2", &log),
-      1)
-      << log;
-  EXPECT_NE(log.find("/x: no such file"), std::string::npos) << log;
-}
-
 // The first `bytes` of a recording's database, as `head -c` leaves a file copied half-way.
 std::string truncated_copy(const std::string& from, const std::string& name, std::uintmax_t bytes) {
   const std::string dir = output_dir(name);
@@ -381,9 +346,9 @@ const std::string& long_recording() {
   return dir;
 }
 
-// A recording cut in half: replay and export said "Replayed 99" / "Exported 99 of 99" and exited
-// 0 while the summary said 201. They must say what is missing and exit 1; export marks its output.
-TEST(CmdRecording, ReplayAndExportOfATruncatedRecordingSayWhatIsMissing) {
+// A recording cut in half: replay said "Replayed 99" and exited 0 while the summary said 201. It
+// must say what is missing and exit 1 (the export's half is in tests/app/cmd_export_test.cpp).
+TEST(CmdRecording, ReplayOfATruncatedRecordingSaysWhatIsMissing) {
   const std::uintmax_t size = fs::file_size(long_recording() + "/recording.sqlite");
   const std::string half = truncated_copy(long_recording(), "cmd_recording_truncated", size / 2);
   std::string log;
@@ -394,49 +359,10 @@ TEST(CmdRecording, ReplayAndExportOfATruncatedRecordingSayWhatIsMissing) {
   EXPECT_NE(log.find("the recording's summary says 60 frames were recorded"), std::string::npos) << log;
   EXPECT_NE(log.find("augrig replay: the recording is incomplete (above)"), std::string::npos) << log;
 
-  const std::string out = output_dir("cmd_recording_truncated_export");
-  ASSERT_EQ(augrig("export " + half + " --format euroc " + out + " --no-plot", &log), 1) << log;
-  EXPECT_NE(log.find("readable (60 recorded) stereo frame(s)"), std::string::npos) << log;
-  EXPECT_NE(log.find("the export is incomplete"), std::string::npos) << log;
-  std::ifstream marker(out + "/INCOMPLETE");
-  ASSERT_TRUE(marker) << "the output is not marked incomplete";
-  const std::string text((std::istreambuf_iterator<char>(marker)), std::istreambuf_iterator<char>());
-  EXPECT_NE(text.find("summary says 60 frames were recorded"), std::string::npos) << text;
-
-  // Cut before the first frame: nothing to replay or export, and both say so with exit 1.
+  // Cut before the first frame: nothing to replay, and it says so with exit 1.
   const std::string head = truncated_copy(long_recording(), "cmd_recording_truncated_head", 3 * 65536);
   EXPECT_EQ(augrig("replay " + head, &log), 1) << log;
   EXPECT_EQ(log.find("Replayed"), std::string::npos) << log;
-  const std::string out2 = output_dir("cmd_recording_truncated_head_export");
-  EXPECT_EQ(augrig("export " + head + " --format euroc " + out2 + " --no-plot", &log), 1) << log;
-  if (fs::exists(out2 + "/mav0")) {
-    EXPECT_TRUE(fs::exists(out2 + "/INCOMPLETE")) << log;
-  }
-}
-
-// A finished export leaves no marker; one killed part-way leaves OUT/INCOMPLETE next to what it
-// wrote (it once left PNGs and empty data.csv files that looked like a finished export).
-TEST(CmdRecording, AKilledExportIsMarkedIncomplete) {
-  const std::string done = output_dir("cmd_recording_export_done");
-  std::string log;
-  ASSERT_EQ(augrig("export " + long_recording() + " --format euroc " + done + " --no-plot", &log), 0) << log;
-  EXPECT_FALSE(fs::exists(done + "/INCOMPLETE"));
-  int killed = 0;
-  for (const char* after : {"0.15", "0.3", "0.6"}) {
-    const std::string out = output_dir(std::string("cmd_recording_export_killed_") + after);
-    const int rc = run_command("timeout -s KILL " + std::string(after) + " " + augrig_binary() + " export " +
-                                   long_recording() + " --format euroc " + out + " --no-plot",
-                               &log);
-    if (rc == 0) {
-      EXPECT_FALSE(fs::exists(out + "/INCOMPLETE"));
-      continue;
-    }
-    ++killed;
-    if (fs::exists(out + "/mav0")) {
-      EXPECT_TRUE(fs::exists(out + "/INCOMPLETE")) << "killed after " << after << " s";
-    }
-  }
-  EXPECT_GT(killed, 0) << "no export was killed part-way: the test did not test";
 }
 
 }  // namespace
