@@ -1,7 +1,14 @@
 // augrig export DIR --format euroc OUT: a recording in the EuRoC/ASL layout, with its poses,
-// statistics and their plot (docs/REPLAY.md). The recording is opened (and so checked to be one)
-// first; OUT/INCOMPLETE marks an export that has not finished cleanly.
+// statistics and their plot, and per aircraft the nav logs `augrig nav` fuses again, all on one
+// clock (docs/REPLAY.md). The recording is opened (and so checked to be one) first;
+// recorder::export_euroc() keeps OUT/INCOMPLETE until it has finished cleanly. A rate line with the
+// ETA goes to stderr about once a second.
+#include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <sstream>
+
+#include <iomanip>
 
 #include "app/cli.hpp"
 #include "recorder/euroc.hpp"
@@ -19,6 +26,9 @@ const std::vector<OptionSpec>& export_specs() {
        "intrinsics and extrinsics for sensor.yaml (default: the recorded rig)"},
       {"imu-stream", ArgKind::kValue, "NAME",
        "nav input stream exported as imu0 (default: imu, else tanker.imu)"},
+      {"aircraft", ArgKind::kValue, "tanker=FILE,receiver=FILE",
+       "aircraft.yaml of each aircraft for OUT/nav/<aircraft>/ (default: the recording's, if it holds them)"},
+      {"threads", ArgKind::kValue, "N", "threads encoding the images (default: one per core)"},
       {"no-augmented", ArgKind::kFlag, "", "leave out cam0_augmented and cam1_augmented"},
       {"no-masks", ArgKind::kFlag, "", "leave out cam0_mask and cam1_mask"},
       {"no-plot", ArgKind::kFlag, "", "do not plot the statistics (stats.png needs gnuplot)"},
@@ -34,7 +44,9 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
         "augrig export DIR --format euroc OUT [options]",
         "Writes a recording in the EuRoC/ASL layout: OUT/mav0/cam0, cam1 (raw), cam0_augmented,\n"
         "cam1_augmented, cam0_mask, cam1_mask (data.csv, data/<t_ns>.png, sensor.yaml) and imu0, plus\n"
-        "OUT/poses.csv (recorded T_cam_receiver), OUT/stats.csv and OUT/stats.png (gnuplot).",
+        "OUT/poses.csv (recorded T_cam_receiver), OUT/stats.csv and OUT/stats.png (gnuplot); with nav\n"
+        "inputs, OUT/nav/<aircraft>/ (gps.nmea, imu.csv, aircraft.yaml) and the frame index OUT/frames.csv\n"
+        "for augrig nav. Every timestamp is on one clock: GPS time when the recording allows it.",
         export_specs());
     return kExitOk;
   }
@@ -45,30 +57,36 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   o.augmented = !a.has("no-augmented");
   o.masks = !a.has("no-masks");
   o.plot = !a.has("no-plot");
+  if (a.has("threads")) o.threads = static_cast<int>(parse_integer("threads", a.get("threads"), 1, 64));
+  if (a.has("aircraft")) {
+    std::stringstream ss(a.get("aircraft"));
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+      const auto eq = item.find('=');
+      const std::string who = eq == std::string::npos ? "" : item.substr(0, eq);
+      if (who != "tanker" && who != "receiver")
+        usage_error("--aircraft: expected tanker=FILE or receiver=FILE, got '" + item + "'");
+      const std::string file = item.substr(eq + 1);
+      std::ifstream in(file, std::ios::binary);
+      if (!in) runtime_error("--aircraft: " + file + ": cannot open the file");
+      o.aircraft_yaml[who] = std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    }
+  }
   const auto reader = open_recording(pos[0]);
   const fs::path out_dir = pos[1];
-  // OUT/INCOMPLETE exists until the export has finished without a problem: a killed or failed
-  // export is marked as such, and what is missing is written into it.
-  const fs::path marker = out_dir / "INCOMPLETE";
-  auto write_marker = [&](const std::vector<std::string>& lines) {
-    std::ofstream m(marker);
-    m << "augrig export " << pos[0] << " -> " << pos[1] << " is incomplete";
-    m << (lines.empty() ? ": it was still running or was stopped before the end\n" : ":\n");
-    for (const std::string& l : lines) m << l << "\n";
-    if (!m) runtime_error(marker.string() + ": cannot be written");
+  // The rate line, about once a second (the library prints nothing itself).
+  o.progress = [&err](const recorder::EurocExportProgress& p) {
+    if (p.final) return;
+    std::ostringstream line;
+    line << "export: " << p.frames_done << "/" << p.frames_total << " frames, " << std::fixed
+         << std::setprecision(1) << p.frames_per_s << "/s, ETA ";
+    const long eta = std::lround(p.eta_s);
+    if (eta >= 60) line << eta / 60 << " min ";
+    line << eta % 60 << " s\n";
+    err << line.str() << std::flush;
   };
-  if (!fs::exists(out_dir / "mav0")) {  // export_euroc refuses an existing mav0: no marker for that
-    make_dirs(out_dir);
-    write_marker({});
-  }
   recorder::EurocExportReport r;
-  if (Status s = recorder::export_euroc(*reader, pos[1], o, r); !s) {
-    if (fs::exists(marker)) write_marker({user_message(s.error())});
-    check(s);
-  }
-  // The recording's own damage (a truncated file: frames its summary counts but no row holds).
-  for (auto p = reader->problems().rbegin(); p != reader->problems().rend(); ++p)
-    r.problems.insert(r.problems.begin(), recording_problem(*reader, *p));
+  check(recorder::export_euroc(*reader, pos[1], o, r));
 
   const std::string summary_frames = reader->meta("summary.frames");
   out << "Exported " << r.frames_written << " of "
@@ -80,17 +98,26 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (r.masks_written) out << ", cam0_mask, cam1_mask";
   if (r.imu_samples) out << ", imu0 (" << r.imu_samples << " samples of '" << r.imu_stream << "')";
   out << "; " << r.rate_hz << " Hz\n";
+  out << "Clock: " << to_string(r.clock) << " for every timestamp exported (" << r.clock_note << ")\n";
+  for (const std::string& who : r.nav_logs)
+    out << "Wrote " << (out_dir / "nav" / who).string() << " (gps.nmea, imu.csv"
+        << (fs::exists(out_dir / "nav" / who / "aircraft.yaml") ? ", aircraft.yaml" : "") << ")\n";
+  if (r.frame_index_rows)
+    out << "Wrote " << (out_dir / "frames.csv").string() << " (" << r.frame_index_rows << " rows)\n";
+  if (r.nav_logs.size() == 2 && r.frame_index_rows) {
+    out << "Re-fuse with: augrig nav --tanker " << (out_dir / "nav" / "tanker").string() << " --receiver "
+        << (out_dir / "nav" / "receiver").string() << " --rig " << (out_dir / "rig.yaml").string() << " --frames "
+        << (out_dir / "frames.csv").string() << " --out POSES.csv\n";
+  }
   if (r.pose_rows) out << "Wrote " << (out_dir / "poses.csv").string() << " (" << r.pose_rows << " rows)\n";
   if (r.stats_rows) out << "Wrote " << (out_dir / "stats.csv").string() << " (" << r.stats_rows << " rows)\n";
   if (r.plotted) out << "Wrote " << (out_dir / "stats.png").string() << "\n";
   for (const std::string& n : r.notes) out << "note: " << n << "\n";
   for (const std::string& p : r.problems) err << "augrig export: " << p << "\n";
   if (!r.problems.empty()) {
-    write_marker(r.problems);
-    runtime_error("the export is incomplete: " + std::to_string(r.problems.size()) +
-                  " problem(s) (above; listed in " + marker.string() + ")");
+    runtime_error("the export is incomplete: " + std::to_string(r.problems.size()) + " problem(s) (above; listed in " +
+                  (out_dir / "INCOMPLETE").string() + ")");
   }
-  fs::remove(marker);
   return kExitOk;
 }
 

@@ -11,6 +11,12 @@
 //   OUT/poses.csv                     the recorded T_cam_receiver per frame and camera
 //                                     (nav/logs.hpp camera pose CSV)
 //   OUT/stats.csv, OUT/stats.png      occlusion statistics (render/stats.hpp) and their plot
+//   OUT/nav/<aircraft>/               per aircraft with GPS and IMU streams (tanker.gps, tanker.imu,
+//                                     ...): gps.nmea (the sentences with "<arrival_ns> " prefixes),
+//                                     imu.csv (nav/logs.hpp) and aircraft.yaml: what `augrig nav` fuses
+//   OUT/frames.csv                    the frame index (nav/logs.hpp) on the export's clock, for
+//                                     `augrig nav --frames`; OUT/rig.yaml the rig used
+//   OUT/INCOMPLETE                    while the export runs, and after one that did not finish cleanly
 //
 // Frames: the body frame B of every T_BS is the tanker body frame (FRD, core/conventions.hpp);
 // a camera's sensor frame S is its OpenCV frame, so T_BS is the rig's T_body_cam, written as a
@@ -23,6 +29,8 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -39,6 +47,17 @@ namespace augrig::recorder {
 
 // ---- Export ---------------------------------------------------------------------------------------
 
+// How far an export has come (EurocExportOptions::progress). frames_done = frames_written +
+// frames_skipped; the last call has frames_done == frames_total and final set.
+struct EurocExportProgress {
+  std::size_t frames_done = 0, frames_total = 0;
+  std::size_t frames_written = 0, frames_skipped = 0;  // skipped: damaged, not exported
+  double elapsed_s = 0;
+  double frames_per_s = 0;  // since the start
+  double eta_s = 0;         // at that rate
+  bool final = false;
+};
+
 struct EurocExportOptions {
   // The cameras' intrinsics and extrinsics; default: the rig stored in the recording (meta
   // "rig_yaml"). An error when neither is there.
@@ -46,10 +65,22 @@ struct EurocExportOptions {
   bool augmented = true;  // cam0_augmented, cam1_augmented (when the recording has them)
   bool masks = true;      // cam0_mask, cam1_mask (when the recording has them)
   // The nav input stream exported as imu0; empty: "imu", else "tanker.imu", else the only stream
-  // whose name ends in "imu". Its rows must be recorder::imu_input() rows.
+  // whose name ends in "imu". Its rows are recorder::imu_input() CSV rows or augrig IMU datagrams
+  // (nav/imu_stream.hpp), as `augrig run --nav` records them.
   std::string imu_stream;
+  // Per aircraft ("tanker", "receiver"): the aircraft.yaml text written into OUT/nav/<aircraft>/
+  // (lever arm, IMU noise, time offsets; docs/NAV_FORMATS.md). Default: the recording's meta
+  // "aircraft_yaml.<aircraft>"; without either, none is written (augrig nav then uses defaults).
+  std::map<std::string, std::string> aircraft_yaml;
   bool plot = true;  // OUT/stats.png through gnuplot (recorder/plot.hpp)
+  // PNG: 0 stored (no compression, fastest, largest), 1 fast (Huffman coding of the Sub-filtered
+  // rows; masks run-length coded), 2..9 zlib's levels. Every setting is lossless.
   int png_compression = 1;
+  // Threads that encode and write the images; 0: one per core (at least 2); 1: all on the caller's.
+  int threads = 0;
+  // Called on the caller's thread every progress_interval_s at most, and once at the end.
+  std::function<void(const EurocExportProgress&)> progress;
+  double progress_interval_s = 1.0;
 };
 
 struct EurocExportReport {
@@ -57,8 +88,12 @@ struct EurocExportReport {
   std::size_t frames_written = 0;  // stereo frames exported (raw)
   std::size_t augmented_written = 0, masks_written = 0;
   double rate_hz = 0;      // the frames' median rate
+  ClockDomain clock = ClockDomain::kUnknown;  // the clock of every exported timestamp
+  std::string clock_note;                     // how the frames were put on it
   std::string imu_stream;  // exported as imu0 ("" when none)
   std::size_t imu_samples = 0;
+  std::vector<std::string> nav_logs;  // aircraft whose log folder OUT/nav/<aircraft> was written
+  std::size_t frame_index_rows = 0;   // OUT/frames.csv
   std::size_t pose_rows = 0, stats_rows = 0;
   bool plotted = false;
   std::vector<std::string> notes;     // what was left out and why (no augmented images, ...)
@@ -66,8 +101,20 @@ struct EurocExportReport {
 };
 
 // Writes the layout above into `out_dir` (created; an existing OUT/mav0 is an error, so two
-// exports never mix). Damaged frames are skipped and listed in report.problems; an error is
-// returned only when the export cannot go on (no rig, a file that cannot be written).
+// exports never mix). Damaged frames are skipped and listed in report.problems (so is the
+// recording's own damage, RecordingReader::problems()); an error is returned only when the export
+// cannot go on (no rig, a file that cannot be written).
+//
+// OUT/INCOMPLETE exists from the moment OUT/mav0 is made until the export has finished with no
+// problem; an export that failed, met problems or was killed leaves it, listing the problems (or
+// saying it was stopped before the end).
+//
+// Clock: every exported timestamp (image names and data.csv, imu0, poses.csv, stats.csv,
+// frames.csv) is on one clock, report.clock: GPS time when the frames can be put on it (frames
+// already in GPS time; the camera offsets to GPS the recording's clock_domains meta states; or
+// each camera's device clock -> host CLOCK_MONOTONIC (t_host_ns, or the recording's clock_offset
+// events) -> GPS time through the nav inputs' arrival against their own sensor time); else the
+// frames' recorded clock, with a note.
 Status export_euroc(const RecordingReader& reader, const std::string& out_dir,
                     const EurocExportOptions& options, EurocExportReport& report);
 
