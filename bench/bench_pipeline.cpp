@@ -21,8 +21,10 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "core/clock.hpp"
 #include "recorder/reader.hpp"
@@ -96,7 +98,8 @@ struct Figures {
 };
 
 // Makes the input recording: the demo flight's last `frames` stereo frames in `format`.
-void make_input(PixelFormat format, int frames, const fs::path& input, sim::Scenario& scenario) {
+// The scenario's camera format is the input's.
+void make_input(int frames, const fs::path& input, sim::Scenario& scenario) {
   const sim::Flight flight = need(sim::Flight::create(scenario), "flight");
   const sim::SensorLogs logs = sim::simulate_sensors(scenario, flight);
   std::vector<sim::FrameTruth> truths = sim::frame_truths(scenario, flight, logs.cameras);
@@ -110,7 +113,6 @@ void make_input(PixelFormat format, int frames, const fs::path& input, sim::Scen
   recorder::RecorderOptions ro;
   ro.overwrite = true;
   auto rec = need(recorder::Recorder::create(input.string(), info, ro), "input recording");
-  (void)format;
   for (std::size_t i = 0; i + 1 < truths.size(); i += 2) {
     recorder::FrameRecord fr;
     need(source->read(fr.raw.left, {}), "render");
@@ -297,7 +299,7 @@ int main(int argc, char** argv) {
     fs::remove_all(b.input);
     std::printf("making the input recording (not timed) ...\n");
     std::fflush(stdout);
-    make_input(format, frames, b.input, scenario);
+    make_input(frames, b.input, scenario);
   }
   AugmentOptions options;
   options.augmented_output = AugmentedOutput::kChangedBox;
