@@ -61,7 +61,8 @@ SkyState sky_at(const Scenario& scenario, const Flight& flight, double t_s) {
 }
 
 Expected<std::unique_ptr<FlightSource>> FlightSource::create(const Scenario& scenario, const Flight& flight,
-                                                             std::vector<FrameTruth> frames, int every) {
+                                                             std::vector<FrameTruth> frames, int every,
+                                                             SceneBackend backend) {
   std::unique_ptr<FlightSource> s(new FlightSource());
   s->scenario_ = scenario;
   s->flight_ = &flight;
@@ -69,7 +70,9 @@ Expected<std::unique_ptr<FlightSource>> FlightSource::create(const Scenario& sce
     std::erase_if(frames, [every](const FrameTruth& f) { return f.sequence % every != 0; });
   }
   s->frames_ = std::move(frames);
-  auto renderer = SyntheticSceneRenderer::create(scenario.rig);
+  SceneRendererOptions options;
+  options.backend = backend;
+  auto renderer = SyntheticSceneRenderer::create(scenario.rig, nullptr, options);
   if (!renderer) return renderer.error();
   s->renderer_ = std::move(*renderer);
   s->sensor_.format = scenario.sensors.cameras.format;

@@ -44,10 +44,12 @@ SkyState sky_at(const Scenario& scenario, const Flight& flight, double t_s);
 
 class FlightSource final : public FrameSource {
  public:
-  // Needs a current GL context. `frames` from frame_truths(); only those with
+  // Renders with the CPU back end (SceneBackend::kCpu, no GL context needed) unless `backend`
+  // says otherwise (kOpenGL needs a current GL context). `frames` from frame_truths(); only those with
   // `every`-th sequence numbers (sequence % every == 0) are rendered and delivered.
   static Expected<std::unique_ptr<FlightSource>> create(const Scenario& scenario, const Flight& flight,
-                                                        std::vector<FrameTruth> frames, int every = 1);
+                                                        std::vector<FrameTruth> frames, int every = 1,
+                                                        SceneBackend backend = SceneBackend::kCpu);
   std::string uri() const override { return "sim://" + scenario_.name; }
   Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
   // The truth of the frame read() will render next (nullptr at the end), and skipping it unrendered:

@@ -371,7 +371,7 @@ struct CameraTables {
   std::vector<Eigen::Vector3d> node_ray;
   std::vector<double> node_ang;              // angle between neighbouring pixels at the node, rad
   std::vector<std::uint8_t> block_valid;     // every pixel of the block has a ray
-  std::vector<std::int32_t> nearest_sample;  // distorted: raw pixel -> nearest virtual sample, -1 none
+  std::vector<Eigen::Vector2f> virtual_xy;   // distorted: raw pixel's ray in virtual pixels, NaN none
   int group = 0;                             // the lowest camera index with the same lens and orientation
 
   Eigen::Vector3d ray(int x, int y) const {
@@ -534,10 +534,9 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   double noise_sigma_ = -1;
 
   // Receiver scratch, sized to the largest virtual image: 1/z and triangle id + 1 per sample
-  // (zero outside the last frame's box), and the shaded colour per sample (distorted cameras).
+  // (zero outside the last frame's box).
   std::vector<float> inv_z_;
   std::vector<std::uint32_t> ids_;
-  std::vector<std::uint32_t> colour_;
   std::vector<Eigen::Vector3d> verts_cam_;
   std::vector<Eigen::Vector3f> light_front_, light_back_;
   std::vector<std::size_t> vert_offset_;
@@ -607,15 +606,11 @@ Status CpuSceneRenderer::init(std::shared_ptr<const Model> receiver) {
       for (int u = 0; u < W; ++u) ct.col_x[u] = static_cast<float>((u - ct.vp.cx) / ct.vp.fx);
       for (int v = 0; v < H; ++v) ct.row_y[v] = static_cast<float>((v - ct.vp.cy) / ct.vp.fy);
     } else {
-      ct.nearest_sample.resize(static_cast<std::size_t>(W) * H);
-      for (std::size_t i = 0; i < ct.nearest_sample.size(); ++i) {
+      ct.virtual_xy.resize(static_cast<std::size_t>(W) * H);
+      for (std::size_t i = 0; i < ct.virtual_xy.size(); ++i) {
         const Eigen::Vector2f& r = ct.vp.ray_xy[i];
-        ct.nearest_sample[i] = -1;
-        if (!std::isfinite(r.x()) || !std::isfinite(r.y())) continue;
-        const Eigen::Vector2d p = ct.vp.to_virtual(r.cast<double>());
-        const long x = std::lround(p.x()), y = std::lround(p.y());
-        if (x >= 0 && y >= 0 && x < ct.vp.width && y < ct.vp.height)
-          ct.nearest_sample[i] = static_cast<std::int32_t>(y * ct.vp.width + x);
+        ct.virtual_xy[i] = Eigen::Vector2f::Constant(NAN);
+        if (std::isfinite(r.x()) && std::isfinite(r.y())) ct.virtual_xy[i] = ct.vp.to_virtual(r.cast<double>()).cast<float>();
       }
     }
     max_samples = std::max(max_samples, static_cast<std::size_t>(ct.vp.width) * ct.vp.height);
@@ -656,7 +651,6 @@ Status CpuSceneRenderer::init(std::shared_ptr<const Model> receiver) {
   }
   inv_z_.assign(max_samples, 0.0f);
   ids_.assign(max_samples, 0u);
-  colour_.assign(max_samples, 0u);
 
   gauss_.resize(65536);
   for (std::size_t i = 0; i < gauss_.size(); ++i)
@@ -888,7 +882,7 @@ void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& ca
   if (box.x0 >= box.x1 || box.y0 >= box.y1) return;
 
   // One channel (0..255) of a covered sample.
-  auto shade = [&](std::uint32_t id, int x, int y, auto&& put) {
+  auto shade = [&](std::uint32_t id, double x, double y, auto&& put) {
     const DrawnTriangle& d = tris_[id - 1];
     double w1 = 0, w2 = 0;
     d.rt.weights(x, y, w1, w2);
@@ -930,17 +924,9 @@ void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& ca
       }
     }
   } else {
-    // Shade the virtual samples, then each raw pixel takes its nearest sample's colour.
-    for (int y = box.y0; y < box.y1; ++y)
-      for (int x = box.x0; x < box.x1; ++x) {
-        const std::size_t i = static_cast<std::size_t>(y) * vp.width + x;
-        if (!ids_[i]) continue;
-        shade(ids_[i], x, y, [&](const Eigen::Vector3f& albedo, const Eigen::Vector3f& lit) {
-          colour_[i] = to_u8(albedo[0] * lit[0]) | static_cast<std::uint32_t>(to_u8(albedo[1] * lit[1])) << 8 |
-                       static_cast<std::uint32_t>(to_u8(albedo[2] * lit[2])) << 16;
-        });
-      }
-    // The raw pixels whose nearest sample lies in the box: the lens image of the box's outline.
+    // Each raw pixel's ray lands between four virtual samples: the triangles they hold are the
+    // candidates, tested exactly at the ray (edge functions, nearest 1/z), as the augmenter does.
+    // The raw pixels whose ray lands in the box: the lens image of the box's outline.
     double u0 = 1e300, v0 = 1e300, u1 = -1e300, v1 = -1e300;
     bool all_projected = true;
     auto outline = [&](double x, double y) {
@@ -962,21 +948,45 @@ void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& ca
     for (int y = ry0; y < ry1; ++y) {
       std::uint8_t* row = out.row(y);
       for (int x = rx0; x < rx1; ++x) {
-        const std::int32_t s = ct.nearest_sample[static_cast<std::size_t>(y) * ct.width + x];
-        if (s < 0 || !ids_[static_cast<std::size_t>(s)]) continue;
-        const std::uint32_t c = colour_[static_cast<std::size_t>(s)];
-        const auto r = static_cast<std::uint8_t>(c), g = static_cast<std::uint8_t>(c >> 8),
-                   b = static_cast<std::uint8_t>(c >> 16);
-        if (bayer) {
-          const int ch = bayer_channel(fmt, x, y);
-          row[x] = ch == 0 ? r : ch == 1 ? g : b;
-        } else if (fmt == PixelFormat::kMono8) {
-          put_rgb<kModeMono>(row, x, r, g, b);
-        } else if (fmt == PixelFormat::kRGB8) {
-          put_rgb<kModeRgb>(row, x, r, g, b);
-        } else {
-          put_rgb<kModeRgba>(row, x, r, g, b);
+        const Eigen::Vector2f& p = ct.virtual_xy[static_cast<std::size_t>(y) * ct.width + x];
+        if (!(p.x() >= box.x0 - 1 && p.y() >= box.y0 - 1 && p.x() < box.x1 && p.y() < box.y1)) continue;  // NaN too
+        const int sx = std::max(0, static_cast<int>(p.x() + 1.0f) - 1), sy = std::max(0, static_cast<int>(p.y() + 1.0f) - 1);
+        const double X = p.x(), Y = p.y();
+        std::uint32_t best = 0, nearest = 0;
+        double best_w = 0;
+        int covered = 0;
+        for (int k = 0; k < 4; ++k) {
+          const int qx = std::min(sx + (k & 1), vp.width - 1), qy = std::min(sy + (k >> 1), vp.height - 1);
+          const std::uint32_t id = ids_[static_cast<std::size_t>(qy) * vp.width + qx];
+          covered += id != 0;
+          if (qx == std::min(static_cast<int>(X + 0.5), vp.width - 1) && qy == std::min(static_cast<int>(Y + 0.5), vp.height - 1))
+            nearest = id;
+          if (!id || id == best) continue;
+          const RasterTriangle& t = tris_[id - 1].rt;
+          const double e0 = t.ea[0] * X + t.eb[0] * Y + t.ec[0], e1 = t.ea[1] * X + t.eb[1] * Y + t.ec[1],
+                       e2 = t.ea[2] * X + t.eb[2] * Y + t.ec[2];
+          if (e0 < 0 || e1 < 0 || e2 < 0) continue;
+          const double w = (e0 + e1 + e2) * t.inv_area;  // 1/z
+          if (t.crosses_near && w > 1.0 / ct.near_m) continue;
+          if (w > best_w) best = id, best_w = w;
         }
+        // Inside the surface (all four samples on it) a small triangle may hold none of them.
+        if (!best && covered == 4) best = nearest;
+        if (!best) continue;
+        shade(best, X, Y, [&](const Eigen::Vector3f& albedo, const Eigen::Vector3f& lit) {
+          if (bayer) {
+            const int ch = bayer_channel(fmt, x, y);
+            row[x] = to_u8(albedo[ch] * lit[ch]);
+            return;
+          }
+          const std::uint8_t r = to_u8(albedo[0] * lit[0]), g = to_u8(albedo[1] * lit[1]), b = to_u8(albedo[2] * lit[2]);
+          if (fmt == PixelFormat::kMono8)
+            put_rgb<kModeMono>(row, x, r, g, b);
+          else if (fmt == PixelFormat::kRGB8)
+            put_rgb<kModeRgb>(row, x, r, g, b);
+          else
+            put_rgb<kModeRgba>(row, x, r, g, b);
+        });
       }
     }
   }
