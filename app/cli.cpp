@@ -5,7 +5,9 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "pipeline/nav_inputs.hpp"
 #include "recorder/reader.hpp"
+#include "recorder/recorder.hpp"
 #include "render/visualize.hpp"
 
 namespace augrig::app {
@@ -57,16 +59,6 @@ PixelFormat parse_bayer(const std::string& v) {
   usage_error("--bayer: expected one of RG, GR, GB, BG (colour of the top-left 2x2 cell), got '" + v + "'");
 }
 
-ReceiverSetup receiver_setup(const Rig& rig) {
-  ReceiverSetup r;
-  if (rig.receiver.model.path.empty()) {
-    r.model = std::make_shared<const Model>(make_builtin_receiver(&r.receptacle_m));
-  } else {
-    r.receptacle_m = rig.receiver.receptacle_m;
-  }
-  return r;
-}
-
 std::unique_ptr<GlContext> make_gl_context() {
   auto ctx = create_gl_context(GlBackend::kEglHeadless);
   if (!ctx) runtime_error("cannot create an OpenGL context (EGL headless): " + user_message(ctx.error()));
@@ -85,44 +77,15 @@ void write_png(const fs::path& path, const Image& image) {
   check(write_image_file(path.string(), image));
 }
 
-recorder::FrameRecord frame_record(const StereoResult& r) {
-  recorder::FrameRecord fr;
-  fr.augmented = {r.left.augmented, r.right.augmented};
-  // The changed-box output made only the boxes (an image of the box's size).
-  for (const ViewResult* v : {&r.left, &r.right})
-    if (v->augmented.width() == v->augmented_box.width() &&
-        v->augmented.height() == v->augmented_box.height())
-      fr.augmented_box[v == &r.left ? 0 : 1] = v->augmented_box;
-  fr.mask = {r.left.mask, r.right.mask};
-  fr.stats = r.stats;
-  return fr;
-}
-
 void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoFrame& raw,
                          const StereoResult& r) {
-  const std::string l = n.left + ".png", rr = n.right + ".png";
-  write_png(out / "left" / "augmented" / l, whole_augmented(raw.left.image, r.left));
-  write_png(out / "right" / "augmented" / rr, whole_augmented(raw.right.image, r.right));
-  write_png(out / "left" / "mask" / l, r.left.mask);
-  write_png(out / "right" / "mask" / rr, r.right.mask);
-  write_png(out / "vis" / "boom_overlap" / l, visualize_boom_overlap(r.left.mask, r.right.mask));
-  write_png(out / "vis" / "occlusion_left" / l, visualize_receiver_occlusion(r.left.mask, true));
-  write_png(out / "vis" / "occlusion_right" / rr, visualize_receiver_occlusion(r.right.mask, false));
-  if (!r.stereo_classes.empty()) {
-    write_png(out / "vis" / "stereo_classes" / l,
-              visualize_stereo_classes(r.stereo_classes, r.left.mask.width(), r.left.mask.height()));
-  }
+  check(write_frame_images(out, n, raw, r));
 }
 
-StatsCsv::StatsCsv(const fs::path& path) : path_(path), out_(path, std::ios::binary) {
-  if (!out_) runtime_error(path.string() + ": cannot write the statistics file");
-  write_stats_csv_header(out_);
-}
+StatsCsv::StatsCsv(const fs::path& path) : writer_(unwrap(StatsCsvWriter::create(path))) {}
 
 void StatsCsv::add(const OcclusionStats& s) {
-  write_stats_csv_row(out_, s);
-  out_.flush();
-  if (!out_) runtime_error(path_.string() + ": write failed");
+  check(writer_->add(s));
 }
 
 std::string fmt_ms(double ms) {
@@ -155,6 +118,12 @@ double parse_real(const std::string& flag, const std::string& v) {
   return x;
 }
 
+std::vector<std::pair<std::string, std::string>> parse_named_list_arg(const std::string& v, const std::string& what) {
+  auto items = parse_named_list(v, what);
+  if (!items) usage_error(items.error().message);
+  return *items;
+}
+
 BoomArg parse_boom_arg(const std::string& v) {
   BoomArg b;
   if (v.empty() || v == "track") return b;
@@ -178,18 +147,6 @@ BoomArg parse_boom_arg(const std::string& v) {
     return b;
   }
   usage_error("--boom: expected track, fixed:EL_DEG,AZ_DEG,EXT_M or script:FILE.csv, got '" + v + "'");
-}
-
-BoomCommand BoomArg::command(double t_s, const BoomCommand& tracked, const BoomLimits& limits) const {
-  switch (mode) {
-    case BoomMode::kFixed:
-      return clamp_to_limits(fixed, limits);
-    case BoomMode::kScripted:
-      return clamp_to_limits(script.at(t_s), limits);
-    case BoomMode::kTrackReceptacle:
-      break;
-  }
-  return tracked;
 }
 
 // ---- Positional arguments and recordings --------------------------------------------------------
@@ -233,6 +190,16 @@ ParsedArgs parse_with_positionals(const std::vector<std::string>& args, const st
     usage_error("expected " + want + (positionals.empty() ? ", got none" : ", got " + got));
   }
   return a;
+}
+
+std::unique_ptr<recorder::Recorder> create_recorder(const std::string& dir, const recorder::RecordingInfo& info,
+                                                    bool overwrite) {
+  const fs::path db = fs::path(dir) / "recording.sqlite";
+  if (!overwrite && fs::exists(db))
+    runtime_error(db.string() + ": a recording is already there; give --overwrite to replace it, or another folder");
+  recorder::RecorderOptions o;
+  o.overwrite = overwrite;
+  return unwrap(recorder::Recorder::create(dir, info, o));
 }
 
 std::unique_ptr<recorder::RecordingReader> open_recording(const std::string& dir) {

@@ -3,6 +3,7 @@
 // context creation and the common outputs (PNG frames, stats.csv).
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +14,9 @@
 #include <Eigen/Core>
 
 #include "app/commands.hpp"
+#include "pipeline/boom_stage.hpp"
+#include "pipeline/outputs.hpp"
+#include "pipeline/pipeline.hpp"
 #include "core/expected.hpp"
 #include "core/frame.hpp"
 #include "recorder/record.hpp"
@@ -23,11 +27,17 @@
 #include "render/rig.hpp"
 #include "render/stats.hpp"
 
+namespace augrig::pipeline {}
 namespace augrig::recorder {
 class RecordingReader;
+class Recorder;
+struct RecordingInfo;
 }
 
 namespace augrig::app {
+
+// The commands configure the runtime: its names are theirs.
+using namespace augrig::pipeline;
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
@@ -67,44 +77,22 @@ PixelFormat parse_bayer(const std::string& v);
 long long parse_integer(const std::string& flag, const std::string& v, long long lo, long long hi);
 double parse_real(const std::string& flag, const std::string& v);
 
-// --boom: track (the receptacle, from nav), fixed:EL_DEG,AZ_DEG,EXT_M, or script:FILE.csv
-// (render/boom_control.hpp). A script's times are seconds from the run's first frame.
-struct BoomArg {
-  BoomMode mode = BoomMode::kTrackReceptacle;
-  BoomArticulation fixed;
-  BoomScript script;
-  // The articulation for a frame `t_s` after the first, given what tracking would command.
-  BoomCommand command(double t_s, const BoomCommand& tracked, const BoomLimits& limits) const;
-};
-BoomArg parse_boom_arg(const std::string& v);
+// "NAME=VALUE,..." (pipeline::parse_named_list), a usage error saying `what` otherwise.
+std::vector<std::pair<std::string, std::string>> parse_named_list_arg(const std::string& v, const std::string& what);
 
-// The receiver model and where its receptacle is: the built-in model knows its own receptacle;
-// a model file relies on the rig's receiver.receptacle_m.
-struct ReceiverSetup {
-  std::shared_ptr<const Model> model;  // null: let the Augmenter load the rig's file
-  Eigen::Vector3d receptacle_m = Eigen::Vector3d::Zero();
-};
-ReceiverSetup receiver_setup(const Rig& rig);
+// --boom: track, fixed:EL_DEG,AZ_DEG,EXT_M or script:FILE.csv (pipeline/boom_stage.hpp).
+BoomArg parse_boom_arg(const std::string& v);
 
 std::unique_ptr<GlContext> make_gl_context();
 void make_dirs(const fs::path& dir);
 
 // ---- Outputs --------------------------------------------------------------------------------------
 
-// Per-frame file names: left/right keep their own stems, the visualisations use the left one.
-struct FrameNames {
-  std::string left, right;
-};
 void write_png(const fs::path& path, const Image& image);
 // Everything `augment` and `demo` write for one stereo frame (docs/CLI.md gives the layout); `raw`
 // is the frame `r` was made from (its augmented images may be the changed boxes only).
 void write_frame_outputs(const fs::path& out, const FrameNames& n, const StereoFrame& raw,
                          const StereoResult& r);
-
-// A frame for the recorder from what the augmenter made: the augmented images as made (whole, or
-// only their changed boxes: AugmentedOutput), the masks and the statistics. The caller adds the
-// raw frame, the poses and the boom.
-recorder::FrameRecord frame_record(const StereoResult& r);
 
 // stats.csv, one row per stereo frame, flushed per row so a failed run keeps what it counted.
 class StatsCsv {
@@ -113,8 +101,7 @@ class StatsCsv {
   void add(const OcclusionStats& s);
 
  private:
-  fs::path path_;
-  std::ofstream out_;
+  std::unique_ptr<StatsCsvWriter> writer_;
 };
 
 // ---- Positional arguments and recordings ------------------------------------------------------
@@ -123,10 +110,22 @@ class StatsCsv {
 // missing or extra); `positionals` gets them in order.
 ParsedArgs parse_with_positionals(const std::vector<std::string>& args, const std::vector<OptionSpec>& specs,
                                   const std::vector<std::string>& names, std::vector<std::string>& positionals);
+// A new recording in `dir` (--record), or a runtime error; one already there is replaced only with
+// `overwrite` (--overwrite), and the error says so.
+std::unique_ptr<recorder::Recorder> create_recorder(const std::string& dir, const recorder::RecordingInfo& info,
+                                                    bool overwrite);
 // Opens a recording, or fails the command naming it.
 std::unique_ptr<recorder::RecordingReader> open_recording(const std::string& dir);
 // A problem of the recording as a whole (RecordingReader::problems()), naming its file.
 std::string recording_problem(const recorder::RecordingReader& reader, const std::string& problem);
+
+// SIGINT and SIGTERM raise the returned flag (a pipeline's stop_flag): the run stops cleanly.
+std::atomic<bool>* install_stop_signals();
+
+// Runs a configured pipeline to its end, with the live window when `want_window` and a display is
+// present (the pipeline then on a worker thread); prints the summary (app/cmd_run.cpp).
+PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::string& screenshot_dir,
+                            std::ostream& out, std::ostream& err);
 
 // Runs a command body, turning its errors (and anything unexpected) into one stderr line and an exit code.
 template <typename Body>

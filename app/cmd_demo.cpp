@@ -13,7 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "app/cli.hpp"
-#include "app/flight_nav.hpp"
+#include "pipeline/flight_nav.hpp"
 #include "capture/stereo_pairer.hpp"
 #include "recorder/recorder.hpp"
 #include "render/visualize.hpp"
@@ -29,11 +29,13 @@ const std::vector<OptionSpec>& demo_specs() {
       {"out", ArgKind::kValue, "DIR", "output folder (created)", true},
       {"scenario", ArgKind::kValue, "NAME|FILE.yaml", "the flight (default: the built-in 'demo', 28 s)"},
       {"every", ArgKind::kValue, "K", "augment every K-th camera frame (default 3: 10 of the 30 per second)"},
-      {"frames", ArgKind::kValue, "N", "augment only the last N selected stereo frames (default: all)"},
+      {"frames", ArgKind::kValue, "N",
+       "augment only the last N selected stereo frames (default: all); in the live window, stop after N"},
       {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
        "boom articulation (default track: the nozzle aims at the receptacle from nav)"},
       {"record", ArgKind::kValue, "DIR",
        "record the run (raw, augmented and mask frames, poses, stats, nav inputs, drops; docs/RECORDING.md)"},
+      {"overwrite", ArgKind::kFlag, "", "with --record: replace a recording already in DIR"},
       {"bayer", ArgKind::kOptionalValue, "[=RG|GR|GB|BG]", "simulate raw Bayer cameras (default pattern RG)"},
       {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
        "how the receiver shows in the augmented image (default mask: not drawn)"},
@@ -106,14 +108,16 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
   // recording on (augrig run), the poses from the live fusion of the simulated GPS/IMU streams
   // (--nav sim). Without one, or with --headless, the batch demo below.
   if (!a.has("headless") && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) {
+    // The same flags mean the same here: the sim:// source takes the scenario, the frame selection
+    // and the Bayer pattern; the pipeline the boom, the receiver drawing, the recording (only with
+    // --record) and the frame count (in real time: stop after N stereo frames).
     const fs::path out_dir = a.get("out");
-    std::vector<std::string> run_args = {
-        "--source", "sim://" + a.get("scenario", "demo") + "?every=" + a.get("every", "3"),
-        "--out",    out_dir.string(),
-        "--record", a.has("record") ? a.get("record") : (out_dir / "recording").string(),
-        "--nav",    "sim"};
-    for (const char* pass : {"boom", "duration"})
+    std::string uri = "sim://" + a.get("scenario", "demo") + "?every=" + a.get("every", "3");
+    if (a.has("bayer")) uri += "&bayer=" + (a.get("bayer").empty() ? std::string("RG") : a.get("bayer"));
+    std::vector<std::string> run_args = {"--source", uri, "--out", out_dir.string(), "--nav", "sim"};
+    for (const char* pass : {"boom", "duration", "record", "receiver-draw", "frames"})
       if (a.has(pass)) run_args.insert(run_args.end(), {std::string("--") + pass, a.get(pass)});
+    if (a.has("overwrite")) run_args.push_back("--overwrite");
     out << "demo: a display is present: the flight in real time in the live window, poses from the live "
            "GPS/INS fusion (--headless for the batch demo)\n";
     return cmd_run(run_args, out, err);
@@ -196,7 +200,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
     info.clock_domains = "frames: device (camera clocks; offsets to gps " + std::to_string(offsets[0]) +
                          ", " + std::to_string(offsets[1]) + " ns); nav inputs: gps";
     info.extra["source"] = source->uri();
-    rec = unwrap(recorder::Recorder::create(a.get("record"), info));
+    rec = create_recorder(a.get("record"), info, a.has("overwrite"));
     for (const char* who : {"tanker", "receiver"}) {
       // NMEA lines as received: "<arrival_ns> <sentence>" in the log.
       std::ifstream nmea(out_dir / "nav" / who / "gps.nmea", std::ios::binary);

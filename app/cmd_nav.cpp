@@ -6,7 +6,7 @@
 #include <sstream>
 
 #include "app/cli.hpp"
-#include "app/flight_nav.hpp"
+#include "pipeline/flight_nav.hpp"
 #include "nav/logs.hpp"
 
 namespace augrig::app {

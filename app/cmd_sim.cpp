@@ -12,7 +12,7 @@
 #include <tuple>
 
 #include "app/cli.hpp"
-#include "app/flight_nav.hpp"
+#include "pipeline/flight_nav.hpp"
 #include "core/file_check.hpp"
 #include "nav/logs.hpp"
 #include "sim/flight_source.hpp"

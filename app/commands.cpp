@@ -19,7 +19,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "app/cli.hpp"
-#include "app/scene_file.hpp"
+#include "pipeline/scene_file.hpp"
 #include "capture/stereo_pairer.hpp"
 #include "core/frame.hpp"
 #include "render/augmenter.hpp"

@@ -28,20 +28,6 @@
 
 namespace augrig::app {
 
-std::string_view to_string(DisplayBoomMode m) {
-  switch (m) {
-    case DisplayBoomMode::kFixed:
-      return "fixed";
-    case DisplayBoomMode::kScripted:
-      return "scripted";
-    case DisplayBoomMode::kTrackReceptacle:
-      return "track";
-    case DisplayBoomMode::kInteractive:
-      return "interactive";
-  }
-  return "?";
-}
-
 std::string_view to_string(MaskOverlay m) {
   switch (m) {
     case MaskOverlay::kOff:
@@ -77,7 +63,8 @@ const std::vector<Shortcut>& display_shortcuts() {
       {"Shift + the above", "five times the step"},
       {"Joystick", "left stick: boom elevation and azimuth; right stick up/down: extension"},
       {"R", "start / stop recording"},
-      {"Space", "pause / resume the pipeline"},
+      {"Space", "pause / resume the pipeline (a recording: its playback)"},
+      {". / ,", "playback of a recording: one stereo frame forward / back (pauses)"},
       {"S, F12", "screenshot of the window to PNG"},
       {"C", "start / stop a clip (numbered PNGs in a folder)"},
       {"M", "mask overlay: off, Fig. 8 occlusion, Fig. 7b boom overlap"},
@@ -361,6 +348,8 @@ class DisplayImpl final : public Display {
   bool frame(const DisplayInput& in) override {
     ctx_->make_current();
     hud_mode_ = in.hud.boom_mode;
+    playback_ = in.playback;
+    paused_ = in.hud.paused;
     const auto now = Clock::now();
     const double dt_s = std::min(0.25, std::chrono::duration<double>(now - last_frame_).count());
     last_frame_ = now;
@@ -594,6 +583,17 @@ class DisplayImpl final : public Display {
         break;
       case GLFW_KEY_SPACE:
         pending_.toggle_pause = !pending_.toggle_pause;
+        break;
+      case GLFW_KEY_PERIOD:
+      case GLFW_KEY_COMMA:
+        // Stepping pauses first; back is a seek to the frame before the one shown.
+        if (playback_) {
+          if (!paused_) pending_.toggle_pause = !pending_.toggle_pause;
+          if (key == GLFW_KEY_PERIOD)
+            pending_.steps += 1;
+          else if (playback_->frame > 0)
+            pending_.seek_frame = playback_->frame - 1;
+        }
         break;
       case GLFW_KEY_S:
       case GLFW_KEY_F12:
@@ -847,12 +847,18 @@ class DisplayImpl final : public Display {
     ps.boom = in.scene.boom;
     ps.plot_seconds = opt_.plot_seconds;
     ps.frustum_depth_m = frustum_depth_m_;
+    ps.playback = in.playback;
     const PixelRect& h = layout_.hud;
     const hud::PanelActions a =
         hud::draw_status_panel(in.hud, ps, history_, ImVec2(h.x * k, h.y * k), ImVec2(h.w * k, h.h * k));
     if (a.boom_mode) pending_.boom_mode = a.boom_mode;
     if (a.toggle_recording) pending_.toggle_recording = !pending_.toggle_recording;
     if (a.toggle_pause) pending_.toggle_pause = !pending_.toggle_pause;
+    if (a.steps) {
+      if (!in.hud.paused && !pending_.toggle_pause) pending_.toggle_pause = true;
+      pending_.steps += a.steps;
+    }
+    if (a.seek_frame) pending_.seek_frame = a.seek_frame;
     if (a.screenshot) request_screenshot();
     if (a.clip) toggle_clip();
     if (a.help) help_ = !help_;
@@ -942,6 +948,8 @@ class DisplayImpl final : public Display {
 
   MaskOverlay overlay_ = MaskOverlay::kOff;
   bool validation_ = false;
+  std::optional<pipeline::Playback> playback_;  // the last frame()'s, for the step keys
+  bool paused_ = false;
   bool help_ = false;
   bool screenshot_pending_ = false;
   bool clip_active_ = false;

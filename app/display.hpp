@@ -27,6 +27,8 @@
 #include "core/image.hpp"
 #include "core/pose.hpp"
 #include "nav/types.hpp"
+#include "pipeline/pipeline.hpp"
+#include "pipeline/status.hpp"
 #include "recorder/record.hpp"
 #include "render/augmenter.hpp"
 #include "render/models.hpp"
@@ -37,9 +39,8 @@ struct GLFWwindow;
 
 namespace augrig::app {
 
-// How the boom is flown (render/boom_control.hpp's three modes, plus the operator's hands).
-enum class DisplayBoomMode { kFixed, kScripted, kTrackReceptacle, kInteractive };
-std::string_view to_string(DisplayBoomMode m);
+using pipeline::DisplayBoomMode;
+using pipeline::to_string;
 
 // What the mask overlay shows over both views.
 enum class MaskOverlay {
@@ -49,35 +50,11 @@ enum class MaskOverlay {
 };
 std::string_view to_string(MaskOverlay m);
 
-inline constexpr double kHudUnknown = std::numeric_limits<double>::quiet_NaN();
+using pipeline::kHudUnknown;
+using pipeline::LatencyHud;
+using pipeline::NavHud;
 
-struct NavHud {
-  std::string status;  // plain words, e.g. "fused (GPS+IMU)", "dead reckoning", "no nav"
-  nav::FixQuality fix = nav::FixQuality::kInvalid;
-  double age_s = kHudUnknown;          // since the last nav update used
-  double sigma_pos_m = kHudUnknown;    // 1-sigma of the relative position
-  double sigma_att_deg = kHudUnknown;  // 1-sigma of the relative attitude
-};
-
-struct LatencyHud {
-  double p50_ms = kHudUnknown, p99_ms = kHudUnknown;  // mid-exposure to the stage
-};
-
-// Everything the HUD shows, filled by the pipeline's owner. NaN: not known (shown as "-").
-struct HudState {
-  std::array<double, 2> fps = {kHudUnknown, kHudUnknown};       // frames per second delivered, per camera
-  double skew_p50_ms = kHudUnknown, skew_p99_ms = kHudUnknown;  // |left - right| mid-exposure of the pairs
-  std::array<std::uint64_t, 5> drops{};  // by recorder::DropStage, in kAllDropStages order
-  NavHud nav;
-  std::optional<OcclusionStats> occlusion;  // the current frame's (also plotted over time)
-  LatencyHud latency_display, latency_recorder;
-  bool recording = false;
-  std::string recording_path;
-  bool paused = false;
-  DisplayBoomMode boom_mode = DisplayBoomMode::kFixed;
-  std::vector<std::string> messages;  // faults in plain words: "left camera lost 0.6 s ago"
-  bool stale_pose = false;            // the receiver pose is older than the pipeline allows
-};
+using pipeline::HudState;
 
 // One call's input. Pointers are not owned and need only live during the frame() call.
 struct DisplayInput {
@@ -90,6 +67,8 @@ struct DisplayInput {
   // The receiver's fused pose (tanker body frame) for the truth-validation overlay; unset: the scene's.
   std::optional<Pose> validation_T_body_receiver;
   HudState hud;
+  // A recording's playback position: the HUD shows a timeline (scrub, step, pause) when set.
+  std::optional<pipeline::Playback> playback;
 };
 
 // Fills images, masks, the scene and the current occlusion from an augmented stereo frame; `result`
@@ -97,12 +76,7 @@ struct DisplayInput {
 DisplayInput display_input(const StereoResult& result, const Rig& rig, const SceneState& scene,
                            std::uint64_t frame_id);
 
-// Boom nudges from the arrow keys or a joystick (summed since the last poll), in the boom's
-// articulation units. The owner adds them to the interactive boom and clamps to the rig's limits.
-struct BoomNudge {
-  double elevation_rad = 0, azimuth_rad = 0, extension_m = 0;
-  bool any() const { return elevation_rad != 0 || azimuth_rad != 0 || extension_m != 0; }
-};
+using pipeline::BoomNudge;
 
 // What the user asked for since the last poll_commands(). The owner acts on the first block; the
 // second reports what the display did itself.
@@ -111,6 +85,8 @@ struct DisplayCommands {
   BoomNudge boom_nudge;
   bool toggle_recording = false;
   bool toggle_pause = false;
+  int steps = 0;                          // playback: stereo frames to advance (while paused)
+  std::optional<std::size_t> seek_frame;  // playback: the recorded frame to jump to (timeline)
   bool quit = false;  // the window is closing: frame() returns false from now on
 
   std::vector<std::string> screenshots;     // PNGs written

@@ -141,6 +141,19 @@ PanelActions draw_status_panel(const HudState& hud, const PanelState& panel, con
   if (ImGui::SliderFloat("Frusta", &depth, 5.0f, 100.0f, "%.0f m")) act.frustum_depth_m = depth;
   ImGui::SameLine();
   act.reset_view = ImGui::Button("Reset view");
+  if (panel.playback && panel.playback->frame_count > 0) {
+    // The recording's timeline: drag to scrub (each position a seek), step one frame.
+    const pipeline::Playback& pb = *panel.playback;
+    ImGui::Text("Replay   frame %zu of %zu, t %.2f of %.2f s%s", pb.frame, pb.frame_count, pb.t_s, pb.duration_s,
+                pb.pass ? (" (pass " + std::to_string(pb.pass + 1) + ")").c_str() : "");
+    int frame = static_cast<int>(pb.frame);
+    ImGui::SetNextItemWidth(col * 0.9f);
+    if (ImGui::SliderInt("##timeline", &frame, 0, static_cast<int>(pb.frame_count) - 1, "frame %d") &&
+        frame != static_cast<int>(pb.frame))
+      act.seek_frame = static_cast<std::size_t>(frame);
+    ImGui::SameLine();
+    if (ImGui::Button("Step")) act.steps = 1;
+  }
   if (panel.clip) ImGui::TextColored(kRed, "CLIP     %d frames", panel.clip_frames);
   if (!panel.last_screenshot.empty()) ImGui::TextColored(kGrey, "Saved    %s", panel.last_screenshot.c_str());
   if (hud.paused) ImGui::TextColored(kOrange, "PAUSED");

@@ -44,6 +44,7 @@ struct PanelState {
   BoomArticulation boom;
   double plot_seconds = 10;
   double frustum_depth_m = 25;  // the world view's slider edits this
+  std::optional<pipeline::Playback> playback;  // a recording's position: the timeline is shown
 };
 
 // Buttons pressed this frame; the display applies them like the matching shortcut.
@@ -54,6 +55,8 @@ struct PanelActions {
   std::optional<MaskOverlay> overlay;
   std::optional<bool> validation;
   std::optional<double> frustum_depth_m;
+  int steps = 0;                          // playback: frames to step
+  std::optional<std::size_t> seek_frame;  // playback: the timeline was dragged here
 };
 
 // The status panel, placed at `pos` with `size` (ImGui coordinates).

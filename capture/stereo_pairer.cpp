@@ -224,7 +224,8 @@ std::optional<StereoFrame> StereoPairer::push(Frame frame) {
   const int me = index_of(frame.camera);
   ++(me == 0 ? stats_.frames_left : stats_.frames_right);
   if (frame.t_host_ns > 0) newest_host_ns_ = std::max(newest_host_ns_, frame.t_host_ns);
-  drop_aged(newest_host_ns_);
+  // Adjacent frames pair as delivered: a recording's host times say nothing about waiting.
+  if (config_.mode != PairingMode::kAdjacent) drop_aged(newest_host_ns_);
 
   Pending p{std::move(frame), 0, ClockDomain::kUnknown};
   p.key_ns = p.frame.t_ns;
@@ -245,7 +246,33 @@ std::optional<StereoFrame> StereoPairer::push(Frame frame) {
     p.key_ns = est.to_host(p.frame.t_ns).value();
     p.key_clock = ClockDomain::kHostMonotonic;
   }
-  return config_.mode == PairingMode::kTimestamp ? push_timestamp(std::move(p)) : push_trigger(std::move(p));
+  switch (config_.mode) {
+    case PairingMode::kTimestamp:
+      return push_timestamp(std::move(p));
+    case PairingMode::kTriggerId:
+      return push_trigger(std::move(p));
+    case PairingMode::kAdjacent:
+      break;
+  }
+  return push_adjacent(std::move(p));
+}
+
+std::optional<StereoFrame> StereoPairer::push_adjacent(Pending p) {
+  // A left Frame waits for the right one that follows it; anything else has no partner.
+  auto& lefts = pending_[0];
+  if (p.frame.camera == CameraId::kLeft) {
+    drop_all(lefts.begin(), lefts.end(), UnpairedReason::kNoPartner);
+    lefts.clear();
+    lefts.push_back(std::move(p));
+    return std::nullopt;
+  }
+  if (lefts.empty()) {
+    drop(p.frame, UnpairedReason::kNoPartner);
+    return std::nullopt;
+  }
+  Pending l = std::move(lefts.front());
+  lefts.clear();
+  return make_pair(std::move(p), std::move(l));
 }
 
 // Host times estimated from two device clocks are each off by up to their estimate's uncertainty

@@ -26,9 +26,11 @@
 
 namespace augrig {
 
-enum class PairingMode : std::uint8_t { kTimestamp, kTriggerId };
+// kAdjacent: one source delivers each stereo frame as its left Frame and then its right one (a
+// recording played back): they pair as delivered, whatever their times (a loop or a seek goes back).
+enum class PairingMode : std::uint8_t { kTimestamp, kTriggerId, kAdjacent };
 constexpr std::string_view to_string(PairingMode m) {
-  return m == PairingMode::kTimestamp ? "timestamp" : "trigger_id";
+  return m == PairingMode::kTimestamp ? "timestamp" : m == PairingMode::kTriggerId ? "trigger_id" : "adjacent";
 }
 
 // Why a frame was dropped without a partner.
@@ -178,6 +180,7 @@ class StereoPairer {
   // Timestamp mode: the tolerance for this frame (tolerance_ns, widened on estimated host time).
   std::int64_t timestamp_tolerance() const;
   std::optional<StereoFrame> push_trigger(Pending p);
+  std::optional<StereoFrame> push_adjacent(Pending p);
   std::optional<StereoFrame> learn_trigger_offset(Pending p);
   void enqueue(Pending p);
 

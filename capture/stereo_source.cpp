@@ -31,6 +31,7 @@ struct StereoSource::Impl {
   std::vector<bool> ended;
   std::vector<SourceHealth> health;  // snapshots taken by each capture thread after its reads
   std::optional<Error> failure;
+  std::vector<std::string> skipped_errors;  // skip_read_errors: not yet taken
   bool stopping = false;
   StereoSourceStats counts;
   std::deque<StereoFrame> pairs;  // paired, not yet returned (consumer side)
@@ -51,6 +52,10 @@ struct StereoSource::Impl {
       const SourceHealth h = src.health();
       std::unique_lock lock(mutex);
       health[i] = h;
+      if (!r && options.skip_read_errors) {
+        if (skipped_errors.size() < 100) skipped_errors.push_back(r.error().message);
+        continue;
+      }
       if (!r) {
         failure = make_error("StereoSource: ", src.uri(), ": ", r.error().message);
         ended[i] = true;
@@ -87,6 +92,13 @@ struct StereoSource::Impl {
 };
 
 StereoSource::StereoSource(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+std::vector<std::string> StereoSource::take_errors() {
+  std::lock_guard lock(impl_->mutex);
+  std::vector<std::string> e = std::move(impl_->skipped_errors);
+  impl_->skipped_errors.clear();
+  return e;
+}
 
 StereoSource::~StereoSource() {
   stop();

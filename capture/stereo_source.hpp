@@ -26,6 +26,10 @@ struct StereoSourceOptions {
   std::size_t queue_frames = 8;  // per source, between its capture thread and the pairer
   bool lossless = false;         // capture waits for room instead of dropping (finite sources)
   std::chrono::nanoseconds read_timeout = std::chrono::milliseconds(100);  // per source read()
+  // A source's read() error skips that frame instead of ending the source (a recording's damaged
+  // frame: the source counts it in frames_dropped() and goes on). The errors are kept for
+  // take_errors().
+  bool skip_read_errors = false;
 };
 
 struct StereoSourceStats {
@@ -60,6 +64,8 @@ class StereoSource {
   std::string uri() const;
   StereoSourceStats stats() const;
   std::vector<SourceHealth> health() const;  // per source
+  // The read errors skipped since the last call (skip_read_errors), oldest first, at most 100.
+  std::vector<std::string> take_errors();
   // The sources, e.g. to reach a camera's own statistics. Their read() belongs to the threads.
   const std::vector<std::unique_ptr<FrameSource>>& sources() const;
 

@@ -1,7 +1,7 @@
 // parse_scene (app/scene_file.hpp): scene YAML against the paper's default rig.
 #include <string>
 
-#include "app/scene_file.hpp"
+#include "pipeline/scene_file.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const augrig::Rig rig = augrig::Rig::paper_default();

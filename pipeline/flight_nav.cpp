@@ -1,4 +1,4 @@
-#include "app/flight_nav.hpp"
+#include "pipeline/flight_nav.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -13,7 +13,7 @@
 #include "nav/nmea.hpp"
 #include "sim/scenario.hpp"
 
-namespace augrig::app {
+namespace augrig::pipeline {
 
 namespace fs = std::filesystem;
 
@@ -342,4 +342,4 @@ std::string describe(const std::string& who, const nav::FusionReport& r) {
   return o.str();
 }
 
-}  // namespace augrig::app
+}  // namespace augrig::pipeline

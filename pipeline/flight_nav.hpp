@@ -20,7 +20,7 @@
 #include "render/rig.hpp"
 #include "sim/scenario.hpp"
 
-namespace augrig::app {
+namespace augrig::pipeline {
 
 // aircraft.yaml: the per-aircraft part of nav::InsConfig a user states (the rest keeps its defaults).
 //   lever_arm_m: [x, y, z]          GPS antenna phase centre in the body frame (FRD), metres
@@ -102,4 +102,4 @@ std::string describe(const PoseErrorStats& s);
 // A one-paragraph summary of a fusion report for the console.
 std::string describe(const std::string& who, const nav::FusionReport& r);
 
-}  // namespace augrig::app
+}  // namespace augrig::pipeline

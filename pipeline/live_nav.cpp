@@ -1,9 +1,9 @@
-#include "app/live_nav.hpp"
+#include "pipeline/live_nav.hpp"
 
 #include <cmath>
 #include <cstdio>
 
-namespace augrig::app {
+namespace augrig::pipeline {
 
 std::string_view to_string(Aircraft a) {
   return a == Aircraft::kTanker ? "tanker" : "receiver";
@@ -134,4 +134,4 @@ FrameNav LiveNav::at(int camera, TimestampNs t_nav_ns) const {
   return out;
 }
 
-}  // namespace augrig::app
+}  // namespace augrig::pipeline

@@ -22,13 +22,13 @@
 
 #include <Eigen/Core>
 
-#include "app/display.hpp"
-#include "app/flight_nav.hpp"
+#include "pipeline/flight_nav.hpp"
+#include "pipeline/status.hpp"
 #include "capture/clock_offset.hpp"
 #include "nav/live_fusion.hpp"
 #include "nav/live_input.hpp"
 
-namespace augrig::app {
+namespace augrig::pipeline {
 
 enum class Aircraft : std::uint8_t { kTanker = 0, kReceiver = 1 };
 std::string_view to_string(Aircraft a);
@@ -74,4 +74,4 @@ class LiveNav {
   ClockOffsetEstimator gps_to_host_;  // "device" = GPS time, host = arrival
 };
 
-}  // namespace augrig::app
+}  // namespace augrig::pipeline

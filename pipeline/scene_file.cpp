@@ -1,4 +1,4 @@
-#include "app/scene_file.hpp"
+#include "pipeline/scene_file.hpp"
 
 #include <algorithm>
 #include <charconv>

@@ -1,4 +1,4 @@
-#include "app/sources.hpp"
+#include "pipeline/sources.hpp"
 
 #include <array>
 #include <atomic>
@@ -19,7 +19,7 @@
 #include "sim/sensors.hpp"
 #include "sim/sim_clock.hpp"
 
-namespace augrig::app {
+namespace augrig::pipeline {
 namespace {
 
 Error uri_error(const SourceUri& u, const std::string& what) {
@@ -230,9 +230,20 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
 
   OpenedSource out;
   if (u.scheme == "sim") {
-    if (Status s = u.check_known({"every", "rate"}); !s) return s.error();
+    if (Status s = u.check_known({"every", "rate", "bayer"}); !s) return s.error();
     auto scenario = scenario_of(u);
     if (!scenario) return uri_error(u, scenario.error().message);
+    // bayer=RG|GR|GB|BG: the cameras deliver raw mosaics of that pattern, as GigE rigs do.
+    if (u.has("bayer")) {
+      const std::string b = u.get("bayer", "");
+      const PixelFormat f = b == "RG"   ? PixelFormat::kBayerRG8
+                            : b == "GR" ? PixelFormat::kBayerGR8
+                            : b == "GB" ? PixelFormat::kBayerGB8
+                            : b == "BG" ? PixelFormat::kBayerBG8
+                                        : PixelFormat::kMono8;
+      if (f == PixelFormat::kMono8) return uri_error(u, "bayer: expected RG, GR, GB or BG, got '" + b + "'");
+      scenario->sensors.cameras.format = f;
+    }
     auto every = u.get_integer("every", 1, 1, 1'000'000);
     auto rate = u.get_number("rate", 1.0, 0, 1e6);
     if (!every) return every.error();
@@ -259,7 +270,7 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     return out;
   }
   if (u.scheme == "replay") {
-    if (Status s = u.check_known({"rate", "loop"}); !s) return s.error();
+    if (Status s = u.check_known({"rate", "loop", "passes", "from_frame", "seek_s", "late"}); !s) return s.error();
     recorder::ReplayOptions o;
     const std::string rate = u.get("rate", "1");
     if (rate == "fast") {
@@ -272,12 +283,36 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
       o.rate = *r;
       o.drop_late = true;  // live-like: late frames are lost, as a camera's would be
     }
+    const std::string late = u.get("late", "drop");
+    if (late != "drop" && late != "keep") return uri_error(u, "late: expected drop or keep, got '" + late + "'");
+    if (late == "keep") o.drop_late = false;  // every frame, late or not
+    // loop=1: forever; passes=N: the range N times.
     o.passes = u.get("loop", "0") == "1" ? 0 : 1;
+    if (u.has("passes")) {
+      auto n = u.get_integer("passes", 1, 1, 1'000'000);
+      if (!n) return n.error();
+      o.passes = static_cast<int>(*n);
+    }
+    if (u.has("from_frame") && u.has("seek_s")) return uri_error(u, "from_frame and seek_s exclude each other");
+    if (u.has("from_frame")) {
+      auto n = u.get_integer("from_frame", 0, 0, 1LL << 40);
+      if (!n) return n.error();
+      o.start_frame = static_cast<std::size_t>(*n);
+    }
+    if (u.has("seek_s")) {
+      auto t = u.get_number("seek_s", 0, 0, 1e9);
+      if (!t) return t.error();
+      o.start_offset_ns = s_to_ns(*t);
+    }
     auto src = recorder::ReplaySource::open(u.target, o);
     if (!src) return src.error();
-    out.options.lossless = o.mode == recorder::ReplayMode::kFast;
-    // A recording holds pairs already; its frames pair again with the same tolerance.
-    out.options.pairing.tolerance_ns = 20'000'000;
+    out.options.lossless = o.mode == recorder::ReplayMode::kFast || !o.drop_late;
+    // A damaged frame is skipped (the recording says which), the others play on.
+    out.options.skip_read_errors = true;
+    // A recording holds pairs already: each recorded stereo frame comes as its left Frame, then its
+    // right one, and they pair as delivered (a loop or a seek goes back in time).
+    out.options.pairing.mode = PairingMode::kAdjacent;
+    out.replay = src->get();
     out.sources.push_back(std::move(*src));
     return out;
   }
@@ -322,4 +357,4 @@ Expected<std::unique_ptr<StereoSource>> start_stereo(OpenedSource opened) {
   return StereoSource::create(std::move(opened.sources), opened.options);
 }
 
-}  // namespace augrig::app
+}  // namespace augrig::pipeline

@@ -17,7 +17,11 @@
 #include "sim/sensors.hpp"
 #include "sim/sim_clock.hpp"
 
-namespace augrig::app {
+namespace augrig::recorder {
+class ReplaySource;
+}
+
+namespace augrig::pipeline {
 
 // A simulated flight, computed once for the run and shared by the rendered cameras, the simulated
 // nav streams and the truth.
@@ -27,14 +31,20 @@ struct SimulatedFlight {
   sim::SensorLogs logs;
 };
 
-// What a source URI opened into, with what the pipeline needs to know about it.
-struct OpenedSource {
+// What a source URI opened into, beyond its FrameSources: what the pipeline needs to know about it.
+struct OpenedSourceInfo {
+  bool live = false;                          // cameras (true) or a file / simulation
+  std::string scenario;                       // sim://: the scenario's name, for nav truth
+  std::shared_ptr<const SimulatedFlight> sim;  // sim://: the scenario, its truth and sensor logs
+  std::shared_ptr<sim::SimClock> sim_clock;   // sim://: GPS time to host time for this run
+  // replay://: the recording's player (owned by the source list, then by the StereoSource), for
+  // pause, step and seek.
+  recorder::ReplaySource* replay = nullptr;
+};
+
+struct OpenedSource : OpenedSourceInfo {
   std::vector<std::unique_ptr<FrameSource>> sources;  // one (both cameras) or two (left, right)
   StereoSourceOptions options;                        // pairing and queueing for these sources
-  bool live = false;                                  // cameras (true) or a file / simulation
-  std::string scenario;                               // sim://: the scenario's name, for nav truth
-  std::shared_ptr<const SimulatedFlight> sim;         // sim://: the scenario, its truth and sensor logs
-  std::shared_ptr<sim::SimClock> sim_clock;           // sim://: GPS time to host time for this run
 };
 
 // `uri`: one stereo-capable URI (sim://, replay://, stereo:[..]//{L}{R}); or, with `right_uri`, the
@@ -46,4 +56,4 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
 // The StereoSource of an OpenedSource (starts its capture threads).
 Expected<std::unique_ptr<StereoSource>> start_stereo(OpenedSource opened);
 
-}  // namespace augrig::app
+}  // namespace augrig::pipeline

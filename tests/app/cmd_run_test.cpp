@@ -556,22 +556,46 @@ TEST(CmdRun, FaultsWithTheWindowOpenKeepItRunning) {
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
 }
 
-// augrig demo with a display: the simulated flight in real time in the live window, recording on.
+// augrig demo with a display: the simulated flight in real time in the live window; it records only
+// when asked, and the same flags mean what they mean in the batch demo.
 TEST(CmdRun, DemoOpensTheLiveWindowWhenADisplayIsPresent) {
   if (run_command("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run is not installed";
   const std::string dir = output_dir("cmd_run_demo_window");
   std::string out;
-  ASSERT_EQ(
-      run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir + " --every 15 --duration 4 2>&1",
-                  &out),
-      0)
+  ASSERT_EQ(run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir + " --every 15 --duration 4 --record " +
+                            dir + "/recording --bayer --receiver-draw wireframe 2>&1",
+                        &out),
+            0)
       << out;
   EXPECT_TRUE(contains(out, "the flight in real time in the live window")) << out;
   EXPECT_TRUE(contains(out, "poses from the live nav")) << out;
   EXPECT_TRUE(contains(out, "live display open")) << out;
   EXPECT_TRUE(contains(out, "recorded ")) << out;
+  EXPECT_TRUE(contains(out, "bayer=RG")) << out;  // --bayer reaches the simulated cameras
   std::string check;
   EXPECT_EQ(augrig("check " + dir + "/recording", &check), 0) << check;
+  {
+    auto reader = recorder::RecordingReader::open(dir + "/recording");
+    ASSERT_TRUE(reader) << reader.error().message;
+    auto f = (*reader)->read_frame(0);
+    ASSERT_TRUE(f) << f.error().message;
+    EXPECT_EQ(f->raw.left.image.format(), PixelFormat::kBayerRG8);
+  }
+  // Again into the same --out, without --record: no recording is made, and nothing refuses; a
+  // second recording into the same folder needs --overwrite and says so.
+  ASSERT_EQ(run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir +
+                            " --every 15 --duration 30 --frames 3 2>&1",
+                        &out),
+            0)
+      << out;
+  EXPECT_FALSE(contains(out, "recorded ")) << out;
+  EXPECT_TRUE(contains(out, "run: 3 stereo frames augmented")) << out;  // --frames: stop after 3
+  EXPECT_EQ(run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir + " --every 15 --duration 2 --record " +
+                            dir + "/recording 2>&1",
+                        &out),
+            1)
+      << out;
+  EXPECT_TRUE(contains(out, "a recording is already there; give --overwrite")) << out;
   // No display: the batch demo refuses the window-only flag.
   EXPECT_EQ(augrig("demo --out " + dir + "/batch --headless --duration 4", &out), 2) << out;
 }

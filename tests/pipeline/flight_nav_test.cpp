@@ -1,7 +1,7 @@
 // Flight nav on simulated flights: the accuracy the issue asks for, end to end from the simulator's
 // logs (written and read back in their real formats) through nav::fuse() to the receiver's pose in
 // the tanker body frame and each camera. Truth comes from sim::Flight, an independent analytic model.
-#include "app/flight_nav.hpp"
+#include "pipeline/flight_nav.hpp"
 
 #include <cmath>
 #include <filesystem>
@@ -13,7 +13,7 @@
 #include "sim/scenario.hpp"
 #include "tests/support/test_support.hpp"
 
-namespace augrig::app {
+namespace augrig::pipeline {
 namespace {
 
 namespace fs = std::filesystem;
@@ -215,4 +215,4 @@ TEST(FlightNav, ComparePosesMatchesBySequenceAndCamera) {
 }
 
 }  // namespace
-}  // namespace augrig::app
+}  // namespace augrig::pipeline

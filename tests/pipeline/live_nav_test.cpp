@@ -2,7 +2,7 @@
 // UDP path is tested in tests/sim/nav_stream_test.cpp and tests/app/cmd_run_test.cpp): poses
 // against the simulator's truth in each camera, the verdicts (waiting, good, stale) in plain words,
 // and host time mapped to GPS time from the fixes' arrivals.
-#include "app/live_nav.hpp"
+#include "pipeline/live_nav.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -15,7 +15,7 @@
 #include "sim/scenario.hpp"
 #include "sim/sensors.hpp"
 
-namespace augrig::app {
+namespace augrig::pipeline {
 namespace {
 
 struct Flight {
@@ -219,4 +219,4 @@ TEST(LiveNav, StreamNamesBelongToTheirAircraft) {
 }
 
 }  // namespace
-}  // namespace augrig::app
+}  // namespace augrig::pipeline

@@ -1,6 +1,6 @@
 // Scene files: valid scenes give hand-worked T_body_receiver; every kind of bad scene gives one
 // error naming the file, the line and the key.
-#include "app/scene_file.hpp"
+#include "pipeline/scene_file.hpp"
 
 #include <filesystem>
 #include <string>

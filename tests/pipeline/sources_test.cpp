@@ -1,11 +1,11 @@
 // Sources by URI: what each scheme opens into and how its parameters set pairing and queueing.
-#include "app/sources.hpp"
+#include "pipeline/sources.hpp"
 
 #include <gtest/gtest.h>
 
 #include "tests/support/fake_gv_camera.hpp"
 
-namespace augrig::app {
+namespace augrig::pipeline {
 namespace {
 
 TEST(Sources, SimIsOneSourceWithBothCamerasPacedOrLockstep) {
@@ -94,4 +94,4 @@ TEST(Sources, UnknownSchemesAndParametersAreErrors) {
 }
 
 }  // namespace
-}  // namespace augrig::app
+}  // namespace augrig::pipeline

@@ -1,0 +1,77 @@
+#include "pipeline/outputs.hpp"
+
+#include "render/image_file.hpp"
+#include "render/visualize.hpp"
+
+namespace augrig::pipeline {
+
+namespace fs = std::filesystem;
+
+namespace {
+Status write_png(const fs::path& path, const Image& image) {
+  std::error_code ec;
+  fs::create_directories(path.parent_path(), ec);
+  if (ec) return make_error(path.parent_path().string(), ": cannot create the folder (", ec.message(), ")");
+  return write_png_file(path.string(), image);
+}
+}  // namespace
+
+ReceiverSetup receiver_setup(const Rig& rig) {
+  ReceiverSetup r;
+  if (rig.receiver.model.path.empty()) {
+    r.model = std::make_shared<const Model>(make_builtin_receiver(&r.receptacle_m));
+  } else {
+    r.receptacle_m = rig.receiver.receptacle_m;
+  }
+  return r;
+}
+
+Status write_frame_images(const fs::path& out, const FrameNames& n, const StereoFrame& raw, const StereoResult& r) {
+  const std::string l = n.left + ".png", rr = n.right + ".png";
+  const std::pair<fs::path, Image> files[] = {
+      {out / "left" / "augmented" / l, whole_augmented(raw.left.image, r.left)},
+      {out / "right" / "augmented" / rr, whole_augmented(raw.right.image, r.right)},
+      {out / "left" / "mask" / l, r.left.mask},
+      {out / "right" / "mask" / rr, r.right.mask},
+      {out / "vis" / "boom_overlap" / l, visualize_boom_overlap(r.left.mask, r.right.mask)},
+      {out / "vis" / "occlusion_left" / l, visualize_receiver_occlusion(r.left.mask, true)},
+      {out / "vis" / "occlusion_right" / rr, visualize_receiver_occlusion(r.right.mask, false)},
+  };
+  for (const auto& [path, image] : files)
+    if (Status s = write_png(path, image); !s) return s;
+  if (!r.stereo_classes.empty())
+    return write_png(
+        out / "vis" / "stereo_classes" / l,
+        visualize_stereo_classes(r.stereo_classes, r.left.mask.width(), r.left.mask.height()));
+  return {};
+}
+
+recorder::FrameRecord frame_record(const StereoResult& r) {
+  recorder::FrameRecord fr;
+  fr.augmented = {r.left.augmented, r.right.augmented};
+  // The changed-box output made only the boxes (an image of the box's size).
+  for (const ViewResult* v : {&r.left, &r.right})
+    if (v->augmented.width() == v->augmented_box.width() && v->augmented.height() == v->augmented_box.height())
+      fr.augmented_box[v == &r.left ? 0 : 1] = v->augmented_box;
+  fr.mask = {r.left.mask, r.right.mask};
+  fr.stats = r.stats;
+  return fr;
+}
+
+Expected<std::unique_ptr<StatsCsvWriter>> StatsCsvWriter::create(const fs::path& path) {
+  std::unique_ptr<StatsCsvWriter> w(new StatsCsvWriter);
+  w->path_ = path;
+  w->out_.open(path, std::ios::binary);
+  if (!w->out_) return make_error(path.string(), ": cannot write the statistics file");
+  write_stats_csv_header(w->out_);
+  return w;
+}
+
+Status StatsCsvWriter::add(const OcclusionStats& s) {
+  write_stats_csv_row(out_, s);
+  out_.flush();
+  if (!out_) return make_error(path_.string(), ": write failed");
+  return {};
+}
+
+}  // namespace augrig::pipeline

@@ -1,0 +1,58 @@
+// What the pipeline's file sinks write, shared with the batch commands: the per-frame images
+// (augmented, masks, visualisations: docs/CLI.md gives the layout), stats.csv, and the recorder's
+// FrameRecord made from an augmented frame. Also the receiver model a rig asks for.
+#pragma once
+
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "core/expected.hpp"
+#include "core/frame.hpp"
+#include "recorder/record.hpp"
+#include "render/augmenter.hpp"
+#include "render/models.hpp"
+#include "render/rig.hpp"
+#include "render/stats.hpp"
+
+namespace augrig::pipeline {
+
+// The receiver model and where its receptacle is: the built-in model knows its own receptacle;
+// a model file relies on the rig's receiver.receptacle_m.
+struct ReceiverSetup {
+  std::shared_ptr<const Model> model;  // null: let the Augmenter load the rig's file
+  Eigen::Vector3d receptacle_m = Eigen::Vector3d::Zero();
+};
+ReceiverSetup receiver_setup(const Rig& rig);
+
+// Per-frame file names: left/right keep their own stems, the visualisations use the left one.
+struct FrameNames {
+  std::string left, right;
+};
+// Everything written for one stereo frame; `raw` is the frame `r` was made from (its augmented
+// images may be the changed boxes only). Creates the folders.
+Status write_frame_images(const std::filesystem::path& out, const FrameNames& n, const StereoFrame& raw,
+                          const StereoResult& r);
+
+// A frame for the recorder from what the augmenter made: the augmented images as made (whole, or
+// only their changed boxes: AugmentedOutput), the masks and the statistics. The caller adds the
+// raw frame, the poses and the boom.
+recorder::FrameRecord frame_record(const StereoResult& r);
+
+// stats.csv, one row per stereo frame, flushed per row so a failed run keeps what it counted.
+class StatsCsvWriter {
+ public:
+  static Expected<std::unique_ptr<StatsCsvWriter>> create(const std::filesystem::path& path);
+  Status add(const OcclusionStats& s);
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  StatsCsvWriter() = default;
+  std::filesystem::path path_;
+  std::ofstream out_;
+};
+
+}  // namespace augrig::pipeline

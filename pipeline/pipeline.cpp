@@ -1,0 +1,617 @@
+#include "pipeline/pipeline.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <iomanip>
+#include <sstream>
+#include <thread>
+
+#include "core/clock.hpp"
+#include "recorder/replay_source.hpp"
+#include "render/gl_context.hpp"
+
+namespace augrig::pipeline {
+
+namespace {
+
+using SteadyClock = std::chrono::steady_clock;
+
+std::string fmt_us(std::int64_t ns) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(1) << static_cast<double>(ns) / 1e3;
+  return s.str();
+}
+std::string fmt_ms(double ms) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(1) << ms;
+  return s.str();
+}
+
+bool same_counts(const OcclusionStats& a, const OcclusionStats& b) {
+  return a.receiver_px_left == b.receiver_px_left && a.receiver_px_right == b.receiver_px_right &&
+         a.boom_px_left == b.boom_px_left && a.boom_px_right == b.boom_px_right &&
+         a.boom_overlap_px == b.boom_overlap_px && a.occluded_px_left == b.occluded_px_left &&
+         a.occluded_px_right == b.occluded_px_right && a.stereo_both_px == b.stereo_both_px &&
+         a.left_only_px == b.left_only_px && a.right_only_px == b.right_only_px && a.neither_px == b.neither_px;
+}
+
+// The last latencies (ms) for the HUD's p50/p99.
+LatencyHud rolling_hud(std::vector<double> v) {
+  LatencyHud h;
+  if (v.empty()) return h;
+  std::sort(v.begin(), v.end());
+  h.p50_ms = v[v.size() / 2];
+  h.p99_ms = v[std::min(v.size() - 1, v.size() * 99 / 100)];
+  return h;
+}
+
+const recorder::RecordedFrame* recorded(const StereoFrame& f) {
+  return dynamic_cast<const recorder::RecordedFrame*>(f.left.attachment.get());
+}
+
+}  // namespace
+
+// ---- Commands and the mailbox -----------------------------------------------------------------
+
+void PipelineCommands::merge(const PipelineCommands& o) {
+  quit = quit || o.quit;
+  toggle_pause = toggle_pause != o.toggle_pause;
+  toggle_recording = toggle_recording != o.toggle_recording;
+  if (o.boom_mode) boom_mode = o.boom_mode;
+  boom_nudge.elevation_rad += o.boom_nudge.elevation_rad;
+  boom_nudge.azimuth_rad += o.boom_nudge.azimuth_rad;
+  boom_nudge.extension_m += o.boom_nudge.extension_m;
+  steps += o.steps;
+  if (o.seek_frame) seek_frame = o.seek_frame;
+}
+
+void LiveView::publish(StereoResult& result, const SceneState& scene, TimestampNs mid_host_ns) {
+  std::lock_guard lock(mutex_);
+  std::swap(newest_.result, result);
+  newest_.scene = scene;
+  newest_.id++;
+  newest_mid_host_ns_ = mid_host_ns;
+}
+
+void LiveView::set_hud(HudState hud, std::optional<Playback> playback) {
+  std::lock_guard lock(mutex_);
+  hud.latency_display = rolling_hud(recent_ms_);
+  hud_ = std::move(hud);
+  playback_ = playback;
+}
+
+PipelineCommands LiveView::take_commands() {
+  std::lock_guard lock(mutex_);
+  PipelineCommands c = std::move(commands_);
+  commands_ = {};
+  return c;
+}
+
+void LiveView::finish() {
+  std::lock_guard lock(mutex_);
+  finished_ = true;
+}
+
+TimestampNs LiveView::take_newest(Shown& shown) {
+  std::lock_guard lock(mutex_);
+  if (newest_.id == shown.id) return 0;
+  std::swap(newest_.result, shown.result);
+  shown.scene = newest_.scene;
+  shown.id = newest_.id;
+  return newest_mid_host_ns_;
+}
+
+HudState LiveView::hud() const {
+  std::lock_guard lock(mutex_);
+  return hud_;
+}
+
+std::optional<Playback> LiveView::playback() const {
+  std::lock_guard lock(mutex_);
+  return playback_;
+}
+
+void LiveView::post(const PipelineCommands& c) {
+  std::lock_guard lock(mutex_);
+  commands_.merge(c);
+}
+
+bool LiveView::finished() const {
+  std::lock_guard lock(mutex_);
+  return finished_;
+}
+
+void LiveView::drawn(TimestampNs mid_host_ns) {
+  if (mid_host_ns) add_latency(monotonic_now_ns() - mid_host_ns);
+}
+
+void LiveView::add_latency(TimestampNs ns) {
+  std::lock_guard lock(mutex_);
+  if (recent_ms_.size() == 300) recent_ms_.erase(recent_ms_.begin());
+  recent_ms_.push_back(static_cast<double>(ns) / 1e6);
+  display_hist_.add(ns);
+}
+
+LatencyHud LiveView::display_latency() const {
+  std::lock_guard lock(mutex_);
+  return rolling_hud(recent_ms_);
+}
+
+// ---- The pipeline ------------------------------------------------------------------------------
+
+Pipeline::Pipeline(PipelineParts parts) : parts_(std::move(parts)) {}
+Pipeline::~Pipeline() = default;
+
+struct Pipeline::State {
+  PipelineReport report;
+  bool recording_on = true, paused = false, recorder_failed = false, was_stale = false;
+  TimestampNs first_t_ns = 0;
+  bool first = true;
+  TimeSpan failed_t;  // the pairs whose augmentation failed (t_key_ns), for the ledger
+  std::vector<ClockOffsetLog> clocks;
+  std::vector<std::string> last_health;
+  FramePoses poses;
+  std::vector<double> recorder_recent_ms;
+  std::optional<std::size_t> seek_target;  // replay: pairs before it are passed over
+  // replay: the recording's time span and the pair last augmented, for the timeline.
+  TimestampNs replay_first_ns = 0, replay_last_ns = 0, shown_t_key_ns = 0;
+  std::size_t shown_index = 0;
+  int shown_pass = 0;
+};
+
+void Pipeline::log_event(State&, const std::string& text, std::ostream& out) {
+  out << "  " << text << "\n";
+  if (parts_.recorder)
+    parts_.recorder->push(recorder::EventRecord{monotonic_now_ns(), ClockDomain::kHostMonotonic, text});
+}
+
+Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
+  PipelineParts& p = parts_;
+  State s;
+  PipelineReport& rep = s.report;
+  StereoSource& source = *p.source;
+  s.last_health.resize(source.sources().size());
+  s.recording_on = p.recorder != nullptr;
+  BoomStage boom(p.rig, p.receiver.receptacle_m, p.boom);
+  // Without a boom of the user's, tracking is the default whenever the poses carry no boom of their
+  // own; a pose source with a boom (a scene, a recording) keeps it until the user says otherwise.
+  bool boom_default_track = !p.boom;
+
+  // The augmenter (and its GL context) on this thread. Only the boxes the boom changes are made:
+  // the recorder stores no more; the window and the image files get whole images made for them.
+  auto gl = create_gl_context(GlBackend::kEglHeadless);
+  if (!gl) return make_error("cannot create an OpenGL context (EGL headless): ", gl.error().message);
+  AugmentOptions aug_options = p.augment;
+  aug_options.receiver_model = p.receiver.model;
+  aug_options.augmented_output = AugmentedOutput::kChangedBox;
+  auto augmenter_or = Augmenter::create(p.rig, aug_options);
+  if (!augmenter_or) return augmenter_or.error();
+  std::unique_ptr<Augmenter> augmenter = std::move(*augmenter_or);
+  rep.rasterizer = augmenter->rasterizer();
+
+  // The simulation's cameras are calibrated to GPS time (their offsets are known).
+  std::vector<TimestampNs> sim_offsets;
+  if (p.source_info.sim) {
+    sim_offsets = p.source_info.sim->scenario.sensors.cameras.clock_offset_ns;
+    sim_offsets.resize(2, 0);
+  }
+  recorder::ReplaySource* replay = p.source_info.replay;
+  if (replay) {
+    bool any = false;
+    for (const auto& t : replay->frame_times())
+      if (t) {
+        if (!any) s.replay_first_ns = *t;
+        s.replay_last_ns = *t;
+        any = true;
+      }
+  }
+
+  const auto t0 = SteadyClock::now();
+  auto next_status = t0 + std::chrono::duration<double>(p.status_every_s);
+  auto next_clocks = t0;
+  StereoResult result;
+  std::optional<Error> fatal;
+
+  auto problem = [&](const Error& e) {
+    if (p.on_problem)
+      p.on_problem(e);
+    else
+      err << "pipeline: " << e.message << "\n";
+  };
+
+  // Each camera's mid-exposure on the host clock: the simulation's own clock, the estimated
+  // device-to-host offset, or the kernel's host timestamp (0: unknown, e.g. replay).
+  auto mid_host_ns = [&](const Frame& f) -> TimestampNs {
+    if (p.source_info.sim_clock && p.source_info.sim_clock->paced())
+      return p.source_info.sim_clock->host_ns(f.t_ns - sim_offsets[index_of(f.camera)]);
+    if (f.clock == ClockDomain::kHostMonotonic) return f.t_ns;
+    if (f.clock == ClockDomain::kDevice)
+      for (const ClockOffsetLog& c : s.clocks)
+        if (c.camera == f.camera && c.samples) return f.t_ns + c.offset_ns;
+    return 0;
+  };
+
+  // One stereo frame through pose, boom, augmentation and the sinks.
+  auto process = [&](StereoFrame& frame) {
+    if (s.first) {
+      s.first = false;
+      s.first_t_ns = frame.left.t_ns;
+      if (p.on_first_frame) p.on_first_frame(frame);
+      // A configuration that cannot work fails here, once, before anything is augmented.
+      for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+        const Image& im = frame[id].image;
+        const RigCamera& cam = p.rig.cameras[static_cast<std::size_t>(index_of(id))];
+        if (im.width() != cam.model.width_px || im.height() != cam.model.height_px) {
+          const recorder::RecordedFrame* rf = recorded(frame);
+          fatal = make_error(rf ? p.source_info.replay->reader().path() : source.uri(), ": frame ",
+                             rf ? rf->index : frame.pair_sequence, ": the ", to_string(id), " image is ", im.width(),
+                             "x", im.height(), ", the rig's ", cam.name, " camera is ", cam.model.width_px, "x",
+                             cam.model.height_px, " (", p.rig.source,
+                             "; give the rig that matches the images, or set the cameras' size)");
+          return;
+        }
+      }
+    }
+    const TimestampNs mid_l = mid_host_ns(frame.left), mid_r = mid_host_ns(frame.right);
+    const TimestampNs mid_host = mid_l && mid_r ? std::min(mid_l, mid_r) : 0;  // the earlier: not flattered
+
+    // 1. The pose.
+    s.poses = p.poses->at(frame, mid_l);
+    FramePoses& fp = s.poses;
+    bool stale = fp.stale;
+    if (!fp.scene) {
+      ++rep.no_pose_pairs;
+      stale = true;
+      if (p.skip_frames_without_pose) {
+        if (rep.skipped_no_pose++ < 5)
+          problem(make_error(fp.problems.empty() ? "pair " + std::to_string(frame.pair_sequence) + ": no pose"
+                                                 : fp.problems.front(),
+                             "; not augmented"));
+        return;
+      }
+      // Without a pose the frame is still shown and recorded: the boom alone, the receiver left out
+      // of the masks, and the frame marked.
+      fp.scene = SceneState{BoomArticulation{}, Pose::identity(), false};
+    }
+    if (stale) ++rep.stale_pairs;
+    if (stale != s.was_stale) {
+      std::ostringstream e;
+      e << (p.poses->live() ? "nav " : "pose ") << (stale ? "stale" : "good again") << " from pair "
+        << frame.pair_sequence
+        << " (t_ns " << frame.t_key_ns << ")";
+      if (stale && !fp.problems.empty()) e << ": " << fp.problems.front();
+      log_event(s, e.str(), out);
+      s.was_stale = stale;
+    }
+    SceneState& scene = *fp.scene;
+
+    // 2. The boom.
+    if (boom_default_track) {
+      boom.set_mode(fp.boom_given ? DisplayBoomMode::kFixed : DisplayBoomMode::kTrackReceptacle);
+      boom_default_track = false;
+    }
+    boom.apply(scene, ns_to_s(frame.left.t_ns - s.first_t_ns));
+
+    // 3. The augmentation.
+    if (Status st = augmenter->augment(frame, scene, result); !st) {
+      ++rep.failed_pairs;
+      s.failed_t.add(frame.t_key_ns);
+      problem(make_error("pair ", frame.pair_sequence, ": ", st.error().message));
+      return;
+    }
+    rep.augment_ms += augmenter->timings().total_ms;
+    result.stats.t_ns = frame.t_key_ns;
+    ++rep.pairs;
+    rep.summary.add(result.stats);
+    rep.all_stats.push_back(result.stats);
+    const recorder::RecordedFrame* rf = recorded(frame);
+    if (rf && rf->record.stats) {
+      ++rep.comparable;
+      rep.reproduced += same_counts(result.stats, *rf->record.stats);
+    }
+
+    // 4. The sinks.
+    if (p.stats_csv)
+      if (Status st = p.stats_csv->add(result.stats); !st) {
+        fatal = st.error();
+        return;
+      }
+    if (p.frame_files && (rep.pairs - 1) % static_cast<std::uint64_t>(p.frame_files->every) == 0) {
+      std::ostringstream stem;
+      if (rf && rf->pass) stem << "pass" << rf->pass << "_";
+      stem << std::setw(6) << std::setfill('0') << (rf ? rf->index : frame.pair_sequence);
+      if (Status st = write_frame_images(p.frame_files->dir, {stem.str(), stem.str()}, frame, result); !st) {
+        fatal = st.error();
+        return;
+      }
+    }
+    // The recorder takes the boxes (copied here); the window then gets whole images.
+    std::optional<recorder::FrameRecord> fr;
+    if (p.recorder && s.recording_on) fr = frame_record(result);
+    if (p.view && !s.paused) {
+      make_whole_augmented(frame.left.image, result.left);
+      make_whole_augmented(frame.right.image, result.right);
+    }
+    if (rf) {
+      s.shown_index = rf->index;
+      s.shown_pass = rf->pass;
+      s.shown_t_key_ns = frame.t_key_ns;
+    }
+    if (p.view) {
+      // A paused live run keeps processing and recording; the window keeps the frozen pair.
+      if (!s.paused || replay) p.view->publish(result, scene, mid_host);
+    } else if (mid_host) {
+      // Headless: the hand-off is as far as a frame goes.
+      rep.display_latency.add(monotonic_now_ns() - mid_host);
+    }
+    if (fr) {
+      if (mid_host) rep.recorder_latency.add(monotonic_now_ns() - mid_host);
+      fr->raw = std::move(frame);
+      fr->T_body_receiver = scene.T_body_receiver;
+      fr->receiver_present = scene.receiver_present;
+      for (int c = 0; c < 2; ++c) fr->T_cam_receiver[c] = p.rig.cameras[c].T_body_cam.inverse() * scene.T_body_receiver;
+      fr->sigma_pos_m = fp.sigma_pos_m;
+      fr->sigma_att_deg = fp.sigma_att_deg;
+      fr->boom = scene.boom;
+      p.recorder->push(std::move(*fr));
+    }
+  };
+
+  // The HUD and the commands, once per loop when a window is open.
+  auto exchange_with_view = [&] {
+    const StereoSourceStats st = source.stats();
+    const double t = std::max(1e-9, std::chrono::duration<double>(SteadyClock::now() - t0).count());
+    HudState hud;
+    hud.fps = {st.frames[0] / t, st.frames[1] / t};
+    if (st.pairing.skew.count) {
+      hud.skew_p50_ms = st.pairing.skew.p50_abs_ns() / 1e6;
+      hud.skew_p99_ms = st.pairing.skew.p99_abs_ns() / 1e6;
+    }
+    hud.drops = {st.camera_drops, st.transport_drops, st.pairing.unpaired_left + st.pairing.unpaired_right,
+                 st.queue_drops[0] + st.queue_drops[1] + rep.failed_pairs * 2,
+                 p.recorder ? p.recorder->stats().frames_dropped : 0};
+    hud.nav = s.poses.hud;
+    for (const std::string& m : s.poses.problems) hud.messages.push_back(m);
+    hud.stale_pose = s.was_stale;
+    if (!rep.all_stats.empty()) hud.occlusion = rep.all_stats.back();
+    hud.latency_recorder = rolling_hud(s.recorder_recent_ms);
+    hud.recording = p.recorder && s.recording_on;
+    hud.recording_path = p.recorder ? p.recorder->path() : "";
+    hud.paused = s.paused;
+    hud.boom_mode = boom.mode();
+    for (const SourceHealth& h : source.health())
+      if (!h.connected) hud.messages.push_back(h.message);
+    if (p.recorder && !p.recorder->status())
+      hud.messages.push_back("recording stopped: " + p.recorder->status().error().message);
+    std::optional<Playback> pb;
+    if (replay) {
+      Playback b;
+      b.frame_count = replay->frame_count();
+      b.frame = s.shown_index;
+      b.pass = s.shown_pass;
+      b.t_s = s.shown_t_key_ns ? ns_to_s(s.shown_t_key_ns - s.replay_first_ns) : 0;
+      b.duration_s = ns_to_s(s.replay_last_ns - s.replay_first_ns);
+      pb = b;
+    }
+    p.view->set_hud(std::move(hud), pb);
+    PipelineCommands c = p.view->take_commands();
+    if (c.quit) {
+      rep.window_closed = true;
+    }
+    if (c.toggle_pause) {
+      s.paused = !s.paused;
+      if (replay) replay->set_paused(s.paused);
+    }
+    if (c.toggle_recording && p.recorder) {
+      s.recording_on = !s.recording_on;
+      log_event(s, s.recording_on ? "recording resumed" : "recording paused", out);
+    }
+    if (c.boom_mode) {
+      boom.set_mode(*c.boom_mode);
+      boom_default_track = false;
+    }
+    if (c.boom_nudge.any()) {
+      boom.nudge(c.boom_nudge);
+      boom_default_track = false;
+    }
+    return c;
+  };
+
+  PipelineCommands pending;
+  for (;;) {
+    if (fatal) break;
+    if (p.stop_flag && p.stop_flag->load()) {
+      rep.stopped_by_signal = true;
+      out << "run: stopped by signal\n";
+      break;
+    }
+    if (rep.window_closed) break;
+    if (p.duration_s > 0 && std::chrono::duration<double>(SteadyClock::now() - t0).count() >= p.duration_s) break;
+    if (p.max_pairs && rep.pairs >= p.max_pairs) break;
+    StereoFrame frame;
+    // A paused replay reads nothing until a step or a seek.
+    const bool hold = replay && s.paused && pending.steps == 0 && !s.seek_target;
+    Expected<ReadStatus> r = ReadStatus::kTimeout;
+    if (hold) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    } else {
+      r = source.read(frame, std::chrono::milliseconds(200));
+    }
+    // Camera state changes are events: printed, and recorded with the frames.
+    const std::vector<SourceHealth> health = source.health();
+    for (std::size_t i = 0; i < health.size(); ++i)
+      if (health[i].message != s.last_health[i]) {
+        if (!s.last_health[i].empty() || !health[i].connected) log_event(s, health[i].message, out);
+        s.last_health[i] = health[i].message;
+      }
+    if (!r) {
+      rep.source_failed = true;
+      rep.source_error = r.error().message;
+      problem(r.error());
+      break;
+    }
+    for (const std::string& e : source.take_errors()) problem(Error{e});
+    if (*r == ReadStatus::kEndOfStream) break;
+    if (*r == ReadStatus::kFrame) {
+      const recorder::RecordedFrame* rf = recorded(frame);
+      if (rf) {
+        // A recorded pair keeps its recorded key, skew and sequence.
+        frame.t_key_ns = rf->record.raw.t_key_ns;
+        frame.skew_ns = rf->record.raw.skew_ns;
+        frame.pair_sequence = rf->record.raw.pair_sequence;
+      }
+      if (s.seek_target && rf && rf->index != *s.seek_target) {
+        ++rep.seek_skipped_pairs;  // read ahead before the seek
+      } else {
+        s.seek_target.reset();
+        if (pending.steps > 0) --pending.steps;
+        process(frame);
+      }
+    }
+    if (p.view) {
+      PipelineCommands c = exchange_with_view();
+      if (replay && c.seek_frame && *c.seek_frame < replay->frame_count()) {
+        if (Status st = replay->seek_frame(*c.seek_frame); st) {
+          s.seek_target = *c.seek_frame;
+          if (s.paused) replay->step(1);
+        }
+      }
+      if (replay && c.steps > 0 && s.paused) {
+        replay->step(static_cast<std::size_t>(c.steps));
+        pending.steps += c.steps;
+      }
+    }
+    if (p.recorder && !s.recorder_failed && !p.recorder->status()) {
+      // Disk full or a write error: the recording ends valid with what it holds; the run goes on.
+      s.recorder_failed = true;
+      out << "  recording stopped: " << p.recorder->status().error().message
+          << " (what was recorded stays valid; the run goes on)\n";
+    }
+    if (SteadyClock::now() >= next_clocks) {
+      next_clocks += std::chrono::seconds(1);
+      s.clocks = source.stats().clocks;
+    }
+    if (p.status_every_s > 0 && SteadyClock::now() >= next_status) {
+      next_status += std::chrono::duration<double>(p.status_every_s);
+      const StereoSourceStats st = source.stats();
+      const double t = std::chrono::duration<double>(SteadyClock::now() - t0).count();
+      out << "  t " << std::fixed << std::setprecision(1) << t << " s: " << rep.pairs << " pairs ("
+          << std::setprecision(1) << rep.pairs / std::max(t, 1e-9) << "/s), skew p50/p99 "
+          << fmt_us(st.pairing.skew.p50_abs_ns()) << "/" << fmt_us(st.pairing.skew.p99_abs_ns())
+          << " us, drops camera " << st.camera_drops << " transport " << st.transport_drops << " pairing "
+          << st.pairing.unpaired_left + st.pairing.unpaired_right << " queue " << st.queue_drops[0] + st.queue_drops[1]
+          << "\n";
+      for (const ClockOffsetLog& c : st.clocks) {
+        std::ostringstream e;
+        e << "clock_offset camera=" << to_string(c.camera) << " t_device_ns=" << c.t_device_ns
+          << " offset_ns=" << c.offset_ns << " drift_ppm=" << std::setprecision(3) << c.drift_ppm
+          << " uncertainty_ns=" << c.uncertainty_ns << " samples=" << c.samples << " resets=" << c.resets;
+        if (p.recorder) p.recorder->push(recorder::EventRecord{c.t_host_ns, ClockDomain::kHostMonotonic, e.str()});
+      }
+    }
+  }
+  if (p.view) p.view->finish();
+  source.stop();
+  if (p.on_stop) p.on_stop();
+  if (p.nav_inputs) p.nav_inputs->stop();
+  rep.wall_s = std::chrono::duration<double>(SteadyClock::now() - t0).count();
+  rep.source = source.stats();
+  if (p.view) rep.display_latency = p.view->display_histogram();
+  for (std::size_t i = 0; i < source.sources().size(); ++i) {
+    const SourceHealth h = source.health()[i];
+    if (!h.connected)
+      rep.lost_cameras.push_back(source.sources()[i]->uri() + " was lost and never came back (" + h.message + ")");
+  }
+
+  // The drop ledger into the recording, and the recording closed: every frame is accounted for.
+  if (p.recorder) {
+    if (p.nav_inputs) p.nav_inputs->ledger(*p.recorder);
+    const StereoSourceStats& st = rep.source;
+    // The sources count their own gaps without timestamps; every other row has the first and last
+    // frame time of what it counts.
+    auto ledger = [&](recorder::DropStage stage, std::uint64_t n, const TimeSpan& t, const std::string& why) {
+      if (n) p.recorder->push(recorder::DropRecord{stage, n, t.first_t_ns, t.last_t_ns, why, "frame"});
+    };
+    ledger(recorder::DropStage::kCamera, st.camera_drops, {}, "frame-id gaps reported by the cameras");
+    ledger(recorder::DropStage::kTransport, st.transport_drops, {}, "incomplete or failed buffers");
+    ledger(recorder::DropStage::kPairing, st.pairing.unpaired_left + st.pairing.unpaired_right, st.pairing.unpaired_t,
+           "frames without a stereo partner");
+    ledger(recorder::DropStage::kProcessing, st.queue_drops[0] + st.queue_drops[1], st.queue_drop_t,
+           "capture queue full (the pipeline fell behind)");
+    ledger(recorder::DropStage::kProcessing, rep.failed_pairs * 2, s.failed_t,
+           "augmentation failed (both frames of the pair)");
+    ledger(recorder::DropStage::kProcessing, st.pending.count, st.pending,
+           "pending in the capture queues or the pairer when the run stopped");
+    rep.recording_closed = p.recorder->close();
+    rep.recorder_stats = p.recorder->stats();
+  }
+  if (fatal) return *fatal;
+  return rep;
+}
+
+void Pipeline::print_summary(const PipelineReport& r, std::ostream& out) const {
+  const StereoSourceStats& st = r.source;
+  if (r.summary.frames()) out << r.summary.format();
+  const std::uint64_t pairing = st.pairing.unpaired_left + st.pairing.unpaired_right;
+  const std::uint64_t queue = st.queue_drops[0] + st.queue_drops[1];
+  const std::uint64_t pending = st.pending.count;
+  out << "run: " << r.pairs << " stereo frames augmented in " << std::fixed << std::setprecision(1) << r.wall_s
+      << " s (" << r.pairs / std::max(r.wall_s, 1e-9) << "/s";
+  if (r.pairs)
+    out << ", augmenter " << fmt_ms(r.augment_ms / static_cast<double>(r.pairs)) << " ms/frame, "
+        << to_string(r.rasterizer) << " rasteriser";
+  // Every frame read is in a pair or a ledger row: read = 2 pairs + pairing + queue + pending.
+  const std::uint64_t pairs_read = r.pairs + r.failed_pairs + r.skipped_no_pose + r.seek_skipped_pairs;
+  out << "); frames read: left " << st.frames[0] << ", right " << st.frames[1] << " = 2 x " << pairs_read
+      << " pairs + " << pairing << " unpaired + " << queue << " dropped from full queues + " << pending
+      << " pending at the stop\n";
+  if (r.skipped_no_pose || r.seek_skipped_pairs)
+    out << "pairs read but not augmented: " << r.skipped_no_pose << " without a pose, " << r.seek_skipped_pairs
+        << " passed over by a seek\n";
+  out << "drops: camera " << st.camera_drops << ", transport " << st.transport_drops << ", pairing " << pairing
+      << ", processing " << queue + r.failed_pairs * 2 + pending << " (queue " << queue << ", failed "
+      << r.failed_pairs << " pairs, pending at the stop " << pending << "), recorder "
+      << r.recorder_stats.frames_dropped << "\n";
+  // Latency from each pair's mid-exposure (the earlier camera's) on the host clock.
+  auto latency_line = [&](const char* what, const SkewStats& h) {
+    if (h.count)
+      out << "latency mid-exposure to " << what << ": p50 " << fmt_ms(h.p50_abs_ns() / 1e6) << " ms, p99 "
+          << fmt_ms(h.p99_abs_ns() / 1e6) << " ms, max " << fmt_ms(h.max_abs_ns / 1e6) << " ms (" << h.count
+          << " pairs)\n";
+  };
+  latency_line(parts_.view ? "display" : "display hand-off", r.display_latency);
+  latency_line("recorder", r.recorder_latency);
+  if (parts_.live_nav) {
+    out << "nav: " << r.no_pose_pairs << " pairs without a pose (boom only), " << r.stale_pairs
+        << " with a stale or missing pose\n";
+    for (Aircraft ac : {Aircraft::kTanker, Aircraft::kReceiver}) {
+      const nav::LiveFusionStatus ns = parts_.live_nav->status(ac);
+      out << "nav " << to_string(ac) << ": " << (ns.initialised ? "fused" : "never initialised") << ", "
+          << ns.imu_samples << " IMU samples (" << ns.imu_refused << " refused), " << ns.fixes
+          << " fixes: " << ns.fixes_used << " used, " << ns.fixes_rejected << " rejected by the gate, "
+          << ns.fixes_invalid << " without a fix, " << ns.fixes_late << " late\n";
+    }
+  } else if (r.no_pose_pairs && !r.skipped_no_pose) {
+    out << "nav: " << r.no_pose_pairs << " pairs without a pose (boom only)\n";
+  }
+  if (st.pairing.skew.count)
+    out << "pair skew: p50 " << fmt_us(st.pairing.skew.p50_abs_ns()) << " us, p99 "
+        << fmt_us(st.pairing.skew.p99_abs_ns()) << " us, max " << fmt_us(st.pairing.skew.max_abs_ns) << " us"
+        << (st.pairing.pairs_within_uncertainty
+                ? ", " + std::to_string(st.pairing.pairs_within_uncertainty) +
+                      " pair(s) beyond the tolerance but within the clock estimates' uncertainty"
+                : std::string())
+        << "\n";
+  for (const ClockOffsetLog& c : st.clocks)
+    out << "clock " << to_string(c.camera) << ": host - device " << c.offset_ns << " ns, drift "
+        << std::setprecision(2) << c.drift_ppm << " ppm, +-" << fmt_us(c.uncertainty_ns) << " us (" << c.samples
+        << " samples, " << c.resets << " resets)\n";
+  for (std::size_t i = 0; i < parts_.source->sources().size(); ++i) {
+    const SourceHealth h = parts_.source->health()[i];
+    if (h.disconnects)
+      out << parts_.source->sources()[i]->uri() << ": lost " << h.disconnects << " time(s), reconnected "
+          << h.reconnects << " time(s)" << (h.connected ? "" : "; not connected at the end") << "\n";
+  }
+}
+
+}  // namespace augrig::pipeline

@@ -1,0 +1,204 @@
+// Pipeline: the runtime behind every augrig command that moves frames (run, demo's window,
+// replay). One stereo frame's path, all of it in Pipeline::process():
+//
+//   source    a StereoSource (capture thread per source, bounded queues, pairing) over any
+//             FrameSource by URI (sources.hpp): sim://, replay://, euroc://, aravis://, v4l2://
+//   pose      a PoseProvider (poses.hpp): the receiver's pose at the frame's mid-exposure, with a
+//             verdict (good, stale, none) in plain words
+//   boom      the BoomStage (boom_stage.hpp): the source's boom, fixed, scripted, tracking the
+//             receptacle, or the operator's
+//   augment   the Augmenter: masks, receiver depth, the boom composited, occlusion statistics
+//   sinks     each optional: the recorder, stats.csv, per-frame images, the live window's mailbox
+//             (LiveView), and the run's summary (PipelineReport)
+//
+// run() reads pairs until a stop condition: the source ends, the duration or the pair count is
+// reached, the stop flag is raised (a signal), the window is closed, or something fails. Every
+// frame read is accounted for: read = 2 x pairs + each row of the drop ledger (pairing, queue,
+// failed, pending at the stop), which the report prints and the recorder stores. A configuration
+// that cannot work (a frame size that is not the rig's) fails at the first frame with one message.
+//
+// Threads: run() on one thread (the app runs it on a worker when a window is open; the window
+// talks to it only through LiveView). The GL context the augmenter needs is made on that thread.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "capture/stereo_source.hpp"
+#include "core/expected.hpp"
+#include "pipeline/boom_stage.hpp"
+#include "pipeline/nav_inputs.hpp"
+#include "pipeline/outputs.hpp"
+#include "pipeline/poses.hpp"
+#include "pipeline/sources.hpp"
+#include "pipeline/status.hpp"
+#include "recorder/recorder.hpp"
+#include "render/augmenter.hpp"
+#include "render/rig.hpp"
+#include "render/stats.hpp"
+
+namespace augrig::recorder {
+class ReplaySource;
+}
+
+namespace augrig::pipeline {
+
+// What the window (or any controller) asks of the running pipeline; merged until taken.
+struct PipelineCommands {
+  bool quit = false;
+  bool toggle_pause = false;
+  bool toggle_recording = false;
+  std::optional<DisplayBoomMode> boom_mode;
+  BoomNudge boom_nudge;
+  int steps = 0;                          // paused: advance this many stereo frames (replay)
+  std::optional<std::size_t> seek_frame;  // replay: jump to this recorded frame
+  void merge(const PipelineCommands& o);
+};
+
+// Where the playback of a recording stands, for the window's timeline.
+struct Playback {
+  std::size_t frame = 0;        // the recorded index of the frame shown
+  std::size_t frame_count = 0;  // frames in the recording
+  double t_s = 0, duration_s = 0;  // from the first frame
+  int pass = 0;
+};
+
+// The mailbox between the pipeline's thread and the window's: the newest augmented pair (by
+// swap, never copied), the HUD, the playback position, and commands back. Neither side waits.
+class LiveView {
+ public:
+  // ---- The pipeline's side ----
+  // Hands over a new augmented pair (whole augmented images); `result` gets the previous buffers.
+  void publish(StereoResult& result, const SceneState& scene, TimestampNs mid_host_ns);
+  void set_hud(HudState hud, std::optional<Playback> playback);
+  PipelineCommands take_commands();
+  void finish();  // the pipeline stopped: the window closes
+  // ---- The window's side ----
+  struct Shown {
+    StereoResult result;
+    SceneState scene;
+    std::uint64_t id = 0;  // 0: nothing yet
+  };
+  // Swaps the newest pair into `shown` when there is one newer than shown.id; returns its
+  // mid-exposure on the host clock (0: no new pair or unknown).
+  TimestampNs take_newest(Shown& shown);
+  HudState hud() const;
+  std::optional<Playback> playback() const;
+  void post(const PipelineCommands& c);
+  bool finished() const;
+  // The window drew the pair with mid-exposure `mid_host_ns`: its latency to the screen.
+  void drawn(TimestampNs mid_host_ns);
+  // Mid-exposure to the window's draw (or, headless, to the hand-off), over the last pairs.
+  LatencyHud display_latency() const;
+  const SkewStats& display_histogram() const { return display_hist_; }
+
+ private:
+  friend class Pipeline;
+  void add_latency(TimestampNs ns);
+  mutable std::mutex mutex_;
+  Shown newest_;
+  TimestampNs newest_mid_host_ns_ = 0;
+  HudState hud_;
+  std::optional<Playback> playback_;
+  PipelineCommands commands_;
+  bool finished_ = false;
+  std::vector<double> recent_ms_;  // the last 300 latencies, for the HUD
+  SkewStats display_hist_;         // the whole run's, for the summary
+};
+
+// Per-frame image files: every `every`-th augmented pair, named by pair sequence (or, for a
+// replayed recording, by recorded index and pass).
+struct FrameFiles {
+  std::filesystem::path dir;
+  int every = 1;
+};
+
+// Everything a pipeline is made of. The source, the poses and the rig are required.
+struct PipelineParts {
+  Rig rig;
+  ReceiverSetup receiver;
+  OpenedSourceInfo source_info;          // what the source URI opened into (live, sim clock, ...)
+  std::unique_ptr<StereoSource> source;  // started
+  std::unique_ptr<PoseProvider> poses;
+  std::optional<BoomArg> boom;  // none: the poses' boom where they have one, else tracking
+  AugmentOptions augment;       // augmented_output is set to kChangedBox (sinks get what they need)
+  // Sinks, each optional.
+  std::unique_ptr<recorder::Recorder> recorder;
+  std::unique_ptr<StatsCsvWriter> stats_csv;
+  std::optional<FrameFiles> frame_files;
+  std::shared_ptr<LiveView> view;
+  // Stop conditions besides the end of the source.
+  double duration_s = 0;          // 0: none
+  std::uint64_t max_pairs = 0;    // augmented pairs; 0: none
+  std::atomic<bool>* stop_flag = nullptr;  // raised by a signal handler
+  double status_every_s = 0;      // a status line this often (0: never)
+  // Frames without a pose: augmented with the boom alone and marked (live), or not augmented and
+  // counted (a recording without a scene for some frames).
+  bool skip_frames_without_pose = false;
+  // Called once with the first frame (e.g. to start the simulated nav streams on its clock).
+  std::function<void(const StereoFrame&)> on_first_frame;
+  // The live nav, when the poses come from it (its status goes into the report).
+  const LiveNav* live_nav = nullptr;
+  // The live nav inputs: stopped with the pipeline, their losses in the recording's ledger.
+  NavInputs* nav_inputs = nullptr;
+  // A problem that does not stop the run (a damaged frame skipped, a failed augmentation, a frame
+  // without a pose): the command prints it its way. Default: "pipeline: <message>" on err.
+  std::function<void(const Error&)> on_problem;
+  // Called when the run stops, before the nav inputs stop (e.g. the simulated nav streams).
+  std::function<void()> on_stop;
+};
+
+// What a run did: the numbers behind its summary.
+struct PipelineReport {
+  std::uint64_t pairs = 0;              // augmented
+  std::uint64_t failed_pairs = 0;       // augmentation failed
+  std::uint64_t no_pose_pairs = 0;      // without a pose (boom only, or skipped)
+  std::uint64_t skipped_no_pose = 0;    // of those, not augmented (skip_frames_without_pose)
+  std::uint64_t stale_pairs = 0;        // with a stale or missing pose
+  std::uint64_t seek_skipped_pairs = 0; // read ahead of a seek and passed over
+  std::uint64_t comparable = 0, reproduced = 0;  // replay: recorded statistics reproduced exactly
+  double wall_s = 0, augment_ms = 0;
+  Rasterizer rasterizer = Rasterizer::kAuto;
+  StereoSourceStats source;
+  std::vector<OcclusionStats> all_stats;  // every augmented pair's (for the run's summary)
+  RunSummary summary;
+  SkewStats display_latency, recorder_latency;
+  bool stopped_by_signal = false, window_closed = false, source_failed = false;
+  std::string source_error;
+  std::vector<std::string> lost_cameras;  // not connected at the end
+  std::optional<Status> recording_closed;
+  recorder::RecorderStats recorder_stats;
+};
+
+class Pipeline {
+ public:
+  explicit Pipeline(PipelineParts parts);
+  ~Pipeline();
+
+  // Runs until a stop condition; prints status lines and events to `out`, per-frame problems to
+  // `err`. Fails (an Error) only for what stops the run at once: a frame size that is not the
+  // rig's, no GL context, a sink that cannot write. The recorder is closed either way.
+  Expected<PipelineReport> run(std::ostream& out, std::ostream& err);
+
+  // The summary lines of a report ("frames read: ... = 2 x P pairs + ..." adds up).
+  void print_summary(const PipelineReport& r, std::ostream& out) const;
+
+  const Rig& rig() const { return parts_.rig; }
+  const PipelineParts& parts() const { return parts_; }
+
+ private:
+  struct State;
+  void log_event(State& s, const std::string& text, std::ostream& out);
+  PipelineParts parts_;
+};
+
+}  // namespace augrig::pipeline

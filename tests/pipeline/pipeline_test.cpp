@@ -1,0 +1,308 @@
+// The runtime pipeline: each source with each sink, pose providers, player controls through the
+// LiveView mailbox, stop conditions, and the ledger adding up (read = 2 x pairs + every row).
+#include "pipeline/pipeline.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "nav/logs.hpp"
+#include "recorder/reader.hpp"
+#include "recorder/replay_source.hpp"
+#include "sim/flight_source.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace augrig::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kScenario = "sim://" + test::data_path("scenarios/short_approach.yaml");
+
+// A pipeline over `uri` with the simulation's truth (sim://) or the recorded poses (replay://).
+PipelineParts parts_for(const std::string& uri) {
+  auto opened = open_sources(uri);
+  EXPECT_TRUE(opened) << opened.error().message;
+  PipelineParts p;
+  if (opened->sim) {
+    p.rig = opened->sim->scenario.rig;
+    p.poses = sim_truth_poses(*opened->sim);
+  } else {
+    auto rig = parse_rig(opened->replay->reader().meta("rig_yaml"), "recorded rig");
+    EXPECT_TRUE(rig) << rig.error().message;
+    p.rig = *rig;
+    p.poses = recorded_poses(*rig);
+  }
+  p.receiver = receiver_setup(p.rig);
+  p.source_info = *opened;
+  auto stereo = start_stereo(std::move(*opened));
+  EXPECT_TRUE(stereo) << stereo.error().message;
+  p.source = std::move(*stereo);
+  return p;
+}
+
+// Every frame read is in a pair or a ledger row.
+void expect_ledger_adds_up(const PipelineReport& r) {
+  const StereoSourceStats& st = r.source;
+  const std::uint64_t read = st.frames[0] + st.frames[1];
+  const std::uint64_t accounted = 2 * (r.pairs + r.failed_pairs + r.skipped_no_pose + r.seek_skipped_pairs) +
+                                  st.pairing.unpaired_left + st.pairing.unpaired_right + st.queue_drops[0] +
+                                  st.queue_drops[1] + st.pending.count;
+  EXPECT_EQ(read, accounted) << "pairs " << r.pairs << " unpaired " << st.pairing.unpaired_left << "+"
+                             << st.pairing.unpaired_right << " pending " << st.pending.count;
+}
+
+std::size_t csv_rows(const fs::path& path) {
+  std::ifstream in(path);
+  std::size_t n = 0;
+  for (std::string line; std::getline(in, line);)
+    if (!line.empty() && line[0] != '#') ++n;
+  return n;  // header included
+}
+
+std::size_t files_in(const fs::path& dir) {
+  if (!fs::exists(dir)) return 0;
+  return static_cast<std::size_t>(std::distance(fs::directory_iterator(dir), fs::directory_iterator()));
+}
+
+// The simulated flight into every sink at once, then its recording replayed through the same
+// pipeline with the recorded poses: every pair reproduces the recorded statistics.
+TEST(Pipeline, SimIntoEverySinkThenReplayReproducesIt) {
+  const fs::path dir = test::output_dir("pipeline_every_sink");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  PipelineParts p = parts_for(kScenario + "?every=3&rate=0");
+  recorder::RecordingInfo info;
+  info.rig_yaml = rig_to_yaml(p.rig);
+  auto rec = recorder::Recorder::create((dir / "rec").string(), info);
+  ASSERT_TRUE(rec) << rec.error().message;
+  p.recorder = std::move(*rec);
+  auto csv = StatsCsvWriter::create(dir / "stats.csv");
+  ASSERT_TRUE(csv) << csv.error().message;
+  p.stats_csv = std::move(*csv);
+  p.frame_files = FrameFiles{dir / "frames", 5};
+  p.view = std::make_shared<LiveView>();
+  p.max_pairs = 12;
+  const std::shared_ptr<LiveView> view = p.view;
+  // A window stand-in: takes every pair it can and checks what it gets.
+  std::atomic<std::uint64_t> taken{0};
+  std::atomic<bool> whole{true};
+  std::thread window([&] {
+    LiveView::Shown shown;
+    while (!view->finished()) {
+      const std::uint64_t before = shown.id;
+      view->take_newest(shown);
+      if (shown.id != before) {
+        ++taken;
+        // The window gets whole augmented images, the raw frame's size.
+        whole = whole && shown.result.left.augmented.width() == 1280 && shown.result.left.mask.width() == 1280;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+  });
+  Pipeline pipeline(std::move(p));
+  std::ostringstream out, err;
+  auto r = pipeline.run(out, err);
+  window.join();
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->pairs, 12u);
+  EXPECT_EQ(r->failed_pairs, 0u) << err.str();
+  expect_ledger_adds_up(*r);
+  EXPECT_GT(taken.load(), 0u);
+  EXPECT_TRUE(whole.load());
+  EXPECT_TRUE(view->hud().occlusion.has_value()) << "the HUD's occlusion panel is filled";
+  ASSERT_TRUE(r->recording_closed && *r->recording_closed);
+  EXPECT_EQ(r->recorder_stats.frames_committed, 12u);
+  EXPECT_EQ(csv_rows(dir / "stats.csv"), 13u);
+  EXPECT_EQ(files_in(dir / "frames" / "left" / "mask"), 3u);  // pairs 1, 6 and 11
+  std::ostringstream summary;
+  pipeline.print_summary(*r, summary);
+  EXPECT_NE(summary.str().find("run: 12 stereo frames augmented"), std::string::npos) << summary.str();
+
+  // The recording back through the pipeline: the recorded poses drive it.
+  PipelineParts q = parts_for("replay://" + (dir / "rec").string() + "?rate=fast");
+  Pipeline replay(std::move(q));
+  auto rr = replay.run(out, err);
+  ASSERT_TRUE(rr) << rr.error().message;
+  EXPECT_EQ(rr->pairs, 12u);
+  EXPECT_EQ(rr->comparable, 12u);
+  EXPECT_EQ(rr->reproduced, 12u) << "same pixel counts as recorded";
+  EXPECT_EQ(rr->source.pairing.unpaired_left + rr->source.pairing.unpaired_right, 0u);
+  expect_ledger_adds_up(*rr);
+}
+
+// A recording played in a loop pairs again on every pass, though time goes back at each loop.
+TEST(Pipeline, ReplayLoopsPairOnEveryPass) {
+  const fs::path dir = test::output_dir("pipeline_loop");
+  fs::remove_all(dir);
+  PipelineParts p = parts_for(kScenario + "?every=6&rate=0");
+  recorder::RecordingInfo info;
+  info.rig_yaml = rig_to_yaml(p.rig);
+  p.recorder = std::move(recorder::Recorder::create((dir / "rec").string(), info).value());
+  p.max_pairs = 4;
+  {
+    Pipeline pipeline(std::move(p));
+    std::ostringstream out, err;
+    ASSERT_TRUE(pipeline.run(out, err));
+  }
+  Pipeline replay(parts_for("replay://" + (dir / "rec").string() + "?rate=fast&passes=3"));
+  std::ostringstream out, err;
+  auto r = replay.run(out, err);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->pairs, 12u);
+  EXPECT_EQ(r->reproduced, 12u);
+  expect_ledger_adds_up(*r);
+}
+
+// The player's controls through the mailbox, as the window's timeline uses them: pause holds the
+// playback, a seek jumps to a recorded frame, steps advance one frame each.
+TEST(Pipeline, ReplayPauseSeekAndStepFromTheView) {
+  const fs::path dir = test::output_dir("pipeline_player");
+  fs::remove_all(dir);
+  {
+    PipelineParts p = parts_for(kScenario + "?every=3&rate=0");
+    recorder::RecordingInfo info;
+    info.rig_yaml = rig_to_yaml(p.rig);
+    p.recorder = std::move(recorder::Recorder::create((dir / "rec").string(), info).value());
+    p.max_pairs = 15;
+    Pipeline pipeline(std::move(p));
+    std::ostringstream out, err;
+    ASSERT_TRUE(pipeline.run(out, err));
+  }
+  PipelineParts q = parts_for("replay://" + (dir / "rec").string() + "?rate=2&late=keep");
+  q.view = std::make_shared<LiveView>();
+  const std::shared_ptr<LiveView> view = q.view;
+  std::atomic<bool> stop{false};
+  q.stop_flag = &stop;
+  Pipeline pipeline(std::move(q));
+  std::optional<Expected<PipelineReport>> result;
+  std::ostringstream out, err;
+  std::thread runner([&] { result = pipeline.run(out, err); });
+
+  auto wait_for = [&](auto pred) {
+    for (int i = 0; i < 1000 && !pred(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    return pred();
+  };
+  auto frame_shown = [&] {
+    auto pb = view->playback();
+    return pb ? std::optional<std::size_t>(pb->frame) : std::nullopt;
+  };
+  ASSERT_TRUE(wait_for([&] { return view->playback() && view->playback()->frame >= 1; }));
+  PipelineCommands pause;
+  pause.toggle_pause = true;
+  view->post(pause);
+  ASSERT_TRUE(wait_for([&] { return view->hud().paused; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  const std::optional<std::size_t> held = frame_shown();
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));  // 2x real rate: ~4 frames would pass
+  EXPECT_EQ(frame_shown(), held) << "paused: the playback holds";
+
+  PipelineCommands seek;
+  seek.seek_frame = 11;
+  view->post(seek);
+  EXPECT_TRUE(wait_for([&] { return frame_shown() == std::optional<std::size_t>(11); }));
+  PipelineCommands step;
+  step.steps = 2;
+  view->post(step);
+  EXPECT_TRUE(wait_for([&] { return frame_shown() == std::optional<std::size_t>(13); }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(frame_shown(), std::optional<std::size_t>(13)) << "two steps, then held again";
+  // A seek back in time.
+  seek.seek_frame = 2;
+  view->post(seek);
+  EXPECT_TRUE(wait_for([&] { return frame_shown() == std::optional<std::size_t>(2); }));
+  stop = true;
+  runner.join();
+  ASSERT_TRUE(result && *result) << (result ? result->error().message : "no result");
+  EXPECT_TRUE((*result)->stopped_by_signal);
+  expect_ledger_adds_up(**result);
+}
+
+// A rig whose cameras are not the frames' size fails at the first frame, once, naming both sizes.
+TEST(Pipeline, FrameSizeNotTheRigsFailsAtTheFirstFrame) {
+  PipelineParts p = parts_for(kScenario + "?every=3&rate=0");
+  p.rig.cameras[0].model = CameraModel::pinhole_from_hfov(640, 480, 0.8);
+  std::ostringstream out, err;
+  Pipeline pipeline(std::move(p));
+  auto r = pipeline.run(out, err);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("the left image is 1280x960, the rig's"), std::string::npos)
+      << r.error().message;
+  EXPECT_NE(r.error().message.find("camera is 640x480"), std::string::npos) << r.error().message;
+  EXPECT_EQ(err.str(), "") << "one message, not one per frame";
+}
+
+// Poses from `augrig nav`'s CSV give the same masks as the truth they were written from; frames
+// without a row are augmented with the boom alone, or skipped when asked, and counted either way.
+TEST(Pipeline, PosesCsvDrivesTheAugmentation) {
+  const fs::path dir = test::output_dir("pipeline_poses_csv");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  auto opened = open_sources(kScenario + "?every=3&rate=0");
+  ASSERT_TRUE(opened);
+  const SimulatedFlight& sim = *opened->sim;
+  // Left-camera rows of the truth, every other frame only, without the boom (so it tracks).
+  std::vector<nav::CameraPoseRow> rows;
+  int k = 0;
+  for (const sim::FrameTruth& f : sim::frame_truths(sim.scenario, *sim.flight, sim.logs.cameras)) {
+    if (f.camera != 0 || f.sequence % 3 || (k++ % 2)) continue;
+    nav::CameraPoseRow r = sim::pose_row(f);
+    r.boom_elevation_deg = r.boom_azimuth_deg = r.boom_extension_m = nav::CameraPoseRow::kNaN;
+    rows.push_back(r);
+  }
+  ASSERT_GT(rows.size(), 4u);
+  ASSERT_TRUE(nav::write_camera_pose_csv((dir / "poses.csv").string(), rows));
+
+  auto run = [&](bool csv_poses, bool skip) {
+    PipelineParts p = parts_for(kScenario + "?every=3&rate=0");
+    if (csv_poses) {
+      auto provider = poses_csv((dir / "poses.csv").string(), p.rig, 0);
+      EXPECT_TRUE(provider) << provider.error().message;
+      p.poses = std::move(*provider);
+    }
+    p.skip_frames_without_pose = skip;
+    p.max_pairs = 6;
+    Pipeline pipeline(std::move(p));
+    std::ostringstream out, err;
+    auto r = pipeline.run(out, err);
+    EXPECT_TRUE(r) << r.error().message;
+    return *r;
+  };
+  const PipelineReport truth = run(false, false), csv = run(true, false), skipped = run(true, true);
+  // Boom only where the CSV has no row: every other pair.
+  EXPECT_EQ(csv.no_pose_pairs, 3u);
+  EXPECT_EQ(skipped.skipped_no_pose, 5u) << "skipping: 6 with a pose augmented, the 5 between them skipped";
+  EXPECT_EQ(skipped.pairs, 6u);
+  expect_ledger_adds_up(skipped);
+  // Where the CSV has the pose, the masks are the truth's.
+  for (std::size_t i = 0; i < csv.all_stats.size(); i += 2) {
+    EXPECT_EQ(csv.all_stats[i].receiver_px_left, truth.all_stats[i].receiver_px_left) << i;
+    EXPECT_EQ(csv.all_stats[i].occluded_px_left, truth.all_stats[i].occluded_px_left) << i;
+    EXPECT_EQ(csv.all_stats[i].boom_px_right, truth.all_stats[i].boom_px_right) << i;
+  }
+  EXPECT_EQ(csv.all_stats[1].receiver_px_left, 0) << "no pose: no receiver in the masks";
+}
+
+// A stop by signal mid-run: the frames still queued are counted as pending, and it adds up.
+TEST(Pipeline, StopFlagEndsTheRunAndTheLedgerAddsUp) {
+  PipelineParts p = parts_for(kScenario + "?every=1&rate=0");
+  std::atomic<bool> stop{false};
+  p.stop_flag = &stop;
+  Pipeline pipeline(std::move(p));
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    stop = true;
+  });
+  std::ostringstream out, err;
+  auto r = pipeline.run(out, err);
+  stopper.join();
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_TRUE(r->stopped_by_signal);
+  EXPECT_GT(r->pairs, 0u);
+  expect_ledger_adds_up(*r);
+}
+
+}  // namespace
+}  // namespace augrig::pipeline
