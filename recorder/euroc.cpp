@@ -935,7 +935,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
       } else if (auto s = run_camera_job(job, *inline_enc); !s) {
         return fail(s);
       }
-      if (const auto& T = r.T_cam_receiver[c]) {
+      // A frame augmented without the receiver (no nav pose yet) has no pose to export.
+      if (const auto& T = r.T_cam_receiver[c]; T && r.receiver_present.value_or(true)) {
         nav::CameraPoseRow p;
         p.sequence = f.sequence;
         p.camera = c;
@@ -1193,11 +1194,13 @@ Status export_euroc(const RecordingReader& reader, const std::string& out_dir, c
   std::error_code ec;
   if (fs::exists(mav0, ec))
     return make_error(where, mav0.string(), ": exists already; export into a new folder (exports never mix)");
-  fs::create_directories(mav0, ec);
-  if (ec) return make_error(where, mav0.string(), ": cannot create the folder (", ec.message(), ")");
-  // OUT/INCOMPLETE before anything else is written: a killed export is marked as such.
+  fs::create_directories(out, ec);
+  if (ec) return make_error(where, out.string(), ": cannot create the folder (", ec.message(), ")");
+  // OUT/INCOMPLETE before OUT/mav0 and anything in it: an export killed at any moment is marked.
   write_marker(marker, reader.path(), out_dir, {});
   if (!fs::exists(marker, ec)) return make_error(where, marker.string(), ": cannot write the file");
+  fs::create_directories(mav0, ec);
+  if (ec) return make_error(where, mav0.string(), ": cannot create the folder (", ec.message(), ")");
 
   Status s = export_body(reader, out, options, rig, report);
   if (!s) {

@@ -105,7 +105,7 @@ struct EurocExportReport {
 // recording's own damage, RecordingReader::problems()); an error is returned only when the export
 // cannot go on (no rig, a file that cannot be written).
 //
-// OUT/INCOMPLETE exists from the moment OUT/mav0 is made until the export has finished with no
+// OUT/INCOMPLETE exists from before OUT/mav0 is made until the export has finished with no
 // problem; an export that failed, met problems or was killed leaves it, listing the problems (or
 // saying it was stopped before the end).
 //

@@ -1,13 +1,18 @@
 // augrig export through the real binary (docs/REPLAY.md): on a recording this test writes with
 // recorder::Recorder from frames it augments itself, the EuRoC layout, exit codes and messages of
 // bad inputs, a truncated recording, and OUT/INCOMPLETE of a killed export.
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 
 #include <gtest/gtest.h>
 
 #include "app/commands.hpp"
+#include "nav/logs.hpp"
+#include "pipeline/flight_nav.hpp"
+#include "sim/scenario.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/recorder.hpp"
@@ -199,10 +204,11 @@ TEST(CmdExport, AKilledExportIsMarkedIncomplete) {
   ASSERT_EQ(augrig("export " + long_recording() + " --format euroc " + done + " --no-plot", &log), 0) << log;
   EXPECT_FALSE(fs::exists(done + "/INCOMPLETE"));
   int killed = 0;
-  for (const char* after : {"0.15", "0.3", "0.6"}) {
+  // The export of 60 small frames takes a few tenths of a second on one thread: kills from 20 ms on.
+  for (const char* after : {"0.02", "0.05", "0.08", "0.12", "0.2", "0.3"}) {
     const std::string out = output_dir(std::string("cmd_export_killed_") + after);
     const int rc = run_command("timeout -s KILL " + std::string(after) + " " + augrig_binary() + " export " +
-                                   long_recording() + " --format euroc " + out + " --no-plot",
+                                   long_recording() + " --format euroc " + out + " --no-plot --threads 1",
                                &log);
     if (rc == 0) {
       EXPECT_FALSE(fs::exists(out + "/INCOMPLETE"));
@@ -214,6 +220,72 @@ TEST(CmdExport, AKilledExportIsMarkedIncomplete) {
     }
   }
   EXPECT_GT(killed, 0) << "no export was killed part-way: the test did not test";
+}
+
+
+// A recording made with live nav (IMU as binary datagrams, rows with t_ns 0 and clock unknown)
+// exports: imu0 from the datagrams, per aircraft the logs augrig nav fuses, the frame index on GPS
+// time; augrig nav on them (RTS smoothing) gives the poses the live filter recorded, to within
+// what the live (forward-only) filter itself claimed: |difference| <= 3 sigma_pos_m + 2 cm, and
+// 3 sigma_att_deg + 0.05 deg. The two filters see the same data on the same clock (the frames'
+// GPS times are estimated to well under a millisecond, ~0.2 mm of relative motion here), so what
+// remains is smoothing against filtering: within the forward filter's own 1-sigma most of the time.
+TEST(CmdExport, ALiveNavRecordingIsReFusedOffline) {
+  const std::string dir = output_dir("cmd_export_live");
+  std::string log;
+  ASSERT_EQ(augrig("run --source 'sim://demo?every=3' --nav sim --record " + dir +
+                       "/rec --duration 6 --headless --status-every 0",
+                   &log),
+            0)
+      << log;
+  // The aircraft settings the run used (--nav sim: the scenario's sensors), as files.
+  const sim::Scenario scenario = *sim::builtin_scenario("demo");
+  for (const auto& [who, sensors] : {std::pair{"tanker", &scenario.sensors.tanker},
+                                     std::pair{"receiver", &scenario.sensors.receiver}})
+    std::ofstream(dir + "/" + who + ".yaml") << pipeline::aircraft_config_to_yaml(pipeline::ins_config_for(*sensors));
+  const std::string out = dir + "/euroc";
+  ASSERT_EQ(augrig("export " + dir + "/rec --format euroc " + out + " --no-plot --aircraft tanker=" + dir +
+                       "/tanker.yaml,receiver=" + dir + "/receiver.yaml",
+                   &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("imu0 ("), std::string::npos) << log;
+  EXPECT_NE(log.find("Clock: gps for every timestamp exported"), std::string::npos) << log;
+  EXPECT_NE(log.find("export: "), std::string::npos) << "no progress line: " << log;
+  EXPECT_FALSE(fs::exists(out + "/INCOMPLETE"));
+  for (const char* who : {"tanker", "receiver"})
+    for (const char* f : {"gps.nmea", "imu.csv", "aircraft.yaml"})
+      EXPECT_TRUE(fs::exists(out + "/nav/" + who + "/" + f)) << who << "/" << f;
+  // imu0 rows: one per datagram sample.
+  EXPECT_GT(lines_of(out + "/mav0/imu0/data.csv"), 1000u);
+
+  ASSERT_EQ(augrig("nav --tanker " + out + "/nav/tanker --receiver " + out + "/nav/receiver --rig " + out +
+                       "/rig.yaml --frames " + out + "/frames.csv --out " + dir + "/refused.csv",
+                   &log),
+            0)
+      << log;
+  auto recorded = nav::read_camera_pose_csv(out + "/poses.csv");
+  auto refused = nav::read_camera_pose_csv(dir + "/refused.csv");
+  ASSERT_TRUE(recorded) << recorded.error().message;
+  ASSERT_TRUE(refused) << refused.error().message;
+  std::map<std::pair<int, TimestampNs>, nav::CameraPoseRow> by_key;
+  for (const nav::CameraPoseRow& r : refused->rows) by_key[{r.camera, r.t_ns}] = r;
+  std::size_t compared = 0;
+  for (const nav::CameraPoseRow& a : recorded->rows) {
+    const auto it = by_key.find({a.camera, a.t_ns});
+    if (it == by_key.end()) continue;
+    const nav::CameraPoseRow& b = it->second;
+    const double dp = std::sqrt((a.x_m - b.x_m) * (a.x_m - b.x_m) + (a.y_m - b.y_m) * (a.y_m - b.y_m) +
+                                (a.z_m - b.z_m) * (a.z_m - b.z_m));
+    const double dot = std::abs(a.qw * b.qw + a.qx * b.qx + a.qy * b.qy + a.qz * b.qz);
+    const double da_deg = rad_to_deg(2.0 * std::acos(std::min(1.0, dot)));
+    EXPECT_LE(dp, 3 * a.sigma_pos_m + 0.02) << "camera " << a.camera << " t_ns " << a.t_ns;
+    EXPECT_LE(da_deg, 3 * a.sigma_att_deg + 0.05) << "camera " << a.camera << " t_ns " << a.t_ns;
+    ++compared;
+  }
+  // Every recorded pose (frames with the receiver) has its offline counterpart.
+  EXPECT_EQ(compared, recorded->rows.size());
+  EXPECT_GT(compared, 40u);
 }
 
 }  // namespace

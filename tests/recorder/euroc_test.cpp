@@ -15,9 +15,17 @@
 #include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include "nav/imu_stream.hpp"
+#include "nav/ins.hpp"
 #include "nav/logs.hpp"
+#include "nav/nmea.hpp"
+#include "pipeline/flight_nav.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/recorder.hpp"
+#include "recorder/store.hpp"
+#include "sim/flight.hpp"
+#include "sim/scenario.hpp"
+#include "sim/sensors.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig::recorder {
@@ -415,6 +423,222 @@ TEST(EurocExport, ErrorsAndNotes) {
   EXPECT_FALSE(fs::exists(out + "/stats.png"));
   ASSERT_EQ(r.problems.size(), 1u);
   EXPECT_NE(r.problems[0].find("imu0 not exported"), std::string::npos) << r.problems[0];
+}
+
+// ---- Live-nav recordings, speed settings, progress, INCOMPLETE ------------------------------------
+
+// A recording as `augrig run --nav` makes it: both aircraft's IMU as augrig IMU datagrams (BLOB, 4
+// samples each) and GPS as NMEA lines, every row with t_ns 0, clock unknown and its host arrival;
+// frames on each camera's device clock with their host times. The nav data are the demo scenario's
+// first 12 s (sim/sensors.hpp); the host clock runs kHostMinusGps behind GPS time, the cameras'
+// clocks kDeviceMinusGps[c] ahead of it.
+constexpr TimestampNs kHostMinusGps = -1'400'000'000'000'000'000 + 5'000'000'000;
+constexpr TimestampNs kDeviceMinusGps[2] = {1'200'000, 1'250'000};
+
+struct LiveRecording {
+  std::string dir;
+  sim::SensorLogs logs;
+  TimestampNs t0_gps_ns = 0;
+};
+
+const LiveRecording& live_recording() {
+  static const LiveRecording rec = [] {
+    LiveRecording out;
+    out.dir = test::output_dir("euroc/live_" +
+                               std::string(testing::UnitTest::GetInstance()->current_test_info()->name()));
+    sim::Scenario sc = *sim::builtin_scenario("demo");
+    sc.duration_s = 12;
+    const sim::Flight flight = *sim::Flight::create(sc);
+    out.logs = sim::simulate_sensors(sc, flight);
+    RecordingInfo info;
+    info.rig_yaml = rig_to_yaml(small_rig());
+    info.extra["aircraft_yaml.tanker"] = pipeline::aircraft_config_to_yaml(pipeline::ins_config_for(sc.sensors.tanker));
+    info.extra["aircraft_yaml.receiver"] = pipeline::aircraft_config_to_yaml(pipeline::ins_config_for(sc.sensors.receiver));
+    auto r = Recorder::create(out.dir, info);
+    EXPECT_TRUE(r) << r.error().message;
+    auto push_imu = [&](const std::vector<nav::ImuSample>& imu, const std::string& stream) {
+      for (std::size_t k = 0; k + 4 <= imu.size(); k += 4) {
+        auto d = nav::encode_imu_datagram(std::span(imu).subspan(k, 4), k);
+        ASSERT_TRUE(d) << d.error().message;
+        NavInputRecord n;
+        n.stream = stream;
+        n.clock = ClockDomain::kUnknown;
+        n.arrival_ns = imu[k + 3].t_ns + kHostMinusGps + 200'000;  // 0.2 ms on the way
+        n.data.assign(reinterpret_cast<const char*>(d->data()), d->size());
+        n.binary = true;
+        (*r)->push(std::move(n));
+      }
+    };
+    auto push_gps = [&](const std::vector<nav::GpsFix>& gps, const std::string& stream) {
+      for (const nav::GpsFix& f : gps)
+        for (const std::string& line : nav::nmea_sentences(f))
+          (*r)->push(NavInputRecord{stream, 0, ClockDomain::kUnknown, f.t_ns + kHostMinusGps + 30'000'000, line, false});
+    };
+    push_imu(out.logs.tanker_imu, "tanker.imu");
+    push_imu(out.logs.receiver_imu, "receiver.imu");
+    push_gps(out.logs.tanker_gps, "tanker.gps");
+    push_gps(out.logs.receiver_gps, "receiver.gps");
+    out.t0_gps_ns = out.logs.tanker_imu.front().t_ns;
+    for (int i = 0; i < kFrames; ++i) {
+      FrameRecord f = frame(i);
+      const TimestampNs t_gps = out.t0_gps_ns + 3'000'000'000 + i * 100'000'000;
+      f.raw.t_key_ns = t_gps + kDeviceMinusGps[0];
+      for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+        Frame& fr = f.raw[id];
+        fr.clock = ClockDomain::kDevice;
+        fr.t_ns = t_gps + kDeviceMinusGps[index_of(id)];
+        fr.t_host_ns = t_gps + kHostMinusGps + 1'000'000 * (i % 3);  // released 0..2 ms late
+      }
+      f.stats->t_ns = f.raw.t_key_ns;
+      EXPECT_TRUE((*r)->push(std::move(f)));
+    }
+    EXPECT_TRUE((*r)->close());
+    return out;
+  }();
+  return rec;
+}
+
+TEST(EurocExport, LiveNavRecordingImuDatagramsBitExactNavLogsFuse) {
+  const LiveRecording& live = live_recording();
+  auto rd = RecordingReader::open(live.dir);
+  ASSERT_TRUE(rd) << rd.error().message;
+  const std::string out = test::output_dir("euroc/live_out");
+  EurocExportOptions o;
+  o.plot = false;
+  EurocExportReport r;
+  ASSERT_TRUE(export_euroc(**rd, out, o, r));
+  EXPECT_TRUE(r.problems.empty()) << r.problems.front();
+  EXPECT_FALSE(fs::exists(out + "/INCOMPLETE"));
+  EXPECT_EQ(r.clock, ClockDomain::kGps);
+  EXPECT_EQ(r.imu_stream, "tanker.imu");
+  const std::size_t whole = live.logs.tanker_imu.size() / 4 * 4;  // whole datagrams
+  ASSERT_EQ(r.imu_samples, whole);
+
+  // imu0: each datagram sample's mean rates, bit-exact, at the middle of its interval.
+  auto imu0 = read_euroc_imu_csv(out + "/mav0/imu0/data.csv");
+  ASSERT_TRUE(imu0) << imu0.error().message;
+  ASSERT_EQ(imu0->size(), whole);
+  for (std::size_t k = 0; k < whole; ++k) {
+    const nav::ImuSample& s = live.logs.tanker_imu[k];
+    const EurocImuRow& row = (*imu0)[k];
+    EXPECT_EQ(row.t_ns, s.t_ns - s_to_ns(0.5 * s.dt_s));
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(row.w_rad_s[a], s.dtheta_rad[a] / s.dt_s) << k;
+      EXPECT_EQ(row.a_mps2[a], s.dv_mps[a] / s.dt_s) << k;
+    }
+  }
+
+  // The frames on GPS time: device time minus the camera's offset, to within the host release
+  // jitter the lower envelope removes (the envelope's minimum is an exact release here).
+  auto index = nav::read_frame_index_csv(out + "/frames.csv");
+  ASSERT_TRUE(index) << index.error().message;
+  EXPECT_EQ(index->clock, ClockDomain::kGps);
+  ASSERT_EQ(index->rows.size(), 2u * kFrames);
+  for (const nav::FrameIndexRow& row : index->rows) {
+    const TimestampNs want = live.t0_gps_ns + 3'000'000'000 + static_cast<TimestampNs>(row.sequence) * 100'000'000;
+    EXPECT_NEAR(static_cast<double>(row.t_ns - want), 0.0, 250'000.0) << row.sequence;  // the 0.2 ms IMU delay
+    EXPECT_TRUE(fs::exists(out + "/" + row.file)) << row.file;
+  }
+
+  // Each aircraft's logs read back through the nav readers and fuse.
+  for (const char* who : {"tanker", "receiver"}) {
+    auto logs = pipeline::load_aircraft_logs(out + "/nav/" + who);
+    ASSERT_TRUE(logs) << logs.error().message;
+    const auto& want_imu = std::string(who) == "tanker" ? live.logs.tanker_imu : live.logs.receiver_imu;
+    const auto& want_gps = std::string(who) == "tanker" ? live.logs.tanker_gps : live.logs.receiver_gps;
+    ASSERT_EQ(logs->imu.size(), want_imu.size() / 4 * 4) << who;
+    for (std::size_t k = 0; k < logs->imu.size(); ++k) {
+      EXPECT_EQ(logs->imu[k].t_ns, want_imu[k].t_ns);
+      EXPECT_EQ(logs->imu[k].dt_s, want_imu[k].dt_s);
+      EXPECT_EQ(logs->imu[k].dtheta_rad, want_imu[k].dtheta_rad);
+      EXPECT_EQ(logs->imu[k].dv_mps, want_imu[k].dv_mps);
+    }
+    ASSERT_EQ(logs->gps.size(), want_gps.size()) << who;
+    for (std::size_t k = 0; k < logs->gps.size(); ++k) {
+      EXPECT_EQ(logs->gps[k].t_ns, want_gps[k].t_ns);
+      EXPECT_EQ(logs->gps[k].arrival_ns, want_gps[k].t_ns + kHostMinusGps + 30'000'000);
+    }
+    // aircraft.yaml is the recording's (meta aircraft_yaml.<aircraft>): the surveyed lever arm.
+    EXPECT_GT(logs->config.lever_arm_body_m.norm(), 0.5) << who;
+    auto fused = nav::fuse(logs->imu, logs->gps, logs->config, true);
+    ASSERT_TRUE(fused) << fused.error().message;
+    EXPECT_GT(fused->report().fixes_used, want_gps.size() / 2) << who;
+  }
+}
+
+// Every PNG setting and thread count gives the recorded pixels back; the progress callback's
+// counts add up and its last call is the whole recording.
+TEST(EurocExport, EverySpeedSettingIsLosslessAndProgressAddsUp) {
+  const Exported& e = exported();
+  auto rd = RecordingReader::open(e.recording);
+  ASSERT_TRUE(rd);
+  for (int level : {0, 1, 6}) {
+    for (int threads : {1, 3}) {
+      const std::string out =
+          test::output_dir("euroc/speed_" + std::to_string(level) + "_" + std::to_string(threads));
+      EurocExportOptions o;
+      o.plot = false;
+      o.png_compression = level;
+      o.threads = threads;
+      o.progress_interval_s = 0;  // every frame
+      std::vector<EurocExportProgress> calls;
+      o.progress = [&](const EurocExportProgress& p) { calls.push_back(p); };
+      EurocExportReport r;
+      ASSERT_TRUE(export_euroc(**rd, out, o, r));
+      ASSERT_FALSE(calls.empty());
+      std::size_t last = 0;
+      for (const EurocExportProgress& p : calls) {
+        EXPECT_EQ(p.frames_done, p.frames_written + p.frames_skipped);
+        EXPECT_EQ(p.frames_total, static_cast<std::size_t>(kFrames));
+        EXPECT_GE(p.frames_done, last);
+        last = p.frames_done;
+      }
+      EXPECT_TRUE(calls.back().final);
+      EXPECT_EQ(calls.back().frames_done, static_cast<std::size_t>(kFrames));
+      for (const char* s : {"cam0", "cam0_augmented", "cam1_mask"}) {
+        EurocOptions eo;
+        eo.left_stream = s;
+        eo.right_stream = s;
+        const auto frames = read_all(out, eo);
+        ASSERT_EQ(frames.size(), 2u * kFrames) << s;
+        for (int i = 0; i < kFrames; ++i) {
+          const FrameRecord want = frame(i);
+          const Image& w = std::string(s) == "cam0"             ? want.raw.left.image
+                           : std::string(s) == "cam0_augmented" ? want.augmented[0]
+                                                                : want.mask[1];
+          EXPECT_TRUE(pixels_equal(frames[static_cast<std::size_t>(2 * i)].image, w))
+              << s << " frame " << i << " level " << level << " threads " << threads;
+        }
+      }
+    }
+  }
+}
+
+// OUT/INCOMPLETE: gone after a clean export; kept, listing the problem, after a damaged frame.
+TEST(EurocExport, IncompleteMarker) {
+  const Exported& e = exported();
+  EXPECT_FALSE(fs::exists(e.out + "/INCOMPLETE"));
+  const std::string dir = test::output_dir("euroc/damaged");
+  fs::copy_file(e.recording + "/recording.sqlite", dir + "/recording.sqlite", fs::copy_options::overwrite_existing);
+  {
+    auto db = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(db);
+    ASSERT_TRUE(db->exec("UPDATE frames SET left_raw = CAST(substr(left_raw, 1, 100) || x'00' || "
+                         "substr(left_raw, 102) AS BLOB) WHERE pair_sequence = 3"));
+  }
+  auto rd = RecordingReader::open(dir);
+  ASSERT_TRUE(rd);
+  const std::string out = test::output_dir("euroc/damaged_out");
+  EurocExportOptions o;
+  o.plot = false;
+  EurocExportReport r;
+  ASSERT_TRUE(export_euroc(**rd, out, o, r));
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_EQ(r.frames_written, static_cast<std::size_t>(kFrames - 1));
+  std::ifstream m(out + "/INCOMPLETE");
+  ASSERT_TRUE(m);
+  const std::string text((std::istreambuf_iterator<char>(m)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("frame 3"), std::string::npos) << text;
 }
 
 // A dataset as others write it: OpenCV's "%YAML:1.0" header, a frame only one camera has, a
