@@ -14,12 +14,12 @@
 #include <optional>
 #include <sstream>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "app/cli.hpp"
+#include "pipeline/image_folder_source.hpp"
 #include "pipeline/scene_file.hpp"
+#include "pipeline/scene_folder_poses.hpp"
+#include "pipeline/sources.hpp"
 #include "capture/stereo_pairer.hpp"
 #include "core/frame.hpp"
 #include "render/augmenter.hpp"
@@ -45,10 +45,19 @@ const std::vector<OptionSpec>& augment_specs() {
       {"rig", ArgKind::kValue, "RIG.yaml|default",
        "rig file (docs/RIG_FORMAT.md), or 'default' for the paper's rig", true},
       {"scene", ArgKind::kValue, "SCENE.yaml|DIR",
-       "boom and receiver pose (docs/CLI.md); a folder holds one scene file per pair (sorted)", true},
-      {"left", ArgKind::kValue, "FILE|DIR", "left camera image, or a folder of them (paired by sorted name)",
-       true},
-      {"right", ArgKind::kValue, "FILE|DIR", "right camera image, or a folder of them", true},
+       "boom and receiver pose (docs/CLI.md); a folder holds one scene file per pair (sorted)"},
+      {"poses", ArgKind::kValue, "POSES.csv",
+       "the receiver's pose per pair from `augrig nav`'s camera pose CSV, matched to the left frame's t_ns"},
+      {"pose-tolerance-ms", ArgKind::kValue, "MS",
+       "with --poses: match a pose row within MS of the left frame's t_ns (default 0: exactly)"},
+      {"left", ArgKind::kValue, "FILE|DIR", "left camera image, or a folder of them (paired by sorted name)"},
+      {"right", ArgKind::kValue, "FILE|DIR", "right camera image, or a folder of them"},
+      {"frames", ArgKind::kValue, "INDEX.csv",
+       "a frame index (sequence,camera,t_ns,file; `augrig sim`'s frames/index.csv): the images, relative to "
+       "it, paired by timestamp"},
+      {"pair-tolerance-us", ArgKind::kValue, "US",
+       "with --frames: pair left and right frames whose t_ns differ by at most US (default: half the median "
+       "frame interval)"},
       {"out", ArgKind::kValue, "DIR", "output folder (created)", true},
       {"format", ArgKind::kValue, "png", "output image format (png, lossless)"},
       {"bayer", ArgKind::kValue, "RG|GR|GB|BG", "8-bit gray inputs are raw Bayer mosaics with this pattern"},
@@ -56,103 +65,91 @@ const std::vector<OptionSpec>& augment_specs() {
        "do not render the receiver (no receiver mask bit, no stereo classes)"},
       {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
        "how the receiver shows in the augmented image (default mask: not drawn)"},
+      {"status-every", ArgKind::kValue, "S", "a progress line every S seconds (default 2; 0: never)"},
   };
   return specs;
 }
 
 const char* kAugmentUsage =
-    "augrig augment --rig RIG.yaml|default --scene SCENE.yaml --left L --right R --out DIR [options]";
+    "augrig augment --rig RIG.yaml|default (--scene SCENE.yaml|DIR | --poses POSES.csv)\n"
+    "                      (--left L --right R | --frames INDEX.csv) --out DIR [options]";
 const char* kAugmentSummary =
-    "Renders the virtual boom into a stereo pair (or folders of pairs) and writes the augmented images,\n"
-    "per-pixel masks (1 boom, 2 receiver, 3 both), visualisations and the occlusion statistics.";
+    "Renders the virtual boom into a stereo pair, folders of pairs, or a whole sequence named by a frame\n"
+    "index, and writes the augmented images, per-pixel masks (1 boom, 2 receiver, 3 both), visualisations\n"
+    "and the occlusion statistics. Poses come from a scene file (or one per pair) or from `augrig nav`'s\n"
+    "poses.csv. Frames without a partner or without a pose are counted and reported, not augmented.";
 
-bool is_image_name(const fs::path& p) {
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return std::tolower(ch); });
-  for (const char* e : {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm", ".pnm"})
-    if (ext == e) return true;
-  return false;
+// The URI query cannot quote: a path with its separators would be read as something else.
+std::string uri_path(const std::string& flag, const std::string& path) {
+  if (path.find_first_of("?&") != std::string::npos)
+    usage_error(flag + ": the path '" + path + "' has '?' or '&', which the files:// source cannot take");
+  return path;
 }
 
-// Regular files of a folder accepted by `keep`, sorted by name.
-std::vector<fs::path> list_files(const fs::path& dir, bool (*keep)(const fs::path&)) {
-  std::vector<fs::path> files;
-  std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(dir, ec)) {
-    if (entry.is_regular_file() && keep(entry.path())) files.push_back(entry.path());
+// Records each pair's input file stems (from the source's ImageFileAttachment) as the pipeline asks
+// for its pose, so that the per-frame images can be named after their inputs.
+class NamingPoses final : public PoseProvider {
+ public:
+  NamingPoses(std::unique_ptr<PoseProvider> inner, std::map<std::uint64_t, FrameNames>* names)
+      : inner_(std::move(inner)), names_(names) {}
+  std::string describe() const override { return inner_->describe(); }
+  bool live() const override { return inner_->live(); }
+  FramePoses at(const StereoFrame& frame, TimestampNs mid_host_left_ns) override {
+    auto stem = [](const Frame& f) {
+      const auto* a = dynamic_cast<const ImageFileAttachment*>(f.attachment.get());
+      return a ? fs::path(a->path).stem().string() : std::to_string(f.sequence);
+    };
+    (*names_)[frame.pair_sequence] = {stem(frame.left), stem(frame.right)};
+    return inner_->at(frame, mid_host_left_ns);
   }
-  if (ec) runtime_error(dir.string() + ": cannot list the folder (" + ec.message() + ")");
-  std::sort(files.begin(), files.end(), [](const fs::path& a, const fs::path& b) {
-    return a.filename().string() < b.filename().string();
-  });
-  return files;
-}
 
-bool is_scene_name(const fs::path& p) {
-  return p.extension() == ".yaml" || p.extension() == ".yml";
-}
-
-// The input pairs: two files, or two folders with the same number of images.
-std::vector<std::pair<fs::path, fs::path>> input_pairs(const std::string& left, const std::string& right) {
-  std::error_code ec;
-  const bool ldir = fs::is_directory(left, ec), rdir = fs::is_directory(right, ec);
-  if (ldir != rdir) {
-    usage_error("--left and --right must both be image files or both folders (--left " + left + " is " +
-                (ldir ? "a folder" : "not a folder") + ", --right " + right + " is " +
-                (rdir ? "a folder" : "not a folder") + ")");
-  }
-  if (!ldir) return {{left, right}};
-  const auto lf = list_files(left, is_image_name), rf = list_files(right, is_image_name);
-  if (lf.size() != rf.size()) {
-    runtime_error("the image folders differ in count: " + left + " has " + std::to_string(lf.size()) + ", " +
-                  right + " has " + std::to_string(rf.size()) + " image(s); pairs are formed by sorted name");
-  }
-  if (lf.empty()) runtime_error(left + ": no images (.png .jpg .tif .bmp .pgm .ppm) in the folder");
-  std::vector<std::pair<fs::path, fs::path>> pairs;
-  for (std::size_t i = 0; i < lf.size(); ++i) pairs.emplace_back(lf[i], rf[i]);
-  return pairs;
-}
-
-struct SceneInput {
-  SceneState scene;
-  SceneExtras extras;
+ private:
+  std::unique_ptr<PoseProvider> inner_;
+  std::map<std::uint64_t, FrameNames>* names_;
 };
 
-// One scene for every pair, or a folder with one scene file per pair.
-std::vector<SceneInput> load_scenes(const std::string& arg, std::size_t pairs, const Rig& rig,
-                                    const Eigen::Vector3d& receptacle_m) {
-  std::vector<fs::path> files;
-  std::error_code ec;
-  if (fs::is_directory(arg, ec)) {
-    files = list_files(arg, is_scene_name);
-    if (files.size() != pairs) {
-      runtime_error(arg + ": has " + std::to_string(files.size()) +
-                    " scene file(s) (.yaml), expected one per pair (" + std::to_string(pairs) + ")");
+// The pipeline names its per-frame images by pair sequence (NNNNNN.png); augment names them by the
+// input's stems. The pipeline writes into a staging folder and its files are moved to their names
+// afterwards (also when the run fails: what was written is kept).
+class StagedFrameFiles {
+ public:
+  StagedFrameFiles(fs::path out, const std::map<std::uint64_t, FrameNames>* names)
+      : out_(std::move(out)), staging_(out_ / ".augrig-staging"), names_(names) {
+    std::error_code ec;
+    fs::remove_all(staging_, ec);
+  }
+  ~StagedFrameFiles() { finish(); }
+  const fs::path& dir() const { return staging_; }
+  // Moves every staged file to OUT/<same folder>/<stem>.png; the right camera's files (right/,
+  // vis/occlusion_right/) take the right stem.
+  void finish() {
+    std::error_code ec;
+    if (!fs::exists(staging_, ec)) return;
+    std::vector<fs::path> files;
+    for (const auto& e : fs::recursive_directory_iterator(staging_, ec))
+      if (e.is_regular_file()) files.push_back(e.path());
+    for (const fs::path& f : files) {
+      const fs::path rel = fs::relative(f, staging_, ec);
+      std::uint64_t seq = 0;
+      const std::string s = f.stem().string();
+      const auto [p, err] = std::from_chars(s.data(), s.data() + s.size(), seq);
+      const auto it = names_->find(seq);
+      if (err != std::errc() || p != s.data() + s.size() || it == names_->end()) continue;
+      const std::string first = rel.begin()->string(), folder = rel.parent_path().filename().string();
+      const bool right = first == "right" || folder == "occlusion_right";
+      const fs::path dest = out_ / rel.parent_path() / ((right ? it->second.right : it->second.left) + ".png");
+      fs::create_directories(dest.parent_path(), ec);
+      fs::rename(f, dest, ec);
     }
-  } else {
-    files = {arg};
+    fs::remove_all(staging_, ec);
   }
-  std::vector<SceneInput> scenes;
-  for (const auto& f : files) {
-    SceneInput s;
-    s.scene = unwrap(load_scene(f.string(), rig, BoomDimensions{}, receptacle_m, &s.extras));
-    scenes.push_back(std::move(s));
-  }
-  return scenes;
-}
 
-// An input image, checked against its camera's resolution.
-Image read_camera_image(const fs::path& path, const RigCamera& cam, std::optional<PixelFormat> bayer) {
-  Image im = unwrap(read_image_file(path.string(), bayer));
-  if (im.width() != cam.model.width_px || im.height() != cam.model.height_px) {
-    runtime_error(path.string() + ": image is " + std::to_string(im.width()) + "x" +
-                  std::to_string(im.height()) + ", the rig's " + cam.name + " camera is " +
-                  std::to_string(cam.model.width_px) + "x" + std::to_string(cam.model.height_px));
-  }
-  return im;
-}
+ private:
+  fs::path out_, staging_;
+  const std::map<std::uint64_t, FrameNames>* names_;
+};
 
-int augment(const std::vector<std::string>& args, std::ostream& out) {
+int augment(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   const ParsedArgs a = [&] {
     auto p = parse_args(args, augment_specs());
     if (!p) usage_error(p.error().message);
@@ -163,8 +160,25 @@ int augment(const std::vector<std::string>& args, std::ostream& out) {
     return kExitOk;
   }
   if (a.get("format", "png") != "png") usage_error("--format: expected png, got '" + a.get("format") + "'");
-  const std::optional<PixelFormat> bayer =
-      a.has("bayer") ? std::optional<PixelFormat>(parse_bayer(a.get("bayer"))) : std::nullopt;
+  const bool indexed = a.has("frames");
+  if (indexed && (a.has("left") || a.has("right")))
+    usage_error("--frames and --left/--right exclude each other: give the images one way");
+  if (!indexed && (!a.has("left") || !a.has("right")))
+    usage_error(std::string("missing required option ") + (a.has("left") ? "--right R" : "--left L") +
+                " (or give a frame index with --frames INDEX.csv)");
+  if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses exclude each other: give one pose source");
+  if (!a.has("scene") && !a.has("poses"))
+    usage_error("missing required option --scene SCENE.yaml|DIR (or --poses POSES.csv)");
+  if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
+  if (a.has("pair-tolerance-us") && !indexed)
+    usage_error("--pair-tolerance-us needs --frames (folders pair by sorted name)");
+  double pose_tol_ms = 0;
+  if (a.has("pose-tolerance-ms")) {
+    pose_tol_ms = parse_real("pose-tolerance-ms", a.get("pose-tolerance-ms"));
+    if (!(pose_tol_ms >= 0) || pose_tol_ms > 1e6) usage_error("--pose-tolerance-ms: expected milliseconds in [0, 1e6]");
+  }
+  const double status_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 2.0;
+  if (!(status_s >= 0)) usage_error("--status-every: expected seconds >= 0");
   AugmentOptions options;
   options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
   options.receiver_proxy = !a.has("no-receiver");
@@ -174,54 +188,142 @@ int augment(const std::vector<std::string>& args, std::ostream& out) {
   const Rig rig = load_rig_arg(a.get("rig"));
   if (rig.cameras.size() != 2)
     runtime_error(rig.source + ": the rig needs 2 cameras, has " + std::to_string(rig.cameras.size()));
-  const auto pairs = input_pairs(a.get("left"), a.get("right"));
+
+  // The images: a files:// source either way (pipeline/image_folder_source.hpp).
+  std::string params;
+  auto param = [&](const std::string& k, const std::string& v) { params += (params.empty() ? "?" : "&") + k + "=" + v; };
+  std::string uri;
+  if (indexed) {
+    if (a.has("pair-tolerance-us")) {
+      const double us = parse_real("pair-tolerance-us", a.get("pair-tolerance-us"));
+      if (!(us >= 0) || us > kMaxPairingToleranceUs)
+        usage_error("--pair-tolerance-us: expected microseconds in [0, 1e7], got '" + a.get("pair-tolerance-us") + "'");
+      param("tolerance_us", a.get("pair-tolerance-us"));
+    }
+    if (a.has("bayer")) param("bayer", a.get("bayer"));
+    uri = "files://" + uri_path("--frames", a.get("frames"));
+  } else {
+    const std::string left = a.get("left"), right = a.get("right");
+    std::error_code ec;
+    const bool ldir = fs::is_directory(left, ec), rdir = fs::is_directory(right, ec);
+    if (ldir != rdir) {
+      usage_error("--left and --right must both be image files or both folders (--left " + left + " is " +
+                  (ldir ? "a folder" : "not a folder") + ", --right " + right + " is " +
+                  (rdir ? "a folder" : "not a folder") + ")");
+    }
+    param("left", uri_path("--left", left));
+    param("right", uri_path("--right", right));
+    if (a.has("bayer")) param("bayer", a.get("bayer"));
+    uri = "files://folders";
+  }
+  if (a.has("bayer")) parse_bayer(a.get("bayer"));  // a bad pattern is a usage error, not the URI's
+  OpenedSource opened = unwrap(open_sources(uri + params));
+  const auto* files = dynamic_cast<const ImageFolderSource*>(opened.sources.front().get());
+  if (!files) runtime_error("internal error: " + uri + " did not open an image folder source");
+  const std::size_t expected_pairs = files->expected_pairs(opened.options.pairing.tolerance_ns);
+  const std::size_t frame_count = files->entries().size();
+
   const ReceiverSetup receiver = receiver_setup(rig);
   options.receiver_model = receiver.model;
-  const auto scenes = load_scenes(a.get("scene"), pairs.size(), rig, receiver.receptacle_m);
-  // The first pair is read up front too: the common mistakes (wrong file, size, depth) show here.
-  Image first_left = read_camera_image(pairs[0].first, rig.left(), bayer);
-  Image first_right = read_camera_image(pairs[0].second, rig.right(), bayer);
+  std::unique_ptr<PoseProvider> poses;
+  // The scene files' t_ns for stats.csv (folders only: there a pair's t_ns is its index).
+  std::vector<std::optional<TimestampNs>> scene_t_ns;
+  std::error_code ec;
+  if (a.has("poses")) {
+    poses = unwrap(poses_csv(a.get("poses"), rig, s_to_ns(pose_tol_ms / 1e3)));
+  } else if (fs::is_directory(a.get("scene"), ec)) {
+    auto folder = unwrap(SceneFolderPoses::load(a.get("scene"), rig, receiver.receptacle_m));
+    if (folder->size() != expected_pairs)
+      runtime_error(a.get("scene") + ": has " + std::to_string(folder->size()) +
+                    " scene file(s) (.yaml), expected one per pair (" + std::to_string(expected_pairs) + ")");
+    for (std::size_t k = 0; k < folder->size(); ++k) scene_t_ns.push_back(folder->extras(k).t_ns);
+    poses = std::move(folder);
+  } else {
+    SceneExtras extras;
+    poses = fixed_scene_poses(
+        unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, receiver.receptacle_m, &extras)), a.get("scene"));
+    scene_t_ns.push_back(extras.t_ns);
+  }
+  // The first image of each camera is read up front too: the common mistakes (wrong file, size,
+  // depth) show here, naming the file, before the GL context exists.
+  for (CameraId c : {CameraId::kLeft, CameraId::kRight}) {
+    const auto e = std::find_if(files->entries().begin(), files->entries().end(),
+                                [c](const ImageFolderEntry& x) { return x.camera == c; });
+    const std::string where = files->from_index() ? files->where(*e) + ": " : std::string();
+    const std::optional<PixelFormat> bayer =
+        a.has("bayer") ? std::optional<PixelFormat>(parse_bayer(a.get("bayer"))) : std::nullopt;
+    auto im = augrig::read_image_file(e->path, bayer);
+    if (!im) runtime_error(where + user_message(im.error()));
+    const RigCamera& cam = rig.cameras[static_cast<std::size_t>(index_of(c))];
+    if (im->width() != cam.model.width_px || im->height() != cam.model.height_px)
+      runtime_error(where + e->path + ": image is " + std::to_string(im->width()) + "x" +
+                    std::to_string(im->height()) + ", the rig's " + cam.name + " camera is " +
+                    std::to_string(cam.model.width_px) + "x" + std::to_string(cam.model.height_px));
+  }
 
   const fs::path out_dir = a.get("out");
   make_dirs(out_dir);
-  StatsCsv csv(out_dir / "stats.csv");
+  // Folders with scene files that give t_ns: stats.csv is written after the run, each pair's t_ns
+  // (its index) replaced by its scene's. Otherwise the pipeline writes it row by row.
+  const bool remap_t = !files->from_index() && std::any_of(scene_t_ns.begin(), scene_t_ns.end(),
+                                                           [](const auto& t) { return t.has_value(); });
+  std::map<std::uint64_t, FrameNames> names;
+  StagedFrameFiles staged(out_dir, &names);
 
-  const auto gl = make_gl_context();
-  const auto augmenter = unwrap(Augmenter::create(rig, options));
+  PipelineParts parts;
+  parts.rig = rig;
+  parts.receiver = receiver;
+  parts.source_info = opened;
+  parts.poses = std::make_unique<NamingPoses>(std::move(poses), &names);
+  parts.augment = options;
+  parts.skip_frames_without_pose = true;  // a pair without a pose is counted and reported, not guessed
+  if (!remap_t) parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
+  parts.frame_files = FrameFiles{staged.dir(), 1};
+  parts.status_every_s = expected_pairs > 1 ? status_s : 0;
+  parts.stop_flag = install_stop_signals();
+  parts.on_problem = [&err](const Error& e) { err << "augrig augment: " << user_message(e) << "\n"; };
+  const StereoPairerConfig pairing = opened.options.pairing;
+  parts.source = unwrap(start_stereo(std::move(opened)));
+  out << "augment: " << frame_count << " images, " << expected_pairs << " stereo pair(s) "
+      << (indexed ? "by timestamp (tolerance " + fmt_ms(static_cast<double>(pairing.tolerance_ns) / 1e3) + " us)"
+                  : std::string("by sorted name"))
+      << "; poses from " << parts.poses->describe() << "\n";
+  Pipeline pipeline(std::move(parts));
+  const PipelineReport r = run_pipeline(pipeline, false, out_dir.string(), out, err);
+  staged.finish();
 
-  StereoResult result;
-  std::vector<OcclusionStats> all;
-  double augment_ms = 0;
-  for (std::size_t i = 0; i < pairs.size(); ++i) {
-    const auto& [lp, rp] = pairs[i];
-    const SceneInput& sc = scenes[scenes.size() == 1 ? 0 : i];
-    // The timestamp: the scene file's, else the pair's index.
-    const TimestampNs t_ns = sc.extras.t_ns.value_or(static_cast<TimestampNs>(i));
-    StereoFrame frame;
-    frame.left.image = i == 0 ? std::move(first_left) : read_camera_image(lp, rig.left(), bayer);
-    frame.right.image = i == 0 ? std::move(first_right) : read_camera_image(rp, rig.right(), bayer);
-    frame.left.camera = CameraId::kLeft;
-    frame.right.camera = CameraId::kRight;
-    frame.left.t_ns = frame.right.t_ns = frame.t_key_ns = t_ns;
-    frame.left.sequence = frame.right.sequence = frame.pair_sequence = i;
-
-    check(augmenter->augment(frame, sc.scene, result));
-    augment_ms += augmenter->timings().total_ms;
-    result.stats.t_ns = t_ns;
-    write_frame_outputs(out_dir, {lp.stem().string(), rp.stem().string()}, frame, result);
-    csv.add(result.stats);
-    all.push_back(result.stats);
+  if (remap_t) {
+    StatsCsv csv(out_dir / "stats.csv");
+    for (OcclusionStats s : r.all_stats) {
+      const auto i = static_cast<std::size_t>(s.t_ns);
+      const auto& t = scene_t_ns[scene_t_ns.size() == 1 ? 0 : std::min(i, scene_t_ns.size() - 1)];
+      if (t) s.t_ns = *t;
+      csv.add(s);
+    }
   }
-
-  if (pairs.size() == 1) {
-    out << format_table1(
-        all.front(), "Occlusion statistics: " + pairs[0].first.string() + " | " + pairs[0].second.string());
-  } else {
-    out << format_run_summary(all);
+  if (r.all_stats.size() == 1 && !names.empty()) {
+    const auto& e = files->entries();
+    out << format_table1(r.all_stats.front(), "Occlusion statistics: " + (e.size() == 2 ? e[0].path + " | " + e[1].path
+                                                                                     : std::string("one pair")));
   }
-  out << "Wrote " << pairs.size() << " stereo frame(s) to " << out_dir.string() << " (augmenter "
-      << fmt_ms(augment_ms / static_cast<double>(pairs.size())) << " ms per stereo frame, "
-      << to_string(augmenter->rasterizer()) << " rasteriser)\n";
+  const std::uint64_t unpaired_l = r.source.pairing.unpaired_left, unpaired_r = r.source.pairing.unpaired_right;
+  if (unpaired_l + unpaired_r)
+    out << "Frames without a partner (not augmented): left " << unpaired_l << ", right " << unpaired_r
+        << (indexed ? " (pairing tolerance " + fmt_ms(static_cast<double>(pairing.tolerance_ns) / 1e3) + " us)"
+                    : std::string())
+        << "\n";
+  if (r.skipped_no_pose)
+    out << "Pairs without a pose (not augmented): " << r.skipped_no_pose << " (" << pipeline.parts().poses->describe()
+        << ")\n";
+  out << "Wrote " << r.pairs << " stereo frame(s) to " << out_dir.string();
+  if (r.pairs)
+    out << " (augmenter " << fmt_ms(r.augment_ms / static_cast<double>(r.pairs)) << " ms per stereo frame, "
+        << to_string(r.rasterizer) << " rasteriser)";
+  out << "\n";
+  if (r.source_failed) runtime_error("the images could not all be read: " + user_message(Error{r.source_error}));
+  if (r.failed_pairs) runtime_error(std::to_string(r.failed_pairs) + " pair(s) failed to augment (above)");
+  if (r.stopped_by_signal) return kExitRuntime;
+  if (r.pairs == 0) runtime_error("no stereo pair was augmented (above: why)");
   return kExitOk;
 }
 
@@ -322,47 +424,7 @@ std::string format_help(const std::string& usage, const std::string& summary,
 // ---- Images -------------------------------------------------------------------------------------
 
 Expected<Image> read_image_file(const std::string& path, std::optional<PixelFormat> bayer) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) return make_error(path, ": no such file");
-  if (fs::is_directory(path, ec)) return make_error(path, ": is a folder, expected an image file");
-  cv::Mat m;
-  try {
-    m = cv::imread(path, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception& e) {
-    return make_error(path, ": cannot decode the image (", e.what(), ")");
-  }
-  if (m.empty())
-    return make_error(path, ": cannot read the image (unreadable, corrupt or not an image format)");
-  const char* expected = "expected an 8-bit image: gray (Mono8 or a Bayer mosaic), BGR or BGRA";
-  if (m.depth() != CV_8U) {
-    const int bits = m.depth() == CV_16U || m.depth() == CV_16S ? 16 : (m.depth() == CV_8S ? 8 : 32);
-    return make_error(path, ": has ", bits, "-bit samples; ", expected);
-  }
-  PixelFormat format;
-  cv::Mat rgb;
-  switch (m.channels()) {
-    case 1:
-      format = bayer ? *bayer : PixelFormat::kMono8;
-      break;
-    case 3:
-      if (bayer) return make_error(path, ": has 3 channels, but --bayer expects 8-bit gray raw mosaics");
-      format = PixelFormat::kRGB8;
-      cv::cvtColor(m, rgb, cv::COLOR_BGR2RGB);  // OpenCV reads BGR
-      m = rgb;
-      break;
-    case 4:
-      if (bayer) return make_error(path, ": has 4 channels, but --bayer expects 8-bit gray raw mosaics");
-      format = PixelFormat::kRGBA8;
-      cv::cvtColor(m, rgb, cv::COLOR_BGRA2RGBA);
-      m = rgb;
-      break;
-    default:
-      return make_error(path, ": has ", m.channels(), " channels; ", expected);
-  }
-  Image im(m.cols, m.rows, format);
-  const std::size_t row_bytes = static_cast<std::size_t>(m.cols) * bytes_per_pixel(format);
-  for (int y = 0; y < m.rows; ++y) std::copy_n(m.ptr<std::uint8_t>(y), row_bytes, im.row(y));
-  return im;
+  return augrig::read_image_file(path, bayer);
 }
 
 Status write_image_file(const std::string& path, const Image& image, int png_compression) {
@@ -376,7 +438,7 @@ Status write_image_file(const std::string& path, const Image& image, int png_com
 // ---- Commands -----------------------------------------------------------------------------------
 
 int cmd_augment(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  return guarded("augment", err, [&] { return augment(args, out); });
+  return guarded("augment", err, [&] { return augment(args, out, err); });
 }
 
 int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {

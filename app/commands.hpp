@@ -51,8 +51,7 @@ std::string format_help(const std::string& usage, const std::string& summary,
 
 // ---- Images -----------------------------------------------------------------------------------
 
-// Reads an image file as augrig's formats: 8-bit gray -> Mono8 (or `bayer` when given), BGR ->
-// RGB8, BGRA -> RGBA8. Any other depth or channel count, or an unreadable file, is an Error naming it.
+// Reads an image file as augrig's formats: forwards to augrig::read_image_file (render/image_file.hpp).
 Expected<Image> read_image_file(const std::string& path, std::optional<PixelFormat> bayer = std::nullopt);
 // Writes an image losslessly (PNG): RGB(A) is converted to OpenCV's BGR(A) order, Mono8 and Bayer are
 // written as 8-bit gray. Creates the parent folder.

@@ -12,6 +12,7 @@
 #include "capture/aravis_source.hpp"
 #include "capture/v4l2_source.hpp"
 #include "core/clock.hpp"
+#include "pipeline/image_folder_source.hpp"
 #include "recorder/replay_source.hpp"
 #include "render/gl_context.hpp"
 #include "sim/flight_source.hpp"
@@ -27,7 +28,7 @@ Error uri_error(const SourceUri& u, const std::string& what) {
 }
 
 // sim://SCENARIO: the simulated flight's cameras, rendered on the capture thread that reads them
-// (the GL context is created there, on the first read), paced to real time unless rate=0.
+// by the CPU renderer (sim/synthetic_scene_cpu.hpp: no GL context), paced to real time unless rate=0.
 class SimSource final : public FrameSource {
  public:
   SimSource(std::string uri, std::shared_ptr<const SimulatedFlight> sim, int every,
@@ -38,16 +39,12 @@ class SimSource final : public FrameSource {
 
   Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds) override {
     if (!source_) {
-      auto ctx = create_gl_context(GlBackend::kEglHeadless);
-      if (!ctx) return make_error(uri_, ": ", ctx.error().message);
-      ctx_ = std::move(*ctx);
       auto src = sim::FlightSource::create(
           sim_->scenario, *sim_->flight, sim::frame_truths(sim_->scenario, *sim_->flight, sim_->logs.cameras),
           every_);
       if (!src) return make_error(uri_, ": ", src.error().message);
       source_ = std::move(*src);
     }
-    ctx_->make_current();
     if (clock_->paced()) {
       // Live-like: a frame whose time is more than a frame period past is lost, not rendered late
       // (a camera does not wait for its reader); counted with the camera's drops.
@@ -92,7 +89,6 @@ class SimSource final : public FrameSource {
   std::shared_ptr<const SimulatedFlight> sim_;
   int every_;
   std::shared_ptr<sim::SimClock> clock_;
-  std::unique_ptr<GlContext> ctx_;
   std::unique_ptr<sim::FlightSource> source_;
   std::array<std::uint64_t, 2> next_sequence_{};  // per camera: the camera model's own drops show as gaps
   std::atomic<std::uint64_t> dropped_{0};
@@ -313,6 +309,52 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     // right one, and they pair as delivered (a loop or a seek goes back in time).
     out.options.pairing.mode = PairingMode::kAdjacent;
     out.replay = src->get();
+    out.sources.push_back(std::move(*src));
+    return out;
+  }
+  if (u.scheme == "files") {
+    // files://INDEX.csv (a frame index: pairs by timestamp) or files://folders?left=DIR&right=DIR (two
+    // folders, or two image files: pairs by sorted name; "folders" because a URI needs a target).
+    // Lockstep: every file is read, none dropped.
+    if (Status s = u.check_known({"left", "right", "bayer", "tolerance_us"}); !s) return s.error();
+    ImageFolderOptions o;
+    o.uri = u.text;
+    if (u.has("bayer")) {
+      const std::string b = u.get("bayer");
+      o.bayer = b == "RG" ? PixelFormat::kBayerRG8
+                : b == "GR" ? PixelFormat::kBayerGR8
+                : b == "GB" ? PixelFormat::kBayerGB8
+                : b == "BG" ? PixelFormat::kBayerBG8
+                            : PixelFormat::kMono8;
+      if (o.bayer == PixelFormat::kMono8) return uri_error(u, "bayer: expected RG, GR, GB or BG, got '" + b + "'");
+    }
+    out.options.lossless = true;
+    if (u.target == "folders") {
+      if (!u.has("left") || !u.has("right"))
+        return uri_error(u, "expected files://INDEX.csv or files://folders?left=DIR&right=DIR");
+      if (u.has("tolerance_us"))
+        return uri_error(u, "tolerance_us: folders pair by sorted name, not by time (give an index for that)");
+      auto src = ImageFolderSource::open_folders(u.get("left"), u.get("right"), o);
+      if (!src) return src.error();
+      // Each pair comes as its left Frame, then its right one.
+      out.options.pairing.mode = PairingMode::kAdjacent;
+      out.sources.push_back(std::move(*src));
+      return out;
+    }
+    if (u.has("left") || u.has("right"))
+      return uri_error(u, "left and right name folders without an index; an index names its own files");
+    auto src = ImageFolderSource::open_index(u.target, o);
+    if (!src) return src.error();
+    // Default: half the median frame interval (a frame can never pair with its neighbour's partner);
+    // without an interval (one frame per camera), the widest tolerance a rig allows.
+    const TimestampNs half = (*src)->half_median_interval_ns();
+    const double default_us = half > 0 ? static_cast<double>(half) / 1e3 : kMaxPairingToleranceUs;
+    auto tol = u.get_number("tolerance_us", default_us, 0, kMaxPairingToleranceUs);
+    if (!tol) return tol.error();
+    StereoPairerConfig& p = out.options.pairing;
+    p.mode = PairingMode::kTimestamp;
+    p.tolerance_ns = static_cast<std::int64_t>(*tol * 1e3);
+    p.device_clock_shared = true;  // one index, one clock: its t_ns compare directly
     out.sources.push_back(std::move(*src));
     return out;
   }
