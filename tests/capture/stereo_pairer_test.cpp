@@ -262,6 +262,37 @@ TEST(StereoPairer, ClockOffsetsPairIndependentDeviceClocksOnHostTime) {
   for (const auto& s : shots) EXPECT_FALSE(raw.push(s.frame));
 }
 
+// Live latency: a pair comes out of the push of its second frame, never later (not at the next
+// frame of either camera), in whichever order the two cameras' frames arrive.
+TEST(StereoPairer, EachPairIsMadeByTheArrivalOfItsSecondFrame) {
+  StereoPairerConfig c;
+  c.tolerance_ns = kPeriod / 4;
+  c.device_clock_shared = false;
+  c.clock_offsets = ClockOffsetConfig{};
+  StereoPairer p = make_pairer(c);
+  TwoCameraRig rig;
+  rig.latency_mean_ns = 3e6;  // enough to swap the cameras' arrival order often
+  std::map<std::uint64_t, int> pushed;  // sequence -> frames of it pushed
+  int left_second = 0, right_second = 0;
+  for (const auto& s : rig.run(600)) {
+    const std::uint64_t seq = s.frame.sequence;
+    const CameraId cam = s.frame.camera;
+    auto sf = p.push(s.frame);
+    if (++pushed[seq] == 1) {
+      EXPECT_FALSE(sf) << "frame " << seq << ": paired before its partner came";
+      continue;
+    }
+    ASSERT_TRUE(sf) << "frame " << seq << ": both partners are in, the pair must come out now";
+    EXPECT_EQ(sf->left.sequence, seq);
+    EXPECT_EQ(sf->right.sequence, seq);
+    ++(cam == CameraId::kLeft ? left_second : right_second);
+  }
+  EXPECT_EQ(p.stats().pairs, 600u);
+  EXPECT_GT(left_second, 50) << "the test must see both arrival orders";
+  EXPECT_GT(right_second, 50);
+  expect_ledger_balanced(p);
+}
+
 // Triggered cameras (true skew ~20 us) with separate clocks behind a slow, noisy link (latency
 // 5 ms on average): the host-time estimates are off by up to their uncertainty, far more than a
 // 100 us tolerance. Pairs are refused only when the skew exceeds the tolerance beyond that

@@ -159,6 +159,49 @@ TEST(StereoSource, LosslessCaptureWaitsForTheConsumer) {
   EXPECT_EQ((*s)->stats().queue_drops[0], 0u);
 }
 
+// A live camera that delivers one frame (t_ns = t_host_ns = `t_ns`) and then nothing, as a
+// camera between two frames.
+class OneFrameSource final : public FrameSource {
+ public:
+  explicit OneFrameSource(TimestampNs t_ns) : t_ns_(t_ns) {}
+  std::string uri() const override { return "one://"; }
+  Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override {
+    if (done_) {
+      std::this_thread::sleep_for(std::min<std::chrono::nanoseconds>(timeout, 5ms));
+      return ReadStatus::kTimeout;
+    }
+    done_ = true;
+    out = Frame{};
+    out.image = Image(4, 2, PixelFormat::kMono8);
+    out.clock = ClockDomain::kHostMonotonic;
+    out.t_ns = out.t_host_ns = t_ns_;
+    return ReadStatus::kFrame;
+  }
+
+ private:
+  TimestampNs t_ns_;
+  bool done_ = false;
+};
+
+// Live: once both frames of a pair are captured, read() returns the pair at once; it does not
+// hold the later frame until the other camera's next frame comes (a whole frame period).
+TEST(StereoSource, LivePairIsReturnedOnceBothFramesAreIn) {
+  for (bool right_later : {true, false}) {
+    SCOPED_TRACE(right_later ? "right arrives later" : "left arrives later");
+    std::vector<std::unique_ptr<FrameSource>> v;
+    v.push_back(std::make_unique<OneFrameSource>(1'000'000'000 + (right_later ? 0 : 200'000)));
+    v.push_back(std::make_unique<OneFrameSource>(1'000'000'000 + (right_later ? 200'000 : 0)));
+    auto s = StereoSource::create(std::move(v), options(false, 8));
+    ASSERT_TRUE(s);
+    while ((*s)->stats().frames[0] + (*s)->stats().frames[1] < 2) std::this_thread::sleep_for(1ms);
+    StereoFrame f;
+    auto r = (*s)->read(f, 0ns);  // no waiting: both frames are in
+    ASSERT_TRUE(r) << r.error().message;
+    ASSERT_EQ(*r, ReadStatus::kFrame);
+    EXPECT_EQ(f.skew_ns, right_later ? 200'000 : -200'000);
+  }
+}
+
 TEST(StereoSource, SourceFailureNamesTheSource) {
   auto s = StereoSource::create(two(50, 10), options(true, 4));
   ASSERT_TRUE(s);
