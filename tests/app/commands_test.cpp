@@ -2,7 +2,9 @@
 // input, and `augment` / `demo` outputs checked against the masks they wrote.
 #include "app/commands.hpp"
 
+#include <cmath>
 #include <filesystem>
+#include <map>
 #include <fstream>
 #include <random>
 #include <sstream>
@@ -13,6 +15,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "nav/logs.hpp"
 #include "recorder/reader.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -328,6 +331,146 @@ TEST(Augment, FoldersOfBayerPairs) {
   ASSERT_EQ(lines.size(), 3u);
   EXPECT_EQ(csv_row(lines[1])[0], 0);  // no t_ns in the scene: the frame index
   EXPECT_EQ(csv_row(lines[2])[0], 1);
+}
+
+// ---- augment: a flown sequence (sim -> nav -> augment --frames --poses) ---------------------------
+
+// `augrig sim` of a short approach (every 3rd frame: 21 pairs), once for the tests below.
+const std::string& flown_dataset() {
+  static const std::string dir = [] {
+    const std::string d = output_dir("augment_flown");
+    fs::remove_all(d);
+    std::string log;
+    EXPECT_EQ(augrig("sim --scenario " + data_path("scenarios/short_approach.yaml") + " --every 3 --out " + d + "/D",
+                     &log),
+              0)
+        << log;
+    fs::create_directories(d + "/P");
+    EXPECT_EQ(augrig("nav --tanker " + d + "/D/tanker --receiver " + d + "/D/receiver --rig " + d +
+                         "/D/rig.yaml --frames " + d + "/D/frames/index.csv --out " + d + "/P/poses.csv",
+                     &log),
+              0)
+        << log;
+    return d;
+  }();
+  return dir;
+}
+
+std::map<long long, std::vector<long long>> stats_by_t(const fs::path& csv) {
+  std::map<long long, std::vector<long long>> rows;
+  const auto lines = read_lines(csv);
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    const auto v = csv_row(lines[i]);
+    rows[v[0]] = v;
+  }
+  return rows;
+}
+
+TEST(Augment, FlownSequenceWithNavPosesAgreesWithTheTruthWithinTheNavError) {
+  const std::string d = flown_dataset();
+  const std::string common = "augment --rig " + d + "/D/rig.yaml --frames " + d + "/D/frames/index.csv --out ";
+  std::string log, truth_log;
+  ASSERT_EQ(augrig(common + d + "/O --poses " + d + "/P/poses.csv", &log), 0) << log;
+  ASSERT_EQ(augrig(common + d + "/T --poses " + d + "/D/truth/poses.csv", &truth_log), 0) << truth_log;
+  // Every frame read is in a pair: the ledger adds up, nothing unpaired or without a pose.
+  EXPECT_NE(log.find("21 stereo pair(s) by timestamp"), std::string::npos) << log;
+  EXPECT_NE(log.find("frames read: left 21, right 21 = 2 x 21 pairs + 0 unpaired"), std::string::npos) << log;
+  EXPECT_EQ(log.find("without a pose"), std::string::npos) << log;
+  // The per-frame images are named after the input files (the index's left/NNNNNN.png).
+  for (const char* f : {"left/mask/000000.png", "right/mask/000060.png", "left/augmented/000030.png",
+                        "vis/boom_overlap/000000.png"})
+    EXPECT_TRUE(fs::exists(fs::path(d) / "O" / f)) << f;
+  EXPECT_FALSE(fs::exists(fs::path(d) / "O" / ".augrig-staging"));
+
+  // Against the truth: the receiver's pixel count depends on its range (area ~ 1/z^2: relative
+  // change 2 dz/z) and on its attitude (a rotation by theta changes the projected area by at most
+  // about theta times the whole: the receiver's side and top areas are no larger than its
+  // silhouette's 2x). So per pair |n_nav - n_truth| <= (2 dz/z + 2 theta + 1 %) n_truth, with dz
+  // and theta this pair's actual nav error (the 1 %: edge pixels that the silhouette's sub-pixel
+  // shift flips). The boom is not compared: nav's boom tracks the estimated receptacle, the
+  // truth's is the scenario's.
+  auto nav = nav::read_camera_pose_csv(d + "/P/poses.csv");
+  auto truth = nav::read_camera_pose_csv(d + "/D/truth/poses.csv");
+  ASSERT_TRUE(nav && truth);
+  std::map<std::pair<long long, int>, nav::CameraPoseRow> truth_at;
+  for (const auto& r : truth->rows) truth_at[{r.t_ns, r.camera}] = r;
+  const auto got = stats_by_t(fs::path(d) / "O" / "stats.csv"), want = stats_by_t(fs::path(d) / "T" / "stats.csv");
+  ASSERT_EQ(got.size(), 21u);
+  ASSERT_EQ(want.size(), 21u);
+  int compared = 0;
+  for (const auto& r : nav->rows) {
+    const auto t = truth_at.find({r.t_ns, r.camera});
+    ASSERT_NE(t, truth_at.end());
+    const auto g = got.find(r.t_ns), w = want.find(r.t_ns);
+    ASSERT_NE(g, got.end());
+    ASSERT_NE(w, want.end());
+    const double dz = std::abs(r.z_m - t->second.z_m) / t->second.z_m;
+    const double dot = std::abs(r.qw * t->second.qw + r.qx * t->second.qx + r.qy * t->second.qy + r.qz * t->second.qz);
+    const double theta = 2 * std::acos(std::min(1.0, dot));
+    const double tol = 2 * dz + 2 * theta + 0.01;
+    const int col = 1 + r.camera;  // receiver_px_left, receiver_px_right
+    const double n_truth = static_cast<double>(w->second[col]);
+    EXPECT_GT(n_truth, 1000) << "the receiver is in view at t_ns " << r.t_ns;
+    EXPECT_LE(std::abs(static_cast<double>(g->second[col]) - n_truth), tol * n_truth)
+        << "t_ns " << r.t_ns << " camera " << r.camera << ": nav " << g->second[col] << ", truth " << n_truth
+        << ", tolerance " << tol * 100 << " %";
+    ++compared;
+  }
+  EXPECT_EQ(compared, 42);
+}
+
+TEST(Augment, FlownSequenceCountsUnpairedFramesAndPairsWithoutAPose) {
+  const std::string d = flown_dataset();
+  // Four sequences with the right frame of sequence 6 missing, and no pose row for sequence 3.
+  {
+    std::ofstream idx(d + "/D/frames/index_gaps.csv");
+    for (const std::string& l : read_lines(d + "/D/frames/index.csv")) {
+      const bool keep = l.rfind("0,", 0) == 0 || l.rfind("3,", 0) == 0 || l.rfind("6,0,", 0) == 0 ||
+                        l.rfind("9,", 0) == 0 || l.rfind("sequence", 0) == 0 || l.rfind("#", 0) == 0;
+      if (keep) idx << l << "\n";
+    }
+    std::ofstream poses(d + "/P/poses_gap.csv");
+    for (const std::string& l : read_lines(d + "/P/poses.csv"))
+      if (l.rfind("3,0,", 0) != 0) poses << l << "\n";
+  }
+  std::string log;
+  ASSERT_EQ(augrig("augment --rig " + d + "/D/rig.yaml --frames " + d + "/D/frames/index_gaps.csv --poses " + d +
+                       "/P/poses_gap.csv --out " + d + "/G",
+                   &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("frames read: left 4, right 3 = 2 x 3 pairs + 1 unpaired"), std::string::npos) << log;
+  EXPECT_NE(log.find("Frames without a partner (not augmented): left 1, right 0"), std::string::npos) << log;
+  EXPECT_NE(log.find("Pairs without a pose (not augmented): 1"), std::string::npos) << log;
+  EXPECT_NE(log.find("no left-camera row at t_ns"), std::string::npos) << log;  // which one, on stderr
+  EXPECT_NE(log.find("Wrote 2 stereo frame(s)"), std::string::npos) << log;
+  EXPECT_EQ(read_lines(fs::path(d) / "G" / "stats.csv").size(), 3u);
+  EXPECT_FALSE(fs::exists(fs::path(d) / "G" / "left" / "mask" / "000003.png"));
+  EXPECT_TRUE(fs::exists(fs::path(d) / "G" / "left" / "mask" / "000009.png"));
+}
+
+TEST(Augment, IndexedImagesOfAnotherSizeThanTheRigFailAtOnceWithOneMessage) {
+  const std::string d = flown_dataset();
+  const std::string dir = output_dir("augment_index_size");
+  fs::create_directories(dir + "/left");
+  fs::create_directories(dir + "/right");
+  ASSERT_TRUE(cv::imwrite(dir + "/left/a.png", pattern(640, 480, CV_8UC3, 0)));
+  ASSERT_TRUE(cv::imwrite(dir + "/right/a.png", pattern(640, 480, CV_8UC3, 1)));
+  std::ofstream(dir + "/index.csv") << "sequence,camera,t_ns,file\n0,0,1000,left/a.png\n0,1,1000,right/a.png\n";
+  std::string out;
+  EXPECT_EQ(augrig("augment --rig " + d + "/D/rig.yaml --frames " + dir + "/index.csv --poses " + d +
+                       "/P/poses.csv --out " + dir + "/out",
+                   &out),
+            1)
+      << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << "one line:\n" << out;
+  EXPECT_NE(out.find(dir + "/index.csv:2 (camera 0, sequence 0)"), std::string::npos) << out;
+  EXPECT_NE(out.find("640x480"), std::string::npos) << out;
+  EXPECT_NE(out.find("1280x960"), std::string::npos) << out;
+  // The flags say what is missing or in conflict (exit 2).
+  EXPECT_EQ(augrig("augment --rig default --frames " + dir + "/index.csv --out " + dir + "/out", &out), 2) << out;
+  EXPECT_NE(out.find("--scene"), std::string::npos) << out;
+  EXPECT_EQ(augrig("augment --rig default --frames " + dir + "/index.csv --left x --poses p --out o", &out), 2) << out;
 }
 
 // ---- demo ----------------------------------------------------------------------------------------
