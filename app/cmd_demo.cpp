@@ -43,6 +43,7 @@ const std::vector<OptionSpec>& demo_specs() {
        "the batch demo even when a display is present (without it, a display opens the live window)"},
       {"duration", ArgKind::kValue, "S",
        "with the live window: stop after S seconds (default: the whole flight)"},
+      {"screenshot-at", ArgKind::kValue, "N", "with the live window: a screenshot once the N-th pair is shown"},
   };
   return specs;
 }
@@ -115,7 +116,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
     std::string uri = "sim://" + a.get("scenario", "demo") + "?every=" + a.get("every", "3");
     if (a.has("bayer")) uri += "&bayer=" + (a.get("bayer").empty() ? std::string("RG") : a.get("bayer"));
     std::vector<std::string> run_args = {"--source", uri, "--out", out_dir.string(), "--nav", "sim"};
-    for (const char* pass : {"boom", "duration", "record", "receiver-draw", "frames"})
+    for (const char* pass : {"boom", "duration", "record", "receiver-draw", "frames", "screenshot-at"})
       if (a.has(pass)) run_args.insert(run_args.end(), {std::string("--") + pass, a.get(pass)});
     if (a.has("overwrite")) run_args.push_back("--overwrite");
     out << "demo: a display is present: the flight in real time in the live window, poses from the live "

@@ -66,6 +66,7 @@ const std::vector<OptionSpec>& replay_specs() {
       {"record", ArgKind::kValue, "DIR", "record the re-augmented run (a new recording, docs/RECORDING.md)"},
       {"overwrite", ArgKind::kFlag, "", "with --record: replace a recording already in DIR"},
       {"headless", ArgKind::kFlag, "", "no window even when a display is present"},
+      {"screenshot-at", ArgKind::kValue, "N", "with the window: a screenshot once the N-th pair is shown (into --out)"},
       {"status-every", ArgKind::kValue, "S", "print a status line every S seconds (default 0: never)"},
       {"pair-tolerance-ns", ArgKind::kValue, "NS",
        "EuRoC folders: pair left and right frames whose timestamps differ by at most NS (default 0)"},
@@ -248,8 +249,12 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   parts.source = unwrap(start_stereo(std::move(opened)));
   parts.stop_flag = install_stop_signals();
   parts.status_every_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 0;
+  // Progress over the range replayed, every pass.
+  parts.progress_total = (source.frame_count() - source.start_frame()) * static_cast<std::uint64_t>(passes);
   Pipeline pipeline(std::move(parts));
-  const PipelineReport r = run_pipeline(pipeline, want_window, a.has("out") ? out_dir.string() : ".", out, err);
+  const PipelineReport r =
+      run_pipeline(pipeline, want_window, a.has("out") ? out_dir.string() : ".", out, err,
+                   a.has("screenshot-at") ? parse_integer("screenshot-at", a.get("screenshot-at"), 1, 1LL << 40) : 0);
 
   if (r.all_stats.size() == 1) out << format_table1(r.all_stats.front(), "Occlusion statistics");
   out << "Replayed " << r.pairs << " stereo frame(s)";

@@ -143,6 +143,7 @@ const std::vector<OptionSpec>& run_specs() {
       {"nav-fault", ArgKind::kValue, "STREAM=T0-T1,...",
        "with --nav sim: mute a simulated stream over scenario seconds [T0, T1], e.g. receiver.gps=10-13"},
       {"headless", ArgKind::kFlag, "", "no window even when a display is present (docs/DISPLAY.md)"},
+      {"screenshot-at", ArgKind::kValue, "N", "with the window: a screenshot once the N-th pair is shown (into --out)"},
       {"status-every", ArgKind::kValue, "S", "print a status line every S seconds (default 1; 0: never)"},
   };
   return specs;
@@ -169,7 +170,7 @@ struct RunSetup {
 // on this thread (GLFW wants the main thread) and the pipeline on a worker, talking only through
 // the LiveView mailbox. Prints the summary; returns the report (errors become CommandErrors).
 PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::string& screenshot_dir,
-                            std::ostream& out, std::ostream& err) {
+                            std::ostream& out, std::ostream& err, std::uint64_t screenshot_at) {
   std::unique_ptr<Display> display;
   if (want_window && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) {
     DisplayOptions dopt;
@@ -185,6 +186,7 @@ PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::str
   }
   std::optional<Expected<PipelineReport>> result;
   std::vector<std::string> screenshots;
+  bool display_was_open = false;
   if (!display) {
     result = pipeline.run(out, err);
   } else {
@@ -202,7 +204,30 @@ PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::str
     // The window's loop, about 60 times a second; it never waits for the pipeline.
     LiveView::Shown shown;
     const Rig& rig = pipeline.rig();
-    while (!view->finished()) {
+    // --screenshot-at N: one screenshot once the N-th pair is shown (written by the next frame()),
+    // its layout printed so that a test can find the views in it.
+    bool shot_requested = false, shot_written = false;
+    auto note_screenshots = [&](const std::vector<std::string>& shots) {
+      for (const std::string& shot : shots) {
+        const DisplayLayout& L = display->layout();
+        std::ostringstream line;
+        auto rect = [&](const PixelRect& r) {
+          line << r.x << "," << r.y << "," << r.w << "," << r.h;
+        };
+        line << shot << " (framebuffer " << L.framebuffer_w << "x" << L.framebuffer_h << "; left view ";
+        rect(L.views[0]);
+        line << "; right view ";
+        rect(L.views[1]);
+        line << "; hud ";
+        rect(L.hud);
+        line << "; pair " << shown.id << ")";
+        screenshots.push_back(line.str());
+        shot_written = true;
+      }
+    };
+    int frames_after_end = 0;
+    for (bool last = false;;) {
+      last = view->finished();
       const TimestampNs new_mid_host_ns = view->take_newest(shown);
       DisplayInput in;
       if (shown.id) in = display_input(shown.result, rig, shown.scene, shown.id);
@@ -212,10 +237,16 @@ PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::str
       if (shown.id) in.hud.occlusion = shown_occlusion;
       in.playback = view->playback();
       in.rig = &rig;
+      if (screenshot_at && !shot_requested && shown.id >= screenshot_at) {
+        display->request_screenshot();
+        shot_requested = true;
+      }
       const bool open = display->frame(in);
       view->drawn(new_mid_host_ns);  // drawn and swapped: on its way to the screen
       DisplayCommands c = display->poll_commands();
-      for (const std::string& shot : c.screenshots) screenshots.push_back(shot);
+      note_screenshots(c.screenshots);
+      // The pipeline stopped: one more frame when a requested screenshot is still to be written.
+      if (last && (!shot_requested || shot_written || ++frames_after_end > 10)) break;
       PipelineCommands pc;
       pc.quit = c.quit || !open;
       pc.toggle_pause = c.toggle_pause;
@@ -229,9 +260,12 @@ PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::str
     }
     worker.join();
     display.reset();
+    display_was_open = true;
     if (internal) runtime_error("internal error: " + *internal);
   }
   for (const std::string& shot : screenshots) out << "screenshot " << shot << "\n";
+  if (screenshot_at && screenshots.empty() && display_was_open)
+    err << "augrig: no screenshot: fewer than " << screenshot_at << " pairs were shown\n";
   PipelineReport report = unwrap(std::move(*result));
   pipeline.print_summary(report, out);
   return report;
@@ -258,8 +292,6 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 0;
   if (every && !a.has("out")) usage_error("--every needs --out");
   const long long max_pairs = a.has("frames") ? parse_integer("frames", a.get("frames"), 1, 1LL << 40) : 0;
-  const int pose_sources = a.has("scene") + a.has("poses") + (a.has("nav") && a.get("nav") != "");
-  if (pose_sources > 1) usage_error("--scene, --poses and --nav exclude each other: give one pose source");
 
   // Sources: --source, else the rig's per-camera URIs.
   std::optional<Rig> rig;
@@ -286,6 +318,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
 
   RunSetup setup;
   PipelineParts& parts = setup.parts;
+  nav::InsConfig ins_used[2];  // the live fusion's aircraft settings
   parts.rig = *rig;
   parts.receiver = receiver_setup(*rig);
   parts.source_info = info;
@@ -310,6 +343,8 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   for (const auto& item : nav_items)
     if (const auto ac = aircraft_of_stream(item.first)) nav_of[static_cast<int>(*ac)] = true;
   const bool use_nav = nav_of[0] && nav_of[1];
+  if (a.has("scene") + a.has("poses") + use_nav > 1)
+    usage_error("--scene, --poses and --nav with streams of both aircraft are three sources of poses: give one");
   if (a.has("nav") && !nav_sim && !use_nav && !a.has("scene") && !a.has("poses") && !opened.replay && !is_sim)
     usage_error("--nav needs streams of both aircraft (tanker.*, receiver.*) to give poses");
   if (a.has("scene")) {
@@ -320,7 +355,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     if (tol_ms < 0) usage_error("--pose-tolerance-ms: expected milliseconds >= 0");
     parts.poses = unwrap(poses_csv(a.get("poses"), *rig, s_to_ns(tol_ms / 1e3)));
   } else if (use_nav) {
-    nav::InsConfig ins[2];
+    nav::InsConfig* ins = ins_used;
     if (nav_sim) {
       ins[0] = ins_config_for(info.sim->scenario.sensors.tanker);
       ins[1] = ins_config_for(info.sim->scenario.sensors.receiver);
@@ -362,7 +397,12 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     rinfo.clock_domains = opened.live ? "frames: each camera's device clock (t_ns, mid-exposure) and host "
                                         "CLOCK_MONOTONIC (t_host_ns); offsets in events 'clock_offset'"
                                       : "frames: the source's clocks as recorded";
-    if (use_nav) rinfo.clock_domains += "; nav inputs: arrival on host CLOCK_MONOTONIC, sensor times inside the data";
+    if (use_nav) {
+      rinfo.clock_domains += "; nav inputs: arrival on host CLOCK_MONOTONIC, sensor times inside the data";
+      // Each aircraft's settings, so that an export can re-fuse the recording offline.
+      rinfo.extra["aircraft_yaml.tanker"] = aircraft_config_to_yaml(ins_used[0]);
+      rinfo.extra["aircraft_yaml.receiver"] = aircraft_config_to_yaml(ins_used[1]);
+    }
     rinfo.extra["source"] = uri + (right_uri.empty() ? "" : " + " + right_uri);
     if (opened.replay) rinfo.extra["re_augmented_from"] = opened.replay->reader().path();
     parts.recorder = create_recorder(a.get("record"), rinfo, a.has("overwrite"));
@@ -432,7 +472,8 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
 
   Pipeline pipeline(std::move(parts));
   const PipelineReport report =
-      run_pipeline(pipeline, want_window, a.has("out") ? a.get("out") : ".", out, err);
+      run_pipeline(pipeline, want_window, a.has("out") ? a.get("out") : ".", out, err,
+                   a.has("screenshot-at") ? parse_integer("screenshot-at", a.get("screenshot-at"), 1, 1LL << 40) : 0);
   setup.nav_inputs->summary(out);
   if (report.recording_closed) {
     out << "recorded " << report.recorder_stats.frames_committed << " stereo frames to "

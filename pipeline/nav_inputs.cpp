@@ -2,6 +2,7 @@
 
 #include "core/thread_name.hpp"
 #include "nav/imu_stream.hpp"
+#include "recorder/nav_inputs.hpp"
 
 namespace augrig::pipeline {
 
@@ -34,16 +35,19 @@ Status NavInputs::open(const std::vector<std::pair<std::string, std::string>>& i
   }
   for (Input& in : inputs_) {
     if (rec) {
-      // Every unit recorded exactly as received, stamped with its host arrival time.
-      in.input->set_raw_tap([rec, stream = in.stream](std::string_view data, TimestampNs arrival_ns, bool binary) {
-        recorder::NavInputRecord r;
-        r.stream = stream;
-        r.clock = ClockDomain::kUnknown;  // the sensor time is inside the data
-        r.arrival_ns = arrival_ns;
-        r.data = std::string(data);
-        r.binary = binary;
-        rec->push(std::move(r));
-      });
+      // Every unit recorded exactly as received, stamped with its host arrival time and, where the
+      // data says it, its sensor time (one stamper per input: an NMEA stream's date is its own).
+      auto stamper = std::make_shared<recorder::NavInputStamper>();
+      in.input->set_raw_tap(
+          [rec, stream = in.stream, stamper](std::string_view data, TimestampNs arrival_ns, bool binary) {
+            recorder::NavInputRecord r;
+            r.stream = stream;
+            r.arrival_ns = arrival_ns;
+            r.data = std::string(data);
+            r.binary = binary;
+            stamper->stamp(r);
+            rec->push(std::move(r));
+          });
     }
     in.thread = std::thread([this, &in, live_nav] {
       set_thread_name("augrig-nav");

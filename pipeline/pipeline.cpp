@@ -209,6 +209,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   const auto t0 = SteadyClock::now();
   auto next_status = t0 + std::chrono::duration<double>(p.status_every_s);
   auto next_clocks = t0;
+  auto next_progress = t0 + std::chrono::seconds(1);
   StereoResult result;
   std::optional<Error> fatal;
 
@@ -490,6 +491,19 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     if (SteadyClock::now() >= next_clocks) {
       next_clocks += std::chrono::seconds(1);
       s.clocks = source.stats().clocks;
+    }
+    if (p.progress_total && !p.view && SteadyClock::now() >= next_progress) {
+      next_progress += std::chrono::seconds(1);
+      const double t = std::chrono::duration<double>(SteadyClock::now() - t0).count();
+      const std::uint64_t done = rep.pairs + rep.failed_pairs + rep.skipped_no_pose;
+      const double rate = done / std::max(t, 1e-9);
+      out << "  " << done << " of " << p.progress_total << " pairs, " << std::fixed << std::setprecision(1) << rate
+          << "/s";
+      if (rate > 0 && done < p.progress_total) {
+        const auto eta_s = static_cast<long long>((p.progress_total - done) / rate + 0.5);
+        out << ", ETA " << (eta_s >= 60 ? std::to_string(eta_s / 60) + " min " : "") << eta_s % 60 << " s";
+      }
+      out << std::endl;
     }
     if (p.status_every_s > 0 && SteadyClock::now() >= next_status) {
       next_status += std::chrono::duration<double>(p.status_every_s);

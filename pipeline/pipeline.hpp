@@ -141,6 +141,9 @@ struct PipelineParts {
   std::uint64_t max_pairs = 0;    // augmented pairs; 0: none
   std::atomic<bool>* stop_flag = nullptr;  // raised by a signal handler
   double status_every_s = 0;      // a status line this often (0: never)
+  // A progress line ("N of M pairs, X/s, ETA") about once a second on `out` when M is known (a
+  // file source); 0: none. Interactive runs (a window) have the window instead.
+  std::uint64_t progress_total = 0;
   // Frames without a pose: augmented with the boom alone and marked (live), or not augmented and
   // counted (a recording without a scene for some frames).
   bool skip_frames_without_pose = false;

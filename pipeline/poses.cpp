@@ -47,6 +47,7 @@ class SimTruthPoses final : public PoseProvider {
     p.hud.fix = nav::FixQuality::kRtkFixed;
     p.hud.age_s = 0;
     p.sigma_pos_m = 0, p.sigma_att_deg = 0;
+    p.hud.sigma_pos_m = 0, p.hud.sigma_att_deg = 0;
     return p;
   }
 

@@ -12,7 +12,7 @@ PACKAGES=(
   libyaml-cpp-dev libopencv-dev libeigen3-dev libglm-dev libgeographiclib-dev geographiclib-tools
   libtinygltf-dev libtinyobjloader-dev nlohmann-json3-dev libstb-dev
   # recordings: SQLite (WAL) with zstd-compressed frames; sqlite3 to inspect them
-  libsqlite3-dev libzstd-dev sqlite3
+  libsqlite3-dev libzstd-dev zlib1g-dev sqlite3
   # plots of a run's statistics (augrig export)
   gnuplot-nox
   # live capture: Aravis GigE Vision (its pkg-config needs libusb's), V4L2, MJPEG decoding;

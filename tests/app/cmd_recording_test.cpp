@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/support/window_shot.hpp"
+
 #include "app/commands.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/reader.hpp"
@@ -196,6 +198,34 @@ TEST(CmdRecording, ReplayReproducesTheRecordedStatistics) {
   auto png = app::read_image_file(out + "/left/augmented/000003.png");
   ASSERT_TRUE(png) << png.error().message;
   EXPECT_TRUE(pixels_equal(*png, rec->augmented[0]));
+}
+
+// replay in the window under Xvfb: the screenshot of a shown pair has the boom where the masks of
+// that pair (re-recorded by the same replay) say, and the occlusion panel filled.
+TEST(CmdRecording, ReplayInTheWindowShowsTheBoomWhereTheMasksSay) {
+  if (run_command("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run is not installed";
+  const std::string dir = output_dir("cmd_recording_replay_window");
+  std::string log;
+  ASSERT_EQ(augrig("run --source 'sim://demo?every=30&rate=0' --frames 4 --headless --status-every 0 --record " + dir +
+                       "/rec",
+                   &log),
+            0)
+      << log;
+  ASSERT_EQ(run_command("xvfb-run -a " + augrig_binary() + " replay " + dir + "/rec --screenshot-at 3 --out " + dir +
+                            "/out --record " + dir + "/again 2>&1",
+                        &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("Recorded statistics reproduced exactly (same pixel counts) in 4 of 4 frame(s)"),
+            std::string::npos)
+      << log;
+  const auto shot = test::parse_window_shot(log);
+  ASSERT_TRUE(shot) << log;
+  auto reader = recorder::RecordingReader::open(dir + "/again");
+  ASSERT_TRUE(reader) << reader.error().message;
+  auto frame = (*reader)->read_frame(shot->pair - 1);
+  ASSERT_TRUE(frame) << frame.error().message;
+  test::check_window_shot(*shot, *frame);
 }
 
 TEST(CmdRecording, ReplaySeekLoopFromFrameAndRate) {

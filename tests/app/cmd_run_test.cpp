@@ -14,6 +14,7 @@
 
 #include "core/conventions.hpp"
 #include "nav/imu_stream.hpp"
+#include "tests/support/window_shot.hpp"
 #include "nav/nmea.hpp"
 #include "nav/udp_socket.hpp"
 #include "recorder/reader.hpp"
@@ -563,7 +564,7 @@ TEST(CmdRun, DemoOpensTheLiveWindowWhenADisplayIsPresent) {
   const std::string dir = output_dir("cmd_run_demo_window");
   std::string out;
   ASSERT_EQ(run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir + " --every 15 --duration 4 --record " +
-                            dir + "/recording --bayer --receiver-draw wireframe 2>&1",
+                            dir + "/recording --receiver-draw wireframe --screenshot-at 3 2>&1",
                         &out),
             0)
       << out;
@@ -571,24 +572,27 @@ TEST(CmdRun, DemoOpensTheLiveWindowWhenADisplayIsPresent) {
   EXPECT_TRUE(contains(out, "poses from the live nav")) << out;
   EXPECT_TRUE(contains(out, "live display open")) << out;
   EXPECT_TRUE(contains(out, "recorded ")) << out;
-  EXPECT_TRUE(contains(out, "bayer=RG")) << out;  // --bayer reaches the simulated cameras
   std::string check;
   EXPECT_EQ(augrig("check " + dir + "/recording", &check), 0) << check;
   {
+    // The window showed the boom where the recorded masks of the pair shown say.
+    const auto shot = test::parse_window_shot(out);
+    ASSERT_TRUE(shot) << out;
     auto reader = recorder::RecordingReader::open(dir + "/recording");
     ASSERT_TRUE(reader) << reader.error().message;
-    auto f = (*reader)->read_frame(0);
+    auto f = (*reader)->read_frame(shot->pair - 1);
     ASSERT_TRUE(f) << f.error().message;
-    EXPECT_EQ(f->raw.left.image.format(), PixelFormat::kBayerRG8);
+    test::check_window_shot(*shot, *f);
   }
   // Again into the same --out, without --record: no recording is made, and nothing refuses; a
   // second recording into the same folder needs --overwrite and says so.
   ASSERT_EQ(run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir +
-                            " --every 15 --duration 30 --frames 3 2>&1",
+                            " --every 15 --duration 30 --frames 3 --bayer 2>&1",
                         &out),
             0)
       << out;
   EXPECT_FALSE(contains(out, "recorded ")) << out;
+  EXPECT_TRUE(contains(out, "bayer=RG")) << out;  // --bayer reaches the simulated cameras
   EXPECT_TRUE(contains(out, "run: 3 stereo frames augmented")) << out;  // --frames: stop after 3
   EXPECT_EQ(run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir + " --every 15 --duration 2 --record " +
                             dir + "/recording 2>&1",
@@ -598,6 +602,27 @@ TEST(CmdRun, DemoOpensTheLiveWindowWhenADisplayIsPresent) {
   EXPECT_TRUE(contains(out, "a recording is already there; give --overwrite")) << out;
   // No display: the batch demo refuses the window-only flag.
   EXPECT_EQ(augrig("demo --out " + dir + "/batch --headless --duration 4", &out), 2) << out;
+}
+
+// The window of `augrig run` under Xvfb: the screenshot of a shown pair has both views, the boom
+// where the recorded masks of that very pair say, and the occlusion panel filled.
+TEST(CmdRun, WindowScreenshotShowsTheBoomWhereTheMasksSay) {
+  if (run_command("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run is not installed";
+  const std::string dir = output_dir("cmd_run_window_shot");
+  std::string out;
+  ASSERT_EQ(run_command("xvfb-run -a " + augrig_binary() + " run --source 'sim://demo?every=30&rate=0' --frames 4 " +
+                            "--screenshot-at 2 --status-every 0 --out " + dir + " --record " + dir + "/rec 2>&1",
+                        &out),
+            0)
+      << out;
+  const auto shot = test::parse_window_shot(out);
+  ASSERT_TRUE(shot) << out;
+  auto reader = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  ASSERT_GE(shot->pair, 1u);
+  auto frame = (*reader)->read_frame(shot->pair - 1);
+  ASSERT_TRUE(frame) << frame.error().message;
+  test::check_window_shot(*shot, *frame);
 }
 
 TEST(CmdRun, BadSourcesAndFlagsSayWhatIsWrong) {
