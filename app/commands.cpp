@@ -65,7 +65,7 @@ const std::vector<OptionSpec>& augment_specs() {
        "do not render the receiver (no receiver mask bit, no stereo classes)"},
       {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
        "how the receiver shows in the augmented image (default mask: not drawn)"},
-      {"status-every", ArgKind::kValue, "S", "a progress line every S seconds (default 2; 0: never)"},
+      {"status-every", ArgKind::kValue, "S", "a status line (pairs, rate, drops) every S seconds (default 0: never)"},
   };
   return specs;
 }
@@ -177,7 +177,7 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
     pose_tol_ms = parse_real("pose-tolerance-ms", a.get("pose-tolerance-ms"));
     if (!(pose_tol_ms >= 0) || pose_tol_ms > 1e6) usage_error("--pose-tolerance-ms: expected milliseconds in [0, 1e6]");
   }
-  const double status_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 2.0;
+  const double status_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 0.0;
   if (!(status_s >= 0)) usage_error("--status-every: expected seconds >= 0");
   AugmentOptions options;
   options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
@@ -279,7 +279,9 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   parts.skip_frames_without_pose = true;  // a pair without a pose is counted and reported, not guessed
   if (!remap_t) parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
   parts.frame_files = FrameFiles{staged.dir(), 1};
-  parts.status_every_s = expected_pairs > 1 ? status_s : 0;
+  parts.status_every_s = status_s;
+  // "N of M pairs, X/s, ETA" about once a second, M the pairs the index (or the folders) hold.
+  parts.progress_total = expected_pairs > 1 ? expected_pairs : 0;
   parts.stop_flag = install_stop_signals();
   parts.on_problem = [&err](const Error& e) { err << "augrig augment: " << user_message(e) << "\n"; };
   const StereoPairerConfig pairing = opened.options.pairing;
