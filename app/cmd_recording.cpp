@@ -74,66 +74,69 @@ const std::vector<OptionSpec>& replay_specs() {
   return specs;
 }
 
-// A EuRoC/ASL folder (mav0/cam0, cam1): no recorded scene, so --scene gives it; the rig is --rig
-// (default: the paper's). Pairs by timestamp within --pair-tolerance-ns.
-int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out) {
+// A EuRoC/ASL folder (mav0/cam0, cam1) through the same pipeline: no recorded scene, so --scene
+// gives it; the rig is --rig (default: the paper's). Pairs by timestamp within
+// --pair-tolerance-ns; --seek and --from-frame choose the start, --loop the passes are not
+// supported (a dataset has no player).
+int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out, std::ostream& err) {
   if (!a.has("scene")) usage_error("a EuRoC folder has no recorded scene: give one with --scene SCENE.yaml");
-  recorder::EurocOptions eo;
-  if (a.has("pair-tolerance-ns"))
-    eo.pair_tolerance_ns = parse_integer("pair-tolerance-ns", a.get("pair-tolerance-ns"), 0, 1LL << 40);
-  auto source = unwrap(recorder::EurocSource::open(dir, eo));
-  const Rig rig = load_rig_arg(a.get("rig", "default"));
-  const ReceiverSetup receiver = receiver_setup(rig);
-  const SceneState scene = unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, receiver.receptacle_m));
-  AugmentOptions options;
-  options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
-  options.augmented_output = AugmentedOutput::kChangedBox;  // whole images only for the PNG files
-  options.receiver_model = receiver.model;
-  std::optional<StatsCsv> csv;
-  if (a.has("out")) {
-    make_dirs(a.get("out"));
-    csv.emplace(fs::path(a.get("out")) / "stats.csv");
+  if (a.has("loop")) usage_error("--loop: a EuRoC folder plays once (replay a recording to loop)");
+  if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
+  std::string params = "?tolerance_ns=" + std::to_string(a.has("pair-tolerance-ns")
+                                                              ? parse_integer("pair-tolerance-ns",
+                                                                              a.get("pair-tolerance-ns"), 0, 1LL << 40)
+                                                              : 0);
+  if (a.has("seek")) {
+    if (parse_real("seek", a.get("seek")) < 0)
+      usage_error("--seek: expected seconds from the first frame (>= 0), got '" + a.get("seek") + "'");
+    params += "&seek_s=" + a.get("seek");
   }
-  out << "replay: " << source->uri() << ", " << source->pair_count() << " stereo pairs ("
-      << source->unpaired() << " frames without a partner), scene " << a.get("scene") << "\n";
-  const auto gl = make_gl_context();
-  const auto augmenter = unwrap(Augmenter::create(rig, options));
-  std::unique_ptr<recorder::Recorder> rec_out;
+  if (a.has("from-frame"))
+    params += "&from_frame=" + std::to_string(parse_integer("from-frame", a.get("from-frame"), 0, 1LL << 40));
+  const std::string target = dir.rfind("euroc://", 0) == 0 ? dir.substr(8) : dir;
+  OpenedSource opened = unwrap(open_sources("euroc://" + target + params));
+  const auto* euroc = dynamic_cast<const recorder::EurocSource*>(opened.sources.front().get());
+  const std::size_t pairs = euroc ? euroc->pair_count() : 0;
+  const std::uint64_t unpaired = euroc ? euroc->unpaired() : 0;
+  PipelineParts parts;
+  parts.rig = load_rig_arg(a.get("rig", "default"));
+  parts.receiver = receiver_setup(parts.rig);
+  parts.poses = fixed_scene_poses(
+      unwrap(load_scene(a.get("scene"), parts.rig, BoomDimensions{}, parts.receiver.receptacle_m)), a.get("scene"));
+  if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
+  parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+  const fs::path out_dir = a.get("out");
+  const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 30;
+  if (a.has("out")) {
+    make_dirs(out_dir);
+    parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
+    parts.frame_files = FrameFiles{out_dir, every, {}};
+  }
   if (a.has("record")) {
     recorder::RecordingInfo info;
-    info.rig_yaml = rig_to_yaml(rig);
+    info.rig_yaml = rig_to_yaml(parts.rig);
     info.scene = a.get("scene");
-    info.extra["re_augmented_from"] = source->uri();
-    rec_out = unwrap(recorder::Recorder::create(a.get("record"), info));
+    info.extra["re_augmented_from"] = "euroc://" + target;
+    parts.recorder = create_recorder(a.get("record"), info, a.has("overwrite"));
   }
-  StereoFrame frame;
-  StereoResult result;
-  std::vector<OcclusionStats> all;
-  for (;;) {
-    if (unwrap(source->read(frame.left, std::chrono::seconds(1))) != ReadStatus::kFrame) break;
-    if (unwrap(source->read(frame.right, std::chrono::seconds(1))) != ReadStatus::kFrame) break;
-    frame.t_key_ns = frame.left.t_ns + (frame.right.t_ns - frame.left.t_ns) / 2;
-    frame.skew_ns = frame.right.t_ns - frame.left.t_ns;
-    check(augmenter->augment(frame, scene, result));
-    result.stats.t_ns = frame.t_key_ns;
-    if (csv) csv->add(result.stats);
-    if (rec_out) {
-      recorder::FrameRecord fr = frame_record(result);
-      fr.raw = frame;
-      fr.T_body_receiver = scene.T_body_receiver;
-      fr.boom = scene.boom;
-      rec_out->push(std::move(fr));
-    }
-    all.push_back(result.stats);
+  out << "replay: euroc://" << target << ", " << pairs << " stereo pairs (" << unpaired
+      << " frames without a partner), scene " << a.get("scene") << "\n";
+  parts.source_info = opened;
+  parts.source = unwrap(start_stereo(std::move(opened)));
+  parts.stop_flag = install_stop_signals();
+  parts.progress_total = pairs;
+  parts.on_problem = [&err](const Error& e) { err << "augrig replay: " << user_message(e) << "\n"; };
+  const bool want_window = !a.has("headless");
+  if (want_window && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) parts.view = std::make_shared<LiveView>();
+  Pipeline pipeline(std::move(parts));
+  const PipelineReport r = run_pipeline(pipeline, want_window, a.has("out") ? out_dir.string() : ".", out, err);
+  out << "Replayed " << r.pairs << " stereo frame(s)\n";
+  if (r.recording_closed) {
+    out << "Recorded " << r.recorder_stats.frames_committed << " stereo frame(s) to " << a.get("record") << "\n";
+    if (!*r.recording_closed) runtime_error("the recording stopped: " + user_message(r.recording_closed->error()));
   }
-  if (!all.empty()) out << format_run_summary(all);
-  out << "Replayed " << all.size() << " stereo frame(s)\n";
-  if (rec_out) {
-    const Status closed = rec_out->close();
-    out << "Recorded " << rec_out->stats().frames_committed << " stereo frame(s) to " << rec_out->path()
-        << "\n";
-    if (!closed) runtime_error("the recording stopped: " + user_message(closed.error()));
-  }
+  const std::uint64_t unreadable = r.source.camera_drops > unpaired ? (r.source.camera_drops - unpaired) / 2 : 0;
+  if (unreadable) runtime_error(std::to_string(unreadable) + " pair(s) could not be read (above); the others were replayed");
   return kExitOk;
 }
 
@@ -156,7 +159,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   }
   if (pos[0].rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(pos[0]) / "mav0") ||
       fs::path(pos[0]).filename() == "mav0")
-    return replay_euroc(pos[0], a, out);
+    return replay_euroc(pos[0], a, out, err);
   if (a.has("rate") && a.has("fast")) usage_error("--rate and --fast exclude each other");
   if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
   // The replay:// URI carries the player's settings (pipeline/sources.hpp, docs/REPLAY.md).
@@ -235,7 +238,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (a.has("out")) {
     make_dirs(out_dir);
     parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
-    parts.frame_files = FrameFiles{out_dir, every};
+    parts.frame_files = FrameFiles{out_dir, every, {}};
   }
   out << "replay: " << source.uri() << ", " << source.frame_count() << " stereo frames, from frame "
       << source.start_frame() << ", "

@@ -442,7 +442,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   if (a.has("out")) {
     make_dirs(a.get("out"));
     parts.stats_csv = unwrap(StatsCsvWriter::create(fs::path(a.get("out")) / "stats.csv"));
-    if (every) parts.frame_files = FrameFiles{a.get("out"), every};
+    if (every) parts.frame_files = FrameFiles{a.get("out"), every, {}};
   }
   const bool lossless = opened.options.lossless;
   // Cameras: how their frames pair (the stereo URI's or the rig's `pairing`).

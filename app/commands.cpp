@@ -86,68 +86,14 @@ std::string uri_path(const std::string& flag, const std::string& path) {
   return path;
 }
 
-// Records each pair's input file stems (from the source's ImageFileAttachment) as the pipeline asks
-// for its pose, so that the per-frame images can be named after their inputs.
-class NamingPoses final : public PoseProvider {
- public:
-  NamingPoses(std::unique_ptr<PoseProvider> inner, std::map<std::uint64_t, FrameNames>* names)
-      : inner_(std::move(inner)), names_(names) {}
-  std::string describe() const override { return inner_->describe(); }
-  bool live() const override { return inner_->live(); }
-  FramePoses at(const StereoFrame& frame, TimestampNs mid_host_left_ns) override {
-    auto stem = [](const Frame& f) {
-      const auto* a = dynamic_cast<const ImageFileAttachment*>(f.attachment.get());
-      return a ? fs::path(a->path).stem().string() : std::to_string(f.sequence);
-    };
-    (*names_)[frame.pair_sequence] = {stem(frame.left), stem(frame.right)};
-    return inner_->at(frame, mid_host_left_ns);
-  }
-
- private:
-  std::unique_ptr<PoseProvider> inner_;
-  std::map<std::uint64_t, FrameNames>* names_;
-};
-
-// The pipeline names its per-frame images by pair sequence (NNNNNN.png); augment names them by the
-// input's stems. The pipeline writes into a staging folder and its files are moved to their names
-// afterwards (also when the run fails: what was written is kept).
-class StagedFrameFiles {
- public:
-  StagedFrameFiles(fs::path out, const std::map<std::uint64_t, FrameNames>* names)
-      : out_(std::move(out)), staging_(out_ / ".augrig-staging"), names_(names) {
-    std::error_code ec;
-    fs::remove_all(staging_, ec);
-  }
-  ~StagedFrameFiles() { finish(); }
-  const fs::path& dir() const { return staging_; }
-  // Moves every staged file to OUT/<same folder>/<stem>.png; the right camera's files (right/,
-  // vis/occlusion_right/) take the right stem.
-  void finish() {
-    std::error_code ec;
-    if (!fs::exists(staging_, ec)) return;
-    std::vector<fs::path> files;
-    for (const auto& e : fs::recursive_directory_iterator(staging_, ec))
-      if (e.is_regular_file()) files.push_back(e.path());
-    for (const fs::path& f : files) {
-      const fs::path rel = fs::relative(f, staging_, ec);
-      std::uint64_t seq = 0;
-      const std::string s = f.stem().string();
-      const auto [p, err] = std::from_chars(s.data(), s.data() + s.size(), seq);
-      const auto it = names_->find(seq);
-      if (err != std::errc() || p != s.data() + s.size() || it == names_->end()) continue;
-      const std::string first = rel.begin()->string(), folder = rel.parent_path().filename().string();
-      const bool right = first == "right" || folder == "occlusion_right";
-      const fs::path dest = out_ / rel.parent_path() / ((right ? it->second.right : it->second.left) + ".png");
-      fs::create_directories(dest.parent_path(), ec);
-      fs::rename(f, dest, ec);
-    }
-    fs::remove_all(staging_, ec);
-  }
-
- private:
-  fs::path out_, staging_;
-  const std::map<std::uint64_t, FrameNames>* names_;
-};
+// Each pair's images are named after its input files' stems (the source's ImageFileAttachment).
+FrameNames input_names(const StereoFrame& frame) {
+  auto stem = [](const Frame& f) {
+    const auto* a = dynamic_cast<const ImageFileAttachment*>(f.attachment.get());
+    return a ? fs::path(a->path).stem().string() : std::to_string(f.sequence);
+  };
+  return {stem(frame.left), stem(frame.right)};
+}
 
 int augment(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   const ParsedArgs a = [&] {
@@ -267,18 +213,16 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   // (its index) replaced by its scene's. Otherwise the pipeline writes it row by row.
   const bool remap_t = !files->from_index() && std::any_of(scene_t_ns.begin(), scene_t_ns.end(),
                                                            [](const auto& t) { return t.has_value(); });
-  std::map<std::uint64_t, FrameNames> names;
-  StagedFrameFiles staged(out_dir, &names);
 
   PipelineParts parts;
   parts.rig = rig;
   parts.receiver = receiver;
   parts.source_info = opened;
-  parts.poses = std::make_unique<NamingPoses>(std::move(poses), &names);
+  parts.poses = std::move(poses);
   parts.augment = options;
   parts.skip_frames_without_pose = true;  // a pair without a pose is counted and reported, not guessed
   if (!remap_t) parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
-  parts.frame_files = FrameFiles{staged.dir(), 1};
+  parts.frame_files = FrameFiles{out_dir, 1, input_names};
   parts.status_every_s = status_s;
   // "N of M pairs, X/s, ETA" about once a second, M the pairs the index (or the folders) hold.
   parts.progress_total = expected_pairs > 1 ? expected_pairs : 0;
@@ -292,7 +236,6 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
       << "; poses from " << parts.poses->describe() << "\n";
   Pipeline pipeline(std::move(parts));
   const PipelineReport r = run_pipeline(pipeline, false, out_dir.string(), out, err);
-  staged.finish();
 
   if (remap_t) {
     StatsCsv csv(out_dir / "stats.csv");
@@ -303,7 +246,7 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
       csv.add(s);
     }
   }
-  if (r.all_stats.size() == 1 && !names.empty()) {
+  if (r.all_stats.size() == 1) {
     const auto& e = files->entries();
     out << format_table1(r.all_stats.front(), "Occlusion statistics: " + (e.size() == 2 ? e[0].path + " | " + e[1].path
                                                                                      : std::string("one pair")));

@@ -318,10 +318,16 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
         return;
       }
     if (p.frame_files && (rep.pairs - 1) % static_cast<std::uint64_t>(p.frame_files->every) == 0) {
-      std::ostringstream stem;
-      if (rf && rf->pass) stem << "pass" << rf->pass << "_";
-      stem << std::setw(6) << std::setfill('0') << (rf ? rf->index : frame.pair_sequence);
-      if (Status st = write_frame_images(p.frame_files->dir, {stem.str(), stem.str()}, frame, result); !st) {
+      FrameNames names;
+      if (p.frame_files->names) {
+        names = p.frame_files->names(frame);
+      } else {
+        std::ostringstream stem;
+        if (rf && rf->pass) stem << "pass" << rf->pass << "_";
+        stem << std::setw(6) << std::setfill('0') << (rf ? rf->index : frame.pair_sequence);
+        names = {stem.str(), stem.str()};
+      }
+      if (Status st = write_frame_images(p.frame_files->dir, names, frame, result); !st) {
         fatal = st.error();
         return;
       }

@@ -115,11 +115,12 @@ class LiveView {
   SkewStats display_hist_;         // the whole run's, for the summary
 };
 
-// Per-frame image files: every `every`-th augmented pair, named by pair sequence (or, for a
-// replayed recording, by recorded index and pass).
+// Per-frame image files: every `every`-th augmented pair, named by `names` when given (e.g. after
+// the input files), else by pair sequence (for a replayed recording: recorded index and pass).
 struct FrameFiles {
   std::filesystem::path dir;
   int every = 1;
+  std::function<FrameNames(const StereoFrame&)> names;
 };
 
 // Everything a pipeline is made of. The source, the poses and the rig are required.

@@ -13,6 +13,7 @@
 #include "capture/v4l2_source.hpp"
 #include "core/clock.hpp"
 #include "pipeline/image_folder_source.hpp"
+#include "recorder/euroc.hpp"
 #include "recorder/replay_source.hpp"
 #include "render/gl_context.hpp"
 #include "sim/flight_source.hpp"
@@ -358,6 +359,34 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     out.sources.push_back(std::move(*src));
     return out;
   }
+  if (u.scheme == "euroc") {
+    // A EuRoC/ASL folder: each pair's left Frame, then its right one, as fast as read (lockstep).
+    if (Status s = u.check_known({"tolerance_ns", "from_frame", "seek_s", "left", "right"}); !s) return s.error();
+    recorder::EurocOptions eo;
+    auto tol = u.get_integer("tolerance_ns", 0, 0, 1LL << 40);
+    if (!tol) return tol.error();
+    eo.pair_tolerance_ns = *tol;
+    eo.left_stream = u.get("left", "cam0");
+    eo.right_stream = u.get("right", "cam1");
+    if (u.has("from_frame") && u.has("seek_s")) return uri_error(u, "from_frame and seek_s exclude each other");
+    if (u.has("from_frame")) {
+      auto n = u.get_integer("from_frame", 0, 0, 1LL << 40);
+      if (!n) return n.error();
+      eo.start_pair = static_cast<std::size_t>(*n);
+    }
+    if (u.has("seek_s")) {
+      auto t = u.get_number("seek_s", 0, 0, 1e9);
+      if (!t) return t.error();
+      eo.start_offset_ns = s_to_ns(*t);
+    }
+    auto src = recorder::EurocSource::open(u.target, eo);
+    if (!src) return src.error();
+    out.options.lossless = true;
+    out.options.skip_read_errors = true;  // an unreadable image skips its pair
+    out.options.pairing.mode = PairingMode::kAdjacent;
+    out.sources.push_back(std::move(*src));
+    return out;
+  }
   if (u.scheme == "stereo") {
     if (Status s = u.check_known({"tolerance_us", "mode", "clock", "queue"}); !s) return s.error();
     // The same parameters, defaults and values as a rig's `pairing` section.
@@ -392,7 +421,7 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     return uri_error(u,
                      "one camera is not a stereo rig: give both, as stereo:[..]//{LEFT}{RIGHT} or the rig's "
                      "per-camera 'source' keys");
-  return uri_error(u, "unknown scheme '" + u.scheme + "'; expected aravis, v4l2, sim, replay or stereo");
+  return uri_error(u, "unknown scheme '" + u.scheme + "'; expected aravis, v4l2, sim, replay, euroc, files or stereo");
 }
 
 Expected<std::unique_ptr<StereoSource>> start_stereo(OpenedSource opened) {

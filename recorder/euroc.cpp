@@ -1346,6 +1346,17 @@ Expected<std::unique_ptr<EurocSource>> EurocSource::open(const std::string& uri_
     }
   }
   s->unpaired_ += (rows[0].size() - i) + (rows[1].size() - j);
+  // The start: the pairs before it are outside the range played, not lost.
+  std::size_t start = options.start_pair;
+  if (options.start_offset_ns && !s->pairs_.empty()) {
+    const std::int64_t t0 = s->pairs_.front().left.t_ns;
+    start = 0;
+    while (start < s->pairs_.size() && s->pairs_[start].left.t_ns - t0 < *options.start_offset_ns) ++start;
+  }
+  if (start > 0 && start >= s->pairs_.size())
+    return make_error(where, dir, ": the start (pair ", start, ") is past the last pair (", s->pairs_.size(),
+                      " pairs)");
+  s->pairs_.erase(s->pairs_.begin(), s->pairs_.begin() + static_cast<std::ptrdiff_t>(start));
 
   const fs::path imu = mav0 / "imu0" / "data.csv";
   if (fs::exists(imu, ec)) {

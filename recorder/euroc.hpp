@@ -151,6 +151,10 @@ struct EurocOptions {
   std::optional<PixelFormat> gray_format;
   // The frames' clock; default: sensor.yaml's `augrig: clock`, else kUnknown.
   std::optional<ClockDomain> clock;
+  // Where playback begins: pair `start_pair`, or, when set, the first pair at least
+  // `start_offset_ns` after the first pair's left timestamp. A start past the last pair is an Error.
+  std::size_t start_pair = 0;
+  std::optional<std::int64_t> start_offset_ns;
 };
 
 // Plays a EuRoC/ASL dataset: every stereo pair (left then right Frame) in timestamp order, as

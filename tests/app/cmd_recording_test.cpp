@@ -341,6 +341,25 @@ TEST(CmdRecording, ReplaysAnExportedEurocFolderWithAScene) {
             0)
       << log;
   EXPECT_NE(log.find("Replayed 8 stereo frame(s)"), std::string::npos) << log;
+  // --from-frame and --seek choose where a EuRoC folder starts (frames are 33 ms apart).
+  ASSERT_EQ(augrig("replay " + dir + "/euroc --rig " + dir + "/rig.yaml --scene " +
+                       test::data_path("scenes/body.yaml") + " --from-frame 5 --headless",
+                   &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("Replayed 3 stereo frame(s)"), std::string::npos) << log;
+  ASSERT_EQ(augrig("replay " + dir + "/euroc --rig " + dir + "/rig.yaml --scene " +
+                       test::data_path("scenes/body.yaml") + " --seek 0.1 --headless",
+                   &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("Replayed 4 stereo frame(s)"), std::string::npos) << log;
+  EXPECT_EQ(augrig("replay " + dir + "/euroc --rig " + dir + "/rig.yaml --scene " +
+                       test::data_path("scenes/body.yaml") + " --from-frame 8",
+                   &log),
+            1)
+      << log;
+  EXPECT_NE(log.find("is past the last pair (8 pairs)"), std::string::npos) << log;
   // The raw frames that went through EuRoC PNGs come back bit for bit.
   auto src = recorder::RecordingReader::open(recording());
   auto dst = recorder::RecordingReader::open(dir + "/rec");

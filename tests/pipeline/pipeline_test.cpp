@@ -82,7 +82,7 @@ TEST(Pipeline, SimIntoEverySinkThenReplayReproducesIt) {
   auto csv = StatsCsvWriter::create(dir / "stats.csv");
   ASSERT_TRUE(csv) << csv.error().message;
   p.stats_csv = std::move(*csv);
-  p.frame_files = FrameFiles{dir / "frames", 5};
+  p.frame_files = FrameFiles{dir / "frames", 5, {}};
   p.view = std::make_shared<LiveView>();
   p.max_pairs = 12;
   const std::shared_ptr<LiveView> view = p.view;
