@@ -304,6 +304,17 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     if (uri.empty() || right_uri.empty())
       runtime_error(rig->source + ": cameras[0] and cameras[1] need a 'source' URI, or give --source");
   }
+  // A source without poses of its own (cameras, datasets) needs a pose source: said before any
+  // camera is opened. sim:// has its truth, replay:// its recorded poses.
+  {
+    const std::string scheme = uri.substr(0, uri.find_first_of(":"));
+    const bool own_poses = scheme == "sim" || scheme == "replay";
+    const bool nav_given = a.has("nav");  // checked in full below
+    if (!own_poses && !a.has("scene") && !a.has("poses") && !nav_given)
+      usage_error("a pose source is needed for " + uri +
+                  ": --scene SCENE.yaml, --poses POSES.csv, or --nav with streams of both aircraft "
+                  "(tanker.*, receiver.*)");
+  }
   OpenedSource opened = unwrap(open_sources(uri, right_uri, rig ? rig->pairing : RigPairing{}));
   const OpenedSourceInfo info = opened;
   const bool is_sim = !opened.scenario.empty();

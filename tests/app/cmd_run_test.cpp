@@ -14,7 +14,6 @@
 
 #include "core/conventions.hpp"
 #include "nav/imu_stream.hpp"
-#include "tests/support/window_shot.hpp"
 #include "nav/nmea.hpp"
 #include "nav/udp_socket.hpp"
 #include "recorder/reader.hpp"
@@ -26,6 +25,7 @@
 #include "tests/support/fake_gv_camera.hpp"
 #include "tests/support/test_support.hpp"
 #include "tests/support/tmpfs.hpp"
+#include "tests/support/window_shot.hpp"
 
 namespace augrig {
 namespace {
@@ -625,6 +625,27 @@ TEST(CmdRun, WindowScreenshotShowsTheBoomWhereTheMasksSay) {
   test::check_window_shot(*shot, *frame);
 }
 
+// Frames whose size is not the rig's: the run fails at the first frame, once, naming both sizes,
+// and nothing is augmented (it used to print one error per frame and exit 0 with "0 pairs").
+TEST(CmdRun, FrameSizeNotTheRigsFailsAtOnce) {
+  const std::string dir = output_dir("cmd_run_size_mismatch");
+  Rig small = Rig::paper_default();
+  for (RigCamera& c : small.cameras) c.model = CameraModel::pinhole_from_hfov(640, 480, deg_to_rad(56.0));
+  {
+    std::ofstream f(dir + "/small.yaml");
+    f << rig_to_yaml(small);
+  }
+  std::string out;
+  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0&every=30' --rig " + dir + "/small.yaml --headless --record " +
+                       dir + "/rec",
+                   &out),
+            1)
+      << out;
+  EXPECT_TRUE(contains(out, "the left image is 1280x960, the rig's left camera is 640x480")) << out;
+  EXPECT_EQ(out.find("the left image is"), out.rfind("the left image is")) << "one message\n" << out;
+  EXPECT_FALSE(contains(out, "stereo frames augmented")) << out;
+}
+
 TEST(CmdRun, BadSourcesAndFlagsSayWhatIsWrong) {
   struct Case {
     std::string args;
@@ -654,6 +675,10 @@ TEST(CmdRun, BadSourcesAndFlagsSayWhatIsWrong) {
             "/nonexistent.yaml"},
            {"run --source 'sim://demo' --nav sim --nav-stale 0", 2, "--nav-stale: expected seconds > 0"},
            {"run --source 'replay:///nonexistent/rec' --nav sim", 1, "/nonexistent/rec"},
+           // No pose source for cameras or a dataset: refused before anything is opened.
+           {"run --source 'stereo://{aravis://a}{aravis://b}'", 2, "a pose source is needed"},
+           {"run --source 'euroc:///nonexistent'", 2, "--scene SCENE.yaml, --poses POSES.csv, or --nav"},
+           {"run --source 'sim://demo'" + scene + " --poses /x.csv", 2, "three sources of poses: give one"},
        }) {
     std::string out;
     EXPECT_EQ(augrig(c.args, &out), c.code) << c.args << "\n" << out;
