@@ -15,6 +15,7 @@
 #include "app/cli.hpp"
 #include "pipeline/flight_nav.hpp"
 #include "capture/stereo_pairer.hpp"
+#include "pipeline/pipeline.hpp"
 #include "recorder/recorder.hpp"
 #include "render/visualize.hpp"
 #include "sim/flight_source.hpp"
@@ -88,15 +89,6 @@ Image contact_sheet(const StereoFrame& stereo, const StereoResult& r) {
   Image out(sheet.cols, sheet.rows, PixelFormat::kRGB8);
   for (int y = 0; y < sheet.rows; ++y) std::copy_n(sheet.ptr<std::uint8_t>(y), 3 * sheet.cols, out.row(y));
   return out;
-}
-
-// Next frame of the source; the simulation never times out.
-Frame next_frame(FrameSource& source, int stereo_index) {
-  Frame f;
-  const ReadStatus s = unwrap(source.read(f, std::chrono::milliseconds(100)));
-  if (s != ReadStatus::kFrame)
-    runtime_error(source.uri() + ": ended early, at stereo frame " + std::to_string(stereo_index));
-  return f;
 }
 
 int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -182,26 +174,41 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
   const int frames = static_cast<int>(truths.size() / 2);
   if (frames == 0) runtime_error("scenario '" + scenario.name + "': no stereo frame has a nav pose");
 
-  const auto gl = make_gl_context();
+  // 4. The frames through the runtime pipeline: the simulated cameras (the CPU renderer, on the
+  // capture thread) paired by mid-exposure time within half a period as live capture pairs them,
+  // the poses from the fused logs (offline nav), the boom stage, the augmenter and the sinks.
   auto source = unwrap(sim::FlightSource::create(scenario, flight, truths));
-  const ReceiverSetup recv = receiver_setup(rig);
-  options.receiver_model = recv.model;
-  const auto augmenter = unwrap(Augmenter::create(rig, options));
-  out << "demo: " << frames << " stereo frames (every " << every << ") of " << source->uri() << ", "
+  const std::string source_uri = source->uri();
+  OpenedSource opened;
+  opened.sources.push_back(std::move(source));
+  opened.options.lossless = true;
+  opened.options.pairing.tolerance_ns = s_to_ns(0.5 / scenario.sensors.cameras.fps);
+  PipelineParts parts;
+  parts.rig = rig;
+  parts.receiver = receiver_setup(rig);
+  parts.receiver.receptacle_m = flight.receptacle_m();
+  parts.boom_dims = scenario.boom;
+  parts.boom = boom_arg;
+  parts.augment = options;
+  const auto rel_shared = std::make_shared<const RelativeNav>(rel);
+  parts.poses = offline_nav_poses(rel_shared, "the simulated logs");
+  parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
+  out << "demo: " << frames << " stereo frames (every " << every << ") of " << source_uri << ", "
       << to_string(scenario.sensors.cameras.format) << ", " << rig.left().model.width_px << "x"
       << rig.left().model.height_px << " -> " << out_dir.string() << "\n";
 
   // Optional recording: everything a flight test keeps, through the same never-blocking recorder a
   // live run uses. The nav inputs go in exactly as the logs hold them.
-  std::unique_ptr<recorder::Recorder> rec;
   if (a.has("record")) {
     recorder::RecordingInfo info;
     info.rig_yaml = rig_to_yaml(rig);
     if (auto text = sim::builtin_scenario_text(scenario.name)) info.scene = *text;
-    info.clock_domains = "frames: device (camera clocks; offsets to gps " + std::to_string(offsets[0]) +
-                         ", " + std::to_string(offsets[1]) + " ns); nav inputs: gps";
-    info.extra["source"] = source->uri();
-    rec = create_recorder(a.get("record"), info, a.has("overwrite"));
+    info.clock_domains = "frames: device (camera clocks; offsets to gps " + std::to_string(offsets[0]) + ", " +
+                         std::to_string(offsets[1]) + " ns); nav inputs: gps";
+    info.extra["source"] = source_uri;
+    info.extra["aircraft_yaml.tanker"] = aircraft_config_to_yaml(tk_logs.config);
+    info.extra["aircraft_yaml.receiver"] = aircraft_config_to_yaml(rx_logs.config);
+    auto rec = create_recorder(a.get("record"), info, a.has("overwrite"));
     for (const char* who : {"tanker", "receiver"}) {
       // NMEA lines as received: "<arrival_ns> <sentence>" in the log.
       std::ifstream nmea(out_dir / "nav" / who / "gps.nmea", std::ios::binary);
@@ -232,93 +239,76 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
     if (dropped)
       rec->push(recorder::DropRecord{recorder::DropStage::kCamera, dropped, first, last,
                                      "the simulated cameras' drop model", "frame"});
+    parts.recorder = std::move(rec);
   }
 
-  StatsCsv csv(out_dir / "stats.csv");
+  // What the demo adds per pair: the estimated and true poses, the boom's miss, images for a
+  // subset (PNG encoding costs more than the augmentation itself), a line every 30 frames.
   std::vector<nav::CameraPoseRow> est_rows, true_rows;
-  StereoResult result;
-  StereoFrame stereo;
-  // Frames go through the same pairing as live capture: by mid-exposure time within half a period.
-  StereoPairer pairer(s_to_ns(0.5 / scenario.sensors.cameras.fps));
-  std::vector<OcclusionStats> all;
-  double render_ms = 0, augment_ms = 0, write_ms = 0, worst_miss_m = 0;
-  int reachable = 0;
+  double write_ms = 0, worst_miss_m = 0;
+  int reachable = 0, i = 0;
   std::map<std::pair<std::uint64_t, int>, sim::FrameTruth> truth_of;
   for (const auto& t : truths) truth_of[{t.sequence, t.camera}] = t;
-  for (int i = 0; i < frames; ++i) {
-    t0 = Clock::now();
-    std::optional<StereoFrame> paired;
-    for (int k = 0; !paired; ++k) {
-      if (k > 8) runtime_error(source->uri() + ": no stereo pair at stereo frame " + std::to_string(i));
-      paired = pairer.push(next_frame(*source, i));
-    }
-    stereo = std::move(*paired);
-    render_ms += ms_since(t0);
-
-    // The scene from nav: the receiver where the fused poses put it, at the left frame's time (the
-    // right one is within the pairing tolerance; the relative motion in that time is sub-mm), and
-    // the boom tracking its receptacle.
-    const FramePose left = unwrap(rel.at(0, stereo.left.t_ns));
-    const FramePose right = unwrap(rel.at(1, stereo.right.t_ns));
-    SceneState scene;
-    scene.T_body_receiver = left.body.T_a_receiver;
-    const BoomCommand boom =
-        boom_arg.command(ns_to_s(stereo.left.t_ns - truths.front().t_camera_ns), left.boom, rig.boom.limits);
-    scene.boom = boom.articulation;
-    check(augmenter->augment(stereo, scene, result));
-    augment_ms += augmenter->timings().total_ms;
-    result.stats.t_ns = left.t_nav_ns;
-    csv.add(result.stats);
-    all.push_back(result.stats);
-    est_rows.push_back(left.row(stereo.left.sequence, 0, stereo.left.t_ns));
-    est_rows.push_back(right.row(stereo.right.sequence, 1, stereo.right.t_ns));
+  StereoFrame last_stereo;
+  StereoResult last_result;
+  parts.on_pair = [&](const StereoFrame& stereo, const StereoResult& result, const SceneState& scene,
+                      const FramePoses&) -> Status {
+    const auto left = rel.at(0, stereo.left.t_ns);
+    const auto right = rel.at(1, stereo.right.t_ns);
+    if (!left) return left.error();
+    if (!right) return right.error();
+    est_rows.push_back(left->row(stereo.left.sequence, 0, stereo.left.t_ns));
+    est_rows.push_back(right->row(stereo.right.sequence, 1, stereo.right.t_ns));
     const sim::FrameTruth& tl = truth_of.at({stereo.left.sequence, 0});
-    if (rec) {
-      recorder::FrameRecord fr = frame_record(result);
-      fr.raw = stereo;
-      fr.T_cam_receiver = {left.camera.T_a_receiver, right.camera.T_a_receiver};
-      fr.T_body_receiver = left.body.T_a_receiver;
-      fr.receiver_present = true;
-      fr.sigma_pos_m = left.body.sigma_position_m();
-      fr.sigma_att_deg = rad_to_deg(left.body.sigma_attitude_rad());
-      fr.boom = scene.boom;
-      rec->push(std::move(fr));  // never blocks; a drop is counted in the recording's ledger
-    }
     true_rows.push_back(sim::pose_row(tl));
     true_rows.push_back(sim::pose_row(truth_of.at({stereo.right.sequence, 1})));
     // Where the tracked nozzle tip is against where the true receptacle is.
     const Eigen::Vector3d true_receptacle = tl.T_body_receiver * flight.receptacle_m();
-    const double miss_m =
-        (nozzle_tip_body(rig.boom.pivot_body_m, scenario.boom, scene.boom) - true_receptacle).norm();
+    const double miss_m = (nozzle_tip_body(rig.boom.pivot_body_m, scenario.boom, scene.boom) - true_receptacle).norm();
     if (boom_arg.mode == BoomMode::kTrackReceptacle &&
-        !left.boom.clamped) {  // the receptacle within the boom's reach: the miss is nav error
+        !left->boom.clamped) {  // the receptacle within the boom's reach: the miss is nav error
       worst_miss_m = std::max(worst_miss_m, miss_m);
       ++reachable;
     }
-
-    // Images for a subset only: PNG encoding costs more than the augmentation itself.
     const bool last = i + 1 == frames;
     if (i % 30 == 0 || last) {
-      t0 = Clock::now();
+      const auto w0 = Clock::now();
       char stem[32];
       std::snprintf(stem, sizeof stem, "frame_%04d", i);
-      write_frame_outputs(out_dir, {stem, stem}, stereo, result);
-      write_ms += ms_since(t0);
+      if (Status st = write_frame_images(out_dir, {stem, stem}, stereo, result); !st) return st;
+      write_ms += ms_since(w0);
     }
     if ((i + 1) % 30 == 0 || last) {
-      const OcclusionStats& s = result.stats;
+      const OcclusionStats& st = result.stats;
       char line[240];
       std::snprintf(line, sizeof line,
                     "frame %4d/%d  t %6.2f s  %-15s receiver %7lld px  boom %7lld px  occluded %5.1f%%  "
                     "pose err %5.1f mm\n",
-                    i + 1, frames, tl.t_true_s, tl.phase.c_str(), static_cast<long long>(s.receiver_px_left),
-                    static_cast<long long>(s.boom_px_left), s.occluded_pct_left,
-                    1e3 * (left.camera.T_a_receiver.translation_m - tl.T_cam_receiver.translation_m).norm());
+                    i + 1, frames, tl.t_true_s, tl.phase.c_str(), static_cast<long long>(st.receiver_px_left),
+                    static_cast<long long>(st.boom_px_left), st.occluded_pct_left,
+                    1e3 * (left->camera.T_a_receiver.translation_m - tl.T_cam_receiver.translation_m).norm());
       out << line << std::flush;
     }
-  }
+    if (last) {  // for demo.png
+      last_stereo = stereo;
+      last_result = result;
+    }
+    ++i;
+    return {};
+  };
+  parts.source_info = opened;
+  parts.source = unwrap(start_stereo(std::move(opened)));
+  parts.stop_flag = install_stop_signals();
+  parts.on_problem = [&err](const Error& e) { err << "augrig demo: " << user_message(e) << "\n"; };
+  Pipeline pipeline(std::move(parts));
+  const auto t_pipe = Clock::now();
+  std::ostringstream pipeline_log;  // the pipeline's events; the demo prints its own summary
+  const PipelineReport r = unwrap(pipeline.run(pipeline_log, err));
+  const double pipeline_ms = ms_since(t_pipe);
+  if (r.pairs == 0) runtime_error("scenario '" + scenario.name + "': no stereo frame was augmented");
+
   t0 = Clock::now();
-  check(write_image_file((out_dir / "demo.png").string(), contact_sheet(stereo, result), 3));
+  check(write_image_file((out_dir / "demo.png").string(), contact_sheet(last_stereo, last_result), 3));
   nav::CsvWriteOptions po;
   po.clock = ClockDomain::kDevice;  // t_ns is the camera's stamp; t_nav_ns is GPS time
   po.metadata["t_nav_ns"] = "gps";
@@ -328,52 +318,41 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
   check(nav::write_camera_pose_csv((out_dir / "truth_poses.csv").string(), true_rows, po));
   write_ms += ms_since(t0);
 
-  out << "\n" << format_run_summary(all) << "\n";
-  out << format_table1(all.back(),
-                       "Last frame, t = " + std::to_string(ns_to_s(all.back().t_ns)) + " s (GPS)");
-  out << "\nNav against truth (receiver in each camera): " << describe(compare_poses(est_rows, true_rows))
-      << "\n";
+  out << "\n" << format_run_summary(r.all_stats) << "\n";
+  out << format_table1(r.all_stats.back(),
+                       "Last frame, t = " + std::to_string(ns_to_s(r.all_stats.back().t_ns)) + " s (GPS)");
+  out << "\nNav against truth (receiver in each camera): " << describe(compare_poses(est_rows, true_rows)) << "\n";
   if (reachable > 0) {
     char line[200];
-    std::snprintf(
-        line, sizeof line,
-        "Boom tracking: in the %d frames with the receptacle within the boom's reach, the nozzle tip "
-        "(aimed from nav) lies at most %.1f mm from the true receptacle\n",
-        reachable, 1e3 * worst_miss_m);
+    std::snprintf(line, sizeof line,
+                  "Boom tracking: in the %d frames with the receptacle within the boom's reach, the nozzle tip "
+                  "(aimed from nav) lies at most %.1f mm from the true receptacle\n",
+                  reachable, 1e3 * worst_miss_m);
     out << line;
   }
-  const double n = frames;
-  out << "\nTiming: simulation and logs " << fmt_ms(sim_ms) << " ms, nav fusion of both aircraft "
-      << fmt_ms(nav_ms) << " ms, camera rendering " << fmt_ms(render_ms / n) << " ms and augmenter "
-      << fmt_ms(augment_ms / n) << " ms per stereo frame (" << to_string(augmenter->rasterizer())
+  const double n = static_cast<double>(r.pairs);
+  out << "\nTiming: simulation and logs " << fmt_ms(sim_ms) << " ms, nav fusion of both aircraft " << fmt_ms(nav_ms)
+      << " ms, pipeline " << fmt_ms(pipeline_ms / n) << " ms per stereo frame (cameras rendered on their own "
+      << "thread) with the augmenter " << fmt_ms(r.augment_ms / n) << " ms (" << to_string(r.rasterizer)
       << " rasteriser), PNG writing " << fmt_ms(write_ms) << " ms in all, total "
       << fmt_ms(ms_since(t_start) / 1000.0) << " s\n";
-  pairer.flush();
-  std::optional<Status> recording_closed;
-  if (rec) {
-    const TimeSpan& unpaired = pairer.stats().unpaired_t;
-    if (unpaired.count)
-      rec->push(recorder::DropRecord{recorder::DropStage::kPairing, unpaired.count, unpaired.first_t_ns,
-                                     unpaired.last_t_ns, "no stereo partner", "frame"});
-    const Status closed = rec->close();
-    recording_closed = closed;
-    const recorder::RecorderStats rs = rec->stats();
-    out << "Recording: " << rec->path() << ": " << rs.frames_committed << " stereo frames, "
-        << rs.nav_inputs_committed << " nav inputs, " << rs.frames_dropped
-        << " frames dropped by the recorder";
+  if (r.recording_closed) {
+    const recorder::RecorderStats& rs = r.recorder_stats;
+    out << "Recording: " << a.get("record") << ": " << rs.frames_committed << " stereo frames, "
+        << rs.nav_inputs_committed << " nav inputs, " << rs.frames_dropped << " frames dropped by the recorder";
     if (rs.image_bytes)
       out << ", images compressed "
           << fmt_ms(double(rs.image_bytes) / double(std::max<std::uint64_t>(rs.stored_bytes, 1))) << ":1";
-    out << (closed ? "" : " -- STOPPED: " + user_message(closed.error())) << "\n";
+    out << (*r.recording_closed ? "" : " -- STOPPED: " + user_message(r.recording_closed->error())) << "\n";
   }
-  out << "Pairing: " << pairer.stats().pairs << " pairs, unpaired left " << pairer.stats().unpaired_left
-      << ", right " << pairer.stats().unpaired_right << ", max |skew| " << pairer.stats().max_abs_skew_ns
-      << " ns\n";
+  const PairerStats& ps = r.source.pairing;
+  out << "Pairing: " << ps.pairs << " pairs, unpaired left " << ps.unpaired_left << ", right " << ps.unpaired_right
+      << ", max |skew| " << ps.max_abs_skew_ns << " ns\n";
   out << "Wrote " << (out_dir / "stats.csv").string() << ", poses.csv, truth_poses.csv and "
       << (out_dir / "demo.png").string() << "\n";
   // A recording that stopped (a full disk) fails the run, as in augrig run: what it holds is valid.
-  if (recording_closed && !*recording_closed)
-    runtime_error("the recording stopped: " + user_message(recording_closed->error()) +
+  if (r.recording_closed && !*r.recording_closed)
+    runtime_error("the recording stopped: " + user_message(r.recording_closed->error()) +
                   " (what it holds stays valid; the other outputs were written)");
   return kExitOk;
 }

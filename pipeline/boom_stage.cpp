@@ -28,8 +28,9 @@ BoomCommand BoomArg::command(double t_s, const BoomCommand& tracked, const BoomL
   return tracked;
 }
 
-BoomStage::BoomStage(const Rig& rig, const Eigen::Vector3d& receptacle_m, std::optional<BoomArg> arg)
-    : rig_(rig), receptacle_m_(receptacle_m), arg_(std::move(arg)) {
+BoomStage::BoomStage(const Rig& rig, const Eigen::Vector3d& receptacle_m, std::optional<BoomArg> arg,
+                     const BoomDimensions& dims)
+    : rig_(rig), receptacle_m_(receptacle_m), dims_(dims), arg_(std::move(arg)) {
   if (arg_)
     mode_ = arg_->mode == BoomMode::kTrackReceptacle ? DisplayBoomMode::kTrackReceptacle
             : arg_->mode == BoomMode::kScripted      ? DisplayBoomMode::kScripted

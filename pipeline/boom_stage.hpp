@@ -33,7 +33,9 @@ struct BoomArg {
 class BoomStage {
  public:
   // `arg`: the user's boom; none: the pose source's boom as it comes (kFixed shows it as such).
-  BoomStage(const Rig& rig, const Eigen::Vector3d& receptacle_m, std::optional<BoomArg> arg);
+  // `dims`: the boom's geometry tracking aims with (the scenario's, or the built-in boom's).
+  BoomStage(const Rig& rig, const Eigen::Vector3d& receptacle_m, std::optional<BoomArg> arg,
+            const BoomDimensions& dims = {});
 
   // Sets scene.boom for a frame `t_s` after the run's first frame.
   void apply(SceneState& scene, double t_s);

@@ -172,7 +172,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   StereoSource& source = *p.source;
   s.last_health.resize(source.sources().size());
   s.recording_on = p.recorder != nullptr;
-  BoomStage boom(p.rig, p.receiver.receptacle_m, p.boom);
+  BoomStage boom(p.rig, p.receiver.receptacle_m, p.boom, p.boom_dims);
   // Without a boom of the user's, tracking is the default whenever the poses carry no boom of their
   // own; a pose source with a boom (a scene, a recording) keeps it until the user says otherwise.
   bool boom_default_track = !p.boom;
@@ -301,7 +301,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       return;
     }
     rep.augment_ms += augmenter->timings().total_ms;
-    result.stats.t_ns = frame.t_key_ns;
+    result.stats.t_ns = fp.t_nav_ns.value_or(frame.t_key_ns);
     ++rep.pairs;
     rep.summary.add(result.stats);
     rep.all_stats.push_back(result.stats);
@@ -332,6 +332,11 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
         return;
       }
     }
+    if (p.on_pair)
+      if (Status st = p.on_pair(frame, result, scene, fp); !st) {
+        fatal = st.error();
+        return;
+      }
     // The recorder takes the boxes (copied here); the window then gets whole images.
     std::optional<recorder::FrameRecord> fr;
     if (p.recorder && s.recording_on) fr = frame_record(result);

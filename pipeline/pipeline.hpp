@@ -131,6 +131,7 @@ struct PipelineParts {
   std::unique_ptr<StereoSource> source;  // started
   std::unique_ptr<PoseProvider> poses;
   std::optional<BoomArg> boom;  // none: the poses' boom where they have one, else tracking
+  BoomDimensions boom_dims;     // the boom's geometry for tracking (a scenario's; default built-in)
   AugmentOptions augment;       // augmented_output is set to kChangedBox (sinks get what they need)
   // Sinks, each optional.
   std::unique_ptr<recorder::Recorder> recorder;
@@ -154,6 +155,11 @@ struct PipelineParts {
   const LiveNav* live_nav = nullptr;
   // The live nav inputs: stopped with the pipeline, their losses in the recording's ledger.
   NavInputs* nav_inputs = nullptr;
+  // Called for every augmented pair after the file sinks and before the recorder takes the frame
+  // (a command's own per-pair outputs); an Error ends the run as a sink's would.
+  std::function<Status(const StereoFrame& raw, const StereoResult& result, const SceneState& scene,
+                       const FramePoses& poses)>
+      on_pair;
   // A problem that does not stop the run (a damaged frame skipped, a failed augmentation, a frame
   // without a pose): the command prints it its way. Default: "pipeline: <message>" on err.
   std::function<void(const Error&)> on_problem;

@@ -201,6 +201,7 @@ class OfflineNavPoses final : public PoseProvider {
     p.sigma_pos_m = fp->body.sigma_position_m();
     p.sigma_att_deg = rad_to_deg(fp->body.sigma_attitude_rad());
     p.hud.status = "fused from logs (smoothed)";
+    p.t_nav_ns = fp->t_nav_ns;
     p.hud.sigma_pos_m = p.sigma_pos_m;
     p.hud.sigma_att_deg = p.sigma_att_deg;
     return p;

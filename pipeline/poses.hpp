@@ -37,6 +37,9 @@ struct FramePoses {
   std::vector<std::string> problems;  // plain words, e.g. "receiver GPS: no fix for 2.4 s"
   NavHud hud;
   double sigma_pos_m = kNaN, sigma_att_deg = kNaN;  // 1-sigma of the relative pose, where known
+  // The pose's time on the nav clock (GPS time) where the provider maps frames onto it (offline
+  // nav): the statistics are then stamped with it; else with the pair's key time.
+  std::optional<TimestampNs> t_nav_ns;
 };
 
 class PoseProvider {
