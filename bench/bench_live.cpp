@@ -503,7 +503,8 @@ RunResult run_child(const Options& o, const std::vector<std::string>& argv, cons
       break;
     }
     const double t = since();
-    if (!augrig) augrig = find_descendant(child, "augrig");
+    // Its comm: the binary's name, cut to 15 characters by the kernel.
+    if (!augrig) augrig = find_descendant(child, fs::path(o.augrig).filename().string().substr(0, 15));
     if (o.display && !xvfb) xvfb = find_descendant(child, "Xvfb");
     // Read five times a second so that the last reading before augrig exits is recent; kept once a
     // second. An exited process (a zombie until reaped) has no memory left: its last reading stands.
@@ -649,7 +650,7 @@ Summary parse_summary(const std::string& log) {
           std::sscanf(l, "nav: %lu pairs without a pose (boom only), %lu with a stale", &s.no_pose, &s.stale);
       s.have_nav = n >= 1;
       if (n == 1) s.stale = s.no_pose;
-    } else if (line.rfind("run: live display open", 0) == 0) {
+    } else if (line.rfind("run: live display open", 0) == 0 || line.rfind("live display open", 0) == 0) {
       s.window = true;
     } else if (line.rfind("augrig run: no window:", 0) == 0) {
       s.no_window = line;
