@@ -465,14 +465,15 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
       << (pc.clock_offsets ? "each camera's clock to host time" : "one clock");
     pairing_text = p.str();
   }
-  parts.source = unwrap(start_stereo(std::move(opened)));
+  // Started by the pipeline once its augmenter is ready (cameras capture from their start).
+  parts.unstarted_source = std::make_unique<OpenedSource>(std::move(opened));
   parts.duration_s = duration_s;
   parts.max_pairs = static_cast<std::uint64_t>(max_pairs);
   parts.status_every_s = status_s;
   parts.stop_flag = install_stop_signals();
   const bool want_window = !a.has("headless");
   if (want_window && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) parts.view = std::make_shared<LiveView>();
-  out << "run: " << parts.source->uri() << (lossless ? " (lockstep)" : " (live)") << pairing_text << "; rig "
+  out << "run: " << uri << (right_uri.empty() ? "" : " + " + right_uri) << (lossless ? " (lockstep)" : " (live)") << pairing_text << "; rig "
       << rig->source << "; poses from " << parts.poses->describe()
       << (parts.recorder ? "; recording to " + parts.recorder->path() : std::string()) << "\n";
   parts.nav_inputs = setup.nav_inputs.get();

@@ -169,8 +169,6 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   PipelineParts& p = parts_;
   State s;
   PipelineReport& rep = s.report;
-  StereoSource& source = *p.source;
-  s.last_health.resize(source.sources().size());
   s.recording_on = p.recorder != nullptr;
   BoomStage boom(p.rig, p.receiver.receptacle_m, p.boom, p.boom_dims);
   // Without a boom of the user's, tracking is the default whenever the poses carry no boom of their
@@ -188,6 +186,25 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   if (!augmenter_or) return augmenter_or.error();
   std::unique_ptr<Augmenter> augmenter = std::move(*augmenter_or);
   rep.rasterizer = augmenter->rasterizer();
+  if (!p.source) {
+    // One augmentation of a blank pair first (buffers, worker threads), then the cameras start:
+    // the first real pair then finds the pipeline ready instead of queues filling behind it.
+    StereoFrame blank;
+    for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+      const CameraModel& m = p.rig.cameras[static_cast<std::size_t>(index_of(id))].model;
+      blank[id].image = Image(m.width_px, m.height_px, PixelFormat::kRGB8);
+      blank[id].camera = id;
+    }
+    StereoResult warm;
+    (void)augmenter->augment(blank, SceneState{BoomArticulation{}, Pose::identity(), false}, warm);
+    if (!p.unstarted_source) return make_error("pipeline::Pipeline::run(): no source");
+    auto started = start_stereo(std::move(*p.unstarted_source));
+    p.unstarted_source.reset();
+    if (!started) return started.error();
+    p.source = std::move(*started);
+  }
+  StereoSource& source = *p.source;
+  s.last_health.resize(source.sources().size());
 
   // The simulation's cameras are calibrated to GPS time (their offsets are known).
   std::vector<TimestampNs> sim_offsets;

@@ -123,12 +123,15 @@ struct FrameFiles {
   std::function<FrameNames(const StereoFrame&)> names;
 };
 
-// Everything a pipeline is made of. The source, the poses and the rig are required.
+// Everything a pipeline is made of. The source (started or not), the poses and the rig are required.
 struct PipelineParts {
   Rig rig;
   ReceiverSetup receiver;
   OpenedSourceInfo source_info;          // what the source URI opened into (live, sim clock, ...)
-  std::unique_ptr<StereoSource> source;  // started
+  std::unique_ptr<StereoSource> source;  // started; or:
+  // a source run() starts once the augmenter is ready: cameras capture from the moment they are
+  // started, and the augmenter's set-up must not overflow their queues (live runs use this).
+  std::unique_ptr<OpenedSource> unstarted_source;
   std::unique_ptr<PoseProvider> poses;
   std::optional<BoomArg> boom;  // none: the poses' boom where they have one, else tracking
   BoomDimensions boom_dims;     // the boom's geometry for tracking (a scenario's; default built-in)
