@@ -255,6 +255,7 @@ PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::str
       pc.boom_nudge = c.boom_nudge;
       pc.steps = c.steps;
       pc.seek_frame = c.seek_frame;
+      pc.rate = c.rate;
       view->post(pc);
       std::this_thread::sleep_for(std::chrono::milliseconds(16));
     }

@@ -859,6 +859,7 @@ class DisplayImpl final : public Display {
       pending_.steps += a.steps;
     }
     if (a.seek_frame) pending_.seek_frame = a.seek_frame;
+    if (a.rate) pending_.rate = a.rate;
     if (a.screenshot) request_screenshot();
     if (a.clip) toggle_clip();
     if (a.help) help_ = !help_;

@@ -87,6 +87,7 @@ struct DisplayCommands {
   bool toggle_pause = false;
   int steps = 0;                          // playback: stereo frames to advance (while paused)
   std::optional<std::size_t> seek_frame;  // playback: the recorded frame to jump to (timeline)
+  std::optional<double> rate;             // playback: real rate x (0: as fast as possible)
   bool quit = false;  // the window is closing: frame() returns false from now on
 
   std::vector<std::string> screenshots;     // PNGs written

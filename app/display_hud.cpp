@@ -153,6 +153,16 @@ PanelActions draw_status_panel(const HudState& hud, const PanelState& panel, con
       act.seek_frame = static_cast<std::size_t>(frame);
     ImGui::SameLine();
     if (ImGui::Button("Step")) act.steps = 1;
+    // The playback rate: as fast as the pipeline goes, or real rate times a factor.
+    static const double kRates[] = {0.0, 0.25, 0.5, 1.0, 2.0, 4.0};
+    static const char* kRateNames = "fast\0x0.25\0x0.5\0x1\0x2\0x4\0";
+    int current = 0;
+    for (int i = 0; i < 6; ++i)
+      if (kRates[i] == pb.rate) current = i;
+    int chosen = current;
+    ImGui::SameLine();
+    ImGui::SetNextItemWidth(col * 0.25f);
+    if (ImGui::Combo("Rate", &chosen, kRateNames) && chosen != current) act.rate = kRates[chosen];
   }
   if (panel.clip) ImGui::TextColored(kRed, "CLIP     %d frames", panel.clip_frames);
   if (!panel.last_screenshot.empty()) ImGui::TextColored(kGrey, "Saved    %s", panel.last_screenshot.c_str());

@@ -57,6 +57,7 @@ struct PanelActions {
   std::optional<double> frustum_depth_m;
   int steps = 0;                          // playback: frames to step
   std::optional<std::size_t> seek_frame;  // playback: the timeline was dragged here
+  std::optional<double> rate;             // playback: a rate was chosen (0: as fast as possible)
 };
 
 // The status panel, placed at `pos` with `size` (ImGui coordinates).

@@ -63,6 +63,7 @@ void PipelineCommands::merge(const PipelineCommands& o) {
   boom_nudge.extension_m += o.boom_nudge.extension_m;
   steps += o.steps;
   if (o.seek_frame) seek_frame = o.seek_frame;
+  if (o.rate) rate = o.rate;
 }
 
 void LiveView::publish(StereoResult& result, const SceneState& scene, TimestampNs mid_host_ns) {
@@ -420,6 +421,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       b.pass = s.shown_pass;
       b.t_s = s.shown_t_key_ns ? ns_to_s(s.shown_t_key_ns - s.replay_first_ns) : 0;
       b.duration_s = ns_to_s(s.replay_last_ns - s.replay_first_ns);
+      b.rate = replay->rate();
       pb = b;
     }
     p.view->set_hud(std::move(hud), pb);
@@ -504,6 +506,9 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
           s.seek_target = *c.seek_frame;
           if (s.paused) replay->step(1);
         }
+      }
+      if (replay && c.rate) {
+        if (Status st = replay->set_rate(*c.rate); !st) problem(st.error());
       }
       if (replay && c.steps > 0 && s.paused) {
         replay->step(static_cast<std::size_t>(c.steps));

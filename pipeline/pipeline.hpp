@@ -61,6 +61,7 @@ struct PipelineCommands {
   BoomNudge boom_nudge;
   int steps = 0;                          // paused: advance this many stereo frames (replay)
   std::optional<std::size_t> seek_frame;  // replay: jump to this recorded frame
+  std::optional<double> rate;             // replay: real rate x (0: as fast as possible)
   void merge(const PipelineCommands& o);
 };
 
@@ -70,6 +71,7 @@ struct Playback {
   std::size_t frame_count = 0;  // frames in the recording
   double t_s = 0, duration_s = 0;  // from the first frame
   int pass = 0;
+  double rate = 0;  // real rate x; 0: as fast as possible
 };
 
 // The mailbox between the pipeline's thread and the window's: the newest augmented pair (by

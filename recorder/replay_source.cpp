@@ -121,6 +121,24 @@ void ReplaySource::set_paused(bool paused) {
   cv_.notify_all();
 }
 
+Status ReplaySource::set_rate(double rate) {
+  if (!(rate >= 0) || !std::isfinite(rate))
+    return make_error("recorder::ReplaySource::set_rate(): expected a rate >= 0 (0: as fast as read), got ", rate);
+  {
+    std::lock_guard lk(mu_);
+    if (options_.mode != ReplayMode::kStep) options_.mode = rate > 0 ? ReplayMode::kRealRate : ReplayMode::kFast;
+    if (rate > 0) options_.rate = rate;
+    anchored_ = false;
+  }
+  cv_.notify_all();
+  return {};
+}
+
+double ReplaySource::rate() const {
+  std::lock_guard lk(mu_);
+  return options_.mode == ReplayMode::kRealRate ? options_.rate : 0.0;
+}
+
 bool ReplaySource::paused() const {
   std::lock_guard lk(mu_);
   return paused_;

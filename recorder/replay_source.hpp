@@ -118,6 +118,11 @@ class ReplaySource final : public FrameSource {
   Status seek_frame(std::size_t i);
   // The next stereo frame read is the first (in recording order) with t_key_ns >= t_ns.
   Status seek_time(TimestampNs t_ns);
+  // From the next stereo frame on: real rate at `rate` (> 0: kRealRate), or as fast as read (0:
+  // kFast); kStep stays kStep. Real rate anchors afresh. An Error for a negative or non-finite rate.
+  Status set_rate(double rate);
+  // The rate in force: 0 for kFast and kStep.
+  double rate() const;
 
   // ---- What was read (the reading thread) ----
   // The recorded stereo frame the last emitted Frame belongs to (empty before the first).

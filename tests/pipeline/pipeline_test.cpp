@@ -209,6 +209,11 @@ TEST(Pipeline, ReplayPauseSeekAndStepFromTheView) {
   EXPECT_TRUE(wait_for([&] { return frame_shown() == std::optional<std::size_t>(13); }));
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   EXPECT_EQ(frame_shown(), std::optional<std::size_t>(13)) << "two steps, then held again";
+  // The rate control: the playback reports the rate in force.
+  PipelineCommands rate;
+  rate.rate = 4.0;
+  view->post(rate);
+  EXPECT_TRUE(wait_for([&] { return view->playback() && view->playback()->rate == 4.0; }));
   // A seek back in time.
   seek.seek_frame = 2;
   view->post(seek);

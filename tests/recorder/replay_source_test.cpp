@@ -381,6 +381,34 @@ TEST(ReplaySource, RealRateTimesOutUntilTheFrameIsDue) {
   EXPECT_EQ(s->current_index(), 1u);
 }
 
+// The window's rate control: a replay slowed to a crawl times out; set to "fast" (0) the next frame
+// comes at once; set to a real rate again it paces from a fresh anchor.
+TEST(ReplaySource, SetRateSwitchesBetweenRealRateAndFast) {
+  ReplayOptions o;
+  o.mode = ReplayMode::kRealRate;
+  o.rate = 0.001;  // 33 s between frames
+  auto s = open_or_fail(recording10(), o);
+  EXPECT_DOUBLE_EQ(s->rate(), 0.001);
+  Frame f;
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);
+  ASSERT_TRUE(s->read(f, 100ms));  // its right Frame
+  auto st = s->read(f, 20ms);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(*st, ReadStatus::kTimeout) << "frame 1 is 33 s away";
+  ASSERT_TRUE(s->set_rate(0));
+  EXPECT_EQ(s->rate(), 0.0);
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 1u) << "fast: at once";
+  ASSERT_TRUE(s->read(f, 0ns));
+  ASSERT_TRUE(s->set_rate(0.001));
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 2u) << "real rate again: the next frame anchors, at once";
+  ASSERT_TRUE(s->read(f, 100ms));
+  st = s->read(f, 20ms);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(*st, ReadStatus::kTimeout);
+  EXPECT_FALSE(s->set_rate(-1));
+  EXPECT_FALSE(s->set_rate(std::numeric_limits<double>::infinity()));
+}
+
 TEST(ReplaySource, LateConsumerGetsEveryFrameUnlessDropLate) {
   ReplayOptions o;
   o.mode = ReplayMode::kRealRate;
