@@ -243,6 +243,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   auto mid_host_ns = [&](const Frame& f) -> TimestampNs {
     if (p.source_info.sim_clock && p.source_info.sim_clock->paced())
       return p.source_info.sim_clock->host_ns(f.t_ns - sim_offsets[index_of(f.camera)]);
+    if (const recorder::RecordedFrame* rf = dynamic_cast<const recorder::RecordedFrame*>(f.attachment.get()))
+      return rf->released_host_ns;  // a paced replay: when the frame was due (0: not paced)
     if (f.clock == ClockDomain::kHostMonotonic) return f.t_ns;
     if (f.clock == ClockDomain::kDevice)
       for (const ClockOffsetLog& c : s.clocks)

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/clock.hpp"
+
 namespace augrig::recorder {
 
 namespace {
@@ -297,6 +299,7 @@ Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds tim
       auto att = std::make_shared<RecordedFrame>();
       att->index = current_index_.value_or(0);
       att->pass = current_pass_;
+      if (options_.mode == ReplayMode::kRealRate && !gated) att->released_host_ns = monotonic_now_ns();
       FrameRecord& m = att->record;
       m.raw.t_key_ns = current_.raw.t_key_ns;
       m.raw.skew_ns = current_.raw.skew_ns;

@@ -68,6 +68,10 @@ struct RecordedFrame final : FrameAttachment {
   int pass = 0;           // the loop pass (0: the first)
   FrameRecord record;
   std::array<StoredRawBlob, 2> raw_blobs;
+  // Real rate, released on time: CLOCK_MONOTONIC when the stereo frame's first Frame was released,
+  // the replayed mid-exposure on the host clock (latency runs from it, as from a camera's). 0 in
+  // kFast and kStep, and while paused.
+  TimestampNs released_host_ns = 0;
 };
 
 enum class ReplayMode : std::uint8_t { kFast, kRealRate, kStep };

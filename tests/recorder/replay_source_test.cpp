@@ -406,6 +406,16 @@ TEST(ReplaySource, SetRateSwitchesBetweenRealRateAndFast) {
   ASSERT_TRUE(st);
   EXPECT_EQ(*st, ReadStatus::kTimeout);
   EXPECT_FALSE(s->set_rate(-1));
+  // Paced frames carry their release time on the host clock (a replayed mid-exposure); fast ones none.
+  const auto* paced = dynamic_cast<const RecordedFrame*>(f.attachment.get());
+  ASSERT_TRUE(paced);
+  EXPECT_GT(paced->released_host_ns, 0);
+  ASSERT_TRUE(s->set_rate(0));
+  Frame g;
+  ASSERT_TRUE(s->read(g, 0ns));
+  const auto* fast = dynamic_cast<const RecordedFrame*>(g.attachment.get());
+  ASSERT_TRUE(fast);
+  EXPECT_EQ(fast->released_host_ns, 0);
   EXPECT_FALSE(s->set_rate(std::numeric_limits<double>::infinity()));
 }
 
