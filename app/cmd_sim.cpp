@@ -178,7 +178,7 @@ int sim(const std::vector<std::string>& args, std::ostream& out) {
   if (!a.has("no-images")) {
     make_dirs(dir / "frames" / "left");
     make_dirs(dir / "frames" / "right");
-    const auto gl = make_gl_context();
+    // The CPU renderer (sim/synthetic_scene_cpu.hpp): no GL context needed.
     auto source = unwrap(sim::FlightSource::create(scenario, flight, truths, every));
     Progress progress("sim: rendering", source->frame_count());
     Frame f;
