@@ -276,8 +276,16 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     const TimestampNs mid_l = mid_host_ns(frame.left), mid_r = mid_host_ns(frame.right);
     const TimestampNs mid_host = mid_l && mid_r ? std::min(mid_l, mid_r) : 0;  // the earlier: not flattered
 
+    // Time per stage, for the summary: from the later frame's arrival to here (capture queues and
+    // pairing; only for frames stamped on this host's clock), then each stage.
+    const TimestampNs t_in = monotonic_now_ns();
+    const TimestampNs arrived = std::max(frame.left.t_host_ns, frame.right.t_host_ns);
+    if (arrived > 0 && t_in >= arrived && t_in - arrived < 10'000'000'000) rep.stage_queue.add(t_in - arrived);
+
     // 1. The pose.
     s.poses = p.poses->at(frame, mid_l);
+    const TimestampNs t_pose = monotonic_now_ns();
+    rep.stage_pose.add(t_pose - t_in);
     FramePoses& fp = s.poses;
     bool stale = fp.stale;
     if (!fp.scene) {
@@ -314,7 +322,11 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     boom.apply(scene, ns_to_s(frame.left.t_ns - s.first_t_ns));
 
     // 3. The augmentation.
-    if (Status st = augmenter->augment(frame, scene, result); !st) {
+    const TimestampNs t_aug = monotonic_now_ns();
+    const Status augmented = augmenter->augment(frame, scene, result);
+    const TimestampNs t_sinks = monotonic_now_ns();
+    rep.stage_augment.add(t_sinks - t_aug);
+    if (Status st = augmented; !st) {
       ++rep.failed_pairs;
       s.failed_t.add(frame.t_key_ns);
       problem(make_error("pair ", frame.pair_sequence, ": ", st.error().message));
@@ -387,6 +399,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       fr->boom = scene.boom;
       p.recorder->push(std::move(*fr));
     }
+    rep.stage_sinks.add(monotonic_now_ns() - t_sinks);
   };
 
   // The HUD and the commands, once per loop when a window is open.
@@ -628,6 +641,23 @@ void Pipeline::print_summary(const PipelineReport& r, std::ostream& out) const {
           << fmt_ms(h.p99_abs_ns() / 1e6) << " ms, max " << fmt_ms(h.max_abs_ns / 1e6) << " ms (" << h.count
           << " pairs)\n";
   };
+  // Where a pair's time goes, stage by stage.
+  if (r.stage_augment.count) {
+    auto stage = [&](const char* name, const SkewStats& h) {
+      out << name << " " << fmt_ms(h.p50_abs_ns() / 1e6) << " / " << fmt_ms(h.p99_abs_ns() / 1e6);
+    };
+    out << "stages per pair, p50 / p99 ms: ";
+    if (r.stage_queue.count) {
+      stage("capture queues and pairing", r.stage_queue);
+      out << ", ";
+    }
+    stage("pose", r.stage_pose);
+    out << ", ";
+    stage("augment", r.stage_augment);
+    out << ", ";
+    stage("sinks", r.stage_sinks);
+    out << "\n";
+  }
   latency_line(parts_.view ? "display" : "display hand-off", r.display_latency);
   latency_line("recorder", r.recorder_latency);
   if (parts_.live_nav) {

@@ -187,6 +187,9 @@ struct PipelineReport {
   std::vector<OcclusionStats> all_stats;  // every augmented pair's (for the run's summary)
   RunSummary summary;
   SkewStats display_latency, recorder_latency;
+  // Time per stage for each pair: from the later frame's arrival on the host to the pipeline
+  // (capture queues and pairing; live frames only), the pose, the augmentation, the sinks.
+  SkewStats stage_queue, stage_pose, stage_augment, stage_sinks;
   bool stopped_by_signal = false, window_closed = false, source_failed = false;
   std::string source_error;
   std::vector<std::string> lost_cameras;  // not connected at the end

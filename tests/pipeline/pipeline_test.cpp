@@ -120,6 +120,11 @@ TEST(Pipeline, SimIntoEverySinkThenReplayReproducesIt) {
   std::ostringstream summary;
   pipeline.print_summary(*r, summary);
   EXPECT_NE(summary.str().find("run: 12 stereo frames augmented"), std::string::npos) << summary.str();
+  // Time per stage for every pair augmented, and printed.
+  EXPECT_EQ(r->stage_augment.count, 12u);
+  EXPECT_EQ(r->stage_sinks.count, 12u);
+  EXPECT_GT(r->stage_augment.p50_abs_ns(), 0);
+  EXPECT_NE(summary.str().find("stages per pair, p50 / p99 ms: "), std::string::npos) << summary.str();
 
   // The recording back through the pipeline: the recorded poses drive it.
   PipelineParts q = parts_for("replay://" + (dir / "rec").string() + "?rate=fast");
