@@ -124,6 +124,24 @@ std::vector<std::pair<std::string, std::string>> parse_named_list_arg(const std:
   return *items;
 }
 
+bool display_present() {
+  const char* d = std::getenv("DISPLAY");
+  return d && *d;
+}
+
+TimestampNs parse_pose_tolerance(const ParsedArgs& a) {
+  if (!a.has("pose-tolerance-ms")) return 0;
+  const double ms = parse_real("pose-tolerance-ms", a.get("pose-tolerance-ms"));
+  if (!(ms >= 0) || ms > 1e6) usage_error("--pose-tolerance-ms: expected milliseconds in [0, 1e6]");
+  return s_to_ns(ms / 1e3);
+}
+
+std::uint64_t parse_screenshot_at(const ParsedArgs& a) {
+  return a.has("screenshot-at")
+             ? static_cast<std::uint64_t>(parse_integer("screenshot-at", a.get("screenshot-at"), 1, 1LL << 40))
+             : 0;
+}
+
 BoomArg parse_boom_arg(const std::string& v) {
   BoomArg b;
   if (v.empty() || v == "track") return b;

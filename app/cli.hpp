@@ -80,6 +80,13 @@ double parse_real(const std::string& flag, const std::string& v);
 // "NAME=VALUE,..." (pipeline::parse_named_list), a usage error saying `what` otherwise.
 std::vector<std::pair<std::string, std::string>> parse_named_list_arg(const std::string& v, const std::string& what);
 
+// A display to open the window on (DISPLAY set and not empty).
+bool display_present();
+// --pose-tolerance-ms MS (default 0: exactly) as nanoseconds; milliseconds in [0, 1e6].
+TimestampNs parse_pose_tolerance(const ParsedArgs& a);
+// --screenshot-at N (0 when not given).
+std::uint64_t parse_screenshot_at(const ParsedArgs& a);
+
 // --boom: track, fixed:EL_DEG,AZ_DEG,EXT_M or script:FILE.csv (pipeline/boom_stage.hpp).
 BoomArg parse_boom_arg(const std::string& v);
 

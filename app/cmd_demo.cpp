@@ -100,7 +100,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
   // With a display: the simulated flight in real time through the live pipeline and its window,
   // recording on (augrig run), the poses from the live fusion of the simulated GPS/IMU streams
   // (--nav sim). Without one, or with --headless, the batch demo below.
-  if (!a.has("headless") && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) {
+  if (!a.has("headless") && display_present()) {
     // The same flags mean the same here: the sim:// source takes the scenario, the frame selection
     // and the Bayer pattern; the pipeline the boom, the receiver drawing, the recording (only with
     // --record) and the frame count (in real time: stop after N stereo frames).
@@ -193,6 +193,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
   const auto rel_shared = std::make_shared<const RelativeNav>(rel);
   parts.poses = offline_nav_poses(rel_shared, "the simulated logs");
   parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
+  parts.keep_all_stats = true;  // the summary and Table 1 below
   out << "demo: " << frames << " stereo frames (every " << every << ") of " << source_uri << ", "
       << to_string(scenario.sensors.cameras.format) << ", " << rig.left().model.width_px << "x"
       << rig.left().model.height_px << " -> " << out_dir.string() << "\n";

@@ -127,7 +127,7 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
   parts.progress_total = pairs;
   parts.on_problem = [&err](const Error& e) { err << "augrig replay: " << user_message(e) << "\n"; };
   const bool want_window = !a.has("headless");
-  if (want_window && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) parts.view = std::make_shared<LiveView>();
+  if (want_window && display_present()) parts.view = std::make_shared<LiveView>();
   Pipeline pipeline(std::move(parts));
   const PipelineReport r = run_pipeline(pipeline, want_window, a.has("out") ? out_dir.string() : ".", out, err);
   out << "Replayed " << r.pairs << " stereo frame(s)\n";
@@ -248,7 +248,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
       << (a.has("scene") ? a.get("scene") : std::string("as recorded per frame")) << "\n";
   parts.on_problem = [&err](const Error& e) { err << "augrig replay: " << user_message(e) << "\n"; };
   const bool want_window = !a.has("headless");
-  if (want_window && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) parts.view = std::make_shared<LiveView>();
+  if (want_window && display_present()) parts.view = std::make_shared<LiveView>();
   parts.source = unwrap(start_stereo(std::move(opened)));
   parts.stop_flag = install_stop_signals();
   parts.status_every_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 0;
@@ -257,9 +257,9 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   Pipeline pipeline(std::move(parts));
   const PipelineReport r =
       run_pipeline(pipeline, want_window, a.has("out") ? out_dir.string() : ".", out, err,
-                   a.has("screenshot-at") ? parse_integer("screenshot-at", a.get("screenshot-at"), 1, 1LL << 40) : 0);
+                   parse_screenshot_at(a));
 
-  if (r.all_stats.size() == 1) out << format_table1(r.all_stats.front(), "Occlusion statistics");
+  if (r.pairs == 1 && r.last_stats) out << format_table1(*r.last_stats, "Occlusion statistics");
   out << "Replayed " << r.pairs << " stereo frame(s)";
   if (r.pairs)
     out << " (augmenter " << fmt_ms(r.augment_ms / static_cast<double>(r.pairs)) << " ms per stereo frame, "

@@ -172,7 +172,7 @@ struct RunSetup {
 PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::string& screenshot_dir,
                             std::ostream& out, std::ostream& err, std::uint64_t screenshot_at) {
   std::unique_ptr<Display> display;
-  if (want_window && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) {
+  if (want_window && display_present()) {
     DisplayOptions dopt;
     dopt.screenshot_dir = screenshot_dir;
     dopt.receiver_model = pipeline.parts().receiver.model;
@@ -363,9 +363,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     parts.poses = fixed_scene_poses(
         unwrap(load_scene(a.get("scene"), *rig, boom_dims, parts.receiver.receptacle_m)), a.get("scene"));
   } else if (a.has("poses")) {
-    const double tol_ms = a.has("pose-tolerance-ms") ? parse_real("pose-tolerance-ms", a.get("pose-tolerance-ms")) : 0;
-    if (tol_ms < 0) usage_error("--pose-tolerance-ms: expected milliseconds >= 0");
-    parts.poses = unwrap(poses_csv(a.get("poses"), *rig, s_to_ns(tol_ms / 1e3)));
+    parts.poses = unwrap(poses_csv(a.get("poses"), *rig, parse_pose_tolerance(a)));
   } else if (use_nav) {
     nav::InsConfig* ins = ins_used;
     if (nav_sim) {
@@ -473,7 +471,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   parts.status_every_s = status_s;
   parts.stop_flag = install_stop_signals();
   const bool want_window = !a.has("headless");
-  if (want_window && std::getenv("DISPLAY") && *std::getenv("DISPLAY")) parts.view = std::make_shared<LiveView>();
+  if (want_window && display_present()) parts.view = std::make_shared<LiveView>();
   out << "run: " << uri << (right_uri.empty() ? "" : " + " + right_uri) << (lossless ? " (lockstep)" : " (live)") << pairing_text << "; rig "
       << rig->source << "; poses from " << parts.poses->describe()
       << (parts.recorder ? "; recording to " + parts.recorder->path() : std::string()) << "\n";
@@ -486,7 +484,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   Pipeline pipeline(std::move(parts));
   const PipelineReport report =
       run_pipeline(pipeline, want_window, a.has("out") ? a.get("out") : ".", out, err,
-                   a.has("screenshot-at") ? parse_integer("screenshot-at", a.get("screenshot-at"), 1, 1LL << 40) : 0);
+                   parse_screenshot_at(a));
   setup.nav_inputs->summary(out);
   if (report.recording_closed) {
     out << "recorded " << report.recorder_stats.frames_committed << " stereo frames to "

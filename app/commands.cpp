@@ -116,13 +116,9 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   if (!a.has("scene") && !a.has("poses"))
     usage_error("missing required option --scene SCENE.yaml|DIR (or --poses POSES.csv)");
   if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
+  const TimestampNs pose_tolerance_ns = parse_pose_tolerance(a);
   if (a.has("pair-tolerance-us") && !indexed)
     usage_error("--pair-tolerance-us needs --frames (folders pair by sorted name)");
-  double pose_tol_ms = 0;
-  if (a.has("pose-tolerance-ms")) {
-    pose_tol_ms = parse_real("pose-tolerance-ms", a.get("pose-tolerance-ms"));
-    if (!(pose_tol_ms >= 0) || pose_tol_ms > 1e6) usage_error("--pose-tolerance-ms: expected milliseconds in [0, 1e6]");
-  }
   const double status_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 0.0;
   if (!(status_s >= 0)) usage_error("--status-every: expected seconds >= 0");
   AugmentOptions options;
@@ -176,7 +172,7 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   std::vector<std::optional<TimestampNs>> scene_t_ns;
   std::error_code ec;
   if (a.has("poses")) {
-    poses = unwrap(poses_csv(a.get("poses"), rig, s_to_ns(pose_tol_ms / 1e3)));
+    poses = unwrap(poses_csv(a.get("poses"), rig, pose_tolerance_ns));
   } else if (fs::is_directory(a.get("scene"), ec)) {
     auto folder = unwrap(SceneFolderPoses::load(a.get("scene"), rig, receiver.receptacle_m));
     if (folder->size() != expected_pairs)
@@ -221,6 +217,7 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   parts.poses = std::move(poses);
   parts.augment = options;
   parts.skip_frames_without_pose = true;  // a pair without a pose is counted and reported, not guessed
+  parts.keep_all_stats = true;  // stats.csv may be rewritten with the scene files' t_ns
   if (!remap_t) parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
   parts.frame_files = FrameFiles{out_dir, 1, input_names};
   parts.status_every_s = status_s;

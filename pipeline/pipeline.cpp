@@ -336,7 +336,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     result.stats.t_ns = fp.t_nav_ns.value_or(frame.t_key_ns);
     ++rep.pairs;
     rep.summary.add(result.stats);
-    rep.all_stats.push_back(result.stats);
+    rep.last_stats = result.stats;
+    if (p.keep_all_stats) rep.all_stats.push_back(result.stats);
     const recorder::RecordedFrame* rf = recorded(frame);
     if (rf && rf->record.stats) {
       ++rep.comparable;
@@ -418,7 +419,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     hud.nav = s.poses.hud;
     for (const std::string& m : s.poses.problems) hud.messages.push_back(m);
     hud.stale_pose = s.was_stale;
-    if (!rep.all_stats.empty()) hud.occlusion = rep.all_stats.back();
+    hud.occlusion = rep.last_stats;
     hud.latency_recorder = rolling_hud(s.recorder_recent_ms);
     hud.recording = p.recorder && s.recording_on;
     hud.recording_path = p.recorder ? p.recorder->path() : "";

@@ -154,6 +154,9 @@ struct PipelineParts {
   // Frames without a pose: augmented with the boom alone and marked (live), or not augmented and
   // counted (a recording without a scene for some frames).
   bool skip_frames_without_pose = false;
+  // Every pair's statistics kept in the report (finite jobs that print or rewrite them); a live run
+  // keeps only the running summary, so its memory stays flat however long it runs.
+  bool keep_all_stats = false;
   // Called once with the first frame (e.g. to start the simulated nav streams on its clock).
   std::function<void(const StereoFrame&)> on_first_frame;
   // The live nav, when the poses come from it (its status goes into the report).
@@ -184,7 +187,8 @@ struct PipelineReport {
   double wall_s = 0, augment_ms = 0;
   Rasterizer rasterizer = Rasterizer::kAuto;
   StereoSourceStats source;
-  std::vector<OcclusionStats> all_stats;  // every augmented pair's (for the run's summary)
+  std::optional<OcclusionStats> last_stats;  // the last augmented pair's
+  std::vector<OcclusionStats> all_stats;     // every augmented pair's, with PipelineParts::keep_all_stats
   RunSummary summary;
   SkewStats display_latency, recorder_latency;
   // Time per stage for each pair: from the later frame's arrival on the host to the pipeline

@@ -273,6 +273,7 @@ TEST(Pipeline, PosesCsvDrivesTheAugmentation) {
       p.poses = std::move(*provider);
     }
     p.skip_frames_without_pose = skip;
+    p.keep_all_stats = true;
     p.max_pairs = 6;
     Pipeline pipeline(std::move(p));
     std::ostringstream out, err;
