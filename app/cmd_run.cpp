@@ -470,6 +470,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   parts.max_pairs = static_cast<std::uint64_t>(max_pairs);
   parts.status_every_s = status_s;
   parts.stop_flag = install_stop_signals();
+  parts.on_problem = [&err](const Error& e) { err << "augrig run: " << user_message(e) << "\n"; };
   const bool want_window = !a.has("headless");
   if (want_window && display_present()) parts.view = std::make_shared<LiveView>();
   out << "run: " << uri << (right_uri.empty() ? "" : " + " + right_uri) << (lossless ? " (lockstep)" : " (live)") << pairing_text << "; rig "
