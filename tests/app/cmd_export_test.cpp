@@ -2,10 +2,13 @@
 // recorder::Recorder from frames it augments itself, the EuRoC layout, exit codes and messages of
 // bad inputs, a truncated recording, and OUT/INCOMPLETE of a killed export.
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <random>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -261,8 +264,19 @@ TEST(CmdExport, ALiveNavRecordingIsReFusedOffline) {
   for (const char* who : {"tanker", "receiver"})
     for (const char* f : {"gps.nmea", "imu.csv", "aircraft.yaml"})
       EXPECT_TRUE(fs::exists(out + "/nav/" + who + "/" + f)) << who << "/" << f;
-  // imu0 rows: one per datagram sample.
-  EXPECT_GT(lines_of(out + "/mav0/imu0/data.csv"), 1000u);
+  // imu0 rows: one per datagram sample, none missing: consecutive rows 5 ms apart (the demo's IMU is
+  // 200 Hz). How many depends on how much of the 6 s the run covered on a loaded machine, so the count
+  // itself is only bounded below.
+  {
+    std::ifstream in(out + "/mav0/imu0/data.csv");
+    std::vector<std::int64_t> t_ns;
+    for (std::string l; std::getline(in, l);)
+      if (!l.empty() && l[0] != '#') t_ns.push_back(std::stoll(l.substr(0, l.find(','))));
+    ASSERT_GT(t_ns.size(), 400u) << "less than 2 s of IMU exported";
+    std::size_t gaps = 0;
+    for (std::size_t i = 1; i < t_ns.size(); ++i) gaps += (t_ns[i] - t_ns[i - 1] != 5'000'000) ? 1 : 0;
+    EXPECT_EQ(gaps, 0u) << "of " << t_ns.size() << " IMU rows";
+  }
 
   ASSERT_EQ(augrig("nav --tanker " + out + "/nav/tanker --receiver " + out + "/nav/receiver --rig " + out +
                        "/rig.yaml --frames " + out + "/frames.csv --out " + dir + "/refused.csv",
@@ -290,7 +304,7 @@ TEST(CmdExport, ALiveNavRecordingIsReFusedOffline) {
   }
   // Every recorded pose (frames with the receiver) has its offline counterpart.
   EXPECT_EQ(compared, recorded->rows.size());
-  EXPECT_GT(compared, 40u);
+  EXPECT_GT(compared, 20u);
 }
 
 }  // namespace
