@@ -6,7 +6,8 @@
 // pairs. Process CPU time (all threads: llvmpipe's and the CPU renderer's bands) per view and per
 // pair, and wall time per pair. On a shared machine trust the CPU figures and the ratios.
 // --write DIR writes each row's last left view as DIR/<back end>_<lens>_<format>.pgm or .ppm.
-//   build/bench_sim [--frames N] [--backend gl|cpu|both] [--threads T] [--write DIR]
+// --lens none|radtan and --format bayer|rgb run only those rows (to profile one).
+//   build/bench_sim [--frames N] [--backend gl|cpu|both] [--threads T] [--lens L] [--format F] [--write DIR]
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -24,7 +25,7 @@ using Clock = std::chrono::steady_clock;
 
 int main(int argc, char** argv) {
   int pairs = 20, threads = 2;
-  std::string backends = "both", write_dir;
+  std::string backends = "both", write_dir, lens = "both", format = "both";
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "--frames")
@@ -33,10 +34,15 @@ int main(int argc, char** argv) {
       backends = argv[i + 1];
     else if (a == "--threads")
       threads = std::atoi(argv[i + 1]);
+    else if (a == "--lens")
+      lens = argv[i + 1];
+    else if (a == "--format")
+      format = argv[i + 1];
     else if (a == "--write")
       write_dir = argv[i + 1];
     else {
-      std::fprintf(stderr, "usage: bench_sim [--frames N] [--backend gl|cpu|both] [--threads T] [--write DIR]\n");
+      std::fprintf(stderr, "usage: bench_sim [--frames N] [--backend gl|cpu|both] [--threads T] [--lens none|radtan|both] "
+                   "[--format bayer|rgb|both] [--write DIR]\n");
       return 2;
     }
   }
@@ -60,6 +66,7 @@ int main(int argc, char** argv) {
     if (backend == SceneBackend::kOpenGL && backends == "cpu") continue;
     if (backend == SceneBackend::kCpu && backends == "gl") continue;
     for (const bool distorted : {false, true}) {
+      if (lens != "both" && (lens == "radtan") != distorted) continue;
       // The paper's rig as the live scenarios fly it (no distortion), and with a real lens.
       Rig rig = Rig::paper_default();
       if (distorted)
@@ -76,6 +83,7 @@ int main(int argc, char** argv) {
         return 1;
       }
       for (PixelFormat f : {PixelFormat::kBayerRG8, PixelFormat::kRGB8}) {
+        if (format != "both" && (format == "rgb") != (f == PixelFormat::kRGB8)) continue;
         SensorOptions sensor;
         sensor.format = f;
         sensor.noise_sigma = 1.5;

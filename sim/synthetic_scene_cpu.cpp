@@ -201,10 +201,18 @@ inline std::size_t tiled_index(int shift, std::uint32_t x, std::uint32_t y) {
   return (((static_cast<std::size_t>(y >> 2) << (shift - 2)) + (x >> 2)) << 4) | ((y & 3u) << 2) | (x & 3u);
 }
 
+// The ground tile's mip chain, packed RGBA8 (R in the low byte), each level stored in 4 x 4 texel
+// tiles (64 bytes, one cache line): a bilinear footprint and its neighbours along any direction
+// stay in a few cache lines, where rows of 8 kB would miss on every texel row. Packed texels
+// (half the bytes of expanded ones) keep more of the chain in cache: level 0 is 16 MB.
+struct GroundTile {
+  std::vector<std::vector<std::uint32_t>> levels;  // level l: side 2^(kTileShift - l), tiled
+};
+
 // The tile is the same for every renderer: baked once per process (about 0.3 s on two cores).
-std::shared_ptr<const Pyramid> ground_tile() {
+std::shared_ptr<const GroundTile> ground_tile() {
   static std::mutex mutex;
-  static std::shared_ptr<const Pyramid> tile;
+  static std::shared_ptr<const GroundTile> tile;
   std::lock_guard lock(mutex);
   if (tile) return tile;
   std::vector<std::uint32_t> texels(static_cast<std::size_t>(kTileTexels) * kTileTexels);
@@ -217,29 +225,34 @@ std::shared_ptr<const Pyramid> ground_tile() {
     bake_rows(0, kTileTexels / 2);
     other.join();
   }
-  Pyramid p = make_pyramid(std::move(texels), kTileTexels, kTileTexels, kTileLevels);
-  // 4 x 4 texel tiles (128 bytes): a bilinear footprint and its neighbours along any direction
-  // stay in a few cache lines, where rows of 16 kB would miss on every texel row.
-  for (std::size_t l = 0; l < p.texels.size(); ++l) {
-    const int side = p.width[l], shift = kTileShift - static_cast<int>(l);
-    std::vector<std::uint64_t> tiled(p.texels[l].size());
+  GroundTile g;
+  int side = kTileTexels;
+  for (int l = 0; l < kTileLevels; ++l) {
+    const int shift = kTileShift - l;
+    std::vector<std::uint32_t> tiled(texels.size());
     for (int y = 0; y < side; ++y)
-      for (int x = 0; x < side; ++x) tiled[tiled_index(shift, x, y)] = p.texels[l][static_cast<std::size_t>(y) * side + x];
-    p.texels[l] = std::move(tiled);
+      for (int x = 0; x < side; ++x) tiled[tiled_index(shift, x, y)] = texels[static_cast<std::size_t>(y) * side + x];
+    g.levels.push_back(std::move(tiled));
+    if (l + 1 < kTileLevels) {
+      int w2 = 0, h2 = 0;
+      texels = downsample(texels, side, side, w2, h2);
+      side = w2;
+    }
   }
-  tile = std::make_shared<const Pyramid>(std::move(p));
+  tile = std::make_shared<const GroundTile>(std::move(g));
   return tile;
 }
 
 // Bilinear sample of a power-of-two, tiled tile level (side 2^shift) at 16.16 fixed-point texel
 // coordinates (texel centres at integers), wrapping: uint32 overflow is a multiple of the period.
-inline std::uint64_t sample_tile(const std::uint64_t* tex, int shift, std::uint32_t s, std::uint32_t t) {
+// Returns the filtered texel expanded (lerp64's rounding; ground4() below is the same in SIMD).
+inline std::uint64_t sample_tile(const std::uint32_t* tex, int shift, std::uint32_t s, std::uint32_t t) {
   const std::uint32_t mask = (1u << shift) - 1u;
   const std::uint32_t x0 = (s >> 16) & mask, y0 = (t >> 16) & mask;
   const std::uint32_t x1 = (x0 + 1u) & mask, y1 = (y0 + 1u) & mask;
   const std::uint32_t wx = (s >> 8) & 0xffu, wy = (t >> 8) & 0xffu;
-  return lerp64(lerp64(tex[tiled_index(shift, x0, y0)], tex[tiled_index(shift, x1, y0)], wx),
-                lerp64(tex[tiled_index(shift, x0, y1)], tex[tiled_index(shift, x1, y1)], wx), wy);
+  return lerp64(lerp64(expand(tex[tiled_index(shift, x0, y0)]), expand(tex[tiled_index(shift, x1, y0)]), wx),
+                lerp64(expand(tex[tiled_index(shift, x0, y1)]), expand(tex[tiled_index(shift, x1, y1)]), wx), wy);
 }
 
 inline std::int64_t round_to_int64(double v) {  // without a library call
@@ -357,6 +370,116 @@ inline void put_sky(std::uint8_t* row, int x, const int* chan, const float* c) {
     row[x] = to_u8(c[chan[x & 1]]);
   else
     put_rgb<kMode>(row, x, to_u8(c[0]), to_u8(c[1]), to_u8(c[2]));
+}
+
+// A run of n ground pixels of one row (x0 even), from the 16.16 texel coordinates (s, t) of its
+// first pixel stepped by (ds, dt) per pixel, and the woods, multiplier and haze terms, linear
+// along the run. Exactly put_ground(sample_tile()) per pixel but for the linear terms, which
+// are evaluated as first + i * step: with SSE2 four pixels at a time (the texel fetches stay
+// scalar), the filter in 16-bit lanes with lerp64's rounding and the shading in float with
+// put_ground's operations in its order, so every output format gets the same channel values.
+template <int kMode>
+void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::uint32_t* tex, int shift,
+                std::uint32_t s, std::uint32_t t, std::uint32_t ds, std::uint32_t dt, float w, float dw, float k,
+                float dk, float h, float dh) {
+#if defined(__SSE2__)
+  const __m128i mask = _mm_set1_epi32((1 << shift) - 1), one = _mm_set1_epi32(1), three = _mm_set1_epi32(3);
+  const __m128i ff = _mm_set1_epi32(0xff), zero = _mm_setzero_si128();
+  const __m128i w256 = _mm_set1_epi16(256), half = _mm_set1_epi16(128);
+  const __m128i row_shift = _mm_cvtsi32_si128(shift - 2);
+  const __m128i step = _mm_setr_epi32(0, 1, 2, 3);
+  auto mul = [](__m128i v, std::uint32_t d) {  // v * d per 32-bit lane (low 32 bits), SSE2 has no pmulld
+    const __m128i dd = _mm_set1_epi32(static_cast<int>(d));
+    const __m128i even = _mm_mul_epu32(v, dd), odd = _mm_mul_epu32(_mm_srli_epi64(v, 32), dd);
+    return _mm_unpacklo_epi32(_mm_shuffle_epi32(even, 0x08), _mm_shuffle_epi32(odd, 0x08));
+  };
+  __m128i sv = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(s)), mul(step, ds));
+  __m128i tv = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(t)), mul(step, dt));
+  const __m128i ds4 = _mm_set1_epi32(static_cast<int>(4u * ds)), dt4 = _mm_set1_epi32(static_cast<int>(4u * dt));
+  const __m128 idx = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
+  auto lin = [&](float v, float d, int i) { return _mm_add_ps(_mm_set1_ps(v), _mm_mul_ps(_mm_add_ps(idx, _mm_set1_ps(static_cast<float>(i))), _mm_set1_ps(d))); };
+  auto tiled = [&](__m128i x, __m128i y) {
+    const __m128i tile = _mm_add_epi32(_mm_sll_epi32(_mm_srli_epi32(y, 2), row_shift), _mm_srli_epi32(x, 2));
+    return _mm_or_si128(_mm_slli_epi32(tile, 4),
+                        _mm_or_si128(_mm_slli_epi32(_mm_and_si128(y, three), 2), _mm_and_si128(x, three)));
+  };
+  auto lerp16 = [&](__m128i a, __m128i b, __m128i wt) {
+    return _mm_srli_epi16(
+        _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(a, _mm_sub_epi16(w256, wt)), _mm_mullo_epi16(b, wt)), half), 8);
+  };
+  // Weights of 4 pixels (32-bit lanes, 0..255) spread over the 4 channels of pixels 0-1 and 2-3.
+  auto spread = [](__m128i wt, __m128i& lo, __m128i& hi) {
+    const __m128i w16 = _mm_packs_epi32(wt, wt);
+    const __m128i wd = _mm_unpacklo_epi16(w16, w16);
+    lo = _mm_unpacklo_epi32(wd, wd), hi = _mm_unpackhi_epi32(wd, wd);
+  };
+  const __m128 kwa = _mm_set1_ps(kWoodA), f0 = _mm_setzero_ps(), f1 = _mm_set1_ps(1.0f), f2 = _mm_set1_ps(2.0f),
+               f3 = _mm_set1_ps(3.0f), fhalf = _mm_set1_ps(0.5f), f255 = _mm_set1_ps(255.0f);
+  // One channel per lane: ch_even for pixels 0 and 2, ch_odd for 1 and 3.
+  auto channel = [&](__m128i v, __m128 a, __m128 sm, __m128 k1, __m128 hz, int ch_even, int ch_odd) {
+    const __m128i ce = _mm_and_si128(_mm_srl_epi32(v, _mm_cvtsi32_si128(8 * ch_even)), ff);
+    const __m128i co = _mm_and_si128(_mm_srl_epi32(v, _mm_cvtsi32_si128(8 * ch_odd)), ff);
+    const __m128i odd = _mm_setr_epi32(0, -1, 0, -1);
+    const __m128 c = _mm_cvtepi32_ps(_mm_or_si128(_mm_andnot_si128(odd, ce), _mm_and_si128(odd, co)));
+    const __m128 base = _mm_setr_ps(kWoodBase[ch_even], kWoodBase[ch_odd], kWoodBase[ch_even], kWoodBase[ch_odd]);
+    const __m128 slope = _mm_setr_ps(kWoodSlope[ch_even], kWoodSlope[ch_odd], kWoodSlope[ch_even], kWoodSlope[ch_odd]);
+    const __m128 haze = _mm_setr_ps(kHaze[ch_even], kHaze[ch_odd], kHaze[ch_even], kHaze[ch_odd]);
+    const __m128 wood = _mm_add_ps(base, _mm_mul_ps(slope, a));
+    const __m128 val =
+        _mm_add_ps(_mm_mul_ps(_mm_add_ps(c, _mm_mul_ps(sm, _mm_sub_ps(wood, c))), k1), _mm_mul_ps(hz, haze));
+    const __m128i q = _mm_cvttps_epi32(_mm_min_ps(_mm_add_ps(_mm_max_ps(val, f0), fhalf), f255));
+    return _mm_packus_epi16(_mm_packs_epi32(q, q), q);  // 4 bytes in the low lane
+  };
+  for (int i = 0; i < n; i += 4) {
+    const __m128i x0v = _mm_and_si128(_mm_srli_epi32(sv, 16), mask), y0v = _mm_and_si128(_mm_srli_epi32(tv, 16), mask);
+    const __m128i x1v = _mm_and_si128(_mm_add_epi32(x0v, one), mask), y1v = _mm_and_si128(_mm_add_epi32(y0v, one), mask);
+    alignas(16) std::uint32_t i00[4], i10[4], i01[4], i11[4];
+    _mm_store_si128(reinterpret_cast<__m128i*>(i00), tiled(x0v, y0v));
+    _mm_store_si128(reinterpret_cast<__m128i*>(i10), tiled(x1v, y0v));
+    _mm_store_si128(reinterpret_cast<__m128i*>(i01), tiled(x0v, y1v));
+    _mm_store_si128(reinterpret_cast<__m128i*>(i11), tiled(x1v, y1v));
+    auto fetch = [tex](const std::uint32_t* ix) {
+      return _mm_setr_epi32(static_cast<int>(tex[ix[0]]), static_cast<int>(tex[ix[1]]), static_cast<int>(tex[ix[2]]),
+                            static_cast<int>(tex[ix[3]]));
+    };
+    const __m128i a = fetch(i00), b = fetch(i10), c = fetch(i01), d = fetch(i11);
+    __m128i wxl, wxh, wyl, wyh;
+    spread(_mm_and_si128(_mm_srli_epi32(sv, 8), ff), wxl, wxh);
+    spread(_mm_and_si128(_mm_srli_epi32(tv, 8), ff), wyl, wyh);
+    const __m128i lo = lerp16(lerp16(_mm_unpacklo_epi8(a, zero), _mm_unpacklo_epi8(b, zero), wxl),
+                              lerp16(_mm_unpacklo_epi8(c, zero), _mm_unpacklo_epi8(d, zero), wxl), wyl);
+    const __m128i hi = lerp16(lerp16(_mm_unpackhi_epi8(a, zero), _mm_unpackhi_epi8(b, zero), wxh),
+                              lerp16(_mm_unpackhi_epi8(c, zero), _mm_unpackhi_epi8(d, zero), wxh), wyh);
+    const __m128i v = _mm_packus_epi16(lo, hi);  // the 4 filtered RGBA8 texels
+    sv = _mm_add_epi32(sv, ds4), tv = _mm_add_epi32(tv, dt4);
+    // Shading, as put_ground: woods weight from the fine texture, then each channel.
+    const __m128 av = _mm_cvtepi32_ps(_mm_srli_epi32(v, 24));
+    const __m128 z = _mm_min_ps(_mm_max_ps(_mm_add_ps(lin(w, dw, i), _mm_mul_ps(av, kwa)), f0), f1);
+    const __m128 sm = _mm_mul_ps(_mm_mul_ps(z, z), _mm_sub_ps(f3, _mm_mul_ps(f2, z)));
+    const __m128 k1 = lin(k, dk, i), hz = lin(h, dh, i);
+    const int m = std::min(4, n - i);
+    if constexpr (kMode == kModeBayer) {
+      const int bytes = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, chan[0], chan[1]));
+      if (m == 4)
+        std::memcpy(row + x0 + i, &bytes, 4);
+      else
+        for (int j = 0; j < m; ++j) row[x0 + i + j] = static_cast<std::uint8_t>(bytes >> (8 * j));
+    } else {
+      const int r = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, 0, 0));
+      const int g = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, 1, 1));
+      const int b = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, 2, 2));
+      for (int j = 0; j < m; ++j)
+        put_rgb<kMode>(row, x0 + i + j, static_cast<std::uint8_t>(r >> (8 * j)), static_cast<std::uint8_t>(g >> (8 * j)),
+                       static_cast<std::uint8_t>(b >> (8 * j)));
+    }
+  }
+#else
+  for (int i = 0; i < n; ++i) {
+    const auto fi = static_cast<float>(i);
+    put_ground<kMode>(row, x0 + i, chan, sample_tile(tex, shift, s, t), w + fi * dw, k + fi * dk, h + fi * dh);
+    s += ds, t += dt;
+  }
+#endif
 }
 
 // ---- per camera, fixed ----
@@ -524,7 +647,7 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
 
   Rig rig_;
   Bands bands_;
-  std::shared_ptr<const Pyramid> tile_;
+  std::shared_ptr<const GroundTile> tile_;
   Model receiver_;
   std::vector<ReceiverMesh> meshes_;
   std::vector<ModelTexture> textures_;
@@ -692,7 +815,7 @@ void CpuSceneRenderer::background_rows(const CameraTables& ct, const FrameSky& f
         // smooth over a block), stepped in 16.16 fixed point along each row.
         const int level = std::max({mip_level(c00.lam), mip_level(c10.lam), mip_level(c01.lam), mip_level(c11.lam)});
         const int shift = kTileShift - level;
-        const std::uint64_t* tex = tile_->texels[level].data();
+        const std::uint32_t* tex = tile_->levels[level].data();
         const double scale = 1.0 / (kTexelM * static_cast<double>(1 << level));
         // Relative to the block's first corner, so that the doubles stay small.
         const double s0 = std::floor(c00.qs * scale), t0 = std::floor(c00.qt * scale);
@@ -716,12 +839,8 @@ void CpuSceneRenderer::background_rows(const CameraTables& ct, const FrameSky& f
           const auto dt = static_cast<std::uint32_t>(round_to_int64((tr - tl) / span_x * 65536.0));
           const auto inv = static_cast<float>(1.0 / span_x);
           const float dw = (wr - wl) * inv, dk = (kr - kl) * inv, dh = (hr - hl) * inv;
-          std::uint8_t* row = out.row(y);
           const int chan[2] = {bayer_channel(fmt, 0, y), bayer_channel(fmt, 1, y)};
-          for (int x = x0; x < x1; ++x) {
-            put_ground<kMode>(row, x, chan, sample_tile(tex, shift, s, t), wl, kl, hl);
-            s += ds, t += dt, wl += dw, kl += dk, hl += dh;
-          }
+          ground_run<kMode>(out.row(y), x0, x1 - x0, chan, tex, shift, s, t, ds, dt, wl, dw, kl, dk, hl, dh);
         }
       } else if (valid && n_ground == 0) {
         // Sky: smooth (the sun's glow is several blocks wide); the colour is interpolated.
@@ -756,7 +875,7 @@ void CpuSceneRenderer::background_rows(const CameraTables& ct, const FrameSky& f
               const int shift = kTileShift - level;
               const double side = static_cast<double>(1 << shift);
               auto wrap = [side](double v) { return v - side * std::floor(v / side); };
-              const std::uint64_t g = sample_tile(tile_->texels[level].data(), shift, to_fixed(wrap(r.qs * scale) - 0.5),
+              const std::uint64_t g = sample_tile(tile_->levels[level].data(), shift, to_fixed(wrap(r.qs * scale) - 0.5),
                                                   to_fixed(wrap(r.qt * scale) - 0.5));
               put_ground<kMode>(row, x, chan, g, r.wood, r.k1, r.h);
             } else {
