@@ -185,8 +185,8 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
   opened.options.pairing.tolerance_ns = s_to_ns(0.5 / scenario.sensors.cameras.fps);
   PipelineParts parts;
   parts.rig = rig;
-  parts.receiver = receiver_setup(rig);
-  parts.receiver.receptacle_m = flight.receptacle_m();
+  parts.models = unwrap(load_rig_models(rig));
+  parts.models.receptacle_m = flight.receptacle_m();
   parts.boom_dims = scenario.boom;
   parts.boom = boom_arg;
   parts.augment = options;

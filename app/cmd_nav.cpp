@@ -88,7 +88,7 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
     check(nav::write_nav_solution_csv((d / "receiver.csv").string(), nav_solution_rows(rx)));
   }
 
-  Eigen::Vector3d receptacle = receiver_setup(rig).receptacle_m;
+  Eigen::Vector3d receptacle = receptacle_of(rig);
   RelativeNav rel(std::move(tk), std::move(rx), rig, BoomDimensions{}, receptacle, offsets);
   std::vector<nav::CameraPoseRow> rows;
   std::size_t outside = 0;

@@ -100,9 +100,9 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
   const std::uint64_t unpaired = euroc ? euroc->unpaired() : 0;
   PipelineParts parts;
   parts.rig = load_rig_arg(a.get("rig", "default"));
-  parts.receiver = receiver_setup(parts.rig);
+  parts.models = unwrap(load_rig_models(parts.rig));
   parts.poses = fixed_scene_poses(
-      unwrap(load_scene(a.get("scene"), parts.rig, BoomDimensions{}, parts.receiver.receptacle_m)), a.get("scene"));
+      unwrap(load_scene(a.get("scene"), parts.rig, BoomDimensions{}, parts.models.receptacle_m)), a.get("scene"));
   if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
   parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
   const fs::path out_dir = a.get("out");
@@ -208,12 +208,12 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
 
   PipelineParts parts;
   parts.rig = rig;
-  parts.receiver = receiver_setup(rig);
+  parts.models = unwrap(load_rig_models(rig));
   parts.source_info = opened;
   parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
   if (a.has("scene")) {
     parts.poses = fixed_scene_poses(
-        unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, parts.receiver.receptacle_m)), a.get("scene"));
+        unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, parts.models.receptacle_m)), a.get("scene"));
   } else {
     if (auto first = reader.read_frame_info(source.start_frame()); first && !first->boom)
       runtime_error(reader.path() + ": frame " + std::to_string(source.start_frame()) +

@@ -175,7 +175,7 @@ PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::str
   if (want_window && display_present()) {
     DisplayOptions dopt;
     dopt.screenshot_dir = screenshot_dir;
-    dopt.receiver_model = pipeline.parts().receiver.model;
+    dopt.receiver_model = pipeline.parts().models.receiver_model;
     auto d = Display::create(dopt);
     if (d) {
       display = std::move(*d);
@@ -332,7 +332,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   PipelineParts& parts = setup.parts;
   nav::InsConfig ins_used[2];  // the live fusion's aircraft settings
   parts.rig = *rig;
-  parts.receiver = receiver_setup(*rig);
+  parts.models = unwrap(load_rig_models(*rig));
   parts.source_info = info;
   const BoomDimensions boom_dims;
 
@@ -361,7 +361,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     usage_error("--nav needs streams of both aircraft (tanker.*, receiver.*) to give poses");
   if (a.has("scene")) {
     parts.poses = fixed_scene_poses(
-        unwrap(load_scene(a.get("scene"), *rig, boom_dims, parts.receiver.receptacle_m)), a.get("scene"));
+        unwrap(load_scene(a.get("scene"), *rig, boom_dims, parts.models.receptacle_m)), a.get("scene"));
   } else if (a.has("poses")) {
     parts.poses = unwrap(poses_csv(a.get("poses"), *rig, parse_pose_tolerance(a)));
   } else if (use_nav) {
@@ -380,7 +380,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     LiveNavOptions nopt;
     if (a.has("nav-stale")) nopt.stale_after_s = parse_real("nav-stale", a.get("nav-stale"));
     if (!(nopt.stale_after_s > 0)) usage_error("--nav-stale: expected seconds > 0");
-    setup.live_nav = std::make_unique<LiveNav>(*rig, boom_dims, parts.receiver.receptacle_m, ins[0], ins[1], nopt);
+    setup.live_nav = std::make_unique<LiveNav>(*rig, boom_dims, parts.models.receptacle_m, ins[0], ins[1], nopt);
     std::vector<TimestampNs> offsets;
     if (nav_sim) {
       offsets = info.sim->scenario.sensors.cameras.clock_offset_ns;

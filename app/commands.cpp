@@ -165,8 +165,9 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   const std::size_t expected_pairs = files->expected_pairs(opened.options.pairing.tolerance_ns);
   const std::size_t frame_count = files->entries().size();
 
-  const ReceiverSetup receiver = receiver_setup(rig);
-  options.receiver_model = receiver.model;
+  const RigModels receiver = unwrap(load_rig_models(rig));
+  options.receiver_model = receiver.receiver_model;
+  if (receiver.boom_model) options.boom_model = receiver.boom_model;
   std::unique_ptr<PoseProvider> poses;
   // The scene files' t_ns for stats.csv (folders only: there a pair's t_ns is its index).
   std::vector<std::optional<TimestampNs>> scene_t_ns;
@@ -212,7 +213,7 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
 
   PipelineParts parts;
   parts.rig = rig;
-  parts.receiver = receiver;
+  parts.models = receiver;
   parts.source_info = opened;
   parts.poses = std::move(poses);
   parts.augment = options;
@@ -319,7 +320,7 @@ Expected<ParsedArgs> parse_args(const std::vector<std::string>& args, const std:
     const auto eq = arg.find('=');
     const std::string name = arg.substr(2, eq == std::string::npos ? std::string::npos : eq - 2);
     const OptionSpec* spec = find(name);
-    if (!spec) return make_error("unknown option '--", name, "' (see --help)");
+    if (!spec) return make_error("unknown option '--", name, "'");
     if (p.has(name)) return make_error("option '--", name, "' given twice");
     std::string value;
     if (eq != std::string::npos) {

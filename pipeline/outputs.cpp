@@ -16,14 +16,31 @@ Status write_png(const fs::path& path, const Image& image) {
 }
 }  // namespace
 
-ReceiverSetup receiver_setup(const Rig& rig) {
-  ReceiverSetup r;
+Expected<RigModels> load_rig_models(const Rig& rig) {
+  RigModels r;
   if (rig.receiver.model.path.empty()) {
-    r.model = std::make_shared<const Model>(make_builtin_receiver(&r.receptacle_m));
+    r.receiver_model = std::make_shared<const Model>(make_builtin_receiver(&r.receptacle_m));
   } else {
+    auto m = load_model(rig.receiver.model);
+    if (!m) return make_error("receiver model: ", m.error().message);
+    r.receiver_model = std::make_shared<const Model>(std::move(*m));
     r.receptacle_m = rig.receiver.receptacle_m;
   }
+  if (!rig.boom.model.path.empty()) {
+    auto m = load_model(rig.boom.model);
+    if (!m) return make_error("boom model: ", m.error().message);
+    auto boom = std::make_shared<BoomModel>();
+    boom->fixed = std::move(*m);  // a user boom is one rigid part (no telescope), as the Augmenter has it
+    r.boom_model = std::move(boom);
+  }
   return r;
+}
+
+Eigen::Vector3d receptacle_of(const Rig& rig) {
+  if (!rig.receiver.model.path.empty()) return rig.receiver.receptacle_m;
+  Eigen::Vector3d receptacle_m;
+  (void)make_builtin_receiver(&receptacle_m);
+  return receptacle_m;
 }
 
 Status write_frame_images(const fs::path& out, const FrameNames& n, const StereoFrame& raw, const StereoResult& r) {

@@ -1,6 +1,6 @@
 // What the pipeline's file sinks write, shared with the batch commands: the per-frame images
 // (augmented, masks, visualisations: docs/CLI.md gives the layout), stats.csv, and the recorder's
-// FrameRecord made from an augmented frame. Also the receiver model a rig asks for.
+// FrameRecord made from an augmented frame. Also the models a rig asks for, loaded once.
 #pragma once
 
 #include <filesystem>
@@ -20,13 +20,18 @@
 
 namespace augrig::pipeline {
 
-// The receiver model and where its receptacle is: the built-in model knows its own receptacle;
-// a model file relies on the rig's receiver.receptacle_m.
-struct ReceiverSetup {
-  std::shared_ptr<const Model> model;  // null: let the Augmenter load the rig's file
+// The rig's models, loaded once before anything is opened, so that a model file that cannot be
+// read fails the command before a camera, a recording or a window is touched (and the augmenter
+// does not load it again). The built-in receiver knows its own receptacle; a model file relies on
+// the rig's receiver.receptacle_m.
+struct RigModels {
+  std::shared_ptr<const Model> receiver_model;  // null: let the Augmenter load the rig's file
+  std::shared_ptr<const BoomModel> boom_model;  // null: the Augmenter's built-in boom
   Eigen::Vector3d receptacle_m = Eigen::Vector3d::Zero();
 };
-ReceiverSetup receiver_setup(const Rig& rig);
+Expected<RigModels> load_rig_models(const Rig& rig);
+// Only where the receptacle is (no model file read).
+Eigen::Vector3d receptacle_of(const Rig& rig);
 
 // Per-frame file names: left/right keep their own stems, the visualisations use the left one.
 struct FrameNames {

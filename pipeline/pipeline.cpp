@@ -171,7 +171,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   State s;
   PipelineReport& rep = s.report;
   s.recording_on = p.recorder != nullptr;
-  BoomStage boom(p.rig, p.receiver.receptacle_m, p.boom, p.boom_dims);
+  BoomStage boom(p.rig, p.models.receptacle_m, p.boom, p.boom_dims);
   // Without a boom of the user's, tracking is the default whenever the poses carry no boom of their
   // own; a pose source with a boom (a scene, a recording) keeps it until the user says otherwise.
   bool boom_default_track = !p.boom;
@@ -181,7 +181,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   auto gl = create_gl_context(GlBackend::kEglHeadless);
   if (!gl) return make_error("cannot create an OpenGL context (EGL headless): ", gl.error().message);
   AugmentOptions aug_options = p.augment;
-  aug_options.receiver_model = p.receiver.model;
+  aug_options.receiver_model = p.models.receiver_model;
+  if (p.models.boom_model) aug_options.boom_model = p.models.boom_model;
   aug_options.augmented_output = AugmentedOutput::kChangedBox;
   auto augmenter_or = Augmenter::create(p.rig, aug_options);
   if (!augmenter_or) return augmenter_or.error();

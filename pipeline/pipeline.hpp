@@ -128,7 +128,7 @@ struct FrameFiles {
 // Everything a pipeline is made of. The source (started or not), the poses and the rig are required.
 struct PipelineParts {
   Rig rig;
-  ReceiverSetup receiver;
+  RigModels models;  // loaded before anything was opened (load_rig_models)
   OpenedSourceInfo source_info;          // what the source URI opened into (live, sim clock, ...)
   std::unique_ptr<StereoSource> source;  // started; or:
   // a source run() starts once the augmenter is ready: cameras capture from the moment they are

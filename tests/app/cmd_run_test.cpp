@@ -646,6 +646,28 @@ TEST(CmdRun, FrameSizeNotTheRigsFailsAtOnce) {
   EXPECT_FALSE(contains(out, "stereo frames augmented")) << out;
 }
 
+// A model file that cannot be read fails the run before anything is opened or created: no
+// recording folder is left behind to be refused by the next run without --overwrite.
+TEST(CmdRun, UnreadableModelFailsBeforeTheRecordingIsCreated) {
+  const std::string dir = output_dir("cmd_run_bad_model");
+  std::ofstream(dir + "/broken.glb") << "not a glTF file";
+  for (const char* part : {"boom", "receiver"}) {
+    Rig rig = Rig::paper_default();
+    (std::string(part) == "boom" ? rig.boom.model : rig.receiver.model).path = dir + "/broken.glb";
+    const std::string rig_file = dir + "/" + part + ".yaml";
+    std::ofstream(rig_file) << rig_to_yaml(rig);
+    const std::string rec = dir + "/rec_" + part;
+    std::string out;
+    EXPECT_EQ(augrig("run --source 'sim://demo?rate=0&every=30' --rig " + rig_file + " --headless --record " + rec,
+                     &out),
+              1)
+        << out;
+    EXPECT_TRUE(contains(out, std::string(part) + " model: ")) << out;
+    EXPECT_TRUE(contains(out, dir + "/broken.glb")) << out;
+    EXPECT_FALSE(fs::exists(rec)) << part << ": " << out;
+  }
+}
+
 TEST(CmdRun, BadSourcesAndFlagsSayWhatIsWrong) {
   struct Case {
     std::string args;

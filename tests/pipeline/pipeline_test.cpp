@@ -35,7 +35,7 @@ PipelineParts parts_for(const std::string& uri) {
     p.rig = *rig;
     p.poses = recorded_poses(*rig);
   }
-  p.receiver = receiver_setup(p.rig);
+  p.models = *load_rig_models(p.rig);
   p.source_info = *opened;
   auto stereo = start_stereo(std::move(*opened));
   EXPECT_TRUE(stereo) << stereo.error().message;
