@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/clock.hpp"
+#include "core/thread_name.hpp"
 
 namespace augrig::recorder {
 
@@ -37,7 +38,15 @@ int cameras_with_images(const FrameRecord& r) {
 
 }  // namespace
 
-ReplaySource::~ReplaySource() = default;
+ReplaySource::~ReplaySource() {
+  {
+    std::lock_guard lk(mu_);
+    stopping_ = true;
+  }
+  room_cv_.notify_all();
+  cv_.notify_all();
+  if (decoder_.joinable()) decoder_.join();
+}
 
 Expected<std::unique_ptr<ReplaySource>> ReplaySource::open(const std::string& uri_or_dir,
                                                            const ReplayOptions& options) {
@@ -95,7 +104,63 @@ Expected<std::unique_ptr<ReplaySource>> ReplaySource::open(const std::string& ur
     s->start_ = options.start_frame;
   }
   s->cursor_ = s->start_;
+  if (options.read_ahead > 0) {
+    // The read-ahead thread reads with a connection of its own (a RecordingReader is one thread's).
+    auto second = RecordingReader::open(path);
+    if (!second) return make_error(where, strip_function(second.error().message));
+    s->decode_reader_ = std::move(*second);
+  }
   return s;
+}
+
+std::size_t ReplaySource::depth() const {
+  // A paced, stepped or paused replay uses one stereo frame at a time: only the next is decoded.
+  return options_.mode == ReplayMode::kFast && !paused_ ? options_.read_ahead : 1;
+}
+
+void ReplaySource::load_next(std::unique_lock<std::mutex>& lk, const RecordingReader& reader) {
+  if (cursor_ >= t_key_ns_.size()) {
+    if ((options_.passes == 0 || pass_ + 1 < options_.passes) && start_ < t_key_ns_.size()) {
+      cursor_ = start_;
+      ++pass_;
+    } else {
+      exhausted_ = true;  // the last pass is loaded (or the recording is empty)
+      cv_.notify_all();
+      return;
+    }
+  }
+  Loaded l;
+  l.index = cursor_;
+  l.pass = pass_;
+  const std::uint64_t gen = seek_gen_;
+  const unsigned parts = options_.parts;
+  const bool keep_blobs = options_.keep_raw_blobs;
+  lk.unlock();  // decoding takes a while
+  auto rec = reader.read_frame(l.index, parts, keep_blobs ? &l.blobs : nullptr);
+  lk.lock();
+  if (gen != seek_gen_) return;  // a seek came in meanwhile: it moved cursor_, this frame is not wanted
+  cursor_ = l.index + 1;
+  if (rec) {
+    if (cameras_with_images(*rec) == 0) return;  // nothing to emit (not written by the Recorder)
+    l.record = std::move(*rec);
+  } else {
+    l.error = make_error("recorder::ReplaySource::read(): ", strip_function(rec.error().message),
+                         "; frame skipped, replay goes on with frame ", l.index + 1);
+  }
+  ready_.push_back(std::move(l));
+  cv_.notify_all();
+}
+
+void ReplaySource::decode_loop() {
+  set_thread_name("augrig-replay");
+  std::unique_lock lk(mu_);
+  for (;;) {
+    room_cv_.wait(lk, [&] { return stopping_ || (!exhausted_ && ready_.size() < depth()); });
+    if (stopping_) return;
+    const double cpu0 = thread_cpu_ms();
+    load_next(lk, *decode_reader_);
+    read_ahead_cpu_us_.fetch_add(static_cast<std::uint64_t>(std::max(0.0, thread_cpu_ms() - cpu0) * 1e3));
+  }
 }
 
 std::string ReplaySource::uri() const {
@@ -121,6 +186,7 @@ void ReplaySource::set_paused(bool paused) {
     paused_ = paused;
   }
   cv_.notify_all();
+  room_cv_.notify_all();  // the read-ahead depth follows the pause
 }
 
 Status ReplaySource::set_rate(double rate) {
@@ -133,12 +199,18 @@ Status ReplaySource::set_rate(double rate) {
     anchored_ = false;
   }
   cv_.notify_all();
+  room_cv_.notify_all();  // the read-ahead depth follows the mode
   return {};
 }
 
 double ReplaySource::rate() const {
   std::lock_guard lk(mu_);
   return options_.mode == ReplayMode::kRealRate ? options_.rate : 0.0;
+}
+
+std::size_t ReplaySource::frames_read_ahead() const {
+  std::lock_guard lk(mu_);
+  return ready_.size();
 }
 
 bool ReplaySource::paused() const {
@@ -154,13 +226,15 @@ Status ReplaySource::seek_frame(std::size_t i) {
   {
     std::lock_guard lk(mu_);
     cursor_ = i;
+    pass_ = emitted_pass_;  // the read-ahead may have begun the next pass already
     ++seek_gen_;
-    have_pending_ = false;
-    pending_error_.reset();
+    exhausted_ = false;
+    ready_.clear();  // what was read ahead is passed over: the next stereo frame read is frame i
     right_pending_ = false;
     anchored_ = false;
   }
   cv_.notify_all();
+  room_cv_.notify_all();
   return {};
 }
 
@@ -178,6 +252,7 @@ Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds tim
   // Very long timeouts are waited in slices of a day (no overflow of the time point).
   const auto deadline = start + std::clamp<std::chrono::nanoseconds>(timeout, std::chrono::nanoseconds(0),
                                                                      std::chrono::hours(24));
+  if (decode_reader_ && !decoder_.joinable()) decoder_ = std::thread([this] { decode_loop(); });
   std::unique_lock lk(mu_);
 
   // Waits until `tp` or the deadline, whichever comes first, or until a control call wakes it.
@@ -210,43 +285,18 @@ Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds tim
       return ReadStatus::kFrame;
     }
 
-    // 2. Load the next stereo frame (without the lock: decoding takes a while).
-    if (!have_pending_) {
-      if (cursor_ >= t_key_ns_.size()) {
-        if (options_.passes == 0 || pass_ + 1 < options_.passes) {
-          if (start_ >= t_key_ns_.size()) return ReadStatus::kEndOfStream;  // an empty recording
-          cursor_ = start_;
-          ++pass_;
-          anchored_ = false;
-        } else {
-          return ReadStatus::kEndOfStream;
-        }
-      }
-      const std::size_t i = cursor_;
-      const std::uint64_t gen = seek_gen_;
-      const int pass = pass_;
-      lk.unlock();
-      std::array<StoredRawBlob, 2> blobs;
-      auto rec = reader_->read_frame(i, options_.parts, options_.keep_raw_blobs ? &blobs : nullptr);
-      lk.lock();
-      if (gen != seek_gen_) continue;  // a seek came in meanwhile
-      cursor_ = i + 1;
-      pending_index_ = i;
-      pending_pass_ = pass;
-      have_pending_ = true;
-      if (rec) {
-        pending_ = std::move(*rec);
-        pending_blobs_ = std::move(blobs);
-        pending_error_.reset();
-        if (cameras_with_images(pending_) == 0) {  // nothing to emit (not written by the Recorder)
-          have_pending_ = false;
-          continue;
-        }
-      } else {
-        pending_error_ = make_error("recorder::ReplaySource::read(): ", strip_function(rec.error().message),
-                                    "; frame skipped, replay goes on with frame ", i + 1);
-      }
+    // 2. The next stereo frame: loaded by the read-ahead thread, or here. Loading is work, not
+    // waiting: as without read-ahead, read() waits for it whatever its timeout (the read-ahead
+    // thread is never idle while the queue is empty and frames remain).
+    if (ready_.empty()) {
+      if (exhausted_) return ReadStatus::kEndOfStream;
+      if (decode_reader_)
+        cv_.wait(lk);
+      else
+        load_next(lk, *reader_);
+      continue;
     }
+    Loaded& next = ready_.front();
 
     // 3. Gates: pause and step, then real-rate timing, both on the stereo frame's first Frame.
     const bool gated = options_.mode == ReplayMode::kStep || paused_;
@@ -254,27 +304,29 @@ Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds tim
       if (!wait(SteadyClock::time_point::max())) return ReadStatus::kTimeout;
       continue;
     }
-    if (pending_error_) {
+    if (next.error) {
       if (gated) --permits_;
-      have_pending_ = false;
       damaged_.fetch_add(1);
       dropped_.fetch_add(2);
-      Error e = std::move(*pending_error_);
-      pending_error_.reset();
+      Error e = std::move(*next.error);
+      ready_.pop_front();
+      room_cv_.notify_all();
       return e;
     }
-    const Frame& first = pending_.raw.left.image.empty() ? pending_.raw.right : pending_.raw.left;
+    const Frame& first = next.record.raw.left.image.empty() ? next.record.raw.right : next.record.raw.left;
     if (!gated && options_.mode == ReplayMode::kRealRate) {
-      if (!anchored_) {
+      if (!anchored_ || anchor_pass_ != next.pass) {  // also at the start of every loop pass
         anchored_ = true;
         anchor_wall_ = SteadyClock::now();
         anchor_t_ns_ = first.t_ns;
+        anchor_pass_ = next.pass;
       }
       const auto when = due(first.t_ns);
       const auto now = SteadyClock::now();
       if (options_.drop_late && now - when > options_.late_tolerance) {
-        dropped_.fetch_add(static_cast<std::uint64_t>(cameras_with_images(pending_)));
-        have_pending_ = false;
+        dropped_.fetch_add(static_cast<std::uint64_t>(cameras_with_images(next.record)));
+        ready_.pop_front();
+        room_cv_.notify_all();
         continue;
       }
       if (now < when) {
@@ -289,15 +341,17 @@ Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds tim
     released_by_step_ = gated;
 
     // 4. Emit the first Frame; the right one follows on the next read().
-    current_ = std::move(pending_);
-    pending_ = FrameRecord{};
-    current_index_ = pending_index_;
-    current_pass_ = pending_pass_;
-    have_pending_ = false;
+    current_ = std::move(next.record);
+    current_index_ = next.index;
+    current_pass_ = next.pass;
+    emitted_pass_ = next.pass;
+    std::array<StoredRawBlob, 2> blobs = std::move(next.blobs);
+    ready_.pop_front();
+    room_cv_.notify_all();
     {
       // Both Frames carry the recorded frame's scene (without images) for consumers downstream.
       auto att = std::make_shared<RecordedFrame>();
-      att->index = current_index_.value_or(0);
+      att->index = *current_index_;
       att->pass = current_pass_;
       if (options_.mode == ReplayMode::kRealRate && !gated) att->released_host_ns = monotonic_now_ns();
       FrameRecord& m = att->record;
@@ -312,8 +366,7 @@ Expected<ReadStatus> ReplaySource::read(Frame& out, std::chrono::nanoseconds tim
       m.sigma_att_deg = current_.sigma_att_deg;
       m.boom = current_.boom;
       m.stats = current_.stats;
-      att->raw_blobs = std::move(pending_blobs_);
-      pending_blobs_ = {};
+      att->raw_blobs = std::move(blobs);
       current_.raw.left.attachment = att;
       current_.raw.right.attachment = std::move(att);
     }

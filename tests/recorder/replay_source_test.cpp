@@ -4,9 +4,11 @@
 #include "recorder/replay_source.hpp"
 
 #include <chrono>
+#include <condition_variable>
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <mutex>
 #include <random>
 #include <thread>
 
@@ -479,6 +481,402 @@ TEST(ReplaySource, DamagedFrameIsAnErrorNamingItAndReplayGoesOn) {
   EXPECT_NE(errors[0].find("replay goes on with frame 4"), std::string::npos) << errors[0];
   EXPECT_EQ(s->damaged_frames(), 1u);
   EXPECT_EQ(s->frames_dropped(), 2u);
+}
+
+// ---- Read-ahead (ReplayOptions::read_ahead): a decode thread fills a bounded queue ----
+
+// Waits (at most 5 s) until `n` stereo frames are decoded ahead; false if that never happens.
+bool wait_read_ahead(const ReplaySource& s, std::size_t n) {
+  const auto until = SteadyClock::now() + 5s;
+  while (s.frames_read_ahead() < n) {
+    if (SteadyClock::now() > until) return false;
+    std::this_thread::sleep_for(1ms);
+  }
+  return true;
+}
+
+// Damages frame `pair_sequence`'s right raw blob (one byte changed: its checksum fails).
+void damage(const std::string& dir, int pair_sequence) {
+  auto d = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+  ASSERT_TRUE(d);
+  // The byte flipped (set to 0 it may be 0 already).
+  ASSERT_TRUE(d->exec("UPDATE frames SET right_raw = CAST(substr(right_raw, 1, 3000) || "
+                      "CASE WHEN substr(right_raw, 3001, 1) = x'00' THEN x'01' ELSE x'00' END || "
+                      "substr(right_raw, 3002) AS BLOB) WHERE pair_sequence = " +
+                      std::to_string(pair_sequence)));
+}
+
+TEST(ReplaySource, ReadAheadIsBoundedAndFollowsTheMode) {
+  ReplayOptions o;
+  o.read_ahead = 3;
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  EXPECT_EQ(s->frames_read_ahead(), 0u) << "nothing is read before the first read()";
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);
+  ASSERT_TRUE(wait_read_ahead(*s, 3)) << "frames 1, 2 and 3 are decoded while the consumer works";
+  std::this_thread::sleep_for(50ms);
+  EXPECT_EQ(s->frames_read_ahead(), 3u) << "and no more: the queue is bounded";
+  EXPECT_EQ(read_index(*s, CameraId::kRight), 0u);
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 1u);
+  ASSERT_TRUE(wait_read_ahead(*s, 3));
+  EXPECT_EQ(s->frames_read_ahead(), 3u);
+
+  // Stepped (and paced, and paused) replay keeps only the next stereo frame decoded.
+  o.mode = ReplayMode::kStep;
+  s = open_or_fail(recording10(), o);
+  s->step();
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);
+  ASSERT_TRUE(wait_read_ahead(*s, 1));
+  std::this_thread::sleep_for(50ms);
+  EXPECT_EQ(s->frames_read_ahead(), 1u);
+
+  // read_ahead = 0: no thread, read() decodes each frame itself (nothing waits decoded).
+  o = {};
+  o.read_ahead = 0;
+  s = open_or_fail(recording10(), o);
+  for (std::uint64_t i = 0; i < 10; ++i) {
+    for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+      Frame f;
+      ASSERT_EQ(*s->read(f, 0ns), ReadStatus::kFrame);
+      expect_same_frame(f, frame(i).raw[id], "without read-ahead");
+    }
+    std::this_thread::sleep_for(1ms);
+    EXPECT_EQ(s->frames_read_ahead(), 0u);
+  }
+  Frame f;
+  EXPECT_EQ(*s->read(f, 0ns), ReadStatus::kEndOfStream);
+  EXPECT_EQ(s->read_ahead_cpu_ms(), 0.0);
+}
+
+TEST(ReplaySource, SeekDiscardsWhatWasReadAheadAndTheSoughtFrameComesNext) {
+  ReplayOptions o;
+  o.read_ahead = 4;
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);
+  ASSERT_TRUE(wait_read_ahead(*s, 4));  // frames 1 to 4 are waiting
+  ASSERT_TRUE(s->seek_frame(7));
+  EXPECT_EQ(s->frames_read_ahead(), 0u) << "the seek empties the queue";
+  Frame f;
+  ASSERT_EQ(*s->read(f, 0ns), ReadStatus::kFrame);
+  EXPECT_EQ(s->current_index(), 7u);
+  expect_same_frame(f, frame(7).raw.left, "the sought frame, left");
+  EXPECT_EQ(read_index(*s, CameraId::kRight), 7u);
+  ASSERT_TRUE(wait_read_ahead(*s, 2));  // 8 and 9
+  ASSERT_TRUE(s->seek_frame(2));        // back, with 8 and 9 read ahead
+  std::vector<std::size_t> rest;
+  for (;;) {
+    auto st = s->read(f, 1s);
+    ASSERT_TRUE(st);
+    if (*st == ReadStatus::kEndOfStream) break;
+    expect_same_frame(f, frame(*s->current_index()).raw[f.camera], "after the seek back");
+    if (f.camera == CameraId::kLeft) rest.push_back(*s->current_index());
+  }
+  EXPECT_EQ(rest, (std::vector<std::size_t>{2, 3, 4, 5, 6, 7, 8, 9}));
+  // After the end, a seek plays on from the sought frame.
+  ASSERT_TRUE(s->seek_frame(9));
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 9u);
+  EXPECT_EQ(s->frames_dropped(), 0u) << "frames passed over by a seek are not dropped";
+
+  // Seeks that land while the decode thread is in the middle of a frame (random moments): the
+  // next read() is always the sought frame, never one loaded before the seek.
+  std::mt19937 rng(7);
+  for (int k = 0; k < 200; ++k) {
+    const std::size_t want = rng() % 10;
+    std::this_thread::sleep_for(std::chrono::microseconds(rng() % 300));
+    ASSERT_TRUE(s->seek_frame(want));
+    ASSERT_EQ(*s->read(f, 0ns), ReadStatus::kFrame);
+    ASSERT_EQ(s->current_index(), want) << "seek " << k;
+    ASSERT_EQ(f.camera, CameraId::kLeft);
+    ASSERT_EQ(f.sequence, 1000 + want);
+    if (rng() % 2) {
+      ASSERT_EQ(*s->read(f, 0ns), ReadStatus::kFrame);  // its right Frame
+      ASSERT_EQ(f.sequence, 2000 + want);
+    }
+  }
+}
+
+// Seeks from another thread while the reading thread reads and the decode thread reads ahead:
+// after each seek, the first left Frame the reader gets is the sought one (the controller waits
+// for it before the next seek), and every Frame is the recorded one.
+TEST(ReplaySource, SeeksFromAnotherThreadNeverLetAStaleFrameThrough) {
+  ReplayOptions o;
+  o.read_ahead = 3;
+  o.passes = 0;  // forever: the reader never runs out
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  std::mutex m;
+  std::condition_variable cv;
+  std::optional<std::size_t> sought;  // set by the controller, cleared by the reader when seen
+  std::uint64_t seeks_done = 0;       // seek_frame() calls returned (under m)
+  bool done = false;
+  int mismatches = 0, seeks_seen = 0;
+  std::thread reader([&] {
+    Frame f;
+    while (true) {
+      std::uint64_t before = 0;
+      {
+        std::lock_guard lk(m);
+        if (done) return;
+        before = seeks_done;
+      }
+      auto st = s->read(f, 100ms);
+      if (!st || *st != ReadStatus::kFrame) continue;
+      const std::size_t i = *s->current_index();
+      if (f.sequence != (f.camera == CameraId::kLeft ? 1000 : 2000) + i) ++mismatches;
+      std::lock_guard lk(m);
+      if (!sought) continue;
+      const bool is_sought = f.camera == CameraId::kLeft && i == *sought;
+      if (before == seeks_done) {
+        // A read() that began after the seek returned: it must be the sought frame's left Frame.
+        if (!is_sought) ++mismatches;
+      } else if (!is_sought) {
+        continue;  // a read() that overlapped the seek may come from before it
+      }
+      sought.reset();
+      ++seeks_seen;
+      cv.notify_all();
+    }
+  });
+  std::mt19937 rng(11);
+  for (int k = 0; k < 100; ++k) {
+    std::unique_lock lk(m);
+    const std::size_t want = rng() % 10;
+    sought = want;
+    EXPECT_TRUE(s->seek_frame(want));
+    ++seeks_done;
+    if (!cv.wait_for(lk, 5s, [&] { return !sought; })) {
+      ADD_FAILURE() << "seek " << k << " never arrived";
+      break;
+    }
+  }
+  {
+    std::lock_guard lk(m);
+    done = true;
+  }
+  reader.join();
+  EXPECT_EQ(seeks_seen, 100);
+  EXPECT_EQ(mismatches, 0);
+}
+
+TEST(ReplaySource, PauseAndStepWithFramesReadAhead) {
+  ReplayOptions o;
+  o.read_ahead = 4;
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);
+  ASSERT_TRUE(wait_read_ahead(*s, 4));
+  s->set_paused(true);
+  EXPECT_EQ(read_index(*s, CameraId::kRight), 0u);
+  Frame f;
+  auto st = s->read(f, 20ms);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(*st, ReadStatus::kTimeout) << "paused: frames decoded ahead are not released";
+  s->step();
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 1u);
+  EXPECT_EQ(read_index(*s, CameraId::kRight), 1u);
+  st = s->read(f, 0ns);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(*st, ReadStatus::kTimeout) << "one step, one stereo frame";
+  // A seek while paused, then a step: the sought frame, not the next one read ahead.
+  ASSERT_TRUE(s->seek_frame(6));
+  st = s->read(f, 0ns);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(*st, ReadStatus::kTimeout);
+  s->step();
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 6u);
+  EXPECT_EQ(read_index(*s, CameraId::kRight), 6u);
+  // A step from another thread wakes a read() that waits.
+  auto stepper = std::async(std::launch::async, [&] {
+    std::this_thread::sleep_for(30ms);
+    s->step();
+  });
+  st = s->read(f, 10s);
+  stepper.get();
+  ASSERT_TRUE(st && *st == ReadStatus::kFrame);
+  EXPECT_EQ(s->current_index(), 7u);
+  s->set_paused(false);
+  std::vector<std::size_t> rest;
+  for (;;) {
+    st = s->read(f, 1s);
+    ASSERT_TRUE(st);
+    if (*st == ReadStatus::kEndOfStream) break;
+    if (f.camera == CameraId::kLeft) rest.push_back(*s->current_index());
+  }
+  EXPECT_EQ(rest, (std::vector<std::size_t>{8, 9}));
+  EXPECT_EQ(s->frames_dropped(), 0u);
+}
+
+TEST(ReplaySource, LoopWithReadAheadAcrossThePasses) {
+  ReplayOptions o;
+  o.start_frame = 7;
+  o.passes = 3;
+  o.read_ahead = 4;  // deeper than a pass: the queue holds frames of the next pass
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  std::vector<std::pair<int, std::size_t>> seen;
+  Frame f;
+  bool sought = false;
+  for (;;) {
+    auto st = s->read(f, 1s);
+    ASSERT_TRUE(st);
+    if (*st == ReadStatus::kEndOfStream) break;
+    expect_same_frame(f, frame(*s->current_index()).raw[f.camera], "loop with read-ahead");
+    if (f.camera != CameraId::kLeft) continue;
+    seen.emplace_back(s->pass(), *s->current_index());
+    if (!sought && s->pass() == 1 && *s->current_index() == 7) {
+      // Pass 1's frame 7 is out and frames of pass 2 are decoded; a seek stays in pass 1.
+      ASSERT_TRUE(wait_read_ahead(*s, 4));
+      ASSERT_TRUE(s->seek_frame(8));
+      sought = true;
+    }
+    std::this_thread::sleep_for(2ms);
+  }
+  const std::vector<std::pair<int, std::size_t>> want = {{0, 7}, {0, 8}, {0, 9}, {1, 7}, {1, 8},
+                                                         {1, 9}, {2, 7}, {2, 8}, {2, 9}};
+  EXPECT_EQ(seen, want);
+  EXPECT_EQ(s->frames_dropped(), 0u);
+}
+
+// Real rate anchors afresh at every pass: each pass takes the recorded time, even though the next
+// pass's frames were decoded while the last one played.
+TEST(ReplaySource, RealRateLoopAnchorsEachPass) {
+  ReplayOptions o;
+  o.mode = ReplayMode::kRealRate;
+  o.start_frame = 6;  // frames 6..9: 60 ms a pass
+  o.passes = 2;
+  o.read_ahead = 4;
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  Frame f;
+  std::vector<std::pair<int, SteadyClock::time_point>> lefts;
+  for (;;) {
+    auto st = s->read(f, 1s);
+    ASSERT_TRUE(st);
+    if (*st == ReadStatus::kEndOfStream) break;
+    if (*st == ReadStatus::kFrame && f.camera == CameraId::kLeft) lefts.emplace_back(s->pass(), SteadyClock::now());
+  }
+  ASSERT_EQ(lefts.size(), 8u);
+  const double pass0 = std::chrono::duration<double>(lefts[3].second - lefts[0].second).count();
+  const double pass1 = std::chrono::duration<double>(lefts[7].second - lefts[4].second).count();
+  EXPECT_GE(pass0, 0.059);
+  EXPECT_GE(pass1, 0.059) << "the second pass is paced from its own first frame";
+  EXPECT_LT(pass1, 0.060 * 2 + 0.1);
+}
+
+TEST(ReplaySource, DamagedFrameReadAheadIsReportedInTurnAndCountedOnce) {
+  const std::string dir = make_recording("damaged_read_ahead", 8);
+  damage(dir, 3);
+  ReplayOptions o;
+  o.read_ahead = 4;
+  o.passes = 2;
+  auto s = open_or_fail(dir, o);
+  ASSERT_TRUE(s);
+  std::vector<std::string> order;  // "L<i>" per left Frame, "E<i>" per error
+  Frame f;
+  for (;;) {
+    auto st = s->read(f, 1s);
+    if (!st) {
+      order.push_back("E");
+      EXPECT_EQ(st.error().message.rfind("recorder::ReplaySource::read(): " + dir + "/recording.sqlite: frame 3: ", 0),
+                0u)
+          << st.error().message;
+      EXPECT_NE(st.error().message.find("replay goes on with frame 4"), std::string::npos) << st.error().message;
+      continue;
+    }
+    if (*st == ReadStatus::kEndOfStream) break;
+    expect_same_frame(f, frame(*s->current_index()).raw[f.camera], "around the damage");
+    if (f.camera == CameraId::kLeft) {
+      order.push_back(std::to_string(*s->current_index()));
+      if (*s->current_index() == 0) {
+        ASSERT_TRUE(wait_read_ahead(*s, 4));  // 1, 2, 3 (damaged), 4 waiting
+      }
+    }
+  }
+  const std::vector<std::string> want = {"0", "1", "2", "E", "4", "5", "6", "7",
+                                         "0", "1", "2", "E", "4", "5", "6", "7"};
+  EXPECT_EQ(order, want);
+  EXPECT_EQ(s->damaged_frames(), 2u) << "once per pass";
+  EXPECT_EQ(s->frames_dropped(), 4u);
+
+  // A damaged frame read ahead and then passed over by a seek is neither reported nor counted.
+  s = open_or_fail(dir, o);
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);
+  ASSERT_TRUE(wait_read_ahead(*s, 4));  // 1, 2, 3 (damaged), 4
+  ASSERT_TRUE(s->seek_frame(5));
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 5u);
+  EXPECT_EQ(s->damaged_frames(), 0u);
+  EXPECT_EQ(s->frames_dropped(), 0u);
+}
+
+// Every recorded Frame is emitted or counted in frames_dropped() once: fast, and real rate with
+// drop_late behind a slow consumer, with a damaged frame, with read-ahead.
+TEST(ReplaySource, FrameCountsAddUpWithReadAhead) {
+  const std::string dir = make_recording("counts_read_ahead", 10);
+  damage(dir, 6);
+  for (bool paced : {false, true}) {
+    ReplayOptions o;
+    o.read_ahead = 3;
+    o.passes = 2;
+    if (paced) {
+      o.mode = ReplayMode::kRealRate;
+      o.rate = 4.0;  // 5 ms between frames
+      o.drop_late = true;
+      o.late_tolerance = 2ms;
+    }
+    auto s = open_or_fail(dir, o);
+    ASSERT_TRUE(s);
+    std::uint64_t emitted = 0, errors = 0;
+    Frame f;
+    for (;;) {
+      auto st = s->read(f, 1s);
+      if (!st) {
+        ++errors;
+        continue;
+      }
+      if (*st == ReadStatus::kEndOfStream) break;
+      if (*st != ReadStatus::kFrame) continue;
+      ++emitted;
+      if (paced && f.camera == CameraId::kLeft) std::this_thread::sleep_for(12ms);  // too slow
+    }
+    EXPECT_EQ(errors, 2u) << "paced " << paced;
+    EXPECT_EQ(s->damaged_frames(), 2u);
+    EXPECT_EQ(emitted + s->frames_dropped(), 40u) << "paced " << paced << ": emitted " << emitted;
+    if (paced) {
+      EXPECT_LT(emitted, 30u) << "the slow consumer lost frames";
+    } else {
+      EXPECT_EQ(emitted, 36u);
+    }
+  }
+}
+
+// The destructor ends the decode thread while it waits for room (a consumer that stopped reading),
+// while it decodes, and when nothing was read at all.
+TEST(ReplaySource, DestructionWhileTheDecodeThreadWaitsForRoom) {
+  for (int k = 0; k < 20; ++k) {
+    ReplayOptions o;
+    o.read_ahead = 2;
+    auto s = open_or_fail(recording10(), o);
+    ASSERT_TRUE(s);
+    EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);
+    if (k == 0) {
+      ASSERT_TRUE(wait_read_ahead(*s, 2));  // the queue is full: the thread waits for room
+      std::this_thread::sleep_for(20ms);
+    } else {
+      std::this_thread::sleep_for(std::chrono::microseconds(50 * k));  // mid-decode, some of them
+    }
+    const auto t0 = SteadyClock::now();
+    s.reset();
+    EXPECT_LT(SteadyClock::now() - t0, 1s) << "round " << k;
+  }
+  // Destroyed from another thread than the one that read (as a StereoSource's owner does).
+  auto s = open_or_fail(recording10());
+  EXPECT_EQ(read_index(*s, CameraId::kLeft), 0u);
+  std::thread([&] { s.reset(); }).join();
+  EXPECT_FALSE(s);
+  // Never read: no thread was started.
+  s = open_or_fail(recording10());
+  s.reset();
 }
 
 TEST(ReplaySource, OpenErrorsNameThePath) {
