@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <condition_variable>
 #include <cstring>
@@ -375,7 +376,7 @@ inline void put_sky(std::uint8_t* row, int x, const int* chan, const float* c) {
 // A run of n ground pixels of one row (x0 even), from the 16.16 texel coordinates (s, t) of its
 // first pixel stepped by (ds, dt) per pixel, and the woods, multiplier and haze terms, linear
 // along the run. Exactly put_ground(sample_tile()) per pixel but for the linear terms, which
-// are evaluated as first + i * step: with SSE2 four pixels at a time (the texel fetches stay
+// are stepped (SSE2: four pixels' values stepped by 4 x step; else first + i x step): with SSE2 four pixels at a time (the texel fetches stay
 // scalar), the filter in 16-bit lanes with lerp64's rounding and the shading in float with
 // put_ground's operations in its order, so every output format gets the same channel values.
 template <int kMode>
@@ -397,7 +398,9 @@ void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::ui
   __m128i tv = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(t)), mul(step, dt));
   const __m128i ds4 = _mm_set1_epi32(static_cast<int>(4u * ds)), dt4 = _mm_set1_epi32(static_cast<int>(4u * dt));
   const __m128 idx = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
-  auto lin = [&](float v, float d, int i) { return _mm_add_ps(_mm_set1_ps(v), _mm_mul_ps(_mm_add_ps(idx, _mm_set1_ps(static_cast<float>(i))), _mm_set1_ps(d))); };
+  auto lin = [&](float v, float d) { return _mm_add_ps(_mm_set1_ps(v), _mm_mul_ps(idx, _mm_set1_ps(d))); };
+  __m128 wv = lin(w, dw), kv = lin(k, dk), hv = lin(h, dh);
+  const __m128 dw4 = _mm_set1_ps(4.0f * dw), dk4 = _mm_set1_ps(4.0f * dk), dh4 = _mm_set1_ps(4.0f * dh);
   auto tiled = [&](__m128i x, __m128i y) {
     const __m128i tile = _mm_add_epi32(_mm_sll_epi32(_mm_srli_epi32(y, 2), row_shift), _mm_srli_epi32(x, 2));
     return _mm_or_si128(_mm_slli_epi32(tile, 4),
@@ -416,20 +419,30 @@ void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::ui
   const __m128 kwa = _mm_set1_ps(kWoodA), f0 = _mm_setzero_ps(), f1 = _mm_set1_ps(1.0f), f2 = _mm_set1_ps(2.0f),
                f3 = _mm_set1_ps(3.0f), fhalf = _mm_set1_ps(0.5f), f255 = _mm_set1_ps(255.0f);
   // One channel per lane: ch_even for pixels 0 and 2, ch_odd for 1 and 3.
-  auto channel = [&](__m128i v, __m128 a, __m128 sm, __m128 k1, __m128 hz, int ch_even, int ch_odd) {
-    const __m128i ce = _mm_and_si128(_mm_srl_epi32(v, _mm_cvtsi32_si128(8 * ch_even)), ff);
-    const __m128i co = _mm_and_si128(_mm_srl_epi32(v, _mm_cvtsi32_si128(8 * ch_odd)), ff);
-    const __m128i odd = _mm_setr_epi32(0, -1, 0, -1);
+  struct Channel {
+    __m128i shift_even, shift_odd;
+    __m128 base, slope, haze;
+  };
+  auto make_channel = [](int ch_even, int ch_odd) {
+    return Channel{_mm_cvtsi32_si128(8 * ch_even), _mm_cvtsi32_si128(8 * ch_odd),
+                   _mm_setr_ps(kWoodBase[ch_even], kWoodBase[ch_odd], kWoodBase[ch_even], kWoodBase[ch_odd]),
+                   _mm_setr_ps(kWoodSlope[ch_even], kWoodSlope[ch_odd], kWoodSlope[ch_even], kWoodSlope[ch_odd]),
+                   _mm_setr_ps(kHaze[ch_even], kHaze[ch_odd], kHaze[ch_even], kHaze[ch_odd])};
+  };
+  const __m128i odd = _mm_setr_epi32(0, -1, 0, -1);
+  auto channel = [&](__m128i v, __m128 a, __m128 sm, __m128 k1, __m128 hz, const Channel& ch) {
+    const __m128i ce = _mm_and_si128(_mm_srl_epi32(v, ch.shift_even), ff);
+    const __m128i co = _mm_and_si128(_mm_srl_epi32(v, ch.shift_odd), ff);
     const __m128 c = _mm_cvtepi32_ps(_mm_or_si128(_mm_andnot_si128(odd, ce), _mm_and_si128(odd, co)));
-    const __m128 base = _mm_setr_ps(kWoodBase[ch_even], kWoodBase[ch_odd], kWoodBase[ch_even], kWoodBase[ch_odd]);
-    const __m128 slope = _mm_setr_ps(kWoodSlope[ch_even], kWoodSlope[ch_odd], kWoodSlope[ch_even], kWoodSlope[ch_odd]);
-    const __m128 haze = _mm_setr_ps(kHaze[ch_even], kHaze[ch_odd], kHaze[ch_even], kHaze[ch_odd]);
+    const __m128 base = ch.base, slope = ch.slope, haze = ch.haze;
     const __m128 wood = _mm_add_ps(base, _mm_mul_ps(slope, a));
     const __m128 val =
         _mm_add_ps(_mm_mul_ps(_mm_add_ps(c, _mm_mul_ps(sm, _mm_sub_ps(wood, c))), k1), _mm_mul_ps(hz, haze));
     const __m128i q = _mm_cvttps_epi32(_mm_min_ps(_mm_add_ps(_mm_max_ps(val, f0), fhalf), f255));
     return _mm_packus_epi16(_mm_packs_epi32(q, q), q);  // 4 bytes in the low lane
   };
+  const Channel red = make_channel(0, 0), green = make_channel(1, 1), blue = make_channel(2, 2);
+  const Channel bayer = kMode == kModeBayer ? make_channel(chan[0], chan[1]) : red;  // chan is -1 but for Bayer
   for (int i = 0; i < n; i += 4) {
     const __m128i x0v = _mm_and_si128(_mm_srli_epi32(sv, 16), mask), y0v = _mm_and_si128(_mm_srli_epi32(tv, 16), mask);
     const __m128i x1v = _mm_and_si128(_mm_add_epi32(x0v, one), mask), y1v = _mm_and_si128(_mm_add_epi32(y0v, one), mask);
@@ -454,20 +467,21 @@ void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::ui
     sv = _mm_add_epi32(sv, ds4), tv = _mm_add_epi32(tv, dt4);
     // Shading, as put_ground: woods weight from the fine texture, then each channel.
     const __m128 av = _mm_cvtepi32_ps(_mm_srli_epi32(v, 24));
-    const __m128 z = _mm_min_ps(_mm_max_ps(_mm_add_ps(lin(w, dw, i), _mm_mul_ps(av, kwa)), f0), f1);
+    const __m128 z = _mm_min_ps(_mm_max_ps(_mm_add_ps(wv, _mm_mul_ps(av, kwa)), f0), f1);
     const __m128 sm = _mm_mul_ps(_mm_mul_ps(z, z), _mm_sub_ps(f3, _mm_mul_ps(f2, z)));
-    const __m128 k1 = lin(k, dk, i), hz = lin(h, dh, i);
+    const __m128 k1 = kv, hz = hv;
+    wv = _mm_add_ps(wv, dw4), kv = _mm_add_ps(kv, dk4), hv = _mm_add_ps(hv, dh4);
     const int m = std::min(4, n - i);
     if constexpr (kMode == kModeBayer) {
-      const int bytes = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, chan[0], chan[1]));
+      const int bytes = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, bayer));
       if (m == 4)
         std::memcpy(row + x0 + i, &bytes, 4);
       else
         for (int j = 0; j < m; ++j) row[x0 + i + j] = static_cast<std::uint8_t>(bytes >> (8 * j));
     } else {
-      const int r = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, 0, 0));
-      const int g = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, 1, 1));
-      const int b = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, 2, 2));
+      const int r = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, red));
+      const int g = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, green));
+      const int b = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, blue));
       for (int j = 0; j < m; ++j)
         put_rgb<kMode>(row, x0 + i + j, static_cast<std::uint8_t>(r >> (8 * j)), static_cast<std::uint8_t>(g >> (8 * j)),
                        static_cast<std::uint8_t>(b >> (8 * j)));
@@ -515,13 +529,46 @@ struct ReceiverMesh {
   bool cull = false;
 };
 
+// What shading a drawn triangle needs, relative to its first vertex: at a sample with weights b1,
+// b2 of p1 and p2, a quantity q is q0 + b1 (q1 - q0) + b2 (q2 - q0).
+struct TriShade {
+  float lit0[3] = {}, dlit1[3] = {}, dlit2[3] = {};  // per-vertex light (Gouraud)
+  float uv0[2] = {}, duv1[2] = {}, duv2[2] = {};
+  float albedo[3] = {};  // base colour, 0..255
+  const Pyramid* tex = nullptr;
+  int level = 0;  // texture mip level
+};
+
 struct DrawnTriangle {
   RasterTriangle rt;
-  std::uint32_t v[3];
-  int mesh = 0;
-  int level = 0;  // texture mip level
-  bool back = false;
+  TriShade shade;
 };
+
+std::uint64_t sample_texture(const Pyramid& p, int level, float u, float v);
+
+// n covered samples along a row from raw pixel x, whose edge functions are e0, e1, e2 at the
+// first and step by d0, d1, d2: only the Bayer site's channel, or all three, each the same
+// arithmetic in every format.
+template <int kMode>
+void shade_run(std::uint8_t* row, int x, int n, const int* chan, const TriShade& t, double e0, double e1, double e2,
+               double d0, double d1, double d2) {
+  for (int i = 0; i < n; ++i, ++x, e0 += d0, e1 += d1, e2 += d2) {
+    const double inv = 1.0 / (e0 + e1 + e2);
+    const auto b1 = static_cast<float>(e2 * inv), b2 = static_cast<float>(e0 * inv);
+    std::uint64_t g = 0;
+    if (t.tex)
+      g = sample_texture(*t.tex, t.level, t.uv0[0] + b1 * t.duv1[0] + b2 * t.duv2[0],
+                         t.uv0[1] + b1 * t.duv1[1] + b2 * t.duv2[1]);
+    auto value = [&](int c) {
+      const float albedo = t.tex ? t.albedo[c] * (static_cast<float>(lane(g, c)) * (1.0f / 255.0f)) : t.albedo[c];
+      return to_u8(albedo * (t.lit0[c] + b1 * t.dlit1[c] + b2 * t.dlit2[c]));
+    };
+    if constexpr (kMode == kModeBayer)
+      row[x] = value(chan[x & 1]);
+    else
+      put_rgb<kMode>(row, x, value(0), value(1), value(2));
+  }
+}
 
 class Bands {
  public:
@@ -660,6 +707,9 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   // (zero outside the last frame's box).
   std::vector<float> inv_z_;
   std::vector<std::uint32_t> ids_;
+  // One bit per sample, set where ids_ is: the scan and the clearing touch the covered samples
+  // only (a fraction of the receiver's box, whose id rows are mostly out of cache by then).
+  std::vector<std::uint64_t> covered_;
   std::vector<Eigen::Vector3d> verts_cam_;
   std::vector<Eigen::Vector3f> light_front_, light_back_;
   std::vector<std::size_t> vert_offset_;
@@ -774,6 +824,10 @@ Status CpuSceneRenderer::init(std::shared_ptr<const Model> receiver) {
   }
   inv_z_.assign(max_samples, 0.0f);
   ids_.assign(max_samples, 0u);
+  std::size_t max_words = 0;
+  for (const CameraTables& ct : cameras_)
+    max_words = std::max(max_words, static_cast<std::size_t>(ct.vp.height) * ((ct.vp.width + 63) / 64));
+  covered_.assign(max_words, 0u);
 
   gauss_.resize(65536);
   for (std::size_t i = 0; i < gauss_.size(); ++i)
@@ -957,6 +1011,7 @@ void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& ca
   const VirtualPinhole& vp = ct.vp;
   const SampleGrid grid{vp.fx, vp.fy, vp.cx, vp.cy, vp.width, vp.height, ct.near_m};
   const SampleBox all{0, 0, vp.width, vp.height};
+  const std::size_t words = (static_cast<std::size_t>(vp.width) + 63) / 64;  // covered_ per row
   tris_.clear();
   SampleBox box{vp.width, vp.height, 0, 0};
   RasterTriangle rt;
@@ -971,10 +1026,25 @@ void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& ca
       if (!rt.setup(grid, p0, p1, p2, m.cull, all)) continue;
       DrawnTriangle d;
       d.rt = rt;
-      d.v[0] = static_cast<std::uint32_t>(off + idx[k]), d.v[1] = static_cast<std::uint32_t>(off + idx[k + 1]),
-      d.v[2] = static_cast<std::uint32_t>(off + idx[k + 2]);
-      d.mesh = static_cast<int>(mi);
-      d.back = p0.dot(p1.cross(p2)) > 0;  // counter-clockwise from outside faces the camera: det < 0
+      TriShade& ts = d.shade;
+      {
+        // Counter-clockwise from outside faces the camera (det < 0): a back face is lit from behind.
+        const std::vector<Eigen::Vector3f>& L = p0.dot(p1.cross(p2)) > 0 ? light_back_ : light_front_;
+        const Eigen::Vector3f& l0 = L[off + idx[k]];
+        const Eigen::Vector3f& l1 = L[off + idx[k + 1]];
+        const Eigen::Vector3f& l2 = L[off + idx[k + 2]];
+        for (int c = 0; c < 3; ++c) {
+          ts.lit0[c] = l0[c], ts.dlit1[c] = l1[c] - l0[c], ts.dlit2[c] = l2[c] - l0[c];
+          ts.albedo[c] = m.mesh->base_color[c] * 255.0f;
+        }
+        if (m.texture >= 0) {
+          const Eigen::Vector2f& a = m.mesh->uvs[idx[k]];
+          const Eigen::Vector2f& b = m.mesh->uvs[idx[k + 1]];
+          const Eigen::Vector2f& c = m.mesh->uvs[idx[k + 2]];
+          ts.tex = &textures_[m.texture].levels;
+          for (int j = 0; j < 2; ++j) ts.uv0[j] = a[j], ts.duv1[j] = b[j] - a[j], ts.duv2[j] = c[j] - a[j];
+        }
+      }
       if (m.texture >= 0 && p0.z() > 0 && p1.z() > 0 && p2.z() > 0) {
         // Footprint-aware texture level: texels per pixel over the triangle.
         const Mesh& mesh = *m.mesh;
@@ -988,59 +1058,55 @@ void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& ca
         const Eigen::Vector2d q0 = proj(p0), e1 = proj(p1) - q0, e2 = proj(p2) - q0;
         const double px_area = std::abs(e1.x() * e2.y() - e1.y() * e2.x());
         if (px_area > 0 && uv_area > px_area)
-          d.level = std::clamp(static_cast<int>(0.5 * std::log2(uv_area / px_area) + 0.5), 0,
+          ts.level = std::clamp(static_cast<int>(0.5 * std::log2(uv_area / px_area) + 0.5), 0,
                                static_cast<int>(tex.width.size()) - 1);
       }
       tris_.push_back(d);
       const auto id = static_cast<std::uint32_t>(tris_.size());
-      raster(grid, rt, inv_z_.data(), [&](std::size_t i, int, int) { ids_[i] = id; });
+      raster(grid, rt, inv_z_.data(), [&](std::size_t i, int x, int y) {
+        ids_[i] = id;
+        covered_[static_cast<std::size_t>(y) * words + (x >> 6)] |= std::uint64_t{1} << (x & 63);
+      });
       box.x0 = std::min(box.x0, rt.bounds.x0), box.y0 = std::min(box.y0, rt.bounds.y0);
       box.x1 = std::max(box.x1, rt.bounds.x1), box.y1 = std::max(box.y1, rt.bounds.y1);
     }
   }
   if (box.x0 >= box.x1 || box.y0 >= box.y1) return;
 
-  // One channel (0..255) of a covered sample.
-  auto shade = [&](std::uint32_t id, double x, double y, auto&& put) {
-    const DrawnTriangle& d = tris_[id - 1];
-    double w1 = 0, w2 = 0;
-    d.rt.weights(x, y, w1, w2);
-    const auto b1 = static_cast<float>(w1), b2 = static_cast<float>(w2), b0 = 1.0f - b1 - b2;
-    const std::vector<Eigen::Vector3f>& L = d.back ? light_back_ : light_front_;
-    const Eigen::Vector3f lit = b0 * L[d.v[0]] + b1 * L[d.v[1]] + b2 * L[d.v[2]];
-    const ReceiverMesh& m = meshes_[d.mesh];
-    Eigen::Vector3f albedo = m.mesh->base_color * 255.0f;
-    if (m.texture >= 0) {
-      const std::size_t off = vert_offset_[d.mesh];
-      const Eigen::Vector2f uv = b0 * m.mesh->uvs[d.v[0] - off] + b1 * m.mesh->uvs[d.v[1] - off] +
-                                 b2 * m.mesh->uvs[d.v[2] - off];
-      const std::uint64_t g = sample_texture(textures_[m.texture].levels, d.level, uv.x(), uv.y());
-      for (int k = 0; k < 3; ++k) albedo[k] *= static_cast<float>(lane(g, k)) * (1.0f / 255.0f);
-    }
-    put(albedo, lit);
+  const int bayer_fmt = is_bayer(fmt);
+  auto run = [&](std::uint8_t* row, int x, int n, int y, const RasterTriangle& rt, const TriShade& ts, double X,
+                 double Y) {
+    const int chan[2] = {bayer_fmt ? bayer_channel(fmt, 0, y) : 0, bayer_fmt ? bayer_channel(fmt, 1, y) : 0};
+    const double e0 = rt.ea[0] * X + rt.eb[0] * Y + rt.ec[0], e1 = rt.ea[1] * X + rt.eb[1] * Y + rt.ec[1],
+                 e2 = rt.ea[2] * X + rt.eb[2] * Y + rt.ec[2];
+    if (bayer_fmt)
+      shade_run<kModeBayer>(row, x, n, chan, ts, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
+    else if (fmt == PixelFormat::kMono8)
+      shade_run<kModeMono>(row, x, n, chan, ts, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
+    else if (fmt == PixelFormat::kRGB8)
+      shade_run<kModeRgb>(row, x, n, chan, ts, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
+    else
+      shade_run<kModeRgba>(row, x, n, chan, ts, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
   };
-  const bool bayer = is_bayer(fmt);
   if (vp.identity) {
+    // Runs of samples of one triangle along each row: edge functions stepped, one division a pixel.
     for (int y = box.y0; y < box.y1; ++y) {
       std::uint8_t* row = out.row(y);
       const std::uint32_t* idr = ids_.data() + static_cast<std::size_t>(y) * vp.width;
-      for (int x = box.x0; x < box.x1; ++x) {
-        if (!idr[x]) continue;
-        shade(idr[x], x, y, [&](const Eigen::Vector3f& albedo, const Eigen::Vector3f& lit) {
-          if (bayer) {
-            const int ch = bayer_channel(fmt, x, y);
-            row[x] = to_u8(albedo[ch] * lit[ch]);
-            return;
+      const std::uint64_t* cov = covered_.data() + static_cast<std::size_t>(y) * words;
+      int run_x = 0, run_end = -1;
+      std::uint32_t run_id = 0;
+      for (int w = box.x0 >> 6; w <= (box.x1 - 1) >> 6; ++w)
+        for (std::uint64_t bits = cov[w]; bits; bits &= bits - 1) {
+          const int x = 64 * w + std::countr_zero(bits);
+          if (x == run_end && idr[x] == run_id) {
+            ++run_end;
+            continue;
           }
-          const std::uint8_t r = to_u8(albedo[0] * lit[0]), g = to_u8(albedo[1] * lit[1]), b = to_u8(albedo[2] * lit[2]);
-          if (fmt == PixelFormat::kMono8)
-            put_rgb<kModeMono>(row, x, r, g, b);
-          else if (fmt == PixelFormat::kRGB8)
-            put_rgb<kModeRgb>(row, x, r, g, b);
-          else
-            put_rgb<kModeRgba>(row, x, r, g, b);
-        });
-      }
+          if (run_id) run(row, run_x, run_end - run_x, y, tris_[run_id - 1].rt, tris_[run_id - 1].shade, run_x, y);
+          run_x = x, run_end = x + 1, run_id = idr[x];
+        }
+      if (run_id) run(row, run_x, run_end - run_x, y, tris_[run_id - 1].rt, tris_[run_id - 1].shade, run_x, y);
     }
   } else {
     // Each raw pixel's ray lands between four virtual samples: the triangles they hold are the
@@ -1092,28 +1158,22 @@ void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& ca
         // Inside the surface (all four samples on it) a small triangle may hold none of them.
         if (!best && covered == 4) best = nearest;
         if (!best) continue;
-        shade(best, X, Y, [&](const Eigen::Vector3f& albedo, const Eigen::Vector3f& lit) {
-          if (bayer) {
-            const int ch = bayer_channel(fmt, x, y);
-            row[x] = to_u8(albedo[ch] * lit[ch]);
-            return;
-          }
-          const std::uint8_t r = to_u8(albedo[0] * lit[0]), g = to_u8(albedo[1] * lit[1]), b = to_u8(albedo[2] * lit[2]);
-          if (fmt == PixelFormat::kMono8)
-            put_rgb<kModeMono>(row, x, r, g, b);
-          else if (fmt == PixelFormat::kRGB8)
-            put_rgb<kModeRgb>(row, x, r, g, b);
-          else
-            put_rgb<kModeRgba>(row, x, r, g, b);
-        });
+        const DrawnTriangle& d = tris_[best - 1];
+        run(row, x, 1, y, d.rt, d.shade, X, Y);
       }
     }
   }
-  // Leave the scratch clean for the next frame.
+  // Leave the scratch clean for the next frame: the covered samples are the written ones.
   for (int y = box.y0; y < box.y1; ++y) {
-    const std::size_t i = static_cast<std::size_t>(y) * vp.width + box.x0;
-    std::fill_n(inv_z_.data() + i, box.x1 - box.x0, 0.0f);
-    std::fill_n(ids_.data() + i, box.x1 - box.x0, 0u);
+    std::uint64_t* cov = covered_.data() + static_cast<std::size_t>(y) * words;
+    for (int w = box.x0 >> 6; w <= (box.x1 - 1) >> 6; ++w) {
+      for (std::uint64_t bits = cov[w]; bits; bits &= bits - 1) {
+        const std::size_t i = static_cast<std::size_t>(y) * vp.width + 64 * static_cast<std::size_t>(w) +
+                              static_cast<std::size_t>(std::countr_zero(bits));
+        inv_z_[i] = 0.0f, ids_[i] = 0u;
+      }
+      cov[w] = 0;
+    }
   }
 }
 
