@@ -177,18 +177,25 @@ std::vector<std::uint32_t> downsample(const std::vector<std::uint32_t>& src, int
   return dst;
 }
 
+// A receiver texture's mip chain, packed RGBA8 in 4 x 4 texel tiles (one cache line; the width is
+// padded to whole tiles): a bilinear footprint is one or two cache lines wherever it lies.
 struct Pyramid {
   std::vector<int> width, height;
-  std::vector<std::vector<std::uint64_t>> texels;  // expanded, row-major per level
+  std::vector<std::vector<std::uint32_t>> texels;  // tiled per level (pyramid_index)
 };
+inline std::size_t pyramid_index(int width, int x, int y) {
+  return ((static_cast<std::size_t>(y >> 2) * static_cast<std::size_t>((width + 3) >> 2) + (x >> 2)) << 4) |
+         static_cast<std::size_t>(((y & 3) << 2) | (x & 3));
+}
 
 Pyramid make_pyramid(std::vector<std::uint32_t> level0, int w, int h, int max_levels) {
   Pyramid p;
   for (int l = 0; l < max_levels; ++l) {
     p.width.push_back(w), p.height.push_back(h);
-    std::vector<std::uint64_t> e(level0.size());
-    for (std::size_t i = 0; i < e.size(); ++i) e[i] = expand(level0[i]);
-    p.texels.push_back(std::move(e));
+    std::vector<std::uint32_t> tiled(static_cast<std::size_t>((w + 3) >> 2) * ((h + 3) >> 2) * 16, 0u);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) tiled[pyramid_index(w, x, y)] = level0[static_cast<std::size_t>(y) * w + x];
+    p.texels.push_back(std::move(tiled));
     if (w == 1 && h == 1) break;
     int w2 = 0, h2 = 0;
     level0 = downsample(level0, w, h, w2, h2);
@@ -379,7 +386,9 @@ inline void put_sky(std::uint8_t* row, int x, const int* chan, const float* c) {
 // are stepped (SSE2: four pixels' values stepped by 4 x step; else first + i x step): with SSE2 four pixels at a time (the texel fetches stay
 // scalar), the filter in 16-bit lanes with lerp64's rounding and the shading in float with
 // put_ground's operations in its order, so every output format gets the same channel values.
-template <int kMode>
+// kWoods false: the caller knows that no pixel of the run is in the woods (woods weight 0), and
+// then c k1 + h haze is exactly what the full formula gives.
+template <int kMode, bool kWoods>
 void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::uint32_t* tex, int shift,
                 std::uint32_t s, std::uint32_t t, std::uint32_t ds, std::uint32_t dt, float w, float dw, float k,
                 float dk, float h, float dh) {
@@ -434,10 +443,13 @@ void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::ui
     const __m128i ce = _mm_and_si128(_mm_srl_epi32(v, ch.shift_even), ff);
     const __m128i co = _mm_and_si128(_mm_srl_epi32(v, ch.shift_odd), ff);
     const __m128 c = _mm_cvtepi32_ps(_mm_or_si128(_mm_andnot_si128(odd, ce), _mm_and_si128(odd, co)));
-    const __m128 base = ch.base, slope = ch.slope, haze = ch.haze;
-    const __m128 wood = _mm_add_ps(base, _mm_mul_ps(slope, a));
-    const __m128 val =
-        _mm_add_ps(_mm_mul_ps(_mm_add_ps(c, _mm_mul_ps(sm, _mm_sub_ps(wood, c))), k1), _mm_mul_ps(hz, haze));
+    __m128 val;
+    if constexpr (kWoods) {
+      const __m128 wood = _mm_add_ps(ch.base, _mm_mul_ps(ch.slope, a));
+      val = _mm_add_ps(_mm_mul_ps(_mm_add_ps(c, _mm_mul_ps(sm, _mm_sub_ps(wood, c))), k1), _mm_mul_ps(hz, ch.haze));
+    } else {
+      val = _mm_add_ps(_mm_mul_ps(c, k1), _mm_mul_ps(hz, ch.haze));
+    }
     const __m128i q = _mm_cvttps_epi32(_mm_min_ps(_mm_add_ps(_mm_max_ps(val, f0), fhalf), f255));
     return _mm_packus_epi16(_mm_packs_epi32(q, q), q);  // 4 bytes in the low lane
   };
@@ -466,9 +478,12 @@ void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::ui
     const __m128i v = _mm_packus_epi16(lo, hi);  // the 4 filtered RGBA8 texels
     sv = _mm_add_epi32(sv, ds4), tv = _mm_add_epi32(tv, dt4);
     // Shading, as put_ground: woods weight from the fine texture, then each channel.
-    const __m128 av = _mm_cvtepi32_ps(_mm_srli_epi32(v, 24));
-    const __m128 z = _mm_min_ps(_mm_max_ps(_mm_add_ps(wv, _mm_mul_ps(av, kwa)), f0), f1);
-    const __m128 sm = _mm_mul_ps(_mm_mul_ps(z, z), _mm_sub_ps(f3, _mm_mul_ps(f2, z)));
+    __m128 av = f0, sm = f0;
+    if constexpr (kWoods) {
+      av = _mm_cvtepi32_ps(_mm_srli_epi32(v, 24));
+      const __m128 z = _mm_min_ps(_mm_max_ps(_mm_add_ps(wv, _mm_mul_ps(av, kwa)), f0), f1);
+      sm = _mm_mul_ps(_mm_mul_ps(z, z), _mm_sub_ps(f3, _mm_mul_ps(f2, z)));
+    }
     const __m128 k1 = kv, hz = hv;
     wv = _mm_add_ps(wv, dw4), kv = _mm_add_ps(kv, dk4), hv = _mm_add_ps(hv, dh4);
     const int m = std::min(4, n - i);
@@ -870,6 +885,9 @@ void CpuSceneRenderer::background_rows(const CameraTables& ct, const FrameSky& f
         const int level = std::max({mip_level(c00.lam), mip_level(c10.lam), mip_level(c01.lam), mip_level(c11.lam)});
         const int shift = kTileShift - level;
         const std::uint32_t* tex = tile_->levels[level].data();
+        // The woods weight is 0 at every pixel when the woods field plus the fine texture's most
+        // (255 kWoodA) stays below 0 at the corners (the field is interpolated between them).
+        const bool woods = std::max({c00.wood, c10.wood, c01.wood, c11.wood}) + 255.0f * kWoodA > -0.01f;
         const double scale = 1.0 / (kTexelM * static_cast<double>(1 << level));
         // Relative to the block's first corner, so that the doubles stay small.
         const double s0 = std::floor(c00.qs * scale), t0 = std::floor(c00.qt * scale);
@@ -894,7 +912,10 @@ void CpuSceneRenderer::background_rows(const CameraTables& ct, const FrameSky& f
           const auto inv = static_cast<float>(1.0 / span_x);
           const float dw = (wr - wl) * inv, dk = (kr - kl) * inv, dh = (hr - hl) * inv;
           const int chan[2] = {bayer_channel(fmt, 0, y), bayer_channel(fmt, 1, y)};
-          ground_run<kMode>(out.row(y), x0, x1 - x0, chan, tex, shift, s, t, ds, dt, wl, dw, kl, dk, hl, dh);
+          if (woods)
+            ground_run<kMode, true>(out.row(y), x0, x1 - x0, chan, tex, shift, s, t, ds, dt, wl, dw, kl, dk, hl, dh);
+          else
+            ground_run<kMode, false>(out.row(y), x0, x1 - x0, chan, tex, shift, s, t, ds, dt, wl, dw, kl, dk, hl, dh);
         }
       } else if (valid && n_ground == 0) {
         // Sky: smooth (the sun's glow is several blocks wide); the colour is interpolated.
@@ -974,10 +995,9 @@ std::uint64_t sample_texture(const Pyramid& p, int level, float u, float v) {
   };
   const int x0 = wrap(xl, w), y0 = wrap(yl, h);
   const int x1 = x0 + 1 == w ? 0 : x0 + 1, y1 = y0 + 1 == h ? 0 : y0 + 1;
-  const std::uint64_t* t = p.texels[level].data();
-  const std::uint64_t* r0 = t + static_cast<std::size_t>(y0) * w;
-  const std::uint64_t* r1 = t + static_cast<std::size_t>(y1) * w;
-  return lerp64(lerp64(r0[x0], r0[x1], wx), lerp64(r1[x0], r1[x1], wx), wy);
+  const std::uint32_t* t = p.texels[level].data();
+  return lerp64(lerp64(expand(t[pyramid_index(w, x0, y0)]), expand(t[pyramid_index(w, x1, y0)]), wx),
+                lerp64(expand(t[pyramid_index(w, x0, y1)]), expand(t[pyramid_index(w, x1, y1)]), wx), wy);
 }
 
 void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& cam, const FrameSky& f,
