@@ -201,6 +201,11 @@ struct AravisSource::Impl {
 
   // Streaming state, touched by read() only.
   bool connected = false;
+  // Acquisition starts at the first read(), not at open(): a camera opened while the rest of the
+  // pipeline sets up (GL, the augmenter, the recorder) would otherwise fill Aravis' few buffers and
+  // then lose frames (underruns, seen as frame id gaps), and the stale ones would reach the
+  // pairer in a burst. A reconnection restarts it at once.
+  bool acquiring = false;
   TimestampNs last_activity_ns = 0;  // a buffer (good or bad) or (re)connection
   TimestampNs lost_since_ns = 0;
   TimestampNs next_attempt_ns = 0;
@@ -221,7 +226,9 @@ struct AravisSource::Impl {
     static_cast<Impl*>(self)->control_lost.store(true);
   }
 
-  Status connect();
+  // `start`: start acquisition too (a reconnection); open() leaves that to the first read().
+  Status connect(bool start);
+  Status start_acquisition();
   // Stops and releases the camera; `device_gone`: without waiting on a camera that cannot answer.
   void teardown(bool device_gone = false);
   // Whether a reconnection attempt can succeed now (a quick GVCP probe where the address is known).
@@ -237,8 +244,8 @@ struct AravisSource::Impl {
   }
 };
 
-// Resolves the device, opens it, applies every option and starts the stream.
-Status AravisSource::Impl::connect() {
+// Resolves the device, opens it, applies every option and creates the stream (and starts it: `start`).
+Status AravisSource::Impl::connect(bool start) {
   GError* e = nullptr;
   camera.reset(arv_camera_new(connect_id.c_str(), &e));
   if (!camera) return take_error(e, where, "cannot connect");
@@ -359,8 +366,8 @@ Status AravisSource::Impl::connect() {
   }
   for (int i = 0; i < std::max(2, options.buffers); ++i)
     arv_stream_push_buffer(stream.get(), arv_buffer_new_allocate(payload));
-  arv_camera_start_acquisition(cam, &e);
-  if (e) return take_error(e, where, "cannot start acquisition");
+  if (start)
+    if (Status s = start_acquisition(); !s) return s;
 
   auto str = [](const char* s) { return std::string(s ? s : ""); };
   std::lock_guard lock(mutex);
@@ -400,6 +407,15 @@ void AravisSource::Impl::update_stream_counters() {
   stats.resent_packets = stream_base.resent_packets + get("n_resent_packets");
 }
 
+Status AravisSource::Impl::start_acquisition() {
+  GError* e = nullptr;
+  arv_camera_start_acquisition(camera.get(), &e);
+  if (e) return take_error(e, where, "cannot start acquisition");
+  acquiring = true;
+  last_activity_ns = monotonic_now_ns() + kFirstFrameGraceNs;
+  return {};
+}
+
 void AravisSource::Impl::teardown(bool device_gone) {
   update_stream_counters();
   {
@@ -410,6 +426,7 @@ void AravisSource::Impl::teardown(bool device_gone) {
     g_signal_handler_disconnect(arv_camera_get_device(camera.get()), control_lost_handler);
   control_lost_handler = 0;
   connected = false;
+  acquiring = false;
   if (!device_gone) {
     if (camera) arv_camera_stop_acquisition(camera.get(), nullptr);
     stream.reset();
@@ -497,7 +514,9 @@ Expected<std::unique_ptr<AravisSource>> AravisSource::open(const AravisOptions& 
                         list.empty() ? std::string("none") : list);
     }
   }
-  if (Status s = impl->connect(); !s) {
+  // A free-running camera starts at the first read(); a triggered one at once (it sends nothing
+  // until triggered, and a software trigger may come from another thread before any read()).
+  if (Status s = impl->connect(/*start=*/options.trigger != TriggerMode::kFreeRun); !s) {
     impl->teardown();
     return s.error();
   }
@@ -523,7 +542,7 @@ Expected<ReadStatus> AravisSource::read(Frame& out, std::chrono::nanoseconds tim
       if (m.options.reconnect && now >= m.next_attempt_ns) {
         if (!m.worth_connecting()) {
           m.next_attempt_ns = monotonic_now_ns() + m.options.reconnect_period.count();
-        } else if (Status s = m.connect(); s) {
+        } else if (Status s = m.connect(/*start=*/true); s) {
           m.connected = true;
           m.last_activity_ns = monotonic_now_ns() + kFirstFrameGraceNs;
           std::lock_guard lock(m.mutex);
@@ -544,6 +563,9 @@ Expected<ReadStatus> AravisSource::read(Frame& out, std::chrono::nanoseconds tim
       std::this_thread::sleep_for(std::chrono::nanoseconds(std::max<TimestampNs>(wake - after, 1'000'000)));
       continue;
     }
+
+    if (!m.acquiring)
+      if (Status s = m.start_acquisition(); !s) return s.error();
 
     // Pop in short slices, so a stall is noticed while the caller waits.
     const TimestampNs slice_ns = std::clamp<TimestampNs>(deadline - now, 0, 50'000'000);

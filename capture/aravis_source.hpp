@@ -3,7 +3,8 @@
 // Opens a camera by Aravis id, serial number or IPv4 address (by address on loopback: Aravis'
 // default device picks the wrong interface there), configures pixel format, region, exposure, gain,
 // frame rate, trigger and PTP, negotiates the GVSP packet size and sizes the socket buffer, then
-// streams into a pool of buffers. Each Frame carries the device timestamp (ClockDomain::kDevice,
+// streams into a pool of buffers: a free-running camera from the first read() (so that nothing
+// piles up while the rest of the pipeline sets up), a triggered one from open(). Each Frame carries the device timestamp (ClockDomain::kDevice,
 // moved to mid-exposure) and the host CLOCK_MONOTONIC time it became available.
 //
 // Nothing is lost silently: frame-id gaps count as camera drops, incomplete or failed buffers as

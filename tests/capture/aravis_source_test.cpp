@@ -108,6 +108,29 @@ TEST(AravisSource, UnknownDeviceAndBadOptionsGiveClearErrors) {
 
 // The sim's rendered Bayer frames go over GigE Vision and arrive bit for bit, with their device
 // timestamps (moved to mid-exposure), consecutive sequence numbers and nothing dropped.
+// A free-running camera starts streaming at the first read(), not at open(): a pipeline that opens
+// its cameras and then spends a while setting up must not find Aravis' buffers overrun (frames lost
+// as frame id gaps) and a burst of stale frames waiting.
+TEST(AravisSource, FreeRunningCameraStartsAtTheFirstRead) {
+  FakeGvCamera fake("127.0.0.1", "AUGLATE");
+  ASSERT_TRUE(fake.running());
+  AravisOptions o;
+  o.device = "127.0.0.1";
+  o.frame_rate_hz = 30;
+  auto src = AravisSource::open(o);
+  ASSERT_TRUE(src) << src.error().message;
+  std::this_thread::sleep_for(1500ms);  // 45 frame periods: far more than the buffers hold
+  const std::vector<Frame> got = read_frames(**src, 10);
+  ASSERT_EQ(got.size(), 10u);
+  for (std::size_t k = 1; k < got.size(); ++k)
+    EXPECT_EQ(got[k].sequence, got[k - 1].sequence + 1) << "frame " << k << ": a frame was lost";
+  // Consecutive frames one period apart on the camera's clock: no stale burst from before the read.
+  EXPECT_LT(got.back().t_ns - got.front().t_ns, 9 * 33'333'333 + 20'000'000);
+  const AravisStats st = (*src)->stats();
+  EXPECT_EQ(st.camera_drops, 0u);
+  EXPECT_EQ(st.underruns, 0u);
+}
+
 TEST(AravisSource, StreamsSimulatedFlightFramesBitExact) {
   const std::vector<ServedFrame> sent = sim_frames(0, 6, PixelFormat::kBayerRG8);
   ASSERT_EQ(sent.size(), 6u);
