@@ -396,7 +396,7 @@ void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::ui
   const __m128i mask = _mm_set1_epi32((1 << shift) - 1), one = _mm_set1_epi32(1), three = _mm_set1_epi32(3);
   const __m128i ff = _mm_set1_epi32(0xff), zero = _mm_setzero_si128();
   const __m128i w256 = _mm_set1_epi16(256), half = _mm_set1_epi16(128);
-  const __m128i row_shift = _mm_cvtsi32_si128(shift - 2);
+  const __m128i row_shift = _mm_cvtsi32_si128(shift + 2);  // (y / 4) tiles of 2^(shift - 2) x 16 texels
   const __m128i step = _mm_setr_epi32(0, 1, 2, 3);
   auto mul = [](__m128i v, std::uint32_t d) {  // v * d per 32-bit lane (low 32 bits), SSE2 has no pmulld
     const __m128i dd = _mm_set1_epi32(static_cast<int>(d));
@@ -410,10 +410,10 @@ void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::ui
   auto lin = [&](float v, float d) { return _mm_add_ps(_mm_set1_ps(v), _mm_mul_ps(idx, _mm_set1_ps(d))); };
   __m128 wv = lin(w, dw), kv = lin(k, dk), hv = lin(h, dh);
   const __m128 dw4 = _mm_set1_ps(4.0f * dw), dk4 = _mm_set1_ps(4.0f * dk), dh4 = _mm_set1_ps(4.0f * dh);
-  auto tiled = [&](__m128i x, __m128i y) {
-    const __m128i tile = _mm_add_epi32(_mm_sll_epi32(_mm_srli_epi32(y, 2), row_shift), _mm_srli_epi32(x, 2));
-    return _mm_or_si128(_mm_slli_epi32(tile, 4),
-                        _mm_or_si128(_mm_slli_epi32(_mm_and_si128(y, three), 2), _mm_and_si128(x, three)));
+  // tiled_index(shift, x, y) = row(y) + col(x).
+  auto col = [&](__m128i x) { return _mm_or_si128(_mm_slli_epi32(_mm_srli_epi32(x, 2), 4), _mm_and_si128(x, three)); };
+  auto row_of = [&](__m128i y) {
+    return _mm_or_si128(_mm_sll_epi32(_mm_srli_epi32(y, 2), row_shift), _mm_slli_epi32(_mm_and_si128(y, three), 2));
   };
   auto lerp16 = [&](__m128i a, __m128i b, __m128i wt) {
     return _mm_srli_epi16(
@@ -459,10 +459,11 @@ void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::ui
     const __m128i x0v = _mm_and_si128(_mm_srli_epi32(sv, 16), mask), y0v = _mm_and_si128(_mm_srli_epi32(tv, 16), mask);
     const __m128i x1v = _mm_and_si128(_mm_add_epi32(x0v, one), mask), y1v = _mm_and_si128(_mm_add_epi32(y0v, one), mask);
     alignas(16) std::uint32_t i00[4], i10[4], i01[4], i11[4];
-    _mm_store_si128(reinterpret_cast<__m128i*>(i00), tiled(x0v, y0v));
-    _mm_store_si128(reinterpret_cast<__m128i*>(i10), tiled(x1v, y0v));
-    _mm_store_si128(reinterpret_cast<__m128i*>(i01), tiled(x0v, y1v));
-    _mm_store_si128(reinterpret_cast<__m128i*>(i11), tiled(x1v, y1v));
+    const __m128i c0 = col(x0v), c1 = col(x1v), r0 = row_of(y0v), r1 = row_of(y1v);
+    _mm_store_si128(reinterpret_cast<__m128i*>(i00), _mm_add_epi32(r0, c0));
+    _mm_store_si128(reinterpret_cast<__m128i*>(i10), _mm_add_epi32(r0, c1));
+    _mm_store_si128(reinterpret_cast<__m128i*>(i01), _mm_add_epi32(r1, c0));
+    _mm_store_si128(reinterpret_cast<__m128i*>(i11), _mm_add_epi32(r1, c1));
     auto fetch = [tex](const std::uint32_t* ix) {
       return _mm_setr_epi32(static_cast<int>(tex[ix[0]]), static_cast<int>(tex[ix[1]]), static_cast<int>(tex[ix[2]]),
                             static_cast<int>(tex[ix[3]]));
@@ -552,6 +553,8 @@ struct TriShade {
   float albedo[3] = {};  // base colour, 0..255
   const Pyramid* tex = nullptr;
   int level = 0;  // texture mip level
+  const std::uint32_t* texels = nullptr;  // of that level, tw x th
+  int tw = 0, th = 0;
 };
 
 struct DrawnTriangle {
@@ -559,7 +562,35 @@ struct DrawnTriangle {
   TriShade shade;
 };
 
-std::uint64_t sample_texture(const Pyramid& p, int level, float u, float v);
+// REPEAT wrapping of a texel coordinate far outside the texture (the rare case).
+[[gnu::noinline]] int wrap_far(int i, int size) { return ((i % size) + size) % size; }
+
+// Bilinear, REPEAT-wrapped sample of a receiver texture level (`texels` tiled as pyramid_index,
+// w x h); `u`, `v` in texture units. The position goes to 24.8 fixed point with one conversion
+// per axis (texel and weight from it).
+inline std::uint64_t sample_texture(const std::uint32_t* texels, int w, int h, float u, float v) {
+  auto fixed = [](float c) {  // floor(c * 256), without a library call; far coordinates clamped (and NaN)
+    const float f = std::min(std::max(-1.0e9f, c * 256.0f), 1.0e9f);
+    const int i = static_cast<int>(f);
+    return i - (f < static_cast<float>(i));
+  };
+  const int xf = fixed(u * static_cast<float>(w) - 0.5f), yf = fixed(v * static_cast<float>(h) - 0.5f);
+  const auto wx = static_cast<std::uint32_t>(xf & 255), wy = static_cast<std::uint32_t>(yf & 255);
+  // REPEAT: coordinates are nearly always within one period of the texture.
+  auto wrap = [](int i, int size) {
+    if (static_cast<unsigned>(i) < static_cast<unsigned>(size)) return i;
+    if (i >= -size && i < 0) return i + size;
+    return wrap_far(i, size);
+  };
+  const int x0 = wrap(xf >> 8, w), y0 = wrap(yf >> 8, h);  // arithmetic shift: floor
+  const int x1 = x0 + 1 == w ? 0 : x0 + 1, y1 = y0 + 1 == h ? 0 : y0 + 1;
+  const std::size_t row_tiles = static_cast<std::size_t>((w + 3) >> 2) << 4;
+  auto row = [row_tiles](int y) { return static_cast<std::size_t>(y >> 2) * row_tiles + static_cast<std::size_t>((y & 3) << 2); };
+  auto col = [](int x) { return static_cast<std::size_t>(((x >> 2) << 4) | (x & 3)); };
+  const std::size_t r0 = row(y0), r1 = row(y1), c0 = col(x0), c1 = col(x1);
+  return lerp64(lerp64(expand(texels[r0 + c0]), expand(texels[r0 + c1]), wx),
+                lerp64(expand(texels[r1 + c0]), expand(texels[r1 + c1]), wx), wy);
+}
 
 // n covered samples along a row from raw pixel x, whose edge functions are e0, e1, e2 at the
 // first and step by d0, d1, d2: only the Bayer site's channel, or all three, each the same
@@ -572,7 +603,7 @@ void shade_run(std::uint8_t* row, int x, int n, const int* chan, const TriShade&
     const auto b1 = static_cast<float>(e2 * inv), b2 = static_cast<float>(e0 * inv);
     std::uint64_t g = 0;
     if (t.tex)
-      g = sample_texture(*t.tex, t.level, t.uv0[0] + b1 * t.duv1[0] + b2 * t.duv2[0],
+      g = sample_texture(t.texels, t.tw, t.th, t.uv0[0] + b1 * t.duv1[0] + b2 * t.duv2[0],
                          t.uv0[1] + b1 * t.duv1[1] + b2 * t.duv2[1]);
     auto value = [&](int c) {
       const float albedo = t.tex ? t.albedo[c] * (static_cast<float>(lane(g, c)) * (1.0f / 255.0f)) : t.albedo[c];
@@ -898,8 +929,10 @@ void CpuSceneRenderer::background_rows(const CameraTables& ct, const FrameSky& f
         // The wrap offset in whole tiles: s0 modulo the level's side, so fixed point stays in range.
         const double side = static_cast<double>(1 << shift);
         const double s_off = s0 - side * std::floor(s0 / side), t_off = t0 - side * std::floor(t0 / side);
+        const double inv_span_y = 1.0 / span_y, fixed_per_x = 65536.0 / span_x;
+        const auto inv = static_cast<float>(1.0 / span_x);
         for (int y = y0; y < y1; ++y) {
-          const double fy = (y - ny0) / span_y;
+          const double fy = (y - ny0) * inv_span_y;
           const double sl = s00 + fy * (s01 - s00), sr = s10 + fy * (s11 - s10);
           const double tl = t00 + fy * (t01 - t00), tr = t10 + fy * (t11 - t10);
           const auto fyf = static_cast<float>(fy);
@@ -907,9 +940,8 @@ void CpuSceneRenderer::background_rows(const CameraTables& ct, const FrameSky& f
           float kl = c00.k1 + fyf * (c01.k1 - c00.k1), kr = c10.k1 + fyf * (c11.k1 - c10.k1);
           float hl = c00.h + fyf * (c01.h - c00.h), hr = c10.h + fyf * (c11.h - c10.h);
           std::uint32_t s = to_fixed(sl + s_off), t = to_fixed(tl + t_off);
-          const auto ds = static_cast<std::uint32_t>(round_to_int64((sr - sl) / span_x * 65536.0));
-          const auto dt = static_cast<std::uint32_t>(round_to_int64((tr - tl) / span_x * 65536.0));
-          const auto inv = static_cast<float>(1.0 / span_x);
+          const auto ds = static_cast<std::uint32_t>(round_to_int64((sr - sl) * fixed_per_x));
+          const auto dt = static_cast<std::uint32_t>(round_to_int64((tr - tl) * fixed_per_x));
           const float dw = (wr - wl) * inv, dk = (kr - kl) * inv, dh = (hr - hl) * inv;
           const int chan[2] = {bayer_channel(fmt, 0, y), bayer_channel(fmt, 1, y)};
           if (woods)
@@ -979,26 +1011,6 @@ void CpuSceneRenderer::background(const CameraTables& ct, const FrameSky& f, Pix
   });
 }
 
-// Bilinear, REPEAT-wrapped sample of a receiver texture level; `u`, `v` in texture units.
-std::uint64_t sample_texture(const Pyramid& p, int level, float u, float v) {
-  const int w = p.width[level], h = p.height[level];
-  const float x = u * static_cast<float>(w) - 0.5f, y = v * static_cast<float>(h) - 0.5f;
-  const long xl = static_cast<long>(x) - (x < static_cast<float>(static_cast<long>(x)));  // floor
-  const long yl = static_cast<long>(y) - (y < static_cast<float>(static_cast<long>(y)));
-  const auto wx = static_cast<std::uint32_t>(std::clamp(static_cast<int>((x - static_cast<float>(xl)) * 256.0f), 0, 255));
-  const auto wy = static_cast<std::uint32_t>(std::clamp(static_cast<int>((y - static_cast<float>(yl)) * 256.0f), 0, 255));
-  // REPEAT: coordinates are nearly always within one period of the texture.
-  auto wrap = [](long i, int size) {
-    if (i >= 0 && i < size) return static_cast<int>(i);
-    if (i >= -size && i < 0) return static_cast<int>(i + size);
-    return static_cast<int>(((i % size) + size) % size);
-  };
-  const int x0 = wrap(xl, w), y0 = wrap(yl, h);
-  const int x1 = x0 + 1 == w ? 0 : x0 + 1, y1 = y0 + 1 == h ? 0 : y0 + 1;
-  const std::uint32_t* t = p.texels[level].data();
-  return lerp64(lerp64(expand(t[pyramid_index(w, x0, y0)]), expand(t[pyramid_index(w, x1, y0)]), wx),
-                lerp64(expand(t[pyramid_index(w, x0, y1)]), expand(t[pyramid_index(w, x1, y1)]), wx), wy);
-}
 
 void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& cam, const FrameSky& f,
                                      const Pose& T_body_receiver, PixelFormat fmt, Image& out) {
@@ -1080,6 +1092,10 @@ void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& ca
         if (px_area > 0 && uv_area > px_area)
           ts.level = std::clamp(static_cast<int>(0.5 * std::log2(uv_area / px_area) + 0.5), 0,
                                static_cast<int>(tex.width.size()) - 1);
+      }
+      if (ts.tex) {
+        ts.texels = ts.tex->texels[ts.level].data();
+        ts.tw = ts.tex->width[ts.level], ts.th = ts.tex->height[ts.level];
       }
       tris_.push_back(d);
       const auto id = static_cast<std::uint32_t>(tris_.size());
