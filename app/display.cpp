@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <deque>
 #include <filesystem>
@@ -113,13 +114,171 @@ Image probe_mask(ValueOf value_of_x) {
   return m;
 }
 
+// The overlays' LUTs, tabulated once (render/visualize needs no GL context).
+struct OverlayLuts {
+  std::array<OverlayLut, 2> occlusion;  // Fig. 8: left view, right view
+  OverlayLut overlap;                   // Fig. 7b
+};
+const OverlayLuts& overlay_luts() {
+  static const OverlayLuts luts = [] {
+    OverlayLuts l;
+    for (bool left : {true, false})
+      l.occlusion[left ? 0 : 1] = tabulate(
+          [left](auto class_of) { return visualize_receiver_occlusion(probe_mask(class_of), left); });
+    l.overlap = tabulate([](auto class_of) {
+      return visualize_boom_overlap(probe_mask([&](int x) { return class_of(x) & 1; }),
+                                    probe_mask([&](int x) { return (class_of(x) >> 1) & 1; }));
+    });
+    return l;
+  }();
+  return luts;
+}
+
+// Block [x0, x1) x [y0, y1) of output texel (ox, oy) at factor f, clamped to `w` x `h`.
+struct Block {
+  int x0, x1, y0, y1;
+};
+inline Block block_of(int ox, int oy, int f, int w, int h) {
+  return {ox * f, std::min(ox * f + f, w), oy * f, std::min(oy * f + f, h)};
+}
+
+// The block means of `im` into `rgba` (ow x oh texels, alpha 255).
+void reduce_colour(const Image& im, int f, int ow, int oh, std::uint8_t* rgba) {
+  const int w = im.width(), h = im.height();
+  const PixelFormat fmt = im.format();
+  if (is_bayer(fmt) && f % 2 == 0 && w >= 2 && h >= 2) {
+    // Whole 2x2 cells only: each site's colour from bayer_channel(); an odd last column or row
+    // (a cell cut in half) takes the last whole cell's colour.
+    const int we = w & ~1, he = h & ~1;
+    int ch[4], per_cell[3] = {0, 0, 0};
+    for (int k = 0; k < 4; ++k) ++per_cell[ch[k] = bayer_channel(fmt, k & 1, k >> 1)];
+    int done_w = 0, done_h = 0;  // texels made by the fast path below
+    if (f == 2) {
+      // One cell a texel (the live window's usual case): sites i_r, i_b and the two greens' of
+      // the cell's four (0 1 / 2 3). The same values as the general loop below.
+      int ir = 0, ib = 0, ig[2] = {0, 0}, ng = 0;
+      for (int k = 0; k < 4; ++k) (ch[k] == 0 ? ir : ch[k] == 2 ? ib : ig[ng++]) = k;
+      done_w = we / 2, done_h = he / 2;
+      for (int oy = 0; oy < done_h; ++oy) {
+        const std::uint8_t* rows[2] = {im.row(2 * oy), im.row(2 * oy + 1)};
+        const std::uint8_t* sr = rows[ir >> 1] + (ir & 1);
+        const std::uint8_t* sb = rows[ib >> 1] + (ib & 1);
+        const std::uint8_t* sg0 = rows[ig[0] >> 1] + (ig[0] & 1);
+        const std::uint8_t* sg1 = rows[ig[1] >> 1] + (ig[1] & 1);
+        std::uint8_t* d = rgba + static_cast<std::size_t>(oy) * ow * 4;
+        for (int ox = 0; ox < done_w; ++ox) {
+          d[4 * ox] = sr[2 * ox];
+          d[4 * ox + 1] = static_cast<std::uint8_t>((sg0[2 * ox] + sg1[2 * ox] + 1) >> 1);
+          d[4 * ox + 2] = sb[2 * ox];
+          d[4 * ox + 3] = 255;
+        }
+      }
+    }
+    for (int oy = 0; oy < oh; ++oy) {
+      int y0 = oy * f, y1 = std::min(y0 + f, he);
+      if (y0 >= he) y0 = he - 2, y1 = he;
+      for (int ox = oy < done_h ? done_w : 0; ox < ow; ++ox) {
+        std::uint8_t* d = rgba + (static_cast<std::size_t>(oy) * ow + ox) * 4;
+        int x0 = ox * f, x1 = std::min(x0 + f, we);
+        if (x0 >= we) x0 = we - 2, x1 = we;
+        unsigned sum[3] = {0, 0, 0};
+        unsigned cells = 0;
+        for (int y = y0; y < y1; y += 2) {
+          const std::uint8_t* r0 = im.row(y);
+          const std::uint8_t* r1 = im.row(y + 1);
+          for (int x = x0; x < x1; x += 2, ++cells) {
+            sum[ch[0]] += r0[x];
+            sum[ch[1]] += r0[x + 1];
+            sum[ch[2]] += r1[x];
+            sum[ch[3]] += r1[x + 1];
+          }
+        }
+        for (int c = 0; c < 3; ++c) {
+          const unsigned n = cells * static_cast<unsigned>(per_cell[c]);
+          d[c] = static_cast<std::uint8_t>((sum[c] + n / 2) / n);
+        }
+        d[3] = 255;
+      }
+    }
+    return;
+  }
+  // Anything else as RGB (Mono8 replicated; Bayer demosaiced first when not binned by cells).
+  Image converted;
+  const Image* src = &im;
+  if (fmt != PixelFormat::kRGB8 && fmt != PixelFormat::kRGBA8 && fmt != PixelFormat::kMono8) {
+    if (w >= 2 && h >= 2) {
+      converted = to_rgb8(im);
+    } else {  // a Bayer image too small to demosaic: its values as grey
+      converted = Image(w, h, PixelFormat::kMono8);
+      for (int y = 0; y < h; ++y) std::copy_n(im.row(y), w, converted.row(y));
+    }
+    src = &converted;
+  }
+  const int bpp = bytes_per_pixel(src->format());
+  const int c1 = bpp >= 3 ? 1 : 0, c2 = bpp >= 3 ? 2 : 0;  // Mono8: one channel, replicated
+  if (f == 1) {
+    for (int y = 0; y < h; ++y) {
+      const std::uint8_t* s = src->row(y);
+      std::uint8_t* d = rgba + static_cast<std::size_t>(y) * w * 4;
+      for (int x = 0; x < w; ++x, s += bpp, d += 4) {
+        d[0] = s[0];
+        d[1] = s[c1];
+        d[2] = s[c2];
+        d[3] = 255;
+      }
+    }
+    return;
+  }
+  for (int oy = 0; oy < oh; ++oy) {
+    std::uint8_t* d = rgba + static_cast<std::size_t>(oy) * ow * 4;
+    for (int ox = 0; ox < ow; ++ox, d += 4) {
+      const Block b = block_of(ox, oy, f, w, h);
+      unsigned sum[3] = {0, 0, 0};
+      for (int y = b.y0; y < b.y1; ++y) {
+        const std::uint8_t* s = src->row(y) + static_cast<std::size_t>(b.x0) * bpp;
+        for (int x = b.x0; x < b.x1; ++x, s += bpp) {
+          sum[0] += s[0];
+          sum[1] += s[c1];
+          sum[2] += s[c2];
+        }
+      }
+      const unsigned n = static_cast<unsigned>((b.x1 - b.x0) * (b.y1 - b.y0));
+      for (int c = 0; c < 3; ++c) d[c] = static_cast<std::uint8_t>((sum[c] + n / 2) / n);
+      d[3] = 255;
+    }
+  }
+}
+
+// The OR of `m`'s values over each block, ow x oh.
+void or_blocks(const Image& m, int f, int ow, int oh, std::vector<std::uint8_t>& out) {
+  out.assign(static_cast<std::size_t>(ow) * oh, 0);
+  for (int y = 0; y < m.height(); ++y) {
+    const std::uint8_t* s = m.row(y);
+    std::uint8_t* d = out.data() + static_cast<std::size_t>(y / f) * ow;
+    if (f == 1) {
+      std::copy_n(s, ow, d);
+      continue;
+    }
+    int ox = 0;
+    if (f == 2)
+      for (; ox < m.width() / 2; ++ox) d[ox] |= static_cast<std::uint8_t>(s[2 * ox] | s[2 * ox + 1]);
+    for (; ox < ow; ++ox) {
+      const int x0 = ox * f, x1 = std::min(x0 + f, m.width());
+      std::uint8_t v = 0;
+      for (int x = x0; x < x1; ++x) v |= s[x];
+      d[ox] |= v;
+    }
+  }
+}
+
 const char* kCopyVs = R"(#version 330 core
 uniform int u_flip;
+uniform vec2 u_uv_max;  // the image's far edges in texture coordinates (a partial last block)
 out vec2 v_uv;
 void main() {
   vec2 p = vec2((gl_VertexID & 1) != 0 ? 1.0 : -1.0, (gl_VertexID & 2) != 0 ? 1.0 : -1.0);
   // (0, 0) is the image's top-left; GL-rendered textures (u_flip 1) have row 0 at the bottom.
-  v_uv = vec2(0.5 * (p.x + 1.0), u_flip == 1 ? 0.5 * (p.y + 1.0) : 0.5 * (1.0 - p.y));
+  v_uv = u_uv_max * vec2(0.5 * (p.x + 1.0), u_flip == 1 ? 0.5 * (p.y + 1.0) : 0.5 * (1.0 - p.y));
   gl_Position = vec4(p, 0.0, 1.0);
 }
 )";
@@ -178,41 +337,6 @@ std::string timestamp_name() {
   return b;
 }
 
-// The image as tightly packed RGBA rows (Bayer demosaiced and Mono8 replicated by to_rgb8), with
-// the overlay composed in: class_of(x, y) picks the LUT row, none when `lut` is null.
-template <typename ClassOf>
-void compose_rgba(const Image& im, const OverlayLut* lut, ClassOf class_of, std::vector<std::uint8_t>& out) {
-  const int w = im.width(), h = im.height();
-  out.resize(static_cast<std::size_t>(w) * h * 4);
-  Image converted;
-  const Image* src = &im;
-  if (im.format() != PixelFormat::kRGB8 && im.format() != PixelFormat::kRGBA8) {
-    converted = to_rgb8(im);
-    src = &converted;
-  }
-  const int bpp = bytes_per_pixel(src->format());
-  for (int y = 0; y < h; ++y) {
-    const std::uint8_t* s = src->row(y);
-    std::uint8_t* d = out.data() + static_cast<std::size_t>(y) * w * 4;
-    if (!lut) {
-      for (int x = 0; x < w; ++x, s += bpp, d += 4) {
-        d[0] = s[0];
-        d[1] = s[1];
-        d[2] = s[2];
-        d[3] = 255;
-      }
-      continue;
-    }
-    for (int x = 0; x < w; ++x, s += bpp, d += 4) {
-      const auto& row = lut->out[class_of(x, y)];
-      d[0] = row[0][s[0]];
-      d[1] = row[1][s[1]];
-      d[2] = row[2][s[2]];
-      d[3] = 255;
-    }
-  }
-}
-
 // Fits a w:h image into a box, keeping its aspect, centred horizontally and aligned to the top.
 PixelRect fit(int bx, int by, int bw, int bh, double aspect) {
   if (bw <= 0 || bh <= 0) return {bx, by, 0, 0};
@@ -255,6 +379,9 @@ struct ViewState {
   GlTexture texture;
   std::vector<std::uint8_t> rgba;
   int image_w = 0, image_h = 0;  // of the last uploaded image (0: none)
+  int factor = 0;                // the texture is the image reduced by this (0: none yet)
+  std::array<float, 2> uv_max{1.0f, 1.0f};  // texture coordinates of the image's far edges
+  bool pending = false;          // a new image or overlay to compose at the next redraw
   std::vector<float> lines_px;   // validation wireframe, image pixels, 2 points per edge
 };
 
@@ -320,13 +447,7 @@ class DisplayImpl final : public Display {
     glVertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 2 * sizeof(float), nullptr);
     glBindVertexArray(0);
 
-    for (bool left : {true, false})
-      occlusion_lut_[left ? 0 : 1] = tabulate(
-          [left](auto class_of) { return visualize_receiver_occlusion(probe_mask(class_of), left); });
-    overlap_lut_ = tabulate([](auto class_of) {
-      return visualize_boom_overlap(probe_mask([&](int x) { return class_of(x) & 1; }),
-                                    probe_mask([&](int x) { return (class_of(x) >> 1) & 1; }));
-    });
+    overlay_luts();  // tabulated now rather than at the first frame
 
     IMGUI_CHECKVERSION();
     imgui_ = ImGui::CreateContext();
@@ -375,7 +496,14 @@ class DisplayImpl final : public Display {
     }
     bool changed = new_frame;
     if (new_frame || composed_overlay_ != overlay_) {
-      for (int i = 0; i < 2; ++i) compose_view(i, in);
+      // Composed at the next redraw, once the layout says how large each view is shown.
+      for (int i = 0; i < 2; ++i) {
+        ViewState& v = views_[i];
+        v.pending = true;
+        const Image* im = in.images[i];
+        v.image_w = im ? im->width() : 0;  // the layout's aspect
+        v.image_h = im ? im->height() : 0;
+      }
       composed_overlay_ = overlay_;
       changed = true;
     }
@@ -393,6 +521,7 @@ class DisplayImpl final : public Display {
     // Redraw only when something changed; the HUD at least every hud_refresh_s. ImGui needs a few
     // frames after an input to settle (hover, clicks).
     if (events_) settle_frames_ = 3;
+    const bool input = events_ || settle_frames_ > 0;  // the world view follows input at once
     const bool due = std::chrono::duration<double>(now - last_draw_).count() >= opt_.hud_refresh_s;
     if (!changed && !due && settle_frames_ == 0 && !screenshot_pending_ && !clip_active_) return true;
     if (fbw <= 0 || fbh <= 0 || ww <= 0 || wh <= 0) return true;  // minimised: nothing to draw
@@ -413,16 +542,34 @@ class DisplayImpl final : public Display {
     ImGui_ImplGlfw_NewFrame();
     ImGui::NewFrame();
     compute_layout(in, fbw, fbh, fb_scale);
+    // Each view at about its size on screen: recomposed for a new image or overlay, or when a
+    // resize changes the factor.
+    for (int i = 0; i < 2; ++i) {
+      ViewState& v = views_[i];
+      const Image* im = in.images[i];
+      const PixelRect& r = layout_.views[i];
+      if (!im || im->empty()) {
+        if (v.pending) compose_view(i, in, 1);
+        continue;
+      }
+      const int f = r.empty() ? std::max(1, v.factor)
+                              : view_decimation(im->width(), im->height(), im->format(), r.w, r.h);
+      if (v.pending || f != v.factor) compose_view(i, in, f);
+    }
 
     handle_world_mouse(fb_scale);
-    GLuint world_tex = 0;
-    if (!layout_.world.empty()) {
+    // The world view is re-rendered for input (orbit, zoom, toggles) at once, else at most every
+    // world_refresh_s: a new frame alone (30 Hz live) shows it again as last rendered.
+    const bool world_due = input || !world_tex_ ||
+                           std::chrono::duration<double>(now - last_world_).count() >= opt_.world_refresh_s;
+    if (layout_.world.empty()) world_tex_ = 0;
+    if (!layout_.world.empty() && world_due) {
       WorldViewInput wi;
       wi.rig = in.rig;
       wi.scene = in.scene;
       wi.validation_T_body_receiver = pose;
       for (int i = 0; i < 2; ++i) wi.image_textures[i] = views_[i].image_w ? views_[i].texture.id() : 0;
-      wi.frustum_rgb = {overlap_lut_.colour[1], overlap_lut_.colour[2]};  // left-only cyan, right-only blue
+      wi.frustum_rgb = {overlay_luts().overlap.colour[1], overlay_luts().overlap.colour[2]};  // left-only cyan, right-only blue
       wi.frustum_depth_m = frustum_depth_m_;
       const double area = static_cast<double>(layout_.world.w) * layout_.world.h;
       const double k = std::min(1.0, std::sqrt(opt_.world_view_max_px / std::max(area, 1.0)));
@@ -430,9 +577,11 @@ class DisplayImpl final : public Display {
       const int w = std::max(16, static_cast<int>(layout_.world.w * k) / 16 * 16);
       const int h = std::max(16, static_cast<int>(layout_.world.h * k) / 16 * 16);
       auto tex = world_->render(wi, w, h);
+      last_world_ = now;
       if (tex) {
-        world_tex = *tex;
+        world_tex_ = *tex;
       } else {
+        world_tex_ = 0;
         note(t_s, tex.error().message);
       }
     }
@@ -443,11 +592,13 @@ class DisplayImpl final : public Display {
     glDisable(GL_DEPTH_TEST);
     glDisable(GL_BLEND);
     glClearColor(0.09f, 0.09f, 0.10f, 1.0f);
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    // Colour only: nothing here tests depth, and llvmpipe clears a depth-stencil buffer's depth
+    // alone pixel by pixel (keeping the stencil bits): 1.6 Mpx a redraw at 1600x1000.
+    glClear(GL_COLOR_BUFFER_BIT);
     for (int i = 0; i < 2; ++i)
-      if (views_[i].image_w) draw_texture(views_[i].texture.id(), layout_.views[i], fbh, false);
+      if (views_[i].image_w) draw_texture(views_[i].texture.id(), layout_.views[i], fbh, false, views_[i].uv_max);
     if (validation_) draw_validation(in, fbh);
-    if (world_tex) draw_texture(world_tex, layout_.world, fbh, true);
+    if (world_tex_) draw_texture(world_tex_, layout_.world, fbh, true);
     glBindVertexArray(0);
     glViewport(0, 0, fbw, fbh);
 
@@ -724,7 +875,8 @@ class DisplayImpl final : public Display {
 
   void set_viewport(const PixelRect& r, int fbh) { glViewport(r.x, fbh - r.y - r.h, r.w, r.h); }
 
-  void draw_texture(GLuint tex, const PixelRect& r, int fbh, bool gl_rendered) {
+  void draw_texture(GLuint tex, const PixelRect& r, int fbh, bool gl_rendered,
+                    std::array<float, 2> uv_max = {1.0f, 1.0f}) {
     if (r.empty()) return;
     set_viewport(r, fbh);
     glUseProgram(copy_program_);
@@ -732,41 +884,33 @@ class DisplayImpl final : public Display {
     glBindTexture(GL_TEXTURE_2D, tex);
     glUniform1i(glGetUniformLocation(copy_program_, "u_image"), 0);
     glUniform1i(glGetUniformLocation(copy_program_, "u_flip"), gl_rendered ? 1 : 0);
+    glUniform2f(glGetUniformLocation(copy_program_, "u_uv_max"), uv_max[0], uv_max[1]);
     glBindVertexArray(empty_vao_);
     glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
   }
 
-  void compose_view(int i, const DisplayInput& in) {
+  // One view's texture at `factor` (view_decimation() of its rectangle), the overlay composed in.
+  void compose_view(int i, const DisplayInput& in, int factor) {
     ViewState& v = views_[i];
+    v.pending = false;
     const Image* im = in.images[i];
     if (!im || im->empty()) {
       v.image_w = v.image_h = 0;
       return;
     }
-    auto fits = [im](const Image* m) {
-      return m && m->format() == PixelFormat::kMono8 && m->width() == im->width() &&
-             m->height() == im->height();
-    };
-    const Image* own = in.masks[i];
-    const Image* left = in.masks[0];
-    const Image* right = in.masks[1];
-    if (overlay_ == MaskOverlay::kOcclusion && fits(own)) {
-      compose_rgba(
-          *im, &occlusion_lut_[i], [own](int x, int y) { return own->row(y)[x] & 3; }, v.rgba);
-    } else if (overlay_ == MaskOverlay::kBoomOverlap && fits(left) && fits(right)) {
-      compose_rgba(
-          *im, &overlap_lut_,
-          [left, right](int x, int y) {
-            return (left->row(y)[x] & kMaskBoom) | ((right->row(y)[x] & kMaskBoom) << 1);
-          },
-          v.rgba);
-    } else {
-      compose_rgba(
-          *im, nullptr, [](int, int) { return 0; }, v.rgba);
+    int tw = 0, th = 0;
+    compose_view_rgba(*im, overlay_, i, in.masks, factor, v.rgba, tw, th);
+    v.texture.upload(tw, th, v.rgba.data());
+    if (std::getenv("AUGRIG_NEAREST")) {  // TEMP experiment
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
     }
-    v.texture.upload(im->width(), im->height(), v.rgba.data());
     v.image_w = im->width();
     v.image_h = im->height();
+    v.factor = factor;
+    // The texels cover ceil(w / f) * f image pixels: the image is this much of the texture.
+    v.uv_max = {static_cast<float>(v.image_w) / (static_cast<float>(tw) * factor),
+                static_cast<float>(v.image_h) / (static_cast<float>(th) * factor)};
   }
 
   std::optional<Pose> validation_pose(const DisplayInput& in) const {
@@ -937,8 +1081,6 @@ class DisplayImpl final : public Display {
   std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> edges_;
   GLuint line_program_ = 0, copy_program_ = 0;
   GLuint empty_vao_ = 0, line_vao_ = 0, line_vbo_ = 0;
-  std::array<OverlayLut, 2> occlusion_lut_;
-  OverlayLut overlap_lut_;
   std::array<ViewState, 2> views_;
   std::array<std::array<float, 2>, 2> line_size_{};
   std::uint64_t frame_id_ = 0;
@@ -970,12 +1112,59 @@ class DisplayImpl final : public Display {
   DisplayLayout layout_;
   hud::OcclusionHistory history_;
   std::deque<std::pair<double, std::string>> own_messages_;
-  Clock::time_point start_, last_frame_, last_draw_, fps_since_;
+  Clock::time_point start_, last_frame_, last_draw_, fps_since_, last_world_;
+  GLuint world_tex_ = 0;  // the world view's last render (WorldView's target)
   int fps_frames_ = 0;
   double display_fps_ = std::numeric_limits<double>::quiet_NaN();
 };
 
 }  // namespace
+
+int view_decimation(int image_w, int image_h, PixelFormat format, int rect_w, int rect_h) {
+  if (image_w <= 0 || image_h <= 0 || rect_w <= 0 || rect_h <= 0) return 1;
+  const double ratio = std::min(static_cast<double>(image_w) / rect_w, static_cast<double>(image_h) / rect_h);
+  const int f = std::max(1, static_cast<int>(std::lround(ratio)));
+  if (f == 1 || !is_bayer(format)) return f;
+  return 2 * std::max(1, static_cast<int>(std::lround(ratio / 2)));
+}
+
+void compose_view_rgba(const Image& image, MaskOverlay overlay, int view,
+                       const std::array<const Image*, 2>& masks, int factor, std::vector<std::uint8_t>& rgba,
+                       int& out_w, int& out_h) {
+  const int f = std::max(1, factor);
+  const int w = image.width(), h = image.height();
+  out_w = (w + f - 1) / f;
+  out_h = (h + f - 1) / f;
+  rgba.resize(static_cast<std::size_t>(out_w) * out_h * 4);
+  if (image.empty()) return;
+  reduce_colour(image, f, out_w, out_h, rgba.data());
+
+  auto fits = [&](const Image* m) {
+    return m && m->format() == PixelFormat::kMono8 && m->width() == w && m->height() == h;
+  };
+  const OverlayLut* lut = nullptr;
+  thread_local std::vector<std::uint8_t> cls, other;
+  const int own = view == 0 ? 0 : 1;
+  if (overlay == MaskOverlay::kOcclusion && fits(masks[own])) {
+    lut = &overlay_luts().occlusion[own];
+    or_blocks(*masks[own], f, out_w, out_h, cls);
+    for (std::uint8_t& c : cls) c &= 3;
+  } else if (overlay == MaskOverlay::kBoomOverlap && fits(masks[0]) && fits(masks[1])) {
+    lut = &overlay_luts().overlap;
+    or_blocks(*masks[0], f, out_w, out_h, cls);
+    or_blocks(*masks[1], f, out_w, out_h, other);
+    for (std::size_t k = 0; k < cls.size(); ++k)
+      cls[k] = static_cast<std::uint8_t>((cls[k] & kMaskBoom) | ((other[k] & kMaskBoom) << 1));
+  }
+  if (!lut) return;
+  std::uint8_t* d = rgba.data();
+  for (std::size_t k = 0; k < cls.size(); ++k, d += 4) {
+    const auto& row = lut->out[cls[k]];
+    d[0] = row[0][d[0]];
+    d[1] = row[1][d[1]];
+    d[2] = row[2][d[2]];
+  }
+}
 
 Expected<std::unique_ptr<Display>> Display::create(const DisplayOptions& options) {
   auto d = std::make_unique<DisplayImpl>();

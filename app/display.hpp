@@ -108,6 +108,7 @@ struct DisplayOptions {
   double plot_seconds = 10.0;         // occlusion history shown
   double frustum_depth_m = 25.0;      // world view: frusta and image quads this far (<= far plane)
   double hud_refresh_s = 0.25;        // redraw at least this often for the HUD, even with no new frame
+  double world_refresh_s = 0.1;       // re-render the world view at most this often, except on input
   // Models drawn in the world view (and the validation overlay); null: the built-in ones.
   std::shared_ptr<const BoomModel> boom_model;
   std::shared_ptr<const Model> receiver_model;
@@ -130,6 +131,29 @@ struct DisplayLayout {
   PixelRect hud;                   // the status panel
   PixelRect help;                  // the help overlay; empty when hidden
 };
+
+// ---- How a view's image becomes its texture (exposed for the tests) ----------------------------
+//
+// Each view is composed on the CPU at about the size it is shown: the image reduced by an integer
+// `factor`, each f x f block of image pixels one texel (the last row and column of blocks partial
+// when the size is not a multiple of f). A texel's colour is the block's mean (Bayer: the mean of
+// each colour's sites in the block, so f = 2 bins each 2x2 cell straight to one RGB texel, with no
+// demosaicing); with an overlay, its mask class is the OR of the block's mask bits (so a boom one
+// pixel thin still shows) and its colour the overlay LUT's (blend_over()'s) of that class over the
+// block's mean. factor 1 is the full image as before (Bayer demosaiced by to_rgb8()).
+
+// The factor for an image shown in a rect_w x rect_h rectangle (framebuffer pixels): the image
+// size over the rectangle's, rounded (the texture within about 0.7 to 1.3 times what is shown,
+// which the GPU's bilinear filter scales); for Bayer images 1 or even (whole 2x2 cells).
+int view_decimation(int image_w, int image_h, PixelFormat format, int rect_w, int rect_h);
+
+// `image` composed for view `view` (0 left, 1 right) with `overlay` over it: tightly packed RGBA8
+// rows (alpha 255) of ceil(w / factor) x ceil(h / factor) texels into `rgba`, their size into
+// out_w, out_h. The overlay needs Mono8 masks of the image's size (kOcclusion: masks[view];
+// kBoomOverlap: both); without them the plain image is composed.
+void compose_view_rgba(const Image& image, MaskOverlay overlay, int view,
+                       const std::array<const Image*, 2>& masks, int factor, std::vector<std::uint8_t>& rgba,
+                       int& out_w, int& out_h);
 
 // Every shortcut, as the help overlay and docs/DISPLAY.md list them: {keys, what}.
 struct Shortcut {

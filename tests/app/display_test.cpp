@@ -612,6 +612,181 @@ TEST(DisplayWindow, RedrawsOnlyWhenSomethingChanged) {
   EXPECT_EQ(d->poll_commands().screenshots.size(), 1u);
 }
 
+// ---- The views' composition at about their size on screen (no window needed) -------------------
+
+// A deterministic, busy image of any format: every site a different-looking value.
+Image busy_image(int w, int h, PixelFormat f, int seed) {
+  Image im(w, h, f);
+  const int bpp = bytes_per_pixel(f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w * bpp; ++x)
+      im.row(y)[x] = static_cast<std::uint8_t>((x * 37 + y * 91 + seed * 13 + (x * y) % 29) & 255);
+  return im;
+}
+
+// Masks with every class, including a boom one pixel wide (column `thin_x`) that a decimation
+// must not lose.
+Image busy_mask(int w, int h, int seed, int thin_x) {
+  Image m(w, h, PixelFormat::kMono8);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      std::uint8_t v = ((x + 2 * y + seed) % 11 < 3) ? kMaskBoom : 0;
+      if ((x / 5 + y / 4 + seed) % 3 == 0) v |= kMaskReceiver;
+      if (x == thin_x) v |= kMaskBoom;
+      if (y < 3 && x != thin_x) v = 0;  // the top rows: the thin boom alone
+      m.row(y)[x] = v;
+    }
+  return m;
+}
+
+// The straightforward reference: per texel, the block [f ox, f ox + f) x [f oy, f oy + f) cut to
+// the image; its colour the mean of each channel's samples (Bayer: sites in whole 2x2 cells, the
+// last whole cell for a half one; factor 1 or odd: to_rgb8() first), rounded to nearest; its mask
+// class the OR over the block; its overlay colour blend_over() of render/visualize's colour for
+// that class over the mean, computed on 1x1 images.
+std::vector<std::uint8_t> reference_compose(const Image& im, MaskOverlay overlay, int view,
+                                            const std::array<const Image*, 2>& masks, int f) {
+  const int w = im.width(), h = im.height();
+  const int ow = (w + f - 1) / f, oh = (h + f - 1) / f;
+  const bool cells = is_bayer(im.format()) && f % 2 == 0;
+  const Image rgb = cells ? Image() : to_rgb8(im);
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(ow) * oh * 4);
+  for (int oy = 0; oy < oh; ++oy)
+    for (int ox = 0; ox < ow; ++ox) {
+      double sum[3] = {0, 0, 0};
+      int n[3] = {0, 0, 0};
+      if (cells) {
+        const int we = w / 2 * 2, he = h / 2 * 2;
+        int x0 = ox * f, y0 = oy * f;
+        int x1 = std::min(x0 + f, we), y1 = std::min(y0 + f, he);
+        if (x0 >= we) x0 = we - 2, x1 = we;
+        if (y0 >= he) y0 = he - 2, y1 = he;
+        for (int y = y0; y < y1; ++y)
+          for (int x = x0; x < x1; ++x) {
+            const int c = bayer_channel(im.format(), x, y);
+            sum[c] += im.row(y)[x];
+            ++n[c];
+          }
+      } else {
+        for (int y = oy * f; y < std::min(oy * f + f, h); ++y)
+          for (int x = ox * f; x < std::min(ox * f + f, w); ++x)
+            for (int c = 0; c < 3; ++c) sum[c] += rgb.row(y)[3 * x + c], ++n[c];
+      }
+      Image px(1, 1, PixelFormat::kRGB8);
+      for (int c = 0; c < 3; ++c) px.row(0)[c] = static_cast<std::uint8_t>(std::floor(sum[c] / n[c] + 0.5));
+      std::array<std::uint8_t, 2> ors = {0, 0};
+      for (int k = 0; k < 2; ++k)
+        if (masks[k])
+          for (int y = oy * f; y < std::min(oy * f + f, h); ++y)
+            for (int x = ox * f; x < std::min(ox * f + f, w); ++x) ors[k] |= masks[k]->row(y)[x];
+      auto one = [](std::uint8_t v) {
+        Image m(1, 1, PixelFormat::kMono8);
+        m.row(0)[0] = v;
+        return m;
+      };
+      if (overlay == MaskOverlay::kOcclusion)
+        px = blend_over(px, visualize_receiver_occlusion(one(ors[view]), view == 0));
+      else if (overlay == MaskOverlay::kBoomOverlap)
+        px = blend_over(px, visualize_boom_overlap(one(ors[0]), one(ors[1])));
+      std::uint8_t* d = out.data() + (static_cast<std::size_t>(oy) * ow + ox) * 4;
+      for (int c = 0; c < 3; ++c) d[c] = px.row(0)[c];
+      d[3] = 255;
+    }
+  return out;
+}
+
+TEST(DisplayCompose, MatchesAStraightforwardReferenceForEveryFormatSizeAndOverlay) {
+  struct Case {
+    PixelFormat format;
+    int w, h, f;
+  };
+  const std::vector<Case> cases = {
+      {PixelFormat::kBayerRG8, 64, 48, 2},  {PixelFormat::kBayerRG8, 37, 23, 2},   // odd sizes: half cells
+      {PixelFormat::kBayerBG8, 50, 30, 4},  {PixelFormat::kBayerGR8, 45, 31, 4},   // not multiples of f
+      {PixelFormat::kBayerGB8, 38, 26, 6},  {PixelFormat::kBayerRG8, 30, 22, 1},   // factor 1: demosaiced
+      {PixelFormat::kBayerRG8, 31, 20, 3},  {PixelFormat::kRGB8, 41, 29, 3},       // odd factor: demosaiced first
+      {PixelFormat::kRGB8, 40, 30, 1},      {PixelFormat::kRGBA8, 33, 17, 2},
+      {PixelFormat::kMono8, 35, 27, 2},     {PixelFormat::kBayerRG8, 2, 2, 2},
+      {PixelFormat::kBayerRG8, 3, 3, 2},    {PixelFormat::kBayerRG8, 7, 5, 8},     // one texel, larger than the image
+  };
+  for (const Case& c : cases) {
+    const Image im = busy_image(c.w, c.h, c.format, c.w);
+    const Image ml = busy_mask(c.w, c.h, 0, c.w / 2 | 1), mr = busy_mask(c.w, c.h, 4, c.w / 3);
+    const std::array<const Image*, 2> masks = {&ml, &mr};
+    for (MaskOverlay ov : {MaskOverlay::kOff, MaskOverlay::kOcclusion, MaskOverlay::kBoomOverlap})
+      for (int view : {0, 1}) {
+        SCOPED_TRACE(std::string(to_string(c.format)) + " " + std::to_string(c.w) + "x" + std::to_string(c.h) +
+                     " / " + std::to_string(c.f) + ", " + std::string(to_string(ov)) + ", view " +
+                     std::to_string(view));
+        std::vector<std::uint8_t> got;
+        int ow = 0, oh = 0;
+        compose_view_rgba(im, ov, view, masks, c.f, got, ow, oh);
+        EXPECT_EQ(ow, (c.w + c.f - 1) / c.f);
+        EXPECT_EQ(oh, (c.h + c.f - 1) / c.f);
+        const std::vector<std::uint8_t> want = reference_compose(im, ov, view, masks, c.f);
+        ASSERT_EQ(got.size(), want.size());
+        std::size_t bad = 0, first = got.size();
+        for (std::size_t k = 0; k < got.size(); ++k)
+          if (got[k] != want[k]) ++bad, first = std::min(first, k);
+        EXPECT_EQ(bad, 0u) << "first at texel " << first / 4 << " (" << (first / 4) % std::max(ow, 1) << ", "
+                           << (first / 4) / std::max(ow, 1) << ") channel " << first % 4 << ": "
+                           << int(got[first]) << " vs " << int(want[first]);
+      }
+  }
+}
+
+// Factor 1 is the full image as before: Bayer demosaiced by to_rgb8(), the overlay exactly
+// blend_over() of the visualisation (what a PNG of it holds).
+TEST(DisplayCompose, FactorOneIsBlendOverOfTheFullImage) {
+  const Image im = busy_image(64, 48, PixelFormat::kBayerRG8, 3);
+  const Image m = busy_mask(64, 48, 1, 9);
+  std::vector<std::uint8_t> got;
+  int ow = 0, oh = 0;
+  compose_view_rgba(im, MaskOverlay::kOcclusion, 1, {&m, &m}, 1, got, ow, oh);
+  const Image want = blend_over(im, visualize_receiver_occlusion(m, false));
+  ASSERT_EQ(ow, 64);
+  ASSERT_EQ(oh, 48);
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x)
+      for (int c = 0; c < 3; ++c)
+        ASSERT_EQ(got[(static_cast<std::size_t>(y) * 64 + x) * 4 + c], want.row(y)[3 * x + c]) << x << "," << y;
+}
+
+// A boom one pixel thin still shows at half and quarter size: every block it crosses is boom.
+TEST(DisplayCompose, AThinBoomSurvivesDecimation) {
+  const Image im(64, 48, PixelFormat::kBayerRG8);  // black
+  Image m(64, 48, PixelFormat::kMono8);
+  for (int y = 0; y < 48; ++y) m.row(y)[13] = kMaskBoom;  // one column
+  for (int f : {2, 4}) {
+    std::vector<std::uint8_t> got;
+    int ow = 0, oh = 0;
+    compose_view_rgba(im, MaskOverlay::kOcclusion, 0, {&m, nullptr}, f, got, ow, oh);
+    for (int oy = 0; oy < oh; ++oy)
+      for (int ox = 0; ox < ow; ++ox) {
+        const std::uint8_t* p = got.data() + (static_cast<std::size_t>(oy) * ow + ox) * 4;
+        const bool coloured = p[0] || p[1] || p[2];
+        EXPECT_EQ(coloured, ox == 13 / f) << "factor " << f << " texel " << ox << "," << oy;
+      }
+  }
+  // Without the masks an overlay cannot be drawn: the plain image.
+  std::vector<std::uint8_t> got;
+  int ow = 0, oh = 0;
+  compose_view_rgba(im, MaskOverlay::kBoomOverlap, 0, {&m, nullptr}, 2, got, ow, oh);
+  for (std::size_t k = 0; k < got.size(); ++k) EXPECT_EQ(got[k], k % 4 == 3 ? 255 : 0) << k;
+}
+
+TEST(DisplayCompose, DecimationFollowsTheSizeShown) {
+  // The live window: 1280x960 Bayer in a 1600x1000 window's 767x575 view: 2x2 cells binned.
+  EXPECT_EQ(view_decimation(1280, 960, PixelFormat::kBayerRG8, 767, 575), 2);
+  EXPECT_EQ(view_decimation(1280, 960, PixelFormat::kBayerRG8, 599, 449), 2);
+  EXPECT_EQ(view_decimation(1280, 960, PixelFormat::kBayerRG8, 400, 300), 4);  // 3 for Bayer: whole cells
+  EXPECT_EQ(view_decimation(1280, 960, PixelFormat::kRGB8, 400, 300), 3);
+  EXPECT_EQ(view_decimation(1280, 960, PixelFormat::kBayerRG8, 1000, 750), 1);  // near full size: demosaiced
+  EXPECT_EQ(view_decimation(1280, 960, PixelFormat::kRGB8, 2400, 1800), 1);
+  EXPECT_EQ(view_decimation(1280, 960, PixelFormat::kMono8, 160, 120), 8);
+  EXPECT_EQ(view_decimation(1280, 960, PixelFormat::kRGB8, 0, 0), 1);
+}
+
 // Without a display the window cannot open: a clear error, no crash.
 TEST(DisplayHeadless, CreateWithoutADisplayFailsWithAClearMessage) {
   if (std::getenv("DISPLAY") || std::getenv("WAYLAND_DISPLAY")) GTEST_SKIP() << "a display is present";
