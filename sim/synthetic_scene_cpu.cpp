@@ -5,11 +5,12 @@
 //   1. background, per block of kBlock x kBlock raw pixels: the four corner nodes' rays are
 //      rotated to NED and shaded exactly (sky colour, or the ground point, its footprint, woods,
 //      tint and haze); inside a ground block the ground point is interpolated and the tile sampled
-//      bilinearly in fixed point at the block's mip level; sky blocks interpolate the colour;
-//      blocks the horizon or the lens's invalid border cross are shaded per pixel exactly. Bayer
-//      pixels compute their own channel only;
+//      bilinearly in fixed point at the block's mip level, four pixels at a time with SSE2
+//      (ground_run); sky blocks interpolate the colour; blocks the horizon or the lens's invalid
+//      border cross are shaded per pixel exactly. Bayer pixels compute their own channel only;
 //   2. the receiver, rasterised by render/soft_raster at the virtual pinhole's samples (the raw
-//      pixels themselves without distortion), lit per vertex, textured per pixel;
+//      pixels themselves without distortion), lit per vertex, textured per pixel, shaded in runs
+//      of one triangle along a row (shade_run) found through a bitmask of covered samples;
 //   3. sensor noise from a counter-based generator per row, so row bands on several threads give
 //      the same bytes as one.
 // Cameras with equal intrinsics and orientation (a parallel stereo rig) share one background per
@@ -380,18 +381,23 @@ inline void put_sky(std::uint8_t* row, int x, const int* chan, const float* c) {
     put_rgb<kMode>(row, x, to_u8(c[0]), to_u8(c[1]), to_u8(c[2]));
 }
 
-// A run of n ground pixels of one row (x0 even), from the 16.16 texel coordinates (s, t) of its
-// first pixel stepped by (ds, dt) per pixel, and the woods, multiplier and haze terms, linear
-// along the run. Exactly put_ground(sample_tile()) per pixel but for the linear terms, which
-// are stepped (SSE2: four pixels' values stepped by 4 x step; else first + i x step): with SSE2 four pixels at a time (the texel fetches stay
-// scalar), the filter in 16-bit lanes with lerp64's rounding and the shading in float with
-// put_ground's operations in its order, so every output format gets the same channel values.
-// kWoods false: the caller knows that no pixel of the run is in the woods (woods weight 0), and
-// then c k1 + h haze is exactly what the full formula gives.
+// A ground block: pixels [x0, x0 + n) (x0 even) of rows [y0, y1). Its first row starts at the 16.16
+// texel coordinates (s, t), stepped by (ds, dt) per pixel; each next row starts (s_row, t_row)
+// further and steps (dds, ddt) more per pixel. The woods, multiplier and haze terms (w, k, h)
+// are bilinear over the block the same way. Per pixel exactly put_ground(sample_tile()) of the
+// stepped values: with SSE2 four pixels at a time (the texel fetches stay scalar), the filter in
+// 16-bit lanes with lerp64's rounding and the shading in float with put_ground's operations in
+// its order, so every output format gets the same channel values. kWoods false: the caller knows
+// that no pixel of the block is in the woods (woods weight 0), and then c k1 + h haze is exactly
+// what the full formula gives.
+struct GroundBlock {
+  std::uint32_t s = 0, t = 0, ds = 0, dt = 0, s_row = 0, t_row = 0, dds = 0, ddt = 0;
+  float w = 0, dw = 0, w_row = 0, ddw = 0, k = 0, dk = 0, k_row = 0, ddk = 0, h = 0, dh = 0, h_row = 0, ddh = 0;
+};
+
 template <int kMode, bool kWoods>
-void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::uint32_t* tex, int shift,
-                std::uint32_t s, std::uint32_t t, std::uint32_t ds, std::uint32_t dt, float w, float dw, float k,
-                float dk, float h, float dh) {
+void ground_block(Image& out, PixelFormat fmt, int x0, int n, int y0, int y1, const std::uint32_t* tex, int shift,
+                  const GroundBlock& g) {
 #if defined(__SSE2__)
   const __m128i mask = _mm_set1_epi32((1 << shift) - 1), one = _mm_set1_epi32(1), three = _mm_set1_epi32(3);
   const __m128i ff = _mm_set1_epi32(0xff), zero = _mm_setzero_si128();
@@ -403,13 +409,20 @@ void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::ui
     const __m128i even = _mm_mul_epu32(v, dd), odd = _mm_mul_epu32(_mm_srli_epi64(v, 32), dd);
     return _mm_unpacklo_epi32(_mm_shuffle_epi32(even, 0x08), _mm_shuffle_epi32(odd, 0x08));
   };
-  __m128i sv = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(s)), mul(step, ds));
-  __m128i tv = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(t)), mul(step, dt));
-  const __m128i ds4 = _mm_set1_epi32(static_cast<int>(4u * ds)), dt4 = _mm_set1_epi32(static_cast<int>(4u * dt));
+  auto ilin = [&](std::uint32_t v, std::uint32_t d) {
+    return _mm_add_epi32(_mm_set1_epi32(static_cast<int>(v)), mul(step, d));
+  };
+  auto i4 = [](std::uint32_t d) { return _mm_set1_epi32(static_cast<int>(4u * d)); };
+  // Row starts of 4 lanes and their per-row steps; per-pixel steps of 4 lanes (4 x the step) and theirs.
+  __m128i s_start = ilin(g.s, g.ds), t_start = ilin(g.t, g.dt), ds4 = i4(g.ds), dt4 = i4(g.dt);
+  const __m128i s_next = ilin(g.s_row, g.dds), t_next = ilin(g.t_row, g.ddt), dds4 = i4(g.dds), ddt4 = i4(g.ddt);
   const __m128 idx = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
   auto lin = [&](float v, float d) { return _mm_add_ps(_mm_set1_ps(v), _mm_mul_ps(idx, _mm_set1_ps(d))); };
-  __m128 wv = lin(w, dw), kv = lin(k, dk), hv = lin(h, dh);
-  const __m128 dw4 = _mm_set1_ps(4.0f * dw), dk4 = _mm_set1_ps(4.0f * dk), dh4 = _mm_set1_ps(4.0f * dh);
+  auto f4 = [](float d) { return _mm_set1_ps(4.0f * d); };
+  __m128 w_start = lin(g.w, g.dw), k_start = lin(g.k, g.dk), h_start = lin(g.h, g.dh);
+  __m128 dw4 = f4(g.dw), dk4 = f4(g.dk), dh4 = f4(g.dh);
+  const __m128 w_next = lin(g.w_row, g.ddw), k_next = lin(g.k_row, g.ddk), h_next = lin(g.h_row, g.ddh);
+  const __m128 ddw4 = f4(g.ddw), ddk4 = f4(g.ddk), ddh4 = f4(g.ddh);
   // tiled_index(shift, x, y) = row(y) + col(x).
   auto col = [&](__m128i x) { return _mm_or_si128(_mm_slli_epi32(_mm_srli_epi32(x, 2), 4), _mm_and_si128(x, three)); };
   auto row_of = [&](__m128i y) {
@@ -454,60 +467,83 @@ void ground_run(std::uint8_t* row, int x0, int n, const int* chan, const std::ui
     return _mm_packus_epi16(_mm_packs_epi32(q, q), q);  // 4 bytes in the low lane
   };
   const Channel red = make_channel(0, 0), green = make_channel(1, 1), blue = make_channel(2, 2);
-  const Channel bayer = kMode == kModeBayer ? make_channel(chan[0], chan[1]) : red;  // chan is -1 but for Bayer
-  for (int i = 0; i < n; i += 4) {
-    const __m128i x0v = _mm_and_si128(_mm_srli_epi32(sv, 16), mask), y0v = _mm_and_si128(_mm_srli_epi32(tv, 16), mask);
-    const __m128i x1v = _mm_and_si128(_mm_add_epi32(x0v, one), mask), y1v = _mm_and_si128(_mm_add_epi32(y0v, one), mask);
-    alignas(16) std::uint32_t i00[4], i10[4], i01[4], i11[4];
-    const __m128i c0 = col(x0v), c1 = col(x1v), r0 = row_of(y0v), r1 = row_of(y1v);
-    _mm_store_si128(reinterpret_cast<__m128i*>(i00), _mm_add_epi32(r0, c0));
-    _mm_store_si128(reinterpret_cast<__m128i*>(i10), _mm_add_epi32(r0, c1));
-    _mm_store_si128(reinterpret_cast<__m128i*>(i01), _mm_add_epi32(r1, c0));
-    _mm_store_si128(reinterpret_cast<__m128i*>(i11), _mm_add_epi32(r1, c1));
-    auto fetch = [tex](const std::uint32_t* ix) {
-      return _mm_setr_epi32(static_cast<int>(tex[ix[0]]), static_cast<int>(tex[ix[1]]), static_cast<int>(tex[ix[2]]),
-                            static_cast<int>(tex[ix[3]]));
-    };
-    const __m128i a = fetch(i00), b = fetch(i10), c = fetch(i01), d = fetch(i11);
-    __m128i wxl, wxh, wyl, wyh;
-    spread(_mm_and_si128(_mm_srli_epi32(sv, 8), ff), wxl, wxh);
-    spread(_mm_and_si128(_mm_srli_epi32(tv, 8), ff), wyl, wyh);
-    const __m128i lo = lerp16(lerp16(_mm_unpacklo_epi8(a, zero), _mm_unpacklo_epi8(b, zero), wxl),
-                              lerp16(_mm_unpacklo_epi8(c, zero), _mm_unpacklo_epi8(d, zero), wxl), wyl);
-    const __m128i hi = lerp16(lerp16(_mm_unpackhi_epi8(a, zero), _mm_unpackhi_epi8(b, zero), wxh),
-                              lerp16(_mm_unpackhi_epi8(c, zero), _mm_unpackhi_epi8(d, zero), wxh), wyh);
-    const __m128i v = _mm_packus_epi16(lo, hi);  // the 4 filtered RGBA8 texels
-    sv = _mm_add_epi32(sv, ds4), tv = _mm_add_epi32(tv, dt4);
-    // Shading, as put_ground: woods weight from the fine texture, then each channel.
-    __m128 av = f0, sm = f0;
-    if constexpr (kWoods) {
-      av = _mm_cvtepi32_ps(_mm_srli_epi32(v, 24));
-      const __m128 z = _mm_min_ps(_mm_max_ps(_mm_add_ps(wv, _mm_mul_ps(av, kwa)), f0), f1);
-      sm = _mm_mul_ps(_mm_mul_ps(z, z), _mm_sub_ps(f3, _mm_mul_ps(f2, z)));
+  Channel bayer_rows[2] = {red, red};  // by row parity; bayer_channel() is -1 but for Bayer
+  if constexpr (kMode == kModeBayer)
+    for (int r = 0; r < 2; ++r)
+      bayer_rows[r] = make_channel(bayer_channel(fmt, 0, y0 + r), bayer_channel(fmt, 1, y0 + r));
+  for (int y = y0; y < y1; ++y) {
+    std::uint8_t* const row = out.row(y);
+    const Channel& bayer = bayer_rows[(y - y0) & 1];
+    __m128i sv = s_start, tv = t_start;
+    __m128 wv = w_start, kv = k_start, hv = h_start;
+    for (int i = 0; i < n; i += 4) {
+      const __m128i x0v = _mm_and_si128(_mm_srli_epi32(sv, 16), mask);
+      const __m128i y0v = _mm_and_si128(_mm_srli_epi32(tv, 16), mask);
+      const __m128i x1v = _mm_and_si128(_mm_add_epi32(x0v, one), mask);
+      const __m128i y1v = _mm_and_si128(_mm_add_epi32(y0v, one), mask);
+      alignas(16) std::uint32_t i00[4], i10[4], i01[4], i11[4];
+      const __m128i c0 = col(x0v), c1 = col(x1v), r0 = row_of(y0v), r1 = row_of(y1v);
+      _mm_store_si128(reinterpret_cast<__m128i*>(i00), _mm_add_epi32(r0, c0));
+      _mm_store_si128(reinterpret_cast<__m128i*>(i10), _mm_add_epi32(r0, c1));
+      _mm_store_si128(reinterpret_cast<__m128i*>(i01), _mm_add_epi32(r1, c0));
+      _mm_store_si128(reinterpret_cast<__m128i*>(i11), _mm_add_epi32(r1, c1));
+      auto fetch = [tex](const std::uint32_t* ix) {
+        return _mm_setr_epi32(static_cast<int>(tex[ix[0]]), static_cast<int>(tex[ix[1]]), static_cast<int>(tex[ix[2]]),
+                              static_cast<int>(tex[ix[3]]));
+      };
+      const __m128i a = fetch(i00), b = fetch(i10), c = fetch(i01), d = fetch(i11);
+      __m128i wxl, wxh, wyl, wyh;
+      spread(_mm_and_si128(_mm_srli_epi32(sv, 8), ff), wxl, wxh);
+      spread(_mm_and_si128(_mm_srli_epi32(tv, 8), ff), wyl, wyh);
+      const __m128i lo = lerp16(lerp16(_mm_unpacklo_epi8(a, zero), _mm_unpacklo_epi8(b, zero), wxl),
+                                lerp16(_mm_unpacklo_epi8(c, zero), _mm_unpacklo_epi8(d, zero), wxl), wyl);
+      const __m128i hi = lerp16(lerp16(_mm_unpackhi_epi8(a, zero), _mm_unpackhi_epi8(b, zero), wxh),
+                                lerp16(_mm_unpackhi_epi8(c, zero), _mm_unpackhi_epi8(d, zero), wxh), wyh);
+      const __m128i v = _mm_packus_epi16(lo, hi);  // the 4 filtered RGBA8 texels
+      sv = _mm_add_epi32(sv, ds4), tv = _mm_add_epi32(tv, dt4);
+      // Shading, as put_ground: woods weight from the fine texture, then each channel.
+      __m128 av = f0, sm = f0;
+      if constexpr (kWoods) {
+        av = _mm_cvtepi32_ps(_mm_srli_epi32(v, 24));
+        const __m128 z = _mm_min_ps(_mm_max_ps(_mm_add_ps(wv, _mm_mul_ps(av, kwa)), f0), f1);
+        sm = _mm_mul_ps(_mm_mul_ps(z, z), _mm_sub_ps(f3, _mm_mul_ps(f2, z)));
+      }
+      const __m128 k1 = kv, hz = hv;
+      wv = _mm_add_ps(wv, dw4), kv = _mm_add_ps(kv, dk4), hv = _mm_add_ps(hv, dh4);
+      const int m = std::min(4, n - i);
+      if constexpr (kMode == kModeBayer) {
+        const int bytes = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, bayer));
+        if (m == 4)
+          std::memcpy(row + x0 + i, &bytes, 4);
+        else
+          for (int j = 0; j < m; ++j) row[x0 + i + j] = static_cast<std::uint8_t>(bytes >> (8 * j));
+      } else {
+        const int r = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, red));
+        const int g = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, green));
+        const int b = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, blue));
+        for (int j = 0; j < m; ++j)
+          put_rgb<kMode>(row, x0 + i + j, static_cast<std::uint8_t>(r >> (8 * j)),
+                         static_cast<std::uint8_t>(g >> (8 * j)), static_cast<std::uint8_t>(b >> (8 * j)));
+      }
     }
-    const __m128 k1 = kv, hz = hv;
-    wv = _mm_add_ps(wv, dw4), kv = _mm_add_ps(kv, dk4), hv = _mm_add_ps(hv, dh4);
-    const int m = std::min(4, n - i);
-    if constexpr (kMode == kModeBayer) {
-      const int bytes = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, bayer));
-      if (m == 4)
-        std::memcpy(row + x0 + i, &bytes, 4);
-      else
-        for (int j = 0; j < m; ++j) row[x0 + i + j] = static_cast<std::uint8_t>(bytes >> (8 * j));
-    } else {
-      const int r = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, red));
-      const int g = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, green));
-      const int b = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, blue));
-      for (int j = 0; j < m; ++j)
-        put_rgb<kMode>(row, x0 + i + j, static_cast<std::uint8_t>(r >> (8 * j)), static_cast<std::uint8_t>(g >> (8 * j)),
-                       static_cast<std::uint8_t>(b >> (8 * j)));
-    }
+    s_start = _mm_add_epi32(s_start, s_next), t_start = _mm_add_epi32(t_start, t_next);
+    ds4 = _mm_add_epi32(ds4, dds4), dt4 = _mm_add_epi32(dt4, ddt4);
+    w_start = _mm_add_ps(w_start, w_next), k_start = _mm_add_ps(k_start, k_next), h_start = _mm_add_ps(h_start, h_next);
+    dw4 = _mm_add_ps(dw4, ddw4), dk4 = _mm_add_ps(dk4, ddk4), dh4 = _mm_add_ps(dh4, ddh4);
   }
 #else
-  for (int i = 0; i < n; ++i) {
-    const auto fi = static_cast<float>(i);
-    put_ground<kMode>(row, x0 + i, chan, sample_tile(tex, shift, s, t), w + fi * dw, k + fi * dk, h + fi * dh);
-    s += ds, t += dt;
+  GroundBlock r = g;
+  for (int y = y0; y < y1; ++y) {
+    const int chan[2] = {bayer_channel(fmt, 0, y), bayer_channel(fmt, 1, y)};
+    std::uint32_t s = r.s, t = r.t;
+    for (int i = 0; i < n; ++i) {
+      const auto fi = static_cast<float>(i);
+      put_ground<kMode>(out.row(y), x0 + i, chan, sample_tile(tex, shift, s, t), r.w + fi * r.dw, r.k + fi * r.dk,
+                        r.h + fi * r.dh);
+      s += r.ds, t += r.dt;
+    }
+    r.s += r.s_row, r.t += r.t_row, r.ds += r.dds, r.dt += r.ddt;
+    r.w += r.w_row, r.k += r.k_row, r.h += r.h_row, r.dw += r.ddw, r.dk += r.ddk, r.dh += r.ddh;
   }
 #endif
 }
@@ -929,26 +965,31 @@ void CpuSceneRenderer::background_rows(const CameraTables& ct, const FrameSky& f
         // The wrap offset in whole tiles: s0 modulo the level's side, so fixed point stays in range.
         const double side = static_cast<double>(1 << shift);
         const double s_off = s0 - side * std::floor(s0 / side), t_off = t0 - side * std::floor(t0 / side);
+        // Bilinear over the block: the first row's start and step, and their changes per row.
         const double inv_span_y = 1.0 / span_y, fixed_per_x = 65536.0 / span_x;
+        const double fy0 = (y0 - ny0) * inv_span_y;
+        const double sl = s00 + fy0 * (s01 - s00), sr = s10 + fy0 * (s11 - s10);
+        const double tl = t00 + fy0 * (t01 - t00), tr = t10 + fy0 * (t11 - t10);
+        auto fixed = [](double v) { return static_cast<std::uint32_t>(round_to_int64(v)); };
+        GroundBlock g;
+        g.s = to_fixed(sl + s_off), g.t = to_fixed(tl + t_off);
+        g.ds = fixed((sr - sl) * fixed_per_x), g.dt = fixed((tr - tl) * fixed_per_x);
+        g.s_row = fixed((s01 - s00) * inv_span_y * 65536.0), g.t_row = fixed((t01 - t00) * inv_span_y * 65536.0);
+        g.dds = fixed(((s11 - s10) - (s01 - s00)) * inv_span_y * fixed_per_x);
+        g.ddt = fixed(((t11 - t10) - (t01 - t00)) * inv_span_y * fixed_per_x);
+        const auto fyf = static_cast<float>(fy0), fry = static_cast<float>(inv_span_y);
         const auto inv = static_cast<float>(1.0 / span_x);
-        for (int y = y0; y < y1; ++y) {
-          const double fy = (y - ny0) * inv_span_y;
-          const double sl = s00 + fy * (s01 - s00), sr = s10 + fy * (s11 - s10);
-          const double tl = t00 + fy * (t01 - t00), tr = t10 + fy * (t11 - t10);
-          const auto fyf = static_cast<float>(fy);
-          float wl = c00.wood + fyf * (c01.wood - c00.wood), wr = c10.wood + fyf * (c11.wood - c10.wood);
-          float kl = c00.k1 + fyf * (c01.k1 - c00.k1), kr = c10.k1 + fyf * (c11.k1 - c10.k1);
-          float hl = c00.h + fyf * (c01.h - c00.h), hr = c10.h + fyf * (c11.h - c10.h);
-          std::uint32_t s = to_fixed(sl + s_off), t = to_fixed(tl + t_off);
-          const auto ds = static_cast<std::uint32_t>(round_to_int64((sr - sl) * fixed_per_x));
-          const auto dt = static_cast<std::uint32_t>(round_to_int64((tr - tl) * fixed_per_x));
-          const float dw = (wr - wl) * inv, dk = (kr - kl) * inv, dh = (hr - hl) * inv;
-          const int chan[2] = {bayer_channel(fmt, 0, y), bayer_channel(fmt, 1, y)};
-          if (woods)
-            ground_run<kMode, true>(out.row(y), x0, x1 - x0, chan, tex, shift, s, t, ds, dt, wl, dw, kl, dk, hl, dh);
-          else
-            ground_run<kMode, false>(out.row(y), x0, x1 - x0, chan, tex, shift, s, t, ds, dt, wl, dw, kl, dk, hl, dh);
-        }
+        auto terms = [&](float a00, float a10, float a01, float a11, float& v, float& dv, float& v_row, float& ddv) {
+          const float l = a00 + fyf * (a01 - a00), r = a10 + fyf * (a11 - a10);
+          v = l, dv = (r - l) * inv, v_row = (a01 - a00) * fry, ddv = ((a11 - a10) - (a01 - a00)) * fry * inv;
+        };
+        terms(c00.wood, c10.wood, c01.wood, c11.wood, g.w, g.dw, g.w_row, g.ddw);
+        terms(c00.k1, c10.k1, c01.k1, c11.k1, g.k, g.dk, g.k_row, g.ddk);
+        terms(c00.h, c10.h, c01.h, c11.h, g.h, g.dh, g.h_row, g.ddh);
+        if (woods)
+          ground_block<kMode, true>(out, fmt, x0, x1 - x0, y0, y1, tex, shift, g);
+        else
+          ground_block<kMode, false>(out, fmt, x0, x1 - x0, y0, y1, tex, shift, g);
       } else if (valid && n_ground == 0) {
         // Sky: smooth (the sun's glow is several blocks wide); the colour is interpolated.
         for (int y = y0; y < y1; ++y) {
