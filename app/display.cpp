@@ -591,10 +591,19 @@ class DisplayImpl final : public Display {
     glDisable(GL_SCISSOR_TEST);
     glDisable(GL_DEPTH_TEST);
     glDisable(GL_BLEND);
-    glClearColor(0.09f, 0.09f, 0.10f, 1.0f);
+    const std::array<float, 3> clear = {0.09f, 0.09f, 0.10f};
+    glClearColor(clear[0], clear[1], clear[2], 1.0f);
     // Colour only: nothing here tests depth, and llvmpipe clears a depth-stencil buffer's depth
     // alone pixel by pixel (keeping the stencil bits): 1.6 Mpx a redraw at 1600x1000.
     glClear(GL_COLOR_BUFFER_BIT);
+    if (const PixelRect& h = layout_.hud; !h.empty()) {  // the status panel's background
+      const std::array<float, 3> bg = hud::panel_background(clear);
+      glEnable(GL_SCISSOR_TEST);
+      glScissor(h.x, fbh - h.y - h.h, h.w, h.h);
+      glClearColor(bg[0], bg[1], bg[2], 1.0f);
+      glClear(GL_COLOR_BUFFER_BIT);
+      glDisable(GL_SCISSOR_TEST);
+    }
     for (int i = 0; i < 2; ++i)
       if (views_[i].image_w) draw_texture(views_[i].texture.id(), layout_.views[i], fbh, false, views_[i].uv_max);
     if (validation_) draw_validation(in, fbh);

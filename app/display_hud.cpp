@@ -70,14 +70,23 @@ void OcclusionHistory::trim(double now_s, double window_s) {
   while (!samples_.empty() && samples_.front().t_s < now_s - window_s) samples_.pop_front();
 }
 
+std::array<float, 3> panel_background(const std::array<float, 3>& under) {
+  const ImVec4 bg = ImGui::GetStyle().Colors[ImGuiCol_WindowBg];
+  return {bg.x * bg.w + under[0] * (1.0f - bg.w), bg.y * bg.w + under[1] * (1.0f - bg.w),
+          bg.z * bg.w + under[2] * (1.0f - bg.w)};
+}
+
 PanelActions draw_status_panel(const HudState& hud, const PanelState& panel, const OcclusionHistory& history,
                                const ImVec2& pos, const ImVec2& size) {
   PanelActions act;
   ImGui::SetNextWindowPos(pos);
   ImGui::SetNextWindowSize(size);
+  // No background of ImGui's own: the display clears the panel's rectangle to the same colour
+  // (panel_background()), which llvmpipe does for about a tenth of blending a quad over it.
   ImGui::Begin("Status", nullptr,
                ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse |
-                   ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoFocusOnAppearing);
+                   ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoFocusOnAppearing |
+                   ImGuiWindowFlags_NoBackground);
   const float col = ImGui::GetContentRegionAvail().x * 0.5f;  // the left child takes 60 %
 
   // Left column: the pipeline; right column: occlusion and its history.

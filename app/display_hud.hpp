@@ -60,6 +60,10 @@ struct PanelActions {
   std::optional<double> rate;             // playback: a rate was chosen (0: as fast as possible)
 };
 
+// The status panel's background over `under` (RGB 0..1): the panel draws none itself, its owner
+// clears the panel's rectangle to this before drawing it.
+std::array<float, 3> panel_background(const std::array<float, 3>& under);
+
 // The status panel, placed at `pos` with `size` (ImGui coordinates).
 PanelActions draw_status_panel(const HudState& hud, const PanelState& panel, const OcclusionHistory& history,
                                const ImVec2& pos, const ImVec2& size);
