@@ -604,7 +604,8 @@ struct DrawnTriangle {
 // Bilinear, REPEAT-wrapped sample of a receiver texture level (`texels` tiled as pyramid_index,
 // w x h); `u`, `v` in texture units. The position goes to 24.8 fixed point with one conversion
 // per axis (texel and weight from it).
-inline std::uint64_t sample_texture(const std::uint32_t* texels, int w, int h, float u, float v) {
+[[gnu::always_inline]] inline std::uint64_t sample_texture(const std::uint32_t* texels, int w, int h, float u,
+                                                           float v) {
   auto fixed = [](float c) {  // floor(c * 256), without a library call; far coordinates clamped (and NaN)
     const float f = std::min(std::max(-1.0e9f, c * 256.0f), 1.0e9f);
     const int i = static_cast<int>(f);
