@@ -12,7 +12,7 @@
 // Two scenes: "boom" (the receiver absent: SceneState::receiver_present false, so no receiver,
 // no stereo classes) and "receiver" (boom + receiver + stereo classes, as the demo).
 //   build/bench_pipeline [--frames N] [--png-frames M] [--format bayer|rgb8] [--reuse-input]
-//                        [--read-ahead K] [--augrig PATH|none]
+//                        [--read-ahead K] [--augrig PATH|none] [--command-only]
 // The input recording is made first (not timed) from the built-in demo flight's cameras: the
 // synthetic renderer's last N stereo frames, with the boom and receiver of the scenario's truth.
 // --reuse-input keeps it in /tmp/augrig_bench_pipeline and uses it again (for profiling).
@@ -21,7 +21,8 @@
 // the producer waits while the recorder's queue is full, so nothing is dropped.
 // CPU: getrusage(RUSAGE_SELF), user + system of every thread, per stereo frame. "replay CPU" is
 // the reading thread's CPU inside ReplaySource::read plus its read-ahead thread's
-// (ReplayOptions::read_ahead; --read-ahead K sets it, 0 decodes on the reading thread as before).
+// (ReplayOptions::read_ahead; --read-ahead K sets it, 0 decodes on the reading thread as before);
+// "read() ms" the reading thread's wall time in read(), what the read-ahead takes off its path.
 // The `augrig replay` rows: the child's wall time and CPU (wait4), less those of the same command
 // replaying only the last frame (start-up: GL context, opening; the recording's close), over the
 // other N - 1 frames; "pipeline /s" is the rate the pipeline's own summary prints (from its first
@@ -109,7 +110,8 @@ struct Figures {
   double fps = 0;             // until the last frame is committed
   double fps_incl_close = 0;  // with the recorder's close()
   double cpu_ms = 0;          // all threads, per stereo frame
-  double replay_cpu_ms = 0;   // the reading thread's CPU inside ReplaySource::read
+  double replay_cpu_ms = 0;   // CPU inside ReplaySource::read (reading thread) + its read-ahead thread's
+  double read_wall_ms = 0;    // wall time the reading thread spent in ReplaySource::read
   double augment_ms = 0;      // wall time of augment()
   double encode_cpu_ms = 0;   // RecorderStats::encode_ms per frame
   double insert_cpu_ms = 0;   // RecorderStats::insert_ms per frame
@@ -268,7 +270,7 @@ struct Bench {
       fs::create_directories(dir / "png");
     }
     StereoResult result;
-    double augment_s = 0, replay_cpu = 0;
+    double augment_s = 0, replay_cpu = 0, read_wall_s = 0;
     const auto t0 = Clock::now();
     const double cpu0 = rusage_cpu_ms();
     const double read_ahead_cpu0 = replay->read_ahead_cpu_ms();
@@ -276,8 +278,10 @@ struct Bench {
     for (; n < count; ++n) {
       recorder::FrameRecord fr;
       const double r0 = thread_cpu_ms();
+      const auto w0 = Clock::now();
       if (need(replay->read(fr.raw.left, std::chrono::seconds(1)), "replay") != ReadStatus::kFrame) break;
       if (need(replay->read(fr.raw.right, std::chrono::seconds(1)), "replay") != ReadStatus::kFrame) break;
+      read_wall_s += seconds_since(w0);
       replay_cpu += thread_cpu_ms() - r0;
       if (sink == Sink::kReplayOnly) continue;
       const recorder::FrameRecord& rec = replay->current();
@@ -342,6 +346,7 @@ struct Bench {
     g.cpu_ms = cpu / k;
     g.replay_cpu_ms = (replay_cpu + replay->read_ahead_cpu_ms() - read_ahead_cpu0) / k;
     g.augment_ms = 1e3 * augment_s / k;
+    g.read_wall_ms = 1e3 * read_wall_s / k;
     if (out) {
       const recorder::RecorderStats s = out->stats();
       g.encode_cpu_ms = s.encode_ms / k;
@@ -370,7 +375,7 @@ struct Bench {
 
 int main(int argc, char** argv) {
   int frames = 90, png_frames = 15;
-  bool reuse = false;
+  bool reuse = false, command_only = false;
   std::optional<std::size_t> read_ahead;
   std::string augrig = (fs::read_symlink("/proc/self/exe").parent_path() / "augrig").string();
   PixelFormat format = PixelFormat::kBayerRG8;
@@ -387,6 +392,8 @@ int main(int argc, char** argv) {
       read_ahead = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--augrig" && has_value) {
       augrig = argv[++i];
+    } else if (a == "--command-only") {
+      command_only = true;
     } else if (a == "--format" && has_value) {
       const std::string f = argv[++i];
       if (f == "bayer")
@@ -400,7 +407,7 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: bench_pipeline [--frames N] [--png-frames M] [--format bayer|rgb8] [--reuse-input]\n"
-                   "                      [--read-ahead K] [--augrig PATH|none]\n");
+                   "                      [--read-ahead K] [--augrig PATH|none] [--command-only]\n");
       return 2;
     }
   }
@@ -449,9 +456,17 @@ int main(int argc, char** argv) {
     Figures g;
   };
   std::vector<Row> rows;
-  rows.push_back({"-", Sink::kReplayOnly, b.run(Sink::kReplayOnly, false, n)});
+  if (command_only && b.augrig.empty()) {
+    std::fprintf(stderr, "bench_pipeline: --command-only needs the augrig binary (--augrig PATH)\n");
+    return 2;
+  }
+  if (!command_only) rows.push_back({"-", Sink::kReplayOnly, b.run(Sink::kReplayOnly, false, n)});
   for (bool with_receiver : {false, true}) {
     const char* scene = with_receiver ? "receiver" : "boom";
+    if (command_only) {
+      rows.push_back({scene, Sink::kCommand, b.run_command(with_receiver, n)});
+      continue;
+    }
     (void)b.run(Sink::kNone, with_receiver, 5);  // warm up (first-use allocations, thread start)
     for (Sink s : {Sink::kNone, Sink::kCopy, Sink::kRecompress})
       rows.push_back({scene, s, b.run(s, with_receiver, n)});
@@ -464,18 +479,19 @@ int main(int argc, char** argv) {
               "receiver + stereo classes\n\n",
               frames, to_string(format).data());
   std::printf(
-      "| scene | pipeline | frames | stereo fps | fps incl. close | CPU ms/frame (all threads) | replay CPU ms | augment ms (wall) | "
+      "| scene | pipeline | frames | stereo fps | fps incl. close | CPU ms/frame (all threads) | replay CPU ms | read() ms (wall) | augment ms (wall) | "
       "encode CPU ms | insert CPU ms | raw blobs copied | stored MB | pipeline /s |\n");
-  std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const Row& r : rows) {
     const Figures& g = r.g;
     if (r.sink == Sink::kCommand) {
-      std::printf("| %s | %s | %zu | %.1f | %.1f | %.1f | - | - | - | - | - | %.1f | %.1f |\n", r.scene, sink_name(r.sink),
+      std::printf("| %s | %s | %zu | %.1f | %.1f | %.1f | - | - | - | - | - | - | %.1f | %.1f |\n", r.scene, sink_name(r.sink),
                   g.frames, g.fps, g.fps_incl_close, g.cpu_ms, g.stored_mb, g.pipeline_fps);
       continue;
     }
-    std::printf("| %s | %s | %zu | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %llu | %.1f | - |\n", r.scene,
-                sink_name(r.sink), g.frames, g.fps, g.fps_incl_close, g.cpu_ms, g.replay_cpu_ms, g.augment_ms, g.encode_cpu_ms, g.insert_cpu_ms,
+    std::printf("| %s | %s | %zu | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %llu | %.1f | - |\n", r.scene,
+                sink_name(r.sink), g.frames, g.fps, g.fps_incl_close, g.cpu_ms, g.replay_cpu_ms, g.read_wall_ms, g.augment_ms,
+                g.encode_cpu_ms, g.insert_cpu_ms,
                 static_cast<unsigned long long>(g.raw_copied), g.stored_mb);
   }
   std::printf("\n");
