@@ -10,9 +10,10 @@
 // Threads: create() makes the window and its GL context current on the calling thread; every
 // later call must come from that thread (GLFW wants it to be the main thread). The display never
 // blocks on the pipeline and keeps its cost low: per new frame (DisplayInput::frame_id) one
-// conversion (with the overlay composed in) and upload per view; a redraw (views as textured
-// quads, the world view at a modest resolution, the HUD) only when something changed: a new
-// frame, an input event, an overlay, or the HUD's refresh interval. docs/DISPLAY.md.
+// composition at about the size shown (with the overlay composed in) and upload per view; a
+// redraw (views as textured quads, the world view at a modest resolution and rate, the HUD) only
+// when something changed: a new frame, an input event, an overlay, or the HUD's refresh interval.
+// docs/DISPLAY.md.
 #pragma once
 
 #include <array>
