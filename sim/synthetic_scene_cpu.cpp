@@ -205,15 +205,18 @@ Pyramid make_pyramid(std::vector<std::uint32_t> level0, int w, int h, int max_le
   return p;
 }
 
-// Index of texel (x, y) in a tiled level of side 2^shift (shift >= 2).
+// Index of texel (x, y) in a tiled level of side 2^shift (shift >= 2): tiles of 4 rows of 5 texels,
+// the 5th a copy of the next tile's first column (wrapping), so that texels (x, y) and (x + 1, y)
+// are always adjacent (one 8-byte load).
 inline std::size_t tiled_index(int shift, std::uint32_t x, std::uint32_t y) {
-  return (((static_cast<std::size_t>(y >> 2) << (shift - 2)) + (x >> 2)) << 4) | ((y & 3u) << 2) | (x & 3u);
+  return (((static_cast<std::size_t>(y >> 2) << (shift - 2)) + (x >> 2)) * 20) + (y & 3u) * 5 + (x & 3u);
 }
 
-// The ground tile's mip chain, packed RGBA8 (R in the low byte), each level stored in 4 x 4 texel
-// tiles (64 bytes, one cache line): a bilinear footprint and its neighbours along any direction
-// stay in a few cache lines, where rows of 8 kB would miss on every texel row. Packed texels
-// (half the bytes of expanded ones) keep more of the chain in cache: level 0 is 16 MB.
+// The ground tile's mip chain, packed RGBA8 (R in the low byte), each level stored in tiles of
+// 4 x 4 texels plus a copy of the next tile's first column (tiled_index, 80 bytes): a bilinear
+// footprint and its neighbours along any direction stay in a few cache lines, where rows of 8 kB
+// would miss on every texel row, and a texel and its right neighbour are one 8-byte load. Packed
+// texels (half the bytes of expanded ones) keep more of the chain in cache: level 0 is 20 MB.
 struct GroundTile {
   std::vector<std::vector<std::uint32_t>> levels;  // level l: side 2^(kTileShift - l), tiled
 };
@@ -238,9 +241,12 @@ std::shared_ptr<const GroundTile> ground_tile() {
   int side = kTileTexels;
   for (int l = 0; l < kTileLevels; ++l) {
     const int shift = kTileShift - l;
-    std::vector<std::uint32_t> tiled(texels.size());
-    for (int y = 0; y < side; ++y)
-      for (int x = 0; x < side; ++x) tiled[tiled_index(shift, x, y)] = texels[static_cast<std::size_t>(y) * side + x];
+    std::vector<std::uint32_t> tiled(texels.size() / 4 * 5);
+    for (int y = 0; y < side; ++y) {
+      const std::uint32_t* src = texels.data() + static_cast<std::size_t>(y) * side;
+      for (int x = 0; x < side; ++x) tiled[tiled_index(shift, x, y)] = src[x];
+      for (int x = 0; x < side; x += 4) tiled[tiled_index(shift, x, y) + 4] = src[(x + 4) & (side - 1)];
+    }
     g.levels.push_back(std::move(tiled));
     if (l + 1 < kTileLevels) {
       int w2 = 0, h2 = 0;
@@ -402,7 +408,7 @@ void ground_block(Image& out, PixelFormat fmt, int x0, int n, int y0, int y1, co
   const __m128i mask = _mm_set1_epi32((1 << shift) - 1), one = _mm_set1_epi32(1), three = _mm_set1_epi32(3);
   const __m128i ff = _mm_set1_epi32(0xff), zero = _mm_setzero_si128();
   const __m128i w256 = _mm_set1_epi16(256), half = _mm_set1_epi16(128);
-  const __m128i row_shift = _mm_cvtsi32_si128(shift + 2);  // (y / 4) tiles of 2^(shift - 2) x 16 texels
+  const __m128i row_shift = _mm_cvtsi32_si128(shift);  // (y / 4) tiles of 2^(shift - 2) x 20 texels
   const __m128i step = _mm_setr_epi32(0, 1, 2, 3);
   auto mul = [](__m128i v, std::uint32_t d) {  // v * d per 32-bit lane (low 32 bits), SSE2 has no pmulld
     const __m128i dd = _mm_set1_epi32(static_cast<int>(d));
@@ -423,10 +429,14 @@ void ground_block(Image& out, PixelFormat fmt, int x0, int n, int y0, int y1, co
   __m128 dw4 = f4(g.dw), dk4 = f4(g.dk), dh4 = f4(g.dh);
   const __m128 w_next = lin(g.w_row, g.ddw), k_next = lin(g.k_row, g.ddk), h_next = lin(g.h_row, g.ddh);
   const __m128 ddw4 = f4(g.ddw), ddk4 = f4(g.ddk), ddh4 = f4(g.ddh);
-  // tiled_index(shift, x, y) = row(y) + col(x).
-  auto col = [&](__m128i x) { return _mm_or_si128(_mm_slli_epi32(_mm_srli_epi32(x, 2), 4), _mm_and_si128(x, three)); };
+  // tiled_index(shift, x, y) = row(y) + col(x): 5 (((y / 4) << shift) + y % 4) + 20 (x / 4) + x % 4.
+  auto col = [&](__m128i x) {
+    const __m128i q = _mm_srli_epi32(x, 2);
+    return _mm_add_epi32(_mm_add_epi32(_mm_slli_epi32(q, 4), _mm_slli_epi32(q, 2)), _mm_and_si128(x, three));
+  };
   auto row_of = [&](__m128i y) {
-    return _mm_or_si128(_mm_sll_epi32(_mm_srli_epi32(y, 2), row_shift), _mm_slli_epi32(_mm_and_si128(y, three), 2));
+    const __m128i r = _mm_or_si128(_mm_sll_epi32(_mm_srli_epi32(y, 2), row_shift), _mm_and_si128(y, three));
+    return _mm_add_epi32(_mm_slli_epi32(r, 2), r);
   };
   auto lerp16 = [&](__m128i a, __m128i b, __m128i wt) {
     return _mm_srli_epi16(
@@ -479,19 +489,21 @@ void ground_block(Image& out, PixelFormat fmt, int x0, int n, int y0, int y1, co
     for (int i = 0; i < n; i += 4) {
       const __m128i x0v = _mm_and_si128(_mm_srli_epi32(sv, 16), mask);
       const __m128i y0v = _mm_and_si128(_mm_srli_epi32(tv, 16), mask);
-      const __m128i x1v = _mm_and_si128(_mm_add_epi32(x0v, one), mask);
       const __m128i y1v = _mm_and_si128(_mm_add_epi32(y0v, one), mask);
-      alignas(16) std::uint32_t i00[4], i10[4], i01[4], i11[4];
-      const __m128i c0 = col(x0v), c1 = col(x1v), r0 = row_of(y0v), r1 = row_of(y1v);
-      _mm_store_si128(reinterpret_cast<__m128i*>(i00), _mm_add_epi32(r0, c0));
-      _mm_store_si128(reinterpret_cast<__m128i*>(i10), _mm_add_epi32(r0, c1));
-      _mm_store_si128(reinterpret_cast<__m128i*>(i01), _mm_add_epi32(r1, c0));
-      _mm_store_si128(reinterpret_cast<__m128i*>(i11), _mm_add_epi32(r1, c1));
-      auto fetch = [tex](const std::uint32_t* ix) {
-        return _mm_setr_epi32(static_cast<int>(tex[ix[0]]), static_cast<int>(tex[ix[1]]), static_cast<int>(tex[ix[2]]),
-                              static_cast<int>(tex[ix[3]]));
+      alignas(16) std::uint32_t i0[4], i1[4];
+      const __m128i c0 = col(x0v);
+      _mm_store_si128(reinterpret_cast<__m128i*>(i0), _mm_add_epi32(row_of(y0v), c0));
+      _mm_store_si128(reinterpret_cast<__m128i*>(i1), _mm_add_epi32(row_of(y1v), c0));
+      // Texels (x0, y) and (x0 + 1, y) of the 4 pixels, as [left of 0-3] and [right of 0-3].
+      auto fetch = [tex](const std::uint32_t* ix, __m128i& left, __m128i& right) {
+        auto pair = [tex](std::uint32_t i) { return _mm_loadl_epi64(reinterpret_cast<const __m128i*>(tex + i)); };
+        const __m128i p01 = _mm_shuffle_epi32(_mm_unpacklo_epi64(pair(ix[0]), pair(ix[1])), 0xd8);
+        const __m128i p23 = _mm_shuffle_epi32(_mm_unpacklo_epi64(pair(ix[2]), pair(ix[3])), 0xd8);
+        left = _mm_unpacklo_epi64(p01, p23), right = _mm_unpackhi_epi64(p01, p23);
       };
-      const __m128i a = fetch(i00), b = fetch(i10), c = fetch(i01), d = fetch(i11);
+      __m128i a, b, c, d;
+      fetch(i0, a, b);
+      fetch(i1, c, d);
       __m128i wxl, wxh, wyl, wyh;
       spread(_mm_and_si128(_mm_srli_epi32(sv, 8), ff), wxl, wxh);
       spread(_mm_and_si128(_mm_srli_epi32(tv, 8), ff), wyl, wyh);
