@@ -272,6 +272,7 @@ const std::vector<std::pair<std::string, std::string>> kThreadGroups = {
     {"main", "augrig"},           // the main thread: the pipeline when headless, else the window
     {"pipeline", "augrig-pipe"},  // the pipeline when a window is open
     {"capture", "augrig-cap"},    // a camera's capture; sim:// renders its frames there
+    {"replay", "augrig-replay"},  // a replayed recording's read-ahead (reading and decoding)
     {"llvmpipe", "llvmpipe-"},    // software GL rasteriser threads
     {"view-worker", "augrig-view"},  // the augmenter's second view (render/augmenter.cpp)
     {"aravis", "arv_gv_stream"},     // Aravis' stream threads: GVSP reassembly

@@ -269,6 +269,9 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
   if (u.scheme == "replay") {
     if (Status s = u.check_known({"rate", "loop", "passes", "from_frame", "seek_s", "late"}); !s) return s.error();
     recorder::ReplayOptions o;
+    // The StereoSource's capture thread already reads the recording ahead of the pipeline (its
+    // queue): a decode thread of the ReplaySource's own would only add a hand-off.
+    o.read_ahead = 0;
     const std::string rate = u.get("rate", "1");
     if (rate == "fast") {
       o.mode = recorder::ReplayMode::kFast;
