@@ -335,10 +335,13 @@ TEST(Augment, FoldersOfBayerPairs) {
 
 // ---- augment: a flown sequence (sim -> nav -> augment --frames --poses) ---------------------------
 
-// `augrig sim` of a short approach (every 3rd frame: 21 pairs), once for the tests below.
+// `augrig sim` of a short approach (every 3rd frame: 21 pairs), once per test process. CTest runs
+// each test in a process of its own and in parallel, so each has its own folder (a shared one was
+// removed and rewritten by one test while another read it).
 const std::string& flown_dataset() {
   static const std::string dir = [] {
-    const std::string d = output_dir("augment_flown");
+    const std::string d = output_dir(std::string("augment_flown_") +
+                                     testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(d);
     std::string log;
     EXPECT_EQ(augrig("sim --scenario " + data_path("scenarios/short_approach.yaml") + " --every 3 --out " + d + "/D",
