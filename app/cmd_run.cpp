@@ -201,7 +201,7 @@ PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::str
       }
       view->finish();
     });
-    // The window's loop, about 60 times a second; it never waits for the pipeline.
+    // The window's loop: at each new pair, else about 60 times a second; it never holds the pipeline.
     LiveView::Shown shown;
     const Rig& rig = pipeline.rig();
     // --screenshot-at N: one screenshot once the N-th pair is shown (written by the next frame()),
@@ -257,7 +257,9 @@ PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::str
       pc.seek_frame = c.seek_frame;
       pc.rate = c.rate;
       view->post(pc);
-      std::this_thread::sleep_for(std::chrono::milliseconds(16));
+      // Until the next pair is handed over (drawn at once: the latency to the screen is the
+      // draw's), or 16 ms for input and the HUD.
+      view->wait_newer(shown.id, std::chrono::milliseconds(16));
     }
     worker.join();
     display.reset();

@@ -380,6 +380,8 @@ struct ViewState {
   std::vector<std::uint8_t> rgba;
   int image_w = 0, image_h = 0;  // of the last uploaded image (0: none)
   int factor = 0;                // the texture is the image reduced by this (0: none yet)
+  bool exact = false;            // the texture is shown pixel-exact (NEAREST)
+  ViewScale scale;               // how the layout shows the view (compute_layout)
   std::array<float, 2> uv_max{1.0f, 1.0f};  // texture coordinates of the image's far edges
   bool pending = false;          // a new image or overlay to compose at the next redraw
   std::vector<float> lines_px;   // validation wireframe, image pixels, 2 points per edge
@@ -552,9 +554,8 @@ class DisplayImpl final : public Display {
         if (v.pending) compose_view(i, in, 1);
         continue;
       }
-      const int f = r.empty() ? std::max(1, v.factor)
-                              : view_decimation(im->width(), im->height(), im->format(), r.w, r.h);
-      if (v.pending || f != v.factor) compose_view(i, in, f);
+      const int f = r.empty() ? std::max(1, v.factor) : v.scale.factor;
+      if (v.pending || f != v.factor || v.scale.exact != v.exact) compose_view(i, in, f);
     }
 
     handle_world_mouse(fb_scale);
@@ -868,12 +869,22 @@ class DisplayImpl final : public Display {
     const int top_h = fbh * 3 / 5;
     const int cell_w = fbw / 2;
     for (int i = 0; i < 2; ++i) {
-      double aspect = 4.0 / 3.0;
-      if (views_[i].image_w)
-        aspect = static_cast<double>(views_[i].image_w) / views_[i].image_h;
-      else if (in.rig && in.rig->cameras.size() > static_cast<std::size_t>(i))
-        aspect = static_cast<double>(in.rig->cameras[i].model.width_px) / in.rig->cameras[i].model.height_px;
-      L.views[i] = fit(i * cell_w + m, label_h_, cell_w - 2 * m, top_h - label_h_ - m, aspect);
+      // The image's size (the camera's until one arrives) decides how it is shown (view_scale()).
+      int iw = views_[i].image_w, ih = views_[i].image_h;
+      PixelFormat format = in.images[i] ? in.images[i]->format() : PixelFormat::kMono8;
+      if (!iw && in.rig && in.rig->cameras.size() > static_cast<std::size_t>(i)) {
+        iw = in.rig->cameras[i].model.width_px;
+        ih = in.rig->cameras[i].model.height_px;
+      }
+      const int bx = i * cell_w + m, bw = cell_w - 2 * m, bh = top_h - label_h_ - m;
+      if (iw > 0 && ih > 0) {
+        views_[i].scale = view_scale(iw, ih, format, bw, bh);
+        L.views[i] = {bx + (bw - views_[i].scale.w) / 2, label_h_, views_[i].scale.w, views_[i].scale.h};
+        if (bw <= 0 || bh <= 0) L.views[i] = {bx, label_h_, 0, 0};
+      } else {
+        views_[i].scale = {};
+        L.views[i] = fit(bx, label_h_, bw, bh, 4.0 / 3.0);
+      }
     }
     const int world_w = fbw * 2 / 5;
     L.world = {m, top_h + label_h_, world_w - 2 * m, fbh - top_h - label_h_ - m};
@@ -910,16 +921,18 @@ class DisplayImpl final : public Display {
     int tw = 0, th = 0;
     compose_view_rgba(*im, overlay_, i, in.masks, factor, v.rgba, tw, th);
     v.texture.upload(tw, th, v.rgba.data());
-    if (std::getenv("AUGRIG_NEAREST")) {  // TEMP experiment
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    }
+    // Pixel-exact views copy texels (NEAREST, no blur, cheaper on llvmpipe); fitted ones filter.
+    v.exact = v.scale.exact;
+    const GLint filter = v.exact ? GL_NEAREST : GL_LINEAR;
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filter);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filter);
     v.image_w = im->width();
     v.image_h = im->height();
     v.factor = factor;
     // The texels cover ceil(w / f) * f image pixels: the image is this much of the texture.
     v.uv_max = {static_cast<float>(v.image_w) / (static_cast<float>(tw) * factor),
                 static_cast<float>(v.image_h) / (static_cast<float>(th) * factor)};
+    if (v.exact) v.uv_max = {1.0f, 1.0f};  // every texel on its own screen pixels, a partial block too
   }
 
   std::optional<Pose> validation_pose(const DisplayInput& in) const {
@@ -1135,6 +1148,42 @@ int view_decimation(int image_w, int image_h, PixelFormat format, int rect_w, in
   const int f = std::max(1, static_cast<int>(std::lround(ratio)));
   if (f == 1 || !is_bayer(format)) return f;
   return 2 * std::max(1, static_cast<int>(std::lround(ratio / 2)));
+}
+
+ViewScale view_scale(int image_w, int image_h, PixelFormat format, int cell_w, int cell_h) {
+  ViewScale s;
+  if (image_w <= 0 || image_h <= 0 || cell_w <= 0 || cell_h <= 0) return s;
+  // The aspect-kept fit: the most the cell can show.
+  int fit_w = cell_w, fit_h = static_cast<int>(std::lround(static_cast<double>(cell_w) * image_h / image_w));
+  if (fit_h > cell_h) {
+    fit_h = cell_h;
+    fit_w = static_cast<int>(std::lround(static_cast<double>(cell_h) * image_w / image_h));
+  }
+  // The largest pixel-exact view: zoomed when the image fits, else reduced by the smallest factor
+  // that fits (Bayer: whole 2x2 cells, so 1 or even).
+  int factor = 1, zoom = 1;
+  if (image_w <= cell_w && image_h <= cell_h) {
+    zoom = std::max(1, std::min(cell_w / image_w, cell_h / image_h));
+  } else {
+    auto fits = [&](int f) { return (image_w + f - 1) / f <= cell_w && (image_h + f - 1) / f <= cell_h; };
+    factor = 2;
+    const int step = is_bayer(format) ? 2 : 1;
+    while (!fits(factor) && factor < std::max(image_w, image_h)) factor += step;
+  }
+  const int exact_w = (image_w + factor - 1) / factor * zoom;
+  const int exact_h = (image_h + factor - 1) / factor * zoom;
+  if (exact_w <= cell_w && exact_h <= cell_h && exact_w >= kPixelExactMinFill * fit_w) {
+    s.exact = true;
+    s.factor = factor;
+    s.zoom = zoom;
+    s.w = exact_w;
+    s.h = exact_h;
+    return s;
+  }
+  s.w = fit_w;
+  s.h = fit_h;
+  s.factor = view_decimation(image_w, image_h, format, fit_w, fit_h);
+  return s;
 }
 
 void compose_view_rgba(const Image& image, MaskOverlay overlay, int view,

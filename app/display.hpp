@@ -148,6 +148,22 @@ struct DisplayLayout {
 // which the GPU's bilinear filter scales); for Bayer images 1 or even (whole 2x2 cells).
 int view_decimation(int image_w, int image_h, PixelFormat format, int rect_w, int rect_h);
 
+// How a view is shown in a cell of cell_w x cell_h framebuffer pixels. Pixel-exact when that fills
+// the cell well enough: the image reduced by an integer `factor` (for Bayer 1 or even) and each
+// texel drawn as zoom x zoom screen pixels, the largest such view that fits, sampled NEAREST (on
+// llvmpipe a texel copied 1:1 costs about 0.75x a bilinear one, and nothing is blurred). When that
+// view would be less than kPixelExactMinFill of the aspect-kept fit in width (a 1280-wide image in
+// a 1270-wide cell would be shown at 640), the fit is used instead: `exact` false, the texture at
+// view_decimation() of it, filtered bilinearly.
+struct ViewScale {
+  bool exact = false;
+  int factor = 1;    // image pixels per texel (each way)
+  int zoom = 1;      // screen pixels per texel (each way), exact views only
+  int w = 0, h = 0;  // the view's size on screen
+};
+inline constexpr double kPixelExactMinFill = 0.8;
+ViewScale view_scale(int image_w, int image_h, PixelFormat format, int cell_w, int cell_h);
+
 // `image` composed for view `view` (0 left, 1 right) with `overlay` over it: tightly packed RGBA8
 // rows (alpha 255) of ceil(w / factor) x ceil(h / factor) texels into `rgba`, their size into
 // out_w, out_h. The overlay needs Mono8 masks of the image's size (kOcclusion: masks[view];

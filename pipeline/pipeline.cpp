@@ -72,6 +72,7 @@ void LiveView::publish(StereoResult& result, const SceneState& scene, TimestampN
   newest_.scene = scene;
   newest_.id++;
   newest_mid_host_ns_ = mid_host_ns;
+  changed_.notify_all();
 }
 
 void LiveView::set_hud(HudState hud, std::optional<Playback> playback) {
@@ -91,6 +92,12 @@ PipelineCommands LiveView::take_commands() {
 void LiveView::finish() {
   std::lock_guard lock(mutex_);
   finished_ = true;
+  changed_.notify_all();
+}
+
+bool LiveView::wait_newer(std::uint64_t shown_id, std::chrono::nanoseconds timeout) const {
+  std::unique_lock lock(mutex_);
+  return changed_.wait_for(lock, timeout, [&] { return newest_.id != shown_id || finished_; });
 }
 
 TimestampNs LiveView::take_newest(Shown& shown) {

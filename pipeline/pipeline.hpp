@@ -22,6 +22,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <filesystem>
@@ -97,6 +98,9 @@ class LiveView {
   std::optional<Playback> playback() const;
   void post(const PipelineCommands& c);
   bool finished() const;
+  // Waits until a pair newer than `shown_id` is published or the pipeline finished (true), or the
+  // timeout passed (false): the window draws a new pair as soon as it is handed over.
+  bool wait_newer(std::uint64_t shown_id, std::chrono::nanoseconds timeout) const;
   // The window drew the pair with mid-exposure `mid_host_ns`: its latency to the screen.
   void drawn(TimestampNs mid_host_ns);
   // Mid-exposure to the window's draw (or, headless, to the hand-off), over the last pairs.
@@ -107,6 +111,7 @@ class LiveView {
   friend class Pipeline;
   void add_latency(TimestampNs ns);
   mutable std::mutex mutex_;
+  mutable std::condition_variable changed_;  // a new pair or the finish
   Shown newest_;
   TimestampNs newest_mid_host_ns_ = 0;
   HudState hud_;

@@ -787,6 +787,48 @@ TEST(DisplayCompose, DecimationFollowsTheSizeShown) {
   EXPECT_EQ(view_decimation(1280, 960, PixelFormat::kRGB8, 0, 0), 1);
 }
 
+TEST(DisplayCompose, ViewsArePixelExactWhenThatFillsTheCell) {
+  // The 1600x1000 window's cell (776x569): 1280x960 Bayer halved, each texel one screen pixel.
+  ViewScale s = view_scale(1280, 960, PixelFormat::kBayerRG8, 776, 569);
+  EXPECT_TRUE(s.exact);
+  EXPECT_EQ(s.factor, 2);
+  EXPECT_EQ(s.zoom, 1);
+  EXPECT_EQ(s.w, 640);
+  EXPECT_EQ(s.h, 480);
+  // A small camera zoomed by whole screen pixels: 160x120 in that cell, 4x.
+  s = view_scale(160, 120, PixelFormat::kBayerRG8, 776, 569);
+  EXPECT_TRUE(s.exact);
+  EXPECT_EQ(s.factor, 1);
+  EXPECT_EQ(s.zoom, 4);
+  EXPECT_EQ(s.w, 640);
+  // Full size where it fits (a large monitor), Bayer or not.
+  s = view_scale(1280, 960, PixelFormat::kBayerRG8, 1300, 1000);
+  EXPECT_TRUE(s.exact);
+  EXPECT_EQ(s.factor, 1);
+  EXPECT_EQ(s.w, 1280);
+  // Bayer needs whole 2x2 cells: 1280x960 in 420x320 is reduced by 4 (not 3), 320x240, too small
+  // against the 420-wide fit: shown fitted, bilinear, at view_decimation()'s factor.
+  s = view_scale(1280, 960, PixelFormat::kBayerRG8, 420, 320);
+  EXPECT_FALSE(s.exact);
+  EXPECT_EQ(s.w, 420);
+  EXPECT_EQ(s.h, 315);
+  EXPECT_EQ(s.factor, view_decimation(1280, 960, PixelFormat::kBayerRG8, 420, 315));
+  // The same cell for RGB: reduced by 3 (427x320 does not fit; 4: 320x240) -> fitted too; a
+  // 1270-wide cell would show a 1280-wide image at 640: fitted, not halved.
+  s = view_scale(1280, 960, PixelFormat::kRGB8, 1270, 1000);
+  EXPECT_FALSE(s.exact);
+  EXPECT_EQ(s.w, 1270);
+  // Odd sizes: the partial last block is a texel of its own.
+  s = view_scale(1281, 961, PixelFormat::kMono8, 700, 500);
+  EXPECT_TRUE(s.exact);
+  EXPECT_EQ(s.factor, 2);
+  EXPECT_EQ(s.w, 641);
+  EXPECT_EQ(s.h, 481);
+  // Nothing to show.
+  EXPECT_EQ(view_scale(0, 0, PixelFormat::kMono8, 700, 500).w, 0);
+  EXPECT_EQ(view_scale(640, 480, PixelFormat::kMono8, 0, 500).w, 0);
+}
+
 // Without a display the window cannot open: a clear error, no crash.
 TEST(DisplayHeadless, CreateWithoutADisplayFailsWithAClearMessage) {
   if (std::getenv("DISPLAY") || std::getenv("WAYLAND_DISPLAY")) GTEST_SKIP() << "a display is present";
