@@ -603,9 +603,13 @@ Status V4l2Source::map_buffers_and_stream() {
       return device_error("open", "VIDIOC_QBUF " + std::to_string(i) + " failed: " + errno_text(errno));
     }
   }
+  return options_.stream_at_open ? stream_on("open") : Status{};
+}
+
+Status V4l2Source::stream_on(const char* where) {
   int type = kCaptureType;
   if (xioctl(io_, fd_, VIDIOC_STREAMON, &type) != 0) {
-    return device_error("open", "VIDIOC_STREAMON failed: " + errno_text(errno));
+    return device_error(where, "VIDIOC_STREAMON failed: " + errno_text(errno));
   }
   streaming_ = true;
   return {};
@@ -735,6 +739,13 @@ bool V4l2Source::convert(const v4l2_buffer& buf, Frame& out) {
 
 Expected<ReadStatus> V4l2Source::read(Frame& out, std::chrono::nanoseconds timeout) {
   if (failed_) return *failed_;
+  // The buffers were queued at open(); the device captures from the first read on.
+  if (!streaming_) {
+    if (Status s = stream_on("read"); !s) {
+      failed_ = s.error();
+      return *failed_;
+    }
+  }
   auto fail = [&](const std::string& what) -> Error {
     failed_ = device_error("read", what);
     return *failed_;

@@ -58,6 +58,11 @@ struct V4l2Options {
   // MJPEG frames that decode with a libjpeg warning (e.g. truncated data) are dropped unless this is
   // set; some cameras emit harmless warnings on every frame.
   bool keep_mjpeg_frames_with_warnings = false;
+  // VIDIOC_STREAMON in open() instead of at the first read(). A device streams from STREAMON: if
+  // nothing reads while the caller sets up (GL, augmenter, recorder), its buffers fill with stale
+  // frames and the frames after them are lost (sequence gaps counted as camera drops), as the
+  // Aravis cameras' were. So streaming starts when the frames are wanted.
+  bool stream_at_open = false;
 };
 
 // What was negotiated with the driver.
@@ -127,7 +132,8 @@ class V4l2Source final : public FrameSource {
   Status negotiate_format();
   Status set_frame_rate();
   Status set_controls();
-  Status map_buffers_and_stream();
+  Status map_buffers_and_stream();  // REQBUFS, mmap, QBUF all; STREAMON when stream_at_open
+  Status stream_on(const char* where);
   // Turns a dequeued buffer into `out`; false when the buffer was dropped (and counted).
   bool convert(const v4l2_buffer& buf, Frame& out);
   void drop(std::uint64_t& counter, std::string reason);

@@ -47,7 +47,10 @@ V4l2Options options(std::vector<std::uint32_t> fourccs = {}) {
   return o;
 }
 
-std::unique_ptr<V4l2Source> open_ok(const V4l2Options& o, FakeV4l2Io& io) {
+// Streaming from open(): these tests push frames before the first read(), as a device that
+// streams captures them (the default, streaming from the first read, has its own test).
+std::unique_ptr<V4l2Source> open_ok(V4l2Options o, FakeV4l2Io& io) {
+  o.stream_at_open = true;
   auto s = V4l2Source::open(o, io);
   EXPECT_TRUE(s) << s.error().message;
   return s ? std::move(*s) : nullptr;
@@ -494,6 +497,32 @@ TEST(V4l2Source, OpenErrorsNameTheDevice) {
   auto one = V4l2Source::open(o, io);
   ASSERT_FALSE(one);
   EXPECT_TRUE(contains(one.error().message, "buffer_count 1: expected at least 2")) << one.error().message;
+}
+
+// By default the device streams from the first read(): nothing is captured while the caller sets
+// up, so no stale frames fill the buffers and no frame after them is lost.
+TEST(V4l2Source, StreamsFromTheFirstRead) {
+  FakeV4l2Io io;
+  FakeV4l2Device& dev = io.add_device(camera({V4L2_PIX_FMT_GREY}));
+  auto r = V4l2Source::open(options(), io);
+  ASSERT_TRUE(r) << r.error().message;
+  auto& src = *r;
+  EXPECT_FALSE(dev.streaming());
+  EXPECT_EQ(dev.queued_buffers(), src->info().buffer_count);  // queued, ready for STREAMON
+  EXPECT_FALSE(dev.push_frame(dev.pattern_frame(1))) << "a device not streaming captures nothing";
+  Frame f;
+  auto first = src->read(f, std::chrono::milliseconds(0));
+  ASSERT_TRUE(first) << first.error().message;
+  EXPECT_EQ(*first, ReadStatus::kTimeout);
+  EXPECT_TRUE(dev.streaming());
+  ASSERT_TRUE(dev.push_frame(dev.pattern_frame(2), {}, 0));
+  auto second = src->read(f, kWait);
+  ASSERT_TRUE(second) << second.error().message;
+  EXPECT_EQ(*second, ReadStatus::kFrame);
+  EXPECT_EQ(f.sequence, 0u);
+  EXPECT_EQ(src->frames_dropped(), 0u);
+  const auto log = dev.ioctl_log();
+  EXPECT_EQ(std::count(log.begin(), log.end(), static_cast<unsigned long>(VIDIOC_STREAMON)), 1);
 }
 
 TEST(V4l2Source, ASecondReaderOfABusyDeviceIsRefused) {
