@@ -145,7 +145,10 @@ Expected<std::unique_ptr<FrameSource>> open_camera(const SourceUri& u, CameraId 
     }
     const std::string trigger = u.get("trigger", "free");
     if (trigger == "software") {
-      o.trigger = TriggerMode::kSoftware;
+      // Nothing in a command sends software triggers: the camera would wait for one forever.
+      return uri_error(u,
+                       "trigger=software: no command sends software triggers (the camera would never "
+                       "deliver a frame); expected free, or LineN for a hardware trigger line");
     } else if (trigger != "free") {
       o.trigger = TriggerMode::kLine;
       o.trigger_line = trigger;

@@ -93,5 +93,14 @@ TEST(Sources, UnknownSchemesAndParametersAreErrors) {
   }
 }
 
+// Nothing in a command sends software triggers: such a camera is refused before anything is
+// opened, rather than waiting for a frame forever.
+TEST(Sources, SoftwareTriggerIsRefused) {
+  auto o = open_sources("stereo://{aravis://127.0.0.1?trigger=software}{aravis://127.0.0.2}");
+  ASSERT_FALSE(o);
+  EXPECT_NE(o.error().message.find("trigger=software"), std::string::npos) << o.error().message;
+  EXPECT_NE(o.error().message.find("expected free, or LineN"), std::string::npos) << o.error().message;
+}
+
 }  // namespace
 }  // namespace augrig::pipeline
