@@ -127,13 +127,14 @@ struct CamTriangle {
 
 // Camera z where the ray d = (x, y, 1) from the camera centre hits `t`, or +inf: inside-ness is
 // three signs against the edge planes, and z (the ray parameter, d.z being 1) comes from the plane.
-inline double ray_hit_z(const CamTriangle& t, const Eigen::Vector3d& d) {
+// A hit outside the camera's clipping planes [near_m, far_m] is no hit, as in both rasterisers.
+inline double ray_hit_z(const CamTriangle& t, const Eigen::Vector3d& d, double near_m, double far_m) {
   constexpr double kMiss = std::numeric_limits<double>::infinity();
   if (t.edge[0].dot(d) < 0 || t.edge[1].dot(d) < 0 || t.edge[2].dot(d) < 0) return kMiss;
   const double n_dot_d = t.n.dot(d);
   if (n_dot_d == 0) return kMiss;  // seen edge-on
   const double z = t.n_dot_v0 / n_dot_d;
-  return z > 0.0 ? z : kMiss;
+  return z >= near_m && z <= far_m ? z : kMiss;  // near_m > 0: nothing behind the camera either
 }
 
 struct MapEntry {
@@ -558,26 +559,28 @@ void AugmenterImpl::prepare_view(ViewState& vs, const SceneState& scene) {
 // Virtual-image boxes of the draw items of `kinds` seen from this camera: one per chunk, from its
 // projected vertices (a mesh's projection lies in the hull of its projected vertices while all are
 // in front), then merged where merging costs little area. The whole image if any vertex is nearer
-// than the near plane.
+// than the near plane; none for a chunk wholly beyond the far plane.
 std::vector<VBox> AugmenterImpl::project_boxes(const ViewState& vs,
                                                std::initializer_list<ObjectKind> kinds) const {
   const VBox full{0, 0, vs.vp.width, vs.vp.height};
-  const double near = vs.cam->near_m;
+  const double near = vs.cam->near_m, far = vs.cam->far_m;
   std::vector<VBox> boxes;
   for (const DrawItem& d : draws_) {
     if (std::find(kinds.begin(), kinds.end(), d.kind) == kinds.end()) continue;
     for (const auto& [first, count] : d.chunks) {
-      double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+      double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30, z0 = 1e30;
       // The triangles were moved into this camera's frame by prepare_view().
       for (std::uint32_t k = first; k < first + count; ++k) {
         const CamTriangle& t = vs.tris[d.first_tri + k];
         for (const Eigen::Vector3d& p : {t.v0, Eigen::Vector3d(t.v0 + t.e1), Eigen::Vector3d(t.v0 + t.e2)}) {
           if (p.z() < near) return {full};
+          z0 = std::min(z0, p.z());
           const double qx = vs.vp.fx * p.x() / p.z() + vs.vp.cx, qy = vs.vp.fy * p.y() / p.z() + vs.vp.cy;
           x0 = std::min(x0, qx), x1 = std::max(x1, qx), y0 = std::min(y0, qy), y1 = std::max(y1, qy);
         }
       }
       if (x1 < -2 || y1 < -2 || x0 > vs.vp.width + 2 || y0 > vs.vp.height + 2) continue;
+      if (z0 > far) continue;  // wholly beyond the far plane: nothing of it is drawn
       // Two samples of margin: every bilinear neighbourhood that touches the object is inside.
       const VBox b = intersect({static_cast<int>(std::floor(x0)) - 2, static_cast<int>(std::floor(y0)) - 2,
                                 static_cast<int>(std::ceil(x1)) + 3, static_cast<int>(std::ceil(y1)) + 3},
@@ -658,7 +661,8 @@ void AugmenterImpl::update_boxes(ViewState& vs) const {
 void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
   update_boxes(vs);
   const Pose T_cam_body = vs.cam->T_body_cam.inverse();
-  const SampleGrid grid{vs.vp.fx, vs.vp.fy, vs.vp.cx, vs.vp.cy, vs.vp.width, vs.vp.height, vs.cam->near_m};
+  const SampleGrid grid{vs.vp.fx,     vs.vp.fy,        vs.vp.cx,      vs.vp.cy,
+                        vs.vp.width,  vs.vp.height,    vs.cam->near_m, vs.cam->far_m};
   const SampleBox all{0, 0, vs.vp.width, vs.vp.height};
   float* inv_z = vs.inv_z.data();
   std::fill(vs.occupied.begin(), vs.occupied.end(), 0);
@@ -892,7 +896,8 @@ double AugmenterImpl::nearest_hit(const ViewState& vs, RowScratch& scratch, cons
                                   double x, double y, bool rings) const {
   const Eigen::Vector3d d(x, y, 1.0);
   double best = std::numeric_limits<double>::infinity();
-  auto test = [&](const CamTriangle& t) { best = std::min(best, ray_hit_z(t, d)); };
+  const double near_m = vs.cam->near_m, far_m = vs.cam->far_m;
+  auto test = [&](const CamTriangle& t) { best = std::min(best, ray_hit_z(t, d, near_m, far_m)); };
   // Each triangle is tested once per call: a stamp per triangle, no search.
   if (++scratch.stamp == 0)
     std::fill(scratch.visit_stamp.begin(), scratch.visit_stamp.end(), 0u), scratch.stamp = 1;
@@ -928,7 +933,7 @@ __attribute__((noinline)) double AugmenterImpl::covered_depth(const ViewState& v
   double best = std::numeric_limits<double>::infinity();
   for (int k = 0; k < 4; ++k) {
     if ((k > 0 && ids[k] == ids[0]) || (k > 1 && ids[k] == ids[1]) || (k > 2 && ids[k] == ids[2])) continue;
-    best = std::min(best, ray_hit_z(triangle(vs, ids[k]), d));
+    best = std::min(best, ray_hit_z(triangle(vs, ids[k]), d, vs.cam->near_m, vs.cam->far_m));
   }
   if (std::isfinite(best)) return best;
   const CamTriangle& t = triangle(vs, ids[0]);

@@ -19,6 +19,8 @@ struct RigCamera {
   std::string name;  // "left", "right" or as named in the file
   CameraModel model;
   Pose T_body_cam;      // camera (OpenCV frame) in the tanker body frame (FRD)
+  // Clipping planes in camera z (metres along the optical axis), as GL's: the augmenter draws the
+  // boom and the receiver (pixels, mask bits, depth) only where camera z is in [near_m, far_m].
   double near_m = 1.0;  // no real or virtual object comes nearer than this
   double far_m = 100.0;
   std::string source_uri;  // optional, used by live capture (empty: none)

@@ -13,8 +13,10 @@ bool RasterTriangle::setup(const SampleGrid& g, const Eigen::Vector3d& p0, const
   if (det == 0 || !std::isfinite(det)) return false;
   if (cull && det > 0) return false;
   const double z_min = std::min({p0.z(), p1.z(), p2.z()}), z_max = std::max({p0.z(), p1.z(), p2.z()});
-  if (z_max < g.near_m) return false;
+  if (z_max < g.near_m || z_min > g.far_m) return false;
   crosses_near = z_min < g.near_m;
+  crosses_far = z_max > g.far_m;
+  clips_depth = crosses_near || crosses_far;
   // Edge k is the plane through the camera centre and the edge (p_k, p_k+1). On the sample's ray
   // d(X, Y) = ((X - cx) / fx, (Y - cy) / fy, 1) it is affine in X and Y. The sign of det makes
   // every edge non-negative inside, in front of the camera.

@@ -5,13 +5,15 @@
 // every attachment cleared and written; this writes one id and one depth per covered sample.
 //
 // No clipping is needed: each edge function is the plane through the camera centre and one edge
-// (homogeneous rasterisation), evaluated on the sample's ray. A triangle crossing the near plane,
-// or partly behind the camera, is drawn exactly where it lies in front of the near plane.
+// (homogeneous rasterisation), evaluated on the sample's ray. A triangle crossing the near or far
+// plane, or partly behind the camera, is drawn exactly where it lies between them: at samples
+// whose camera z is in [near_m, far_m], as GL's clipping planes have it.
 #pragma once
 
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 
 #include <Eigen/Core>
 
@@ -23,6 +25,7 @@ struct SampleGrid {
   double fx = 1, fy = 1, cx = 0, cy = 0;
   int width = 0, height = 0;
   double near_m = 0.1;  // nearer samples are not drawn, as with GL's near plane
+  double far_m = std::numeric_limits<double>::infinity();  // farther samples are not drawn (GL's far plane)
 };
 
 struct SampleBox {
@@ -36,7 +39,9 @@ struct RasterTriangle {
   double ea[3], eb[3], ec[3];  // e_k(X, Y) = ea[k] X + eb[k] Y + ec[k]
   double inv_ea[3];            // 1 / ea[k] (0 where ea[k] is 0): row spans without divisions
   double inv_area = 0;         // 1 / |det(p0, p1, p2)|
-  bool crosses_near = false;   // some vertex nearer than the near plane: test each sample's depth
+  bool crosses_near = false;   // some vertex nearer than the near plane
+  bool crosses_far = false;    // some vertex beyond the far plane
+  bool clips_depth = false;    // either: test each sample's depth against [near_m, far_m]
   SampleBox bounds;            // samples the triangle may cover, inside the grid
   // The usual case: one or two edges bound each row's span on the left (ea > 0) and the others
   // on the right (ea < 0). Edge k's bound on row Y is -(eb Y + ec) / ea = m Y + q with
@@ -49,7 +54,7 @@ struct RasterTriangle {
 
   // False when no sample can be covered: edge-on to the camera, culled as a back face (`cull`:
   // triangles wind counter-clockwise seen from outside, render/mesh.hpp), entirely nearer than
-  // the near plane, or outside `clip`.
+  // the near plane or farther than the far plane, or outside `clip`.
   bool setup(const SampleGrid& g, const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
              const Eigen::Vector3d& p2, bool cull, const SampleBox& clip);
 
@@ -62,12 +67,12 @@ struct RasterTriangle {
   }
 };
 
-// Draws a set-up triangle: at each sample inside it (edges included) and nearer than
-// `inv_z[j * width + i]` (1/z, larger is nearer; 0 = nothing drawn yet), stores its 1/z and calls
-// write(j * width + i, i, j).
+// Draws a set-up triangle: at each sample inside it (edges included), between the near and far
+// planes (both included) and nearer than `inv_z[j * width + i]` (1/z, larger is nearer; 0 =
+// nothing drawn yet), stores its 1/z and calls write(j * width + i, i, j).
 template <class Write>
 void raster(const SampleGrid& g, const RasterTriangle& t, float* inv_z, Write&& write) {
-  const double max_inv_z = 1.0 / g.near_m;
+  const double max_inv_z = 1.0 / g.near_m, min_inv_z = 1.0 / g.far_m;  // 0 when far_m is infinite
   // 1/z along a row is affine in x: (sum of the edges) * inv_area.
   const double wa = (t.ea[0] + t.ea[1] + t.ea[2]) * t.inv_area;
   for (int y = t.bounds.y0; y < t.bounds.y1; ++y) {
@@ -105,7 +110,7 @@ void raster(const SampleGrid& g, const RasterTriangle& t, float* inv_z, Write&& 
     for (int x = xs; x <= xe; ++x, xd += 1.0) {
       const double w = w0 + wa * xd;
       if (!(w > row[x])) continue;  // GL_GREATER on 1/z: nearest wins, ties keep the first
-      if (t.crosses_near && w > max_inv_z) continue;
+      if (t.clips_depth && (w > max_inv_z || w < min_inv_z)) continue;  // set-up decides for most
       row[x] = static_cast<float>(w);
       write(row_index + x, x, y);
     }

@@ -10,6 +10,7 @@
 #include <string>
 #include <tuple>
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -520,6 +521,157 @@ TEST_F(AugmenterTest, RasterizersAgreeWithEachOther) {
     EXPECT_LT(mask_diff, 40) << "both are exact at silhouettes up to a few pixels";
     EXPECT_LT(mean_diff, 2.0);
     EXPECT_LT(colour_far, interior / 20);
+  }
+}
+
+// A grid of n x n quads (two triangles each) over the parallelogram origin + s a + t b,
+// s, t in [0, 1], appended to `m`. Both windings are drawn (custom models are not culled).
+void add_grid(Mesh& m, const Eigen::Vector3d& origin, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+              int n) {
+  const auto base = static_cast<std::uint32_t>(m.positions_m.size());
+  const Eigen::Vector3d normal = a.cross(b).normalized();
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) {
+      m.positions_m.push_back((origin + a * (static_cast<double>(i) / n) + b * (static_cast<double>(j) / n))
+                                  .cast<float>());
+      m.normals.push_back(normal.cast<float>());
+    }
+  auto at = [&](int i, int j) { return base + static_cast<std::uint32_t>(j * (n + 1) + i); };
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i)
+      m.indices.insert(m.indices.end(),
+                       {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+}
+
+// How the left view's receiver bit and depth compare with the ray caster's nearest hit, counted
+// only where that hit lies inside the camera's [near_m, far_m].
+struct ReceiverVsOracle {
+  std::int64_t oracle_px = 0, ours_px = 0, disagree = 0, far_from_edge = 0, off_clip_plane = 0;
+  std::int64_t depth_bad = 0, beyond_far = 0, before_near = 0;
+  double worst_depth = 0;
+};
+ReceiverVsOracle compare_receiver(const RigCamera& cam, const ViewResult& out, const test::RayCaster& receiver,
+                                  double clip_tolerance_m) {
+  const std::vector<Eigen::Vector2d> rays = test::opencv_pixel_rays(cam.model);
+  const int W = cam.model.width_px, H = cam.model.height_px;
+  std::vector<double> z(static_cast<std::size_t>(W) * H);
+  std::vector<std::uint8_t> want(z.size());
+  for (std::size_t i = 0; i < z.size(); ++i) {
+    z[i] = receiver.hit_z(rays[i].x(), rays[i].y());
+    want[i] = z[i] >= cam.near_m && z[i] <= cam.far_m;
+  }
+  ReceiverVsOracle r;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * W + x;
+      const bool ours = (out.mask.row(y)[x] & kMaskReceiver) != 0;
+      r.oracle_px += want[i], r.ours_px += ours;
+      r.beyond_far += std::isfinite(z[i]) && z[i] > cam.far_m;
+      r.before_near += z[i] < cam.near_m;
+      if (ours && want[i]) {
+        const double dz = std::abs(out.receiver_depth.z_m[i] - z[i]);
+        r.worst_depth = std::max(r.worst_depth, dz);
+        if (dz > 1e-4 && r.depth_bad++ < 5)
+          std::printf("  depth at (%d, %d): %.6f m, ray caster %.6f m\n", x, y, out.receiver_depth.z_m[i], z[i]);
+      }
+      if (ours == static_cast<bool>(want[i])) continue;
+      ++r.disagree;
+      bool edge = false;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+          edge |= want[static_cast<std::size_t>(std::clamp(y + dy, 0, H - 1)) * W + std::clamp(x + dx, 0, W - 1)] !=
+                  want[i];
+      r.far_from_edge += !edge;
+      // Where the clipping decides, it decides exactly: the hit is (almost) on a clipping plane.
+      const bool on_plane = std::abs(z[i] - cam.near_m) < clip_tolerance_m ||
+                            std::abs(z[i] - cam.far_m) < clip_tolerance_m;
+      if (!on_plane && r.off_clip_plane++ < 5)
+        std::printf("  (%d, %d): ours %d, ray caster hit at z %.6f m\n", x, y, ours, z[i]);
+    }
+  std::printf(
+      "receiver: ray caster %lld px (%lld beyond far, %lld before near), ours %lld px, disagree %lld (%lld "
+      "far from an edge, %lld off the clipping planes), depth worst %.3g m, %lld off by > 1e-4 m\n",
+      static_cast<long long>(r.oracle_px), static_cast<long long>(r.beyond_far),
+      static_cast<long long>(r.before_near), static_cast<long long>(r.ours_px), static_cast<long long>(r.disagree),
+      static_cast<long long>(r.far_from_edge), static_cast<long long>(r.off_clip_plane), r.worst_depth,
+      static_cast<long long>(r.depth_bad));
+  return r;
+}
+
+// near_m and far_m are clipping planes in camera z, as GL's: a receiver wholly beyond far_m
+// leaves no pixel, with either rasteriser.
+TEST_P(RasterizerTest, NothingBeyondTheFarPlaneIsDrawn) {
+  Rig rig = Rig::paper_default();
+  for (RigCamera& c : rig.cameras) c.far_m = 25;
+  AugmentOptions opt = options();
+  auto aug = Augmenter::create(rig, opt);
+  ASSERT_TRUE(aug) << aug.error().message;
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.52, 0.03, 3.0});
+  // The receiver 45 m along the left camera's axis, level: its nearest point is beyond 25 m.
+  scene.T_body_receiver.translation_m = rig.left().T_body_cam * Eigen::Vector3d(0, 0, 45);
+  {
+    test::RayCaster receiver;
+    receiver.add((*aug)->receiver_model(), rig.left().T_body_cam.inverse() * scene.T_body_receiver);
+    EXPECT_TRUE(std::isfinite(receiver.hit_z(0, 0))) << "the receiver must be in view";
+    EXPECT_GT(receiver.hit_z(0, 0), 30);
+  }
+  StereoFrame sf;
+  sf.left = test::gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+  sf.right = test::gradient_frame(rig.right().model, PixelFormat::kRGB8, CameraId::kRight);
+  StereoResult out;
+  ASSERT_TRUE((*aug)->augment(sf, scene, out));
+  for (const ViewResult* v : {&out.left, &out.right}) {
+    std::int64_t receiver_px = 0, boom_px = 0;
+    for (int y = 0; y < v->mask.height(); ++y)
+      for (int x = 0; x < v->mask.width(); ++x) {
+        receiver_px += (v->mask.row(y)[x] & kMaskReceiver) != 0;
+        boom_px += (v->mask.row(y)[x] & kMaskBoom) != 0;
+      }
+    EXPECT_EQ(receiver_px, 0);
+    EXPECT_GT(boom_px, 10000) << "the boom is nearer than far_m and must still be drawn";
+  }
+  EXPECT_EQ(out.stats.receiver_px_left, 0);
+  EXPECT_EQ(out.stats.receiver_px_right, 0);
+}
+
+// A plate tilted away from the camera that crosses both clipping planes: receiver pixels exactly
+// where the ray caster's hit is inside [near_m, far_m] (the only disagreements: rays hitting the
+// plate within a hair of a plane), depth exact, with either rasteriser and lens.
+TEST_P(RasterizerTest, ReceiverIsClippedExactlyAtTheNearAndFarPlanes) {
+  for (bool distorted : {false, true}) {
+    SCOPED_TRACE(distorted ? "radtan" : "pinhole");
+    Rig rig = distorted ? distorted_rig() : Rig::paper_default();
+    for (RigCamera& c : rig.cameras) c.near_m = 2, c.far_m = 6;
+    const RigCamera& cam = rig.left();
+    // Plane z = 3 + 1.8 Y + 0.3 X (left camera frame): the near plane crosses the upper image,
+    // the far plane the lower; the plate's own borders lie outside [near_m, far_m] or the view.
+    auto receiver = std::make_shared<Model>();
+    Mesh plate;
+    plate.name = "plate";
+    const Eigen::Vector3d o(-14, -1.2, 3 + 1.8 * -1.2 + 0.3 * -14);
+    add_grid(plate, o, Eigen::Vector3d(28, 0, 0.3 * 28), Eigen::Vector3d(0, 13.2, 1.8 * 13.2), 24);
+    receiver->meshes.push_back(plate);
+    AugmentOptions opt = options();
+    opt.receiver_model = receiver;
+    opt.stereo_classes = false;
+    auto aug = Augmenter::create(rig, opt);
+    ASSERT_TRUE(aug) << aug.error().message;
+    SceneState scene;
+    scene.boom = {0.35, 0.26, 0};            // out of the way
+    scene.T_body_receiver = cam.T_body_cam;  // plate coordinates are left-camera coordinates
+    ViewResult out;
+    ASSERT_TRUE((*aug)->augment_view(0, test::gradient_frame(cam.model, PixelFormat::kRGB8, CameraId::kLeft),
+                                     scene, out));
+    test::RayCaster oracle;
+    oracle.add(*receiver, Pose());
+    const ReceiverVsOracle r = compare_receiver(cam, out, oracle, 1e-3);
+    EXPECT_GT(r.oracle_px, 200000);
+    EXPECT_GT(r.beyond_far, 100000) << "the plate must cross the far plane";
+    EXPECT_GT(r.before_near, 50000) << "the plate must cross the near plane";
+    EXPECT_EQ(r.off_clip_plane, 0);
+    EXPECT_EQ(r.depth_bad, 0);
   }
 }
 

@@ -76,11 +76,12 @@ Hit intersect(const Vector3d& d, const Tri& tri) {
   return h;
 }
 enum class Truth { kOut, kIn, kEither };
-Truth truth(const Hit& h, double near) {
+// Drawn: inside the triangle, at camera z in [near_m, far_m] (GL's clipping planes).
+Truth truth(const Hit& h, double near, double far) {
   if (!h.valid) return Truth::kOut;
   const double m = h.margin();
-  if (m < -kEdgeEps || h.t < near * (1 - kDepthEps)) return Truth::kOut;
-  if (m > kEdgeEps && h.t > near * (1 + kDepthEps)) return Truth::kIn;
+  if (m < -kEdgeEps || h.t < near * (1 - kDepthEps) || h.t > far * (1 + kDepthEps)) return Truth::kOut;
+  if (m > kEdgeEps && h.t > near * (1 + kDepthEps) && h.t < far * (1 - kDepthEps)) return Truth::kIn;
   return Truth::kEither;
 }
 
@@ -98,7 +99,7 @@ void draw(const SampleGrid& g, const Tri& t, int id, std::vector<float>& inv_z, 
 }
 
 struct Tally {
-  long set_up = 0, covered = 0, near_cut = 0, behind = 0, either = 0, either_disagree = 0;
+  long set_up = 0, covered = 0, near_cut = 0, far_cut = 0, behind = 0, either = 0, either_disagree = 0;
   long coverage_errors = 0, depth_errors = 0, weight_errors = 0, write_errors = 0;
   std::string first;  // the first error, described
   void error(long& n, const std::string& what) {
@@ -137,15 +138,16 @@ void check_triangle(const SampleGrid& g, const Tri& t, bool cull, const SampleBo
       const std::size_t idx = static_cast<std::size_t>(j) * g.width + i;
       const Hit h = intersect(ray(g, i, j), t);
       const bool in_clip = i >= clip.x0 && i < clip.x1 && j >= clip.y0 && j < clip.y1;
-      Truth want = culled || !in_clip ? Truth::kOut : truth(h, g.near_m);
+      Truth want = culled || !in_clip ? Truth::kOut : truth(h, g.near_m, g.far_m);
       const bool covered = ids[idx] >= 0;
       if (ids[idx] > 0) n.error(n.write_errors, "written twice: " + describe(t, i, j));
       if (h.valid && h.margin() > kEdgeEps && h.t > 0 && h.t < g.near_m * (1 - kDepthEps)) ++n.near_cut;
       if (h.valid && h.margin() > kEdgeEps && h.t < 0) ++n.behind;
+      if (h.valid && h.margin() > kEdgeEps && h.t > g.far_m * (1 + kDepthEps)) ++n.far_cut;
       n.covered += covered;
       if (want == Truth::kEither) {
         ++n.either;
-        n.either_disagree += covered != (h.margin() >= 0 && h.t >= g.near_m);
+        n.either_disagree += covered != (h.margin() >= 0 && h.t >= g.near_m && h.t <= g.far_m);
       } else if (covered != (want == Truth::kIn)) {
         n.error(n.coverage_errors,
                 (covered ? "drawn but missed by the ray: " : "hit by the ray but not drawn: ") +
@@ -205,6 +207,32 @@ TEST(SoftRaster, NearPlaneAndBehindTheCameraMatchRayCasting) {
       n.covered, n.near_cut, n.behind, n.either, n.either_disagree);
 }
 
+// The far plane clips like GL's: samples whose hit lies beyond far_m are not drawn, whether the
+// triangle lies wholly beyond it (set-up rejects it) or straddles it (tested per sample); the
+// near plane likewise in the same grid.
+TEST(SoftRaster, FarPlaneMatchesRayCasting) {
+  SampleGrid g = test_grid();
+  g.near_m = 0.5, g.far_m = 2.0;
+  std::mt19937 rng(4242);
+  std::uniform_real_distribution<double> x(-40, g.width + 40), y(-30, g.height + 30), z(0.2, 4.0);
+  Tally n;
+  for (int k = 0; k < 400; ++k) {
+    Tri t;
+    for (Vector3d& p : t.p) p = at_pixel(g, x(rng), y(rng), z(rng));
+    check_triangle(g, t, false, whole(g), n);
+  }
+  // Wholly beyond far_m: nothing drawn.
+  RasterTriangle rt;
+  EXPECT_FALSE(rt.setup(g, at_pixel(g, 10, 10, 2.5), at_pixel(g, 150, 20, 3), at_pixel(g, 80, 110, 2.1), false,
+                        whole(g)));
+  n.expect_clean();
+  EXPECT_GT(n.covered, 50000);
+  EXPECT_GT(n.far_cut, 50000);  // hits beyond far_m, none drawn
+  EXPECT_GT(n.near_cut, 5000);
+  std::printf("far/near: %ld covered, %ld cut by the far plane, %ld by the near plane, %ld edge-band (%ld disagree)\n",
+              n.covered, n.far_cut, n.near_cut, n.either, n.either_disagree);
+}
+
 // A vertex a hair in front of the camera plane projects far outside any int range: the triangle
 // must still be drawn where it lies beyond the near plane, as it is with that vertex at z = 0.
 TEST(SoftRaster, VertexJustInFrontOfTheCameraPlane) {
@@ -250,7 +278,7 @@ TEST(SoftRaster, NearestWinsWhateverTheDrawOrder) {
           bool sure = true;
           for (int k = 0; k < static_cast<int>(tris.size()); ++k) {
             const Hit h = intersect(ray(g, i, j), tris[k]);
-            const Truth tr = truth(h, g.near_m);
+            const Truth tr = truth(h, g.near_m, g.far_m);
             sure &= tr != Truth::kEither;
             if (tr != Truth::kIn) continue;
             ++hits;
@@ -393,7 +421,7 @@ TEST(SoftRaster, SharedEdgeLeavesNoCracks) {
                  w_shared > -kEdgeEps;
         };
         const bool in = in_quad(h1, 1 - h1.u - h1.v, h1.v, h1.u) || in_quad(h2, 1 - h2.u - h2.v, h2.u, h2.v);
-        const bool out = truth(h1, g.near_m) == Truth::kOut && truth(h2, g.near_m) == Truth::kOut;
+        const bool out = truth(h1, g.near_m, g.far_m) == Truth::kOut && truth(h2, g.near_m, g.far_m) == Truth::kOut;
         const bool drawn = ids[static_cast<std::size_t>(j) * g.width + i] >= 0;
         inside += in, on_diagonal += in && h1.valid && std::abs(h1.u) <= 1e-9;
         if (in && !drawn && cracks++ == 0)
