@@ -30,6 +30,8 @@ const std::vector<OptionSpec>& demo_specs() {
       {"out", ArgKind::kValue, "DIR", "output folder (created)", true},
       {"scenario", ArgKind::kValue, "NAME|FILE.yaml", "the flight (default: the built-in 'demo', 28 s)"},
       {"every", ArgKind::kValue, "K", "augment every K-th camera frame (default 3: 10 of the 30 per second)"},
+      {"ground-truth", ArgKind::kFlag, "",
+       "for the frames whose images are written (every 30th): " + std::string(kGroundTruthHelp)},
       {"frames", ArgKind::kValue, "N",
        "augment only the last N selected stereo frames (default: all); in the live window, stop after N"},
       {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
@@ -44,7 +46,8 @@ const std::vector<OptionSpec>& demo_specs() {
        "the batch demo even when a display is present (without it, a display opens the live window)"},
       {"duration", ArgKind::kValue, "S",
        "with the live window: stop after S seconds (default: the whole flight)"},
-      {"screenshot-at", ArgKind::kValue, "N", "with the live window: a screenshot once the N-th pair is shown"},
+      {"screenshot-at", ArgKind::kValue, "N",
+       "with the live window: a screenshot once the N-th pair is shown"},
   };
   return specs;
 }
@@ -111,6 +114,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
     for (const char* pass : {"boom", "duration", "record", "receiver-draw", "frames", "screenshot-at"})
       if (a.has(pass)) run_args.insert(run_args.end(), {std::string("--") + pass, a.get(pass)});
     if (a.has("overwrite")) run_args.push_back("--overwrite");
+    if (a.has("ground-truth")) run_args.insert(run_args.end(), {"--every", "30", "--ground-truth"});
     out << "demo: a display is present: the flight in real time in the live window, poses from the live "
            "GPS/INS fusion (--headless for the batch demo)\n";
     return cmd_run(run_args, out, err);
@@ -277,6 +281,8 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
       char stem[32];
       std::snprintf(stem, sizeof stem, "frame_%04d", i);
       if (Status st = write_frame_images(out_dir, {stem, stem}, stereo, result); !st) return st;
+      if (a.has("ground-truth"))
+        if (Status st = write_ground_truth(out_dir, {stem, stem}, result, rig); !st) return st;
       write_ms += ms_since(w0);
     }
     if ((i + 1) % 30 == 0 || last) {

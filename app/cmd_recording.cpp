@@ -56,6 +56,7 @@ const std::vector<OptionSpec>& replay_specs() {
       {"loop", ArgKind::kValue, "N", "play the range N times in all (default 1)"},
       {"out", ArgKind::kValue, "DIR", "write stats.csv and the images of every --every-th frame here"},
       {"every", ArgKind::kValue, "K", "with --out: images of every K-th replayed frame (default 30)"},
+      {"ground-truth", ArgKind::kFlag, "", "with --out: " + std::string(kGroundTruthHelp)},
       {"rig", ArgKind::kValue, "RIG.yaml|default", "augment with this rig (default: the recorded rig)"},
       {"scene", ArgKind::kValue, "SCENE.yaml",
        "one fixed scene for every frame (default: each frame's recorded boom and receiver pose)"},
@@ -66,7 +67,8 @@ const std::vector<OptionSpec>& replay_specs() {
       {"record", ArgKind::kValue, "DIR", "record the re-augmented run (a new recording, docs/RECORDING.md)"},
       {"overwrite", ArgKind::kFlag, "", "with --record: replace a recording already in DIR"},
       {"headless", ArgKind::kFlag, "", "no window even when a display is present"},
-      {"screenshot-at", ArgKind::kValue, "N", "with the window: a screenshot once the N-th pair is shown (into --out)"},
+      {"screenshot-at", ArgKind::kValue, "N",
+       "with the window: a screenshot once the N-th pair is shown (into --out)"},
       {"status-every", ArgKind::kValue, "S", "print a status line every S seconds (default 0: never)"},
       {"pair-tolerance-ns", ArgKind::kValue, "NS",
        "EuRoC folders: pair left and right frames whose timestamps differ by at most NS (default 0)"},
@@ -110,7 +112,7 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
   if (a.has("out")) {
     make_dirs(out_dir);
     parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
-    parts.frame_files = FrameFiles{out_dir, every, {}};
+    parts.frame_files = FrameFiles{out_dir, every, {}, a.has("ground-truth")};
   }
   if (a.has("record")) {
     recorder::RecordingInfo info;
@@ -157,6 +159,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
         replay_specs());
     return kExitOk;
   }
+  if (a.has("ground-truth") && !a.has("out")) usage_error("--ground-truth needs --out (where the files go)");
   if (pos[0].rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(pos[0]) / "mav0") ||
       fs::path(pos[0]).filename() == "mav0")
     return replay_euroc(pos[0], a, out, err);
@@ -238,7 +241,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (a.has("out")) {
     make_dirs(out_dir);
     parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
-    parts.frame_files = FrameFiles{out_dir, every, {}};
+    parts.frame_files = FrameFiles{out_dir, every, {}, a.has("ground-truth")};
   }
   out << "replay: " << source.uri() << ", " << source.frame_count() << " stereo frames, from frame "
       << source.start_frame() << ", "

@@ -114,7 +114,8 @@ const std::vector<OptionSpec>& run_specs() {
       {"scene", ArgKind::kValue, "SCENE.yaml",
        "a fixed scene (boom articulation, receiver pose); sim:// without it uses the simulation's truth"},
       {"poses", ArgKind::kValue, "POSES.csv",
-       "the receiver's pose per frame from `augrig nav`'s camera pose CSV, matched to the left frame's timestamp"},
+       "the receiver's pose per frame from `augrig nav`'s camera pose CSV, matched to the left frame's "
+       "timestamp"},
       {"pose-tolerance-ms", ArgKind::kValue, "MS",
        "with --poses: match a pose row within MS of the frame's timestamp (default 0: exactly)"},
       {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE",
@@ -128,6 +129,7 @@ const std::vector<OptionSpec>& run_specs() {
       {"duration", ArgKind::kValue, "S", "stop after S seconds (default: until the source ends or Ctrl-C)"},
       {"out", ArgKind::kValue, "DIR", "write stats.csv (and with --every, images) here"},
       {"every", ArgKind::kValue, "K", "with --out: write the images of every K-th stereo frame"},
+      {"ground-truth", ArgKind::kFlag, "", "with --every: " + std::string(kGroundTruthHelp)},
       {"nav", ArgKind::kValue, "STREAM=URI,...|sim",
        "live nav inputs, recorded as received and, for streams named tanker.* and receiver.*, fused in "
        "real time into the receiver's pose at each frame's mid-exposure, e.g. tanker.gps=udp://0.0.0.0:10110?"
@@ -143,7 +145,8 @@ const std::vector<OptionSpec>& run_specs() {
       {"nav-fault", ArgKind::kValue, "STREAM=T0-T1,...",
        "with --nav sim: mute a simulated stream over scenario seconds [T0, T1], e.g. receiver.gps=10-13"},
       {"headless", ArgKind::kFlag, "", "no window even when a display is present (docs/DISPLAY.md)"},
-      {"screenshot-at", ArgKind::kValue, "N", "with the window: a screenshot once the N-th pair is shown (into --out)"},
+      {"screenshot-at", ArgKind::kValue, "N",
+       "with the window: a screenshot once the N-th pair is shown (into --out)"},
       {"status-every", ArgKind::kValue, "S", "print a status line every S seconds (default 1; 0: never)"},
   };
   return specs;
@@ -294,6 +297,8 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   const double status_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 1.0;
   const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 0;
   if (every && !a.has("out")) usage_error("--every needs --out");
+  if (a.has("ground-truth") && !every)
+    usage_error("--ground-truth needs --out DIR and --every K (the frames whose files are written)");
   const long long max_pairs = a.has("frames") ? parse_integer("frames", a.get("frames"), 1, 1LL << 40) : 0;
 
   // Sources: --source, else the rig's per-camera URIs.
@@ -454,7 +459,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   if (a.has("out")) {
     make_dirs(a.get("out"));
     parts.stats_csv = unwrap(StatsCsvWriter::create(fs::path(a.get("out")) / "stats.csv"));
-    if (every) parts.frame_files = FrameFiles{a.get("out"), every, {}};
+    if (every) parts.frame_files = FrameFiles{a.get("out"), every, {}, a.has("ground-truth")};
   }
   const bool lossless = opened.options.lossless;
   // Cameras: how their frames pair (the stereo URI's or the rig's `pairing`).

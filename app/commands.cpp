@@ -65,7 +65,9 @@ const std::vector<OptionSpec>& augment_specs() {
        "do not render the receiver (no receiver mask bit, no stereo classes)"},
       {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
        "how the receiver shows in the augmented image (default mask: not drawn)"},
-      {"status-every", ArgKind::kValue, "S", "a status line (pairs, rate, drops) every S seconds (default 0: never)"},
+      {"status-every", ArgKind::kValue, "S",
+       "a status line (pairs, rate, drops) every S seconds (default 0: never)"},
+      {"ground-truth", ArgKind::kFlag, "", kGroundTruthHelp},
   };
   return specs;
 }
@@ -220,7 +222,7 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   parts.skip_frames_without_pose = true;  // a pair without a pose is counted and reported, not guessed
   parts.keep_all_stats = true;  // stats.csv may be rewritten with the scene files' t_ns
   if (!remap_t) parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
-  parts.frame_files = FrameFiles{out_dir, 1, input_names};
+  parts.frame_files = FrameFiles{out_dir, 1, input_names, a.has("ground-truth")};
   parts.status_every_s = status_s;
   // "N of M pairs, X/s, ETA" about once a second, M the pairs the index (or the folders) hold.
   parts.progress_total = expected_pairs > 1 ? expected_pairs : 0;

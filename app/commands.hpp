@@ -24,6 +24,12 @@ enum class ArgKind {
   kOptionalValue,  // --name or --name=VALUE (never takes the next argument)
 };
 
+// --ground-truth means the same in every command that writes per-frame files (augment, demo,
+// replay, run): pipeline::write_ground_truth() beside each frame's images.
+inline constexpr const char* kGroundTruthHelp =
+    "also write each written frame's ground truth: receiver depth (.npy metres, 16-bit PNG mm), where each "
+    "left receiver pixel lies in the right image (.npy), the stereo classes (docs/GROUND_TRUTH.md)";
+
 struct OptionSpec {
   std::string name;  // without the leading "--"
   ArgKind kind = ArgKind::kValue;

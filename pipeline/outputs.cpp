@@ -1,5 +1,12 @@
 #include "pipeline/outputs.hpp"
 
+#include <array>
+#include <cstring>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/npy.hpp"
+#include "render/ground_truth.hpp"
 #include "render/image_file.hpp"
 #include "render/visualize.hpp"
 
@@ -60,6 +67,55 @@ Status write_frame_images(const fs::path& out, const FrameNames& n, const Stereo
     return write_png(
         out / "vis" / "stereo_classes" / l,
         visualize_stereo_classes(r.stereo_classes, r.left.mask.width(), r.left.mask.height()));
+  return {};
+}
+
+Status write_ground_truth(const fs::path& out, const FrameNames& n, const StereoResult& r, const Rig& rig) {
+  const std::array<const ViewResult*, 2> views = {&r.left, &r.right};
+  const std::array<const std::string*, 2> stems = {&n.left, &n.right};
+  for (int c = 0; c < 2; ++c) {
+    const DepthImage& d = views[c]->receiver_depth;
+    if (d.width <= 0 || d.height <= 0)
+      return make_error("ground truth: the ", c ? "right" : "left", " view has no depth image");
+    const fs::path side = out / (c ? "right" : "left");
+    for (const char* sub : {"depth", "depth_mm"}) {
+      std::error_code ec;
+      fs::create_directories(side / sub, ec);
+      if (ec) return make_error((side / sub).string(), ": cannot create the folder (", ec.message(), ")");
+    }
+    const std::vector<float> z = depth_with_nan(d);
+    if (Status s =
+            write_npy_f32((side / "depth" / (*stems[c] + ".npy")).string(), {d.height, d.width}, z.data());
+        !s)
+      return s;
+    std::vector<std::uint16_t> mm = depth_mm_u16(d);
+    const cv::Mat m(d.height, d.width, CV_16UC1, mm.data());
+    const fs::path png = side / "depth_mm" / (*stems[c] + ".png");
+    try {
+      if (!cv::imwrite(png.string(), m, {cv::IMWRITE_PNG_COMPRESSION, 1}))
+        return make_error(png.string(), ": cannot write the 16-bit PNG");
+    } catch (const cv::Exception& e) {
+      return make_error(png.string(), ": cannot write the 16-bit PNG (", e.what(), ")");
+    }
+  }
+  // Where each left receiver point lies in the right image: the true correspondence.
+  const fs::path left = out / "left";
+  for (const char* sub : {"right_px", "stereo_class"}) {
+    std::error_code ec;
+    fs::create_directories(left / sub, ec);
+    if (ec) return make_error((left / sub).string(), ": cannot create the folder (", ec.message(), ")");
+  }
+  const std::vector<float> uv =
+      right_correspondence(r.left.receiver_depth, rig.left().model, rig.right().model, rig.T_right_left());
+  const int w = r.left.receiver_depth.width, h = r.left.receiver_depth.height;
+  if (Status s = write_npy_f32((left / "right_px" / (n.left + ".npy")).string(), {h, w, 2}, uv.data()); !s)
+    return s;
+  if (r.stereo_classes.size() == static_cast<std::size_t>(w) * static_cast<std::size_t>(h)) {
+    Image cls(w, h, PixelFormat::kMono8);
+    for (int y = 0; y < h; ++y)
+      std::memcpy(cls.row(y), r.stereo_classes.data() + static_cast<std::size_t>(y) * w, w);
+    if (Status s = write_png(left / "stereo_class" / (n.left + ".png"), cls); !s) return s;
+  }
   return {};
 }
 

@@ -42,6 +42,16 @@ struct FrameNames {
 Status write_frame_images(const std::filesystem::path& out, const FrameNames& n, const StereoFrame& raw,
                           const StereoResult& r);
 
+// The frame's ground truth for stereo research (docs/GROUND_TRUTH.md), beside the images:
+//   {left,right}/depth/NAME.npy     float32 H x W: receiver depth, metres along z, NaN where none
+//   {left,right}/depth_mm/NAME.png  16-bit: the same in whole mm, 0 where none, 65535 = 65.535 m+
+//   left/right_px/NAME.npy          float32 H x W x 2: (u, v) in the right image of the receiver
+//                                   point on each left pixel, NaN where none
+//   left/stereo_class/NAME.png      8-bit StereoClass per left pixel (when the classes were made)
+// `rig` is the one `r` was augmented with. Creates the folders.
+Status write_ground_truth(const std::filesystem::path& out, const FrameNames& n, const StereoResult& r,
+                          const Rig& rig);
+
 // A frame for the recorder from what the augmenter made: the augmented images as made (whole, or
 // only their changed boxes: AugmentedOutput), the masks and the statistics. The caller adds the
 // raw frame, the poses and the boom.

@@ -372,6 +372,11 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
         fatal = st.error();
         return;
       }
+      if (p.frame_files->ground_truth)
+        if (Status st = write_ground_truth(p.frame_files->dir, names, result, p.rig); !st) {
+          fatal = st.error();
+          return;
+        }
     }
     if (p.on_pair)
       if (Status st = p.on_pair(frame, result, scene, fp); !st) {

@@ -128,6 +128,7 @@ struct FrameFiles {
   std::filesystem::path dir;
   int every = 1;
   std::function<FrameNames(const StereoFrame&)> names;
+  bool ground_truth = false;  // also the depth, correspondence and class files (write_ground_truth)
 };
 
 // Everything a pipeline is made of. The source (started or not), the poses and the rig are required.

@@ -164,6 +164,10 @@ MaskCounts count_masks(const Image& ml, const Image& mr, int x0, int y0, int w, 
 
 }  // namespace
 
+std::shared_ptr<const std::vector<Eigen::Vector2f>> shared_undistorted_xy_map(const CameraModel& camera) {
+  return cached_xy_map(camera);
+}
+
 std::vector<Eigen::Vector2f> undistorted_xy_map(const CameraModel& camera) {
   const int w = camera.width_px, h = camera.height_px;
   const float nan = std::numeric_limits<float>::quiet_NaN();

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <iosfwd>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -71,6 +72,9 @@ struct StereoClassOptions {
 
 // The map StereoClassOptions::left_rays_xy expects: camera.undistort() of every pixel centre.
 std::vector<Eigen::Vector2f> undistorted_xy_map(const CameraModel& camera);
+// The same map, made once per distinct camera (the last few are kept) and shared: what
+// compute_occlusion_stats() uses when it is given none. Thread-safe.
+std::shared_ptr<const std::vector<Eigen::Vector2f>> shared_undistorted_xy_map(const CameraModel& camera);
 
 // Per-pixel class image produced alongside the counts (left camera raw pixels).
 enum class StereoClass : std::uint8_t { kNone = 0, kBoth = 1, kLeftOnly = 2, kRightOnly = 3, kNeither = 4 };

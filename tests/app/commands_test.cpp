@@ -2,10 +2,11 @@
 // input, and `augment` / `demo` outputs checked against the masks they wrote.
 #include "app/commands.hpp"
 
+#include <array>
 #include <cmath>
 #include <filesystem>
-#include <map>
 #include <fstream>
+#include <map>
 #include <random>
 #include <sstream>
 #include <string>
@@ -15,6 +16,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "core/npy.hpp"
 #include "nav/logs.hpp"
 #include "recorder/reader.hpp"
 #include "tests/support/test_support.hpp"
@@ -305,6 +307,87 @@ TEST(Augment, SinglePairAtContactWritesConsistentOutputs) {
   EXPECT_GT(c.boom_l, 1000);
   EXPECT_GT(c.receiver_l, 1000);
   EXPECT_GT(c.occluded_l, 0);
+}
+
+// --ground-truth: the depth files agree with the masks and with each other, the correspondence
+// lands on the receiver in the right view wherever the classes say the right camera sees the
+// point, and the class image partitions the left receiver as stats.csv counts it.
+TEST(Augment, GroundTruthFilesAgreeWithTheMasksAndAcrossTheViews) {
+  const std::string dir = output_dir("augment_ground_truth");
+  const cv::Mat left = pattern(1280, 960, CV_8UC3, 0), right = pattern(1280, 960, CV_8UC3, 1);
+  ASSERT_TRUE(cv::imwrite(dir + "/l.png", left));
+  ASSERT_TRUE(cv::imwrite(dir + "/r.png", right));
+  const fs::path out = dir + "/out";
+  std::string log;
+  ASSERT_EQ(augrig("augment --rig default --scene " + data_path("scenes/contact.yaml") + " --left " + dir +
+                       "/l.png --right " + dir + "/r.png --out " + out.string() + " --ground-truth",
+                   &log),
+            0)
+      << log;
+  const auto csv = csv_row(read_lines(out / "stats.csv").at(1));
+  std::array<NpyArray, 2> depth;
+  std::array<cv::Mat, 2> mask, mm;
+  for (int c = 0; c < 2; ++c) {
+    const fs::path side = out / (c ? "right" : "left");
+    auto d = read_npy_f32((side / "depth" / (c ? "r.npy" : "l.npy")).string());
+    ASSERT_TRUE(d) << d.error().message;
+    depth[c] = *d;
+    ASSERT_EQ(depth[c].shape, (std::vector<std::int64_t>{960, 1280}));
+    mask[c] = cv::imread((side / "mask" / (c ? "r.png" : "l.png")).string(), cv::IMREAD_UNCHANGED);
+    mm[c] = cv::imread((side / "depth_mm" / (c ? "r.png" : "l.png")).string(), cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(mm[c].type(), CV_16UC1);
+    ASSERT_EQ(mask[c].size(), cv::Size(1280, 960));
+    std::int64_t receiver = 0, mismatched = 0, bad_mm = 0;
+    for (int y = 0; y < 960; ++y)
+      for (int x = 0; x < 1280; ++x) {
+        const float z = depth[c].values[static_cast<std::size_t>(y) * 1280 + x];
+        const bool has = (mask[c].at<std::uint8_t>(y, x) & 2) != 0;
+        receiver += has;
+        mismatched += has != std::isfinite(z);
+        const int expect_mm = std::isfinite(z) ? static_cast<int>(std::lround(z * 1000.0)) : 0;
+        bad_mm += mm[c].at<std::uint16_t>(y, x) != expect_mm;
+      }
+    EXPECT_EQ(receiver, csv[1 + c]) << "receiver pixels, camera " << c;
+    EXPECT_EQ(mismatched, 0) << "depth finite exactly where the mask has the receiver, camera " << c;
+    EXPECT_EQ(bad_mm, 0) << "16-bit mm = the float depth rounded, camera " << c;
+  }
+  auto uv = read_npy_f32((out / "left" / "right_px" / "l.npy").string());
+  ASSERT_TRUE(uv) << uv.error().message;
+  ASSERT_EQ(uv->shape, (std::vector<std::int64_t>{960, 1280, 2}));
+  const cv::Mat cls = cv::imread((out / "left" / "stereo_class" / "l.png").string(), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(cls.type(), CV_8UC1);
+  std::array<std::int64_t, 5> counts{};
+  std::int64_t both_checked = 0, both_off_receiver = 0, uv_mismatch = 0;
+  for (int y = 0; y < 960; ++y)
+    for (int x = 0; x < 1280; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * 1280 + x;
+      const int k = cls.at<std::uint8_t>(y, x);
+      ASSERT_LE(k, 4);
+      ++counts[k];
+      const bool has = std::isfinite(depth[0].values[i]);
+      EXPECT_EQ(k != 0, has) << x << "," << y;
+      const float u = uv->values[2 * i], v = uv->values[2 * i + 1];
+      uv_mismatch += std::isfinite(u) != has;
+      // Seen by both: the right view has the receiver where the point projects.
+      if (k == 1 && std::isfinite(u)) {
+        ++both_checked;
+        const int ur = static_cast<int>(std::lround(u)), vr = static_cast<int>(std::lround(v));
+        both_off_receiver +=
+            ur < 0 || vr < 0 || ur >= 1280 || vr >= 960 || !(mask[1].at<std::uint8_t>(vr, ur) & 2);
+      }
+    }
+  EXPECT_EQ(uv_mismatch, 0) << "a correspondence exactly where the left view has the receiver";
+  EXPECT_EQ(counts[1], csv[11]);
+  EXPECT_EQ(counts[2], csv[12]);
+  EXPECT_EQ(counts[3], csv[13]);
+  EXPECT_EQ(counts[4], csv[14]);
+  EXPECT_GT(both_checked, 1000);
+  // Rounding to the nearest pixel at the receiver's silhouette may step off it: a thin margin.
+  EXPECT_LT(static_cast<double>(both_off_receiver), 0.01 * static_cast<double>(both_checked));
+
+  // Without --out nothing could be written: a usage error (exit 2) in replay and run.
+  EXPECT_EQ(augrig("replay " + dir + " --ground-truth"), 2);
+  EXPECT_EQ(augrig("run --source sim://demo --ground-truth --frames 1 --headless"), 2);
 }
 
 TEST(Augment, FoldersOfBayerPairs) {

@@ -1,0 +1,32 @@
+// Ground truth for stereo research, per augmented stereo frame (docs/GROUND_TRUTH.md): the
+// receiver's depth in each camera, and for every left receiver pixel where the same surface point
+// lies in the right image (the true correspondence; with the stereo class image it says whether
+// the right camera actually sees it). Exact to the masks' geometry: the depth is the augmenter's
+// (the receiver's nearest surface on each pixel centre's ray), the correspondence that point
+// projected through the right camera's own model, distortion included.
+#pragma once
+
+#include <vector>
+
+#include "core/pose.hpp"
+#include "render/camera_model.hpp"
+#include "render/stats.hpp"
+
+namespace augrig {
+
+// (u, v) in the right image of the receiver point on each left pixel centre's ray, two floats per
+// left pixel, row-major (width x height x 2). NaN where the left pixel has no receiver, its ray is
+// undefined, or the point does not project into the right camera (behind it, or outside its lens
+// model's domain). Points outside the right image keep their coordinates (the stereo class says
+// who sees what). `depth_left` is the left camera's receiver depth (+inf where none).
+std::vector<float> right_correspondence(const DepthImage& depth_left, const CameraModel& left,
+                                        const CameraModel& right, const Pose& T_right_left);
+
+// The depth as float32 metres with NaN where there is no receiver (DepthImage has +inf there).
+std::vector<float> depth_with_nan(const DepthImage& depth);
+
+// The depth in whole millimetres for 16-bit images: round(z * 1000), 0 where there is no
+// receiver, 65535 for 65.535 m or more (saturated).
+std::vector<std::uint16_t> depth_mm_u16(const DepthImage& depth);
+
+}  // namespace augrig
