@@ -6,8 +6,9 @@
 //      rotated to NED and shaded exactly (sky colour, or the ground point, its footprint, woods,
 //      tint and haze); inside a ground block the ground point is interpolated and the tile sampled
 //      bilinearly in fixed point at the block's mip level, four pixels at a time with SSE2
-//      (ground_run); sky blocks interpolate the colour; blocks the horizon or the lens's invalid
-//      border cross are shaded per pixel exactly. Bayer pixels compute their own channel only;
+//      (ground_block), eight with AVX2 where the CPU has it (the same bytes); sky blocks
+//      interpolate the colour; blocks the horizon or the lens's invalid border cross are shaded
+//      per pixel exactly. Bayer pixels compute their own channel only;
 //   2. the receiver, rasterised by render/soft_raster at the virtual pinhole's samples (the raw
 //      pixels themselves without distortion), lit per vertex, textured per pixel, shaded in runs
 //      of one triangle along a row (shade_run) found through a bitmask of covered samples;
@@ -19,6 +20,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <condition_variable>
@@ -30,6 +32,9 @@
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#include <immintrin.h>
 #endif
 
 #include "core/conventions.hpp"
@@ -560,6 +565,200 @@ void ground_block(Image& out, PixelFormat fmt, int x0, int n, int y0, int y1, co
 #endif
 }
 
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define AUGRIG_GROUND_AVX2 1
+// ground_block with AVX2, chosen at run time where the CPU has it: eight pixels at a time, lanes
+// 0-3 and 4-7 each exactly what the SSE2 loop computes for its two 4-pixel steps (the stepped
+// float terms of pixels 4-7 are those of 0-3 plus one more 4-pixel step, added as the SSE2 loop
+// adds it; no FMA), so every byte is the same. Helpers are functions, not lambdas, so that all of
+// them get the target.
+#pragma GCC push_options
+#pragma GCC target("avx2")
+namespace ground_avx2 {
+
+inline __m256i join(__m128i lo, __m128i hi) { return _mm256_inserti128_si256(_mm256_castsi128_si256(lo), hi, 1); }
+inline __m256 join(__m128 lo, __m128 hi) { return _mm256_insertf128_ps(_mm256_castps128_ps256(lo), hi, 1); }
+// tiled_index(shift, x, y) = row(y) + col(x), as the SSE2 loop.
+inline __m256i col(__m256i x) {
+  const __m256i q = _mm256_srli_epi32(x, 2);
+  return _mm256_add_epi32(_mm256_add_epi32(_mm256_slli_epi32(q, 4), _mm256_slli_epi32(q, 2)),
+                          _mm256_and_si256(x, _mm256_set1_epi32(3)));
+}
+inline __m256i row_of(__m256i y, __m128i row_shift) {
+  const __m256i r = _mm256_or_si256(_mm256_sll_epi32(_mm256_srli_epi32(y, 2), row_shift),
+                                    _mm256_and_si256(y, _mm256_set1_epi32(3)));
+  return _mm256_add_epi32(_mm256_slli_epi32(r, 2), r);
+}
+inline __m256i lerp16(__m256i a, __m256i b, __m256i wt) {
+  const __m256i w256 = _mm256_set1_epi16(256), half = _mm256_set1_epi16(128);
+  return _mm256_srli_epi16(
+      _mm256_add_epi16(_mm256_add_epi16(_mm256_mullo_epi16(a, _mm256_sub_epi16(w256, wt)), _mm256_mullo_epi16(b, wt)),
+                       half),
+      8);
+}
+// Weights of 8 pixels spread over the channels of pixels 0-1, 4-5 (lo) and 2-3, 6-7 (hi).
+inline void spread(__m256i wt, __m256i& lo, __m256i& hi) {
+  const __m256i w16 = _mm256_packs_epi32(wt, wt);
+  const __m256i wd = _mm256_unpacklo_epi16(w16, w16);
+  lo = _mm256_unpacklo_epi32(wd, wd), hi = _mm256_unpackhi_epi32(wd, wd);
+}
+inline __m128i pair(const std::uint32_t* tex, std::uint32_t i) {
+  return _mm_loadl_epi64(reinterpret_cast<const __m128i*>(tex + i));
+}
+// Texels (x0, y) and (x0 + 1, y) of 4 pixels, as [left of 0-3] and [right of 0-3].
+inline void fetch4(const std::uint32_t* tex, const std::uint32_t* ix, __m128i& left, __m128i& right) {
+  const __m128i p01 = _mm_shuffle_epi32(_mm_unpacklo_epi64(pair(tex, ix[0]), pair(tex, ix[1])), 0xd8);
+  const __m128i p23 = _mm_shuffle_epi32(_mm_unpacklo_epi64(pair(tex, ix[2]), pair(tex, ix[3])), 0xd8);
+  left = _mm_unpacklo_epi64(p01, p23), right = _mm_unpackhi_epi64(p01, p23);
+}
+inline __m128i ilin(std::uint32_t v, std::uint32_t d) {
+  return _mm_add_epi32(_mm_set1_epi32(static_cast<int>(v)),
+                       _mm_mullo_epi32(_mm_setr_epi32(0, 1, 2, 3), _mm_set1_epi32(static_cast<int>(d))));
+}
+inline __m128i i4(std::uint32_t d) { return _mm_set1_epi32(static_cast<int>(4u * d)); }
+inline __m128 lin(float v, float d) {
+  return _mm_add_ps(_mm_set1_ps(v), _mm_mul_ps(_mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f), _mm_set1_ps(d)));
+}
+inline __m128 f4(float d) { return _mm_set1_ps(4.0f * d); }
+
+struct Channel {
+  __m128i shift_even, shift_odd;
+  __m256 base, slope, haze;
+};
+inline Channel make_channel(int ch_even, int ch_odd) {
+  const float be = kWoodBase[ch_even], bo = kWoodBase[ch_odd], se = kWoodSlope[ch_even], so = kWoodSlope[ch_odd];
+  const float he = kHaze[ch_even], ho = kHaze[ch_odd];
+  return Channel{_mm_cvtsi32_si128(8 * ch_even), _mm_cvtsi32_si128(8 * ch_odd), _mm256_setr_ps(be, bo, be, bo, be, bo, be, bo),
+                 _mm256_setr_ps(se, so, se, so, se, so, se, so), _mm256_setr_ps(he, ho, he, ho, he, ho, he, ho)};
+}
+// One channel of 8 filtered texels, shaded as put_ground: 8 bytes in the low half.
+template <bool kWoods>
+inline __m128i channel(__m256i v, __m256 a, __m256 sm, __m256 k1, __m256 hz, const Channel& ch) {
+  const __m256i ff = _mm256_set1_epi32(0xff), odd = _mm256_setr_epi32(0, -1, 0, -1, 0, -1, 0, -1);
+  const __m256i ce = _mm256_and_si256(_mm256_srl_epi32(v, ch.shift_even), ff);
+  const __m256i co = _mm256_and_si256(_mm256_srl_epi32(v, ch.shift_odd), ff);
+  const __m256 c = _mm256_cvtepi32_ps(_mm256_or_si256(_mm256_andnot_si256(odd, ce), _mm256_and_si256(odd, co)));
+  __m256 val;
+  if constexpr (kWoods) {
+    const __m256 wood = _mm256_add_ps(ch.base, _mm256_mul_ps(ch.slope, a));
+    val = _mm256_add_ps(_mm256_mul_ps(_mm256_add_ps(c, _mm256_mul_ps(sm, _mm256_sub_ps(wood, c))), k1),
+                        _mm256_mul_ps(hz, ch.haze));
+  } else {
+    val = _mm256_add_ps(_mm256_mul_ps(c, k1), _mm256_mul_ps(hz, ch.haze));
+  }
+  const __m256i q = _mm256_cvttps_epi32(
+      _mm256_min_ps(_mm256_add_ps(_mm256_max_ps(val, _mm256_setzero_ps()), _mm256_set1_ps(0.5f)), _mm256_set1_ps(255.0f)));
+  const __m128i q16 = _mm_packs_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));
+  return _mm_packus_epi16(q16, q16);
+}
+
+template <int kMode, bool kWoods>
+[[gnu::noinline]] void ground_block(Image& out, PixelFormat fmt, int x0, int n, int y0, int y1, const std::uint32_t* tex,
+                                    int shift, const GroundBlock& g) {
+  const __m256i mask = _mm256_set1_epi32((1 << shift) - 1), one = _mm256_set1_epi32(1), ff = _mm256_set1_epi32(0xff);
+  const __m256i zero = _mm256_setzero_si256();
+  const __m128i row_shift = _mm_cvtsi32_si128(shift);
+  // The SSE2 loop's 4-lane state, stepped from row to row as it steps it.
+  __m128i s_start = ilin(g.s, g.ds), t_start = ilin(g.t, g.dt), ds4 = i4(g.ds), dt4 = i4(g.dt);
+  const __m128i s_next = ilin(g.s_row, g.dds), t_next = ilin(g.t_row, g.ddt), dds4 = i4(g.dds), ddt4 = i4(g.ddt);
+  __m128 w_start = lin(g.w, g.dw), k_start = lin(g.k, g.dk), h_start = lin(g.h, g.dh);
+  __m128 dw4 = f4(g.dw), dk4 = f4(g.dk), dh4 = f4(g.dh);
+  const __m128 w_next = lin(g.w_row, g.ddw), k_next = lin(g.k_row, g.ddk), h_next = lin(g.h_row, g.ddh);
+  const __m128 ddw4 = f4(g.ddw), ddk4 = f4(g.ddk), ddh4 = f4(g.ddh);
+  const __m256 kwa = _mm256_set1_ps(kWoodA), f0 = _mm256_setzero_ps(), f1 = _mm256_set1_ps(1.0f),
+               f2 = _mm256_set1_ps(2.0f), f3 = _mm256_set1_ps(3.0f);
+  const Channel red = make_channel(0, 0), green = make_channel(1, 1), blue = make_channel(2, 2);
+  Channel bayer_rows[2] = {red, red};
+  if constexpr (kMode == kModeBayer)
+    for (int r = 0; r < 2; ++r) bayer_rows[r] = make_channel(bayer_channel(fmt, 0, y0 + r), bayer_channel(fmt, 1, y0 + r));
+  for (int y = y0; y < y1; ++y) {
+    std::uint8_t* const row = out.row(y);
+    const Channel& bayer = bayer_rows[(y - y0) & 1];
+    // Lanes 4-7 start one 4-pixel step on; each iteration takes two such steps.
+    __m256i sv = join(s_start, _mm_add_epi32(s_start, ds4)), tv = join(t_start, _mm_add_epi32(t_start, dt4));
+    const __m256i ds8 = join(_mm_add_epi32(ds4, ds4), _mm_add_epi32(ds4, ds4));
+    const __m256i dt8 = join(_mm_add_epi32(dt4, dt4), _mm_add_epi32(dt4, dt4));
+    __m256 wv = join(w_start, _mm_add_ps(w_start, dw4)), kv = join(k_start, _mm_add_ps(k_start, dk4)),
+           hv = join(h_start, _mm_add_ps(h_start, dh4));
+    const __m256 dw = join(dw4, dw4), dk = join(dk4, dk4), dh = join(dh4, dh4);
+    for (int i = 0; i < n; i += 8) {
+      const __m256i x0v = _mm256_and_si256(_mm256_srli_epi32(sv, 16), mask);
+      const __m256i y0v = _mm256_and_si256(_mm256_srli_epi32(tv, 16), mask);
+      const __m256i y1v = _mm256_and_si256(_mm256_add_epi32(y0v, one), mask);
+      alignas(32) std::uint32_t i0[8], i1[8];
+      const __m256i c0 = col(x0v);
+      _mm256_store_si256(reinterpret_cast<__m256i*>(i0), _mm256_add_epi32(row_of(y0v, row_shift), c0));
+      _mm256_store_si256(reinterpret_cast<__m256i*>(i1), _mm256_add_epi32(row_of(y1v, row_shift), c0));
+      __m128i la, ra, lb, rb, lc, rc, ld, rd;
+      fetch4(tex, i0, la, ra);
+      fetch4(tex, i0 + 4, lb, rb);
+      fetch4(tex, i1, lc, rc);
+      fetch4(tex, i1 + 4, ld, rd);
+      const __m256i a = join(la, lb), b = join(ra, rb), c = join(lc, ld), d = join(rc, rd);
+      __m256i wxl, wxh, wyl, wyh;
+      spread(_mm256_and_si256(_mm256_srli_epi32(sv, 8), ff), wxl, wxh);
+      spread(_mm256_and_si256(_mm256_srli_epi32(tv, 8), ff), wyl, wyh);
+      const __m256i lo = lerp16(lerp16(_mm256_unpacklo_epi8(a, zero), _mm256_unpacklo_epi8(b, zero), wxl),
+                                lerp16(_mm256_unpacklo_epi8(c, zero), _mm256_unpacklo_epi8(d, zero), wxl), wyl);
+      const __m256i hi = lerp16(lerp16(_mm256_unpackhi_epi8(a, zero), _mm256_unpackhi_epi8(b, zero), wxh),
+                                lerp16(_mm256_unpackhi_epi8(c, zero), _mm256_unpackhi_epi8(d, zero), wxh), wyh);
+      const __m256i v = _mm256_packus_epi16(lo, hi);  // the 8 filtered RGBA8 texels, in pixel order
+      sv = _mm256_add_epi32(sv, ds8), tv = _mm256_add_epi32(tv, dt8);
+      __m256 av = f0, sm = f0;
+      if constexpr (kWoods) {
+        av = _mm256_cvtepi32_ps(_mm256_srli_epi32(v, 24));
+        const __m256 z = _mm256_min_ps(_mm256_max_ps(_mm256_add_ps(wv, _mm256_mul_ps(av, kwa)), f0), f1);
+        sm = _mm256_mul_ps(_mm256_mul_ps(z, z), _mm256_sub_ps(f3, _mm256_mul_ps(f2, z)));
+      }
+      const __m256 k1 = kv, hz = hv;
+      wv = _mm256_add_ps(_mm256_add_ps(wv, dw), dw), kv = _mm256_add_ps(_mm256_add_ps(kv, dk), dk),
+      hv = _mm256_add_ps(_mm256_add_ps(hv, dh), dh);
+      const int m = std::min(8, n - i);
+      if constexpr (kMode == kModeBayer) {
+        const __m128i bytes = channel<kWoods>(v, av, sm, k1, hz, bayer);
+        if (m == 8) {
+          _mm_storel_epi64(reinterpret_cast<__m128i*>(row + x0 + i), bytes);
+        } else {
+          alignas(16) std::uint8_t tmp[16];
+          _mm_store_si128(reinterpret_cast<__m128i*>(tmp), bytes);
+          for (int j = 0; j < m; ++j) row[x0 + i + j] = tmp[j];
+        }
+      } else {
+        alignas(16) std::uint8_t r[16], gg[16], b8[16];
+        _mm_store_si128(reinterpret_cast<__m128i*>(r), channel<kWoods>(v, av, sm, k1, hz, red));
+        _mm_store_si128(reinterpret_cast<__m128i*>(gg), channel<kWoods>(v, av, sm, k1, hz, green));
+        _mm_store_si128(reinterpret_cast<__m128i*>(b8), channel<kWoods>(v, av, sm, k1, hz, blue));
+        for (int j = 0; j < m; ++j) put_rgb<kMode>(row, x0 + i + j, r[j], gg[j], b8[j]);
+      }
+    }
+    s_start = _mm_add_epi32(s_start, s_next), t_start = _mm_add_epi32(t_start, t_next);
+    ds4 = _mm_add_epi32(ds4, dds4), dt4 = _mm_add_epi32(dt4, ddt4);
+    w_start = _mm_add_ps(w_start, w_next), k_start = _mm_add_ps(k_start, k_next), h_start = _mm_add_ps(h_start, h_next);
+    dw4 = _mm_add_ps(dw4, ddw4), dk4 = _mm_add_ps(dk4, ddk4), dh4 = _mm_add_ps(dh4, ddh4);
+  }
+}
+
+}  // namespace ground_avx2
+#pragma GCC pop_options
+
+std::atomic<bool> g_avx2_allowed{true};  // set_cpu_scene_avx2_for_testing()
+bool cpu_has_avx2() {
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+}
+#endif
+
+// ground_block<kMode, kWoods>, with AVX2 where the CPU has it (the same bytes).
+template <int kMode, bool kWoods>
+void ground_block_any(Image& out, PixelFormat fmt, int x0, int n, int y0, int y1, const std::uint32_t* tex, int shift,
+                      const GroundBlock& g) {
+#if defined(AUGRIG_GROUND_AVX2)
+  if (cpu_has_avx2() && g_avx2_allowed.load(std::memory_order_relaxed))
+    return ground_avx2::ground_block<kMode, kWoods>(out, fmt, x0, n, y0, y1, tex, shift, g);
+#endif
+  ground_block<kMode, kWoods>(out, fmt, x0, n, y0, y1, tex, shift, g);
+}
+
 // ---- per camera, fixed ----
 
 struct CameraTables {
@@ -1000,9 +1199,9 @@ void CpuSceneRenderer::background_rows(const CameraTables& ct, const FrameSky& f
         terms(c00.k1, c10.k1, c01.k1, c11.k1, g.k, g.dk, g.k_row, g.ddk);
         terms(c00.h, c10.h, c01.h, c11.h, g.h, g.dh, g.h_row, g.ddh);
         if (woods)
-          ground_block<kMode, true>(out, fmt, x0, x1 - x0, y0, y1, tex, shift, g);
+          ground_block_any<kMode, true>(out, fmt, x0, x1 - x0, y0, y1, tex, shift, g);
         else
-          ground_block<kMode, false>(out, fmt, x0, x1 - x0, y0, y1, tex, shift, g);
+          ground_block_any<kMode, false>(out, fmt, x0, x1 - x0, y0, y1, tex, shift, g);
       } else if (valid && n_ground == 0) {
         // Sky: smooth (the sun's glow is several blocks wide); the colour is interpolated.
         for (int y = y0; y < y1; ++y) {
@@ -1293,10 +1492,20 @@ void CpuSceneRenderer::add_noise(int camera, const SensorOptions& sensor, Image&
   const int H = out.height();
   bands_.run([&](int band) {
     const int y0 = H * band / bands_.count(), y1 = H * (band + 1) / bands_.count();
+    auto offset = [key](int y) {
+      return splitmix64(key ^ (static_cast<std::uint64_t>(y) * 0xd6e8feb86659fd93ull)) & (kNoiseField - 1);
+    };
+    // The rows' windows are at random places in the 8 MB field, mostly out of cache: the next
+    // row's is fetched while this one is added.
+    std::size_t next = offset(y0);
     for (int y = y0; y < y1; ++y) {
-      const std::size_t offset =
-          splitmix64(key ^ (static_cast<std::uint64_t>(y) * 0xd6e8feb86659fd93ull)) & (kNoiseField - 1);
-      add_saturated(out.row(y), noise_field_.data() + offset, n, bpp == 4);
+      const std::size_t here = next;
+      if (y + 1 < y1) {
+        next = offset(y + 1);
+        const std::int8_t* p = noise_field_.data() + next;
+        for (std::size_t b = 0; b < n + 64; b += 64) __builtin_prefetch(p + b);
+      }
+      add_saturated(out.row(y), noise_field_.data() + here, n, bpp == 4);
     }
   });
 }
@@ -1358,6 +1567,16 @@ Status CpuSceneRenderer::render(int camera, const SkyState& sky, const Pose& T_b
 }
 
 }  // namespace
+
+bool set_cpu_scene_avx2_for_testing(bool allowed) {
+#if defined(AUGRIG_GROUND_AVX2)
+  g_avx2_allowed.store(allowed, std::memory_order_relaxed);
+  return allowed && cpu_has_avx2();
+#else
+  (void)allowed;
+  return false;
+#endif
+}
 
 Expected<std::unique_ptr<SyntheticSceneRenderer>> make_cpu_scene_renderer(const Rig& rig,
                                                                           std::shared_ptr<const Model> receiver,

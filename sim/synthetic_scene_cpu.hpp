@@ -14,4 +14,8 @@ Expected<std::unique_ptr<SyntheticSceneRenderer>> make_cpu_scene_renderer(const 
                                                                           std::shared_ptr<const Model> receiver,
                                                                           const SceneRendererOptions& options);
 
+// For tests: whether the ground blocks may take the AVX2 path where the CPU has it (the default)
+// or must take the SSE2 one; both give the same bytes. Returns whether AVX2 is now used.
+bool set_cpu_scene_avx2_for_testing(bool allowed);
+
 }  // namespace augrig

@@ -3,6 +3,7 @@
 // the CPU back end's receiver silhouette against the augmenter's receiver mask, and against the
 // OpenGL back end.
 #include "sim/synthetic_scene.hpp"
+#include "sim/synthetic_scene_cpu.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -449,6 +450,36 @@ TEST_F(SyntheticSceneTest, ThreadsDoNotChangeTheImage) {
   SceneRendererOptions bad;
   bad.threads = 0;
   EXPECT_FALSE(SyntheticSceneRenderer::create(Rig::paper_default(), nullptr, bad));
+}
+
+// The AVX2 ground blocks (eight pixels a step) give the bytes of the SSE2 ones, in every output
+// format, for ground seen near (finest levels, woods) and far (coarse levels, haze), with a lens.
+TEST_F(SyntheticSceneTest, Avx2GroundBlocksAreTheSse2Ones) {
+  struct Restore {
+    ~Restore() { set_cpu_scene_avx2_for_testing(true); }
+  } restore;
+  if (!set_cpu_scene_avx2_for_testing(true)) GTEST_SKIP() << "no AVX2 path on this CPU or compiler";
+  SkyState down;  // level flight at 7000 m: ground only, woods near and far
+  down.altitude_m = 7000.0;
+  down.north_east_m = {1234.5, -678.9};
+  down.R_ned_body = rotation_from_ypr(deg_to_rad(30.0), deg_to_rad(2.0), deg_to_rad(1.0));
+  for (const Rig& rig : {Rig::paper_default(), distorted_rig()}) {
+    // Two renderers: one would reuse its own background for a second render of the same frame.
+    auto a = make(rig, SceneBackend::kCpu, 1), b = make(rig, SceneBackend::kCpu, 1);
+    ASSERT_TRUE(a && b);
+    for (const SkyState& sky : {down, horizon_sky()})
+      for (PixelFormat f : {PixelFormat::kBayerRG8, PixelFormat::kMono8, PixelFormat::kRGB8, PixelFormat::kRGBA8}) {
+        SensorOptions s;
+        s.format = f;
+        Image avx2, sse2;
+        ASSERT_TRUE(set_cpu_scene_avx2_for_testing(true));
+        ASSERT_TRUE(a->render(0, sky, receiver_pose(), true, s, avx2));
+        ASSERT_FALSE(set_cpu_scene_avx2_for_testing(false));
+        ASSERT_TRUE(b->render(0, sky, receiver_pose(), true, s, sse2));
+        EXPECT_TRUE(pixels_equal(avx2, sse2))
+            << to_string(f) << (rig.cameras[0].model.distortion == DistortionModel::kRadTan ? " radtan" : " none");
+      }
+  }
 }
 
 // The noise of neighbouring rows, of the two cameras and of successive frames is uncorrelated.
