@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <vector>
 
@@ -196,6 +197,30 @@ std::string camera_model_problem(const CameraModel& m) {
              num(m.coeffs[i]) + " as coefficient " + std::to_string(i);
     }
   }
+  // The rendered field (kMaxFieldAxisDeg): the image border holds the most oblique rays of a lens
+  // whose distortion is monotonic where it is defined. Pixels that undistort to no ray at all
+  // (outside the model's valid region) are left out, as the renderer leaves them.
+  // Rays, not normalised coordinates: a fisheye's border may look 90 degrees off axis or more.
+  auto beyond = [&](int u, int v) -> std::string {
+    const auto r = m.ray({static_cast<double>(u), static_cast<double>(v)});
+    if (!r) return {};
+    const double deg =
+        std::atan2(std::max(std::abs(r->x()), std::abs(r->y())), r->z()) * 180.0 / 3.14159265358979323846;
+    if (deg <= kMaxFieldAxisDeg) return {};
+    char angle[32];
+    std::snprintf(angle, sizeof angle, "%.1f", deg);
+    return "the lens sees " + std::string(angle) + " degrees off the optical axis at pixel (" +
+           std::to_string(u) + ", " + std::to_string(v) + "); augrig renders and augments within " +
+           num(kMaxFieldAxisDeg) +
+           " degrees of it, horizontally and vertically (a wider field cannot be "
+           "rendered through one pinhole image): crop the image (roi) to that field";
+  };
+  for (int u = 0; u < m.width_px; ++u)
+    for (int v : {0, m.height_px - 1})
+      if (std::string p = beyond(u, v); !p.empty()) return p;
+  for (int v = 0; v < m.height_px; ++v)
+    for (int u : {0, m.width_px - 1})
+      if (std::string p = beyond(u, v); !p.empty()) return p;
   return {};
 }
 

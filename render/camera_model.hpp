@@ -65,6 +65,13 @@ inline constexpr double kMaxDistortionCoefficient = 1000.0;  // |k|, |p| <= 1000
 // is wrong, with the value and the range expected ("expected fx, fy in [1, 1e7] pixels, got ...").
 std::string camera_model_problem(const CameraModel& m);
 
+// The field augrig renders and augments: rays within this angle of the optical axis horizontally
+// and vertically (|x|, |y| <= tan of it, in normalised coordinates). Every camera is rendered
+// through a virtual pinhole image (render/projection.hpp), which grows as tan(angle) and cannot
+// reach 90 degrees; a lens that sees beyond this would have pixels that are never augmented, so
+// camera_model_problem() refuses it (docs/RIG_FORMAT.md, "Field of view").
+inline constexpr double kMaxFieldAxisDeg = 80.0;
+
 // theta_d(theta) = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8): the equidistant
 // model's distorted angle.
 inline double equi_theta_d(const std::array<double, 5>& k, double th) {

@@ -51,7 +51,7 @@ Expected<VirtualPinhole> make_virtual_pinhole(const CameraModel& cam, double sca
   }
 
   // Rays of every raw pixel centre; the field to cover is their bounding box in normalised coords.
-  const double max_tan = std::tan(80.0 * 3.14159265358979323846 / 180.0);
+  const double max_tan = std::tan(kMaxFieldAxisDeg * 3.14159265358979323846 / 180.0);
   double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
   for (int v = 0; v < H; ++v) {
     for (int u = 0; u < W; ++u) {

@@ -355,6 +355,13 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
       {"zero resolution", base_with(4, "    resolution: [1280, 0]"), 4, "cameras[0].resolution",
        "expected a list of 2 positive integers [width, height]"},
       {"hfov out of range", base_with(5, "    hfov_deg: 190"), 5, "cameras[0].hfov_deg", "(0, 180)"},
+      // Inside (0, 180) but beyond the field augrig renders: refused at the camera.
+      {"field beyond 80 degrees", base_with(5, "    hfov_deg: 170"), 3, "cameras[0]",
+       "the lens sees 85.0 degrees off the optical axis"},
+      {"fisheye beyond 80 degrees",
+       edit({{11, "    intrinsics: [400, 400, 639.5, 479.5]"},
+             {12, "    distortion: {model: equidistant, coeffs: [0, 0, 0, 0]}"}}),
+       9, "cameras[1]", "within 80 degrees"},
       {"intrinsics and hfov",
        base_with(11, "    intrinsics: [1203.7, 1203.7, 639.5, 479.5]\n    hfov_deg: 56"), 12,
        "cameras[1].hfov_deg", "either 'intrinsics' or 'hfov_deg'"},
@@ -487,6 +494,34 @@ TEST(Rig, CameraModelProblemNamesTheValueAndRange) {
   EXPECT_EQ(camera_model_problem(m), "");
   m.width_px = 40000;
   EXPECT_NE(camera_model_problem(m).find("image size"), std::string::npos);
+}
+
+// The field augrig renders: within 80 degrees of the optical axis horizontally and vertically.
+// Wider lenses are refused (their outer pixels would never be augmented), fisheyes looking 90
+// degrees or more off axis included.
+TEST(Rig, LensesSeeingBeyondTheRenderedFieldAreRefused) {
+  CameraModel m;
+  m.width_px = 1280, m.height_px = 960, m.cx_px = 639.5, m.cy_px = 479.5;
+  m.distortion = DistortionModel::kEquidistant;
+  m.coeffs = {0, 0, 0, 0, 0};
+  // Pure equidistant, theta = r / f; the corners (800 px out) look farthest off axis. f = 560:
+  // 81.9 degrees off axis there, 79.9 of it horizontally (tan 81.9 x 640 / 800): inside.
+  m.fx_px = m.fy_px = 560;
+  EXPECT_EQ(camera_model_problem(m), "");
+  // f = 550: 83.3 degrees at the corner, 81.6 horizontally: refused, naming the corner.
+  m.fx_px = m.fy_px = 550;
+  std::string p = camera_model_problem(m);
+  EXPECT_NE(p.find("81.6 degrees off the optical axis at pixel (0, 0)"), std::string::npos) << p;
+  EXPECT_NE(p.find("within 80 degrees"), std::string::npos) << p;
+  // f = 400: the corners look backwards (114.6 degrees): normalised coordinates do not exist
+  // there, rays do.
+  m.fx_px = m.fy_px = 400;
+  p = camera_model_problem(m);
+  EXPECT_NE(p.find("degrees off the optical axis"), std::string::npos) << p;
+  // A pinhole of 170 degrees horizontal field: 85 degrees at the edges; 150: inside.
+  p = camera_model_problem(CameraModel::pinhole_from_hfov(1280, 960, deg_to_rad(170)));
+  EXPECT_NE(p.find("85.0 degrees"), std::string::npos) << p;
+  EXPECT_EQ(camera_model_problem(CameraModel::pinhole_from_hfov(1280, 960, deg_to_rad(150))), "");
 }
 
 TEST(Rig, ParseRigErrorsUseParsePrefix) {
