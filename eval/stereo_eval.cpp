@@ -1,0 +1,131 @@
+#include "eval/stereo_eval.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace augrig::eval {
+namespace {
+
+cv::Mat to_cv(const Eigen::Matrix3d& m) {
+  cv::Mat out;
+  cv::eigen2cv(m, out);
+  return out;
+}
+
+}  // namespace
+
+Expected<Rectification> rectify_rig(const CameraModel& left, const CameraModel& right,
+                                    const Pose& T_right_left) {
+  const char* where = "eval::rectify_rig(): ";
+  if (left.width_px != right.width_px || left.height_px != right.height_px)
+    return make_error(where, "the cameras' images differ in size (", left.width_px, "x", left.height_px,
+                      " and ", right.width_px, "x", right.height_px, "); expected one size");
+  if (left.distortion == DistortionModel::kEquidistant) {
+    if (right.distortion != DistortionModel::kEquidistant)
+      return make_error(where, "a fisheye (equidistant) and a ", right.distortion_name(),
+                        " camera; expected both fisheye or neither");
+  } else if (right.distortion == DistortionModel::kEquidistant) {
+    return make_error(where, "a ", left.distortion_name(),
+                      " and a fisheye (equidistant) camera; expected both fisheye or neither");
+  }
+  const double baseline = T_right_left.translation_m.norm();
+  if (!(baseline > 1e-6)) return make_error(where, "the cameras share their centre: no stereo baseline");
+  const cv::Size size(left.width_px, left.height_px);
+  const cv::Mat K1 = to_cv(left.K()), K2 = to_cv(right.K());
+  cv::Mat D1, D2;
+  cv::eigen2cv(Eigen::VectorXd(left.distortion_coeffs()), D1);
+  cv::eigen2cv(Eigen::VectorXd(right.distortion_coeffs()), D2);
+  const cv::Mat R = to_cv(T_right_left.R());
+  const cv::Mat T = (cv::Mat_<double>(3, 1) << T_right_left.translation_m.x(), T_right_left.translation_m.y(),
+                     T_right_left.translation_m.z());
+  cv::Mat R1, R2, P1, P2, Q;
+  Rectification r;
+  r.width = left.width_px;
+  r.height = left.height_px;
+  try {
+    if (left.distortion == DistortionModel::kEquidistant) {
+      cv::fisheye::stereoRectify(K1, D1, K2, D2, size, R, T, R1, R2, P1, P2, Q, cv::CALIB_ZERO_DISPARITY,
+                                 size, 0.0, 1.0);
+      cv::fisheye::initUndistortRectifyMap(K1, D1, R1, P1, size, CV_32FC1, r.map_x[0], r.map_y[0]);
+      cv::fisheye::initUndistortRectifyMap(K2, D2, R2, P2, size, CV_32FC1, r.map_x[1], r.map_y[1]);
+    } else {
+      // alpha 0: every rectified pixel comes from inside both raw images.
+      cv::stereoRectify(K1, D1, K2, D2, size, R, T, R1, R2, P1, P2, Q, cv::CALIB_ZERO_DISPARITY, 0.0, size);
+      cv::initUndistortRectifyMap(K1, D1, R1, P1, size, CV_32FC1, r.map_x[0], r.map_y[0]);
+      cv::initUndistortRectifyMap(K2, D2, R2, P2, size, CV_32FC1, r.map_x[1], r.map_y[1]);
+    }
+  } catch (const cv::Exception& e) {
+    return make_error(where, "OpenCV could not rectify the rig: ", e.what());
+  }
+  cv::cv2eigen(R1, r.R_rect_raw[0]);
+  cv::cv2eigen(R2, r.R_rect_raw[1]);
+  r.f_px = P1.at<double>(0, 0);
+  r.cx_px = P1.at<double>(0, 2);
+  r.cy_px = P1.at<double>(1, 2);
+  // P2 = [f 0 cx f*Tx; ...] with Tx the right camera's x in the rectified left frame (negative
+  // when it is on the right).
+  r.baseline_m = std::abs(P2.at<double>(0, 3) / P2.at<double>(0, 0));
+  if (!(r.f_px > 0) || !(r.baseline_m > 0))
+    return make_error(where, "OpenCV returned a degenerate rectification (f ", r.f_px, " px, baseline ",
+                      r.baseline_m, " m)");
+  return r;
+}
+
+void rectify_images(const Rectification& r, const cv::Mat& left, const cv::Mat& right, cv::Mat& left_rect,
+                    cv::Mat& right_rect) {
+  cv::remap(left, left_rect, r.map_x[0], r.map_y[0], cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  cv::remap(right, right_rect, r.map_x[1], r.map_y[1], cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+}
+
+cv::Mat true_disparity(const Rectification& r, const DepthImage& depth_left) {
+  cv::Mat d(r.height, r.width, CV_32FC1, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+  const int w = depth_left.width, h = depth_left.height;
+  if (w <= 0 || h <= 0) return d;
+  const Eigen::Matrix3d Rt = r.R_rect_raw[0].transpose();  // rectified -> raw left
+  auto z_at = [&](int x, int y) {
+    return static_cast<double>(depth_left.z_m[static_cast<std::size_t>(y) * w + x]);
+  };
+  for (int v = 0; v < r.height; ++v) {
+    const float* mx = r.map_x[0].ptr<float>(v);
+    const float* my = r.map_y[0].ptr<float>(v);
+    float* out = d.ptr<float>(v);
+    for (int u = 0; u < r.width; ++u) {
+      const double x = mx[u], y = my[u];
+      const int xn = static_cast<int>(std::lround(x)), yn = static_cast<int>(std::lround(y));
+      if (xn < 0 || yn < 0 || xn >= w || yn >= h) continue;
+      double z_raw = z_at(xn, yn);
+      if (!std::isfinite(z_raw)) continue;
+      // Bilinear inside the receiver, where the surface is smooth between pixel centres.
+      const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+      if (x0 >= 0 && y0 >= 0 && x0 + 1 < w && y0 + 1 < h) {
+        const double z00 = z_at(x0, y0), z10 = z_at(x0 + 1, y0), z01 = z_at(x0, y0 + 1),
+                     z11 = z_at(x0 + 1, y0 + 1);
+        if (std::isfinite(z00) && std::isfinite(z10) && std::isfinite(z01) && std::isfinite(z11)) {
+          const double fx = x - x0, fy = y - y0;
+          z_raw = (1 - fy) * ((1 - fx) * z00 + fx * z10) + fy * ((1 - fx) * z01 + fx * z11);
+        }
+      }
+      // The rectified pixel's ray in the raw left frame; the point on it at raw depth z_raw lies
+      // at rectified depth z_raw / (its raw direction's z) (the rectified ray has z = 1).
+      const Eigen::Vector3d ray_rect((u - r.cx_px) / r.f_px, (v - r.cy_px) / r.f_px, 1.0);
+      const double dz = (Rt * ray_rect).z();
+      if (!(dz > 0)) continue;
+      const double z_rect = z_raw / dz;
+      out[u] = static_cast<float>(r.f_px * r.baseline_m / z_rect);
+    }
+  }
+  return d;
+}
+
+cv::Mat rectify_labels(const Rectification& r, const cv::Mat& labels_left, std::uint8_t outside) {
+  cv::Mat out;
+  cv::remap(labels_left, out, r.map_x[0], r.map_y[0], cv::INTER_NEAREST, cv::BORDER_CONSTANT,
+            cv::Scalar(outside));
+  return out;
+}
+
+}  // namespace augrig::eval

@@ -1,0 +1,139 @@
+// Rectification and the true disparity against independent geometry: rectified rows agree and
+// disparity = f B / z for points projected by hand through R1, R2; the true disparity of a plane
+// seen through strongly distorted cameras against the plane intersected along each rectified ray,
+// its raw depth made with cv::undistortPoints.
+#include "eval/stereo_eval.hpp"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+
+namespace augrig::eval {
+namespace {
+
+CameraModel radtan(double fx, double fy, double cx, double cy, std::array<double, 5> k) {
+  CameraModel c;
+  c.width_px = 320, c.height_px = 240;
+  c.fx_px = fx, c.fy_px = fy, c.cx_px = cx, c.cy_px = cy;
+  c.distortion = DistortionModel::kRadTan;
+  c.coeffs = k;
+  return c;
+}
+
+struct Rig2 {
+  CameraModel left = radtan(300, 296, 158.5, 122.0, {-0.25, 0.07, 0.001, -0.0008, 0.0});
+  CameraModel right = radtan(304, 301, 163.0, 117.5, {-0.21, 0.05, -0.0006, 0.0009, 0.0});
+  Pose T_right_left = Pose::from(
+      (Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(-0.01, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix(),
+      Eigen::Vector3d(-0.5, 0.01, 0.004));
+};
+
+TEST(StereoEval, RectifiedRowsAgreeAndDisparityIsFocalTimesBaselineOverDepth) {
+  const Rig2 rig;
+  auto r = rectify_rig(rig.left, rig.right, rig.T_right_left);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_NEAR(r->baseline_m, rig.T_right_left.translation_m.norm(), 1e-9);
+  for (const Eigen::Vector3d& p :
+       {Eigen::Vector3d(0.3, -0.2, 8.0), Eigen::Vector3d(-1.5, 0.7, 20.0), Eigen::Vector3d(0.0, 0.0, 3.0)}) {
+    const Eigen::Vector3d a = r->R_rect_raw[0] * p;
+    const Eigen::Vector3d b = r->R_rect_raw[1] * (rig.T_right_left * p);
+    const double u1 = r->f_px * a.x() / a.z() + r->cx_px, v1 = r->f_px * a.y() / a.z() + r->cy_px;
+    const double u2 = r->f_px * b.x() / b.z() + r->cx_px, v2 = r->f_px * b.y() / b.z() + r->cy_px;
+    EXPECT_NEAR(v1, v2, 1e-6) << "rectified rows";
+    EXPECT_NEAR(u1 - u2, r->f_px * r->baseline_m / a.z(), 1e-6) << "disparity";
+    EXPECT_GT(u1 - u2, 0);
+  }
+}
+
+TEST(StereoEval, TrueDisparityOfAPlaneThroughDistortedCameras) {
+  const Rig2 rig;
+  auto r = rectify_rig(rig.left, rig.right, rig.T_right_left);
+  ASSERT_TRUE(r) << r.error().message;
+  // A slanted plane n . P = c in the left camera frame, over raw pixels [40, 280) x [30, 210).
+  const Eigen::Vector3d n = Eigen::Vector3d(0.05, -0.1, 1.0).normalized();
+  const double c = 9.0;
+  std::vector<cv::Point2d> px;
+  for (int y = 0; y < 240; ++y)
+    for (int x = 0; x < 320; ++x) px.emplace_back(x, y);
+  std::vector<cv::Point2d> xy;
+  cv::Mat K, D;
+  cv::eigen2cv(rig.left.K(), K);
+  cv::eigen2cv(Eigen::VectorXd(rig.left.distortion_coeffs()), D);
+  cv::undistortPoints(px, xy, K, D, cv::noArray(), cv::noArray(),
+                      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 200, 1e-14));
+  DepthImage depth{320, 240, std::vector<float>(320 * 240, DepthImage::kNone)};
+  for (int y = 30; y < 210; ++y)
+    for (int x = 40; x < 280; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * 320 + x;
+      const Eigen::Vector3d d(xy[i].x, xy[i].y, 1.0);
+      depth.z_m[i] = static_cast<float>(c / n.dot(d));  // z of the ray's hit (d has z = 1)
+    }
+  const cv::Mat disp = true_disparity(*r, depth);
+  ASSERT_EQ(disp.type(), CV_32FC1);
+  int checked = 0, nan_outside = 0;
+  double worst = 0;
+  const Eigen::Matrix3d Rt = r->R_rect_raw[0].transpose();
+  for (int v = 0; v < r->height; ++v)
+    for (int u = 0; u < r->width; ++u) {
+      const float got = disp.at<float>(v, u);
+      const double mx = r->map_x[0].at<float>(v, u), my = r->map_y[0].at<float>(v, u);
+      // Well inside the plane's raw box: compare; well outside: none.
+      if (mx >= 42 && mx <= 277 && my >= 32 && my <= 207) {
+        const Eigen::Vector3d d =
+            Rt * Eigen::Vector3d((u - r->cx_px) / r->f_px, (v - r->cy_px) / r->f_px, 1.0);
+        const double s = c / n.dot(d);  // the rectified ray's hit: z_rect = s
+        const double expect = r->f_px * r->baseline_m / s;
+        ASSERT_TRUE(std::isfinite(got)) << u << "," << v;
+        worst = std::max(worst, std::abs(got - expect));
+        ++checked;
+      } else if (mx < 38 || mx > 282 || my < 28 || my > 212) {
+        nan_outside += std::isnan(got);
+        EXPECT_TRUE(std::isnan(got)) << u << "," << v;
+      }
+    }
+  EXPECT_GT(checked, 20000);
+  EXPECT_GT(nan_outside, 5000);
+  // Bilinear depth between raw pixel centres on a plane: about 1e-4 px of disparity.
+  EXPECT_LT(worst, 2e-3) << "worst true-disparity error, px";
+}
+
+TEST(StereoEval, LabelsFollowTheirNearestRawPixelAndBadRigsAreErrors) {
+  const Rig2 rig;
+  auto r = rectify_rig(rig.left, rig.right, rig.T_right_left);
+  ASSERT_TRUE(r);
+  cv::Mat labels(240, 320, CV_8UC1);
+  for (int y = 0; y < 240; ++y)
+    for (int x = 0; x < 320; ++x)
+      labels.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>((x / 10 + y / 10) % 5);
+  const cv::Mat rl = rectify_labels(*r, labels, 9);
+  for (int v = 0; v < 240; v += 7)
+    for (int u = 0; u < 320; u += 7) {
+      const int x = static_cast<int>(std::lround(r->map_x[0].at<float>(v, u)));
+      const int y = static_cast<int>(std::lround(r->map_y[0].at<float>(v, u)));
+      if (x < 0 || y < 0 || x >= 320 || y >= 240) continue;
+      // At an exact .5 the two roundings may differ: skip those.
+      if (std::abs(r->map_x[0].at<float>(v, u) - x) > 0.49f ||
+          std::abs(r->map_y[0].at<float>(v, u) - y) > 0.49f)
+        continue;
+      EXPECT_EQ(rl.at<std::uint8_t>(v, u), labels.at<std::uint8_t>(y, x)) << u << "," << v;
+    }
+  CameraModel other = rig.right;
+  other.width_px = 640;
+  auto bad = rectify_rig(rig.left, other, rig.T_right_left);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("differ in size"), std::string::npos) << bad.error().message;
+  auto same = rectify_rig(rig.left, rig.right, Pose::identity());
+  ASSERT_FALSE(same);
+  EXPECT_NE(same.error().message.find("no stereo baseline"), std::string::npos);
+  other = rig.right;
+  other.distortion = DistortionModel::kEquidistant;
+  auto mixed = rectify_rig(rig.left, other, rig.T_right_left);
+  ASSERT_FALSE(mixed);
+  EXPECT_NE(mixed.error().message.find("expected both fisheye or neither"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace augrig::eval
