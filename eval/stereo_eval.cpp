@@ -128,4 +128,91 @@ cv::Mat rectify_labels(const Rectification& r, const cv::Mat& labels_left, std::
   return out;
 }
 
+void DisparityErrors::add(double true_px, double estimated_px, double f_times_b) {
+  ++pixels;
+  if (!std::isfinite(estimated_px)) return;
+  ++valid;
+  const double e = estimated_px - true_px;
+  sum_error_px += e;
+  sum_sq_px2 += e * e;
+  bad1 += std::abs(e) > 1.0;
+  bad3 += std::abs(e) > 3.0;
+  if (estimated_px > 0 && true_px > 0) {
+    const double dz = f_times_b / estimated_px - f_times_b / true_px;
+    sum_range_error_m += dz;
+    sum_range_sq_m2 += dz * dz;
+    ++range_n;
+  }
+}
+
+void DisparityErrors::merge(const DisparityErrors& o) {
+  pixels += o.pixels;
+  valid += o.valid;
+  sum_error_px += o.sum_error_px;
+  sum_sq_px2 += o.sum_sq_px2;
+  bad1 += o.bad1;
+  bad3 += o.bad3;
+  sum_range_error_m += o.sum_range_error_m;
+  sum_range_sq_m2 += o.sum_range_sq_m2;
+  range_n += o.range_n;
+}
+
+double DisparityErrors::valid_pct() const {
+  return pixels ? 100.0 * static_cast<double>(valid) / pixels : 0.0;
+}
+double DisparityErrors::mean_px() const {
+  return valid ? sum_error_px / static_cast<double>(valid) : std::numeric_limits<double>::quiet_NaN();
+}
+double DisparityErrors::rms_px() const {
+  return valid ? std::sqrt(sum_sq_px2 / static_cast<double>(valid))
+               : std::numeric_limits<double>::quiet_NaN();
+}
+double DisparityErrors::bad1_pct() const {
+  return valid ? 100.0 * static_cast<double>(bad1) / valid : 0.0;
+}
+double DisparityErrors::bad3_pct() const {
+  return valid ? 100.0 * static_cast<double>(bad3) / valid : 0.0;
+}
+double DisparityErrors::range_mean_m() const {
+  return range_n ? sum_range_error_m / static_cast<double>(range_n)
+                 : std::numeric_limits<double>::quiet_NaN();
+}
+double DisparityErrors::range_rms_m() const {
+  return range_n ? std::sqrt(sum_range_sq_m2 / static_cast<double>(range_n))
+                 : std::numeric_limits<double>::quiet_NaN();
+}
+
+void PairScore::merge(const PairScore& o) {
+  for (int k = 0; k < 5; ++k) {
+    all[k].merge(o.all[k]);
+    boom_excluded[k].merge(o.boom_excluded[k]);
+  }
+}
+
+PairScore score_disparity(const cv::Mat& true_disp, const cv::Mat& estimated, const cv::Mat& classes,
+                          const cv::Mat& mask, double f_times_b) {
+  PairScore s;
+  CV_Assert(true_disp.type() == CV_32FC1 && estimated.type() == CV_32FC1 && classes.type() == CV_8UC1 &&
+            mask.type() == CV_8UC1);
+  CV_Assert(true_disp.size() == estimated.size() && true_disp.size() == classes.size() &&
+            true_disp.size() == mask.size());
+  for (int y = 0; y < true_disp.rows; ++y) {
+    const float* t = true_disp.ptr<float>(y);
+    const float* e = estimated.ptr<float>(y);
+    const std::uint8_t* c = classes.ptr<std::uint8_t>(y);
+    const std::uint8_t* m = mask.ptr<std::uint8_t>(y);
+    for (int x = 0; x < true_disp.cols; ++x) {
+      if (!std::isfinite(t[x])) continue;
+      const int k = c[x] <= 4 ? c[x] : 0;
+      const bool boom = (m[x] & 1) != 0;
+      s.all[0].add(t[x], e[x], f_times_b);
+      if (k) s.all[k].add(t[x], e[x], f_times_b);
+      if (boom) continue;
+      s.boom_excluded[0].add(t[x], e[x], f_times_b);
+      if (k) s.boom_excluded[k].add(t[x], e[x], f_times_b);
+    }
+  }
+  return s;
+}
+
 }  // namespace augrig::eval

@@ -6,6 +6,9 @@
 // rectified pixels like raw ones (centres at integers), disparity = u_left - u_right > 0.
 #pragma once
 
+#include <array>
+#include <cstdint>
+
 #include <opencv2/core.hpp>
 
 #include "core/expected.hpp"
@@ -48,5 +51,38 @@ cv::Mat true_disparity(const Rectification& r, const DepthImage& depth_left);
 // A per-pixel image of the raw left camera (CV_8UC1: masks, stereo classes) carried to the
 // rectified left image by its nearest raw pixel; `outside` where that lies outside the image.
 cv::Mat rectify_labels(const Rectification& r, const cv::Mat& labels_left, std::uint8_t outside = 0);
+
+// Disparity errors of a matcher over a set of pixels that have a true disparity.
+struct DisparityErrors {
+  std::int64_t pixels = 0;                  // pixels with a true disparity in the set
+  std::int64_t valid = 0;                   // of them, where the matcher gave a disparity
+  double sum_error_px = 0, sum_sq_px2 = 0;  // estimated - true, over the valid ones
+  std::int64_t bad1 = 0, bad3 = 0;          // valid ones with |error| > 1 px, > 3 px
+  // Range from the estimated disparity (f B / d) minus the true range, where the estimate > 0.
+  double sum_range_error_m = 0, sum_range_sq_m2 = 0;
+  std::int64_t range_n = 0;
+
+  void add(double true_px, double estimated_px, double f_times_b);  // estimated NaN: not valid
+  void merge(const DisparityErrors& o);
+  double valid_pct() const;  // of `pixels`; 0 when none
+  double mean_px() const;    // signed mean error; NaN when no valid pixel
+  double rms_px() const;
+  double bad1_pct() const;  // of the valid pixels
+  double bad3_pct() const;
+  double range_mean_m() const;
+  double range_rms_m() const;
+};
+
+// One pair scored: per stereo class (index = StereoClass: 0 every receiver pixel, 1 both, 2 left
+// only, 3 right only, 4 neither), over all of them and with the pixels the left mask marks as
+// boom (bit 0) left out, as an evaluation that trusts augrig's masks would.
+struct PairScore {
+  std::array<DisparityErrors, 5> all, boom_excluded;
+  void merge(const PairScore& o);
+};
+// `true_disp` and `estimated` CV_32FC1 (NaN: none), `classes` and `mask` CV_8UC1 in the rectified
+// left frame (rectify_labels()), `f_times_b` = f_px * baseline_m.
+PairScore score_disparity(const cv::Mat& true_disp, const cv::Mat& estimated, const cv::Mat& classes,
+                          const cv::Mat& mask, double f_times_b);
 
 }  // namespace augrig::eval

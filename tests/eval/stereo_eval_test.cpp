@@ -5,6 +5,7 @@
 #include "eval/stereo_eval.hpp"
 
 #include <cmath>
+#include <limits>
 
 #include <gtest/gtest.h>
 #include <opencv2/calib3d.hpp>
@@ -133,6 +134,41 @@ TEST(StereoEval, LabelsFollowTheirNearestRawPixelAndBadRigsAreErrors) {
   auto mixed = rectify_rig(rig.left, other, rig.T_right_left);
   ASSERT_FALSE(mixed);
   EXPECT_NE(mixed.error().message.find("expected both fisheye or neither"), std::string::npos);
+}
+
+// The scores against hand-counted ones: classes, the boom left out, bad-pixel rates, range.
+TEST(StereoEval, ScoresCountByClassAndLeaveTheBoomOut) {
+  cv::Mat t(1, 6, CV_32FC1), e(1, 6, CV_32FC1), cls(1, 6, CV_8UC1), mask(1, 6, CV_8UC1);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float tv[6] = {10, 10, 10, 20, 20, nan}, ev[6] = {10.5f, 14, nan, 18, 20, 5};
+  const std::uint8_t cv_[6] = {1, 1, 2, 3, 4, 0}, mv[6] = {2, 3, 2, 2, 3, 0};
+  for (int x = 0; x < 6; ++x) {
+    t.at<float>(0, x) = tv[x], e.at<float>(0, x) = ev[x];
+    cls.at<std::uint8_t>(0, x) = cv_[x], mask.at<std::uint8_t>(0, x) = mv[x];
+  }
+  const double fb = 100.0;  // f * B: z = 100 / d
+  const PairScore s = score_disparity(t, e, cls, mask, fb);
+  EXPECT_EQ(s.all[0].pixels, 5);  // the NaN truth is not counted
+  EXPECT_EQ(s.all[0].valid, 4);
+  EXPECT_DOUBLE_EQ(s.all[0].valid_pct(), 80.0);
+  EXPECT_EQ(s.all[1].pixels, 2);
+  EXPECT_DOUBLE_EQ(s.all[1].mean_px(), (0.5 + 4.0) / 2);
+  EXPECT_DOUBLE_EQ(s.all[1].rms_px(), std::sqrt((0.25 + 16.0) / 2));
+  EXPECT_EQ(s.all[1].bad1, 1);
+  EXPECT_EQ(s.all[1].bad3, 1);
+  EXPECT_DOUBLE_EQ(s.all[1].bad3_pct(), 50.0);
+  EXPECT_EQ(s.all[2].valid, 0);
+  EXPECT_TRUE(std::isnan(s.all[2].mean_px()));
+  EXPECT_DOUBLE_EQ(s.all[3].range_mean_m(), 100.0 / 18 - 100.0 / 20);
+  // The boom (bit 0) at x = 1 and 4: left out of boom_excluded.
+  EXPECT_EQ(s.boom_excluded[0].pixels, 3);
+  EXPECT_EQ(s.boom_excluded[1].pixels, 1);
+  EXPECT_DOUBLE_EQ(s.boom_excluded[1].mean_px(), 0.5);
+  EXPECT_EQ(s.boom_excluded[4].pixels, 0);
+  PairScore twice = s;
+  twice.merge(s);
+  EXPECT_EQ(twice.all[0].pixels, 10);
+  EXPECT_DOUBLE_EQ(twice.all[1].rms_px(), s.all[1].rms_px());
 }
 
 }  // namespace
