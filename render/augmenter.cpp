@@ -288,7 +288,10 @@ class AugmenterImpl final : public Augmenter {
   VBox raw_box_of(const ViewState& vs, const VBox& vbox) const;
   double nearest_hit(const ViewState& vs, RowScratch& scratch, const std::uint32_t* cands, int n, double x,
                      double y, bool rings) const;
-  double covered_depth(const ViewState& vs, const std::uint32_t* ids, double x, double y) const;
+  double covered_depth(const ViewState& vs, RowScratch& scratch, const std::uint32_t* ids, double x,
+                       double y) const;
+  enum class Surface { kSmooth, kCreased, kApart };
+  Surface surface_of(const ViewState& vs, const std::uint32_t* g, int n) const;
   void build_rings();
   std::uint32_t global_index(std::uint32_t packed) const {
     return first_tri_of_draw_[packed >> kDrawShift] + (packed & kPrimMask);
@@ -890,6 +893,37 @@ void AugmenterImpl::build_rings() {
   }
 }
 
+// Whether two camera-frame triangles share a vertex (the same position up to the rounding of
+// v0 + e1, v0 + e2): the one-ring relation, from the triangles themselves, whose cache lines the
+// ray tests have just loaded (the CSR rings would cost cache misses on every covered edge pixel).
+bool share_a_vertex(const CamTriangle& a, const CamTriangle& b) {
+  const Eigen::Vector3d pa[3] = {a.v0, a.v0 + a.e1, a.v0 + a.e2}, pb[3] = {b.v0, b.v0 + b.e1, b.v0 + b.e2};
+  for (const Eigen::Vector3d& p : pa)
+    for (const Eigen::Vector3d& q : pb)
+      if ((p - q).squaredNorm() <= 1e-20 * (1 + p.squaredNorm())) return true;
+  return false;
+}
+
+// How the distinct triangles g[0..n) of view `vs` lie around a point: kSmooth when each pair is
+// nearly parallel (normals within ~8 degrees: a smooth surface, also where its triangles are
+// smaller than a sample and the samples' are not neighbours); kCreased when each pair that is not
+// shares a vertex; else kApart: parts passing through each other
+// (their planes cross between the samples) or one part in front of another, where the triangle
+// nearest at the pixel centre may be one that no sample holds.
+AugmenterImpl::Surface AugmenterImpl::surface_of(const ViewState& vs, const std::uint32_t* g, int n) const {
+  constexpr double kCos2 = 0.98;  // cos^2 of ~8.1 degrees
+  Surface s = Surface::kSmooth;
+  for (int a = 0; a < n; ++a)
+    for (int b = a + 1; b < n; ++b) {
+      const Eigen::Vector3d &na = vs.tris[g[a]].n, &nb = vs.tris[g[b]].n;
+      const double dot = na.dot(nb);
+      if (dot * dot >= kCos2 * na.squaredNorm() * nb.squaredNorm()) continue;  // either facing
+      if (!share_a_vertex(vs.tris[g[a]], vs.tris[g[b]])) return Surface::kApart;
+      s = Surface::kCreased;
+    }
+  return s;
+}
+
 // Nearest intersection (camera z) of the ray (x, y, 1) with the candidate triangles (packed ids)
 // and, when none of them is hit and `rings`, with their one-ring neighbours; +inf if none.
 double AugmenterImpl::nearest_hit(const ViewState& vs, RowScratch& scratch, const std::uint32_t* cands, int n,
@@ -924,17 +958,43 @@ double AugmenterImpl::nearest_hit(const ViewState& vs, RowScratch& scratch, cons
 
 // Depth at the ray (x, y, 1) where all four samples around it hold one object's triangles (ids
 // not all equal): the centre is covered, and its depth is the nearest of those triangles that
-// contains the ray, or the first sample's plane when a sliver none of them holds does. What
-// nearest_hit() finds without rings, with the few distinct ids told apart directly; out of line,
-// so that the per-pixel loop stays small.
-__attribute__((noinline)) double AugmenterImpl::covered_depth(const ViewState& vs, const std::uint32_t* ids,
-                                                              double x, double y) const {
+// contains the ray, with the few distinct ids told apart directly, or on a smooth surface the
+// first sample's plane when a sliver none of them holds does. Where they are apart (parts through
+// each other, one in front of another; surface_of()), or creased and none is hit, the nearest hit
+// among them and their one-rings, as the triangle nearest at the centre may be one no sample
+// holds; the first sample's plane only when that finds nothing either. Out of line, so that the
+// per-pixel loop stays small.
+__attribute__((noinline)) double AugmenterImpl::covered_depth(const ViewState& vs, RowScratch& scratch,
+                                                              const std::uint32_t* ids, double x,
+                                                              double y) const {
   const Eigen::Vector3d d(x, y, 1.0);
   double best = std::numeric_limits<double>::infinity();
+  std::uint32_t g[4];
+  int n = 0;
   for (int k = 0; k < 4; ++k) {
     if ((k > 0 && ids[k] == ids[0]) || (k > 1 && ids[k] == ids[1]) || (k > 2 && ids[k] == ids[2])) continue;
-    best = std::min(best, ray_hit_z(triangle(vs, ids[k]), d, vs.cam->near_m, vs.cam->far_m));
+    g[n] = global_index(ids[k]);
+    best = std::min(best, ray_hit_z(vs.tris[g[n++]], d, vs.cam->near_m, vs.cam->far_m));
   }
+  // One surface: a hit is the nearest; on a smooth one, a sliver between the samples lies on it,
+  // and the first sample's plane gives its depth (to within the surface's bend over the sliver).
+  const Surface surface = surface_of(vs, g, n);
+  if (surface == Surface::kSmooth || (surface == Surface::kCreased && std::isfinite(best))) {
+    if (std::isfinite(best)) return best;
+    const CamTriangle& t = vs.tris[g[0]];
+    return t.n_dot_v0 / t.n.dot(d);
+  }
+  // Every candidate and its one-ring (whatever the candidates hit: the nearest may be in a ring).
+  if (++scratch.stamp == 0)
+    std::fill(scratch.visit_stamp.begin(), scratch.visit_stamp.end(), 0u), scratch.stamp = 1;
+  for (int k = 0; k < n; ++k) scratch.visit_stamp[g[k]] = scratch.stamp;
+  for (int k = 0; k < n; ++k)
+    for (std::uint32_t i = ring_offsets_[g[k]]; i < ring_offsets_[g[k] + 1]; ++i) {
+      const std::uint32_t t = ring_[i];
+      if (scratch.visit_stamp[t] == scratch.stamp) continue;
+      scratch.visit_stamp[t] = scratch.stamp;
+      best = std::min(best, ray_hit_z(vs.tris[t], d, vs.cam->near_m, vs.cam->far_m));
+    }
   if (std::isfinite(best)) return best;
   const CamTriangle& t = triangle(vs, ids[0]);
   return t.n_dot_v0 / t.n.dot(d);
@@ -1152,7 +1212,7 @@ void AugmenterImpl::resolve_rows(const ViewState& vs, const Frame& raw, ViewResu
         // sample's plane gives it. At a silhouette the slivers' neighbours are searched as well.
         auto centre_depth = [&](const std::uint32_t* ids, bool any, bool all, bool same) {
           if (!any) return std::numeric_limits<double>::infinity();
-          if (all && !same && !identity) return covered_depth(vs, ids, x, y);
+          if (all && !same && !identity) return covered_depth(vs, scratch, ids, x, y);
           if (!(all && same)) {
             const double z = nearest_hit(vs, scratch, ids, ns, x, y, !all);
             if (std::isfinite(z) || !all) return z;

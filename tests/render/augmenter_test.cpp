@@ -543,6 +543,20 @@ void add_grid(Mesh& m, const Eigen::Vector3d& origin, const Eigen::Vector3d& a, 
                        {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)});
 }
 
+// A box centred at `c`, edges along R's columns times the half sizes `h`, each face an n x n grid.
+Mesh box(const Eigen::Vector3d& c, const Eigen::Matrix3d& R, const Eigen::Vector3d& h, int n) {
+  Mesh m;
+  m.name = "box";
+  for (int axis = 0; axis < 3; ++axis)
+    for (double side : {-1.0, 1.0}) {
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      const Eigen::Vector3d face_c = c + side * h[axis] * R.col(axis);
+      const Eigen::Vector3d a = 2 * h[u] * R.col(u), b = 2 * h[v] * R.col(v);
+      add_grid(m, face_c - a / 2 - b / 2, a, b, n);
+    }
+  return m;
+}
+
 // How the left view's receiver bit and depth compare with the ray caster's nearest hit, counted
 // only where that hit lies inside the camera's [near_m, far_m].
 struct ReceiverVsOracle {
@@ -671,6 +685,43 @@ TEST_P(RasterizerTest, ReceiverIsClippedExactlyAtTheNearAndFarPlanes) {
     EXPECT_GT(r.beyond_far, 100000) << "the plate must cross the far plane";
     EXPECT_GT(r.before_near, 50000) << "the plate must cross the near plane";
     EXPECT_EQ(r.off_clip_plane, 0);
+    EXPECT_EQ(r.depth_bad, 0);
+  }
+}
+
+// Two boxes through each other (a fin through a fuselage): where their faces cross, the 2x2
+// samples around a pixel hold triangles of both, whose planes cross within the pixel. The depth
+// must be the nearest surface's at the pixel centre, as the ray caster's, on every receiver pixel.
+TEST_P(RasterizerTest, InterpenetratingPartsGiveTheNearestDepth) {
+  for (bool distorted : {false, true}) {
+    SCOPED_TRACE(distorted ? "radtan" : "pinhole");
+    const Rig rig = distorted ? distorted_rig() : Rig::paper_default();
+    const RigCamera& cam = rig.left();
+    auto receiver = std::make_shared<Model>();
+    receiver->meshes.push_back(box({0.3, 0.2, 20}, Eigen::Matrix3d::Identity(), {3, 1.5, 4}, 20));
+    const Eigen::Matrix3d R = (Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX()) *
+                               Eigen::AngleAxisd(0.6, Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()))
+                                  .toRotationMatrix();
+    receiver->meshes.push_back(box({0.8, -0.4, 19}, R, {1.0, 3.5, 2.5}, 20));
+    receiver->meshes.push_back(box({-1.5, 0.9, 18.5}, R.transpose(), {2.5, 0.3, 3.0}, 20));
+    AugmentOptions opt = options();
+    opt.receiver_model = receiver;
+    opt.stereo_classes = false;
+    auto aug = Augmenter::create(rig, opt);
+    ASSERT_TRUE(aug) << aug.error().message;
+    SceneState scene;
+    scene.boom = {0.35, 0.26, 0};  // out of the way
+    scene.T_body_receiver = cam.T_body_cam;
+    ViewResult out;
+    ASSERT_TRUE((*aug)->augment_view(0, test::gradient_frame(cam.model, PixelFormat::kRGB8, CameraId::kLeft),
+                                     scene, out));
+    test::RayCaster oracle;
+    oracle.add(*receiver, Pose());
+    const ReceiverVsOracle r = compare_receiver(cam, out, oracle, 0);
+    EXPECT_GT(r.oracle_px, 50000);
+    EXPECT_LE(r.disagree, r.oracle_px / 10000);
+    EXPECT_EQ(r.far_from_edge, 0);
     EXPECT_EQ(r.depth_bad, 0);
   }
 }
