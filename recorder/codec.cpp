@@ -250,6 +250,27 @@ Status Encoder::encode_difference(ConstImageView raw, ConstImageView part, const
   return compress(scratch_.data(), scratch_.size(), out);
 }
 
+Status Encoder::encode_depth(const float* values, int width, int height, std::vector<std::uint8_t>& out) {
+  out.clear();
+  if (width <= 0 || height <= 0) return {};
+  const std::size_t w = static_cast<std::size_t>(width), n = w * static_cast<std::size_t>(height);
+  scratch_.resize(4 * n);
+  std::uint8_t* planes = scratch_.data();
+  for (std::size_t y = 0; y < static_cast<std::size_t>(height); ++y) {
+    std::uint32_t prev = 0;
+    for (std::size_t x = 0; x < w; ++x) {
+      const std::size_t i = y * w + x;
+      std::uint32_t b;
+      std::memcpy(&b, values + i, sizeof b);
+      // Neighbouring depths on one surface differ in their low mantissa bits only.
+      const std::uint32_t r = b - prev;
+      prev = b;
+      for (std::size_t k = 0; k < 4; ++k) planes[k * n + i] = static_cast<std::uint8_t>(r >> (8 * k));
+    }
+  }
+  return compress(planes, 4 * n, out);
+}
+
 Decoder::Decoder() : dctx_(ZSTD_createDCtx()) {}
 
 Decoder::~Decoder() {
@@ -349,6 +370,37 @@ Status Decoder::decode_difference(const std::uint8_t* blob, std::size_t n, const
   if (auto st = decompress(blob, n, scratch_.data(), scratch_.size()); !st) return st;
   for (int y = box.y0; y < box.y1; ++y)
     xor_bytes(raw.row(y) + off, scratch_.data() + rb * (y - box.y0), out.row(y) + off, rb);
+  return {};
+}
+
+Status Decoder::decode_depth(const std::uint8_t* blob, std::size_t n, int width, int height,
+                             std::vector<float>& out) {
+  out.clear();
+  if (width == 0 && height == 0) {
+    if (n != 0) return make_error("empty depth box but a ", n, "-byte blob");
+    return {};
+  }
+  const auto bytes = image_bytes("depth box", width, height, PixelFormat::kRGBA8);  // 4 bytes a value
+  if (!bytes) return bytes.error();
+  if (auto st = check_frame(blob, n, *bytes); !st)
+    return make_error(st.error().message, " (a ", width, "x", height, " float32 depth box)");
+  scratch_.resize(*bytes);
+  if (auto st = decompress(blob, n, scratch_.data(), scratch_.size()); !st) return st;
+  const std::size_t w = static_cast<std::size_t>(width), count = w * static_cast<std::size_t>(height);
+  out.resize(count);
+  const std::uint8_t* planes = scratch_.data();
+  for (std::size_t y = 0; y < static_cast<std::size_t>(height); ++y) {
+    std::uint32_t b = 0;
+    for (std::size_t x = 0; x < w; ++x) {
+      const std::size_t i = y * w + x;
+      const std::uint32_t r = static_cast<std::uint32_t>(planes[i]) |
+                              static_cast<std::uint32_t>(planes[count + i]) << 8 |
+                              static_cast<std::uint32_t>(planes[2 * count + i]) << 16 |
+                              static_cast<std::uint32_t>(planes[3 * count + i]) << 24;
+      b += r;
+      std::memcpy(&out[i], &b, sizeof b);
+    }
+  }
   return {};
 }
 

@@ -10,6 +10,11 @@
 //               every byte where they differ (rows of the box packed tight), as one zstd frame;
 //               outside the box the augmented image is the raw image. No change: an empty box and
 //               an empty blob.
+//   depth       float32 values of a box (the receiver depth inside the box outside which it is
+//               +inf: record.hpp DepthRecord), rows packed tight: each value's IEEE bits as a uint32
+//               replaced by its difference (mod 2^32) from the value to its left in the same row
+//               (the first of a row as it is), then split into four byte planes (all low bytes,
+//               ..., all high bytes), as one zstd frame. An empty box: an empty blob.
 //
 // Every decode checks the frame's content size against the image size and the zstd checksum, so
 // a damaged blob is an error, never a silently wrong image.
@@ -33,6 +38,11 @@ namespace augrig::recorder {
 inline constexpr std::string_view kRawCodec =
     "zstd frame of the row-delta residuals: r[x] = p[x] - p[x-d] mod 256, d = 2 Bayer, "
     "1 Mono8, 3 RGB8, 4 RGBA8; rows packed tight";
+
+// The depth encoding's one-line description (meta `codec.depth`).
+inline constexpr std::string_view kDepthCodec =
+    "zstd frame of the float32 depth inside [x0,x1) x [y0,y1) (+inf outside), rows packed tight: "
+    "uint32 bits, r[x] = b[x] - b[x-1] mod 2^32 per row, as 4 byte planes (low byte first)";
 
 // A cheap identity of an image's pixels: a 64-bit hash of its size, format and every 8th row
 // (from row 0), about 1/8 of the bytes. Equal images give equal fingerprints; it tells a frame
@@ -68,6 +78,8 @@ class Encoder {
   // only the box is compared, no whole image is needed.
   Status encode_difference(ConstImageView raw, ConstImageView part, const PixelBox& within, ChangedBox& box,
                            std::vector<std::uint8_t>& out);
+  // `width` x `height` float32 values, row-major (the depth encoding); `out` is empty for none.
+  Status encode_depth(const float* values, int width, int height, std::vector<std::uint8_t>& out);
 
  private:
   Status compress(const std::uint8_t* src, std::size_t n, std::vector<std::uint8_t>& out);
@@ -90,6 +102,8 @@ class Decoder {
   // `out` = `raw` with the box XORed back.
   Status decode_difference(const std::uint8_t* blob, std::size_t n, const ChangedBox& box, const Image& raw,
                            Image& out);
+  // `out` = the `width` x `height` values (an empty blob for 0 x 0).
+  Status decode_depth(const std::uint8_t* blob, std::size_t n, int width, int height, std::vector<float>& out);
 
  private:
   Status decompress(const std::uint8_t* blob, std::size_t n, std::uint8_t* dst, std::size_t expected);

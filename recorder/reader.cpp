@@ -33,6 +33,8 @@ struct RecordingReader::Impl {
   std::vector<std::int64_t> ids;  // frame i -> frames.id
   std::vector<std::string> problems;
   mutable std::map<unsigned, Statement> selects;  // per FrameParts
+  bool depth_table = false;                        // schema 2: the depth table is there
+  mutable Statement depth_select;
   mutable Decoder decoder;
   bool raw_codec_current = false;  // meta codec.raw is this build's kRawCodec: raw blobs may be copied
 
@@ -106,6 +108,9 @@ Expected<std::unique_ptr<RecordingReader>> RecordingReader::open(const std::stri
                       " is newer than this reader's (", kSchemaVersion, "); use a newer augrig");
 
   impl->raw_codec_current = impl->meta.count("codec.raw") && impl->meta["codec.raw"] == kRawCodec;
+  // Recordings of schema 1 have no depth table: they hold no depth.
+  if (auto t = impl->db.query_text("SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'depth'"))
+    impl->depth_table = *t == "depth";
 
   auto ids = Statement::prepare(impl->db.get(), "SELECT id FROM frames ORDER BY id");
   if (!ids) return make_error(where, path, ": the frames table cannot be read: ", ids.error().message);
@@ -244,6 +249,44 @@ Expected<FrameRecord> RecordingReader::read_frame(std::size_t i, unsigned parts,
         return I.frame_error(i, cam + " mask blob" + seq + ": " + s.error().message);
     }
   }
+  if ((parts & kPartDepth) && I.depth_table) {
+    if (!I.depth_select.get()) {
+      auto st = Statement::prepare(I.db.get(), depth_select_sql());
+      if (!st) return I.frame_error(i, "depth: " + st.error().message);
+      I.depth_select = std::move(*st);
+    }
+    Statement& ds = I.depth_select;
+    struct Reset {
+      Statement& s;
+      ~Reset() { s.reset(); }
+    } reset_depth{ds};
+    sqlite3_bind_int64(ds.get(), 1, I.ids[i]);
+    const int drc = ds.step();
+    if (drc != SQLITE_ROW && drc != SQLITE_DONE)
+      return I.frame_error(i, "depth row" + seq + ": " + describe_sqlite_error(I.db.get(), drc));
+    if (drc == SQLITE_ROW) {
+      DepthRow d;
+      if (auto s = read_depth_row(ds.get(), d); !s) return I.frame_error(i, "depth row" + seq + ": " + s.error().message);
+      for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+        const int c = index_of(id);
+        if (!d.box[c]) continue;
+        const CameraRow& cr = row.cam[c];
+        const std::string what = std::string(to_string(id)) + " depth blob" + seq + ": ";
+        PixelBox box = *d.box[c];
+        if (box.empty()) box = {};
+        if (!box.inside(cr.width, cr.height))
+          return I.frame_error(i, what + "box [" + std::to_string(box.x0) + ", " + std::to_string(box.x1) + ") x [" +
+                                      std::to_string(box.y0) + ", " + std::to_string(box.y1) + ") outside the " +
+                                      std::to_string(cr.width) + "x" + std::to_string(cr.height) + " image");
+        DepthRecord& out = f.receiver_depth[c];
+        if (auto s = I.decoder.decode_depth(d.blob[c].data, d.blob[c].size, box.width(), box.height(), out.z_m); !s)
+          return I.frame_error(i, what + s.error().message);
+        out.width = cr.width;
+        out.height = cr.height;
+        out.box = box;
+      }
+    }
+  }
   return f;
 }
 
@@ -350,7 +393,7 @@ CheckReport RecordingReader::check() const {
       if (!f) continue;
     } else {
       ++r.frames_ok;
-      bool aug = false, masks = false;
+      bool aug = false, masks = false, depth = false;
       for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
         const int c = index_of(id);
         const Image& raw = f->raw[id].image;
@@ -365,12 +408,17 @@ CheckReport RecordingReader::check() const {
           masks = true;
           r.image_bytes += static_cast<std::uint64_t>(raw.width()) * raw.height();
         }
+        if (!f->receiver_depth[c].empty()) {
+          depth = true;
+          r.image_bytes += static_cast<std::uint64_t>(raw.width()) * raw.height() * sizeof(float);
+        }
         r.cameras[std::string(to_string(id)) + ": " + std::string(to_string(raw.format())) + " " +
                   std::to_string(raw.width()) + "x" + std::to_string(raw.height()) + ", clock " +
                   std::string(to_string(f->raw[id].clock))] += 1;
       }
       r.frames_augmented += aug;
       r.frames_with_masks += masks;
+      r.frames_with_depth += depth;
     }
     r.frames_with_stats += f->stats.has_value();
     const TimestampNs t = f->raw.t_key_ns;
@@ -396,6 +444,10 @@ CheckReport RecordingReader::check() const {
       "coalesce(length(right_mask), 0)), 0) FROM frames",
       "frames (blob sizes)",
       [&](sqlite3_stmt* s) { r.stored_bytes = static_cast<std::uint64_t>(sqlite3_column_int64(s, 0)); });
+  if (I.depth_table)
+    each_row("SELECT coalesce(sum(coalesce(length(left_depth), 0) + coalesce(length(right_depth), 0)), 0) FROM depth",
+             "depth (blob sizes)",
+             [&](sqlite3_stmt* s) { r.stored_bytes += static_cast<std::uint64_t>(sqlite3_column_int64(s, 0)); });
   for (DropStage s : kAllDropStages) r.drops_by_stage[std::string(to_string(s))] = 0;
   each_row("SELECT stage, sum(count) FROM drops GROUP BY stage", "drops", [&](sqlite3_stmt* s) {
     r.drops_by_stage[column_text(s, 0)] = static_cast<std::uint64_t>(sqlite3_column_int64(s, 1));
@@ -424,6 +476,8 @@ std::string CheckReport::to_string() const {
     << "\n";
   o << "frames: " << frames << " (" << frames_ok << " intact, " << frames_augmented << " augmented, "
     << frames_with_masks << " with masks, " << frames_with_stats << " with statistics)\n";
+  o << "receiver depth: " << frames_with_depth << " frames"
+    << (frames_with_depth ? "" : " (record with --ground-truth to store it)") << "\n";
   if (frames > 0) {
     char span[64];
     std::snprintf(span, sizeof span, "%.3f", ns_to_s(t_last_ns - t_first_ns));

@@ -42,6 +42,7 @@ struct CheckReport {
   std::size_t frames_ok = 0;  // every blob decoded and every size matched
   std::size_t frames_augmented = 0;
   std::size_t frames_with_masks = 0;
+  std::size_t frames_with_depth = 0;  // receiver depth recorded (--ground-truth)
   std::size_t frames_with_stats = 0;
   TimestampNs t_first_ns = 0, t_last_ns = 0;  // frames' t_ns
   // "left: BayerRG8 1280x960, clock device" -> frames

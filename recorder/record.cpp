@@ -1,6 +1,8 @@
 #include "recorder/record.hpp"
 
+#include <algorithm>
 #include <charconv>
+#include <cstring>
 
 namespace augrig::recorder {
 
@@ -66,6 +68,60 @@ NavInputRecord imu_input(const nav::ImuSample& sample, std::string stream) {
   s += ',';
   append_number(s, sample.arrival_ns);
   return r;
+}
+
+namespace {
+// +inf's bits: "no receiver". Compared as bits so that NaN, -inf and -0 count as values.
+std::uint32_t float_bits(float v) {
+  std::uint32_t b;
+  std::memcpy(&b, &v, sizeof b);
+  return b;
+}
+}  // namespace
+
+DepthRecord DepthRecord::from(const DepthImage& depth) {
+  DepthRecord r;
+  r.width = depth.width;
+  r.height = depth.height;
+  if (r.empty() || depth.z_m.size() != static_cast<std::size_t>(depth.width) * depth.height) return r;
+  const std::uint32_t none = float_bits(DepthImage::kNone);
+  int x0 = depth.width, x1 = 0, y0 = depth.height, y1 = 0;
+  for (int y = 0; y < depth.height; ++y) {
+    const float* row = depth.z_m.data() + static_cast<std::size_t>(y) * depth.width;
+    int first = -1, last = -1;
+    for (int x = 0; x < depth.width; ++x)
+      if (float_bits(row[x]) != none) {
+        if (first < 0) first = x;
+        last = x;
+      }
+    if (first < 0) continue;
+    x0 = std::min(x0, first);
+    x1 = std::max(x1, last + 1);
+    y0 = std::min(y0, y);
+    y1 = y + 1;
+  }
+  if (x1 <= x0) return r;  // no receiver: an empty box
+  r.box = {x0, y0, x1, y1};
+  const std::size_t bw = static_cast<std::size_t>(x1 - x0);
+  r.z_m.resize(bw * static_cast<std::size_t>(y1 - y0));
+  for (int y = y0; y < y1; ++y)
+    std::memcpy(r.z_m.data() + bw * static_cast<std::size_t>(y - y0),
+                depth.z_m.data() + static_cast<std::size_t>(y) * depth.width + x0, bw * sizeof(float));
+  return r;
+}
+
+DepthImage DepthRecord::image() const {
+  DepthImage d;
+  if (empty()) return d;
+  d.width = width;
+  d.height = height;
+  d.z_m.assign(static_cast<std::size_t>(width) * height, DepthImage::kNone);
+  const std::size_t bw = static_cast<std::size_t>(box.width());
+  if (box.empty() || !box.inside(width, height) || z_m.size() != bw * box.height()) return d;
+  for (int y = box.y0; y < box.y1; ++y)
+    std::memcpy(d.z_m.data() + static_cast<std::size_t>(y) * width + box.x0,
+                z_m.data() + bw * static_cast<std::size_t>(y - box.y0), bw * sizeof(float));
+  return d;
 }
 
 }  // namespace augrig::recorder

@@ -1,5 +1,5 @@
-// What a recording holds, item by item: stereo frames (raw, augmented, masks, the poses and boom
-// articulation used, occlusion statistics), nav inputs exactly as received, the drop ledger and
+// What a recording holds, item by item: stereo frames (raw, augmented, masks, the receiver depth,
+// the poses and boom articulation used, occlusion statistics), nav inputs exactly as received, the drop ledger and
 // free-text events. The Recorder (recorder/recorder.hpp) takes these items and the
 // RecordingReader (recorder/reader.hpp) gives them back; docs/RECORDING.md has the schema.
 #pragma once
@@ -54,6 +54,23 @@ bool parse_drop_stage(std::string_view name, DropStage& out);
 // Parses core/conventions.hpp's ClockDomain names ("gps", "device", ...); false for anything else.
 bool parse_clock_domain(std::string_view name, ClockDomain& out);
 
+// A camera's receiver depth (render/stats.hpp DepthImage: z in metres along the optical axis,
+// DepthImage::kNone = +inf where no receiver) as a recording holds it: the image's size and the
+// smallest box holding every value that is not +inf, with the values inside it, row-major. Outside
+// the box every value is +inf. Bit-exact both ways (any float inside the box, NaN and -inf too).
+// The receiver covers a small part of a frame, so the box is what is stored (codec.hpp).
+struct DepthRecord {
+  int width = 0, height = 0;  // of the whole image; 0: not recorded
+  PixelBox box;
+  std::vector<float> z_m;  // box.width() * box.height() values
+
+  bool empty() const { return width <= 0 || height <= 0; }
+  // The box of `depth` (one pass over it) and its values.
+  static DepthRecord from(const DepthImage& depth);
+  // The whole image again, +inf outside the box.
+  DepthImage image() const;
+};
+
 // One stereo frame and what was made of it. Only `raw` is required; everything else is optional
 // and is recorded only when present (an empty Image, std::nullopt or NaN means "not present").
 struct FrameRecord {
@@ -70,6 +87,10 @@ struct FrameRecord {
   std::array<std::optional<PixelBox>, 2> augmented_box;
   // Per camera: the Mono8 mask (kMaskBoom | kMaskReceiver), same size as the raw image.
   std::array<Image, 2> mask;
+  // Per camera: the receiver depth behind the mask (ViewResult::receiver_depth), recorded only when
+  // asked (`--ground-truth`); same size as the raw image. With the rig and the masks it gives the
+  // rest of the ground truth (the correspondence, the stereo classes: docs/GROUND_TRUTH.md).
+  std::array<DepthRecord, 2> receiver_depth;
   // The relative poses the augmentation used: the receiver in each camera (OpenCV camera frame,
   // receiver body FRD) and in the tanker body frame, with their 1-sigma errors.
   std::array<std::optional<Pose>, 2> T_cam_receiver;
@@ -140,7 +161,8 @@ enum FrameParts : unsigned {
   kPartRaw = 1u << 0,
   kPartAugmented = 1u << 1,  // needs the raw images too; asking for it decodes them
   kPartMasks = 1u << 2,
-  kPartsAll = kPartRaw | kPartAugmented | kPartMasks,
+  kPartDepth = 1u << 3,  // the receiver depth (when recorded)
+  kPartsAll = kPartRaw | kPartAugmented | kPartMasks | kPartDepth,
 };
 
 // What a recording is about, stored once in its `meta` table.

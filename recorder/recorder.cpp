@@ -62,7 +62,9 @@ struct Tally {
 struct Encoded {
   std::uint64_t ticket = 0;
   FrameRow row;
-  std::array<std::vector<std::uint8_t>, 2> raw, aug, mask;
+  std::array<std::vector<std::uint8_t>, 2> raw, aug, mask, depth;
+  DepthRow depth_row;  // blobs point into `depth`
+  bool has_depth = false;
   // A raw blob copied from a replayed recording: the row points into the attachment's bytes,
   // kept alive here until the row is written.
   std::array<std::shared_ptr<const FrameAttachment>, 2> copied_from;
@@ -116,6 +118,17 @@ std::string validate(const FrameRecord& f) {
       return cam + " mask " + std::to_string(mask.width()) + "x" + std::to_string(mask.height()) + " " +
              std::string(to_string(mask.format())) + " is not Mono8 of the raw image's size " +
              std::to_string(raw.width()) + "x" + std::to_string(raw.height());
+    const DepthRecord& d = f.receiver_depth[c];
+    if (!d.empty()) {
+      if (d.width != raw.width() || d.height != raw.height())
+        return cam + " receiver depth " + std::to_string(d.width) + "x" + std::to_string(d.height) +
+               " differs from the raw image " + std::to_string(raw.width()) + "x" + std::to_string(raw.height());
+      if (!d.box.inside(d.width, d.height) ||
+          d.z_m.size() != static_cast<std::size_t>(d.box.width()) * static_cast<std::size_t>(d.box.height()))
+        return cam + " receiver depth box [" + std::to_string(d.box.x0) + ", " + std::to_string(d.box.x1) +
+               ") x [" + std::to_string(d.box.y0) + ", " + std::to_string(d.box.y1) + ") does not fit its " +
+               std::to_string(d.z_m.size()) + " values or the image";
+    }
   }
   return {};
 }
@@ -209,7 +222,7 @@ struct Recorder::Impl {
   RecorderOptions opt;
   Database db;       // the writer's connection (create/close on the caller's thread, else the writer's)
   Database ckpt_db;  // the checkpointer's
-  Statement ins_frame, ins_nav, ins_event, ins_drop, ins_meta;
+  Statement ins_frame, ins_depth, ins_nav, ins_event, ins_drop, ins_meta;
 
   mutable std::mutex m;
   std::condition_variable cv_work, cv_writer, cv_ckpt;
@@ -287,6 +300,8 @@ void Recorder::Impl::encode(Encoder& enc, FrameRecord& f, Encoded& e) {
   e.raw_copied = 0;
   e.copied_from = {};
   e.error.clear();
+  e.has_depth = false;
+  e.depth_row = DepthRow{};
   for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
     const int c = index_of(id);
     const Frame& fr = f.raw[id];
@@ -333,6 +348,17 @@ void Recorder::Impl::encode(Encoder& enc, FrameRecord& f, Encoded& e) {
         return;
       }
       e.image_bytes += image_bytes_of(f.mask[c]);
+    }
+    if (const DepthRecord& d = f.receiver_depth[c]; !d.empty()) {
+      if (auto s = enc.encode_depth(d.z_m.data(), d.box.width(), d.box.height(), e.depth[c]); !s) {
+        e.error = cam + " receiver depth: " + s.error().message;
+        return;
+      }
+      e.has_depth = true;
+      e.depth_row.box[c] = d.box.empty() ? PixelBox{} : d.box;
+      e.depth_row.blob[c] = {e.depth[c].data(), e.depth[c].size(), true};
+      e.image_bytes += static_cast<std::uint64_t>(d.width) * static_cast<std::uint64_t>(d.height) * sizeof(float);
+      e.stored_bytes += e.depth[c].size();
     }
     r.aug[c] = {e.aug[c].data(), e.aug[c].size(), aug_present};
     r.mask[c] = {e.mask[c].data(), e.mask[c].size(), !f.mask[c].empty()};
@@ -389,6 +415,15 @@ Status Recorder::Impl::insert_frame(const Encoded& e) {
   const int rc = sqlite3_step(s);
   ins_frame.reset();
   if (rc != SQLITE_DONE) return Error{describe_sqlite_error(db.get(), rc)};
+  if (!e.has_depth) return {};
+  // In the frame's transaction: a frame and its depth are committed (or rolled back) together.
+  DepthRow d = e.depth_row;
+  d.frame_id = sqlite3_last_insert_rowid(db.get());
+  sqlite3_stmt* sd = ins_depth.get();
+  if (auto b = bind_depth_row(sd, d); !b) return b;
+  const int rd = sqlite3_step(sd);
+  ins_depth.reset();
+  if (rd != SQLITE_DONE) return make_error("depth: ", describe_sqlite_error(db.get(), rd));
   return {};
 }
 
@@ -842,6 +877,7 @@ Expected<std::unique_ptr<Recorder>> Recorder::create(const std::string& dir, con
        "zstd frame of (augmented XOR raw) inside [x0,x1) x [y0,y1), rows packed tight; "
        "empty blob: no change"},
       {"codec.mask", "zstd frame of the Mono8 mask, rows packed tight"},
+      {"codec.depth", std::string(kDepthCodec)},
   };
   for (const auto& [k, v] : info.extra) kv.emplace_back(k, v);
   for (const auto& [k, v] : kv)
@@ -856,6 +892,7 @@ Expected<std::unique_ptr<Recorder>> Recorder::create(const std::string& dir, con
   };
   for (auto [stmt, sql] :
        {std::pair<Statement*, std::string>{&impl->ins_frame, frame_insert_sql()},
+        {&impl->ins_depth, depth_insert_sql()},
         {&impl->ins_nav,
          "INSERT INTO nav_input (stream, t_ns, clock, arrival_ns, data) VALUES (?, ?, ?, ?, ?)"},
         {&impl->ins_event, "INSERT INTO events (t_ns, clock, text) VALUES (?, ?, ?)"},
@@ -1011,6 +1048,7 @@ Status Recorder::close() {
     }
   }
   I.ins_frame = {};
+  I.ins_depth = {};
   I.ins_nav = {};
   I.ins_event = {};
   I.ins_drop = {};

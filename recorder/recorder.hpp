@@ -93,8 +93,8 @@ class Recorder {
   Recorder& operator=(const Recorder&) = delete;
 
   // Never blocks on I/O (a short mutex only). Frames: false when the frame was dropped (queue full,
-  // recording stopped, invalid: augmented or mask size differing from the raw image, an augmented
-  // box outside it); the drop is counted in the ledger. DropRecords are merged into the ledger.
+  // recording stopped, invalid: augmented, mask or receiver depth size differing from the raw image,
+  // an augmented box outside it); the drop is counted in the ledger. DropRecords are merged into the ledger.
   // After close(): false.
   // A raw image is stored by copying its blob from the recording it was replayed from, without
   // decoding or compressing (counted in RecorderStats::raw_blobs_copied), when its Frame's

@@ -448,6 +448,9 @@ std::string schema_sql() {
   s += "CREATE TABLE meta (key TEXT PRIMARY KEY NOT NULL, value TEXT NOT NULL);\n";
   s += "CREATE TABLE frames (\n  id INTEGER PRIMARY KEY,\n  " + join(frame_schema().defs, ",\n  ") + "\n);\n";
   s += "CREATE INDEX frames_t_ns ON frames (t_ns);\n";
+  s += "CREATE TABLE depth (frame_id INTEGER PRIMARY KEY, left_x0 INTEGER, left_y0 INTEGER, left_x1 INTEGER, "
+       "left_y1 INTEGER, left_depth BLOB, right_x0 INTEGER, right_y0 INTEGER, right_x1 INTEGER, "
+       "right_y1 INTEGER, right_depth BLOB);\n";
   s += "CREATE TABLE nav_input (id INTEGER PRIMARY KEY, stream TEXT NOT NULL, t_ns INTEGER NOT NULL, "
        "clock TEXT NOT NULL, arrival_ns INTEGER NOT NULL, data NOT NULL);\n";
   s += "CREATE INDEX nav_input_stream_t_ns ON nav_input (stream, t_ns);\n";
@@ -493,6 +496,64 @@ Status read_frame_row(sqlite3_stmt* st, FrameRow& row) {
   v.st = st;
   visit_frame_row(v, row);
   if (!v.error.empty()) return Error{v.error};
+  return {};
+}
+
+namespace {
+constexpr const char* kDepthColumns =
+    "left_x0, left_y0, left_x1, left_y1, left_depth, right_x0, right_y0, right_x1, right_y1, right_depth";
+}  // namespace
+
+std::string depth_insert_sql() {
+  return std::string("INSERT INTO depth (frame_id, ") + kDepthColumns + ") VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)";
+}
+
+Status bind_depth_row(sqlite3_stmt* st, const DepthRow& row) {
+  int rc = sqlite3_bind_int64(st, 1, row.frame_id);
+  for (int c = 0; c < 2; ++c) {
+    const int col = 2 + 5 * c;
+    const auto& b = row.box[c];
+    const int v[4] = {b ? b->x0 : 0, b ? b->y0 : 0, b ? b->x1 : 0, b ? b->y1 : 0};
+    for (int k = 0; k < 4; ++k)
+      if (rc == SQLITE_OK) rc = b ? sqlite3_bind_int64(st, col + k, v[k]) : sqlite3_bind_null(st, col + k);
+    const BlobRef& blob = row.blob[c];
+    if (rc != SQLITE_OK) break;
+    if (!b || !blob.present)
+      rc = sqlite3_bind_null(st, col + 4);
+    else if (blob.size == 0)
+      rc = sqlite3_bind_zeroblob(st, col + 4, 0);
+    else
+      rc = sqlite3_bind_blob64(st, col + 4, blob.data, blob.size, SQLITE_STATIC);
+  }
+  if (rc != SQLITE_OK) return make_error("binding depth columns: ", sqlite3_errstr(rc));
+  return {};
+}
+
+std::string depth_select_sql() {
+  return std::string("SELECT frame_id, ") + kDepthColumns + " FROM depth WHERE frame_id = ?";
+}
+
+Status read_depth_row(sqlite3_stmt* st, DepthRow& row) {
+  row = DepthRow{};
+  row.frame_id = sqlite3_column_int64(st, 0);
+  for (int c = 0; c < 2; ++c) {
+    const int col = 1 + 5 * c;
+    const std::string p = c ? "right_" : "left_";
+    if (sqlite3_column_type(st, col + 4) == SQLITE_NULL) continue;
+    if (sqlite3_column_type(st, col + 4) != SQLITE_BLOB) return make_error("column ", p, "depth: expected a blob");
+    int v[4];
+    const char* names[4] = {"x0", "y0", "x1", "y1"};
+    for (int k = 0; k < 4; ++k) {
+      if (sqlite3_column_type(st, col + k) != SQLITE_INTEGER)
+        return make_error("column ", p, names[k], ": expected an integer");
+      const sqlite3_int64 x = sqlite3_column_int64(st, col + k);
+      if (x < 0 || x > 65535) return make_error("column ", p, names[k], ": ", x, " is not a pixel coordinate");
+      v[k] = static_cast<int>(x);
+    }
+    row.box[c] = PixelBox{v[0], v[1], v[2], v[3]};
+    row.blob[c] = {static_cast<const std::uint8_t*>(sqlite3_column_blob(st, col + 4)),
+                   static_cast<std::size_t>(sqlite3_column_bytes(st, col + 4)), true};
+  }
   return {};
 }
 

@@ -1,7 +1,7 @@
 // store: the SQLite side of a recording, shared by the Recorder and the RecordingReader: the
 // schema (version kSchemaVersion, docs/RECORDING.md), small RAII wrappers around sqlite3 handles,
 // and the one definition of the `frames` row, from which the CREATE TABLE, the INSERT and the
-// SELECT are all generated so that they cannot disagree.
+// SELECT are all generated so that they cannot disagree; the `depth` row (schema version 2) beside it.
 #pragma once
 
 #include <array>
@@ -19,7 +19,9 @@
 
 namespace augrig::recorder {
 
-inline constexpr int kSchemaVersion = 1;
+// 2: the `depth` table (receiver depth per frame, when recorded). A version 1 recording has no
+// such table and is read as holding no depth.
+inline constexpr int kSchemaVersion = 2;
 inline constexpr std::string_view kDatabaseFile = "recording.sqlite";
 
 // DIR/recording.sqlite for a folder; a path that is not a folder is returned as it is.
@@ -72,7 +74,7 @@ class Statement {
   sqlite3_stmt* st_ = nullptr;
 };
 
-// The CREATE statements of the schema (tables meta, frames, nav_input, drops, events).
+// The CREATE statements of the schema (tables meta, frames, depth, nav_input, drops, events).
 std::string schema_sql();
 // Column names of `frames` in table order (without id), for docs and tests.
 std::vector<std::string> frame_column_names();
@@ -121,5 +123,22 @@ Status bind_frame_row(sqlite3_stmt* st, const FrameRow& row);
 // the others come back NULL), and the matching reader for a row it returned. Errors name the column.
 std::string frame_select_sql(unsigned parts);
 Status read_frame_row(sqlite3_stmt* st, FrameRow& row);
+
+// One row of `depth`: a frame's receiver depth (record.hpp DepthRecord), in its own table so that
+// reading the frames never walks the depth blobs and a recording made before it (version 1)
+// reads as it did. `frame_id` is the frame's frames.id (inserted in the frame's transaction).
+// Per camera (0 left, 1 right): the box [x0, x1) x [y0, y1) and the depth blob (codec.hpp), both
+// NULL when that camera's depth was not recorded.
+struct DepthRow {
+  std::int64_t frame_id = 0;
+  std::array<std::optional<PixelBox>, 2> box;
+  std::array<BlobRef, 2> blob;
+};
+// "INSERT INTO depth (...) VALUES (...)" and its binder; "SELECT ... FROM depth WHERE frame_id = ?"
+// and the reader of its row. Errors name the column.
+std::string depth_insert_sql();
+Status bind_depth_row(sqlite3_stmt* st, const DepthRow& row);
+std::string depth_select_sql();
+Status read_depth_row(sqlite3_stmt* st, DepthRow& row);
 
 }  // namespace augrig::recorder

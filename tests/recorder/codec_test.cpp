@@ -246,6 +246,36 @@ TEST(Codec, DamagedBlobsAreErrors) {
   }
 }
 
+TEST(Codec, DepthRoundTripIsBitExactAndDamageIsAnError) {
+  Encoder enc(1);
+  Decoder dec;
+  std::mt19937 rng(11);
+  std::vector<float> z(53 * 41);
+  for (std::size_t i = 0; i < z.size(); ++i) {
+    std::uint32_t b = static_cast<std::uint32_t>(rng());
+    if (i % 3) b = 0x41a00000u + static_cast<std::uint32_t>(i) * 97u;  // 20 m and up, smooth
+    std::memcpy(&z[i], &b, sizeof b);                                    // every third: any bits (NaNs too)
+  }
+  std::vector<std::uint8_t> blob;
+  ASSERT_TRUE(enc.encode_depth(z.data(), 53, 41, blob));
+  std::vector<float> back;
+  ASSERT_TRUE(dec.decode_depth(blob.data(), blob.size(), 53, 41, back));
+  ASSERT_EQ(back.size(), z.size());
+  EXPECT_EQ(std::memcmp(back.data(), z.data(), z.size() * sizeof(float)), 0);
+  // The box's size is checked against the blob; a flipped byte fails the checksum.
+  EXPECT_FALSE(dec.decode_depth(blob.data(), blob.size(), 53, 40, back));
+  std::vector<std::uint8_t> bad = blob;
+  bad[bad.size() / 2] ^= 0x10;
+  EXPECT_FALSE(dec.decode_depth(bad.data(), bad.size(), 53, 41, back));
+  // An empty box is an empty blob, and only that.
+  ASSERT_TRUE(enc.encode_depth(z.data(), 0, 0, blob));
+  EXPECT_TRUE(blob.empty());
+  EXPECT_TRUE(dec.decode_depth(nullptr, 0, 0, 0, back));
+  EXPECT_TRUE(back.empty());
+  const std::uint8_t junk[3] = {1, 2, 3};
+  EXPECT_FALSE(dec.decode_depth(junk, 3, 0, 0, back));
+}
+
 // A row's width and height say what to allocate. A damaged or hostile row (20000x20000 for a
 // small blob) must be refused from the blob's header, before the image is allocated; an absurd
 // size (2e9 x 2e9, 16 EB) must be an error, not bad_alloc.

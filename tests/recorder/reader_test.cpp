@@ -1,11 +1,13 @@
 // The RecordingReader on damaged and foreign files: bytes overwritten in the middle of the
 // database and a truncated database give per-frame errors naming the file and the frame while the
 // intact frames still read bit-exact; files that are no recording at all fail open() with an error
-// naming the file; check() reports what a recording holds.
+// naming the file; check() reports what a recording holds. Recorded receiver depth: damage is
+// reported naming the frame; a recording of schema 1 (no depth table) still reads and checks.
 #include "recorder/reader.hpp"
 
 #include <filesystem>
 #include <fstream>
+#include <cstring>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -207,7 +209,7 @@ TEST(RecordingReader, NewerSchemaIsRefused) {
   ASSERT_FALSE(rd);
   EXPECT_EQ(rd.error().message,
             "recorder::RecordingReader::open(): " + dir +
-                "/recording.sqlite: schema version 99 is newer than this reader's (1); use a "
+                "/recording.sqlite: schema version 99 is newer than this reader's (2); use a "
                 "newer augrig");
 }
 
@@ -221,7 +223,7 @@ TEST(RecordingReader, CheckReportsWhatTheRecordingHolds) {
   EXPECT_TRUE(r.ok()) << r.to_string();
   EXPECT_TRUE(r.closed_cleanly);
   EXPECT_EQ(r.summary_status, "ok");
-  EXPECT_EQ(r.schema_version, 1);
+  EXPECT_EQ(r.schema_version, 2);
   EXPECT_EQ(r.frames, 5u);
   EXPECT_EQ(r.frames_ok, 5u);
   EXPECT_EQ(r.frames_with_masks, 5u);
@@ -242,6 +244,111 @@ TEST(RecordingReader, CheckReportsWhatTheRecordingHolds) {
   EXPECT_NE(text.find("drops: camera 0 pairing 0 processing 0 recorder 0 transport 0"), std::string::npos)
       << text;
   EXPECT_NE(text.find("nav inputs: gps 1"), std::string::npos) << text;
+}
+
+// A depth image of w x h: +inf except a disc of a tilted plane (a receiver), with a hole.
+DepthImage receiver_depth(int w, int h, std::uint64_t i) {
+  DepthImage d;
+  d.width = w;
+  d.height = h;
+  d.z_m.assign(static_cast<std::size_t>(w) * h, DepthImage::kNone);
+  const int cx = 60 + static_cast<int>(i) * 7, cy = 90;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      if ((x - cx) * (x - cx) + (y - cy) * (y - cy) < 40 * 40 && (x != cx || y != cy))
+        d.z_m[static_cast<std::size_t>(y) * w + x] = 20.0f + 0.013f * static_cast<float>(x) - 0.007f * static_cast<float>(y);
+  return d;
+}
+
+// make_recording() with the receiver depth recorded for both cameras of every frame.
+std::string make_depth_recording(const std::string& name, int n) {
+  const std::string dir = test::output_dir("reader/" + name);
+  auto rec = Recorder::create(dir, RecordingInfo{});
+  EXPECT_TRUE(rec) << rec.error().message;
+  for (int i = 0; i < n; ++i) {
+    FrameRecord f = frame(static_cast<std::uint64_t>(i));
+    for (int c = 0; c < 2; ++c) f.receiver_depth[c] = DepthRecord::from(receiver_depth(256, 256, 2 * i + c));
+    EXPECT_TRUE((*rec)->push(std::move(f)));
+  }
+  EXPECT_TRUE((*rec)->close());
+  return dir;
+}
+
+bool same_bits(const DepthImage& a, const DepthImage& b) {
+  return a.width == b.width && a.height == b.height && a.z_m.size() == b.z_m.size() &&
+         std::memcmp(a.z_m.data(), b.z_m.data(), a.z_m.size() * sizeof(float)) == 0;
+}
+
+TEST(RecordingReader, DamagedDepthIsReportedNamingTheFrame) {
+  const std::string dir = make_depth_recording("depth_damaged", 5);
+  {
+    // Frame 2's left depth blob: one byte flipped inside its zstd payload.
+    auto d = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->exec(
+        "UPDATE depth SET left_depth = CAST(substr(left_depth, 1, 40) || x'ff' || substr(left_depth, 42) AS BLOB) "
+        "WHERE frame_id = (SELECT id FROM frames WHERE pair_sequence = 2)"));
+  }
+  auto rd = RecordingReader::open(dir);
+  ASSERT_TRUE(rd) << rd.error().message;
+  for (std::size_t i = 0; i < 5; ++i) {
+    auto f = (*rd)->read_frame(i);
+    if (i == 2) {
+      ASSERT_FALSE(f);
+      EXPECT_NE(f.error().message.find(": frame 2: left depth blob (pair_sequence 2): "), std::string::npos)
+          << f.error().message;
+      // The images of that frame still read; only the depth is damaged.
+      EXPECT_TRUE((*rd)->read_frame(i, kPartRaw | kPartMasks));
+      continue;
+    }
+    ASSERT_TRUE(f) << f.error().message;
+    EXPECT_TRUE(same_bits(f->receiver_depth[0].image(), receiver_depth(256, 256, 2 * i))) << i;
+    EXPECT_TRUE(same_bits(f->receiver_depth[1].image(), receiver_depth(256, 256, 2 * i + 1))) << i;
+  }
+  const CheckReport r = (*rd)->check();
+  ASSERT_EQ(r.problems.size(), 1u) << r.to_string();
+  EXPECT_NE(r.problems[0].find((*rd)->path() + ": frame 2: left depth blob"), std::string::npos) << r.problems[0];
+  EXPECT_EQ(r.frames_ok, 4u);
+  EXPECT_EQ(r.frames_with_depth, 4u);
+
+  // A box that does not fit the image is damage too, named the same way.
+  {
+    auto d = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->exec("UPDATE depth SET right_x1 = 300 WHERE frame_id = (SELECT id FROM frames WHERE pair_sequence = 4)"));
+  }
+  auto rd2 = RecordingReader::open(dir);
+  ASSERT_TRUE(rd2);
+  auto f4 = (*rd2)->read_frame(4);
+  ASSERT_FALSE(f4);
+  EXPECT_NE(f4.error().message.find("frame 4: right depth blob (pair_sequence 4): box [84, 300)"), std::string::npos)
+      << f4.error().message;
+}
+
+// A recording as schema 1 wrote it: no depth table, schema_version 1, no codec.depth.
+TEST(RecordingReader, SchemaOneRecordingWithoutDepthStillReadsAndChecks) {
+  const std::string dir = make_recording("schema1", 4);
+  {
+    auto d = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->exec("DROP TABLE depth; UPDATE meta SET value = '1' WHERE key = 'schema_version'; "
+                        "DELETE FROM meta WHERE key = 'codec.depth'; VACUUM"));
+  }
+  auto rd = RecordingReader::open(dir);
+  ASSERT_TRUE(rd) << rd.error().message;
+  EXPECT_EQ((*rd)->schema_version(), 1);
+  std::vector<std::string> errors;
+  EXPECT_EQ(read_all(**rd, &errors), 4u);
+  auto f = (*rd)->read_frame(0);
+  ASSERT_TRUE(f);
+  EXPECT_TRUE(f->receiver_depth[0].empty());
+  EXPECT_TRUE(f->receiver_depth[1].empty());
+  const CheckReport r = (*rd)->check();
+  EXPECT_TRUE(r.ok()) << r.to_string();
+  EXPECT_EQ(r.frames_with_depth, 0u);
+  EXPECT_NE(r.to_string().find("receiver depth: 0 frames (record with --ground-truth to store it)"),
+            std::string::npos)
+      << r.to_string();
 }
 
 }  // namespace

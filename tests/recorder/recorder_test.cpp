@@ -7,6 +7,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <iterator>
+#include <limits>
 #include <filesystem>
 #include <map>
 #include <random>
@@ -346,8 +348,119 @@ TEST(Recorder, RoundTripIsBitExactForEveryFormat) {
                   &out),
               0)
         << out;
-    EXPECT_EQ(out, std::to_string(sent.size()) + "|0|160\n1\n");
+    EXPECT_EQ(out, std::to_string(sent.size()) + "|0|160\n2\n");
   }
+}
+
+// Receiver depth (record.hpp DepthRecord): every float inside the box, NaN, -inf, -0, denormals and
+// +inf holes included, reads back with the same bits, and +inf everywhere outside it.
+DepthImage special_depth(int w, int h, std::uint64_t seed) {
+  DepthImage d;
+  d.width = w;
+  d.height = h;
+  d.z_m.assign(static_cast<std::size_t>(w) * h, DepthImage::kNone);
+  std::mt19937_64 rng(seed);
+  const int x0 = static_cast<int>(rng() % static_cast<std::uint64_t>(w / 2)), y0 = static_cast<int>(rng() % static_cast<std::uint64_t>(h / 2));
+  const float specials[] = {std::numeric_limits<float>::quiet_NaN(), -std::numeric_limits<float>::infinity(), -0.0f,
+                            std::numeric_limits<float>::denorm_min(), DepthImage::kNone, 65.535f, 1e-30f};
+  for (int y = y0; y < std::min(h, y0 + 25); ++y)
+    for (int x = x0; x < std::min(w, x0 + 31); ++x) {
+      float& z = d.z_m[static_cast<std::size_t>(y) * w + x];
+      z = 18.0f + 0.01f * static_cast<float>(x) + 0.003f * static_cast<float>(y);  // a tilted surface
+      if (rng() % 13 == 0) z = specials[rng() % std::size(specials)];
+    }
+  return d;
+}
+
+bool same_bits(const DepthImage& a, const DepthImage& b) {
+  return a.width == b.width && a.height == b.height && a.z_m.size() == b.z_m.size() &&
+         std::memcmp(a.z_m.data(), b.z_m.data(), a.z_m.size() * sizeof(float)) == 0;
+}
+
+TEST(Recorder, ReceiverDepthRoundTripsBitExact) {
+  const std::string dir = test::output_dir("recorder/depth_round_trip");
+  auto rec = Recorder::create(dir, test_info());
+  ASSERT_TRUE(rec) << rec.error().message;
+  std::vector<FrameRecord> sent;
+  std::vector<std::array<DepthImage, 2>> depth;
+  for (std::uint64_t i = 0; i < 8; ++i) {
+    FrameRecord fr = make_frame(i, PixelFormat::kBayerRG8, 160, 120, false);
+    std::array<DepthImage, 2> d = {special_depth(160, 120, 2 * i), special_depth(160, 120, 2 * i + 1)};
+    if (i == 1) d[1].z_m.assign(d[1].z_m.size(), DepthImage::kNone);  // no receiver: an empty box
+    if (i == 2) {  // values in the corners: the box is the whole image
+      d[0].z_m.front() = 5.0f;
+      d[0].z_m.back() = std::numeric_limits<float>::quiet_NaN();
+    }
+    for (int c = 0; c < 2; ++c)
+      if (i != 3 || c == 0) fr.receiver_depth[c] = DepthRecord::from(d[c]);  // frame 3: left only
+    if (i == 4) fr.receiver_depth = {};                                       // frame 4: none
+    if (i == 1) {
+      EXPECT_TRUE(fr.receiver_depth[1].box.empty());
+    }
+    if (i == 2) {
+      EXPECT_EQ(fr.receiver_depth[0].box, (PixelBox{0, 0, 160, 120}));
+    }
+    sent.push_back(fr);
+    depth.push_back(d);
+    ASSERT_TRUE((*rec)->push(std::move(fr)));
+  }
+  // A depth of another size than the raw image is refused (into the ledger), like a wrong mask.
+  {
+    FrameRecord bad = make_frame(99, PixelFormat::kMono8, 160, 120, false);
+    bad.receiver_depth[0] = DepthRecord::from(special_depth(80, 60, 5));
+    EXPECT_FALSE((*rec)->push(std::move(bad)));
+  }
+  ASSERT_TRUE((*rec)->close());
+  auto rd = RecordingReader::open(dir);
+  ASSERT_TRUE(rd) << rd.error().message;
+  EXPECT_EQ((*rd)->meta("codec.depth"), kDepthCodec);
+  ASSERT_EQ((*rd)->frame_count(), sent.size());
+  for (std::size_t k = 0; k < sent.size(); ++k) {
+    SCOPED_TRACE("frame " + std::to_string(k));
+    auto f = (*rd)->read_frame(k);
+    ASSERT_TRUE(f) << f.error().message;
+    expect_same_frame(sent[k], *f);
+    for (int c = 0; c < 2; ++c) {
+      const bool recorded = k != 4 && (k != 3 || c == 0);
+      ASSERT_EQ(f->receiver_depth[c].empty(), !recorded) << c;
+      if (!recorded) continue;
+      EXPECT_EQ(f->receiver_depth[c].box, sent[k].receiver_depth[c].box);
+      EXPECT_TRUE(same_bits(f->receiver_depth[c].image(), depth[k][c])) << "camera " << c;
+    }
+    // Not asked for: not read.
+    auto raw = (*rd)->read_frame(k, kPartRaw);
+    ASSERT_TRUE(raw);
+    EXPECT_TRUE(raw->receiver_depth[0].empty());
+  }
+  const CheckReport report = (*rd)->check();
+  EXPECT_TRUE(report.ok()) << report.to_string();
+  EXPECT_EQ(report.frames_with_depth, 7u);
+  EXPECT_NE(report.to_string().find("receiver depth: 7 frames\n"), std::string::npos) << report.to_string();
+  // Only the box is stored, compressed: far below the whole image's float32 bytes.
+  std::string out;
+  if (test::run_command("command -v sqlite3", &out) == 0) {
+    ASSERT_EQ(test::run_command("sqlite3 " + dir + "/recording.sqlite \"SELECT max(length(left_depth)) FROM depth\"", &out),
+              0);
+    EXPECT_LT(std::stoul(out), 160u * 120u * 4u / 4u) << out;
+  }
+}
+
+TEST(Recorder, DepthRecordIsTheSmallestBoxOfValues) {
+  DepthImage d;
+  d.width = 7;
+  d.height = 5;
+  d.z_m.assign(35, DepthImage::kNone);
+  EXPECT_TRUE(DepthRecord::from(d).box.empty());
+  EXPECT_TRUE(same_bits(DepthRecord::from(d).image(), d));
+  d.z_m[1 * 7 + 2] = 3.0f;
+  d.z_m[3 * 7 + 5] = -0.0f;  // a value, not "none"
+  const DepthRecord r = DepthRecord::from(d);
+  EXPECT_EQ(r.box, (PixelBox{2, 1, 6, 4}));
+  ASSERT_EQ(r.z_m.size(), 12u);
+  EXPECT_EQ(r.z_m[0], 3.0f);
+  EXPECT_TRUE(std::signbit(r.z_m[11]));
+  EXPECT_TRUE(same_bits(r.image(), d));
+  EXPECT_TRUE(DepthRecord::from(DepthImage{}).empty());
 }
 
 // Every frame's raw blobs as stored, straight from SQLite: [frame][camera] -> bytes.

@@ -48,6 +48,9 @@ TEST(Store, SchemaHasTheDocumentedTables) {
   std::vector<std::string> frames = frame_column_names();
   frames.insert(frames.begin(), "id");
   EXPECT_EQ(table_columns(db, "frames"), frames);
+  EXPECT_EQ(table_columns(db, "depth"),
+            (std::vector<std::string>{"frame_id", "left_x0", "left_y0", "left_x1", "left_y1", "left_depth", "right_x0",
+                                      "right_y0", "right_x1", "right_y1", "right_depth"}));
   // The blobs come last, so that the small columns never need a blob's overflow pages.
   const std::vector<std::string> tail(frames.end() - 6, frames.end());
   EXPECT_EQ(tail, (std::vector<std::string>{"left_mask", "right_mask", "left_aug", "right_aug", "left_raw",
