@@ -31,7 +31,8 @@ const std::vector<OptionSpec>& demo_specs() {
       {"scenario", ArgKind::kValue, "NAME|FILE.yaml", "the flight (default: the built-in 'demo', 28 s)"},
       {"every", ArgKind::kValue, "K", "augment every K-th camera frame (default 3: 10 of the 30 per second)"},
       {"ground-truth", ArgKind::kFlag, "",
-       "for the frames whose images are written (every 30th): " + std::string(kGroundTruthHelp)},
+       "for the frames whose images are written (every 30th): " + std::string(kGroundTruthHelp) +
+           "; with --record, every recorded frame's receiver depth is stored in the recording too"},
       {"frames", ArgKind::kValue, "N",
        "augment only the last N selected stereo frames (default: all); in the live window, stop after N"},
       {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
@@ -245,6 +246,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
       rec->push(recorder::DropRecord{recorder::DropStage::kCamera, dropped, first, last,
                                      "the simulated cameras' drop model", "frame"});
     parts.recorder = std::move(rec);
+    parts.record_ground_truth = a.has("ground-truth");
   }
 
   // What the demo adds per pair: the estimated and true poses, the boom's miss, images for a

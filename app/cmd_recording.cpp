@@ -56,7 +56,10 @@ const std::vector<OptionSpec>& replay_specs() {
       {"loop", ArgKind::kValue, "N", "play the range N times in all (default 1)"},
       {"out", ArgKind::kValue, "DIR", "write stats.csv and the images of every --every-th frame here"},
       {"every", ArgKind::kValue, "K", "with --out: images of every K-th replayed frame (default 30)"},
-      {"ground-truth", ArgKind::kFlag, "", "with --out: " + std::string(kGroundTruthHelp)},
+      {"ground-truth", ArgKind::kFlag, "",
+       "with --out: " + std::string(kGroundTruthHelp) +
+           "; with --record: store each frame's receiver depth in the new recording (export --ground-truth "
+           "writes the rest from it)"},
       {"rig", ArgKind::kValue, "RIG.yaml|default", "augment with this rig (default: the recorded rig)"},
       {"scene", ArgKind::kValue, "SCENE.yaml",
        "one fixed scene for every frame (default: each frame's recorded boom and receiver pose)"},
@@ -120,6 +123,7 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
     info.scene = a.get("scene");
     info.extra["re_augmented_from"] = "euroc://" + target;
     parts.recorder = create_recorder(a.get("record"), info, a.has("overwrite"));
+    parts.record_ground_truth = a.has("ground-truth");
   }
   out << "replay: euroc://" << target << ", " << pairs << " stereo pairs (" << unpaired
       << " frames without a partner), scene " << a.get("scene") << "\n";
@@ -159,7 +163,8 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
         replay_specs());
     return kExitOk;
   }
-  if (a.has("ground-truth") && !a.has("out")) usage_error("--ground-truth needs --out (where the files go)");
+  if (a.has("ground-truth") && !a.has("out") && !a.has("record"))
+    usage_error("--ground-truth needs --out DIR (where the files go) or --record DIR (stored in the new recording)");
   if (pos[0].rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(pos[0]) / "mav0") ||
       fs::path(pos[0]).filename() == "mav0")
     return replay_euroc(pos[0], a, out, err);
@@ -236,6 +241,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
     info.extra["re_augmented_from"] = reader.path();
     if (a.has("boom")) info.extra["boom"] = a.get("boom");
     parts.recorder = create_recorder(a.get("record"), info, a.has("overwrite"));
+    parts.record_ground_truth = a.has("ground-truth");
   }
   const fs::path out_dir = a.get("out");
   if (a.has("out")) {

@@ -129,7 +129,10 @@ const std::vector<OptionSpec>& run_specs() {
       {"duration", ArgKind::kValue, "S", "stop after S seconds (default: until the source ends or Ctrl-C)"},
       {"out", ArgKind::kValue, "DIR", "write stats.csv (and with --every, images) here"},
       {"every", ArgKind::kValue, "K", "with --out: write the images of every K-th stereo frame"},
-      {"ground-truth", ArgKind::kFlag, "", "with --every: " + std::string(kGroundTruthHelp)},
+      {"ground-truth", ArgKind::kFlag, "",
+       "with --every: " + std::string(kGroundTruthHelp) +
+           "; with --record: store each frame's receiver depth in the recording (export --ground-truth writes "
+           "the rest from it)"},
       {"nav", ArgKind::kValue, "STREAM=URI,...|sim",
        "live nav inputs, recorded as received and, for streams named tanker.* and receiver.*, fused in "
        "real time into the receiver's pose at each frame's mid-exposure, e.g. tanker.gps=udp://0.0.0.0:10110?"
@@ -297,8 +300,9 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   const double status_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 1.0;
   const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 0;
   if (every && !a.has("out")) usage_error("--every needs --out");
-  if (a.has("ground-truth") && !every)
-    usage_error("--ground-truth needs --out DIR and --every K (the frames whose files are written)");
+  if (a.has("ground-truth") && !every && !a.has("record"))
+    usage_error("--ground-truth needs --out DIR and --every K (the frames whose files are written) or --record DIR "
+                "(stored in the recording)");
   const long long max_pairs = a.has("frames") ? parse_integer("frames", a.get("frames"), 1, 1LL << 40) : 0;
 
   // Sources: --source, else the rig's per-camera URIs.
@@ -423,6 +427,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     rinfo.extra["source"] = uri + (right_uri.empty() ? "" : " + " + right_uri);
     if (opened.replay) rinfo.extra["re_augmented_from"] = opened.replay->reader().path();
     parts.recorder = create_recorder(a.get("record"), rinfo, a.has("overwrite"));
+    parts.record_ground_truth = a.has("ground-truth");
   }
   // Live nav inputs: each read on a thread of its own; every unit recorded exactly as received.
   setup.nav_inputs = std::make_unique<NavInputs>();

@@ -3,9 +3,7 @@
 #include <array>
 #include <cstring>
 
-#include <opencv2/imgcodecs.hpp>
 
-#include "core/npy.hpp"
 #include "render/ground_truth.hpp"
 #include "render/image_file.hpp"
 #include "render/visualize.hpp"
@@ -83,20 +81,8 @@ Status write_ground_truth(const fs::path& out, const FrameNames& n, const Stereo
       fs::create_directories(side / sub, ec);
       if (ec) return make_error((side / sub).string(), ": cannot create the folder (", ec.message(), ")");
     }
-    const std::vector<float> z = depth_with_nan(d);
-    if (Status s =
-            write_npy_f32((side / "depth" / (*stems[c] + ".npy")).string(), {d.height, d.width}, z.data());
-        !s)
-      return s;
-    std::vector<std::uint16_t> mm = depth_mm_u16(d);
-    const cv::Mat m(d.height, d.width, CV_16UC1, mm.data());
-    const fs::path png = side / "depth_mm" / (*stems[c] + ".png");
-    try {
-      if (!cv::imwrite(png.string(), m, {cv::IMWRITE_PNG_COMPRESSION, 1}))
-        return make_error(png.string(), ": cannot write the 16-bit PNG");
-    } catch (const cv::Exception& e) {
-      return make_error(png.string(), ": cannot write the 16-bit PNG (", e.what(), ")");
-    }
+    if (Status s = write_depth_npy((side / "depth" / (*stems[c] + ".npy")).string(), d); !s) return s;
+    if (Status s = write_depth_mm_png((side / "depth_mm" / (*stems[c] + ".png")).string(), d); !s) return s;
   }
   // Where each left receiver point lies in the right image: the true correspondence.
   const fs::path left = out / "left";
@@ -108,18 +94,13 @@ Status write_ground_truth(const fs::path& out, const FrameNames& n, const Stereo
   const std::vector<float> uv =
       right_correspondence(r.left.receiver_depth, rig.left().model, rig.right().model, rig.T_right_left());
   const int w = r.left.receiver_depth.width, h = r.left.receiver_depth.height;
-  if (Status s = write_npy_f32((left / "right_px" / (n.left + ".npy")).string(), {h, w, 2}, uv.data()); !s)
-    return s;
-  if (r.stereo_classes.size() == static_cast<std::size_t>(w) * static_cast<std::size_t>(h)) {
-    Image cls(w, h, PixelFormat::kMono8);
-    for (int y = 0; y < h; ++y)
-      std::memcpy(cls.row(y), r.stereo_classes.data() + static_cast<std::size_t>(y) * w, w);
-    if (Status s = write_png(left / "stereo_class" / (n.left + ".png"), cls); !s) return s;
-  }
+  if (Status s = write_correspondence_npy((left / "right_px" / (n.left + ".npy")).string(), uv, w, h); !s) return s;
+  if (r.stereo_classes.size() == static_cast<std::size_t>(w) * static_cast<std::size_t>(h))
+    return write_stereo_class_png((left / "stereo_class" / (n.left + ".png")).string(), r.stereo_classes, w, h);
   return {};
 }
 
-recorder::FrameRecord frame_record(const StereoResult& r) {
+recorder::FrameRecord frame_record(const StereoResult& r, bool ground_truth) {
   recorder::FrameRecord fr;
   fr.augmented = {r.left.augmented, r.right.augmented};
   // The changed-box output made only the boxes (an image of the box's size).
@@ -128,6 +109,11 @@ recorder::FrameRecord frame_record(const StereoResult& r) {
       fr.augmented_box[v == &r.left ? 0 : 1] = v->augmented_box;
   fr.mask = {r.left.mask, r.right.mask};
   fr.stats = r.stats;
+  // The correspondence and the stereo classes follow from the depth, the masks and the rig, so the
+  // depth is all a recording needs to give the whole ground truth back (recorder/euroc.hpp).
+  if (ground_truth)
+    fr.receiver_depth = {recorder::DepthRecord::from(r.left.receiver_depth),
+                         recorder::DepthRecord::from(r.right.receiver_depth)};
   return fr;
 }
 

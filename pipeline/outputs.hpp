@@ -53,9 +53,10 @@ Status write_ground_truth(const std::filesystem::path& out, const FrameNames& n,
                           const Rig& rig);
 
 // A frame for the recorder from what the augmenter made: the augmented images as made (whole, or
-// only their changed boxes: AugmentedOutput), the masks and the statistics. The caller adds the
-// raw frame, the poses and the boom.
-recorder::FrameRecord frame_record(const StereoResult& r);
+// only their changed boxes: AugmentedOutput), the masks and the statistics, and with `ground_truth`
+// each camera's receiver depth (its box only: recorder::DepthRecord). The caller adds the raw
+// frame, the poses and the boom.
+recorder::FrameRecord frame_record(const StereoResult& r, bool ground_truth = false);
 
 // stats.csv, one row per stereo frame, flushed per row so a failed run keeps what it counted.
 class StatsCsvWriter {

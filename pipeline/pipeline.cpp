@@ -385,7 +385,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       }
     // The recorder takes the boxes (copied here); the window then gets whole images.
     std::optional<recorder::FrameRecord> fr;
-    if (p.recorder && s.recording_on) fr = frame_record(result);
+    if (p.recorder && s.recording_on) fr = frame_record(result, p.record_ground_truth);
     if (p.view && !s.paused) {
       make_whole_augmented(frame.left.image, result.left);
       make_whole_augmented(frame.right.image, result.right);

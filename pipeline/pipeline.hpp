@@ -146,6 +146,8 @@ struct PipelineParts {
   AugmentOptions augment;       // augmented_output is set to kChangedBox (sinks get what they need)
   // Sinks, each optional.
   std::unique_ptr<recorder::Recorder> recorder;
+  // The recorder also stores each pair's receiver depth (the ground truth, docs/GROUND_TRUTH.md).
+  bool record_ground_truth = false;
   std::unique_ptr<StatsCsvWriter> stats_csv;
   std::optional<FrameFiles> frame_files;
   std::shared_ptr<LiveView> view;

@@ -1,7 +1,13 @@
 #include "render/ground_truth.hpp"
 
 #include <cmath>
+#include <cstring>
 #include <limits>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/npy.hpp"
+#include "render/image_file.hpp"
 
 namespace augrig {
 
@@ -44,6 +50,38 @@ std::vector<std::uint16_t> depth_mm_u16(const DepthImage& depth) {
     out[i] = mm >= 65535.0 ? 65535 : static_cast<std::uint16_t>(std::max(mm, 1.0));
   }
   return out;
+}
+
+Status write_depth_npy(const std::string& path, const DepthImage& depth) {
+  const std::vector<float> z = depth_with_nan(depth);
+  return write_npy_f32(path, {depth.height, depth.width}, z.data());
+}
+
+Status write_depth_mm_png(const std::string& path, const DepthImage& depth) {
+  std::vector<std::uint16_t> mm = depth_mm_u16(depth);
+  const cv::Mat m(depth.height, depth.width, CV_16UC1, mm.data());
+  try {
+    if (!cv::imwrite(path, m, {cv::IMWRITE_PNG_COMPRESSION, 1})) return make_error(path, ": cannot write the 16-bit PNG");
+  } catch (const cv::Exception& e) {
+    return make_error(path, ": cannot write the 16-bit PNG (", e.what(), ")");
+  }
+  return {};
+}
+
+Status write_correspondence_npy(const std::string& path, const std::vector<float>& uv, int width, int height) {
+  if (uv.size() != 2 * static_cast<std::size_t>(width) * static_cast<std::size_t>(height))
+    return make_error(path, ": ", uv.size(), " values for a ", width, "x", height, "x2 correspondence");
+  return write_npy_f32(path, {height, width, 2}, uv.data());
+}
+
+Status write_stereo_class_png(const std::string& path, const std::vector<std::uint8_t>& classes, int width,
+                              int height) {
+  if (classes.size() != static_cast<std::size_t>(width) * static_cast<std::size_t>(height))
+    return make_error(path, ": ", classes.size(), " stereo classes for a ", width, "x", height, " image");
+  Image cls(width, height, PixelFormat::kMono8);
+  for (int y = 0; y < height; ++y)
+    std::memcpy(cls.row(y), classes.data() + static_cast<std::size_t>(y) * width, static_cast<std::size_t>(width));
+  return write_png_file(path, cls);
 }
 
 }  // namespace augrig
