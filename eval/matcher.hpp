@@ -14,7 +14,7 @@ namespace augrig::eval {
 struct MatcherParams {
   std::string algorithm = "sgbm";  // sgbm | bm
   int min_disparity = 0;
-  int num_disparities = 128;  // a positive multiple of 16
+  int num_disparities = 64;  // a positive multiple of 16 (the paper rig's receiver: <= 44 px)
   int block_size = 5;         // odd; bm: 5..255
   // sgbm: smoothness penalties; 0 = OpenCV's usual 8 and 32 x channels x block_size^2.
   int p1 = 0, p2 = 0;
@@ -23,7 +23,7 @@ struct MatcherParams {
   int speckle_range = 2;
   int disp12_max_diff = 1;
   int pre_filter_cap = 63;
-  std::string mode = "sgbm";  // sgbm: sgbm | hh | 3way | hh4
+  std::string mode = "3way";  // sgbm: sgbm | hh | 3way | hh4 (3way: the fastest, on several threads)
 };
 
 // Reads a matcher file: a map of the fields above (`algorithm: sgbm`, `num_disparities: 192`, ...),

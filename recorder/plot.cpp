@@ -55,10 +55,8 @@ std::string read_text(const std::string& path, std::size_t max) {
 std::string script(const std::vector<OcclusionStats>& frames, const std::string& png,
                    const StatsPlotOptions& o) {
   std::string s;
-  s += "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {\n  set terminal pngcairo size " +
-       std::to_string(o.width_px) + "," + std::to_string(o.height_px) +
-       " enhanced font 'sans,10'\n} else {\n  set terminal png size " + std::to_string(o.width_px) + "," +
-       std::to_string(o.height_px) + "\n}\n";
+  // Not "enhanced": a title such as rec_demo keeps its underscore (not a subscript).
+  s += gnuplot_png_terminal(o.width_px, o.height_px);
   s += "set output " + gp_quote(png) + "\n";
   // t_s occl_L occl_R overlap recv_L recv_R boom_L boom_R
   s += "$stats << EOD\n";
@@ -120,11 +118,23 @@ std::string find_gnuplot() {
 
 Status plot_occlusion_stats(const std::vector<OcclusionStats>& frames, const std::string& png_path,
                             const StatsPlotOptions& options) {
-  const std::string where = "recorder::plot_occlusion_stats(): " + png_path + ": ";
-  if (frames.empty()) return make_error(where, "no statistics to plot (no frame has them)");
+  if (frames.empty())
+    return make_error("recorder::plot_occlusion_stats(): ", png_path, ": no statistics to plot (no frame has them)");
+  return run_gnuplot(script(frames, png_path, options), png_path, "recorder::plot_occlusion_stats(): ");
+}
+
+std::string gnuplot_png_terminal(int width_px, int height_px) {
+  return "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {\n  set terminal pngcairo size " +
+         std::to_string(width_px) + "," + std::to_string(height_px) +
+         " noenhanced font 'sans,10'\n} else {\n  set terminal png size " + std::to_string(width_px) + "," +
+         std::to_string(height_px) + "\n}\n";
+}
+
+Status run_gnuplot(const std::string& text, const std::string& png_path, const std::string& caller) {
+  const std::string where = caller + png_path + ": ";
   // A directory there would be deleted by the fs::remove() below when empty, or left for gnuplot
   // to fail on.
-  if (auto d = check_not_directory("recorder::plot_occlusion_stats(): ", png_path); !d) return d.error();
+  if (auto d = check_not_directory(caller, png_path); !d) return d.error();
   const std::string gnuplot = find_gnuplot();
   if (gnuplot.empty()) {
     const char* e = std::getenv("AUGRIG_GNUPLOT");
@@ -167,7 +177,6 @@ Status plot_occlusion_stats(const std::vector<OcclusionStats>& frames, const std
     ::unlink(err_path);
     return make_error(where, "cannot run ", gnuplot, " (error ", rc, ")");
   }
-  const std::string text = script(frames, png_path, options);
   bool sent = true;
   for (std::size_t off = 0; off < text.size();) {
     const ssize_t n = ::send(sv[0], text.data() + off, text.size() - off, MSG_NOSIGNAL);

@@ -28,4 +28,11 @@ struct StatsPlotOptions {
 Status plot_occlusion_stats(const std::vector<OcclusionStats>& frames, const std::string& png_path,
                             const StatsPlotOptions& options = {});
 
+// Runs gnuplot on a script that writes `png_path` (other plots, e.g. eval/report.hpp's); errors
+// start with `caller` and name the file: gnuplot missing, failing (its message quoted), no image.
+Status run_gnuplot(const std::string& script, const std::string& png_path, const std::string& caller);
+// The script lines choosing the PNG terminal (pngcairo where gnuplot has it), text not "enhanced"
+// (underscores in names stay underscores).
+std::string gnuplot_png_terminal(int width_px, int height_px);
+
 }  // namespace augrig::recorder
