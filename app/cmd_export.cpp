@@ -32,6 +32,10 @@ const std::vector<OptionSpec>& export_specs() {
       {"no-augmented", ArgKind::kFlag, "", "leave out cam0_augmented and cam1_augmented"},
       {"no-masks", ArgKind::kFlag, "", "leave out cam0_mask and cam1_mask"},
       {"no-plot", ArgKind::kFlag, "", "do not plot the statistics (stats.png needs gnuplot)"},
+      {"ground-truth", ArgKind::kFlag, "",
+       "also each frame's ground truth from its recorded receiver depth (docs/GROUND_TRUTH.md): cam0_depth, "
+       "cam1_depth (.npy), cam0_depth_mm, cam1_depth_mm (16-bit PNG), cam0_right_px (.npy), cam0_stereo_class; "
+       "needs a recording made with --ground-truth"},
   };
   return specs;
 }
@@ -46,7 +50,8 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
         "cam1_augmented, cam0_mask, cam1_mask (data.csv, data/<t_ns>.png, sensor.yaml) and imu0, plus\n"
         "OUT/poses.csv (recorded T_cam_receiver), OUT/stats.csv and OUT/stats.png (gnuplot); with nav\n"
         "inputs, OUT/nav/<aircraft>/ (gps.nmea, imu.csv, aircraft.yaml) and the frame index OUT/frames.csv\n"
-        "for augrig nav. Every timestamp is on one clock: GPS time when the recording allows it.",
+        "for augrig nav. Every timestamp is on one clock: GPS time when the recording allows it.\n"
+        "With --ground-truth, the receiver depth, the true correspondence and the stereo classes too.",
         export_specs());
     return kExitOk;
   }
@@ -57,6 +62,7 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   o.augmented = !a.has("no-augmented");
   o.masks = !a.has("no-masks");
   o.plot = !a.has("no-plot");
+  o.ground_truth = a.has("ground-truth");
   if (a.has("threads")) o.threads = static_cast<int>(parse_integer("threads", a.get("threads"), 1, 64));
   if (a.has("aircraft")) {
     std::stringstream ss(a.get("aircraft"));
@@ -96,6 +102,9 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
       << " stereo frame(s) to " << (out_dir / "mav0").string() << ": cam0, cam1";
   if (r.augmented_written) out << ", cam0_augmented, cam1_augmented";
   if (r.masks_written) out << ", cam0_mask, cam1_mask";
+  if (r.ground_truth_written)
+    out << ", cam0_depth, cam1_depth, cam0_depth_mm, cam1_depth_mm, cam0_right_px, cam0_stereo_class ("
+        << r.ground_truth_written << " frames)";
   if (r.imu_samples) out << ", imu0 (" << r.imu_samples << " samples of '" << r.imu_stream << "')";
   out << "; " << r.rate_hz << " Hz\n";
   out << "Clock: " << to_string(r.clock) << " for every timestamp exported (" << r.clock_note << ")\n";

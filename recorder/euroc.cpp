@@ -34,6 +34,7 @@
 #include "recorder/nav_inputs.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/record.hpp"
+#include "render/ground_truth.hpp"
 
 namespace augrig::recorder {
 
@@ -557,12 +558,65 @@ struct StreamOut {
 
 constexpr const char* kStreamSuffix[3] = {"", "_augmented", "_mask"};
 
-// The work of one camera of one frame: its raw, augmented and mask images encoded and written.
+// The ground truth streams (EurocExportOptions::ground_truth), each a folder of mav0/ with data/
+// and data.csv: per camera the depth (.npy) and its 16-bit mm PNG; for the left camera the
+// correspondence into the right image (.npy) and the stereo classes (PNG).
+enum GtStream { kGtDepth0, kGtDepth1, kGtDepthMm0, kGtDepthMm1, kGtRightPx, kGtStereoClass, kGtStreams };
+constexpr const char* kGtFolder[kGtStreams] = {"cam0_depth",    "cam1_depth",    "cam0_depth_mm",
+                                               "cam1_depth_mm", "cam0_right_px", "cam0_stereo_class"};
+constexpr const char* kGtExt[kGtStreams] = {".npy", ".npy", ".png", ".png", ".npy", ".png"};
+constexpr int kGtCamera[kGtStreams] = {0, 1, 0, 1, 0, 0};  // whose timestamp names the file
+constexpr const char* kGtContent[kGtStreams] = {
+    "receiver depth, float32 H x W .npy, metres along the optical axis (z), NaN where no receiver",
+    "receiver depth, float32 H x W .npy, metres along the optical axis (z), NaN where no receiver",
+    "receiver depth, 16-bit PNG, round(z * 1000) mm, 0 where no receiver, 65535 = 65.535 m or more",
+    "receiver depth, 16-bit PNG, round(z * 1000) mm, 0 where no receiver, 65535 = 65.535 m or more",
+    "float32 H x W x 2 .npy: (u, v) in the right raw image of each left receiver pixel's surface point, NaN "
+    "where none",
+    "8-bit PNG: stereo class per left pixel, 0 no receiver, 1 both, 2 left only, 3 right only, 4 neither"};
+
+// The work of one camera of one frame: its raw, augmented and mask images encoded and written; or
+// (camera kGroundTruthJob) the frame's ground truth, made from its depth, masks and the rig.
+constexpr int kGroundTruthJob = 2;
 struct CameraJob {
   std::shared_ptr<const FrameRecord> rec;
   int camera = 0;
   fs::path files[3];  // empty: not written
+  const Rig* rig = nullptr;
+  fs::path gt_files[kGtStreams];  // kGroundTruthJob; empty: not written
 };
+
+// What docs/GROUND_TRUTH.md's files beside a frame's images hold, from what a recording keeps:
+// the depth as recorded, the correspondence (render/ground_truth.hpp) and the stereo classes
+// (render/stats.hpp, the augmenter's own test) from the depth, the masks and the rig.
+Status run_ground_truth_job(const CameraJob& job) {
+  const FrameRecord& r = *job.rec;
+  const Rig& rig = *job.rig;
+  const DepthImage depth[2] = {r.receiver_depth[0].image(), r.receiver_depth[1].image()};
+  for (int c = 0; c < 2; ++c) {
+    if (!job.gt_files[kGtDepth0 + c].empty())
+      if (Status s = write_depth_npy(job.gt_files[kGtDepth0 + c].string(), depth[c]); !s) return s;
+    if (!job.gt_files[kGtDepthMm0 + c].empty())
+      if (Status s = write_depth_mm_png(job.gt_files[kGtDepthMm0 + c].string(), depth[c]); !s) return s;
+  }
+  const CameraModel& left = rig.cameras[0].model;
+  const CameraModel& right = rig.cameras[1].model;
+  const Pose T_right_left = rig.T_right_left();
+  const int w = depth[0].width, h = depth[0].height;
+  if (!job.gt_files[kGtRightPx].empty())
+    if (Status s = write_correspondence_npy(job.gt_files[kGtRightPx].string(),
+                                            right_correspondence(depth[0], left, right, T_right_left), w, h);
+        !s)
+      return s;
+  if (!job.gt_files[kGtStereoClass].empty()) {
+    std::vector<std::uint8_t> classes;
+    StereoClassOptions o;  // the augmenter's defaults, as every command runs it
+    (void)compute_occlusion_stats(0, r.mask[0], r.mask[1], depth[0], depth[1], left, right, T_right_left, o,
+                                  &classes);
+    if (Status s = write_stereo_class_png(job.gt_files[kGtStereoClass].string(), classes, w, h); !s) return s;
+  }
+  return {};
+}
 
 struct Encoders {
   PngEncoder image, mask;
@@ -571,6 +625,7 @@ struct Encoders {
 };
 
 Status run_camera_job(const CameraJob& job, Encoders& enc) {
+  if (job.camera == kGroundTruthJob) return run_ground_truth_job(job);
   const int c = job.camera;
   const Image* images[3] = {&job.rec->raw[static_cast<CameraId>(c)].image, &job.rec->augmented[c],
                             &job.rec->mask[c]};
@@ -671,8 +726,36 @@ struct PendingFrame {
   bool readable = false;
   TimestampNs t_ns[2] = {0, 0};  // on the export's clock
   bool write[3][2] = {};
+  bool write_gt[kGtStreams] = {};
   std::uint64_t sequence[2] = {0, 0};
 };
+
+struct GtStreamOut {
+  fs::path dir;
+  std::string csv;
+  std::set<TimestampNs> seen;
+  std::size_t written = 0;
+  bool created = false;
+};
+
+// sensor.yaml of a ground truth stream: what its files hold, on which clock.
+std::string ground_truth_yaml(int k, const RigCamera& camera, double rate_hz, ClockDomain clock) {
+  std::string num_rate;
+  {
+    char buf[64];
+    const auto r = std::to_chars(buf, buf + sizeof buf, rate_hz);
+    num_rate.assign(buf, r.ptr);
+  }
+  std::ostringstream o;
+  o << "# augrig export --ground-truth: " << kGtFolder[k] << " (docs/GROUND_TRUTH.md), the "
+    << (kGtCamera[k] ? "right" : "left") << " camera ('" << camera.name << "'); pixels are its raw pixels.\n"
+    << "sensor_type: ground_truth\n"
+    << "comment: \"" << kGtContent[k] << "\"\n"
+    << "rate_hz: " << num_rate << "\n"
+    << "resolution: [" << camera.model.width_px << ", " << camera.model.height_px << "]\n"
+    << "augrig:\n  stream: " << (std::string(kGtFolder[k]).substr(5)) << "\n  clock: " << to_string(clock) << "\n";
+  return o.str();
+}
 
 void write_marker(const fs::path& marker, const std::string& recording, const std::string& out,
                   const std::vector<std::string>& lines) {
@@ -691,6 +774,19 @@ std::string fmt_offset_ms(TimestampNs ns) {
 }  // namespace
 
 namespace {
+
+// export --ground-truth of a frame recorded without its depth: which, and how to get it.
+Error no_depth_error(const RecordingReader& reader, std::size_t i, std::uint64_t pair_sequence,
+                     const std::string& how_many = "") {
+  const fs::path db(reader.path());
+  const std::string dir = db.filename() == "recording.sqlite" && db.has_parent_path() ? db.parent_path().string()
+                                                                                      : db.string();
+  return make_error(reader.path(), ": frame ", i, " (pair_sequence ", pair_sequence, ") holds no receiver depth",
+                    how_many,
+                    ", and the ground truth is made from it: the recording was made without --ground-truth. "
+                    "Store it by replaying the recording into a new one: augrig replay ",
+                    dir, " --record NEW --ground-truth --headless; then export NEW --ground-truth");
+}
 
 Status export_body(const RecordingReader& reader, const fs::path& out, const EurocExportOptions& options,
                    const Rig& rig, EurocExportReport& report) {
@@ -807,6 +903,10 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
   unsigned parts = kPartRaw;
   if (options.augmented) parts |= kPartAugmented;
   if (options.masks) parts |= kPartMasks;
+  // The ground truth needs the depth, and the masks for the stereo classes.
+  if (options.ground_truth) parts |= kPartDepth | kPartMasks;
+  GtStreamOut gt[kGtStreams];
+  for (int k = 0; k < kGtStreams; ++k) gt[k].dir = mav0 / kGtFolder[k];
 
   int threads = options.threads;
   if (threads <= 0) threads = std::max(2, static_cast<int>(std::thread::hardware_concurrency()));
@@ -825,6 +925,7 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
   std::int64_t max_skew_ns = 0;
   std::deque<PendingFrame> pending;
   std::size_t skipped = 0;
+  bool no_class_noted = false;
   auto last_progress = std::chrono::steady_clock::now();
   auto progress = [&](bool final) {
     if (!options.progress) return;
@@ -868,6 +969,13 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
               index.rows.push_back(std::move(row));
             }
           }
+        for (int k = 0; k < kGtStreams; ++k) {
+          if (!pf.write_gt[k]) continue;
+          const TimestampNs t = pf.t_ns[kGtCamera[k]];
+          gt[k].csv += std::to_string(t) + "," + std::to_string(t) + kGtExt[k] + "\n";
+          ++gt[k].written;
+        }
+        if (pf.write_gt[kGtDepth0] || pf.write_gt[kGtDepth1]) ++report.ground_truth_written;
         ++report.frames_written;
       } else {
         ++skipped;
@@ -907,7 +1015,7 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
       job.camera = c;
       bool any = false;
       for (int k = 0; k < 3; ++k) {
-        if (images[k]->empty()) continue;
+        if (images[k]->empty() || (k == 2 && !options.masks)) continue;  // masks read for the ground truth only
         StreamOut& so = streams[k][c];
         if (!so.created) {
           fs::create_directories(so.dir / "data", ec);
@@ -960,10 +1068,56 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
         poses.push_back(p);
       }
     }
+    if (options.ground_truth && !r.raw.left.image.empty() && !r.raw.right.image.empty()) {
+      if (r.receiver_depth[0].empty() || r.receiver_depth[1].empty())
+        return fail(no_depth_error(reader, i, r.raw.pair_sequence));
+      for (int c = 0; c < 2; ++c) {
+        const CameraModel& m = rig.cameras[static_cast<std::size_t>(c)].model;
+        if (r.receiver_depth[c].width != m.width_px || r.receiver_depth[c].height != m.height_px)
+          return fail(make_error(reader.path(), ": frame ", i, ": the ", c ? "right" : "left", " receiver depth is ",
+                                 r.receiver_depth[c].width, "x", r.receiver_depth[c].height, ", the rig's ",
+                                 rig.cameras[static_cast<std::size_t>(c)].name, " camera ", m.width_px, "x",
+                                 m.height_px, ": the ground truth needs the rig the recording was made with"));
+      }
+      CameraJob job;
+      job.rec = shared;
+      job.camera = kGroundTruthJob;
+      job.rig = &rig;
+      bool any = false;
+      for (int k = 0; k < kGtStreams; ++k) {
+        // The stereo classes come from both masks; a frame recorded without them has none.
+        if (k == kGtStereoClass && (r.mask[0].empty() || r.mask[1].empty())) {
+          if (!no_class_noted)
+            report.notes.push_back("frame " + std::to_string(i) + " (and maybe others) has no masks: " +
+                                   kGtFolder[k] + " is not written for such frames");
+          no_class_noted = true;
+          continue;
+        }
+        GtStreamOut& so = gt[k];
+        const TimestampNs t = pf.t_ns[kGtCamera[k]];
+        if (!so.created) {
+          fs::create_directories(so.dir / "data", ec);
+          if (ec)
+            return fail(make_error((so.dir / "data").string(), ": cannot create the folder (", ec.message(), ")"));
+          so.created = true;
+        }
+        if (!so.seen.insert(t).second) continue;  // a repeated time: reported with the images
+        job.gt_files[k] = so.dir / "data" / (std::to_string(t) + kGtExt[k]);
+        pf.write_gt[k] = any = true;
+      }
+      if (any) {
+        if (pool) {
+          ++pf.jobs;
+          pool->push(i, std::move(job));
+        } else if (auto s = run_camera_job(job, *inline_enc); !s) {
+          return fail(s);
+        }
+      }
+    }
     if (!r.raw.left.image.empty() && !r.raw.right.image.empty())
       max_skew_ns = std::max(max_skew_ns, std::abs(r.raw.right.t_ns - r.raw.left.t_ns));
     if (!r.augmented[0].empty() || !r.augmented[1].empty()) ++report.augmented_written;
-    if (!r.mask[0].empty() || !r.mask[1].empty()) ++report.masks_written;
+    if (options.masks && (!r.mask[0].empty() || !r.mask[1].empty())) ++report.masks_written;
     if (r.stats) {
       OcclusionStats s = *r.stats;
       // The statistics' time is the pair's, on the left camera's clock.
@@ -996,6 +1150,17 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
           !s)
         return make_error(where, s.error().message);
     }
+  }
+  for (int k = 0; k < kGtStreams; ++k) {
+    const GtStreamOut& g = gt[k];
+    if (!g.created) continue;
+    if (auto s = write_text(g.dir / "data.csv", std::string(kCameraCsvHeader) + "\n" + g.csv); !s)
+      return make_error(where, s.error().message);
+    if (auto s = write_text(g.dir / "sensor.yaml",
+                            ground_truth_yaml(k, rig.cameras[static_cast<std::size_t>(kGtCamera[k])], report.rate_hz,
+                                              clk.clock));
+        !s)
+      return make_error(where, s.error().message);
   }
   if (max_skew_ns > 0) {
     report.notes.push_back("left and right timestamps differ (up to " + std::to_string(max_skew_ns) +
@@ -1189,6 +1354,19 @@ Status export_euroc(const RecordingReader& reader, const std::string& out_dir, c
   }
   if (rig.cameras.size() < 2)
     return make_error(where, rig.source, ": the rig needs 2 cameras, has ", rig.cameras.size());
+  // Every frame needs its recorded depth: said before anything is written.
+  if (options.ground_truth) {
+    std::size_t missing = 0, first = 0;
+    for (std::size_t i = 0; i < reader.frame_count(); ++i)
+      if (!reader.has_depth(i) && missing++ == 0) first = i;
+    if (missing) {
+      const auto info = reader.read_frame_info(first);
+      return make_error(where, no_depth_error(reader, first, info ? info->raw.pair_sequence : first,
+                                              " (" + std::to_string(missing) + " of " +
+                                                  std::to_string(reader.frame_count()) + " frames hold none)")
+                                   .message);
+    }
+  }
 
   const fs::path out(out_dir), mav0 = out / "mav0", marker = out / "INCOMPLETE";
   std::error_code ec;

@@ -6,6 +6,9 @@
 //   OUT/mav0/cam0/sensor.yaml         T_BS, rate_hz, resolution, pinhole intrinsics, distortion
 //   OUT/mav0/cam0_augmented/...       the augmented images, same layout (cam1_augmented)
 //   OUT/mav0/cam0_mask/...            the Mono8 masks (kMaskBoom | kMaskReceiver), same layout
+//   OUT/mav0/cam0_depth/...           with ground_truth: the receiver depth (data/<t_ns>.npy), and
+//                                     cam1_depth, cam{0,1}_depth_mm (.png), cam0_right_px (.npy),
+//                                     cam0_stereo_class (.png); data.csv and sensor.yaml each
 //   OUT/mav0/imu0/data.csv            "#timestamp [ns],w_RS_S_x [rad s^-1],...,a_RS_S_z [m s^-2]"
 //   OUT/mav0/imu0/sensor.yaml         T_BS (identity: the IMU axes are the body axes), rate_hz
 //   OUT/poses.csv                     the recorded T_cam_receiver per frame and camera
@@ -64,6 +67,12 @@ struct EurocExportOptions {
   std::optional<Rig> rig;
   bool augmented = true;  // cam0_augmented, cam1_augmented (when the recording has them)
   bool masks = true;      // cam0_mask, cam1_mask (when the recording has them)
+  // The ground truth (docs/GROUND_TRUTH.md) of every frame from its recorded receiver depth:
+  // cam0_depth, cam1_depth (.npy), cam0_depth_mm, cam1_depth_mm (16-bit PNG), cam0_right_px (.npy)
+  // and cam0_stereo_class (PNG), each with data.csv and sensor.yaml. A recording made without
+  // --ground-truth holds no depth: then export_euroc() fails before writing anything, naming the
+  // recording and the first such frame and how to store it (replay --record NEW --ground-truth).
+  bool ground_truth = false;
   // The nav input stream exported as imu0; empty: "imu", else "tanker.imu", else the only stream
   // whose name ends in "imu". Its rows are recorder::imu_input() CSV rows or augrig IMU datagrams
   // (nav/imu_stream.hpp), as `augrig run --nav` records them.
@@ -87,6 +96,7 @@ struct EurocExportReport {
   std::size_t frames = 0;          // in the recording
   std::size_t frames_written = 0;  // stereo frames exported (raw)
   std::size_t augmented_written = 0, masks_written = 0;
+  std::size_t ground_truth_written = 0;  // stereo frames whose ground truth was written
   double rate_hz = 0;      // the frames' median rate
   ClockDomain clock = ClockDomain::kUnknown;  // the clock of every exported timestamp
   std::string clock_note;                     // how the frames were put on it

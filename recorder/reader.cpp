@@ -34,7 +34,7 @@ struct RecordingReader::Impl {
   std::vector<std::string> problems;
   mutable std::map<unsigned, Statement> selects;  // per FrameParts
   bool depth_table = false;                        // schema 2: the depth table is there
-  mutable Statement depth_select;
+  mutable Statement depth_select, depth_exists;
   mutable Decoder decoder;
   bool raw_codec_current = false;  // meta codec.raw is this build's kRawCodec: raw blobs may be copied
 
@@ -288,6 +288,22 @@ Expected<FrameRecord> RecordingReader::read_frame(std::size_t i, unsigned parts,
     }
   }
   return f;
+}
+
+bool RecordingReader::has_depth(std::size_t i) const {
+  Impl& I = *impl_;
+  if (!I.depth_table || i >= I.ids.size()) return false;
+  if (!I.depth_exists.get()) {
+    auto st = Statement::prepare(
+        I.db.get(), "SELECT left_depth IS NOT NULL AND right_depth IS NOT NULL FROM depth WHERE frame_id = ?");
+    if (!st) return false;
+    I.depth_exists = std::move(*st);
+  }
+  Statement& st = I.depth_exists;
+  sqlite3_bind_int64(st.get(), 1, I.ids[i]);
+  const bool yes = st.step() == SQLITE_ROW && sqlite3_column_int(st.get(), 0) != 0;
+  st.reset();
+  return yes;
 }
 
 // Steps a prepared statement to its end, turning each row into a T with `row(stmt, index)` (an

@@ -82,6 +82,9 @@ class RecordingReader {
   // the decoded image's raw_fingerprint(). A blob's bytes stay empty when the recording's raw
   // encoding (meta `codec.raw`) is not this build's.
   Expected<FrameRecord> read_frame(std::size_t i, unsigned parts, std::array<StoredRawBlob, 2>* raw_blobs) const;
+  // Whether frame i holds both cameras' receiver depth (FrameRecord::receiver_depth), without
+  // decoding it: false for a recording made without --ground-truth (and every schema 1 recording).
+  bool has_depth(std::size_t i) const;
   // Frame i's metadata only (no blob is read): raw images empty, everything else filled.
   Expected<FrameRecord> read_frame_info(std::size_t i) const { return read_frame(i, kPartsNone); }
 
