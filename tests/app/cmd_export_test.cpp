@@ -1,8 +1,10 @@
 // augrig export through the real binary (docs/REPLAY.md): on a recording this test writes with
 // recorder::Recorder from frames it augments itself, the EuRoC layout, exit codes and messages of
-// bad inputs, a truncated recording, and OUT/INCOMPLETE of a killed export.
+// bad inputs, a truncated recording, and OUT/INCOMPLETE of a killed export; --ground-truth against
+// the replay's own ground-truth files and the masks, and its error on a recording without depth.
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -11,8 +13,10 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "app/commands.hpp"
+#include "core/npy.hpp"
 #include "nav/logs.hpp"
 #include "pipeline/flight_nav.hpp"
 #include "sim/scenario.hpp"
@@ -305,6 +309,112 @@ TEST(CmdExport, ALiveNavRecordingIsReFusedOffline) {
   // Every recorded pose (frames with the receiver) has its offline counterpart.
   EXPECT_EQ(compared, recorded->rows.size());
   EXPECT_GT(compared, 20u);
+}
+
+// The rows of a EuRoC data.csv: the file names, in order.
+std::vector<std::string> csv_files(const std::string& path) {
+  std::vector<std::string> files;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line))
+    if (!line.empty() && line[0] != '#') files.push_back(line.substr(line.find(',') + 1));
+  return files;
+}
+
+bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+}
+
+bool same_png(const std::string& a, const std::string& b) {
+  const cv::Mat ma = cv::imread(a, cv::IMREAD_UNCHANGED), mb = cv::imread(b, cv::IMREAD_UNCHANGED);
+  return !ma.empty() && ma.size == mb.size && ma.type() == mb.type() &&
+         std::equal(ma.datastart, ma.dataend, mb.datastart);
+}
+
+// A simulated run recorded without depth: export --ground-truth refuses it, saying how to store the
+// depth; replayed with --record --ground-truth (and the per-frame files written by the same replay),
+// the export's ground truth equals the replay's files bit for bit, and the depth is finite exactly
+// where the exported mask has the receiver bit.
+TEST(CmdExport, GroundTruthAgreesWithTheReplaysFilesAndTheMasks) {
+  const std::string dir = output_dir("cmd_export_ground_truth");
+  std::string log;
+  ASSERT_EQ(augrig("run --source 'sim://demo?every=60&rate=0' --frames 3 --headless --status-every 0 --record " + dir +
+                       "/plain 2>&1",
+                   &log),
+            0)
+      << log;
+  // No depth recorded: a clear error, non-zero exit, nothing written.
+  EXPECT_EQ(augrig("export " + dir + "/plain --format euroc " + dir + "/refused --ground-truth --no-plot 2>&1", &log), 1)
+      << log;
+  EXPECT_NE(log.find("augrig export: " + dir + "/plain/recording.sqlite: frame 0 (pair_sequence "), std::string::npos)
+      << log;
+  EXPECT_NE(log.find("holds no receiver depth (3 of 3 frames hold none)"), std::string::npos) << log;
+  EXPECT_NE(log.find("augrig replay " + dir + "/plain --record NEW --ground-truth"), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(dir + "/refused/mav0"));
+  // Without --ground-truth the same recording exports as ever.
+  ASSERT_EQ(augrig("export " + dir + "/plain --format euroc " + dir + "/plain_export --no-plot 2>&1", &log), 0) << log;
+  EXPECT_FALSE(fs::exists(dir + "/plain_export/mav0/cam0_depth"));
+
+  ASSERT_EQ(augrig("replay " + dir + "/plain --headless --out " + dir + "/files --every 1 --ground-truth --record " +
+                       dir + "/gt 2>&1",
+                   &log),
+            0)
+      << log;
+  ASSERT_EQ(augrig("check " + dir + "/gt", &log), 0) << log;
+  EXPECT_NE(log.find("receiver depth: 3 frames\n"), std::string::npos) << log;
+  const std::string out = dir + "/export";
+  ASSERT_EQ(augrig("export " + dir + "/gt --format euroc " + out + " --ground-truth --no-plot --threads 2 2>&1", &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("cam0_stereo_class (3 frames)"), std::string::npos) << log;
+  const std::string mav0 = out + "/mav0/";
+  const std::vector<std::string> masks = csv_files(mav0 + "cam0_mask/data.csv");
+  const std::vector<std::string> depth0 = csv_files(mav0 + "cam0_depth/data.csv");
+  const std::vector<std::string> depth1 = csv_files(mav0 + "cam1_depth/data.csv");
+  const std::vector<std::string> mm0 = csv_files(mav0 + "cam0_depth_mm/data.csv");
+  const std::vector<std::string> mm1 = csv_files(mav0 + "cam1_depth_mm/data.csv");
+  const std::vector<std::string> uv = csv_files(mav0 + "cam0_right_px/data.csv");
+  const std::vector<std::string> cls = csv_files(mav0 + "cam0_stereo_class/data.csv");
+  ASSERT_EQ(depth0.size(), 3u);
+  ASSERT_EQ(masks.size(), 3u);
+  for (const auto* v : {&depth1, &mm0, &mm1, &uv, &cls}) ASSERT_EQ(v->size(), 3u);
+  EXPECT_TRUE(fs::exists(mav0 + "cam0_right_px/sensor.yaml"));
+  std::size_t receiver_px = 0;
+  for (std::size_t k = 0; k < 3; ++k) {
+    SCOPED_TRACE("frame " + std::to_string(k));
+    // The replay names its files by the recorded frame's index.
+    char stem[16];
+    std::snprintf(stem, sizeof stem, "%06zu", k);
+    const std::string f = dir + "/files/";
+    // The file named for the left camera's time is the left camera's, in frame order.
+    EXPECT_EQ(depth0[k].substr(0, depth0[k].size() - 4), masks[k].substr(0, masks[k].size() - 4));
+    auto z0 = read_npy_f32(mav0 + "cam0_depth/data/" + depth0[k]);
+    auto z1 = read_npy_f32(mav0 + "cam1_depth/data/" + depth1[k]);
+    auto uvx = read_npy_f32(mav0 + "cam0_right_px/data/" + uv[k]);
+    auto z0_files = read_npy_f32(f + "left/depth/" + stem + ".npy");
+    auto z1_files = read_npy_f32(f + "right/depth/" + stem + ".npy");
+    auto uv_files = read_npy_f32(f + "left/right_px/" + stem + ".npy");
+    for (const auto* a : {&z0, &z1, &uvx, &z0_files, &z1_files, &uv_files}) ASSERT_TRUE(*a) << a->error().message;
+    EXPECT_EQ(z0->shape, (std::vector<std::int64_t>{960, 1280}));
+    EXPECT_EQ(uvx->shape, (std::vector<std::int64_t>{960, 1280, 2}));
+    EXPECT_TRUE(same_bits(z0->values, z0_files->values));
+    EXPECT_TRUE(same_bits(z1->values, z1_files->values));
+    EXPECT_TRUE(same_bits(uvx->values, uv_files->values));
+    EXPECT_TRUE(same_png(mav0 + "cam0_depth_mm/data/" + mm0[k], f + "left/depth_mm/" + stem + ".png"));
+    EXPECT_TRUE(same_png(mav0 + "cam1_depth_mm/data/" + mm1[k], f + "right/depth_mm/" + stem + ".png"));
+    EXPECT_TRUE(same_png(mav0 + "cam0_stereo_class/data/" + cls[k], f + "left/stereo_class/" + stem + ".png"));
+    // Finite depth exactly where the exported mask has the receiver bit.
+    const cv::Mat mask = cv::imread(mav0 + "cam0_mask/data/" + masks[k], cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(mask.total(), z0->values.size());
+    std::size_t mismatched = 0;
+    for (std::size_t i = 0; i < mask.total(); ++i) {
+      const bool receiver = (mask.data[i] & kMaskReceiver) != 0;
+      receiver_px += receiver;
+      mismatched += receiver != std::isfinite(z0->values[i]);
+    }
+    EXPECT_EQ(mismatched, 0u);
+  }
+  EXPECT_GT(receiver_px, 1000u) << "the receiver must be in view for the comparison to mean anything";
 }
 
 }  // namespace

@@ -414,5 +414,50 @@ TEST(CmdRecording, ReplayOfATruncatedRecordingSaysWhatIsMissing) {
   EXPECT_EQ(log.find("Replayed"), std::string::npos) << log;
 }
 
+// A recording as schema 1 wrote it (no depth table, schema_version 1): check, replay and export
+// work as before; replay --record --ground-truth turns it into one holding the depth per frame.
+TEST(CmdRecording, SchemaOneRecordingChecksReplaysAndExportsAndGainsDepthByReplay) {
+  const std::string dir = output_dir("cmd_recording_schema1");
+  fs::copy_file(recording() + "/recording.sqlite", dir + "/recording.sqlite");
+  {
+    auto d = recorder::Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->exec("DROP TABLE depth; UPDATE meta SET value = '1' WHERE key = 'schema_version'; "
+                        "DELETE FROM meta WHERE key = 'codec.depth'"));
+  }
+  std::string log;
+  ASSERT_EQ(augrig("check " + dir, &log), 0) << log;
+  EXPECT_NE(log.find("schema version: 1"), std::string::npos) << log;
+  EXPECT_NE(log.find("receiver depth: 0 frames (record with --ground-truth to store it)"), std::string::npos) << log;
+  ASSERT_EQ(augrig("export " + dir + " --format euroc " + dir + "/export --no-plot 2>&1", &log), 0) << log;
+  EXPECT_TRUE(fs::exists(dir + "/export/mav0/cam0/data.csv"));
+  EXPECT_EQ(augrig("export " + dir + " --format euroc " + dir + "/export_gt --ground-truth --no-plot 2>&1", &log), 1)
+      << log;
+  EXPECT_NE(log.find("frame 0 (pair_sequence 0) holds no receiver depth (8 of 8 frames hold none)"), std::string::npos)
+      << log;
+  ASSERT_EQ(augrig("replay " + dir + " --headless --record " + dir + "/gt --ground-truth 2>&1", &log), 0) << log;
+  EXPECT_NE(log.find("Recorded statistics reproduced exactly (same pixel counts) in 8 of 8"), std::string::npos)
+      << log;
+  auto rd = recorder::RecordingReader::open(dir + "/gt");
+  ASSERT_TRUE(rd) << rd.error().message;
+  ASSERT_EQ((*rd)->frame_count(), 8u);
+  for (std::size_t i = 0; i < 8; ++i) {
+    auto f = (*rd)->read_frame(i);
+    ASSERT_TRUE(f) << f.error().message;
+    ASSERT_FALSE(f->receiver_depth[0].empty()) << i;
+    ASSERT_FALSE(f->receiver_depth[1].empty()) << i;
+    // Finite exactly where the re-recorded mask has the receiver bit.
+    for (int c = 0; c < 2; ++c) {
+      const DepthImage z = f->receiver_depth[c].image();
+      const Image& m = f->mask[c];
+      std::size_t mismatched = 0;
+      for (int y = 0; y < m.height(); ++y)
+        for (int x = 0; x < m.width(); ++x)
+          mismatched += ((m.row(y)[x] & kMaskReceiver) != 0) != std::isfinite(z.at(x, y));
+      EXPECT_EQ(mismatched, 0u) << "frame " << i << " camera " << c;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace augrig

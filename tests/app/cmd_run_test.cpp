@@ -2,6 +2,7 @@
 // pipeline into a recording that checks clean; two GigE Vision cameras (arv-fake-gv-camera-0.8
 // processes on two loopback addresses) named by the rig's per-camera source URIs; bad sources and
 // flags with their exit codes and messages.
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -76,6 +77,45 @@ TEST(CmdRun, SimulatedFlightThroughThePipelineIntoARecording) {
   std::string check;
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
   EXPECT_TRUE(fs::exists(dir + "/stats.csv"));
+}
+
+// --ground-truth with --record alone: every recorded frame holds both cameras' receiver depth,
+// finite exactly where its mask has the receiver; without --record or --every it is a usage error.
+TEST(CmdRun, GroundTruthIsStoredInTheRecording) {
+  const std::string dir = output_dir("cmd_run_ground_truth");
+  std::string out;
+  ASSERT_EQ(augrig("run --source 'sim://demo?rate=0&every=90' --frames 2 --headless --status-every 0 --ground-truth "
+                   "--record " + dir + "/rec 2>&1",
+                   &out),
+            0)
+      << out;
+  auto rd = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(rd) << rd.error().message;
+  ASSERT_EQ((*rd)->frame_count(), 2u);
+  std::size_t receiver_px = 0;
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_TRUE((*rd)->has_depth(i));
+    auto f = (*rd)->read_frame(i);
+    ASSERT_TRUE(f) << f.error().message;
+    for (int c = 0; c < 2; ++c) {
+      ASSERT_FALSE(f->receiver_depth[c].empty());
+      const DepthImage z = f->receiver_depth[c].image();
+      const Image& m = f->mask[c];
+      ASSERT_EQ(z.width, m.width());
+      std::size_t mismatched = 0;
+      for (int y = 0; y < m.height(); ++y)
+        for (int x = 0; x < m.width(); ++x) {
+          const bool receiver = (m.row(y)[x] & kMaskReceiver) != 0;
+          receiver_px += receiver;
+          mismatched += receiver != std::isfinite(z.at(x, y));
+        }
+      EXPECT_EQ(mismatched, 0u) << "frame " << i << " camera " << c;
+    }
+  }
+  EXPECT_GT(receiver_px, 1000u);
+  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --frames 1 --headless --ground-truth 2>&1", &out), 2);
+  EXPECT_TRUE(contains(out, "--ground-truth needs --out DIR and --every K")) << out;
+  EXPECT_TRUE(contains(out, "or --record DIR")) << out;
 }
 
 TEST(CmdRun, TwoGigEVisionCamerasFromTheRigsSourceUris) {
