@@ -96,6 +96,9 @@ Expected<FrameEvaluation> StereoEvaluator::evaluate(const StereoFrame& raw, cons
   //    search range (to its left: where its right-image matches lie), the block and the context.
   auto t0 = Clock::now();
   const cv::Mat truth = true_disparity(rect_, result.left.receiver_depth);
+  const MatcherParams& mp = options_.matcher;
+  const float d_lo = static_cast<float>(mp.min_disparity),
+              d_hi = static_cast<float>(mp.min_disparity + mp.num_disparities - 1);
   int bx0 = w, by0 = h, bx1 = 0, by1 = 0;
   for (int y = 0; y < h; ++y) {
     const float* t = truth.ptr<float>(y);
@@ -104,6 +107,7 @@ Expected<FrameEvaluation> StereoEvaluator::evaluate(const StereoFrame& raw, cons
         bx0 = std::min(bx0, x), bx1 = std::max(bx1, x + 1);
         by0 = std::min(by0, y), by1 = std::max(by1, y + 1);
         ++fe.receiver_px;
+        fe.out_of_range_px += t[x] < d_lo || t[x] > d_hi;
       }
   }
   double truth_ms = ms_since(t0);
@@ -119,7 +123,6 @@ Expected<FrameEvaluation> StereoEvaluator::evaluate(const StereoFrame& raw, cons
   // Without the receiver the augmenter computes no classes; with it they are needed.
   if (result.stereo_classes.size() != static_cast<std::size_t>(w) * static_cast<std::size_t>(h))
     return make_error(where, "the augmentation has no stereo classes (AugmentOptions::stereo_classes)");
-  const MatcherParams& mp = options_.matcher;
   cv::Rect roi(0, 0, w, h);
   if (!options_.full_frame) {
     const int m = mp.block_size / 2 + options_.context_px;

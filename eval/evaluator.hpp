@@ -46,6 +46,9 @@ struct FrameEvaluation {
   PairScore raw, augmented;  // the raw pair's disparity and the augmented pair's, scored
   cv::Rect matched;          // the rectified region matched (empty: no receiver in the left view)
   std::int64_t receiver_px = 0;  // rectified left pixels with a true disparity
+  // Of them, with a true disparity outside the matcher's search range [min, min + num): the
+  // matcher cannot find those (num_disparities too small for the rig and range).
+  std::int64_t out_of_range_px = 0;
   // Wall time of each step (ms): gray + rectification, matching (both pairs), truth + scoring.
   double prepare_ms = 0, match_ms = 0, score_ms = 0;
 };

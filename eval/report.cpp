@@ -63,6 +63,7 @@ void RunEvaluation::add(const FrameEvaluation& f) {
   augmented.merge(f.augmented);
   ++frames;
   frames_with_receiver += f.receiver_px > 0;
+  out_of_range_px += f.out_of_range_px;
   prepare_ms += f.prepare_ms;
   match_ms += f.match_ms;
   score_ms += f.score_ms;
@@ -74,6 +75,10 @@ std::string format_evaluation_table(const RunEvaluation& run, const std::string&
   o << run.frames << " stereo frame(s) evaluated, " << run.frames_with_receiver << " with the receiver in the left view. "
     << "Matcher: " << (m.algorithm == "bm" ? "StereoBM" : "StereoSGBM (mode " + m.mode + ")") << ", disparities "
     << m.min_disparity << ".." << m.min_disparity + m.num_disparities - 1 << ", block " << m.block_size << ".\n";
+  if (run.out_of_range_px)
+    o << "WARNING: " << run.out_of_range_px << " receiver pixel(s) have a true disparity outside the search range "
+      << m.min_disparity << ".." << m.min_disparity + m.num_disparities - 1
+      << ": the matcher cannot find them; widen num_disparities (or min_disparity) in the matcher file.\n";
   o << "Pixels: rectified left pixels of the receiver (with a true disparity), summed over the frames. Valid: the\n"
        "matcher gave a disparity. Errors (estimated - true disparity, px) over the valid pixels; range error of\n"
        "f B / d in metres. '-': no pixels to say it of.\n";
@@ -110,7 +115,7 @@ Expected<std::unique_ptr<EvaluationCsvWriter>> EvaluationCsvWriter::create(const
 }
 
 std::string EvaluationCsvWriter::header() {
-  std::string h = "frame,t_s,occluded_pct_left,occluded_pct_right,matched_x,matched_y,matched_w,matched_h";
+  std::string h = "frame,t_s,occluded_pct_left,occluded_pct_right,matched_x,matched_y,matched_w,matched_h,receiver_px,out_of_range_px";
   for (const char* pair : {"raw", "aug"})
     for (const char* set : {"all", "noboom"})
       for (const char* k : kClassKeys)
@@ -127,7 +132,8 @@ Status EvaluationCsvWriter::add(std::uint64_t frame, double t_s, const Occlusion
   s += ',';
   append(s, stats.occluded_pct_right);
   s += ',' + std::to_string(f.matched.x) + ',' + std::to_string(f.matched.y) + ',' + std::to_string(f.matched.width) +
-       ',' + std::to_string(f.matched.height);
+       ',' + std::to_string(f.matched.height) + ',' + std::to_string(f.receiver_px) + ',' +
+       std::to_string(f.out_of_range_px);
   for (const PairScore* p : {&f.raw, &f.augmented})
     for (const auto* set : {&p->all, &p->boom_excluded})
       for (const DisparityErrors& e : *set) append_figures(s, e);

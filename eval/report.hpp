@@ -27,6 +27,7 @@ struct RunEvaluation {
   PairScore raw, augmented;
   std::uint64_t frames = 0;                // evaluated
   std::uint64_t frames_with_receiver = 0;  // of them, with receiver pixels to score
+  std::int64_t out_of_range_px = 0;        // receiver pixels whose true disparity the search misses
   double prepare_ms = 0, match_ms = 0, score_ms = 0;  // summed
   void add(const FrameEvaluation& f);
 };
@@ -36,7 +37,8 @@ struct RunEvaluation {
 // out (an evaluation that trusts the masks). `title` heads it; `matcher` says what matched.
 std::string format_evaluation_table(const RunEvaluation& run, const std::string& title, const MatcherParams& matcher);
 
-// One CSV row per evaluated frame: frame, t_s, the occlusion percentages, and per pair (raw, aug),
+// One CSV row per evaluated frame: frame, t_s, the occlusion percentages, the matched region, the
+// receiver's pixels and those out of the search range, and per pair (raw, aug),
 // boom pixels kept or left out (all, noboom) and class: pixels, valid_pct, mean_px, rms_px,
 // bad1_pct, bad3_pct, range_rms_m. Empty cells where a figure has no pixels.
 class EvaluationCsvWriter {

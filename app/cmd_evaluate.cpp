@@ -1,0 +1,289 @@
+// augrig evaluate SOURCE: what the boom does to stereo matching (docs/EVALUATE.md). The source's
+// pairs go through the pipeline as in `replay` or `run` (augmented with the recorded, simulated or
+// given poses); every K-th augmented pair is then evaluated (eval/evaluator.hpp: the raw and the
+// augmented pair rectified, matched and scored against the true disparity per stereo class). At the
+// end the run's table is printed; with --out also evaluation.txt, the per-frame evaluation.csv,
+// stats.csv, the plot evaluation.png and, with --images K, disparity images.
+#include <cmath>
+#include <limits>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "app/cli.hpp"
+#include "eval/evaluator.hpp"
+#include "eval/report.hpp"
+#include "pipeline/scene_file.hpp"
+#include "recorder/euroc.hpp"
+#include "recorder/reader.hpp"
+#include "recorder/replay_source.hpp"
+#include "sim/flight_source.hpp"
+
+namespace augrig::app {
+namespace {
+
+const std::vector<OptionSpec>& evaluate_specs() {
+  static const std::vector<OptionSpec> specs = {
+      {"matcher", ArgKind::kValue, "MATCHER.yaml",
+       "the stereo matcher and its parameters (docs/EVALUATE.md; default StereoSGBM 3-way, 64 disparities, block 5)"},
+      {"out", ArgKind::kValue, "DIR",
+       "write evaluation.txt (the table), evaluation.csv (per frame), stats.csv and evaluation.png here"},
+      {"every", ArgKind::kValue, "K", "evaluate every K-th stereo frame (default 1: all)"},
+      {"frames", ArgKind::kValue, "N", "stop after N stereo frames (augmented; every K-th evaluated)"},
+      {"images", ArgKind::kValue, "K",
+       "with --out: the true, raw and augmented disparity of every K-th evaluated frame (16-bit PNG, "
+       "disparity x 256, 0 none; and a colour view)"},
+      {"rig", ArgKind::kValue, "RIG.yaml|default",
+       "the rig (default: the recording's, the scenario's, or the paper's for a EuRoC folder)"},
+      {"scene", ArgKind::kValue, "SCENE.yaml", "one fixed scene for every frame (default: the source's poses)"},
+      {"poses", ArgKind::kValue, "POSES.csv",
+       "the receiver's pose per frame from `augrig nav`'s camera pose CSV (matched by the left frame's time)"},
+      {"pose-tolerance-ms", ArgKind::kValue, "MS", "with --poses: match a pose row within MS (default 0)"},
+      {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE",
+       "another boom (default: the source's: recorded, simulated, or tracking)"},
+      {"from-frame", ArgKind::kValue, "N", "recordings and EuRoC folders: start at frame N"},
+      {"seek", ArgKind::kValue, "T_S", "recordings and EuRoC folders: start T_S seconds after the first frame"},
+      {"full-frame", ArgKind::kFlag, "", "match whole rectified frames, not the receiver's region (slower)"},
+      {"context", ArgKind::kValue, "PX",
+       "image matched around the receiver beyond the search range and block (default 128)"},
+      {"no-plot", ArgKind::kFlag, "", "with --out: no evaluation.png (it needs gnuplot)"},
+      {"pair-tolerance-ns", ArgKind::kValue, "NS",
+       "EuRoC folders: pair frames whose timestamps differ by at most NS (default 0)"},
+  };
+  return specs;
+}
+
+// A disparity image as KITTI writes it: 16-bit, disparity x 256, 0 where none.
+void write_disparity_png(const fs::path& path, const cv::Mat& d) {
+  cv::Mat out(d.size(), CV_16UC1, cv::Scalar(0));
+  for (int y = 0; y < d.rows; ++y) {
+    const float* s = d.ptr<float>(y);
+    std::uint16_t* o = out.ptr<std::uint16_t>(y);
+    for (int x = 0; x < d.cols; ++x)
+      if (std::isfinite(s[x]) && s[x] > 0) o[x] = static_cast<std::uint16_t>(std::min(65535.0f, std::round(s[x] * 256)));
+  }
+  if (!cv::imwrite(path.string(), out, {cv::IMWRITE_PNG_COMPRESSION, 1}))
+    runtime_error(path.string() + ": cannot write the disparity image");
+}
+
+// True | raw | augmented disparity side by side, colour-mapped over the true disparity's range
+// (black: none), for a person to look at.
+void write_disparity_view(const fs::path& path, const eval::EvaluationImages& im, const cv::Rect& roi) {
+  const cv::Rect r = roi.empty() ? cv::Rect(0, 0, im.true_disparity.cols, im.true_disparity.rows) : roi;
+  double lo = 0, hi = 1;
+  cv::Mat t = im.true_disparity(r).clone();
+  cv::patchNaNs(t, 0);
+  cv::minMaxLoc(t, nullptr, &hi);
+  if (!(hi > lo)) hi = lo + 1;
+  cv::Mat row;
+  std::vector<cv::Mat> parts;
+  for (const cv::Mat* d : {&im.true_disparity, &im.raw_disparity, &im.aug_disparity}) {
+    const cv::Mat c = (*d)(r);
+    cv::Mat u8(c.size(), CV_8UC1), valid(c.size(), CV_8UC1);
+    for (int y = 0; y < c.rows; ++y)
+      for (int x = 0; x < c.cols; ++x) {
+        const float v = c.at<float>(y, x);
+        valid.at<std::uint8_t>(y, x) = std::isfinite(v) ? 255 : 0;
+        u8.at<std::uint8_t>(y, x) =
+            static_cast<std::uint8_t>(std::isfinite(v) ? std::clamp((v - lo) / (hi - lo) * 255.0, 0.0, 255.0) : 0);
+      }
+    cv::Mat colour;
+    cv::applyColorMap(u8, colour, cv::COLORMAP_TURBO);
+    cv::Mat black(c.size(), CV_8UC3, cv::Scalar(0, 0, 0));
+    colour.copyTo(black, valid);
+    parts.push_back(black);
+  }
+  cv::hconcat(parts, row);
+  if (!cv::imwrite(path.string(), row)) runtime_error(path.string() + ": cannot write the disparity view");
+}
+
+int evaluate_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  std::vector<std::string> pos;
+  const ParsedArgs a = parse_with_positionals(args, evaluate_specs(), {"SOURCE"}, pos);
+  if (a.help) {
+    out << format_help(
+        "augrig evaluate SOURCE [--matcher MATCHER.yaml] [--out DIR] [--every K] [--frames N] [--images K]",
+        "SOURCE: a recording (DIR or replay://DIR), a simulated flight (sim://SCENARIO, e.g. sim://demo), or a\n"
+        "EuRoC/ASL folder (with --scene or --poses). Each stereo frame is augmented as `replay`/`run` would\n"
+        "(recorded, simulated or given poses); every K-th is evaluated: the raw and the augmented pair are\n"
+        "rectified, matched (OpenCV StereoSGBM or StereoBM) and compared with the true disparity over the\n"
+        "receiver, per stereo class (both, left only, right only, neither), with the boom's pixels kept and left\n"
+        "out. Prints the run's table (the seed paper's Table 1 rows with the matcher's errors); --out writes it\n"
+        "with a CSV row per frame and the plots (docs/EVALUATE.md).",
+        evaluate_specs());
+    return kExitOk;
+  }
+  // Flags first: nothing is opened for a command line that cannot work.
+  const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 1;
+  const long long max_pairs = a.has("frames") ? parse_integer("frames", a.get("frames"), 1, 1LL << 40) : 0;
+  const int images_every = a.has("images") ? static_cast<int>(parse_integer("images", a.get("images"), 1, 1000000)) : 0;
+  if (images_every && !a.has("out")) usage_error("--images needs --out (where the images go)");
+  if (a.has("no-plot") && !a.has("out")) usage_error("--no-plot needs --out (the plot is written there)");
+  if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
+  if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
+  if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
+  if (a.has("full-frame") && a.has("context")) usage_error("--full-frame and --context exclude each other");
+  eval::EvaluatorOptions eo;
+  if (a.has("matcher")) eo.matcher = unwrap(eval::load_matcher_params(a.get("matcher")));
+  eo.full_frame = a.has("full-frame");
+  if (a.has("context")) eo.context_px = static_cast<int>(parse_integer("context", a.get("context"), 0, 100000));
+
+  // The source: a simulated flight, a EuRoC folder or a recording.
+  std::string src = pos[0];
+  const bool is_sim = src.rfind("sim://", 0) == 0;
+  const bool is_euroc = !is_sim && (src.rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(src) / "mav0") ||
+                                    fs::path(src).filename() == "mav0");
+  std::string start;  // the start parameters of a recording or dataset
+  if (a.has("seek")) {
+    if (is_sim) usage_error("--seek: a simulated flight starts at its beginning (use the scenario's phases)");
+    if (parse_real("seek", a.get("seek")) < 0)
+      usage_error("--seek: expected seconds from the first frame (>= 0), got '" + a.get("seek") + "'");
+    start = "&seek_s=" + a.get("seek");
+  }
+  if (a.has("from-frame")) {
+    if (is_sim) usage_error("--from-frame: a simulated flight starts at its beginning");
+    start = "&from_frame=" + std::to_string(parse_integer("from-frame", a.get("from-frame"), 0, 1LL << 40));
+  }
+  if (a.has("pair-tolerance-ns") && !is_euroc) usage_error("--pair-tolerance-ns is for EuRoC folders");
+  std::string uri;
+  if (is_sim) {
+    // Every frame, as fast as the evaluation goes (lockstep: none dropped).
+    uri = src + (src.find('?') == std::string::npos ? "?" : "&") + (src.find("rate=") == std::string::npos ? "rate=0" : "");
+    if (uri.back() == '&' || uri.back() == '?') uri.pop_back();
+  } else if (is_euroc) {
+    if (!a.has("scene") && !a.has("poses"))
+      usage_error("a EuRoC folder has no poses of the receiver: give --scene SCENE.yaml or --poses POSES.csv");
+    const long long tol = a.has("pair-tolerance-ns") ? parse_integer("pair-tolerance-ns", a.get("pair-tolerance-ns"), 0, 1LL << 40) : 0;
+    uri = "euroc://" + (src.rfind("euroc://", 0) == 0 ? src.substr(8) : src) + "?tolerance_ns=" + std::to_string(tol) + start;
+  } else {
+    const std::string dir = src.rfind("replay://", 0) == 0 ? src.substr(9) : src;
+    if (!fs::exists(dir)) runtime_error(dir + ": no such recording, EuRoC folder or sim:// source");
+    uri = "replay://" + dir + "?rate=fast" + start;
+  }
+  OpenedSource opened = unwrap(open_sources(uri));
+  std::optional<Rig> source_rig;
+  std::uint64_t total_pairs = 0;
+  if (is_sim) {
+    source_rig = opened.sim->scenario.rig;
+    if (const auto* fs = dynamic_cast<const sim::FlightSource*>(opened.sources.front().get()))
+      total_pairs = fs->frame_count() / 2;
+  } else if (opened.replay) {
+    const recorder::RecordingReader& reader = opened.replay->reader();
+    for (const std::string& p : reader.problems()) err << "augrig evaluate: " << recording_problem(reader, p) << "\n";
+    if (opened.replay->frame_count() == 0) runtime_error(reader.path() + ": the recording holds no readable frames");
+    if (const std::string yaml = reader.meta("rig_yaml"); !yaml.empty())
+      source_rig = unwrap(parse_rig(yaml, reader.path() + " (meta rig_yaml)"));
+    if (!source_rig && !a.has("rig"))
+      runtime_error(reader.path() + ": the recording stores no rig (meta rig_yaml is empty); give one with --rig");
+    total_pairs = opened.replay->frame_count() - opened.replay->start_frame();
+  } else if (const auto* e = dynamic_cast<const recorder::EurocSource*>(opened.sources.front().get())) {
+    total_pairs = e->pair_count();
+  }
+  const Rig rig = a.has("rig") ? load_rig_arg(a.get("rig")) : source_rig ? *source_rig : Rig::paper_default();
+  if (rig.cameras.size() != 2)
+    runtime_error(rig.source + ": the rig needs 2 cameras, has " + std::to_string(rig.cameras.size()));
+  auto evaluator = unwrap(eval::StereoEvaluator::create(rig, eo));
+
+  PipelineParts parts;
+  parts.rig = rig;
+  parts.models = unwrap(load_rig_models(rig));
+  parts.source_info = opened;
+  if (a.has("scene")) {
+    parts.poses = fixed_scene_poses(
+        unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, parts.models.receptacle_m)), a.get("scene"));
+  } else if (a.has("poses")) {
+    parts.poses = unwrap(poses_csv(a.get("poses"), rig, parse_pose_tolerance(a)));
+  } else if (is_sim) {
+    parts.poses = sim_truth_poses(*opened.sim);
+  } else {
+    parts.poses = recorded_poses(source_rig);
+    parts.skip_frames_without_pose = true;  // a frame without its recorded scene is counted, not guessed
+  }
+  if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
+  const fs::path out_dir = a.get("out");
+  std::unique_ptr<eval::EvaluationCsvWriter> csv;
+  if (a.has("out")) {
+    make_dirs(out_dir);
+    parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
+    csv = unwrap(eval::EvaluationCsvWriter::create(out_dir / "evaluation.csv"));
+    if (images_every) make_dirs(out_dir / "disparity");
+  }
+
+  // Each evaluated pair: scored, its CSV row, its point on the plots, its images.
+  eval::RunEvaluation run;
+  std::vector<eval::EvaluationPoint> points;
+  std::uint64_t seen = 0;
+  TimestampNs t0_ns = 0;
+  parts.on_pair = [&](const StereoFrame& raw, const StereoResult& result, const SceneState&, const FramePoses&) -> Status {
+    if (seen++ == 0) t0_ns = result.stats.t_ns;
+    if ((seen - 1) % static_cast<std::uint64_t>(every) != 0) return {};
+    eval::EvaluationImages images;
+    const bool want_images = images_every && run.frames % static_cast<std::uint64_t>(images_every) == 0;
+    auto fe = evaluator->evaluate(raw, result, want_images ? &images : nullptr);
+    if (!fe) return make_error("pair ", raw.pair_sequence, ": ", fe.error().message);
+    const double t_s = ns_to_s(result.stats.t_ns - t0_ns);
+    if (csv)
+      if (Status s = csv->add(seen - 1, t_s, result.stats, *fe); !s) return s;
+    points.push_back(eval::evaluation_point(t_s, result.stats, *fe));
+    if (want_images) {
+      char stem[32];
+      std::snprintf(stem, sizeof stem, "%06llu", static_cast<unsigned long long>(seen - 1));
+      const fs::path d = out_dir / "disparity";
+      write_disparity_png(d / (std::string(stem) + "_true.png"), images.true_disparity);
+      write_disparity_png(d / (std::string(stem) + "_raw.png"), images.raw_disparity);
+      write_disparity_png(d / (std::string(stem) + "_augmented.png"), images.aug_disparity);
+      write_disparity_view(d / (std::string(stem) + "_view.png"), images, fe->matched);
+    }
+    run.add(*fe);
+    return {};
+  };
+  parts.source = unwrap(start_stereo(std::move(opened)));
+  parts.stop_flag = install_stop_signals();
+  parts.max_pairs = static_cast<std::uint64_t>(max_pairs);
+  parts.progress_total = max_pairs ? std::min<std::uint64_t>(total_pairs, max_pairs) : total_pairs;
+  parts.on_problem = [&err](const Error& e) { err << "augrig evaluate: " << user_message(e) << "\n"; };
+  const eval::MatcherParams& m = eo.matcher;
+  out << "evaluate: " << uri << "; rig " << rig.source << "; poses from " << parts.poses->describe() << "; "
+      << (m.algorithm == "bm" ? "StereoBM" : "StereoSGBM " + m.mode) << ", disparities " << m.min_disparity << ".."
+      << m.min_disparity + m.num_disparities - 1 << ", block " << m.block_size << "; "
+      << (every == 1 ? std::string("every frame") : "every " + std::to_string(every) + "th frame") << "\n";
+  const auto wall0 = Clock::now();
+  Pipeline pipeline(std::move(parts));
+  const PipelineReport r = run_pipeline(pipeline, false, a.has("out") ? out_dir.string() : ".", out, err);
+  const double wall_s = ms_since(wall0) / 1000.0;
+
+  const std::string table = eval::format_evaluation_table(run, "Stereo evaluation: " + src, m);
+  out << "\n" << table;
+  const double per = run.frames ? 1.0 / static_cast<double>(run.frames) : 0.0;
+  out << "\nEvaluated " << run.frames << " of " << r.pairs << " augmented stereo frame(s) in " << fmt_ms(wall_s)
+      << " s (" << fmt_ms(run.frames / std::max(wall_s, 1e-9)) << " evaluated frames/s; per frame: prepare "
+      << fmt_ms(run.prepare_ms * per) << " ms, match " << fmt_ms(run.match_ms * per) << " ms, truth and scores "
+      << fmt_ms(run.score_ms * per) << " ms)\n";
+  if (r.skipped_no_pose) out << r.skipped_no_pose << " frame(s) had no recorded scene and were not evaluated\n";
+  if (a.has("out")) {
+    std::ofstream t(out_dir / "evaluation.txt", std::ios::binary);
+    t << table;
+    if (!t) runtime_error((out_dir / "evaluation.txt").string() + ": cannot write the table");
+    out << "Wrote " << (out_dir / "evaluation.txt").string() << ", evaluation.csv and stats.csv";
+    if (!a.has("no-plot") && !points.empty()) {
+      check(eval::plot_evaluation(points, (out_dir / "evaluation.png").string(), "Stereo evaluation: " + src));
+      out << ", evaluation.png";
+    }
+    if (images_every) out << " and the disparity images of 1 in " << images_every << " evaluated frames";
+    out << "\n";
+  }
+  if (r.failed_pairs) runtime_error(std::to_string(r.failed_pairs) + " stereo frame(s) could not be augmented (above)");
+  if (pipeline.parts().source_info.replay && pipeline.parts().source_info.replay->damaged_frames())
+    runtime_error(std::to_string(pipeline.parts().source_info.replay->damaged_frames()) +
+                  " frame(s) could not be read (above); the others were evaluated");
+  if (r.stopped_by_signal) return kExitRuntime;
+  return kExitOk;
+}
+
+}  // namespace
+
+int cmd_evaluate(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  return guarded("evaluate", err, [&] { return evaluate_command(args, out, err); });
+}
+
+}  // namespace augrig::app

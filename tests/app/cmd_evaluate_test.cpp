@@ -1,0 +1,159 @@
+// augrig evaluate through the real binary on simulated flights, where the answer is known: the raw
+// pair matches near the true disparity on the textured receiver, the boom's errors fall in the
+// classes it occludes, a recording of a flight evaluates exactly as the flight itself, and bad
+// inputs and flags fail with their messages.
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "recorder/plot.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace augrig {
+namespace {
+
+namespace fs = std::filesystem;
+
+int augrig(const std::string& args, std::string* output = nullptr) {
+  return test::run_augrig(args, output);
+}
+
+// evaluation.csv as rows of column name -> cell (empty cells kept as "").
+struct Csv {
+  std::vector<std::string> header;
+  std::vector<std::map<std::string, std::string>> rows;
+  double num(std::size_t r, const std::string& col) const {
+    const std::string& v = rows.at(r).at(col);
+    return v.empty() ? std::nan("") : std::stod(v);
+  }
+};
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> out;
+  std::stringstream ss(line);
+  std::string cell;
+  while (std::getline(ss, cell, ',')) out.push_back(cell);
+  if (!line.empty() && line.back() == ',') out.emplace_back();
+  return out;
+}
+Csv read_csv(const std::string& path) {
+  Csv c;
+  std::ifstream f(path);
+  std::string line;
+  EXPECT_TRUE(std::getline(f, line)) << path;
+  c.header = split(line);
+  while (std::getline(f, line)) {
+    const auto cells = split(line);
+    EXPECT_EQ(cells.size(), c.header.size()) << path << ": " << line.substr(0, 80);
+    std::map<std::string, std::string> row;
+    for (std::size_t i = 0; i < cells.size() && i < c.header.size(); ++i) row[c.header[i]] = cells[i];
+    c.rows.push_back(std::move(row));
+  }
+  return c;
+}
+
+TEST(Evaluate, SimulatedFlightRawMatchesAndTheBoomSpoilsWhatItOccludes) {
+  const std::string dir = test::output_dir("evaluate_sim");
+  std::string out;
+  // Every 90th frame of the demo flight: observation to contact.
+  ASSERT_EQ(augrig("evaluate 'sim://demo?every=90' --out " + dir + " --images 4", &out), 0) << out;
+  const Csv csv = read_csv(dir + "/evaluation.csv");
+  ASSERT_GE(csv.rows.size(), 8u) << out;
+  EXPECT_NE(out.find("Evaluated " + std::to_string(csv.rows.size()) + " of " + std::to_string(csv.rows.size()) +
+                     " augmented stereo frame(s)"),
+            std::string::npos)
+      << out;
+  int occluded_frames = 0;
+  for (std::size_t r = 0; r < csv.rows.size(); ++r) {
+    SCOPED_TRACE("frame " + csv.rows[r].at("frame"));
+    ASSERT_GT(csv.num(r, "receiver_px"), 1000);
+    EXPECT_EQ(csv.num(r, "out_of_range_px"), 0);
+    // The raw pair, where both cameras see the receiver: the true disparity, nearly everywhere.
+    EXPECT_GT(csv.num(r, "raw_all_both_valid_pct"), 95);
+    EXPECT_LT(std::abs(csv.num(r, "raw_all_both_mean_px")), 0.3);
+    EXPECT_LT(csv.num(r, "raw_all_both_bad3_pct"), 2.5);
+    // The augmented pair where the boom is in front of the receiver in the left image.
+    if (csv.num(r, "aug_all_right_only_pixels") > 200) {
+      ++occluded_frames;
+      EXPECT_GT(csv.num(r, "aug_all_right_only_bad3_pct"), 50);
+      EXPECT_GT(csv.num(r, "aug_all_receiver_bad3_pct"), csv.num(r, "raw_all_receiver_bad3_pct") + 3);
+      EXPECT_LT(csv.num(r, "aug_noboom_receiver_bad3_pct"), csv.num(r, "aug_all_receiver_bad3_pct"));
+    }
+    // Every pixel the boom hides from the left camera carries the boom's mask bit.
+    EXPECT_EQ(csv.num(r, "aug_noboom_right_only_pixels"), 0);
+    EXPECT_EQ(csv.num(r, "aug_noboom_neither_pixels"), 0);
+    // The classes add up to the receiver.
+    EXPECT_EQ(csv.num(r, "raw_all_receiver_pixels"),
+              csv.num(r, "raw_all_both_pixels") + csv.num(r, "raw_all_left_only_pixels") +
+                  csv.num(r, "raw_all_right_only_pixels") + csv.num(r, "raw_all_neither_pixels"));
+  }
+  EXPECT_GE(occluded_frames, 3);
+  // The table, printed and written.
+  EXPECT_NE(out.find("Stereo: right only"), std::string::npos) << out;
+  std::ifstream t(dir + "/evaluation.txt");
+  std::stringstream table;
+  table << t.rdbuf();
+  EXPECT_NE(table.str().find("The boom's pixels left out"), std::string::npos);
+  EXPECT_TRUE(fs::exists(dir + "/stats.csv"));
+  EXPECT_TRUE(fs::exists(dir + "/disparity/000000_true.png"));
+  EXPECT_TRUE(fs::exists(dir + "/disparity/000004_view.png"));
+  if (!recorder::find_gnuplot().empty()) {
+    EXPECT_GT(fs::file_size(dir + "/evaluation.png"), 10000u);
+  }
+}
+
+TEST(Evaluate, ARecordingEvaluatesAsTheFlightItRecorded) {
+  const std::string dir = test::output_dir("evaluate_recording");
+  std::string out;
+  ASSERT_EQ(augrig("run --source 'sim://demo?every=120&rate=0' --frames 5 --headless --status-every 0 --record " + dir +
+                       "/rec",
+                   &out),
+            0)
+      << out;
+  ASSERT_EQ(augrig("evaluate " + dir + "/rec --out " + dir + "/from_rec --no-plot", &out), 0) << out;
+  ASSERT_EQ(augrig("evaluate 'sim://demo?every=120' --frames 5 --out " + dir + "/from_sim --no-plot", &out), 0) << out;
+  const Csv a = read_csv(dir + "/from_rec/evaluation.csv"), b = read_csv(dir + "/from_sim/evaluation.csv");
+  ASSERT_EQ(a.rows.size(), 5u);
+  ASSERT_EQ(b.rows.size(), 5u);
+  // The recorded raw frames and poses are the flight's: every score the same.
+  for (std::size_t r = 0; r < a.rows.size(); ++r)
+    for (const std::string& col : a.header)
+      if (col != "t_s") {
+        EXPECT_EQ(a.rows[r].at(col), b.rows[r].at(col)) << "row " << r << " " << col;
+      }
+  EXPECT_FALSE(fs::exists(dir + "/from_rec/evaluation.png"));
+}
+
+TEST(Evaluate, BadInputsAndFlags) {
+  const std::string dir = test::output_dir("evaluate_bad");
+  std::string out;
+  {
+    std::ofstream m(dir + "/m.yaml");
+    m << "algorithm: sgbm\nnum_disparities: 100\n";
+  }
+  EXPECT_EQ(augrig("evaluate 'sim://demo?every=300' --matcher " + dir + "/m.yaml", &out), 1) << out;
+  EXPECT_NE(out.find("m.yaml:2:"), std::string::npos) << out;
+  EXPECT_NE(out.find("num_disparities"), std::string::npos) << out;
+  EXPECT_EQ(augrig("evaluate 'sim://demo' --images 3", &out), 2) << out;
+  EXPECT_NE(out.find("--images needs --out"), std::string::npos) << out;
+  EXPECT_EQ(augrig("evaluate " + dir + "/nothing_here", &out), 1) << out;
+  EXPECT_NE(out.find("nothing_here: no such recording"), std::string::npos) << out;
+  fs::create_directories(dir + "/euroc/mav0");
+  EXPECT_EQ(augrig("evaluate " + dir + "/euroc", &out), 2) << out;
+  EXPECT_NE(out.find("--scene SCENE.yaml or --poses"), std::string::npos) << out;
+  EXPECT_EQ(augrig("evaluate 'sim://demo' --seek 3", &out), 2) << out;
+  EXPECT_EQ(augrig("evaluate 'sim://no-such-scenario'", &out), 1) << out;
+  // A search range the receiver's disparity does not fit in: said plainly.
+  {
+    std::ofstream m(dir + "/narrow.yaml");
+    m << "num_disparities: 16\n";
+  }
+  ASSERT_EQ(augrig("evaluate 'sim://demo?every=800' --matcher " + dir + "/narrow.yaml", &out), 0) << out;
+  EXPECT_NE(out.find("WARNING"), std::string::npos) << out;
+  EXPECT_NE(out.find("outside the search range 0..15"), std::string::npos) << out;
+}
+
+}  // namespace
+}  // namespace augrig
