@@ -75,6 +75,7 @@ Expected<std::unique_ptr<StereoEvaluator>> StereoEvaluator::create(const Rig& ri
   if (!rect) return make_error(rig.source, ": ", rect.error().message);
   std::unique_ptr<StereoEvaluator> e(new StereoEvaluator());
   e->rect_ = std::move(*rect);
+  e->left_model_ = rig.left().model;
   e->options_ = options;
   return e;
 }
@@ -95,14 +96,17 @@ Expected<FrameEvaluation> StereoEvaluator::evaluate(const StereoFrame& raw, cons
   // 1. The truth, and the region worth matching: the receiver's rectified box, widened by the
   //    search range (to its left: where its right-image matches lie), the block and the context.
   auto t0 = Clock::now();
-  const cv::Mat truth = true_disparity(rect_, result.left.receiver_depth);
+  // Only where the receiver may be: the left view's receiver box carried into the rectified image.
+  const cv::Rect near = rectified_box(rect_, left_model_, result.left.receiver_box);
+  const cv::Mat truth = near.empty() ? cv::Mat(h, w, CV_32FC1, cv::Scalar(std::numeric_limits<float>::quiet_NaN()))
+                                     : true_disparity(rect_, result.left.receiver_depth, near);
   const MatcherParams& mp = options_.matcher;
   const float d_lo = static_cast<float>(mp.min_disparity),
               d_hi = static_cast<float>(mp.min_disparity + mp.num_disparities - 1);
   int bx0 = w, by0 = h, bx1 = 0, by1 = 0;
-  for (int y = 0; y < h; ++y) {
+  for (int y = near.y; y < near.y + near.height; ++y) {
     const float* t = truth.ptr<float>(y);
-    for (int x = 0; x < w; ++x)
+    for (int x = near.x; x < near.x + near.width; ++x)
       if (std::isfinite(t[x])) {
         bx0 = std::min(bx0, x), bx1 = std::max(bx1, x + 1);
         by0 = std::min(by0, y), by1 = std::max(by1, y + 1);
@@ -146,11 +150,12 @@ Expected<FrameEvaluation> StereoEvaluator::evaluate(const StereoFrame& raw, cons
                 cv::BORDER_CONSTANT);
   fe.prepare_ms = ms_since(t0);
 
-  // 3. Both pairs matched, the raw one on a second thread.
+  // 3. Both pairs matched; the raw one on a second thread when the matcher itself uses one.
   t0 = Clock::now();
   Expected<cv::Mat> disp_raw = make_error("not matched");
   std::future<Expected<cv::Mat>> raw_job;
-  if (options_.parallel)
+  const bool single_threaded = mp.algorithm == "sgbm" && (mp.mode == "sgbm" || mp.mode == "hh");
+  if (options_.parallel && single_threaded)
     raw_job = std::async(std::launch::async, [&] { return match_disparity(mp, rect[0][0], rect[0][1]); });
   else
     disp_raw = match_disparity(mp, rect[0][0], rect[0][1]);

@@ -38,7 +38,10 @@ struct EvaluatorOptions {
   // far out (128 px: the same scores as whole frames on the simulated flights, tests/eval).
   int context_px = 128;
   bool full_frame = false;  // match whole rectified frames (slower; no crop)
-  bool parallel = true;     // match the raw and the augmented pair on two threads
+  // Match the raw and the augmented pair on two threads when the matcher itself runs on one
+  // (SGBM modes sgbm and hh); 3-way SGBM and BM are already parallel inside OpenCV, and two of
+  // them at once are slower on 2 cores (bench_evaluate).
+  bool parallel = true;
 };
 
 // One pair's evaluation.
@@ -76,6 +79,7 @@ class StereoEvaluator {
  private:
   StereoEvaluator() = default;
   Rectification rect_;
+  CameraModel left_model_;
   EvaluatorOptions options_;
 };
 

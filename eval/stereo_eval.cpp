@@ -81,7 +81,33 @@ void rectify_images(const Rectification& r, const cv::Mat& left, const cv::Mat& 
   cv::remap(right, right_rect, r.map_x[1], r.map_y[1], cv::INTER_LINEAR, cv::BORDER_CONSTANT);
 }
 
-cv::Mat true_disparity(const Rectification& r, const DepthImage& depth_left) {
+cv::Rect rectified_box(const Rectification& r, const CameraModel& left, const PixelBox& raw_box) {
+  if (raw_box.empty()) return {};
+  const cv::Rect whole(0, 0, r.width, r.height);
+  double u0 = 1e300, v0 = 1e300, u1 = -1e300, v1 = -1e300;
+  // The border one pixel outside the box (pixel centres), every pixel along it: the lens and the
+  // rotation map the box's inside to the inside of its border's image.
+  const int x0 = raw_box.x0 - 1, y0 = raw_box.y0 - 1, x1 = raw_box.x1, y1 = raw_box.y1;
+  auto visit = [&](int x, int y) {
+    const auto ray = left.ray(Eigen::Vector2d(x, y));
+    if (!ray) return false;
+    const Eigen::Vector3d p = r.R_rect_raw[0] * *ray;
+    if (!(p.z() > 1e-9)) return false;
+    const double u = r.f_px * p.x() / p.z() + r.cx_px, v = r.f_px * p.y() / p.z() + r.cy_px;
+    u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
+    return true;
+  };
+  for (int x = x0; x <= x1; ++x)
+    if (!visit(x, y0) || !visit(x, y1)) return whole;
+  for (int y = y0; y <= y1; ++y)
+    if (!visit(x0, y) || !visit(x1, y)) return whole;
+  const int a = std::max(0, static_cast<int>(std::floor(u0)) - 2), b = std::max(0, static_cast<int>(std::floor(v0)) - 2);
+  const int c = std::min(r.width, static_cast<int>(std::ceil(u1)) + 3), d = std::min(r.height, static_cast<int>(std::ceil(v1)) + 3);
+  if (c <= a || d <= b) return {};
+  return cv::Rect(a, b, c - a, d - b);
+}
+
+cv::Mat true_disparity(const Rectification& r, const DepthImage& depth_left, const cv::Rect& roi_in) {
   cv::Mat d(r.height, r.width, CV_32FC1, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
   const int w = depth_left.width, h = depth_left.height;
   if (w <= 0 || h <= 0) return d;
@@ -89,11 +115,12 @@ cv::Mat true_disparity(const Rectification& r, const DepthImage& depth_left) {
   auto z_at = [&](int x, int y) {
     return static_cast<double>(depth_left.z_m[static_cast<std::size_t>(y) * w + x]);
   };
-  for (int v = 0; v < r.height; ++v) {
+  const cv::Rect roi = roi_in.empty() ? cv::Rect(0, 0, r.width, r.height) : roi_in & cv::Rect(0, 0, r.width, r.height);
+  for (int v = roi.y; v < roi.y + roi.height; ++v) {
     const float* mx = r.map_x[0].ptr<float>(v);
     const float* my = r.map_y[0].ptr<float>(v);
     float* out = d.ptr<float>(v);
-    for (int u = 0; u < r.width; ++u) {
+    for (int u = roi.x; u < roi.x + roi.width; ++u) {
       const double x = mx[u], y = my[u];
       const int xn = static_cast<int>(std::lround(x)), yn = static_cast<int>(std::lround(y));
       if (xn < 0 || yn < 0 || xn >= w || yn >= h) continue;

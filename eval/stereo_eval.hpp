@@ -46,7 +46,13 @@ void rectify_images(const Rectification& r, const cv::Mat& left, const cv::Mat& 
 // around the raw pixel the rectified one comes from: bilinear where the four raw neighbours all
 // have the receiver, else the nearest raw pixel's (at the receiver's silhouette), nothing when
 // the nearest has none.
-cv::Mat true_disparity(const Rectification& r, const DepthImage& depth_left);
+// `roi` (when not empty): only its rectified pixels are computed, the others are NaN.
+cv::Mat true_disparity(const Rectification& r, const DepthImage& depth_left, const cv::Rect& roi = {});
+
+// The rectified left pixels whose raw pixels may lie in `raw_box` of the left camera `left`: the
+// box's border carried through the lens and the rectification, 2 px wider, clipped to the image
+// (the whole image when a border pixel has no ray). Empty for an empty box.
+cv::Rect rectified_box(const Rectification& r, const CameraModel& left, const PixelBox& raw_box);
 
 // A per-pixel image of the raw left camera (CV_8UC1: masks, stereo classes) carried to the
 // rectified left image by its nearest raw pixel; `outside` where that lies outside the image.

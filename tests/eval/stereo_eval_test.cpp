@@ -173,3 +173,36 @@ TEST(StereoEval, ScoresCountByClassAndLeaveTheBoomOut) {
 
 }  // namespace
 }  // namespace augrig::eval
+
+namespace augrig::eval {
+namespace {
+
+// Every rectified pixel whose raw pixel lies in the box is inside rectified_box(), through a
+// strongly distorting lens; and the box is not much larger than those pixels' extent.
+TEST(StereoEval, RectifiedBoxHoldsEveryRectifiedPixelOfTheRawBox) {
+  const Rig2 rig;
+  auto r = rectify_rig(rig.left, rig.right, rig.T_right_left);
+  ASSERT_TRUE(r) << r.error().message;
+  for (const PixelBox& box : {PixelBox{40, 30, 120, 90}, PixelBox{0, 0, 60, 50}, PixelBox{250, 180, 320, 240},
+                              PixelBox{150, 100, 151, 101}}) {
+    const cv::Rect rect = rectified_box(*r, rig.left, box);
+    int x0 = r->width, y0 = r->height, x1 = 0, y1 = 0, inside = 0;
+    for (int v = 0; v < r->height; ++v)
+      for (int u = 0; u < r->width; ++u) {
+        const int x = static_cast<int>(std::lround(r->map_x[0].at<float>(v, u)));
+        const int y = static_cast<int>(std::lround(r->map_y[0].at<float>(v, u)));
+        if (x < box.x0 || x >= box.x1 || y < box.y0 || y >= box.y1) continue;
+        ++inside;
+        EXPECT_TRUE(rect.contains(cv::Point(u, v))) << "(" << u << ", " << v << ") box " << box.x0 << "," << box.y0;
+        x0 = std::min(x0, u), y0 = std::min(y0, v), x1 = std::max(x1, u + 1), y1 = std::max(y1, v + 1);
+      }
+    if (inside) {
+      EXPECT_LE(rect.width, x1 - x0 + 8);
+      EXPECT_LE(rect.height, y1 - y0 + 8);
+    }
+  }
+  EXPECT_TRUE(rectified_box(*r, rig.left, PixelBox{}).empty());
+}
+
+}  // namespace
+}  // namespace augrig::eval
