@@ -13,6 +13,7 @@
 #include "app/cli.hpp"
 #include "eval/evaluator.hpp"
 #include "eval/report.hpp"
+#include "pipeline/image_folder_source.hpp"
 #include "pipeline/scene_file.hpp"
 #include "recorder/euroc.hpp"
 #include "recorder/reader.hpp"
@@ -34,7 +35,7 @@ const std::vector<OptionSpec>& evaluate_specs() {
        "with --out: the true, raw and augmented disparity of every K-th evaluated frame (16-bit PNG, "
        "disparity x 256, 0 none; and a colour view)"},
       {"rig", ArgKind::kValue, "RIG.yaml|default",
-       "the rig (default: the recording's, the scenario's, or the paper's for a EuRoC folder)"},
+       "the rig (default: the recording's, the scenario's, or the paper's for a frame index or EuRoC folder)"},
       {"scene", ArgKind::kValue, "SCENE.yaml", "one fixed scene for every frame (default: the source's poses)"},
       {"poses", ArgKind::kValue, "POSES.csv",
        "the receiver's pose per frame from `augrig nav`'s camera pose CSV (matched by the left frame's time)"},
@@ -103,8 +104,9 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   if (a.help) {
     out << format_help(
         "augrig evaluate SOURCE [--matcher MATCHER.yaml] [--out DIR] [--every K] [--frames N] [--images K]",
-        "SOURCE: a recording (DIR or replay://DIR), a simulated flight (sim://SCENARIO, e.g. sim://demo), or a\n"
-        "EuRoC/ASL folder (with --scene or --poses). Each stereo frame is augmented as `replay`/`run` would\n"
+        "SOURCE: a recording (DIR or replay://DIR), a simulated flight (sim://SCENARIO, e.g. sim://demo), a\n"
+        "sequence (a frame index INDEX.csv as `augrig sim` writes it), or a EuRoC/ASL folder (the last two with\n"
+        "--poses or --scene). Each stereo frame is augmented as `replay`/`run` would\n"
         "(recorded, simulated or given poses); every K-th is evaluated: the raw and the augmented pair are\n"
         "rectified, matched (OpenCV StereoSGBM or StereoBM) and compared with the true disparity over the\n"
         "receiver, per stereo class (both, left only, right only, neither), with the boom's pixels kept and left\n"
@@ -131,9 +133,15 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   // The source: a simulated flight, a EuRoC folder or a recording.
   std::string src = pos[0];
   const bool is_sim = src.rfind("sim://", 0) == 0;
-  const bool is_euroc = !is_sim && (src.rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(src) / "mav0") ||
-                                    fs::path(src).filename() == "mav0");
+  // A sequence: a frame index (sequence,camera,t_ns,file) as `augrig sim` writes and `augment
+  // --frames` reads, its frames paired by timestamp.
+  const bool is_index = !is_sim && (src.rfind("files://", 0) == 0 || fs::path(src).extension() == ".csv");
+  const bool is_euroc = !is_sim && !is_index &&
+                        (src.rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(src) / "mav0") ||
+                         fs::path(src).filename() == "mav0");
   std::string start;  // the start parameters of a recording or dataset
+  if ((a.has("seek") || a.has("from-frame")) && is_index)
+    usage_error("--seek and --from-frame: a frame index is evaluated whole (write a shorter index)");
   if (a.has("seek")) {
     if (is_sim) usage_error("--seek: a simulated flight starts at its beginning (use the scenario's phases)");
     if (parse_real("seek", a.get("seek")) < 0)
@@ -150,6 +158,13 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     // Every frame, as fast as the evaluation goes (lockstep: none dropped).
     uri = src + (src.find('?') == std::string::npos ? "?" : "&") + (src.find("rate=") == std::string::npos ? "rate=0" : "");
     if (uri.back() == '&' || uri.back() == '?') uri.pop_back();
+  } else if (is_index) {
+    if (!a.has("scene") && !a.has("poses"))
+      usage_error("a frame index has no poses of the receiver: give --poses POSES.csv (e.g. augrig nav's, or a "
+                  "simulated dataset's truth/poses.csv) or --scene SCENE.yaml");
+    const std::string path = src.rfind("files://", 0) == 0 ? src.substr(8) : src;
+    if (!fs::is_regular_file(path)) runtime_error(path + ": no such frame index");
+    uri = "files://" + fs::absolute(path).string();
   } else if (is_euroc) {
     if (!a.has("scene") && !a.has("poses"))
       usage_error("a EuRoC folder has no poses of the receiver: give --scene SCENE.yaml or --poses POSES.csv");
@@ -178,6 +193,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     total_pairs = opened.replay->frame_count() - opened.replay->start_frame();
   } else if (const auto* e = dynamic_cast<const recorder::EurocSource*>(opened.sources.front().get())) {
     total_pairs = e->pair_count();
+  } else if (const auto* f = dynamic_cast<const ImageFolderSource*>(opened.sources.front().get())) {
+    total_pairs = f->expected_pairs(opened.options.pairing.tolerance_ns);
   }
   const Rig rig = a.has("rig") ? load_rig_arg(a.get("rig")) : source_rig ? *source_rig : Rig::paper_default();
   if (rig.cameras.size() != 2)
@@ -197,8 +214,9 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     parts.poses = sim_truth_poses(*opened.sim);
   } else {
     parts.poses = recorded_poses(source_rig);
-    parts.skip_frames_without_pose = true;  // a frame without its recorded scene is counted, not guessed
   }
+  // A frame without a pose (not in the poses CSV, no recorded scene) is counted, not guessed.
+  parts.skip_frames_without_pose = !is_sim && !a.has("scene");
   if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
   const fs::path out_dir = a.get("out");
   std::unique_ptr<eval::EvaluationCsvWriter> csv;

@@ -126,6 +126,37 @@ TEST(Evaluate, ARecordingEvaluatesAsTheFlightItRecorded) {
   EXPECT_FALSE(fs::exists(dir + "/from_rec/evaluation.png"));
 }
 
+// A sequence (a frame index of PNG files, as `augrig sim` writes a flight) with its poses CSV: the
+// same frames and poses as the flight itself, so the same evaluation up to the poses' text
+// rounding (a pixel at a silhouette here and there).
+TEST(Evaluate, ASequenceWithItsPosesEvaluatesAsTheFlight) {
+  const std::string dir = test::output_dir("evaluate_sequence");
+  std::string out;
+  ASSERT_EQ(augrig("sim --scenario demo --every 400 --out " + dir + "/ds", &out), 0) << out;
+  ASSERT_EQ(augrig("evaluate " + dir + "/ds/frames/index.csv --poses " + dir + "/ds/truth/poses.csv --rig " + dir +
+                       "/ds/rig.yaml --boom fixed:30,0,3.5 --out " + dir + "/seq --no-plot",
+                   &out),
+            0)
+      << out;
+  // The flight's own boom tracks the receptacle; the poses CSV holds the scenario's: one boom for both.
+  ASSERT_EQ(augrig("evaluate 'sim://demo?every=400' --boom fixed:30,0,3.5 --out " + dir + "/sim --no-plot", &out), 0)
+      << out;
+  const Csv a = read_csv(dir + "/seq/evaluation.csv"), b = read_csv(dir + "/sim/evaluation.csv");
+  ASSERT_EQ(a.rows.size(), b.rows.size());
+  ASSERT_GE(a.rows.size(), 2u);
+  for (std::size_t r = 0; r < a.rows.size(); ++r) {
+    SCOPED_TRACE("row " + std::to_string(r));
+    EXPECT_NEAR(a.num(r, "receiver_px"), b.num(r, "receiver_px"), 0.002 * b.num(r, "receiver_px") + 2);
+    EXPECT_NEAR(a.num(r, "aug_all_right_only_pixels"), b.num(r, "aug_all_right_only_pixels"),
+                0.01 * b.num(r, "aug_all_right_only_pixels") + 5);
+    EXPECT_NEAR(a.num(r, "raw_all_receiver_bad3_pct"), b.num(r, "raw_all_receiver_bad3_pct"), 0.3);
+    EXPECT_NEAR(a.num(r, "aug_all_receiver_bad3_pct"), b.num(r, "aug_all_receiver_bad3_pct"), 0.5);
+  }
+  // Without poses a sequence cannot be augmented: said before anything is opened.
+  EXPECT_EQ(augrig("evaluate " + dir + "/ds/frames/index.csv", &out), 2) << out;
+  EXPECT_NE(out.find("--poses POSES.csv"), std::string::npos) << out;
+}
+
 TEST(Evaluate, BadInputsAndFlags) {
   const std::string dir = test::output_dir("evaluate_bad");
   std::string out;
