@@ -2,7 +2,9 @@
 // statistics and their plot, and per aircraft the nav logs `augrig nav` fuses again, all on one
 // clock (docs/REPLAY.md). The recording is opened (and so checked to be one) first;
 // recorder::export_euroc() keeps OUT/INCOMPLETE until it has finished cleanly. A rate line with the
-// ETA goes to stderr about once a second.
+// ETA goes to stderr about once a second. --format mcap writes one MCAP file of ROS 2 messages
+// instead (recorder/mcap_export.hpp, docs/MCAP.md).
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -12,6 +14,7 @@
 
 #include "app/cli.hpp"
 #include "recorder/euroc.hpp"
+#include "recorder/mcap_export.hpp"
 #include "recorder/reader.hpp"
 
 namespace augrig::app {
@@ -21,7 +24,9 @@ namespace {
 
 const std::vector<OptionSpec>& export_specs() {
   static const std::vector<OptionSpec> specs = {
-      {"format", ArgKind::kValue, "euroc", "output layout: euroc (EuRoC/ASL, docs/REPLAY.md)", true},
+      {"format", ArgKind::kValue, "euroc|mcap",
+       "output layout: euroc (EuRoC/ASL folder, docs/REPLAY.md) or mcap (one MCAP file of ROS 2 messages, docs/MCAP.md)",
+       true},
       {"rig", ArgKind::kValue, "RIG.yaml|default",
        "intrinsics and extrinsics for sensor.yaml (default: the recorded rig)"},
       {"imu-stream", ArgKind::kValue, "NAME",
@@ -40,22 +45,56 @@ const std::vector<OptionSpec>& export_specs() {
   return specs;
 }
 
+// --format mcap: the recording as one MCAP file (written as OUT.part, renamed when complete).
+int export_mcap_command(const ParsedArgs& a, const std::vector<std::string>& pos, std::ostream& out,
+                        std::ostream& err) {
+  for (const char* flag : {"imu-stream", "aircraft", "threads", "no-plot", "ground-truth"})
+    if (a.has(flag)) usage_error(std::string("--") + flag + ": only for --format euroc");
+  recorder::McapExportOptions o;
+  if (a.has("rig")) o.rig = load_rig_arg(a.get("rig"));
+  o.augmented = !a.has("no-augmented");
+  o.masks = !a.has("no-masks");
+  const auto reader = open_recording(pos[0]);
+  auto last = std::chrono::steady_clock::now();
+  o.progress = [&err, &last](std::size_t done, std::size_t total) {
+    const auto now = std::chrono::steady_clock::now();
+    if (done == total || now - last < std::chrono::seconds(1)) return;
+    last = now;
+    err << "export: " << done << "/" << total << " frames\n" << std::flush;
+  };
+  recorder::McapExportReport r;
+  check(recorder::export_mcap(*reader, pos[1], o, r));
+  out << "Exported " << r.frames_written << " of " << r.frames << " stereo frame(s) to " << pos[1] << ": "
+      << r.messages << " messages in " << r.chunks << " zstd chunk(s), " << r.bytes << " bytes\n";
+  for (const auto& [topic, n] : r.messages_by_topic) out << "  " << topic << ": " << n << "\n";
+  for (const std::string& n : r.notes) out << "note: " << n << "\n";
+  for (const std::string& p : r.problems) err << "augrig export: " << p << "\n";
+  if (!r.problems.empty())
+    runtime_error("the export is incomplete: " + std::to_string(r.problems.size()) + " problem(s) (above)");
+  return kExitOk;
+}
+
 int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   std::vector<std::string> pos;
   const ParsedArgs a = parse_with_positionals(args, export_specs(), {"DIR", "OUT"}, pos);
   if (a.help) {
     out << format_help(
-        "augrig export DIR --format euroc OUT [options]",
+        "augrig export DIR --format euroc OUT [options]\n       augrig export DIR --format mcap OUT.mcap [options]",
         "Writes a recording in the EuRoC/ASL layout: OUT/mav0/cam0, cam1 (raw), cam0_augmented,\n"
         "cam1_augmented, cam0_mask, cam1_mask (data.csv, data/<t_ns>.png, sensor.yaml) and imu0, plus\n"
         "OUT/poses.csv (recorded T_cam_receiver), OUT/stats.csv and OUT/stats.png (gnuplot); with nav\n"
         "inputs, OUT/nav/<aircraft>/ (gps.nmea, imu.csv, aircraft.yaml) and the frame index OUT/frames.csv\n"
         "for augrig nav. Every timestamp is on one clock: GPS time when the recording allows it.\n"
-        "With --ground-truth, the receiver depth, the true correspondence and the stereo classes too.",
+        "With --ground-truth, the receiver depth, the true correspondence and the stereo classes too.\n"
+        "--format mcap: one MCAP file for ros2 bag and Foxglove (ROS 2 messages in CDR, zstd chunks, indexed):\n"
+        "per camera image_raw, image_augmented, mask, camera_info, receiver_pose; /tf_static, /tf,\n"
+        "/augrig/frame, /augrig/occlusion_stats and the nav inputs (docs/MCAP.md). augrig replay OUT.mcap\n"
+        "plays it back.",
         export_specs());
     return kExitOk;
   }
-  if (a.get("format") != "euroc") usage_error("--format: expected euroc, got '" + a.get("format") + "'");
+  if (a.get("format") == "mcap") return export_mcap_command(a, pos, out, err);
+  if (a.get("format") != "euroc") usage_error("--format: expected euroc or mcap, got '" + a.get("format") + "'");
   recorder::EurocExportOptions o;
   if (a.has("rig")) o.rig = load_rig_arg(a.get("rig"));
   o.imu_stream = a.get("imu-stream");

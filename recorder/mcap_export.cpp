@@ -1,0 +1,470 @@
+// export_mcap() and McapSource (mcap_export.hpp): a recording's frames and nav inputs as ROS 2
+// messages through McapWriter, and back through McapReader.
+#include "recorder/mcap_export.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "nav/imu_stream.hpp"
+#include "nav/logs.hpp"
+#include "nav/nmea.hpp"
+#include "recorder/mcap_writer.hpp"
+#include "recorder/ros2_msgs.hpp"
+
+namespace augrig::recorder {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kBodyFrame = "tanker_body";
+constexpr const char* kReceiverFrame = "receiver_body";
+const char* const kCameraFrames[2] = {"left_camera", "right_camera"};
+const char* const kCameraNames[2] = {"left", "right"};
+
+// offered_qos_profiles as rosbag2 (Humble's integer enums) records them: reliable, volatile (or
+// transient_local for /tf_static, so that `ros2 bag play` latches it), keep-all history.
+std::string qos(bool transient_local) {
+  const char* inf = "    sec: 2147483647\n    nsec: 4294967295\n";
+  return std::string("- history: 3\n  depth: 0\n  reliability: 1\n  durability: ") + (transient_local ? "1" : "2") +
+         "\n  deadline:\n" + inf + "  lifespan:\n" + inf + "  liveliness: 1\n  liveliness_lease_duration:\n" + inf +
+         "  avoid_ros_namespace_conventions: false";
+}
+
+// Channels by topic, made at their first message; schemas by type, shared.
+class Channels {
+ public:
+  explicit Channels(McapWriter& w) : w_(w) {}
+  Status write(const std::string& topic, const std::string& type, std::int64_t log_time_ns,
+               const std::vector<std::uint8_t>& msg, McapExportReport& report) {
+    auto it = channels_.find(topic);
+    if (it == channels_.end()) {
+      auto s = schemas_.find(type);
+      if (s == schemas_.end()) s = schemas_.emplace(type, w_.add_schema(type, "ros2msg", ros2::schema_text(type))).first;
+      it = channels_.emplace(topic, w_.add_channel(s->second, topic, "cdr",
+                                                   {{"offered_qos_profiles", qos(topic == "/tf_static")}}))
+               .first;
+    }
+    ++report.messages_by_topic[topic];
+    return w_.write_message(it->second, static_cast<std::uint64_t>(log_time_ns), msg);
+  }
+
+ private:
+  McapWriter& w_;
+  std::map<std::string, std::uint16_t> schemas_, channels_;
+};
+
+std::array<double, 36> covariance(double sigma_pos_m, double sigma_att_deg) {
+  std::array<double, 36> c{};
+  // Unknown sigmas (NaN) stay 0: ROS has no "unknown" for a pose covariance; StereoFrameInfo keeps them.
+  const double p = std::isfinite(sigma_pos_m) ? sigma_pos_m * sigma_pos_m : 0.0;
+  const double a = std::isfinite(sigma_att_deg) ? std::pow(sigma_att_deg * M_PI / 180.0, 2) : 0.0;
+  for (int i = 0; i < 3; ++i) {
+    c[static_cast<std::size_t>(7 * i)] = p;
+    c[static_cast<std::size_t>(7 * (i + 3))] = a;
+  }
+  return c;
+}
+
+// "tanker.imu" -> "tanker_body"; "imu" -> "tanker_body" (a plain stream is the tanker's, as in the export to EuRoC).
+std::string aircraft_of(const std::string& stream) {
+  const auto dot = stream.find('.');
+  return dot == std::string::npos ? "tanker" : stream.substr(0, dot);
+}
+
+std::string nav_topic(const std::string& stream) {
+  std::string t = "/nav/" + stream;
+  for (char& c : t)
+    if (c == '.') c = '/';
+  return t;
+}
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+// The nav inputs: each IMU increment as mean rates at the middle of its interval, each GPS epoch
+// as a NavSatFix. Streams neither IMU nor GPS are left out (noted).
+Status export_nav(const RecordingReader& reader, Channels& ch, McapExportReport& report) {
+  auto all = reader.nav_inputs();
+  if (!all) {
+    report.problems.push_back("nav inputs: " + all.error().message);
+    return {};
+  }
+  std::map<std::string, std::vector<const NavInputRecord*>> streams;
+  for (const NavInputRecord& r : *all) streams[r.stream].push_back(&r);
+  for (const auto& [name, rows] : streams) {
+    const std::string topic = nav_topic(name);
+    const std::string aircraft = aircraft_of(name);
+    if (ends_with(name, "imu")) {
+      std::vector<nav::ImuSample> samples;
+      std::string text;
+      std::size_t undecodable = 0;
+      for (const NavInputRecord* r : rows) {
+        if (!r->binary) {
+          text += r->data + "\n";
+          continue;
+        }
+        auto d = nav::decode_imu_datagram(
+            std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(r->data.data()), r->data.size()));
+        if (!d) {
+          ++undecodable;
+          continue;
+        }
+        samples.insert(samples.end(), d->samples.begin(), d->samples.end());
+      }
+      if (!text.empty()) {
+        std::istringstream in(std::string(imu_input_header()) + "\n" + text);
+        auto log = nav::parse_imu_csv(in, name);
+        if (!log) {
+          report.problems.push_back("nav input stream '" + name + "': " + log.error().message);
+        } else {
+          samples.insert(samples.end(), log->samples.begin(), log->samples.end());
+        }
+      }
+      if (undecodable) report.problems.push_back("nav input stream '" + name + "': " + std::to_string(undecodable) +
+                                                 " IMU datagram(s) could not be decoded, left out");
+      std::stable_sort(samples.begin(), samples.end(),
+                       [](const nav::ImuSample& a, const nav::ImuSample& b) { return a.t_ns < b.t_ns; });
+      for (const nav::ImuSample& s : samples) {
+        if (!(s.dt_s > 0)) continue;
+        const std::int64_t t = s.t_ns - static_cast<std::int64_t>(std::llround(s.dt_s * 0.5e9));
+        if (!ros2::check_stamp(t)) continue;
+        if (Status st = ch.write(topic, "sensor_msgs/msg/Imu", t,
+                                 ros2::imu(t, aircraft + "_body", s.dtheta_rad / s.dt_s, s.dv_mps / s.dt_s), report);
+            !st)
+          return st;
+      }
+    } else if (ends_with(name, "gps")) {
+      std::string text;
+      for (const NavInputRecord* r : rows)
+        if (!r->binary) text += r->data + "\n";
+      std::istringstream in(text);
+      nav::NmeaOptions no;
+      auto log = nav::parse_nmea(in, name, no);
+      if (!log) {
+        report.problems.push_back("nav input stream '" + name + "': " + log.error().message);
+        continue;
+      }
+      for (const nav::GpsFix& f : log->fixes) {
+        if (!ros2::check_stamp(f.t_ns)) continue;
+        int status = -1;
+        switch (f.quality) {
+          case nav::FixQuality::kInvalid: status = -1; break;
+          case nav::FixQuality::kDgps: status = 1; break;
+          case nav::FixQuality::kRtkFixed:
+          case nav::FixQuality::kRtkFloat: status = 2; break;
+          default: status = 0; break;
+        }
+        // GST gives north, east, down; NavSatFix's covariance is east, north, up.
+        Eigen::Vector3d sigma_enu = Eigen::Vector3d::Zero();
+        if (f.sigma_ned_m) sigma_enu = Eigen::Vector3d((*f.sigma_ned_m)[1], (*f.sigma_ned_m)[0], (*f.sigma_ned_m)[2]);
+        if (Status st = ch.write(topic, "sensor_msgs/msg/NavSatFix", f.t_ns,
+                                 ros2::nav_sat_fix(f.t_ns, aircraft + "_gps", status, f.antenna.lat_rad * 180.0 / M_PI,
+                                                   f.antenna.lon_rad * 180.0 / M_PI, f.antenna.h_m, sigma_enu),
+                                 report);
+            !st)
+          return st;
+      }
+    } else {
+      report.notes.push_back("nav input stream '" + name + "' is neither IMU nor GPS: left out");
+    }
+  }
+  return {};
+}
+
+}  // namespace
+
+Status export_mcap(const RecordingReader& reader, const std::string& out_path, const McapExportOptions& options,
+                   McapExportReport& report) {
+  const std::string where = "recorder::export_mcap(): " + out_path + ": ";
+  std::optional<Rig> rig = options.rig;
+  if (!rig) {
+    if (const std::string yaml = reader.meta("rig_yaml"); !yaml.empty()) {
+      auto r = parse_rig(yaml, reader.path() + " (meta rig_yaml)");
+      if (!r) return r.error();
+      rig = *r;
+    } else {
+      report.notes.push_back("the recording stores no rig: no camera_info and no /tf_static (give --rig)");
+    }
+  }
+  if (rig && rig->cameras.size() < 2) return Error{where + "the rig has fewer than 2 cameras"};
+  for (const std::string& p : reader.problems()) report.problems.push_back(reader.path() + ": " + p);
+
+  const std::string part = out_path + ".part";
+  McapWriterOptions wo;
+  wo.chunk_size_bytes = options.chunk_size_bytes;
+  wo.zstd_level = options.zstd_level;
+  wo.library = "augrig " AUGRIG_VERSION;
+  auto writer = McapWriter::create(part, wo);
+  if (!writer) return writer.error();
+  McapWriter& w = **writer;
+  // The recording's meta table first: what a replay needs (the rig) before any frame.
+  if (Status s = w.write_metadata(kMcapRecordingMetadata, reader.meta()); !s) return s;
+  Channels ch(w);
+
+  unsigned parts = kPartRaw;
+  if (options.augmented) parts |= kPartAugmented;
+  if (options.masks) parts |= kPartMasks;
+  report.frames = reader.frame_count();
+  bool static_written = false;
+  for (std::size_t i = 0; i < report.frames; ++i) {
+    auto f = reader.read_frame(i, parts);
+    if (!f) {
+      report.problems.push_back(f.error().message + "; frame " + std::to_string(i) + " left out");
+      continue;
+    }
+    const StereoFrame& raw = f->raw;
+    for (std::int64_t t : {raw.t_key_ns, raw.left.t_ns, raw.right.t_ns})
+      if (Status s = ros2::check_stamp(t); !s)
+        return Error{where + reader.path() + ": frame " + std::to_string(i) + ": " + s.error().message};
+    if (rig && !static_written) {
+      std::vector<ros2::Transform> tf;
+      for (int c = 0; c < 2; ++c)
+        tf.push_back({raw.t_key_ns, kBodyFrame, kCameraFrames[c], rig->cameras[static_cast<std::size_t>(c)].T_body_cam});
+      if (Status s = ch.write("/tf_static", "tf2_msgs/msg/TFMessage", raw.t_key_ns, ros2::tf_message(tf), report); !s)
+        return s;
+      static_written = true;
+    }
+    ros2::StereoFrameInfo info;
+    info.index = i;
+    info.pair_sequence = raw.pair_sequence;
+    info.t_key_ns = raw.t_key_ns;
+    info.skew_ns = raw.skew_ns;
+    for (int c = 0; c < 2; ++c) {
+      const Frame& fr = c == 0 ? raw.left : raw.right;
+      ros2::CameraFrameInfo& ci = c == 0 ? info.left : info.right;
+      ci.sequence = fr.sequence;
+      ci.t_ns = fr.t_ns;
+      ci.clock = std::string(to_string(fr.clock));
+      ci.t_host_ns = fr.t_host_ns;
+      ci.exposure_ns = fr.exposure_ns;
+      ci.pixel_format = std::string(to_string(fr.image.format()));
+      ci.width = fr.image.width();
+      ci.height = fr.image.height();
+    }
+    info.receiver_present = f->receiver_present ? (*f->receiver_present ? 1 : 0) : -1;
+    info.boom = f->boom;
+    info.sigma_pos_m = f->sigma_pos_m;
+    info.sigma_att_deg = f->sigma_att_deg;
+    if (Status s = ch.write("/augrig/frame", "augrig_msgs/msg/StereoFrameInfo", raw.t_key_ns,
+                            ros2::stereo_frame_info(raw.t_key_ns, info), report);
+        !s)
+      return s;
+    for (int c = 0; c < 2; ++c) {
+      const Frame& fr = c == 0 ? raw.left : raw.right;
+      const std::string cam = std::string("/") + kCameraNames[c];
+      const char* frame_id = kCameraFrames[c];
+      if (Status s = ch.write(cam + "/image_raw", "sensor_msgs/msg/Image", fr.t_ns,
+                              ros2::image(fr.t_ns, frame_id, fr.image.cview()), report);
+          !s)
+        return s;
+      if (rig) {
+        if (Status s = ch.write(cam + "/camera_info", "sensor_msgs/msg/CameraInfo", fr.t_ns,
+                                ros2::camera_info(fr.t_ns, frame_id, rig->cameras[static_cast<std::size_t>(c)].model),
+                                report);
+            !s)
+          return s;
+      }
+      if (options.augmented && !f->augmented[c].empty()) {
+        if (Status s = ch.write(cam + "/image_augmented", "sensor_msgs/msg/Image", fr.t_ns,
+                                ros2::image(fr.t_ns, frame_id, f->augmented[c].cview()), report);
+            !s)
+          return s;
+      }
+      if (options.masks && !f->mask[c].empty()) {
+        if (Status s = ch.write(cam + "/mask", "sensor_msgs/msg/Image", fr.t_ns,
+                                ros2::image(fr.t_ns, frame_id, f->mask[c].cview()), report);
+            !s)
+          return s;
+      }
+      if (f->T_cam_receiver[c]) {
+        if (Status s = ch.write(cam + "/receiver_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", raw.t_key_ns,
+                                ros2::pose_with_covariance(raw.t_key_ns, frame_id, *f->T_cam_receiver[c],
+                                                           covariance(f->sigma_pos_m, f->sigma_att_deg)),
+                                report);
+            !s)
+          return s;
+      }
+    }
+    if (f->T_body_receiver) {
+      if (Status s = ch.write("/tf", "tf2_msgs/msg/TFMessage", raw.t_key_ns,
+                              ros2::tf_message({{raw.t_key_ns, kBodyFrame, kReceiverFrame, *f->T_body_receiver}}),
+                              report);
+          !s)
+        return s;
+    }
+    if (f->stats) {
+      if (Status s = ch.write("/augrig/occlusion_stats", "augrig_msgs/msg/OcclusionStats", raw.t_key_ns,
+                              ros2::occlusion_stats(raw.t_key_ns, *f->stats), report);
+          !s)
+        return s;
+    }
+    ++report.frames_written;
+    if (options.progress) options.progress(i + 1, report.frames);
+  }
+  if (options.nav)
+    if (Status s = export_nav(reader, ch, report); !s) return s;
+  if (Status s = w.close(); !s) return s;
+  report.messages = w.stats().messages;
+  report.chunks = w.stats().chunks;
+  report.bytes = w.stats().bytes_written;
+  std::error_code ec;
+  fs::rename(part, out_path, ec);
+  if (ec) return Error{where + "cannot rename " + part + " to it: " + ec.message()};
+  return {};
+}
+
+// ---- McapSource -----------------------------------------------------------------------------------
+
+bool is_mcap_path(const std::string& path) {
+  if (path.size() >= 5 && path.compare(path.size() - 5, 5, ".mcap") == 0) return true;
+  std::ifstream in(path, std::ios::binary);
+  char b[8] = {};
+  return in.read(b, 8) && std::memcmp(b, kMcapMagic, 8) == 0;
+}
+
+Expected<std::unique_ptr<McapSource>> McapSource::open(const std::string& uri_or_path) {
+  const std::string path = uri_or_path.rfind("replay://", 0) == 0 ? uri_or_path.substr(9) : uri_or_path;
+  auto r = McapReader::open(path);
+  if (!r) return r.error();
+  std::unique_ptr<McapSource> s(new McapSource());
+  s->reader_ = std::move(*r);
+  auto meta = s->reader_->metadata(kMcapRecordingMetadata);
+  if (!meta) return meta.error();
+  if (*meta) s->meta_ = **meta;
+  const std::uint16_t frames = s->reader_->channel_id("/augrig/frame");
+  if (frames == 0)
+    return Error{"recorder::McapSource::open(): " + path +
+                 ": no /augrig/frame channel: not an MCAP file written by augrig export (augrig_msgs/msg/StereoFrameInfo)"};
+  if (const auto& st = s->reader_->summary().statistics) {
+    const auto it = st->channel_message_counts.find(frames);
+    if (it != st->channel_message_counts.end()) s->frame_count_ = static_cast<std::size_t>(it->second);
+  }
+  return s;
+}
+
+Expected<bool> McapSource::next_frame(std::map<std::string, std::vector<std::uint8_t>>& messages) {
+  messages.clear();
+  McapMessage m;
+  if (!have_pending_) {
+    // The first /augrig/frame: everything before it (nothing, from our export) is skipped.
+    while (true) {
+      auto more = reader_->next(m);
+      if (!more) return more.error();
+      if (!*more) return false;
+      if (reader_->channels().at(m.channel_id).topic == "/augrig/frame") break;
+    }
+    pending_ = std::move(m);
+    have_pending_ = true;
+  }
+  messages["/augrig/frame"] = std::move(pending_.data);
+  have_pending_ = false;
+  while (true) {
+    auto more = reader_->next(m);
+    if (!more) return more.error();
+    if (!*more) break;
+    const std::string& topic = reader_->channels().at(m.channel_id).topic;
+    if (topic == "/augrig/frame") {
+      pending_ = std::move(m);
+      have_pending_ = true;
+      break;
+    }
+    if (topic.rfind("/nav/", 0) == 0) continue;  // the nav inputs follow the frames: not needed here
+    messages[topic] = std::move(m.data);
+  }
+  return true;
+}
+
+Expected<ReadStatus> McapSource::read(Frame& out, std::chrono::nanoseconds) {
+  if (right_pending_) {
+    right_pending_ = false;
+    out = std::move(right_);
+    right_ = Frame{};
+    return ReadStatus::kFrame;
+  }
+  if (ended_) return ReadStatus::kEndOfStream;
+  std::map<std::string, std::vector<std::uint8_t>> msgs;
+  auto more = next_frame(msgs);
+  if (!more) {
+    // Damage to the file itself: nothing after it can be trusted to be found.
+    ended_ = true;
+    return Error{"recorder::McapSource::read(): " + more.error().message + "; the replay stops here"};
+  }
+  if (!*more) {
+    ended_ = true;
+    return ReadStatus::kEndOfStream;
+  }
+  auto info = ros2::decode_stereo_frame_info(msgs["/augrig/frame"]);
+  const std::string where = "recorder::McapSource::read(): " + reader_->path() + ": ";
+  if (!info) {
+    ++damaged_;
+    return Error{where + "a stereo frame: " + info.error().message + "; skipped, the next read() goes on"};
+  }
+  auto fail = [&](const std::string& what) -> Error {
+    ++damaged_;
+    return Error{where + "frame " + std::to_string(info->index) + ": " + what + "; skipped, the next read() goes on"};
+  };
+  auto rf = std::make_shared<RecordedFrame>();
+  rf->index = static_cast<std::size_t>(info->index);
+  FrameRecord& rec = rf->record;
+  rec.raw.pair_sequence = info->pair_sequence;
+  rec.raw.t_key_ns = info->t_key_ns;
+  rec.raw.skew_ns = info->skew_ns;
+  for (int c = 0; c < 2; ++c) {
+    const std::string cam = std::string("/") + kCameraNames[c];
+    const ros2::CameraFrameInfo& ci = c == 0 ? info->left : info->right;
+    Frame& fr = c == 0 ? rec.raw.left : rec.raw.right;
+    const auto it = msgs.find(cam + "/image_raw");
+    if (it == msgs.end()) return fail("no " + cam + "/image_raw message");
+    auto im = ros2::decode_image(it->second);
+    if (!im) return fail(cam + "/image_raw: " + im.error().message);
+    // The recorded PFNC name wins over the ROS encoding (they agree for what we write).
+    PixelFormat pf;
+    if (!parse_pixel_format(ci.pixel_format, pf) || bytes_per_pixel(pf) != bytes_per_pixel(im->format()))
+      return fail(cam + ": pixel format '" + ci.pixel_format + "' does not match the image's encoding");
+    fr.image = Image::copy_of({im->data(), im->width(), im->height(), im->stride_bytes(), pf});
+    fr.t_ns = ci.t_ns;
+    if (!parse_clock_domain(ci.clock, fr.clock)) fr.clock = ClockDomain::kUnknown;
+    fr.t_host_ns = ci.t_host_ns;
+    fr.sequence = ci.sequence;
+    fr.exposure_ns = ci.exposure_ns;
+    fr.camera = c == 0 ? CameraId::kLeft : CameraId::kRight;
+    if (const auto p = msgs.find(cam + "/receiver_pose"); p != msgs.end()) {
+      auto pose = ros2::decode_pose_with_covariance(p->second);
+      if (!pose) return fail(cam + "/receiver_pose: " + pose.error().message);
+      rec.T_cam_receiver[c] = *pose;
+    }
+  }
+  if (const auto t = msgs.find("/tf"); t != msgs.end()) {
+    auto tf = ros2::decode_tf_message(t->second);
+    if (!tf) return fail("/tf: " + tf.error().message);
+    for (const ros2::Transform& x : *tf)
+      if (x.parent == kBodyFrame && x.child == kReceiverFrame) rec.T_body_receiver = x.T_parent_child;
+  }
+  if (const auto s = msgs.find("/augrig/occlusion_stats"); s != msgs.end()) {
+    auto st = ros2::decode_occlusion_stats(s->second);
+    if (!st) return fail("/augrig/occlusion_stats: " + st.error().message);
+    rec.stats = *st;
+  }
+  if (info->receiver_present >= 0) rec.receiver_present = info->receiver_present == 1;
+  rec.boom = info->boom;
+  rec.sigma_pos_m = info->sigma_pos_m;
+  rec.sigma_att_deg = info->sigma_att_deg;
+
+  // The Frames carry the record (whose raw images the Frames already hold: not kept twice).
+  Frame left = std::move(rec.raw.left), right = std::move(rec.raw.right);
+  rec.raw.left.t_ns = left.t_ns;
+  rec.raw.right.t_ns = right.t_ns;
+  left.attachment = rf;
+  right.attachment = rf;
+  out = std::move(left);
+  right_ = std::move(right);
+  right_pending_ = true;
+  return ReadStatus::kFrame;
+}
+
+}  // namespace augrig::recorder

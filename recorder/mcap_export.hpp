@@ -1,0 +1,104 @@
+// MCAP for ROS 2 and Foxglove (docs/MCAP.md): export_mcap() writes a recording as one MCAP file
+// of ROS 2 messages in CDR, and McapSource plays such a file back as a FrameSource
+// (replay://OUT.mcap, `augrig replay OUT.mcap`).
+//
+//   /augrig/frame                 augrig_msgs/msg/StereoFrameInfo    per stereo frame, first: pairing, boom, presence, sigma
+//   /left/image_raw               sensor_msgs/msg/Image              the raw image (bayer_rggb8, mono8, rgb8, ...)
+//   /left/camera_info             sensor_msgs/msg/CameraInfo         intrinsics, plumb_bob / equidistant
+//   /left/image_augmented         sensor_msgs/msg/Image              the augmented image (same encoding)
+//   /left/mask                    sensor_msgs/msg/Image              mono8: 1 boom, 2 receiver, 3 both
+//   /left/receiver_pose           geometry_msgs/msg/PoseWithCovarianceStamped   T_cam_receiver (frame left_camera)
+//   /right/...                    the same for the right camera
+//   /tf_static                    tf2_msgs/msg/TFMessage             tanker_body -> left_camera, right_camera (once)
+//   /tf                           tf2_msgs/msg/TFMessage             tanker_body -> receiver_body per frame
+//   /augrig/occlusion_stats       augrig_msgs/msg/OcclusionStats     the statistics per frame
+//   /nav/<stream>/imu, /fix       sensor_msgs/msg/Imu, NavSatFix     the recorded nav inputs, when there are any
+//
+// Every message's log_time and header stamp is its recorded timestamp as it is (the frames' clock;
+// the nav inputs their sensors' time of validity), so the round trip is exact.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/frame.hpp"
+#include "recorder/mcap_reader.hpp"
+#include "recorder/reader.hpp"
+#include "recorder/replay_source.hpp"
+#include "render/rig.hpp"
+
+namespace augrig::recorder {
+
+struct McapExportOptions {
+  std::optional<Rig> rig;  // default: the recording's (meta rig_yaml); without one, no camera_info nor /tf_static
+  bool augmented = true;   // /<camera>/image_augmented
+  bool masks = true;       // /<camera>/mask
+  bool nav = true;         // /nav/<stream>/imu and /fix from the recorded nav inputs
+  std::size_t chunk_size_bytes = 4u << 20;
+  int zstd_level = 3;
+  std::function<void(std::size_t done, std::size_t total)> progress;  // after each frame
+};
+
+struct McapExportReport {
+  std::size_t frames = 0, frames_written = 0;
+  std::uint64_t messages = 0, chunks = 0, bytes = 0;
+  std::map<std::string, std::uint64_t> messages_by_topic;
+  std::vector<std::string> notes;     // what was left out and why
+  std::vector<std::string> problems;  // damaged frames or nav inputs skipped
+};
+
+// Writes `out_path` (through out_path + ".part", renamed at the end: a failed export leaves no
+// file that looks finished). An Error when the export cannot go on; damaged frames are skipped
+// and listed in report.problems.
+Status export_mcap(const RecordingReader& reader, const std::string& out_path, const McapExportOptions& options,
+                   McapExportReport& report);
+
+// The Metadata record holding the recording's meta table (rig_yaml, scene, clock_domains, ...).
+inline constexpr const char* kMcapRecordingMetadata = "augrig_recording";
+
+// Plays an MCAP file written by export_mcap(): per stereo frame its left, then its right raw Frame,
+// as fast as read() is called, each carrying a RecordedFrame (replay_source.hpp) with the recorded
+// scene: poses (/<camera>/receiver_pose, /tf), boom, receiver presence, sigma and statistics. A
+// frame whose messages cannot be decoded is an Error naming the file and the frame, and is
+// skipped; damage to the file itself (a chunk's CRC, a record past the end) ends the stream with an
+// Error naming the file and the offset.
+class McapSource final : public FrameSource {
+ public:
+  // `uri_or_path`: "replay://OUT.mcap" or the path.
+  static Expected<std::unique_ptr<McapSource>> open(const std::string& uri_or_path);
+  std::string uri() const override { return "replay://" + reader_->path(); }
+  Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
+  std::uint64_t frames_dropped() const override { return 2 * damaged_; }
+
+  const std::string& path() const { return reader_->path(); }
+  // The recording's meta table as exported (rig_yaml, ...); empty when the file has none.
+  const std::map<std::string, std::string>& meta() const { return meta_; }
+  // Stereo frames in the file (the statistics' count of /augrig/frame).
+  std::size_t frame_count() const { return frame_count_; }
+  std::uint64_t damaged_frames() const { return damaged_; }
+
+ private:
+  McapSource() = default;
+  // The next stereo frame's messages, up to the next /augrig/frame; false at the end.
+  Expected<bool> next_frame(std::map<std::string, std::vector<std::uint8_t>>& messages);
+
+  std::unique_ptr<McapReader> reader_;
+  std::map<std::string, std::string> meta_;
+  std::size_t frame_count_ = 0;
+  std::uint64_t damaged_ = 0;
+  bool have_pending_ = false, ended_ = false;
+  McapMessage pending_;  // the /augrig/frame that starts the next stereo frame
+  bool right_pending_ = false;
+  Frame right_;
+};
+
+// Whether `path` names an MCAP file (ends in .mcap, or starts with the MCAP magic).
+bool is_mcap_path(const std::string& path);
+
+}  // namespace augrig::recorder
