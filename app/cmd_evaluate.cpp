@@ -26,7 +26,8 @@ namespace {
 const std::vector<OptionSpec>& evaluate_specs() {
   static const std::vector<OptionSpec> specs = {
       {"matcher", ArgKind::kValue, "MATCHER.yaml",
-       "the stereo matcher and its parameters (docs/EVALUATE.md; default StereoSGBM 3-way, 64 disparities, block 5)"},
+       "the stereo matcher and its parameters (docs/EVALUATE.md; default StereoSGBM 3-way, 64 disparities, "
+       "block 5)"},
       {"out", ArgKind::kValue, "DIR",
        "write evaluation.txt (the table), evaluation.csv (per frame), stats.csv and evaluation.png here"},
       {"every", ArgKind::kValue, "K", "evaluate every K-th stereo frame (default 1: all)"},
@@ -35,15 +36,19 @@ const std::vector<OptionSpec>& evaluate_specs() {
        "with --out: the true, raw and augmented disparity of every K-th evaluated frame (16-bit PNG, "
        "disparity x 256, 0 none; and a colour view)"},
       {"rig", ArgKind::kValue, "RIG.yaml|default",
-       "the rig (default: the recording's, the scenario's, or the paper's for a frame index or EuRoC folder)"},
-      {"scene", ArgKind::kValue, "SCENE.yaml", "one fixed scene for every frame (default: the source's poses)"},
+       "the rig (default: the recording's, the scenario's, or the paper's for a frame index or EuRoC "
+       "folder)"},
+      {"scene", ArgKind::kValue, "SCENE.yaml",
+       "one fixed scene for every frame (default: the source's poses)"},
       {"poses", ArgKind::kValue, "POSES.csv",
-       "the receiver's pose per frame from `augrig nav`'s camera pose CSV (matched by the left frame's time)"},
+       "the receiver's pose per frame from `augrig nav`'s camera pose CSV (matched by the left frame's "
+       "time)"},
       {"pose-tolerance-ms", ArgKind::kValue, "MS", "with --poses: match a pose row within MS (default 0)"},
       {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE",
        "another boom (default: the source's: recorded, simulated, or tracking)"},
       {"from-frame", ArgKind::kValue, "N", "recordings and EuRoC folders: start at frame N"},
-      {"seek", ArgKind::kValue, "T_S", "recordings and EuRoC folders: start T_S seconds after the first frame"},
+      {"seek", ArgKind::kValue, "T_S",
+       "recordings and EuRoC folders: start T_S seconds after the first frame"},
       {"full-frame", ArgKind::kFlag, "", "match whole rectified frames, not the receiver's region (slower)"},
       {"context", ArgKind::kValue, "PX",
        "image matched around the receiver beyond the search range and block (default 128)"},
@@ -61,7 +66,8 @@ void write_disparity_png(const fs::path& path, const cv::Mat& d) {
     const float* s = d.ptr<float>(y);
     std::uint16_t* o = out.ptr<std::uint16_t>(y);
     for (int x = 0; x < d.cols; ++x)
-      if (std::isfinite(s[x]) && s[x] > 0) o[x] = static_cast<std::uint16_t>(std::min(65535.0f, std::round(s[x] * 256)));
+      if (std::isfinite(s[x]) && s[x] > 0)
+        o[x] = static_cast<std::uint16_t>(std::min(65535.0f, std::round(s[x] * 256)));
   }
   if (!cv::imwrite(path.string(), out, {cv::IMWRITE_PNG_COMPRESSION, 1}))
     runtime_error(path.string() + ": cannot write the disparity image");
@@ -85,8 +91,8 @@ void write_disparity_view(const fs::path& path, const eval::EvaluationImages& im
       for (int x = 0; x < c.cols; ++x) {
         const float v = c.at<float>(y, x);
         valid.at<std::uint8_t>(y, x) = std::isfinite(v) ? 255 : 0;
-        u8.at<std::uint8_t>(y, x) =
-            static_cast<std::uint8_t>(std::isfinite(v) ? std::clamp((v - lo) / (hi - lo) * 255.0, 0.0, 255.0) : 0);
+        u8.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(
+            std::isfinite(v) ? std::clamp((v - lo) / (hi - lo) * 255.0, 0.0, 255.0) : 0);
       }
     cv::Mat colour;
     cv::applyColorMap(u8, colour, cv::COLORMAP_TURBO);
@@ -105,12 +111,15 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     out << format_help(
         "augrig evaluate SOURCE [--matcher MATCHER.yaml] [--out DIR] [--every K] [--frames N] [--images K]",
         "SOURCE: a recording (DIR or replay://DIR), a simulated flight (sim://SCENARIO, e.g. sim://demo), a\n"
-        "sequence (a frame index INDEX.csv as `augrig sim` writes it), or a EuRoC/ASL folder (the last two with\n"
+        "sequence (a frame index INDEX.csv as `augrig sim` writes it), or a EuRoC/ASL folder (the last two "
+        "with\n"
         "--poses or --scene). Each stereo frame is augmented as `replay`/`run` would\n"
         "(recorded, simulated or given poses); every K-th is evaluated: the raw and the augmented pair are\n"
         "rectified, matched (OpenCV StereoSGBM or StereoBM) and compared with the true disparity over the\n"
-        "receiver, per stereo class (both, left only, right only, neither), with the boom's pixels kept and left\n"
-        "out. Prints the run's table (the seed paper's Table 1 rows with the matcher's errors); --out writes it\n"
+        "receiver, per stereo class (both, left only, right only, neither), with the boom's pixels kept and "
+        "left\n"
+        "out. Prints the run's table (the seed paper's Table 1 rows with the matcher's errors); --out writes "
+        "it\n"
         "with a CSV row per frame and the plots (docs/EVALUATE.md).",
         evaluate_specs());
     return kExitOk;
@@ -118,7 +127,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   // Flags first: nothing is opened for a command line that cannot work.
   const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 1;
   const long long max_pairs = a.has("frames") ? parse_integer("frames", a.get("frames"), 1, 1LL << 40) : 0;
-  const int images_every = a.has("images") ? static_cast<int>(parse_integer("images", a.get("images"), 1, 1000000)) : 0;
+  const int images_every =
+      a.has("images") ? static_cast<int>(parse_integer("images", a.get("images"), 1, 1000000)) : 0;
   if (images_every && !a.has("out")) usage_error("--images needs --out (where the images go)");
   if (a.has("no-plot") && !a.has("out")) usage_error("--no-plot needs --out (the plot is written there)");
   if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
@@ -128,7 +138,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   eval::EvaluatorOptions eo;
   if (a.has("matcher")) eo.matcher = unwrap(eval::load_matcher_params(a.get("matcher")));
   eo.full_frame = a.has("full-frame");
-  if (a.has("context")) eo.context_px = static_cast<int>(parse_integer("context", a.get("context"), 0, 100000));
+  if (a.has("context"))
+    eo.context_px = static_cast<int>(parse_integer("context", a.get("context"), 0, 100000));
 
   // The source: a simulated flight, a EuRoC folder or a recording.
   std::string src = pos[0];
@@ -156,20 +167,26 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   std::string uri;
   if (is_sim) {
     // Every frame, as fast as the evaluation goes (lockstep: none dropped).
-    uri = src + (src.find('?') == std::string::npos ? "?" : "&") + (src.find("rate=") == std::string::npos ? "rate=0" : "");
+    uri = src + (src.find('?') == std::string::npos ? "?" : "&") +
+          (src.find("rate=") == std::string::npos ? "rate=0" : "");
     if (uri.back() == '&' || uri.back() == '?') uri.pop_back();
   } else if (is_index) {
     if (!a.has("scene") && !a.has("poses"))
-      usage_error("a frame index has no poses of the receiver: give --poses POSES.csv (e.g. augrig nav's, or a "
-                  "simulated dataset's truth/poses.csv) or --scene SCENE.yaml");
+      usage_error(
+          "a frame index has no poses of the receiver: give --poses POSES.csv (e.g. augrig nav's, or a "
+          "simulated dataset's truth/poses.csv) or --scene SCENE.yaml");
     const std::string path = src.rfind("files://", 0) == 0 ? src.substr(8) : src;
     if (!fs::is_regular_file(path)) runtime_error(path + ": no such frame index");
     uri = "files://" + fs::absolute(path).string();
   } else if (is_euroc) {
     if (!a.has("scene") && !a.has("poses"))
-      usage_error("a EuRoC folder has no poses of the receiver: give --scene SCENE.yaml or --poses POSES.csv");
-    const long long tol = a.has("pair-tolerance-ns") ? parse_integer("pair-tolerance-ns", a.get("pair-tolerance-ns"), 0, 1LL << 40) : 0;
-    uri = "euroc://" + (src.rfind("euroc://", 0) == 0 ? src.substr(8) : src) + "?tolerance_ns=" + std::to_string(tol) + start;
+      usage_error(
+          "a EuRoC folder has no poses of the receiver: give --scene SCENE.yaml or --poses POSES.csv");
+    const long long tol = a.has("pair-tolerance-ns")
+                              ? parse_integer("pair-tolerance-ns", a.get("pair-tolerance-ns"), 0, 1LL << 40)
+                              : 0;
+    uri = "euroc://" + (src.rfind("euroc://", 0) == 0 ? src.substr(8) : src) +
+          "?tolerance_ns=" + std::to_string(tol) + start;
   } else {
     const std::string dir = src.rfind("replay://", 0) == 0 ? src.substr(9) : src;
     if (!fs::exists(dir)) runtime_error(dir + ": no such recording, EuRoC folder or sim:// source");
@@ -184,12 +201,15 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
       total_pairs = fs->frame_count() / 2;
   } else if (opened.replay) {
     const recorder::RecordingReader& reader = opened.replay->reader();
-    for (const std::string& p : reader.problems()) err << "augrig evaluate: " << recording_problem(reader, p) << "\n";
-    if (opened.replay->frame_count() == 0) runtime_error(reader.path() + ": the recording holds no readable frames");
+    for (const std::string& p : reader.problems())
+      err << "augrig evaluate: " << recording_problem(reader, p) << "\n";
+    if (opened.replay->frame_count() == 0)
+      runtime_error(reader.path() + ": the recording holds no readable frames");
     if (const std::string yaml = reader.meta("rig_yaml"); !yaml.empty())
       source_rig = unwrap(parse_rig(yaml, reader.path() + " (meta rig_yaml)"));
     if (!source_rig && !a.has("rig"))
-      runtime_error(reader.path() + ": the recording stores no rig (meta rig_yaml is empty); give one with --rig");
+      runtime_error(reader.path() +
+                    ": the recording stores no rig (meta rig_yaml is empty); give one with --rig");
     total_pairs = opened.replay->frame_count() - opened.replay->start_frame();
   } else if (const auto* e = dynamic_cast<const recorder::EurocSource*>(opened.sources.front().get())) {
     total_pairs = e->pair_count();
@@ -232,7 +252,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   std::vector<eval::EvaluationPoint> points;
   std::uint64_t seen = 0;
   TimestampNs t0_ns = 0;
-  parts.on_pair = [&](const StereoFrame& raw, const StereoResult& result, const SceneState&, const FramePoses&) -> Status {
+  parts.on_pair = [&](const StereoFrame& raw, const StereoResult& result, const SceneState&,
+                      const FramePoses&) -> Status {
     if (seen++ == 0) t0_ns = result.stats.t_ns;
     if ((seen - 1) % static_cast<std::uint64_t>(every) != 0) return {};
     eval::EvaluationImages images;
@@ -262,8 +283,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   parts.on_problem = [&err](const Error& e) { err << "augrig evaluate: " << user_message(e) << "\n"; };
   const eval::MatcherParams& m = eo.matcher;
   out << "evaluate: " << uri << "; rig " << rig.source << "; poses from " << parts.poses->describe() << "; "
-      << (m.algorithm == "bm" ? "StereoBM" : "StereoSGBM " + m.mode) << ", disparities " << m.min_disparity << ".."
-      << m.min_disparity + m.num_disparities - 1 << ", block " << m.block_size << "; "
+      << (m.algorithm == "bm" ? "StereoBM" : "StereoSGBM " + m.mode) << ", disparities " << m.min_disparity
+      << ".." << m.min_disparity + m.num_disparities - 1 << ", block " << m.block_size << "; "
       << (every == 1 ? std::string("every frame") : "every " + std::to_string(every) + "th frame") << "\n";
   const auto wall0 = Clock::now();
   Pipeline pipeline(std::move(parts));
@@ -273,24 +294,27 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   const std::string table = eval::format_evaluation_table(run, "Stereo evaluation: " + src, m);
   out << "\n" << table;
   const double per = run.frames ? 1.0 / static_cast<double>(run.frames) : 0.0;
-  out << "\nEvaluated " << run.frames << " of " << r.pairs << " augmented stereo frame(s) in " << fmt_ms(wall_s)
-      << " s (" << fmt_ms(run.frames / std::max(wall_s, 1e-9)) << " evaluated frames/s; per frame: prepare "
-      << fmt_ms(run.prepare_ms * per) << " ms, match " << fmt_ms(run.match_ms * per) << " ms, truth and scores "
-      << fmt_ms(run.score_ms * per) << " ms)\n";
-  if (r.skipped_no_pose) out << r.skipped_no_pose << " frame(s) had no recorded scene and were not evaluated\n";
+  out << "\nEvaluated " << run.frames << " of " << r.pairs << " augmented stereo frame(s) in "
+      << fmt_ms(wall_s) << " s (" << fmt_ms(run.frames / std::max(wall_s, 1e-9))
+      << " evaluated frames/s; per frame: prepare " << fmt_ms(run.prepare_ms * per) << " ms, match "
+      << fmt_ms(run.match_ms * per) << " ms, truth and scores " << fmt_ms(run.score_ms * per) << " ms)\n";
+  if (r.skipped_no_pose)
+    out << r.skipped_no_pose << " frame(s) had no recorded scene and were not evaluated\n";
   if (a.has("out")) {
     std::ofstream t(out_dir / "evaluation.txt", std::ios::binary);
     t << table;
     if (!t) runtime_error((out_dir / "evaluation.txt").string() + ": cannot write the table");
     out << "Wrote " << (out_dir / "evaluation.txt").string() << ", evaluation.csv and stats.csv";
     if (!a.has("no-plot") && !points.empty()) {
-      check(eval::plot_evaluation(points, (out_dir / "evaluation.png").string(), "Stereo evaluation: " + src));
+      check(
+          eval::plot_evaluation(points, (out_dir / "evaluation.png").string(), "Stereo evaluation: " + src));
       out << ", evaluation.png";
     }
     if (images_every) out << " and the disparity images of 1 in " << images_every << " evaluated frames";
     out << "\n";
   }
-  if (r.failed_pairs) runtime_error(std::to_string(r.failed_pairs) + " stereo frame(s) could not be augmented (above)");
+  if (r.failed_pairs)
+    runtime_error(std::to_string(r.failed_pairs) + " stereo frame(s) could not be augmented (above)");
   if (pipeline.parts().source_info.replay && pipeline.parts().source_info.replay->damaged_frames())
     runtime_error(std::to_string(pipeline.parts().source_info.replay->damaged_frames()) +
                   " frame(s) could not be read (above); the others were evaluated");

@@ -13,14 +13,14 @@
 // Then the real command, `augrig evaluate 'sim://demo?every=K'` as a child process, end to end
 // (simulation, augmentation, evaluation, outputs), frames/s from its wall time without start-up.
 //   build/bench_evaluate [--every K] [--augrig PATH|none]
-#include <sys/resource.h>
-#include <sys/wait.h>
-
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
 #include <vector>
+
+#include <sys/resource.h>
+#include <sys/wait.h>
 
 #include "eval/evaluator.hpp"
 #include "render/augmenter.hpp"
@@ -76,8 +76,8 @@ int main(int argc, char** argv) {
   auto flight = sim::Flight::create(*scenario);
   if (!flight) return std::fprintf(stderr, "%s\n", flight.error().message.c_str()), 1;
   const sim::SensorLogs logs = sim::simulate_sensors(*scenario, *flight);
-  auto source =
-      sim::FlightSource::create(*scenario, *flight, sim::frame_truths(*scenario, *flight, logs.cameras), every);
+  auto source = sim::FlightSource::create(*scenario, *flight,
+                                          sim::frame_truths(*scenario, *flight, logs.cameras), every);
   if (!source) return std::fprintf(stderr, "%s\n", source.error().message.c_str()), 1;
   auto ctx = create_gl_context(GlBackend::kEglHeadless);
   if (!ctx) return std::fprintf(stderr, "%s\n", ctx.error().message.c_str()), 1;
@@ -118,11 +118,12 @@ int main(int argc, char** argv) {
     pairs.push_back(std::move(p));
   }
   if (pairs.empty()) return std::fprintf(stderr, "no pairs\n"), 1;
-  std::printf("bench_evaluate: %zu stereo pairs of the demo flight (every %d-th frame, t %.1f..%.1f s), %dx%d %s; "
-              "augmenter %.1f ms a pair (for reference)\n",
-              pairs.size(), every, pairs.front().t_s, pairs.back().t_s, pairs[0].frame.left.image.width(),
-              pairs[0].frame.left.image.height(), to_string(pairs[0].frame.left.image.format()).data(),
-              augment_ms / static_cast<double>(pairs.size()));
+  std::printf(
+      "bench_evaluate: %zu stereo pairs of the demo flight (every %d-th frame, t %.1f..%.1f s), %dx%d %s; "
+      "augmenter %.1f ms a pair (for reference)\n",
+      pairs.size(), every, pairs.front().t_s, pairs.back().t_s, pairs[0].frame.left.image.width(),
+      pairs[0].frame.left.image.height(), to_string(pairs[0].frame.left.image.format()).data(),
+      augment_ms / static_cast<double>(pairs.size()));
 
   struct Variant {
     const char* name;
@@ -147,8 +148,8 @@ int main(int argc, char** argv) {
     o.matcher.block_size = 15;
     variants.push_back({"StereoBM block 15", o});
   }
-  std::printf("%-48s %9s %9s %9s %9s %9s %9s %10s\n", "variant", "frames/s", "wall ms", "CPU ms", "prepare", "match",
-              "score", "bad3 aug%");
+  std::printf("%-48s %9s %9s %9s %9s %9s %9s %10s\n", "variant", "frames/s", "wall ms", "CPU ms", "prepare",
+              "match", "score", "bad3 aug%");
   for (const Variant& v : variants) {
     auto ev = eval::StereoEvaluator::create(scenario->rig, v.o);
     if (!ev) return std::fprintf(stderr, "%s\n", ev.error().message.c_str()), 1;
@@ -166,24 +167,27 @@ int main(int argc, char** argv) {
     const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
     const double cpu = cpu_s() - c0;
     const double n = static_cast<double>(pairs.size());
-    std::printf("%-48s %9.2f %9.1f %9.1f %9.1f %9.1f %9.1f %10.2f\n", v.name, n / wall, 1e3 * wall / n, 1e3 * cpu / n,
-                prep / n, match / n, score / n, total.all[0].bad3_pct());
+    std::printf("%-48s %9.2f %9.1f %9.1f %9.1f %9.1f %9.1f %10.2f\n", v.name, n / wall, 1e3 * wall / n,
+                1e3 * cpu / n, prep / n, match / n, score / n, total.all[0].bad3_pct());
   }
 
   // The real command, end to end; start-up measured by a one-frame run and taken off.
   if (augrig_path != "none") {
     // BayerRG8, as the GigE cameras deliver it.
-    const std::string base = augrig_path + " evaluate 'sim://demo?bayer=RG&every=" + std::to_string(every) + "'";
+    const std::string base =
+        augrig_path + " evaluate 'sim://demo?bayer=RG&every=" + std::to_string(every) + "'";
     const double one = run_timed(base + " --frames 1 --out /tmp/augrig_bench_evaluate_1");
     const double all = run_timed(base + " --out /tmp/augrig_bench_evaluate");
     if (one < 0 || all < 0) {
       std::printf("augrig evaluate failed (%s)\n", base.c_str());
       return 1;
     }
-    std::printf("augrig evaluate 'sim://demo?bayer=RG&every=%d': %zu frames in %.2f s (one-frame run %.2f s): %.2f frames/s "
-                "after start-up, %.2f including it\n",
-                every, pairs.size(), all, one, static_cast<double>(pairs.size() - 1) / std::max(1e-9, all - one),
-                static_cast<double>(pairs.size()) / all);
+    std::printf(
+        "augrig evaluate 'sim://demo?bayer=RG&every=%d': %zu frames in %.2f s (one-frame run %.2f s): %.2f "
+        "frames/s "
+        "after start-up, %.2f including it\n",
+        every, pairs.size(), all, one, static_cast<double>(pairs.size() - 1) / std::max(1e-9, all - one),
+        static_cast<double>(pairs.size()) / all);
   }
   return 0;
 }

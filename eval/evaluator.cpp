@@ -67,7 +67,8 @@ cv::Mat gray_of(ConstImageView image) {
   return out;
 }
 
-Expected<std::unique_ptr<StereoEvaluator>> StereoEvaluator::create(const Rig& rig, const EvaluatorOptions& options) {
+Expected<std::unique_ptr<StereoEvaluator>> StereoEvaluator::create(const Rig& rig,
+                                                                   const EvaluatorOptions& options) {
   if (rig.cameras.size() != 2)
     return make_error("eval::StereoEvaluator::create(): ", rig.source, ": the rig needs 2 cameras, has ",
                       rig.cameras.size());
@@ -98,8 +99,9 @@ Expected<FrameEvaluation> StereoEvaluator::evaluate(const StereoFrame& raw, cons
   auto t0 = Clock::now();
   // Only where the receiver may be: the left view's receiver box carried into the rectified image.
   const cv::Rect near = rectified_box(rect_, left_model_, result.left.receiver_box);
-  const cv::Mat truth = near.empty() ? cv::Mat(h, w, CV_32FC1, cv::Scalar(std::numeric_limits<float>::quiet_NaN()))
-                                     : true_disparity(rect_, result.left.receiver_depth, near);
+  const cv::Mat truth = near.empty()
+                            ? cv::Mat(h, w, CV_32FC1, cv::Scalar(std::numeric_limits<float>::quiet_NaN()))
+                            : true_disparity(rect_, result.left.receiver_depth, near);
   const MatcherParams& mp = options_.matcher;
   const float d_lo = static_cast<float>(mp.min_disparity),
               d_hi = static_cast<float>(mp.min_disparity + mp.num_disparities - 1);
@@ -177,7 +179,8 @@ Expected<FrameEvaluation> StereoEvaluator::evaluate(const StereoFrame& raw, cons
   fe.score_ms = truth_ms + ms_since(t0);
   if (images) {
     images->true_disparity = truth;
-    for (auto [from, to] : {std::pair{&*disp_raw, &images->raw_disparity}, std::pair{&*disp_aug, &images->aug_disparity}}) {
+    for (auto [from, to] :
+         {std::pair{&*disp_raw, &images->raw_disparity}, std::pair{&*disp_aug, &images->aug_disparity}}) {
       *to = cv::Mat(h, w, CV_32FC1, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
       from->copyTo((*to)(roi));
     }

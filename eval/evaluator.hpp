@@ -46,8 +46,8 @@ struct EvaluatorOptions {
 
 // One pair's evaluation.
 struct FrameEvaluation {
-  PairScore raw, augmented;  // the raw pair's disparity and the augmented pair's, scored
-  cv::Rect matched;          // the rectified region matched (empty: no receiver in the left view)
+  PairScore raw, augmented;      // the raw pair's disparity and the augmented pair's, scored
+  cv::Rect matched;              // the rectified region matched (empty: no receiver in the left view)
   std::int64_t receiver_px = 0;  // rectified left pixels with a true disparity
   // Of them, with a true disparity outside the matcher's search range [min, min + num): the
   // matcher cannot find those (num_disparities too small for the rig and range).
@@ -58,7 +58,7 @@ struct FrameEvaluation {
 
 // Images of the last evaluated pair, for files a user looks at (rectified left frame, full size).
 struct EvaluationImages {
-  cv::Mat true_disparity;          // CV_32FC1, NaN off the receiver
+  cv::Mat true_disparity;                // CV_32FC1, NaN off the receiver
   cv::Mat raw_disparity, aug_disparity;  // CV_32FC1, NaN where none (or not matched)
 };
 

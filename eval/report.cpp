@@ -10,8 +10,8 @@
 namespace augrig::eval {
 namespace {
 
-constexpr const char* kFigureKeys[7] = {"pixels", "valid_pct", "mean_px", "rms_px", "bad1_pct", "bad3_pct",
-                                        "range_rms_m"};
+constexpr const char* kFigureKeys[7] = {"pixels",   "valid_pct", "mean_px",    "rms_px",
+                                        "bad1_pct", "bad3_pct",  "range_rms_m"};
 
 void append(std::string& s, double v) {
   if (!std::isfinite(v)) return;  // an empty cell
@@ -69,41 +69,52 @@ void RunEvaluation::add(const FrameEvaluation& f) {
   score_ms += f.score_ms;
 }
 
-std::string format_evaluation_table(const RunEvaluation& run, const std::string& title, const MatcherParams& m) {
+std::string format_evaluation_table(const RunEvaluation& run, const std::string& title,
+                                    const MatcherParams& m) {
   std::ostringstream o;
   o << title << '\n';
-  o << run.frames << " stereo frame(s) evaluated, " << run.frames_with_receiver << " with the receiver in the left view. "
-    << "Matcher: " << (m.algorithm == "bm" ? "StereoBM" : "StereoSGBM (mode " + m.mode + ")") << ", disparities "
-    << m.min_disparity << ".." << m.min_disparity + m.num_disparities - 1 << ", block " << m.block_size << ".\n";
+  o << run.frames << " stereo frame(s) evaluated, " << run.frames_with_receiver
+    << " with the receiver in the left view. "
+    << "Matcher: " << (m.algorithm == "bm" ? "StereoBM" : "StereoSGBM (mode " + m.mode + ")")
+    << ", disparities " << m.min_disparity << ".." << m.min_disparity + m.num_disparities - 1 << ", block "
+    << m.block_size << ".\n";
   if (run.out_of_range_px)
-    o << "WARNING: " << run.out_of_range_px << " receiver pixel(s) have a true disparity outside the search range "
-      << m.min_disparity << ".." << m.min_disparity + m.num_disparities - 1
+    o << "WARNING: " << run.out_of_range_px
+      << " receiver pixel(s) have a true disparity outside the search range " << m.min_disparity << ".."
+      << m.min_disparity + m.num_disparities - 1
       << ": the matcher cannot find them; widen num_disparities (or min_disparity) in the matcher file.\n";
-  o << "Pixels: rectified left pixels of the receiver (with a true disparity), summed over the frames. Valid: the\n"
-       "matcher gave a disparity. Errors (estimated - true disparity, px) over the valid pixels; range error of\n"
+  o << "Pixels: rectified left pixels of the receiver (with a true disparity), summed over the frames. "
+       "Valid: the\n"
+       "matcher gave a disparity. Errors (estimated - true disparity, px) over the valid pixels; range error "
+       "of\n"
        "f B / d in metres. '-': no pixels to say it of.\n";
   char line[256];
-  std::snprintf(line, sizeof line, "%-24s %10s | %-46s | %-46s\n", "", "", "Raw pair", "Augmented pair (the boom drawn in)");
+  std::snprintf(line, sizeof line, "%-24s %10s | %-46s | %-46s\n", "", "", "Raw pair",
+                "Augmented pair (the boom drawn in)");
   const std::string head = std::string(line);
-  std::snprintf(line, sizeof line, "%-24s %10s |%7s%8s%8s%7s%7s%9s |%7s%8s%8s%7s%7s%9s\n", "", "Pixels", "valid%",
-                "mean", "RMS", ">1px%", ">3px%", "rangeRMS", "valid%", "mean", "RMS", ">1px%", ">3px%", "rangeRMS");
+  std::snprintf(line, sizeof line, "%-24s %10s |%7s%8s%8s%7s%7s%9s |%7s%8s%8s%7s%7s%9s\n", "", "Pixels",
+                "valid%", "mean", "RMS", ">1px%", ">3px%", "rangeRMS", "valid%", "mean", "RMS", ">1px%",
+                ">3px%", "rangeRMS");
   const std::string cols = std::string(line);
   for (int pass = 0; pass < 2; ++pass) {
     const auto& raw = pass ? run.raw.boom_excluded : run.raw.all;
     const auto& aug = pass ? run.augmented.boom_excluded : run.augmented.all;
     o << '\n'
-      << (pass ? "The boom's pixels left out (the left mask's boom bit; an evaluation trusting augrig's masks):\n"
+      << (pass ? "The boom's pixels left out (the left mask's boom bit; an evaluation trusting augrig's "
+                 "masks):\n"
                : "Every receiver pixel:\n")
       << head << cols;
     for (int k = 0; k < 5; ++k) {
-      std::snprintf(line, sizeof line, "%-24s %10lld |", kClassNames[k], static_cast<long long>(raw[k].pixels));
+      std::snprintf(line, sizeof line, "%-24s %10lld |", kClassNames[k],
+                    static_cast<long long>(raw[k].pixels));
       o << line << pair_cells(raw[k]) << " |" << pair_cells(aug[k]) << '\n';
     }
   }
   return o.str();
 }
 
-Expected<std::unique_ptr<EvaluationCsvWriter>> EvaluationCsvWriter::create(const std::filesystem::path& path) {
+Expected<std::unique_ptr<EvaluationCsvWriter>> EvaluationCsvWriter::create(
+    const std::filesystem::path& path) {
   std::unique_ptr<EvaluationCsvWriter> w(new EvaluationCsvWriter);
   w->path_ = path;
   w->out_.open(path, std::ios::binary);
@@ -115,7 +126,9 @@ Expected<std::unique_ptr<EvaluationCsvWriter>> EvaluationCsvWriter::create(const
 }
 
 std::string EvaluationCsvWriter::header() {
-  std::string h = "frame,t_s,occluded_pct_left,occluded_pct_right,matched_x,matched_y,matched_w,matched_h,receiver_px,out_of_range_px";
+  std::string h =
+      "frame,t_s,occluded_pct_left,occluded_pct_right,matched_x,matched_y,matched_w,matched_h,receiver_px,"
+      "out_of_range_px";
   for (const char* pair : {"raw", "aug"})
     for (const char* set : {"all", "noboom"})
       for (const char* k : kClassKeys)
@@ -131,9 +144,9 @@ Status EvaluationCsvWriter::add(std::uint64_t frame, double t_s, const Occlusion
   append(s, stats.occluded_pct_left);
   s += ',';
   append(s, stats.occluded_pct_right);
-  s += ',' + std::to_string(f.matched.x) + ',' + std::to_string(f.matched.y) + ',' + std::to_string(f.matched.width) +
-       ',' + std::to_string(f.matched.height) + ',' + std::to_string(f.receiver_px) + ',' +
-       std::to_string(f.out_of_range_px);
+  s += ',' + std::to_string(f.matched.x) + ',' + std::to_string(f.matched.y) + ',' +
+       std::to_string(f.matched.width) + ',' + std::to_string(f.matched.height) + ',' +
+       std::to_string(f.receiver_px) + ',' + std::to_string(f.out_of_range_px);
   for (const PairScore* p : {&f.raw, &f.augmented})
     for (const auto* set : {&p->all, &p->boom_excluded})
       for (const DisparityErrors& e : *set) append_figures(s, e);
@@ -181,24 +194,27 @@ Status plot_evaluation(const std::vector<EvaluationPoint>& points, const std::st
     s += '\n';
   }
   s += "EOD\n";
-  const std::string style =
-      std::string("linespoints pointtype 7 pointsize ") + (points.size() == 1 ? "1.2" : "0.35") + " linewidth 2";
+  const std::string style = std::string("linespoints pointtype 7 pointsize ") +
+                            (points.size() == 1 ? "1.2" : "0.35") + " linewidth 2";
   s += "set multiplot layout 3,1 title " + gp_quote(title) + " font ',13'\n";
   s += "set grid\nset key outside right top\nset lmargin 10\nset rmargin 40\n";
   s += "set xlabel 'time from the first frame (s)'\nset yrange [0:*]\nset offsets 0, 0, graph 0.05, 0\n";
   s += "set title 'Receiver occluded by the boom (% of its pixels)'\nset ylabel '%'\n";
-  s += "plot $d using 1:2 with " + style + " linecolor rgb '#1f77b4' title 'left', \\\n"
-       "     $d using 1:3 with " + style + " linecolor rgb '#d62728' title 'right'\n";
+  s += "plot $d using 1:2 with " + style +
+       " linecolor rgb '#1f77b4' title 'left', \\\n"
+       "     $d using 1:3 with " +
+       style + " linecolor rgb '#d62728' title 'right'\n";
   const char* names[3] = {"raw pair", "augmented pair", "augmented, boom pixels left out"};
   const char* colours[3] = {"#2ca02c", "#d62728", "#9467bd"};
   for (int panel = 0; panel < 2; ++panel) {
-    s += panel == 0 ? "set title 'Bad disparities over the receiver (|error| > 3 px, % of the valid pixels)'\nset ylabel '%'\n"
+    s += panel == 0 ? "set title 'Bad disparities over the receiver (|error| > 3 px, % of the valid "
+                      "pixels)'\nset ylabel '%'\n"
                     : "set title 'RMS disparity error over the receiver (px)'\nset ylabel 'px'\n";
     s += "plot ";
     for (int i = 0; i < 3; ++i) {
       if (i) s += ", \\\n     ";
-      s += "$d using 1:" + std::to_string(4 + 3 * panel + i) + " with " + style + " linecolor rgb '" + colours[i] +
-           "' title '" + names[i] + "'";
+      s += "$d using 1:" + std::to_string(4 + 3 * panel + i) + " with " + style + " linecolor rgb '" +
+           colours[i] + "' title '" + names[i] + "'";
     }
     s += '\n';
   }

@@ -35,7 +35,8 @@ struct RunEvaluation {
 // The table: per class, pixels and for the raw and the augmented pair valid %, mean and RMS error,
 // bad > 1 / > 3 px and the range RMS; once over all pixels, once with the boom's left pixels left
 // out (an evaluation that trusts the masks). `title` heads it; `matcher` says what matched.
-std::string format_evaluation_table(const RunEvaluation& run, const std::string& title, const MatcherParams& matcher);
+std::string format_evaluation_table(const RunEvaluation& run, const std::string& title,
+                                    const MatcherParams& matcher);
 
 // One CSV row per evaluated frame: frame, t_s, the occlusion percentages, the matched region, the
 // receiver's pixels and those out of the search range, and per pair (raw, aug),

@@ -61,8 +61,8 @@ TEST(Evaluate, SimulatedFlightRawMatchesAndTheBoomSpoilsWhatItOccludes) {
   ASSERT_EQ(augrig("evaluate 'sim://demo?every=90' --out " + dir + " --images 4", &out), 0) << out;
   const Csv csv = read_csv(dir + "/evaluation.csv");
   ASSERT_GE(csv.rows.size(), 8u) << out;
-  EXPECT_NE(out.find("Evaluated " + std::to_string(csv.rows.size()) + " of " + std::to_string(csv.rows.size()) +
-                     " augmented stereo frame(s)"),
+  EXPECT_NE(out.find("Evaluated " + std::to_string(csv.rows.size()) + " of " +
+                     std::to_string(csv.rows.size()) + " augmented stereo frame(s)"),
             std::string::npos)
       << out;
   int occluded_frames = 0;
@@ -107,13 +107,16 @@ TEST(Evaluate, SimulatedFlightRawMatchesAndTheBoomSpoilsWhatItOccludes) {
 TEST(Evaluate, ARecordingEvaluatesAsTheFlightItRecorded) {
   const std::string dir = test::output_dir("evaluate_recording");
   std::string out;
-  ASSERT_EQ(augrig("run --source 'sim://demo?every=120&rate=0' --frames 5 --headless --status-every 0 --record " + dir +
-                       "/rec",
-                   &out),
-            0)
+  ASSERT_EQ(
+      augrig("run --source 'sim://demo?every=120&rate=0' --frames 5 --headless --status-every 0 --record " +
+                 dir + "/rec",
+             &out),
+      0)
       << out;
   ASSERT_EQ(augrig("evaluate " + dir + "/rec --out " + dir + "/from_rec --no-plot", &out), 0) << out;
-  ASSERT_EQ(augrig("evaluate 'sim://demo?every=120' --frames 5 --out " + dir + "/from_sim --no-plot", &out), 0) << out;
+  ASSERT_EQ(augrig("evaluate 'sim://demo?every=120' --frames 5 --out " + dir + "/from_sim --no-plot", &out),
+            0)
+      << out;
   const Csv a = read_csv(dir + "/from_rec/evaluation.csv"), b = read_csv(dir + "/from_sim/evaluation.csv");
   ASSERT_EQ(a.rows.size(), 5u);
   ASSERT_EQ(b.rows.size(), 5u);
@@ -133,13 +136,15 @@ TEST(Evaluate, ASequenceWithItsPosesEvaluatesAsTheFlight) {
   const std::string dir = test::output_dir("evaluate_sequence");
   std::string out;
   ASSERT_EQ(augrig("sim --scenario demo --every 400 --out " + dir + "/ds", &out), 0) << out;
-  ASSERT_EQ(augrig("evaluate " + dir + "/ds/frames/index.csv --poses " + dir + "/ds/truth/poses.csv --rig " + dir +
-                       "/ds/rig.yaml --boom fixed:30,0,3.5 --out " + dir + "/seq --no-plot",
+  ASSERT_EQ(augrig("evaluate " + dir + "/ds/frames/index.csv --poses " + dir + "/ds/truth/poses.csv --rig " +
+                       dir + "/ds/rig.yaml --boom fixed:30,0,3.5 --out " + dir + "/seq --no-plot",
                    &out),
             0)
       << out;
   // The flight's own boom tracks the receptacle; the poses CSV holds the scenario's: one boom for both.
-  ASSERT_EQ(augrig("evaluate 'sim://demo?every=400' --boom fixed:30,0,3.5 --out " + dir + "/sim --no-plot", &out), 0)
+  ASSERT_EQ(
+      augrig("evaluate 'sim://demo?every=400' --boom fixed:30,0,3.5 --out " + dir + "/sim --no-plot", &out),
+      0)
       << out;
   const Csv a = read_csv(dir + "/seq/evaluation.csv"), b = read_csv(dir + "/sim/evaluation.csv");
   ASSERT_EQ(a.rows.size(), b.rows.size());

@@ -63,7 +63,8 @@ TEST_F(EvaluatorTest, RawPairMatchesTheTruthAndTheBoomSpoilsWhatItOccludes) {
   ASSERT_GT(fe->receiver_px, 20000);
   EXPECT_LT(fe->matched.height, rig.left().model.height_px) << "only the receiver's rows are matched";
 
-  const auto both = static_cast<int>(StereoClass::kBoth), right_only = static_cast<int>(StereoClass::kRightOnly),
+  const auto both = static_cast<int>(StereoClass::kBoth),
+             right_only = static_cast<int>(StereoClass::kRightOnly),
              neither = static_cast<int>(StereoClass::kNeither);
   // The raw pair: where both cameras see the receiver, the matcher finds the true disparity.
   const DisparityErrors& raw_both = fe->raw.all[both];
@@ -158,7 +159,8 @@ TEST_F(EvaluatorTest, FramesThatAreNotTheRigsAreRefused) {
 TEST(GrayOf, BayerPatternsAndColourFormats) {
   const int R = 200, G = 100, B = 30;
   const double gray = 0.299 * R + 0.587 * G + 0.114 * B;
-  for (PixelFormat f : {PixelFormat::kBayerRG8, PixelFormat::kBayerGR8, PixelFormat::kBayerGB8, PixelFormat::kBayerBG8}) {
+  for (PixelFormat f :
+       {PixelFormat::kBayerRG8, PixelFormat::kBayerGR8, PixelFormat::kBayerGB8, PixelFormat::kBayerBG8}) {
     Image im(16, 12, f);
     for (int y = 0; y < 12; ++y)
       for (int x = 0; x < 16; ++x) {
