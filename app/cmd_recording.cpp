@@ -12,6 +12,7 @@
 #include "app/cli.hpp"
 #include "pipeline/scene_file.hpp"
 #include "recorder/euroc.hpp"
+#include "recorder/mcap_export.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/recorder.hpp"
 #include "recorder/replay_source.hpp"
@@ -146,6 +147,78 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
   return kExitOk;
 }
 
+// An MCAP file written by augrig export --format mcap: its raw frames with the recorded scene
+// (poses, boom) through the same pipeline, as fast as possible, once; the rig is the one the file
+// stores (metadata augrig_recording) unless --rig gives another.
+int replay_mcap(const std::string& file, const ParsedArgs& a, std::ostream& out, std::ostream& err) {
+  for (const char* flag : {"rate", "seek", "from-frame", "loop", "pair-tolerance-ns"})
+    if (a.has(flag)) usage_error(std::string("--") + flag + ": an MCAP file plays once, from its first frame, as fast as possible");
+  const std::string path = file.rfind("replay://", 0) == 0 ? file.substr(9) : file;
+  OpenedSource opened = unwrap(open_sources("replay://" + path + "?rate=fast"));
+  const auto* mcap = dynamic_cast<const recorder::McapSource*>(opened.sources.front().get());
+  const std::size_t frames = mcap ? mcap->frame_count() : 0;
+  std::optional<Rig> recorded_rig;
+  if (mcap && mcap->meta().count("rig_yaml"))
+    recorded_rig = unwrap(parse_rig(mcap->meta().at("rig_yaml"), path + " (metadata augrig_recording, rig_yaml)"));
+  if (!a.has("rig") && !recorded_rig) runtime_error(path + ": the file stores no rig; give one with --rig");
+  PipelineParts parts;
+  parts.rig = a.has("rig") ? load_rig_arg(a.get("rig")) : *recorded_rig;
+  parts.models = unwrap(load_rig_models(parts.rig));
+  if (a.has("scene")) {
+    parts.poses = fixed_scene_poses(
+        unwrap(load_scene(a.get("scene"), parts.rig, BoomDimensions{}, parts.models.receptacle_m)), a.get("scene"));
+  } else {
+    parts.poses = recorded_poses(recorded_rig);
+    parts.skip_frames_without_pose = true;
+  }
+  if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
+  parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+  const fs::path out_dir = a.get("out");
+  const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 30;
+  if (a.has("out")) {
+    make_dirs(out_dir);
+    parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
+    parts.frame_files = FrameFiles{out_dir, every, {}, a.has("ground-truth")};
+  }
+  if (a.has("record")) {
+    recorder::RecordingInfo info;
+    info.rig_yaml = rig_to_yaml(parts.rig);
+    info.scene = a.has("scene") ? a.get("scene") : std::string("as recorded in ") + path;
+    info.extra["re_augmented_from"] = path;
+    parts.recorder = create_recorder(a.get("record"), info, a.has("overwrite"));
+    parts.record_ground_truth = a.has("ground-truth");
+  }
+  out << "replay: " << path << " (MCAP), " << frames << " stereo frames; rig "
+      << (a.has("rig") ? parts.rig.source : std::string("as recorded")) << ", scene "
+      << (a.has("scene") ? a.get("scene") : std::string("as recorded per frame")) << "\n";
+  parts.source_info = opened;
+  parts.source = unwrap(start_stereo(std::move(opened)));
+  parts.stop_flag = install_stop_signals();
+  parts.progress_total = frames;
+  std::size_t problems = 0;  // read errors: a damaged frame or file
+  parts.on_problem = [&err, &problems](const Error& e) {
+    ++problems;
+    err << "augrig replay: " << user_message(e) << "\n";
+  };
+  const bool want_window = !a.has("headless");
+  if (want_window && display_present()) parts.view = std::make_shared<LiveView>();
+  Pipeline pipeline(std::move(parts));
+  const PipelineReport r = run_pipeline(pipeline, want_window, a.has("out") ? out_dir.string() : ".", out, err);
+  out << "Replayed " << r.pairs << " stereo frame(s)\n";
+  if (r.comparable)
+    out << "Recorded statistics reproduced exactly (same pixel counts) in " << r.reproduced << " of " << r.comparable
+        << " frame(s)\n";
+  if (r.skipped_no_pose)
+    out << r.skipped_no_pose << " frame(s) had no recorded scene and were not augmented (give --scene)\n";
+  if (r.recording_closed) {
+    out << "Recorded " << r.recorder_stats.frames_committed << " stereo frame(s) to " << a.get("record") << "\n";
+    if (!*r.recording_closed) runtime_error("the recording stopped: " + user_message(r.recording_closed->error()));
+  }
+  if (problems || r.source_failed)
+    runtime_error(path + ": the MCAP file is damaged or could not be read (above); the frames before were replayed");
+  return kExitOk;
+}
+
 int replay_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   std::vector<std::string> pos;
   const ParsedArgs a = parse_with_positionals(args, replay_specs(), {"DIR"}, pos);
@@ -168,6 +241,9 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (pos[0].rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(pos[0]) / "mav0") ||
       fs::path(pos[0]).filename() == "mav0")
     return replay_euroc(pos[0], a, out, err);
+  if (!fs::is_directory(pos[0].rfind("replay://", 0) == 0 ? pos[0].substr(9) : pos[0]) &&
+      recorder::is_mcap_path(pos[0].rfind("replay://", 0) == 0 ? pos[0].substr(9) : pos[0]))
+    return replay_mcap(pos[0], a, out, err);
   if (a.has("rate") && a.has("fast")) usage_error("--rate and --fast exclude each other");
   if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
   // The replay:// URI carries the player's settings (pipeline/sources.hpp, docs/REPLAY.md).

@@ -14,6 +14,7 @@
 #include "core/clock.hpp"
 #include "pipeline/image_folder_source.hpp"
 #include "recorder/euroc.hpp"
+#include "recorder/mcap_export.hpp"
 #include "recorder/replay_source.hpp"
 #include "render/gl_context.hpp"
 #include "sim/flight_source.hpp"
@@ -267,6 +268,19 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
         skew + static_cast<std::int64_t>(0.25e9 / scenario->sensors.cameras.fps);
     out.options.lossless = *rate == 0;
     out.sources.push_back(std::make_unique<SimSource>(uri, out.sim, static_cast<int>(*every), out.sim_clock));
+    return out;
+  }
+  if (u.scheme == "replay" && recorder::is_mcap_path(u.target)) {
+    // An MCAP file from augrig export --format mcap: its frames as fast as read, once (lockstep).
+    if (Status s = u.check_known({"rate"}); !s) return s.error();
+    if (u.get("rate", "fast") != "fast")
+      return uri_error(u, "rate: an MCAP file plays as fast as it is read (rate=fast); pacing needs a recording");
+    auto src = recorder::McapSource::open(u.target);
+    if (!src) return src.error();
+    out.options.lossless = true;
+    out.options.skip_read_errors = true;  // a frame that cannot be decoded is skipped (the error says which)
+    out.options.pairing.mode = PairingMode::kAdjacent;
+    out.sources.push_back(std::move(*src));
     return out;
   }
   if (u.scheme == "replay") {
