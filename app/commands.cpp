@@ -290,6 +290,7 @@ const char* kTopHelp =
     "  export    export a recording as a EuRoC/ASL dataset with poses, statistics and their plot\n"
     "  evaluate  what the boom does to stereo matching: raw vs augmented pairs against the true disparity\n"
     "  cameras   list the GigE Vision, USB3 Vision and V4L2 cameras this machine sees\n"
+    "  rig       rig show RIG: what a rig file resolves to (poses, baseline, field of view) and what looks wrong\n"
     "  run       the live pipeline from source URIs: capture, pairing, augmentation, recording\n"
     "\n"
     "Options:\n"
@@ -410,10 +411,11 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   if (command == "replay") return cmd_replay(rest, out, err);
   if (command == "export") return cmd_export(rest, out, err);
   if (command == "evaluate") return cmd_evaluate(rest, out, err);
+  if (command == "rig") return cmd_rig(rest, out, err);
   if (command == "cameras") return cmd_cameras(rest, out, err);
   if (command == "run") return cmd_run(rest, out, err);
   err << "augrig: unknown command '" << command
-      << "'; commands: augment, demo, sim, nav, check, replay, export, evaluate, cameras, run (see augrig --help)\n";
+      << "'; commands: augment, demo, sim, nav, check, replay, export, evaluate, cameras, rig, run (see augrig --help)\n";
   return kExitUsage;
 }
 

@@ -74,6 +74,7 @@ int cmd_nav(const std::vector<std::string>& args, std::ostream& out, std::ostrea
 int cmd_check(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_replay(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_export(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_rig(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_evaluate(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_cameras(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
