@@ -135,10 +135,18 @@ Status write_text(const fs::path& path, const std::string& text) {
   return {};
 }
 
+// A rotation's entries come from its quaternion (Pose), a few ulps off where they are exactly 0
+// or +-1 (a camera looking straight aft: -0.9999999999999999, 1.7e-16): those are written exact.
+double snap_unit(double v) {
+  for (double u : {0.0, 1.0, -1.0})
+    if (std::abs(v - u) < 1e-14) return u;
+  return v;
+}
+
 std::string matrix_row_major(const Eigen::Matrix4d& T) {
   std::string s = "[";
   for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c) s += (r || c ? ", " : "") + num(T(r, c));
+    for (int c = 0; c < 4; ++c) s += (r || c ? ", " : "") + num(r < 3 && c < 3 ? snap_unit(T(r, c)) : T(r, c));
   return s + "]";
 }
 
@@ -775,6 +783,43 @@ std::string fmt_offset_ms(TimestampNs ns) {
 
 namespace {
 
+// mav0/state_groundtruth_estimate0 in EuRoC's layout and columns, for the receiver: R (EuRoC's
+// reference frame) is the tanker body frame (FRD), S the receiver body frame (FRD); p_RS_R and q_RS
+// from the recorded T_body_receiver, v_RS_R by central differences of the positions (one-sided at
+// the ends), the IMU biases 0 (augrig estimates none). sensor.yaml says so.
+Status write_receiver_states(const fs::path& dir, const std::vector<std::pair<TimestampNs, Pose>>& states) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) return make_error(dir.string(), ": cannot create the folder (", ec.message(), ")");
+  std::string csv =
+      "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], "
+      "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], "
+      "b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]\n";
+  const std::size_t n = states.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto& [t, T] = states[i];
+    const std::size_t a = i > 0 ? i - 1 : i, b = i + 1 < n ? i + 1 : i;
+    Eigen::Vector3d v = Eigen::Vector3d::Zero();
+    if (b != a && states[b].first != states[a].first)
+      v = (states[b].second.translation_m - states[a].second.translation_m) /
+          (static_cast<double>(states[b].first - states[a].first) * 1e-9);
+    const Eigen::Quaterniond q = T.rotation.normalized();
+    csv += std::to_string(t);
+    for (double x : {T.translation_m.x(), T.translation_m.y(), T.translation_m.z(), q.w(), q.x(), q.y(), q.z(), v.x(),
+                     v.y(), v.z()})
+      csv += "," + num(x);
+    csv += ",0,0,0,0,0,0\n";
+  }
+  if (auto s = write_text(dir / "data.csv", csv); !s) return s;
+  return write_text(dir / "sensor.yaml",
+                    "# The receiver's pose relative to the tanker, as recorded (augrig export; docs/REPLAY.md).\n"
+                    "# EuRoC's columns: R = the tanker body frame (FRD: x forward, y right, z down), S = the receiver\n"
+                    "# body frame (FRD); p_RS_R the receiver's origin in R (m), q_RS its rotation (Hamilton, w first),\n"
+                    "# v_RS_R central differences of p_RS_R over the exported frames, biases 0: not estimated.\n"
+                    "# Timestamps: the left camera's (cam0) t_ns of each stereo frame, on the export's clock.\n"
+                    "sensor_type: groundtruth\ncomment: receiver pose relative to the tanker body frame\n");
+}
+
 // export --ground-truth of a frame recorded without its depth: which, and how to get it.
 Error no_depth_error(const RecordingReader& reader, std::size_t i, std::uint64_t pair_sequence,
                      const std::string& how_many = "") {
@@ -918,6 +963,9 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
     inline_enc = std::make_unique<Encoders>(options.png_compression);
 
   std::vector<nav::CameraPoseRow> poses;
+  // The receiver in the tanker body frame per stereo frame (at the left camera's time) for
+  // mav0/state_groundtruth_estimate0.
+  std::vector<std::pair<TimestampNs, Pose>> receiver_states;
   std::vector<OcclusionStats> stats;
   nav::FrameIndex index;
   index.clock = clk.clock;
@@ -1043,6 +1091,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
       } else if (auto s = run_camera_job(job, *inline_enc); !s) {
         return fail(s);
       }
+      if (c == 0 && r.T_body_receiver && r.receiver_present.value_or(true))
+        receiver_states.emplace_back(pf.t_ns[0], *r.T_body_receiver);
       // A frame augmented without the receiver (no nav pose yet) has no pose to export.
       if (const auto& T = r.T_cam_receiver[c]; T && r.receiver_present.value_or(true)) {
         nav::CameraPoseRow p;
@@ -1311,6 +1361,13 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
     report.pose_rows = poses.size();
   } else {
     report.notes.push_back("no poses in the recording: poses.csv not written");
+  }
+
+  if (!receiver_states.empty()) {
+    if (auto s = write_receiver_states(out / "mav0" / "state_groundtruth_estimate0", receiver_states); !s)
+      return make_error(where, s.error().message);
+  } else {
+    report.notes.push_back("no receiver poses in the recording: mav0/state_groundtruth_estimate0 not written");
   }
 
   if (!stats.empty()) {

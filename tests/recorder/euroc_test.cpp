@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <sstream>
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
@@ -80,6 +81,9 @@ FrameRecord frame(int i) {
     r.T_cam_receiver[c] = Pose::from(rotation_from_ypr(0.1 * i, 0.02, -0.03 * c),
                                      Eigen::Vector3d(0.1 * c, -2.0, 15.0 + 0.1 * i));
   }
+  // The receiver relative to the tanker, closing at 4 m/s; frame 5 without it (no nav pose yet).
+  if (i != 5)
+    r.T_body_receiver = Pose::from(rotation_from_ypr(0.01 * i, 0.02, 0.0), Eigen::Vector3d(-15.0 + 0.2 * i, 0.1, 8.0));
   r.sigma_pos_m = 0.05;
   r.sigma_att_deg = 0.2;
   r.boom = BoomArticulation{deg_to_rad(30), deg_to_rad(-2), 3.5};
@@ -212,6 +216,64 @@ TEST(EurocExport, ReplayGivesTheRecordedImagesAndTimestampsBack) {
       EXPECT_EQ(aug[k].t_ns, want.raw.t_key_ns);
     }
   }
+}
+
+// The receiver's pose per stereo frame in EuRoC's ground-truth folder and columns: the recorded
+// T_body_receiver, the velocity by central differences, none for the frame without a pose.
+TEST(EurocExport, ReceiverStateInStateGroundtruthEstimate0) {
+  const Exported& e = exported();
+  const fs::path dir = fs::path(e.out) / "mav0" / "state_groundtruth_estimate0";
+  ASSERT_TRUE(fs::exists(dir / "sensor.yaml"));
+  std::ifstream f(dir / "data.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(f, line));
+  EXPECT_EQ(line.rfind("#timestamp, p_RS_R_x [m]", 0), 0u) << line;
+  std::vector<std::vector<double>> rows;
+  std::vector<TimestampNs> t;
+  while (std::getline(f, line)) {
+    std::stringstream ss(line);
+    std::string cell;
+    std::getline(ss, cell, ',');
+    t.push_back(std::stoll(cell));
+    std::vector<double> v;
+    while (std::getline(ss, cell, ',')) v.push_back(std::stod(cell));
+    ASSERT_EQ(v.size(), 16u) << line;
+    rows.push_back(v);
+  }
+  ASSERT_EQ(rows.size(), static_cast<std::size_t>(kFrames - 1));
+  std::size_t k = 0;
+  for (int i = 0; i < kFrames; ++i) {
+    if (i == 5) continue;
+    const FrameRecord want = frame(i);
+    SCOPED_TRACE("frame " + std::to_string(i));
+    EXPECT_EQ(t[k], want.raw.left.t_ns);
+    for (int a = 0; a < 3; ++a) EXPECT_DOUBLE_EQ(rows[k][a], want.T_body_receiver->translation_m[a]);
+    const Eigen::Quaterniond q = want.T_body_receiver->rotation.normalized();
+    EXPECT_DOUBLE_EQ(rows[k][3], q.w());
+    EXPECT_DOUBLE_EQ(rows[k][4], q.x());
+    EXPECT_DOUBLE_EQ(rows[k][6], q.z());
+    // 0.2 m a frame of 50 ms: 4 m/s along x, whichever neighbours the difference spans.
+    EXPECT_NEAR(rows[k][7], 4.0, 1e-6);
+    EXPECT_NEAR(rows[k][8], 0.0, 1e-9);
+    for (int b = 10; b < 16; ++b) EXPECT_EQ(rows[k][b], 0.0) << "biases: not estimated";
+    ++k;
+  }
+}
+
+// A camera looking straight aft: T_BS entries of exactly 0 and -1, not a few ulps off.
+TEST(EurocExport, TbsOfRightAnglesIsExact) {
+  const RigCamera cam = Rig::paper_default().cameras[0];
+  const YAML::Node y = YAML::Load(euroc_camera_yaml(cam, "left", "raw", 30, PixelFormat::kMono8, ClockDomain::kDevice));
+  const auto t = y["T_BS"]["data"].as<std::vector<double>>();
+  ASSERT_EQ(t.size(), 16u);
+  EXPECT_EQ(t[0], 0.0);
+  EXPECT_EQ(t[4], -1.0);
+  EXPECT_EQ(t[6], 0.0);
+  EXPECT_EQ(t[8], 0.0);
+  EXPECT_EQ(t[5], 0.0);
+  const Eigen::Matrix4d T = cam.T_body_cam.matrix();
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) EXPECT_NEAR(t[static_cast<std::size_t>(4 * r + c)], T(r, c), 1e-14);
 }
 
 TEST(EurocExport, SensorYamlParsesWithYamlCppAndHoldsTheRig) {
