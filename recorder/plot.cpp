@@ -1,10 +1,12 @@
 #include "recorder/plot.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include <fcntl.h>
@@ -58,13 +60,19 @@ std::string script(const std::vector<OcclusionStats>& frames, const std::string&
   // Not "enhanced": a title such as rec_demo keeps its underscore (not a subscript).
   s += gnuplot_png_terminal(o.width_px, o.height_px);
   s += "set output " + gp_quote(png) + "\n";
-  // t_s occl_L occl_R overlap recv_L recv_R boom_L boom_R
+  // t_s occl_L occl_R overlap recv_L recv_R boom_L boom_R both left_only right_only neither
   s += "$stats << EOD\n";
   const TimestampNs t0 = frames.front().t_ns;
   for (const OcclusionStats& f : frames) {
     append_value(s, ns_to_s(f.t_ns - t0));
+    // The stereo classes as % of the left receiver pixels (they add up to 100 where there is a
+    // receiver; no value without one).
+    const double rl = static_cast<double>(f.receiver_px_left);
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    auto cls = [&](std::int64_t px) { return rl > 0 ? 100.0 * static_cast<double>(px) / rl : nan; };
     for (double v : {f.occluded_pct_left, f.occluded_pct_right, f.boom_overlap_pct_union, f.receiver_pct_left,
-                     f.receiver_pct_right, f.boom_pct_left, f.boom_pct_right}) {
+                     f.receiver_pct_right, f.boom_pct_left, f.boom_pct_right, cls(f.stereo_both_px),
+                     cls(f.left_only_px), cls(f.right_only_px), cls(f.neither_px)}) {
       s += ' ';
       append_value(s, v);
     }
@@ -74,7 +82,7 @@ std::string script(const std::vector<OcclusionStats>& frames, const std::string&
   const bool one = frames.size() == 1;
   // Small points too, so that a sample between two gaps (non-finite neighbours) still shows.
   const std::string style = std::string("linespoints pointtype 7 pointsize ") + (one ? "1.2" : "0.35");
-  s += "set multiplot layout 2,1 title " + gp_quote(o.title) + " font ',13'\n";
+  s += "set multiplot layout 3,1 title " + gp_quote(o.title) + " font ',13'\n";
   s += "set grid\nset key outside right top\nset lmargin 10\nset rmargin 34\n";
   s += "set xlabel 'time from the first frame (s)'\n";
   s += "set ylabel '%'\nset yrange [0:*]\nset offsets 0, 0, graph 0.05, 0\n";
@@ -97,6 +105,20 @@ std::string script(const std::vector<OcclusionStats>& frames, const std::string&
        " linewidth 2 linecolor rgb '#ff7f0e' title 'boom left', \\\n"
        "     $stats using 1:8 with " +
        style + " linewidth 2 dashtype 2 linecolor rgb '#ff7f0e' title 'boom right'\n";
+  s += "set title 'Stereo classes of the left receiver pixels (% of them)'\n";
+  const bool any_receiver = std::any_of(frames.begin(), frames.end(),
+                                        [](const OcclusionStats& f) { return f.receiver_px_left > 0; });
+  if (!any_receiver) {
+    // gnuplot refuses a plot without one defined point: an empty panel that says why.
+    s += "set label 1 'no receiver in the left image in any frame' at graph 0.5, 0.5 center\n"
+         "set xrange [0:1]\nset yrange [0:100]\nplot 1000 notitle\nunset multiplot\nset output\n";
+    return s;
+  }
+  s += "set yrange [0:100]\n";
+  s += "plot $stats using 1:9 with " + style + " linewidth 2 linecolor rgb '#2ca02c' title 'visible to both', \\\n"
+       "     $stats using 1:10 with " + style + " linewidth 2 linecolor rgb '#1f77b4' title 'left only', \\\n"
+       "     $stats using 1:11 with " + style + " linewidth 2 linecolor rgb '#d62728' title 'right only', \\\n"
+       "     $stats using 1:12 with " + style + " linewidth 2 linecolor rgb '#7f7f7f' title 'neither'\n";
   s += "unset multiplot\nset output\n";
   return s;
 }

@@ -18,12 +18,13 @@ std::string find_gnuplot();
 struct StatsPlotOptions {
   std::string title = "Occlusion statistics";
   int width_px = 1200;
-  int height_px = 800;
+  int height_px = 1100;
 };
 
-// Two panels over time (seconds from the first frame): occluded % of the receiver in the left and
-// right images and the boom overlap (% of the union of both boom masks); the receiver and boom
-// coverage of each image (% of its pixels). Frames are drawn in the given order; non-finite
+// Three panels over time (seconds from the first frame): occluded % of the receiver in the left
+// and right images and the boom overlap (% of the union of both boom masks); the receiver and boom
+// coverage of each image (% of its pixels); the four stereo classes (% of the left receiver
+// pixels: both, left only, right only, neither). Frames are drawn in the given order; non-finite
 // values leave gaps. Errors: no frames, gnuplot missing, gnuplot failing (its message is quoted).
 Status plot_occlusion_stats(const std::vector<OcclusionStats>& frames, const std::string& png_path,
                             const StatsPlotOptions& options = {});
