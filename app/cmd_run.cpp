@@ -39,9 +39,48 @@ namespace {
 
 // ---- cameras ---------------------------------------------------------------------------------
 
+// A rig file for the first two cameras found: the paper's rig (boom, receiver, mounting) with
+// these cameras' resolution and serial-based source URIs (the serial survives a new IP address),
+// a 56-degree pinhole as the intrinsics. What is a placeholder is said in its first lines.
+void write_rig_template(const std::string& path, const std::vector<AravisDeviceInfo>& cams) {
+  std::vector<const AravisDeviceInfo*> usable;
+  for (const AravisDeviceInfo& d : cams)
+    if (d.width_px > 0 && !d.serial.empty()) usable.push_back(&d);
+  if (usable.size() < 2)
+    runtime_error("--rig: a stereo rig needs 2 cameras that open; found " + std::to_string(usable.size()) +
+                  " (of " + std::to_string(cams.size()) + " listed)");
+  Rig rig = Rig::paper_default();
+  std::ostringstream head;
+  head << "# TEMPLATE written by `augrig cameras --rig` from the cameras found. Replace before use:\n"
+       << "#   - each camera's intrinsics and distortion: a 56-degree pinhole here; use your calibration\n"
+       << "#     (intrinsics + distortion, or calibration: {format: kalibr|opencv|ros, file: ...}),\n"
+       << "#   - each T_body_cam: the seed paper's mounting here (under the fuselage, 0.5 m apart, looking\n"
+       << "#     aft 25 deg down); use your installation's,\n"
+       << "#   - the boom and receiver sections: a KC-135-class boom and the built-in receiver.\n"
+       << "# The left camera is the first found (" << usable[0]->serial << "), the right the second ("
+       << usable[1]->serial << "): swap them if the rig has them the other way. Check it: augrig rig show FILE\n";
+  for (int c = 0; c < 2; ++c) {
+    const AravisDeviceInfo& d = *usable[static_cast<std::size_t>(c)];
+    RigCamera& cam = rig.cameras[static_cast<std::size_t>(c)];
+    cam.model = CameraModel::pinhole_from_hfov(d.width_px, d.height_px, deg_to_rad(56.0));
+    std::string uri = "aravis://" + d.serial;
+    std::string params;
+    if (!d.pixel_format.empty()) params += "format=" + d.pixel_format;
+    if (d.frame_rate_hz > 0) params += std::string(params.empty() ? "" : "&") + "fps=" + fmt_ms(d.frame_rate_hz);
+    cam.source_uri = params.empty() ? uri : uri + "?" + params;
+  }
+  std::ofstream f(path, std::ios::binary);
+  f << head.str() << rig_to_yaml(rig);
+  if (!f) runtime_error(path + ": cannot write the rig template");
+}
+
 int cameras_command(const std::vector<std::string>& args, std::ostream& out) {
   const std::vector<OptionSpec> specs = {
-      {"no-open", ArgKind::kFlag, "", "list without opening each camera (no pixel formats)"},
+      {"no-open", ArgKind::kFlag, "", "list without opening each camera (no pixel formats, size or rate)"},
+      {"rig", ArgKind::kValue, "RIG.yaml",
+       "write a rig template for the first two GigE Vision / USB3 Vision cameras found: serial-based source "
+       "URIs with their current format and rate, their resolution; intrinsics and mounting to replace with "
+       "the calibration"},
   };
   const ParsedArgs a = parse_or_usage(args, specs);
   if (a.help) {
@@ -52,18 +91,27 @@ int cameras_command(const std::vector<std::string>& args, std::ostream& out) {
         specs);
     return kExitOk;
   }
+  if (a.has("rig") && a.has("no-open")) usage_error("--rig needs each camera opened (its size, format, rate)");
   const std::vector<AravisDeviceInfo> gige = list_aravis_devices(!a.has("no-open"));
   out << "Aravis (GigE Vision, USB3 Vision): " << gige.size() << " camera(s)\n";
   for (const AravisDeviceInfo& d : gige) {
     out << "  aravis://" << (d.address.empty() ? d.id : d.address) << "\n"
         << "    id " << d.id << ", " << d.vendor << " " << d.model << ", serial " << d.serial << ", "
         << d.protocol << (d.address.empty() ? "" : ", address " + d.address) << "\n";
+    if (d.width_px > 0)
+      out << "    now: " << d.width_px << "x" << d.height_px << " " << d.pixel_format << " at "
+          << fmt_ms(d.frame_rate_hz) << " fps\n";
     if (!d.pixel_formats.empty()) {
       out << "    pixel formats:";
       for (const std::string& f : d.pixel_formats) out << " " << f;
       out << "\n";
     }
     if (!d.error.empty()) out << "    (not opened: " << d.error << ")\n";
+  }
+  if (a.has("rig")) {
+    write_rig_template(a.get("rig"), gige);
+    out << "Wrote the rig template " << a.get("rig") << ": its intrinsics and T_body_cam are placeholders "
+        << "(check it with augrig rig show)\n";
   }
   auto v4l2 = list_v4l2_devices();
   if (!v4l2) {
@@ -488,6 +536,9 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   out << "run: " << uri << (right_uri.empty() ? "" : " + " + right_uri) << (lossless ? " (lockstep)" : " (live)") << pairing_text << "; rig "
       << rig->source << "; poses from " << parts.poses->describe()
       << (parts.recorder ? "; recording to " + parts.recorder->path() : std::string()) << "\n";
+  // Each camera as it is set now: every setting in effect, the URI's and the device's own.
+  for (const auto& src : parts.unstarted_source->sources)
+    if (const std::string st = src->settings(); !st.empty()) out << "  " << src->uri() << ": " << st << "\n";
   parts.nav_inputs = setup.nav_inputs.get();
   if (setup.nav_streamer)
     parts.on_stop = [streamer = setup.nav_streamer] {

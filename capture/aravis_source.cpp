@@ -1,6 +1,8 @@
 #include "capture/aravis_source.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <atomic>
 #include <cstring>
 #include <mutex>
@@ -164,7 +166,9 @@ bool gvcp_answers(const std::string& address, int timeout_ms) {
 std::vector<AravisDeviceInfo> list_aravis_devices(bool open_each) {
   std::vector<AravisDeviceInfo> out;
   for (const DeviceEntry& d : discover()) {
-    AravisDeviceInfo info{d.id, d.vendor, d.model, d.serial, d.address, d.protocol, {}, {}};
+    AravisDeviceInfo info;
+    info.id = d.id, info.vendor = d.vendor, info.model = d.model, info.serial = d.serial, info.address = d.address;
+    info.protocol = d.protocol;
     if (open_each) {
       GError* e = nullptr;
       GPtr<ArvCamera> cam(arv_camera_new(d.id.c_str(), &e));
@@ -179,6 +183,21 @@ std::vector<AravisDeviceInfo> list_aravis_devices(bool open_each) {
         } else {
           info.error = take_error(e, "pixel formats", d.id).message;
         }
+        // What it is set to now: what a rig template and a URI without parameters get.
+        gint x = 0, y = 0, w = 0, h = 0;
+        arv_camera_get_region(cam.get(), &x, &y, &w, &h, &e);
+        if (e) {
+          g_clear_error(&e);
+        } else {
+          info.width_px = w, info.height_px = h;
+        }
+        if (const char* f = arv_camera_get_pixel_format_as_string(cam.get(), &e)) info.pixel_format = f;
+        if (e) g_clear_error(&e);
+        const double fps = arv_camera_get_frame_rate(cam.get(), &e);
+        if (e)
+          g_clear_error(&e);
+        else if (std::isfinite(fps) && fps > 0)
+          info.frame_rate_hz = fps;
       }
     }
     out.push_back(std::move(info));
@@ -669,6 +688,28 @@ SourceHealth AravisSource::health() const {
 AravisStats AravisSource::stats() const {
   std::lock_guard lock(impl_->mutex);
   return impl_->stats;
+}
+
+std::string AravisSource::settings() const {
+  const AravisCameraInfo i = info();
+  char b[160];
+  std::snprintf(b, sizeof b, "%dx%d %s", i.width, i.height, i.pixel_format.c_str());
+  std::string s = b;
+  if (i.frame_rate_hz > 0) {
+    std::snprintf(b, sizeof b, " at %.3g fps", i.frame_rate_hz);
+    s += b;
+  } else {
+    s += ", triggered";
+  }
+  if (i.exposure_us > 0) {
+    std::snprintf(b, sizeof b, ", exposure %.1f us", i.exposure_us);
+    s += b;
+  }
+  if (i.packet_size > 0) s += ", GVSP packets " + std::to_string(i.packet_size) + " B";
+  s += i.ptp ? ", PTP on" : ", PTP off";
+  s += ", serial " + i.serial + (i.address.empty() ? "" : " at " + i.address);
+  for (const std::string& n : i.notes) s += "; " + n;
+  return s;
 }
 
 AravisCameraInfo AravisSource::info() const {

@@ -67,6 +67,11 @@ struct AravisDeviceInfo {
   std::string id, vendor, model, serial, address, protocol;  // protocol: "GigEVision", "USB3Vision"
   std::vector<std::string> pixel_formats;                    // empty when the camera could not be opened
   std::string error;                                         // why pixel formats are missing, if they are
+  // The camera's current settings (read when it was opened; 0 / empty when not or unreadable):
+  // the region's size, its pixel format and its acquisition frame rate.
+  int width_px = 0, height_px = 0;
+  std::string pixel_format;
+  double frame_rate_hz = 0;
 };
 
 // Every camera Aravis discovers; with `open_each`, each is opened to read its pixel formats.
@@ -106,6 +111,7 @@ class AravisSource final : public FrameSource {
   AravisSource& operator=(const AravisSource&) = delete;
 
   std::string uri() const override;  // aravis://<device>
+  std::string settings() const override;
   // kTimeout while the camera is lost (health() says so); never kEndOfStream.
   Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
   std::uint64_t frames_dropped() const override;

@@ -250,6 +250,26 @@ Error V4l2Source::device_error(const char* function, const std::string& what) co
   return make_error("V4l2Source::", function, "(): ", options_.device_path, ": ", what);
 }
 
+std::string V4l2Source::settings() const {
+  const V4l2StreamInfo& i = info_;
+  char b[160];
+  std::snprintf(b, sizeof b, "%dx%d %s (%s)", i.width_px, i.height_px, fourcc_to_string(i.fourcc).c_str(),
+                std::string(to_string(i.pixel_format)).c_str());
+  std::string s = b;
+  if (i.frame_rate_hz > 0) {
+    std::snprintf(b, sizeof b, " at %.3g fps", i.frame_rate_hz);
+    s += b;
+  }
+  if (i.exposure_ns > 0) {
+    std::snprintf(b, sizeof b, ", exposure %.1f us", static_cast<double>(i.exposure_ns) / 1e3);
+    s += b;
+  }
+  if (i.gain) s += ", gain " + std::to_string(*i.gain);
+  s += ", " + std::to_string(i.buffer_count) + " buffers, " + i.card + " (" + i.driver + ")";
+  for (const std::string& n : i.notes) s += "; " + n;
+  return s;
+}
+
 Expected<std::unique_ptr<V4l2Source>> V4l2Source::open(const V4l2Options& options, V4l2Io& io) {
   auto bad = [&](const std::string& what) {
     return make_error("V4l2Source::open(): ", options.device_path.empty() ? "(no path)" : options.device_path,

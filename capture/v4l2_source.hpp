@@ -109,6 +109,7 @@ class V4l2Source final : public FrameSource {
   V4l2Source& operator=(const V4l2Source&) = delete;
 
   std::string uri() const override { return "v4l2://" + options_.device_path; }
+  std::string settings() const override;
   // The next good frame within `timeout` (kTimeout otherwise). Dropped buffers are re-queued and
   // counted while waiting. A disconnected or failed device gives an Error naming it, then again on
   // every later call.

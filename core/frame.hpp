@@ -97,6 +97,9 @@ class FrameSource {
   virtual std::string uri() const = 0;
   // Blocks up to `timeout` for the next frame of any camera.
   virtual Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) = 0;
+  // What the device is set to now, every setting in effect (size, format, rate, exposure,
+  // transport), in one line for the run's banner; empty for files and simulations.
+  virtual std::string settings() const { return {}; }
   // Frames the source knows it lost (camera or transport), for the drop ledger.
   virtual std::uint64_t frames_dropped() const { return 0; }
   // Device state; sources without a device report connected and their frames_dropped().

@@ -3,6 +3,7 @@
 // processes on two loopback addresses) named by the rig's per-camera source URIs; bad sources and
 // flags with their exit codes and messages.
 #include <cmath>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -131,6 +132,25 @@ TEST(CmdRun, TwoGigEVisionCamerasFromTheRigsSourceUris) {
   EXPECT_TRUE(contains(listing, "serial RUNR")) << listing;
   EXPECT_TRUE(contains(listing, "pixel formats: BayerBG8")) << listing;
   EXPECT_TRUE(contains(listing, "V4L2:")) << listing;
+  EXPECT_TRUE(contains(listing, "now: ")) << listing;
+
+  // A rig template for the two cameras: serial-based URIs with their current format and rate, their
+  // size; it loads, and `rig show` reads it.
+  {
+    const std::string tdir = output_dir("cmd_run_gige_template");
+    ASSERT_EQ(augrig("cameras --rig " + tdir + "/rig.yaml", &listing), 0) << listing;
+    auto t = load_rig(tdir + "/rig.yaml");
+    ASSERT_TRUE(t) << t.error().message;
+    std::vector<std::string> uris = {t->cameras[0].source_uri, t->cameras[1].source_uri};
+    std::sort(uris.begin(), uris.end());
+    EXPECT_EQ(uris[0].rfind("aravis://RUNL?format=", 0), 0u) << uris[0];
+    EXPECT_EQ(uris[1].rfind("aravis://RUNR?format=", 0), 0u) << uris[1];
+    EXPECT_TRUE(contains(uris[0], "&fps=")) << uris[0];
+    EXPECT_GT(t->cameras[0].model.width_px, 0);
+    std::string shown;
+    EXPECT_EQ(augrig("rig show " + tdir + "/rig.yaml", &shown), 0) << shown;
+    EXPECT_TRUE(contains(shown, "source aravis://RUN")) << shown;
+  }
 
   // A small rig whose cameras name their sources; the fake cameras stream a 160x120 region.
   const std::string dir = output_dir("cmd_run_gige");
@@ -156,6 +176,9 @@ TEST(CmdRun, TwoGigEVisionCamerasFromTheRigsSourceUris) {
   EXPECT_TRUE(contains(out, "pairing by timestamp, tolerance 10000.0 us, each camera's clock to host time"))
       << out;
   EXPECT_TRUE(contains(out, "(live)")) << out;
+  // The banner: each camera as set, the URI's settings and the device's own.
+  EXPECT_TRUE(contains(out, "  aravis://RUNR: 160x120 BayerRG8 at 20 fps, exposure ")) << out;
+  EXPECT_TRUE(contains(out, "serial RUNR at 127.0.0.2")) << out;
   EXPECT_TRUE(contains(out, "pair skew: p50")) << out;
   EXPECT_TRUE(contains(out, "clock left: host - device")) << out;
   EXPECT_TRUE(contains(out, "clock right: host - device")) << out;

@@ -81,6 +81,36 @@ TEST(AravisSource, FindsTheFakeCameraByAddressSerialAndId) {
   }
 }
 
+// The listing reads each camera's current size, pixel format and rate: those a source set.
+TEST(AravisSource, ListingShowsTheCamerasCurrentSettings) {
+  FakeGvCamera fake("127.0.0.1", "AUGSET");
+  ASSERT_TRUE(fake.running());
+  {
+    AravisOptions o;
+    o.device = "AUGSET";
+    o.pixel_format = "BayerRG8";
+    o.roi = RegionOfInterest{0, 0, 320, 240};
+    o.frame_rate_hz = 20.0;
+    auto src = AravisSource::open(o);
+    ASSERT_TRUE(src) << src.error().message;
+  }
+  bool listed = false;
+  for (const AravisDeviceInfo& d : list_aravis_devices()) {
+    if (d.serial != "AUGSET") continue;
+    listed = true;
+    EXPECT_EQ(d.width_px, 320);
+    EXPECT_EQ(d.height_px, 240);
+    EXPECT_EQ(d.pixel_format, "BayerRG8");
+    EXPECT_NEAR(d.frame_rate_hz, 20.0, 0.01);
+  }
+  EXPECT_TRUE(listed);
+  for (const AravisDeviceInfo& d : list_aravis_devices(false)) {
+    if (d.serial == "AUGSET") {
+      EXPECT_EQ(d.width_px, 0) << "not opened: nothing read";
+    }
+  }
+}
+
 TEST(AravisSource, UnknownDeviceAndBadOptionsGiveClearErrors) {
   FakeGvCamera fake("127.0.0.1", "AUGERR");
   ASSERT_TRUE(fake.running());
