@@ -176,6 +176,43 @@ TEST(CmdExportMcap, IndependentReadersValidateItAndDecodeTheRecording) {
   }
 }
 
+// A run with live nav (--nav sim): each aircraft's IMU increments as sensor_msgs/msg/Imu (mean rates
+// at mid-interval, orientation unknown) and its GPS epochs as sensor_msgs/msg/NavSatFix, decoded by
+// the independent readers.
+TEST(CmdExportMcap, NavInputsAsImuAndNavSatFix) {
+  std::string why;
+  const std::string checker = mcap_checker(&why);
+  if (checker.empty()) GTEST_SKIP() << "no independent MCAP readers: " << why;
+  const std::string dir = test::output_dir("cmd_export_mcap_nav");
+  std::string log;
+  ASSERT_EQ(test::run_augrig("run --source 'sim://demo?every=30' --nav sim --record " + dir +
+                                 "/rec --duration 2 --headless --status-every 0 2>&1",
+                             &log),
+            0)
+      << log;
+  ASSERT_EQ(test::run_augrig("export " + dir + "/rec --format mcap " + dir + "/nav.mcap 2>&1", &log), 0) << log;
+  std::string out;
+  ASSERT_EQ(test::run_command("node " + checker + " " + dir + "/nav.mcap", &out), 0) << out;
+  const json j = json::parse(out);
+  ASSERT_TRUE(j["ok"].get<bool>()) << j["errors"].dump();
+  for (const std::string who : {"tanker", "receiver"}) {
+    EXPECT_EQ(j["channels"]["/nav/" + who + "/imu"]["type"], "sensor_msgs/msg/Imu");
+    EXPECT_EQ(j["channels"]["/nav/" + who + "/gps"]["type"], "sensor_msgs/msg/NavSatFix");
+    const auto& imu = j["topics"]["/nav/" + who + "/imu"]["messages"];
+    const auto& fix = j["topics"]["/nav/" + who + "/gps"]["messages"];
+    ASSERT_GT(imu.size(), 100u) << who;  // 200 Hz
+    ASSERT_GT(fix.size(), 5u) << who;    // 10 Hz
+    EXPECT_NE(log.find("/nav/" + who + "/imu: " + std::to_string(imu.size()) + "\n"), std::string::npos) << log;
+    EXPECT_EQ(imu[0]["frame_id"], who + "_body");
+    EXPECT_EQ(imu[0]["orientation_covariance"]["0"].get<double>(), -1.0);
+    // Near-level flight in turbulence: specific force roughly -g along body z (FRD, up is -z).
+    EXPECT_NEAR(imu[0]["linear_acceleration"]["z"].get<double>(), -9.8, 2.0);
+    EXPECT_EQ(fix[0]["frame_id"], who + "_gps");
+    EXPECT_NEAR(fix[0]["latitude"].get<double>(), 51.0, 0.1);  // the demo scenario's area
+    EXPECT_NEAR(fix[0]["altitude"].get<double>(), 7000.0, 100.0);
+  }
+}
+
 // export -> replay://OUT.mcap: the same raw frames and scenes; augrig replay OUT.mcap reproduces the
 // recorded statistics and writes the same stats.csv as replaying the recording.
 TEST(CmdExportMcap, ReplayGivesTheRecordedFramesBackAndReproducesTheStatistics) {

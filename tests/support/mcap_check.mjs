@@ -142,4 +142,5 @@ try {
   result.errors.push(String(e && e.stack ? e.stack : e));
 }
 process.stdout.write(JSON.stringify(result, (k, v) => (typeof v === "bigint" ? v.toString() : v)) + "\n");
-process.exit(result.ok ? 0 : 1);
+// exitCode, not exit(): exit() would cut a long write to a pipe short (at 64 KiB or so).
+process.exitCode = result.ok ? 0 : 1;
