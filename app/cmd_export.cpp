@@ -25,8 +25,8 @@ namespace {
 const std::vector<OptionSpec>& export_specs() {
   static const std::vector<OptionSpec> specs = {
       {"format", ArgKind::kValue, "euroc|mcap",
-       "output layout: euroc (EuRoC/ASL folder, docs/REPLAY.md) or mcap (one MCAP file of ROS 2 messages, docs/MCAP.md)",
-       true},
+       "output layout: euroc (EuRoC/ASL folder, docs/REPLAY.md) or mcap (one MCAP file of ROS 2 messages, "
+       "docs/MCAP.md); default: mcap when OUT ends in .mcap, else euroc"},
       {"rig", ArgKind::kValue, "RIG.yaml|default",
        "intrinsics and extrinsics for sensor.yaml (default: the recorded rig)"},
       {"imu-stream", ArgKind::kValue, "NAME",
@@ -93,8 +93,11 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
         export_specs());
     return kExitOk;
   }
-  if (a.get("format") == "mcap") return export_mcap_command(a, pos, out, err);
-  if (a.get("format") != "euroc") usage_error("--format: expected euroc or mcap, got '" + a.get("format") + "'");
+  // Without --format, OUT's name says which: a .mcap file, else a EuRoC folder.
+  const bool mcap_name = fs::path(pos[1]).extension() == ".mcap";
+  const std::string format = a.has("format") ? a.get("format") : mcap_name ? "mcap" : "euroc";
+  if (format == "mcap") return export_mcap_command(a, pos, out, err);
+  if (format != "euroc") usage_error("--format: expected euroc or mcap, got '" + format + "'");
   recorder::EurocExportOptions o;
   if (a.has("rig")) o.rig = load_rig_arg(a.get("rig"));
   o.imu_stream = a.get("imu-stream");

@@ -192,8 +192,16 @@ TEST(CmdExport, WritesTheEurocLayout) {
   EXPECT_NE(log.find("augrig export: " + out + "/mav0: exists already"), std::string::npos) << log;
   EXPECT_EQ(augrig("export " + recording() + " --format kitti " + out, &log), 2) << log;
   EXPECT_NE(log.find("--format: expected euroc or mcap, got 'kitti'"), std::string::npos) << log;
-  EXPECT_EQ(augrig("export " + recording() + " " + out, &log), 2) << log;
-  EXPECT_NE(log.find("missing required option --format euroc"), std::string::npos) << log;
+  // Without --format: EuRoC into a folder (here one that holds an export already), MCAP into a .mcap.
+  EXPECT_EQ(augrig("export " + recording() + " " + out, &log), 1) << log;
+  EXPECT_NE(log.find("augrig export: " + out + "/mav0: exists already"), std::string::npos) << log;
+  ASSERT_EQ(augrig("export " + recording() + " " + out + "_default.mcap --no-augmented --no-masks", &log), 0) << log;
+  {
+    std::ifstream m(out + "_default.mcap", std::ios::binary);
+    char magic[5] = {};
+    m.read(magic, 5);
+    EXPECT_EQ(std::string(magic + 1, 4), "MCAP") << "an MCAP file";
+  }
   EXPECT_EQ(augrig("export " + recording() + " --format euroc", &log), 2) << log;
   EXPECT_NE(log.find("expected DIR OUT, got '" + recording() + "'"), std::string::npos) << log;
   EXPECT_EQ(
