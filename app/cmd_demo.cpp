@@ -305,6 +305,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
     ++i;
     return {};
   };
+  parts.phase_of = sim_phases(truths);  // the flight's phases, as events beside the statistics
   parts.source_info = opened;
   parts.source = unwrap(start_stereo(std::move(opened)));
   parts.stop_flag = install_stop_signals();

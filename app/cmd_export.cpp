@@ -162,6 +162,7 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   }
   if (r.pose_rows) out << "Wrote " << (out_dir / "poses.csv").string() << " (" << r.pose_rows << " rows)\n";
   if (r.stats_rows) out << "Wrote " << (out_dir / "stats.csv").string() << " (" << r.stats_rows << " rows)\n";
+  if (r.phases) out << "Wrote " << (out_dir / "phases.csv").string() << " (" << r.phases << " phases)\n";
   if (r.plotted) out << "Wrote " << (out_dir / "stats.png").string() << "\n";
   for (const std::string& n : r.notes) out << "note: " << n << "\n";
   for (const std::string& p : r.problems) err << "augrig export: " << p << "\n";

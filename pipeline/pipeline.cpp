@@ -165,6 +165,7 @@ struct Pipeline::State {
   TimestampNs replay_first_ns = 0, replay_last_ns = 0, shown_t_key_ns = 0;
   std::size_t shown_index = 0;
   int shown_pass = 0;
+  std::string phase;  // the flight's phase at the last pair (PipelineParts::phase_of)
 };
 
 void Pipeline::log_event(State&, const std::string& text, std::ostream& out) {
@@ -231,6 +232,11 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
         any = true;
       }
   }
+
+  // The simulation's phases when the command gave none.
+  if (!p.phase_of && p.source_info.sim)
+    p.phase_of = sim_phases(sim::frame_truths(p.source_info.sim->scenario, *p.source_info.sim->flight,
+                                              p.source_info.sim->logs.cameras));
 
   const auto t0 = SteadyClock::now();
   auto next_status = t0 + std::chrono::duration<double>(p.status_every_s);
@@ -346,6 +352,16 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     rep.summary.add(result.stats);
     rep.last_stats = result.stats;
     if (p.keep_all_stats) rep.all_stats.push_back(result.stats);
+    // A new phase of the flight: an event on the statistics' clock, so that plots can mark it.
+    if (p.phase_of)
+      if (std::string phase = p.phase_of(frame); !phase.empty() && phase != s.phase) {
+        s.phase = std::move(phase);
+        out << "  phase: " << s.phase << " from pair " << frame.pair_sequence << " (t_ns " << result.stats.t_ns
+            << ")\n";
+        if (p.recorder)
+          p.recorder->push(recorder::EventRecord{result.stats.t_ns, fp.t_nav_ns ? ClockDomain::kGps : frame.left.clock,
+                                                 "phase: " + s.phase});
+      }
     const recorder::RecordedFrame* rf = recorded(frame);
     if (rf && rf->record.stats) {
       ++rep.comparable;

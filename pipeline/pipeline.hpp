@@ -165,6 +165,10 @@ struct PipelineParts {
   // Every pair's statistics kept in the report (finite jobs that print or rewrite them); a live run
   // keeps only the running summary, so its memory stays flat however long it runs.
   bool keep_all_stats = false;
+  // The flight's phase at a pair ("approach", "contact", ...; "" where unknown): each change is an
+  // event "phase: NAME" at the pair's statistics time (their clock), printed and recorded, which
+  // the statistics plot marks. Unset with a sim:// source: the simulation's own phases.
+  std::function<std::string(const StereoFrame&)> phase_of;
   // Called once with the first frame (e.g. to start the simulated nav streams on its clock).
   std::function<void(const StereoFrame&)> on_first_frame;
   // The live nav, when the poses come from it (its status goes into the report).

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <iomanip>
 #include <limits>
+#include <map>
 #include <sstream>
 #include <thread>
 
@@ -446,6 +447,16 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
 
 Expected<std::unique_ptr<StereoSource>> start_stereo(OpenedSource opened) {
   return StereoSource::create(std::move(opened.sources), opened.options);
+}
+
+std::function<std::string(const StereoFrame&)> sim_phases(const std::vector<sim::FrameTruth>& truths) {
+  auto by_t = std::make_shared<std::map<TimestampNs, std::string>>();
+  for (const sim::FrameTruth& f : truths)
+    if (f.camera == 0) (*by_t)[f.t_camera_ns] = f.phase;
+  return [by_t](const StereoFrame& frame) -> std::string {
+    const auto it = by_t->find(frame.left.t_ns);
+    return it == by_t->end() ? std::string() : it->second;
+  };
 }
 
 }  // namespace augrig::pipeline

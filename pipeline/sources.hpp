@@ -3,6 +3,7 @@
 // knows every scheme, so capture/ needs neither the simulator nor the recorder.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -13,6 +14,7 @@
 #include "core/frame.hpp"
 #include "render/rig.hpp"
 #include "sim/flight.hpp"
+#include "sim/flight_source.hpp"
 #include "sim/scenario.hpp"
 #include "sim/sensors.hpp"
 #include "sim/sim_clock.hpp"
@@ -30,6 +32,10 @@ struct SimulatedFlight {
   std::unique_ptr<sim::Flight> flight;
   sim::SensorLogs logs;
 };
+
+// The simulated flight's phase of each pair (by its left frame's time), from the truths of the
+// frames its cameras deliver (sim::frame_truths), for PipelineParts::phase_of.
+std::function<std::string(const StereoFrame&)> sim_phases(const std::vector<sim::FrameTruth>& truths);
 
 // What a source URI opened into, beyond its FrameSources: what the pipeline needs to know about it.
 struct OpenedSourceInfo {

@@ -1377,9 +1377,27 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
     csv.close();
     if (!csv) return make_error(where, (out / "stats.csv").string(), ": cannot write the file");
     report.stats_rows = stats.size();
+    // The flight's phases recorded beside the statistics ("phase: NAME" events, on their clock):
+    // OUT/phases.csv and the plot's markers.
+    std::vector<PhaseEvent> phases;
+    if (auto ev = reader.events()) phases = phase_events(*ev);
+    for (PhaseEvent& ph : phases) ph.t_ns = clk.map(0, ph.t_ns);
+    if (!phases.empty()) {
+      std::ofstream pcsv(out / "phases.csv", std::ios::binary);
+      pcsv << "#t_ns,t_s,phase\n";
+      for (const PhaseEvent& ph : phases) {
+        char t_s[32];
+        std::snprintf(t_s, sizeof t_s, "%.6f", ns_to_s(ph.t_ns - stats.front().t_ns));
+        pcsv << ph.t_ns << ',' << t_s << ',' << ph.name << '\n';
+      }
+      pcsv.close();
+      if (!pcsv) return make_error(where, (out / "phases.csv").string(), ": cannot write the file");
+      report.phases = phases.size();
+    }
     if (options.plot) {
       StatsPlotOptions po;
       po.title = "Occlusion statistics: " + fs::path(reader.path()).parent_path().filename().string();
+      po.phases = phase_markers(phases, stats.front().t_ns, stats.back().t_ns);
       if (auto s = plot_occlusion_stats(stats, (out / "stats.png").string(), po); !s)
         report.problems.push_back(strip_function(s.error().message));
       else

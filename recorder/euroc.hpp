@@ -14,6 +14,8 @@
 //   OUT/poses.csv                     the recorded T_cam_receiver per frame and camera
 //                                     (nav/logs.hpp camera pose CSV)
 //   OUT/stats.csv, OUT/stats.png      occlusion statistics (render/stats.hpp) and their plot
+//   OUT/phases.csv                    the flight's phases recorded with them ("#t_ns,t_s,phase": when
+//                                     each began; the plot marks them), when the recording has any
 //   OUT/nav/<aircraft>/               per aircraft with GPS and IMU streams (tanker.gps, tanker.imu,
 //                                     ...): gps.nmea (the sentences with "<arrival_ns> " prefixes),
 //                                     imu.csv (nav/logs.hpp) and aircraft.yaml: what `augrig nav` fuses
@@ -105,6 +107,7 @@ struct EurocExportReport {
   std::vector<std::string> nav_logs;  // aircraft whose log folder OUT/nav/<aircraft> was written
   std::size_t frame_index_rows = 0;   // OUT/frames.csv
   std::size_t pose_rows = 0, stats_rows = 0;
+  std::size_t phases = 0;  // OUT/phases.csv rows (the flight's recorded phases)
   bool plotted = false;
   std::vector<std::string> notes;     // what was left out and why (no augmented images, ...)
   std::vector<std::string> problems;  // damaged frames skipped, a plot that failed: output incomplete

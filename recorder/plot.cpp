@@ -54,6 +54,9 @@ std::string read_text(const std::string& path, std::size_t max) {
   return s;
 }
 
+// The phase markers' colour (no series uses it; tests find the lines by it).
+constexpr const char* kPhaseColour = "#9467bd";
+
 std::string script(const std::vector<OcclusionStats>& frames, const std::string& png,
                    const StatsPlotOptions& o) {
   std::string s;
@@ -83,6 +86,15 @@ std::string script(const std::vector<OcclusionStats>& frames, const std::string&
   // Small points too, so that a sample between two gaps (non-finite neighbours) still shows.
   const std::string style = std::string("linespoints pointtype 7 pointsize ") + (one ? "1.2" : "0.35");
   s += "set multiplot layout 3,1 title " + gp_quote(o.title) + " font ',13'\n";
+  // The phases: dashed lines on every panel (arrows stay set), their names on the first only.
+  for (std::size_t k = 0; k < o.phases.size(); ++k) {
+    std::string t;
+    append_value(t, o.phases[k].t_s);
+    s += "set arrow " + std::to_string(k + 1) + " from " + t + ", graph 0 to " + t +
+         ", graph 1 nohead dashtype 2 linewidth 1.5 linecolor rgb '" + kPhaseColour + "' back\n";
+    s += "set label " + std::to_string(k + 2) + " " + gp_quote(o.phases[k].name) + " at " + t +
+         ", graph 0.97 rotate by 90 right offset 1.1, 0 front font ',9' textcolor rgb '" + kPhaseColour + "'\n";
+  }
   s += "set grid\nset key outside right top\nset lmargin 10\nset rmargin 34\n";
   s += "set xlabel 'time from the first frame (s)'\n";
   s += "set ylabel '%'\nset yrange [0:*]\nset offsets 0, 0, graph 0.05, 0\n";
@@ -94,6 +106,7 @@ std::string script(const std::vector<OcclusionStats>& frames, const std::string&
        " linewidth 2 linecolor rgb '#d62728' title 'occluded % right', \\\n"
        "     $stats using 1:4 with " +
        style + " linewidth 2 linecolor rgb '#2ca02c' title 'boom overlap % of union'\n";
+  for (std::size_t k = 0; k < o.phases.size(); ++k) s += "unset label " + std::to_string(k + 2) + "\n";
   s += "set title 'Coverage of each image (% of its pixels)'\n";
   s += "plot $stats using 1:5 with " + style +
        " linewidth 2 linecolor rgb '#1f77b4' title 'receiver left', \\\n"
@@ -124,6 +137,32 @@ std::string script(const std::vector<OcclusionStats>& frames, const std::string&
 }
 
 }  // namespace
+
+std::vector<PhaseEvent> phase_events(const std::vector<EventRecord>& events) {
+  std::vector<PhaseEvent> out;
+  constexpr std::string_view kPrefix = "phase: ";
+  for (const EventRecord& e : events)
+    if (e.text.size() > kPrefix.size() && e.text.compare(0, kPrefix.size(), kPrefix) == 0)
+      out.push_back({e.t_ns, e.text.substr(kPrefix.size())});
+  std::stable_sort(out.begin(), out.end(), [](const PhaseEvent& a, const PhaseEvent& b) { return a.t_ns < b.t_ns; });
+  return out;
+}
+
+std::vector<PhaseMarker> phase_markers(const std::vector<PhaseEvent>& phases, TimestampNs t0_ns,
+                                       TimestampNs t_end_ns) {
+  std::vector<PhaseMarker> out;
+  const PhaseEvent* before = nullptr;  // the phase the plot starts in
+  for (const PhaseEvent& p : phases) {
+    if (p.t_ns < t0_ns) before = &p;
+    if (p.t_ns >= t0_ns && p.t_ns <= t_end_ns) {
+      if (before && p.t_ns > t0_ns) out.push_back({0.0, before->name});
+      before = nullptr;
+      out.push_back({ns_to_s(p.t_ns - t0_ns), p.name});
+    }
+  }
+  if (before && out.empty()) out.push_back({0.0, before->name});
+  return out;
+}
 
 std::string find_gnuplot() {
   if (const char* e = std::getenv("AUGRIG_GNUPLOT"); e && *e)

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/expected.hpp"
+#include "recorder/record.hpp"
 #include "render/stats.hpp"
 
 namespace augrig::recorder {
@@ -15,16 +16,34 @@ namespace augrig::recorder {
 // gnuplot's path: $AUGRIG_GNUPLOT when set, else the first `gnuplot` on PATH; empty when none.
 std::string find_gnuplot();
 
+// A flight phase starting at t_s (seconds from the first frame plotted): a dashed vertical line
+// on every panel, named at the top.
+struct PhaseMarker {
+  double t_s = 0;
+  std::string name;
+};
+
 struct StatsPlotOptions {
   std::string title = "Occlusion statistics";
   int width_px = 1200;
   int height_px = 1100;
+  std::vector<PhaseMarker> phases;
 };
+
+// The recorded phase changes ("phase: NAME" events, PipelineParts::phase_of) in time order.
+struct PhaseEvent {
+  TimestampNs t_ns = 0;  // on the clock of the statistics they were recorded beside
+  std::string name;
+};
+std::vector<PhaseEvent> phase_events(const std::vector<EventRecord>& events);
+// Those events as markers on a plot whose time starts at `t0_ns`; markers outside [t0_ns, t_end_ns]
+// are left out (a phase that began before the first frame plotted starts at 0).
+std::vector<PhaseMarker> phase_markers(const std::vector<PhaseEvent>& phases, TimestampNs t0_ns, TimestampNs t_end_ns);
 
 // Three panels over time (seconds from the first frame): occluded % of the receiver in the left
 // and right images and the boom overlap (% of the union of both boom masks); the receiver and boom
 // coverage of each image (% of its pixels); the four stereo classes (% of the left receiver
-// pixels: both, left only, right only, neither). Frames are drawn in the given order; non-finite
+// pixels: both, left only, right only, neither). The phases' markers on each panel. Frames are drawn in the given order; non-finite
 // values leave gaps. Errors: no frames, gnuplot missing, gnuplot failing (its message is quoted).
 Status plot_occlusion_stats(const std::vector<OcclusionStats>& frames, const std::string& png_path,
                             const StatsPlotOptions& options = {});

@@ -4,11 +4,13 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <thread>
 
 #include <gtest/gtest.h>
 
 #include "nav/logs.hpp"
+#include "recorder/plot.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/replay_source.hpp"
 #include "sim/flight_source.hpp"
@@ -262,6 +264,53 @@ TEST(Pipeline, ReplayPauseSeekAndStepFromTheView) {
 }
 
 // A rig whose cameras are not the frames' size fails at the first frame, once, naming both sizes.
+// A simulated flight's phases become events "phase: NAME" at the first pair of each phase, on the
+// statistics' clock, printed and recorded (the export's plot marks them). The oracle: the
+// simulator's own truth of each delivered frame (sim::frame_truths, Flight::phase).
+TEST(Pipeline, SimPhasesAreRecordedAtTheirFirstPair) {
+  const fs::path dir = test::output_dir("pipeline_phases");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  PipelineParts p = parts_for(kScenario + "?every=3&rate=0");
+  const std::shared_ptr<const SimulatedFlight> sim = p.source_info.sim;
+  ASSERT_TRUE(sim);
+  std::map<TimestampNs, std::string> phase_at;  // left frame time -> the truth's phase
+  for (const sim::FrameTruth& f : sim::frame_truths(sim->scenario, *sim->flight, sim->logs.cameras))
+    if (f.camera == 0) phase_at[f.t_camera_ns] = sim->flight->phase(f.t_true_s);
+  recorder::RecordingInfo info;
+  info.rig_yaml = rig_to_yaml(p.rig);
+  auto rec = recorder::Recorder::create((dir / "rec").string(), info);
+  ASSERT_TRUE(rec) << rec.error().message;
+  p.recorder = std::move(*rec);
+  std::vector<recorder::PhaseEvent> expected;
+  p.on_pair = [&](const StereoFrame& raw, const StereoResult& r, const SceneState&, const FramePoses&) -> Status {
+    const auto it = phase_at.find(raw.left.t_ns);
+    EXPECT_NE(it, phase_at.end());
+    if (it != phase_at.end() && (expected.empty() || expected.back().name != it->second))
+      expected.push_back({r.stats.t_ns, it->second});
+    return {};
+  };
+  Pipeline pipeline(std::move(p));
+  std::ostringstream out, err;
+  auto r = pipeline.run(out, err);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_GE(r->pairs, 15u);
+  ASSERT_EQ(expected.size(), 2u) << "the flight passes from pre-contact to to-contact at 1 s";
+  EXPECT_EQ(expected[0].name, "pre-contact");
+  EXPECT_EQ(expected[1].name, "to-contact");
+  EXPECT_NE(out.str().find("phase: to-contact from pair "), std::string::npos) << out.str();
+  auto reader = recorder::RecordingReader::open((dir / "rec").string());
+  ASSERT_TRUE(reader) << reader.error().message;
+  auto events = (*reader)->events();
+  ASSERT_TRUE(events) << events.error().message;
+  const std::vector<recorder::PhaseEvent> got = recorder::phase_events(*events);
+  ASSERT_EQ(got.size(), expected.size());
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    EXPECT_EQ(got[k].name, expected[k].name);
+    EXPECT_EQ(got[k].t_ns, expected[k].t_ns) << "at the first pair of the phase, on the statistics' clock";
+  }
+}
+
 TEST(Pipeline, FrameSizeNotTheRigsFailsAtTheFirstFrame) {
   PipelineParts p = parts_for(kScenario + "?every=3&rate=0");
   p.rig.cameras[0].model = CameraModel::pinhole_from_hfov(640, 480, 0.8);

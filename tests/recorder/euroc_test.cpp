@@ -121,6 +121,11 @@ std::string make_recording(const std::string& name, bool with_rig = true) {
   for (int k = 0; k < 100; ++k) (*rec)->push(imu_input(imu_sample(k), "tanker.imu"));
   (*rec)->push(NavInputRecord{"tanker.gps", 5, ClockDomain::kGps, 6, "$GPHDT,274.07,T*03", false});
   for (int i = 0; i < kFrames; ++i) EXPECT_TRUE((*rec)->push(frame(i)));
+  // The flight's phases beside the statistics (one began before the first frame), and an event
+  // that is not a phase.
+  (*rec)->push(EventRecord{kT0 + 3 * kPeriod, ClockDomain::kGps, "phase: contact"});
+  (*rec)->push(EventRecord{kT0 - 1'000'000'000, ClockDomain::kGps, "phase: pre-contact"});
+  (*rec)->push(EventRecord{kT0 + kPeriod, ClockDomain::kHostMonotonic, "nav stale from pair 1"});
   EXPECT_TRUE((*rec)->close());
   return dir;
 }
@@ -400,6 +405,24 @@ TEST(EurocExport, StatisticsPlotIsARealPicture) {
   cv::inRange(png, cv::Scalar(10, 10, 190), cv::Scalar(70, 70, 240), red);
   EXPECT_GT(cv::countNonZero(blue), 200);
   EXPECT_GT(cv::countNonZero(red), 100);
+}
+
+// The recorded phases: OUT/phases.csv on the export's clock, in time order, seconds from the
+// first frame (negative: began before it); other events are not phases.
+TEST(EurocExport, PhasesAreWrittenBesideTheStatistics) {
+  const Exported& e = exported();
+  EXPECT_EQ(e.report.phases, 2u);
+  std::ifstream csv(fs::path(e.out) / "phases.csv");
+  std::string header, a, b, extra;
+  std::getline(csv, header);
+  std::getline(csv, a);
+  std::getline(csv, b);
+  EXPECT_FALSE(std::getline(csv, extra));
+  EXPECT_EQ(header, "#t_ns,t_s,phase");
+  EXPECT_EQ(a, std::to_string(kT0 - 1'000'000'000) + ",-1.000000,pre-contact");
+  char t_s[32];
+  std::snprintf(t_s, sizeof t_s, "%.6f", 3 * kPeriod / 1e9);
+  EXPECT_EQ(b, std::to_string(kT0 + 3 * kPeriod) + "," + t_s + ",contact");
 }
 
 TEST(EurocExport, PlotOfOneFrameAndOfGaps) {
