@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "core/clock.hpp"
+#include "recorder/plot.hpp"
 #include "recorder/replay_source.hpp"
 #include "render/gl_context.hpp"
 
@@ -233,10 +234,21 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       }
   }
 
-  // The simulation's phases when the command gave none.
+  // The flight's phases when the command gave none: the simulation's, or those recorded in the
+  // recording replayed (each pair in the phase its recorded statistics' time lies in).
   if (!p.phase_of && p.source_info.sim)
     p.phase_of = sim_phases(sim::frame_truths(p.source_info.sim->scenario, *p.source_info.sim->flight,
                                               p.source_info.sim->logs.cameras));
+  if (!p.phase_of && replay)
+    if (auto events = replay->reader().events(); events)
+      if (auto phases = recorder::phase_events(*events); !phases.empty())
+        p.phase_of = [phases = std::move(phases)](const StereoFrame& frame) -> std::string {
+          const recorder::RecordedFrame* rf = recorded(frame);
+          const TimestampNs t = rf && rf->record.stats ? rf->record.stats->t_ns : frame.t_key_ns;
+          const auto after = std::upper_bound(phases.begin(), phases.end(), t,
+                                              [](TimestampNs v, const recorder::PhaseEvent& e) { return v < e.t_ns; });
+          return after == phases.begin() ? std::string() : std::prev(after)->name;
+        };
 
   const auto t0 = SteadyClock::now();
   auto next_status = t0 + std::chrono::duration<double>(p.status_every_s);

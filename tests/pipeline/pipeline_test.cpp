@@ -309,6 +309,23 @@ TEST(Pipeline, SimPhasesAreRecordedAtTheirFirstPair) {
     EXPECT_EQ(got[k].name, expected[k].name);
     EXPECT_EQ(got[k].t_ns, expected[k].t_ns) << "at the first pair of the phase, on the statistics' clock";
   }
+
+  // Re-augmented by a replay into a new recording, the recording keeps its phases.
+  PipelineParts q = parts_for("replay://" + (dir / "rec").string() + "?rate=fast");
+  auto rec2 = recorder::Recorder::create((dir / "rec2").string(), info);
+  ASSERT_TRUE(rec2) << rec2.error().message;
+  q.recorder = std::move(*rec2);
+  Pipeline replay(std::move(q));
+  auto rr = replay.run(out, err);
+  ASSERT_TRUE(rr) << rr.error().message;
+  auto reader2 = recorder::RecordingReader::open((dir / "rec2").string());
+  ASSERT_TRUE(reader2) << reader2.error().message;
+  const std::vector<recorder::PhaseEvent> again = recorder::phase_events((*reader2)->events().value());
+  ASSERT_EQ(again.size(), expected.size());
+  for (std::size_t k = 0; k < again.size(); ++k) {
+    EXPECT_EQ(again[k].name, expected[k].name);
+    EXPECT_EQ(again[k].t_ns, expected[k].t_ns);
+  }
 }
 
 TEST(Pipeline, FrameSizeNotTheRigsFailsAtTheFirstFrame) {
