@@ -64,6 +64,12 @@ const std::vector<OptionSpec>& replay_specs() {
       {"rig", ArgKind::kValue, "RIG.yaml|default", "augment with this rig (default: the recorded rig)"},
       {"scene", ArgKind::kValue, "SCENE.yaml",
        "one fixed scene for every frame (default: each frame's recorded boom and receiver pose)"},
+      {"poses", ArgKind::kValue, "POSES.csv",
+       "the receiver's pose per frame from `augrig nav`'s camera pose CSV (e.g. fused from the logs an "
+       "export of this recording wrote), matched to the left frame's recorded timestamp; the boom tracks "
+       "the receptacle unless --boom"},
+      {"pose-tolerance-ms", ArgKind::kValue, "MS",
+       "with --poses: match a pose row within MS of the frame's timestamp (default 0: exactly)"},
       {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
        "how the receiver shows in the augmented image (default mask: not drawn)"},
       {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
@@ -295,13 +301,20 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   parts.models = unwrap(load_rig_models(rig));
   parts.source_info = opened;
   parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+  if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
+  if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
   if (a.has("scene")) {
     parts.poses = fixed_scene_poses(
         unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, parts.models.receptacle_m)), a.get("scene"));
+  } else if (a.has("poses")) {
+    parts.poses = unwrap(poses_csv(a.get("poses"), rig, parse_pose_tolerance(a)));
+    parts.skip_frames_without_pose = true;  // a frame without its row is reported, not guessed
   } else {
-    if (auto first = reader.read_frame_info(source.start_frame()); first && !first->boom)
+    if (auto first = reader.read_frame_info(source.start_frame());
+        first && !first->boom && !first->T_body_receiver && !first->T_cam_receiver[0])
       runtime_error(reader.path() + ": frame " + std::to_string(source.start_frame()) +
-                    " has no recorded scene (boom articulation); give one with --scene SCENE.yaml");
+                    " has no recorded scene (boom articulation, receiver pose); give one with --scene SCENE.yaml "
+                    "or --poses POSES.csv");
     parts.poses = recorded_poses(recorded_rig);
     parts.skip_frames_without_pose = true;  // a frame without its scene is reported, not guessed
   }
@@ -312,7 +325,9 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (a.has("record")) {
     recorder::RecordingInfo info;
     info.rig_yaml = rig_to_yaml(rig);
-    info.scene = a.has("scene") ? a.get("scene") : std::string("as recorded in ") + reader.path();
+    info.scene = a.has("scene")   ? a.get("scene")
+                 : a.has("poses") ? "the poses " + a.get("poses")
+                                  : std::string("as recorded in ") + reader.path();
     info.clock_domains = reader.meta("clock_domains");
     info.extra["re_augmented_from"] = reader.path();
     if (a.has("boom")) info.extra["boom"] = a.get("boom");

@@ -173,6 +173,10 @@ const std::vector<OptionSpec>& run_specs() {
        "how the receiver shows in the augmented image (default mask: not drawn)"},
       {"record", ArgKind::kValue, "DIR", "record raw, augmented and mask frames with poses and statistics"},
       {"overwrite", ArgKind::kFlag, "", "with --record: replace a recording already in DIR"},
+      {"capture-only", ArgKind::kFlag, "",
+       "record (and show) the cameras' frames raw, augmenting nothing: no boom, masks or statistics; the "
+       "poses are recorded where a pose source is given (none is needed). A rig without a boom section "
+       "means this. Augment later: augrig replay DIR --record NEW --rig RIG_WITH_BOOM"},
       {"frames", ArgKind::kValue, "N", "stop after N augmented stereo frames"},
       {"duration", ArgKind::kValue, "S", "stop after S seconds (default: until the source ends or Ctrl-C)"},
       {"out", ArgKind::kValue, "DIR", "write stats.csv (and with --every, images) here"},
@@ -356,6 +360,14 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   // Sources: --source, else the rig's per-camera URIs.
   std::optional<Rig> rig;
   if (a.has("rig")) rig = load_rig_arg(a.get("rig"));
+  // Capture only: asked for, or the rig has no boom to augment with.
+  const bool capture_only = a.has("capture-only") || (rig && !rig->boom.configured);
+  if (capture_only)
+    for (const char* f : {"out", "every", "ground-truth", "boom", "receiver-draw", "scene"})
+      if (a.has(f))
+        usage_error(std::string("--") + f + ": nothing is augmented when capturing only" +
+                    (a.has("capture-only") ? std::string(" (--capture-only)")
+                                           : " (" + rig->source + " has no boom section: a capture-only rig)"));
   std::string uri = a.get("source"), right_uri;
   if (uri.empty()) {
     if (!rig) usage_error("give --source URI, or --rig RIG whose cameras have 'source' keys");
@@ -370,7 +382,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     const std::string scheme = uri.substr(0, uri.find_first_of(":"));
     const bool own_poses = scheme == "sim" || scheme == "replay";
     const bool nav_given = a.has("nav");  // checked in full below
-    if (!own_poses && !a.has("scene") && !a.has("poses") && !nav_given)
+    if (!own_poses && !a.has("scene") && !a.has("poses") && !nav_given && !capture_only)
       usage_error("a pose source is needed for " + uri +
                   ": --scene SCENE.yaml, --poses POSES.csv, or --nav with streams of both aircraft "
                   "(tanker.*, receiver.*)");
@@ -451,18 +463,21 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     parts.poses = recorded_poses(recorded_rig);
   } else if (is_sim) {
     parts.poses = sim_truth_poses(*info.sim);
-  } else {
+  } else if (!capture_only) {
     usage_error(
         "a pose source is needed: --scene SCENE.yaml, --poses POSES.csv, or --nav with streams of both "
         "aircraft (tanker.*, receiver.*)");
   }
+  parts.capture_only = capture_only;
+  const std::string poses_text = parts.poses ? parts.poses->describe() : std::string("none (capture only)");
   if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
   parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
 
   if (a.has("record")) {
     recorder::RecordingInfo rinfo;
     rinfo.rig_yaml = rig_to_yaml(*rig);
-    rinfo.scene = a.has("scene") ? a.get("scene") : parts.poses->describe();
+    rinfo.scene = a.has("scene") ? a.get("scene") : poses_text;
+    if (capture_only) rinfo.extra["capture_only"] = "raw frames only: nothing augmented (augrig run --capture-only)";
     rinfo.clock_domains = opened.live ? "frames: each camera's device clock (t_ns, mid-exposure) and host "
                                         "CLOCK_MONOTONIC (t_host_ns); offsets in events 'clock_offset'"
                                       : "frames: the source's clocks as recorded";
@@ -534,7 +549,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   const bool want_window = !a.has("headless");
   if (want_window && display_present()) parts.view = std::make_shared<LiveView>();
   out << "run: " << uri << (right_uri.empty() ? "" : " + " + right_uri) << (lossless ? " (lockstep)" : " (live)") << pairing_text << "; rig "
-      << rig->source << "; poses from " << parts.poses->describe()
+      << rig->source << (capture_only ? "; capture only (nothing augmented)" : "") << "; poses from " << poses_text
       << (parts.recorder ? "; recording to " + parts.recorder->path() : std::string()) << "\n";
   // Each camera as it is set now: every setting in effect, the URI's and the device's own.
   for (const auto& src : parts.unstarted_source->sources)

@@ -185,29 +185,42 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   // own; a pose source with a boom (a scene, a recording) keeps it until the user says otherwise.
   bool boom_default_track = !p.boom;
 
+  if (!p.capture_only && !p.rig.boom.configured)
+    return make_error(p.rig.source, ": no boom section: a capture-only rig (its cameras can be recorded, e.g. augrig run "
+                      "--capture-only); augmenting needs a rig with boom: {pivot_body_m, limits} (docs/RIG_FORMAT.md; give one "
+                      "with --rig)");
+  if (!p.capture_only && !p.poses) return make_error("pipeline::Pipeline::run(): no pose source");
+
   // The augmenter (and its GL context) on this thread. Only the boxes the boom changes are made:
   // the recorder stores no more; the window and the image files get whole images made for them.
-  auto gl = create_gl_context(GlBackend::kEglHeadless);
-  if (!gl) return make_error("cannot create an OpenGL context (EGL headless): ", gl.error().message);
-  AugmentOptions aug_options = p.augment;
-  aug_options.receiver_model = p.models.receiver_model;
-  if (p.models.boom_model) aug_options.boom_model = p.models.boom_model;
-  aug_options.augmented_output = AugmentedOutput::kChangedBox;
-  auto augmenter_or = Augmenter::create(p.rig, aug_options);
-  if (!augmenter_or) return augmenter_or.error();
-  std::unique_ptr<Augmenter> augmenter = std::move(*augmenter_or);
-  rep.rasterizer = augmenter->rasterizer();
+  std::unique_ptr<GlContext> gl;
+  std::unique_ptr<Augmenter> augmenter;
+  if (!p.capture_only) {
+    auto gl_or = create_gl_context(GlBackend::kEglHeadless);
+    if (!gl_or) return make_error("cannot create an OpenGL context (EGL headless): ", gl_or.error().message);
+    gl = std::move(*gl_or);
+    AugmentOptions aug_options = p.augment;
+    aug_options.receiver_model = p.models.receiver_model;
+    if (p.models.boom_model) aug_options.boom_model = p.models.boom_model;
+    aug_options.augmented_output = AugmentedOutput::kChangedBox;
+    auto augmenter_or = Augmenter::create(p.rig, aug_options);
+    if (!augmenter_or) return augmenter_or.error();
+    augmenter = std::move(*augmenter_or);
+    rep.rasterizer = augmenter->rasterizer();
+  }
   if (!p.source) {
     // One augmentation of a blank pair first (buffers, worker threads), then the cameras start:
     // the first real pair then finds the pipeline ready instead of queues filling behind it.
-    StereoFrame blank;
-    for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
-      const CameraModel& m = p.rig.cameras[static_cast<std::size_t>(index_of(id))].model;
-      blank[id].image = Image(m.width_px, m.height_px, PixelFormat::kRGB8);
-      blank[id].camera = id;
+    if (augmenter) {
+      StereoFrame blank;
+      for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+        const CameraModel& m = p.rig.cameras[static_cast<std::size_t>(index_of(id))].model;
+        blank[id].image = Image(m.width_px, m.height_px, PixelFormat::kRGB8);
+        blank[id].camera = id;
+      }
+      StereoResult warm;
+      (void)augmenter->augment(blank, SceneState{BoomArticulation{}, Pose::identity(), false}, warm);
     }
-    StereoResult warm;
-    (void)augmenter->augment(blank, SceneState{BoomArticulation{}, Pose::identity(), false}, warm);
     if (!p.unstarted_source) return make_error("pipeline::Pipeline::run(): no source");
     auto started = start_stereo(std::move(*p.unstarted_source));
     p.unstarted_source.reset();
@@ -278,6 +291,59 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     return 0;
   };
 
+  // A new phase of the flight: an event at the pair's statistics time (`t_ns`, on the nav clock
+  // where the poses map frames onto it), so that plots can mark it.
+  auto note_phase = [&](const StereoFrame& frame, TimestampNs t_ns) {
+    if (!p.phase_of) return;
+    std::string phase = p.phase_of(frame);
+    if (phase.empty() || phase == s.phase) return;
+    s.phase = std::move(phase);
+    out << "  phase: " << s.phase << " from pair " << frame.pair_sequence << " (t_ns " << t_ns << ")\n";
+    if (p.recorder)
+      p.recorder->push(recorder::EventRecord{t_ns, s.poses.t_nav_ns ? ClockDomain::kGps : frame.left.clock,
+                                             "phase: " + s.phase});
+  };
+
+  // Capture only: the pair, with its poses where there is a pose source, to the window (raw) and
+  // the recorder; nothing augmented.
+  auto capture = [&](StereoFrame& frame, TimestampNs mid_l, TimestampNs mid_host, TimestampNs t_in) {
+    std::optional<SceneState> scene;
+    FramePoses& fp = s.poses;
+    fp = p.poses ? p.poses->at(frame, mid_l) : FramePoses{};
+    scene = fp.scene;
+    if (p.poses && !scene) ++rep.no_pose_pairs;
+    const TimestampNs t_sinks = monotonic_now_ns();
+    rep.stage_pose.add(t_sinks - t_in);
+    ++rep.pairs;
+    note_phase(frame, fp.t_nav_ns.value_or(frame.t_key_ns));
+    if (p.view && !s.paused) {
+      // The window shows the raw images (no masks: nothing is overlaid).
+      for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
+        ViewResult& v = id == CameraId::kLeft ? result.left : result.right;
+        v.augmented = Image::copy_of(frame[id].image.cview());
+        v.mask = Image();
+      }
+      p.view->publish(result, scene.value_or(SceneState{BoomArticulation{}, Pose::identity(), false}), mid_host);
+    } else if (!p.view && mid_host) {
+      rep.display_latency.add(monotonic_now_ns() - mid_host);
+    }
+    if (p.recorder && s.recording_on) {
+      if (mid_host) rep.recorder_latency.add(monotonic_now_ns() - mid_host);
+      recorder::FrameRecord fr;
+      fr.raw = std::move(frame);
+      if (scene) {
+        fr.T_body_receiver = scene->T_body_receiver;
+        fr.receiver_present = scene->receiver_present;
+        for (int c = 0; c < 2; ++c)
+          fr.T_cam_receiver[c] = p.rig.cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
+        fr.sigma_pos_m = fp.sigma_pos_m;
+        fr.sigma_att_deg = fp.sigma_att_deg;
+      }
+      p.recorder->push(std::move(fr));
+    }
+    rep.stage_sinks.add(monotonic_now_ns() - t_sinks);
+  };
+
   // One stereo frame through pose, boom, augmentation and the sinks.
   auto process = [&](StereoFrame& frame) {
     if (s.first) {
@@ -307,6 +373,11 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     const TimestampNs t_in = monotonic_now_ns();
     const TimestampNs arrived = std::max(frame.left.t_host_ns, frame.right.t_host_ns);
     if (arrived > 0 && t_in >= arrived && t_in - arrived < 10'000'000'000) rep.stage_queue.add(t_in - arrived);
+
+    if (p.capture_only) {
+      capture(frame, mid_l, mid_host, t_in);
+      return;
+    }
 
     // 1. The pose.
     s.poses = p.poses->at(frame, mid_l);
@@ -364,16 +435,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     rep.summary.add(result.stats);
     rep.last_stats = result.stats;
     if (p.keep_all_stats) rep.all_stats.push_back(result.stats);
-    // A new phase of the flight: an event on the statistics' clock, so that plots can mark it.
-    if (p.phase_of)
-      if (std::string phase = p.phase_of(frame); !phase.empty() && phase != s.phase) {
-        s.phase = std::move(phase);
-        out << "  phase: " << s.phase << " from pair " << frame.pair_sequence << " (t_ns " << result.stats.t_ns
-            << ")\n";
-        if (p.recorder)
-          p.recorder->push(recorder::EventRecord{result.stats.t_ns, fp.t_nav_ns ? ClockDomain::kGps : frame.left.clock,
-                                                 "phase: " + s.phase});
-      }
+    note_phase(frame, result.stats.t_ns);
     const recorder::RecordedFrame* rf = recorded(frame);
     if (rf && rf->record.stats) {
       ++rep.comparable;
@@ -659,9 +721,10 @@ void Pipeline::print_summary(const PipelineReport& r, std::ostream& out) const {
   const std::uint64_t pairing = st.pairing.unpaired_left + st.pairing.unpaired_right;
   const std::uint64_t queue = st.queue_drops[0] + st.queue_drops[1];
   const std::uint64_t pending = st.pending.count;
-  out << "run: " << r.pairs << " stereo frames augmented in " << std::fixed << std::setprecision(1) << r.wall_s
-      << " s (" << r.pairs / std::max(r.wall_s, 1e-9) << "/s";
-  if (r.pairs)
+  out << "run: " << r.pairs << " stereo frames " << (parts_.capture_only ? "captured (not augmented)" : "augmented")
+      << " in " << std::fixed << std::setprecision(1) << r.wall_s << " s (" << r.pairs / std::max(r.wall_s, 1e-9)
+      << "/s";
+  if (r.pairs && !parts_.capture_only)
     out << ", augmenter " << fmt_ms(r.augment_ms / static_cast<double>(r.pairs)) << " ms/frame, "
         << to_string(r.rasterizer) << " rasteriser";
   // Every frame read is in a pair or a ledger row: read = 2 pairs + pairing + queue + pending.

@@ -140,7 +140,11 @@ struct PipelineParts {
   // a source run() starts once the augmenter is ready: cameras capture from the moment they are
   // started, and the augmenter's set-up must not overflow their queues (live runs use this).
   std::unique_ptr<OpenedSource> unstarted_source;
-  std::unique_ptr<PoseProvider> poses;
+  std::unique_ptr<PoseProvider> poses;  // may be null only with capture_only
+  // Capture only: the pairs are recorded (and shown) raw, with their poses where a pose source is
+  // given, and nothing is augmented: no boom, masks nor statistics, no GL context. A rig without
+  // a boom section (BoomConfig::configured) allows nothing else.
+  bool capture_only = false;
   std::optional<BoomArg> boom;  // none: the poses' boom where they have one, else tracking
   BoomDimensions boom_dims;     // the boom's geometry for tracking (a scenario's; default built-in)
   AugmentOptions augment;       // augmented_output is set to kChangedBox (sinks get what they need)
@@ -189,7 +193,7 @@ struct PipelineParts {
 
 // What a run did: the numbers behind its summary.
 struct PipelineReport {
-  std::uint64_t pairs = 0;              // augmented
+  std::uint64_t pairs = 0;              // augmented (captured, with PipelineParts::capture_only)
   std::uint64_t failed_pairs = 0;       // augmentation failed
   std::uint64_t no_pose_pairs = 0;      // without a pose (boom only, or skipped)
   std::uint64_t skipped_no_pose = 0;    // of those, not augmented (skip_frames_without_pose)

@@ -106,7 +106,10 @@ class RecordedPoses final : public PoseProvider {
       return p;
     }
     const recorder::FrameRecord& r = rf->record;
-    if (!r.boom) {
+    // A capture-only recording has the receiver's pose without a boom: the boom is then augrig's
+    // to fly (it tracks the receptacle unless told otherwise).
+    const bool has_receiver = r.T_body_receiver || (r.T_cam_receiver[0] && rig_);
+    if (!r.boom && !has_receiver) {
       p.problems.push_back("frame " + std::to_string(rf->index) + " has no recorded scene");
       p.hud.status = "no pose: " + p.problems.back();
       return p;
@@ -114,7 +117,7 @@ class RecordedPoses final : public PoseProvider {
     // The boom and the receiver in the tanker body frame (or, when only the camera-relative pose
     // was recorded, through the recorded rig).
     SceneState s;
-    s.boom = *r.boom;
+    if (r.boom) s.boom = *r.boom;
     if (r.T_body_receiver) {
       s.T_body_receiver = *r.T_body_receiver;
     } else if (r.T_cam_receiver[0] && rig_) {
@@ -124,7 +127,7 @@ class RecordedPoses final : public PoseProvider {
     }
     if (r.receiver_present && !*r.receiver_present) s.receiver_present = false;
     p.scene = s;
-    p.boom_given = true;
+    p.boom_given = r.boom.has_value();
     p.sigma_pos_m = r.sigma_pos_m;
     p.sigma_att_deg = r.sigma_att_deg;
     p.hud.status = "as recorded";

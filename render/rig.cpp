@@ -388,29 +388,36 @@ Rig parse_root(const Ctx& c, const YAML::Node& root) {
     rig.cameras[1].T_body_cam = rig.cameras[0].T_body_cam * calib->T_right_left.inverse();
   }
 
-  const YAML::Node boom = require(c, root, "", "boom", "a map {pivot_body_m, model, limits}");
-  expect_map(c, boom, "boom", "a map {pivot_body_m, model, limits}");
-  check_keys(c, boom, "boom", {"pivot_body_m", "model", "limits"});
-  rig.boom.pivot_body_m =
-      to_vec3(c, require(c, boom, "boom", "pivot_body_m", "[x, y, z] in metres (body FRD)"),
-              "boom.pivot_body_m", "[x, y, z] in metres (body FRD)");
-  if (const YAML::Node m = boom["model"]; m.IsDefined()) rig.boom.model = parse_model(c, m, "boom.model");
-  const YAML::Node lim =
-      require(c, boom, "boom", "limits", "a map {elevation_deg, azimuth_deg, extension_m}");
-  expect_map(c, lim, "boom.limits", "a map {elevation_deg, azimuth_deg, extension_m}");
-  check_keys(c, lim, "boom.limits", {"elevation_deg", "azimuth_deg", "extension_m"});
-  const auto el = to_range(c, require(c, lim, "boom.limits", "elevation_deg", "[min, max] in degrees"),
-                           "boom.limits.elevation_deg", "degrees");
-  const auto az = to_range(c, require(c, lim, "boom.limits", "azimuth_deg", "[min, max] in degrees"),
-                           "boom.limits.azimuth_deg", "degrees");
-  const auto ex = to_range(c, require(c, lim, "boom.limits", "extension_m", "[min, max] in metres"),
-                           "boom.limits.extension_m", "metres");
-  rig.boom.limits = {deg_to_rad(el.first),
-                     deg_to_rad(el.second),
-                     deg_to_rad(az.first),
-                     deg_to_rad(az.second),
-                     ex.first,
-                     ex.second};
+  // No boom section: a capture-only rig (recording its cameras needs no boom); its boom values are
+  // the seed paper's, marked as not configured, and augmenting with it is refused.
+  const YAML::Node boom = root["boom"];
+  if (!boom.IsDefined()) {
+    rig.boom = Rig::paper_default().boom;
+    rig.boom.configured = false;
+  } else {
+    expect_map(c, boom, "boom", "a map {pivot_body_m, model, limits}");
+    check_keys(c, boom, "boom", {"pivot_body_m", "model", "limits"});
+    rig.boom.pivot_body_m =
+        to_vec3(c, require(c, boom, "boom", "pivot_body_m", "[x, y, z] in metres (body FRD)"),
+                "boom.pivot_body_m", "[x, y, z] in metres (body FRD)");
+    if (const YAML::Node m = boom["model"]; m.IsDefined()) rig.boom.model = parse_model(c, m, "boom.model");
+    const YAML::Node lim =
+        require(c, boom, "boom", "limits", "a map {elevation_deg, azimuth_deg, extension_m}");
+    expect_map(c, lim, "boom.limits", "a map {elevation_deg, azimuth_deg, extension_m}");
+    check_keys(c, lim, "boom.limits", {"elevation_deg", "azimuth_deg", "extension_m"});
+    const auto el = to_range(c, require(c, lim, "boom.limits", "elevation_deg", "[min, max] in degrees"),
+                             "boom.limits.elevation_deg", "degrees");
+    const auto az = to_range(c, require(c, lim, "boom.limits", "azimuth_deg", "[min, max] in degrees"),
+                             "boom.limits.azimuth_deg", "degrees");
+    const auto ex = to_range(c, require(c, lim, "boom.limits", "extension_m", "[min, max] in metres"),
+                             "boom.limits.extension_m", "metres");
+    rig.boom.limits = {deg_to_rad(el.first),
+                       deg_to_rad(el.second),
+                       deg_to_rad(az.first),
+                       deg_to_rad(az.second),
+                       ex.first,
+                       ex.second};
+  }
 
   // The pairing section is optional: free-running cameras, each with its own clock, 2 ms.
   if (const YAML::Node pn = root["pairing"]; pn.IsDefined()) {
@@ -574,16 +581,19 @@ std::string rig_to_yaml(const Rig& rig) {
   o << "pairing: {tolerance_us: " << fmt(p.tolerance_us) << ", mode: " << p.mode << ", clock: " << p.clock
     << ", queue: " << p.queue << "}\n";
   const BoomLimits& l = rig.boom.limits;
-  o << "boom:\n  pivot_body_m: ";
-  write_vec(o, {rig.boom.pivot_body_m.x(), rig.boom.pivot_body_m.y(), rig.boom.pivot_body_m.z()});
-  o << "\n  model: ";
-  write_model(o, rig.boom.model);
-  o << "  limits:\n    elevation_deg: [" << fmt_deg(l.elevation_min_rad) << ", "
-    << fmt_deg(l.elevation_max_rad) << "]\n    azimuth_deg: [" << fmt_deg(l.azimuth_min_rad) << ", "
-    << fmt_deg(l.azimuth_max_rad) << "]";
-  o << "\n    extension_m: ";
-  write_vec(o, {l.extension_min_m, l.extension_max_m});
-  o << "\nreceiver:\n  model: ";
+  if (rig.boom.configured) {
+    o << "boom:\n  pivot_body_m: ";
+    write_vec(o, {rig.boom.pivot_body_m.x(), rig.boom.pivot_body_m.y(), rig.boom.pivot_body_m.z()});
+    o << "\n  model: ";
+    write_model(o, rig.boom.model);
+    o << "  limits:\n    elevation_deg: [" << fmt_deg(l.elevation_min_rad) << ", "
+      << fmt_deg(l.elevation_max_rad) << "]\n    azimuth_deg: [" << fmt_deg(l.azimuth_min_rad) << ", "
+      << fmt_deg(l.azimuth_max_rad) << "]";
+    o << "\n    extension_m: ";
+    write_vec(o, {l.extension_min_m, l.extension_max_m});
+    o << "\n";
+  }
+  o << "receiver:\n  model: ";
   write_model(o, rig.receiver.model);
   o << "  receptacle_m: ";
   write_vec(o, {rig.receiver.receptacle_m.x(), rig.receiver.receptacle_m.y(), rig.receiver.receptacle_m.z()});

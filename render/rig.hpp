@@ -1,5 +1,5 @@
 // Rig: the stereo camera rig, the boom and the receiver as configured in a rig file (YAML, see
-// docs/RIG_FORMAT.md). Loading never prints: it returns the Rig or an Error naming the file, line
+// docs/RIG_FORMAT.md); a rig without a boom section is a capture-only rig (cameras, pairing). Loading never prints: it returns the Rig or an Error naming the file, line
 // and key, and what was expected. Rig::paper_default() reproduces the seed paper's rig.
 #pragma once
 
@@ -49,6 +49,9 @@ struct BoomLimits {
 };
 
 struct BoomConfig {
+  // False for a capture-only rig (no `boom` section): its cameras can be recorded, but nothing can
+  // be augmented with it; the values below are then the seed paper's, for summaries only.
+  bool configured = true;
   Eigen::Vector3d pivot_body_m = Eigen::Vector3d::Zero();
   ModelSource model;  // a model file is in the boom frame (x along the boom), at extension 0
   BoomLimits limits;

@@ -690,6 +690,67 @@ TEST(CmdRun, WindowScreenshotShowsTheBoomWhereTheMasksSay) {
 
 // Frames whose size is not the rig's: the run fails at the first frame, once, naming both sizes,
 // and nothing is augmented (it used to print one error per frame and exit 0 with "0 pairs").
+// A rig without a boom section captures only: the run records the raw frames with the simulation's
+// poses and augments nothing, flags that need augmenting are refused, the recording cannot be
+// augmented with its own rig, and a rig with a boom augments it from the poses the export wrote.
+TEST(CmdRun, CaptureOnlyRigRecordsRawThenAReplayAugmentsIt) {
+  const std::string dir = output_dir("cmd_run_capture_only");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  Rig capture = Rig::paper_default();
+  capture.boom.configured = false;
+  std::ofstream(dir + "/capture.yaml") << rig_to_yaml(capture);
+  std::ofstream(dir + "/full.yaml") << rig_to_yaml(Rig::paper_default());
+  const std::string src = " --source 'sim://demo?rate=0&every=45' --headless --status-every 0";
+  std::string out;
+  ASSERT_EQ(augrig("run --rig " + dir + "/capture.yaml" + src + " --record " + dir + "/rec", &out), 0) << out;
+  EXPECT_TRUE(contains(out, "capture only (nothing augmented)")) << out;
+  EXPECT_TRUE(contains(out, "stereo frames captured (not augmented)")) << out;
+  const auto acc = frame_account(out);
+  ASSERT_TRUE(acc) << out;
+  EXPECT_EQ(acc->left + acc->right, 2 * acc->pairs + acc->unpaired + acc->queue + acc->pending) << out;
+  ASSERT_GT(acc->pairs, 5u);
+  auto reader = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  const std::size_t frames = (*reader)->frame_count();
+  EXPECT_EQ(frames, acc->pairs);
+  {
+    auto f = (*reader)->read_frame(0);
+    ASSERT_TRUE(f) << f.error().message;
+    EXPECT_TRUE(f->augmented[0].empty() && f->mask[0].empty() && !f->stats);
+    EXPECT_TRUE(f->T_cam_receiver[0].has_value());
+  }
+  // The same with --capture-only and any rig; flags that need augmenting are refused.
+  EXPECT_EQ(augrig("run --rig " + dir + "/capture.yaml" + src + " --out " + dir + "/o", &out), 2) << out;
+  EXPECT_TRUE(contains(out, "--out: nothing is augmented when capturing only")) << out;
+  EXPECT_TRUE(contains(out, "has no boom section: a capture-only rig")) << out;
+  EXPECT_EQ(augrig("run --capture-only" + src + " --boom track", &out), 2) << out;
+  EXPECT_TRUE(contains(out, "--boom: nothing is augmented when capturing only (--capture-only)")) << out;
+  // Replayed with its own (capture-only) rig: refused, saying why and what to give.
+  EXPECT_EQ(augrig("replay " + dir + "/rec --headless", &out), 1) << out;
+  EXPECT_TRUE(contains(out, "no boom section: a capture-only rig")) << out;
+  EXPECT_TRUE(contains(out, "give one with --rig")) << out;
+  // The export's poses.csv (the recorded T_cam_receiver) and a rig with a boom: augmented.
+  ASSERT_EQ(augrig("export " + dir + "/rec " + dir + "/x --no-plot", &out), 0) << out;
+  ASSERT_EQ(augrig("replay " + dir + "/rec --rig " + dir + "/full.yaml --poses " + dir + "/x/poses.csv --record " +
+                       dir + "/rec2 --headless",
+                   &out),
+            0)
+      << out;
+  auto again = recorder::RecordingReader::open(dir + "/rec2");
+  ASSERT_TRUE(again) << again.error().message;
+  ASSERT_EQ((*again)->frame_count(), frames) << out;
+  for (std::size_t i = 0; i < frames; ++i) {
+    auto f = (*again)->read_frame_info(i);
+    ASSERT_TRUE(f && f->stats) << i;
+    EXPECT_GT(f->stats->boom_px_left, 0) << i;
+    EXPECT_GT(f->stats->receiver_px_left, 0) << i;
+  }
+  // --poses and --scene are two sources of poses.
+  EXPECT_EQ(augrig("replay " + dir + "/rec --poses " + dir + "/x/poses.csv --scene " + dir + "/s.yaml", &out), 2)
+      << out;
+}
+
 TEST(CmdRun, FrameSizeNotTheRigsFailsAtOnce) {
   const std::string dir = output_dir("cmd_run_size_mismatch");
   Rig small = Rig::paper_default();

@@ -328,6 +328,76 @@ TEST(Pipeline, SimPhasesAreRecordedAtTheirFirstPair) {
   }
 }
 
+// Capture only: the pairs recorded raw with their poses, nothing augmented (no augmented images,
+// masks or statistics, no GL), every frame accounted for; the recording then augments in a replay
+// with its recorded poses, the boom tracking the receptacle (no boom was recorded). A rig without a
+// boom section captures but refuses to augment.
+TEST(Pipeline, CaptureOnlyRecordsRawAndAugmentsLater) {
+  const fs::path dir = test::output_dir("pipeline_capture_only");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  PipelineParts p = parts_for(kScenario + "?every=3&rate=0");
+  Rig capture_rig = p.rig;
+  capture_rig.boom.configured = false;
+  p.rig = capture_rig;
+  p.capture_only = true;
+  recorder::RecordingInfo info;
+  info.rig_yaml = rig_to_yaml(p.rig);
+  auto rec = recorder::Recorder::create((dir / "rec").string(), info);
+  ASSERT_TRUE(rec) << rec.error().message;
+  p.recorder = std::move(*rec);
+  p.max_pairs = 10;
+  Pipeline pipeline(std::move(p));
+  std::ostringstream out, err;
+  auto r = pipeline.run(out, err);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->pairs, 10u);
+  EXPECT_EQ(r->stage_augment.count, 0u) << "nothing augmented";
+  EXPECT_FALSE(r->last_stats);
+  expect_ledger_adds_up(*r);
+  std::ostringstream summary;
+  pipeline.print_summary(*r, summary);
+  EXPECT_NE(summary.str().find("10 stereo frames captured (not augmented)"), std::string::npos) << summary.str();
+  ASSERT_TRUE(r->recording_closed && *r->recording_closed);
+  auto reader = recorder::RecordingReader::open((dir / "rec").string());
+  ASSERT_TRUE(reader) << reader.error().message;
+  ASSERT_EQ((*reader)->frame_count(), 10u);
+  for (std::size_t i = 0; i < 10; ++i) {
+    auto f = (*reader)->read_frame(i);
+    ASSERT_TRUE(f) << f.error().message;
+    EXPECT_EQ(f->raw.left.image.width(), 1280);
+    EXPECT_TRUE(f->augmented[0].empty() && f->augmented[1].empty() && !f->augmented_box[0]);
+    EXPECT_TRUE(f->mask[0].empty() && f->mask[1].empty());
+    EXPECT_FALSE(f->stats);
+    EXPECT_FALSE(f->boom);
+    EXPECT_TRUE(f->T_body_receiver && f->T_cam_receiver[0] && f->T_cam_receiver[1]) << "the truth's poses";
+  }
+  // The capture-only rig cannot augment the recording...
+  {
+    PipelineParts q = parts_for("replay://" + (dir / "rec").string() + "?rate=fast");
+    EXPECT_FALSE(q.rig.boom.configured) << "the recorded rig";
+    Pipeline replay(std::move(q));
+    auto rr = replay.run(out, err);
+    ASSERT_FALSE(rr);
+    EXPECT_NE(rr.error().message.find("no boom section: a capture-only rig"), std::string::npos) << rr.error().message;
+  }
+  // ...a rig with a boom does, from the recorded poses, the boom tracking the receptacle.
+  PipelineParts q = parts_for("replay://" + (dir / "rec").string() + "?rate=fast");
+  q.rig.boom = Rig::paper_default().boom;
+  q.poses = recorded_poses(q.rig);
+  q.keep_all_stats = true;
+  Pipeline replay(std::move(q));
+  auto rr = replay.run(out, err);
+  ASSERT_TRUE(rr) << rr.error().message;
+  EXPECT_EQ(rr->pairs, 10u);
+  EXPECT_EQ(rr->no_pose_pairs, 0u);
+  ASSERT_EQ(rr->all_stats.size(), 10u);
+  for (const OcclusionStats& st : rr->all_stats) {
+    EXPECT_GT(st.boom_px_left, 0);
+    EXPECT_GT(st.receiver_px_left, 0);
+  }
+}
+
 TEST(Pipeline, FrameSizeNotTheRigsFailsAtTheFirstFrame) {
   PipelineParts p = parts_for(kScenario + "?every=3&rate=0");
   p.rig.cameras[0].model = CameraModel::pinhole_from_hfov(640, 480, 0.8);

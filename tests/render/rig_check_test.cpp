@@ -63,6 +63,28 @@ TEST(RigCheck, ThePapersRigInNumbers) {
   EXPECT_NE(text.find("No warnings."), std::string::npos) << text;
 }
 
+// A capture-only rig (no boom section) has no contact to check: its cameras are summarised and
+// warned about, the boom and the receptacle at contact are not (a boom it does not have would put
+// the receiver anywhere).
+TEST(RigCheck, CaptureOnlyRigHasNoContactChecks) {
+  Rig rig = Rig::paper_default();
+  rig.boom.configured = false;
+  rig.boom.limits.elevation_min_rad = rig.boom.limits.elevation_max_rad = -0.5;  // would be warned about
+  const RigSummary s = summarize_rig(rig, BoomDimensions{}, builtin_receptacle());
+  EXPECT_TRUE(s.warnings.empty()) << s.warnings.front();
+  for (const RigCameraSummary& k : s.cameras) {
+    EXPECT_FALSE(k.receptacle_px);
+    EXPECT_TRUE(std::isnan(k.receptacle_z_m));
+  }
+  const std::string text = format_rig_summary(rig, s);
+  EXPECT_NE(text.find("boom: none: a capture-only rig"), std::string::npos) << text;
+  EXPECT_EQ(text.find("receptacle at contact"), std::string::npos) << text;
+  EXPECT_NE(text.find("baseline 0.5000 m"), std::string::npos) << text;
+  // The cameras' mistakes are still named.
+  rig.cameras[1].T_body_cam.translation_m.y() = -500.0;
+  EXPECT_TRUE(has_warning(summarize_rig(rig, BoomDimensions{}, builtin_receptacle()), "millimetres"));
+}
+
 TEST(RigCheck, EachMistakeIsNamed) {
   const Eigen::Vector3d rec = builtin_receptacle();
   {  // The right camera's translation in millimetres.

@@ -331,6 +331,29 @@ TEST(Rig, BaseRigIsValid) {
   EXPECT_EQ(rig->right().model.distortion, DistortionModel::kRadTan);
 }
 
+// A rig without a boom section is a capture-only rig: it loads, says so, and stays one when written
+// and read back; a boom section that is there must still be whole.
+TEST(Rig, WithoutBoomSectionIsCaptureOnly) {
+  const std::string yaml = edit({{18, "#"}, {19, "#"}, {20, "#"}, {21, "#"}, {22, "#"}, {23, "#"}, {24, "#"}});
+  ASSERT_EQ(yaml.find("boom:"), std::string::npos);
+  const auto rig = parse_rig(yaml, "capture.yaml");
+  ASSERT_TRUE(rig) << rig.error().message;
+  EXPECT_FALSE(rig->boom.configured);
+  EXPECT_TRUE(parse_rig(kBaseRig, "<string>")->boom.configured);
+  EXPECT_TRUE(Rig::paper_default().boom.configured);
+  const std::string written = rig_to_yaml(*rig);
+  EXPECT_EQ(written.find("boom:"), std::string::npos) << written;
+  const auto again = parse_rig(written, "<string>");
+  ASSERT_TRUE(again) << again.error().message;
+  EXPECT_FALSE(again->boom.configured);
+  expect_rig_near(*again, *rig, 1e-12);
+  // An empty boom section is not a missing one.
+  const auto empty = parse_rig(edit({{18, "boom: {}"}, {19, "#"}, {20, "#"}, {21, "#"}, {22, "#"}, {23, "#"}, {24, "#"}}),
+                               "empty.yaml");
+  ASSERT_FALSE(empty);
+  EXPECT_NE(empty.error().message.find("boom"), std::string::npos) << empty.error().message;
+}
+
 struct BadRig {
   std::string what;
   std::string yaml;
