@@ -579,8 +579,8 @@ constexpr const char* kGtContent[kGtStreams] = {
     "receiver depth, float32 H x W .npy, metres along the optical axis (z), NaN where no receiver",
     "receiver depth, 16-bit PNG, round(z * 1000) mm, 0 where no receiver, 65535 = 65.535 m or more",
     "receiver depth, 16-bit PNG, round(z * 1000) mm, 0 where no receiver, 65535 = 65.535 m or more",
-    "float32 H x W x 2 .npy: (u, v) in the right raw image of each left receiver pixel's surface point, NaN "
-    "where none",
+    ("float32 H x W x 2 .npy: (u, v) in the right raw image of each left receiver pixel's surface point, NaN "
+     "where none"),
     "8-bit PNG: stereo class per left pixel, 0 no receiver, 1 both, 2 left only, 3 right only, 4 neither"};
 
 // The work of one camera of one frame: its raw, augmented and mask images encoded and written; or
