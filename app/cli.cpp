@@ -44,6 +44,43 @@ Rig load_rig_arg(const std::string& value) {
   return unwrap(load_rig(value));
 }
 
+OptionSpec rig_option(const std::string& default_text, bool required) {
+  return {"rig", ArgKind::kValue, "RIG.yaml|default",
+          "the rig (docs/RIG_FORMAT.md: cameras, boom, receiver), or 'default' for the paper's" +
+              (default_text.empty() ? std::string() : " (default: " + default_text + ")"),
+          required};
+}
+
+OptionSpec scene_option(const std::string& default_text, bool folder) {
+  return {"scene", ArgKind::kValue, folder ? "SCENE.yaml|DIR" : "SCENE.yaml",
+          std::string("a fixed scene (boom articulation, receiver pose; docs/CLI.md)") +
+              (folder ? "; a folder holds one scene file per pair (sorted)" : " for every frame") +
+              (default_text.empty() ? std::string() : " (default: " + default_text + ")")};
+}
+
+OptionSpec poses_option(const std::string& extra) {
+  return {"poses", ArgKind::kValue, "POSES.csv",
+          "the receiver's pose per frame from `augrig nav`'s camera pose CSV, matched to the left frame's "
+          "timestamp" +
+              (extra.empty() ? std::string() : "; " + extra)};
+}
+
+OptionSpec pose_tolerance_option() {
+  return {"pose-tolerance-ms", ArgKind::kValue, "MS",
+          "with --poses: match a pose row within MS of the left frame's timestamp (default 0: exactly)"};
+}
+
+OptionSpec boom_option(const std::string& default_text) {
+  return {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
+          "boom articulation: tracking the receptacle, fixed (degrees, degrees, metres) or a script (default: " +
+              default_text + ")"};
+}
+
+OptionSpec receiver_draw_option() {
+  return {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
+          "how the receiver shows in the augmented image (default mask: not drawn)"};
+}
+
 ReceiverDraw parse_receiver_draw(const std::string& v) {
   if (v.empty() || v == "mask") return ReceiverDraw::kMaskOnly;
   if (v == "wireframe") return ReceiverDraw::kWireframe;

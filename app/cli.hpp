@@ -90,6 +90,15 @@ std::uint64_t parse_screenshot_at(const ParsedArgs& a);
 // --boom: track, fixed:EL_DEG,AZ_DEG,EXT_M or script:FILE.csv (pipeline/boom_stage.hpp).
 BoomArg parse_boom_arg(const std::string& v);
 
+// ---- The flags the augmenting commands share (run, replay, augment, evaluate, demo) ------------
+// One name, one value syntax and one meaning each; `default_text` is the command's own default.
+OptionSpec rig_option(const std::string& default_text, bool required = false);
+OptionSpec scene_option(const std::string& default_text, bool folder = false);  // folder: SCENE.yaml|DIR
+OptionSpec poses_option(const std::string& extra = "");
+OptionSpec pose_tolerance_option();
+OptionSpec boom_option(const std::string& default_text);
+OptionSpec receiver_draw_option();
+
 std::unique_ptr<GlContext> make_gl_context();
 void make_dirs(const fs::path& dir);
 

@@ -35,17 +35,11 @@ const std::vector<OptionSpec>& evaluate_specs() {
       {"images", ArgKind::kValue, "K",
        "with --out: the true, raw and augmented disparity of every K-th evaluated frame (16-bit PNG, "
        "disparity x 256, 0 none; and a colour view)"},
-      {"rig", ArgKind::kValue, "RIG.yaml|default",
-       "the rig (default: the recording's, the scenario's, or the paper's for a frame index or EuRoC "
-       "folder)"},
-      {"scene", ArgKind::kValue, "SCENE.yaml",
-       "one fixed scene for every frame (default: the source's poses)"},
-      {"poses", ArgKind::kValue, "POSES.csv",
-       "the receiver's pose per frame from `augrig nav`'s camera pose CSV (matched by the left frame's "
-       "time)"},
-      {"pose-tolerance-ms", ArgKind::kValue, "MS", "with --poses: match a pose row within MS (default 0)"},
-      {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE",
-       "another boom (default: the source's: recorded, simulated, or tracking)"},
+      rig_option("the recording's, the scenario's, or the paper's for a frame index or EuRoC folder"),
+      scene_option("the source's poses"),
+      poses_option(),
+      pose_tolerance_option(),
+      boom_option("the source's: recorded, simulated, or tracking"),
       {"from-frame", ArgKind::kValue, "N", "recordings and EuRoC folders: start at frame N"},
       {"seek", ArgKind::kValue, "T_S",
        "recordings and EuRoC folders: start T_S seconds after the first frame"},

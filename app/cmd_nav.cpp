@@ -16,13 +16,12 @@ const std::vector<OptionSpec>& nav_specs() {
   static const std::vector<OptionSpec> specs = {
       {"tanker", ArgKind::kValue, "DIR", "tanker logs: gps.nmea, imu.csv, aircraft.yaml (docs/NAV_FORMATS.md)", true},
       {"receiver", ArgKind::kValue, "DIR", "receiver logs, the same files", true},
-      {"rig", ArgKind::kValue, "RIG.yaml|default", "rig file (cameras, boom), or 'default'", true},
+      rig_option("", true),
       {"frames", ArgKind::kValue, "INDEX.csv", "frame index: sequence,camera,t_ns,file", true},
       {"out", ArgKind::kValue, "POSES.csv", "output: the receiver in each camera per frame", true},
       {"camera-offset-ns", ArgKind::kValue, "L[,R]",
        "camera clock minus nav (GPS) time, per camera (one value: both), ns (default 0): t_nav = t_camera - offset"},
-      {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
-       "boom articulation per frame (default track: the nozzle aims at the receptacle)"},
+      boom_option("track: the nozzle aims at the receptacle; none with a capture-only rig"),
       {"forward-only", ArgKind::kFlag, "", "no RTS smoothing (what a real-time filter would know)"},
       {"truth", ArgKind::kValue, "POSES.csv", "true camera poses (augrig sim's truth/poses.csv): print the error"},
       {"solutions", ArgKind::kValue, "DIR", "also write each aircraft's nav solution per epoch (CSV)"},
@@ -101,6 +100,10 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
     }
     p->boom = boom.command(ns_to_s(f.t_ns - index.rows.front().t_ns), p->boom, rig.boom.limits);
     rows.push_back(p->row(f.sequence, f.camera, f.t_ns));
+    // A capture-only rig has no boom to articulate: the boom columns stay empty (whoever augments
+    // with these poses flies its own rig's boom), unless --boom says what it does.
+    if (!rig.boom.configured && !a.has("boom"))
+      rows.back().boom_elevation_deg = rows.back().boom_azimuth_deg = rows.back().boom_extension_m = nav::CameraPoseRow::kNaN;
   }
   const double query_us = rows.empty() ? 0 : 1e3 * ms_since(t1) / static_cast<double>(rows.size());
   nav::CsvWriteOptions o;

@@ -61,19 +61,13 @@ const std::vector<OptionSpec>& replay_specs() {
        "with --out: " + std::string(kGroundTruthHelp) +
            "; with --record: store each frame's receiver depth in the new recording (export --ground-truth "
            "writes the rest from it)"},
-      {"rig", ArgKind::kValue, "RIG.yaml|default", "augment with this rig (default: the recorded rig)"},
-      {"scene", ArgKind::kValue, "SCENE.yaml",
-       "one fixed scene for every frame (default: each frame's recorded boom and receiver pose)"},
-      {"poses", ArgKind::kValue, "POSES.csv",
-       "the receiver's pose per frame from `augrig nav`'s camera pose CSV (e.g. fused from the logs an "
-       "export of this recording wrote), matched to the left frame's recorded timestamp; the boom tracks "
-       "the receptacle unless --boom"},
-      {"pose-tolerance-ms", ArgKind::kValue, "MS",
-       "with --poses: match a pose row within MS of the frame's timestamp (default 0: exactly)"},
-      {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
-       "how the receiver shows in the augmented image (default mask: not drawn)"},
-      {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
-       "another boom over the recorded receiver poses (default: the recorded boom)"},
+      rig_option("the recorded rig"),
+      scene_option("each frame's recorded boom and receiver pose"),
+      poses_option("e.g. fused from the logs an export of this recording wrote; the boom tracks the receptacle "
+                   "unless --boom"),
+      pose_tolerance_option(),
+      receiver_draw_option(),
+      boom_option("the recorded boom; track where none was recorded"),
       {"record", ArgKind::kValue, "DIR", "record the re-augmented run (a new recording, docs/RECORDING.md)"},
       {"overwrite", ArgKind::kFlag, "", "with --record: replace a recording already in DIR"},
       {"headless", ArgKind::kFlag, "", "no window even when a display is present"},
@@ -86,12 +80,82 @@ const std::vector<OptionSpec>& replay_specs() {
   return specs;
 }
 
+// --every K (default 30).
+int replay_every(const ParsedArgs& a) {
+  return a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 30;
+}
+
+// Where a replay's poses come from, for its banner.
+std::string replay_poses_text(const ParsedArgs& a) {
+  return a.has("scene")   ? "scene " + a.get("scene")
+         : a.has("poses") ? "poses " + a.get("poses")
+                          : std::string("scene as recorded per frame");
+}
+
+// What every replay (a recording, an MCAP file, a EuRoC folder) configures the same way from its
+// flags once its source is open: the rig (--rig, else the one stored with the frames), its models,
+// the poses (--scene, --poses, else those recorded per frame), the boom, the receiver drawing,
+// --out's files, --record's new recording (`from` in its metadata and in messages), the window.
+struct ReplayConfig {
+  std::string from;                   // the recording's path, the MCAP file, euroc://DIR
+  std::optional<Rig> stored_rig;      // the rig stored with the frames
+  bool paper_rig_by_default = false;  // none stored: the paper's (a EuRoC folder) rather than an error
+  bool recorded_poses = true;         // the frames carry their scene (not a EuRoC folder)
+  std::string clock_domains;          // for the new recording's metadata
+};
+void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayConfig& c) {
+  if (!a.has("rig") && !c.stored_rig && !c.paper_rig_by_default)
+    runtime_error(c.from + ": no rig is stored with the frames; give one with --rig");
+  parts.rig = a.has("rig") ? load_rig_arg(a.get("rig")) : c.stored_rig ? *c.stored_rig : Rig::paper_default();
+  if (parts.rig.cameras.size() != 2)
+    runtime_error(parts.rig.source + ": the rig needs 2 cameras, has " + std::to_string(parts.rig.cameras.size()));
+  parts.models = unwrap(load_rig_models(parts.rig));
+  parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+  if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
+  if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
+  if (a.has("scene")) {
+    parts.poses = fixed_scene_poses(
+        unwrap(load_scene(a.get("scene"), parts.rig, BoomDimensions{}, parts.models.receptacle_m)), a.get("scene"));
+  } else if (a.has("poses")) {
+    parts.poses = unwrap(poses_csv(a.get("poses"), parts.rig, parse_pose_tolerance(a)));
+    parts.skip_frames_without_pose = true;  // a frame without its row is reported, not guessed
+  } else if (c.recorded_poses) {
+    parts.poses = recorded_poses(c.stored_rig);
+    parts.skip_frames_without_pose = true;  // a frame without its scene is reported, not guessed
+  } else {
+    usage_error(c.from + " has no recorded scene: give one with --scene SCENE.yaml or --poses POSES.csv");
+  }
+  // A boom script's t_s counts from the first frame replayed.
+  if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
+  if (a.has("every") && !a.has("out")) usage_error("--every needs --out (where the images go)");
+  if (a.has("out")) {
+    const fs::path out_dir = a.get("out");
+    make_dirs(out_dir);
+    parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
+    parts.frame_files = FrameFiles{out_dir, replay_every(a), {}, a.has("ground-truth")};
+  }
+  // The re-augmented run as a new recording: the same raw frames, the new augmentation.
+  if (a.has("record")) {
+    recorder::RecordingInfo info;
+    info.rig_yaml = rig_to_yaml(parts.rig);
+    info.scene = a.has("scene")   ? a.get("scene")
+                 : a.has("poses") ? "the poses " + a.get("poses")
+                                  : "as recorded in " + c.from;
+    info.clock_domains = c.clock_domains;
+    info.extra["re_augmented_from"] = c.from;
+    if (a.has("boom")) info.extra["boom"] = a.get("boom");
+    parts.recorder = create_recorder(a.get("record"), info, a.has("overwrite"));
+    parts.record_ground_truth = a.has("ground-truth");
+  }
+  if (!a.has("headless") && display_present()) parts.view = std::make_shared<LiveView>();
+  parts.stop_flag = install_stop_signals();
+}
+
 // A EuRoC/ASL folder (mav0/cam0, cam1) through the same pipeline: no recorded scene, so --scene
 // gives it; the rig is --rig (default: the paper's). Pairs by timestamp within
 // --pair-tolerance-ns; --seek and --from-frame choose the start, --loop the passes are not
 // supported (a dataset has no player).
 int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out, std::ostream& err) {
-  if (!a.has("scene")) usage_error("a EuRoC folder has no recorded scene: give one with --scene SCENE.yaml");
   if (a.has("loop")) usage_error("--loop: a EuRoC folder plays once (replay a recording to loop)");
   if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
   std::string params = "?tolerance_ns=" + std::to_string(a.has("pair-tolerance-ns")
@@ -111,38 +175,15 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
   const std::size_t pairs = euroc ? euroc->pair_count() : 0;
   const std::uint64_t unpaired = euroc ? euroc->unpaired() : 0;
   PipelineParts parts;
-  parts.rig = load_rig_arg(a.get("rig", "default"));
-  parts.models = unwrap(load_rig_models(parts.rig));
-  parts.poses = fixed_scene_poses(
-      unwrap(load_scene(a.get("scene"), parts.rig, BoomDimensions{}, parts.models.receptacle_m)), a.get("scene"));
-  if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
-  parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
-  const fs::path out_dir = a.get("out");
-  const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 30;
-  if (a.has("out")) {
-    make_dirs(out_dir);
-    parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
-    parts.frame_files = FrameFiles{out_dir, every, {}, a.has("ground-truth")};
-  }
-  if (a.has("record")) {
-    recorder::RecordingInfo info;
-    info.rig_yaml = rig_to_yaml(parts.rig);
-    info.scene = a.get("scene");
-    info.extra["re_augmented_from"] = "euroc://" + target;
-    parts.recorder = create_recorder(a.get("record"), info, a.has("overwrite"));
-    parts.record_ground_truth = a.has("ground-truth");
-  }
+  configure_replay(parts, a, {"euroc://" + target, std::nullopt, true, false, ""});
   out << "replay: euroc://" << target << ", " << pairs << " stereo pairs (" << unpaired
-      << " frames without a partner), scene " << a.get("scene") << "\n";
+      << " frames without a partner), " << replay_poses_text(a) << "\n";
   parts.source_info = opened;
   parts.source = unwrap(start_stereo(std::move(opened)));
-  parts.stop_flag = install_stop_signals();
   parts.progress_total = pairs;
   parts.on_problem = [&err](const Error& e) { err << "augrig replay: " << user_message(e) << "\n"; };
-  const bool want_window = !a.has("headless");
-  if (want_window && display_present()) parts.view = std::make_shared<LiveView>();
   Pipeline pipeline(std::move(parts));
-  const PipelineReport r = run_pipeline(pipeline, want_window, a.has("out") ? out_dir.string() : ".", out, err);
+  const PipelineReport r = run_pipeline(pipeline, !a.has("headless"), a.get("out", "."), out, err);
   out << "Replayed " << r.pairs << " stereo frame(s)\n";
   if (r.recording_closed) {
     out << "Recorded " << r.recorder_stats.frames_committed << " stereo frame(s) to " << a.get("record") << "\n";
@@ -166,50 +207,20 @@ int replay_mcap(const std::string& file, const ParsedArgs& a, std::ostream& out,
   std::optional<Rig> recorded_rig;
   if (mcap && mcap->meta().count("rig_yaml"))
     recorded_rig = unwrap(parse_rig(mcap->meta().at("rig_yaml"), path + " (metadata augrig_recording, rig_yaml)"));
-  if (!a.has("rig") && !recorded_rig) runtime_error(path + ": the file stores no rig; give one with --rig");
   PipelineParts parts;
-  parts.rig = a.has("rig") ? load_rig_arg(a.get("rig")) : *recorded_rig;
-  parts.models = unwrap(load_rig_models(parts.rig));
-  if (a.has("scene")) {
-    parts.poses = fixed_scene_poses(
-        unwrap(load_scene(a.get("scene"), parts.rig, BoomDimensions{}, parts.models.receptacle_m)), a.get("scene"));
-  } else {
-    parts.poses = recorded_poses(recorded_rig);
-    parts.skip_frames_without_pose = true;
-  }
-  if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
-  parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
-  const fs::path out_dir = a.get("out");
-  const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 30;
-  if (a.has("out")) {
-    make_dirs(out_dir);
-    parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
-    parts.frame_files = FrameFiles{out_dir, every, {}, a.has("ground-truth")};
-  }
-  if (a.has("record")) {
-    recorder::RecordingInfo info;
-    info.rig_yaml = rig_to_yaml(parts.rig);
-    info.scene = a.has("scene") ? a.get("scene") : std::string("as recorded in ") + path;
-    info.extra["re_augmented_from"] = path;
-    parts.recorder = create_recorder(a.get("record"), info, a.has("overwrite"));
-    parts.record_ground_truth = a.has("ground-truth");
-  }
+  configure_replay(parts, a, {path, recorded_rig, false, true, ""});
   out << "replay: " << path << " (MCAP), " << frames << " stereo frames; rig "
-      << (a.has("rig") ? parts.rig.source : std::string("as recorded")) << ", scene "
-      << (a.has("scene") ? a.get("scene") : std::string("as recorded per frame")) << "\n";
+      << (a.has("rig") ? parts.rig.source : std::string("as recorded")) << ", " << replay_poses_text(a) << "\n";
   parts.source_info = opened;
   parts.source = unwrap(start_stereo(std::move(opened)));
-  parts.stop_flag = install_stop_signals();
   parts.progress_total = frames;
   std::size_t problems = 0;  // read errors: a damaged frame or file
   parts.on_problem = [&err, &problems](const Error& e) {
     ++problems;
     err << "augrig replay: " << user_message(e) << "\n";
   };
-  const bool want_window = !a.has("headless");
-  if (want_window && display_present()) parts.view = std::make_shared<LiveView>();
   Pipeline pipeline(std::move(parts));
-  const PipelineReport r = run_pipeline(pipeline, want_window, a.has("out") ? out_dir.string() : ".", out, err);
+  const PipelineReport r = run_pipeline(pipeline, !a.has("headless"), a.get("out", "."), out, err);
   out << "Replayed " << r.pairs << " stereo frame(s)\n";
   if (r.comparable)
     out << "Recorded statistics reproduced exactly (same pixel counts) in " << r.reproduced << " of " << r.comparable
@@ -273,8 +284,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
     param("from_frame", std::to_string(parse_integer("from-frame", a.get("from-frame"), 0, 1LL << 40)));
   const int passes = a.has("loop") ? static_cast<int>(parse_integer("loop", a.get("loop"), 1, 1000000)) : 1;
   param("passes", std::to_string(passes));
-  const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 30;
-  if (a.has("every") && !a.has("out")) usage_error("--every needs --out (where the images go)");
+  const int every = replay_every(a);
 
   // The recording, the rig and the scene are read and checked before the GL context exists.
   const std::string dir = pos[0].rfind("replay://", 0) == 0 ? pos[0].substr(9) : pos[0];
@@ -290,74 +300,30 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   std::optional<Rig> recorded_rig;
   if (const std::string yaml = reader.meta("rig_yaml"); !yaml.empty())
     recorded_rig = unwrap(parse_rig(yaml, reader.path() + " (meta rig_yaml)"));
-  if (!a.has("rig") && !recorded_rig)
-    runtime_error(reader.path() + ": the recording stores no rig (meta rig_yaml is empty); give one with --rig");
-  const Rig rig = a.has("rig") ? load_rig_arg(a.get("rig")) : *recorded_rig;
-  if (rig.cameras.size() != 2)
-    runtime_error(rig.source + ": the rig needs 2 cameras, has " + std::to_string(rig.cameras.size()));
-
-  PipelineParts parts;
-  parts.rig = rig;
-  parts.models = unwrap(load_rig_models(rig));
-  parts.source_info = opened;
-  parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
-  if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
-  if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
-  if (a.has("scene")) {
-    parts.poses = fixed_scene_poses(
-        unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, parts.models.receptacle_m)), a.get("scene"));
-  } else if (a.has("poses")) {
-    parts.poses = unwrap(poses_csv(a.get("poses"), rig, parse_pose_tolerance(a)));
-    parts.skip_frames_without_pose = true;  // a frame without its row is reported, not guessed
-  } else {
+  // The first frame replayed must carry a scene unless one is given.
+  if (!a.has("scene") && !a.has("poses"))
     if (auto first = reader.read_frame_info(source.start_frame());
         first && !first->boom && !first->T_body_receiver && !first->T_cam_receiver[0])
       runtime_error(reader.path() + ": frame " + std::to_string(source.start_frame()) +
                     " has no recorded scene (boom articulation, receiver pose); give one with --scene SCENE.yaml "
                     "or --poses POSES.csv");
-    parts.poses = recorded_poses(recorded_rig);
-    parts.skip_frames_without_pose = true;  // a frame without its scene is reported, not guessed
-  }
-  // A boom script's t_s counts from the first frame replayed.
-  if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
-
-  // The re-augmented run as a new recording: the same raw frames, the new augmentation.
-  if (a.has("record")) {
-    recorder::RecordingInfo info;
-    info.rig_yaml = rig_to_yaml(rig);
-    info.scene = a.has("scene")   ? a.get("scene")
-                 : a.has("poses") ? "the poses " + a.get("poses")
-                                  : std::string("as recorded in ") + reader.path();
-    info.clock_domains = reader.meta("clock_domains");
-    info.extra["re_augmented_from"] = reader.path();
-    if (a.has("boom")) info.extra["boom"] = a.get("boom");
-    parts.recorder = create_recorder(a.get("record"), info, a.has("overwrite"));
-    parts.record_ground_truth = a.has("ground-truth");
-  }
+  PipelineParts parts;
+  configure_replay(parts, a, {reader.path(), recorded_rig, false, true, reader.meta("clock_domains")});
+  parts.source_info = opened;
   const fs::path out_dir = a.get("out");
-  if (a.has("out")) {
-    make_dirs(out_dir);
-    parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
-    parts.frame_files = FrameFiles{out_dir, every, {}, a.has("ground-truth")};
-  }
   out << "replay: " << source.uri() << ", " << source.frame_count() << " stereo frames, from frame "
       << source.start_frame() << ", "
       << (rate > 0 ? "real rate x" + fmt_ms(rate) : std::string("as fast as possible"))
       << (passes > 1 ? ", " + std::to_string(passes) + " passes" : std::string()) << "; rig "
-      << (a.has("rig") ? rig.source : std::string("as recorded")) << ", scene "
-      << (a.has("scene") ? a.get("scene") : std::string("as recorded per frame")) << "\n";
+      << (a.has("rig") ? parts.rig.source : std::string("as recorded")) << ", " << replay_poses_text(a) << "\n";
   parts.on_problem = [&err](const Error& e) { err << "augrig replay: " << user_message(e) << "\n"; };
-  const bool want_window = !a.has("headless");
-  if (want_window && display_present()) parts.view = std::make_shared<LiveView>();
   parts.source = unwrap(start_stereo(std::move(opened)));
-  parts.stop_flag = install_stop_signals();
   parts.status_every_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 0;
   // Progress over the range replayed, every pass.
   parts.progress_total = (source.frame_count() - source.start_frame()) * static_cast<std::uint64_t>(passes);
   Pipeline pipeline(std::move(parts));
   const PipelineReport r =
-      run_pipeline(pipeline, want_window, a.has("out") ? out_dir.string() : ".", out, err,
-                   parse_screenshot_at(a));
+      run_pipeline(pipeline, !a.has("headless"), a.get("out", "."), out, err, parse_screenshot_at(a));
 
   if (r.pairs == 1 && r.last_stats) out << format_table1(*r.last_stats, "Occlusion statistics");
   out << "Replayed " << r.pairs << " stereo frame(s)";

@@ -153,24 +153,16 @@ namespace {
 
 const std::vector<OptionSpec>& run_specs() {
   static const std::vector<OptionSpec> specs = {
-      {"rig", ArgKind::kValue, "RIG.yaml|default",
-       "the rig (cameras, boom, receiver); its cameras' 'source' keys name the sources. Default: the sim "
-       "scenario's rig for sim://, else the paper's"},
+      rig_option("the sim scenario's for sim://, the recording's for replay://, else the paper's; its cameras' "
+                 "'source' keys name the sources"),
       {"source", ArgKind::kValue, "URI",
        "frame source: sim://SCENARIO, replay://DIR, stereo:[..]//{L}{R} (docs/CAPTURE.md); overrides the "
        "rig's"},
-      {"scene", ArgKind::kValue, "SCENE.yaml",
-       "a fixed scene (boom articulation, receiver pose); sim:// without it uses the simulation's truth"},
-      {"poses", ArgKind::kValue, "POSES.csv",
-       "the receiver's pose per frame from `augrig nav`'s camera pose CSV, matched to the left frame's "
-       "timestamp"},
-      {"pose-tolerance-ms", ArgKind::kValue, "MS",
-       "with --poses: match a pose row within MS of the frame's timestamp (default 0: exactly)"},
-      {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE",
-       "boom articulation (default: the pose source's boom where it has one, a scene or a recording; "
-       "else track)"},
-      {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
-       "how the receiver shows in the augmented image (default mask: not drawn)"},
+      scene_option("the simulation's truth for sim://, the recorded poses for replay://"),
+      poses_option(),
+      pose_tolerance_option(),
+      boom_option("the pose source's boom where it has one, a scene or a recording; else track"),
+      receiver_draw_option(),
       {"record", ArgKind::kValue, "DIR", "record raw, augmented and mask frames with poses and statistics"},
       {"overwrite", ArgKind::kFlag, "", "with --record: replace a recording already in DIR"},
       {"capture-only", ArgKind::kFlag, "",

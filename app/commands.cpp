@@ -42,14 +42,10 @@ namespace {
 
 const std::vector<OptionSpec>& augment_specs() {
   static const std::vector<OptionSpec> specs = {
-      {"rig", ArgKind::kValue, "RIG.yaml|default",
-       "rig file (docs/RIG_FORMAT.md), or 'default' for the paper's rig", true},
-      {"scene", ArgKind::kValue, "SCENE.yaml|DIR",
-       "boom and receiver pose (docs/CLI.md); a folder holds one scene file per pair (sorted)"},
-      {"poses", ArgKind::kValue, "POSES.csv",
-       "the receiver's pose per pair from `augrig nav`'s camera pose CSV, matched to the left frame's t_ns"},
-      {"pose-tolerance-ms", ArgKind::kValue, "MS",
-       "with --poses: match a pose row within MS of the left frame's t_ns (default 0: exactly)"},
+      rig_option("", true),
+      scene_option("", true),
+      poses_option(),
+      pose_tolerance_option(),
       {"left", ArgKind::kValue, "FILE|DIR", "left camera image, or a folder of them (paired by sorted name)"},
       {"right", ArgKind::kValue, "FILE|DIR", "right camera image, or a folder of them"},
       {"frames", ArgKind::kValue, "INDEX.csv",
@@ -63,8 +59,7 @@ const std::vector<OptionSpec>& augment_specs() {
       {"bayer", ArgKind::kValue, "RG|GR|GB|BG", "8-bit gray inputs are raw Bayer mosaics with this pattern"},
       {"no-receiver", ArgKind::kFlag, "",
        "do not render the receiver (no receiver mask bit, no stereo classes)"},
-      {"receiver-draw", ArgKind::kValue, "mask|wireframe|translucent",
-       "how the receiver shows in the augmented image (default mask: not drawn)"},
+      receiver_draw_option(),
       {"status-every", ArgKind::kValue, "S",
        "a status line (pairs, rate, drops) every S seconds (default 0: never)"},
       {"ground-truth", ArgKind::kFlag, "", kGroundTruthHelp},

@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "nav/logs.hpp"
+#include "render/rig.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig {
@@ -128,6 +129,37 @@ TEST(CmdNav, FixedAndScriptedBoomModes) {
   EXPECT_EQ(augrig(nav_args(d, dir + "/x.csv") + " --boom wiggle", &log), 2);
   EXPECT_EQ(augrig(nav_args(d, dir + "/x.csv") + " --boom script:/nonexistent.csv", &log), 1);
   EXPECT_NE(log.find("/nonexistent.csv"), std::string::npos) << log;
+}
+
+// A capture-only rig (no boom section) has no boom to articulate: the poses carry no boom columns
+// (whoever augments with them flies its own boom) and are the same poses as with the full rig;
+// --boom still says what the boom does.
+TEST(CmdNav, CaptureOnlyRigWritesNoBoomColumns) {
+  const std::string d = dataset();
+  const std::string dir = output_dir("cmd_nav_capture_only");
+  auto rig = load_rig(d + "/rig.yaml");
+  ASSERT_TRUE(rig) << rig.error().message;
+  rig->boom.configured = false;
+  std::ofstream(dir + "/capture.yaml") << rig_to_yaml(*rig);
+  std::string log;
+  ASSERT_EQ(augrig(nav_args(d, dir + "/full.csv"), &log), 0) << log;
+  const std::string args = "nav --tanker " + d + "/tanker --receiver " + d + "/receiver --rig " + dir +
+                           "/capture.yaml --frames " + d + "/frames/index.csv --out ";
+  ASSERT_EQ(augrig(args + dir + "/capture.csv", &log), 0) << log;
+  auto full = nav::read_camera_pose_csv(dir + "/full.csv");
+  auto capture = nav::read_camera_pose_csv(dir + "/capture.csv");
+  ASSERT_TRUE(full && capture);
+  ASSERT_EQ(full->rows.size(), capture->rows.size());
+  for (std::size_t i = 0; i < full->rows.size(); ++i) {
+    const auto &a = full->rows[i], &b = capture->rows[i];
+    EXPECT_TRUE(std::isfinite(a.boom_elevation_deg));
+    EXPECT_TRUE(std::isnan(b.boom_elevation_deg) && std::isnan(b.boom_azimuth_deg) && std::isnan(b.boom_extension_m));
+    EXPECT_EQ(a.t_ns, b.t_ns);
+    EXPECT_NEAR(a.x_m, b.x_m, 1e-9) << "the same poses (the rig written and read back: to 1e-14)";
+    EXPECT_NEAR(a.z_m, b.z_m, 1e-9);
+  }
+  ASSERT_EQ(augrig(args + dir + "/fixed.csv --boom fixed:30,0,4", &log), 0) << log;
+  EXPECT_NEAR(nav::read_camera_pose_csv(dir + "/fixed.csv")->rows.front().boom_elevation_deg, 30.0, 1e-9);
 }
 
 TEST(CmdNav, BadInputsExitOneWithTheFile) {
