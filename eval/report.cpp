@@ -50,12 +50,6 @@ std::string pair_cells(const DisparityErrors& e) {
          cell(e.range_rms_m(), 9, 3);
 }
 
-std::string gp_quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("''") : std::string(1, c);
-  return q + "'";
-}
-
 }  // namespace
 
 void RunEvaluation::add(const FrameEvaluation& f) {
@@ -176,7 +170,7 @@ Status plot_evaluation(const std::vector<EvaluationPoint>& points, const std::st
   const char* caller = "eval::plot_evaluation(): ";
   if (points.empty()) return make_error(caller, png_path, ": no evaluated frames to plot");
   std::string s = recorder::gnuplot_png_terminal(1200, 1000);
-  s += "set output " + gp_quote(png_path) + "\n$d << EOD\n";
+  s += "set output " + recorder::gnuplot_quote(png_path) + "\n$d << EOD\n";
   const double t0 = points.front().t_s;
   auto value = [&s](double v) {
     s += ' ';
@@ -196,9 +190,8 @@ Status plot_evaluation(const std::vector<EvaluationPoint>& points, const std::st
   s += "EOD\n";
   const std::string style = std::string("linespoints pointtype 7 pointsize ") +
                             (points.size() == 1 ? "1.2" : "0.35") + " linewidth 2";
-  s += "set multiplot layout 3,1 title " + gp_quote(title) + " font ',13'\n";
-  s += "set grid\nset key outside right top\nset lmargin 10\nset rmargin 40\n";
-  s += "set xlabel 'time from the first frame (s)'\nset yrange [0:*]\nset offsets 0, 0, graph 0.05, 0\n";
+  s += recorder::gnuplot_time_panels(3, title, 40);
+  s += "set yrange [0:*]\nset offsets 0, 0, graph 0.05, 0\n";
   s += "set title 'Receiver occluded by the boom (% of its pixels)'\nset ylabel '%'\n";
   s += "plot $d using 1:2 with " + style +
        " linecolor rgb '#1f77b4' title 'left', \\\n"

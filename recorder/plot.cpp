@@ -39,13 +39,6 @@ void append_value(std::string& s, double v) {
   s.append(buf, r.ptr);
 }
 
-// A gnuplot single-quoted string: '' stands for a quote inside.
-std::string gp_quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("''") : std::string(1, c);
-  return q + "'";
-}
-
 std::string read_text(const std::string& path, std::size_t max) {
   std::ifstream in(path, std::ios::binary);
   std::string s((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -62,7 +55,7 @@ std::string script(const std::vector<OcclusionStats>& frames, const std::string&
   std::string s;
   // Not "enhanced": a title such as rec_demo keeps its underscore (not a subscript).
   s += gnuplot_png_terminal(o.width_px, o.height_px);
-  s += "set output " + gp_quote(png) + "\n";
+  s += "set output " + gnuplot_quote(png) + "\n";
   // t_s occl_L occl_R overlap recv_L recv_R boom_L boom_R both left_only right_only neither
   s += "$stats << EOD\n";
   const TimestampNs t0 = frames.front().t_ns;
@@ -85,18 +78,16 @@ std::string script(const std::vector<OcclusionStats>& frames, const std::string&
   const bool one = frames.size() == 1;
   // Small points too, so that a sample between two gaps (non-finite neighbours) still shows.
   const std::string style = std::string("linespoints pointtype 7 pointsize ") + (one ? "1.2" : "0.35");
-  s += "set multiplot layout 3,1 title " + gp_quote(o.title) + " font ',13'\n";
+  s += gnuplot_time_panels(3, o.title, 34);
   // The phases: dashed lines on every panel (arrows stay set), their names on the first only.
   for (std::size_t k = 0; k < o.phases.size(); ++k) {
     std::string t;
     append_value(t, o.phases[k].t_s);
     s += "set arrow " + std::to_string(k + 1) + " from " + t + ", graph 0 to " + t +
          ", graph 1 nohead dashtype 2 linewidth 1.5 linecolor rgb '" + kPhaseColour + "' back\n";
-    s += "set label " + std::to_string(k + 2) + " " + gp_quote(o.phases[k].name) + " at " + t +
+    s += "set label " + std::to_string(k + 2) + " " + gnuplot_quote(o.phases[k].name) + " at " + t +
          ", graph 0.97 rotate by 90 right offset 1.1, 0 front font ',9' textcolor rgb '" + kPhaseColour + "'\n";
   }
-  s += "set grid\nset key outside right top\nset lmargin 10\nset rmargin 34\n";
-  s += "set xlabel 'time from the first frame (s)'\n";
   s += "set ylabel '%'\nset yrange [0:*]\nset offsets 0, 0, graph 0.05, 0\n";
   s += "set title 'Receiver occlusion by the boom, and boom overlap between the cameras'\n";
   s += "plot $stats using 1:2 with " + style +
@@ -162,6 +153,18 @@ std::vector<PhaseMarker> phase_markers(const std::vector<PhaseEvent>& phases, Ti
   }
   if (before && out.empty()) out.push_back({0.0, before->name});
   return out;
+}
+
+std::string gnuplot_quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("''") : std::string(1, c);
+  return q + "'";
+}
+
+std::string gnuplot_time_panels(int panels, const std::string& title, int key_margin_chars) {
+  return "set multiplot layout " + std::to_string(panels) + ",1 title " + gnuplot_quote(title) +
+         " font ',13'\nset grid\nset key outside right top\nset lmargin 10\nset rmargin " +
+         std::to_string(key_margin_chars) + "\nset xlabel 'time from the first frame (s)'\n";
 }
 
 std::string find_gnuplot() {

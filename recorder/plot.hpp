@@ -54,5 +54,10 @@ Status run_gnuplot(const std::string& script, const std::string& png_path, const
 // The script lines choosing the PNG terminal (pngcairo where gnuplot has it), text not "enhanced"
 // (underscores in names stay underscores).
 std::string gnuplot_png_terminal(int width_px, int height_px);
+// A gnuplot single-quoted string ('' stands for a quote inside).
+std::string gnuplot_quote(const std::string& s);
+// The script lines that open `panels` plots over time one above the other: the title, a grid, the
+// keys outside on the right (`key_margin_chars` wide), the time axis from the first frame.
+std::string gnuplot_time_panels(int panels, const std::string& title, int key_margin_chars);
 
 }  // namespace augrig::recorder
