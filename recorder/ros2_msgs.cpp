@@ -147,6 +147,14 @@ const std::map<std::string, MsgDef>& definitions() {
         "uint8 COVARIANCE_TYPE_APPROXIMATED = 1\nuint8 COVARIANCE_TYPE_DIAGONAL_KNOWN = 2\n"
         "uint8 COVARIANCE_TYPE_KNOWN = 3\nuint8 position_covariance_type\n",
         {"std_msgs/Header", "sensor_msgs/NavSatStatus"}}},
+      {"diagnostic_msgs/KeyValue", {"string key\nstring value\n", {}}},
+      {"diagnostic_msgs/DiagnosticStatus",
+       {"byte OK=0\nbyte WARN=1\nbyte ERROR=2\nbyte STALE=3\nbyte level\nstring name\nstring message\n"
+        "string hardware_id\ndiagnostic_msgs/KeyValue[] values\n",
+        {"diagnostic_msgs/KeyValue"}}},
+      {"diagnostic_msgs/DiagnosticArray",
+       {"std_msgs/Header header\ndiagnostic_msgs/DiagnosticStatus[] status\n",
+        {"std_msgs/Header", "diagnostic_msgs/DiagnosticStatus"}}},
       {"augrig_msgs/OcclusionStats",
        {"# The occlusion statistics of one stereo frame (augrig render/stats.hpp, docs/STATISTICS.md).\n"
         "std_msgs/Header header\nint64 t_ns\nint64 width\nint64 height\nint64 receiver_px_left\n"
@@ -204,7 +212,8 @@ const std::vector<std::string>& known_types() {
   static const std::vector<std::string> types = {
       "augrig_msgs/msg/StereoFrameInfo", "sensor_msgs/msg/Image",      "sensor_msgs/msg/CameraInfo",
       "tf2_msgs/msg/TFMessage",          "geometry_msgs/msg/PoseWithCovarianceStamped",
-      "augrig_msgs/msg/OcclusionStats",  "sensor_msgs/msg/Imu",        "sensor_msgs/msg/NavSatFix"};
+      "augrig_msgs/msg/OcclusionStats",  "sensor_msgs/msg/Imu",        "sensor_msgs/msg/NavSatFix",
+      "diagnostic_msgs/msg/DiagnosticArray"};
   return types;
 }
 
@@ -457,6 +466,24 @@ std::vector<std::uint8_t> stereo_frame_info(std::int64_t stamp_ns, const StereoF
   return std::move(w.data());
 }
 
+std::vector<std::uint8_t> diagnostic_array(std::int64_t t_ns, const std::vector<DiagnosticStatus>& status) {
+  CdrWriter w;
+  header(w, t_ns, "");
+  w.u32(static_cast<std::uint32_t>(status.size()));
+  for (const DiagnosticStatus& s : status) {
+    w.u8(s.level);
+    w.string(s.name);
+    w.string(s.message);
+    w.string(s.hardware_id);
+    w.u32(static_cast<std::uint32_t>(s.values.size()));
+    for (const auto& [key, value] : s.values) {
+      w.string(key);
+      w.string(value);
+    }
+  }
+  return std::move(w.data());
+}
+
 Expected<Image> decode_image(const std::vector<std::uint8_t>& msg, std::int64_t* stamp_ns) {
   CdrReader r(msg.data(), msg.size());
   const std::int64_t t = read_header(r);
@@ -559,6 +586,33 @@ Expected<StereoFrameInfo> decode_stereo_frame_info(const std::vector<std::uint8_
   info.sigma_att_deg = r.f64();
   if (!r.ok()) return bad("augrig_msgs/msg/StereoFrameInfo");
   return info;
+}
+
+Expected<std::vector<DiagnosticStatus>> decode_diagnostic_array(const std::vector<std::uint8_t>& msg,
+                                                                std::int64_t* stamp_ns) {
+  CdrReader r(msg.data(), msg.size());
+  const std::int64_t t = read_header(r);
+  const std::uint32_t n = r.u32();
+  // A status takes at least 21 bytes: a count beyond the message is damage, not a size to reserve.
+  if (!r.ok() || n > msg.size() / 21) return bad("diagnostic_msgs/msg/DiagnosticArray");
+  std::vector<DiagnosticStatus> out;
+  for (std::uint32_t i = 0; i < n && r.ok(); ++i) {
+    DiagnosticStatus s;
+    s.level = r.u8();
+    s.name = r.string();
+    s.message = r.string();
+    s.hardware_id = r.string();
+    const std::uint32_t k = r.u32();
+    if (k > msg.size() / 10) return bad("diagnostic_msgs/msg/DiagnosticArray");
+    for (std::uint32_t j = 0; j < k && r.ok(); ++j) {
+      std::string key = r.string();
+      s.values.emplace_back(std::move(key), r.string());
+    }
+    out.push_back(std::move(s));
+  }
+  if (!r.ok()) return bad("diagnostic_msgs/msg/DiagnosticArray");
+  if (stamp_ns) *stamp_ns = t;
+  return out;
 }
 
 }  // namespace augrig::recorder::ros2

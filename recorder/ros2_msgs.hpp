@@ -3,14 +3,15 @@
 // from the end of that header), the ros2msg schema texts (the type's .msg definition, then each
 // type it uses after a line of 80 '=' and "MSG: pkg/Type", as rosbag2 stores them), and the few
 // messages augrig writes and reads back: sensor_msgs Image, CameraInfo, Imu, NavSatFix;
-// geometry_msgs PoseWithCovarianceStamped; tf2_msgs TFMessage; augrig_msgs StereoFrameInfo and
-// OcclusionStats (our own).
+// geometry_msgs PoseWithCovarianceStamped; tf2_msgs TFMessage; diagnostic_msgs DiagnosticArray (the
+// live view's health, net/foxglove_server.hpp); augrig_msgs StereoFrameInfo and OcclusionStats (our own).
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/expected.hpp"
@@ -130,11 +131,24 @@ struct StereoFrameInfo {
 };
 std::vector<std::uint8_t> stereo_frame_info(std::int64_t stamp_ns, const StereoFrameInfo& info);
 
+// diagnostic_msgs/msg/DiagnosticStatus: the health of one part, in plain words. The standard type
+// rather than an augrig_msgs one, so that Foxglove's Diagnostics panels and ROS 2's tools
+// (rqt_runtime_monitor, the diagnostic aggregator) show it without our schema being built.
+struct DiagnosticStatus {
+  static constexpr std::uint8_t kOk = 0, kWarn = 1, kError = 2, kStale = 3;
+  std::uint8_t level = kOk;
+  std::string name, message, hardware_id;
+  std::vector<std::pair<std::string, std::string>> values;  // KeyValue[]: key, value
+};
+std::vector<std::uint8_t> diagnostic_array(std::int64_t t_ns, const std::vector<DiagnosticStatus>& status);
+
 // Decoders of what McapSource reads back; an Error says what is wrong with the message.
 Expected<Image> decode_image(const std::vector<std::uint8_t>& msg, std::int64_t* stamp_ns = nullptr);
 Expected<Pose> decode_pose_with_covariance(const std::vector<std::uint8_t>& msg);
 Expected<std::vector<Transform>> decode_tf_message(const std::vector<std::uint8_t>& msg);
 Expected<OcclusionStats> decode_occlusion_stats(const std::vector<std::uint8_t>& msg);
 Expected<StereoFrameInfo> decode_stereo_frame_info(const std::vector<std::uint8_t>& msg);
+Expected<std::vector<DiagnosticStatus>> decode_diagnostic_array(const std::vector<std::uint8_t>& msg,
+                                                                std::int64_t* stamp_ns = nullptr);
 
 }  // namespace augrig::recorder::ros2

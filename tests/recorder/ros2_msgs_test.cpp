@@ -1,0 +1,59 @@
+// recorder/ros2_msgs.hpp, the parts the MCAP tests (mcap_writer_test.cpp, app/cmd_export_mcap_test.cpp)
+// do not reach: diagnostic_msgs/msg/DiagnosticArray, the live view's health topic. Its schema is
+// ROS 2 Humble's definition with its dependencies; its CDR round-trips field for field; damaged
+// messages are errors. tests/net/foxglove_server_test.cpp decodes it with @foxglove/rosmsg2-serialization.
+#include "recorder/ros2_msgs.hpp"
+
+#include <algorithm>
+
+#include <gtest/gtest.h>
+
+namespace augrig::recorder::ros2 {
+namespace {
+
+TEST(Ros2Msgs, DiagnosticArraySchemaNamesItsDependencies) {
+  const std::string text = schema_text("diagnostic_msgs/msg/DiagnosticArray");
+  ASSERT_FALSE(text.empty());
+  EXPECT_EQ(text.rfind("std_msgs/Header header\ndiagnostic_msgs/DiagnosticStatus[] status\n", 0), 0u) << text;
+  const std::string sep = std::string(80, '=') + "\nMSG: ";
+  for (const char* dep : {"std_msgs/Header", "builtin_interfaces/Time", "diagnostic_msgs/DiagnosticStatus",
+                          "diagnostic_msgs/KeyValue"})
+    EXPECT_NE(text.find(sep + dep + "\n"), std::string::npos) << dep;
+  EXPECT_NE(text.find("byte OK=0\nbyte WARN=1\nbyte ERROR=2\nbyte STALE=3\nbyte level\n"), std::string::npos);
+  const auto& types = known_types();
+  EXPECT_NE(std::find(types.begin(), types.end(), "diagnostic_msgs/msg/DiagnosticArray"), types.end());
+}
+
+TEST(Ros2Msgs, DiagnosticArrayRoundTrips) {
+  DiagnosticStatus a;
+  a.level = DiagnosticStatus::kWarn;
+  a.name = "augrig pipeline";
+  a.message = "left camera lost 0.6 s ago, reconnecting";
+  a.hardware_id = "augrig";
+  a.values = {{"drops.capture", "3"}, {"fps", "29.9"}};
+  DiagnosticStatus b;
+  b.level = DiagnosticStatus::kOk;
+  b.name = "x";
+  const std::vector<std::uint8_t> msg = diagnostic_array(1'700'000'000'123'456'789, {a, b});
+  std::int64_t stamp = 0;
+  auto back = decode_diagnostic_array(msg, &stamp);
+  ASSERT_TRUE(back) << back.error().message;
+  EXPECT_EQ(stamp, 1'700'000'000'123'456'789);
+  ASSERT_EQ(back->size(), 2u);
+  EXPECT_EQ((*back)[0].level, DiagnosticStatus::kWarn);
+  EXPECT_EQ((*back)[0].name, a.name);
+  EXPECT_EQ((*back)[0].message, a.message);
+  EXPECT_EQ((*back)[0].hardware_id, a.hardware_id);
+  EXPECT_EQ((*back)[0].values, a.values);
+  EXPECT_EQ((*back)[1].name, "x");
+  EXPECT_TRUE((*back)[1].values.empty());
+  // Every truncation is an error, never a crash or a partial result.
+  for (std::size_t len = 0; len < msg.size(); ++len) {
+    auto cut = decode_diagnostic_array(
+        std::vector<std::uint8_t>(msg.begin(), msg.begin() + static_cast<std::ptrdiff_t>(len)));
+    EXPECT_FALSE(cut) << len;
+  }
+}
+
+}  // namespace
+}  // namespace augrig::recorder::ros2
