@@ -180,3 +180,25 @@ for i, u in enumerate(["aravis://192.168.1.20?format=BayerRG8&fps=30&roi=0,0,128
                        "stereo:[tolerance_us=500,mode=trigger_id]//{aravis://127.0.0.1?fps=30&format=BayerRG8}{aravis://127.0.0.1:3957?fps=30}",
                        "stereo://{v4l2:///dev/video0}{v4l2:///dev/video1}"]):
     put("fuzz_source_uri", "uri%d.txt" % i, u)
+
+# UBX: NAV-PVT, NAV-RELPOSNED (versions 0 and 1) and another message, with garbage between.
+def ubx(cls, mid, payload):
+    body = bytes([cls, mid]) + struct.pack("<H", len(payload)) + payload
+    a = b = 0
+    for x in body:
+        a = (a + x) & 0xFF
+        b = (b + a) & 0xFF
+    return b"\xb5\x62" + body + bytes([a, b])
+
+
+pvt = bytearray(92)
+struct.pack_into("<IHBBBBBBIiBBBBiiiiIIiiiiiIIH", pvt, 0, 345600000, 2016, 12, 31, 23, 59, 42, 7, 25, -1200, 3,
+                 0x83, 0, 17, -1177456789, 340123456, 1523456, 1500000, 14, 20, 150123, -2000, 300, 150136, 0, 30, 0,
+                 123)
+rel1 = bytearray(64)
+struct.pack_into("<BBHIiiiiiBBBBbbbbIIIIIBBBBI", rel1, 0, 1, 0, 7, 345600000, 1234, -2, 567, 1372, 35712345, 0, 0,
+                 0, 0, 56, -7, 0, 3, 100, 120, 250, 130, 50000, 0, 0, 0, 0, 0x12F)
+rel0 = bytearray(40)
+struct.pack_into("<BBHIiiibbbBIIII", rel0, 0, 0, 0, 0, 1000, -150, 20, 300, -5, 1, 2, 0, 300, 300, 600, 0x0C)
+put("fuzz_ubx", "nav.ubx", ubx(1, 7, bytes(pvt)) + b"\x00\xb5" + ubx(1, 0x3C, bytes(rel1)) + ubx(1, 0x35, b"\x01\x02") +
+    ubx(1, 0x3C, bytes(rel0)))

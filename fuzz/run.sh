@@ -11,7 +11,7 @@ shift 2
 root=$(cd "$(dirname "$0")/.." && pwd)
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-  targets=(fuzz_nmea fuzz_nmea_stream fuzz_imu_csv fuzz_nav_csv fuzz_imu_datagram fuzz_gpsd fuzz_rig fuzz_scene
+  targets=(fuzz_nmea fuzz_nmea_stream fuzz_imu_csv fuzz_nav_csv fuzz_imu_datagram fuzz_gpsd fuzz_ubx fuzz_rig fuzz_scene
            fuzz_scenario fuzz_calib fuzz_model fuzz_codec fuzz_recording fuzz_euroc fuzz_source_uri)
 fi
 
