@@ -6,6 +6,8 @@
 #include "net/websocket.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <deque>
@@ -238,7 +240,7 @@ OutMsg make_frame(std::uint8_t opcode, SharedBytes body, std::span<const std::ui
     m.head[k++] = 127;
     for (int b = 7; b >= 0; --b) m.head[k++] = static_cast<std::uint8_t>(len >> (8 * b));
   }
-  std::memcpy(m.head.data() + k, prefix.data(), prefix.size());
+  if (!prefix.empty()) std::memcpy(m.head.data() + k, prefix.data(), prefix.size());
   m.head_len = static_cast<std::uint8_t>(k + prefix.size());
   m.body = std::move(body);
   return m;
