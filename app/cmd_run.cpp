@@ -135,6 +135,25 @@ int cameras_command(const std::vector<std::string>& args, std::ostream& out) {
 
 // ---- run -------------------------------------------------------------------------------------
 
+// --serve [ADDRESS:]PORT (and --serve-queue-mb): the Foxglove WebSocket server, listening.
+std::shared_ptr<net::FoxgloveServer> start_live_view(const ParsedArgs& a, const Rig& rig) {
+  const std::string v = a.get("serve");
+  net::ServeOptions o;
+  const std::size_t colon = v.rfind(':');
+  if (colon != std::string::npos) {
+    o.address = v.substr(0, colon);
+    if (o.address.size() >= 2 && o.address.front() == '[' && o.address.back() == ']')
+      o.address = o.address.substr(1, o.address.size() - 2);  // [::1]:8765
+    if (o.address.empty()) usage_error("--serve: expected [ADDRESS:]PORT, got '" + v + "'");
+  }
+  o.port = static_cast<int>(parse_integer("serve", v.substr(colon == std::string::npos ? 0 : colon + 1), 0, 65535));
+  if (a.has("serve-queue-mb"))
+    o.client_queue_bytes =
+        static_cast<std::size_t>(parse_integer("serve-queue-mb", a.get("serve-queue-mb"), 1, 4096)) << 20;
+  o.metadata["rig"] = rig.source;
+  return unwrap(net::FoxgloveServer::start(o, rig));
+}
+
 std::atomic<bool> g_stop{false};
 extern "C" void on_stop_signal(int) {
   g_stop.store(true);
@@ -191,6 +210,12 @@ const std::vector<OptionSpec>& run_specs() {
        "mid-exposure (default 0.5)"},
       {"nav-fault", ArgKind::kValue, "STREAM=T0-T1,...",
        "with --nav sim: mute a simulated stream over scenario seconds [T0, T1], e.g. receiver.gps=10-13"},
+      {"serve", ArgKind::kValue, "[ADDRESS:]PORT",
+       "the live view over the network: a Foxglove WebSocket server (images, masks, poses, statistics, "
+       "health; docs/LIVE_VIEW.md) on ADDRESS (default 127.0.0.1, loopback only) and PORT (0: any free one)"},
+      {"serve-queue-mb", ArgKind::kValue, "MB",
+       "with --serve: each client's queue; what a slow client cannot take beyond it is dropped and counted "
+       "(default 32)"},
       {"headless", ArgKind::kFlag, "", "no window even when a display is present (docs/DISPLAY.md)"},
       {"screenshot-at", ArgKind::kValue, "N",
        "with the window: a screenshot once the N-th pair is shown (into --out)"},
@@ -540,6 +565,13 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   parts.on_problem = [&err](const Error& e) { err << "augrig run: " << user_message(e) << "\n"; };
   const bool want_window = !a.has("headless");
   if (want_window && display_present()) parts.view = std::make_shared<LiveView>();
+  if (a.has("serve")) {
+    parts.serve = start_live_view(a, *rig);
+    // Flushed: whoever starts the run (a script, a crew) reads the address at once.
+    out << "live view: " << parts.serve->url() << " (Foxglove: open a connection, Foxglove WebSocket)" << std::endl;
+  } else if (a.has("serve-queue-mb")) {
+    usage_error("--serve-queue-mb needs --serve");
+  }
   out << "run: " << uri << (right_uri.empty() ? "" : " + " + right_uri) << (lossless ? " (lockstep)" : " (live)") << pairing_text << "; rig "
       << rig->source << (capture_only ? "; capture only (nothing augmented)" : "") << "; poses from " << poses_text
       << (parts.recorder ? "; recording to " + parts.recorder->path() : std::string()) << "\n";

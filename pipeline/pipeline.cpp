@@ -167,10 +167,13 @@ struct Pipeline::State {
   std::size_t shown_index = 0;
   int shown_pass = 0;
   std::string phase;  // the flight's phase at the last pair (PipelineParts::phase_of)
+  TimestampNs last_t_key_ns = 0;  // the last pair's, for the health messages' stamps
 };
 
-void Pipeline::log_event(State&, const std::string& text, std::ostream& out) {
+void Pipeline::log_event(State& s, const std::string& text, std::ostream& out) {
   out << "  " << text << "\n";
+  // The network view shows each event as the health until the next status.
+  if (parts_.serve) parts_.serve->publish_health(s.last_t_key_ns, net::HealthLevel::kWarn, text);
   if (parts_.recorder)
     parts_.recorder->push(recorder::EventRecord{monotonic_now_ns(), ClockDomain::kHostMonotonic, text});
 }
@@ -267,8 +270,54 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   auto next_status = t0 + std::chrono::duration<double>(p.status_every_s);
   auto next_clocks = t0;
   auto next_progress = t0 + std::chrono::seconds(1);
+  auto next_health = t0 + std::chrono::seconds(1);
   StereoResult result;
   std::optional<Error> fatal;
+
+  // The run's health for the network view, once a second: rate, cameras, pose, recording, drops.
+  std::uint64_t health_pairs = 0;
+  auto health_t = SteadyClock::now();
+  auto publish_health = [&] {
+    const auto now = SteadyClock::now();
+    const double dt = std::chrono::duration<double>(now - health_t).count();
+    const double rate = dt > 0 ? static_cast<double>(rep.pairs - health_pairs) / dt : 0.0;
+    health_pairs = rep.pairs, health_t = now;
+    const StereoSourceStats st = source.stats();
+    const std::uint64_t pairing = st.pairing.unpaired_left + st.pairing.unpaired_right;
+    const std::uint64_t queue = st.queue_drops[0] + st.queue_drops[1];
+    net::HealthLevel level = net::HealthLevel::kOk;
+    std::ostringstream text;
+    text << std::fixed << std::setprecision(1) << rate << " pairs/s";
+    std::string cameras;
+    for (std::size_t i = 0; i < s.last_health.size(); ++i)
+      if (const SourceHealth h = source.health()[i]; !h.connected) {
+        cameras += (cameras.empty() ? "" : "; ") + h.message;
+        level = net::HealthLevel::kError;
+      }
+    text << "; cameras " << (cameras.empty() ? std::string("streaming") : cameras);
+    if (!p.capture_only || p.poses) {
+      text << "; pose " << (s.was_stale ? "stale" : "good");
+      if (s.was_stale && !s.poses.problems.empty()) text << " (" << s.poses.problems.front() << ")";
+      if (s.was_stale && level == net::HealthLevel::kOk) level = net::HealthLevel::kWarn;
+    }
+    if (p.recorder) {
+      text << "; recording " << (s.recorder_failed ? "stopped" : s.recording_on ? "on" : "paused");
+      if (s.recorder_failed) level = net::HealthLevel::kError;
+    }
+    text << "; drops: camera " << st.camera_drops << ", pairing " << pairing << ", queue " << queue;
+    if (rep.pairs == 0 && level == net::HealthLevel::kOk) level = net::HealthLevel::kStale;
+    p.serve->publish_health(s.last_t_key_ns, level, text.str(),
+                            {{"pairs", std::to_string(rep.pairs)},
+                             {"pairs_per_s", std::to_string(rate)},
+                             {"drops_camera", std::to_string(st.camera_drops)},
+                             {"drops_transport", std::to_string(st.transport_drops)},
+                             {"drops_pairing", std::to_string(pairing)},
+                             {"drops_queue", std::to_string(queue)},
+                             {"failed_pairs", std::to_string(rep.failed_pairs)},
+                             {"stale_pairs", std::to_string(rep.stale_pairs)},
+                             {"recorder_dropped",
+                              std::to_string(p.recorder ? p.recorder->stats().frames_dropped : 0)}});
+  };
 
   auto problem = [&](const Error& e) {
     if (p.on_problem)
@@ -316,6 +365,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     rep.stage_pose.add(t_sinks - t_in);
     ++rep.pairs;
     note_phase(frame, fp.t_nav_ns.value_or(frame.t_key_ns));
+    if (p.serve)
+      p.serve->publish_pair(frame, nullptr, scene ? &*scene : nullptr, {rep.pairs, fp.sigma_pos_m, fp.sigma_att_deg});
     if (p.view && !s.paused) {
       // The window shows the raw images (no masks: nothing is overlaid).
       for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
@@ -365,6 +416,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
         }
       }
     }
+    s.last_t_key_ns = frame.t_key_ns;
     const TimestampNs mid_l = mid_host_ns(frame.left), mid_r = mid_host_ns(frame.right);
     const TimestampNs mid_host = mid_l && mid_r ? std::min(mid_l, mid_r) : 0;  // the earlier: not flattered
 
@@ -473,6 +525,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
         fatal = st.error();
         return;
       }
+    if (p.serve) p.serve->publish_pair(frame, &result, &scene, {rep.pairs, fp.sigma_pos_m, fp.sigma_att_deg});
     // The recorder takes the boxes (copied here); the window then gets whole images.
     std::optional<recorder::FrameRecord> fr;
     if (p.recorder && s.recording_on) fr = frame_record(result, p.record_ground_truth);
@@ -657,6 +710,10 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       }
       out << std::endl;
     }
+    if (p.serve && SteadyClock::now() >= next_health) {
+      next_health += std::chrono::seconds(1);
+      publish_health();
+    }
     if (p.status_every_s > 0 && SteadyClock::now() >= next_status) {
       next_status += std::chrono::duration<double>(p.status_every_s);
       const StereoSourceStats st = source.stats();
@@ -677,6 +734,11 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     }
   }
   if (p.view) p.view->finish();
+  if (p.serve) {
+    p.serve->publish_health(s.last_t_key_ns, net::HealthLevel::kStale,
+                            "the run has ended after " + std::to_string(rep.pairs) + " pairs");
+    rep.serve = p.serve->stats();
+  }
   source.stop();
   if (p.on_stop) p.on_stop();
   if (p.nav_inputs) p.nav_inputs->stop();
@@ -764,6 +826,12 @@ void Pipeline::print_summary(const PipelineReport& r, std::ostream& out) const {
     out << "\n";
   }
   latency_line(parts_.view ? "display" : "display hand-off", r.display_latency);
+  if (r.serve) {
+    const net::ServeStats& v = *r.serve;
+    out << "live view (" << (parts_.serve ? parts_.serve->url() : std::string()) << "): " << v.clients_ever
+        << " client(s), " << v.messages_sent << " messages sent, " << v.messages_dropped
+        << " dropped for slow clients, " << v.disconnects_slow << " client(s) cut off for not reading\n";
+  }
   latency_line("recorder", r.recorder_latency);
   if (parts_.live_nav) {
     out << "nav: " << r.no_pose_pairs << " pairs without a pose (boom only), " << r.stale_pairs

@@ -9,7 +9,8 @@
 //             receptacle, or the operator's
 //   augment   the Augmenter: masks, receiver depth, the boom composited, occlusion statistics
 //   sinks     each optional: the recorder, stats.csv, per-frame images, the live window's mailbox
-//             (LiveView), and the run's summary (PipelineReport)
+//             (LiveView), the network live view (net::FoxgloveServer), and the run's summary
+//             (PipelineReport)
 //
 // run() reads pairs until a stop condition: the source ends, the duration or the pair count is
 // reached, the stop flag is raised (a signal), the window is closed, or something fails. Every
@@ -42,6 +43,7 @@
 #include "pipeline/poses.hpp"
 #include "pipeline/sources.hpp"
 #include "pipeline/status.hpp"
+#include "net/foxglove_server.hpp"
 #include "recorder/recorder.hpp"
 #include "render/augmenter.hpp"
 #include "render/rig.hpp"
@@ -155,6 +157,9 @@ struct PipelineParts {
   std::unique_ptr<StatsCsvWriter> stats_csv;
   std::optional<FrameFiles> frame_files;
   std::shared_ptr<LiveView> view;
+  // The live view over the network (Foxglove WebSocket): every pair as it is augmented (or, capture
+  // only, raw), and once a second the run's health in plain words. Never blocks the pipeline.
+  std::shared_ptr<net::FoxgloveServer> serve;
   // Stop conditions besides the end of the source.
   double duration_s = 0;          // 0: none
   std::uint64_t max_pairs = 0;    // augmented pairs; 0: none
@@ -215,6 +220,7 @@ struct PipelineReport {
   std::vector<std::string> lost_cameras;  // not connected at the end
   std::optional<Status> recording_closed;
   recorder::RecorderStats recorder_stats;
+  std::optional<net::ServeStats> serve;  // the network view's clients, messages sent and dropped
 };
 
 class Pipeline {

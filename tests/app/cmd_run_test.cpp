@@ -2,7 +2,9 @@
 // pipeline into a recording that checks clean; two GigE Vision cameras (arv-fake-gv-camera-0.8
 // processes on two loopback addresses) named by the rig's per-camera source URIs; bad sources and
 // flags with their exit codes and messages.
+#include <chrono>
 #include <cmath>
+#include <cstring>
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
@@ -13,12 +15,14 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "core/conventions.hpp"
 #include "nav/imu_stream.hpp"
 #include "nav/nmea.hpp"
 #include "nav/udp_socket.hpp"
 #include "recorder/reader.hpp"
+#include "recorder/ros2_msgs.hpp"
 #include "render/rig.hpp"
 #include "sim/flight.hpp"
 #include "sim/flight_source.hpp"
@@ -28,6 +32,7 @@
 #include "tests/support/test_support.hpp"
 #include "tests/support/tmpfs.hpp"
 #include "tests/support/window_shot.hpp"
+#include "tests/support/ws_test_client.hpp"
 
 namespace augrig {
 namespace {
@@ -749,6 +754,105 @@ TEST(CmdRun, CaptureOnlyRigRecordsRawThenAReplayAugmentsIt) {
   // --poses and --scene are two sources of poses.
   EXPECT_EQ(augrig("replay " + dir + "/rec --poses " + dir + "/x/poses.csv --scene " + dir + "/s.yaml", &out), 2)
       << out;
+}
+
+// run --serve: the live view over the network while the real binary runs. A WebSocket client on
+// loopback gets the Foxglove protocol's serverInfo and advertise, subscribes, and decodes (with
+// the ROS 2 decoders, as Foxglove would with the advertised schemas) the augmented images, the
+// statistics and the health while the run goes on; the summary counts the client and what it got.
+TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
+  const std::string dir = output_dir("cmd_run_serve");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string log = dir + "/run.log";
+  ASSERT_EQ(std::system(("(" + augrig_binary() +
+                         " run --source 'sim://demo?rate=1&every=3' --headless --status-every 0 --duration 8 --serve 0 > " +
+                         log + " 2>&1; echo $? > " + dir + "/rc) &")
+                            .c_str()),
+            0);
+  // The port it took, from its first lines.
+  int port = 0;
+  for (int i = 0; i < 300 && !port; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    std::ifstream in(log);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    static const std::regex re("live view: ws://127\\.0\\.0\\.1:([0-9]+)");
+    std::smatch m;
+    if (std::regex_search(text, m, re)) port = std::stoi(m[1]);
+  }
+  ASSERT_GT(port, 0) << "no 'live view: ws://127.0.0.1:PORT' line";
+  test::TestWsClient c(port);
+  ASSERT_TRUE(c.connected());
+  const std::string head = c.handshake("foxglove.websocket.v1");
+  ASSERT_NE(head.find("101"), std::string::npos) << head;
+  std::map<std::string, std::uint32_t> channel;
+  for (int i = 0; i < 2; ++i) {
+    auto f = c.read_frame();
+    ASSERT_TRUE(f && f->opcode == 0x1);
+    const nlohmann::json j = nlohmann::json::parse(f->payload);
+    if (j["op"] == "advertise")
+      for (const auto& ch : j["channels"]) channel[ch["topic"].get<std::string>()] = ch["id"].get<std::uint32_t>();
+  }
+  for (const char* t : {"/left/image_augmented", "/augrig/occlusion_stats", "/diagnostics", "/right/mask", "/tf"})
+    ASSERT_TRUE(channel.count(t)) << t;
+  nlohmann::json sub = {{"op", "subscribe"},
+                        {"subscriptions",
+                         {{{"id", 1}, {"channelId", channel["/left/image_augmented"]}},
+                          {{"id", 2}, {"channelId", channel["/augrig/occlusion_stats"]}},
+                          {{"id", 3}, {"channelId", channel["/diagnostics"]}}}}};
+  ASSERT_TRUE(c.send_text(sub.dump()));
+  std::map<std::uint32_t, int> got;
+  std::int64_t last_image_ns = 0;
+  std::string health;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(3);
+  while (std::chrono::steady_clock::now() < until) {
+    auto f = c.read_frame(2000);
+    ASSERT_TRUE(f) << "the server went quiet";
+    if (f->opcode != 0x2) continue;
+    ASSERT_GE(f->payload.size(), 13u);
+    ASSERT_EQ(static_cast<unsigned char>(f->payload[0]), 0x01) << "Message Data";
+    std::uint32_t sid = 0;
+    std::memcpy(&sid, f->payload.data() + 1, 4);
+    const std::vector<std::uint8_t> msg(f->payload.begin() + 13, f->payload.end());
+    ++got[sid];
+    if (sid == 1) {
+      std::int64_t stamp = 0;
+      auto im = recorder::ros2::decode_image(msg, &stamp);
+      ASSERT_TRUE(im) << im.error().message;
+      EXPECT_EQ(im->width(), 1280);
+      EXPECT_EQ(im->height(), 960);
+      EXPECT_GT(stamp, last_image_ns);
+      last_image_ns = stamp;
+    } else if (sid == 2) {
+      auto st = recorder::ros2::decode_occlusion_stats(msg);
+      ASSERT_TRUE(st) << st.error().message;
+      EXPECT_GT(st->boom_px_left, 0);
+    } else if (sid == 3) {
+      auto d = recorder::ros2::decode_diagnostic_array(msg);
+      ASSERT_TRUE(d) << d.error().message;
+      ASSERT_FALSE(d->empty());
+      health = d->front().message;
+    }
+  }
+  // Up to 10 pairs a second for 3 s; a loaded machine's simulated cameras lose late frames.
+  EXPECT_GE(got[1], 5);
+  EXPECT_GE(got[2], 5);
+  EXPECT_GE(got[3], 2) << "the health once a second";
+  EXPECT_NE(health.find("pairs/s; cameras streaming"), std::string::npos) << health;
+  c.close();
+  for (int i = 0; i < 400 && !fs::exists(dir + "/rc"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::ifstream rc(dir + "/rc");
+  int code = -1;
+  rc >> code;
+  EXPECT_EQ(code, 0);
+  std::ifstream in(log);
+  const std::string out((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_TRUE(contains(out, "live view (ws://127.0.0.1:" + std::to_string(port) + "): 1 client(s)")) << out;
+  // Flags: a bad address, a port in use.
+  std::string err;
+  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve :x", &err), 2) << err;
+  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve-queue-mb 4", &err), 2) << err;
+  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --frames 1 --serve 256.1.1.1:0", &err), 1) << err;
 }
 
 TEST(CmdRun, FrameSizeNotTheRigsFailsAtOnce) {
