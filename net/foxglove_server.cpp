@@ -402,23 +402,7 @@ void FoxgloveServer::publish_pair(const StereoFrame& raw, const StereoResult* re
     if (!msg.empty()) out.push_back({channel, t, share_bytes(std::move(msg))});
   };
   if (wanted[kFrame]) {
-    ros2::StereoFrameInfo fi;
-    fi.index = info.index;
-    fi.pair_sequence = raw.pair_sequence;
-    fi.t_key_ns = raw.t_key_ns;
-    fi.skew_ns = raw.skew_ns;
-    for (int c = 0; c < 2; ++c) {
-      const Frame& fr = c == 0 ? raw.left : raw.right;
-      ros2::CameraFrameInfo& ci = c == 0 ? fi.left : fi.right;
-      ci.sequence = fr.sequence;
-      ci.t_ns = fr.t_ns;
-      ci.clock = std::string(to_string(fr.clock));
-      ci.t_host_ns = fr.t_host_ns;
-      ci.exposure_ns = fr.exposure_ns;
-      ci.pixel_format = std::string(to_string(fr.image.format()));
-      ci.width = fr.image.width();
-      ci.height = fr.image.height();
-    }
+    ros2::StereoFrameInfo fi = ros2::stereo_frame_info_of(raw, info.index);
     fi.receiver_present = scene ? (scene->receiver_present ? 1 : 0) : -1;
     if (scene) fi.boom = scene->boom;
     fi.sigma_pos_m = info.sigma_pos_m;

@@ -229,23 +229,7 @@ Status export_mcap(const RecordingReader& reader, const std::string& out_path, c
         return s;
       static_written = true;
     }
-    ros2::StereoFrameInfo info;
-    info.index = i;
-    info.pair_sequence = raw.pair_sequence;
-    info.t_key_ns = raw.t_key_ns;
-    info.skew_ns = raw.skew_ns;
-    for (int c = 0; c < 2; ++c) {
-      const Frame& fr = c == 0 ? raw.left : raw.right;
-      ros2::CameraFrameInfo& ci = c == 0 ? info.left : info.right;
-      ci.sequence = fr.sequence;
-      ci.t_ns = fr.t_ns;
-      ci.clock = std::string(to_string(fr.clock));
-      ci.t_host_ns = fr.t_host_ns;
-      ci.exposure_ns = fr.exposure_ns;
-      ci.pixel_format = std::string(to_string(fr.image.format()));
-      ci.width = fr.image.width();
-      ci.height = fr.image.height();
-    }
+    ros2::StereoFrameInfo info = ros2::stereo_frame_info_of(raw, i);
     info.receiver_present = f->receiver_present ? (*f->receiver_present ? 1 : 0) : -1;
     info.boom = f->boom;
     info.sigma_pos_m = f->sigma_pos_m;

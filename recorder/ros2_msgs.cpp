@@ -446,6 +446,27 @@ CameraFrameInfo read_camera_frame_info(CdrReader& r) {
 }
 }  // namespace
 
+StereoFrameInfo stereo_frame_info_of(const StereoFrame& raw, std::uint64_t index) {
+  StereoFrameInfo fi;
+  fi.index = index;
+  fi.pair_sequence = raw.pair_sequence;
+  fi.t_key_ns = raw.t_key_ns;
+  fi.skew_ns = raw.skew_ns;
+  for (int c = 0; c < 2; ++c) {
+    const Frame& fr = c == 0 ? raw.left : raw.right;
+    CameraFrameInfo& ci = c == 0 ? fi.left : fi.right;
+    ci.sequence = fr.sequence;
+    ci.t_ns = fr.t_ns;
+    ci.clock = std::string(to_string(fr.clock));
+    ci.t_host_ns = fr.t_host_ns;
+    ci.exposure_ns = fr.exposure_ns;
+    ci.pixel_format = std::string(to_string(fr.image.format()));
+    ci.width = fr.image.width();
+    ci.height = fr.image.height();
+  }
+  return fi;
+}
+
 std::vector<std::uint8_t> stereo_frame_info(std::int64_t stamp_ns, const StereoFrameInfo& info) {
   CdrWriter w;
   header(w, stamp_ns, "tanker_body");

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/expected.hpp"
+#include "core/frame.hpp"
 #include "core/image.hpp"
 #include "core/pose.hpp"
 #include "render/camera_model.hpp"
@@ -130,6 +131,9 @@ struct StereoFrameInfo {
   double sigma_pos_m = 0, sigma_att_deg = 0;  // NaN: unknown
 };
 std::vector<std::uint8_t> stereo_frame_info(std::int64_t stamp_ns, const StereoFrameInfo& info);
+// The pairing part of a stereo frame's info (index, sequences, times, skew, clocks, formats, sizes);
+// the caller adds the scene's (presence, boom, sigmas).
+StereoFrameInfo stereo_frame_info_of(const StereoFrame& raw, std::uint64_t index);
 
 // diagnostic_msgs/msg/DiagnosticStatus: the health of one part, in plain words. The standard type
 // rather than an augrig_msgs one, so that Foxglove's Diagnostics panels and ROS 2's tools
