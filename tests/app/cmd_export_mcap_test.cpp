@@ -186,7 +186,7 @@ TEST(CmdExportMcap, NavInputsAsImuAndNavSatFix) {
   const std::string dir = test::output_dir("cmd_export_mcap_nav");
   std::string log;
   ASSERT_EQ(test::run_augrig("run --source 'sim://demo?every=30' --nav sim --record " + dir +
-                                 "/rec --duration 2 --headless --status-every 0 2>&1",
+                                 "/rec --duration 4 --headless --status-every 0 2>&1",
                              &log),
             0)
       << log;
@@ -196,6 +196,11 @@ TEST(CmdExportMcap, NavInputsAsImuAndNavSatFix) {
   const json j = json::parse(out);
   ASSERT_TRUE(j["ok"].get<bool>()) << j["errors"].dump();
   for (const std::string who : {"tanker", "receiver"}) {
+    // Each stream's channel and messages are there (a missing key fails here, saying which).
+    for (const std::string stream : {"imu", "gps"}) {
+      const std::string topic = "/nav/" + who + "/" + stream;
+      ASSERT_TRUE(j["channels"].contains(topic) && j["topics"].contains(topic)) << topic << "\n" << log;
+    }
     EXPECT_EQ(j["channels"]["/nav/" + who + "/imu"]["type"], "sensor_msgs/msg/Imu");
     EXPECT_EQ(j["channels"]["/nav/" + who + "/gps"]["type"], "sensor_msgs/msg/NavSatFix");
     const auto& imu = j["topics"]["/nav/" + who + "/imu"]["messages"];

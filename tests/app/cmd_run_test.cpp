@@ -766,7 +766,7 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   fs::create_directories(dir);
   const std::string log = dir + "/run.log";
   ASSERT_EQ(std::system(("(" + augrig_binary() +
-                         " run --source 'sim://demo?rate=1&every=3' --headless --status-every 0 --duration 8 --serve 0 > " +
+                         " run --source 'sim://demo?rate=1&every=3' --headless --status-every 0 --duration 12 --serve 0 > " +
                          log + " 2>&1; echo $? > " + dir + "/rc) &")
                             .c_str()),
             0);
@@ -804,10 +804,12 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   std::map<std::uint32_t, int> got;
   std::int64_t last_image_ns = 0;
   std::string health;
-  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(3);
-  while (std::chrono::steady_clock::now() < until) {
-    auto f = c.read_frame(2000);
+  // 3 s from the first message (the run may still be starting: its GL context, the flight).
+  std::optional<std::chrono::steady_clock::time_point> until;
+  while (!until || std::chrono::steady_clock::now() < *until) {
+    auto f = c.read_frame(until ? 2000 : 8000);
     ASSERT_TRUE(f) << "the server went quiet";
+    if (!until) until = std::chrono::steady_clock::now() + std::chrono::seconds(3);
     if (f->opcode != 0x2) continue;
     ASSERT_GE(f->payload.size(), 13u);
     ASSERT_EQ(static_cast<unsigned char>(f->payload[0]), 0x01) << "Message Data";
