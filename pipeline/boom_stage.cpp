@@ -65,6 +65,7 @@ void BoomStage::apply(SceneState& scene, double t_s) {
 
 void BoomStage::nudge(const BoomNudge& n) {
   if (!n.any()) return;
+  if (mode_ != DisplayBoomMode::kInteractive) interactive_.reset();  // taken over: from where it is
   mode_ = DisplayBoomMode::kInteractive;
   BoomArticulation b = interactive_ ? *interactive_ : last_ ? *last_ : BoomArticulation{};
   b.elevation_rad += n.elevation_rad;

@@ -41,7 +41,12 @@ class BoomStage {
   void apply(SceneState& scene, double t_s);
 
   DisplayBoomMode mode() const { return mode_; }
-  void set_mode(DisplayBoomMode m) { mode_ = m; }
+  // Taking the boom by hand (again) starts where it is: the hand boom of an earlier take-over is
+  // forgotten when another mode flies it.
+  void set_mode(DisplayBoomMode m) {
+    if (!(m == DisplayBoomMode::kInteractive && mode_ == DisplayBoomMode::kInteractive)) interactive_.reset();
+    mode_ = m;
+  }
   // Moves the interactive boom (from the window); selects interactive mode.
   void nudge(const BoomNudge& n);
   // "track", "fixed (the scene's)", ... for banners and the HUD.

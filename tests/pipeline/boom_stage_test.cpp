@@ -279,11 +279,6 @@ TEST(BoomStage, NudgesMakeItInteractiveFromTheLastBoomClampedToTheLimits) {
 // deg), and pressing 4 (interactive) holds it where it is; it does not jump back to where the
 // operator left it before.
 TEST(BoomStage, TakingTheBoomOverAgainStartsWhereItIs) {
-  GTEST_SKIP()
-      << "BUG: BoomStage keeps interactive_ after leaving interactive mode: nudge() starts from the "
-         "old interactive_ and apply() in kInteractive reuses it, so after tracking moved the boom to "
-         "(25, -6, 1.5) a 0.5 deg nudge gives (32.5, 0, 3), the hand boom of before, and pressing 4 "
-         "jumps back to (32, 0, 3) instead of holding (25, -6, 1.5)";
   const Rig rig = Rig::paper_default();
   const BoomDimensions dims;
   BoomStage stage(rig, kReceptacle, track_arg(), dims);
