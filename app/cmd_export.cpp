@@ -158,7 +158,13 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (r.nav_logs.size() == 2 && r.frame_index_rows) {
     out << "Re-fuse with: augrig nav --tanker " << (out_dir / "nav" / "tanker").string() << " --receiver "
         << (out_dir / "nav" / "receiver").string() << " --rig " << (out_dir / "rig.yaml").string() << " --frames "
-        << (out_dir / "frames.csv").string() << " --out POSES.csv\n";
+        << (out_dir / "frames.csv").string() << " --out POSES.csv";
+    // augrig nav refuses an aircraft folder without aircraft.yaml unless the defaults are asked for.
+    if (!fs::exists(out_dir / "nav" / "tanker" / "aircraft.yaml") ||
+        !fs::exists(out_dir / "nav" / "receiver" / "aircraft.yaml"))
+      out << " --default-aircraft\n  (no aircraft.yaml exported: nav's defaults stand in for the lever arms and IMU "
+             "noise; export with --aircraft tanker=FILE,receiver=FILE to fuse with the aircraft's own)";
+    out << "\n";
   }
   if (r.pose_rows) out << "Wrote " << (out_dir / "poses.csv").string() << " (" << r.pose_rows << " rows)\n";
   if (r.stats_rows) out << "Wrote " << (out_dir / "stats.csv").string() << " (" << r.stats_rows << " rows)\n";

@@ -1,13 +1,18 @@
 // augrig nav: both aircraft's GPS/IMU logs -> the receiver's pose in each camera at every frame.
-// Flow: load and check every input (logs, rig, frame index) -> fuse each aircraft (forward filter,
-// RTS smoother) -> per frame: camera time -> nav time -> relative pose with 1-sigma -> boom tracking
-// -> poses.csv; with --truth, the error against it.
+// Flow: load and check every input (logs with their aircraft.yaml and the leap seconds of their UTC
+// times, rig, frame index) -> fuse each aircraft (forward filter, RTS smoother) -> is the reported
+// sigma consistent with the GPS innovations? -> per frame: camera time -> nav time -> relative pose
+// with 1-sigma -> boom tracking -> poses.csv; with --truth, the error against it.
+#include <algorithm>
+#include <cmath>
 #include <iostream>
 #include <sstream>
 
 #include "app/cli.hpp"
-#include "pipeline/flight_nav.hpp"
+#include "core/yaml_reader.hpp"
 #include "nav/logs.hpp"
+#include "nav/nmea.hpp"
+#include "pipeline/flight_nav.hpp"
 
 namespace augrig::app {
 namespace {
@@ -22,7 +27,16 @@ const std::vector<OptionSpec>& nav_specs() {
       {"camera-offset-ns", ArgKind::kValue, "L[,R]",
        "camera clock minus nav (GPS) time, per camera (one value: both), ns (default 0): t_nav = t_camera - offset"},
       boom_option("track: the nozzle aims at the receptacle; none with a capture-only rig"),
-      {"forward-only", ArgKind::kFlag, "", "no RTS smoothing (what a real-time filter would know)"},
+      {"forward-only", ArgKind::kFlag, "",
+       "no RTS smoothing (what a real-time filter would know); the frames before both filters converged are "
+       "flagged (their sigma is optimistic)"},
+      {"leap-seconds", ArgKind::kValue, "N",
+       "GPS - UTC of both aircraft's gps.nmea, whole seconds (default: aircraft.yaml's gps_leap_seconds, else "
+       "the receiver's $PUBX,04, else the leap-second table for the log's UTC dates: 17 in 2015-07..2016, 18 "
+       "since 2017)"},
+      {"default-aircraft", ArgKind::kFlag, "",
+       "fuse an aircraft folder without aircraft.yaml with the defaults (antenna at the IMU, tactical IMU, 2 cm "
+       "RTK); without this flag that is an error"},
       {"truth", ArgKind::kValue, "POSES.csv", "true camera poses (augrig sim's truth/poses.csv): print the error"},
       {"solutions", ArgKind::kValue, "DIR", "also write each aircraft's nav solution per epoch (CSV)"},
   };
@@ -64,14 +78,23 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   // Every input is read and checked before any work.
   const BoomArg boom = parse_boom_arg(a.get("boom"));
   const Rig rig = load_rig_arg(a.get("rig"));
-  const AircraftLogs tanker = unwrap(load_aircraft_logs(a.get("tanker")));
-  const AircraftLogs receiver = unwrap(load_aircraft_logs(a.get("receiver")));
+  AircraftLoadOptions load;
+  load.allow_default_config = a.has("default-aircraft");
+  if (a.has("leap-seconds"))
+    load.leap_seconds = static_cast<int>(parse_integer("leap-seconds", a.get("leap-seconds"), 0, 100));
+  const AircraftLogs tanker = unwrap(load_aircraft_logs(a.get("tanker"), load));
+  const AircraftLogs receiver = unwrap(load_aircraft_logs(a.get("receiver"), load));
   const nav::FrameIndex index = unwrap(nav::read_frame_index_csv(a.get("frames")));
   std::vector<nav::CameraPoseRow> truth;
   if (a.has("truth")) truth = unwrap(nav::read_camera_pose_csv(a.get("truth"))).rows;
-  for (const auto& [who, logs] : {std::pair{"tanker", &tanker}, std::pair{"receiver", &receiver}}) {
+  const std::pair<const char*, const AircraftLogs*> aircraft[] = {{"tanker", &tanker}, {"receiver", &receiver}};
+  for (const auto& [who, logs] : aircraft) {
     print_issues(out, std::string(who) + " gps.nmea", logs->gps_issues);
     print_issues(out, std::string(who) + " imu.csv", logs->imu_issues);
+    out << who << " gps.nmea: " << nav::describe(logs->leap_seconds)
+        << (logs->leap_seconds_source.empty() ? "" : ", by " + logs->leap_seconds_source) << "\n";
+    for (const std::string& n : logs->notes) out << "note: " << who << ": " << n << "\n";
+    for (const std::string& w : logs->warnings) out << "warning: " << who << ": " << w << "\n";
   }
 
   const bool smooth = !a.has("forward-only");
@@ -80,6 +103,20 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   nav::NavTrajectory rx = unwrap(nav::fuse(receiver.imu, receiver.gps, receiver.config, smooth));
   const double fuse_ms = ms_since(t0);
   out << describe("tanker", tk.report()) << "\n" << describe("receiver", rx.report()) << "\n";
+  // Is the sigma the filters report consistent with what the GPS fixes said (NIS)?
+  std::string consistency;
+  for (const auto& [who, logs] : aircraft) {
+    const nav::FusionReport& r = std::string(who) == "tanker" ? tk.report() : rx.report();
+    std::string hint;
+    if (logs->default_config) hint = "there was no aircraft.yaml: the defaults were used";
+    if (logs->leap_seconds.disagreements) hint += (hint.empty() ? "" : "; ") + std::string("see the leap-second warning above");
+    const InnovationCheck c = check_innovations(who, r, hint);
+    out << c.summary << "\n";
+    if (!c.warning.empty()) out << "warning: " << c.warning << "\n";
+    consistency += (consistency.empty() ? "" : "; ") + std::string(who) + " " +
+                   (!c.judged ? "not judged" : c.consistent ? "consistent" : c.optimistic ? "optimistic" : "pessimistic") +
+                   " (innovations " + yaml::fmt(std::round(r.innovations.scale * 100) / 100) + "x predicted)";
+  }
   if (a.has("solutions")) {
     const fs::path d = a.get("solutions");
     make_dirs(d);
@@ -90,6 +127,7 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   Eigen::Vector3d receptacle = receptacle_of(rig);
   RelativeNav rel(std::move(tk), std::move(rx), rig, BoomDimensions{}, receptacle, offsets);
   std::vector<nav::CameraPoseRow> rows;
+  std::vector<bool> converging;  // per row: a forward filter not yet converged at its time
   std::size_t outside = 0;
   const auto t1 = Clock::now();
   for (const nav::FrameIndexRow& f : index.rows) {
@@ -100,6 +138,7 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
     }
     p->boom = boom.command(ns_to_s(f.t_ns - index.rows.front().t_ns), p->boom, rig.boom.limits);
     rows.push_back(p->row(f.sequence, f.camera, f.t_ns));
+    converging.push_back(rel.converging(p->t_nav_ns));
     // A capture-only rig has no boom to articulate: the boom columns stay empty (whoever augments
     // with these poses flies its own rig's boom), unless --boom says what it does.
     if (!rig.boom.configured && !a.has("boom"))
@@ -111,12 +150,35 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   o.metadata["t_nav_ns"] = "gps";
   o.metadata["content"] = "estimate: T_cam_receiver from GPS/INS fusion";
   o.metadata["smoothing"] = smooth ? "rts" : "none";
+  o.metadata["gps_minus_utc_s"] = "tanker " + nav::describe(tanker.leap_seconds) + "; receiver " +
+                                  nav::describe(receiver.leap_seconds);
+  o.metadata["sigma_consistency"] = consistency;
+  // Forward only: the rows before both filters converged carry an optimistic sigma.
+  const std::size_t n_converging = static_cast<std::size_t>(std::count(converging.begin(), converging.end(), true));
+  std::string converging_text;
+  if (!smooth) {
+    const auto when = rel.converged_ns();
+    converging_text = std::to_string(n_converging) + " of " + std::to_string(rows.size()) +
+                      " rows before both forward filters converged (their sigma is optimistic): " +
+                      (when ? "t_nav_ns < " + std::to_string(*when)
+                            : std::string("a filter had not converged by the end of the data: every row"));
+    o.metadata["converging"] = converging_text;
+  }
   check(nav::write_camera_pose_csv(a.get("out"), rows, o));
   out << "Poses: " << rows.size() << " of " << index.rows.size() << " frames";
   if (outside) out << " (" << outside << " outside the nav data: no pose written)";
   out << "; fusion " << fmt_ms(fuse_ms) << " ms for both aircraft, " << fmt_ms(query_us)
       << " us per frame pose\n";
-  if (!truth.empty()) out << "Against truth: " << describe(compare_poses(rows, truth)) << "\n";
+  if (!smooth) out << "Converging: " << converging_text << " (docs/NAV_FUSION.md, \"Consistency\")\n";
+  if (!truth.empty()) {
+    out << "Against truth: " << describe(compare_poses(rows, truth)) << "\n";
+    if (!smooth && n_converging > 0 && n_converging < rows.size()) {
+      std::vector<nav::CameraPoseRow> during, after;
+      for (std::size_t i = 0; i < rows.size(); ++i) (converging[i] ? during : after).push_back(rows[i]);
+      out << "  converging: " << describe(compare_poses(during, truth)) << "\n"
+          << "  converged:  " << describe(compare_poses(after, truth)) << "\n";
+    }
+  }
   out << "Wrote " << a.get("out") << "\n";
   return kExitOk;
 }

@@ -2,12 +2,15 @@
 //
 // augrig timestamps in ClockDomain::kGps are int64 nanoseconds since the GPS epoch
 // 1980-01-06 00:00:00 (GPS time has no leap seconds). UTC = GPS - leap_seconds, where leap_seconds
-// is the GPS-UTC offset in whole seconds (18 since 2017-01-01). It is a parameter, not a table:
-// a log is converted with the offset valid when it was recorded.
+// is the GPS-UTC offset in whole seconds: 0 at the GPS epoch, one more at each leap second inserted
+// into UTC since, 18 since 2017-01-01. The conversions below take it as a parameter; the table
+// kLeapSecondSteps gives the value that applied on any date (leap_seconds_on(), the *_by_table
+// conversions), which is what the NMEA reader and writer use unless told a value.
 //
 // Civil dates use the proleptic Gregorian calendar (H. Hinnant's days_from_civil algorithm).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 
@@ -104,6 +107,34 @@ struct UtcTime {
   std::int64_t ns_of_day = 0;
 };
 
+// ---- GPS - UTC by date (docs/NAV_FORMATS.md, "Time base") ----
+//
+// The leap seconds inserted into UTC since the GPS epoch (IERS Bulletin C): each at the end of the
+// day before `from`, so GPS - UTC = gps_minus_utc_s from `from` 00:00:00 UTC on. None has been
+// inserted since 2016-12-31 23:59:60; should IERS Bulletin C announce another, it needs a row here
+// (until then the value can be given to the reader).
+struct LeapSecondStep {
+  CivilDate from;
+  int gps_minus_utc_s = 0;
+};
+inline constexpr std::array<LeapSecondStep, 18> kLeapSecondSteps = {{
+    {{1981, 7, 1}, 1},  {{1982, 7, 1}, 2},  {{1983, 7, 1}, 3},  {{1985, 7, 1}, 4},  {{1988, 1, 1}, 5},
+    {{1990, 1, 1}, 6},  {{1991, 1, 1}, 7},  {{1992, 7, 1}, 8},  {{1993, 7, 1}, 9},  {{1994, 7, 1}, 10},
+    {{1996, 1, 1}, 11}, {{1997, 7, 1}, 12}, {{1999, 1, 1}, 13}, {{2006, 1, 1}, 14}, {{2009, 1, 1}, 15},
+    {{2012, 7, 1}, 16}, {{2015, 7, 1}, 17}, {{2017, 1, 1}, 18},
+}};
+
+// GPS - UTC on a UTC day (days since 1970-01-01): 0 before 1981-07-01, 18 from 2017-01-01 on.
+constexpr int leap_seconds_on_day(std::int64_t unix_day) {
+  int leap = 0;
+  for (const LeapSecondStep& s : kLeapSecondSteps)
+    if (unix_day >= days_from_civil(s.from)) leap = s.gps_minus_utc_s;
+  return leap;
+}
+constexpr int leap_seconds_on(const CivilDate& utc_date) {
+  return leap_seconds_on_day(days_from_civil(utc_date));
+}
+
 // GPS ns from a UTC date and time of day: (days - GPS epoch) * 86400 s + ns_of_day + leap seconds.
 // Only for dates of supported years (is_supported_year()), a ns_of_day within a day (plus a leap
 // second) and leap seconds within +-1000: outside those the sum may overflow.
@@ -146,6 +177,35 @@ constexpr UtcTime utc_from_gps_ns(TimestampNs t_gps_ns, int leap_seconds = kDefa
     --days;
   }
   return {civil_from_days(days + kGpsEpochUnixDays), rem};
+}
+
+// The conversions with the table's GPS - UTC for the date. A time of day in the inserted leap second
+// (23:59:60.x, ns_of_day >= 86400 s, on the day before a step) is GPS time continuous with the
+// seconds around it; nullopt as gps_ns_from_utc_checked() says.
+constexpr std::optional<TimestampNs> gps_ns_from_utc_by_table(const CivilDate& date, std::int64_t ns_of_day) {
+  if (!is_supported_year(date.year) || !is_valid_date(date)) return std::nullopt;
+  return gps_ns_from_utc_checked(date, ns_of_day, leap_seconds_on(date));
+}
+
+// GPS - UTC in force at a GPS instant: the step's value from its first UTC second on (during an
+// inserted leap second, 23:59:60, the old value).
+constexpr int leap_seconds_at_gps(TimestampNs t_gps_ns) {
+  int leap = 0;
+  for (const LeapSecondStep& s : kLeapSecondSteps)
+    if (t_gps_ns >= gps_ns_from_utc(s.from, 0, s.gps_minus_utc_s)) leap = s.gps_minus_utc_s;
+  return leap;
+}
+
+// The UTC of a GPS instant with the table's GPS - UTC; inside an inserted leap second it is
+// 23:59:60.x of the day before the step (ns_of_day in [86400 s, 86401 s)).
+constexpr UtcTime utc_from_gps_ns_by_table(TimestampNs t_gps_ns) {
+  for (const LeapSecondStep& s : kLeapSecondSteps) {
+    const TimestampNs step_ns = gps_ns_from_utc(s.from, 0, s.gps_minus_utc_s);
+    if (t_gps_ns >= step_ns - kNsPerSecond && t_gps_ns < step_ns) {
+      return {civil_from_days(days_from_civil(s.from) - 1), kNsPerDay + (t_gps_ns - (step_ns - kNsPerSecond))};
+    }
+  }
+  return utc_from_gps_ns(t_gps_ns, leap_seconds_at_gps(t_gps_ns));
 }
 
 }  // namespace augrig::nav

@@ -538,12 +538,13 @@ void FusionEngine::propagate_covariance() {
 
 template <int M>
 bool FusionEngine::kalman_update(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, 15>& H,
-                                 const Eigen::Matrix<double, M, M>& R, double gate, bool force) {
+                                 const Eigen::Matrix<double, M, M>& R, double gate, bool force, double* nis) {
   const Eigen::Matrix<double, 15, M> PHt = P_ * H.transpose();
   Eigen::Matrix<double, M, M> S = H * PHt + R;
   const Eigen::LLT<Eigen::Matrix<double, M, M>> llt(S);
   if (llt.info() != Eigen::Success) return false;
   const double chi2 = y.dot(llt.solve(y));
+  if (nis) *nis = chi2;
   if (!force && chi2 > gate) return false;
   const Eigen::Matrix<double, 15, M> K = llt.solve(PHt.transpose()).transpose();
   const Vector15d dx = K * y;
@@ -578,7 +579,10 @@ void FusionEngine::update_at_fix(const Fix& fix) {
     const bool converged =
         std::max(P_att_n(0, 0), P_att_n(1, 1)) < cfg_.gate_tilt_sigma_rad * cfg_.gate_tilt_sigma_rad;
     const bool force = !converged || rejection_streak_ >= cfg_.max_consecutive_rejections;
-    if (kalman_update<3>(y, H, R, cfg_.gate_chi2, force)) {
+    double nis = -1;
+    const bool used = kalman_update<3>(y, H, R, cfg_.gate_chi2, force, &nis);
+    if (nis >= 0) note_innovation(fix.t_ns, nis, used, converged);
+    if (used) {
       ++rep.fixes_used;
       if (force && converged) ++rep.fixes_forced;
       rejection_streak_ = 0;
@@ -634,6 +638,27 @@ void FusionEngine::update_at_fix(const Fix& fix) {
 void FusionEngine::store_epoch() {
   traj_.epochs_.push_back({mech_.state(), mech_.history(), imu_index_});
   traj_.P_.push_back(P_);
+  note_convergence();
+}
+
+void FusionEngine::note_convergence() {
+  FusionReport& rep = traj_.report_;
+  if (rep.converged || !(cfg_.convergence_window_s > 0)) return;
+  NavState s;
+  static_cast<InertialState&>(s) = mech_.state();
+  s.P = P_;
+  const Vector3d sigma = to_solution(s).sigma_ypr_rad;
+  const TimestampNs t = s.t_ns, window = s_to_ns(cfg_.convergence_window_s);
+  attitude_sigmas_.emplace_back(t, sigma);
+  // The oldest kept is the newest at least a window old.
+  while (attitude_sigmas_.size() > 1 && t - attitude_sigmas_[1].first >= window) attitude_sigmas_.pop_front();
+  const auto& [t_old, sigma_old] = attitude_sigmas_.front();
+  if (t - t_old < window) return;
+  for (int i = 0; i < 3; ++i)
+    if (sigma[i] < (1.0 - cfg_.convergence_sigma_drop) * sigma_old[i]) return;
+  rep.converged = true;
+  rep.converged_ns = t;
+  attitude_sigmas_.clear();
 }
 
 void FusionEngine::note_fix_gap(TimestampNs t_ns) {
@@ -642,6 +667,10 @@ void FusionEngine::note_fix_gap(TimestampNs t_ns) {
   rep.longest_fix_gap_s = std::max(rep.longest_fix_gap_s, gap);
   if (rep.nominal_fix_period_s > 0 && gap > cfg_.outage_factor * rep.nominal_fix_period_s) ++rep.outages;
   t_last_used_ = t_ns;
+}
+
+void FusionEngine::note_innovation(TimestampNs t_ns, double nis, bool used, bool gated) {
+  if (keep_innovations_) traj_.innovations_.push_back({t_ns, nis, used, gated});
 }
 
 void FusionEngine::filter_to(TimestampNs t_end, bool batch) {
@@ -714,6 +743,7 @@ void FusionEngine::forward() {
   }
   rep.fixes_outside += fixes_.size() - next_fix_ + first_fix_;  // fixes before the first one used, none after
   rep.epochs = traj_.epochs_.size();
+  rep.innovations = innovation_stats(traj_.innovations_);
   rep.forward_s = seconds_since(t0);
 }
 
@@ -743,6 +773,8 @@ void FusionEngine::smooth() {
 
 Expected<NavTrajectory> FusionEngine::run(std::span<const ImuSample> imu, std::span<const GpsFix> fixes,
                                           bool do_smooth) {
+  keep_innovations_ = true;
+  traj_.config_ = cfg_;
   if (Status s = prepare_imu(imu); !s) return s.error();
   if (Status s = prepare_fixes(fixes); !s) return s.error();
   if (Status s = initialise(); !s) return s.error();
@@ -919,6 +951,30 @@ Expected<NavTrajectory> fuse(std::span<const ImuSample> imu, std::span<const Gps
 // ---------------------------------------------------------------------------------------------
 // Queries and output
 
+InnovationStats innovation_stats(std::span<const FixInnovation> innovations) {
+  InnovationStats s;
+  s.count = innovations.size();
+  if (s.count == 0) return s;
+  std::vector<double> v;
+  v.reserve(s.count);
+  double sum = 0;
+  std::size_t within = 0;
+  for (const FixInnovation& i : innovations) {
+    v.push_back(i.nis);
+    sum += i.nis;
+    within += i.nis <= kNis95_3Dof ? 1 : 0;
+  }
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  double median = v[mid];
+  if (v.size() % 2 == 0) median = 0.5 * (median + *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid)));
+  s.mean_nis = sum / static_cast<double>(s.count);
+  s.median_nis = median;
+  s.within_95 = static_cast<double>(within) / static_cast<double>(s.count);
+  s.scale = std::sqrt(median / kNisMedian3Dof);
+  return s;
+}
+
 Expected<NavState> NavTrajectory::at(TimestampNs t_ns) const {
   if (epochs_.empty() || t_ns < begin_ns() || t_ns > end_ns())
     return make_error("NavTrajectory::at(): t=", t_ns, " ns is outside the trajectory [", begin_ns(), ", ",
@@ -929,8 +985,30 @@ Expected<NavState> NavTrajectory::at(TimestampNs t_ns) const {
   const Epoch& e = epochs_[k];
   Strapdown mech(e.x, e.history);
   std::size_t index = e.imu_index;
-  advance(imu_, mech, index, t_ns, [](double) {});
   NavState s;
+  if (!report_.smoothed) {
+    // Forward only: the filter's own prediction from the epoch, covariance included (a linear
+    // interpolation between two posteriors would miss its growth between fixes).
+    s.P = P_[k];
+    Matrix3d sum_R = Matrix3d::Zero();
+    Vector3d sum_dv = Vector3d::Zero();
+    double T = 0;
+    advance(imu_, mech, index, t_ns, [&](double dt) {
+      sum_R += mech.last_R_ecef_body() * dt;
+      sum_dv += mech.last_dv_ecef();
+      T += dt;
+      if (T >= config_.covariance_step_s) {
+        covariance_step(config_, mech.state().p_ecef_m, sum_R, sum_dv, T, s.P, nullptr);
+        sum_R.setZero();
+        sum_dv.setZero();
+        T = 0;
+      }
+    });
+    if (T > 0) covariance_step(config_, mech.state().p_ecef_m, sum_R, sum_dv, T, s.P, nullptr);
+    static_cast<InertialState&>(s) = mech.state();
+    return s;
+  }
+  advance(imu_, mech, index, t_ns, [](double) {});
   static_cast<InertialState&>(s) = mech.state();
   if (k + 1 < epochs_.size() && t_ns > e.x.t_ns) {
     const double w =

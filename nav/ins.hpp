@@ -18,6 +18,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -146,6 +147,10 @@ struct InsConfig {
   // t_ns + gps_time_offset_ns (its time of validity on the IMU's clock), not at its arrival.
   TimestampNs imu_time_offset_ns = 0;
   TimestampNs gps_time_offset_ns = 0;
+  // GPS - UTC of the aircraft's NMEA log when stated (aircraft.yaml gps_leap_seconds); unset: the
+  // receiver's own report or the table by date (nav/nmea.hpp). For whoever reads the log into fixes
+  // (pipeline::load_aircraft_logs); the filter itself never uses it.
+  std::optional<int> gps_leap_seconds;
 
   Eigen::Vector3d lever_arm_body_m = Eigen::Vector3d::Zero();  // GPS antenna phase centre, body FRD
   ImuNoiseModel imu;
@@ -187,7 +192,41 @@ struct InsConfig {
   double airborne_speed_mps = 40.0;                          // above: roll from the coordinated-turn relation
 
   double outage_factor = 3.0;  // a gap between used fixes longer than this x nominal period is an outage
+
+  // Convergence (docs/NAV_FUSION.md, "Consistency"): the forward filter counts as converged at its
+  // first epoch, at least convergence_window_s after its start, over whose last convergence_window_s
+  // none of its attitude 1-sigmas (yaw, pitch, roll) fell by more than convergence_sigma_drop (a
+  // fraction). Until then it is still learning its attitude from the manoeuvres, and its sigma
+  // (forward only, as in real time) was measured optimistic against the simulator's truth.
+  double convergence_window_s = 2.0;
+  double convergence_sigma_drop = 0.25;
 };
+
+// One GPS position fix as the forward filter tested it against its prediction (docs/NAV_FUSION.md,
+// "Consistency"): the normalised innovation squared NIS = y^T S^-1 y, S = H P H^T + R. When the
+// filter's covariance and noise model are right it is chi-square distributed with 3 degrees of
+// freedom: mean 3, median 2.366, 95 % of fixes below 7.815.
+struct FixInnovation {
+  TimestampNs t_ns = 0;  // the fix's time of validity on the nav clock
+  double nis = 0;
+  bool used = false;   // passed the gate (or was accepted unconditionally)
+  bool gated = false;  // the gate applied: the filter had levelled itself (gate_tilt_sigma_rad)
+};
+
+inline constexpr double kNisMedian3Dof = 2.3660;  // median of chi-square with 3 dof
+inline constexpr double kNis95_3Dof = 7.8147;     // its 95 % quantile
+
+// The GPS innovations of a run summed up: how their size compares with what the filter predicts.
+struct InnovationStats {
+  std::size_t count = 0;
+  double mean_nis = 0;     // 3 when consistent (sensitive to single outliers)
+  double median_nis = 0;   // 2.366 when consistent
+  double within_95 = 0;    // share with NIS <= 7.815: 0.95 when consistent
+  // How many times larger the innovations are than the filter predicts, from the median (robust to
+  // outliers): sqrt(median / 2.366). 1 when consistent; > 1: the filter's sigma is optimistic.
+  double scale = 0;
+};
+InnovationStats innovation_stats(std::span<const FixInnovation> innovations);
 
 struct FusionReport {
   std::size_t imu_samples = 0;
@@ -209,6 +248,13 @@ struct FusionReport {
   bool smoothed = false;
   double forward_s = 0, smoother_s = 0;  // wall time
   std::string init_summary;              // how the first state was obtained
+  // Every GPS position fix tested after the initialisation fix (used or rejected), summed up
+  // (batch only: nav::fuse()).
+  InnovationStats innovations;
+  // When the forward filter's attitude sigmas settled (InsConfig::convergence_window_s); not
+  // converged: still settling at the end of the data.
+  bool converged = false;
+  TimestampNs converged_ns = 0;  // nav clock
 };
 
 // One epoch as a CSV-ready solution: geodetic position of the body origin, NED velocity, Euler
@@ -235,10 +281,18 @@ class NavTrajectory {
   TimestampNs begin_ns() const { return epochs_.empty() ? 0 : epochs_.front().x.t_ns; }
   TimestampNs end_ns() const { return imu_.empty() ? 0 : imu_.back().t1_ns; }
   const FusionReport& report() const { return report_; }
+  // A forward-only trajectory before its filter converged (FusionReport::converged_ns): its sigma
+  // there is optimistic. Never for a smoothed one (the smoother's sigma holds from the start).
+  bool converging(TimestampNs t_ns) const {
+    return !report_.smoothed && (!report_.converged || t_ns < report_.converged_ns);
+  }
   // The states at the filter's epochs (smoothed when smoothing ran).
   std::vector<NavState> epochs() const;
   std::vector<NavSolution> solutions() const;
   std::size_t epoch_count() const { return epochs_.size(); }
+  // The forward filter's GPS position innovations, one per fix tested, in time order (nav::fuse()
+  // only; a real-time filter keeps none).
+  const std::vector<FixInnovation>& innovations() const { return innovations_; }
 
  private:
   friend class FusionEngine;
@@ -263,7 +317,9 @@ class NavTrajectory {
   std::vector<Increment> imu_;
   std::vector<Epoch> epochs_;
   std::vector<Matrix15d> P_;  // per epoch
+  std::vector<FixInnovation> innovations_;
   FusionReport report_;
+  InsConfig config_;  // a forward-only trajectory's at() propagates the covariance with it
 };
 
 // Fuses one aircraft's IMU and GPS logs. Both must be in strictly increasing time order (an Error

@@ -7,8 +7,10 @@
 //              it, covariance propagated), trim_before(t) to keep memory bounded.
 #pragma once
 
+#include <deque>
 #include <optional>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -79,12 +81,14 @@ class FusionEngine {
   // otherwise whole epochs only.
   void filter_to(TimestampNs t_end_ns, bool batch);
   void note_fix_gap(TimestampNs t_ns);
+  void note_innovation(TimestampNs t_ns, double nis, bool used, bool gated);
+  void note_convergence();
   void smooth();
   void propagate_covariance();
   void update_at_fix(const Fix& fix);
   template <int M>
   bool kalman_update(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, 15>& H,
-                     const Eigen::Matrix<double, M, M>& R, double gate, bool force);
+                     const Eigen::Matrix<double, M, M>& R, double gate, bool force, double* nis = nullptr);
   void store_epoch();
 
   const InsConfig& cfg_;
@@ -106,6 +110,9 @@ class FusionEngine {
   Eigen::Vector3d sum_dv_e_ = Eigen::Vector3d::Zero();
   double step_dt_ = 0;
   int rejection_streak_ = 0;
+  bool keep_innovations_ = false;  // batch: every GPS position innovation's NIS kept in the trajectory
+  // Until converged: the attitude 1-sigmas (yaw, pitch, roll) of the epochs of the last window.
+  std::deque<std::pair<TimestampNs, Eigen::Vector3d>> attitude_sigmas_;
 
   // Smoother inputs, per epoch k: the predicted state and covariance at k and the transition k-1 -> k.
   std::vector<InertialState> x_pred_;

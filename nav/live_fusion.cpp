@@ -67,6 +67,8 @@ LiveFusionStatus LiveFusion::status() const {
     s.init_summary = r.init_summary;
     s.t_filter_ns = engine_->filter_time_ns();
     s.t_used_fix_ns = engine_->last_used_fix_ns();
+    s.converged = r.converged;
+    s.t_converged_ns = r.converged_ns;
   }
   s.t_imu_ns = engine_->imu_end_ns();
   s.imu_samples = r.imu_samples;

@@ -42,6 +42,10 @@ struct LiveFusionStatus {
   TimestampNs t_fix_ns = 0;        // the newest fix received, valid or not (nav clock; 0: none)
   TimestampNs t_valid_fix_ns = 0;  // the newest valid fix (0: none)
   TimestampNs t_used_fix_ns = 0;   // the newest fix the filter used
+  // The filter's attitude sigmas have settled (InsConfig::convergence_window_s); before, its sigma
+  // is optimistic (docs/NAV_FUSION.md, "Consistency").
+  bool converged = false;
+  TimestampNs t_converged_ns = 0;
   FixQuality fix_quality = FixQuality::kInvalid;   // of the newest fix received
   std::uint64_t imu_samples = 0, imu_refused = 0;  // refused: not after the previous one, non-finite
   std::uint64_t fixes = 0, fixes_used = 0, fixes_rejected = 0, fixes_invalid = 0;

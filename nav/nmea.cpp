@@ -94,6 +94,7 @@ std::string two_digits(int v) {
 }
 
 std::string format_tod(std::int64_t ns_of_day) {
+  if (ns_of_day >= kNsPerDay) return "2359" + two_digits(static_cast<int>(60 + (ns_of_day - kNsPerDay) / kNsPerSecond));
   return two_digits(static_cast<int>(ns_of_day / (3600 * kNsPerSecond))) +
          two_digits(static_cast<int>(ns_of_day / (60 * kNsPerSecond) % 60)) +
          two_digits(static_cast<int>(ns_of_day / kNsPerSecond % 60));
@@ -101,6 +102,11 @@ std::string format_tod(std::int64_t ns_of_day) {
 
 // "12:35:19.250" for messages.
 std::string clock_text(std::int64_t ns_of_day) {
+  if (ns_of_day >= kNsPerDay) {  // 23:59:60.x, an inserted leap second
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "23:59:60.%03d", static_cast<int>((ns_of_day - kNsPerDay) / 1'000'000 % 1000));
+    return buf;
+  }
   const std::int64_t ms = ns_of_day / 1'000'000;
   char buf[32];
   std::snprintf(buf, sizeof buf, "%02d:%02d:%02d.%03d", static_cast<int>(ms / 3'600'000),
@@ -331,6 +337,49 @@ std::string parse_zda(const Fields& f, std::int64_t& tod, CivilDate& date) {
   return {};
 }
 
+// u-blox $PUBX,04: hhmmss.ss,ddmmyy,utcTow,utcWk,leapSec[D],clkBias,clkDrift,tpGran. utcTow and utcWk
+// count UTC from the GPS epoch in weeks and seconds (no leap seconds), so they must agree with the
+// date and time; leapSec is GPS - UTC, with a 'D' when it is the firmware's default (the receiver
+// has not yet received it from the satellites). Fields numbered from the message id, "04", as 1.
+struct Pubx04 {
+  std::int64_t tod_ns = 0;
+  CivilDate date;
+  int leap_seconds = 0;
+  bool leap_is_default = false;
+};
+
+std::string parse_pubx04(const Fields& f, Pubx04& p) {
+  if (auto e = need_fields(f, 6); !e.empty()) return e;
+  if (auto e = parse_tod(f[2], p.tod_ns); !e.empty()) return field_error(2, "time", e);
+  const std::string_view d = f[3];
+  if (d.size() != 6 || !all_digits(d)) return field_error(3, "date", "expected ddmmyy, got " + quoted(d));
+  const auto two = [&](std::size_t i) { return (d[i] - '0') * 10 + (d[i + 1] - '0'); };
+  const int yy = two(4);
+  p.date = {yy < 80 ? 2000 + yy : 1900 + yy, two(2), two(0)};
+  if (!is_valid_date(p.date)) return field_error(3, "date", "expected ddmmyy, got " + quoted(d));
+  double tow = 0;
+  int week = 0;
+  if (!parse_double(f[4], tow) || tow < 0 || tow >= 604801)
+    return field_error(4, "UTC time of week", "expected seconds in [0, 604801), got " + quoted(f[4]));
+  if (!parse_int(f[5], week) || week < 0 || week > 10000)
+    return field_error(5, "UTC week", "expected a week number 0..10000, got " + quoted(f[5]));
+  std::string_view leap = f[6];
+  p.leap_is_default = !leap.empty() && leap.back() == 'D';
+  if (p.leap_is_default) leap.remove_suffix(1);
+  if (!all_digits(leap) || leap.size() > 2 || !parse_int(leap, p.leap_seconds))
+    return field_error(6, "leap seconds", "expected GPS - UTC in whole seconds (0..99, 'D' for the default), got " +
+                                              quoted(f[6]));
+  // Week and time of week against the date and time: the same UTC second count, to rounding.
+  const double from_date = static_cast<double>((days_from_civil(p.date) - kGpsEpochUnixDays) * 86'400) +
+                           static_cast<double>(p.tod_ns) * 1e-9;
+  if (std::abs(from_date - (week * 604'800.0 + tow)) > 1.0) {
+    return field_error(4, "UTC time of week",
+                       "week " + std::to_string(week) + ", " + quoted(f[4]) + " s does not match the date and time " +
+                           date_text(p.date) + " " + clock_text(p.tod_ns));
+  }
+  return {};
+}
+
 // ---------------------------------------------------------------------------------------------
 // The parser state.
 
@@ -361,7 +410,9 @@ struct EmittedFix {
 // time in, epochs merged by time tag, fixes out through `out`. Line numbers count every line pushed.
 class SentenceCore {
  public:
-  SentenceCore(const std::string& name, const NmeaOptions& o) : name_(name), o_(o) {}
+  SentenceCore(const std::string& name, const NmeaOptions& o) : name_(name), o_(o) {
+    log_.leap_seconds.given = o.leap_seconds;
+  }
 
   // `arrival_override` (!= 0) replaces the line's own "<arrival_ns> " prefix.
   void line(std::string_view s, TimestampNs arrival_override = 0) {
@@ -529,6 +580,23 @@ class SentenceCore {
       e = &*epoch_;
       merge(*e, v);
       if (heading && !e->heading_rad) e->heading_rad = heading;
+    } else if (type == "PUBX" && f.size() > 1 && f[1] == "04") {
+      // The receiver's GPS - UTC: in force from this line on (from the open epoch on). Its time tag
+      // does not open an epoch: it is the receiver's clock, which may lead the fixes'.
+      Pubx04 p;
+      if (auto err = parse_pubx04(f, p); !err.empty()) return bad(err);
+      LeapSecondsUse& use = log_.leap_seconds;
+      if (p.leap_is_default) {
+        if (use.receiver_default_reports++ == 0) {
+          report(at(line_no_) + "PUBX,04 gives the receiver's default leap seconds (" + std::string(f[6]) +
+                 "), not yet received from the satellites: not used (further ones counted silently)");
+        }
+        return;
+      }
+      ++use.receiver_reports;
+      use.receiver_value = p.leap_seconds;
+      receiver_leap_line_ = line_no_;
+      return;
     } else {
       ++log_.unused_sentences;
       if (unused_types_.insert(type).second) {
@@ -572,14 +640,18 @@ class SentenceCore {
     }
     const Gga& g = *e.gga;
     GpsFix fix;
+    // GPS - UTC: given, else the receiver's latest report, else the table's for the date.
+    const LeapSecondsUse& use = log_.leap_seconds;
+    const int table = leap_seconds_on_day(*day_);
+    const int leap = o_.leap_seconds ? *o_.leap_seconds : use.receiver_value ? *use.receiver_value : table;
     // Checked: a default date, or a date carried past midnights, outside the supported years
     // would overflow the int64 ns (nav/gps_time.hpp).
-    const auto t_ns = gps_ns_from_utc_checked(civil_from_days(*day_), e.tod_ns, o_.leap_seconds);
+    const auto t_ns = gps_ns_from_utc_checked(civil_from_days(*day_), e.tod_ns, leap);
     if (!t_ns) {
       ++log_.issues.malformed;
       const std::string what = at(e.gga_line) + "GGA at " + date_text(civil_from_days(*day_)) + " " +
                                clock_text(e.tod_ns) + ": expected a date in the years " + kYearRangeText +
-                               " and leap seconds within +-1000 (got " + std::to_string(o_.leap_seconds) +
+                               " and leap seconds within +-1000 (got " + std::to_string(leap) +
                                "): dropped";
       if (first_malformed_.empty()) first_malformed_ = what;
       report(what);
@@ -614,7 +686,38 @@ class SentenceCore {
     }
     last_fix_t_ns_ = fix.t_ns;
     last_fix_line_ = e.gga_line;
+    note_leap(leap, table, e.gga_line);
     out.push_back({fix, e.gga_line});
+  }
+
+  // Counts the value a kept fix was converted with against what the receiver and the table say.
+  void note_leap(int leap, int table, std::size_t line) {
+    LeapSecondsUse& use = log_.leap_seconds;
+    ++use.applied[leap];
+    if (!o_.leap_seconds) ++(use.receiver_value ? use.from_receiver : use.from_table);
+    const CivilDate date = civil_from_days(*day_);
+    if (!use.first_date) use.first_date = date;
+    use.last_date = date;
+    const int expected = use.receiver_value ? *use.receiver_value : table;
+    std::string what;
+    if (leap != expected) {
+      const int late = leap - expected;
+      what = at(line) + "GPS-UTC " + std::to_string(leap) + " s given, but " +
+             (use.receiver_value ? "the receiver reports " + std::to_string(expected) + " s (PUBX,04, line " +
+                                       std::to_string(receiver_leap_line_) + ")"
+                                 : "it was " + std::to_string(expected) + " s on " + date_text(date) +
+                                       " (the leap-second table)") +
+             ": the fix times are " + std::to_string(std::abs(late)) + " s " + (late > 0 ? "late" : "early");
+    } else if (use.receiver_value && *use.receiver_value != table) {
+      what = at(line) + "the receiver reports GPS-UTC " + std::to_string(*use.receiver_value) + " s (PUBX,04, line " +
+             std::to_string(receiver_leap_line_) + ") where the leap-second table gives " + std::to_string(table) +
+             " s for " + date_text(date) + ": the receiver's value is used";
+    }
+    if (what.empty()) return;
+    if (use.disagreements++ == 0) {
+      use.first_disagreement = what;
+      report(what + " (further such fixes counted silently)");
+    }
   }
 
   std::string name_;
@@ -625,6 +728,7 @@ class SentenceCore {
   std::optional<std::int64_t> last_tod_ns_;
   std::optional<TimestampNs> last_fix_t_ns_;
   std::size_t last_fix_line_ = 0;
+  std::size_t receiver_leap_line_ = 0;  // of the PUBX,04 that gave LeapSecondsUse::receiver_value
   TimestampNs last_arrival_ns_ = 0;
   std::set<std::string> unused_types_;
   std::size_t nonempty_ = 0;
@@ -750,6 +854,33 @@ std::string opt_fixed(const std::optional<double>& v, double scale, int decimals
 
 }  // namespace
 
+std::string describe(const LeapSecondsUse& use) {
+  if (use.applied.empty()) return "GPS-UTC: no fix converted";
+  std::string text = "GPS-UTC ";
+  std::size_t k = 0;
+  for (const auto& [value, fixes] : use.applied) {
+    if (k++) text += k == use.applied.size() ? " and " : ", ";
+    text += std::to_string(value) + " s";
+    if (use.applied.size() > 1) text += " (" + std::to_string(fixes) + " fixes)";
+  }
+  std::string dates;
+  if (use.first_date) {
+    dates = date_text(*use.first_date);
+    if (use.last_date && !(*use.last_date == *use.first_date)) dates += " to " + date_text(*use.last_date);
+  }
+  if (use.given) {
+    text += " (given)";
+  } else if (use.from_receiver && use.from_table) {
+    text += " (reported by the receiver, PUBX,04; before its first report the leap-second table for " + dates + ")";
+  } else if (use.from_receiver) {
+    text += " (reported by the receiver, PUBX,04)";
+  } else {
+    text += " (the leap-second table for the UTC date" + std::string(dates.find(" to ") == std::string::npos ? " " : "s ") +
+            dates + ")";
+  }
+  return text;
+}
+
 std::uint8_t nmea_checksum(std::string_view body) {
   std::uint8_t x = 0;
   for (char c : body) x ^= static_cast<std::uint8_t>(c);
@@ -767,7 +898,7 @@ std::vector<std::string> nmea_sentences(const GpsFix& fix, const NmeaWriterOptio
   // Round to the written resolution first, so that the time and the date agree.
   std::int64_t t = fix.t_ns + q / 2;
   t -= ((t % q) + q) % q;
-  const UtcTime utc = utc_from_gps_ns(t, o.leap_seconds);
+  const UtcTime utc = o.leap_seconds ? utc_from_gps_ns(t, *o.leap_seconds) : utc_from_gps_ns_by_table(t);
   std::string time = format_tod(utc.ns_of_day);
   if (decimals > 0) {
     char buf[16];
@@ -821,6 +952,14 @@ std::vector<std::string> nmea_sentences(const GpsFix& fix, const NmeaWriterOptio
     std::snprintf(year, sizeof year, "%04d", date.year);
     out.push_back(nmea_sentence(o.talker + "ZDA," + time + "," + two_digits(date.day) + "," +
                                 two_digits(date.month) + "," + year + ",00,00"));
+  }
+  if (o.pubx04) {
+    const std::int64_t days = days_from_civil(date) - kGpsEpochUnixDays;
+    const double tow = static_cast<double>(days % 7 * 86'400) + static_cast<double>(utc.ns_of_day) * 1e-9;
+    const int leap = o.leap_seconds ? *o.leap_seconds : leap_seconds_at_gps(t);
+    out.push_back(nmea_sentence("PUBX,04," + time + "," + two_digits(date.day) + two_digits(date.month) +
+                                two_digits(date.year % 100) + "," + fixed(tow, 2) + "," + std::to_string(days / 7) +
+                                "," + std::to_string(leap) + ",,,"));
   }
   return out;
 }

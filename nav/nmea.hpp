@@ -2,7 +2,8 @@
 // precision and the warning rules: docs/NAV_FORMATS.md.
 //
 // Read: GGA (position, quality, satellites, HDOP, geoid separation), RMC (date, ground speed,
-// course), VTG (ground speed, course), HDT (true heading), GST (position error sigmas), ZDA (date).
+// course), VTG (ground speed, course), HDT (true heading), GST (position error sigmas), ZDA (date),
+// and u-blox's $PUBX,04 (the receiver's own GPS - UTC leap seconds).
 // Sentences sharing a UTC time tag merge into one GpsFix; VTG and HDT carry no time and join the
 // epoch of the last time tag seen. Ellipsoidal height = GGA altitude (MSL) + GGA geoid separation.
 // Every line may start with a host arrival time, "<arrival_ns> $GNGGA,...".
@@ -32,7 +33,11 @@
 namespace augrig::nav {
 
 struct NmeaOptions {
-  int leap_seconds = kDefaultLeapSeconds;  // GPS - UTC, seconds
+  // GPS - UTC in seconds. Unset (the default): the receiver's own report ($PUBX,04) from the epoch it
+  // comes in on, and for fixes before any report the value that applied on the fix's UTC date
+  // (leap_seconds_on(), nav/gps_time.hpp). Set: this value for every fix, checked against the
+  // receiver's reports and the table (LeapSecondsUse). docs/NAV_FORMATS.md, "Leap seconds".
+  std::optional<int> leap_seconds;
   // Date for fixes seen before any ZDA/RMC date; without it such fixes are reported and dropped.
   std::optional<CivilDate> default_date;
   // Fraction of non-empty lines that may be malformed (bad checksum, garbage, bad fields) before
@@ -46,6 +51,26 @@ struct NmeaOptions {
   std::size_t max_messages = 1000;
 };
 
+// GPS - UTC as a log's fixes were converted with, where it came from, and what the log itself says.
+struct LeapSecondsUse {
+  std::optional<int> given;            // NmeaOptions::leap_seconds
+  std::map<int, std::size_t> applied;  // value -> fixes converted with it
+  std::size_t from_receiver = 0;       // fixes converted with the receiver's report (none given)
+  std::size_t from_table = 0;          // fixes converted with the table's value for their date (none given)
+  std::optional<CivilDate> first_date, last_date;  // UTC dates of the first and the last fix
+  std::size_t receiver_reports = 0;          // $PUBX,04 with the count the receiver knows
+  std::size_t receiver_default_reports = 0;  // $PUBX,04 with its firmware default ("15D"): not used
+  std::optional<int> receiver_value;         // the last one reported (not a default)
+  // Fixes whose value differs from the receiver's report or, before any, from the table: with a
+  // value given, those the given value gets wrong; without, those where the receiver contradicts the
+  // table (its value is used). The first is described, "file:line: ...".
+  std::size_t disagreements = 0;
+  std::string first_disagreement;
+};
+// One line: the value(s) applied and where they came from, e.g. "GPS-UTC 17 s (the leap-second
+// table for the UTC date 2016-06-01)".
+std::string describe(const LeapSecondsUse& use);
+
 struct NmeaLog {
   std::vector<GpsFix> fixes;  // sorted by t_ns, strictly increasing
   LogIssues issues;
@@ -55,6 +80,7 @@ struct NmeaLog {
   std::size_t epochs_without_gga = 0;  // time tags seen only in RMC/GST/ZDA (no fix made)
   std::size_t fixes_without_date = 0;  // fixes before any date and no default_date (dropped)
   std::size_t unused_sentences = 0;    // valid sentences of types not read (GSV, GSA, ...)
+  LeapSecondsUse leap_seconds;
 };
 
 // Parses an NMEA log; `name` is used in messages ("tanker.nmea:12: bad checksum ...").
@@ -102,7 +128,9 @@ class NmeaStream {
 };
 
 struct NmeaWriterOptions {
-  int leap_seconds = kDefaultLeapSeconds;
+  // GPS - UTC. Unset: the table's value in force at each fix's GPS time, as a receiver would output
+  // it (an inserted leap second is written 23:59:60).
+  std::optional<int> leap_seconds;
   std::string talker = "GN";          // GGA, RMC, VTG, GST, ZDA
   std::string heading_talker = "GN";  // HDT
   int time_decimals = 3;              // hhmmss.sss; 0..9
@@ -113,6 +141,9 @@ struct NmeaWriterOptions {
   bool hdt = true;  // HDT when heading_rad is set
   bool gst = true;  // GST when sigma_ned_m is set
   bool zda = true;  // ZDA with the date
+  // u-blox $PUBX,04 after the epoch's sentences: date, time, UTC week and time of week, and the
+  // leap seconds applied (clock bias, drift and time-pulse granularity left empty).
+  bool pubx04 = false;
 };
 
 // XOR of the characters between '$' and '*' (pass them without either).
@@ -120,7 +151,7 @@ std::uint8_t nmea_checksum(std::string_view body);
 // "$" + body + "*HH" (no line ending).
 std::string nmea_sentence(std::string_view body);
 
-// The sentences of one epoch, in the order GGA, GST, RMC, VTG, HDT, ZDA, each as "$...*HH"
+// The sentences of one epoch, in the order GGA, GST, RMC, VTG, HDT, ZDA (PUBX,04), each as "$...*HH"
 // without line ending or arrival prefix. Position: 8 decimals of arc minutes (< 0.02 mm), heights
 // 4 decimals, GGA altitude = antenna.h_m - geoid_separation_m. A fix with quality kInvalid is
 // written with quality 0 (and RMC status V); NaN coordinates are written as empty fields.

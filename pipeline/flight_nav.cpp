@@ -30,7 +30,8 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
     if (!root || root.IsNull()) return cfg;  // an empty file: the defaults
     expect_map(c, root, "", "a map of aircraft nav settings");
     check_keys(c, root, "",
-               {"lever_arm_m", "imu_time_offset_ns", "gps_time_offset_ns", "imu", "gps", "heading"});
+               {"lever_arm_m", "imu_time_offset_ns", "gps_time_offset_ns", "gps_leap_seconds", "imu", "gps",
+                "heading"});
     // Every value has an upper bound too (docs/NAV_FORMATS.md): 1e300 would square to inf in the
     // filter's covariances, and a time offset must stay inside int64 once added to a timestamp.
     auto nonneg = [&](const YAML::Node& n, const std::string& key, const char* what, double max) {
@@ -62,6 +63,12 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
     };
     if (root["imu_time_offset_ns"]) cfg.imu_time_offset_ns = offset_ns("imu_time_offset_ns");
     if (root["gps_time_offset_ns"]) cfg.gps_time_offset_ns = offset_ns("gps_time_offset_ns");
+    if (const YAML::Node n = root["gps_leap_seconds"]) {
+      const std::string what = "GPS - UTC in whole seconds, 0..100 (18 since 2017-01-01)";
+      const double v = to_number(c, n, "gps_leap_seconds", what);
+      if (!(v >= 0 && v <= 100 && v == std::floor(v))) fail(c, n, "gps_leap_seconds", "expected " + what + ", " + got(n));
+      cfg.gps_leap_seconds = static_cast<int>(v);
+    }
     if (const YAML::Node imu = root["imu"]) {
       expect_map(c, imu, "imu", "a map of IMU noise values");
       check_keys(c, imu, "imu",
@@ -130,8 +137,9 @@ std::string aircraft_config_to_yaml(const nav::InsConfig& c) {
     << "lever_arm_m: [" << fmt(c.lever_arm_body_m.x()) << ", " << fmt(c.lever_arm_body_m.y()) << ", "
     << fmt(c.lever_arm_body_m.z()) << "]\n"
     << "imu_time_offset_ns: " << c.imu_time_offset_ns << "\n"
-    << "gps_time_offset_ns: " << c.gps_time_offset_ns << "\n"
-    << "imu:\n"
+    << "gps_time_offset_ns: " << c.gps_time_offset_ns << "\n";
+  if (c.gps_leap_seconds) o << "gps_leap_seconds: " << *c.gps_leap_seconds << "\n";
+  o << "imu:\n"
     << "  gyro_arw_deg_per_sqrt_h: " << fmt(rad_to_deg(c.imu.gyro_arw_rad_psqrts) * 60.0) << "\n"
     << "  accel_vrw_mps_per_sqrt_h: " << fmt(c.imu.accel_vrw_mps_psqrts * 60.0) << "\n"
     << "  gyro_bias_deg_per_h: " << fmt(rad_to_deg(c.imu.gyro_bias.sigma) * 3600.0) << "\n"
@@ -170,21 +178,57 @@ nav::InsConfig ins_config_for(const sim::AircraftSensors& s) {
 
 // ---- Logs -----------------------------------------------------------------------------------------
 
-Expected<AircraftLogs> load_aircraft_logs(const std::string& folder) {
+Expected<AircraftLogs> load_aircraft_logs(const std::string& folder, const AircraftLoadOptions& options) {
   AircraftLogs logs;
   logs.folder = folder;
   const fs::path dir(folder);
   if (!fs::is_directory(dir))
     return make_error("aircraft::load_logs(): ", folder,
                       ": not a folder (expected gps.nmea, imu.csv, aircraft.yaml)");
-  auto gps = nav::read_nmea_file((dir / "gps.nmea").string());
+  // aircraft.yaml first: it may say the leap seconds gps.nmea needs.
+  const std::string yaml_path = (dir / "aircraft.yaml").string();
+  std::error_code ec;
+  if (fs::exists(yaml_path, ec) || fs::is_symlink(yaml_path, ec)) {
+    auto cfg = load_aircraft_config(yaml_path);
+    if (!cfg) return cfg.error();
+    logs.config = *cfg;
+  } else if (options.allow_default_config) {
+    logs.default_config = true;
+    logs.notes.push_back("no " + yaml_path +
+                         ": the defaults are used (antenna at the IMU, no time offsets, a tactical IMU, 2 cm RTK; "
+                         "docs/NAV_FORMATS.md): the pose and its sigma assume them, and a wrong lever arm shows in "
+                         "the GPS innovations only when the aircraft turns");
+  } else {
+    return make_error("aircraft::load_logs(): ", folder, ": no aircraft.yaml (expected ", yaml_path,
+                      ": the antenna lever arm, IMU and GPS noise and time offsets, docs/NAV_FORMATS.md); "
+                      "fusing without it would assume the antenna at the IMU and a tactical IMU, and report a "
+                      "sigma that does not hold: write one, or ask for the defaults (augrig nav --default-aircraft)");
+  }
+  nav::NmeaOptions nmea;
+  if (options.leap_seconds) {
+    nmea.leap_seconds = options.leap_seconds;
+    logs.leap_seconds_source = options.leap_seconds_source;
+    if (logs.config.gps_leap_seconds && *logs.config.gps_leap_seconds != *options.leap_seconds) {
+      logs.warnings.push_back(options.leap_seconds_source + " " + std::to_string(*options.leap_seconds) +
+                              " overrides " + yaml_path + "'s gps_leap_seconds " +
+                              std::to_string(*logs.config.gps_leap_seconds));
+    }
+  } else if (logs.config.gps_leap_seconds) {
+    nmea.leap_seconds = logs.config.gps_leap_seconds;
+    logs.leap_seconds_source = "aircraft.yaml gps_leap_seconds";
+  }
+  auto gps = nav::read_nmea_file((dir / "gps.nmea").string(), nmea);
   if (!gps) return gps.error();
   auto imu = nav::read_imu_csv((dir / "imu.csv").string());
   if (!imu) return imu.error();
-  if (fs::exists(dir / "aircraft.yaml")) {
-    auto cfg = load_aircraft_config((dir / "aircraft.yaml").string());
-    if (!cfg) return cfg.error();
-    logs.config = *cfg;
+  logs.leap_seconds = gps->leap_seconds;
+  const nav::LeapSecondsUse& leap = logs.leap_seconds;
+  if (leap.disagreements) {
+    // Given and wrong (the receiver's report or the table disagree), or the receiver against the
+    // table (its value used): said with the file and line of the first such fix.
+    logs.warnings.push_back(leap.first_disagreement + " (" + std::to_string(leap.disagreements) + " of " +
+                            std::to_string(gps->fixes.size()) + " fixes" +
+                            (leap.given ? "; given by " + logs.leap_seconds_source : std::string()) + ")");
   }
   logs.gps = std::move(gps->fixes);
   logs.gps_issues = std::move(gps->issues);
@@ -260,6 +304,12 @@ FramePose frame_pose(const nav::NavState& tanker, const nav::NavState& receiver,
   f.camera = nav::in_frame(rig.cameras[camera].T_body_cam.inverse(), f.body);
   f.boom = track_point(f.body.T_a_receiver * receptacle_m, rig.boom.pivot_body_m, boom, rig.boom.limits);
   return f;
+}
+
+std::optional<TimestampNs> RelativeNav::converged_ns() const {
+  const nav::FusionReport &a = tanker_.report(), &b = receiver_.report();
+  if (a.smoothed || b.smoothed || !a.converged || !b.converged) return std::nullopt;
+  return std::max(a.converged_ns, b.converged_ns);
 }
 
 Expected<FramePose> RelativeNav::at(int camera, TimestampNs t_camera_ns) const {
@@ -340,6 +390,52 @@ std::string describe(const std::string& who, const nav::FusionReport& r) {
     << yaml::fmt(std::round(r.longest_fix_gap_s * 1000) / 1000) << " s); " << r.epochs << " epochs"
     << (r.smoothed ? ", smoothed" : ", forward only");
   return o.str();
+}
+
+namespace {
+
+std::string fixed1(double v, const char* format = "%.2f") {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, v);
+  return buf;
+}
+
+}  // namespace
+
+InnovationCheck check_innovations(const std::string& who, const nav::FusionReport& r, const std::string& hint) {
+  const nav::InnovationStats& n = r.innovations;
+  InnovationCheck c;
+  c.summary = who + " GPS innovations: " + std::to_string(n.count) + " fixes";
+  if (n.count == 0) {
+    c.summary += " tested (none after the first): the sigma cannot be checked";
+    return c;
+  }
+  c.summary += ", mean NIS " + fixed1(n.mean_nis) + " (3 when consistent), " + fixed1(100 * n.within_95, "%.0f") +
+               " % within the 95 % gate, " + fixed1(n.scale) + "x the predicted size";
+  if (n.count < kMinInnovations) {
+    c.summary += ": too few fixes to judge the sigma by";
+    return c;
+  }
+  c.judged = true;
+  c.optimistic = n.scale > kMaxInnovationScale || n.within_95 < kMinWithin95;
+  c.consistent = !c.optimistic && n.scale >= kMinInnovationScale;
+  if (c.consistent) {
+    c.summary += ": consistent with the filter's sigma";
+  } else if (c.optimistic) {
+    c.summary += ": NOT consistent (optimistic sigma)";
+    c.warning = who + ": GPS innovations are " + fixed1(n.scale, "%.1f") +
+                "x larger than the filter's sigma predicts (median; " + fixed1(100 * (1 - n.within_95), "%.0f") +
+                " % of the fixes outside its 95 % gate, 5 % expected; mean NIS " + fixed1(n.mean_nis, "%.1f") +
+                ", 3 expected): the reported sigma is optimistic; check the lever arm, the IMU and GPS noise, the "
+                "time offsets and the leap seconds in aircraft.yaml" +
+                (hint.empty() ? "" : "; " + hint);
+  } else {
+    c.summary += ": NOT consistent (pessimistic sigma)";
+    c.warning = who + ": GPS innovations are " + fixed1(n.scale) +
+                "x the size the filter's sigma predicts: the reported sigma is pessimistic (too large); the GPS "
+                "noise in aircraft.yaml is likely larger than the receiver's";
+  }
+  return c;
 }
 
 }  // namespace augrig::pipeline

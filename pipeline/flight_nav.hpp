@@ -6,6 +6,7 @@
 //                    a per-camera offset), with its 1-sigma, and the boom tracking the receptacle.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,7 @@
 #include "core/expected.hpp"
 #include "nav/ins.hpp"
 #include "nav/logs.hpp"
+#include "nav/nmea.hpp"
 #include "nav/relative_pose.hpp"
 #include "nav/types.hpp"
 #include "render/boom_control.hpp"
@@ -26,6 +28,8 @@ namespace augrig::pipeline {
 //   lever_arm_m: [x, y, z]          GPS antenna phase centre in the body frame (FRD), metres
 //   imu_time_offset_ns: 0           added to IMU timestamps to put them on the nav clock
 //   gps_time_offset_ns: 0           added to GPS fix times
+//   gps_leap_seconds: N             GPS - UTC of gps.nmea (optional: the receiver's PUBX,04, else the
+//                                   table of leap seconds by the log's UTC date)
 //   imu: {gyro_arw_deg_per_sqrt_h, accel_vrw_mps_per_sqrt_h, gyro_bias_deg_per_h, accel_bias_mg,
 //         bias_tau_s}
 //   gps: {rtk_fixed_m, rtk_float_m, use_gst}
@@ -38,15 +42,31 @@ std::string aircraft_config_to_yaml(const nav::InsConfig& c);
 // datasheet noise (the sim's own model; zero noise keeps a small floor so the filter stays regular).
 nav::InsConfig ins_config_for(const sim::AircraftSensors& s);
 
+struct AircraftLoadOptions {
+  // Without FOLDER/aircraft.yaml: false, an Error naming the file expected; true, the defaults of
+  // nav::InsConfig (antenna at the IMU, a tactical IMU, 2 cm RTK), said in AircraftLogs::notes.
+  bool allow_default_config = false;
+  // GPS - UTC for gps.nmea, overriding aircraft.yaml's gps_leap_seconds (augrig nav --leap-seconds).
+  std::optional<int> leap_seconds;
+  std::string leap_seconds_source = "--leap-seconds";  // how a message names it
+};
+
 struct AircraftLogs {
   std::string folder;
   std::vector<nav::ImuSample> imu;
   std::vector<nav::GpsFix> gps;
   nav::InsConfig config;
   nav::LogIssues imu_issues, gps_issues;
+  bool default_config = false;       // no aircraft.yaml: nav::InsConfig's defaults
+  nav::LeapSecondsUse leap_seconds;  // as gps.nmea was converted to GPS time
+  std::string leap_seconds_source;   // "--leap-seconds", "aircraft.yaml gps_leap_seconds", or "" (from the log)
+  std::vector<std::string> notes;     // what was assumed, in plain words
+  std::vector<std::string> warnings;  // what looks wrong (a leap-second disagreement, naming file and line)
 };
-// Reads FOLDER/gps.nmea, FOLDER/imu.csv and FOLDER/aircraft.yaml (optional: defaults without it).
-Expected<AircraftLogs> load_aircraft_logs(const std::string& folder);
+// Reads FOLDER/gps.nmea, FOLDER/imu.csv and FOLDER/aircraft.yaml (required unless
+// options.allow_default_config). GPS - UTC: options.leap_seconds, else aircraft.yaml's
+// gps_leap_seconds, else what the log says (nav::NmeaOptions::leap_seconds).
+Expected<AircraftLogs> load_aircraft_logs(const std::string& folder, const AircraftLoadOptions& options = {});
 // Writes the same three files.
 Status write_aircraft_logs(const std::string& folder, const std::vector<nav::ImuSample>& imu,
                            const std::vector<nav::GpsFix>& gps, const nav::InsConfig& config);
@@ -74,6 +94,13 @@ class RelativeNav {
               Eigen::Vector3d receptacle_m, std::vector<TimestampNs> camera_offset_ns);
   // t_nav = t_camera - camera_offset_ns[camera]. Error outside either aircraft's nav data.
   Expected<FramePose> at(int camera, TimestampNs t_camera_ns) const;
+  // Either aircraft's forward-only filter not yet converged at t_nav_ns (its sigma optimistic there;
+  // nav::NavTrajectory::converging). Never with smoothed trajectories.
+  bool converging(TimestampNs t_nav_ns) const {
+    return tanker_.converging(t_nav_ns) || receiver_.converging(t_nav_ns);
+  }
+  // When both forward filters had converged (nav clock); nullopt: one never did, or smoothed.
+  std::optional<TimestampNs> converged_ns() const;
   const nav::NavTrajectory& tanker() const { return tanker_; }
   const nav::NavTrajectory& receiver() const { return receiver_; }
 
@@ -101,5 +128,21 @@ std::string describe(const PoseErrorStats& s);
 
 // A one-paragraph summary of a fusion report for the console.
 std::string describe(const std::string& who, const nav::FusionReport& r);
+
+// The GPS innovations of a fusion against what its filter predicted (nav::InnovationStats), in plain
+// words: is the sigma the filter reports consistent with them? Consistent: the innovations' size
+// (InnovationStats::scale) within [kMinInnovationScale, kMaxInnovationScale] and at least
+// kMinWithin95 of them inside the chi-square 95 % gate; judged from kMinInnovations fixes up.
+inline constexpr double kMaxInnovationScale = 1.5, kMinInnovationScale = 0.5, kMinWithin95 = 0.8;
+inline constexpr std::size_t kMinInnovations = 20;
+struct InnovationCheck {
+  bool judged = false;      // enough fixes to say
+  bool consistent = true;   // innovations as large as predicted (within the bounds above)
+  bool optimistic = false;  // larger: the reported sigma is too small
+  std::string summary;      // "receiver GPS innovations: 280 fixes, mean NIS 2.75 (3 when consistent), ..."
+  std::string warning;      // plain words when not consistent; empty otherwise
+};
+// `hint`: what to check, appended to an optimistic warning (e.g. that aircraft.yaml was missing).
+InnovationCheck check_innovations(const std::string& who, const nav::FusionReport& r, const std::string& hint = "");
 
 }  // namespace augrig::pipeline

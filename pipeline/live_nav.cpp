@@ -101,6 +101,11 @@ FrameNav LiveNav::at(int camera, TimestampNs t_nav_ns) const {
     }
     if (imu_age > options_.stale_after_s)
       out.problems.push_back(who + " IMU: no data for " + seconds(imu_age) + " (pose extrapolated)");
+    if (!st[a].converged || t_nav_ns < st[a].t_converged_ns) {
+      out.converging = true;
+      out.converging_text += (out.converging_text.empty() ? "" : "; ") + who +
+                             " nav converging (attitude sigma still falling): sigma optimistic";
+    }
   }
   out.hud.fix = std::min(st[0].fix_quality, st[1].fix_quality, [](nav::FixQuality x, nav::FixQuality y) {
     // The worse of the two: RTK fixed (4) best, then float (5), DGPS/PPS, single, none.
@@ -127,8 +132,12 @@ FrameNav LiveNav::at(int camera, TimestampNs t_nav_ns) const {
     out.hud.age_s = age_s;
     out.hud.sigma_pos_m = out.pose->body.sigma_position_m();
     out.hud.sigma_att_deg = rad_to_deg(out.pose->body.sigma_attitude_rad());
-    out.hud.status = out.stale ? "STALE: " + out.problems.front() : "fused GPS/INS, both aircraft";
+    out.hud.status = out.stale        ? "STALE: " + out.problems.front()
+                     : out.converging ? "CONVERGING: " + out.converging_text
+                                      : "fused GPS/INS, both aircraft";
   } else {
+    out.converging = false;
+    out.converging_text.clear();
     out.hud.status = "no pose: " + no_pose_reason;
   }
   return out;

@@ -5,7 +5,9 @@
 //   no pose   a filter not initialised yet, or the frame too far past the newest IMU sample;
 //   stale     the newest valid fix of either aircraft, or its newest IMU sample, older than
 //             stale_after_s at the frame's time (the pose is dead-reckoned or extrapolated);
-//   good      otherwise.
+//   good      otherwise;
+// and, apart from those, whether either filter is still converging (nav::LiveFusionStatus::converged:
+// its attitude sigmas still falling, its sigma optimistic; docs/NAV_FUSION.md, "Consistency").
 // Frames reach the nav clock through the camera clocks' calibrated offsets to GPS time (the
 // simulation, cameras on PTP/GPS time) or, for host-timed frames, through host_to_nav(): the GPS
 // fixes' times of validity against their host arrival times (a lower envelope, capture/
@@ -44,6 +46,8 @@ struct LiveNavOptions {
 struct FrameNav {
   std::optional<FramePose> pose;      // unset: no pose (see problems)
   bool stale = false;                 // a pose, but from data older than stale_after_s
+  bool converging = false;            // a pose, but a filter not yet converged: its sigma is optimistic
+  std::string converging_text;        // plain words, e.g. "receiver nav converging: ..."; empty otherwise
   std::vector<std::string> problems;  // plain words, e.g. "receiver GPS: no fix for 2.4 s"
   NavHud hud;
 };

@@ -723,33 +723,8 @@ Expected<TimestampNs> gps_ns_from_utc(std::string_view utc) {
   const std::int64_t days = days_from_civil(y, static_cast<unsigned>(mo), static_cast<unsigned>(d));
   const std::int64_t gps_epoch = days_from_civil(1980, 1, 6);
   if (days < gps_epoch) return bad();
-  // GPS - UTC from the day each leap second took effect.
-  struct Leap {
-    int y, m, d, offset_s;
-  };
-  constexpr std::array<Leap, 18> kLeaps = {{{1981, 7, 1, 1},
-                                            {1982, 7, 1, 2},
-                                            {1983, 7, 1, 3},
-                                            {1985, 7, 1, 4},
-                                            {1988, 1, 1, 5},
-                                            {1990, 1, 1, 6},
-                                            {1991, 1, 1, 7},
-                                            {1992, 7, 1, 8},
-                                            {1993, 7, 1, 9},
-                                            {1994, 7, 1, 10},
-                                            {1996, 1, 1, 11},
-                                            {1997, 7, 1, 12},
-                                            {1999, 1, 1, 13},
-                                            {2006, 1, 1, 14},
-                                            {2009, 1, 1, 15},
-                                            {2012, 7, 1, 16},
-                                            {2015, 7, 1, 17},
-                                            {2017, 1, 1, 18}}};
-  int leap_s = 0;
-  for (const Leap& l : kLeaps) {
-    if (days >= days_from_civil(l.y, static_cast<unsigned>(l.m), static_cast<unsigned>(l.d)))
-      leap_s = l.offset_s;
-  }
+  // GPS - UTC on that day: the table of leap seconds (nav/gps_time.hpp), 18 s since 2017-01-01.
+  const int leap_s = nav::leap_seconds_on_day(days);
   const std::int64_t seconds = (days - gps_epoch) * 86400 + h * 3600 + mi * 60 + se + leap_s;
   return seconds * 1000000000LL + frac_ns;
 }

@@ -7,7 +7,9 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <map>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -88,6 +90,47 @@ TEST(GpsTime, WeekRolloversAndLeapSeconds) {
   EXPECT_EQ(before.ns_of_day, kNsPerDay - 1);
 }
 
+// The table of leap seconds against the published GPS - UTC values (USNO/IERS: TAI - UTC - 19 s),
+// the week starts above and the step instants.
+TEST(GpsTime, LeapSecondTableByDate) {
+  EXPECT_EQ(leap_seconds_on({1980, 1, 6}), 0);
+  EXPECT_EQ(leap_seconds_on({1981, 6, 30}), 0);
+  EXPECT_EQ(leap_seconds_on({1981, 7, 1}), 1);
+  EXPECT_EQ(leap_seconds_on({1994, 3, 23}), 9);
+  EXPECT_EQ(leap_seconds_on({1999, 8, 21}), 13);  // the week-1024 rollover above
+  EXPECT_EQ(leap_seconds_on({2006, 5, 4}), 14);
+  EXPECT_EQ(leap_seconds_on({2012, 6, 30}), 15);
+  EXPECT_EQ(leap_seconds_on({2012, 7, 1}), 16);
+  EXPECT_EQ(leap_seconds_on({2016, 12, 31}), 17);
+  EXPECT_EQ(leap_seconds_on({2017, 1, 1}), 18);
+  EXPECT_EQ(leap_seconds_on({2019, 4, 6}), 18);  // the week-2048 rollover above
+  EXPECT_EQ(leap_seconds_on({2099, 12, 31}), kDefaultLeapSeconds);
+  // Steps are strictly increasing in date and by one second each.
+  for (std::size_t i = 1; i < kLeapSecondSteps.size(); ++i) {
+    EXPECT_LT(days_from_civil(kLeapSecondSteps[i - 1].from), days_from_civil(kLeapSecondSteps[i].from));
+    EXPECT_EQ(kLeapSecondSteps[i].gps_minus_utc_s, kLeapSecondSteps[i - 1].gps_minus_utc_s + 1);
+  }
+  // Across the leap second at the end of 2016: 23:59:59, 23:59:60, 00:00:00 are one second apart in
+  // GPS time, and the GPS instants convert back to the same UTC (23:59:60 included).
+  const auto a = gps_ns_from_utc_by_table({2016, 12, 31}, 86399 * kNsPerSecond);
+  const auto b = gps_ns_from_utc_by_table({2016, 12, 31}, 86400 * kNsPerSecond);
+  const auto c = gps_ns_from_utc_by_table({2017, 1, 1}, 0);
+  ASSERT_TRUE(a && b && c);
+  EXPECT_EQ(*b - *a, kNsPerSecond);
+  EXPECT_EQ(*c - *b, kNsPerSecond);
+  // Python: (datetime(2017,1,1) - datetime(1980,1,6)).total_seconds() + 18
+  EXPECT_EQ(*c, 1167264018LL * kNsPerSecond);
+  EXPECT_EQ(leap_seconds_at_gps(*a), 17);
+  EXPECT_EQ(leap_seconds_at_gps(*b), 17);
+  EXPECT_EQ(leap_seconds_at_gps(*c), 18);
+  const UtcTime ub = utc_from_gps_ns_by_table(*b + 250'000'000);
+  EXPECT_EQ(ub.date, (CivilDate{2016, 12, 31}));
+  EXPECT_EQ(ub.ns_of_day, 86400 * kNsPerSecond + 250'000'000);
+  EXPECT_EQ(utc_from_gps_ns_by_table(*a).ns_of_day, 86399 * kNsPerSecond);
+  EXPECT_EQ(utc_from_gps_ns_by_table(*c).date, (CivilDate{2017, 1, 1}));
+  EXPECT_EQ(utc_from_gps_ns_by_table(*c).ns_of_day, 0);
+}
+
 // ------------------------------------------------------------------------------------------
 // Checksums and published sentences
 
@@ -159,7 +202,10 @@ TEST(Nmea, ParsesThePublishedTrimbleEpoch) {
   EXPECT_DOUBLE_EQ(f.sigma_ned_m->z(), 0.031);
   ASSERT_TRUE(f.heading_rad);
   EXPECT_NEAR(*f.heading_rad, deg_to_rad(123.456), 1e-12);
-  EXPECT_EQ(f.t_ns, gps_ns_from_utc({2006, 5, 4}, (17 * 3600 + 28 * 60 + 14) * kNsPerSecond, 18));
+  // GPS - UTC was 14 s on 2006-05-04: the table's value, not today's 18 (which put it 4 s late).
+  EXPECT_EQ(f.t_ns, gps_ns_from_utc({2006, 5, 4}, (17 * 3600 + 28 * 60 + 14) * kNsPerSecond, 14));
+  EXPECT_EQ(log->leap_seconds.applied, (std::map<int, std::size_t>{{14, 1}}));
+  EXPECT_EQ(log->leap_seconds.from_table, 1u);
 }
 
 TEST(Nmea, ParsesVtgOldAndNewForms) {
@@ -419,18 +465,152 @@ TEST(Nmea, DatesOutsideTheSupportedYearsAreRejected) {
 TEST(Nmea, LeapSecondsShiftGpsTime) {
   const std::string text = sentence("GNGGA,120000.00,4000.0,N,00500.0,E,1,10,1.0,100.0,M,50.0,M,,") + "\n" +
                            sentence("GNZDA,120000.00,01,07,2015,00,00") + "\n";
-  NmeaOptions o17;
+  NmeaOptions o17, o18;
   o17.leap_seconds = 17;  // GPS - UTC from 2015-07-01 to 2016-12-31
+  o18.leap_seconds = 18;  // given wrong
   const auto a = parse_text(text, o17);
-  const auto b = parse_text(text);
-  ASSERT_TRUE(a && b);
+  const auto b = parse_text(text, o18);
+  const auto table = parse_text(text);  // none given: the table's 17 for 2015-07-01
+  ASSERT_TRUE(a && b && table);
   EXPECT_EQ(b->fixes[0].t_ns - a->fixes[0].t_ns, kNsPerSecond);
+  EXPECT_EQ(table->fixes[0].t_ns, a->fixes[0].t_ns);
+  EXPECT_EQ(a->leap_seconds.disagreements, 0u);
+  EXPECT_EQ(b->leap_seconds.disagreements, 1u);
   // Python: (datetime(2015,7,1,12) - datetime(1980,1,6)).total_seconds() + 17
   EXPECT_EQ(a->fixes[0].t_ns, 1119787217LL * kNsPerSecond);
   // The writer applies the same offset in reverse.
   NmeaWriterOptions wo;
   wo.leap_seconds = 17;
   EXPECT_NE(write_nmea(a->fixes, wo).find("GNGGA,120000.000,"), std::string::npos);
+}
+
+// Unless told, each fix takes the GPS - UTC of its own UTC date from the table: logs of any year
+// come out in GPS time, and the log says what it applied.
+TEST(Nmea, LeapSecondsOfEachFixsDateFromTheTable) {
+  const auto epoch = [](const std::string& date_ddmmyyyy, const std::string& time = "120000.00") {
+    return sentence("GNGGA," + time + ",4000.0,N,00500.0,E,4,10,1.0,100.0,M,50.0,M,,") + "\n" +
+           sentence("GNZDA," + time + "," + date_ddmmyyyy + ",00,00") + "\n";
+  };
+  for (const auto& [text, date, leap] : {std::tuple{epoch("23,03,1994"), CivilDate{1994, 3, 23}, 9},
+                                         std::tuple{epoch("01,06,2016"), CivilDate{2016, 6, 1}, 17},
+                                         std::tuple{epoch("01,06,2024"), CivilDate{2024, 6, 1}, 18}}) {
+    const auto log = parse_text(text);
+    ASSERT_TRUE(log) << log.error().message;
+    EXPECT_EQ(log->fixes[0].t_ns, gps_ns_from_utc(date, 12 * 3600 * kNsPerSecond, leap));
+    EXPECT_EQ(log->leap_seconds.applied, (std::map<int, std::size_t>{{leap, 1}}));
+    EXPECT_EQ(log->leap_seconds.from_table, 1u);
+    EXPECT_FALSE(log->leap_seconds.given);
+    EXPECT_EQ(log->leap_seconds.disagreements, 0u);
+  }
+  EXPECT_EQ(describe(parse_text(epoch("01,06,2016"))->leap_seconds),
+            "GPS-UTC 17 s (the leap-second table for the UTC date 2016-06-01)");
+  // A value given that the date contradicts: used, and said, naming the line of the first fix.
+  NmeaOptions o18;
+  o18.leap_seconds = 18;
+  const auto wrong = parse_text("\n" + epoch("01,06,2016") + epoch("01,06,2016", "120000.10"), o18, "old.nmea");
+  ASSERT_TRUE(wrong) << wrong.error().message;
+  EXPECT_EQ(wrong->fixes[0].t_ns, gps_ns_from_utc({2016, 6, 1}, 12 * 3600 * kNsPerSecond, 18));
+  EXPECT_EQ(wrong->leap_seconds.disagreements, 2u);
+  EXPECT_EQ(wrong->leap_seconds.first_disagreement,
+            "old.nmea:2: GPS-UTC 18 s given, but it was 17 s on 2016-06-01 (the leap-second table): the fix times "
+            "are 1 s late");
+  EXPECT_TRUE(has_message(wrong->issues, "old.nmea:2: ", "GPS-UTC 18 s given")) << all_messages(wrong->issues);
+  EXPECT_EQ(describe(wrong->leap_seconds), "GPS-UTC 18 s (given)");
+}
+
+// A log across the leap second inserted at the end of 2016, written as a receiver outputs it (the
+// table's value at each fix, 23:59:60 included) and read back with the table: the same GPS times.
+TEST(Nmea, LogAcrossTheLeapSecondOf2016RoundTrips) {
+  const TimestampNs t0 = *gps_ns_from_utc_by_table({2016, 12, 31}, (86400 - 2) * kNsPerSecond);
+  std::vector<GpsFix> fixes;
+  for (int i = 0; i < 9; ++i) fixes.push_back(make_fix(t0 + i * 500'000'000LL, 40.0, 5.0, 100.0, 50.0));
+  const std::string text = write_nmea(fixes);
+  EXPECT_NE(text.find("GNGGA,235959.500,"), std::string::npos) << text;
+  EXPECT_NE(text.find("GNGGA,235960.000,"), std::string::npos) << text;
+  EXPECT_NE(text.find("GNGGA,235960.500,"), std::string::npos) << text;
+  EXPECT_NE(text.find("GNGGA,000000.000,"), std::string::npos) << text;
+  EXPECT_NE(text.find("GNZDA,000001.000,01,01,2017,00,00"), std::string::npos) << text;
+  const auto back = parse_text(text);
+  ASSERT_TRUE(back) << back.error().message;
+  ASSERT_EQ(back->fixes.size(), fixes.size()) << all_messages(back->issues);
+  for (std::size_t i = 0; i < fixes.size(); ++i) EXPECT_EQ(back->fixes[i].t_ns, fixes[i].t_ns) << i;
+  EXPECT_EQ(back->leap_seconds.applied, (std::map<int, std::size_t>{{17, 6}, {18, 3}}));  // 23:59:58 to :60.5
+  EXPECT_EQ(back->issues.gaps, 0u);
+  EXPECT_EQ(describe(back->leap_seconds),
+            "GPS-UTC 17 s (6 fixes) and 18 s (3 fixes) (the leap-second table for the UTC dates 2016-12-31 to "
+            "2017-01-01)");
+}
+
+// u-blox $PUBX,04 carries the receiver's own GPS - UTC: used when none is given (and preferred to
+// the table), a given value checked against it naming the line, the firmware default ('D') ignored,
+// and its week and time of week checked against its date and time.
+TEST(Nmea, ReceiverLeapSecondsFromPubx04) {
+  const std::string gga = sentence("GNGGA,120000.00,4000.0,N,00500.0,E,4,10,1.0,100.0,M,50.0,M,,");
+  const std::string zda = sentence("GNZDA,120000.00,01,06,2016,00,00");
+  // 2016-06-01 is day 3 (Wednesday) of GPS week 1899: 3 * 86400 + 43200 s.
+  const std::string pubx17 = sentence("PUBX,04,120000.00,010616,302400.00,1899,17,-1234,12.345,21,");
+  const auto reported = parse_text(gga + "\n" + zda + "\n" + pubx17 + "\n", {}, "u.nmea");
+  ASSERT_TRUE(reported) << reported.error().message;
+  EXPECT_EQ(reported->leap_seconds.receiver_reports, 1u);
+  EXPECT_EQ(reported->leap_seconds.receiver_value, 17);
+  EXPECT_EQ(reported->leap_seconds.from_receiver, 1u);
+  EXPECT_EQ(reported->fixes[0].t_ns, gps_ns_from_utc({2016, 6, 1}, 12 * 3600 * kNsPerSecond, 17));
+  EXPECT_EQ(reported->unused_sentences, 0u);
+  EXPECT_EQ(describe(reported->leap_seconds), "GPS-UTC 17 s (reported by the receiver, PUBX,04)");
+  // Given 18: the receiver's report says otherwise, with its line.
+  NmeaOptions o18;
+  o18.leap_seconds = 18;
+  const auto given = parse_text(gga + "\n" + zda + "\n" + pubx17 + "\n", o18, "u.nmea");
+  ASSERT_TRUE(given);
+  EXPECT_EQ(given->leap_seconds.first_disagreement,
+            "u.nmea:1: GPS-UTC 18 s given, but the receiver reports 17 s (PUBX,04, line 3): the fix times are 1 s "
+            "late");
+  // The firmware's default is not the receiver's knowledge: the table stands.
+  const auto dflt = parse_text(gga + "\n" + zda + "\n" +
+                                   sentence("PUBX,04,120000.00,010616,302400.00,1899,15D,-1234,12.345,21,") + "\n",
+                               {}, "d.nmea");
+  ASSERT_TRUE(dflt);
+  EXPECT_EQ(dflt->leap_seconds.receiver_default_reports, 1u);
+  EXPECT_FALSE(dflt->leap_seconds.receiver_value);
+  EXPECT_EQ(dflt->leap_seconds.applied, (std::map<int, std::size_t>{{17, 1}}));
+  EXPECT_TRUE(has_message(dflt->issues, "d.nmea:3: ", "default leap seconds (15D)")) << all_messages(dflt->issues);
+  // A receiver that knows of a leap second the table lacks: its value is used, and said.
+  const std::string gga31 = sentence("GNGGA,120000.00,4000.0,N,00500.0,E,4,10,1.0,100.0,M,50.0,M,,");
+  // 2031-01-01 is day 3 of GPS week 2660 (Python: (date(2031,1,1)-date(1980,1,6)).days = 18623).
+  const auto newer = parse_text(sentence("PUBX,04,115959.00,010131,302399.00,2660,19,,,,") + "\n" + gga31 + "\n" +
+                                    sentence("GNZDA,120000.00,01,01,2031,00,00") + "\n",
+                                {}, "n.nmea");
+  ASSERT_TRUE(newer) << newer.error().message;
+  EXPECT_EQ(newer->fixes[0].t_ns, gps_ns_from_utc({2031, 1, 1}, 12 * 3600 * kNsPerSecond, 19));
+  EXPECT_EQ(newer->leap_seconds.first_disagreement,
+            "n.nmea:2: the receiver reports GPS-UTC 19 s (PUBX,04, line 1) where the leap-second table gives 18 s "
+            "for 2031-01-01: the receiver's value is used");
+  // Week and time of week that contradict the date: a malformed line, named; a leap second field
+  // that is not a number likewise.
+  const auto bad = parse_text(gga + "\n" + zda + "\n" +
+                                  sentence("PUBX,04,120000.00,010616,302400.00,1898,17,,,,") + "\n" +
+                                  sentence("PUBX,04,120000.00,010616,302400.00,1899,x7,,,,") + "\n",
+                              {}, "b.nmea");
+  ASSERT_TRUE(bad);
+  EXPECT_EQ(bad->issues.malformed, 2u);
+  EXPECT_TRUE(has_message(bad->issues, "b.nmea:3: ", "PUBX field 4 (UTC time of week): week 1898"))
+      << all_messages(bad->issues);
+  EXPECT_TRUE(has_message(bad->issues, "b.nmea:4: ", "field 6 (leap seconds)")) << all_messages(bad->issues);
+  EXPECT_FALSE(bad->leap_seconds.receiver_value);
+  // The writer's PUBX,04 reads back as the receiver's report of the table's value.
+  NmeaWriterOptions wo;
+  wo.pubx04 = true;
+  std::vector<GpsFix> fixes;
+  const TimestampNs t = *gps_ns_from_utc_by_table({2016, 6, 1}, 12 * 3600 * kNsPerSecond);
+  for (int i = 0; i < 3; ++i) fixes.push_back(make_fix(t + i * 100'000'000LL, 40.0, 5.0, 100.0, 50.0));
+  const std::string text = write_nmea(fixes, wo);
+  EXPECT_NE(text.find("$PUBX,04,120000.000,010616,302400.00,1899,17,,,*"), std::string::npos) << text;
+  const auto round = parse_text(text);
+  ASSERT_TRUE(round) << round.error().message;
+  EXPECT_EQ(round->leap_seconds.receiver_reports, 3u);
+  EXPECT_EQ(round->leap_seconds.receiver_value, 17);
+  EXPECT_EQ(round->issues.malformed, 0u) << all_messages(round->issues);
+  for (std::size_t i = 0; i < fixes.size(); ++i) EXPECT_EQ(round->fixes[i].t_ns, fixes[i].t_ns);
 }
 
 TEST(Nmea, ReadsTheReceiverLogFile) {

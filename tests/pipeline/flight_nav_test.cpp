@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include <gtest/gtest.h>
 
@@ -143,8 +144,12 @@ TEST(FlightNav, AircraftYamlThatIsADirectoryIsAnError) {
   ASSERT_FALSE(cfg);
   EXPECT_EQ(cfg.error().message,
             "aircraft::load(): " + dir + "/aircraft.yaml: is a directory, expected a file");
-  auto logs = load_aircraft_logs(dir);  // gps.nmea missing first; then the same for a folder there
+  auto logs = load_aircraft_logs(dir);  // aircraft.yaml is read first (it may give the leap seconds)
   ASSERT_FALSE(logs);
+  EXPECT_NE(logs.error().message.find("aircraft.yaml: is a directory, expected a file"), std::string::npos)
+      << logs.error().message;
+  std::filesystem::remove(dir + "/aircraft.yaml");
+  std::ofstream(dir + "/aircraft.yaml") << "lever_arm_m: [0, 0, -1]\n";
   std::filesystem::create_directories(dir + "/gps.nmea");
   logs = load_aircraft_logs(dir);
   ASSERT_FALSE(logs);
