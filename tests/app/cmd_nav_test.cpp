@@ -5,9 +5,11 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include "nav/logs.hpp"
 #include "render/rig.hpp"
+#include "sim/scenario.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig {
@@ -160,6 +162,103 @@ TEST(CmdNav, CaptureOnlyRigWritesNoBoomColumns) {
   }
   ASSERT_EQ(augrig(args + dir + "/fixed.csv --boom fixed:30,0,4", &log), 0) << log;
   EXPECT_NEAR(nav::read_camera_pose_csv(dir + "/fixed.csv")->rows.front().boom_elevation_deg, 30.0, 1e-9);
+}
+
+std::string read_all(const std::string& path) {
+  std::ifstream in(path);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// A flight flown in 2016, when GPS - UTC was 17 s: augrig sim writes the UTC a receiver did, nav
+// takes the 17 s from the table for the log's date and says so; --leap-seconds 18 (what every log
+// was read with before) is warned about naming the file and line, and the GPS innovations say the
+// sigma does not hold.
+TEST(CmdNav, LeapSecondsOfALogFrom2016) {
+  const std::string dir = output_dir("cmd_nav_2016");
+  auto text = sim::builtin_scenario_text("demo");
+  ASSERT_TRUE(text);
+  std::string yaml = *text;
+  const std::string from = "2024-06-01T12:00:00Z";
+  ASSERT_NE(yaml.find(from), std::string::npos);
+  yaml.replace(yaml.find(from), from.size(), "2016-06-01T12:00:00Z");
+  std::ofstream(dir + "/demo2016.yaml") << yaml;
+  std::string log;
+  ASSERT_EQ(augrig("sim --scenario " + dir + "/demo2016.yaml --no-images --out " + dir + "/d", &log), 0) << log;
+  const std::string d = dir + "/d";
+  const std::string args = nav_args(d, dir + "/poses.csv") + " --camera-offset-ns 1200000,1250000";
+  const std::string args18 = nav_args(d, dir + "/poses18.csv") + " --camera-offset-ns 1200000,1250000";
+  ASSERT_EQ(augrig(args, &log), 0) << log;
+  EXPECT_NE(log.find("tanker gps.nmea: GPS-UTC 17 s (the leap-second table for the UTC date 2016-06-01)\n"),
+            std::string::npos)
+      << log;
+  EXPECT_EQ(log.find("warning"), std::string::npos) << log;
+  EXPECT_NE(log.find("receiver GPS innovations: 280 fixes"), std::string::npos) << log;
+  EXPECT_LT(rms_error_mm(dir + "/poses.csv", d + "/truth/poses.csv"), 15.0);
+  EXPECT_NE(read_all(dir + "/poses.csv").find("# gps_minus_utc_s: tanker GPS-UTC 17 s (the leap-second table"),
+            std::string::npos);
+
+  ASSERT_EQ(augrig(args18 + " --leap-seconds 18", &log), 0) << log;
+  EXPECT_NE(log.find("tanker gps.nmea: GPS-UTC 18 s (given), by --leap-seconds\n"), std::string::npos) << log;
+  EXPECT_NE(log.find("warning: receiver: " + d +
+                     "/receiver/gps.nmea:1: GPS-UTC 18 s given, but it was 17 s on 2016-06-01 (the leap-second "
+                     "table): the fix times are 1 s late"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("warning: receiver: GPS innovations are "), std::string::npos) << log;
+  EXPECT_NE(log.find("the reported sigma is optimistic"), std::string::npos) << log;
+  EXPECT_GT(rms_error_mm(dir + "/poses18.csv", d + "/truth/poses.csv"), 500.0);
+  EXPECT_NE(read_all(dir + "/poses18.csv").find("# sigma_consistency: tanker consistent"), std::string::npos);
+  EXPECT_NE(read_all(dir + "/poses18.csv").find("receiver optimistic"), std::string::npos);
+  EXPECT_EQ(augrig(args + " --leap-seconds eighteen", &log), 2);
+  EXPECT_NE(log.find("leap-seconds"), std::string::npos) << log;
+}
+
+TEST(CmdNav, MissingAircraftYamlIsAnErrorUnlessTheDefaultsAreAskedFor) {
+  const std::string d = dataset();
+  const std::string dir = output_dir("cmd_nav_no_yaml");
+  fs::copy(d + "/tanker", dir + "/tanker", fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+  fs::remove(dir + "/tanker/aircraft.yaml");
+  std::string log;
+  EXPECT_EQ(augrig(nav_args(d, dir + "/p.csv", dir + "/tanker"), &log), 1);
+  EXPECT_NE(log.find("augrig nav: " + dir + "/tanker: no aircraft.yaml (expected " + dir + "/tanker/aircraft.yaml"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("--default-aircraft"), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(dir + "/p.csv"));
+  ASSERT_EQ(augrig(nav_args(d, dir + "/p.csv", dir + "/tanker") + " --default-aircraft --truth " + d +
+                       "/truth/poses.csv",
+                   &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("note: tanker: no " + dir + "/tanker/aircraft.yaml: the defaults are used"), std::string::npos)
+      << log;
+  EXPECT_EQ(log.find("note: receiver"), std::string::npos) << log;  // the receiver's file is there
+  EXPECT_GT(rms_error_mm(dir + "/p.csv", d + "/truth/poses.csv"), 1000.0);  // the tanker's 6 m lever arm
+}
+
+// --forward-only: the rows before both filters converged are counted, written in the pose file's
+// metadata and, against the truth, compared apart; the smoothed run says nothing of it.
+TEST(CmdNav, ForwardOnlySaysWhichRowsAreConverging) {
+  const std::string d = dataset();
+  const std::string dir = output_dir("cmd_nav_converging");
+  std::string log;
+  ASSERT_EQ(augrig(nav_args(d, dir + "/fwd.csv") + " --forward-only --camera-offset-ns 1200000,1250000 --truth " + d +
+                       "/truth/poses.csv",
+                   &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("Converging: "), std::string::npos) << log;
+  EXPECT_NE(log.find(" rows before both forward filters converged (their sigma is optimistic): t_nav_ns < "),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("\n  converging: "), std::string::npos) << log;
+  EXPECT_NE(log.find("\n  converged:  "), std::string::npos) << log;
+  EXPECT_NE(read_all(dir + "/fwd.csv").find("# converging: "), std::string::npos);
+  ASSERT_EQ(augrig(nav_args(d, dir + "/smoothed.csv"), &log), 0) << log;
+  EXPECT_EQ(log.find("Converging"), std::string::npos) << log;
+  EXPECT_NE(log.find("tanker GPS innovations: 280 fixes"), std::string::npos) << log;
+  EXPECT_NE(log.find("consistent with the filter's sigma"), std::string::npos) << log;
+  EXPECT_EQ(read_all(dir + "/smoothed.csv").find("# converging"), std::string::npos);
 }
 
 TEST(CmdNav, BadInputsExitOneWithTheFile) {

@@ -627,6 +627,130 @@ TEST(Fusion, PerEpochSolutions) {
   EXPECT_NEAR(s.attitude.roll_rad, e.roll_rad, 1e-4);
 }
 
+// The GPS innovations against the filter's prediction (NIS, chi-square with 3 dof when the noise
+// model is right): about 3 on average and 95 % inside the 95 % gate when the filter is told the
+// fixes' true noise; several times larger when it is told a noise 4x smaller (its sigma optimistic),
+// far smaller when told 5x larger (pessimistic).
+TEST(Fusion, InnovationsTellWhetherTheNoiseModelHolds) {
+  Flight f;
+  const double T = 120.0;
+  ImuErrors ie;
+  ie.gyro_arw = deg_to_rad(0.15) / 60.0;
+  ie.accel_vrw = 0.05 / 60.0;
+  ie.gyro_bias = Vector3d(2.0, -1.5, 3.0) * deg_to_rad(1.0) / 3600.0;
+  ie.accel_bias = 9.80665e-3 * Vector3d(1.0, -0.8, 1.5);
+  GpsErrors ge;
+  ge.sigma_m = 0.02;
+  ge.heading_sigma_rad = deg_to_rad(0.1);
+  ge.report_gst = false;  // the noise comes from the configuration
+  const auto imu = make_imu(f, T, 200.0, s_to_ns(0.0011), ie, 31);
+  const auto fixes = make_fixes(f, T, 10.0, s_to_ns(0.0003), kLever, ge, 41);
+  struct Case {
+    const char* what;
+    double horizontal_m, vertical_factor;
+  };
+  for (const Case& c : {Case{"told the true 2 cm", 0.02, 1.0}, Case{"told 5 mm (4x too small)", 0.005, 1.0},
+                        Case{"told 10 cm (5x too large)", 0.10, 1.0}}) {
+    InsConfig cfg;
+    cfg.lever_arm_body_m = kLever;
+    cfg.gps.rtk_fixed_m = c.horizontal_m;
+    cfg.gps.vertical_factor = c.vertical_factor;
+    const auto traj = fuse(imu, fixes, cfg, true);
+    ASSERT_TRUE(traj) << traj.error().message;
+    const InnovationStats& n = traj->report().innovations;
+    std::printf("  %-26s %zu fixes: mean NIS %.2f, median %.2f, %.1f %% within the 95 %% gate, scale %.2f\n", c.what,
+                n.count, n.mean_nis, n.median_nis, 100 * n.within_95, n.scale);
+    // Every fix after the initialisation one is tested, used or not.
+    EXPECT_EQ(n.count, traj->innovations().size());
+    EXPECT_EQ(n.count, traj->report().fixes_used + traj->report().fixes_rejected - 1);
+    const InnovationStats again = innovation_stats(traj->innovations());
+    EXPECT_EQ(again.median_nis, n.median_nis);
+    if (c.horizontal_m == 0.02) {
+      EXPECT_NEAR(n.mean_nis, 3.0, 0.5);
+      EXPECT_NEAR(n.within_95, 0.95, 0.03);
+      EXPECT_NEAR(n.scale, 1.0, 0.15);
+    } else if (c.horizontal_m < 0.02) {
+      EXPECT_GT(n.scale, 3.0);
+      EXPECT_LT(n.scale, 5.0);
+      EXPECT_LT(n.within_95, 0.3);
+    } else {
+      EXPECT_LT(n.scale, 0.3);
+      EXPECT_GT(n.within_95, 0.999);
+    }
+  }
+}
+
+// Forward only, a query between two fixes is the filter's own prediction: its covariance grows from
+// the epoch's posterior towards the next epoch's prediction (it used to be interpolated between two
+// posteriors, which hid that growth). Smoothed, it is interpolated between the smoothed epochs.
+TEST(Fusion, ForwardQueriesPropagateTheCovariance) {
+  Flight f;
+  ImuErrors ie;
+  ie.gyro_arw = deg_to_rad(0.15) / 60.0;
+  ie.accel_vrw = 0.05 / 60.0;
+  GpsErrors ge;
+  ge.sigma_m = 0.02;
+  const auto imu = make_imu(f, 30.0, 200.0, s_to_ns(0.0011), ie, 5);
+  const auto fixes = make_fixes(f, 30.0, 10.0, s_to_ns(0.0003), kLever, ge, 6);
+  InsConfig cfg;
+  cfg.lever_arm_body_m = kLever;
+  const auto fwd = fuse(imu, fixes, cfg, false);
+  ASSERT_TRUE(fwd) << fwd.error().message;
+  const std::vector<NavState> epochs = fwd->epochs();
+  const std::size_t k = epochs.size() / 2;
+  const NavState& a = epochs[k];
+  const NavState& b = epochs[k + 1];
+  const auto at_a = fwd->at(a.t_ns);
+  ASSERT_TRUE(at_a);
+  EXPECT_EQ(at_a->P, a.P);
+  double last = a.P.topLeftCorner<3, 3>().trace();
+  for (int i = 1; i <= 9; ++i) {
+    const auto s = fwd->at(a.t_ns + (b.t_ns - a.t_ns) * i / 10);
+    ASSERT_TRUE(s);
+    const double tr = s->P.topLeftCorner<3, 3>().trace();
+    EXPECT_GT(tr, last) << i;  // grows all the way to the next fix
+    last = tr;
+  }
+  const double after_fix = b.P.topLeftCorner<3, 3>().trace();
+  EXPECT_GT(last, after_fix);  // the next fix then shrinks it
+}
+
+// The forward filter says when its attitude sigmas have settled (none fell by more than 25 % over
+// the last 2 s): before, a forward-only trajectory reports itself converging; a smoothed one never.
+TEST(Fusion, ConvergenceIsWhenTheAttitudeSigmasSettle) {
+  Flight f;
+  const auto imu = make_imu(f, 60.0, 200.0, s_to_ns(0.0017));
+  const auto fixes = make_fixes(f, 60.0, 10.0, s_to_ns(0.0004), kLever);
+  InsConfig cfg;
+  cfg.lever_arm_body_m = kLever;
+  const auto fwd = fuse(imu, fixes, cfg, false);
+  const auto smo = fuse(imu, fixes, cfg, true);
+  ASSERT_TRUE(fwd && smo);
+  const FusionReport& r = fwd->report();
+  ASSERT_TRUE(r.converged);
+  std::printf("  converged %.2f s after the start\n", ns_to_s(r.converged_ns - fwd->begin_ns()));
+  EXPECT_GE(r.converged_ns, fwd->begin_ns() + s_to_ns(cfg.convergence_window_s));
+  EXPECT_LT(r.converged_ns, fwd->begin_ns() + s_to_ns(30.0));
+  EXPECT_TRUE(fwd->converging(fwd->begin_ns()));
+  EXPECT_TRUE(fwd->converging(r.converged_ns - 1));
+  EXPECT_FALSE(fwd->converging(r.converged_ns));
+  EXPECT_FALSE(smo->converging(smo->begin_ns()));
+  // The rule itself: at convergence no attitude sigma fell by more than 25 % over the last 2 s, and
+  // at the epoch before one did.
+  const std::vector<NavSolution> sol = fwd->solutions();
+  auto sigma_at = [&](TimestampNs t) {
+    const auto it = std::upper_bound(sol.begin(), sol.end(), t,
+                                     [](TimestampNs x, const NavSolution& s) { return x < s.t_ns; });
+    return (it - 1)->sigma_ypr_rad;
+  };
+  const Vector3d now = sigma_at(r.converged_ns), before = sigma_at(r.converged_ns - s_to_ns(2.0));
+  for (int i = 0; i < 3; ++i) EXPECT_GE(now[i], 0.75 * before[i]) << i;
+  const Vector3d prev = sigma_at(r.converged_ns - 1), prev_before = sigma_at(r.converged_ns - 1 - s_to_ns(2.0));
+  bool fell = false;
+  for (int i = 0; i < 3; ++i) fell = fell || prev[i] < 0.75 * prev_before[i];
+  EXPECT_TRUE(fell);
+}
+
 // The project's flight simulator (sim/), independent of the truth above: the noise-free "demo"
 // scenario (28 s, straight and level tanker with HDT, receiver manoeuvring in turbulence without HDT).
 TEST(Fusion, AgreesWithTheFlightSimulator) {

@@ -4,8 +4,10 @@
 #include "pipeline/flight_nav.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 #include <gtest/gtest.h>
 
@@ -202,6 +204,264 @@ TEST(FlightNav, AircraftConfigRoundTripAndErrors) {
   auto missing = load_aircraft_logs("/nonexistent/tanker");
   ASSERT_FALSE(missing);
   EXPECT_NE(missing.error().message.find("/nonexistent/tanker: not a folder"), std::string::npos);
+}
+
+// ---- Timing honesty (issue 20 §3) ----------------------------------------------------------------
+
+// Both aircraft fused from `tk` and `rx` (smoothed or forward only) against the simulator's truth at
+// every frame; `converging` gets, per compared frame, whether RelativeNav flags it, `t_s` its scenario time.
+PoseErrorStats fuse_against_truth(const sim::Scenario& scenario, const sim::Flight& flight,
+                                  const sim::SensorLogs& logs, const AircraftLogs& tk, const AircraftLogs& rx,
+                                  bool smooth, nav::FusionReport* tk_report = nullptr,
+                                  nav::FusionReport* rx_report = nullptr, std::vector<bool>* converging = nullptr,
+                                  std::vector<double>* t_s = nullptr, std::vector<bool>* within = nullptr) {
+  auto tk_nav = nav::fuse(tk.imu, tk.gps, tk.config, smooth);
+  auto rx_nav = nav::fuse(rx.imu, rx.gps, rx.config, smooth);
+  EXPECT_TRUE(tk_nav && rx_nav);
+  if (!tk_nav || !rx_nav) return {};
+  if (tk_report) *tk_report = tk_nav->report();
+  if (rx_report) *rx_report = rx_nav->report();
+  std::vector<TimestampNs> offsets = scenario.sensors.cameras.clock_offset_ns;
+  offsets.resize(2, 0);
+  const RelativeNav rel(*tk_nav, *rx_nav, scenario.rig, scenario.boom, flight.receptacle_m(), offsets);
+  std::vector<nav::CameraPoseRow> est, truth;
+  for (const sim::FrameTruth& t : sim::frame_truths(scenario, flight, logs.cameras)) {
+    auto p = rel.at(t.camera, t.t_camera_ns);
+    if (!p) continue;
+    est.push_back(p->row(t.sequence, t.camera, t.t_camera_ns));
+    truth.push_back(sim::pose_row(t));
+    if (converging) converging->push_back(rel.converging(p->t_nav_ns));
+    if (t_s) t_s->push_back(t.t_true_s);
+    if (within) {
+      const double d = (p->camera.T_a_receiver.translation_m - t.T_cam_receiver.translation_m).norm();
+      within->push_back(d <= p->camera.sigma_position_m());
+    }
+  }
+  return compare_poses(est, truth);
+}
+
+sim::Scenario scenario_from(const std::string& builtin, const std::string& utc) {
+  sim::Scenario s = *sim::builtin_scenario(builtin);
+  s.start_gps_ns = *sim::gps_ns_from_utc(utc);
+  return s;
+}
+
+// A flight recorded in 2016, when GPS - UTC was 17 s: the simulated receivers write UTC as real
+// ones did, and the reader takes the 17 s from the table for the log's date, so the logs fuse to the
+// truth. Given 18 s (as every log was read before), each fix is placed 1 s late: metres of error,
+// most of the receiver's fixes gated, and a sigma of millimetres. The loader says so naming the file
+// and line, and the GPS innovations say the sigma does not hold.
+TEST(FlightNav, PreTwentySeventeenLogFusesWithTheLeapSecondsOfItsDate) {
+  const sim::Scenario scenario = scenario_from("demo", "2016-06-01T12:00:00Z");
+  const sim::Flight flight = *sim::Flight::create(scenario);
+  const sim::SensorLogs logs = sim::simulate_sensors(scenario, flight);
+  const std::string dir = test::output_dir("flight_nav_2016");
+  ASSERT_TRUE(write_aircraft_logs(dir + "/tanker", logs.tanker_imu, logs.tanker_gps,
+                                  ins_config_for(scenario.sensors.tanker)));
+  ASSERT_TRUE(write_aircraft_logs(dir + "/receiver", logs.receiver_imu, logs.receiver_gps,
+                                  ins_config_for(scenario.sensors.receiver)));
+  {
+    std::ifstream in(dir + "/tanker/gps.nmea");
+    std::string first;
+    std::getline(in, first);
+    EXPECT_NE(first.find("GNGGA,120000.000,"), std::string::npos) << first;  // scenario time 0 is 12:00:00 UTC
+  }
+  // Nothing given: the table's 17 s for 2016-06-01.
+  auto tk = load_aircraft_logs(dir + "/tanker");
+  auto rx = load_aircraft_logs(dir + "/receiver");
+  ASSERT_TRUE(tk && rx) << (tk ? rx.error().message : tk.error().message);
+  EXPECT_EQ(tk->leap_seconds.applied, (std::map<int, std::size_t>{{17, logs.tanker_gps.size()}}));
+  EXPECT_EQ(rx->leap_seconds.from_table, logs.receiver_gps.size());
+  EXPECT_TRUE(tk->warnings.empty() && rx->warnings.empty());
+  EXPECT_EQ(tk->leap_seconds_source, "");
+  for (std::size_t i = 0; i < logs.tanker_gps.size(); ++i) ASSERT_EQ(tk->gps[i].t_ns, logs.tanker_gps[i].t_ns) << i;
+  nav::FusionReport tk_rep, rx_rep;
+  const PoseErrorStats right = fuse_against_truth(scenario, flight, logs, *tk, *rx, true, &tk_rep, &rx_rep);
+  const InnovationCheck right_check = check_innovations("receiver", rx_rep);
+  std::printf("[2016, GPS-UTC 17 s from the table] %s\n  %s\n", describe(right).c_str(), right_check.summary.c_str());
+  EXPECT_LT(right.pos_rms_m, 0.015);
+  EXPECT_TRUE(right_check.judged && right_check.consistent);
+  EXPECT_TRUE(check_innovations("tanker", tk_rep).consistent);
+
+  // 18 s given (--leap-seconds): warned with the file and the first fix's line; the fusion is metres off.
+  AircraftLoadOptions o18;
+  o18.leap_seconds = 18;
+  auto tk18 = load_aircraft_logs(dir + "/tanker", o18);
+  auto rx18 = load_aircraft_logs(dir + "/receiver", o18);
+  ASSERT_TRUE(tk18 && rx18);
+  ASSERT_EQ(rx18->warnings.size(), 1u);
+  EXPECT_EQ(rx18->warnings[0], dir + "/receiver/gps.nmea:1: GPS-UTC 18 s given, but it was 17 s on 2016-06-01 (the "
+                                     "leap-second table): the fix times are 1 s late (" +
+                                     std::to_string(logs.receiver_gps.size()) + " of " +
+                                     std::to_string(logs.receiver_gps.size()) + " fixes; given by --leap-seconds)");
+  const PoseErrorStats wrong = fuse_against_truth(scenario, flight, logs, *tk18, *rx18, true, &tk_rep, &rx_rep);
+  const InnovationCheck wrong_check = check_innovations("receiver", rx_rep);
+  std::printf("[2016, GPS-UTC 18 s given] %s; receiver fixes %zu used, %zu gated\n  %s\n  %s\n",
+              describe(wrong).c_str(), rx_rep.fixes_used, rx_rep.fixes_rejected, wrong_check.summary.c_str(),
+              wrong_check.warning.c_str());
+  EXPECT_GT(wrong.pos_rms_m, 0.5);
+  EXPECT_LT(wrong.within_1sigma, 0.05);
+  EXPECT_GT(rx_rep.fixes_rejected, rx_rep.fixes / 2);
+  EXPECT_TRUE(wrong_check.judged && wrong_check.optimistic);
+  EXPECT_EQ(wrong_check.warning.rfind("receiver: GPS innovations are ", 0), 0u) << wrong_check.warning;
+  EXPECT_NE(wrong_check.warning.find("the reported sigma is optimistic; check the lever arm"), std::string::npos);
+
+  // The same from aircraft.yaml; --leap-seconds overrides it, and says so.
+  nav::InsConfig cfg = ins_config_for(scenario.sensors.receiver);
+  cfg.gps_leap_seconds = 18;
+  std::ofstream(dir + "/receiver/aircraft.yaml") << aircraft_config_to_yaml(cfg);
+  auto yaml18 = load_aircraft_logs(dir + "/receiver");
+  ASSERT_TRUE(yaml18);
+  EXPECT_EQ(yaml18->leap_seconds_source, "aircraft.yaml gps_leap_seconds");
+  ASSERT_EQ(yaml18->warnings.size(), 1u);
+  EXPECT_NE(yaml18->warnings[0].find("gps.nmea:1: GPS-UTC 18 s given, but it was 17 s on 2016-06-01"),
+            std::string::npos)
+      << yaml18->warnings[0];
+  EXPECT_NE(yaml18->warnings[0].find("given by aircraft.yaml gps_leap_seconds"), std::string::npos);
+  AircraftLoadOptions o17;
+  o17.leap_seconds = 17;
+  auto overridden = load_aircraft_logs(dir + "/receiver", o17);
+  ASSERT_TRUE(overridden);
+  ASSERT_EQ(overridden->warnings.size(), 1u);
+  EXPECT_EQ(overridden->warnings[0],
+            "--leap-seconds 17 overrides " + dir + "/receiver/aircraft.yaml's gps_leap_seconds 18");
+  EXPECT_EQ(overridden->gps[0].t_ns, logs.receiver_gps[0].t_ns);
+}
+
+// Without aircraft.yaml the lever arm, noise and offsets are unknown: an error naming the folder and
+// the file, unless the defaults are asked for. With them the demo's receiver is metres off (the
+// antennas are 1.6 m and 6 m from the IMUs) and no frame lies within the reported sigma.
+TEST(FlightNav, MissingAircraftYamlIsAnErrorUnlessTheDefaultsAreAskedFor) {
+  const sim::Scenario scenario = *sim::builtin_scenario("demo");
+  const sim::Flight flight = *sim::Flight::create(scenario);
+  const sim::SensorLogs logs = sim::simulate_sensors(scenario, flight);
+  const std::string dir = test::output_dir("flight_nav_no_yaml");
+  for (const char* who : {"tanker", "receiver"}) {
+    const bool tanker = std::string(who) == "tanker";
+    ASSERT_TRUE(write_aircraft_logs(dir + "/" + who, tanker ? logs.tanker_imu : logs.receiver_imu,
+                                    tanker ? logs.tanker_gps : logs.receiver_gps, nav::InsConfig{}));
+    fs::remove(dir + "/" + who + "/aircraft.yaml");
+  }
+  auto missing = load_aircraft_logs(dir + "/tanker");
+  ASSERT_FALSE(missing);
+  EXPECT_EQ(missing.error().message.rfind("aircraft::load_logs(): " + dir + "/tanker: no aircraft.yaml (expected " +
+                                              dir + "/tanker/aircraft.yaml: the antenna lever arm",
+                                          0),
+            0u)
+      << missing.error().message;
+  EXPECT_NE(missing.error().message.find("--default-aircraft"), std::string::npos);
+  AircraftLoadOptions o;
+  o.allow_default_config = true;
+  auto tk = load_aircraft_logs(dir + "/tanker", o);
+  auto rx = load_aircraft_logs(dir + "/receiver", o);
+  ASSERT_TRUE(tk && rx);
+  EXPECT_TRUE(tk->default_config && rx->default_config);
+  ASSERT_EQ(tk->notes.size(), 1u);
+  EXPECT_NE(tk->notes[0].find("no " + dir + "/tanker/aircraft.yaml: the defaults are used"), std::string::npos);
+  const PoseErrorStats s = fuse_against_truth(scenario, flight, logs, *tk, *rx, true);
+  std::printf("[demo, no aircraft.yaml, defaults] %s\n", describe(s).c_str());
+  EXPECT_GT(s.pos_rms_m, 1.0);
+  EXPECT_EQ(s.within_1sigma, 0.0);
+  // A folder that has aircraft.yaml uses it, defaults allowed or not.
+  std::ofstream(dir + "/tanker/aircraft.yaml") << aircraft_config_to_yaml(ins_config_for(scenario.sensors.tanker));
+  auto with = load_aircraft_logs(dir + "/tanker", o);
+  ASSERT_TRUE(with);
+  EXPECT_FALSE(with->default_config);
+  EXPECT_EQ(with->config.lever_arm_body_m, scenario.sensors.tanker.gps.lever_arm_m);
+}
+
+// The NIS check in plain words: consistent on the correctly configured demo; a GPS noise told 5x too
+// small makes the innovations several times larger than predicted (optimistic), 10x too large the
+// reverse (pessimistic); a handful of fixes is not judged.
+TEST(FlightNav, InnovationCheckSaysWhetherTheReportedSigmaHolds) {
+  const sim::Scenario scenario = *sim::builtin_scenario("demo");
+  const sim::Flight flight = *sim::Flight::create(scenario);
+  const sim::SensorLogs logs = sim::simulate_sensors(scenario, flight);
+  const nav::InsConfig right = ins_config_for(scenario.sensors.receiver);  // GST sigmas: 1 cm
+  auto run = [&](const nav::InsConfig& cfg) {
+    auto t = nav::fuse(logs.receiver_imu, logs.receiver_gps, cfg);
+    EXPECT_TRUE(t) << t.error().message;
+    return check_innovations("receiver", t->report());
+  };
+  const InnovationCheck ok = run(right);
+  std::printf("  %s\n", ok.summary.c_str());
+  EXPECT_TRUE(ok.judged && ok.consistent && !ok.optimistic);
+  EXPECT_TRUE(ok.warning.empty());
+  EXPECT_NE(ok.summary.find(": consistent with the filter's sigma"), std::string::npos);
+  nav::InsConfig small = right;
+  small.gps.use_gst = false;  // the configured sigma instead of the receiver's GST
+  small.gps.rtk_fixed_m = 0.002;
+  small.gps.floor_m = 0.001;
+  const InnovationCheck opt = run(small);
+  std::printf("  %s\n  %s\n", opt.summary.c_str(), opt.warning.c_str());
+  EXPECT_TRUE(opt.judged && !opt.consistent && opt.optimistic);
+  EXPECT_EQ(opt.warning.rfind("receiver: GPS innovations are ", 0), 0u) << opt.warning;
+  EXPECT_NE(opt.warning.find("x larger than the filter's sigma predicts"), std::string::npos);
+  nav::InsConfig large = right;
+  large.gps.use_gst = false;
+  large.gps.rtk_fixed_m = 0.1;
+  const InnovationCheck pes = run(large);
+  std::printf("  %s\n  %s\n", pes.summary.c_str(), pes.warning.c_str());
+  EXPECT_TRUE(pes.judged && !pes.consistent && !pes.optimistic);
+  EXPECT_NE(pes.warning.find("the reported sigma is pessimistic"), std::string::npos);
+  nav::FusionReport few;
+  few.innovations.count = 5;
+  few.innovations.scale = 9;
+  EXPECT_FALSE(check_innovations("tanker", few).judged);
+}
+
+// Forward only (what a real-time filter knows), the sigma is optimistic while the filters still
+// learn their attitude: pooled over eight demo flights, the frames between 1.5 and 5 s lie within
+// their 1-sigma far less often than a consistent sigma's ~61-68 % (the share of a 3-D error inside
+// sqrt(trace P)). Every such frame is flagged converging; the frames after convergence are close
+// to nominal.
+TEST(FlightNav, ForwardOnlySigmaIsFlaggedWhileTheFiltersConverge) {
+  std::size_t early = 0, early_in = 0, early_flagged = 0, flagged = 0, flagged_in = 0, settled = 0, settled_in = 0;
+  std::size_t smoothed_early = 0, smoothed_early_in = 0, smoothed_late = 0, smoothed_late_in = 0;
+  for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+    sim::Scenario scenario = *sim::builtin_scenario("demo");
+    scenario.seed = seed;
+    const sim::Flight flight = *sim::Flight::create(scenario);
+    const sim::SensorLogs logs = sim::simulate_sensors(scenario, flight);
+    AircraftLogs tk, rx;
+    tk.imu = logs.tanker_imu, tk.gps = logs.tanker_gps, tk.config = ins_config_for(scenario.sensors.tanker);
+    rx.imu = logs.receiver_imu, rx.gps = logs.receiver_gps, rx.config = ins_config_for(scenario.sensors.receiver);
+    std::vector<bool> converging, within;
+    std::vector<double> t_s;
+    fuse_against_truth(scenario, flight, logs, tk, rx, false, nullptr, nullptr, &converging, &t_s, &within);
+    for (std::size_t i = 0; i < t_s.size(); ++i) {
+      if (t_s[i] >= 1.5 && t_s[i] < 5.0) {
+        ++early, early_in += within[i], early_flagged += converging[i];
+      }
+      if (t_s[i] < 1.5) continue;
+      if (converging[i]) {
+        ++flagged, flagged_in += within[i];
+      } else {
+        ++settled, settled_in += within[i];
+      }
+    }
+    std::vector<bool> sm_within;
+    std::vector<double> sm_t;
+    fuse_against_truth(scenario, flight, logs, tk, rx, true, nullptr, nullptr, nullptr, &sm_t, &sm_within);
+    for (std::size_t i = 0; i < sm_t.size(); ++i) {
+      if (sm_t[i] >= 1.5 && sm_t[i] < 5.0) ++smoothed_early, smoothed_early_in += sm_within[i];
+      if (sm_t[i] >= 10.0) ++smoothed_late, smoothed_late_in += sm_within[i];
+    }
+  }
+  const double f_early = static_cast<double>(early_in) / early, f_flagged = static_cast<double>(flagged_in) / flagged,
+               f_settled = static_cast<double>(settled_in) / settled,
+               f_smoothed = static_cast<double>(smoothed_early_in) / smoothed_early;
+  std::printf(
+      "  forward only, 8 flights: 1.5-5 s %.0f %% within the 1-sigma (%zu frames, %zu flagged converging); all "
+      "flagged frames after 1.5 s %.0f %% (%zu), the frames after convergence %.0f %% (%zu); smoothed, 1.5-5 s "
+      "%.0f %%, from 10 s %.0f %%\n",
+      100 * f_early, early, early_flagged, 100 * f_flagged, flagged, 100 * f_settled, settled, 100 * f_smoothed,
+      100.0 * static_cast<double>(smoothed_late_in) / static_cast<double>(smoothed_late));
+  EXPECT_LT(f_early, 0.45);         // optimistic: a consistent sigma holds ~61-68 %
+  EXPECT_EQ(early_flagged, early);  // ... and every one of those frames says so
+  EXPECT_GT(f_settled, 0.5);
+  EXPECT_GT(f_settled, f_flagged + 0.1);
+  EXPECT_GT(settled, flagged);
 }
 
 TEST(FlightNav, ComparePosesMatchesBySequenceAndCamera) {
