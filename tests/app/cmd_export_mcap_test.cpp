@@ -62,28 +62,8 @@ std::uint32_t fnv1a(const Image& im) {
 // The npm packages, installed once into build/test-output/npm-mcap (kept between runs), with
 // mcap_check.mjs copied next to them; "" and `why` set when node or npm cannot provide them.
 std::string mcap_checker(std::string* why) {
-  const fs::path dir = fs::path(AUGRIG_TEST_OUTPUT_DIR) / "npm-mcap";
-  fs::create_directories(dir);
-  std::string log;
-  if (test::run_command("node --version", &log) != 0) {
-    *why = "node is not installed: " + log;
-    return "";
-  }
-  const bool installed = fs::exists(dir / "node_modules/@mcap/core/package.json") &&
-                         fs::exists(dir / "node_modules/@foxglove/rosmsg2-serialization/package.json") &&
-                         fs::exists(dir / "node_modules/@foxglove/rosmsg/package.json") &&
-                         fs::exists(dir / "node_modules/fzstd/package.json");
-  if (!installed &&
-      test::run_command("cd " + dir.string() +
-                            " && timeout 300 npm install --no-audit --no-fund --loglevel=error @mcap/core@2 "
-                            "@foxglove/rosmsg2-serialization@3 @foxglove/rosmsg@5 fzstd@0.1 2>&1",
-                        &log) != 0) {
-    *why = "npm install of @mcap/core, @foxglove/rosmsg2-serialization, @foxglove/rosmsg, fzstd failed: " + log;
-    return "";
-  }
-  fs::copy_file(test::data_path("../support/mcap_check.mjs"), dir / "mcap_check.mjs",
-                fs::copy_options::overwrite_existing);
-  return (dir / "mcap_check.mjs").string();
+  return test::npm_script("mcap", {"@mcap/core@2", "@foxglove/rosmsg2-serialization@3", "@foxglove/rosmsg@5", "fzstd@0.1"},
+                          "mcap_check.mjs", why);
 }
 
 TEST(CmdExportMcap, IndependentReadersValidateItAndDecodeTheRecording) {

@@ -220,31 +220,9 @@ struct RawFoxglove {
 // The npm packages, installed once into build/test-output/npm-foxglove-ws (kept between runs),
 // with foxglove_ws_check.mjs copied next to them; "" and `why` set when node or npm cannot.
 std::string npm_client(std::string* why) {
-  const fs::path dir = fs::path(AUGRIG_TEST_OUTPUT_DIR) / "npm-foxglove-ws";
-  fs::create_directories(dir);
-  std::string log;
-  if (test::run_command("node --version", &log) != 0) {
-    *why = "node is not installed: " + log;
-    return "";
-  }
-  const bool installed = fs::exists(dir / "node_modules/@foxglove/ws-protocol/package.json") &&
-                         fs::exists(dir / "node_modules/ws/package.json") &&
-                         fs::exists(dir / "node_modules/@foxglove/rosmsg2-serialization/package.json") &&
-                         fs::exists(dir / "node_modules/@foxglove/rosmsg/package.json");
-  if (!installed && test::run_command("cd " + dir.string() +
-                                          " && timeout 300 npm install --no-audit --no-fund --loglevel=error "
-                                          "@foxglove/ws-protocol@0.8 ws@8 @foxglove/rosmsg2-serialization@3 "
-                                          "@foxglove/rosmsg@5 2>&1",
-                                      &log) != 0) {
-    *why =
-        "npm install of @foxglove/ws-protocol, ws, @foxglove/rosmsg2-serialization, @foxglove/rosmsg "
-        "failed: " +
-        log;
-    return "";
-  }
-  fs::copy_file(test::data_path("../support/foxglove_ws_check.mjs"), dir / "foxglove_ws_check.mjs",
-                fs::copy_options::overwrite_existing);
-  return (dir / "foxglove_ws_check.mjs").string();
+  return test::npm_script("foxglove-ws",
+                          {"@foxglove/ws-protocol@0.8", "ws@8", "@foxglove/rosmsg2-serialization@3", "@foxglove/rosmsg@5"},
+                          "foxglove_ws_check.mjs", why);
 }
 
 // Runs the npm client in the background; get() gives its JSON (or an error object).

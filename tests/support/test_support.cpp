@@ -4,8 +4,11 @@
 #include <cstdio>
 #include <filesystem>
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/file.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 namespace augrig::test {
 
@@ -38,6 +41,56 @@ int run_command(const std::string& command, std::string* output) {
 
 int run_augrig(const std::string& args, std::string* output) {
   return run_command(augrig_binary() + " " + args + " 2>&1", output);
+}
+
+std::string npm_script(const std::string& name, const std::vector<std::string>& packages,
+                       const std::string& script, std::string* why) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::path(AUGRIG_TEST_OUTPUT_DIR) / ("npm-" + name);
+  fs::create_directories(dir);
+  std::string log;
+  if (run_command("node --version", &log) != 0) {
+    *why = "node is not installed: " + log;
+    return "";
+  }
+  // One process at a time installs; the others wait here and then find it done.
+  const int lock = ::open((dir / ".lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock < 0 || ::flock(lock, LOCK_EX) != 0) {
+    *why = "cannot lock " + (dir / ".lock").string();
+    if (lock >= 0) ::close(lock);
+    return "";
+  }
+  std::string list;
+  for (const std::string& p : packages) list += (list.empty() ? "" : " ") + p;
+  const fs::path marker = dir / ".installed";
+  std::string done;
+  if (std::FILE* f = std::fopen(marker.c_str(), "r")) {
+    char buf[1024];
+    const std::size_t n = std::fread(buf, 1, sizeof buf, f);
+    done.assign(buf, n);
+    std::fclose(f);
+  }
+  std::string result;
+  if (done != list) {
+    fs::remove(marker);
+    if (run_command("cd " + dir.string() +
+                        " && timeout 300 npm install --no-audit --no-fund --loglevel=error " + list + " 2>&1",
+                    &log) != 0) {
+      *why = "npm install of " + list + " failed: " + log;
+      ::close(lock);
+      return "";
+    }
+    if (std::FILE* f = std::fopen(marker.c_str(), "w")) {
+      std::fputs(list.c_str(), f);
+      std::fclose(f);
+    }
+  }
+  // The script replaced whole (a rename), never rewritten under a node process reading it.
+  const fs::path target = dir / script, tmp = dir / (script + ".tmp" + std::to_string(::getpid()));
+  fs::copy_file(data_path("../support/" + script), tmp, fs::copy_options::overwrite_existing);
+  fs::rename(tmp, target);
+  ::close(lock);
+  return target.string();
 }
 
 void expect_same_fix(const nav::GpsFix& got, const nav::GpsFix& want, const std::string& what) {

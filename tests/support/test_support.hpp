@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "core/frame.hpp"
 #include "nav/types.hpp"
@@ -21,6 +22,12 @@ std::string augrig_binary();
 int run_command(const std::string& command, std::string* output = nullptr);
 // Runs the augrig binary with `args`; `output` gets its stdout and stderr together.
 int run_augrig(const std::string& args, std::string* output = nullptr);
+// npm packages (`packages`: "name@version" each) installed once into build/test-output/npm-NAME and
+// kept between runs, with tests/support/SCRIPT copied next to them; returns the script's path, or
+// "" with `why` when node or npm cannot provide them. Test processes running at once (CTest -j)
+// take turns under a lock, and a folder counts as installed only after an install finished.
+std::string npm_script(const std::string& name, const std::vector<std::string>& packages, const std::string& script,
+                       std::string* why);
 // Every field of two GPS fixes but the arrival time, exactly (one parser's output against another's);
 // `what` names the fix in failure messages.
 void expect_same_fix(const nav::GpsFix& got, const nav::GpsFix& want, const std::string& what);
