@@ -302,7 +302,10 @@ void GpsdReportMerger::on_att(std::string_view json, TimestampNs arrival_ns) {
 }
 
 std::optional<TimestampNs> GpsdReportMerger::gps_time(std::int64_t unix_s, std::int64_t ns, const char* cls) {
-  const int leap = gps_->data.leap_seconds > 0 ? gps_->data.leap_seconds : options_.leap_seconds;
+  const std::int64_t day = unix_s >= 0 ? unix_s / 86'400 : (unix_s - 86'399) / 86'400;
+  const int leap = gps_->data.leap_seconds > 0 ? gps_->data.leap_seconds
+                   : options_.leap_seconds     ? *options_.leap_seconds
+                                               : leap_seconds_on_day(day);
   // Checked: the ns of a year like 9999 overflow int64 (nav/gps_time.hpp).
   const auto t_ns = gps_ns_from_unix_checked(unix_s, ns, leap);
   if (!t_ns) {

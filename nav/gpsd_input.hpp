@@ -39,7 +39,9 @@ struct GpsdOptions {
   std::uint16_t port = 2947;
   std::string device;                      // only this device's reports (and WATCH_DEVICE); empty: all
   TimestampNs quiet_ns = 20'000'000;       // an epoch closes after this long without a report
-  int leap_seconds = kDefaultLeapSeconds;  // GPS - UTC when gpsd does not report it
+  // GPS - UTC when gpsd does not report it; unset: the table's value for the report's UTC date
+  // (leap_seconds_on_day(), nav/gps_time.hpp).
+  std::optional<int> leap_seconds;
   std::chrono::milliseconds connect_timeout{3000};
 };
 

@@ -204,6 +204,19 @@ TEST(GpsdInput, DeviceFilterSkyLeapSecondsVelocityAndBadReports) {
 // libgps 3.22 never returns from gps_unpack() on the 16 bytes {s"class":"TPV"}: the merger must
 // reject it (and any report that is not a JSON object with a string "class") before libgps. Run in
 // a thread so that a regression fails the test instead of hanging it.
+// Without gpsd's leapseconds and none configured, a report's UTC date picks GPS - UTC from the
+// table: 17 s in 2016, 18 s in 2024.
+TEST(GpsdInput, LeapSecondsFromTheTableByDate) {
+  GpsdReportMerger m("gpsd://test", GpsdOptions{});
+  m.push_report(R"({"class":"TPV","mode":3,"time":"2016-06-01T12:00:00.000Z","lat":1,"lon":2,"altHAE":3})", 1);
+  m.push_report(R"({"class":"TPV","mode":3,"time":"2024-06-01T12:00:00.000Z","lat":1,"lon":2,"altHAE":3})", 2);
+  m.flush();
+  const std::vector<NavEvent> ev = pop_all(m);
+  ASSERT_EQ(ev.size(), 2u);
+  EXPECT_EQ(ev[0].gps().t_ns, gps_ns_from_utc({2016, 6, 1}, 12 * 3600 * kNsPerSecond, 17));
+  EXPECT_EQ(ev[1].gps().t_ns, kNoon);
+}
+
 TEST(GpsdInput, MalformedJsonNeverReachesLibgps) {
   auto m = std::make_shared<GpsdReportMerger>("gpsd://test", GpsdOptions{});
   auto done = std::make_shared<std::promise<void>>();

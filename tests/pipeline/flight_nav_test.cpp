@@ -428,7 +428,12 @@ TEST(FlightNav, ForwardOnlySigmaIsFlaggedWhileTheFiltersConverge) {
     rx.imu = logs.receiver_imu, rx.gps = logs.receiver_gps, rx.config = ins_config_for(scenario.sensors.receiver);
     std::vector<bool> converging, within;
     std::vector<double> t_s;
-    fuse_against_truth(scenario, flight, logs, tk, rx, false, nullptr, nullptr, &converging, &t_s, &within);
+    nav::FusionReport tk_rep, rx_rep;
+    fuse_against_truth(scenario, flight, logs, tk, rx, false, &tk_rep, &rx_rep, &converging, &t_s, &within);
+    ASSERT_TRUE(tk_rep.converged && rx_rep.converged) << "seed " << seed;
+    std::printf("  seed %d: the tanker's filter converged %.1f s after the start, the receiver's %.1f s\n",
+                static_cast<int>(seed), ns_to_s(tk_rep.converged_ns - scenario.start_gps_ns),
+                ns_to_s(rx_rep.converged_ns - scenario.start_gps_ns));
     for (std::size_t i = 0; i < t_s.size(); ++i) {
       if (t_s[i] >= 1.5 && t_s[i] < 5.0) {
         ++early, early_in += within[i], early_flagged += converging[i];
