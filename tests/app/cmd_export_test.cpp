@@ -7,6 +7,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <random>
 #include <string>
@@ -254,7 +255,7 @@ TEST(CmdExport, ALiveNavRecordingIsReFusedOffline) {
   const std::string dir = output_dir("cmd_export_live");
   std::string log;
   ASSERT_EQ(augrig("run --source 'sim://demo?every=3' --nav sim --record " + dir +
-                       "/rec --duration 8 --headless --status-every 0",
+                       "/rec --duration 15 --headless --status-every 0",
                    &log),
             0)
       << log;
@@ -301,10 +302,19 @@ TEST(CmdExport, ALiveNavRecordingIsReFusedOffline) {
   ASSERT_TRUE(refused) << refused.error().message;
   std::map<std::pair<int, TimestampNs>, nav::CameraPoseRow> by_key;
   for (const nav::CameraPoseRow& r : refused->rows) by_key[{r.camera, r.t_ns}] = r;
-  std::size_t compared = 0;
+  // The live filter's sigma is optimistic while it converges (its first seconds: docs/NAV_FUSION.md,
+  // "Consistency"; the live status says CONVERGING, the recording does not carry it): the claim is
+  // checked on the poses from 10 s after the first one on, when both of the demo's filters have
+  // settled (8.8 and 9.3 s at most).
+  TimestampNs first_pose_ns = std::numeric_limits<TimestampNs>::max();
+  for (const nav::CameraPoseRow& a : recorded->rows) first_pose_ns = std::min(first_pose_ns, a.t_ns);
+  std::size_t compared = 0, settled = 0;
   for (const nav::CameraPoseRow& a : recorded->rows) {
     const auto it = by_key.find({a.camera, a.t_ns});
     if (it == by_key.end()) continue;
+    ++compared;  // every recorded pose has its offline counterpart
+    if (a.t_ns < first_pose_ns + 10'000'000'000) continue;
+    ++settled;
     const nav::CameraPoseRow& b = it->second;
     const double dp = std::sqrt((a.x_m - b.x_m) * (a.x_m - b.x_m) + (a.y_m - b.y_m) * (a.y_m - b.y_m) +
                                 (a.z_m - b.z_m) * (a.z_m - b.z_m));
@@ -312,14 +322,13 @@ TEST(CmdExport, ALiveNavRecordingIsReFusedOffline) {
     const double da_deg = rad_to_deg(2.0 * std::acos(std::min(1.0, dot)));
     EXPECT_LE(dp, 3 * a.sigma_pos_m + 0.02) << "camera " << a.camera << " t_ns " << a.t_ns;
     EXPECT_LE(da_deg, 3 * a.sigma_att_deg + 0.05) << "camera " << a.camera << " t_ns " << a.t_ns;
-    ++compared;
   }
   // Every recorded pose (frames with the receiver) has its offline counterpart.
   EXPECT_EQ(compared, recorded->rows.size());
   // How many frames had a live pose depends on the machine's load (the paced simulated cameras lose
   // late frames; the live filter needs its first fixes): under the sanitizers beside two compiles,
-  // 4 of them in 6 s. A few are enough for the comparison to mean something.
-  EXPECT_GT(compared, 3u);
+  // 4 of them in 6 s. A few settled ones are enough for the comparison to mean something.
+  EXPECT_GT(settled, 3u);
 }
 
 // The rows of a EuRoC data.csv: the file names, in order.
