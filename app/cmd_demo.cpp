@@ -348,6 +348,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
     const recorder::RecorderStats& rs = r.recorder_stats;
     out << "Recording: " << a.get("record") << ": " << rs.frames_committed << " stereo frames, "
         << rs.nav_inputs_committed << " nav inputs, " << rs.frames_dropped << " frames dropped by the recorder";
+    if (rs.small_items_dropped) out << " (and " << rs.small_items_dropped << " nav inputs or events)";
     if (rs.image_bytes)
       out << ", images compressed "
           << fmt_ms(double(rs.image_bytes) / double(std::max<std::uint64_t>(rs.stored_bytes, 1))) << ":1";

@@ -590,9 +590,12 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
                    parse_screenshot_at(a));
   setup.nav_inputs->summary(out);
   if (report.recording_closed) {
-    out << "recorded " << report.recorder_stats.frames_committed << " stereo frames to "
-        << pipeline.parts().recorder->path() << " (" << report.recorder_stats.frames_dropped
-        << " dropped by the recorder)\n";
+    // The recorder's drops as its summary counts them: frames, and nav inputs and events.
+    const recorder::RecorderStats& rs = report.recorder_stats;
+    out << "recorded " << rs.frames_committed << " stereo frames to " << pipeline.parts().recorder->path() << " ("
+        << rs.frames_dropped << " dropped by the recorder";
+    if (rs.small_items_dropped) out << ", and " << rs.small_items_dropped << " nav inputs or events";
+    out << ")\n";
     if (!*report.recording_closed) runtime_error("the recording stopped: " + user_message(report.recording_closed->error()));
   }
   if (!report.lost_cameras.empty()) {
