@@ -1,7 +1,9 @@
 // augrig sim: writes a simulated flight as a flight-test dataset (docs/SIMULATION.md, "Datasets"):
 //   scenario.yaml, rig.yaml                 what was flown, with which rig
 //   tanker/, receiver/                      gps.nmea (with arrival times), imu.csv, aircraft.yaml, and
-//                                           nav.csv (the aircraft's real-time nav solution)
+//                                           nav.csv (the aircraft's real-time nav solution);
+//                                           receiver/rover.ubx: the moving-baseline RTK rover's log
+//                                           (UBX NAV-RELPOSNED), when the scenario has one
 //   truth/tanker.csv, truth/receiver.csv    both aircraft in the nav-solution CSV format, 50 Hz
 //   truth/poses.csv                         the receiver in each camera at every delivered frame
 //   frames/index.csv, frames/left|right/    the rendered frames and their camera timestamps
@@ -119,6 +121,9 @@ int sim(const std::vector<std::string>& args, std::ostream& out) {
                             ins_config_for(scenario.sensors.tanker)));
   check(write_aircraft_logs((dir / "receiver").string(), logs.receiver_imu, logs.receiver_gps,
                             ins_config_for(scenario.sensors.receiver)));
+  // The rover's moving-baseline RTK log (UBX NAV-RELPOSNED), when the scenario has one.
+  const std::vector<sim::MovingBaselineEpoch> baseline = sim::simulate_moving_baseline(scenario, flight);
+  if (!baseline.empty()) check(sim::write_relposned_ubx((dir / "receiver" / "rover.ubx").string(), baseline));
 
   // Each aircraft's own real-time nav solution, as its onboard GPS/INS would log it: the forward
   // filter alone (no smoothing: onboard, the future is unknown), at the filter's epochs.

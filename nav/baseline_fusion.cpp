@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include <Eigen/Dense>
@@ -44,9 +45,99 @@ std::string BaselineFusionReport::summary() const {
     << outside_ins << " outside the INS solutions, " << rejected << " rejected by the gate; " << resets
     << " restart(s); innovations " << std::fixed;
   o.precision(3);
-  o << innovation_rms_m << " m RMS";
+  o << innovation_rms_m << " m RMS; model " << std::scientific;
+  o.precision(1);
+  o << accel_psd_m2ps3 << " (m/s^2)^2/Hz";
   return o.str();
 }
+
+namespace {
+
+// One usable measurement, as the filter sees it: z = baseline - INS baseline, with its noise.
+struct Prepared {
+  TimestampNs t_ns;
+  Eigen::Vector3d z;
+  Eigen::Matrix3d R;
+  bool is_float;
+};
+
+// The forward pass, keeping what the smoother needs: filtered and predicted states, transitions.
+struct Forward {
+  TimestampNs t_ns;
+  Vec6 x, x_pred;
+  Mat6 P, P_pred, F;
+  bool start;
+};
+
+struct ForwardPass {
+  std::vector<Forward> fw;
+  double log_likelihood = 0;  // of the gated innovations (restarts contribute nothing)
+  std::size_t used = 0, used_float = 0, rejected = 0, resets = 0, innovations = 0;
+  double innovation_sq = 0;
+};
+
+ForwardPass forward(const std::vector<Prepared>& ms, double q, const BaselineFusionOptions& options) {
+  ForwardPass out;
+  std::vector<Forward>& fw = out.fw;
+  fw.reserve(ms.size());
+  const Mat36 H = observation();
+  int rejected_in_a_row = 0;
+  auto start_at = [&](const Prepared& m) {
+    Forward s;
+    s.t_ns = m.t_ns;
+    s.x.setZero();
+    s.x.head<3>() = m.z;
+    s.P.setZero();
+    s.P.block<3, 3>(0, 0) = m.R;
+    s.P.block<3, 3>(3, 3) = 0.25 * Eigen::Matrix3d::Identity();  // (0.5 m/s)^2: the INS error's rate, unknown
+    s.x_pred = s.x, s.P_pred = s.P, s.F = Mat6::Identity();
+    s.start = true;
+    fw.push_back(s);
+    ++out.used, out.used_float += m.is_float;
+    rejected_in_a_row = 0;
+  };
+  for (const Prepared& m : ms) {
+    const double dt = fw.empty() ? 0.0 : static_cast<double>(m.t_ns - fw.back().t_ns) / 1e9;
+    if (fw.empty() || dt > 2 * options.max_gap_s) {
+      start_at(m);
+      continue;
+    }
+    Forward s;
+    s.t_ns = m.t_ns;
+    s.F = transition(dt);
+    s.x_pred = s.F * fw.back().x;
+    s.P_pred = s.F * fw.back().P * s.F.transpose() + process_noise(dt, q);
+    const Eigen::Vector3d y = m.z - H * s.x_pred;
+    const Eigen::Matrix3d S = H * s.P_pred * H.transpose() + m.R;
+    const Eigen::LDLT<Eigen::Matrix3d> Sf(S);
+    const double nis = y.dot(Sf.solve(y));
+    if (nis > options.gate_chi2) {
+      ++out.rejected;
+      // Counted as no likelier than the gate, so a model that rejects more does not look better.
+      out.log_likelihood -= 0.5 * (options.gate_chi2 + std::log(Sf.vectorD().prod()));
+      // The INS solutions (or the baseline) jumped for good: start again from here.
+      if (++rejected_in_a_row >= options.reset_after_rejections) {
+        start_at(m);
+        ++out.resets;
+      }
+      continue;
+    }
+    rejected_in_a_row = 0;
+    out.log_likelihood -= 0.5 * (nis + std::log(Sf.vectorD().prod()));
+    const Eigen::Matrix<double, 6, 3> K = s.P_pred * H.transpose() * Sf.solve(Eigen::Matrix3d::Identity());
+    s.x = s.x_pred + K * y;
+    const Mat6 IKH = Mat6::Identity() - K * H;
+    s.P = IKH * s.P_pred * IKH.transpose() + K * m.R * K.transpose();  // Joseph form
+    s.start = false;
+    fw.push_back(s);
+    ++out.used, out.used_float += m.is_float;
+    out.innovation_sq += y.squaredNorm();
+    ++out.innovations;
+  }
+  return out;
+}
+
+}  // namespace
 
 Expected<BaselineFusion> BaselineFusion::fuse(
     std::vector<BaselineMeasurement> measurements,
@@ -58,30 +149,9 @@ Expected<BaselineFusion> BaselineFusion::fuse(
   BaselineFusion f;
   f.options_ = options;
   BaselineFusionReport& r = f.report_;
-  const Mat36 H = observation();
-  // The forward pass, keeping what the smoother needs: filtered and predicted states, transitions.
-  struct Forward {
-    TimestampNs t_ns;
-    Vec6 x, x_pred;
-    Mat6 P, P_pred, F;
-    bool start;
-  };
-  std::vector<Forward> fw;
-  double innovation_sq = 0;
-  std::size_t innovations = 0;
-  int rejected_in_a_row = 0;
-  auto start_at = [&](TimestampNs t, const Eigen::Vector3d& z, const Eigen::Matrix3d& R) {
-    Forward s;
-    s.t_ns = t;
-    s.x.setZero();
-    s.x.head<3>() = z;
-    s.P.setZero();
-    s.P.block<3, 3>(0, 0) = R;
-    s.P.block<3, 3>(3, 3) = 0.25 * Eigen::Matrix3d::Identity();  // (0.5 m/s)^2: the INS error's rate, unknown
-    s.x_pred = s.x, s.P_pred = s.P, s.F = Mat6::Identity();
-    s.start = true;
-    fw.push_back(s);
-  };
+  // What the filter can use: valid vectors inside the INS solutions' span.
+  std::vector<Prepared> ms;
+  ms.reserve(measurements.size());
   for (const BaselineMeasurement& m : measurements) {
     ++r.measurements;
     if (!m.valid || m.carr_soln == 0 || !m.ned_m.allFinite()) {
@@ -98,53 +168,36 @@ Expected<BaselineFusion> BaselineFusion::fuse(
       ++r.outside_ins;
       continue;
     }
-    const Eigen::Vector3d z = m.ned_m - *ins;
-    Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
+    Prepared p{m.t_ns, m.ned_m - *ins, Eigen::Matrix3d::Zero(), is_float};
     for (int k = 0; k < 3; ++k) {
       const double floor = is_float ? options.float_sigma_floor_m : options.sigma_floor_m;
-      const double s = std::isfinite(m.sigma_ned_m[k]) ? std::max(m.sigma_ned_m[k], floor) : floor;
-      R(k, k) = s * s;
+      const double sg = std::isfinite(m.sigma_ned_m[k]) ? std::max(m.sigma_ned_m[k], floor) : floor;
+      p.R(k, k) = sg * sg;
     }
-    const double dt = fw.empty() ? 0.0 : static_cast<double>(m.t_ns - fw.back().t_ns) / 1e9;
-    if (fw.empty() || dt > 2 * options.max_gap_s) {
-      start_at(m.t_ns, z, R);
-      ++r.used, r.used_float += is_float;
-      rejected_in_a_row = 0;
-      continue;
-    }
-    Forward s;
-    s.t_ns = m.t_ns;
-    s.F = transition(dt);
-    s.x_pred = s.F * fw.back().x;
-    s.P_pred = s.F * fw.back().P * s.F.transpose() + process_noise(dt, options.accel_psd_m2ps3);
-    const Eigen::Vector3d y = z - H * s.x_pred;
-    const Eigen::Matrix3d S = H * s.P_pred * H.transpose() + R;
-    const Eigen::LDLT<Eigen::Matrix3d> Sf(S);
-    if (y.dot(Sf.solve(y)) > options.gate_chi2) {
-      ++r.rejected;
-      // The INS solutions (or the baseline) jumped for good: start again from here.
-      if (++rejected_in_a_row >= options.reset_after_rejections) {
-        start_at(m.t_ns, z, R);
-        ++r.resets, ++r.used, r.used_float += is_float;
-        rejected_in_a_row = 0;
-      }
-      continue;
-    }
-    rejected_in_a_row = 0;
-    const Eigen::Matrix<double, 6, 3> K = s.P_pred * H.transpose() * Sf.solve(Eigen::Matrix3d::Identity());
-    s.x = s.x_pred + K * y;
-    const Mat6 IKH = Mat6::Identity() - K * H;
-    s.P = IKH * s.P_pred * IKH.transpose() + K * R * K.transpose();  // Joseph form
-    s.start = false;
-    fw.push_back(s);
-    ++r.used, r.used_float += is_float;
-    innovation_sq += y.squaredNorm();
-    ++innovations;
+    ms.push_back(p);
   }
+  // How fast the INS baseline's error wanders depends on the absolute GPS and the IMUs: unless
+  // given, the density whose innovations are most likely, over a grid of half decades.
+  double q = options.accel_psd_m2ps3;
+  if (!(q > 0) && !ms.empty()) {
+    double best = -std::numeric_limits<double>::infinity();
+    for (double lg = -7.0; lg <= 2.0 + 1e-9; lg += 0.5) {
+      const double candidate = std::pow(10.0, lg);
+      const double ll = forward(ms, candidate, options).log_likelihood;
+      if (ll > best) best = ll, q = candidate;
+    }
+  }
+  if (!(q > 0)) q = 1e-3;
+  f.options_.accel_psd_m2ps3 = q;
+  r.accel_psd_m2ps3 = q;
+  ForwardPass pass = forward(ms, q, options);
+  std::vector<Forward>& fw = pass.fw;
+  r.used = pass.used, r.used_float = pass.used_float, r.rejected = pass.rejected, r.resets = pass.resets;
   if (fw.empty())
     return make_error("nav::BaselineFusion::fuse(): no usable moving-baseline measurement (", r.summary(),
                       ")");
-  r.innovation_rms_m = innovations ? std::sqrt(innovation_sq / static_cast<double>(innovations)) : 0.0;
+  r.innovation_rms_m =
+      pass.innovations ? std::sqrt(pass.innovation_sq / static_cast<double>(pass.innovations)) : 0.0;
 
   // The RTS smoother, segment by segment (a restart cuts the chain).
   f.epochs_.resize(fw.size());

@@ -36,7 +36,9 @@ struct BaselineMeasurement {
 };
 
 struct BaselineFusionOptions {
-  double accel_psd_m2ps3 = 1e-3;      // white acceleration of e driving the model, (m/s^2)^2/Hz
+  // White acceleration of e driving the model, (m/s^2)^2/Hz; 0: the most likely one given the
+  // measurements (maximum likelihood of the innovations over 1e-7..1e2, half decades).
+  double accel_psd_m2ps3 = 0;
   double sigma_floor_m = 0.005;       // no measurement trusted below this per axis
   double float_sigma_floor_m = 0.10;  // float solutions (ambiguities not fixed) at least this
   bool use_float = true;
@@ -54,6 +56,7 @@ struct BaselineFusionReport {
   std::size_t measurements = 0, used = 0, used_float = 0;
   std::size_t invalid = 0, float_skipped = 0, outside_ins = 0, rejected = 0, resets = 0;
   double innovation_rms_m = 0;  // of the used measurements, before the update
+  double accel_psd_m2ps3 = 0;   // the model's, as given or chosen
   std::string summary() const;  // one line, every count
 };
 

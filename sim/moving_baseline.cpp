@@ -6,6 +6,7 @@
 
 #include "core/conventions.hpp"
 #include "nav/geodesy.hpp"
+#include "sim/scenario.hpp"
 
 namespace augrig::sim {
 
@@ -101,6 +102,16 @@ std::vector<MovingBaselineEpoch> MovingBaselineSimulator::generate(const TruthFu
   std::vector<MovingBaselineEpoch> out;
   while (static_cast<double>(k_ * period_ns_) / 1e9 <= t_end_s + 1e-9) out.push_back(next(base, rover));
   return out;
+}
+
+std::vector<MovingBaselineEpoch> simulate_moving_baseline(const Scenario& sc, const Flight& flight) {
+  if (!sc.sensors.moving_baseline) return {};
+  MovingBaselineConfig config = *sc.sensors.moving_baseline;
+  config.base_lever_arm_m = sc.sensors.tanker.gps.lever_arm_m;
+  config.rover_lever_arm_m = sc.sensors.receiver.gps.lever_arm_m;
+  MovingBaselineSimulator sim(config, derive_seed(sc.seed, "moving_baseline"), sc.start_gps_ns);
+  return sim.generate([&flight](double t) { return flight.tanker(t); },
+                      [&flight](double t) { return flight.receiver(t); }, sc.duration_s);
 }
 
 Status write_relposned_ubx(const std::string& path, const std::vector<MovingBaselineEpoch>& epochs) {

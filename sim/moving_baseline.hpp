@@ -70,6 +70,11 @@ class MovingBaselineSimulator {
 Eigen::Vector3d true_baseline_ned_m(const KinematicState& base, const Eigen::Vector3d& base_lever_arm_m,
                                     const KinematicState& rover, const Eigen::Vector3d& rover_lever_arm_m);
 
+// A scenario's moving baseline (Scenario::sensors.moving_baseline; none: empty) over [0, duration],
+// between the two aircraft's GPS antennas, seeded from scenario.seed (stream "moving_baseline").
+struct Scenario;
+std::vector<MovingBaselineEpoch> simulate_moving_baseline(const Scenario& scenario, const Flight& flight);
+
 // The epochs as a UBX log (their NAV-RELPOSNED frames in order); errors name the file.
 Status write_relposned_ubx(const std::string& path, const std::vector<MovingBaselineEpoch>& epochs);
 

@@ -444,8 +444,9 @@ void parse_receiver(const Ctx& c, const YAML::Node& root, Scenario& s) {
 void parse_imu(const Ctx& c, const YAML::Node& parent, const std::string& parent_path, ImuConfig& imu) {
   const std::string path = join_key(parent_path, "imu");
   const YAML::Node n =
-      optional_map(c, parent, parent_path, "imu", "a map {preset, rate_hz, latency_s, gyro, accel}",
-                   {"preset", "rate_hz", "latency_s", "gyro", "accel"});
+      optional_map(c, parent, parent_path, "imu",
+                   "a map {preset, rate_hz, latency_s, clock_offset_ns, clock_drift_ppm, gyro, accel}",
+                   {"preset", "rate_hz", "latency_s", "clock_offset_ns", "clock_drift_ppm", "gyro", "accel"});
   imu = ImuConfig{};
   if (!n.IsDefined()) return;
   if (const YAML::Node p = n["preset"]; p.IsDefined()) {
@@ -455,6 +456,10 @@ void parse_imu(const Ctx& c, const YAML::Node& parent, const std::string& parent
   }
   imu.rate_hz = number(c, n, path, "rate_hz", imu.rate_hz, {100.0, 400.0}, "Hz");
   imu.latency_s = number(c, n, path, "latency_s", imu.latency_s, {0.0, 1.0}, "s");
+  // The IMU clock against GPS time: within 1 s and 1000 ppm (a sample's stamp must stay increasing).
+  imu.clock_offset_ns = integer(c, n, path, "clock_offset_ns", imu.clock_offset_ns, -1'000'000'000,
+                                1'000'000'000, "an integer in [-1000000000, 1000000000] ns");
+  imu.clock_drift_ppm = number(c, n, path, "clock_drift_ppm", imu.clock_drift_ppm, {-1000.0, 1000.0}, "ppm");
   constexpr double kMg = 9.80665e-3;
   const double deg_per_sqrt_h = deg_to_rad(1.0) / 60.0, deg_per_h = deg_to_rad(1.0) / 3600.0;
   if (const YAML::Node g = optional_map(c, n, path, "gyro", "a map of gyro errors",
@@ -498,13 +503,43 @@ void parse_imu(const Ctx& c, const YAML::Node& parent, const std::string& parent
   }
 }
 
+// KEY.outages: a list of [t0_s, t1_s] scenario-time intervals.
+std::vector<GpsOutage> outages(const Ctx& c, const YAML::Node& n, const std::string& path) {
+  std::vector<GpsOutage> out;
+  const YAML::Node o = n["outages"];
+  if (!o.IsDefined()) return out;
+  const std::string key = path + ".outages";
+  if (!o.IsSequence()) fail(c, o, key, "expected a list of [t0_s, t1_s] intervals, " + got(o));
+  for (std::size_t i = 0; i < o.size(); ++i) {
+    const auto v = to_numbers(c, o[i], key + "[" + std::to_string(i) + "]", 2, "[t0_s, t1_s] with t0_s <= t1_s");
+    if (!(v[0] <= v[1]))
+      fail(c, o[i], key + "[" + std::to_string(i) + "]",
+           "expected [t0_s, t1_s] with t0_s <= t1_s, got [" + fmt(v[0]) + ", " + fmt(v[1]) + "]");
+    out.push_back({v[0], v[1]});
+  }
+  return out;
+}
+
+// A slowly wandering GPS error {sigma_horizontal_m, sigma_vertical_m, tau_s} under PARENT.KEY.
+void gps_error(const Ctx& c, const YAML::Node& parent, const std::string& parent_path, const char* key,
+               CommonGpsErrorConfig& e) {
+  const YAML::Node g = optional_map(c, parent, parent_path, key, "a map {sigma_horizontal_m, sigma_vertical_m, tau_s}",
+                                    {"sigma_horizontal_m", "sigma_vertical_m", "tau_s"});
+  if (!g.IsDefined()) return;
+  const std::string p = join_key(parent_path, key);
+  e.sigma_horizontal_m = number(c, g, p, "sigma_horizontal_m", e.sigma_horizontal_m, kNonNegative, "metres");
+  e.sigma_vertical_m = number(c, g, p, "sigma_vertical_m", e.sigma_vertical_m, kNonNegative, "metres");
+  e.tau_s = number(c, g, p, "tau_s", e.tau_s, kPositive, "s");
+}
+
 void parse_gps(const Ctx& c, const YAML::Node& parent, const std::string& parent_path, GpsConfig& gps) {
   const std::string path = join_key(parent_path, "gps");
   const YAML::Node n = optional_map(
       c, parent, parent_path, "gps", "a map {rate_hz, lever_arm_m, latency_s, mode, ...}",
       {"rate_hz", "lever_arm_m", "latency_s", "mode", "sigma_horizontal_m", "sigma_vertical_m",
        "float_sigma_horizontal_m", "float_sigma_vertical_m", "fixed_to_float_per_s", "float_to_fixed_per_s",
-       "start_fixed", "outages", "velocity_sigma_mps", "heading", "heading_sigma_deg", "satellites", "hdop"});
+       "start_fixed", "outages", "velocity_sigma_mps", "heading", "heading_sigma_deg", "satellites", "hdop",
+       "own_error"});
   gps = GpsConfig{};
   if (!n.IsDefined()) return;
   gps.rate_hz = number(c, n, path, "rate_hz", gps.rate_hz, {1.0, 20.0}, "Hz");
@@ -524,18 +559,7 @@ void parse_gps(const Ctx& c, const YAML::Node& parent, const std::string& parent
   gps.float_to_fixed_per_s =
       number(c, n, path, "float_to_fixed_per_s", gps.float_to_fixed_per_s, kNonNegative, "1/s");
   gps.start_fixed = boolean(c, n, path, "start_fixed", gps.start_fixed);
-  if (const YAML::Node o = n["outages"]; o.IsDefined()) {
-    const std::string key = path + ".outages";
-    if (!o.IsSequence()) fail(c, o, key, "expected a list of [t0_s, t1_s] intervals, " + got(o));
-    for (std::size_t i = 0; i < o.size(); ++i) {
-      const auto v =
-          to_numbers(c, o[i], key + "[" + std::to_string(i) + "]", 2, "[t0_s, t1_s] with t0_s <= t1_s");
-      if (!(v[0] <= v[1]))
-        fail(c, o[i], key + "[" + std::to_string(i) + "]",
-             "expected [t0_s, t1_s] with t0_s <= t1_s, got [" + fmt(v[0]) + ", " + fmt(v[1]) + "]");
-      gps.outages.push_back({v[0], v[1]});
-    }
-  }
+  gps.outages = outages(c, n, path);
   gps.velocity_sigma_mps =
       number(c, n, path, "velocity_sigma_mps", gps.velocity_sigma_mps, kNonNegative, "m/s");
   gps.heading = boolean(c, n, path, "heading", gps.heading);
@@ -544,6 +568,35 @@ void parse_gps(const Ctx& c, const YAML::Node& parent, const std::string& parent
   gps.satellites =
       static_cast<int>(integer(c, n, path, "satellites", gps.satellites, 0, 99, "an integer in [0, 99]"));
   gps.hdop = number(c, n, path, "hdop", gps.hdop, kNonNegative, "");
+  gps_error(c, n, path, "own_error", gps.own_error);
+}
+
+// sensors.moving_baseline: the receiver's rover reports the baseline from the tanker's antenna (the
+// moving base) to its own; the antennas are the two aircraft's GPS antennas.
+std::optional<MovingBaselineConfig> parse_moving_baseline(const Ctx& c, const YAML::Node& sensors) {
+  const std::string path = "sensors.moving_baseline";
+  const YAML::Node n = optional_map(
+      c, sensors, "sensors", "moving_baseline", "a map {rate_hz, latency_s, sigma_horizontal_m, ...}",
+      {"rate_hz", "latency_s", "sigma_horizontal_m", "sigma_vertical_m", "float_sigma_horizontal_m",
+       "float_sigma_vertical_m", "float_bias_sigma_horizontal_m", "float_bias_sigma_vertical_m",
+       "fixed_to_float_per_s", "float_to_fixed_per_s", "start_fixed", "outages", "version"});
+  if (!n.IsDefined()) return std::nullopt;
+  MovingBaselineConfig m;
+  m.rate_hz = number(c, n, path, "rate_hz", m.rate_hz, {0.1, 20.0}, "Hz");
+  m.latency_s = number(c, n, path, "latency_s", m.latency_s, {0.0, 2.0}, "s");
+  for (auto [key, v] : {std::pair<const char*, double*>{"sigma_horizontal_m", &m.sigma_horizontal_m},
+                        {"sigma_vertical_m", &m.sigma_vertical_m},
+                        {"float_sigma_horizontal_m", &m.float_sigma_horizontal_m},
+                        {"float_sigma_vertical_m", &m.float_sigma_vertical_m},
+                        {"float_bias_sigma_horizontal_m", &m.float_bias_sigma_horizontal_m},
+                        {"float_bias_sigma_vertical_m", &m.float_bias_sigma_vertical_m}})
+    *v = number(c, n, path, key, *v, kNonNegative, "metres");
+  m.fixed_to_float_per_s = number(c, n, path, "fixed_to_float_per_s", m.fixed_to_float_per_s, kNonNegative, "1/s");
+  m.float_to_fixed_per_s = number(c, n, path, "float_to_fixed_per_s", m.float_to_fixed_per_s, kNonNegative, "1/s");
+  m.start_fixed = boolean(c, n, path, "start_fixed", m.start_fixed);
+  m.outages = outages(c, n, path);
+  m.version = static_cast<int>(integer(c, n, path, "version", m.version, 0, 1, "0 (M8P) or 1 (F9P)"));
+  return m;
 }
 
 // A number for every camera: one value for all, or a list with one per camera.
@@ -610,8 +663,8 @@ void parse_cameras(const Ctx& c, const YAML::Node& parent, Scenario& s) {
 
 void parse_sensors(const Ctx& c, const YAML::Node& root, Scenario& s) {
   const YAML::Node n =
-      optional_map(c, root, "", "sensors", "a map {tanker, receiver, common_gps_error, cameras, noise_free}",
-                   {"tanker", "receiver", "common_gps_error", "cameras", "noise_free"});
+      optional_map(c, root, "", "sensors", "a map {tanker, receiver, common_gps_error, moving_baseline, cameras, noise_free}",
+                   {"tanker", "receiver", "common_gps_error", "moving_baseline", "cameras", "noise_free"});
   s.sensors = SensorsConfig{};
   if (!n.IsDefined()) return;
   for (const char* who : {"tanker", "receiver"}) {
@@ -622,17 +675,8 @@ void parse_sensors(const Ctx& c, const YAML::Node& root, Scenario& s) {
     parse_imu(c, m, path, a.imu);
     parse_gps(c, m, path, a.gps);
   }
-  if (const YAML::Node g = optional_map(c, n, "sensors", "common_gps_error",
-                                        "a map {sigma_horizontal_m, sigma_vertical_m, tau_s}",
-                                        {"sigma_horizontal_m", "sigma_vertical_m", "tau_s"});
-      g.IsDefined()) {
-    CommonGpsErrorConfig& e = s.sensors.common_gps_error;
-    const std::string p = "sensors.common_gps_error";
-    e.sigma_horizontal_m =
-        number(c, g, p, "sigma_horizontal_m", e.sigma_horizontal_m, kNonNegative, "metres");
-    e.sigma_vertical_m = number(c, g, p, "sigma_vertical_m", e.sigma_vertical_m, kNonNegative, "metres");
-    e.tau_s = number(c, g, p, "tau_s", e.tau_s, kPositive, "s");
-  }
+  gps_error(c, n, "sensors", "common_gps_error", s.sensors.common_gps_error);
+  s.sensors.moving_baseline = parse_moving_baseline(c, n);
   parse_cameras(c, n, s);
   if (boolean(c, n, "sensors", "noise_free", false)) make_noise_free(s);
 }
@@ -787,6 +831,14 @@ void make_noise_free(Scenario& s) {
     g.start_fixed = true;
     g.velocity_sigma_mps = 0;
     g.heading_sigma_rad = 0;
+    g.own_error.sigma_horizontal_m = g.own_error.sigma_vertical_m = 0;
+  }
+  if (MovingBaselineConfig* m = s.sensors.moving_baseline ? &*s.sensors.moving_baseline : nullptr) {
+    m->sigma_horizontal_m = m->sigma_vertical_m = 0;
+    m->float_sigma_horizontal_m = m->float_sigma_vertical_m = 0;
+    m->float_bias_sigma_horizontal_m = m->float_bias_sigma_vertical_m = 0;
+    m->fixed_to_float_per_s = 0;
+    m->start_fixed = true;
   }
   s.sensors.common_gps_error.sigma_horizontal_m = 0;
   s.sensors.common_gps_error.sigma_vertical_m = 0;

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -17,6 +18,7 @@
 #include "render/models.hpp"
 #include "render/rig.hpp"
 #include "sim/flight.hpp"
+#include "sim/moving_baseline.hpp"
 #include "sim/sensors.hpp"
 
 namespace augrig::sim {
@@ -30,6 +32,9 @@ struct AircraftSensors {
 struct SensorsConfig {
   AircraftSensors tanker, receiver;
   CommonGpsErrorConfig common_gps_error;
+  // A moving-baseline RTK pair (the tanker's receiver the base, the receiver's the rover), between
+  // the two aircraft's GPS antennas (their gps.lever_arm_m): `augrig sim` writes the rover's UBX log.
+  std::optional<MovingBaselineConfig> moving_baseline;
   CameraTimingConfig cameras;
   bool operator==(const SensorsConfig&) const = default;
 };

@@ -175,11 +175,13 @@ nav::ImuSample ImuSimulator::next(const TruthFunction& truth) {
   const Eigen::Vector3d n_g = rng_.normal3(), n_a = rng_.normal3();
 
   nav::ImuSample s;
-  s.t_ns = start_ns_ + t_ns;
+  // Stamped by the IMU's clock (offset and drift from GPS time); it arrives on the host's (GPS time).
+  s.t_ns = start_ns_ + t_ns + config_.clock_offset_ns +
+           std::llround(config_.clock_drift_ppm * 1e-6 * static_cast<double>(t_ns));
   s.dt_s = dt;
   s.dtheta_rad = inc.dtheta_rad + gyro_bias_ * dt + g.arw_rad_per_sqrt_s * sdt * n_g;
   s.dv_mps = inc.dv_mps + accel_bias_ * dt + a.vrw_mps_per_sqrt_s * sdt * n_a;
-  s.arrival_ns = s.t_ns + latency_ns(config_.latency_s);
+  s.arrival_ns = start_ns_ + t_ns + latency_ns(config_.latency_s);
   return s;
 }
 
@@ -231,7 +233,10 @@ GpsSimulator::GpsSimulator(const GpsConfig& config, std::uint64_t seed, Timestam
       period_ns_(period_ns_for(config.rate_hz)),
       rng_(seed),
       common_(std::move(common)),
-      fixed_(config.start_fixed) {}
+      fixed_(config.start_fixed) {
+  if (config.own_error.sigma_horizontal_m > 0 || config.own_error.sigma_vertical_m > 0)
+    own_.emplace(config.own_error, derive_seed(seed, "own_error"));
+}
 
 std::optional<nav::GpsFix> GpsSimulator::next(const TruthFunction& truth) {
   const TimestampNs t_rel_ns = k_ * period_ns_;
@@ -267,6 +272,7 @@ std::optional<nav::GpsFix> GpsSimulator::next(const TruthFunction& truth) {
   const double sv = use_float ? config_.float_sigma_vertical_m : config_.sigma_vertical_m;
   Eigen::Vector3d e_ned(sh * n_pos.x(), sh * n_pos.y(), sv * n_pos.z());
   if (common_) e_ned += common_->ned_m(t);
+  if (own_) e_ned += own_->ned_m(t);
 
   nav::GpsFix fix;
   fix.t_ns = start_ns_ + t_rel_ns;
@@ -277,7 +283,10 @@ std::optional<nav::GpsFix> GpsSimulator::next(const TruthFunction& truth) {
   fix.satellites = config_.satellites;
   fix.hdop = config_.hdop;
   fix.geoid_separation_m = synthetic_geoid_separation_m(fix.antenna.lat_rad, fix.antenna.lon_rad);
-  fix.sigma_ned_m = Eigen::Vector3d(sh, sh, sv);
+  // The receiver's own error budget covers its own wandering error, not the common one.
+  fix.sigma_ned_m = Eigen::Vector3d(std::hypot(sh, config_.own_error.sigma_horizontal_m),
+                                    std::hypot(sh, config_.own_error.sigma_horizontal_m),
+                                    std::hypot(sv, config_.own_error.sigma_vertical_m));
 
   const Eigen::Vector3d v_ant = s.v_ecef_mps + C * s.w_eb_body_radps.cross(config_.lever_arm_m);
   const Eigen::Vector3d v_ned = R_en.transpose() * v_ant;

@@ -89,7 +89,11 @@ Expected<ImuErrorModel> imu_preset(std::string_view name);
 
 struct ImuConfig {
   double rate_hz = 200.0;  // 100 to 400 Hz
-  double latency_s = 0.0;  // arrival_ns = t_ns + latency
+  double latency_s = 0.0;  // arrival_ns = true GPS time + latency (the host clock is GPS time)
+  // The IMU's own clock against GPS time: a sample's stamp is its true GPS time + clock_offset_ns +
+  // clock_drift_ppm 1e-6 x the time since the scenario start. 0: stamped on GPS time.
+  std::int64_t clock_offset_ns = 0;
+  double clock_drift_ppm = 0;
   ImuErrorModel errors = *imu_preset("tactical");
   bool operator==(const ImuConfig&) const = default;
 };
@@ -113,7 +117,8 @@ Eigen::Vector3d specific_force_body(const KinematicState& s);
 Eigen::Vector3d inertial_rate_body(const KinematicState& s);
 
 // One aircraft's IMU. Sample k (k = 1, 2, ...) covers (t_{k-1}, t_k], t_k = k * period, with the
-// period rounded to whole ns. Each sample adds to the exact increments
+// period rounded to whole ns; it is stamped t_k + clock_offset_ns + round(clock_drift_ppm 1e-6 t_k)
+// (dt_s stays the nominal period). Each sample adds to the exact increments
 //   dtheta += b_g dt + ARW sqrt(dt) n,   dv += b_a dt + VRW sqrt(dt) n   (n ~ N(0, I) per sample),
 // where each bias = turn-on constant + Gauss-Markov (exact discretisation) + random walk, updated
 // once per sample before use.
@@ -198,6 +203,10 @@ struct GpsConfig {
   double heading_sigma_rad = deg_to_rad(0.1);
   int satellites = 16;
   double hdop = 0.7;
+  // This receiver's own slowly wandering error (the common error's process, own realisation): the
+  // part of single-point errors two receivers do not share (satellites tracked, multipath, the
+  // receiver); its sigma is in the reported accuracy. Zero by default.
+  CommonGpsErrorConfig own_error{0.0, 0.0, 600.0};
   bool operator==(const GpsConfig&) const = default;
 };
 
@@ -224,6 +233,7 @@ class GpsSimulator {
   std::int64_t k_ = 0;
   Rng rng_;
   std::shared_ptr<CommonGpsError> common_;
+  std::optional<CommonGpsError> own_;  // config.own_error, when it has a sigma
   bool fixed_ = true;
   bool in_outage_ = false;
 };

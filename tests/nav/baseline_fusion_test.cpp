@@ -100,8 +100,9 @@ TEST(BaselineFusion, CentimetreBaselinesCorrectAMetresOffInsBaseline) {
   };
   auto f = BaselineFusion::fuse(measure(seconds, 5.0, 0.01, 9), ins_baseline);
   ASSERT_TRUE(f) << f.error().message;
-  EXPECT_EQ(f->report().used, f->report().measurements);
-  EXPECT_EQ(f->report().rejected, 0u);
+  // The gate's false alarms are 1 in 1000 (p = 0.001): at most a few of 601.
+  EXPECT_EQ(f->report().used + f->report().rejected, f->report().measurements);
+  EXPECT_LE(f->report().rejected, 3u);
   // Uncorrected: metres.
   double raw_sq = 0;
   int n = 0;
@@ -113,7 +114,18 @@ TEST(BaselineFusion, CentimetreBaselinesCorrectAMetresOffInsBaseline) {
   std::printf("corrected RMS %.4f m, %.0f %% within 1 sigma\n", s.rms_m, 100 * s.within_1sigma);
   EXPECT_GT(s.within_1sigma, 0.55) << "the reported sigma is honest";
   EXPECT_LT(s.within_1sigma, 0.95) << "and not wildly pessimistic";
-  EXPECT_NE(f->report().summary().find("601 used (0 float)"), std::string::npos) << f->report().summary();
+  EXPECT_NE(f->report().summary().find("601 measurements: " + std::to_string(f->report().used) + " used (0 float)"),
+            std::string::npos)
+      << f->report().summary();
+  // The model's density was chosen by the innovations' likelihood: a given one is used as given,
+  // and one far off (a stiff model that cannot follow the error) does worse.
+  EXPECT_GT(f->report().accel_psd_m2ps3, 0.0);
+  BaselineFusionOptions stiff;
+  stiff.accel_psd_m2ps3 = 1e-7;
+  auto g = BaselineFusion::fuse(measure(seconds, 5.0, 0.01, 9), ins_baseline, stiff);
+  ASSERT_TRUE(g) << g.error().message;
+  EXPECT_EQ(g->report().accel_psd_m2ps3, 1e-7);
+  EXPECT_GT(score(*g, ins, 0, seconds).rms_m, s.rms_m);
 }
 
 // Float solutions carry a bias of decimetres: with their floor the fixed ones outweigh them; left
@@ -136,8 +148,10 @@ TEST(BaselineFusion, FloatSolutionsAreDownWeightedOrLeftOut) {
   auto a = BaselineFusion::fuse(ms, ins_baseline, with);
   auto b = BaselineFusion::fuse(ms, ins_baseline, without);
   ASSERT_TRUE(a && b);
-  // Every float epoch is used or, its bias beyond the gate, rejected; no fixed one is rejected.
-  EXPECT_EQ(a->report().used_float + a->report().rejected, 75u);
+  // Every float epoch is used or, its bias beyond the gate, rejected; a fixed one only by the
+  // gate's chance (1 in 1000).
+  EXPECT_GE(a->report().used_float + a->report().rejected, 75u);
+  EXPECT_LE(a->report().used_float + a->report().rejected, 77u);
   EXPECT_GT(a->report().used_float, 0u);
   EXPECT_EQ(b->report().float_skipped, 75u);
   const double rms_without = score(*b, ins, 0, seconds).rms_m, rms_with = score(*a, ins, 0, seconds).rms_m;
