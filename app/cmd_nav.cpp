@@ -1,7 +1,8 @@
 // augrig nav: both aircraft's GPS/IMU logs -> the receiver's pose in each camera at every frame.
 // Flow: load and check every input (logs with their aircraft.yaml and the leap seconds of their UTC
 // times, rig, frame index) -> fuse each aircraft (forward filter, RTS smoother) -> is the reported
-// sigma consistent with the GPS innovations? -> per frame: camera time -> nav time -> relative pose
+// sigma consistent with the GPS innovations? -> the moving baseline (rover.ubx), fused against both
+// solutions -> per frame: camera time -> nav time -> relative pose
 // with 1-sigma -> boom tracking -> poses.csv; with --truth, the error against it.
 #include <algorithm>
 #include <cmath>
@@ -12,6 +13,7 @@
 #include "core/yaml_reader.hpp"
 #include "nav/logs.hpp"
 #include "nav/nmea.hpp"
+#include "pipeline/baseline_nav.hpp"
 #include "pipeline/flight_nav.hpp"
 
 namespace augrig::app {
@@ -37,6 +39,10 @@ const std::vector<OptionSpec>& nav_specs() {
       {"default-aircraft", ArgKind::kFlag, "",
        "fuse an aircraft folder without aircraft.yaml with the defaults (antenna at the IMU, tactical IMU, 2 cm "
        "RTK); without this flag that is an error"},
+      {"baseline", ArgKind::kValue, "ROVER.ubx",
+       "the moving-baseline RTK rover's UBX log (NAV-RELPOSNED: the receiver's GPS antenna relative to the "
+       "tanker's), fused as a relative measurement (default: the receiver folder's rover.ubx when there)"},
+      {"no-baseline", ArgKind::kFlag, "", "leave the receiver folder's rover.ubx out"},
       {"truth", ArgKind::kValue, "POSES.csv", "true camera poses (augrig sim's truth/poses.csv): print the error"},
       {"solutions", ArgKind::kValue, "DIR", "also write each aircraft's nav solution per epoch (CSV)"},
   };
@@ -124,8 +130,28 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
     check(nav::write_nav_solution_csv((d / "receiver.csv").string(), nav_solution_rows(rx)));
   }
 
+  // The moving baseline, when there is one: the relative position from it and both solutions.
+  if (a.has("baseline") && a.has("no-baseline")) usage_error("--baseline and --no-baseline exclude each other");
+  std::string rover_path = a.has("baseline") ? a.get("baseline") : "";
+  if (rover_path.empty() && !a.has("no-baseline") && fs::exists(fs::path(a.get("receiver")) / "rover.ubx"))
+    rover_path = (fs::path(a.get("receiver")) / "rover.ubx").string();
+  std::shared_ptr<const BaselineNav> baseline;
+  std::string baseline_text;
+  if (!rover_path.empty()) {
+    const TimestampNs reference = receiver.gps.empty() ? rx.begin_ns() : receiver.gps.front().t_ns;
+    const RoverLog rover = unwrap(load_rover_log(rover_path, reference));
+    out << rover.summary() << "\n";
+    print_issues(out, rover_path, rover.issues);
+    baseline = std::make_shared<const BaselineNav>(unwrap(BaselineNav::fuse(
+        rover.measurements, tk, rx, tanker.config.lever_arm_body_m, receiver.config.lever_arm_body_m)));
+    baseline_text = baseline->report().summary();
+    out << baseline_text << "\n";
+  }
+
   Eigen::Vector3d receptacle = receptacle_of(rig);
   RelativeNav rel(std::move(tk), std::move(rx), rig, BoomDimensions{}, receptacle, offsets);
+  rel.set_baseline(baseline);
+  std::size_t corrected = 0;
   std::vector<nav::CameraPoseRow> rows;
   std::vector<bool> converging;  // per row: a forward filter not yet converged at its time
   std::size_t outside = 0;
@@ -138,6 +164,7 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
     }
     p->boom = boom.command(ns_to_s(f.t_ns - index.rows.front().t_ns), p->boom, rig.boom.limits);
     rows.push_back(p->row(f.sequence, f.camera, f.t_ns));
+    corrected += p->baseline_corrected ? 1 : 0;
     converging.push_back(rel.converging(p->t_nav_ns));
     // A capture-only rig has no boom to articulate: the boom columns stay empty (whoever augments
     // with these poses flies its own rig's boom), unless --boom says what it does.
@@ -153,6 +180,9 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   o.metadata["gps_minus_utc_s"] = "tanker " + nav::describe(tanker.leap_seconds) + "; receiver " +
                                   nav::describe(receiver.leap_seconds);
   o.metadata["sigma_consistency"] = consistency;
+  if (baseline)
+    o.metadata["moving_baseline"] = rover_path + ": " + std::to_string(corrected) + " of " +
+                                    std::to_string(rows.size()) + " rows corrected";
   // Forward only: the rows before both filters converged carry an optimistic sigma.
   const std::size_t n_converging = static_cast<std::size_t>(std::count(converging.begin(), converging.end(), true));
   std::string converging_text;
@@ -169,6 +199,10 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   if (outside) out << " (" << outside << " outside the nav data: no pose written)";
   out << "; fusion " << fmt_ms(fuse_ms) << " ms for both aircraft, " << fmt_ms(query_us)
       << " us per frame pose\n";
+  if (baseline)
+    out << "Moving baseline: " << corrected << " of " << rows.size()
+        << " poses corrected (the others: more than "
+        << "5 s from a usable baseline; the solutions alone)\n";
   if (!smooth) out << "Converging: " << converging_text << " (docs/NAV_FUSION.md, \"Consistency\")\n";
   if (!truth.empty()) {
     out << "Against truth: " << describe(compare_poses(rows, truth)) << "\n";

@@ -13,27 +13,125 @@ namespace {
 
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 using Mat6 = Eigen::Matrix<double, 6, 6>;
-using Mat36 = Eigen::Matrix<double, 3, 6>;
 
-// Constant velocity per axis over dt seconds, driven by white acceleration of density q.
-Mat6 transition(double dt) {
-  Mat6 F = Mat6::Identity();
-  F.block<3, 3>(0, 3) = dt * Eigen::Matrix3d::Identity();
+// The critically damped second-order Gauss-Markov process of angular frequency w = 1 / tau over dt
+// seconds, the same for each axis: exp(A dt), A = [[0, 1], [-w^2, -2 w]].
+Mat6 transition(double dt, double w) {
+  const double a = std::exp(-w * dt);
+  Mat6 F;
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  F << a * (1 + w * dt) * I, a * dt * I, -a * w * w * dt * I, a * (1 - w * dt) * I;
   return F;
 }
-Mat6 process_noise(double dt, double q) {
-  const double a = std::abs(dt);
-  Mat6 Q = Mat6::Zero();
-  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
-  Q.block<3, 3>(0, 0) = q * a * a * a / 3.0 * I;
-  Q.block<3, 3>(0, 3) = Q.block<3, 3>(3, 0) = q * a * a / 2.0 * I;
-  Q.block<3, 3>(3, 3) = q * a * I;
-  return Q;
+// Its stationary covariance for position covariance S: the velocity's is w^2 S, uncorrelated.
+Mat6 stationary(const Eigen::Matrix3d& S, double w) {
+  Mat6 P = Mat6::Zero();
+  P.topLeftCorner<3, 3>() = S;
+  P.bottomRightCorner<3, 3>() = w * w * S;
+  return P;
 }
-Mat36 observation() {
-  Mat36 H = Mat36::Zero();
-  H.block<3, 3>(0, 0).setIdentity();
-  return H;
+// The state carried dt seconds on; with dt < 0 back in time (the stationary process reversed:
+// the same law with the velocity's sign flipped).
+void carry(double dt, double w, const Mat6& P_stationary, Vec6& x, Mat6& P) {
+  Mat6 flip = Mat6::Identity();
+  if (dt < 0) flip.bottomRightCorner<3, 3>() *= -1;
+  const Mat6 F = transition(std::abs(dt), w);
+  x = flip * F * flip * x;
+  P = flip * (F * (flip * P * flip) * F.transpose() + P_stationary - F * P_stationary * F.transpose()) * flip;
+}
+
+// One epoch as the filter sees it: a measurement z = baseline - INS baseline with its noise, or
+// (in a gap) none, and the solutions' covariance there.
+struct Step {
+  TimestampNs t_ns;
+  Eigen::Vector3d z;
+  Eigen::Matrix3d R, Sigma;
+  bool measured, is_float;
+};
+
+// The forward pass, keeping what the smoother needs: filtered and predicted states, transitions.
+struct Forward {
+  TimestampNs t_ns;
+  Vec6 x, x_pred;
+  Mat6 P, P_pred, F, P_stationary;
+  bool start;
+};
+
+struct ForwardPass {
+  std::vector<Forward> fw;
+  double log_likelihood = 0;
+  std::size_t used = 0, used_float = 0, rejected = 0, resets = 0, innovations = 0;
+  double innovation_sq = 0;
+};
+
+ForwardPass forward(const std::vector<Step>& steps, double scale, double tau_s, const BaselineFusionOptions& options) {
+  ForwardPass out;
+  std::vector<Forward>& fw = out.fw;
+  fw.reserve(steps.size());
+  const double w = 1.0 / tau_s;
+  int rejected_in_a_row = 0;
+  for (const Step& m : steps) {
+    Forward s;
+    s.t_ns = m.t_ns;
+    s.P_stationary = stationary(scale * scale * m.Sigma, w);
+    s.start = fw.empty();
+    if (s.start) {
+      // No measurement yet: the error is what the solutions say it can be.
+      s.F = Mat6::Identity();
+      s.x_pred.setZero();
+      s.P_pred = s.P_stationary;
+    } else {
+      const double dt = static_cast<double>(m.t_ns - fw.back().t_ns) / 1e9;
+      s.F = transition(dt, w);
+      s.x_pred = s.F * fw.back().x;
+      s.P_pred = s.F * fw.back().P * s.F.transpose() + s.P_stationary - s.F * s.P_stationary * s.F.transpose();
+      s.P_pred = 0.5 * (s.P_pred + s.P_pred.transpose()).eval();
+    }
+    if (!m.measured) {  // a gap's prediction epoch
+      if (s.start) continue;
+      s.x = s.x_pred, s.P = s.P_pred;
+      fw.push_back(s);
+      continue;
+    }
+    Eigen::Vector3d y = m.z - s.x_pred.head<3>();
+    Eigen::Matrix3d S = s.P_pred.topLeftCorner<3, 3>() + m.R;
+    Eigen::LDLT<Eigen::Matrix3d> Sf(S);
+    double nis = y.dot(Sf.solve(y));
+    const double log_det = std::log(Sf.vectorD().prod());
+    if (!s.start && nis > options.gate_chi2) {
+      ++out.rejected;
+      // Counted as no likelier than the gate, so a model that rejects more does not look better.
+      out.log_likelihood -= 0.5 * (options.gate_chi2 + log_det);
+      // Fixed baselines rejected again and again: the INS solutions jumped for good; start again
+      // from here. (Float ones off the track are what float solutions are: biased.)
+      if (m.is_float || ++rejected_in_a_row < options.reset_after_rejections) continue;
+      ++out.resets;
+      s.start = true;
+      s.F = Mat6::Identity();
+      s.x_pred.setZero();
+      s.P_pred = s.P_stationary;
+      y = m.z;
+      S = s.P_pred.topLeftCorner<3, 3>() + m.R;
+      Sf.compute(S);
+    } else if (!s.start) {
+      out.log_likelihood -= 0.5 * (nis + log_det);
+      out.innovation_sq += y.squaredNorm();
+      ++out.innovations;
+    } else {
+      out.log_likelihood -= 0.5 * (nis + log_det);
+    }
+    rejected_in_a_row = 0;
+    const Eigen::Matrix<double, 6, 3> K =
+        s.P_pred.leftCols<3>() * Sf.solve(Eigen::Matrix3d::Identity());  // P H^T S^-1, H = [I 0]
+    s.x = s.x_pred + K * y;
+    Eigen::Matrix<double, 3, 6> H = Eigen::Matrix<double, 3, 6>::Zero();
+    H.leftCols<3>().setIdentity();
+    const Mat6 IKH = Mat6::Identity() - K * H;
+    s.P = IKH * s.P_pred * IKH.transpose() + K * m.R * K.transpose();  // Joseph form
+    fw.push_back(s);
+    ++out.used, out.used_float += m.is_float;
+  }
+  return out;
 }
 
 }  // namespace
@@ -45,103 +143,16 @@ std::string BaselineFusionReport::summary() const {
     << outside_ins << " outside the INS solutions, " << rejected << " rejected by the gate; " << resets
     << " restart(s); innovations " << std::fixed;
   o.precision(3);
-  o << innovation_rms_m << " m RMS; model " << std::scientific;
+  o << innovation_rms_m << " m RMS; the solutions' sigma ";
   o.precision(1);
-  o << accel_psd_m2ps3 << " (m/s^2)^2/Hz";
+  o << "x" << sigma_scale << " (" << (sigma_scale > 1.5 ? "optimistic" : "held") << "), their error's correlation time "
+    << correlation_s << " s";
   return o.str();
 }
 
-namespace {
-
-// One usable measurement, as the filter sees it: z = baseline - INS baseline, with its noise.
-struct Prepared {
-  TimestampNs t_ns;
-  Eigen::Vector3d z;
-  Eigen::Matrix3d R;
-  bool is_float;
-};
-
-// The forward pass, keeping what the smoother needs: filtered and predicted states, transitions.
-struct Forward {
-  TimestampNs t_ns;
-  Vec6 x, x_pred;
-  Mat6 P, P_pred, F;
-  bool start;
-};
-
-struct ForwardPass {
-  std::vector<Forward> fw;
-  double log_likelihood = 0;  // of the gated innovations (restarts contribute nothing)
-  std::size_t used = 0, used_float = 0, rejected = 0, resets = 0, innovations = 0;
-  double innovation_sq = 0;
-};
-
-ForwardPass forward(const std::vector<Prepared>& ms, double q, const BaselineFusionOptions& options) {
-  ForwardPass out;
-  std::vector<Forward>& fw = out.fw;
-  fw.reserve(ms.size());
-  const Mat36 H = observation();
-  int rejected_in_a_row = 0;
-  auto start_at = [&](const Prepared& m) {
-    Forward s;
-    s.t_ns = m.t_ns;
-    s.x.setZero();
-    s.x.head<3>() = m.z;
-    s.P.setZero();
-    s.P.block<3, 3>(0, 0) = m.R;
-    s.P.block<3, 3>(3, 3) = 0.25 * Eigen::Matrix3d::Identity();  // (0.5 m/s)^2: the INS error's rate, unknown
-    s.x_pred = s.x, s.P_pred = s.P, s.F = Mat6::Identity();
-    s.start = true;
-    fw.push_back(s);
-    ++out.used, out.used_float += m.is_float;
-    rejected_in_a_row = 0;
-  };
-  for (const Prepared& m : ms) {
-    const double dt = fw.empty() ? 0.0 : static_cast<double>(m.t_ns - fw.back().t_ns) / 1e9;
-    if (fw.empty() || dt > 2 * options.max_gap_s) {
-      start_at(m);
-      continue;
-    }
-    Forward s;
-    s.t_ns = m.t_ns;
-    s.F = transition(dt);
-    s.x_pred = s.F * fw.back().x;
-    s.P_pred = s.F * fw.back().P * s.F.transpose() + process_noise(dt, q);
-    const Eigen::Vector3d y = m.z - H * s.x_pred;
-    const Eigen::Matrix3d S = H * s.P_pred * H.transpose() + m.R;
-    const Eigen::LDLT<Eigen::Matrix3d> Sf(S);
-    const double nis = y.dot(Sf.solve(y));
-    if (nis > options.gate_chi2) {
-      ++out.rejected;
-      // Counted as no likelier than the gate, so a model that rejects more does not look better.
-      out.log_likelihood -= 0.5 * (options.gate_chi2 + std::log(Sf.vectorD().prod()));
-      // The INS solutions (or the baseline) jumped for good: start again from here.
-      if (++rejected_in_a_row >= options.reset_after_rejections) {
-        start_at(m);
-        ++out.resets;
-      }
-      continue;
-    }
-    rejected_in_a_row = 0;
-    out.log_likelihood -= 0.5 * (nis + std::log(Sf.vectorD().prod()));
-    const Eigen::Matrix<double, 6, 3> K = s.P_pred * H.transpose() * Sf.solve(Eigen::Matrix3d::Identity());
-    s.x = s.x_pred + K * y;
-    const Mat6 IKH = Mat6::Identity() - K * H;
-    s.P = IKH * s.P_pred * IKH.transpose() + K * m.R * K.transpose();  // Joseph form
-    s.start = false;
-    fw.push_back(s);
-    ++out.used, out.used_float += m.is_float;
-    out.innovation_sq += y.squaredNorm();
-    ++out.innovations;
-  }
-  return out;
-}
-
-}  // namespace
-
 Expected<BaselineFusion> BaselineFusion::fuse(
     std::vector<BaselineMeasurement> measurements,
-    const std::function<std::optional<Eigen::Vector3d>(TimestampNs)>& ins_baseline,
+    const std::function<std::optional<InsBaselineSample>(TimestampNs)>& ins_baseline,
     const BaselineFusionOptions& options) {
   std::stable_sort(
       measurements.begin(), measurements.end(),
@@ -149,9 +160,11 @@ Expected<BaselineFusion> BaselineFusion::fuse(
   BaselineFusion f;
   f.options_ = options;
   BaselineFusionReport& r = f.report_;
-  // What the filter can use: valid vectors inside the INS solutions' span.
-  std::vector<Prepared> ms;
-  ms.reserve(measurements.size());
+  // What the filter can use: valid vectors inside the INS solutions' span, and prediction epochs
+  // filling the gaps between them.
+  std::vector<Step> steps;
+  steps.reserve(measurements.size());
+  const TimestampNs fill_ns = std::max<TimestampNs>(1'000'000, static_cast<TimestampNs>(options.fill_step_s * 1e9));
   for (const BaselineMeasurement& m : measurements) {
     ++r.measurements;
     if (!m.valid || m.carr_soln == 0 || !m.ned_m.allFinite()) {
@@ -163,37 +176,45 @@ Expected<BaselineFusion> BaselineFusion::fuse(
       ++r.float_skipped;
       continue;
     }
-    const std::optional<Eigen::Vector3d> ins = ins_baseline(m.t_ns);
+    const std::optional<InsBaselineSample> ins = ins_baseline(m.t_ns);
     if (!ins) {
       ++r.outside_ins;
       continue;
     }
-    Prepared p{m.t_ns, m.ned_m - *ins, Eigen::Matrix3d::Zero(), is_float};
+    if (!steps.empty())
+      for (TimestampNs t = steps.back().t_ns + fill_ns; t + fill_ns / 2 < m.t_ns; t += fill_ns)
+        if (const auto g = ins_baseline(t))
+          steps.push_back({t, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero(), g->cov_ned_m2, false, false});
+    Step p{m.t_ns, m.ned_m - ins->ned_m, Eigen::Matrix3d::Zero(), ins->cov_ned_m2, true, is_float};
     for (int k = 0; k < 3; ++k) {
       const double floor = is_float ? options.float_sigma_floor_m : options.sigma_floor_m;
       const double sg = std::isfinite(m.sigma_ned_m[k]) ? std::max(m.sigma_ned_m[k], floor) : floor;
       p.R(k, k) = sg * sg;
     }
-    ms.push_back(p);
+    steps.push_back(p);
   }
-  // How fast the INS baseline's error wanders depends on the absolute GPS and the IMUs: unless
-  // given, the density whose innovations are most likely, over a grid of half decades.
-  double q = options.accel_psd_m2ps3;
-  if (!(q > 0) && !ms.empty()) {
+  // How honest the solutions' sigma is, and how fast their error wanders, unless given: the pair
+  // whose innovations are most likely.
+  const std::vector<double> scales = options.sigma_scale > 0
+                                         ? std::vector<double>{options.sigma_scale}
+                                         : std::vector<double>{1, 2, 5, 10, 20, 50, 100, 200, 500, 1000};
+  const std::vector<double> taus = options.correlation_s > 0 ? std::vector<double>{options.correlation_s}
+                                                             : std::vector<double>{0.3, 1, 3, 10, 30, 100, 300};
+  double scale = scales.front(), tau = taus.front();
+  if (scales.size() * taus.size() > 1 && !steps.empty()) {
     double best = -std::numeric_limits<double>::infinity();
-    for (double lg = -7.0; lg <= 2.0 + 1e-9; lg += 0.5) {
-      const double candidate = std::pow(10.0, lg);
-      const double ll = forward(ms, candidate, options).log_likelihood;
-      if (ll > best) best = ll, q = candidate;
-    }
+    for (double sc : scales)
+      for (double ta : taus) {
+        const double ll = forward(steps, sc, ta, options).log_likelihood;
+        if (ll > best) best = ll, scale = sc, tau = ta;
+      }
   }
-  if (!(q > 0)) q = 1e-3;
-  f.options_.accel_psd_m2ps3 = q;
-  r.accel_psd_m2ps3 = q;
-  ForwardPass pass = forward(ms, q, options);
+  f.options_.sigma_scale = r.sigma_scale = scale;
+  f.options_.correlation_s = r.correlation_s = tau;
+  ForwardPass pass = forward(steps, scale, tau, options);
   std::vector<Forward>& fw = pass.fw;
   r.used = pass.used, r.used_float = pass.used_float, r.rejected = pass.rejected, r.resets = pass.resets;
-  if (fw.empty())
+  if (pass.used == 0)
     return make_error("nav::BaselineFusion::fuse(): no usable moving-baseline measurement (", r.summary(),
                       ")");
   r.innovation_rms_m =
@@ -205,13 +226,16 @@ Expected<BaselineFusion> BaselineFusion::fuse(
     Epoch& e = f.epochs_[k];
     e.t_ns = fw[k].t_ns;
     e.segment_start = fw[k].start;
+    e.P_stationary = fw[k].P_stationary;
     if (k + 1 == fw.size() || fw[k + 1].start) {
       e.x = fw[k].x, e.P = fw[k].P;
       continue;
     }
-    const Mat6 C = fw[k].P * fw[k + 1].F.transpose() * fw[k + 1].P_pred.inverse();
+    // C = P_k F^T P_pred^-1, by a solve.
+    const Mat6 C = fw[k + 1].P_pred.ldlt().solve(fw[k + 1].F * fw[k].P).transpose();
     e.x = fw[k].x + C * (f.epochs_[k + 1].x - fw[k + 1].x_pred);
     e.P = fw[k].P + C * (f.epochs_[k + 1].P - fw[k + 1].P_pred) * C.transpose();
+    e.P = 0.5 * (e.P + e.P.transpose()).eval();
   }
   return f;
 }
@@ -219,14 +243,14 @@ Expected<BaselineFusion> BaselineFusion::fuse(
 std::optional<BaselineCorrection> BaselineFusion::at(TimestampNs t_ns) const {
   if (epochs_.empty()) return std::nullopt;
   const TimestampNs max_gap_ns = static_cast<TimestampNs>(options_.max_gap_s * 1e9);
-  // The smoothed state of epoch `e` carried to t_ns (either way) by the motion model.
+  const double w = 1.0 / options_.correlation_s;
+  // The smoothed state of epoch `e` carried to t_ns (either way) by the model.
   auto carried = [&](const Epoch& e) -> std::optional<BaselineCorrection> {
     if (std::abs(t_ns - e.t_ns) > max_gap_ns) return std::nullopt;
-    const double dt = static_cast<double>(t_ns - e.t_ns) / 1e9;
-    const Mat6 F = transition(dt);
-    const Vec6 x = F * e.x;
-    const Mat6 P = F * e.P * F.transpose() + process_noise(dt, options_.accel_psd_m2ps3);
-    return BaselineCorrection{x.head<3>(), P.diagonal().head<3>().cwiseSqrt()};
+    Vec6 x = e.x;
+    Mat6 P = e.P;
+    carry(static_cast<double>(t_ns - e.t_ns) / 1e9, w, e.P_stationary, x, P);
+    return BaselineCorrection{x.head<3>(), P.topLeftCorner<3, 3>()};
   };
   const auto after = std::upper_bound(epochs_.begin(), epochs_.end(), t_ns,
                                       [](TimestampNs t, const Epoch& e) { return t < e.t_ns; });
@@ -239,13 +263,13 @@ std::optional<BaselineCorrection> BaselineFusion::at(TimestampNs t_ns) const {
       if (auto from_b = carried(*after)) return from_b;
     return from_a;
   }
-  // Between two smoothed epochs of a segment: linear in time between them.
+  // Between two smoothed epochs of a segment (at most fill_step_s apart in a gap): linear in time.
   const Epoch& b = *after;
-  const double w =
+  const double u =
       b.t_ns == a.t_ns ? 0.0 : static_cast<double>(t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns);
   BaselineCorrection c;
-  c.e_ned_m = (1 - w) * a.x.head<3>() + w * b.x.head<3>();
-  c.sigma_ned_m = ((1 - w) * a.P.diagonal().head<3>() + w * b.P.diagonal().head<3>()).cwiseSqrt();
+  c.e_ned_m = (1 - u) * a.x.head<3>() + u * b.x.head<3>();
+  c.cov_ned_m2 = (1 - u) * a.P.topLeftCorner<3, 3>() + u * b.P.topLeftCorner<3, 3>();
   return c;
 }
 

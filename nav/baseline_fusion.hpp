@@ -2,16 +2,25 @@
 // relative to the tanker's, NED at the tanker's antenna) fused, as a relative measurement, with the
 // same vector as the two aircraft's GPS/INS solutions give it. Their difference is the error of the
 // INS baseline, e(t) = truth - ins; it is what ties the two solutions together, and it is what a
-// joint filter's relative states would estimate. Here it is estimated on its own: a Kalman filter
-// and RTS smoother over the measurement epochs with state [e, de/dt] (per NED axis: constant
-// velocity driven by white acceleration of spectral density accel_psd), each measurement
-//   z_k = baseline_k - ins_baseline(t_k) = e(t_k) + v_k,  v_k ~ N(0, sigma_k^2)
-// with sigma_k the receiver's reported accuracy (float solutions at least float_sigma_floor_m;
-// invalid ones, without relPosValid, skipped), gated by its innovation's chi-square (3 degrees of
-// freedom). The corrected baseline at any time t inside the measurements' span is ins(t) + e(t),
-// e interpolated between the smoothed epochs, with its 1-sigma. Because e varies slowly (both INS
-// solutions are smooth), centimetre baselines at a few hertz give centimetre relative positions at
-// every camera frame, even when the absolute GPS of both aircraft is metres off.
+// joint filter's relative states would estimate. Here it is estimated on its own, by a Kalman
+// filter and RTS smoother over the measurement epochs, which is equivalent as long as the two
+// solutions' errors are independent of the baseline's:
+//   model        e is a second-order (critically damped) Gauss-Markov process, state [e, de/dt],
+//                with the stationary covariance the solutions report, S = s^2 Sigma(t) (Sigma: the
+//                sum of the two antennas' position covariances) and correlation time tau: bounded
+//                by what the absolute GPS says, and as smooth as the INS makes it;
+//   measurement  z_k = baseline_k - ins_baseline(t_k) = e(t_k) + v_k,  v_k ~ N(0, sigma_k^2), sigma_k
+//                the receiver's reported accuracy (float solutions at least float_sigma_floor_m;
+//                invalid ones, without relPosValid, skipped), gated by the innovation's chi-square
+//                (3 degrees of freedom);
+//   s and tau    unless given, the pair whose innovations are most likely (a grid): s > 1 says the
+//                solutions' sigma is optimistic (a filter fed slowly wandering single-point errors
+//                as if white reports centimetres for metres);
+//   at(t)        the smoothed e at t (between epochs: interpolated; gaps are filled with prediction
+//                epochs so an outage's sigma grows and falls as it should), with its covariance.
+// With metres-off absolute GPS the baseline decides (S is large); with RTK on both aircraft the two
+// average, better than either; far from any baseline the correction fades to zero and its sigma to
+// the solutions' own.
 #pragma once
 
 #include <cstdint>
@@ -35,42 +44,51 @@ struct BaselineMeasurement {
   bool valid = true;                                      // relPosValid
 };
 
+// The two solutions' antenna-to-antenna vector at a time, NED at the base antenna, and the sum of
+// the antennas' position covariances (NED).
+struct InsBaselineSample {
+  Eigen::Vector3d ned_m = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d cov_ned_m2 = Eigen::Matrix3d::Identity();
+};
+
 struct BaselineFusionOptions {
-  // White acceleration of e driving the model, (m/s^2)^2/Hz; 0: the most likely one given the
-  // measurements (maximum likelihood of the innovations over 1e-7..1e2, half decades).
-  double accel_psd_m2ps3 = 0;
+  double sigma_scale = 0;       // s; 0: the most likely of 1 .. 1000
+  double correlation_s = 0;     // tau; 0: the most likely of 0.3 .. 300 s
   double sigma_floor_m = 0.005;       // no measurement trusted below this per axis
-  double float_sigma_floor_m = 0.10;  // float solutions (ambiguities not fixed) at least this
+  double float_sigma_floor_m = 0.30;  // float solutions (ambiguities not fixed: biased by decimetres)
   bool use_float = true;
   double gate_chi2 = 16.27;        // innovation chi-square (3 dof) beyond this: rejected (p = 0.001)
-  int reset_after_rejections = 5;  // so many rejections in a row: the filter restarts there
-  double max_gap_s = 2.0;          // no correction farther than this from a used measurement
+  int reset_after_rejections = 5;  // so many fixed solutions rejected in a row: the filter restarts there
+  double fill_step_s = 0.2;        // gaps longer than this get prediction epochs this far apart
+  double max_gap_s = 5.0;          // no correction farther than this before the first or after the last
 };
 
 struct BaselineCorrection {
-  Eigen::Vector3d e_ned_m = Eigen::Vector3d::Zero();      // add to the INS baseline
-  Eigen::Vector3d sigma_ned_m = Eigen::Vector3d::Zero();  // 1-sigma of the corrected baseline
+  Eigen::Vector3d e_ned_m = Eigen::Vector3d::Zero();        // add to the INS baseline
+  Eigen::Matrix3d cov_ned_m2 = Eigen::Matrix3d::Zero();     // of the corrected baseline
+  Eigen::Vector3d sigma_ned_m() const { return cov_ned_m2.diagonal().cwiseSqrt(); }
 };
 
 struct BaselineFusionReport {
   std::size_t measurements = 0, used = 0, used_float = 0;
   std::size_t invalid = 0, float_skipped = 0, outside_ins = 0, rejected = 0, resets = 0;
   double innovation_rms_m = 0;  // of the used measurements, before the update
-  double accel_psd_m2ps3 = 0;   // the model's, as given or chosen
+  double sigma_scale = 1;       // s, as given or chosen
+  double correlation_s = 0;     // tau, as given or chosen
   std::string summary() const;  // one line, every count
 };
 
 class BaselineFusion {
  public:
-  // `ins_baseline(t_ns)`: the INS solutions' base -> rover antenna vector (NED at the base
-  // antenna) at t_ns, nullopt outside their span. Measurements need not be sorted. Errors: no
-  // measurement could be used.
+  // `ins_baseline(t_ns)`: the INS solutions' base -> rover antenna vector and covariance at t_ns,
+  // nullopt outside their span. Measurements need not be sorted. Errors: no measurement could be
+  // used.
   static Expected<BaselineFusion> fuse(
       std::vector<BaselineMeasurement> measurements,
-      const std::function<std::optional<Eigen::Vector3d>(TimestampNs)>& ins_baseline,
+      const std::function<std::optional<InsBaselineSample>(TimestampNs)>& ins_baseline,
       const BaselineFusionOptions& options = {});
-  // The correction at t_ns; nullopt before the first or after the last used measurement by more
-  // than max_gap_s, or in a gap between used measurements longer than 2 max_gap_s.
+  // The correction at t_ns; nullopt before the first or after the last epoch by more than
+  // max_gap_s.
   std::optional<BaselineCorrection> at(TimestampNs t_ns) const;
   const BaselineFusionReport& report() const { return report_; }
 
@@ -79,7 +97,8 @@ class BaselineFusion {
     TimestampNs t_ns = 0;
     Eigen::Matrix<double, 6, 1> x;  // smoothed [e, de/dt]
     Eigen::Matrix<double, 6, 6> P;
-    bool segment_start = false;  // a restart: no interpolation across it
+    Eigen::Matrix<double, 6, 6> P_stationary;  // the model's there
+    bool segment_start = false;                // a restart: no interpolation across it
   };
   std::vector<Epoch> epochs_;
   BaselineFusionOptions options_;

@@ -11,6 +11,7 @@
 #include "core/yaml_reader.hpp"
 #include "nav/gps_time.hpp"
 #include "nav/nmea.hpp"
+#include "pipeline/baseline_nav.hpp"
 #include "sim/scenario.hpp"
 
 namespace augrig::pipeline {
@@ -322,7 +323,10 @@ Expected<FramePose> RelativeNav::at(int camera, TimestampNs t_camera_ns) const {
   if (!tk) return make_error("RelativeNav::at(): tanker: ", tk.error().message);
   auto rx = receiver_.at(t_nav_ns);
   if (!rx) return make_error("RelativeNav::at(): receiver: ", rx.error().message);
-  return frame_pose(*tk, *rx, t_nav_ns, rig_, camera, boom_, receptacle_m_);
+  const bool corrected = baseline_ && baseline_->correct(t_nav_ns, *tk, *rx);
+  FramePose f = frame_pose(*tk, *rx, t_nav_ns, rig_, camera, boom_, receptacle_m_);
+  f.baseline_corrected = corrected;
+  return f;
 }
 
 nav::CameraPoseRow FramePose::row(std::uint64_t sequence, int camera_index, TimestampNs t_camera_ns) const {

@@ -6,6 +6,7 @@
 //                    a per-camera offset), with its 1-sigma, and the boom tracking the receptacle.
 #pragma once
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -80,6 +81,7 @@ struct FramePose {
   nav::RelativePose body;    // receiver in the tanker body frame
   nav::RelativePose camera;  // receiver in the camera (T_cam_receiver)
   BoomCommand boom;          // track-receptacle articulation
+  bool baseline_corrected = false;  // the moving baseline corrected the relative position
   nav::CameraPoseRow row(std::uint64_t sequence, int camera_index, TimestampNs t_camera_ns) const;
 };
 
@@ -87,6 +89,8 @@ struct FramePose {
 FramePose frame_pose(const nav::NavState& tanker, const nav::NavState& receiver, TimestampNs t_nav_ns,
                      const Rig& rig, int camera, const BoomDimensions& boom,
                      const Eigen::Vector3d& receptacle_m);
+
+class BaselineNav;  // pipeline/baseline_nav.hpp
 
 class RelativeNav {
  public:
@@ -101,6 +105,8 @@ class RelativeNav {
   }
   // When both forward filters had converged (nav clock); nullopt: one never did, or smoothed.
   std::optional<TimestampNs> converged_ns() const;
+  // The moving baseline's correction of the relative position, where it has one (null: none).
+  void set_baseline(std::shared_ptr<const BaselineNav> baseline) { baseline_ = std::move(baseline); }
   const nav::NavTrajectory& tanker() const { return tanker_; }
   const nav::NavTrajectory& receiver() const { return receiver_; }
 
@@ -110,6 +116,7 @@ class RelativeNav {
   BoomDimensions boom_;
   Eigen::Vector3d receptacle_m_;
   std::vector<TimestampNs> camera_offset_ns_;
+  std::shared_ptr<const BaselineNav> baseline_;
 };
 
 // Position/attitude block of a nav state's covariance, as nav::PoseWithCovariance wants it.
