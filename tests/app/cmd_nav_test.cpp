@@ -261,6 +261,56 @@ TEST(CmdNav, ForwardOnlySaysWhichRowsAreConverging) {
   EXPECT_EQ(read_all(dir + "/smoothed.csv").find("# converging"), std::string::npos);
 }
 
+// Single-point GPS on both aircraft and the rover's moving-baseline log in the receiver folder:
+// nav picks the log up by itself, says what it read and used, and the poses come out centimetres
+// right instead of metres; a damaged log is read around its damage; a missing one is an error.
+TEST(CmdNav, MovingBaselineFromTheRoverLog) {
+  const std::string d = output_dir("cmd_nav_moving_baseline");
+  std::string log;
+  ASSERT_EQ(augrig("sim --scenario " + test::data_path("scenarios/moving_baseline.yaml") + " --no-images --out " + d,
+                   &log),
+            0)
+      << log;
+  ASSERT_TRUE(fs::exists(d + "/receiver/rover.ubx"));
+  const std::string truth = d + "/truth/poses.csv";
+  ASSERT_EQ(augrig(nav_args(d, d + "/with.csv"), &log), 0) << log;
+  EXPECT_NE(log.find("receiver/rover.ubx: 151 UBX frames (151 NAV-RELPOSNED"), std::string::npos) << log;
+  EXPECT_NE(log.find("moving-baseline RTK: 151 measurements"), std::string::npos) << log;
+  EXPECT_NE(log.find("(optimistic)"), std::string::npos) << "single-point solutions' sigma: " << log;
+  auto poses = nav::read_camera_pose_csv(d + "/with.csv");
+  ASSERT_TRUE(poses);
+  EXPECT_NE(log.find("Moving baseline: " + std::to_string(poses->rows.size()) + " of " +
+                     std::to_string(poses->rows.size()) + " poses corrected"),
+            std::string::npos)
+      << log;
+  std::ifstream f(d + "/with.csv");
+  const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("# moving_baseline: " + d + "/receiver/rover.ubx:"), std::string::npos);
+  ASSERT_EQ(augrig(nav_args(d, d + "/without.csv") + " --no-baseline", &log), 0) << log;
+  EXPECT_EQ(log.find("Moving baseline"), std::string::npos) << log;
+  const double with_mm = rms_error_mm(d + "/with.csv", truth), without_mm = rms_error_mm(d + "/without.csv", truth);
+  std::printf("camera-frame position RMS: %.1f mm with the moving baseline, %.1f mm without\n", with_mm, without_mm);
+  EXPECT_GT(without_mm, 500.0);
+  EXPECT_LT(with_mm, 30.0);
+
+  // Damage: bytes flipped in two frames, the end cut off.
+  std::ifstream in(d + "/receiver/rover.ubx", std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  bytes[100] = static_cast<char>(bytes[100] ^ 0x5A);
+  bytes[2000] = static_cast<char>(bytes[2000] ^ 0x01);
+  bytes.resize(bytes.size() - 30);
+  std::ofstream(d + "/damaged.ubx", std::ios::binary) << bytes;
+  ASSERT_EQ(augrig(nav_args(d, d + "/damaged.csv") + " --baseline " + d + "/damaged.ubx", &log), 0) << log;
+  EXPECT_NE(log.find("damaged.ubx: 148 UBX frames (148 NAV-RELPOSNED"), std::string::npos) << log;
+  EXPECT_NE(log.find("2 bad checksums"), std::string::npos) << log;
+  EXPECT_NE(log.find("bytes cut off at the end"), std::string::npos) << log;
+  EXPECT_LT(rms_error_mm(d + "/damaged.csv", truth), 30.0);
+
+  EXPECT_EQ(augrig(nav_args(d, d + "/x.csv") + " --baseline " + d + "/missing.ubx", &log), 1);
+  EXPECT_NE(log.find(d + "/missing.ubx"), std::string::npos) << log;
+  EXPECT_EQ(augrig(nav_args(d, d + "/x.csv") + " --baseline " + d + "/damaged.ubx --no-baseline", &log), 2);
+}
+
 TEST(CmdNav, BadInputsExitOneWithTheFile) {
   const std::string d = dataset();
   const std::string dir = output_dir("cmd_nav_errors");
