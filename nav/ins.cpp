@@ -67,6 +67,61 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// The whole covariance of the 15 inertial and the 2 IMU clock error states [offset, drift] (only
+// with the clock estimated: the 15-state filter never builds it).
+using Matrix17d = Eigen::Matrix<double, 17, 17>;
+using Vector17d = Eigen::Matrix<double, 17, 1>;
+constexpr int kErrClock = 15;
+
+Matrix17d assemble(const Matrix15d& P, const ImuClockCovariance& c) {
+  Matrix17d A;
+  A.topLeftCorner<15, 15>() = P;
+  A.topRightCorner<15, 2>() = c.P_xc;
+  A.bottomLeftCorner<2, 15>() = c.P_xc.transpose();
+  A.bottomRightCorner<2, 2>() = c.P_cc;
+  return A;
+}
+
+void split(const Matrix17d& A, Matrix15d& P, ImuClockCovariance& c) {
+  P = A.topLeftCorner<15, 15>();
+  c.P_xc = A.topRightCorner<15, 2>();
+  c.P_cc = A.bottomRightCorner<2, 2>();
+}
+
+// The clock part of x (+) dx.
+void clock_boxplus(InertialState& x, double d_offset_s, double d_drift) {
+  x.imu_clock_offset_s += d_offset_s;
+  x.imu_clock_drift_s_per_s += d_drift;
+}
+
+// One Kalman update of covariance P (N states) by measurement y = H dx + noise(R), Joseph form: the
+// correction dx. False (nothing changed) when S is not positive definite, or the normalised
+// innovation squared (into *nis) exceeds `gate` unless `force`.
+template <int N, int M>
+bool ekf_update(Eigen::Matrix<double, N, N>& P, const Eigen::Matrix<double, M, 1>& y,
+                const Eigen::Matrix<double, M, N>& H, const Eigen::Matrix<double, M, M>& R, double gate,
+                bool force, double* nis, Eigen::Matrix<double, N, 1>& dx) {
+  using MatrixN = Eigen::Matrix<double, N, N>;
+  const Eigen::Matrix<double, N, M> PHt = P * H.transpose();
+  Eigen::Matrix<double, M, M> S = H * PHt + R;
+  const Eigen::LLT<Eigen::Matrix<double, M, M>> llt(S);
+  if (llt.info() != Eigen::Success) return false;
+  const double chi2 = y.dot(llt.solve(y));
+  if (nis) *nis = chi2;
+  if (!force && chi2 > gate) return false;
+  const Eigen::Matrix<double, N, M> K = llt.solve(PHt.transpose()).transpose();
+  dx = K * y;
+  // Joseph form.
+  MatrixN IKH = MatrixN::Identity();
+  IKH.noalias() -= K * H;
+  MatrixN tmp;
+  tmp.noalias() = IKH * P;
+  P.noalias() = tmp * IKH.transpose();
+  P.noalias() += K * R * K.transpose();
+  P = 0.5 * (P + P.transpose()).eval();
+  return true;
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -121,7 +176,10 @@ void Strapdown::refresh_gravity(const Vector3d& p_ecef_m) {
 }
 
 void Strapdown::step(const Vector3d& dtheta_rad, const Vector3d& dv_mps, TimestampNs t_end_ns) {
-  const double dt = ns_to_s(t_end_ns - x_.t_ns);
+  // The step on the IMU clock, dt_clock, lasts dt_clock (1 - drift) of GPS time (the drift is 0
+  // unless the IMU clock is estimated): gravity, Earth rate and position integrate over that.
+  const double dt_clock = ns_to_s(t_end_ns - x_.t_ns);
+  const double dt = dt_clock * (1.0 - x_.imu_clock_drift_s_per_s);
   const Vector3d a = dtheta_rad - x_.gyro_bias_radps * dt;
   const Vector3d u = dv_mps - x_.accel_bias_mps2 * dt;
 
@@ -155,6 +213,7 @@ void Strapdown::step(const Vector3d& dtheta_rad, const Vector3d& dv_mps, Timesta
   const double h = 0.5 * kEarthRate_radps * dt;
   const Quaterniond q_earth(std::cos(h), 0.0, 0.0, -std::sin(h));
   x_.q_ecef_body = (q_earth * x_.q_ecef_body * quat_exp(phi)).normalized();
+  x_.imu_clock_offset_s += x_.imu_clock_drift_s_per_s * dt_clock;  // 0 when the clock is not estimated
   x_.t_ns = t_end_ns;
   last_R_ = R;
   last_dv_ecef_ = dv_e;
@@ -463,6 +522,19 @@ Status FusionEngine::initialise() {
       Matrix3d::Identity() * cfg_.imu.gyro_bias.sigma * cfg_.imu.gyro_bias.sigma;
   P_.block<3, 3>(kErrAccelBias, kErrAccelBias) =
       Matrix3d::Identity() * cfg_.imu.accel_bias.sigma * cfg_.imu.accel_bias.sigma;
+  if (clock_) {
+    // The IMU clock: prior offset and drift 0. The first fix was valid at IMU time t0 + c, not t0,
+    // so the body position put at t0 is off by -v dc (v the antenna's velocity, its rotation left
+    // out): dp = -v dc, with the matching cross-covariance.
+    const ImuClockModel& m = cfg_.imu_clock;
+    const double s2 = m.offset_sigma_s * m.offset_sigma_s;
+    Pc_ = {};
+    Pc_.P_cc(0, 0) = s2;
+    Pc_.P_cc(1, 1) = m.drift_sigma * m.drift_sigma;
+    const Vector3d& v = x.v_ecef_mps;
+    P_.block<3, 3>(kErrPos, kErrPos) += (s2 * v) * v.transpose();
+    Pc_.P_xc.block<3, 1>(kErrPos, 0) = -s2 * v;
+  }
 
   // The increment holding the data just after t0.
   imu_index_ = static_cast<std::size_t>(
@@ -482,9 +554,16 @@ namespace {
 
 // One covariance step of length T over which the strapdown accumulated sum(R_ecef_body dt) and
 // sum(dv_ecef): P <- Phi P Phi^T + Q with the first-order error model (docs/NAV_FUSION.md) and a
-// second-order Phi; the transition is also multiplied into *Phi_acc when given.
-void covariance_step(const InsConfig& cfg, const Vector3d& p_ecef_m, const Matrix3d& sum_R_dt,
-                     const Vector3d& sum_dv_e, double T, Matrix15d& P, Matrix15d* Phi_acc) {
+// second-order Phi; the transition is also multiplied into *Phi_acc when given. With `clock` (the
+// IMU clock estimated) its blocks too: offset' = drift, and since the strapdown integrates over
+// GPS time (Strapdown::step), a drift error dd moves the position by -v dd and the velocity by
+// -(g - 2 w_ie x v) dd per second; the transition is [Phi B; 0 C], C = [1 T; 0 1], and B (15x2) is
+// accumulated into *Phi_xc_acc when given (the epoch's: B_acc <- Phi B_acc + B, B's offset column
+// being 0).
+void covariance_step(const InsConfig& cfg, const Vector3d& p_ecef_m, const Vector3d& v_ecef_mps,
+                     const Matrix3d& sum_R_dt, const Vector3d& sum_dv_e, double T, Matrix15d& P,
+                     Matrix15d* Phi_acc, ImuClockCovariance* clock = nullptr,
+                     Eigen::Matrix<double, 15, 2>* Phi_xc_acc = nullptr) {
   const Matrix3d Rbar = sum_R_dt / T;
   const Vector3d fbar = sum_dv_e / T;
   const Matrix3d W = skew(earth_rate_ecef());
@@ -519,6 +598,40 @@ void covariance_step(const InsConfig& cfg, const Vector3d& p_ecef_m, const Matri
   Matrix15d tmp;
   tmp.noalias() = Phi * P;
   P.noalias() = tmp * Phi.transpose();
+  if (clock) {
+    using Matrix15x2 = Eigen::Matrix<double, 15, 2>;
+    Matrix15x2 FTxc = Matrix15x2::Zero();
+    FTxc.block<3, 1>(kErrPos, 1) = -T * v_ecef_mps;
+    FTxc.block<3, 1>(kErrVel, 1) = -T * (gravity_ecef(p_ecef_m) - 2.0 * earth_rate_ecef().cross(v_ecef_mps));
+    Matrix15x2 B = FTxc;
+    B.noalias() += 0.5 * FT * FTxc;
+    const ImuClockModel& m = cfg.imu_clock;
+    const Eigen::Vector2d qc = 0.5 * T *
+                               Eigen::Vector2d(m.offset_random_walk_s_psqrts * m.offset_random_walk_s_psqrts,
+                                               m.drift_random_walk_psqrts * m.drift_random_walk_psqrts);
+    Eigen::Matrix2d& Pcc = clock->P_cc;
+    Pcc.diagonal() += qc;
+    Matrix15x2 APxc;
+    APxc.noalias() = Phi * clock->P_xc;
+    // P <- Phi P Phi^T + Phi Pxc B^T + B Pxc^T Phi^T + B Pcc B^T
+    tmp.noalias() = APxc * B.transpose();
+    P += tmp + tmp.transpose();
+    P.noalias() += B * Pcc * B.transpose();
+    // Pxc <- (Phi Pxc + B Pcc) C^T, Pcc <- C Pcc C^T
+    Matrix15x2 Pxc = APxc;
+    Pxc.noalias() += B * Pcc;
+    Pxc.col(0) += T * Pxc.col(1);
+    clock->P_xc = Pxc;
+    Eigen::Matrix2d C;
+    C << 1.0, T, 0.0, 1.0;
+    Pcc = (C * Pcc * C.transpose()).eval();
+    Pcc.diagonal() += qc;
+    if (Phi_xc_acc) {
+      Matrix15x2 acc = B;
+      acc.noalias() += Phi * *Phi_xc_acc;
+      *Phi_xc_acc = acc;
+    }
+  }
   P.diagonal() += q;
   if (Phi_acc) {
     tmp.noalias() = Phi * *Phi_acc;
@@ -530,7 +643,8 @@ void covariance_step(const InsConfig& cfg, const Vector3d& p_ecef_m, const Matri
 
 void FusionEngine::propagate_covariance() {
   if (step_dt_ <= 0) return;
-  covariance_step(cfg_, mech_.state().p_ecef_m, sum_R_dt_, sum_dv_e_, step_dt_, P_, &Phi_epoch_);
+  covariance_step(cfg_, mech_.state().p_ecef_m, mech_.state().v_ecef_mps, sum_R_dt_, sum_dv_e_, step_dt_, P_,
+                  &Phi_epoch_, clock_ ? &Pc_ : nullptr, clock_ ? &Phi_xc_epoch_ : nullptr);
   sum_R_dt_.setZero();
   sum_dv_e_.setZero();
   step_dt_ = 0;
@@ -538,25 +652,25 @@ void FusionEngine::propagate_covariance() {
 
 template <int M>
 bool FusionEngine::kalman_update(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, 15>& H,
-                                 const Eigen::Matrix<double, M, M>& R, double gate, bool force, double* nis) {
-  const Eigen::Matrix<double, 15, M> PHt = P_ * H.transpose();
-  Eigen::Matrix<double, M, M> S = H * PHt + R;
-  const Eigen::LLT<Eigen::Matrix<double, M, M>> llt(S);
-  if (llt.info() != Eigen::Success) return false;
-  const double chi2 = y.dot(llt.solve(y));
-  if (nis) *nis = chi2;
-  if (!force && chi2 > gate) return false;
-  const Eigen::Matrix<double, 15, M> K = llt.solve(PHt.transpose()).transpose();
-  const Vector15d dx = K * y;
-  // Joseph form.
-  Matrix15d IKH = Matrix15d::Identity();
-  IKH.noalias() -= K * H;
-  Matrix15d tmp;
-  tmp.noalias() = IKH * P_;
-  P_.noalias() = tmp * IKH.transpose();
-  P_.noalias() += K * R * K.transpose();
-  P_ = 0.5 * (P_ + P_.transpose()).eval();
-  mech_.state() = boxplus(mech_.state(), dx);
+                                 const Eigen::Matrix<double, M, M>& R, double gate, bool force, double* nis,
+                                 const Eigen::Matrix<double, M, 2>* Hc) {
+  if (!clock_) {
+    Vector15d dx;
+    if (!ekf_update<15, M>(P_, y, H, R, gate, force, nis, dx)) return false;
+    mech_.state() = boxplus(mech_.state(), dx);
+    return true;
+  }
+  // With the clock states: the same update over all 17.
+  Matrix17d P = assemble(P_, Pc_);
+  Eigen::Matrix<double, M, 17> H17 = Eigen::Matrix<double, M, 17>::Zero();
+  H17.template leftCols<15>() = H;
+  if (Hc) H17.template rightCols<2>() = *Hc;
+  Vector17d dx;
+  if (!ekf_update<17, M>(P, y, H17, R, gate, force, nis, dx)) return false;
+  split(P, P_, Pc_);
+  InertialState& x = mech_.state();
+  x = boxplus(x, dx.head<15>());
+  clock_boxplus(x, dx(kErrClock), dx(kErrClock + 1));
   return true;
 }
 
@@ -565,13 +679,31 @@ void FusionEngine::update_at_fix(const Fix& fix) {
   InertialState& x = mech_.state();
   const Matrix3d R_eb = x.q_ecef_body.toRotationMatrix();
   const Vector3d l_e = R_eb * cfg_.lever_arm_body_m;
+  // With the IMU clock estimated (docs/NAV_FUSION.md, "IMU clock"): the fix was valid at IMU-clock
+  // time t_gps + c, the filter is at t (the same but for ns rounding, or a clamp), so each
+  // measurement is predicted dt_fix = t_gps + c^ - t ahead along its rate, and its sensitivity to
+  // an offset error dc (truth c^ + dc) is that rate: p_fix = p_ant(t_gps + c^ + dc) ~ p_ant(t) +
+  // v_ant (dt_fix + dc).
+  double dt_fix = 0;
+  Vector3d w_ib_b = Vector3d::Zero(), v_antenna = Vector3d::Zero();
+  if (clock_) {
+    dt_fix = ns_to_s(fix.t_ns - x.t_ns) + x.imu_clock_offset_s;
+    const Strapdown::History& h = mech_.history();
+    if (h.dt_s > 0) w_ib_b = h.dtheta_rad / h.dt_s;
+    v_antenna = x.v_ecef_mps + R_eb * w_ib_b.cross(cfg_.lever_arm_body_m) - earth_rate_ecef().cross(l_e);
+  }
 
   // Position of the antenna.
   {
-    const Vector3d y = fix.p_ecef_m - (x.p_ecef_m + l_e);
+    Vector3d y = fix.p_ecef_m - (x.p_ecef_m + l_e);
     Eigen::Matrix<double, 3, 15> H = Eigen::Matrix<double, 3, 15>::Zero();
     H.block<3, 3>(0, kErrPos).setIdentity();
     H.block<3, 3>(0, kErrAtt) = -skew(l_e);
+    Eigen::Matrix<double, 3, 2> Hc = Eigen::Matrix<double, 3, 2>::Zero();
+    if (clock_) {
+      y -= v_antenna * dt_fix;
+      Hc.col(0) = v_antenna;
+    }
     const Matrix3d R = fix.R_en * fix.sigma_ned_m.cwiseAbs2().asDiagonal() * fix.R_en.transpose();
     // No gating while the filter is still levelling itself (tilt 1-sigma above the threshold): its
     // innovations are not yet trustworthy enough to call a fix an outlier.
@@ -580,7 +712,7 @@ void FusionEngine::update_at_fix(const Fix& fix) {
         std::max(P_att_n(0, 0), P_att_n(1, 1)) < cfg_.gate_tilt_sigma_rad * cfg_.gate_tilt_sigma_rad;
     const bool force = !converged || rejection_streak_ >= cfg_.max_consecutive_rejections;
     double nis = -1;
-    const bool used = kalman_update<3>(y, H, R, cfg_.gate_chi2, force, &nis);
+    const bool used = kalman_update<3>(y, H, R, cfg_.gate_chi2, force, &nis, &Hc);
     if (nis >= 0) note_innovation(fix.t_ns, nis, used, converged);
     if (used) {
       ++rep.fixes_used;
@@ -605,7 +737,17 @@ void FusionEngine::update_at_fix(const Fix& fix) {
       Eigen::Matrix<double, 1, 1> y, R;
       y(0) = wrap_pi(*fix.heading_rad - cfg_.heading_offset_rad - std::atan2(c.y(), c.x()));
       R(0) = cfg_.heading_sigma_rad * cfg_.heading_sigma_rad;
-      if (kalman_update<1>(y, H, R, cfg_.heading_gate_chi2, false))
+      Eigen::Matrix<double, 1, 2> Hc = Eigen::Matrix<double, 1, 2>::Zero();
+      if (clock_) {
+        // The heading's rate: the x axis turning at the body rate w.r.t. the Earth.
+        const Vector3d w_eb = w_ib_b - x.q_ecef_body.conjugate() * earth_rate_ecef();
+        const Vector3d c_dot = R_en.transpose() * (x.q_ecef_body * w_eb.cross(Vector3d::UnitX()));
+        const double yaw_rate = (gvec * c_dot).value();
+        dt_fix = ns_to_s(fix.t_ns - x.t_ns) + x.imu_clock_offset_s;  // the position update moved c^
+        y(0) -= yaw_rate * dt_fix;
+        Hc(0, 0) = yaw_rate;
+      }
+      if (kalman_update<1>(y, H, R, cfg_.heading_gate_chi2, false, nullptr, &Hc))
         ++rep.heading_updates;
       else
         ++rep.heading_rejected;
@@ -625,10 +767,20 @@ void FusionEngine::update_at_fix(const Fix& fix) {
     Eigen::Matrix<double, 2, 15> H = Eigen::Matrix<double, 2, 15>::Zero();
     H.block<2, 3>(0, kErrVel) = Rne;
     H.block<2, 3>(0, kErrAtt) = Rne * (-skew(wl) + skew(W) * skew(le));
-    const Eigen::Vector2d y = *fix.v_ne_mps - Rne * v_ant;
+    Eigen::Vector2d y = *fix.v_ne_mps - Rne * v_ant;
     const double s2 = cfg_.ground_velocity_sigma_mps * cfg_.ground_velocity_sigma_mps;
     const Eigen::Matrix2d R = Eigen::Matrix2d::Identity() * s2;
-    if (kalman_update<2>(y, H, R, cfg_.ground_velocity_gate_chi2, false))
+    Eigen::Matrix<double, 2, 2> Hc = Eigen::Matrix<double, 2, 2>::Zero();
+    if (clock_ && h.dt_s > 0) {
+      // The velocity's rate: the body's acceleration (specific force + gravity - Coriolis; the lever
+      // arm's angular acceleration left out).
+      const Vector3d a_e = Rb * (h.dv_mps / h.dt_s) + gravity_ecef(x.p_ecef_m) - 2.0 * W.cross(x.v_ecef_mps);
+      const Eigen::Vector2d a_ne = Rne * a_e;
+      dt_fix = ns_to_s(fix.t_ns - x.t_ns) + x.imu_clock_offset_s;
+      y -= a_ne * dt_fix;
+      Hc.col(0) = a_ne;
+    }
+    if (kalman_update<2>(y, H, R, cfg_.ground_velocity_gate_chi2, false, nullptr, &Hc))
       ++rep.velocity_updates;
     else
       ++rep.velocity_rejected;
@@ -636,8 +788,10 @@ void FusionEngine::update_at_fix(const Fix& fix) {
 }
 
 void FusionEngine::store_epoch() {
-  traj_.epochs_.push_back({mech_.state(), mech_.history(), imu_index_});
+  traj_.epochs_.push_back({mech_.state(), mech_.history(), imu_index_, 0});
   traj_.P_.push_back(P_);
+  if (clock_) traj_.clock_P_.push_back(Pc_);
+  traj_.set_gps_time(traj_.epochs_.size() - 1);
   note_convergence();
 }
 
@@ -657,8 +811,27 @@ void FusionEngine::note_convergence() {
   for (int i = 0; i < 3; ++i)
     if (sigma[i] < (1.0 - cfg_.convergence_sigma_drop) * sigma_old[i]) return;
   rep.converged = true;
-  rep.converged_ns = t;
+  rep.converged_ns = traj_.epochs_.back().t_gps_ns;
   attitude_sigmas_.clear();
+}
+
+void FusionEngine::note_clock(std::size_t k) {
+  FusionReport& rep = traj_.report_;
+  const InertialState& x = traj_.epochs_[k].x;
+  const Eigen::Matrix2d& C = traj_.clock_P_[k].P_cc;
+  rep.imu_clock_estimated = true;
+  rep.imu_clock_t_ns = traj_.epochs_[k].t_gps_ns;
+  rep.imu_clock_offset_s = x.imu_clock_offset_s;
+  rep.imu_clock_offset_sigma_s = std::sqrt(std::max(C(0, 0), 0.0));
+  rep.imu_clock_drift_s_per_s = x.imu_clock_drift_s_per_s;
+  rep.imu_clock_drift_sigma = std::sqrt(std::max(C(1, 1), 0.0));
+}
+
+TimestampNs FusionEngine::fix_time(const Fix& f, bool clamp) const {
+  if (!clock_) return f.t_ns;
+  const InertialState& x = mech_.state();
+  const TimestampNs t = NavTrajectory::imu_time(x, f.t_ns);
+  return clamp ? std::max(t, x.t_ns + 1) : t;
 }
 
 void FusionEngine::note_fix_gap(TimestampNs t_ns) {
@@ -689,9 +862,12 @@ void FusionEngine::filter_to(TimestampNs t_end, bool batch) {
     TimestampNs target = t_epoch_ + max_epoch_ns;
     if (batch) target = std::min(target, t_end);
     const Fix* fix = nullptr;
-    if (next_fix_ < fixes_.size() && fixes_[next_fix_].t_ns <= target) {
-      fix = &fixes_[next_fix_];
-      target = fix->t_ns;
+    if (next_fix_ < fixes_.size()) {
+      const TimestampNs t_fix = fix_time(fixes_[next_fix_], true);
+      if (t_fix <= target) {
+        fix = &fixes_[next_fix_];
+        target = t_fix;
+      }
     }
     if (target > t_end) break;
     if (fix) ++next_fix_;
@@ -700,13 +876,18 @@ void FusionEngine::filter_to(TimestampNs t_end, bool batch) {
     if (batch) {  // the smoother's inputs
       x_pred_.push_back(mech_.state());
       P_pred_.push_back(P_);
+      if (clock_) {
+        Pc_pred_.push_back(Pc_);
+        Phi_xc_.push_back(Phi_xc_epoch_);
+      }
       Phi_.push_back(Phi_epoch_);
     }
     Phi_epoch_.setIdentity();
+    if (clock_) Phi_xc_epoch_.setZero();
     if (fix) {
       const std::size_t used = rep.fixes_used;
       update_at_fix(*fix);
-      if (rep.fixes_used > used) note_fix_gap(fix->t_ns);
+      if (rep.fixes_used > used) note_fix_gap(target);
     }
     store_epoch();
     t_epoch_ = target;
@@ -727,10 +908,19 @@ void FusionEngine::forward() {
   x_pred_.reserve(n_est);
   P_pred_.reserve(n_est);
   Phi_.reserve(n_est);
+  if (clock_) {
+    traj_.clock_P_.reserve(n_est);
+    Pc_pred_.reserve(n_est);
+    Phi_xc_.reserve(n_est);
+  }
 
   store_epoch();
   x_pred_.push_back(mech_.state());
   P_pred_.push_back(P_);
+  if (clock_) {
+    Pc_pred_.push_back(Pc_);
+    Phi_xc_.push_back(Eigen::Matrix<double, 15, 2>::Zero());
+  }
   Phi_.push_back(Matrix15d::Identity());
   ++rep.fixes_used;  // the initialisation fix
   t_last_used_ = t_epoch_ = mech_.state().t_ns;
@@ -751,6 +941,42 @@ void FusionEngine::smooth() {
   const auto t0 = std::chrono::steady_clock::now();
   auto& ep = traj_.epochs_;
   auto& P = traj_.P_;
+  if (clock_) {
+    // The same over the 17 states: the epoch transition is [Phi B; 0 [1 dt; 0 1]].
+    auto& Pc = traj_.clock_P_;
+    Matrix17d Phi, A, C, Pk, Pp, tmp;
+    for (std::size_t k = ep.size() - 1; k-- > 0;) {
+      Pp = assemble(P_pred_[k + 1], Pc_pred_[k + 1]);
+      Pk = assemble(P[k], Pc[k]);
+      Phi.setIdentity();
+      Phi.topLeftCorner<15, 15>() = Phi_[k + 1];
+      Phi.topRightCorner<15, 2>() = Phi_xc_[k + 1];
+      Phi(kErrClock, kErrClock + 1) = ns_to_s(ep[k + 1].x.t_ns - ep[k].x.t_ns);
+      A.noalias() = Phi * Pk;
+      Eigen::LLT<Matrix17d> llt(Pp);
+      if (llt.info() == Eigen::Success) {
+        C = llt.solve(A).transpose();
+      } else {
+        C = Pp.ldlt().solve(A).transpose();
+      }
+      const InertialState& xs = ep[k + 1].x;
+      const InertialState& xp = x_pred_[k + 1];
+      Vector17d dx;
+      dx.head<15>() = boxminus(xs, xp);
+      dx(kErrClock) = xs.imu_clock_offset_s - xp.imu_clock_offset_s;
+      dx(kErrClock + 1) = xs.imu_clock_drift_s_per_s - xp.imu_clock_drift_s_per_s;
+      const Vector17d d = C * dx;
+      ep[k].x = boxplus(ep[k].x, d.head<15>());
+      clock_boxplus(ep[k].x, d(kErrClock), d(kErrClock + 1));
+      tmp.noalias() = C * (assemble(P[k + 1], Pc[k + 1]) - Pp);
+      Pk.noalias() += tmp * C.transpose();
+      split(Pk, P[k], Pc[k]);
+    }
+    for (std::size_t k = 0; k < ep.size(); ++k) traj_.set_gps_time(k);  // by the smoothed clock
+    traj_.report_.smoothed = true;
+    traj_.report_.smoother_s = seconds_since(t0);
+    return;
+  }
   Matrix15d A, C, D, tmp;
   for (std::size_t k = ep.size() - 1; k-- > 0;) {
     const Matrix15d& Pp = P_pred_[k + 1];
@@ -780,9 +1006,13 @@ Expected<NavTrajectory> FusionEngine::run(std::span<const ImuSample> imu, std::s
   if (Status s = initialise(); !s) return s.error();
   forward();
   if (do_smooth && traj_.epochs_.size() > 1) smooth();
+  // The clock: smoothed, best known at the start (as at every epoch); forward only, at the end.
+  if (clock_) note_clock(traj_.report_.smoothed ? 0 : traj_.epochs_.size() - 1);
   // Only the posterior (or smoothed) states are needed from here on.
   x_pred_ = {};
   P_pred_ = {};
+  Pc_pred_ = {};
+  Phi_xc_ = {};
   Phi_ = {};
   return std::move(traj_);
 }
@@ -811,7 +1041,7 @@ Status FusionEngine::append_fix(const GpsFix& f) {
   if (!fixes_.empty() && x->t_ns <= fixes_.back().t_ns)
     return make_error("nav::LiveFusion: GPS fix ", index, " at t=", f.t_ns,
                       " ns is not after the previous fix");
-  if (initialised_ && x->t_ns <= mech_.state().t_ns) {
+  if (initialised_ && fix_time(*x, false) <= mech_.state().t_ns) {
     ++rep.fixes_outside;  // the filter is past it: too late to use
     return make_error("nav::LiveFusion: GPS fix ", index, " at t=", f.t_ns,
                       " ns arrived after the filter passed ", mech_.state().t_ns, " ns");
@@ -853,33 +1083,37 @@ void FusionEngine::advance_to(TimestampNs t_ns) {
   // Not into the newest increment: the strapdown splits an increment using its successor's rate.
   filter_to(std::min(t_ns, traj_.imu_.back().t0_ns), false);
   traj_.report_.epochs = traj_.epochs_.size();
+  if (clock_) note_clock(traj_.epochs_.size() - 1);
 }
 
 NavState FusionEngine::current() const {
   NavState s;
   static_cast<InertialState&>(s) = mech_.state();
   s.P = P_;
+  s.clock = Pc_;
   return s;
 }
 
 Expected<NavState> FusionEngine::at(TimestampNs t_ns, TimestampNs max_extrapolation_ns) const {
   const auto& epochs = traj_.epochs_;
   if (!initialised_ || epochs.empty()) return make_error("nav::LiveFusion::at(): not initialised yet");
-  if (t_ns < epochs.front().x.t_ns)
+  if (t_ns < epochs.front().t_gps_ns)
     return make_error("nav::LiveFusion::at(): t=", t_ns, " ns is older than the kept history (from ",
-                      epochs.front().x.t_ns, " ns)");
-  const TimestampNs t_imu = imu_end_ns();
-  if (t_ns > t_imu + max_extrapolation_ns)
-    return make_error("nav::LiveFusion::at(): t=", t_ns, " ns is ", ns_to_s(t_ns - t_imu),
-                      " s past the last IMU sample (at most ", ns_to_s(max_extrapolation_ns), " s)");
-  const auto it = std::upper_bound(epochs.begin(), epochs.end(), t_ns,
-                                   [](TimestampNs t, const NavTrajectory::Epoch& e) { return t < e.x.t_ns; });
-  const std::size_t k = static_cast<std::size_t>(it - epochs.begin()) - 1;
+                      epochs.front().t_gps_ns, " ns)");
+  const std::size_t k = traj_.epoch_before(t_ns);
   const NavTrajectory::Epoch& e = epochs[k];
+  // The query on the IMU clock (by the epoch's estimate of it; t_ns itself without the clock states).
+  const TimestampNs t_q = clock_ ? std::max(NavTrajectory::query_time(e, t_ns), e.x.t_ns) : t_ns;
+  const TimestampNs t_imu = imu_end_ns();
+  if (t_q > t_imu + max_extrapolation_ns)
+    return make_error("nav::LiveFusion::at(): t=", t_ns, " ns is ", ns_to_s(t_q - t_imu),
+                      " s past the last IMU sample (at most ", ns_to_s(max_extrapolation_ns), " s)");
   Strapdown mech(e.x, e.history);
   std::size_t index = e.imu_index;
   NavState s;
   s.P = traj_.P_[k];
+  if (clock_) s.clock = traj_.clock_P_[k];
+  ImuClockCovariance* clock = clock_ ? &s.clock : nullptr;
   Matrix3d sum_R = Matrix3d::Zero();
   Vector3d sum_dv = Vector3d::Zero();
   double T = 0;
@@ -888,22 +1122,26 @@ Expected<NavState> FusionEngine::at(TimestampNs t_ns, TimestampNs max_extrapolat
     sum_dv += mech.last_dv_ecef();
     T += dt;
     if (T >= cfg_.covariance_step_s) {
-      covariance_step(cfg_, mech.state().p_ecef_m, sum_R, sum_dv, T, s.P, nullptr);
+      covariance_step(cfg_, mech.state().p_ecef_m, mech.state().v_ecef_mps, sum_R, sum_dv, T, s.P, nullptr,
+                      clock);
       sum_R.setZero();
       sum_dv.setZero();
       T = 0;
     }
   };
-  NavTrajectory::advance(traj_.imu_, mech, index, std::min(t_ns, t_imu), on_step);
-  if (t_ns > t_imu) {
+  NavTrajectory::advance(traj_.imu_, mech, index, std::min(t_q, t_imu), on_step);
+  if (t_q > t_imu) {
     // Past the data: the last increment's rates held.
     const Increment& last = traj_.imu_.back();
-    const double r = ns_to_s(t_ns - t_imu) / ns_to_s(last.t1_ns - last.t0_ns);
-    mech.step(last.dtheta_rad * r, last.dv_mps * r, t_ns);
-    on_step(ns_to_s(t_ns - t_imu));
+    const double r = ns_to_s(t_q - t_imu) / ns_to_s(last.t1_ns - last.t0_ns);
+    mech.step(last.dtheta_rad * r, last.dv_mps * r, t_q);
+    on_step(ns_to_s(t_q - t_imu));
   }
-  if (T > 0) covariance_step(cfg_, mech.state().p_ecef_m, sum_R, sum_dv, T, s.P, nullptr);
+  if (T > 0)
+    covariance_step(cfg_, mech.state().p_ecef_m, mech.state().v_ecef_mps, sum_R, sum_dv, T, s.P, nullptr,
+                    clock);
   static_cast<InertialState&>(s) = mech.state();
+  s.t_ns = t_ns;
   return s;
 }
 
@@ -929,6 +1167,8 @@ void FusionEngine::trim_before(TimestampNs t_ns) {
       std::min(epochs[k].imu_index, imu_index_) > 0 ? std::min(epochs[k].imu_index, imu_index_) - 1 : 0;
   epochs.erase(epochs.begin(), epochs.begin() + static_cast<std::ptrdiff_t>(k));
   traj_.P_.erase(traj_.P_.begin(), traj_.P_.begin() + static_cast<std::ptrdiff_t>(k));
+  if (clock_)
+    traj_.clock_P_.erase(traj_.clock_P_.begin(), traj_.clock_P_.begin() + static_cast<std::ptrdiff_t>(k));
   if (drop_imu) {
     traj_.imu_.erase(traj_.imu_.begin(), traj_.imu_.begin() + static_cast<std::ptrdiff_t>(drop_imu));
     for (auto& e : epochs) e.imu_index -= drop_imu;
@@ -975,14 +1215,53 @@ InnovationStats innovation_stats(std::span<const FixInnovation> innovations) {
   return s;
 }
 
+TimestampNs NavTrajectory::gps_time(const InertialState& x) {
+  return x.t_ns - std::llround(x.imu_clock_offset_s * 1e9);
+}
+
+TimestampNs NavTrajectory::imu_time(const InertialState& x, TimestampNs t_ns) {
+  const double c = x.imu_clock_offset_s + x.imu_clock_drift_s_per_s * ns_to_s(t_ns - gps_time(x));
+  return t_ns + std::llround(c * 1e9);
+}
+
+TimestampNs NavTrajectory::query_time(const Epoch& e, TimestampNs t_ns) {
+  return e.x.t_ns +
+         std::llround(static_cast<double>(t_ns - e.t_gps_ns) * (1.0 + e.x.imu_clock_drift_s_per_s));
+}
+
+void NavTrajectory::set_gps_time(std::size_t k) {
+  Epoch& e = epochs_[k];
+  if (clock_P_.empty()) {
+    e.t_gps_ns = e.x.t_ns;
+    return;
+  }
+  e.t_gps_ns = gps_time(e.x);
+  if (k > 0) e.t_gps_ns = std::max(e.t_gps_ns, epochs_[k - 1].t_gps_ns + 1);
+}
+
+TimestampNs NavTrajectory::end_ns() const {
+  if (imu_.empty()) return 0;
+  const TimestampNs t1 = imu_.back().t1_ns;
+  if (clock_P_.empty() || epochs_.empty()) return t1;
+  const Epoch& e = epochs_.back();
+  return e.t_gps_ns + std::llround(static_cast<double>(t1 - e.x.t_ns) * (1.0 - e.x.imu_clock_drift_s_per_s));
+}
+
+std::size_t NavTrajectory::epoch_before(TimestampNs t_ns) const {
+  const auto it = std::upper_bound(epochs_.begin(), epochs_.end(), t_ns,
+                                   [](TimestampNs t, const Epoch& e) { return t < e.t_gps_ns; });
+  return it == epochs_.begin() ? 0 : static_cast<std::size_t>(it - epochs_.begin()) - 1;
+}
+
 Expected<NavState> NavTrajectory::at(TimestampNs t_ns) const {
   if (epochs_.empty() || t_ns < begin_ns() || t_ns > end_ns())
     return make_error("NavTrajectory::at(): t=", t_ns, " ns is outside the trajectory [", begin_ns(), ", ",
                       end_ns(), "] ns");
-  const auto it = std::upper_bound(epochs_.begin(), epochs_.end(), t_ns,
-                                   [](TimestampNs t, const Epoch& e) { return t < e.x.t_ns; });
-  const std::size_t k = static_cast<std::size_t>(it - epochs_.begin()) - 1;
+  const std::size_t k = epoch_before(t_ns);
   const Epoch& e = epochs_[k];
+  // The query on the IMU clock (by the epoch's estimate of it; t_ns itself without the clock states).
+  const bool clock = !clock_P_.empty();
+  const TimestampNs t_q = clock ? std::clamp(query_time(e, t_ns), e.x.t_ns, imu_.back().t1_ns) : t_ns;
   Strapdown mech(e.x, e.history);
   std::size_t index = e.imu_index;
   NavState s;
@@ -990,32 +1269,44 @@ Expected<NavState> NavTrajectory::at(TimestampNs t_ns) const {
     // Forward only: the filter's own prediction from the epoch, covariance included (a linear
     // interpolation between two posteriors would miss its growth between fixes).
     s.P = P_[k];
+    if (clock) s.clock = clock_P_[k];
+    ImuClockCovariance* c = clock ? &s.clock : nullptr;
     Matrix3d sum_R = Matrix3d::Zero();
     Vector3d sum_dv = Vector3d::Zero();
     double T = 0;
-    advance(imu_, mech, index, t_ns, [&](double dt) {
+    advance(imu_, mech, index, t_q, [&](double dt) {
       sum_R += mech.last_R_ecef_body() * dt;
       sum_dv += mech.last_dv_ecef();
       T += dt;
       if (T >= config_.covariance_step_s) {
-        covariance_step(config_, mech.state().p_ecef_m, sum_R, sum_dv, T, s.P, nullptr);
+        covariance_step(config_, mech.state().p_ecef_m, mech.state().v_ecef_mps, sum_R, sum_dv, T, s.P,
+                        nullptr, c);
         sum_R.setZero();
         sum_dv.setZero();
         T = 0;
       }
     });
-    if (T > 0) covariance_step(config_, mech.state().p_ecef_m, sum_R, sum_dv, T, s.P, nullptr);
+    if (T > 0)
+      covariance_step(config_, mech.state().p_ecef_m, mech.state().v_ecef_mps, sum_R, sum_dv, T, s.P, nullptr,
+                      c);
     static_cast<InertialState&>(s) = mech.state();
+    s.t_ns = t_ns;
     return s;
   }
-  advance(imu_, mech, index, t_ns, [](double) {});
+  advance(imu_, mech, index, t_q, [](double) {});
   static_cast<InertialState&>(s) = mech.state();
-  if (k + 1 < epochs_.size() && t_ns > e.x.t_ns) {
+  s.t_ns = t_ns;
+  if (k + 1 < epochs_.size() && t_q > e.x.t_ns) {
     const double w =
-        static_cast<double>(t_ns - e.x.t_ns) / static_cast<double>(epochs_[k + 1].x.t_ns - e.x.t_ns);
+        static_cast<double>(t_q - e.x.t_ns) / static_cast<double>(epochs_[k + 1].x.t_ns - e.x.t_ns);
     s.P = (1.0 - w) * P_[k] + w * P_[k + 1];
+    if (clock) {
+      s.clock.P_xc = (1.0 - w) * clock_P_[k].P_xc + w * clock_P_[k + 1].P_xc;
+      s.clock.P_cc = (1.0 - w) * clock_P_[k].P_cc + w * clock_P_[k + 1].P_cc;
+    }
   } else {
     s.P = P_[k];
+    if (clock) s.clock = clock_P_[k];
   }
   return s;
 }
@@ -1024,7 +1315,9 @@ std::vector<NavState> NavTrajectory::epochs() const {
   std::vector<NavState> out(epochs_.size());
   for (std::size_t k = 0; k < epochs_.size(); ++k) {
     static_cast<InertialState&>(out[k]) = epochs_[k].x;
+    out[k].t_ns = epochs_[k].t_gps_ns;
     out[k].P = P_[k];
+    if (!clock_P_.empty()) out[k].clock = clock_P_[k];
   }
   return out;
 }
@@ -1035,7 +1328,9 @@ std::vector<NavSolution> NavTrajectory::solutions() const {
   NavState s;
   for (std::size_t k = 0; k < epochs_.size(); ++k) {
     static_cast<InertialState&>(s) = epochs_[k].x;
+    s.t_ns = epochs_[k].t_gps_ns;
     s.P = P_[k];
+    if (!clock_P_.empty()) s.clock = clock_P_[k];
     out.push_back(to_solution(s));
   }
   return out;
@@ -1059,6 +1354,12 @@ NavSolution to_solution(const NavState& s) {
   const Matrix3d Cn = R_en.transpose() * s.P.block<3, 3>(kErrAtt, kErrAtt) * R_en;
   const Matrix3d Mi = M.inverse();
   o.sigma_ypr_rad = (Mi * Cn * Mi.transpose()).diagonal().cwiseMax(0.0).cwiseSqrt();
+  if (s.clock.P_cc(0, 0) > 0) {  // the IMU clock estimated
+    o.imu_clock_offset_s = s.imu_clock_offset_s;
+    o.imu_clock_drift_s_per_s = s.imu_clock_drift_s_per_s;
+    o.sigma_imu_clock_offset_s = std::sqrt(s.clock.P_cc(0, 0));
+    o.sigma_imu_clock_drift = std::sqrt(std::max(s.clock.P_cc(1, 1), 0.0));
+  }
   return o;
 }
 

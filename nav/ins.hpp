@@ -6,18 +6,22 @@
 //   fuse()        15-state error-state Kalman filter (position, velocity, attitude error in ECEF,
 //                 gyro and accelerometer biases) driven by the strapdown, updated by GPS positions at
 //                 their time of validity (lever arm, chi-square gating), HDT heading and optionally
-//                 ground speed/course; then an RTS smoother over the filter's epochs.
+//                 ground speed/course; then an RTS smoother over the filter's epochs. Optionally two
+//                 more states: the IMU clock's offset from GPS time and its drift (InsConfig::imu_clock).
 //   NavTrajectory the result: the state at any time inside the data (a camera frame's mid-exposure
 //                 time), per-epoch solutions and a report of what was used and rejected.
 //
 // Frames and conventions: core/conventions.hpp. The error state is
 //   dx = [dp(0..2), dv(3..5), dtheta(6..8), dbg(9..11), dba(12..14)], all ECEF except the biases
 //   (body FRD), with truth = estimate (+) dx:  p = p^ + dp,  v = v^ + dv,  R_ecef_body =
-//   Exp(dtheta) R^_ecef_body,  b = b^ + db.
+//   Exp(dtheta) R^_ecef_body,  b = b^ + db. With InsConfig::imu_clock.estimate, two clock error states
+//   dc = [offset (s), drift (s/s)] follow (c = c^ + dc); their covariance is kept apart from the
+//   15x15 P (ImuClockCovariance), so that a filter without them costs and computes what it did.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string>
@@ -48,13 +52,26 @@ struct InertialState {
   Eigen::Quaterniond q_ecef_body = Eigen::Quaterniond::Identity();  // R_ecef_body
   Eigen::Vector3d gyro_bias_radps = Eigen::Vector3d::Zero();        // subtracted from the gyro output
   Eigen::Vector3d accel_bias_mps2 = Eigen::Vector3d::Zero();  // subtracted from the accelerometer output
+  // The IMU clock minus GPS time at t_ns and its rate (InsConfig::imu_clock; 0 when not estimated):
+  // an instant at GPS time g is at g + imu_clock_offset_s on the IMU's clock. The strapdown carries
+  // the offset forward with the drift.
+  double imu_clock_offset_s = 0;
+  double imu_clock_drift_s_per_s = 0;
 
   Pose T_ecef_body() const { return {q_ecef_body, p_ecef_m}; }
 };
 
-// The state with its error covariance (15x15, layout above).
+// The covariance of the two IMU clock error states [offset (s), drift (s/s)] with the 15 inertial
+// ones (P_xc) and between themselves (P_cc); all zero when the clock is not estimated.
+struct ImuClockCovariance {
+  Eigen::Matrix<double, 15, 2> P_xc = Eigen::Matrix<double, 15, 2>::Zero();
+  Eigen::Matrix2d P_cc = Eigen::Matrix2d::Zero();
+};
+
+// The state with its error covariance (15x15, layout above; the clock states' in `clock`).
 struct NavState : InertialState {
   Matrix15d P = Matrix15d::Zero();
+  ImuClockCovariance clock;
 };
 
 // x (+) dx and a (-) b (the error that takes b to a), in the error-state convention above.
@@ -85,7 +102,9 @@ class Strapdown {
   void reset(const InertialState& x, const History& history = {});
 
   // Advances to t_end_ns > state().t_ns with the raw increments measured over that interval (the
-  // state's biases are removed here).
+  // state's biases are removed here). Times are the IMU's clock; with an IMU clock drift d in the
+  // state the step lasts (t_end - t)(1 - d) of GPS time, over which it integrates (and it carries
+  // the clock offset forward by d (t_end - t)).
   void step(const Eigen::Vector3d& dtheta_rad, const Eigen::Vector3d& dv_mps, TimestampNs t_end_ns);
 
   const InertialState& state() const { return x_; }
@@ -142,11 +161,27 @@ struct GpsNoiseModel {
   bool scale_by_hdop = false;
 };
 
+// The IMU clock against GPS time (both after InsConfig's time offsets), estimated online as two more
+// error states: offset c (IMU clock - GPS time, s; prior 0) and its drift (s/s), with the initial
+// 1-sigmas below and optional random walks (docs/NAV_FUSION.md, "IMU clock"). A fix valid at GPS
+// time g is then applied at g + c on the IMU's clock, and every time the trajectory reports or is
+// asked for (NavTrajectory::at(), epochs(), begin_ns()) is GPS time: the smoothed (forward only:
+// filtered) offset is applied. Off: c = 0 and the filter is the 15-state one.
+struct ImuClockModel {
+  bool estimate = false;
+  double offset_sigma_s = 0.05;
+  double drift_sigma = 100e-6;             // s/s (100 ppm)
+  double offset_random_walk_s_psqrts = 0;  // white frequency noise, s/sqrt(s)
+  double drift_random_walk_psqrts = 0;     // drift random walk, (s/s)/sqrt(s)
+};
+
 struct InsConfig {
   // Added to each stream's timestamps to put it on the nav clock. A fix is processed at
   // t_ns + gps_time_offset_ns (its time of validity on the IMU's clock), not at its arrival.
   TimestampNs imu_time_offset_ns = 0;
   TimestampNs gps_time_offset_ns = 0;
+  // The IMU clock against GPS time, estimated online when imu_clock.estimate (ImuClockModel).
+  ImuClockModel imu_clock;
   // GPS - UTC of the aircraft's NMEA log when stated (aircraft.yaml gps_leap_seconds); unset: the
   // receiver's own report or the table by date (nav/nmea.hpp). For whoever reads the log into fixes
   // (pipeline::load_aircraft_logs); the filter itself never uses it.
@@ -255,6 +290,13 @@ struct FusionReport {
   // converged: still settling at the end of the data.
   bool converged = false;
   TimestampNs converged_ns = 0;  // nav clock
+  // The IMU clock (InsConfig::imu_clock.estimate): IMU clock minus GPS time at imu_clock_t_ns (GPS
+  // time: the first epoch when smoothed, the filter's latest epoch when forward only or live) and its
+  // drift, each with its 1-sigma.
+  bool imu_clock_estimated = false;
+  TimestampNs imu_clock_t_ns = 0;
+  double imu_clock_offset_s = 0, imu_clock_offset_sigma_s = 0;
+  double imu_clock_drift_s_per_s = 0, imu_clock_drift_sigma = 0;
 };
 
 // One epoch as a CSV-ready solution: geodetic position of the body origin, NED velocity, Euler
@@ -267,6 +309,10 @@ struct NavSolution {
   Eigen::Vector3d sigma_pos_ned_m = Eigen::Vector3d::Zero();
   Eigen::Vector3d sigma_vel_ned_mps = Eigen::Vector3d::Zero();
   Eigen::Vector3d sigma_ypr_rad = Eigen::Vector3d::Zero();
+  // IMU clock minus GPS time and its drift with 1-sigma; NaN when the clock is not estimated.
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  double imu_clock_offset_s = kNaN, imu_clock_drift_s_per_s = kNaN;
+  double sigma_imu_clock_offset_s = kNaN, sigma_imu_clock_drift = kNaN;
 };
 // nav/logs.hpp writes these as a nav solution CSV (NavSolutionRow).
 NavSolution to_solution(const NavState& s);
@@ -276,10 +322,11 @@ class NavTrajectory {
   // The state at t_ns (nav clock), e.g. a camera frame's mid-exposure time: the (smoothed) state of
   // the last epoch at or before t_ns mechanized forward over the stored IMU increments to exactly
   // t_ns. P is interpolated linearly between the neighbouring epochs. Error outside
-  // [begin_ns(), end_ns()].
+  // [begin_ns(), end_ns()]. With the IMU clock estimated, t_ns (and every time below) is GPS time:
+  // the epoch's estimated IMU clock offset maps it to the IMU's clock.
   Expected<NavState> at(TimestampNs t_ns) const;
-  TimestampNs begin_ns() const { return epochs_.empty() ? 0 : epochs_.front().x.t_ns; }
-  TimestampNs end_ns() const { return imu_.empty() ? 0 : imu_.back().t1_ns; }
+  TimestampNs begin_ns() const { return epochs_.empty() ? 0 : epochs_.front().t_gps_ns; }
+  TimestampNs end_ns() const;
   const FusionReport& report() const { return report_; }
   // A forward-only trajectory before its filter converged (FusionReport::converged_ns): its sigma
   // there is optimistic. Never for a smoothed one (the smoother's sigma holds from the start).
@@ -306,6 +353,9 @@ class NavTrajectory {
     InertialState x;             // posterior (smoothed after smoothing)
     Strapdown::History history;  // strapdown memory at t
     std::size_t imu_index = 0;   // the increment holding the IMU data just after t
+    // x.t_ns in GPS time: less the estimated IMU clock offset (kept increasing: a forward filter's
+    // offset may jump at a fix by more than the time to the epoch before); x.t_ns without the clock.
+    TimestampNs t_gps_ns = 0;
   };
 
   // Mechanizes from the current strapdown time to t_end_ns, starting inside increment `index`.
@@ -313,10 +363,21 @@ class NavTrajectory {
   template <typename OnStep>
   static void advance(const std::vector<Increment>& imu, Strapdown& mech, std::size_t& index,
                       TimestampNs t_end_ns, OnStep&& on_step);
+  // A state's time (IMU clock) in GPS time, and GPS time t_ns on the IMU clock by the estimate of
+  // state x (identities when the clock is not estimated: its offset and drift stay 0).
+  static TimestampNs gps_time(const InertialState& x);
+  static TimestampNs imu_time(const InertialState& x, TimestampNs t_ns);
+  // GPS time t_ns (at or after epoch e) on the IMU clock, from the epoch on at its clock's rate.
+  static TimestampNs query_time(const Epoch& e, TimestampNs t_ns);
+  // Sets epochs_[k].t_gps_ns from its state (and epoch k - 1's).
+  void set_gps_time(std::size_t k);
+  // The last epoch at or before GPS time t_ns (epochs_ non-empty, t_ns >= begin_ns()).
+  std::size_t epoch_before(TimestampNs t_ns) const;
 
   std::vector<Increment> imu_;
   std::vector<Epoch> epochs_;
-  std::vector<Matrix15d> P_;  // per epoch
+  std::vector<Matrix15d> P_;                 // per epoch
+  std::vector<ImuClockCovariance> clock_P_;  // per epoch, with the IMU clock estimated; else empty
   std::vector<FixInnovation> innovations_;
   FusionReport report_;
   InsConfig config_;  // a forward-only trajectory's at() propagates the covariance with it

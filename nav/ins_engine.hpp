@@ -21,7 +21,7 @@ namespace augrig::nav {
 
 class FusionEngine {
  public:
-  explicit FusionEngine(const InsConfig& cfg) : cfg_(cfg) {}
+  explicit FusionEngine(const InsConfig& cfg) : cfg_(cfg), clock_(cfg.imu_clock.estimate) {}
   Expected<NavTrajectory> run(std::span<const ImuSample> imu, std::span<const GpsFix> fixes, bool smooth);
 
   // ---- real time (no smoother) ----
@@ -38,6 +38,8 @@ class FusionEngine {
   void advance_to(TimestampNs t_ns);
   // The state at t_ns from the last epoch at or before it; past the IMU data the last increment's
   // rates are held for at most max_extrapolation_ns. The covariance is propagated from the epoch.
+  // With the IMU clock estimated t_ns is GPS time (as in NavTrajectory::at()); every other time
+  // here is the IMU's clock.
   Expected<NavState> at(TimestampNs t_ns, TimestampNs max_extrapolation_ns) const;
   // Forgets epochs and IMU increments that no query at or after t_ns needs (before initialisation:
   // the IMU increments and fixes before t_ns).
@@ -45,7 +47,8 @@ class FusionEngine {
 
   TimestampNs filter_time_ns() const { return mech_.state().t_ns; }
   TimestampNs imu_end_ns() const { return traj_.imu_.empty() ? 0 : traj_.imu_.back().t1_ns; }
-  TimestampNs last_fix_ns() const { return fixes_.empty() ? 0 : fixes_.back().t_ns; }  // valid ones
+  // The newest valid fix's time of validity on the IMU clock (by the current clock estimate).
+  TimestampNs last_fix_ns() const { return fixes_.empty() ? 0 : fix_time(fixes_.back(), false); }
   TimestampNs last_used_fix_ns() const { return t_last_used_; }
   const FusionReport& report() const { return traj_.report_; }
   NavState current() const;
@@ -83,15 +86,24 @@ class FusionEngine {
   void note_fix_gap(TimestampNs t_ns);
   void note_innovation(TimestampNs t_ns, double nis, bool used, bool gated);
   void note_convergence();
+  // FusionReport's IMU clock figures from epoch k (with the clock estimated).
+  void note_clock(std::size_t k);
+  // When the filter applies fix f: its time of validity on the IMU clock by the current estimate of
+  // the clock; with `clamp`, at least 1 ns after the filter's time (an estimate that moved back past
+  // it; the update then predicts over the difference).
+  TimestampNs fix_time(const Fix& f, bool clamp) const;
   void smooth();
   void propagate_covariance();
   void update_at_fix(const Fix& fix);
+  // One update; Hc: the measurement's sensitivity to the clock states (used only when estimated).
   template <int M>
   bool kalman_update(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, 15>& H,
-                     const Eigen::Matrix<double, M, M>& R, double gate, bool force, double* nis = nullptr);
+                     const Eigen::Matrix<double, M, M>& R, double gate, bool force, double* nis = nullptr,
+                     const Eigen::Matrix<double, M, 2>* Hc = nullptr);
   void store_epoch();
 
   const InsConfig& cfg_;
+  const bool clock_;  // the IMU clock states are estimated
   NavTrajectory traj_;
   std::vector<Fix> fixes_;
   std::size_t first_fix_ = 0;  // index into fixes_ of the initialisation fix
@@ -104,7 +116,9 @@ class FusionEngine {
   Strapdown mech_;
   std::size_t imu_index_ = 0;
   Matrix15d P_ = Matrix15d::Zero();
+  ImuClockCovariance Pc_;  // the clock states' covariance blocks (clock_)
   Matrix15d Phi_epoch_ = Matrix15d::Identity();
+  Eigen::Matrix<double, 15, 2> Phi_xc_epoch_ = Eigen::Matrix<double, 15, 2>::Zero();  // its clock coupling
   // Accumulated over the current covariance step.
   Eigen::Matrix3d sum_R_dt_ = Eigen::Matrix3d::Zero();
   Eigen::Vector3d sum_dv_e_ = Eigen::Vector3d::Zero();
@@ -117,7 +131,9 @@ class FusionEngine {
   // Smoother inputs, per epoch k: the predicted state and covariance at k and the transition k-1 -> k.
   std::vector<InertialState> x_pred_;
   std::vector<Matrix15d> P_pred_;
+  std::vector<ImuClockCovariance> Pc_pred_;  // clock_ only
   std::vector<Matrix15d> Phi_;
+  std::vector<Eigen::Matrix<double, 15, 2>> Phi_xc_;  // clock_ only
 };
 
 }  // namespace augrig::nav

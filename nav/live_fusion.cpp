@@ -69,6 +69,11 @@ LiveFusionStatus LiveFusion::status() const {
     s.t_used_fix_ns = engine_->last_used_fix_ns();
     s.converged = r.converged;
     s.t_converged_ns = r.converged_ns;
+    s.imu_clock_estimated = r.imu_clock_estimated;
+    s.imu_clock_offset_s = r.imu_clock_offset_s;
+    s.imu_clock_offset_sigma_s = r.imu_clock_offset_sigma_s;
+    s.imu_clock_drift_s_per_s = r.imu_clock_drift_s_per_s;
+    s.imu_clock_drift_sigma = r.imu_clock_drift_sigma;
   }
   s.t_imu_ns = engine_->imu_end_ns();
   s.imu_samples = r.imu_samples;

@@ -46,6 +46,11 @@ struct LiveFusionStatus {
   // is optimistic (docs/NAV_FUSION.md, "Consistency").
   bool converged = false;
   TimestampNs t_converged_ns = 0;
+  // The IMU clock minus GPS time and its drift, with 1-sigma, as the filter knows them at its time
+  // (InsConfig::imu_clock.estimate; FusionReport's imu_clock_*).
+  bool imu_clock_estimated = false;
+  double imu_clock_offset_s = 0, imu_clock_offset_sigma_s = 0;
+  double imu_clock_drift_s_per_s = 0, imu_clock_drift_sigma = 0;
   FixQuality fix_quality = FixQuality::kInvalid;   // of the newest fix received
   std::uint64_t imu_samples = 0, imu_refused = 0;  // refused: not after the previous one, non-finite
   std::uint64_t fixes = 0, fixes_used = 0, fixes_rejected = 0, fixes_invalid = 0;

@@ -24,12 +24,13 @@ struct SimData {
   sim::SensorLogs logs;
 };
 
-SimData simulate(const std::string& name, double duration_s) {
+SimData simulate(const std::string& name, double duration_s, std::int64_t receiver_imu_clock_offset_ns = 0) {
   SimData d;
   auto sc = sim::builtin_scenario(name);
   EXPECT_TRUE(sc) << sc.error().message;
   d.scenario = *sc;
   d.scenario.duration_s = duration_s;
+  d.scenario.sensors.receiver.imu.clock_offset_ns = receiver_imu_clock_offset_ns;
   auto f = sim::Flight::create(d.scenario);
   EXPECT_TRUE(f) << f.error().message;
   d.flight = std::make_unique<sim::Flight>(std::move(*f));
@@ -94,6 +95,49 @@ TEST(LiveFusion, SameStatesAsTheBatchForwardFilter) {
   EXPECT_GE(st.fixes_used + 5, batch->report().fixes_used);
   EXPECT_EQ(st.fixes_late, 0u);
   EXPECT_EQ(st.imu_refused, 0u);
+}
+
+// With the IMU clock estimated (the receiver's IMU 7 ms ahead of GPS time), the live filter estimates
+// it online exactly as the batch forward filter does: the same states, clock and covariance at every
+// epoch (GPS time), and the status says the estimate.
+TEST(LiveFusion, EstimatesTheImuClockAsTheBatchForwardFilter) {
+  const SimData d = simulate("demo", 20.0, 7'000'000);
+  InsConfig cfg = config_for(d.scenario.sensors.receiver);
+  cfg.imu_clock.estimate = true;
+  const auto batch = fuse(d.logs.receiver_imu, d.logs.receiver_gps, cfg, /*smooth=*/false);
+  ASSERT_TRUE(batch) << batch.error().message;
+  const std::vector<NavState> epochs = batch->epochs();
+  LiveFusion live(cfg);
+  std::size_t next = 0, compared = 0;
+  double max_dp = 0, max_dc = 0, max_dP = 0;
+  auto compare_up_to = [&](TimestampNs t_filter) {
+    for (; next < epochs.size() && epochs[next].t_ns + s_to_ns(0.05) <= t_filter; ++next) {
+      const auto s = live.at(epochs[next].t_ns);
+      ASSERT_TRUE(s) << s.error().message;
+      max_dp = std::max(max_dp, (s->p_ecef_m - epochs[next].p_ecef_m).norm());
+      max_dc = std::max(max_dc, std::abs(s->imu_clock_offset_s - epochs[next].imu_clock_offset_s));
+      max_dP = std::max(max_dP, (s->clock.P_xc - epochs[next].clock.P_xc).cwiseAbs().maxCoeff() /
+                                    epochs[next].clock.P_xc.cwiseAbs().maxCoeff());
+      ++compared;
+    }
+  };
+  feed(live, d.logs.receiver_imu, d.logs.receiver_gps,
+       [&](TimestampNs) { compare_up_to(live.status().t_filter_ns); });
+  compare_up_to(live.status().t_filter_ns);
+  const LiveFusionStatus st = live.status();
+  std::printf(
+      "  %zu of %zu batch epochs compared: position max diff %.3g m, clock %.3g s, P_xc max relative %.3g; "
+      "live clock %+.3f ms (1-sigma %.3f ms), batch at its end %+.3f ms\n",
+      compared, epochs.size(), max_dp, max_dc, max_dP, 1e3 * st.imu_clock_offset_s,
+      1e3 * st.imu_clock_offset_sigma_s, 1e3 * batch->report().imu_clock_offset_s);
+  EXPECT_GT(compared, epochs.size() * 9 / 10);
+  EXPECT_LT(max_dp, 1e-9);
+  EXPECT_LT(max_dc, 1e-12);
+  EXPECT_LT(max_dP, 1e-9);
+  EXPECT_TRUE(st.imu_clock_estimated);
+  EXPECT_GT(st.imu_clock_offset_sigma_s, 0.0);
+  EXPECT_LT(std::abs(st.imu_clock_offset_s - 0.007), 4.0 * st.imu_clock_offset_sigma_s);
+  EXPECT_EQ(st.fixes_late, 0u);
 }
 
 TEST(LiveFusion, FollowsTheTruthInRealTimeWithBoundedMemory) {
