@@ -163,6 +163,46 @@ sensors:
   EXPECT_TRUE(s->sensors.tanker == AircraftSensors{});
 }
 
+// Each aircraft's IMU clock against GPS time: parsed, bounded like the other keys, 0 by default,
+// and kept by noise_free (it is a clock, not noise).
+TEST(ScenarioTest, ImuClockOffsetAndDrift) {
+  auto s = parse_scenario(R"(augrig_scenario: 1
+sensors:
+  noise_free: true
+  tanker:
+    imu: {preset: navigation, clock_offset_ns: 7000000}
+  receiver:
+    imu: {clock_offset_ns: -4000000, clock_drift_ppm: 20}
+)",
+                          "inline.yaml");
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->sensors.tanker.imu.clock_offset_ns, 7'000'000);
+  EXPECT_EQ(s->sensors.tanker.imu.clock_drift_ppm, 0.0);
+  EXPECT_EQ(s->sensors.receiver.imu.clock_offset_ns, -4'000'000);
+  EXPECT_EQ(s->sensors.receiver.imu.clock_drift_ppm, 20.0);
+  EXPECT_EQ(s->sensors.receiver.imu.errors, ImuErrorModel{});  // noise_free
+  auto plain = parse_scenario("augrig_scenario: 1\n", "inline.yaml");
+  ASSERT_TRUE(plain);
+  EXPECT_EQ(plain->sensors.tanker.imu.clock_offset_ns, 0);
+  EXPECT_EQ(plain->sensors.receiver.imu.clock_drift_ppm, 0.0);
+  const std::pair<const char*, const char*> bad[] = {
+      {"clock_offset_ns: 2000000000", "expected an integer in [-1000000000, 1000000000] ns"},
+      {"clock_offset_ns: 1.5", "expected an integer in [-1000000000, 1000000000] ns"},
+      {"clock_drift_ppm: 5000", "expected a number in [-1000, 1000] ppm, got 5000"},
+      {"clock_drift_ppm: fast", "expected a number in [-1000, 1000] ppm"},
+  };
+  for (const auto& [value, says] : bad) {
+    auto e = parse_scenario(
+        std::string("augrig_scenario: 1\nsensors:\n  tanker:\n    imu: {") + value + "}\n", "inline.yaml");
+    ASSERT_FALSE(e) << value;
+    const std::string key = std::string("key 'sensors.tanker.imu.") +
+                            std::string(value).substr(0, std::string(value).find(':')) + "'";
+    EXPECT_NE(e.error().message.find("inline.yaml:4:"), std::string::npos) << e.error().message;
+    EXPECT_NE(e.error().message.find(key), std::string::npos) << e.error().message;
+    EXPECT_NE(e.error().message.find(says), std::string::npos) << e.error().message;
+  }
+}
+
 TEST(ScenarioTest, UtcToGpsTime) {
   // GPS week 2295 began on 2023-12-31; GPS - UTC = 18 s since 2017.
   EXPECT_EQ(*gps_ns_from_utc("2023-12-31T00:00:00Z"), (2295LL * 604800 + 18) * 1000000000);

@@ -260,6 +260,32 @@ TEST(ImuTest, DeterministicPerSeedAndPresets) {
   EXPECT_EQ(*imu_preset("noise_free"), ImuErrorModel{});
 }
 
+// The IMU's clock against GPS time (ImuConfig::clock_offset_ns, clock_drift_ppm) moves the stamps
+// only: sample k is stamped t_k + offset + round(drift t_k); its increments and its arrival on the
+// host (whose clock is GPS time) are those of an IMU on GPS time.
+TEST(ImuTest, ClockOffsetAndDriftMoveTheStampsOnly) {
+  const TimestampNs start = 1'400'000'000'000'000'000;
+  ImuConfig plain;  // tactical
+  plain.latency_s = 0.002;
+  ImuConfig clocked = plain;
+  clocked.clock_offset_ns = 7'000'000;
+  clocked.clock_drift_ppm = -20.0;
+  ImuSimulator a(plain, 5, start), b(clocked, 5, start);
+  const auto xa = a.generate(resting, 30.0), xb = b.generate(resting, 30.0);
+  ASSERT_EQ(xa.size(), xb.size());
+  ASSERT_EQ(xa.size(), 6000u);
+  for (std::size_t i = 0; i < xa.size(); ++i) {
+    const TimestampNs t = xa[i].t_ns - start;
+    EXPECT_EQ(xb[i].t_ns, xa[i].t_ns + 7'000'000 + std::llround(-20e-6 * static_cast<double>(t))) << i;
+    EXPECT_EQ(xb[i].arrival_ns, xa[i].arrival_ns) << i;
+    EXPECT_EQ(xb[i].dt_s, xa[i].dt_s);
+    EXPECT_EQ(xb[i].dtheta_rad, xa[i].dtheta_rad);
+    EXPECT_EQ(xb[i].dv_mps, xa[i].dv_mps);
+  }
+  EXPECT_EQ(xa.back().arrival_ns, xa.back().t_ns + 2'000'000);
+  EXPECT_EQ(xb.back().t_ns - xa.back().t_ns, 7'000'000 - 600'000);  // 30 s at -20 ppm
+}
+
 // ---- GPS --------------------------------------------------------------------------------------
 
 // NED error of a fix w.r.t. the true antenna position.
