@@ -40,8 +40,30 @@ void carry(double dt, double w, const Mat6& P_stationary, Vec6& x, Mat6& P) {
   P = flip * (F * (flip * P * flip) * F.transpose() + P_stationary - F * P_stationary * F.transpose()) * flip;
 }
 
-// One epoch as the filter sees it: a measurement z = baseline - INS baseline with its noise, or
-// (in a gap) none, and the solutions' covariance there.
+// The models the likelihood chooses among (offline and live alike).
+std::vector<double> scales_of(const BaselineFusionOptions& o) {
+  return o.sigma_scale > 0 ? std::vector<double>{o.sigma_scale}
+                           : std::vector<double>{1, 2, 5, 10, 20, 50, 100, 200, 500, 1000};
+}
+std::vector<double> taus_of(const BaselineFusionOptions& o) {
+  return o.correlation_s > 0 ? std::vector<double>{o.correlation_s}
+                             : std::vector<double>{0.3, 1, 3, 10, 30, 100, 300};
+}
+
+// A measurement's noise: the receiver's accuracy, floored (float solutions higher).
+Eigen::Matrix3d noise_of(const BaselineMeasurement& m, const BaselineFusionOptions& options) {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
+  const bool is_float = m.carr_soln == 1;
+  for (int k = 0; k < 3; ++k) {
+    const double floor = is_float ? options.float_sigma_floor_m : options.sigma_floor_m;
+    const double sg = std::isfinite(m.sigma_ned_m[k]) ? std::max(m.sigma_ned_m[k], floor) : floor;
+    R(k, k) = sg * sg;
+  }
+  return R;
+}
+
+// One epoch as the offline fusion prepares it: a measurement z = baseline - INS baseline with its
+// noise, or (in a gap) none, and the solutions' covariance there.
 struct Step {
   TimestampNs t_ns;
   Eigen::Vector3d z;
@@ -49,89 +71,16 @@ struct Step {
   bool measured, is_float;
 };
 
-// The forward pass, keeping what the smoother needs: filtered and predicted states, transitions.
-struct Forward {
-  TimestampNs t_ns;
-  Vec6 x, x_pred;
-  Mat6 P, P_pred, F, P_stationary;
-  bool start;
-};
-
-struct ForwardPass {
-  std::vector<Forward> fw;
-  double log_likelihood = 0;
-  std::size_t used = 0, used_float = 0, rejected = 0, resets = 0, innovations = 0;
-  double innovation_sq = 0;
-};
-
-ForwardPass forward(const std::vector<Step>& steps, double scale, double tau_s, const BaselineFusionOptions& options) {
-  ForwardPass out;
-  std::vector<Forward>& fw = out.fw;
-  fw.reserve(steps.size());
-  const double w = 1.0 / tau_s;
-  int rejected_in_a_row = 0;
+BaselineFilter forward(const std::vector<Step>& steps, double scale, double tau_s,
+                       const BaselineFusionOptions& options, bool keep_history) {
+  BaselineFilter f(scale, tau_s, options, keep_history);
   for (const Step& m : steps) {
-    Forward s;
-    s.t_ns = m.t_ns;
-    s.P_stationary = stationary(scale * scale * m.Sigma, w);
-    s.start = fw.empty();
-    if (s.start) {
-      // No measurement yet: the error is what the solutions say it can be.
-      s.F = Mat6::Identity();
-      s.x_pred.setZero();
-      s.P_pred = s.P_stationary;
-    } else {
-      const double dt = static_cast<double>(m.t_ns - fw.back().t_ns) / 1e9;
-      s.F = transition(dt, w);
-      s.x_pred = s.F * fw.back().x;
-      s.P_pred = s.F * fw.back().P * s.F.transpose() + s.P_stationary - s.F * s.P_stationary * s.F.transpose();
-      s.P_pred = 0.5 * (s.P_pred + s.P_pred.transpose()).eval();
-    }
-    if (!m.measured) {  // a gap's prediction epoch
-      if (s.start) continue;
-      s.x = s.x_pred, s.P = s.P_pred;
-      fw.push_back(s);
-      continue;
-    }
-    Eigen::Vector3d y = m.z - s.x_pred.head<3>();
-    Eigen::Matrix3d S = s.P_pred.topLeftCorner<3, 3>() + m.R;
-    Eigen::LDLT<Eigen::Matrix3d> Sf(S);
-    double nis = y.dot(Sf.solve(y));
-    const double log_det = std::log(Sf.vectorD().prod());
-    if (!s.start && nis > options.gate_chi2) {
-      ++out.rejected;
-      // Counted as no likelier than the gate, so a model that rejects more does not look better.
-      out.log_likelihood -= 0.5 * (options.gate_chi2 + log_det);
-      // Fixed baselines rejected again and again: the INS solutions jumped for good; start again
-      // from here. (Float ones off the track are what float solutions are: biased.)
-      if (m.is_float || ++rejected_in_a_row < options.reset_after_rejections) continue;
-      ++out.resets;
-      s.start = true;
-      s.F = Mat6::Identity();
-      s.x_pred.setZero();
-      s.P_pred = s.P_stationary;
-      y = m.z;
-      S = s.P_pred.topLeftCorner<3, 3>() + m.R;
-      Sf.compute(S);
-    } else if (!s.start) {
-      out.log_likelihood -= 0.5 * (nis + log_det);
-      out.innovation_sq += y.squaredNorm();
-      ++out.innovations;
-    } else {
-      out.log_likelihood -= 0.5 * (nis + log_det);
-    }
-    rejected_in_a_row = 0;
-    const Eigen::Matrix<double, 6, 3> K =
-        s.P_pred.leftCols<3>() * Sf.solve(Eigen::Matrix3d::Identity());  // P H^T S^-1, H = [I 0]
-    s.x = s.x_pred + K * y;
-    Eigen::Matrix<double, 3, 6> H = Eigen::Matrix<double, 3, 6>::Zero();
-    H.leftCols<3>().setIdentity();
-    const Mat6 IKH = Mat6::Identity() - K * H;
-    s.P = IKH * s.P_pred * IKH.transpose() + K * m.R * K.transpose();  // Joseph form
-    fw.push_back(s);
-    ++out.used, out.used_float += m.is_float;
+    if (m.measured)
+      f.measure(m.t_ns, m.z, m.R, m.Sigma, m.is_float);
+    else
+      f.predict(m.t_ns, m.Sigma);
   }
-  return out;
+  return f;
 }
 
 }  // namespace
@@ -148,6 +97,143 @@ std::string BaselineFusionReport::summary() const {
   o << "x" << sigma_scale << " (" << (sigma_scale > 1.5 ? "optimistic" : "held") << "), their error's correlation time "
     << correlation_s << " s";
   return o.str();
+}
+
+BaselineFilter::BaselineFilter(double sigma_scale, double correlation_s, const BaselineFusionOptions& options,
+                               bool keep_history)
+    : scale_(sigma_scale), w_(1.0 / correlation_s), options_(options), keep_history_(keep_history) {}
+
+BaselineFilter::Record BaselineFilter::predicted(TimestampNs t_ns, const Eigen::Matrix3d& Sigma) const {
+  Record s;
+  s.t_ns = t_ns;
+  s.P_stationary = stationary(scale_ * scale_ * Sigma, w_);
+  s.start = !started_;
+  if (s.start) {
+    // No measurement yet: the error is what the solutions say it can be.
+    s.F = Mat6::Identity();
+    s.x_pred.setZero();
+    s.P_pred = s.P_stationary;
+  } else {
+    const double dt = static_cast<double>(t_ns - last_.t_ns) / 1e9;
+    s.F = transition(dt, w_);
+    s.x_pred = s.F * last_.x;
+    s.P_pred = s.F * last_.P * s.F.transpose() + s.P_stationary - s.F * s.P_stationary * s.F.transpose();
+    s.P_pred = 0.5 * (s.P_pred + s.P_pred.transpose()).eval();
+  }
+  return s;
+}
+
+void BaselineFilter::push(const Record& r) {
+  last_ = r;
+  started_ = true;
+  if (keep_history_) history_.push_back(r);
+}
+
+void BaselineFilter::predict(TimestampNs t_ns, const Eigen::Matrix3d& Sigma) {
+  if (!started_ || t_ns <= last_.t_ns) return;
+  Record s = predicted(t_ns, Sigma);
+  s.x = s.x_pred, s.P = s.P_pred;
+  push(s);
+}
+
+void BaselineFilter::measure(TimestampNs t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
+                             const Eigen::Matrix3d& Sigma, bool is_float) {
+  if (started_ && t_ns <= last_.t_ns) {
+    ++counts_.out_of_order;  // the filter runs forward only
+    return;
+  }
+  Record s = predicted(t_ns, Sigma);
+  Eigen::Vector3d y = z - s.x_pred.head<3>();
+  Eigen::LDLT<Eigen::Matrix3d> Sf(s.P_pred.topLeftCorner<3, 3>() + R);
+  const double nis = y.dot(Sf.solve(y));
+  const double log_det = std::log(Sf.vectorD().prod());
+  if (!s.start && nis > options_.gate_chi2) {
+    ++counts_.rejected;
+    // Counted as no likelier than the gate, so a model that rejects more does not look better.
+    log_likelihood_ -= 0.5 * (options_.gate_chi2 + log_det);
+    // Fixed baselines rejected again and again: the INS solutions jumped for good; start again
+    // from here. (Float ones off the track are what float solutions are: biased.)
+    if (is_float || ++rejected_in_a_row_ < options_.reset_after_rejections) return;
+    ++counts_.resets;
+    s.start = true;
+    s.F = Mat6::Identity();
+    s.x_pred.setZero();
+    s.P_pred = s.P_stationary;
+    y = z;
+    Sf.compute(s.P_pred.topLeftCorner<3, 3>() + R);
+  } else {
+    log_likelihood_ -= 0.5 * (nis + log_det);
+    if (!s.start) {
+      counts_.innovation_sq += y.squaredNorm();
+      ++counts_.innovations;
+    }
+  }
+  rejected_in_a_row_ = 0;
+  const Eigen::Matrix<double, 6, 3> K =
+      s.P_pred.leftCols<3>() * Sf.solve(Eigen::Matrix3d::Identity());  // P H^T S^-1, H = [I 0]
+  s.x = s.x_pred + K * y;
+  Eigen::Matrix<double, 3, 6> H = Eigen::Matrix<double, 3, 6>::Zero();
+  H.leftCols<3>().setIdentity();
+  const Mat6 IKH = Mat6::Identity() - K * H;
+  s.P = IKH * s.P_pred * IKH.transpose() + K * R * K.transpose();  // Joseph form
+  push(s);
+  ++counts_.used, counts_.used_float += is_float;
+}
+
+std::optional<BaselineCorrection> BaselineFilter::at(TimestampNs t_ns) const {
+  if (!started_ || t_ns < last_.t_ns ||
+      t_ns - last_.t_ns > static_cast<TimestampNs>(options_.max_gap_s * 1e9))
+    return std::nullopt;
+  Vec6 x = last_.x;
+  Mat6 P = last_.P;
+  carry(static_cast<double>(t_ns - last_.t_ns) / 1e9, w_, last_.P_stationary, x, P);
+  return BaselineCorrection{x.head<3>(), P.topLeftCorner<3, 3>()};
+}
+
+// ---- Live: every model at once, the likeliest so far answers ------------------------------------
+
+LiveBaselineFusion::LiveBaselineFusion(const BaselineFusionOptions& options) : options_(options) {
+  for (double s : scales_of(options))
+    for (double t : taus_of(options)) models_.emplace_back(s, t, options);
+}
+
+bool LiveBaselineFusion::usable(const BaselineMeasurement& m) {
+  ++counts_.measurements;
+  if (!m.valid || m.carr_soln == 0 || !m.ned_m.allFinite()) {
+    ++counts_.invalid;
+    return false;
+  }
+  if (m.carr_soln == 1 && !options_.use_float) {
+    ++counts_.float_skipped;
+    return false;
+  }
+  return true;
+}
+
+void LiveBaselineFusion::add(const BaselineMeasurement& m, const InsBaselineSample& ins) {
+  const Eigen::Matrix3d R = noise_of(m, options_);
+  double best = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < models_.size(); ++i) {
+    models_[i].measure(m.t_ns, m.ned_m - ins.ned_m, R, ins.cov_ned_m2, m.carr_soln == 1);
+    if (models_[i].log_likelihood() > best) best = models_[i].log_likelihood(), best_ = i;
+  }
+}
+
+std::optional<BaselineCorrection> LiveBaselineFusion::at(TimestampNs t_ns) const {
+  return models_[best_].at(t_ns);
+}
+
+BaselineFusionReport LiveBaselineFusion::report() const {
+  BaselineFusionReport r = counts_;
+  const BaselineFilter& m = models_[best_];
+  r.used = m.counts().used, r.used_float = m.counts().used_float;
+  r.rejected = m.counts().rejected, r.resets = m.counts().resets;
+  r.innovation_rms_m = m.counts().innovations
+                           ? std::sqrt(m.counts().innovation_sq / static_cast<double>(m.counts().innovations))
+                           : 0.0;
+  r.sigma_scale = m.sigma_scale();
+  r.correlation_s = m.correlation_s();
+  return r;
 }
 
 Expected<BaselineFusion> BaselineFusion::fuse(
@@ -185,40 +271,30 @@ Expected<BaselineFusion> BaselineFusion::fuse(
       for (TimestampNs t = steps.back().t_ns + fill_ns; t + fill_ns / 2 < m.t_ns; t += fill_ns)
         if (const auto g = ins_baseline(t))
           steps.push_back({t, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero(), g->cov_ned_m2, false, false});
-    Step p{m.t_ns, m.ned_m - ins->ned_m, Eigen::Matrix3d::Zero(), ins->cov_ned_m2, true, is_float};
-    for (int k = 0; k < 3; ++k) {
-      const double floor = is_float ? options.float_sigma_floor_m : options.sigma_floor_m;
-      const double sg = std::isfinite(m.sigma_ned_m[k]) ? std::max(m.sigma_ned_m[k], floor) : floor;
-      p.R(k, k) = sg * sg;
-    }
-    steps.push_back(p);
+    steps.push_back({m.t_ns, m.ned_m - ins->ned_m, noise_of(m, options), ins->cov_ned_m2, true, is_float});
   }
   // How honest the solutions' sigma is, and how fast their error wanders, unless given: the pair
   // whose innovations are most likely.
-  const std::vector<double> scales = options.sigma_scale > 0
-                                         ? std::vector<double>{options.sigma_scale}
-                                         : std::vector<double>{1, 2, 5, 10, 20, 50, 100, 200, 500, 1000};
-  const std::vector<double> taus = options.correlation_s > 0 ? std::vector<double>{options.correlation_s}
-                                                             : std::vector<double>{0.3, 1, 3, 10, 30, 100, 300};
+  const std::vector<double> scales = scales_of(options), taus = taus_of(options);
   double scale = scales.front(), tau = taus.front();
   if (scales.size() * taus.size() > 1 && !steps.empty()) {
     double best = -std::numeric_limits<double>::infinity();
     for (double sc : scales)
       for (double ta : taus) {
-        const double ll = forward(steps, sc, ta, options).log_likelihood;
+        const double ll = forward(steps, sc, ta, options, false).log_likelihood();
         if (ll > best) best = ll, scale = sc, tau = ta;
       }
   }
   f.options_.sigma_scale = r.sigma_scale = scale;
   f.options_.correlation_s = r.correlation_s = tau;
-  ForwardPass pass = forward(steps, scale, tau, options);
-  std::vector<Forward>& fw = pass.fw;
-  r.used = pass.used, r.used_float = pass.used_float, r.rejected = pass.rejected, r.resets = pass.resets;
-  if (pass.used == 0)
+  const BaselineFilter pass = forward(steps, scale, tau, options, true);
+  const std::vector<BaselineFilter::Record>& fw = pass.history();
+  const BaselineFilter::Counts& c = pass.counts();
+  r.used = c.used, r.used_float = c.used_float, r.rejected = c.rejected, r.resets = c.resets;
+  if (c.used == 0)
     return make_error("nav::BaselineFusion::fuse(): no usable moving-baseline measurement (", r.summary(),
                       ")");
-  r.innovation_rms_m =
-      pass.innovations ? std::sqrt(pass.innovation_sq / static_cast<double>(pass.innovations)) : 0.0;
+  r.innovation_rms_m = c.innovations ? std::sqrt(c.innovation_sq / static_cast<double>(c.innovations)) : 0.0;
 
   // The RTS smoother, segment by segment (a restart cuts the chain).
   f.epochs_.resize(fw.size());

@@ -38,6 +38,7 @@ namespace augrig::nav {
 
 struct BaselineMeasurement {
   TimestampNs t_ns = 0;                                   // time of validity, on the nav clock (GPS time)
+  TimestampNs arrival_ns = 0;                             // host arrival (live inputs; 0: unknown)
   Eigen::Vector3d ned_m = Eigen::Vector3d::Zero();        // base (tanker) antenna -> rover (receiver) antenna
   Eigen::Vector3d sigma_ned_m = Eigen::Vector3d::Zero();  // 1-sigma per axis, as reported
   int carr_soln = 2;                                      // 0 none, 1 float, 2 fixed
@@ -76,6 +77,76 @@ struct BaselineFusionReport {
   double sigma_scale = 1;       // s, as given or chosen
   double correlation_s = 0;     // tau, as given or chosen
   std::string summary() const;  // one line, every count
+};
+
+// One model's (s, tau) forward filter, measurement by measurement: the offline fusion's forward
+// pass for each model it weighs, and each of the live fusion's models.
+class BaselineFilter {
+ public:
+  BaselineFilter(double sigma_scale, double correlation_s, const BaselineFusionOptions& options,
+                 bool keep_history = false);
+  // A measurement epoch: z = baseline - INS baseline, its noise R, the solutions' covariance Sigma
+  // there. Times must increase (an older one is counted out of order and left out).
+  void measure(TimestampNs t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R, const Eigen::Matrix3d& Sigma,
+               bool is_float);
+  // A prediction epoch (in a gap), after the first measurement.
+  void predict(TimestampNs t_ns, const Eigen::Matrix3d& Sigma);
+  // The newest state carried forward to t_ns; nullopt before it, before any measurement, or more
+  // than max_gap_s after it.
+  std::optional<BaselineCorrection> at(TimestampNs t_ns) const;
+
+  struct Counts {
+    std::size_t used = 0, used_float = 0, rejected = 0, resets = 0, innovations = 0, out_of_order = 0;
+    double innovation_sq = 0;  // of the gated innovations
+  };
+  // An epoch as the smoother needs it: filtered and predicted state, transition, model.
+  struct Record {
+    TimestampNs t_ns = 0;
+    Eigen::Matrix<double, 6, 1> x, x_pred;
+    Eigen::Matrix<double, 6, 6> P, P_pred, F, P_stationary;
+    bool start = false;  // the first epoch, or a restart
+  };
+  const Counts& counts() const { return counts_; }
+  // Of the innovations so far; a rejected measurement counts as if at the gate.
+  double log_likelihood() const { return log_likelihood_; }
+  double sigma_scale() const { return scale_; }
+  double correlation_s() const { return 1.0 / w_; }
+  const std::vector<Record>& history() const { return history_; }  // with keep_history
+
+ private:
+  Record predicted(TimestampNs t_ns, const Eigen::Matrix3d& Sigma) const;
+  void push(const Record& r);
+  double scale_, w_;
+  BaselineFusionOptions options_;
+  bool keep_history_;
+  bool started_ = false;
+  Record last_;
+  std::vector<Record> history_;
+  Counts counts_;
+  double log_likelihood_ = 0;
+  int rejected_in_a_row_ = 0;
+};
+
+// The live (forward-only) fusion: every model of the offline grid runs at once, and the likeliest
+// so far answers. Not thread-safe: its owner serialises add() and at().
+class LiveBaselineFusion {
+ public:
+  explicit LiveBaselineFusion(const BaselineFusionOptions& options = {});
+  // Counts a measurement; false: not usable (invalid, or float when use_float is off).
+  bool usable(const BaselineMeasurement& m);
+  // A usable measurement with the INS baseline at its time.
+  void add(const BaselineMeasurement& m, const InsBaselineSample& ins);
+  // A usable measurement whose INS baseline could not be had.
+  void count_outside() { ++counts_.outside_ins; }
+  // The likeliest model's correction carried forward to t_ns (nullopt: none yet, or stale).
+  std::optional<BaselineCorrection> at(TimestampNs t_ns) const;
+  BaselineFusionReport report() const;
+
+ private:
+  BaselineFusionOptions options_;
+  std::vector<BaselineFilter> models_;
+  std::size_t best_ = 0;
+  BaselineFusionReport counts_;
 };
 
 class BaselineFusion {
