@@ -109,6 +109,14 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   nav::NavTrajectory rx = unwrap(nav::fuse(receiver.imu, receiver.gps, receiver.config, smooth));
   const double fuse_ms = ms_since(t0);
   out << describe("tanker", tk.report()) << "\n" << describe("receiver", rx.report()) << "\n";
+  // The IMU clocks against GPS time, where aircraft.yaml has them estimated (imu_clock).
+  std::string imu_clocks;
+  for (const auto& [who, r] : {std::pair{"tanker", &tk.report()}, std::pair{"receiver", &rx.report()}}) {
+    if (const std::string c = describe_imu_clock(who, *r); !c.empty()) {
+      out << c << "\n";
+      imu_clocks += (imu_clocks.empty() ? "" : "; ") + c;
+    }
+  }
   // Is the sigma the filters report consistent with what the GPS fixes said (NIS)?
   std::string consistency;
   for (const auto& [who, logs] : aircraft) {
@@ -180,6 +188,7 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   o.metadata["gps_minus_utc_s"] = "tanker " + nav::describe(tanker.leap_seconds) + "; receiver " +
                                   nav::describe(receiver.leap_seconds);
   o.metadata["sigma_consistency"] = consistency;
+  if (!imu_clocks.empty()) o.metadata["imu_clock"] = imu_clocks;
   if (baseline)
     o.metadata["moving_baseline"] = rover_path + ": " + std::to_string(corrected) + " of " +
                                     std::to_string(rows.size()) + " rows corrected";

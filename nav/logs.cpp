@@ -250,6 +250,9 @@ const std::vector<std::string> kNavColumns = {"t_ns",   "lat_deg", "lon_deg", "h
                                               "ve_mps", "vd_mps",  "yaw_deg", "pitch_deg", "roll_deg"};
 const std::vector<std::string> kNavSigmaColumns = {"sigma_n_m",     "sigma_e_m",       "sigma_d_m",
                                                    "sigma_yaw_deg", "sigma_pitch_deg", "sigma_roll_deg"};
+// Written only when estimated (NavSolutionRow); the last two are sigmas.
+const std::vector<std::string> kNavClockColumns = {"imu_clock_offset_ms", "imu_clock_drift_ppm",
+                                                   "sigma_imu_clock_offset_ms", "sigma_imu_clock_drift_ppm"};
 
 Expected<ImuLog> parse_imu(std::istream& in, const std::string& name, const std::string& prefix) {
   return guarded(prefix, name, [&]() -> ImuLog {
@@ -292,7 +295,9 @@ Expected<ImuLog> parse_imu(std::istream& in, const std::string& name, const std:
 Expected<NavSolutionLog> parse_nav(std::istream& in, const std::string& name, const std::string& prefix) {
   return guarded(prefix, name, [&]() -> NavSolutionLog {
     NavSolutionLog log;
-    Table t(prefix, name, kNavColumns, kNavSigmaColumns);
+    std::vector<std::string> optional = kNavSigmaColumns;
+    optional.insert(optional.end(), kNavClockColumns.begin(), kNavClockColumns.end());
+    Table t(prefix, name, kNavColumns, optional);
     std::vector<std::size_t> lines;
     t.read(in, [&](const std::vector<std::string_view>& f, std::size_t line) {
       NavSolutionRow r;
@@ -309,6 +314,15 @@ Expected<NavSolutionLog> parse_nav(std::istream& in, const std::string& name, co
         *sigmas[i] = t.number(f, c, line, true);
         if (*sigmas[i] < 0)
           t.fail(line, "column '" + kNavSigmaColumns[i] + "': expected a sigma >= 0, got " + quoted(f[c]));
+      }
+      double* const clock[] = {&r.imu_clock_offset_ms, &r.imu_clock_drift_ppm, &r.sigma_imu_clock_offset_ms,
+                               &r.sigma_imu_clock_drift_ppm};
+      for (std::size_t i = 0; i < std::size(clock); ++i) {
+        const int c = t.column(kNavClockColumns[i]);
+        if (c < 0) continue;
+        *clock[i] = t.number(f, c, line, true);
+        if (i >= 2 && *clock[i] < 0)
+          t.fail(line, "column '" + kNavClockColumns[i] + "': expected a sigma >= 0, got " + quoted(f[c]));
       }
       if (std::abs(r.lat_deg) > 90)
         t.fail(line, "column 'lat_deg': expected -90..90, got " + quoted(f[t.column("lat_deg")]));
@@ -434,8 +448,11 @@ Status write_nav_solution_csv(std::ostream& out, const std::vector<NavSolutionRo
       }
     }
   }
+  const bool clock = std::any_of(
+      rows.begin(), rows.end(), [](const NavSolutionRow& r) { return std::isfinite(r.imu_clock_offset_ms); });
   write_metadata(out, "navigation solution log", options);
-  out << join(kNavColumns) << ',' << join(kNavSigmaColumns) << '\n';
+  out << join(kNavColumns) << ',' << join(kNavSigmaColumns) << (clock ? "," + join(kNavClockColumns) : "")
+      << '\n';
   const auto opt = [](double v) { return std::isfinite(v) ? shortest(v) : std::string(); };
   for (const NavSolutionRow& r : rows) {
     out << r.t_ns;
@@ -446,6 +463,11 @@ Status write_nav_solution_csv(std::ostream& out, const std::vector<NavSolutionRo
     for (double v :
          {r.sigma_n_m, r.sigma_e_m, r.sigma_d_m, r.sigma_yaw_deg, r.sigma_pitch_deg, r.sigma_roll_deg}) {
       out << ',' << opt(v);
+    }
+    if (clock) {
+      for (double v : {r.imu_clock_offset_ms, r.imu_clock_drift_ppm, r.sigma_imu_clock_offset_ms,
+                       r.sigma_imu_clock_drift_ppm})
+        out << ',' << opt(v);
     }
     out << '\n';
   }

@@ -36,10 +36,13 @@ struct ImuLog {
 // One navigation solution epoch, column for column as in the CSV:
 // t_ns,lat_deg,lon_deg,h_m,vn_mps,ve_mps,vd_mps,yaw_deg,pitch_deg,roll_deg,
 // sigma_n_m,sigma_e_m,sigma_d_m,sigma_yaw_deg,sigma_pitch_deg,sigma_roll_deg
+// [,imu_clock_offset_ms,imu_clock_drift_ppm,sigma_imu_clock_offset_ms,sigma_imu_clock_drift_ppm]
 // Position of the body origin (WGS84, ellipsoidal height), velocity in NED, attitude
-// R_ned_body as yaw-pitch-roll (Z-Y'-X'', core/conventions.hpp), 1-sigma errors. The sigma
-// columns are optional: absent columns or empty fields read as NaN (unknown), and NaN is written
-// as an empty field.
+// R_ned_body as yaw-pitch-roll (Z-Y'-X'', core/conventions.hpp), 1-sigma errors, and, when the
+// fusion estimated it (nav::InsConfig::imu_clock), the IMU clock minus GPS time and its drift with
+// 1-sigma. The sigma and clock columns are optional: absent columns or empty fields read as NaN
+// (unknown), and NaN is written as an empty field; the clock columns are written only when a row
+// has a clock offset.
 struct NavSolutionRow {
   static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -49,6 +52,8 @@ struct NavSolutionRow {
   double yaw_deg = 0, pitch_deg = 0, roll_deg = 0;
   double sigma_n_m = kNaN, sigma_e_m = kNaN, sigma_d_m = kNaN;
   double sigma_yaw_deg = kNaN, sigma_pitch_deg = kNaN, sigma_roll_deg = kNaN;
+  double imu_clock_offset_ms = kNaN, imu_clock_drift_ppm = kNaN;
+  double sigma_imu_clock_offset_ms = kNaN, sigma_imu_clock_drift_ppm = kNaN;
 };
 
 struct NavSolutionLog {

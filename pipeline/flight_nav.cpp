@@ -32,7 +32,7 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
     expect_map(c, root, "", "a map of aircraft nav settings");
     check_keys(c, root, "",
                {"lever_arm_m", "imu_time_offset_ns", "gps_time_offset_ns", "gps_leap_seconds", "imu", "gps",
-                "heading"});
+                "heading", "imu_clock"});
     // Every value has an upper bound too (docs/NAV_FORMATS.md): 1e300 would square to inf in the
     // filter's covariances, and a time offset must stay inside int64 once added to a timestamp.
     auto nonneg = [&](const YAML::Node& n, const std::string& key, const char* what, double max) {
@@ -67,7 +67,8 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
     if (const YAML::Node n = root["gps_leap_seconds"]) {
       const std::string what = "GPS - UTC in whole seconds, 0..100 (18 since 2017-01-01)";
       const double v = to_number(c, n, "gps_leap_seconds", what);
-      if (!(v >= 0 && v <= 100 && v == std::floor(v))) fail(c, n, "gps_leap_seconds", "expected " + what + ", " + got(n));
+      if (!(v >= 0 && v <= 100 && v == std::floor(v)))
+        fail(c, n, "gps_leap_seconds", "expected " + what + ", " + got(n));
       cfg.gps_leap_seconds = static_cast<int>(v);
     }
     if (const YAML::Node imu = root["imu"]) {
@@ -121,6 +122,38 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
         cfg.heading_sigma_rad =
             deg_to_rad(nonneg(h["sigma_deg"], "heading.sigma_deg", "a sigma >= 0 deg", 180));
     }
+    if (const YAML::Node k = root["imu_clock"]) {
+      // The IMU clock against GPS time as filter states (docs/NAV_FUSION.md, "IMU clock").
+      expect_map(c, k, "imu_clock",
+                 "a map {estimate, offset_sigma_ms, drift_sigma_ppm, offset_random_walk_us_per_sqrt_s, "
+                 "drift_random_walk_ppm_per_sqrt_s}");
+      check_keys(c, k, "imu_clock",
+                 {"estimate", "offset_sigma_ms", "drift_sigma_ppm", "offset_random_walk_us_per_sqrt_s",
+                  "drift_random_walk_ppm_per_sqrt_s"});
+      nav::ImuClockModel& m = cfg.imu_clock;
+      // The initial sigmas > 0: the filter's covariance must stay positive definite.
+      auto positive = [&](const YAML::Node& n, const std::string& key, const char* what, double max) {
+        const std::string expected = std::string(what) + " > 0 and <= " + fmt(max);
+        const double v = to_number(c, n, key, expected);
+        if (!(v > 0 && v <= max)) fail(c, n, key, "expected " + expected + ", got " + got(n));
+        return v;
+      };
+      if (k["estimate"]) m.estimate = to_bool(c, k["estimate"], "imu_clock.estimate");
+      if (k["offset_sigma_ms"])
+        m.offset_sigma_s =
+            1e-3 * positive(k["offset_sigma_ms"], "imu_clock.offset_sigma_ms", "a sigma in ms", 1e4);
+      if (k["drift_sigma_ppm"])
+        m.drift_sigma =
+            1e-6 * positive(k["drift_sigma_ppm"], "imu_clock.drift_sigma_ppm", "a sigma in ppm", 1e4);
+      if (k["offset_random_walk_us_per_sqrt_s"])
+        m.offset_random_walk_s_psqrts =
+            1e-6 * nonneg(k["offset_random_walk_us_per_sqrt_s"], "imu_clock.offset_random_walk_us_per_sqrt_s",
+                          "a density >= 0 us/sqrt(s)", 1e6);
+      if (k["drift_random_walk_ppm_per_sqrt_s"])
+        m.drift_random_walk_psqrts =
+            1e-6 * nonneg(k["drift_random_walk_ppm_per_sqrt_s"], "imu_clock.drift_random_walk_ppm_per_sqrt_s",
+                          "a density >= 0 ppm/sqrt(s)", 1e4);
+    }
     return cfg;
   });
 }
@@ -154,6 +187,17 @@ std::string aircraft_config_to_yaml(const nav::InsConfig& c) {
     << "  use: " << (c.use_heading ? "true" : "false") << "\n"
     << "  offset_deg: " << fmt(rad_to_deg(c.heading_offset_rad)) << "\n"
     << "  sigma_deg: " << fmt(rad_to_deg(c.heading_sigma_rad)) << "\n";
+  const nav::ImuClockModel& k = c.imu_clock;
+  if (k.estimate || k.offset_sigma_s != nav::ImuClockModel{}.offset_sigma_s ||
+      k.drift_sigma != nav::ImuClockModel{}.drift_sigma || k.offset_random_walk_s_psqrts > 0 ||
+      k.drift_random_walk_psqrts > 0) {
+    o << "imu_clock:\n"
+      << "  estimate: " << (k.estimate ? "true" : "false") << "\n"
+      << "  offset_sigma_ms: " << fmt(k.offset_sigma_s * 1e3) << "\n"
+      << "  drift_sigma_ppm: " << fmt(k.drift_sigma * 1e6) << "\n"
+      << "  offset_random_walk_us_per_sqrt_s: " << fmt(k.offset_random_walk_s_psqrts * 1e6) << "\n"
+      << "  drift_random_walk_ppm_per_sqrt_s: " << fmt(k.drift_random_walk_psqrts * 1e6) << "\n";
+  }
   return o.str();
 }
 
@@ -174,6 +218,8 @@ nav::InsConfig ins_config_for(const sim::AircraftSensors& s) {
   c.gps.rtk_float_m = std::max(s.gps.float_sigma_horizontal_m, 1e-3);
   c.use_heading = s.gps.heading;
   c.heading_sigma_rad = std::max(s.gps.heading_sigma_rad, 1e-6);
+  // An IMU that does not stamp on GPS time: its clock is estimated (from a prior of 0).
+  c.imu_clock.estimate = s.imu.clock_offset_ns != 0 || s.imu.clock_drift_ppm != 0;
   return c;
 }
 
@@ -268,6 +314,9 @@ std::vector<nav::NavSolutionRow> nav_solution_rows(const nav::NavTrajectory& t) 
     r.sigma_d_m = s.sigma_pos_ned_m.z();
     r.sigma_yaw_deg = rad_to_deg(s.sigma_ypr_rad.x()), r.sigma_pitch_deg = rad_to_deg(s.sigma_ypr_rad.y());
     r.sigma_roll_deg = rad_to_deg(s.sigma_ypr_rad.z());
+    r.imu_clock_offset_ms = 1e3 * s.imu_clock_offset_s, r.imu_clock_drift_ppm = 1e6 * s.imu_clock_drift_s_per_s;
+    r.sigma_imu_clock_offset_ms = 1e3 * s.sigma_imu_clock_offset_s;
+    r.sigma_imu_clock_drift_ppm = 1e6 * s.sigma_imu_clock_drift;
     rows.push_back(r);
   }
   return rows;
@@ -394,6 +443,19 @@ std::string describe(const std::string& who, const nav::FusionReport& r) {
     << yaml::fmt(std::round(r.longest_fix_gap_s * 1000) / 1000) << " s); " << r.epochs << " epochs"
     << (r.smoothed ? ", smoothed" : ", forward only");
   return o.str();
+}
+
+std::string describe_imu_clock(const std::string& who, const nav::FusionReport& r) {
+  if (!r.imu_clock_estimated) return "";
+  char buf[256];
+  std::snprintf(buf, sizeof buf,
+                "%s IMU clock - GPS time: %+.3f ms (1-sigma %.3f ms), drift %+.2f ppm (1-sigma %.2f ppm), at "
+                "t_nav_ns %lld (%s)",
+                who.c_str(), 1e3 * r.imu_clock_offset_s, 1e3 * r.imu_clock_offset_sigma_s,
+                1e6 * r.imu_clock_drift_s_per_s, 1e6 * r.imu_clock_drift_sigma,
+                static_cast<long long>(r.imu_clock_t_ns),
+                r.smoothed ? "smoothed, the first epoch" : "forward filter, the last epoch");
+  return buf;
 }
 
 namespace {

@@ -35,12 +35,16 @@ namespace augrig::pipeline {
 //         bias_tau_s}
 //   gps: {rtk_fixed_m, rtk_float_m, use_gst}
 //   heading: {use: true, offset_deg: 0, sigma_deg: 0.1}
+//   imu_clock: {estimate: false, offset_sigma_ms: 50, drift_sigma_ppm: 100,
+//               offset_random_walk_us_per_sqrt_s: 0, drift_random_walk_ppm_per_sqrt_s: 0}
+//                                   the IMU clock against GPS time as filter states (nav::ImuClockModel)
 Expected<nav::InsConfig> load_aircraft_config(const std::string& path);
 Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, const std::string& name);
 std::string aircraft_config_to_yaml(const nav::InsConfig& c);
 
 // The nav settings a user would write for a simulated aircraft: the surveyed lever arm and the IMU's
-// datasheet noise (the sim's own model; zero noise keeps a small floor so the filter stays regular).
+// datasheet noise (the sim's own model; zero noise keeps a small floor so the filter stays regular);
+// the IMU clock estimated when the sim's IMU does not stamp on GPS time.
 nav::InsConfig ins_config_for(const sim::AircraftSensors& s);
 
 struct AircraftLoadOptions {
@@ -135,6 +139,9 @@ std::string describe(const PoseErrorStats& s);
 
 // A one-paragraph summary of a fusion report for the console.
 std::string describe(const std::string& who, const nav::FusionReport& r);
+// The estimated IMU clock (nav::FusionReport::imu_clock_*) in one line, "" when not estimated:
+// "receiver IMU clock - GPS time: +7.012 ms (1-sigma 0.203 ms), drift ... at t_nav_ns ... (smoothed...)".
+std::string describe_imu_clock(const std::string& who, const nav::FusionReport& r);
 
 // The GPS innovations of a fusion against what its filter predicted (nav::InnovationStats), in plain
 // words: is the sigma the filter reports consistent with them? Consistent: the innovations' size

@@ -375,6 +375,48 @@ TEST(NavSolutionCsv, SigmaColumnsAreOptional) {
   EXPECT_EQ(log->rows[1].roll_deg, 9);
 }
 
+// The IMU clock columns (the fusion estimated the IMU clock): written after the sigmas only when a
+// row has a clock offset, read back bit-exact; a file without them (older files, no clock
+// estimated) reads as NaN; a negative clock sigma is an error.
+TEST(NavSolutionCsv, ImuClockColumnsAtTheEndWhenEstimated) {
+  std::vector<NavSolutionRow> in = make_nav(20);
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    in[i].imu_clock_offset_ms = 7.0 + 1e-3 * static_cast<double>(i) / 3.0;
+    in[i].imu_clock_drift_ppm = -20.0 / 7.0;
+    in[i].sigma_imu_clock_offset_ms = i % 5 ? 0.25 / static_cast<double>(i + 1) : NavSolutionRow::kNaN;
+    in[i].sigma_imu_clock_drift_ppm = 3.5;
+  }
+  std::ostringstream out;
+  ASSERT_TRUE(write_nav_solution_csv(out, in));
+  const std::string text = out.str();
+  EXPECT_NE(text.find("sigma_roll_deg,imu_clock_offset_ms,imu_clock_drift_ppm,sigma_imu_clock_offset_ms,"
+                      "sigma_imu_clock_drift_ppm\n"),
+            std::string::npos);
+  std::istringstream back(text);
+  const auto log = parse_nav_solution_csv(back, "nav.csv");
+  ASSERT_TRUE(log) << log.error().message;
+  ASSERT_EQ(log->rows.size(), in.size());
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    EXPECT_TRUE(same_bits(log->rows[i].imu_clock_offset_ms, in[i].imu_clock_offset_ms)) << i;
+    EXPECT_TRUE(same_bits(log->rows[i].imu_clock_drift_ppm, in[i].imu_clock_drift_ppm)) << i;
+    EXPECT_EQ(std::isnan(log->rows[i].sigma_imu_clock_offset_ms),
+              std::isnan(in[i].sigma_imu_clock_offset_ms));
+    EXPECT_EQ(log->rows[i].sigma_imu_clock_drift_ppm, 3.5);
+  }
+  const auto old = nav_from(
+      "t_ns,lat_deg,lon_deg,h_m,vn_mps,ve_mps,vd_mps,yaw_deg,pitch_deg,roll_deg\n100,1,2,3,4,5,6,7,8,9\n");
+  ASSERT_TRUE(old) << old.error().message;
+  EXPECT_TRUE(std::isnan(old->rows[0].imu_clock_offset_ms));
+  EXPECT_TRUE(std::isnan(old->rows[0].sigma_imu_clock_drift_ppm));
+  const auto bad = nav_from(
+      "t_ns,lat_deg,lon_deg,h_m,vn_mps,ve_mps,vd_mps,yaw_deg,pitch_deg,roll_deg,imu_clock_offset_ms,"
+      "sigma_imu_clock_offset_ms\n100,1,2,3,4,5,6,7,8,9,-7,-0.1\n");
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("column 'sigma_imu_clock_offset_ms': expected a sigma >= 0"),
+            std::string::npos)
+      << bad.error().message;
+}
+
 TEST(NavSolutionCsv, OrderAndGaps) {
   std::string text = "t_ns,lat_deg,lon_deg,h_m,vn_mps,ve_mps,vd_mps,yaw_deg,pitch_deg,roll_deg\n";
   for (const char* t : {"0", "100", "200", "150", "200", "300", "700", "800"}) {
