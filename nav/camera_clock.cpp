@@ -1,0 +1,716 @@
+#include "nav/camera_clock.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <random>
+#include <sstream>
+#include <utility>
+
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+#include "nav/geodesy.hpp"
+#include "nav/ins.hpp"
+
+namespace augrig::nav {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+Eigen::Vector3d log_so3(const Eigen::Matrix3d& R) {
+  const Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
+}
+
+// Rotation R with R a_i ~ b_i (Kabsch: SVD of sum b a^T, no reflection).
+Eigen::Matrix3d kabsch(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
+                       const std::vector<int>& use) {
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  for (int i : use) H += b[static_cast<std::size_t>(i)] * a[static_cast<std::size_t>(i)].transpose();
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  return svd.matrixU() * D * svd.matrixV().transpose();
+}
+
+// Gray 8-bit copy of an image of core/image.hpp's formats (Bayer by OpenCV's names, which count
+// the pattern from the second row and column: our RG is OpenCV's BG).
+Expected<cv::Mat> to_gray(ConstImageView v) {
+  const cv::Mat src(v.height, v.width, CV_8UC(bytes_per_pixel(v.format)),
+                    const_cast<std::uint8_t*>(v.data), v.stride_bytes);
+  cv::Mat gray;
+  switch (v.format) {
+    case PixelFormat::kMono8: gray = src.clone(); break;
+    case PixelFormat::kRGB8: cv::cvtColor(src, gray, cv::COLOR_RGB2GRAY); break;
+    case PixelFormat::kRGBA8: cv::cvtColor(src, gray, cv::COLOR_RGBA2GRAY); break;
+    case PixelFormat::kBayerRG8: cv::cvtColor(src, gray, cv::COLOR_BayerBG2GRAY); break;
+    case PixelFormat::kBayerGR8: cv::cvtColor(src, gray, cv::COLOR_BayerGB2GRAY); break;
+    case PixelFormat::kBayerGB8: cv::cvtColor(src, gray, cv::COLOR_BayerGR2GRAY); break;
+    case PixelFormat::kBayerBG8: cv::cvtColor(src, gray, cv::COLOR_BayerRG2GRAY); break;
+    default:
+      return make_error("nav::CameraRotationTracker::add_frame(): pixel format ", std::string(to_string(v.format)),
+                        " is not supported (expected 8-bit mono, RGB, RGBA or Bayer)");
+  }
+  return gray;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return kNaN;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+}  // namespace
+
+double CameraClockEstimate::offset_at_s(TimestampNs t_camera_ns) const {
+  const double drift = drift_observable ? drift_ppm * 1e-6 : 0.0;
+  return offset_s + drift * ns_to_s(t_camera_ns - reference_camera_ns);
+}
+
+// ---- tracker -----------------------------------------------------------------------------------
+
+struct CameraRotationTracker::Impl {
+  struct Track {
+    cv::Point2f px;
+    Eigen::Vector3d ray;                                 // unit ray in the camera frame of the last frame
+    Eigen::Vector3d misfit = Eigen::Vector3d::Zero();    // exponentially weighted misfit
+    bool flagged = false;                                // moves unlike the ground: never used again
+  };
+
+  CameraModel model;
+  Eigen::Matrix3d R_body_cam;
+  CameraClockOptions opt;
+  GroundMotionFunction ground;
+  AngularRateFunction omega;
+  double focal_px = 1;
+  cv::Size window;
+
+  std::vector<cv::Mat> prev_pyramid;
+  TimestampNs prev_t_ns = 0;
+  bool have_prev = false;
+  std::vector<Track> tracks;
+  std::vector<FrameRotation> rotations;
+  int frames = 0;
+  std::mt19937 rng{20u};
+
+  void replenish(const cv::Mat& gray);
+  // The rays of the previous frame as seen from the current camera position (parallax removed).
+  void remove_parallax(TimestampNs t0_ns, TimestampNs t1_ns, std::vector<Eigen::Vector3d>& rays) const;
+  void track(const cv::Mat& gray, const std::vector<cv::Mat>& pyramid, TimestampNs t_ns);
+};
+
+void CameraRotationTracker::Impl::replenish(const cv::Mat& gray) {
+  int active = 0;
+  for (const Track& t : tracks) active += t.flagged ? 0 : 1;
+  // Below 80 % of the target only: detection is the tracker's dearest step.
+  if (active >= opt.max_features * 4 / 5) return;
+  cv::Mat mask(gray.size(), CV_8UC1, cv::Scalar(255));
+  // Every track, flagged ones too, keeps its neighbourhood: the receiver stays occupied by its
+  // flagged tracks rather than giving fresh features every frame.
+  for (const Track& t : tracks)
+    cv::circle(mask, t.px, static_cast<int>(opt.min_distance_px), cv::Scalar(0), -1);
+  std::vector<cv::Point2f> corners;
+  cv::goodFeaturesToTrack(gray, corners, opt.max_features - active, opt.quality_level, opt.min_distance_px, mask, 7);
+  for (const cv::Point2f& c : corners) {
+    const auto ray = model.ray(Eigen::Vector2d(c.x, c.y));
+    if (!ray) continue;
+    tracks.push_back({c, *ray});
+  }
+}
+
+void CameraRotationTracker::Impl::remove_parallax(TimestampNs t0_ns, TimestampNs t1_ns,
+                                                  std::vector<Eigen::Vector3d>& rays) const {
+  if (!ground) return;
+  const TimestampNs prior_ns = s_to_ns(opt.prior_offset_s);
+  const auto g0 = ground(t0_ns - prior_ns);
+  const auto g1 = ground(t1_ns - prior_ns);
+  if (!g0 || !g1 || !(g0->height_m > 0)) return;
+  const Eigen::Vector3d dp_ned_m = 0.5 * (g0->v_ned_mps + g1->v_ned_mps) * ns_to_s(t1_ns - t0_ns);
+  const Eigen::Matrix3d R_ned_cam = g0->R_ned_body * R_body_cam;
+  for (Eigen::Vector3d& r : rays) {
+    const Eigen::Vector3d d = R_ned_cam * r;
+    if (!(d.z() > 1e-6)) continue;  // sky: at infinity, no parallax
+    const Eigen::Vector3d p_ned_m = d * (g0->height_m / d.z());
+    r = (R_ned_cam.transpose() * (p_ned_m - dp_ned_m)).normalized();
+  }
+}
+
+void CameraRotationTracker::Impl::track(const cv::Mat& gray, const std::vector<cv::Mat>& pyramid, TimestampNs t_ns) {
+  std::vector<cv::Point2f> p0, p1, p0_back;
+  p0.reserve(tracks.size());
+  for (const Track& t : tracks) p0.push_back(t.px);
+  std::vector<unsigned char> st1, st0;
+  std::vector<float> err;
+  const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01);
+  cv::calcOpticalFlowPyrLK(prev_pyramid, pyramid, p0, p1, st1, err, window, opt.lk_levels, term);
+  p0_back = p0;
+  cv::calcOpticalFlowPyrLK(pyramid, prev_pyramid, p1, p0_back, st0, err, window, opt.lk_levels, term,
+                           cv::OPTFLOW_USE_INITIAL_FLOW);
+  const double fb2 = opt.max_forward_backward_px * opt.max_forward_backward_px;
+  std::vector<Track> kept;
+  std::vector<Eigen::Vector3d> new_rays;
+  kept.reserve(tracks.size());
+  for (std::size_t i = 0; i < tracks.size(); ++i) {
+    if (!st1[i] || !st0[i]) continue;
+    const cv::Point2f d = p0_back[i] - p0[i];
+    if (d.x * d.x + d.y * d.y > fb2) continue;
+    if (p1[i].x < 0 || p1[i].y < 0 || p1[i].x > gray.cols - 1 || p1[i].y > gray.rows - 1) continue;
+    const auto ray = model.ray(Eigen::Vector2d(p1[i].x, p1[i].y));
+    if (!ray) continue;
+    Track t = tracks[i];
+    t.px = p1[i];
+    kept.push_back(t);
+    new_rays.push_back(*ray);
+    kept.back().ray = tracks[i].ray;  // still the previous frame's until the fit below
+  }
+  // Every kept track's rays: r1 previous (parallax removed), r2 current. The rotation is fitted to
+  // the unflagged ones; the misfit is followed for all, so a flagged track can come back.
+  const int n_all = static_cast<int>(kept.size());
+  std::vector<Eigen::Vector3d> r1, r2;
+  r1.reserve(kept.size());
+  for (const Track& t : kept) r1.push_back(t.ray);
+  r2 = new_rays;
+  remove_parallax(prev_t_ns, t_ns, r1);
+  std::vector<int> cand;
+  for (int i = 0; i < n_all; ++i)
+    if (!kept[static_cast<std::size_t>(i)].flagged) cand.push_back(i);
+  const int n = static_cast<int>(cand.size());
+  const double thr_rad = opt.inlier_px / focal_px;
+  // The nav rate's rotation over the interval, at the prior offset and at +-search_s: a hypothesis
+  // must lie within what the offset's uncertainty allows (plus a floor), so that a large receiver
+  // moving with the tanker cannot win the consensus over the ground.
+  std::optional<Eigen::Matrix3d> R21_nav;
+  double gate_rad = 0;
+  if (omega) {
+    auto predicted = [&](double shift_s) -> std::optional<Eigen::Vector3d> {
+      const TimestampNs s_ns = s_to_ns(opt.prior_offset_s + shift_s);
+      const TimestampNs a = prev_t_ns - s_ns, b = t_ns - s_ns;
+      const auto wa = omega(a), wm = omega(a + (b - a) / 2), wb = omega(b);
+      if (!wa || !wm || !wb) return std::nullopt;
+      return Eigen::Vector3d(R_body_cam.transpose() * ((*wa + 4 * *wm + *wb) / 6.0) * ns_to_s(b - a));
+    };
+    const auto th0 = predicted(0), thm = predicted(-opt.search_s), thp = predicted(opt.search_s);
+    if (th0 && thm && thp) {
+      // r2 = R21 r1 with R_cam0_cam1 = Exp(theta) = R21^T.
+      R21_nav = Eigen::AngleAxisd(th0->norm(), th0->norm() > 0 ? th0->normalized() : Eigen::Vector3d::UnitX())
+                    .toRotationMatrix()
+                    .transpose();
+      gate_rad = std::max((*thm - *th0).norm(), (*thp - *th0).norm()) + opt.nav_gate_px / focal_px;
+    }
+  }
+  auto in_gate = [&](const Eigen::Matrix3d& R) { return !R21_nav || log_so3(R * R21_nav->transpose()).norm() <= gate_rad; };
+  Eigen::Matrix3d R21 = Eigen::Matrix3d::Identity();  // r2 = R21 r1
+  bool solved = false;
+  std::vector<int> inliers;  // indices into cand
+  auto ray1 = [&](int k) -> const Eigen::Vector3d& { return r1[static_cast<std::size_t>(cand[static_cast<std::size_t>(k)])]; };
+  auto ray2 = [&](int k) -> const Eigen::Vector3d& { return r2[static_cast<std::size_t>(cand[static_cast<std::size_t>(k)])]; };
+  if (n >= std::max(opt.min_inliers, 3)) {
+    std::vector<Eigen::Vector3d> c1, c2;
+    for (int k = 0; k < n; ++k) {
+      c1.push_back(ray1(k));
+      c2.push_back(ray2(k));
+    }
+    std::uniform_int_distribution<int> pick(0, n - 1);
+    // MSAC: the truncated squared misfit, so a hypothesis between two motions (ground and the
+    // receiver, each within the threshold of it) loses to one that fits the ground tightly.
+    const double thr2 = thr_rad * thr_rad;
+    auto msac = [&](const Eigen::Matrix3d& R) {
+      double cost = 0;
+      for (int i = 0; i < n; ++i)
+        cost += std::min((c2[static_cast<std::size_t>(i)] - R * c1[static_cast<std::size_t>(i)]).squaredNorm(), thr2);
+      return cost;
+    };
+    double best = std::numeric_limits<double>::infinity();
+    Eigen::Matrix3d best_R = Eigen::Matrix3d::Identity();
+    for (int it = 0; it < opt.ransac_iterations; ++it) {
+      const int a = pick(rng);
+      int b = pick(rng);
+      if (b == a) b = (a + 1) % n;
+      // Two nearly parallel rays do not fix a rotation.
+      if (c1[static_cast<std::size_t>(a)].cross(c1[static_cast<std::size_t>(b)]).norm() < 20 * thr_rad) continue;
+      const Eigen::Matrix3d R = kabsch(c1, c2, {a, b});
+      if (!in_gate(R)) continue;
+      const double c = msac(R);
+      if (c < best) {
+        best = c;
+        best_R = R;
+      }
+    }
+    if (std::isfinite(best)) {
+      R21 = best_R;
+      // Refine on the inliers, the threshold tightened to 3 sigma of their own misfit.
+      double thr = thr_rad;
+      for (int round = 0; round < 4; ++round) {
+        inliers.clear();
+        std::vector<double> res;
+        for (int i = 0; i < n; ++i) {
+          const double e = (c2[static_cast<std::size_t>(i)] - R21 * c1[static_cast<std::size_t>(i)]).norm();
+          if (e < thr) {
+            inliers.push_back(i);
+            res.push_back(e);
+          }
+        }
+        if (static_cast<int>(inliers.size()) < opt.min_inliers) break;
+        R21 = kabsch(c1, c2, inliers);
+        thr = std::clamp(3.0 * median(res) / 1.18, 0.1 / focal_px, thr_rad);
+      }
+      solved = static_cast<int>(inliers.size()) >= opt.min_inliers && in_gate(R21);
+    }
+  }
+  if (solved) {
+    double ss = 0;
+    for (int k : inliers) ss += (ray2(k) - R21 * ray1(k)).squaredNorm();
+    FrameRotation fr;
+    fr.t0_camera_ns = prev_t_ns;
+    fr.t1_camera_ns = t_ns;
+    fr.rotvec_cam_rad = log_so3(R21.transpose());  // R_cam0_cam1 = R21^T
+    fr.inliers = static_cast<int>(inliers.size());
+    fr.features = n;
+    fr.rms_rad = std::sqrt(ss / static_cast<double>(inliers.size()));
+    rotations.push_back(fr);
+    // Noise of one misfit, robustly, from the candidates (a 2-D misfit's median is 1.18 sigma).
+    std::vector<double> m;
+    m.reserve(static_cast<std::size_t>(n));
+    for (int k = 0; k < n; ++k) m.push_back((ray2(k) - R21 * ray1(k)).norm());
+    const double sigma = std::max(median(m) / 1.18, 0.02 / focal_px);
+    const double lambda = opt.track_memory;
+    const double limit = 4.0 * sigma / std::sqrt(1.0 - lambda * lambda);
+    for (int i = 0; i < n_all; ++i) {
+      Track& t = kept[static_cast<std::size_t>(i)];
+      const Eigen::Vector3d res = r2[static_cast<std::size_t>(i)] - R21 * r1[static_cast<std::size_t>(i)];
+      t.misfit = lambda * (R21 * t.misfit) + res;
+      if (!t.flagged && (t.misfit.norm() > limit || res.norm() > 3 * thr_rad)) t.flagged = true;
+      else if (t.flagged && t.misfit.norm() < 0.5 * limit && res.norm() < thr_rad) t.flagged = false;
+    }
+  }
+  for (std::size_t i = 0; i < kept.size(); ++i) kept[i].ray = new_rays[i];
+  tracks = std::move(kept);
+}
+
+CameraRotationTracker::CameraRotationTracker(const CameraModel& model, const Eigen::Matrix3d& R_cam_body,
+                                             const CameraClockOptions& options, GroundMotionFunction ground,
+                                             AngularRateFunction omega_body)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->omega = std::move(omega_body);
+  impl_->model = model;
+  impl_->R_body_cam = R_cam_body.transpose();
+  impl_->opt = options;
+  impl_->ground = std::move(ground);
+  impl_->focal_px = std::max(0.5 * (model.fx_px + model.fy_px), 1.0);
+  impl_->window = cv::Size(options.lk_window_px, options.lk_window_px);
+}
+
+CameraRotationTracker::~CameraRotationTracker() = default;
+
+const std::vector<FrameRotation>& CameraRotationTracker::rotations() const {
+  return impl_->rotations;
+}
+
+int CameraRotationTracker::frames() const {
+  return impl_->frames;
+}
+
+Status CameraRotationTracker::add_frame(TimestampNs t_camera_ns, ConstImageView image) {
+  Impl& s = *impl_;
+  if (image.width != s.model.width_px || image.height != s.model.height_px) {
+    return make_error("nav::CameraRotationTracker::add_frame(): image is ", image.width, "x", image.height,
+                      ", the camera model ", s.model.width_px, "x", s.model.height_px);
+  }
+  if (s.have_prev && t_camera_ns <= s.prev_t_ns) {
+    return make_error("nav::CameraRotationTracker::add_frame(): frame at ", t_camera_ns,
+                      " ns is not after the previous one (", s.prev_t_ns, " ns)");
+  }
+  auto gray = to_gray(image);
+  if (!gray) return gray.error();
+  std::vector<cv::Mat> pyramid;
+  cv::buildOpticalFlowPyramid(*gray, pyramid, s.window, s.opt.lk_levels);
+  ++s.frames;
+  if (s.have_prev && ns_to_s(t_camera_ns - s.prev_t_ns) <= s.opt.max_interval_s && !s.tracks.empty()) {
+    s.track(*gray, pyramid, t_camera_ns);
+  } else {
+    s.tracks.clear();  // a gap: start afresh
+  }
+  s.replenish(*gray);
+  s.prev_pyramid = std::move(pyramid);
+  s.prev_t_ns = t_camera_ns;
+  s.have_prev = true;
+  return {};
+}
+
+// ---- fit ---------------------------------------------------------------------------------------
+
+namespace {
+
+// The angular rate on a uniform grid, with its running integral (exact for the piecewise-linear
+// rate between the samples), so that any interval's mean rate costs two look-ups.
+class RateGrid {
+ public:
+  RateGrid(const AngularRateFunction& omega, TimestampNs t_ref_ns, double u0_s, double u1_s, double step_s)
+      : u0_(u0_s), h_(step_s) {
+    const auto n = static_cast<std::size_t>(std::ceil((u1_s - u0_s) / step_s)) + 2;
+    w_.resize(n);
+    phi_.resize(n);
+    bad_.assign(n + 1, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto w = omega(t_ref_ns + s_to_ns(u0_ + static_cast<double>(i) * h_));
+      const bool ok = w && w->allFinite();
+      w_[i] = ok ? *w : Eigen::Vector3d::Zero();
+      bad_[i + 1] = bad_[i] + (ok ? 0 : 1);
+    }
+    phi_[0].setZero();
+    for (std::size_t i = 1; i < n; ++i) phi_[i] = phi_[i - 1] + 0.5 * h_ * (w_[i - 1] + w_[i]);
+  }
+  // Whether every sample that [a, b] uses is known.
+  bool valid(double a_s, double b_s) const {
+    const double fa = (a_s - u0_) / h_, fb = (b_s - u0_) / h_;
+    if (!(fa >= 0) || !(fb + 1 < static_cast<double>(w_.size()))) return false;
+    const auto ia = static_cast<std::size_t>(fa), ib = static_cast<std::size_t>(fb) + 1;
+    return bad_[ib + 1] - bad_[ia] == 0;
+  }
+  Eigen::Vector3d integral(double u_s) const {
+    const double f = (u_s - u0_) / h_;
+    const auto i = std::min(static_cast<std::size_t>(std::max(f, 0.0)), w_.size() - 2);
+    const double x = u_s - (u0_ + static_cast<double>(i) * h_);
+    return phi_[i] + x * w_[i] + (0.5 * x * x / h_) * (w_[i + 1] - w_[i]);
+  }
+  Eigen::Vector3d mean(double a_s, double b_s) const { return (integral(b_s) - integral(a_s)) / (b_s - a_s); }
+
+ private:
+  double u0_, h_;
+  std::vector<Eigen::Vector3d> w_, phi_;
+  std::vector<int> bad_;
+};
+
+struct Interval {
+  double t0_s, t1_s;  // camera time relative to the reference
+  Eigen::Vector3d c;  // measured camera rate, rad/s
+};
+
+}  // namespace
+
+Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>& rotations,
+                                               const Eigen::Matrix3d& R_cam_body,
+                                               const AngularRateFunction& omega_body,
+                                               const CameraClockOptions& opt) {
+  const char* fn = "nav::estimate_camera_clock(): ";
+  if (!omega_body) return make_error(fn, "no angular-rate function given");
+  if (!(opt.search_s > 0 && opt.coarse_step_s > 0 && opt.rate_sample_s > 0 && opt.derivative_step_s > 0))
+    return make_error(fn, "search_s, coarse_step_s, rate_sample_s and derivative_step_s must be > 0");
+  if (rotations.size() < static_cast<std::size_t>(std::max(opt.min_intervals, 8)))
+    return make_error(fn, rotations.size(), " frame intervals with a rotation; at least ",
+                      std::max(opt.min_intervals, 8), " needed");
+  CameraClockEstimate est;
+  TimestampNs t_min = rotations.front().t0_camera_ns, t_max = rotations.front().t1_camera_ns;
+  for (const FrameRotation& r : rotations) {
+    t_min = std::min(t_min, r.t0_camera_ns);
+    t_max = std::max(t_max, r.t1_camera_ns);
+  }
+  est.reference_camera_ns = t_min + (t_max - t_min) / 2;
+  const TimestampNs t_ref = est.reference_camera_ns;
+  const double half_span_s = ns_to_s(t_max - t_min) / 2;
+  // Shifts reach prior +- search, plus the derivative's step and what a drift of 200 ppm adds.
+  const double reach_s = opt.search_s + opt.derivative_step_s + 200e-6 * half_span_s + 2 * opt.rate_sample_s;
+  const double lo_shift = opt.prior_offset_s - reach_s, hi_shift = opt.prior_offset_s + reach_s;
+  const RateGrid grid(omega_body, t_ref, -half_span_s - hi_shift - 0.01, half_span_s - lo_shift + 0.01,
+                      opt.rate_sample_s);
+
+  std::vector<Interval> iv;
+  for (const FrameRotation& r : rotations) {
+    const double t0 = ns_to_s(r.t0_camera_ns - t_ref), t1 = ns_to_s(r.t1_camera_ns - t_ref);
+    if (!(t1 > t0) || !r.rotvec_cam_rad.allFinite()) continue;
+    if (!grid.valid(t0 - hi_shift, t1 - lo_shift)) continue;  // the nav rate must cover every shift
+    iv.push_back({t0, t1, r.rotvec_cam_rad / (t1 - t0)});
+  }
+  const int n = static_cast<int>(iv.size());
+  if (n < std::max(opt.min_intervals, 8))
+    return make_error(fn, n, " frame intervals lie inside the angular-rate data (with the +-", opt.search_s,
+                      " s search); at least ", std::max(opt.min_intervals, 8), " needed");
+  est.intervals_used = n;
+
+  // Model: c_k = scale R_cam_body mean(omega over [t0 - d_k, t1 - d_k]) + bias, d_k = offset + drift tmid_k.
+  auto model_rate = [&](int k, double d) {
+    return Eigen::Vector3d(R_cam_body * grid.mean(iv[static_cast<std::size_t>(k)].t0_s - d,
+                                                  iv[static_cast<std::size_t>(k)].t1_s - d));
+  };
+  Eigen::Vector3d c_mean = Eigen::Vector3d::Zero();
+  for (const Interval& x : iv) c_mean += x.c;
+  c_mean /= n;
+  double rss0 = 0;
+  for (const Interval& x : iv) rss0 += (x.c - c_mean).squaredNorm();
+
+  // Linear part (scale, bias) for given model rates m: least squares, weights w.
+  auto solve_linear = [&](const std::vector<Eigen::Vector3d>& m, const std::vector<double>& w, double& scale,
+                          Eigen::Vector3d& bias) {
+    if (!opt.estimate_scale) {
+      scale = 1;
+      Eigen::Vector3d s = Eigen::Vector3d::Zero();
+      double sw = 0;
+      for (int k = 0; k < n; ++k) {
+        s += w[static_cast<std::size_t>(k)] * (iv[static_cast<std::size_t>(k)].c - m[static_cast<std::size_t>(k)]);
+        sw += w[static_cast<std::size_t>(k)];
+      }
+      bias = s / sw;
+      return;
+    }
+    Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d b = Eigen::Vector4d::Zero();
+    for (int k = 0; k < n; ++k) {
+      const auto ku = static_cast<std::size_t>(k);
+      for (int a = 0; a < 3; ++a) {
+        Eigen::Vector4d j = Eigen::Vector4d::Zero();
+        j(0) = m[ku](a);
+        j(1 + a) = 1;
+        A += w[ku] * j * j.transpose();
+        b += w[ku] * j * iv[ku].c(a);
+      }
+    }
+    const Eigen::Vector4d x = A.ldlt().solve(b);
+    scale = x(0);
+    bias = x.tail<3>();
+  };
+
+  // ---- coarse search ----
+  std::vector<double> ones(static_cast<std::size_t>(n), 1.0);
+  std::vector<Eigen::Vector3d> m(static_cast<std::size_t>(n));
+  const int steps = static_cast<int>(std::floor(opt.search_s / opt.coarse_step_s));
+  double best_cost = std::numeric_limits<double>::infinity(), best_d = opt.prior_offset_s;
+  int best_i = 0;
+  for (int i = -steps; i <= steps; ++i) {
+    const double d = opt.prior_offset_s + i * opt.coarse_step_s;
+    for (int k = 0; k < n; ++k) m[static_cast<std::size_t>(k)] = model_rate(k, d);
+    double scale = 1;
+    Eigen::Vector3d bias;
+    solve_linear(m, ones, scale, bias);
+    double cost = 0;
+    for (int k = 0; k < n; ++k)
+      cost += (iv[static_cast<std::size_t>(k)].c - scale * m[static_cast<std::size_t>(k)] - bias).squaredNorm();
+    cost /= 3.0 * n;
+    est.coarse_cost.push_back(cost);
+    if (cost < best_cost) {
+      best_cost = cost;
+      best_d = d;
+      best_i = i;
+    }
+  }
+
+  // ---- Gauss-Newton (robust, iteratively reweighted) ----
+  // Parameters: offset, [drift], [scale], bias (3). The offset's Jacobian is the model's difference
+  // over +-derivative_step_s: nav rate noise would otherwise pass for angular acceleration.
+  auto run = [&](bool with_drift, Eigen::VectorXd& p, Eigen::MatrixXd& cov_out, double& rms_out,
+                 double& explained_out) -> bool {
+    const int P = 1 + (with_drift ? 1 : 0) + (opt.estimate_scale ? 1 : 0) + 3;
+    const int i_scale = with_drift ? 2 : 1;
+    const int i_bias = P - 3;
+    std::vector<double> w(static_cast<std::size_t>(n), 1.0);
+    double scale = 1;
+    Eigen::Vector3d bias;
+    for (int k = 0; k < n; ++k) m[static_cast<std::size_t>(k)] = model_rate(k, best_d);
+    solve_linear(m, w, scale, bias);
+    p = Eigen::VectorXd::Zero(P);
+    p(0) = best_d;
+    if (opt.estimate_scale) p(i_scale) = scale;
+    p.tail<3>() = bias;
+    const double hs = opt.derivative_step_s;
+    std::vector<Eigen::Vector3d> r(static_cast<std::size_t>(n));
+    std::vector<Eigen::Matrix<double, 3, Eigen::Dynamic>> J(static_cast<std::size_t>(n));
+    auto evaluate = [&](const Eigen::VectorXd& q) {
+      const double sc = opt.estimate_scale ? q(i_scale) : 1.0;
+      for (int k = 0; k < n; ++k) {
+        const auto ku = static_cast<std::size_t>(k);
+        const double tmid = 0.5 * (iv[ku].t0_s + iv[ku].t1_s);
+        const double d = q(0) + (with_drift ? q(1) * tmid : 0.0);
+        const Eigen::Vector3d mk = model_rate(k, d);
+        const Eigen::Vector3d dm = (model_rate(k, d + hs) - model_rate(k, d - hs)) / (2 * hs);
+        r[ku] = iv[ku].c - sc * mk - q.tail<3>();
+        J[ku].setZero(3, P);
+        J[ku].col(0) = -sc * dm;
+        if (with_drift) J[ku].col(1) = -sc * dm * tmid;
+        if (opt.estimate_scale) J[ku].col(i_scale) = -mk;
+        J[ku].block<3, 3>(0, i_bias) = -Eigen::Matrix3d::Identity();
+      }
+    };
+    bool converged = false;
+    for (int it = 0; it < 40; ++it) {
+      evaluate(p);
+      if (it >= 2) {
+        // Huber weights at 2 sigma of the residual norms (MAD): bad rotations count less.
+        std::vector<double> norms(static_cast<std::size_t>(n));
+        for (int k = 0; k < n; ++k) norms[static_cast<std::size_t>(k)] = r[static_cast<std::size_t>(k)].norm();
+        const double s = std::max(median(norms) / 1.54, 1e-12);  // median of a 3-D norm ~ 1.54 sigma
+        for (int k = 0; k < n; ++k) {
+          const double z = norms[static_cast<std::size_t>(k)] / (2.5 * s);
+          w[static_cast<std::size_t>(k)] = z <= 1 ? 1.0 : 1.0 / z;
+        }
+      }
+      Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
+      Eigen::VectorXd g = Eigen::VectorXd::Zero(P);
+      for (int k = 0; k < n; ++k) {
+        const auto ku = static_cast<std::size_t>(k);
+        H += w[ku] * J[ku].transpose() * J[ku];
+        g += w[ku] * J[ku].transpose() * r[ku];
+      }
+      const Eigen::VectorXd dp = -H.ldlt().solve(g);
+      if (!dp.allFinite()) return false;
+      // Keep steps within the coarse search's resolution region to stay in the right valley.
+      Eigen::VectorXd step = dp;
+      const double max_step = std::max(2 * opt.coarse_step_s, 1e-4);
+      if (std::abs(step(0)) > max_step) step *= max_step / std::abs(step(0));
+      p += step;
+      if (std::abs(p(0) - opt.prior_offset_s) > opt.search_s + opt.coarse_step_s) return false;
+      if (with_drift && !(std::abs(p(1)) < 200e-6)) return false;  // beyond the rate grid's reach
+      if (it >= 4 && std::abs(step(0)) < 1e-8) {
+        converged = true;
+        break;
+      }
+    }
+    if (!converged) return false;
+    evaluate(p);
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
+    std::vector<Eigen::VectorXd> score(static_cast<std::size_t>(n));
+    double wrss = 0, rss = 0, sw = 0;
+    for (int k = 0; k < n; ++k) {
+      const auto ku = static_cast<std::size_t>(k);
+      H += w[ku] * J[ku].transpose() * J[ku];
+      score[ku] = w[ku] * J[ku].transpose() * r[ku];
+      wrss += w[ku] * r[ku].squaredNorm();
+      rss += r[ku].squaredNorm();
+      sw += w[ku];
+    }
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
+    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0)) return false;
+    const Eigen::MatrixXd Hi = ldlt.solve(Eigen::MatrixXd::Identity(P, P));
+    const double dof = std::max(3.0 * n - P, 1.0);
+    const Eigen::MatrixXd cov_plain = Hi * (wrss / dof);
+    // Newey-West (Bartlett) over hac_lag intervals: neighbouring rates share frames and the
+    // parallax left over is slow, so the residuals are not independent.
+    Eigen::MatrixXd S = Eigen::MatrixXd::Zero(P, P);
+    for (int k = 0; k < n; ++k) S += score[static_cast<std::size_t>(k)] * score[static_cast<std::size_t>(k)].transpose();
+    for (int l = 1; l <= opt.hac_lag; ++l) {
+      const double wl = 1.0 - static_cast<double>(l) / (opt.hac_lag + 1);
+      for (int k = 0; k + l < n; ++k) {
+        const Eigen::MatrixXd x = score[static_cast<std::size_t>(k)] * score[static_cast<std::size_t>(k + l)].transpose();
+        S += wl * (x + x.transpose());
+      }
+    }
+    const Eigen::MatrixXd cov_hac = Hi * S * Hi * (3.0 * n / dof);
+    cov_out = cov_plain;
+    for (int i = 0; i < P; ++i)  // the larger of the two, per parameter
+      if (cov_hac(i, i) > cov_out(i, i)) {
+        const double f = std::sqrt(cov_hac(i, i) / cov_out(i, i));
+        cov_out.row(i) *= f;
+        cov_out.col(i) *= f;
+      }
+    rms_out = std::sqrt(rss / (3.0 * n));
+    explained_out = rss0 > 0 ? 1.0 - rss / rss0 : 0.0;
+    (void)sw;
+    return true;
+  };
+
+  auto unobservable = [&](std::string why) {
+    est.observable = false;
+    est.reason = std::move(why);
+    est.offset_s = est.offset_sigma_s = kNaN;
+    est.drift_ppm = est.drift_sigma_ppm = kNaN;
+    est.drift_observable = false;
+    return est;
+  };
+  if (best_i == -steps || best_i == steps) {
+    std::ostringstream why;
+    why << "the best offset lies at the edge of the search (" << best_d << " s, searched "
+        << opt.prior_offset_s << " +- " << opt.search_s << " s): too little motion, or the offset is beyond it";
+    return unobservable(why.str());
+  }
+  Eigen::VectorXd p;
+  Eigen::MatrixXd cov;
+  double rms = 0, explained = 0;
+  bool with_drift = opt.estimate_drift;
+  bool ok = run(with_drift, p, cov, rms, explained);
+  if (with_drift && (!ok || !(std::sqrt(cov(1, 1)) * 1e6 <= opt.max_drift_sigma_ppm))) {
+    with_drift = false;  // drift not observable: fit the offset alone
+    ok = run(false, p, cov, rms, explained);
+  }
+  est.residual_rms_radps = rms;
+  est.explained = explained;
+  if (!ok) return unobservable("the fit did not converge or is singular: too little angular acceleration");
+  const int i_scale = with_drift ? 2 : 1;
+  est.scale = opt.estimate_scale ? p(i_scale) : 1.0;
+  est.bias_cam_radps = p.tail<3>();
+  if (explained < opt.min_explained) {
+    std::ostringstream why;
+    why << "the nav angular rate explains " << std::round(explained * 1000) / 10 << " % of the camera rates' variation ("
+        << opt.min_explained * 100 << " % needed): too little motion";
+    return unobservable(why.str());
+  }
+  const double sigma = std::sqrt(cov(0, 0));
+  if (!(sigma <= opt.max_offset_sigma_s)) {
+    std::ostringstream why;
+    why << "offset 1-sigma " << sigma * 1e3 << " ms exceeds " << opt.max_offset_sigma_s * 1e3
+        << " ms: too little angular acceleration";
+    return unobservable(why.str());
+  }
+  est.observable = true;
+  est.offset_s = p(0);
+  est.offset_sigma_s = sigma;
+  est.drift_observable = with_drift;
+  if (with_drift) {
+    est.drift_ppm = p(1) * 1e6;
+    est.drift_sigma_ppm = std::sqrt(cov(1, 1)) * 1e6;
+  } else {
+    est.drift_ppm = est.drift_sigma_ppm = kNaN;
+  }
+  return est;
+}
+
+Expected<CameraClockEstimate> estimate_camera_clock(const std::vector<CameraClockFrame>& frames,
+                                                    const CameraModel& model, const Eigen::Matrix3d& R_cam_body,
+                                                    const AngularRateFunction& omega_body,
+                                                    const CameraClockOptions& options,
+                                                    const GroundMotionFunction& ground) {
+  CameraRotationTracker tracker(model, R_cam_body, options, ground, omega_body);
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (!frames[i].image) return make_error("nav::estimate_camera_clock(): frame ", i, " has no image source");
+    auto img = frames[i].image();
+    if (!img) return make_error("nav::estimate_camera_clock(): frame ", i, ": ", img.error().message);
+    if (auto st = tracker.add_frame(frames[i].t_camera_ns, std::as_const(*img).view()); !st)
+      return make_error("nav::estimate_camera_clock(): frame ", i, ": ", st.error().message);
+  }
+  auto est = fit_camera_clock(tracker.rotations(), R_cam_body, omega_body, options);
+  if (!est) return est;
+  est->frames = static_cast<int>(frames.size());
+  return est;
+}
+
+// ---- from a fused trajectory --------------------------------------------------------------------
+
+AngularRateFunction angular_rate_from_trajectory(const NavTrajectory& trajectory, double half_step_s) {
+  const TimestampNs h_ns = std::max<TimestampNs>(s_to_ns(half_step_s), 1);
+  return [&trajectory, h_ns](TimestampNs t_ns) -> std::optional<Eigen::Vector3d> {
+    const auto a = trajectory.at(t_ns - h_ns);
+    const auto b = trajectory.at(t_ns + h_ns);
+    if (!a || !b) return std::nullopt;
+    const Eigen::Matrix3d dR = a->q_ecef_body.toRotationMatrix().transpose() * b->q_ecef_body.toRotationMatrix();
+    return Eigen::Vector3d(log_so3(dR) / ns_to_s(2 * h_ns));
+  };
+}
+
+GroundMotionFunction ground_motion_from_trajectory(const NavTrajectory& trajectory, double terrain_height_m) {
+  return [&trajectory, terrain_height_m](TimestampNs t_ns) -> std::optional<GroundMotion> {
+    const auto x = trajectory.at(t_ns);
+    if (!x) return std::nullopt;
+    const Geodetic g = geodetic_from_ecef(x->p_ecef_m);
+    const Eigen::Matrix3d R_ecef_ned_m = R_ecef_ned(g.lat_rad, g.lon_rad);
+    GroundMotion gm;
+    gm.R_ned_body = R_ecef_ned_m.transpose() * x->q_ecef_body.toRotationMatrix();
+    gm.v_ned_mps = R_ecef_ned_m.transpose() * x->v_ecef_mps;
+    gm.height_m = g.h_m - terrain_height_m;
+    return gm;
+  };
+}
+
+}  // namespace augrig::nav
