@@ -135,7 +135,7 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
       auto positive = [&](const YAML::Node& n, const std::string& key, const char* what, double max) {
         const std::string expected = std::string(what) + " > 0 and <= " + fmt(max);
         const double v = to_number(c, n, key, expected);
-        if (!(v > 0 && v <= max)) fail(c, n, key, "expected " + expected + ", got " + got(n));
+        if (!(v > 0 && v <= max)) fail(c, n, key, "expected " + expected + ", " + got(n));
         return v;
       };
       if (k["estimate"]) m.estimate = to_bool(c, k["estimate"], "imu_clock.estimate");
