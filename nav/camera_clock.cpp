@@ -15,6 +15,8 @@
 
 #include "nav/geodesy.hpp"
 #include "nav/ins.hpp"
+#include "nav/logs.hpp"
+#include "render/image_file.hpp"
 
 namespace augrig::nav {
 
@@ -432,6 +434,9 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
     return make_error(fn, n, " frame intervals lie inside the angular-rate data (with the +-", opt.search_s,
                       " s search); at least ", std::max(opt.min_intervals, 8), " needed");
   est.intervals_used = n;
+  std::vector<double> spans;
+  for (const Interval& x : iv) spans.push_back(x.t1_s - x.t0_s);
+  const int hac_lag = std::max(0, static_cast<int>(std::lround(opt.hac_lag_s / median(spans))));
 
   // Model: c_k = scale R_cam_body mean(omega over [t0 - d_k, t1 - d_k]) + bias, d_k = offset + drift tmid_k.
   auto model_rate = [&](int k, double d) {
@@ -587,12 +592,12 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
     const Eigen::MatrixXd Hi = ldlt.solve(Eigen::MatrixXd::Identity(P, P));
     const double dof = std::max(3.0 * n - P, 1.0);
     const Eigen::MatrixXd cov_plain = Hi * (wrss / dof);
-    // Newey-West (Bartlett) over hac_lag intervals: neighbouring rates share frames and the
-    // parallax left over is slow, so the residuals are not independent.
+    // Newey-West (Bartlett) over hac_lag_s: neighbouring rates share frames and what is left of
+    // the parallax is slow, so the residuals are not independent.
     Eigen::MatrixXd S = Eigen::MatrixXd::Zero(P, P);
     for (int k = 0; k < n; ++k) S += score[static_cast<std::size_t>(k)] * score[static_cast<std::size_t>(k)].transpose();
-    for (int l = 1; l <= opt.hac_lag; ++l) {
-      const double wl = 1.0 - static_cast<double>(l) / (opt.hac_lag + 1);
+    for (int l = 1; l <= hac_lag; ++l) {
+      const double wl = 1.0 - static_cast<double>(l) / (hac_lag + 1);
       for (int k = 0; k + l < n; ++k) {
         const Eigen::MatrixXd x = score[static_cast<std::size_t>(k)] * score[static_cast<std::size_t>(k + l)].transpose();
         S += wl * (x + x.transpose());
@@ -684,6 +689,21 @@ Expected<CameraClockEstimate> estimate_camera_clock(const std::vector<CameraCloc
   if (!est) return est;
   est->frames = static_cast<int>(frames.size());
   return est;
+}
+
+std::vector<CameraClockFrame> camera_clock_frames(const FrameIndex& index, int camera, const std::string& folder,
+                                                  std::optional<PixelFormat> bayer, int every) {
+  std::vector<const FrameIndexRow*> rows;
+  for (const FrameIndexRow& r : index.rows)
+    if (r.camera == camera && (every <= 1 || r.sequence % static_cast<std::uint64_t>(every) == 0)) rows.push_back(&r);
+  std::stable_sort(rows.begin(), rows.end(), [](const FrameIndexRow* a, const FrameIndexRow* b) { return a->t_ns < b->t_ns; });
+  std::vector<CameraClockFrame> out;
+  out.reserve(rows.size());
+  for (const FrameIndexRow* r : rows) {
+    const std::string path = folder.empty() ? r->file : folder + "/" + r->file;
+    out.push_back({r->t_ns, [path, bayer]() { return read_image_file(path, bayer); }});
+  }
+  return out;
 }
 
 // ---- from a fused trajectory --------------------------------------------------------------------

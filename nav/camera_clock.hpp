@@ -28,6 +28,7 @@
 namespace augrig::nav {
 
 class NavTrajectory;
+struct FrameIndex;
 
 // The tanker's angular rate w.r.t. the ground (Earth), body axes FRD, rad/s, at GPS time t_gps_ns;
 // nullopt where it is unknown (outside the nav data). A constant error (gyro bias, the Earth's
@@ -70,7 +71,7 @@ struct CameraClockOptions {
   // A track whose misfit keeps one direction (the receiver aircraft, moving with the tanker while
   // the ground turns) is flagged and never used again: its exponentially weighted misfit (this
   // memory per interval) beyond 4 sigma of what noise gives.
-  double track_memory = 0.9;
+  double track_memory = 0.97;
   // ---- the fit ----
   double search_s = 0.1;           // offsets searched: [-search_s, +search_s] about prior_offset_s
   double prior_offset_s = 0;       // centre of the search, and the offset used for parallax
@@ -79,7 +80,9 @@ struct CameraClockOptions {
   double derivative_step_s = 0.05; // the offset's Jacobian is a difference over +-this (smooths nav noise)
   bool estimate_drift = true;      // also fit drift; reported only where it is observable
   bool estimate_scale = true;      // fit a rate scale (focal-length error, residual contamination)
-  int hac_lag = 15;                // intervals of residual correlation allowed for in the sigma
+  // Residual correlation allowed for in the sigma (Newey-West window): slow errors (parallax not
+  // quite removed, the ground's rendering or optics) last seconds.
+  double hac_lag_s = 2.0;
   double max_offset_sigma_s = 0.002;    // a larger 1-sigma: unobservable
   double max_drift_sigma_ppm = 20;      // a larger 1-sigma: drift not observable, fitted as 0
   double min_explained = 0.5;      // the nav rate must explain this share of the rates' variation
@@ -150,6 +153,13 @@ Expected<CameraClockEstimate> estimate_camera_clock(const std::vector<CameraCloc
                                                     const AngularRateFunction& omega_body,
                                                     const CameraClockOptions& options = {},
                                                     const GroundMotionFunction& ground = nullptr);
+
+// One camera's rows of a frame index (nav/logs.hpp, as `augrig sim` writes frames/index.csv), in
+// time order, each image read from its file (relative to `folder`, the index's folder) when the
+// tracker asks for it; 8-bit gray files are read as the `bayer` mosaic when given. `every`: keep
+// every n-th frame (by sequence), to trade precision for time.
+std::vector<CameraClockFrame> camera_clock_frames(const FrameIndex& index, int camera, const std::string& folder,
+                                                  std::optional<PixelFormat> bayer = std::nullopt, int every = 1);
 
 // From a fused trajectory (nav/ins.hpp), which has no rate query: the rate from the attitude at
 // t -+ half_step_s (body w.r.t. ECEF, body axes), and ground motion (NED of the current position,
