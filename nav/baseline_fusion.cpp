@@ -50,18 +50,6 @@ std::vector<double> taus_of(const BaselineFusionOptions& o) {
                              : std::vector<double>{0.3, 1, 3, 10, 30, 100, 300};
 }
 
-// A measurement's noise: the receiver's accuracy, floored (float solutions higher).
-Eigen::Matrix3d noise_of(const BaselineMeasurement& m, const BaselineFusionOptions& options) {
-  Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
-  const bool is_float = m.carr_soln == 1;
-  for (int k = 0; k < 3; ++k) {
-    const double floor = is_float ? options.float_sigma_floor_m : options.sigma_floor_m;
-    const double sg = std::isfinite(m.sigma_ned_m[k]) ? std::max(m.sigma_ned_m[k], floor) : floor;
-    R(k, k) = sg * sg;
-  }
-  return R;
-}
-
 // One epoch as the offline fusion prepares it: a measurement z = baseline - INS baseline with its
 // noise, or (in a gap) none, and the solutions' covariance there.
 struct Step {
@@ -84,6 +72,18 @@ BaselineFilter forward(const std::vector<Step>& steps, double scale, double tau_
 }
 
 }  // namespace
+
+// A measurement's noise: the receiver's accuracy, floored (float solutions higher).
+Eigen::Matrix3d baseline_noise(const BaselineMeasurement& m, const BaselineFusionOptions& options) {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
+  const bool is_float = m.carr_soln == 1;
+  for (int k = 0; k < 3; ++k) {
+    const double floor = is_float ? options.float_sigma_floor_m : options.sigma_floor_m;
+    const double sg = std::isfinite(m.sigma_ned_m[k]) ? std::max(m.sigma_ned_m[k], floor) : floor;
+    R(k, k) = sg * sg;
+  }
+  return R;
+}
 
 std::string BaselineFusionReport::summary() const {
   std::ostringstream o;
@@ -190,52 +190,6 @@ std::optional<BaselineCorrection> BaselineFilter::at(TimestampNs t_ns) const {
   return BaselineCorrection{x.head<3>(), P.topLeftCorner<3, 3>()};
 }
 
-// ---- Live: every model at once, the likeliest so far answers ------------------------------------
-
-LiveBaselineFusion::LiveBaselineFusion(const BaselineFusionOptions& options) : options_(options) {
-  for (double s : scales_of(options))
-    for (double t : taus_of(options)) models_.emplace_back(s, t, options);
-}
-
-bool LiveBaselineFusion::usable(const BaselineMeasurement& m) {
-  ++counts_.measurements;
-  if (!m.valid || m.carr_soln == 0 || !m.ned_m.allFinite()) {
-    ++counts_.invalid;
-    return false;
-  }
-  if (m.carr_soln == 1 && !options_.use_float) {
-    ++counts_.float_skipped;
-    return false;
-  }
-  return true;
-}
-
-void LiveBaselineFusion::add(const BaselineMeasurement& m, const InsBaselineSample& ins) {
-  const Eigen::Matrix3d R = noise_of(m, options_);
-  double best = -std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < models_.size(); ++i) {
-    models_[i].measure(m.t_ns, m.ned_m - ins.ned_m, R, ins.cov_ned_m2, m.carr_soln == 1);
-    if (models_[i].log_likelihood() > best) best = models_[i].log_likelihood(), best_ = i;
-  }
-}
-
-std::optional<BaselineCorrection> LiveBaselineFusion::at(TimestampNs t_ns) const {
-  return models_[best_].at(t_ns);
-}
-
-BaselineFusionReport LiveBaselineFusion::report() const {
-  BaselineFusionReport r = counts_;
-  const BaselineFilter& m = models_[best_];
-  r.used = m.counts().used, r.used_float = m.counts().used_float;
-  r.rejected = m.counts().rejected, r.resets = m.counts().resets;
-  r.innovation_rms_m = m.counts().innovations
-                           ? std::sqrt(m.counts().innovation_sq / static_cast<double>(m.counts().innovations))
-                           : 0.0;
-  r.sigma_scale = m.sigma_scale();
-  r.correlation_s = m.correlation_s();
-  return r;
-}
-
 Expected<BaselineFusion> BaselineFusion::fuse(
     std::vector<BaselineMeasurement> measurements,
     const std::function<std::optional<InsBaselineSample>(TimestampNs)>& ins_baseline,
@@ -271,7 +225,7 @@ Expected<BaselineFusion> BaselineFusion::fuse(
       for (TimestampNs t = steps.back().t_ns + fill_ns; t + fill_ns / 2 < m.t_ns; t += fill_ns)
         if (const auto g = ins_baseline(t))
           steps.push_back({t, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero(), g->cov_ned_m2, false, false});
-    steps.push_back({m.t_ns, m.ned_m - ins->ned_m, noise_of(m, options), ins->cov_ned_m2, true, is_float});
+    steps.push_back({m.t_ns, m.ned_m - ins->ned_m, baseline_noise(m, options), ins->cov_ned_m2, true, is_float});
   }
   // How honest the solutions' sigma is, and how fast their error wanders, unless given: the pair
   // whose innovations are most likely.

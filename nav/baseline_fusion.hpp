@@ -64,6 +64,10 @@ struct BaselineFusionOptions {
   double max_gap_s = 5.0;          // no correction farther than this before the first or after the last
 };
 
+// A measurement's noise covariance (NED, diagonal): the receiver's accuracy, at least
+// sigma_floor_m, at least float_sigma_floor_m for float solutions.
+Eigen::Matrix3d baseline_noise(const BaselineMeasurement& m, const BaselineFusionOptions& options);
+
 struct BaselineCorrection {
   Eigen::Vector3d e_ned_m = Eigen::Vector3d::Zero();        // add to the INS baseline
   Eigen::Matrix3d cov_ned_m2 = Eigen::Matrix3d::Zero();     // of the corrected baseline
@@ -80,7 +84,7 @@ struct BaselineFusionReport {
 };
 
 // One model's (s, tau) forward filter, measurement by measurement: the offline fusion's forward
-// pass for each model it weighs, and each of the live fusion's models.
+// pass for each model it weighs.
 class BaselineFilter {
  public:
   BaselineFilter(double sigma_scale, double correlation_s, const BaselineFusionOptions& options,
@@ -125,28 +129,6 @@ class BaselineFilter {
   Counts counts_;
   double log_likelihood_ = 0;
   int rejected_in_a_row_ = 0;
-};
-
-// The live (forward-only) fusion: every model of the offline grid runs at once, and the likeliest
-// so far answers. Not thread-safe: its owner serialises add() and at().
-class LiveBaselineFusion {
- public:
-  explicit LiveBaselineFusion(const BaselineFusionOptions& options = {});
-  // Counts a measurement; false: not usable (invalid, or float when use_float is off).
-  bool usable(const BaselineMeasurement& m);
-  // A usable measurement with the INS baseline at its time.
-  void add(const BaselineMeasurement& m, const InsBaselineSample& ins);
-  // A usable measurement whose INS baseline could not be had.
-  void count_outside() { ++counts_.outside_ins; }
-  // The likeliest model's correction carried forward to t_ns (nullopt: none yet, or stale).
-  std::optional<BaselineCorrection> at(TimestampNs t_ns) const;
-  BaselineFusionReport report() const;
-
- private:
-  BaselineFusionOptions options_;
-  std::vector<BaselineFilter> models_;
-  std::size_t best_ = 0;
-  BaselineFusionReport counts_;
 };
 
 class BaselineFusion {

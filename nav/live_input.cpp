@@ -7,6 +7,7 @@
 #include "nav/gpsd_input.hpp"
 #include "nav/imu_stream.hpp"
 #include "nav/serial_port.hpp"
+#include "nav/ubx_input.hpp"
 
 namespace augrig::nav {
 
@@ -299,14 +300,27 @@ Expected<std::unique_ptr<NavInput>> open_udp(const NavUri& u) {
   }
   auto format = o.text("format");
   if (!format) return format.error();
-  if (!*format || (**format != "nmea" && **format != "imu")) {
-    return make_error(o.prefix(), "expected the option format=nmea or format=imu",
+  if (!*format || (**format != "nmea" && **format != "imu" && **format != "ubx")) {
+    return make_error(o.prefix(), "expected the option format=nmea, format=imu or format=ubx",
                       *format ? ", got format=" + **format : std::string());
   }
   auto max_datagram = o.integer("max_datagram", 1, 65507, "the largest datagram kept, in bytes");
   if (!max_datagram) return max_datagram.error();
   auto rcvbuf = o.integer("rcvbuf", 0, 1 << 30, "the socket receive buffer, in bytes");
   if (!rcvbuf) return rcvbuf.error();
+  if (**format == "ubx") {
+    UdpReceiverOptions ro;
+    if (*max_datagram) ro.max_datagram_bytes = static_cast<std::size_t>(**max_datagram);
+    if (*rcvbuf) ro.receive_buffer_bytes = static_cast<int>(**rcvbuf);
+    UbxInputOptions uo;
+    auto fixes = o.integer("fixes", 0, 1, "1 (NAV-PVT as GPS fixes, the default) or 0");
+    if (!fixes) return fixes.error();
+    if (*fixes) uo.fixes = **fixes == 1;
+    if (auto s = o.finish(); !s) return s.error();
+    auto in = UdpUbxInput::open(u.host, *u.port, ro, uo, u.text);
+    if (!in) return make_error(o.prefix(), in.error().message);
+    return std::unique_ptr<NavInput>(std::move(*in));
+  }
   if (**format == "imu") {
     UdpImuOptions io;
     if (*max_datagram) io.max_datagram_bytes = static_cast<std::size_t>(**max_datagram);
@@ -340,6 +354,20 @@ Expected<std::unique_ptr<NavInput>> open_serial(const NavUri& u) {
   auto rate = parse_baud(**baud);
   if (!rate) return make_error(o.prefix(), "option baud: ", rate.error().message);
   so.baud = *rate;
+  auto format = o.text("format");
+  if (!format) return format.error();
+  if (*format && **format != "nmea" && **format != "ubx")
+    return make_error(o.prefix(), "expected format=nmea (the default) or format=ubx, got format=", **format);
+  if (*format && **format == "ubx") {
+    UbxInputOptions uo;
+    auto fixes = o.integer("fixes", 0, 1, "1 (NAV-PVT as GPS fixes, the default) or 0");
+    if (!fixes) return fixes.error();
+    if (*fixes) uo.fixes = **fixes == 1;
+    if (auto s = o.finish(); !s) return s.error();
+    auto in = SerialUbxInput::open(u.path, so.baud, uo, u.text);
+    if (!in) return make_error(o.prefix(), in.error().message);
+    return std::unique_ptr<NavInput>(std::move(*in));
+  }
   auto max_line = o.integer("max_line", 16, 65536, "the longest line kept, in bytes");
   if (!max_line) return max_line.error();
   if (*max_line) so.max_line_bytes = static_cast<std::size_t>(**max_line);

@@ -7,6 +7,8 @@
 //   udp://BIND_ADDR:PORT?format=nmea   NMEA 0183 sentences in UDP datagrams (one or more lines each)
 //   udp://BIND_ADDR:PORT?format=imu    IMU increments in the binary datagrams of nav/imu_stream.hpp
 //   serial:///dev/ttyUSB0?baud=115200  NMEA 0183 on a serial port (raw 8N1; a pty works too)
+//   udp://BIND_ADDR:PORT?format=ubx    u-blox UBX (NAV-PVT fixes, NAV-RELPOSNED baselines; nav/ubx_input.hpp)
+//   serial:///dev/ttyACM0?baud=115200&format=ubx   the same on a serial port
 //   gpsd://HOST[:PORT][?device=PATH]   a gpsd daemon's fixes through libgps (nav/gpsd_input.hpp)
 //
 // Inputs never throw and never hang: read() waits at most its timeout. Bad input (malformed or
@@ -30,6 +32,7 @@
 #include "core/clock.hpp"
 #include "core/conventions.hpp"
 #include "core/expected.hpp"
+#include "nav/baseline_fusion.hpp"
 #include "nav/nmea.hpp"
 #include "nav/types.hpp"
 #include "nav/udp_socket.hpp"
@@ -41,7 +44,8 @@ using augrig::monotonic_now_ns;
 
 // One sample from a live input.
 struct NavEvent {
-  std::variant<ImuSample, GpsFix> sample;
+  // An IMU sample, a GPS fix, or a moving-baseline vector (a UBX rover's NAV-RELPOSNED).
+  std::variant<ImuSample, GpsFix, BaselineMeasurement> sample;
   // The clock domain of the sample's t_ns: kGps for fixes; for IMU samples what their datagram says.
   // arrival_ns is always ClockDomain::kHostMonotonic.
   ClockDomain sensor_clock = ClockDomain::kGps;
@@ -51,10 +55,16 @@ struct NavEvent {
 
   bool is_imu() const { return sample.index() == 0; }
   bool is_gps() const { return sample.index() == 1; }
+  bool is_baseline() const { return sample.index() == 2; }
   const ImuSample& imu() const { return std::get<ImuSample>(sample); }
   const GpsFix& gps() const { return std::get<GpsFix>(sample); }
-  TimestampNs t_ns() const { return is_imu() ? imu().t_ns : gps().t_ns; }
-  TimestampNs arrival_ns() const { return is_imu() ? imu().arrival_ns : gps().arrival_ns; }
+  const BaselineMeasurement& baseline() const { return std::get<BaselineMeasurement>(sample); }
+  TimestampNs t_ns() const {
+    return std::visit([](const auto& s) { return s.t_ns; }, sample);
+  }
+  TimestampNs arrival_ns() const {
+    return std::visit([](const auto& s) { return s.arrival_ns; }, sample);
+  }
 };
 
 enum class NavReadStatus : std::uint8_t {

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 
+
 namespace augrig::pipeline {
 
 std::string_view to_string(Aircraft a) {
@@ -18,7 +19,7 @@ std::optional<Aircraft> aircraft_of_stream(std::string_view stream) {
 
 LiveNav::LiveNav(const Rig& rig, const BoomDimensions& boom, const Eigen::Vector3d& receptacle_m,
                  const nav::InsConfig& tanker, const nav::InsConfig& receiver, const LiveNavOptions& options)
-    : rig_(rig), boom_(boom), receptacle_m_(receptacle_m), options_(options) {
+    : rig_(rig), boom_(boom), receptacle_m_(receptacle_m), options_(options), baseline_(options.baseline) {
   fusion_[0] = std::make_unique<nav::LiveFusion>(tanker, options.fusion);
   fusion_[1] = std::make_unique<nav::LiveFusion>(receiver, options.fusion);
   // GPS time against host arrival: receivers output fixes some tens of ms late, steadily; a
@@ -30,6 +31,10 @@ LiveNav::LiveNav(const Rig& rig, const BoomDimensions& boom, const Eigen::Vector
 }
 
 void LiveNav::add(Aircraft aircraft, const nav::NavEvent& event) {
+  if (event.is_baseline()) {
+    baseline_.add(event.baseline());
+    return;
+  }
   nav::LiveFusion& f = *fusion_[static_cast<int>(aircraft)];
   if (event.is_imu()) {
     f.add_imu(event.imu());
@@ -126,14 +131,34 @@ FrameNav LiveNav::at(int camera, TimestampNs t_nav_ns) const {
     };
     return rank(x) < rank(y);
   });
+  bool corrected = false;
+  if (state[0] && state[1]) {
+    const Eigen::Vector3d& l_tk = fusion_[0]->config().lever_arm_body_m;
+    const Eigen::Vector3d& l_rx = fusion_[1]->config().lever_arm_body_m;
+    const auto states_at = [this](TimestampNs t, nav::NavState& tk, nav::NavState& rx) {
+      auto a = fusion_[0]->at(t);
+      auto b = fusion_[1]->at(t);
+      if (!a || !b) return false;
+      tk = std::move(*a), rx = std::move(*b);
+      return true;
+    };
+    if (const auto c = baseline_.at(t_nav_ns, *state[0], *state[1], states_at, l_tk, l_rx)) {
+      apply_baseline_correction(*c, ins_baseline(*state[0], *state[1], l_tk, l_rx), *state[0], *state[1]);
+      corrected = true;
+    } else if (const LiveBaselineReport r = baseline_.report(); r.received > r.invalid) {
+      out.problems.push_back("moving baseline: no usable vector in the last second (the solutions alone)");
+    }
+  }
   if (state[0] && state[1]) {
     out.pose = frame_pose(*state[0], *state[1], t_nav_ns, rig_, camera, boom_, receptacle_m_);
+    out.pose->baseline_corrected = corrected;
     out.stale = !out.problems.empty();
     out.hud.age_s = age_s;
     out.hud.sigma_pos_m = out.pose->body.sigma_position_m();
     out.hud.sigma_att_deg = rad_to_deg(out.pose->body.sigma_attitude_rad());
     out.hud.status = out.stale        ? "STALE: " + out.problems.front()
                      : out.converging ? "CONVERGING: " + out.converging_text
+                     : corrected      ? "fused GPS/INS, both aircraft, and the moving baseline"
                                       : "fused GPS/INS, both aircraft";
   } else {
     out.converging = false;

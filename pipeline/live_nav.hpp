@@ -6,7 +6,9 @@
 //   stale     the newest valid fix of either aircraft, or its newest IMU sample, older than
 //             stale_after_s at the frame's time (the pose is dead-reckoned or extrapolated);
 //   good      otherwise;
-// and, apart from those, whether either filter is still converging (nav::LiveFusionStatus::converged:
+// A moving-baseline rover's vectors (on a receiver.* stream) correct the relative position where
+// they reach (docs/NAV_LIVE.md); the HUD says so.
+// And, apart from those, whether either filter is still converging (nav::LiveFusionStatus::converged:
 // its attitude sigmas still falling, its sigma optimistic; docs/NAV_FUSION.md, "Consistency").
 // Frames reach the nav clock through the camera clocks' calibrated offsets to GPS time (the
 // simulation, cameras on PTP/GPS time) or, for host-timed frames, through host_to_nav(): the GPS
@@ -24,6 +26,7 @@
 
 #include <Eigen/Core>
 
+#include "pipeline/baseline_nav.hpp"
 #include "pipeline/flight_nav.hpp"
 #include "pipeline/status.hpp"
 #include "capture/clock_offset.hpp"
@@ -40,6 +43,7 @@ std::optional<Aircraft> aircraft_of_stream(std::string_view stream);
 struct LiveNavOptions {
   double stale_after_s = 0.5;
   nav::LiveFusionOptions fusion;
+  nav::BaselineFusionOptions baseline;
 };
 
 // One frame's nav.
@@ -67,6 +71,9 @@ class LiveNav {
   Expected<TimestampNs> host_to_nav(TimestampNs host_ns) const;
 
   nav::LiveFusionStatus status(Aircraft aircraft) const;
+  // The moving baseline's live fusion (a UBX rover's NAV-RELPOSNED on a receiver.* stream): what it
+  // received and used; measurements == 0 when none came.
+  LiveBaselineReport baseline_report() const { return baseline_.report(); }
 
  private:
   Rig rig_;
@@ -74,6 +81,8 @@ class LiveNav {
   Eigen::Vector3d receptacle_m_;
   LiveNavOptions options_;
   std::array<std::unique_ptr<nav::LiveFusion>, 2> fusion_;
+  // The moving baseline: the recent vectors, carried to each frame's time (pipeline/baseline_nav.hpp).
+  LiveBaseline baseline_;
   mutable std::mutex clock_mutex_;
   ClockOffsetEstimator gps_to_host_;  // "device" = GPS time, host = arrival
 };

@@ -60,7 +60,7 @@ Status NavInputs::open(const std::vector<std::pair<std::string, std::string>>& i
         }
         if (*r == nav::NavReadStatus::kEnd) return;
         if (*r != nav::NavReadStatus::kEvent) continue;
-        (e.is_imu() ? in.imu : in.fixes)++;
+        (e.is_imu() ? in.imu : e.is_baseline() ? in.baselines : in.fixes)++;
         if (live_nav && in.aircraft) live_nav->add(*in.aircraft, e);
       }
     });
@@ -87,7 +87,8 @@ void NavInputs::summary(std::ostream& out) const {
   for (const Input& in : inputs_) {
     const nav::NavInputStats st = in.input->stats();
     out << "nav " << in.stream << " (" << in.input->uri() << "): " << in.fixes << " fixes, " << in.imu
-        << " IMU samples; malformed " << st.malformed << ", oversized " << st.oversized << ", lost " << st.dropped
+        << " IMU samples" << (in.baselines ? ", " + std::to_string(in.baselines) + " moving baselines" : "")
+        << "; malformed " << st.malformed << ", oversized " << st.oversized << ", lost " << st.dropped
         << (in.error.empty() ? "" : "; stopped: " + in.error)
         << (st.last_errors.empty() ? "" : "; last problem: " + st.last_errors.back()) << "\n";
   }

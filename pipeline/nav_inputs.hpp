@@ -52,7 +52,7 @@ class NavInputs {
     std::optional<Aircraft> aircraft;
     std::unique_ptr<nav::NavInput> input;
     std::thread thread;
-    std::uint64_t fixes = 0, imu = 0;
+    std::uint64_t fixes = 0, imu = 0, baselines = 0;
     std::string error;
   };
   std::deque<Input> inputs_;  // stable addresses for the threads

@@ -843,6 +843,8 @@ void Pipeline::print_summary(const PipelineReport& r, std::ostream& out) const {
           << " fixes: " << ns.fixes_used << " used, " << ns.fixes_rejected << " rejected by the gate, "
           << ns.fixes_invalid << " without a fix, " << ns.fixes_late << " late\n";
     }
+    if (const LiveBaselineReport b = parts_.live_nav->baseline_report(); b.received)
+      out << "nav " << b.summary() << "\n";
   } else if (r.no_pose_pairs && !r.skipped_no_pose) {
     out << "nav: " << r.no_pose_pairs << " pairs without a pose (boom only)\n";
   }

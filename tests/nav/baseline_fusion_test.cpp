@@ -209,50 +209,6 @@ TEST(BaselineFusion, OutliersAreGatedAndOutagesBridged) {
   EXPECT_LT(score(*f, ins, 36, 58).rms_m, 0.015);
 }
 
-// Live: every model runs forward at once and the likeliest answers; the correction at a frame is
-// the newest state carried forward (what a real-time display can know), a little worse than the
-// smoothed one, never ahead of its data.
-TEST(LiveBaselineFusion, ForwardOnlyCorrectionFromTheLikeliestModel) {
-  const double seconds = 120;
-  const InsError ins(5, seconds);
-  LiveBaselineFusion live;
-  const std::vector<BaselineMeasurement> ms = measure(seconds, 5.0, 0.01, 9);
-  EXPECT_FALSE(live.at(ms.front().t_ns)) << "nothing before the first measurement";
-  double sq = 0;
-  std::size_t frames = 0, inside = 0, without = 0;
-  std::size_t next = 0;
-  for (double t = 0; t <= seconds; t += 1.0 / 30) {
-    // Measurements arrive 80 ms after their time of validity.
-    while (next < ms.size() && s_of(ms[next].t_ns) + 0.08 <= t) {
-      BaselineMeasurement m = ms[next++];
-      if (s_of(m.t_ns) > 60 && s_of(m.t_ns) < 62) m.valid = false;  // 2 s without corrections
-      if (live.usable(m)) live.add(m, sample(truth(s_of(m.t_ns)) + ins(s_of(m.t_ns))));
-    }
-    const auto c = live.at(at_s(t));
-    if (!c) {
-      ++without;
-      continue;
-    }
-    if (t < 20) continue;  // the models' likelihoods settle
-    const Eigen::Vector3d err = ins(t) + c->e_ned_m;
-    sq += err.squaredNorm();
-    for (int k = 0; k < 3; ++k) inside += std::abs(err[k]) <= c->sigma_ned_m()[k];
-    ++frames;
-  }
-  const double rms = std::sqrt(sq / static_cast<double>(frames));
-  const double within = static_cast<double>(inside) / static_cast<double>(3 * frames);
-  std::printf("live: RMS %.4f m, %.0f %% within 1 sigma, %zu frames without a correction\n", rms, 100 * within,
-              without);
-  EXPECT_LT(rms, 0.02);
-  EXPECT_GT(within, 0.5);
-  EXPECT_LE(without, 3u) << "only the frames before the first measurement arrives";
-  const BaselineFusionReport r = live.report();
-  EXPECT_EQ(r.measurements, next);  // those that arrived
-  EXPECT_EQ(r.invalid, 9u);
-  EXPECT_GE(r.sigma_scale, 10.0) << r.summary();
-  EXPECT_EQ(r.used + r.rejected, r.measurements - r.invalid) << r.summary();
-}
-
 TEST(BaselineFusion, NothingUsableIsAnError) {
   std::vector<BaselineMeasurement> ms(3);
   for (BaselineMeasurement& m : ms) m.valid = false;

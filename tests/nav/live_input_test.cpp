@@ -76,8 +76,8 @@ TEST(LiveInput, ParsesUris) {
 TEST(LiveInput, BadUrisAreErrorsNamingTheUriAndWhatWasExpected) {
   const std::vector<std::pair<std::string, std::string>> bad = {
       {"ftp://h:1", "unknown scheme 'ftp': expected udp://BIND_ADDR:PORT?format=nmea|imu, serial://"},
-      {"udp://127.0.0.1:0", "expected the option format=nmea or format=imu"},
-      {"udp://127.0.0.1:0?format=xml", "format=nmea or format=imu, got format=xml"},
+      {"udp://127.0.0.1:0", "expected the option format=nmea, format=imu or format=ubx"},
+      {"udp://127.0.0.1:0?format=xml", "format=nmea, format=imu or format=ubx, got format=xml"},
       {"udp://127.0.0.1?format=nmea", "expected udp://BIND_ADDR:PORT?format=nmea|imu"},
       {"udp://127.0.0.1:0/x?format=nmea", "expected no path after the port"},
       {"udp://127.0.0.1:0?format=nmea&bogus=1",
