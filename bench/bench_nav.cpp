@@ -1,7 +1,8 @@
 // bench_nav: cost of the GPS/INS fusion (nav/ins.hpp) for a 10-minute two-aircraft refuelling
 // flight with a 200 Hz IMU and 10 Hz RTK fixes with HDT, and the cost of a state query at a camera
 // frame's time. Prints the figures for docs/NAV_FUSION.md.
-//   build/bench_nav [--minutes M] [--repeat N]
+//   build/bench_nav [--minutes M] [--repeat N] [--imu-clock]
+// --imu-clock: with the two IMU clock states (nav::InsConfig::imu_clock), the IMUs stamped on GPS time.
 // The flight: a tanker at 150 m/s weaving with 25 deg bank turns and a receiver 25 m behind and 9 m
 // below it, both with exact IMU increments plus tactical-grade noise and biases, and fixes with
 // 2 cm white noise. Generating the data is not timed.
@@ -153,7 +154,10 @@ double median(std::vector<double> v) {
 int main(int argc, char** argv) {
   double minutes = 10;
   int repeat = 5;
-  for (int i = 1; i + 1 < argc; i += 2) {
+  bool imu_clock = false;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--imu-clock")) imu_clock = true;
+    if (i + 1 >= argc) continue;
     if (!std::strcmp(argv[i], "--minutes")) minutes = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--repeat")) repeat = std::atoi(argv[i + 1]);
   }
@@ -173,6 +177,8 @@ int main(int argc, char** argv) {
 
   InsConfig cfg;
   cfg.lever_arm_body_m = lever;
+  cfg.imu_clock.estimate = imu_clock;
+  std::printf("IMU clock states: %s\n", imu_clock ? "estimated (17 states)" : "off (15 states)");
 
   // Fusion, both aircraft one after the other, forward only and forward + RTS.
   std::vector<double> t_fwd, t_both, t_par, fwd_part, rts_part;

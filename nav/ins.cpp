@@ -864,7 +864,11 @@ void FusionEngine::filter_to(TimestampNs t_end, bool batch) {
     const Fix* fix = nullptr;
     if (next_fix_ < fixes_.size()) {
       const TimestampNs t_fix = fix_time(fixes_[next_fix_], true);
-      if (t_fix <= target) {
+      // With the IMU clock estimated a fix moves with the estimate: one a little past the longest
+      // epoch interval is taken as it is, not after a coasting epoch just before it (in real time
+      // the filter waits for the data to reach it, as the batch would take it).
+      const bool stretch = clock_ && t_fix <= target + max_epoch_ns / 2 && (!batch || t_fix <= t_end);
+      if (t_fix <= target || stretch) {
         fix = &fixes_[next_fix_];
         target = t_fix;
       }
