@@ -8,9 +8,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <utility>
 
 #include "nav/geodesy.hpp"
+#include "nav/logs.hpp"
+#include "render/image_file.hpp"
 #include "render/rig.hpp"
 #include "sim/flight.hpp"
 #include "sim/flight_source.hpp"
@@ -135,6 +138,32 @@ TEST(CameraClockFit, ClearErrors) {
                        [](TimestampNs) -> std::optional<Eigen::Vector3d> { return std::nullopt; });
   ASSERT_FALSE(e);
   EXPECT_NE(e.error().message.find("inside the angular-rate data"), std::string::npos);
+}
+
+// ---- frames from a frame index ----------------------------------------------------------------
+
+TEST(CameraClockFrames, OneCameraInTimeOrderReadOnDemand) {
+  const std::string dir = std::string(AUGRIG_TEST_OUTPUT_DIR) + "/camera_clock_frames";
+  std::filesystem::create_directories(dir + "/left");
+  FrameIndex index;
+  for (int k = 0; k < 4; ++k) {
+    Image img(8, 6, PixelFormat::kMono8);
+    for (int y = 0; y < 6; ++y)
+      for (int x = 0; x < 8; ++x) img.row(y)[x] = static_cast<std::uint8_t>(10 * k + x);
+    const std::string file = "left/" + std::to_string(k) + ".png";
+    ASSERT_TRUE(write_png_file(dir + "/" + file, img));
+    index.rows.push_back({static_cast<std::uint64_t>(k), 0, 1000 - 100 * k, file});  // stamps decrease with k
+    index.rows.push_back({static_cast<std::uint64_t>(k), 1, 5000, "right/missing.png"});
+  }
+  const auto frames = camera_clock_frames(index, 0, dir, std::nullopt, 2);
+  ASSERT_EQ(frames.size(), 2u);  // sequences 0 and 2
+  EXPECT_EQ(frames[0].t_camera_ns, 800);
+  EXPECT_EQ(frames[1].t_camera_ns, 1000);
+  const auto img = frames[0].image();
+  ASSERT_TRUE(img) << img.error().message;
+  EXPECT_EQ(img->row(0)[1], 21);
+  const auto missing = camera_clock_frames(index, 1, dir)[0].image();
+  EXPECT_FALSE(missing);
 }
 
 // ---- rendered frames ----------------------------------------------------------------------------
