@@ -267,7 +267,7 @@ void print(const char* what, const Rendered& r) {
 }
 
 TEST(CameraClockRendered, RecoversTwentyMillisecondsWithinOneInSixtySeconds) {
-  const Rendered r = run_rendered(true, 60, 1, true);
+  const Rendered r = run_rendered(true, 60, 2, true);
   ASSERT_TRUE(r.est) << r.est.error().message;
   print("racetrack, parallax removed", r);
   ASSERT_TRUE(r.est->observable) << r.est->reason;
