@@ -94,6 +94,26 @@ void clock_boxplus(InertialState& x, double d_offset_s, double d_drift) {
   x.imu_clock_drift_s_per_s += d_drift;
 }
 
+// A state's error covariance at its GPS time instead of at its IMU-clock time (the IMU clock
+// estimated): the state was mechanized to IMU time t, which is GPS time t - c^; the truth at that GPS
+// time is the truth at IMU time t + dc, so the position error there is dp + v dc and the attitude
+// error dtheta + w dc (w the body rate w.r.t. the Earth, ECEF axes; the velocity's a dc is left out).
+// It is what a pose at a camera frame's GPS time is uncertain by: the fixes pin the position at GPS
+// time, and dp and dc are strongly anticorrelated.
+void covariance_at_gps_time(NavState& s, const StrapdownHistory& h) {
+  const double var_c = s.clock.P_cc(0, 0);
+  if (!(var_c > 0)) return;
+  Vector15d u = Vector15d::Zero();
+  u.segment<3>(kErrPos) = s.v_ecef_mps;
+  if (h.dt_s > 0) {
+    const Vector3d w_eb = h.dtheta_rad / h.dt_s - s.q_ecef_body.conjugate() * earth_rate_ecef();
+    u.segment<3>(kErrAtt) = s.q_ecef_body * w_eb;
+  }
+  const Vector15d pc = s.clock.P_xc.col(0);
+  s.P.noalias() += u * pc.transpose() + pc * u.transpose() + var_c * u * u.transpose();
+  s.clock.P_xc.noalias() += u * s.clock.P_cc.row(0);
+}
+
 // One Kalman update of covariance P (N states) by measurement y = H dx + noise(R), Joseph form: the
 // correction dx. False (nothing changed) when S is not positive definite, or the normalised
 // innovation squared (into *nis) exceeds `gate` unless `force`.
@@ -1146,6 +1166,7 @@ Expected<NavState> FusionEngine::at(TimestampNs t_ns, TimestampNs max_extrapolat
                     clock);
   static_cast<InertialState&>(s) = mech.state();
   s.t_ns = t_ns;
+  if (clock_) covariance_at_gps_time(s, mech.history());
   return s;
 }
 
@@ -1295,6 +1316,7 @@ Expected<NavState> NavTrajectory::at(TimestampNs t_ns) const {
                       c);
     static_cast<InertialState&>(s) = mech.state();
     s.t_ns = t_ns;
+    if (clock) covariance_at_gps_time(s, mech.history());
     return s;
   }
   advance(imu_, mech, index, t_q, [](double) {});
@@ -1312,6 +1334,7 @@ Expected<NavState> NavTrajectory::at(TimestampNs t_ns) const {
     s.P = P_[k];
     if (clock) s.clock = clock_P_[k];
   }
+  if (clock) covariance_at_gps_time(s, mech.history());
   return s;
 }
 
@@ -1321,7 +1344,10 @@ std::vector<NavState> NavTrajectory::epochs() const {
     static_cast<InertialState&>(out[k]) = epochs_[k].x;
     out[k].t_ns = epochs_[k].t_gps_ns;
     out[k].P = P_[k];
-    if (!clock_P_.empty()) out[k].clock = clock_P_[k];
+    if (!clock_P_.empty()) {
+      out[k].clock = clock_P_[k];
+      covariance_at_gps_time(out[k], epochs_[k].history);
+    }
   }
   return out;
 }
@@ -1334,7 +1360,10 @@ std::vector<NavSolution> NavTrajectory::solutions() const {
     static_cast<InertialState&>(s) = epochs_[k].x;
     s.t_ns = epochs_[k].t_gps_ns;
     s.P = P_[k];
-    if (!clock_P_.empty()) s.clock = clock_P_[k];
+    if (!clock_P_.empty()) {
+      s.clock = clock_P_[k];
+      covariance_at_gps_time(s, epochs_[k].history);
+    }
     out.push_back(to_solution(s));
   }
   return out;
