@@ -11,6 +11,7 @@
 
 #include "app/cli.hpp"
 #include "core/yaml_reader.hpp"
+#include "nav/camera_clock.hpp"
 #include "nav/logs.hpp"
 #include "nav/nmea.hpp"
 #include "pipeline/baseline_nav.hpp"
@@ -43,6 +44,12 @@ const std::vector<OptionSpec>& nav_specs() {
        "the moving-baseline RTK rover's UBX log (NAV-RELPOSNED: the receiver's GPS antenna relative to the "
        "tanker's), fused as a relative measurement (default: the receiver folder's rover.ubx when there)"},
       {"no-baseline", ArgKind::kFlag, "", "leave the receiver folder's rover.ubx out"},
+      {"camera-clock", ArgKind::kFlag, "",
+       "estimate each camera's clock offset (and drift) against GPS time from its images (the frame index's "
+       "files) and the tanker's angular rate (docs/CLOCK_OFFSETS.md), instead of --camera-offset-ns"},
+      {"camera-clock-every", ArgKind::kValue, "N", "with --camera-clock: every N-th frame (default 1)"},
+      {"terrain-height-m", ArgKind::kValue, "H",
+       "with --camera-clock: the ground's height above the ellipsoid, metres (default 0)"},
       {"truth", ArgKind::kValue, "POSES.csv", "true camera poses (augrig sim's truth/poses.csv): print the error"},
       {"solutions", ArgKind::kValue, "DIR", "also write each aircraft's nav solution per epoch (CSV)"},
   };
@@ -79,7 +86,11 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
         nav_specs());
     return kExitOk;
   }
-  const std::vector<TimestampNs> offsets =
+  if (a.has("camera-clock") && a.has("camera-offset-ns"))
+    usage_error("--camera-clock and --camera-offset-ns exclude each other");
+  if (!a.has("camera-clock") && (a.has("camera-clock-every") || a.has("terrain-height-m")))
+    usage_error("--camera-clock-every and --terrain-height-m need --camera-clock");
+  std::vector<TimestampNs> offsets =
       a.has("camera-offset-ns") ? parse_offsets(a.get("camera-offset-ns")) : std::vector<TimestampNs>{};
   // Every input is read and checked before any work.
   const BoomArg boom = parse_boom_arg(a.get("boom"));
@@ -156,6 +167,55 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
     out << baseline_text << "\n";
   }
 
+  // Each camera's clock from its images, when asked: the rotation the ground shows against the
+  // tanker's angular rate (docs/CLOCK_OFFSETS.md).
+  std::vector<std::optional<nav::CameraClockEstimate>> clocks(rig.cameras.size());
+  std::string clock_text;
+  if (a.has("camera-clock")) {
+    const int every = a.has("camera-clock-every")
+                          ? static_cast<int>(parse_integer("camera-clock-every", a.get("camera-clock-every"), 1, 100))
+                          : 1;
+    const double terrain_m = a.has("terrain-height-m") ? parse_real("terrain-height-m", a.get("terrain-height-m")) : 0.0;
+    if (!(std::abs(terrain_m) <= 10000))
+      usage_error("--terrain-height-m: expected metres in [-10000, 10000], got '" + a.get("terrain-height-m") + "'");
+    const std::string folder = fs::path(a.get("frames")).parent_path().string();
+    const nav::AngularRateFunction omega = nav::angular_rate_from_trajectory(tk);
+    const nav::GroundMotionFunction ground = nav::ground_motion_from_trajectory(tk, terrain_m);
+    for (std::size_t c = 0; c < rig.cameras.size(); ++c) {
+      const auto frames = nav::camera_clock_frames(index, static_cast<int>(c), folder, std::nullopt, every);
+      const std::string who = "camera " + std::to_string(c) + " (" + rig.cameras[c].name + ")";
+      std::string line;
+      if (frames.empty()) {
+        line = who + " clock: no frames in the index";
+      } else {
+        const auto t0 = Clock::now();
+        auto est = nav::estimate_camera_clock(frames, rig.cameras[c].model, rig.cameras[c].T_body_cam.R().transpose(),
+                                              omega, {}, ground);
+        const std::string took = " (" + std::to_string(frames.size()) + " frames, " + fmt_ms(ms_since(t0)) + " ms)";
+        if (!est) {
+          line = who + " clock: not estimated: " + est.error().message + took;
+        } else if (!est->observable) {
+          line = who + " clock: not estimated: " + est->reason + took;
+        } else {
+          clocks[c] = *est;
+          char buf[200];
+          std::snprintf(buf, sizeof buf, " clock: offset %.3f ms +- %.3f ms (1-sigma)", est->offset_s * 1e3,
+                        est->offset_sigma_s * 1e3);
+          line = who + buf;
+          if (est->drift_observable) {
+            std::snprintf(buf, sizeof buf, ", drift %.1f +- %.1f ppm", est->drift_ppm, est->drift_sigma_ppm);
+            line += buf;
+          }
+          line += took;
+        }
+      }
+      out << line << "\n";
+      if (!clocks[c]) out << "warning: " << who << ": its frames keep their stamps (offset 0)\n";
+      clock_text += (clock_text.empty() ? "" : "; ") + line;
+    }
+    offsets.clear();  // the estimates apply per frame (with their drift)
+  }
+
   Eigen::Vector3d receptacle = receptacle_of(rig);
   RelativeNav rel(std::move(tk), std::move(rx), rig, BoomDimensions{}, receptacle, offsets);
   rel.set_baseline(baseline);
@@ -165,7 +225,8 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   std::size_t outside = 0;
   const auto t1 = Clock::now();
   for (const nav::FrameIndexRow& f : index.rows) {
-    auto p = rel.at(f.camera, f.t_ns);
+    const auto& clock = f.camera >= 0 && f.camera < static_cast<int>(clocks.size()) ? clocks[f.camera] : std::nullopt;
+    auto p = rel.at(f.camera, clock ? f.t_ns - clock->offset_at_ns(f.t_ns) : f.t_ns);
     if (!p) {
       ++outside;  // before the first fix or after the last IMU sample: no pose, said below
       continue;
@@ -188,6 +249,7 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
   o.metadata["gps_minus_utc_s"] = "tanker " + nav::describe(tanker.leap_seconds) + "; receiver " +
                                   nav::describe(receiver.leap_seconds);
   o.metadata["sigma_consistency"] = consistency;
+  if (!clock_text.empty()) o.metadata["camera_clock"] = clock_text;
   if (!imu_clocks.empty()) o.metadata["imu_clock"] = imu_clocks;
   if (baseline)
     o.metadata["moving_baseline"] = rover_path + ": " + std::to_string(corrected) + " of " +
