@@ -317,10 +317,11 @@ TEST(CmdNav, MovingBaselineFromTheRoverLog) {
   EXPECT_EQ(augrig(nav_args(d, d + "/x.csv") + " --baseline " + d + "/damaged.ubx --no-baseline", &log), 2);
 }
 
-// Each camera's clock from its images: a racetrack at 45 deg bank, the left camera's clock 20 ms
-// ahead of GPS time and the right's on it (480x360 cameras to keep the rendering short): nav
-// finds both within 1 ms through the fused trajectory's angular rate, says so and writes them in
-// the metadata. (A straight and level flight is "not estimated": tests/nav/camera_clock_test.cpp.)
+// Every stream's clock at once (issue 20 §2): a 30 s racetrack at 45 deg bank, the left camera's
+// clock 20 ms ahead of GPS time and the right's on it (480x360 cameras to keep the rendering
+// short), the tanker's IMU 7 ms and the receiver's -4 ms off: nav finds all four within 1 ms (the
+// cameras through the fused tanker's angular rate, itself on GPS time by its estimated IMU clock),
+// says so and writes them in the metadata. (A straight and level flight is "not estimated": tests/nav/camera_clock_test.cpp.)
 TEST(CmdNav, CameraClocksFromTheImages) {
   const std::string d = output_dir("cmd_nav_camera_clock");
   Rig rig = *load_rig_arg_for_test();
@@ -337,8 +338,9 @@ TEST(CmdNav, CameraClocksFromTheImages) {
            "tanker: " + tanker + "\n"
            "receiver:\n  phases: [{name: pre-contact, duration_s: 30, offset_m: [-15, 0, 4]}]\n"
            "  turbulence: {sigma_m: [0.15, 0.1, 0.15], sigma_deg: [0.4, 0.3, 0.3], length_scale_m: 500}\n"
-           "sensors:\n  tanker: {imu: {preset: navigation}, gps: {lever_arm_m: [5.0, 0.0, -3.5], heading: true}}\n"
-           "  receiver: {gps: {lever_arm_m: [1.0, 0.0, -1.2]}}\n"
+           "sensors:\n  tanker: {imu: {preset: navigation, clock_offset_ns: 7000000},\n"
+           "           gps: {lever_arm_m: [5.0, 0.0, -3.5], heading: true}}\n"
+           "  receiver: {imu: {clock_offset_ns: -4000000}, gps: {lever_arm_m: [1.0, 0.0, -1.2]}}\n"
            "  cameras: {fps: 30, clock_offset_ns: [20000000, 0], jitter_ns: 20000, noise: 1.5}\n";
   };
   std::ofstream(d + "/turns.yaml")
@@ -354,6 +356,16 @@ TEST(CmdNav, CameraClocksFromTheImages) {
   };
   EXPECT_NEAR(offset_ms("camera 0 (left)"), 20.0, 1.0) << log;
   EXPECT_NEAR(offset_ms("camera 1 (right)"), 0.0, 1.0) << log;
+  // The IMUs' clocks (7 ms on the tanker's, whose angular rate the cameras are matched to; -4 ms
+  // on the receiver's), estimated by the filters as aircraft.yaml asks (augrig sim sets imu_clock).
+  const auto imu_ms = [&](const std::string& who) {
+    const std::string key = who + " IMU clock - GPS time: ";
+    const std::size_t at = log.find(key);
+    EXPECT_NE(at, std::string::npos) << log;
+    return at == std::string::npos ? NAN : std::stod(log.substr(at + key.size()));
+  };
+  EXPECT_NEAR(imu_ms("tanker"), 7.0, 1.0) << log;
+  EXPECT_NEAR(imu_ms("receiver"), -4.0, 1.0) << log;
   std::ifstream f(d + "/estimated.csv");
   const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("# camera_clock: camera 0 (left) clock: offset "), std::string::npos);
