@@ -317,7 +317,7 @@ TEST(CmdNav, MovingBaselineFromTheRoverLog) {
   EXPECT_EQ(augrig(nav_args(d, d + "/x.csv") + " --baseline " + d + "/damaged.ubx --no-baseline", &log), 2);
 }
 
-// Every stream's clock at once (issue 20 §2): a 30 s racetrack at 45 deg bank, the left camera's
+// Every stream's clock at once (issue 20 §2): a 45 s racetrack at 45 deg bank, the left camera's
 // clock 20 ms ahead of GPS time and the right's on it (480x360 cameras to keep the rendering
 // short), the tanker's IMU 7 ms and the receiver's -4 ms off: nav finds all four within 1 ms (the
 // cameras through the fused tanker's angular rate, itself on GPS time by its estimated IMU clock),
@@ -332,11 +332,11 @@ TEST(CmdNav, CameraClocksFromTheImages) {
   }
   std::ofstream(d + "/rig.yaml") << rig_to_yaml(rig);
   const auto scenario = [&](const std::string& tanker) {
-    return "augrig_scenario: 1\nduration_s: 30\nseed: 3\nrig: " + d +
+    return "augrig_scenario: 1\nduration_s: 45\nseed: 3\nrig: " + d +
            "/rig.yaml\n"
            "start: {utc: \"2024-06-01T12:00:00Z\", lat_deg: 51.0, lon_deg: -1.0, alt_m: 7000}\n"
            "tanker: " + tanker + "\n"
-           "receiver:\n  phases: [{name: pre-contact, duration_s: 30, offset_m: [-15, 0, 4]}]\n"
+           "receiver:\n  phases: [{name: pre-contact, duration_s: 45, offset_m: [-15, 0, 4]}]\n"
            "  turbulence: {sigma_m: [0.15, 0.1, 0.15], sigma_deg: [0.4, 0.3, 0.3], length_scale_m: 500}\n"
            "sensors:\n  tanker: {imu: {preset: navigation, clock_offset_ns: 7000000},\n"
            "           gps: {lever_arm_m: [5.0, 0.0, -3.5], heading: true}}\n"
