@@ -162,7 +162,7 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
     out << rover.summary() << "\n";
     print_issues(out, rover_path, rover.issues);
     baseline = std::make_shared<const BaselineNav>(unwrap(BaselineNav::fuse(
-        rover.measurements, tk, rx, tanker.config.lever_arm_body_m, receiver.config.lever_arm_body_m)));
+        rover.measurements, tk, rx, tanker.config.baseline_antenna(), receiver.config.baseline_antenna())));
     baseline_text = baseline->report().summary();
     out << baseline_text << "\n";
   }

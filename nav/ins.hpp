@@ -188,6 +188,10 @@ struct InsConfig {
   std::optional<int> gps_leap_seconds;
 
   Eigen::Vector3d lever_arm_body_m = Eigen::Vector3d::Zero();  // GPS antenna phase centre, body FRD
+  // The moving-baseline RTK receiver's antenna when it is not the GPS antenna above (for whoever
+  // fuses the baseline, pipeline/baseline_nav.hpp; the filter itself never uses it).
+  std::optional<Eigen::Vector3d> baseline_antenna_body_m;
+  Eigen::Vector3d baseline_antenna() const { return baseline_antenna_body_m.value_or(lever_arm_body_m); }
   ImuNoiseModel imu;
   GpsNoiseModel gps;
   double gate_chi2 = 16.27;  // position innovation gate, chi-square with 3 dof (p = 0.001)

@@ -32,7 +32,7 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
     expect_map(c, root, "", "a map of aircraft nav settings");
     check_keys(c, root, "",
                {"lever_arm_m", "imu_time_offset_ns", "gps_time_offset_ns", "gps_leap_seconds", "imu", "gps",
-                "heading", "imu_clock"});
+                "heading", "imu_clock", "moving_baseline_antenna_m"});
     // Every value has an upper bound too (docs/NAV_FORMATS.md): 1e300 would square to inf in the
     // filter's covariances, and a time offset must stay inside int64 once added to a timestamp.
     auto nonneg = [&](const YAML::Node& n, const std::string& key, const char* what, double max) {
@@ -51,6 +51,16 @@ Expected<nav::InsConfig> parse_aircraft_config(const std::string& yaml_text, con
                    " as element " + std::to_string(i));
         }
       }
+    }
+    if (root["moving_baseline_antenna_m"]) {
+      const YAML::Node n = root["moving_baseline_antenna_m"];
+      const Eigen::Vector3d v = to_vec3(c, n, "moving_baseline_antenna_m", "[x, y, z] in metres, body FRD");
+      for (int i = 0; i < 3; ++i)
+        if (!(std::abs(v[i]) <= kMaxLeverArmM))
+          fail(c, n[i], "moving_baseline_antenna_m",
+               "expected each component within +-" + fmt(kMaxLeverArmM) + " m, got " + got(n[i]) + " as element " +
+                   std::to_string(i));
+      cfg.baseline_antenna_body_m = v;
     }
     // Checked before the cast to int64: 1e30 would wrap around (undefined behaviour).
     auto offset_ns = [&](const char* key) {
@@ -173,6 +183,8 @@ std::string aircraft_config_to_yaml(const nav::InsConfig& c) {
     << "imu_time_offset_ns: " << c.imu_time_offset_ns << "\n"
     << "gps_time_offset_ns: " << c.gps_time_offset_ns << "\n";
   if (c.gps_leap_seconds) o << "gps_leap_seconds: " << *c.gps_leap_seconds << "\n";
+  if (const auto& b = c.baseline_antenna_body_m)
+    o << "moving_baseline_antenna_m: [" << fmt(b->x()) << ", " << fmt(b->y()) << ", " << fmt(b->z()) << "]\n";
   o << "imu:\n"
     << "  gyro_arw_deg_per_sqrt_h: " << fmt(rad_to_deg(c.imu.gyro_arw_rad_psqrts) * 60.0) << "\n"
     << "  accel_vrw_mps_per_sqrt_h: " << fmt(c.imu.accel_vrw_mps_psqrts * 60.0) << "\n"

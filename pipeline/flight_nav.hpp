@@ -27,6 +27,7 @@ namespace augrig::pipeline {
 
 // aircraft.yaml: the per-aircraft part of nav::InsConfig a user states (the rest keeps its defaults).
 //   lever_arm_m: [x, y, z]          GPS antenna phase centre in the body frame (FRD), metres
+//   moving_baseline_antenna_m: [x, y, z]  the moving-baseline receiver's antenna, when not that one
 //   imu_time_offset_ns: 0           added to IMU timestamps to put them on the nav clock
 //   gps_time_offset_ns: 0           added to GPS fix times
 //   gps_leap_seconds: N             GPS - UTC of gps.nmea (optional: the receiver's PUBX,04, else the

@@ -133,8 +133,8 @@ FrameNav LiveNav::at(int camera, TimestampNs t_nav_ns) const {
   });
   bool corrected = false;
   if (state[0] && state[1]) {
-    const Eigen::Vector3d& l_tk = fusion_[0]->config().lever_arm_body_m;
-    const Eigen::Vector3d& l_rx = fusion_[1]->config().lever_arm_body_m;
+    const Eigen::Vector3d l_tk = fusion_[0]->config().baseline_antenna();
+    const Eigen::Vector3d l_rx = fusion_[1]->config().baseline_antenna();
     const auto states_at = [this](TimestampNs t, nav::NavState& tk, nav::NavState& rx) {
       auto a = fusion_[0]->at(t);
       auto b = fusion_[1]->at(t);

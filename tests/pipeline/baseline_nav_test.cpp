@@ -208,5 +208,39 @@ TEST(BaselineNav, CentimetreRelativePositionFromMetresOffAbsoluteGps) {
   EXPECT_GT(rtk.with.within_1sigma, 0.5) << "the sigma reported with both is honest";
 }
 
+// The moving-baseline antennas need not be the GPS antennas (aircraft.yaml
+// moving_baseline_antenna_m): fused with the antennas the vectors join, the relative position is
+// right; with the GPS antennas instead it is off by the difference.
+TEST(BaselineNav, ItsOwnAntennasWhereTheyAreNotTheGpsAntennas) {
+  const sim::Scenario sc = scenario("rtk");
+  const sim::Flight flight = *sim::Flight::create(sc);
+  const sim::SensorLogs logs = sim::simulate_sensors(sc, flight);
+  sim::MovingBaselineConfig mb = *sc.sensors.moving_baseline;
+  mb.base_lever_arm_m = Eigen::Vector3d(-8.0, 1.0, 1.5);   // the tanker's base antenna: aft and below
+  mb.rover_lever_arm_m = Eigen::Vector3d(3.0, -0.5, -1.0);  // the receiver's rover antenna: forward
+  sim::MovingBaselineSimulator simulator(mb, 21, sc.start_gps_ns);
+  const auto epochs = simulator.generate([&](double t) { return flight.tanker(t); },
+                                         [&](double t) { return flight.receiver(t); }, sc.duration_s);
+  std::vector<nav::BaselineMeasurement> ms;
+  for (const sim::MovingBaselineEpoch& e : epochs)
+    ms.push_back({e.t_gps_ns, e.arrival_ns, e.message.rel_pos_ned_m, e.message.acc_ned_m, e.message.carr_soln,
+                  e.message.rel_pos_valid});
+  nav::InsConfig tk_cfg = ins_config_for(sc.sensors.tanker), rx_cfg = ins_config_for(sc.sensors.receiver);
+  auto tk = nav::fuse(logs.tanker_imu, logs.tanker_gps, tk_cfg);
+  auto rx = nav::fuse(logs.receiver_imu, logs.receiver_gps, rx_cfg);
+  ASSERT_TRUE(tk && rx);
+  tk_cfg.baseline_antenna_body_m = mb.base_lever_arm_m;
+  rx_cfg.baseline_antenna_body_m = mb.rover_lever_arm_m;
+  auto own = BaselineNav::fuse(ms, *tk, *rx, tk_cfg.baseline_antenna(), rx_cfg.baseline_antenna());
+  auto gps = BaselineNav::fuse(ms, *tk, *rx, tk_cfg.lever_arm_body_m, rx_cfg.lever_arm_body_m);
+  ASSERT_TRUE(own && gps);
+  const RelativeErrors with_own = relative_errors(sc, flight, *tk, *rx, &*own);
+  const RelativeErrors with_gps = relative_errors(sc, flight, *tk, *rx, &*gps);
+  std::printf("own antennas %.1f mm RMS; the GPS antennas instead %.1f mm\n", 1e3 * with_own.rms_m,
+              1e3 * with_gps.rms_m);
+  EXPECT_LT(with_own.rms_m, 0.006);
+  EXPECT_GT(with_gps.rms_m, 0.02) << "the vectors measure other antennas";
+}
+
 }  // namespace
 }  // namespace augrig::pipeline

@@ -198,6 +198,20 @@ TEST(FlightNav, AircraftConfigRoundTripAndErrors) {
     ASSERT_FALSE(r) << text;
     EXPECT_NE(r.error().message.find(expect), std::string::npos) << r.error().message;
   }
+  // The moving-baseline antenna: the GPS antenna unless given; written back when given; bounded.
+  EXPECT_FALSE(back->baseline_antenna_body_m);
+  EXPECT_EQ(back->baseline_antenna(), c.lever_arm_body_m);
+  nav::InsConfig mb = c;
+  mb.baseline_antenna_body_m = Eigen::Vector3d(-2.0, 0.5, -1.0);
+  auto mb_back = parse_aircraft_config(aircraft_config_to_yaml(mb), "<test>");
+  ASSERT_TRUE(mb_back) << mb_back.error().message;
+  EXPECT_EQ(mb_back->baseline_antenna(), Eigen::Vector3d(-2.0, 0.5, -1.0));
+  EXPECT_EQ(mb_back->lever_arm_body_m, c.lever_arm_body_m);
+  auto mb_bad = parse_aircraft_config("moving_baseline_antenna_m: [0, 2000, 0]\n", "<bad>");
+  ASSERT_FALSE(mb_bad);
+  EXPECT_NE(mb_bad.error().message.find("key 'moving_baseline_antenna_m': expected each component within +-1000 m"),
+            std::string::npos)
+      << mb_bad.error().message;
   auto edge = parse_aircraft_config("imu_time_offset_ns: -5e17\n", "<ok>");
   ASSERT_TRUE(edge) << edge.error().message;
   EXPECT_EQ(edge->imu_time_offset_ns, -500'000'000'000'000'000);
