@@ -282,20 +282,11 @@ Expected<NavReadStatus> UdpImuInput::read(NavEvent& out, std::chrono::nanosecond
     if (!got) return got.error();
     if (!*got) return NavReadStatus::kTimeout;
     NavInputStats& st = decoder_.stats();
-    if (datagram_.overflow_drops > 0) {
-      st.socket_overflows += datagram_.overflow_drops;
-      st.note(uri_ + ": the kernel dropped " + std::to_string(datagram_.overflow_drops) +
-              " datagrams (receive buffer full: read faster or raise rcvbuf)");
-    }
-    if (datagram_.oversized) {
+    if (datagram_.oversized) {  // the decoder counts the others
       ++st.datagrams;
-      ++st.oversized;
       st.bytes += datagram_.size;
-      st.note(uri_ + ": datagram " + std::to_string(st.datagrams) + " from " + datagram_.source + ": " +
-              std::to_string(datagram_.size) + " bytes, more than max_datagram " +
-              std::to_string(socket_.options().max_datagram_bytes) + ": dropped");
-      continue;
     }
+    if (!udp_datagram_usable(st, datagram_, uri_, socket_.options().max_datagram_bytes)) continue;
     tap(std::string_view(reinterpret_cast<const char*>(datagram_.bytes.data()), datagram_.bytes.size()),
         datagram_.arrival_ns, true);
     decoder_.push(datagram_.bytes, datagram_.arrival_ns, datagram_.source);

@@ -158,6 +158,20 @@ Status NavUriOptions::finish() const {
   return {};
 }
 
+bool udp_datagram_usable(NavInputStats& st, const UdpDatagram& d, const std::string& uri,
+                         std::size_t max_datagram_bytes) {
+  if (d.overflow_drops > 0) {
+    st.socket_overflows += d.overflow_drops;
+    st.note(uri + ": the kernel dropped " + std::to_string(d.overflow_drops) +
+            " datagrams (receive buffer full: read faster or raise rcvbuf)");
+  }
+  if (!d.oversized) return true;
+  ++st.oversized;
+  st.note(uri + ": datagram " + std::to_string(st.datagrams) + " from " + d.source + ": " + std::to_string(d.size) +
+          " bytes, more than max_datagram " + std::to_string(max_datagram_bytes) + ": dropped");
+  return false;
+}
+
 Status read_nmea_uri_options(NavUriOptions& o, TimestampNs& quiet_ns, NmeaOptions& nmea) {
   auto quiet = o.integer("quiet_ms", 1, 10'000, "the quiet gap that closes an epoch, in ms");
   if (!quiet) return quiet.error();
@@ -250,18 +264,7 @@ Expected<NavReadStatus> UdpNmeaInput::read(NavEvent& out, std::chrono::nanosecon
       NavInputStats& st = source_.stats();
       ++st.datagrams;
       st.bytes += datagram_.size;
-      if (datagram_.overflow_drops > 0) {
-        st.socket_overflows += datagram_.overflow_drops;
-        st.note(uri_ + ": the kernel dropped " + std::to_string(datagram_.overflow_drops) +
-                " datagrams (receive buffer full: read faster or raise rcvbuf)");
-      }
-      if (datagram_.oversized) {
-        ++st.oversized;
-        st.note(uri_ + ": datagram " + std::to_string(st.datagrams) + " from " + datagram_.source + ": " +
-                std::to_string(datagram_.size) + " bytes, more than max_datagram " +
-                std::to_string(socket_.options().max_datagram_bytes) + ": dropped");
-        continue;
-      }
+      if (!udp_datagram_usable(st, datagram_, uri_, socket_.options().max_datagram_bytes)) continue;
       // One or more lines; the datagram's end also ends its last line.
       const std::string_view text(reinterpret_cast<const char*>(datagram_.bytes.data()),
                                   datagram_.bytes.size());

@@ -222,6 +222,12 @@ class UdpNmeaInput : public NavInput {
   UdpDatagram datagram_;
 };
 
+// What a UDP input says of a datagram it read: the kernel's drops before it (socket_overflows,
+// noted) and, when it was oversized, that it was dropped (oversized, noted with its number, so the
+// input counts `datagrams` first). False: oversized. Datagram and byte counts stay with the input.
+bool udp_datagram_usable(NavInputStats& stats, const UdpDatagram& datagram, const std::string& uri,
+                         std::size_t max_datagram_bytes);
+
 // The options shared by the NMEA inputs' URIs: quiet_ms, leap_seconds, date.
 Status read_nmea_uri_options(NavUriOptions& o, TimestampNs& quiet_ns, NmeaOptions& nmea);
 

@@ -158,19 +158,8 @@ Expected<NavReadStatus> UdpUbxInput::read(NavEvent& out, std::chrono::nanosecond
     if (!*got) return source_.pop(out) ? NavReadStatus::kEvent : NavReadStatus::kTimeout;
     NavInputStats& st = source_.stats();
     ++st.datagrams;
-    if (datagram_.overflow_drops > 0) {
-      st.socket_overflows += datagram_.overflow_drops;
-      st.note(uri_ + ": the kernel dropped " + std::to_string(datagram_.overflow_drops) +
-              " datagrams (receive buffer full: read faster or raise rcvbuf)");
-    }
-    if (datagram_.oversized) {
-      ++st.oversized;
-      st.bytes += datagram_.size;
-      st.note(uri_ + ": datagram " + std::to_string(st.datagrams) + " from " + datagram_.source + ": " +
-              std::to_string(datagram_.size) + " bytes, more than max_datagram " +
-              std::to_string(socket_.options().max_datagram_bytes) + ": dropped");
-      continue;
-    }
+    if (datagram_.oversized) st.bytes += datagram_.size;  // the source counts the others
+    if (!udp_datagram_usable(st, datagram_, uri_, socket_.options().max_datagram_bytes)) continue;
     source_.push(datagram_.bytes.data(), datagram_.bytes.size(), datagram_.arrival_ns,
                  [this](const UbxFrame& f, TimestampNs arrival_ns) {
                    const auto bytes = encode_ubx(f.cls, f.id, f.payload);
