@@ -180,7 +180,7 @@ std::optional<nav::BaselineCorrection> LiveBaseline::at(TimestampNs t_ns, const 
   const InsBaseline now = ins_baseline(tanker, receiver, tanker_antenna_body_m, receiver_antenna_body_m);
   const Eigen::Matrix3d R_ned_ecef = now.R_ecef_ned.transpose();
   // The relative velocity's uncertainty (NED variances), for the weight of an older vector.
-  // A forward filter's velocity sigma is optimistic between its jumps: at least kMinRelativeSigmaMps.
+  // A forward filter's velocity sigma is optimistic between its jumps: at least min_relative_sigma_mps.
   const Eigen::Vector3d var_v =
       (R_ned_ecef *
        (tanker.P.block<3, 3>(nav::kErrVel, nav::kErrVel) + receiver.P.block<3, 3>(nav::kErrVel, nav::kErrVel)) *
