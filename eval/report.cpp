@@ -1,9 +1,15 @@
 #include "eval/report.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <optional>
 #include <sstream>
+#include <string_view>
+#include <system_error>
+#include <type_traits>
 
 #include "recorder/plot.hpp"
 
@@ -48,6 +54,73 @@ std::string pair_cells(const DisparityErrors& e) {
   return cell(e.pixels ? e.valid_pct() : nan, 7, 1) + cell(e.mean_px(), 8, 2) + cell(e.rms_px(), 8, 2) +
          cell(valid ? e.bad1_pct() : nan, 7, 1) + cell(valid ? e.bad3_pct() : nan, 7, 1) +
          cell(e.range_rms_m(), 9, 3);
+}
+
+// Every field of an EvaluatedFrame with its evaluation_sums.csv column name, in column order:
+// the one list the header, the writer and the reader share. `visit(name, field)` is called with
+// std::uint64_t&, std::int64_t&, int& or double& fields (const versions for a const frame).
+template <typename Frame, typename Visit>
+void for_each_sum_field(Frame& f, Visit&& visit) {
+  visit("frame", f.frame);
+  visit("t_s", f.t_s);
+  visit("occluded_pct_left", f.occluded_pct_left);
+  visit("occluded_pct_right", f.occluded_pct_right);
+  auto& e = f.evaluation;
+  visit("matched_x", e.matched.x);
+  visit("matched_y", e.matched.y);
+  visit("matched_w", e.matched.width);
+  visit("matched_h", e.matched.height);
+  visit("receiver_px", e.receiver_px);
+  visit("out_of_range_px", e.out_of_range_px);
+  visit("prepare_ms", e.prepare_ms);
+  visit("match_ms", e.match_ms);
+  visit("score_ms", e.score_ms);
+  std::string name;
+  for (int pair = 0; pair < 2; ++pair)
+    for (int set = 0; set < 2; ++set)
+      for (int k = 0; k < 5; ++k) {
+        auto& score = pair ? e.augmented : e.raw;
+        auto& d = (set ? score.boom_excluded : score.all)[static_cast<std::size_t>(k)];
+        const std::string prefix =
+            std::string(pair ? "aug_" : "raw_") + (set ? "noboom_" : "all_") + kClassKeys[k] + "_";
+        visit((prefix + "pixels").c_str(), d.pixels);
+        visit((prefix + "valid").c_str(), d.valid);
+        visit((prefix + "sum_error_px").c_str(), d.sum_error_px);
+        visit((prefix + "sum_sq_px2").c_str(), d.sum_sq_px2);
+        visit((prefix + "bad1").c_str(), d.bad1);
+        visit((prefix + "bad3").c_str(), d.bad3);
+        visit((prefix + "sum_range_error_m").c_str(), d.sum_range_error_m);
+        visit((prefix + "sum_range_sq_m2").c_str(), d.sum_range_sq_m2);
+        visit((prefix + "range_n").c_str(), d.range_n);
+      }
+}
+
+// A sum as evaluation_sums.csv writes it: %.17g reads back to the same double (glibc's printf and
+// from_chars are exact); non-finite values as from_chars reads them.
+void append_exact(std::string& s, double v) {
+  if (std::isnan(v)) {
+    s += "nan";
+  } else if (std::isinf(v)) {
+    s += v > 0 ? "inf" : "-inf";
+  } else {
+    char buf[40];
+    const int n = std::snprintf(buf, sizeof buf, "%.17g", v);
+    s.append(buf, static_cast<std::size_t>(n));
+  }
+}
+
+// One cell of evaluation_sums.csv into its field; false when it is not a whole number of the
+// field's kind.
+template <typename T>
+bool parse_cell(std::string_view cell, T& out) {
+  if (cell.empty()) return false;
+  const char* b = cell.data();
+  const char* e = b + cell.size();
+  if constexpr (std::is_same_v<T, double>) {
+    if (*b == '+') return false;  // from_chars takes no '+', and the writer writes none
+  }
+  const auto r = std::from_chars(b, e, out);
+  return r.ec == std::errc() && r.ptr == e;
 }
 
 }  // namespace
@@ -163,6 +236,116 @@ EvaluationPoint evaluation_point(double t_s, const OcclusionStats& stats, const 
     p.valid_pct[i] = e[i]->pixels ? e[i]->valid_pct() : nan;
   }
   return p;
+}
+
+Expected<std::unique_ptr<EvaluationSumsWriter>> EvaluationSumsWriter::create(
+    const std::filesystem::path& path) {
+  std::unique_ptr<EvaluationSumsWriter> w(new EvaluationSumsWriter);
+  w->path_ = path;
+  w->out_.open(path, std::ios::binary);
+  if (!w->out_)
+    return make_error("eval::EvaluationSumsWriter::create(): ", path.string(), ": cannot write the file");
+  w->out_ << header() << '\n';
+  w->out_.flush();
+  if (!w->out_) return make_error("eval::EvaluationSumsWriter::create(): ", path.string(), ": write failed");
+  return w;
+}
+
+std::string EvaluationSumsWriter::header() {
+  std::string h;
+  EvaluatedFrame f;
+  for_each_sum_field(f, [&h](const char* name, auto&) {
+    if (!h.empty()) h += ',';
+    h += name;
+  });
+  return h;
+}
+
+Status EvaluationSumsWriter::add(const EvaluatedFrame& f) {
+  std::string s;
+  s.reserve(4096);
+  bool first = true;
+  for_each_sum_field(f, [&](const char*, const auto& v) {
+    if (!first) s += ',';
+    first = false;
+    if constexpr (std::is_same_v<std::decay_t<decltype(v)>, double>)
+      append_exact(s, v);
+    else
+      s += std::to_string(v);
+  });
+  out_ << s << '\n';
+  out_.flush();
+  if (!out_) return make_error("eval::EvaluationSumsWriter::add(): ", path_.string(), ": write failed");
+  return {};
+}
+
+Expected<std::vector<EvaluatedFrame>> load_evaluation_sums(const std::filesystem::path& path) {
+  const std::string where = "eval::load_evaluation_sums(): " + path.string();
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return make_error(where, ": cannot read the file");
+  const std::string head = EvaluationSumsWriter::header();
+  std::vector<std::string_view> names;
+  for (std::size_t p = 0; p <= head.size();) {
+    const std::size_t q = std::min(head.find(',', p), head.size());
+    names.emplace_back(head.data() + p, q - p);
+    p = q + 1;
+  }
+  // A line's cells (a trailing '\r' of a file that went through Windows dropped).
+  auto split = [](std::string& line) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::vector<std::string_view> cells;
+    for (std::size_t p = 0; p <= line.size();) {
+      const std::size_t q = std::min(line.find(',', p), line.size());
+      cells.emplace_back(line.data() + p, q - p);
+      p = q + 1;
+    }
+    return cells;
+  };
+  std::string line;
+  if (!std::getline(in, line))
+    return make_error(where, ": empty, expected the header line (", names.size(), " columns: frame,t_s,...)");
+  {
+    const std::vector<std::string_view> cells = split(line);
+    for (std::size_t i = 0; i < std::max(cells.size(), names.size()); ++i) {
+      if (i < cells.size() && i < names.size() && cells[i] == names[i]) continue;
+      return make_error(where, ":1: not evaluation_sums.csv's header: column ", i + 1, " is '",
+                        i < cells.size() ? std::string(cells[i]) : std::string("(none)"), "', expected '",
+                        i < names.size() ? std::string(names[i]) : std::string("(none)"), "' (", names.size(),
+                        " columns, header ", cells.size(), ")");
+    }
+  }
+  std::vector<EvaluatedFrame> frames;
+  for (std::size_t line_no = 2; std::getline(in, line); ++line_no) {
+    const std::vector<std::string_view> cells = split(line);
+    if (cells.size() == 1 && cells[0].empty()) continue;  // a blank line (the file's end)
+    if (cells.size() != names.size())
+      return make_error(where, ":", line_no, ": ", cells.size(), " fields, expected ", names.size(),
+                        " (one per header column)");
+    EvaluatedFrame f;
+    std::size_t i = 0;
+    std::optional<Error> bad;
+    for_each_sum_field(f, [&](const char* name, auto& v) {
+      const std::size_t c = i++;
+      if (bad || parse_cell(cells[c], v)) return;
+      using T = std::decay_t<decltype(v)>;
+      bad = make_error(where, ":", line_no, ":", name, ": expected ",
+                       std::is_same_v<T, double>          ? "a number"
+                       : std::is_same_v<T, std::uint64_t> ? "an integer >= 0"
+                                                          : "an integer",
+                       ", got '", std::string(cells[c]), "'");
+    });
+    if (bad) return *bad;
+    frames.push_back(std::move(f));
+  }
+  if (in.bad()) return make_error(where, ": read failed");
+  return frames;
+}
+
+EvaluationPoint evaluation_point(const EvaluatedFrame& f) {
+  OcclusionStats stats;
+  stats.occluded_pct_left = f.occluded_pct_left;
+  stats.occluded_pct_right = f.occluded_pct_right;
+  return evaluation_point(f.t_s, stats, f.evaluation);
 }
 
 Status plot_evaluation(const std::vector<EvaluationPoint>& points, const std::string& png_path,

@@ -66,6 +66,45 @@ struct EvaluationPoint {
 };
 EvaluationPoint evaluation_point(double t_s, const OcclusionStats& stats, const FrameEvaluation& f);
 
+// One evaluated frame as evaluation_sums.csv stores it: every sum at full precision (%.17g), so
+// that re-adding the frames in order rebuilds the run's RunEvaluation and its plot exactly (a run
+// split into parts merges into the whole run's table, bit for bit).
+struct EvaluatedFrame {
+  std::uint64_t frame = 0;  // the source's frame index (recording order)
+  double t_s = 0;           // seconds after the source's first frame
+  double occluded_pct_left = 0, occluded_pct_right = 0;  // from the frame's OcclusionStats
+  // The raw and augmented PairScore (every DisparityErrors field), receiver_px, out_of_range_px,
+  // the matched rectangle and the prepare/match/score times.
+  FrameEvaluation evaluation;
+};
+
+// evaluation_sums.csv: a header and one row per evaluated frame, flushed per row. Columns: frame,
+// t_s, occluded_pct_left, occluded_pct_right, matched_x, matched_y, matched_w, matched_h,
+// receiver_px, out_of_range_px, prepare_ms, match_ms, score_ms, and per pair (raw, aug), boom
+// pixels kept or left out (all, noboom) and class (kClassKeys): pixels, valid, sum_error_px,
+// sum_sq_px2, bad1, bad3, sum_range_error_m, sum_range_sq_m2, range_n. Integers as integers,
+// every other number as %.17g (nan, inf and -inf where not finite).
+class EvaluationSumsWriter {
+ public:
+  static Expected<std::unique_ptr<EvaluationSumsWriter>> create(const std::filesystem::path& path);
+  Status add(const EvaluatedFrame& f);
+  const std::filesystem::path& path() const { return path_; }
+  static std::string header();
+
+ private:
+  EvaluationSumsWriter() = default;
+  std::filesystem::path path_;
+  std::ofstream out_;
+};
+
+// Reads what EvaluationSumsWriter wrote, rows in file order; every number exactly as it was added.
+// Errors name file:line (and the column) and what was expected: a header that is not exactly
+// header(), a row with another number of fields, a cell that is not a number of its column's kind.
+Expected<std::vector<EvaluatedFrame>> load_evaluation_sums(const std::filesystem::path& path);
+
+// The point evaluation_point(f.t_s, stats, f.evaluation) gives for the frame's OcclusionStats.
+EvaluationPoint evaluation_point(const EvaluatedFrame& f);
+
 // Three panels over time: the boom's occlusion (% of the receiver, left and right); bad > 3 px (%)
 // and the RMS error for the raw pair, the augmented pair, and the augmented pair without the boom's
 // pixels. Errors: no points, gnuplot missing or failing.

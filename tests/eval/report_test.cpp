@@ -5,6 +5,7 @@
 // size, and the curves' colours present in it).
 #include "eval/report.hpp"
 
+#include <bit>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -435,6 +436,247 @@ TEST(EvaluationPoint, OverAllReceiverPixelsOfRawAugmentedAndAugmentedWithoutTheB
     EXPECT_TRUE(std::isnan(e.rms_px[i])) << i;
     EXPECT_TRUE(std::isnan(e.valid_pct[i])) << i;
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// evaluation_sums.csv: the exact per-frame record a split run is merged from.
+
+bool same_bits(double a, double b) {
+  return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b);
+}
+
+// Every field of two frames equal, doubles bit for bit; `what` says which frame.
+void expect_same_frame(const EvaluatedFrame& a, const EvaluatedFrame& b, const std::string& what) {
+  EXPECT_EQ(a.frame, b.frame) << what;
+  EXPECT_TRUE(same_bits(a.t_s, b.t_s)) << what << " t_s " << a.t_s << " vs " << b.t_s;
+  EXPECT_TRUE(same_bits(a.occluded_pct_left, b.occluded_pct_left)) << what;
+  EXPECT_TRUE(same_bits(a.occluded_pct_right, b.occluded_pct_right)) << what;
+  const FrameEvaluation &x = a.evaluation, &y = b.evaluation;
+  EXPECT_EQ(x.matched, y.matched) << what;
+  EXPECT_EQ(x.receiver_px, y.receiver_px) << what;
+  EXPECT_EQ(x.out_of_range_px, y.out_of_range_px) << what;
+  EXPECT_TRUE(same_bits(x.prepare_ms, y.prepare_ms)) << what;
+  EXPECT_TRUE(same_bits(x.match_ms, y.match_ms)) << what;
+  EXPECT_TRUE(same_bits(x.score_ms, y.score_ms)) << what;
+  for (int p = 0; p < 2; ++p)
+    for (int s = 0; s < 2; ++s)
+      for (int k = 0; k < 5; ++k) {
+        const PairScore &px = p ? x.augmented : x.raw, &py = p ? y.augmented : y.raw;
+        const DisparityErrors& e = (s ? px.boom_excluded : px.all)[k];
+        const DisparityErrors& f = (s ? py.boom_excluded : py.all)[k];
+        const std::string w = what + " pair " + std::to_string(p) + " set " + std::to_string(s) + " class " +
+                              std::to_string(k);
+        EXPECT_EQ(e.pixels, f.pixels) << w;
+        EXPECT_EQ(e.valid, f.valid) << w;
+        EXPECT_EQ(e.bad1, f.bad1) << w;
+        EXPECT_EQ(e.bad3, f.bad3) << w;
+        EXPECT_EQ(e.range_n, f.range_n) << w;
+        EXPECT_TRUE(same_bits(e.sum_error_px, f.sum_error_px)) << w << " " << e.sum_error_px;
+        EXPECT_TRUE(same_bits(e.sum_sq_px2, f.sum_sq_px2)) << w << " " << e.sum_sq_px2;
+        EXPECT_TRUE(same_bits(e.sum_range_error_m, f.sum_range_error_m)) << w << " " << e.sum_range_error_m;
+        EXPECT_TRUE(same_bits(e.sum_range_sq_m2, f.sum_range_sq_m2)) << w << " " << e.sum_range_sq_m2;
+      }
+}
+
+// Frames whose doubles 7 or 15 significant digits would not bring back: thirds, tenths summed,
+// the neighbours of 1, a subnormal, -0, huge and tiny magnitudes; counts that need 64 bits.
+std::vector<EvaluatedFrame> awkward_frames() {
+  const TwoFrames r;
+  std::vector<EvaluatedFrame> v(3);
+  v[0].frame = 7;
+  v[0].t_s = 1.0 / 3.0;
+  v[0].occluded_pct_left = 0.1 + 0.2;
+  v[0].occluded_pct_right = std::nextafter(100.0, 0.0);
+  v[0].evaluation = r.fa;
+  v[0].evaluation.matched = cv::Rect(-3, 200, 300, 40);
+  v[0].evaluation.prepare_ms = std::nextafter(1.0, 2.0);
+  v[0].evaluation.match_ms = 1e300;
+  v[0].evaluation.score_ms = std::numeric_limits<double>::denorm_min();
+  v[0].evaluation.raw.all[1].sum_error_px += 1e-17;  // still 1 ulp-ish away from a short decimal
+  v[0].evaluation.raw.all[2].sum_sq_px2 = 2.0 / 3.0 * 1e-5;
+  v[1].frame = std::numeric_limits<std::uint64_t>::max();
+  v[1].t_s = -0.0;
+  v[1].occluded_pct_left = std::numeric_limits<double>::quiet_NaN();  // not finite: kept as such
+  v[1].occluded_pct_right = -std::numeric_limits<double>::infinity();
+  v[1].evaluation = r.fb;
+  v[1].evaluation.receiver_px = std::numeric_limits<std::int64_t>::max();
+  v[1].evaluation.out_of_range_px = std::numeric_limits<std::int64_t>::min();
+  v[1].evaluation.augmented.boom_excluded[4].sum_range_error_m = -123456.78901234567;
+  v[2].frame = 0;  // an empty frame: no receiver, every sum 0
+  return v;
+}
+
+TEST(EvaluationSums, EveryFieldReadsBackBitForBit) {
+  const std::string dir = test::output_dir("eval_report_sums");
+  const fs::path path = fs::path(dir) / "evaluation_sums.csv";
+  const std::vector<EvaluatedFrame> frames = awkward_frames();
+  {
+    auto w = EvaluationSumsWriter::create(path);
+    ASSERT_TRUE(w) << w.error().message;
+    EXPECT_EQ((*w)->path(), path);
+    for (const EvaluatedFrame& f : frames) ASSERT_TRUE((*w)->add(f));
+    // Flushed per row: all there while the writer is open.
+    EXPECT_EQ(lines_of(path).size(), 1 + frames.size());
+  }
+  const std::vector<std::string> lines = lines_of(path);
+  ASSERT_EQ(lines.size(), 4u);
+  EXPECT_EQ(lines[0], EvaluationSumsWriter::header());
+  const std::vector<std::string> head = split_csv(lines[0]);
+  EXPECT_EQ(head.size(), 13u + 2 * 2 * 5 * 9);
+  std::map<std::string, int> seen;
+  for (const std::string& h : head) EXPECT_EQ(++seen[h], 1) << "column named twice: " << h;
+  for (const char* c : {"frame", "t_s", "receiver_px", "score_ms", "raw_all_receiver_sum_error_px",
+                        "aug_noboom_neither_range_n", "raw_noboom_left_only_sum_range_sq_m2"})
+    EXPECT_EQ(seen.count(c), 1u) << c;
+  EXPECT_EQ(head.front(), "frame");
+
+  auto back = load_evaluation_sums(path);
+  ASSERT_TRUE(back) << back.error().message;
+  ASSERT_EQ(back->size(), frames.size());
+  for (std::size_t i = 0; i < frames.size(); ++i) expect_same_frame((*back)[i], frames[i], "frame " + std::to_string(i));
+  // Read back and written again: the same text.
+  const fs::path again = fs::path(dir) / "again.csv";
+  {
+    auto w = EvaluationSumsWriter::create(again);
+    ASSERT_TRUE(w) << w.error().message;
+    for (const EvaluatedFrame& f : *back) ASSERT_TRUE((*w)->add(f));
+  }
+  EXPECT_EQ(lines_of(again), lines);
+}
+
+TEST(EvaluationSums, FramesReAddedInOrderRebuildTheRunsTableAndPlotPoints) {
+  const std::string dir = test::output_dir("eval_report_sums_merge");
+  // A run split in two files, as two shards of a campaign would write it.
+  std::vector<EvaluatedFrame> frames = awkward_frames();
+  frames[1].occluded_pct_left = 12.5;  // the plot's points compared below: finite
+  frames[1].occluded_pct_right = 0.1 * 3;
+  frames[1].evaluation.receiver_px = 123456789012345;
+  frames[1].evaluation.out_of_range_px = 98765;
+  RunEvaluation whole;
+  std::vector<EvaluationPoint> points;
+  for (const EvaluatedFrame& f : frames) {
+    whole.add(f.evaluation);
+    OcclusionStats st;
+    st.occluded_pct_left = f.occluded_pct_left;
+    st.occluded_pct_right = f.occluded_pct_right;
+    points.push_back(evaluation_point(f.t_s, st, f.evaluation));
+  }
+  for (int part = 0; part < 2; ++part) {
+    auto w = EvaluationSumsWriter::create(fs::path(dir) / ("part" + std::to_string(part) + ".csv"));
+    ASSERT_TRUE(w) << w.error().message;
+    for (std::size_t i = part ? 1 : 0; i < (part ? frames.size() : 1); ++i) ASSERT_TRUE((*w)->add(frames[i]));
+  }
+  RunEvaluation merged;
+  std::vector<EvaluationPoint> merged_points;
+  for (int part = 0; part < 2; ++part) {
+    auto f = load_evaluation_sums(fs::path(dir) / ("part" + std::to_string(part) + ".csv"));
+    ASSERT_TRUE(f) << f.error().message;
+    for (const EvaluatedFrame& e : *f) {
+      merged.add(e.evaluation);
+      merged_points.push_back(evaluation_point(e));
+    }
+  }
+  MatcherParams m;
+  EXPECT_EQ(format_evaluation_table(merged, "T", m), format_evaluation_table(whole, "T", m));
+  EXPECT_EQ(merged.frames, 3u);
+  EXPECT_EQ(merged.frames_with_receiver, whole.frames_with_receiver);
+  EXPECT_EQ(merged.out_of_range_px, whole.out_of_range_px);
+  EXPECT_TRUE(same_bits(merged.prepare_ms, whole.prepare_ms));
+  EXPECT_TRUE(same_bits(merged.match_ms, whole.match_ms));
+  EXPECT_TRUE(same_bits(merged.score_ms, whole.score_ms));
+  EvaluatedFrame wf, mf;
+  wf.evaluation.raw = whole.raw, wf.evaluation.augmented = whole.augmented;
+  mf.evaluation.raw = merged.raw, mf.evaluation.augmented = merged.augmented;
+  expect_same_frame(mf, wf, "the run's sums");
+  ASSERT_EQ(merged_points.size(), points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const EvaluationPoint &a = merged_points[i], &b = points[i];
+    EXPECT_TRUE(same_bits(a.t_s, b.t_s)) << i;
+    EXPECT_TRUE(same_bits(a.occluded_pct_left, b.occluded_pct_left)) << i;
+    EXPECT_TRUE(same_bits(a.occluded_pct_right, b.occluded_pct_right)) << i;
+    for (int j = 0; j < 3; ++j) {
+      EXPECT_TRUE(same_bits(a.bad3_pct[j], b.bad3_pct[j]) || (std::isnan(a.bad3_pct[j]) && std::isnan(b.bad3_pct[j])))
+          << i << " " << j;
+      EXPECT_TRUE(same_bits(a.rms_px[j], b.rms_px[j]) || (std::isnan(a.rms_px[j]) && std::isnan(b.rms_px[j])))
+          << i << " " << j;
+      EXPECT_TRUE(same_bits(a.valid_pct[j], b.valid_pct[j]) ||
+                  (std::isnan(a.valid_pct[j]) && std::isnan(b.valid_pct[j])))
+          << i << " " << j;
+    }
+  }
+}
+
+TEST(EvaluationSums, ABadFileIsAnErrorNamingFileLineAndColumn) {
+  const std::string dir = test::output_dir("eval_report_sums_bad");
+  const fs::path good = fs::path(dir) / "good.csv";
+  {
+    auto w = EvaluationSumsWriter::create(good);
+    ASSERT_TRUE(w) << w.error().message;
+    for (const EvaluatedFrame& f : awkward_frames()) ASSERT_TRUE((*w)->add(f));
+  }
+  const std::vector<std::string> lines = lines_of(good);
+  // `lines` with line `n` (0: the header) replaced, written as `name`; the load's error message.
+  auto error_of = [&](const std::string& name, std::size_t n, const std::string& text) {
+    const fs::path p = fs::path(dir) / name;
+    std::ofstream o(p, std::ios::binary);
+    for (std::size_t i = 0; i < lines.size(); ++i) o << (i == n ? text : lines[i]) << '\n';
+    o.close();
+    auto r = load_evaluation_sums(p);
+    EXPECT_FALSE(r) << name;
+    return r ? std::string() : r.error().message;
+  };
+  std::vector<std::string> cells = split_csv(lines[2]);
+  auto joined = [](const std::vector<std::string>& c) {
+    std::string s;
+    for (const std::string& x : c) s += (s.empty() ? "" : ",") + x;
+    return s;
+  };
+
+  // A header with one column renamed (evaluation.csv's, say): line 1, the column and what was expected.
+  std::string m = error_of("header.csv", 0, EvaluationCsvWriter::header());
+  EXPECT_NE(m.find((fs::path(dir) / "header.csv").string() + ":1:"), std::string::npos) << m;
+  EXPECT_NE(m.find("expected 'prepare_ms'"), std::string::npos) << m;
+  // A row with a field missing.
+  std::vector<std::string> c = cells;
+  c.pop_back();
+  m = error_of("short.csv", 2, joined(c));
+  EXPECT_NE(m.find("short.csv:3:"), std::string::npos) << m;
+  EXPECT_NE(m.find(std::to_string(cells.size() - 1) + " fields, expected " + std::to_string(cells.size())),
+            std::string::npos)
+      << m;
+  // Not a number where a sum goes.
+  c = cells;
+  c[split_csv(lines[0]).size() - 2] = "1.5x";
+  m = error_of("number.csv", 2, joined(c));
+  EXPECT_NE(m.find("number.csv:3:aug_noboom_neither_sum_range_sq_m2: expected a number, got '1.5x'"),
+            std::string::npos)
+      << m;
+  // A fraction where a count goes; a negative frame index.
+  c = cells;
+  c[8] = "12.5";
+  m = error_of("count.csv", 2, joined(c));
+  EXPECT_NE(m.find("count.csv:3:receiver_px: expected an integer, got '12.5'"), std::string::npos) << m;
+  c = cells;
+  c[0] = "-1";
+  m = error_of("frame.csv", 1, joined(c));
+  EXPECT_NE(m.find("frame.csv:2:frame: expected an integer >= 0, got '-1'"), std::string::npos) << m;
+  // An empty cell.
+  c = cells;
+  c[1] = "";
+  m = error_of("empty_cell.csv", 3, joined(c));
+  EXPECT_NE(m.find("empty_cell.csv:4:t_s: expected a number, got ''"), std::string::npos) << m;
+  // An empty file, and none at all.
+  { std::ofstream(fs::path(dir) / "empty.csv"); }
+  auto e = load_evaluation_sums(fs::path(dir) / "empty.csv");
+  ASSERT_FALSE(e);
+  EXPECT_NE(e.error().message.find("empty.csv: empty"), std::string::npos) << e.error().message;
+  auto n = load_evaluation_sums(fs::path(dir) / "none.csv");
+  ASSERT_FALSE(n);
+  EXPECT_NE(n.error().message.find("none.csv: cannot read"), std::string::npos) << n.error().message;
+  // A file that cannot be written.
+  auto w = EvaluationSumsWriter::create(fs::path(dir) / "no/such/folder/x.csv");
+  ASSERT_FALSE(w);
+  EXPECT_NE(w.error().message.find("no/such/folder/x.csv"), std::string::npos) << w.error().message;
 }
 
 // Pixels within `tol` of an RGB colour in the plots' area (left of the keys, which hold each
