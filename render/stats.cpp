@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <future>
 #include <limits>
 #include <memory>
@@ -12,6 +14,8 @@
 #include <ostream>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
+#include <system_error>
 
 #include "core/worker.hpp"
 
@@ -69,15 +73,18 @@ struct Column {
   const char* name;
   bool is_int;
   double (*get)(const OcclusionStats&);
+  // The field itself, for read_stats_csv(): an integer column's or a percentage's.
+  std::int64_t OcclusionStats::*int_field;
+  double OcclusionStats::*real_field;
 };
 
-#define AUGRIG_INT_COL(f)                                                      \
-  Column {                                                                     \
-#f, true, [](const OcclusionStats& s) { return static_cast<double>(s.f); } \
+#define AUGRIG_INT_COL(f)                                                                                  \
+  Column {                                                                                                 \
+#f, true, [](const OcclusionStats& s) { return static_cast<double>(s.f); }, &OcclusionStats::f, nullptr \
   }
-#define AUGRIG_PCT_COL(f)                                  \
-  Column {                                                 \
-#f, false, [](const OcclusionStats& s) { return s.f; } \
+#define AUGRIG_PCT_COL(f)                                                              \
+  Column {                                                                             \
+#f, false, [](const OcclusionStats& s) { return s.f; }, nullptr, &OcclusionStats::f \
   }
 const Column kColumns[] = {
     AUGRIG_INT_COL(t_ns),
@@ -430,6 +437,59 @@ void write_stats_csv_row(std::ostream& out, const OcclusionStats& s) {
     first = false;
   }
   out << '\n';
+}
+
+Expected<std::vector<OcclusionStats>> read_stats_csv(const std::string& path) {
+  const std::string where = "render::read_stats_csv(): " + path;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return make_error(where, ": cannot read the file");
+  // A line's cells (a '\r' left by Windows line ends dropped).
+  auto split = [](std::string& line) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::vector<std::string_view> cells;
+    for (std::size_t p = 0; p <= line.size();) {
+      const std::size_t q = std::min(line.find(',', p), line.size());
+      cells.emplace_back(line.data() + p, q - p);
+      p = q + 1;
+    }
+    return cells;
+  };
+  const std::size_t n = std::size(kColumns);
+  std::string line;
+  if (!std::getline(in, line)) return make_error(where, ": empty, expected the header line (t_ns,receiver_px_left,...)");
+  {
+    const std::vector<std::string_view> cells = split(line);
+    for (std::size_t i = 0; i < std::max(cells.size(), n); ++i) {
+      if (i < cells.size() && i < n && cells[i] == kColumns[i].name) continue;
+      return make_error(where, ":1: not a stats.csv header (docs/STATISTICS.md): column ", i + 1, " is '",
+                        i < cells.size() ? std::string(cells[i]) : std::string("(none)"), "', expected '",
+                        i < n ? kColumns[i].name : "(none)", "' (", n, " columns, header ", cells.size(), ")");
+    }
+  }
+  std::vector<OcclusionStats> rows;
+  for (std::size_t line_no = 2; std::getline(in, line); ++line_no) {
+    const std::vector<std::string_view> cells = split(line);
+    if (cells.size() == 1 && cells[0].empty()) continue;  // a blank line (the file's end)
+    if (cells.size() != n)
+      return make_error(where, ":", line_no, ": ", cells.size(), " fields, expected ", n, " (one per header column)");
+    OcclusionStats s;  // width and height are not in the file: 0
+    for (std::size_t i = 0; i < n; ++i) {
+      const Column& c = kColumns[i];
+      const char* b = cells[i].data();
+      const char* e = b + cells[i].size();
+      std::from_chars_result r{b, std::errc::invalid_argument};
+      if (c.is_int)
+        r = std::from_chars(b, e, s.*c.int_field);
+      else if (b != e && *b != '+')
+        r = std::from_chars(b, e, s.*c.real_field);
+      if (b == e || r.ec != std::errc() || r.ptr != e)
+        return make_error(where, ":", line_no, ":", c.name, ": expected ", c.is_int ? "an integer" : "a number",
+                          ", got '", std::string(cells[i]), "'");
+    }
+    rows.push_back(s);
+  }
+  if (in.bad()) return make_error(where, ": read failed");
+  return rows;
 }
 
 std::string format_table1(const OcclusionStats& s, const std::string& title) {

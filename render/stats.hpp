@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/conventions.hpp"
+#include "core/expected.hpp"
 #include "core/image.hpp"
 #include "core/pose.hpp"
 #include "render/camera_model.hpp"
@@ -92,6 +93,10 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
 // CSV with the exact column names of docs/STATISTICS.md, one row per stereo frame.
 void write_stats_csv_header(std::ostream& out);
 void write_stats_csv_row(std::ostream& out, const OcclusionStats& s);
+// Reads what write_stats_csv_header() and write_stats_csv_row() wrote, rows in file order (width
+// and height are not in the file: 0). The header must be exactly the column list; errors name
+// file:line and the column, and what was expected.
+Expected<std::vector<OcclusionStats>> read_stats_csv(const std::string& path);
 // Table-1-style summary of one frame (or of the mean of several) for stdout.
 std::string format_table1(const OcclusionStats& s, const std::string& title);
 // Mean, min and max over frames of each column, as a printable table.

@@ -6,7 +6,9 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <iostream>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
@@ -15,6 +17,7 @@
 #include <gtest/gtest.h>
 
 #include "core/worker.hpp"
+#include "tests/support/test_support.hpp"
 
 namespace augrig {
 namespace {
@@ -699,6 +702,101 @@ TEST(StatsCsv, RowFormat) {
   EXPECT_EQ(o.str(),
             "1234567890123456789,1,2,3,4,5,7.1845,6,7,0.2461,100.0000,8,9,10,11,0.0000,0.3333,3.3342,"
             "100.0000\n");
+}
+
+// What write_stats_csv_header() and write_stats_csv_row() wrote, as a file.
+std::string write_stats_file(const std::string& path, const std::vector<OcclusionStats>& rows) {
+  std::ostringstream o;
+  write_stats_csv_header(o);
+  for (const OcclusionStats& s : rows) write_stats_csv_row(o, s);
+  std::ofstream(path, std::ios::binary) << o.str();
+  return o.str();
+}
+
+TEST(StatsCsv, ReadBackAndWrittenAgainIsTheSameText) {
+  const std::string dir = test::output_dir("stats_csv_read");
+  OcclusionStats a = sample_stats(), b = sample_stats(), c;
+  a.t_ns = -5;  // a clock before its epoch is still a time
+  b.t_ns = std::numeric_limits<std::int64_t>::max();
+  b.receiver_px_left = 1234567890123;
+  b.occluded_pct_left = 12.34565;  // rounded to 4 decimals when written: read back as written
+  c.t_ns = 1;
+  const std::string text = write_stats_file(dir + "/stats.csv", {a, b, c});
+  auto rows = read_stats_csv(dir + "/stats.csv");
+  ASSERT_TRUE(rows) << rows.error().message;
+  ASSERT_EQ(rows->size(), 3u);
+  EXPECT_EQ((*rows)[0].t_ns, -5);
+  EXPECT_EQ((*rows)[1].t_ns, std::numeric_limits<std::int64_t>::max());  // all 64 bits, not through a double
+  EXPECT_EQ((*rows)[1].receiver_px_left, 1234567890123);
+  EXPECT_EQ((*rows)[0].neither_px, 11);
+  EXPECT_EQ((*rows)[0].boom_pct_right, 100.0);  // 99.99996 as written: 100.0000
+  EXPECT_EQ((*rows)[0].width, 0);  // not in the file
+  EXPECT_EQ((*rows)[0].height, 0);
+  std::ostringstream again;
+  write_stats_csv_header(again);
+  for (const OcclusionStats& s : *rows) write_stats_csv_row(again, s);
+  EXPECT_EQ(again.str(), text);
+  // The run's summary of the rows read is that of the rows written, up to the file's rounding.
+  const std::string summary = format_run_summary(*rows);
+  EXPECT_NE(summary.find("Run summary over 3 stereo frame(s)"), std::string::npos) << summary;
+  char t_line[128];
+  std::snprintf(t_line, sizeof t_line, "%-24s %16s %16lld %16lld\n", "t_ns", "-", -5LL,
+                static_cast<long long>(std::numeric_limits<std::int64_t>::max()));
+  EXPECT_NE(summary.find(t_line), std::string::npos) << summary;
+  EXPECT_NE(summary.find(" 1234567890123\n"), std::string::npos) << "receiver_px_left's max\n" << summary;
+  // A file with Windows line ends and no last line end reads the same.
+  std::string crlf;
+  for (char ch : text) crlf += ch == '\n' ? std::string("\r\n") : std::string(1, ch);
+  crlf.resize(crlf.size() - 2);
+  std::ofstream(dir + "/crlf.csv", std::ios::binary) << crlf;
+  auto r2 = read_stats_csv(dir + "/crlf.csv");
+  ASSERT_TRUE(r2) << r2.error().message;
+  std::ostringstream o2;
+  write_stats_csv_header(o2);
+  for (const OcclusionStats& s : *r2) write_stats_csv_row(o2, s);
+  EXPECT_EQ(o2.str(), text);
+}
+
+TEST(StatsCsv, ABadFileIsAnErrorNamingFileLineAndColumn) {
+  const std::string dir = test::output_dir("stats_csv_read_bad");
+  const std::string text = write_stats_file(dir + "/good.csv", {sample_stats(), sample_stats()});
+  const std::string header = text.substr(0, text.find('\n'));
+  const std::string row = text.substr(header.size() + 1, text.find('\n', header.size() + 1) - header.size() - 1);
+  auto error_of = [&](const std::string& name, const std::string& content) {
+    std::ofstream(dir + "/" + name, std::ios::binary) << content;
+    auto r = read_stats_csv(dir + "/" + name);
+    EXPECT_FALSE(r) << name;
+    return r ? std::string() : r.error().message;
+  };
+  auto replace = [](std::string s, const std::string& from, const std::string& to) {
+    s.replace(s.find(from), from.size(), to);
+    return s;
+  };
+  // The header: a column renamed, one missing, one too many.
+  std::string m = error_of("renamed.csv", replace(header, "neither_px", "none_px") + "\n" + row + "\n");
+  EXPECT_NE(m.find(dir + "/renamed.csv:1:"), std::string::npos) << m;
+  EXPECT_NE(m.find("column 15 is 'none_px', expected 'neither_px'"), std::string::npos) << m;
+  m = error_of("fewer.csv", header.substr(0, header.rfind(',')) + "\n");
+  EXPECT_NE(m.find("fewer.csv:1:"), std::string::npos) << m;
+  EXPECT_NE(m.find("expected 'boom_pct_right'"), std::string::npos) << m;
+  m = error_of("more.csv", header + ",frame\n");
+  EXPECT_NE(m.find("column 20 is 'frame', expected '(none)'"), std::string::npos) << m;
+  // A row: a field missing, a count that is not an integer, a percentage that is not a number.
+  m = error_of("short.csv", header + "\n" + row + "\n" + row.substr(0, row.rfind(',')) + "\n");
+  EXPECT_NE(m.find("short.csv:3: 18 fields, expected 19"), std::string::npos) << m;
+  m = error_of("count.csv", header + "\n" + replace(row, ",8,9,", ",8.5,9,") + "\n");
+  EXPECT_NE(m.find("count.csv:2:stereo_both_px: expected an integer, got '8.5'"), std::string::npos) << m;
+  m = error_of("pct.csv", header + "\n" + replace(row, ",7.1845,", ",7.18x,") + "\n");
+  EXPECT_NE(m.find("pct.csv:2:boom_overlap_pct_union: expected a number, got '7.18x'"), std::string::npos) << m;
+  m = error_of("t.csv", header + "\n" + replace(row, "1234567890123456789,", ",") + "\n");
+  EXPECT_NE(m.find("t.csv:2:t_ns: expected an integer, got ''"), std::string::npos) << m;
+  m = error_of("empty.csv", "");
+  EXPECT_NE(m.find("empty.csv: empty"), std::string::npos) << m;
+  auto none = read_stats_csv(dir + "/none.csv");
+  ASSERT_FALSE(none);
+  EXPECT_NE(none.error().message.find("render::read_stats_csv(): " + dir + "/none.csv: cannot read"),
+            std::string::npos)
+      << none.error().message;
 }
 
 TEST(StatsSummary, MeanMinMaxPerColumn) {
