@@ -287,6 +287,7 @@ const char* kTopHelp =
     "  cameras   list the GigE Vision, USB3 Vision and V4L2 cameras this machine sees\n"
     "  rig       rig show RIG: what a rig file resolves to (poses, baseline, field of view) and what looks wrong\n"
     "  run       the live pipeline from source URIs: capture, pairing, augmentation, recording\n"
+    "  campaign  a campaign of recordings and variants on a cluster: plan (Slurm array), status, resume, merge\n"
     "\n"
     "Options:\n"
     "  --help, -h   this help\n"
@@ -409,8 +410,9 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   if (command == "rig") return cmd_rig(rest, out, err);
   if (command == "cameras") return cmd_cameras(rest, out, err);
   if (command == "run") return cmd_run(rest, out, err);
+  if (command == "campaign") return cmd_campaign(rest, out, err);
   err << "augrig: unknown command '" << command
-      << "'; commands: augment, demo, sim, nav, check, replay, export, evaluate, cameras, rig, run (see augrig --help)\n";
+      << "'; commands: augment, demo, sim, nav, check, replay, export, evaluate, cameras, rig, run, campaign (see augrig --help)\n";
   return kExitUsage;
 }
 

@@ -78,5 +78,6 @@ int cmd_rig(const std::vector<std::string>& args, std::ostream& out, std::ostrea
 int cmd_evaluate(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_cameras(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_campaign(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 }  // namespace augrig::app

@@ -93,6 +93,49 @@ std::string npm_script(const std::string& name, const std::vector<std::string>& 
   return target.string();
 }
 
+std::string sim_recording(const std::string& scenario, int every, const std::string& name, std::string* why) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::path(AUGRIG_TEST_OUTPUT_DIR) / "recordings";
+  fs::create_directories(root);
+  const int lock = ::open((root / (name + ".lock")).c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock < 0 || ::flock(lock, LOCK_EX) != 0) {
+    *why = "cannot lock " + (root / (name + ".lock")).string();
+    if (lock >= 0) ::close(lock);
+    return "";
+  }
+  // Made again when augrig or the scenario changed since.
+  auto stamp = [](const fs::path& p) {
+    std::error_code ec;
+    return std::to_string(fs::last_write_time(p, ec).time_since_epoch().count());
+  };
+  const fs::path dir = root / name, marker = root / (name + ".made");
+  const std::string want = scenario + " " + std::to_string(every) + " " + stamp(augrig_binary()) + " " +
+                           stamp(data_path(scenario));
+  std::string have;
+  if (std::FILE* f = std::fopen(marker.c_str(), "r")) {
+    char buf[1024];
+    have.assign(buf, std::fread(buf, 1, sizeof buf, f));
+    std::fclose(f);
+  }
+  if (have != want || !fs::exists(dir / "recording.sqlite")) {
+    fs::remove(marker);
+    std::string log;
+    if (run_augrig("run --source 'sim://" + data_path(scenario) + "?every=" + std::to_string(every) +
+                       "&rate=0' --headless --status-every 0 --overwrite --record " + dir.string(),
+                   &log) != 0) {
+      *why = "augrig run --record failed: " + log;
+      ::close(lock);
+      return "";
+    }
+    if (std::FILE* f = std::fopen(marker.c_str(), "w")) {
+      std::fputs(want.c_str(), f);
+      std::fclose(f);
+    }
+  }
+  ::close(lock);
+  return dir.string();
+}
+
 void expect_same_fix(const nav::GpsFix& got, const nav::GpsFix& want, const std::string& what) {
   EXPECT_EQ(got.t_ns, want.t_ns) << what;
   EXPECT_EQ(got.antenna.lat_rad, want.antenna.lat_rad) << what;

@@ -22,6 +22,10 @@ std::string augrig_binary();
 int run_command(const std::string& command, std::string* output = nullptr);
 // Runs the augrig binary with `args`; `output` gets its stdout and stderr together.
 int run_augrig(const std::string& args, std::string* output = nullptr);
+// A recording of the simulated flight tests/data/SCENARIO (every K-th frame), made once with
+// `augrig run --record` under build/test-output/recordings/NAME and reused; "" (and `why`) when
+// augrig fails. Test processes running at once take turns under a lock.
+std::string sim_recording(const std::string& scenario, int every, const std::string& name, std::string* why);
 // npm packages (`packages`: "name@version" each) installed once into build/test-output/npm-NAME and
 // kept between runs, with tests/support/SCRIPT copied next to them; returns the script's path, or
 // "" with `why` when node or npm cannot provide them. Test processes running at once (CTest -j)

@@ -1,0 +1,197 @@
+// Merging a campaign's shards, with the real augrig on two simulated recordings: the joined
+// per-frame files equal those of one unsharded `augrig evaluate` / `augrig replay` of each flight,
+// row for row, and the tables made from them are the unsharded run's (a scripted boom and an
+// evaluation cadence that a shard boundary cuts through included); a shard not done stops the merge
+// unless --partial, which merges the rest and says what is missing.
+#include "campaign/merge.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "campaign/task.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace augrig::campaign {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<std::string> lines_of(const fs::path& p) {
+  std::ifstream in(p);
+  std::vector<std::string> v;
+  std::string l;
+  while (std::getline(in, l)) v.push_back(l);
+  return v;
+}
+
+// Drops the CSV columns whose header names end in `_ms` (wall times differ from run to run).
+std::vector<std::string> without_times(const std::vector<std::string>& rows) {
+  if (rows.empty()) return rows;
+  auto cells = [](const std::string& s) {
+    std::vector<std::string> c;
+    std::stringstream ss(s);
+    std::string x;
+    while (std::getline(ss, x, ',')) c.push_back(x);
+    if (!s.empty() && s.back() == ',') c.emplace_back();
+    return c;
+  };
+  const auto head = cells(rows[0]);
+  std::vector<std::string> out;
+  for (const auto& r : rows) {
+    const auto c = cells(r);
+    std::string k;
+    for (std::size_t i = 0; i < c.size() && i < head.size(); ++i)
+      if (head[i].size() < 3 || head[i].substr(head[i].size() - 3) != "_ms") k += c[i] + ",";
+    out.push_back(k);
+  }
+  return out;
+}
+
+struct MergeFixture : ::testing::Test {
+  fs::path dir;
+  std::string rec_a, rec_b;
+  void SetUp() override {
+    std::string why;
+    rec_a = test::sim_recording("campaign/flight_a.yaml", 3, "campaign_a", &why);
+    ASSERT_FALSE(rec_a.empty()) << why;
+    rec_b = test::sim_recording("campaign/flight_b.yaml", 3, "campaign_b", &why);
+    ASSERT_FALSE(rec_b.empty()) << why;
+    dir = test::output_dir(std::string("campaign_merge_") +
+                           ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    // A boom script that moves all the time: a shard that restarted its clock would differ.
+    std::ofstream(dir / "boom.csv") << "t_s,elevation_deg,azimuth_deg,extension_m\n0,22,-10,0.5\n4,38,12,5\n";
+  }
+  // Plans the campaign with shards of `seconds` and runs every task here.
+  Manifest run_campaign(const std::string& name, double seconds, bool run_all = true) {
+    const std::string text = "augrig_campaign: 1\nname: " + name + "\nout: " + name +
+                             "\nrecordings: [{path: " + rec_a + ", name: a}, {path: " + rec_b +
+                             ", name: b}]\nvariants:\n"
+                             "  - {name: stats}\n"
+                             "  - {name: eval, boom: script:boom.csv, evaluate: {every: 3}}\n"
+                             "shards: {seconds: " +
+                             std::to_string(seconds) + "}\n";
+    auto spec = parse_campaign(text, dir / "campaign.yaml");
+    EXPECT_TRUE(spec) << spec.error().message;
+    Manifest m;
+    m.file = spec->out / "manifest.yaml";
+    m.name = name;
+    m.out = spec->out;
+    m.augrig = test::augrig_binary();
+    m.tasks =
+        plan_tasks(*spec, {*read_flight_frames(spec->flights[0]), *read_flight_frames(spec->flights[1])}, {});
+    fs::create_directories(m.out);
+    EXPECT_TRUE(write_manifest(m));
+    if (run_all)
+      for (const Task& t : m.tasks) {
+        std::ostringstream out, err;
+        EXPECT_EQ(run_task(m, t.id, out, err), 0) << out.str() << err.str();
+      }
+    return m;
+  }
+};
+
+TEST_F(MergeFixture, ShardsMergeIntoTheUnshardedRunFrameForFrame) {
+  const Manifest m = run_campaign("sharded", 0.9);
+  std::size_t eval_a_shards = 0;
+  for (const Task& t : m.tasks) eval_a_shards += t.variant == "eval" && t.flight == "a";
+  ASSERT_GE(eval_a_shards, 4u);
+  std::ostringstream out;
+  auto s = merge_campaign(m, MergeOptions{false, false}, out);
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->flights_merged, 4u);
+  EXPECT_EQ(s->frames, 2u * (41 + 31));
+
+  for (const std::string f : {"a", "b"}) {
+    SCOPED_TRACE("flight " + f);
+    const std::string rec = f == "a" ? rec_a : rec_b;
+    const fs::path u = dir / ("unsharded_" + f);
+    std::string log;
+    ASSERT_EQ(test::run_augrig("evaluate " + rec + " --boom script:" + (dir / "boom.csv").string() +
+                                   " --every 3 --no-plot --out " + (u / "eval").string(),
+                               &log),
+              0)
+        << log;
+    ASSERT_EQ(
+        test::run_augrig(
+            "replay " + rec + " --fast --headless --every 1000000 --out " + (u / "stats").string(), &log),
+        0)
+        << log;
+    const fs::path r = m.out / "report";
+    // Row for row: the occlusion statistics of both variants, the evaluation's rows and sums.
+    EXPECT_EQ(lines_of(r / "stats" / f / "stats.csv"), lines_of(u / "stats" / "stats.csv"));
+    EXPECT_EQ(lines_of(r / "eval" / f / "stats.csv"), lines_of(u / "eval" / "stats.csv"));
+    EXPECT_EQ(lines_of(r / "eval" / f / "evaluation.csv"), lines_of(u / "eval" / "evaluation.csv"));
+    EXPECT_EQ(without_times(lines_of(r / "eval" / f / "evaluation_sums.csv")),
+              without_times(lines_of(u / "eval" / "evaluation_sums.csv")));
+    // The table from the re-added sums is the unsharded run's, but for its title line.
+    auto merged = lines_of(r / "eval" / f / "evaluation.txt"),
+         whole = lines_of(u / "eval" / "evaluation.txt");
+    ASSERT_GT(merged.size(), 5u);
+    ASSERT_EQ(merged.size(), whole.size());
+    merged.erase(merged.begin());
+    whole.erase(whole.begin());
+    EXPECT_EQ(merged, whole);
+  }
+  // The campaign's report: a line per flight and variant, the frames adding up.
+  const auto csv = lines_of(m.out / "report" / "campaign.csv");
+  ASSERT_EQ(csv.size(), 5u);
+  EXPECT_EQ(csv[1].rfind("stats,a,", 0), 0u) << csv[1];
+  EXPECT_NE(csv[3].find("eval,a,"), std::string::npos) << csv[3];
+  const auto txt = lines_of(m.out / "report" / "campaign.txt");
+  ASSERT_FALSE(txt.empty());
+  EXPECT_NE(txt[0].find("4 flight report(s) merged, 144 stereo frame(s), 25 evaluated"), std::string::npos)
+      << txt[0];
+
+  // One shard per flight merges into the same flight reports.
+  const Manifest whole = run_campaign("whole", 1000);
+  ASSERT_EQ(whole.tasks.size(), 4u);
+  ASSERT_TRUE(merge_campaign(whole, MergeOptions{false, false}, out));
+  for (const std::string f : {"a", "b"})
+    for (const std::string file : {"evaluation.txt", "summary.txt", "evaluation.csv", "stats.csv"})
+      EXPECT_EQ(lines_of(whole.out / "report" / "eval" / f / file),
+                lines_of(m.out / "report" / "eval" / f / file))
+          << f << "/" << file;
+}
+
+TEST_F(MergeFixture, AShardNotDoneStopsTheMergeUnlessPartial) {
+  Manifest m = run_campaign("partial", 1.5, false);
+  for (const Task& t : m.tasks) {
+    if (t.variant == "eval" && t.flight == "b" && t.shard.index == 1) continue;  // not run
+    std::ostringstream out, err;
+    ASSERT_EQ(run_task(m, t.id, out, err), 0) << out.str() << err.str();
+  }
+  std::ostringstream out;
+  auto s = merge_campaign(m, MergeOptions{false, false}, out);
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("eval/b: shard(s) 1 (task "), std::string::npos) << s.error().message;
+  EXPECT_NE(s.error().message.find("merge with --partial"), std::string::npos) << s.error().message;
+  s = merge_campaign(m, MergeOptions{true, false}, out);
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->flights_merged, 3u);
+  EXPECT_EQ(s->flights_incomplete, 1u);
+  EXPECT_FALSE(fs::exists(m.out / "report" / "eval" / "b"));
+  const auto txt = lines_of(m.out / "report" / "campaign.txt");
+  ASSERT_GT(txt.size(), 2u);
+  EXPECT_EQ(txt[1], "Not merged (shards not done):");
+
+  // A shard whose files are another command's does not join.
+  const Task* t0 = nullptr;
+  for (const Task& t : m.tasks)
+    if (t.variant == "stats" && t.flight == "a" && t.shard.index == 1) t0 = &t;
+  ASSERT_NE(t0, nullptr);
+  auto rows = lines_of(t0->out / "stats.csv");
+  rows[0] += ",extra";
+  std::ofstream o(t0->out / "stats.csv");
+  for (const auto& r : rows) o << r << "\n";
+  o.close();
+  s = merge_campaign(m, MergeOptions{true, false}, out);
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("its header differs from the first shard's"), std::string::npos)
+      << s.error().message;
+}
+
+}  // namespace
+}  // namespace augrig::campaign
