@@ -54,6 +54,9 @@ const std::vector<OptionSpec>& replay_specs() {
       {"fast", ArgKind::kFlag, "", "as fast as the augmenter goes, every frame (the default)"},
       {"seek", ArgKind::kValue, "T_S", "start at the first frame T_S seconds or more after the first frame"},
       {"from-frame", ArgKind::kValue, "N", "start at frame N (0: the first)"},
+      {"frames", ArgKind::kValue, "N",
+       "replay N stereo frames from the start (frames START..START+N-1 of a recording or EuRoC folder, "
+       "whatever in them is skipped; not with --loop)"},
       {"loop", ArgKind::kValue, "N", "play the range N times in all (default 1)"},
       {"out", ArgKind::kValue, "DIR", "write stats.csv and the images of every --every-th frame here"},
       {"every", ArgKind::kValue, "K", "with --out: images of every K-th replayed frame (default 30)"},
@@ -83,6 +86,14 @@ const std::vector<OptionSpec>& replay_specs() {
 // --every K (default 30).
 int replay_every(const ParsedArgs& a) {
   return a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 30;
+}
+
+// --frames N: how many stereo frames from the start (0: to the end). Not with --loop: a pass
+// that ends after N frames would make "N frames" mean two things.
+std::size_t replay_frames(const ParsedArgs& a) {
+  if (!a.has("frames")) return 0;
+  if (a.has("loop")) usage_error("--frames and --loop exclude each other (--frames N replays N frames once)");
+  return static_cast<std::size_t>(parse_integer("frames", a.get("frames"), 1, 1LL << 40));
 }
 
 // Where a replay's poses come from, for its banner.
@@ -125,7 +136,8 @@ void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayCon
   } else {
     usage_error(c.from + " has no recorded scene: give one with --scene SCENE.yaml or --poses POSES.csv");
   }
-  // A boom script's t_s counts from the first frame replayed.
+  // A boom script's t_s counts from the recording's (EuRoC folder's) first frame, not the first
+  // frame replayed: a replay from frame N flies the boom as the whole replay does there.
   if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
   if (a.has("every") && !a.has("out")) usage_error("--every needs --out (where the images go)");
   if (a.has("out")) {
@@ -169,9 +181,11 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
   }
   if (a.has("from-frame"))
     params += "&from_frame=" + std::to_string(parse_integer("from-frame", a.get("from-frame"), 0, 1LL << 40));
+  const std::size_t frames = replay_frames(a);
   const std::string target = dir.rfind("euroc://", 0) == 0 ? dir.substr(8) : dir;
   OpenedSource opened = unwrap(open_sources("euroc://" + target + params));
-  const auto* euroc = dynamic_cast<const recorder::EurocSource*>(opened.sources.front().get());
+  auto* euroc = dynamic_cast<recorder::EurocSource*>(opened.sources.front().get());
+  if (euroc && frames) check(euroc->set_end_pair(euroc->start_pair() + std::min(frames, euroc->pair_count())));
   const std::size_t pairs = euroc ? euroc->pair_count() : 0;
   const std::uint64_t unpaired = euroc ? euroc->unpaired() : 0;
   PipelineParts parts;
@@ -209,11 +223,12 @@ int replay_mcap(const std::string& file, const ParsedArgs& a, std::ostream& out,
     recorded_rig = unwrap(parse_rig(mcap->meta().at("rig_yaml"), path + " (metadata augrig_recording, rig_yaml)"));
   PipelineParts parts;
   configure_replay(parts, a, {path, recorded_rig, false, true, ""});
+  parts.max_pairs = replay_frames(a);  // the first N augmented
   out << "replay: " << path << " (MCAP), " << frames << " stereo frames; rig "
       << (a.has("rig") ? parts.rig.source : std::string("as recorded")) << ", " << replay_poses_text(a) << "\n";
   parts.source_info = opened;
   parts.source = unwrap(start_stereo(std::move(opened)));
-  parts.progress_total = frames;
+  parts.progress_total = parts.max_pairs ? std::min<std::uint64_t>(frames, parts.max_pairs) : frames;
   std::size_t problems = 0;  // read errors: a damaged frame or file
   parts.on_problem = [&err, &problems](const Error& e) {
     ++problems;
@@ -241,7 +256,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   const ParsedArgs a = parse_with_positionals(args, replay_specs(), {"DIR"}, pos);
   if (a.help) {
     out << format_help(
-        "augrig replay DIR [--rate X|--fast] [--seek T_S|--from-frame N] [--loop N] [--out DIR] [--rig RIG] "
+        "augrig replay DIR [--rate X|--fast] [--seek T_S|--from-frame N] [--frames N|--loop N] [--out DIR] [--rig RIG] "
         "[--scene SCENE.yaml] [--record DIR] [--headless]",
         "DIR may also be a EuRoC/ASL folder (mav0/cam0, cam1): then --scene is required.\n"
         "Plays a recording's raw frames back (replay://DIR) through the pipeline again: with the recorded\n"
@@ -282,6 +297,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   }
   if (a.has("from-frame"))
     param("from_frame", std::to_string(parse_integer("from-frame", a.get("from-frame"), 0, 1LL << 40)));
+  const std::size_t frames = replay_frames(a);
   const int passes = a.has("loop") ? static_cast<int>(parse_integer("loop", a.get("loop"), 1, 1000000)) : 1;
   param("passes", std::to_string(passes));
   const int every = replay_every(a);
@@ -290,6 +306,9 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   const std::string dir = pos[0].rfind("replay://", 0) == 0 ? pos[0].substr(9) : pos[0];
   OpenedSource opened = unwrap(open_sources("replay://" + dir + params));
   recorder::ReplaySource& source = *opened.replay;
+  // The range ends in the source, not after N augmented pairs: a frame skipped (damaged, without a
+  // scene) does not move the end, so consecutive ranges replay each frame once.
+  if (frames) check(source.set_end_frame(source.start_frame() + std::min(frames, source.frame_count())));
   const recorder::RecordingReader& reader = source.reader();
   // A truncated or damaged recording: what is missing is said now, the readable frames are
   // replayed, and the exit status is 1.
@@ -312,7 +331,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   parts.source_info = opened;
   const fs::path out_dir = a.get("out");
   out << "replay: " << source.uri() << ", " << source.frame_count() << " stereo frames, from frame "
-      << source.start_frame() << ", "
+      << source.start_frame() << (frames ? " to " + std::to_string(source.end_frame() - 1) : std::string()) << ", "
       << (rate > 0 ? "real rate x" + fmt_ms(rate) : std::string("as fast as possible"))
       << (passes > 1 ? ", " + std::to_string(passes) + " passes" : std::string()) << "; rig "
       << (a.has("rig") ? parts.rig.source : std::string("as recorded")) << ", " << replay_poses_text(a) << "\n";
@@ -320,7 +339,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   parts.source = unwrap(start_stereo(std::move(opened)));
   parts.status_every_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 0;
   // Progress over the range replayed, every pass.
-  parts.progress_total = (source.frame_count() - source.start_frame()) * static_cast<std::uint64_t>(passes);
+  parts.progress_total = (source.end_frame() - source.start_frame()) * static_cast<std::uint64_t>(passes);
   Pipeline pipeline(std::move(parts));
   const PipelineReport r =
       run_pipeline(pipeline, !a.has("headless"), a.get("out", "."), out, err, parse_screenshot_at(a));

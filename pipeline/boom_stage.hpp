@@ -1,7 +1,9 @@
 // The boom stage of the pipeline: each frame's boom articulation, from what the pose source gave
 // (a scene's, a recording's or the simulation's boom) or from the mode in force:
 //   fixed      the --boom fixed:EL,AZ,EXT articulation (or the pose source's boom as it comes);
-//   scripted   a timeline (render/boom_control.hpp's BoomScript), t from the run's first frame;
+//   scripted   a timeline (render/boom_control.hpp's BoomScript), t in seconds from the source's
+//              first frame: a recording's or a EuRoC folder's first frame whatever the start, else
+//              the run's first frame;
 //   track      the nozzle aimed at the receptacle where the frame's receiver pose puts it;
 //   interactive the operator's, nudged from the window and clamped to the rig's limits.
 // What the stage commands is clamped to the rig's limits; a pose source's boom is used as given. Without a receiver pose nothing is tracked:
@@ -21,7 +23,9 @@
 namespace augrig::pipeline {
 
 // A boom given by the user (--boom): track (the receptacle, from the poses), fixed:EL_DEG,AZ_DEG,
-// EXT_M, or script:FILE.csv. A script's times are seconds from the run's first frame.
+// EXT_M, or script:FILE.csv. A script's times are seconds from the source's first frame: the
+// recording's (or EuRoC folder's) first frame, also when the run starts later in it (--from-frame,
+// --seek); a live or simulated source's first frame processed.
 struct BoomArg {
   BoomMode mode = BoomMode::kTrackReceptacle;
   BoomArticulation fixed;
@@ -37,7 +41,7 @@ class BoomStage {
   BoomStage(const Rig& rig, const Eigen::Vector3d& receptacle_m, std::optional<BoomArg> arg,
             const BoomDimensions& dims = {});
 
-  // Sets scene.boom for a frame `t_s` after the run's first frame.
+  // Sets scene.boom for a frame `t_s` after the source's first frame (above).
   void apply(SceneState& scene, double t_s);
 
   DisplayBoomMode mode() const { return mode_; }

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "core/clock.hpp"
+#include "recorder/euroc.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/replay_source.hpp"
 #include "render/gl_context.hpp"
@@ -240,6 +241,16 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     sim_offsets.resize(2, 0);
   }
   recorder::ReplaySource* replay = p.source_info.replay;
+  // A scripted boom's t = 0: a recording's or a EuRoC folder's own first frame, so that a run
+  // that starts later in it (--from-frame, --seek, one part of a campaign) flies the boom where the
+  // whole run would at each frame; else (live, simulated) the first frame processed.
+  std::optional<TimestampNs> source_origin_ns;
+  if (replay) {
+    source_origin_ns = replay->first_t_ns();
+  } else if (source.sources().size() == 1) {
+    if (const auto* euroc = dynamic_cast<const recorder::EurocSource*>(source.sources().front().get()))
+      source_origin_ns = euroc->first_t_ns();
+  }
   if (replay) {
     bool any = false;
     for (const auto& t : replay->frame_times())
@@ -399,7 +410,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   auto process = [&](StereoFrame& frame) {
     if (s.first) {
       s.first = false;
-      s.first_t_ns = frame.left.t_ns;
+      s.first_t_ns = source_origin_ns.value_or(frame.left.t_ns);
       if (p.on_first_frame) p.on_first_frame(frame);
       // A configuration that cannot work fails here, once, before anything is augmented.
       for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {

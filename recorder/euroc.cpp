@@ -1609,6 +1609,8 @@ Expected<std::unique_ptr<EurocSource>> EurocSource::open(const std::string& uri_
   if (start > 0 && start >= s->pairs_.size())
     return make_error(where, dir, ": the start (pair ", start, ") is past the last pair (", s->pairs_.size(),
                       " pairs)");
+  if (!s->pairs_.empty()) s->first_t_ns_ = s->pairs_.front().left.t_ns;
+  s->start_ = start;
   s->pairs_.erase(s->pairs_.begin(), s->pairs_.begin() + static_cast<std::ptrdiff_t>(start));
 
   const fs::path imu = mav0 / "imu0" / "data.csv";
@@ -1618,6 +1620,14 @@ Expected<std::unique_ptr<EurocSource>> EurocSource::open(const std::string& uri_
     s->imu_ = std::move(*r);
   }
   return s;
+}
+
+Status EurocSource::set_end_pair(std::size_t end) {
+  if (end <= start_)
+    return make_error("recorder::EurocSource::set_end_pair(): ", mav0_, ": the end (pair ", end,
+                      ") is not after the start (pair ", start_, ")");
+  if (end - start_ < pairs_.size()) pairs_.resize(end - start_);
+  return {};
 }
 
 Expected<ReadStatus> EurocSource::read(Frame& out, std::chrono::nanoseconds) {

@@ -185,7 +185,17 @@ class EurocSource final : public FrameSource {
   Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
   std::uint64_t frames_dropped() const override { return unpaired_ + 2 * unreadable_; }
 
-  std::size_t pair_count() const { return pairs_.size(); }
+  std::size_t pair_count() const { return pairs_.size(); }  // from the start to the end
+  // The dataset's pair index of the first pair played (EurocOptions' start): the pair with
+  // sequence k is the dataset's pair start_pair() + k.
+  std::size_t start_pair() const { return start_; }
+  // The dataset's time origin: its first pair's left timestamp, whatever the start (nullopt: no
+  // pair). A scripted boom's t = 0 (pipeline/boom_stage.hpp).
+  std::optional<TimestampNs> first_t_ns() const { return first_t_ns_; }
+  // Playback ends before the dataset's pair `end` (clamped to the last), so that a part of the
+  // dataset (pairs [start, end)) plays exactly those pairs. Before the first read(). An Error when
+  // `end` is not after the start.
+  Status set_end_pair(std::size_t end);
   std::uint64_t unpaired() const { return unpaired_; }
   const std::string& mav0() const { return mav0_; }
   // imu0/data.csv as in the file (empty when the dataset has none), and as increments.
@@ -201,7 +211,9 @@ class EurocSource final : public FrameSource {
   EurocOptions options_;
   PixelFormat gray_[2] = {PixelFormat::kMono8, PixelFormat::kMono8};
   ClockDomain clock_[2] = {ClockDomain::kUnknown, ClockDomain::kUnknown};
-  std::vector<Pair> pairs_;
+  std::vector<Pair> pairs_;  // from the start on
+  std::size_t start_ = 0;
+  std::optional<TimestampNs> first_t_ns_;
   std::vector<EurocImuRow> imu_;
   std::size_t next_ = 0;
   bool right_pending_ = false;

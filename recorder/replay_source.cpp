@@ -73,7 +73,9 @@ Expected<std::unique_ptr<ReplaySource>> ReplaySource::open(const std::string& ur
   for (std::size_t i = 0; i < n; ++i) {
     auto info = s->reader_->read_frame_info(i);
     s->t_key_ns_.push_back(info ? std::optional<TimestampNs>(info->raw.t_key_ns) : std::nullopt);
+    if (info && !s->first_t_ns_) s->first_t_ns_ = info->raw.left.t_ns;
   }
+  s->end_ = n;
 
   std::optional<TimestampNs> start_t = options.start_t_ns;
   if (options.start_offset_ns) {
@@ -118,9 +120,27 @@ std::size_t ReplaySource::depth() const {
   return options_.mode == ReplayMode::kFast && !paused_ ? options_.read_ahead : 1;
 }
 
+Status ReplaySource::set_end_frame(std::size_t end) {
+  if (end <= start_)
+    return make_error("recorder::ReplaySource::set_end_frame(): ", reader_->path(), ": the end (frame ", end,
+                      ") is not after the start (frame ", start_, ")");
+  {
+    std::lock_guard lk(mu_);
+    end_ = std::min(end, t_key_ns_.size());
+    if (cursor_ < end_) exhausted_ = false;
+  }
+  room_cv_.notify_all();
+  return {};
+}
+
+std::size_t ReplaySource::end_frame() const {
+  std::lock_guard lk(mu_);
+  return end_;
+}
+
 void ReplaySource::load_next(std::unique_lock<std::mutex>& lk, const RecordingReader& reader) {
-  if (cursor_ >= t_key_ns_.size()) {
-    if ((options_.passes == 0 || pass_ + 1 < options_.passes) && start_ < t_key_ns_.size()) {
+  if (cursor_ >= end_) {
+    if ((options_.passes == 0 || pass_ + 1 < options_.passes) && start_ < end_) {
       cursor_ = start_;
       ++pass_;
     } else {
@@ -225,6 +245,9 @@ Status ReplaySource::seek_frame(std::size_t i) {
   }
   {
     std::lock_guard lk(mu_);
+    if (i >= end_)
+      return make_error("recorder::ReplaySource::seek_frame(): ", reader_->path(), ": frame ", i,
+                        " is past the end of the range played (frames ", start_, "..", end_ - 1, ")");
     cursor_ = i;
     pass_ = emitted_pass_;  // the read-ahead may have begun the next pass already
     ++seek_gen_;

@@ -136,7 +136,7 @@ class ReplaySource final : public FrameSource {
   void set_paused(bool paused);
   bool paused() const;
   // The next stereo frame read is frame `i` (a left Frame first), in the pass of the last one
-  // emitted; the loop range is unchanged.
+  // emitted; the loop range is unchanged. An Error for a frame at or past the end (set_end_frame()).
   Status seek_frame(std::size_t i);
   // The next stereo frame read is the first (in recording order) with t_key_ns >= t_ns.
   Status seek_time(TimestampNs t_ns);
@@ -164,6 +164,15 @@ class ReplaySource final : public FrameSource {
   // Every frame's t_key_ns (nullopt where even the frame's metadata could not be read).
   const std::vector<std::optional<TimestampNs>>& frame_times() const { return t_key_ns_; }
   std::size_t start_frame() const { return start_; }
+  // Where playback (and every loop pass) ends: before frame `end`, clamped to frame_count(), so
+  // that a part of a recording (frames [start, end)) plays exactly those frames whatever in it is
+  // damaged or skipped downstream. Meant for before the first read(). An Error when `end` is not
+  // after the start frame.
+  Status set_end_frame(std::size_t end);
+  std::size_t end_frame() const;
+  // The recording's time origin: the left t_ns of its first frame whose metadata reads (whatever
+  // the start); nullopt when none reads. A scripted boom's t = 0 (pipeline/boom_stage.hpp).
+  std::optional<TimestampNs> first_t_ns() const { return first_t_ns_; }
   const RecordingReader& reader() const { return *reader_; }
 
  private:
@@ -190,12 +199,14 @@ class ReplaySource final : public FrameSource {
   std::unique_ptr<RecordingReader> reader_;         // the reading thread's (and the accessors')
   std::unique_ptr<RecordingReader> decode_reader_;  // the read-ahead thread's own
   std::vector<std::optional<TimestampNs>> t_key_ns_;
+  std::optional<TimestampNs> first_t_ns_;
   std::size_t start_ = 0;
 
   // Under mu_: control, the loader's position, and the stereo frames loaded but not yet emitted.
   mutable std::mutex mu_;
   std::condition_variable cv_;       // read() waits: a control call, a frame loaded, the end
   std::condition_variable room_cv_;  // the read-ahead thread waits: room, a seek, a mode change, the stop
+  std::size_t end_ = 0;         // the range played ends before it (set_end_frame(); else frame_count())
   std::size_t cursor_ = 0;      // next stereo frame to load
   int pass_ = 0;                // the pass of the next stereo frame to load
   int emitted_pass_ = 0;        // the pass of the last stereo frame emitted (a seek goes on in it)

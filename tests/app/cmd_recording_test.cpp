@@ -374,6 +374,101 @@ TEST(CmdRecording, ReplaysAnExportedEurocFolderWithAScene) {
   }
 }
 
+// The rows of a stats.csv after its header (which must be there).
+std::vector<std::string> stats_rows(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<std::string> rows;
+  std::string l;
+  EXPECT_TRUE(std::getline(in, l)) << path;
+  EXPECT_EQ(l.rfind("t_ns,", 0), 0u) << path << ": " << l;
+  while (std::getline(in, l)) rows.push_back(l);
+  return rows;
+}
+
+// The rows of replays of consecutive ranges [from, from + frames), one after the other. `exit`:
+// the exit status every part is expected to end with.
+std::vector<std::string> replay_parts(const std::string& source, const std::string& args, const std::string& dir,
+                                      const std::vector<std::pair<int, int>>& ranges, int exit = 0) {
+  std::vector<std::string> rows;
+  for (const auto& [from, frames] : ranges) {
+    const std::string out = dir + "/part" + std::to_string(from);
+    std::string log;
+    EXPECT_EQ(augrig("replay " + source + " " + args + " --headless --from-frame " + std::to_string(from) +
+                         " --frames " + std::to_string(frames) + " --out " + out,
+                     &log),
+              exit)
+        << log;
+    for (std::string& r : stats_rows(out + "/stats.csv")) rows.push_back(std::move(r));
+  }
+  return rows;
+}
+
+// A campaign's parts: replaying frames [A, A + N) gives exactly the whole replay's rows of those
+// frames, so consecutive parts concatenate to the whole replay; also when a frame in a part cannot
+// be read (the range ends in the recording, not after N augmented frames).
+TEST(CmdRecording, ReplayFramesRangesConcatenateToTheWholeReplay) {
+  const std::string dir = output_dir("cmd_recording_replay_frames");
+  std::string log;
+  ASSERT_EQ(augrig("replay " + recording() + " --headless --out " + dir + "/whole", &log), 0) << log;
+  const std::vector<std::string> whole = stats_rows(dir + "/whole/stats.csv");
+  ASSERT_EQ(whole.size(), 8u);
+  // The last part asks for more frames than are left: it ends with the recording.
+  EXPECT_EQ(replay_parts(recording(), "", dir, {{0, 3}, {3, 4}, {7, 5}}), whole);
+  ASSERT_EQ(augrig("replay " + recording() + " --headless --from-frame 2 --frames 3", &log), 0) << log;
+  EXPECT_NE(log.find("from frame 2 to 4,"), std::string::npos) << log;
+  EXPECT_NE(log.find("Replayed 3 stereo frame(s)"), std::string::npos) << log;
+
+  // Frame 3 damaged: the whole replay and the part holding it skip it, and no part reads into the next.
+  const std::string bad = damaged_copy("cmd_recording_replay_frames_damaged");
+  ASSERT_EQ(augrig("replay " + bad + " --headless --out " + dir + "/whole_damaged", &log), 1) << log;
+  const std::vector<std::string> whole_damaged = stats_rows(dir + "/whole_damaged/stats.csv");
+  ASSERT_EQ(whole_damaged.size(), 7u);
+  std::vector<std::string> parts = replay_parts(bad, "", dir + "/damaged", {{0, 3}});
+  for (std::string& r : replay_parts(bad, "", dir + "/damaged", {{3, 2}}, 1)) parts.push_back(std::move(r));
+  for (std::string& r : replay_parts(bad, "", dir + "/damaged", {{5, 3}})) parts.push_back(std::move(r));
+  EXPECT_EQ(parts, whole_damaged);
+
+  EXPECT_EQ(augrig("replay " + recording() + " --frames 2 --loop 2", &log), 2) << log;
+  EXPECT_NE(log.find("--frames and --loop exclude each other"), std::string::npos) << log;
+  EXPECT_EQ(augrig("replay " + recording() + " --frames 0", &log), 2) << log;
+  EXPECT_NE(log.find("--frames: expected a whole number"), std::string::npos) << log;
+}
+
+// A scripted boom's clock starts at the recording's first frame, not at the first frame replayed:
+// parts of a replay (--from-frame) fly the boom where the whole replay does at each frame.
+TEST(CmdRecording, AScriptedBoomKeepsTheRecordingsClockFromAnyStart) {
+  const std::string dir = output_dir("cmd_recording_replay_script");
+  {
+    std::ofstream f(dir + "/boom.csv");
+    f << "t_s,elevation_deg,azimuth_deg,extension_m\n0,24,-6,0.8\n0.25,34,6,3.2\n";
+  }
+  const std::string boom = "--boom script:" + dir + "/boom.csv";
+  std::string log;
+  ASSERT_EQ(augrig("replay " + recording() + " " + boom + " --headless --out " + dir + "/whole", &log), 0) << log;
+  const std::vector<std::string> whole = stats_rows(dir + "/whole/stats.csv");
+  ASSERT_EQ(whole.size(), 8u);
+  // The boom moves: frame 3's counts are not frame 0's (with the clock from the first frame
+  // replayed, the part from frame 3 would have frame 0's boom).
+  auto counts = [](const std::string& row) { return row.substr(row.find(',')); };
+  EXPECT_NE(counts(whole[3]), counts(whole[0]));
+  EXPECT_NE(counts(whole[4]), counts(whole[1]));
+  EXPECT_EQ(replay_parts(recording(), boom, dir, {{0, 3}, {3, 5}}), whole);
+
+  // The same for a EuRoC folder (its first pair is the clock's origin).
+  ASSERT_EQ(augrig("export " + recording() + " --format euroc " + dir + "/euroc --no-plot", &log), 0) << log;
+  {
+    std::ofstream rig(dir + "/rig.yaml");
+    rig << rig_to_yaml(small_rig());
+  }
+  const std::string euroc_args = boom + " --rig " + dir + "/rig.yaml --scene " + test::data_path("scenes/body.yaml");
+  ASSERT_EQ(augrig("replay " + dir + "/euroc " + euroc_args + " --headless --out " + dir + "/euroc_whole", &log), 0)
+      << log;
+  const std::vector<std::string> euroc_whole = stats_rows(dir + "/euroc_whole/stats.csv");
+  ASSERT_EQ(euroc_whole.size(), 8u);
+  EXPECT_NE(counts(euroc_whole[5]), counts(euroc_whole[0]));
+  EXPECT_EQ(replay_parts(dir + "/euroc", euroc_args, dir + "/euroc_parts", {{0, 5}, {5, 3}}), euroc_whole);
+}
+
 // The first `bytes` of a recording's database, as `head -c` leaves a file copied half-way.
 std::string truncated_copy(const std::string& from, const std::string& name, std::uintmax_t bytes) {
   const std::string dir = output_dir(name);

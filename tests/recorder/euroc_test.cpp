@@ -800,6 +800,56 @@ TEST(EurocSource, ForeignDatasetWithUnpairedAndMissingImages) {
   EXPECT_NE(bad.error().message.find("not a EuRoC/ASL dataset"), std::string::npos) << bad.error().message;
 }
 
+// A part of a dataset, as a campaign plays it: where it starts in the dataset, the dataset's time
+// origin whatever the start, and an end.
+TEST(EurocSource, StartEndAndTheDatasetsFirstTime) {
+  const std::string root = test::output_dir("euroc/range");
+  const fs::path mav0 = fs::path(root) / "mav0";
+  for (const char* cam : {"cam0", "cam1"}) {
+    fs::create_directories(mav0 / cam / "data");
+    std::ofstream csv(mav0 / cam / "data.csv");
+    csv << "#timestamp [ns],filename\n";
+    for (int i = 0; i < 6; ++i) {
+      const TimestampNs t = 1000 + 100 * i;
+      cv::imwrite((mav0 / cam / "data" / (std::to_string(t) + ".png")).string(),
+                  cv::Mat(4, 6, CV_8UC1, cv::Scalar(i)));
+      csv << t << "," << t << ".png\n";
+    }
+  }
+  EurocOptions o;
+  o.start_pair = 2;
+  auto src = EurocSource::open(root, o);
+  ASSERT_TRUE(src) << src.error().message;
+  EXPECT_EQ((*src)->start_pair(), 2u);
+  EXPECT_EQ((*src)->first_t_ns(), std::optional<TimestampNs>(1000));  // pair 0's, not the start's
+  EXPECT_EQ((*src)->pair_count(), 4u);
+  auto bad = (*src)->set_end_pair(2);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("recorder::EurocSource::set_end_pair(): "), std::string::npos);
+  EXPECT_NE(bad.error().message.find("the end (pair 2) is not after the start (pair 2)"), std::string::npos)
+      << bad.error().message;
+  ASSERT_TRUE((*src)->set_end_pair(4));
+  EXPECT_EQ((*src)->pair_count(), 2u);
+  ASSERT_TRUE((*src)->set_end_pair(100));  // past the end: nothing changes
+  EXPECT_EQ((*src)->pair_count(), 2u);
+  std::vector<std::pair<TimestampNs, std::uint64_t>> read;  // (t_ns, sequence) of the left Frames
+  Frame f;
+  for (;;) {
+    auto st = (*src)->read(f, 0ns);
+    ASSERT_TRUE(st) << st.error().message;
+    if (*st == ReadStatus::kEndOfStream) break;
+    if (f.camera == CameraId::kLeft) read.emplace_back(f.t_ns, f.sequence);
+  }
+  // Pair k of the part is the dataset's pair start_pair() + k.
+  EXPECT_EQ(read, (std::vector<std::pair<TimestampNs, std::uint64_t>>{{1200, 0}, {1300, 1}}));
+  o = {};
+  o.start_offset_ns = 250;  // the first pair 250 ns or more after pair 0: pair 3
+  src = EurocSource::open(root, o);
+  ASSERT_TRUE(src) << src.error().message;
+  EXPECT_EQ((*src)->start_pair(), 3u);
+  EXPECT_EQ((*src)->first_t_ns(), std::optional<TimestampNs>(1000));
+}
+
 // sensor.yaml is optional, but a directory in its place is named, not read as an empty file.
 TEST(EurocSource, SensorYamlThatIsADirectory) {
   const std::string root = test::output_dir("euroc/sensor_yaml_dir");

@@ -488,6 +488,82 @@ TEST(ReplaySource, DamagedFrameIsAnErrorNamingItAndReplayGoesOn) {
 // ---- Read-ahead (ReplayOptions::read_ahead): a decode thread fills a bounded queue ----
 
 // Waits (at most 5 s) until `n` stereo frames are decoded ahead; false if that never happens.
+// The left indices a source emits until its end.
+std::vector<std::size_t> left_indices(ReplaySource& s) {
+  std::vector<std::size_t> seen;
+  Frame f;
+  for (;;) {
+    auto st = s.read(f, 1s);
+    EXPECT_TRUE(st) << st.error().message;
+    if (!st || *st == ReadStatus::kEndOfStream) break;
+    if (f.camera == CameraId::kLeft) seen.push_back(*s.current_index());
+  }
+  return seen;
+}
+
+TEST(ReplaySource, EndFrameEndsTheRangeAndEveryLoopPass) {
+  ReplayOptions o;
+  o.start_frame = 3;
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  EXPECT_EQ(s->end_frame(), 10u);  // the recording's end unless set
+  ASSERT_TRUE(s->set_end_frame(6));
+  EXPECT_EQ(s->end_frame(), 6u);
+  EXPECT_EQ(left_indices(*s), (std::vector<std::size_t>{3, 4, 5}));
+
+  o.passes = 2;  // every pass ends there
+  s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s->set_end_frame(5));
+  EXPECT_EQ(left_indices(*s), (std::vector<std::size_t>{3, 4, 3, 4}));
+
+  o.passes = 1;
+  o.read_ahead = 0;  // the same without the read-ahead thread
+  s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s->set_end_frame(4));
+  EXPECT_EQ(left_indices(*s), (std::vector<std::size_t>{3}));
+
+  // Past the recording's end: clamped to it.
+  s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s->set_end_frame(1000));
+  EXPECT_EQ(s->end_frame(), 10u);
+  EXPECT_EQ(left_indices(*s).size(), 7u);
+
+  // Not after the start; a seek past the end of the range.
+  auto bad = s->set_end_frame(3);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("recorder::ReplaySource::set_end_frame(): "), std::string::npos)
+      << bad.error().message;
+  EXPECT_NE(bad.error().message.find("the end (frame 3) is not after the start (frame 3)"), std::string::npos)
+      << bad.error().message;
+  s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s->set_end_frame(6));
+  bad = s->seek_frame(6);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("frame 6 is past the end of the range played (frames 3..5)"), std::string::npos)
+      << bad.error().message;
+  ASSERT_TRUE(s->seek_frame(5));
+  EXPECT_EQ(left_indices(*s), (std::vector<std::size_t>{5}));
+}
+
+TEST(ReplaySource, FirstTimeIsTheFirstReadableFramesLeftTimeWhateverTheStart) {
+  ReplayOptions o;
+  o.start_frame = 4;
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  EXPECT_EQ(s->first_t_ns(), std::optional<TimestampNs>(kT0));  // frame 0's left t_ns, not its t_key_ns
+  // Frame 0's metadata unreadable: frame 1 is the recording's first.
+  const std::string dir = make_recording("first_unreadable", 3);
+  {
+    auto d = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->exec("UPDATE frames SET pair_sequence = 'x' WHERE pair_sequence = 0"));
+  }
+  s = open_or_fail(dir);
+  ASSERT_TRUE(s);
+  EXPECT_FALSE(s->frame_times()[0]);
+  EXPECT_EQ(s->first_t_ns(), std::optional<TimestampNs>(kT0 + kPeriod));
+}
+
 bool wait_read_ahead(const ReplaySource& s, std::size_t n) {
   const auto until = SteadyClock::now() + 5s;
   while (s.frames_read_ahead() < n) {
