@@ -26,6 +26,9 @@ PACKAGES=(
   libepoxy-dev libegl-dev libgl-dev libegl1 libgl1-mesa-dri libglfw3-dev
   # tests and benches
   libgtest-dev libgmock-dev libbenchmark-dev xvfb xauth
+  # the campaign tests' one-node Slurm cluster on loopback (tests/support/local_slurm.hpp); the
+  # tests start their own munged, slurmctld and slurmd and need no service running
+  slurmctld slurmd slurm-client munge
 )
 
 missing=()
