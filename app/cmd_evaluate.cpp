@@ -2,8 +2,13 @@
 // pairs go through the pipeline as in `replay` or `run` (augmented with the recorded, simulated or
 // given poses); every K-th augmented pair is then evaluated (eval/evaluator.hpp: the raw and the
 // augmented pair rectified, matched and scored against the true disparity per stereo class). At the
-// end the run's table is printed; with --out also evaluation.txt, the per-frame evaluation.csv,
-// stats.csv, the plot evaluation.png and, with --images K, disparity images.
+// end the run's table is printed; with --out also evaluation.txt, the per-frame evaluation.csv and
+// evaluation_sums.csv, stats.csv, the plot evaluation.png and, with --images K, disparity images.
+//
+// A run can be split into parts (issue 21: a campaign's shards) whose files, one after the other,
+// are the whole run's: a frame is named and selected by its index in the source (recording order),
+// its time counts from the source's first frame, and --frames ends a recording's or EuRoC folder's
+// range in the source (frames --from-frame .. + N - 1, whatever in it is skipped).
 #include <cmath>
 #include <limits>
 
@@ -29,9 +34,13 @@ const std::vector<OptionSpec>& evaluate_specs() {
        "the stereo matcher and its parameters (docs/EVALUATE.md; default StereoSGBM 3-way, 64 disparities, "
        "block 5)"},
       {"out", ArgKind::kValue, "DIR",
-       "write evaluation.txt (the table), evaluation.csv (per frame), stats.csv and evaluation.png here"},
-      {"every", ArgKind::kValue, "K", "evaluate every K-th stereo frame (default 1: all)"},
-      {"frames", ArgKind::kValue, "N", "stop after N stereo frames (augmented; every K-th evaluated)"},
+       "write evaluation.txt (the table), evaluation.csv (per frame), evaluation_sums.csv (per frame, exact), "
+       "stats.csv and evaluation.png here"},
+      {"every", ArgKind::kValue, "K",
+       "evaluate the frames whose index in the source is a multiple of K (default 1: all)"},
+      {"frames", ArgKind::kValue, "N",
+       "recordings and EuRoC folders: frames START..START+N-1 of the source; else stop after N augmented "
+       "stereo frames"},
       {"images", ArgKind::kValue, "K",
        "with --out: the true, raw and augmented disparity of every K-th evaluated frame (16-bit PNG, "
        "disparity x 256, 0 none; and a colour view)"},
@@ -108,13 +117,13 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
         "sequence (a frame index INDEX.csv as `augrig sim` writes it), or a EuRoC/ASL folder (the last two "
         "with\n"
         "--poses or --scene). Each stereo frame is augmented as `replay`/`run` would\n"
-        "(recorded, simulated or given poses); every K-th is evaluated: the raw and the augmented pair are\n"
-        "rectified, matched (OpenCV StereoSGBM or StereoBM) and compared with the true disparity over the\n"
-        "receiver, per stereo class (both, left only, right only, neither), with the boom's pixels kept and "
-        "left\n"
-        "out. Prints the run's table (the seed paper's Table 1 rows with the matcher's errors); --out writes "
-        "it\n"
-        "with a CSV row per frame and the plots (docs/EVALUATE.md).",
+        "(recorded, simulated or given poses); those whose index in the source is a multiple of K are\n"
+        "evaluated: the raw and the augmented pair are rectified, matched (OpenCV StereoSGBM or StereoBM)\n"
+        "and compared with the true disparity over the receiver, per stereo class (both, left only, right\n"
+        "only, neither), with the boom's pixels kept and left out. Prints the run's table (the seed paper's\n"
+        "Table 1 rows with the matcher's errors); --out writes it with a CSV row per frame and the plots\n"
+        "(docs/EVALUATE.md). Rows are named by the source's frame index and timed from its first frame:\n"
+        "--from-frame A --frames N writes the whole run's rows of those frames.",
         evaluate_specs());
     return kExitOk;
   }
@@ -189,6 +198,11 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   OpenedSource opened = unwrap(open_sources(uri));
   std::optional<Rig> source_rig;
   std::uint64_t total_pairs = 0;
+  // Where the source's frames are counted and timed from (a frame index and a simulated flight:
+  // the run's first pair, below), and --frames as the end of a recording's or EuRoC folder's range.
+  std::optional<TimestampNs> origin_ns;
+  std::optional<std::size_t> euroc_start;  // a EuRoC folder: its pair `sequence` is frame start + sequence
+  bool range_in_source = false;
   if (is_sim) {
     source_rig = opened.sim->scenario.rig;
     if (const auto* fs = dynamic_cast<const sim::FlightSource*>(opened.sources.front().get()))
@@ -204,8 +218,26 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     if (!source_rig && !a.has("rig"))
       runtime_error(reader.path() +
                     ": the recording stores no rig (meta rig_yaml is empty); give one with --rig");
-    total_pairs = opened.replay->frame_count() - opened.replay->start_frame();
-  } else if (const auto* e = dynamic_cast<const recorder::EurocSource*>(opened.sources.front().get())) {
+    for (const auto& t : opened.replay->frame_times())
+      if (t) {
+        origin_ns = *t;  // the first readable frame's pair time
+        break;
+      }
+    if (max_pairs) {
+      const std::size_t start = opened.replay->start_frame();
+      check(opened.replay->set_end_frame(start + std::min<std::size_t>(static_cast<std::size_t>(max_pairs),
+                                                                        opened.replay->frame_count())));
+      range_in_source = true;
+    }
+    total_pairs = opened.replay->end_frame() - opened.replay->start_frame();
+  } else if (auto* e = dynamic_cast<recorder::EurocSource*>(opened.sources.front().get())) {
+    origin_ns = e->first_t_ns();
+    euroc_start = e->start_pair();
+    if (max_pairs) {
+      check(e->set_end_pair(e->start_pair() +
+                            std::min<std::size_t>(static_cast<std::size_t>(max_pairs), e->pair_count())));
+      range_in_source = true;
+    }
     total_pairs = e->pair_count();
   } else if (const auto* f = dynamic_cast<const ImageFolderSource*>(opened.sources.front().get())) {
     total_pairs = f->expected_pairs(opened.options.pairing.tolerance_ns);
@@ -234,33 +266,46 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
   const fs::path out_dir = a.get("out");
   std::unique_ptr<eval::EvaluationCsvWriter> csv;
+  std::unique_ptr<eval::EvaluationSumsWriter> sums;
   if (a.has("out")) {
     make_dirs(out_dir);
     parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
     csv = unwrap(eval::EvaluationCsvWriter::create(out_dir / "evaluation.csv"));
+    sums = unwrap(eval::EvaluationSumsWriter::create(out_dir / "evaluation_sums.csv"));
     if (images_every) make_dirs(out_dir / "disparity");
   }
 
-  // Each evaluated pair: scored, its CSV row, its point on the plots, its images.
+  // Each evaluated pair: scored, its CSV rows, its point on the plots, its images.
   eval::RunEvaluation run;
   std::vector<eval::EvaluationPoint> points;
-  std::uint64_t seen = 0;
-  TimestampNs t0_ns = 0;
+  std::uint64_t seen = 0;  // augmented pairs: the frame index of a frame index or simulated flight
   parts.on_pair = [&](const StereoFrame& raw, const StereoResult& result, const SceneState&,
                       const FramePoses&) -> Status {
-    if (seen++ == 0) t0_ns = result.stats.t_ns;
-    if ((seen - 1) % static_cast<std::uint64_t>(every) != 0) return {};
+    if (seen++ == 0 && !origin_ns) origin_ns = result.stats.t_ns;
+    std::uint64_t index = seen - 1;
+    if (const auto* rf = dynamic_cast<const recorder::RecordedFrame*>(raw.left.attachment.get()))
+      index = rf->index;
+    else if (euroc_start)
+      index = *euroc_start + raw.left.sequence;
+    // Selected and imaged by the source's index, not by the count in this run: a part of the run
+    // picks the frames the whole run picks in its range.
+    if (index % static_cast<std::uint64_t>(every) != 0) return {};
     eval::EvaluationImages images;
-    const bool want_images = images_every && run.frames % static_cast<std::uint64_t>(images_every) == 0;
+    const bool want_images =
+        images_every && index % (static_cast<std::uint64_t>(every) * static_cast<std::uint64_t>(images_every)) == 0;
     auto fe = evaluator->evaluate(raw, result, want_images ? &images : nullptr);
     if (!fe) return make_error("pair ", raw.pair_sequence, ": ", fe.error().message);
-    const double t_s = ns_to_s(result.stats.t_ns - t0_ns);
+    const double t_s = ns_to_s(result.stats.t_ns - *origin_ns);
     if (csv)
-      if (Status s = csv->add(seen - 1, t_s, result.stats, *fe); !s) return s;
+      if (Status s = csv->add(index, t_s, result.stats, *fe); !s) return s;
+    if (sums)
+      if (Status s = sums->add({index, t_s, result.stats.occluded_pct_left, result.stats.occluded_pct_right, *fe});
+          !s)
+        return s;
     points.push_back(eval::evaluation_point(t_s, result.stats, *fe));
     if (want_images) {
       char stem[32];
-      std::snprintf(stem, sizeof stem, "%06llu", static_cast<unsigned long long>(seen - 1));
+      std::snprintf(stem, sizeof stem, "%06llu", static_cast<unsigned long long>(index));
       const fs::path d = out_dir / "disparity";
       write_disparity_png(d / (std::string(stem) + "_true.png"), images.true_disparity);
       write_disparity_png(d / (std::string(stem) + "_raw.png"), images.raw_disparity);
@@ -272,8 +317,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   };
   parts.source = unwrap(start_stereo(std::move(opened)));
   parts.stop_flag = install_stop_signals();
-  parts.max_pairs = static_cast<std::uint64_t>(max_pairs);
-  parts.progress_total = max_pairs ? std::min<std::uint64_t>(total_pairs, max_pairs) : total_pairs;
+  if (!range_in_source) parts.max_pairs = static_cast<std::uint64_t>(max_pairs);
+  parts.progress_total = parts.max_pairs ? std::min<std::uint64_t>(total_pairs, parts.max_pairs) : total_pairs;
   parts.on_problem = [&err](const Error& e) { err << "augrig evaluate: " << user_message(e) << "\n"; };
   const eval::MatcherParams& m = eo.matcher;
   out << "evaluate: " << uri << "; rig " << rig.source << "; poses from " << parts.poses->describe() << "; "
@@ -298,7 +343,7 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     std::ofstream t(out_dir / "evaluation.txt", std::ios::binary);
     t << table;
     if (!t) runtime_error((out_dir / "evaluation.txt").string() + ": cannot write the table");
-    out << "Wrote " << (out_dir / "evaluation.txt").string() << ", evaluation.csv and stats.csv";
+    out << "Wrote " << (out_dir / "evaluation.txt").string() << ", evaluation.csv, evaluation_sums.csv and stats.csv";
     if (!a.has("no-plot") && !points.empty()) {
       check(
           eval::plot_evaluation(points, (out_dir / "evaluation.png").string(), "Stereo evaluation: " + src));

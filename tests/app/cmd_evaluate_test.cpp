@@ -2,6 +2,7 @@
 // pair matches near the true disparity on the textured receiver, the boom's errors fall in the
 // classes it occludes, a recording of a flight evaluates exactly as the flight itself, and bad
 // inputs and flags fail with their messages.
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -9,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include "eval/report.hpp"
 #include "recorder/plot.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -127,6 +129,99 @@ TEST(Evaluate, ARecordingEvaluatesAsTheFlightItRecorded) {
         EXPECT_EQ(a.rows[r].at(col), b.rows[r].at(col)) << "row " << r << " " << col;
       }
   EXPECT_FALSE(fs::exists(dir + "/from_rec/evaluation.png"));
+}
+
+// The lines of a file after its header; `drop`: columns left out (by header name).
+std::vector<std::string> rows_of(const std::string& path, const std::vector<std::string>& drop = {}) {
+  std::ifstream f(path);
+  std::string line;
+  EXPECT_TRUE(std::getline(f, line)) << path;
+  std::vector<bool> keep;
+  for (const std::string& h : split(line)) keep.push_back(std::find(drop.begin(), drop.end(), h) == drop.end());
+  std::vector<std::string> rows;
+  while (std::getline(f, line)) {
+    const std::vector<std::string> cells = split(line);
+    EXPECT_EQ(cells.size(), keep.size()) << path << ": " << line.substr(0, 80);
+    std::string r;
+    for (std::size_t i = 0; i < cells.size() && i < keep.size(); ++i)
+      if (keep[i]) r += cells[i] + ",";
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+// evaluate --from-frame A --frames N over consecutive ranges gives the whole run's rows of every
+// file, so a campaign's shards concatenate to the unsharded run; the frames are named, selected
+// (--every) and timed by their place in the source, not in the part.
+void expect_parts_make_the_whole(const std::string& source, const std::string& args, const std::string& dir,
+                                 const std::vector<std::pair<int, int>>& ranges) {
+  std::string out;
+  ASSERT_EQ(augrig("evaluate " + source + " " + args + " --out " + dir + "/whole --no-plot", &out), 0) << out;
+  // The wall times of matching are not the same twice: the only cells that may differ.
+  const std::vector<std::string> timing = {"prepare_ms", "match_ms", "score_ms"};
+  std::vector<std::string> evaluation, sums, stats;
+  for (const auto& [from, frames] : ranges) {
+    const std::string part = dir + "/part" + std::to_string(from);
+    ASSERT_EQ(augrig("evaluate " + source + " " + args + " --from-frame " + std::to_string(from) + " --frames " +
+                         std::to_string(frames) + " --out " + part + " --no-plot",
+                     &out),
+              0)
+        << out;
+    for (std::string& r : rows_of(part + "/evaluation.csv")) evaluation.push_back(std::move(r));
+    for (std::string& r : rows_of(part + "/evaluation_sums.csv", timing)) sums.push_back(std::move(r));
+    for (std::string& r : rows_of(part + "/stats.csv")) stats.push_back(std::move(r));
+  }
+  EXPECT_EQ(evaluation, rows_of(dir + "/whole/evaluation.csv"));
+  EXPECT_EQ(sums, rows_of(dir + "/whole/evaluation_sums.csv", timing));
+  EXPECT_EQ(stats, rows_of(dir + "/whole/stats.csv"));
+}
+
+TEST(Evaluate, PartsOfARecordingOrEurocFolderConcatenateToTheWholeRun) {
+  const std::string dir = test::output_dir("evaluate_parts");
+  std::string out;
+  ASSERT_EQ(
+      augrig("run --source 'sim://demo?every=120&rate=0' --frames 7 --headless --status-every 0 --record " +
+                 dir + "/rec",
+             &out),
+      0)
+      << out;
+  // Every 2nd frame, the disparity images of every 2nd evaluated one; the first part ends on an odd
+  // frame count, so the second starts on a frame --every skips.
+  expect_parts_make_the_whole(dir + "/rec", "--every 2 --images 2", dir, {{0, 3}, {3, 4}});
+  const Csv whole = read_csv(dir + "/whole/evaluation.csv");
+  ASSERT_EQ(whole.rows.size(), 4u);
+  for (std::size_t r = 0; r < 4; ++r) EXPECT_EQ(whole.rows[r].at("frame"), std::to_string(2 * r));
+  EXPECT_EQ(whole.rows[0].at("t_s"), "0");
+  const Csv second = read_csv(dir + "/part3/evaluation.csv");
+  ASSERT_EQ(second.rows.size(), 2u);
+  EXPECT_EQ(second.rows[0].at("frame"), "4");  // the recording's frame 4, not the part's 1st
+  EXPECT_GT(second.num(0, "t_s"), 10.0);       // seconds after the recording's first frame
+  // The disparity images are named by the source's frame: 0 and 4 in the whole run, 4 in the part.
+  EXPECT_TRUE(fs::exists(dir + "/whole/disparity/000000_raw.png"));
+  EXPECT_TRUE(fs::exists(dir + "/whole/disparity/000004_raw.png"));
+  EXPECT_FALSE(fs::exists(dir + "/whole/disparity/000002_raw.png"));
+  EXPECT_TRUE(fs::exists(dir + "/part3/disparity/000004_view.png"));
+  EXPECT_FALSE(fs::exists(dir + "/part3/disparity/000006_view.png"));
+  // evaluation_sums.csv rebuilds the whole run's table.
+  auto frames = eval::load_evaluation_sums(dir + "/whole/evaluation_sums.csv");
+  ASSERT_TRUE(frames) << frames.error().message;
+  eval::RunEvaluation run;
+  for (const eval::EvaluatedFrame& f : *frames) run.add(f.evaluation);
+  std::ifstream t(dir + "/whole/evaluation.txt");
+  std::stringstream table;
+  table << t.rdbuf();
+  EXPECT_EQ(eval::format_evaluation_table(run, "Stereo evaluation: " + dir + "/rec", eval::MatcherParams{}),
+            table.str());
+
+  // The recording as a EuRoC folder, with the recorded poses.
+  ASSERT_EQ(augrig("export " + dir + "/rec --format euroc " + dir + "/euroc --no-plot", &out), 0) << out;
+  expect_parts_make_the_whole(dir + "/euroc",
+                              "--poses " + dir + "/euroc/poses.csv --rig " + dir +
+                                  "/euroc/rig.yaml --pair-tolerance-ns 1000000 --every 3",
+                              dir + "/euroc_parts", {{0, 2}, {2, 3}, {5, 9}});
+  const Csv euroc = read_csv(dir + "/euroc_parts/part5/evaluation.csv");
+  ASSERT_EQ(euroc.rows.size(), 1u);
+  EXPECT_EQ(euroc.rows[0].at("frame"), "6");
 }
 
 // A sequence (a frame index of PNG files, as `augrig sim` writes a flight) with its poses CSV: the
