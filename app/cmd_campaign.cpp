@@ -456,8 +456,8 @@ int campaign_command(const std::vector<std::string>& args, std::ostream& out, st
   }
   if (sub == "task") {
     only({});
-    const cp::Manifest m = load_manifest_arg(pos[1]);
     const long long id = parse_integer("ID", pos[2], 0, 1LL << 40);
+    const cp::Manifest m = load_manifest_arg(pos[1]);
     return cp::run_task(m, static_cast<std::size_t>(id), out, err);
   }
   usage_error("expected plan, status, resume, merge or task, got '" + sub + "'");

@@ -37,7 +37,8 @@ BoomCommand clamp_to_limits(const BoomArticulation& a, const BoomLimits& limits)
 BoomCommand track_point(const Eigen::Vector3d& target_body_m, const Eigen::Vector3d& pivot_body_m,
                         const BoomDimensions& boom, const BoomLimits& limits);
 
-// A scripted boom timeline. Times are seconds from the start of the run (the first frame).
+// A scripted boom timeline. Times are seconds from the source's first frame (a recording's or EuRoC
+// folder's first, whatever frame a run starts at; a live source's first frame of the run).
 struct BoomScriptPoint {
   double t_s = 0;
   BoomArticulation articulation;

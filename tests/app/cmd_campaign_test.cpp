@@ -1,0 +1,289 @@
+// augrig campaign through the real binary. Without a cluster: plan (measured cost, manifest,
+// scripts), status from the files, resume --local, merge, and the errors. On a real single-node
+// Slurm (Debian's slurm-wlm and munge, started here as root on loopback; skipped with the reason
+// where that cannot be done): plan --submit, wait, merge and compare with the unsharded runs frame
+// for frame; then a task killed with SIGKILL (task and command) and one cancelled with scancel
+// mid-way, seen stopped and failed from their files, resumed, and merged to the same result.
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "tests/support/local_slurm.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace augrig {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<std::string> lines_of(const fs::path& p) {
+  std::ifstream in(p);
+  std::vector<std::string> v;
+  std::string l;
+  while (std::getline(in, l)) v.push_back(l);
+  return v;
+}
+
+std::string flag_output(const std::string& out, const std::string& pattern) {
+  std::smatch m;
+  return std::regex_search(out, m, std::regex(pattern)) ? m[1].str() : "";
+}
+
+struct CampaignCli : ::testing::Test {
+  fs::path dir;
+  std::string rec_a, rec_b;
+  void SetUp() override {
+    std::string why;
+    rec_a = test::sim_recording("campaign/flight_a.yaml", 3, "campaign_a", &why);
+    ASSERT_FALSE(rec_a.empty()) << why;
+    rec_b = test::sim_recording("campaign/flight_b.yaml", 3, "campaign_b", &why);
+    ASSERT_FALSE(rec_b.empty()) << why;
+    dir = test::output_dir(std::string("cmd_campaign_") +
+                           ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::ofstream(dir / "boom.csv") << "t_s,elevation_deg,azimuth_deg,extension_m\n0,22,-10,0.5\n4,38,12,5\n";
+  }
+  // A campaign of both recordings: the recorded statistics, and a scripted boom evaluated every
+  // 3rd frame (or `variants` instead); shards of `seconds`.
+  fs::path campaign_file(const std::string& name, const std::string& shards, const std::string& slurm = "",
+                         const std::string& variants =
+                             "  - name: stats\n  - name: eval\n    boom: script:boom.csv\n"
+                             "    evaluate: {every: 3}\n") {
+    const fs::path f = dir / (name + ".yaml");
+    std::ofstream(f) << "augrig_campaign: 1\nname: " << name << "\nout: " << name << "-out\n"
+                     << "recordings:\n  - {path: " << rec_a << ", name: a}\n  - {path: " << rec_b
+                     << ", name: b}\n"
+                     << "variants:\n"
+                     << variants << "shards: " << shards << "\n"
+                     << slurm;
+    return f;
+  }
+  // The unsharded runs of flight `f` that the merged reports must equal: the evaluation with
+  // `eval_flags`, and (`stats`) the replay's statistics.
+  void expect_equals_unsharded(const fs::path& report, const std::string& f,
+                               const std::string& eval_flags = "--every 3", bool stats = true) {
+    SCOPED_TRACE("flight " + f);
+    const std::string rec = f == "a" ? rec_a : rec_b;
+    const fs::path u = dir / ("unsharded_" + f);
+    std::string log;
+    ASSERT_EQ(test::run_augrig("evaluate " + rec + " --boom script:" + (dir / "boom.csv").string() + " " +
+                                   eval_flags + " --no-plot --out " + (u / "eval").string(),
+                               &log),
+              0)
+        << log;
+    if (stats) {
+      ASSERT_EQ(
+          test::run_augrig(
+              "replay " + rec + " --fast --headless --every 1000000 --out " + (u / "stats").string(), &log),
+          0)
+          << log;
+      EXPECT_EQ(lines_of(report / "stats" / f / "stats.csv"), lines_of(u / "stats" / "stats.csv"));
+    }
+    EXPECT_EQ(lines_of(report / "eval" / f / "stats.csv"), lines_of(u / "eval" / "stats.csv"));
+    EXPECT_EQ(lines_of(report / "eval" / f / "evaluation.csv"), lines_of(u / "eval" / "evaluation.csv"));
+    auto merged = lines_of(report / "eval" / f / "evaluation.txt"),
+         whole = lines_of(u / "eval" / "evaluation.txt");
+    ASSERT_GT(merged.size(), 5u);
+    ASSERT_EQ(merged.size(), whole.size());
+    EXPECT_TRUE(std::equal(merged.begin() + 1, merged.end(), whole.begin() + 1));  // all but the title
+  }
+};
+
+TEST_F(CampaignCli, PlansMeasuresRunsLocallyAndMerges) {
+  const fs::path file = campaign_file("local", "{seconds: 1.2}");
+  std::string out;
+  ASSERT_EQ(test::run_augrig("campaign plan " + file.string() + " --measure-frames 4", &out), 0) << out;
+  for (const std::string want : {"campaign 'local': 2 flight(s), 2 variant(s)", "flight a (recording, ",
+                                 "41 stereo frame(s) over 4.0 s", "31 stereo frame(s) over 3.0 s",
+                                 "variant stats: ", "variant eval: ", " ms per frame, start-up ",
+                                 "core-hour(s)", "array script(s), each task asking 2 CPU(s), "})
+    EXPECT_NE(out.find(want), std::string::npos) << want << "\n" << out;
+  const fs::path o = dir / "local-out";
+  ASSERT_TRUE(fs::exists(o / "manifest.yaml"));
+  ASSERT_TRUE(fs::exists(o / "slurm" / "campaign-0.sbatch"));
+  const std::string tasks = flag_output(out, "\\n(\\d+) task\\(s\\):");
+  ASSERT_FALSE(tasks.empty()) << out;
+  const int n = std::stoi(tasks);
+  EXPECT_GE(n, 12);  // 4 s and 3 s flights in 1.2 s shards, two variants
+
+  ASSERT_EQ(test::run_augrig("campaign status " + o.string(), &out), 0) << out;
+  EXPECT_NE(out.find("tasks " + tasks + " = done 0 + running 0 + failed 0 + stopped 0 + pending " + tasks),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("not done: augrig campaign resume"), std::string::npos) << out;
+  // Merging before anything ran says what is missing.
+  EXPECT_EQ(test::run_augrig("campaign merge " + o.string(), &out), 1) << out;
+  EXPECT_NE(out.find("stats/a: shard(s) 0 (task 0)"), std::string::npos) << out;
+
+  ASSERT_EQ(test::run_augrig("campaign resume " + o.string() + " --local --jobs 2", &out), 0) << out;
+  EXPECT_NE(out.find(tasks + " of " + tasks + " task(s) ended (" + tasks + " ok, 0 failed)"),
+            std::string::npos)
+      << out;
+  ASSERT_EQ(test::run_augrig("campaign status " + (o / "manifest.yaml").string() + " --tasks", &out), 0)
+      << out;
+  EXPECT_NE(out.find("tasks " + tasks + " = done " + tasks + " + running 0"), std::string::npos) << out;
+  EXPECT_NE(out.find("all done: augrig campaign merge"), std::string::npos) << out;
+  ASSERT_EQ(test::run_augrig("campaign resume " + o.string(), &out), 0) << out;
+  EXPECT_NE(out.find("nothing to resume: " + tasks + " of " + tasks + " task(s) done"), std::string::npos)
+      << out;
+
+  ASSERT_EQ(test::run_augrig("campaign merge " + o.string() + " --no-plot", &out), 0) << out;
+  EXPECT_NE(out.find("(4 flight report(s), 144 frame(s), 25 evaluated)"), std::string::npos) << out;
+  expect_equals_unsharded(o / "report", "a");
+  expect_equals_unsharded(o / "report", "b");
+}
+
+TEST_F(CampaignCli, BadInputsSayWhatAndWhere) {
+  std::string out;
+  EXPECT_EQ(test::run_augrig("campaign", &out), 2) << out;
+  EXPECT_EQ(test::run_augrig("campaign launch x", &out), 2) << out;
+  EXPECT_NE(out.find("expected plan, status, resume, merge or task, got 'launch'"), std::string::npos) << out;
+  EXPECT_EQ(test::run_augrig("campaign status x --submit", &out), 2) << out;
+  EXPECT_NE(out.find("--submit is not an option of 'campaign status'"), std::string::npos) << out;
+  const fs::path bad = dir / "bad.yaml";
+  std::ofstream(bad) << "augrig_campaign: 1\nname: bad\nout: o\nrecordings:\n  - " << rec_a
+                     << "\nvariants:\n  - {name: v, evaluate: {every: many}}\n";
+  EXPECT_EQ(test::run_augrig("campaign plan " + bad.string(), &out), 1) << out;
+  EXPECT_NE(out.find("bad.yaml:7:"), std::string::npos) << out;
+  EXPECT_NE(out.find("key 'variants[0].evaluate.every'"), std::string::npos) << out;
+  // A variant that fails on every shard fails the plan, with the command's own words.
+  const fs::path broken = dir / "broken.yaml";
+  std::ofstream(broken) << "augrig_campaign: 1\nname: broken\nout: o\nrecordings: [" << rec_a
+                        << "]\nvariants:\n  - {name: v, rig: " << test::data_path("rigs/example.yaml")
+                        << "}\n";
+  EXPECT_EQ(test::run_augrig("campaign plan " + broken.string(), &out), 1) << out;
+  EXPECT_NE(out.find("variant 'v' fails on flight"), std::string::npos) << out;
+  EXPECT_EQ(test::run_augrig("campaign status " + (dir / "nowhere").string(), &out), 1) << out;
+  EXPECT_NE(out.find("plan the campaign first"), std::string::npos) << out;
+  EXPECT_EQ(test::run_augrig("campaign task " + (dir / "nowhere").string() + " x", &out), 2) << out;
+}
+
+// ---- On a real Slurm ------------------------------------------------------------------------------
+
+class CampaignSlurm : public CampaignCli {
+ protected:
+  static void SetUpTestSuite() {
+    if (const std::string why = test::LocalSlurm::missing_requirements(); !why.empty()) {
+      skip_ = why;
+      return;
+    }
+    auto s = test::LocalSlurm::start(fs::path(AUGRIG_TEST_OUTPUT_DIR) / "cmd_campaign_slurm", 2);
+    if (!s) {
+      skip_ = s.error().message;
+      return;
+    }
+    cluster_ = std::move(*s);
+    cluster_->apply_env();  // augrig's sbatch calls reach this cluster
+  }
+  static void TearDownTestSuite() { cluster_.reset(); }
+  void SetUp() override {
+    if (!cluster_) GTEST_SKIP() << "no local Slurm cluster: " << skip_;
+    CampaignCli::SetUp();
+  }
+  // Waits for the job a "submitted ... as job N" line names.
+  void wait_for(const std::string& out) {
+    const std::string job = flag_output(out, "as job (\\d+)");
+    ASSERT_FALSE(job.empty()) << out;
+    auto done = cluster_->wait_for_jobs(job, 240);
+    ASSERT_TRUE(done) << done.error().message << "\n" << cluster_->log_tail();
+  }
+  static inline std::unique_ptr<test::LocalSlurm> cluster_;
+  static inline std::string skip_;
+};
+
+TEST_F(CampaignSlurm, SubmittedArrayMergesIntoTheUnshardedRun) {
+  const fs::path file = campaign_file("cluster", "{seconds: 1.5}", "slurm: {cpus_per_task: 1}\n");
+  const fs::path o = dir / "cluster-out";
+  std::string out;
+  ASSERT_EQ(test::run_augrig("campaign plan " + file.string() + " --measure-frames 3 --submit", &out), 0)
+      << out;
+  EXPECT_NE(out.find("submitted campaign-0.sbatch as job "), std::string::npos) << out;
+  wait_for(out);
+  const std::string tasks = flag_output(out, "\\n(\\d+) task\\(s\\):");
+  ASSERT_EQ(test::run_augrig("campaign status " + o.string(), &out), 0) << out;
+  EXPECT_NE(out.find("tasks " + tasks + " = done " + tasks + " + "), std::string::npos)
+      << out << "\n"
+      << cluster_->log_tail();
+  // Every array task logged where Slurm was told to.
+  std::size_t logs = 0;
+  for (const auto& e : fs::directory_iterator(o / "logs"))
+    logs += e.path().filename().string().rfind("slurm-", 0) == 0;
+  EXPECT_EQ(logs, static_cast<std::size_t>(std::stoi(tasks)));
+  ASSERT_EQ(test::run_augrig("campaign merge " + o.string() + " --no-plot", &out), 0) << out;
+  expect_equals_unsharded(o / "report", "a");
+  expect_equals_unsharded(o / "report", "b");
+
+  // sbatch's own refusal comes back as the command's error.
+  const fs::path bad = campaign_file("badpart", "{seconds: 1.5}", "slurm: {partition: nosuchpartition}\n");
+  EXPECT_EQ(test::run_augrig("campaign plan " + bad.string() + " --per-frame-s 0.1 --submit", &out), 1)
+      << out;
+  std::string lower = out;
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  EXPECT_NE(lower.find("invalid partition"), std::string::npos) << out;
+}
+
+TEST_F(CampaignSlurm, KilledAndCancelledTasksAreSeenAndResumed) {
+  // One shard per flight, evaluated whole-frame every frame (some seconds a task), one CPU each:
+  // both run at once.
+  const fs::path file =
+      campaign_file("killed", "{seconds: 100}", "slurm: {cpus_per_task: 1}\n",
+                    "  - name: eval\n    boom: script:boom.csv\n    evaluate: {full_frame: true}\n");
+  const fs::path o = dir / "killed-out";
+  std::string out;
+  ASSERT_EQ(test::run_augrig(
+                "campaign plan " + file.string() + " --per-frame-s 0.2 --heartbeat-s 0.5 --submit", &out),
+            0)
+      << out;
+  const std::string job = flag_output(out, "as job (\\d+)");
+  ASSERT_FALSE(job.empty()) << out;
+  // Both tasks at work, as their own files say (Slurm's RUNNING comes before the task starts).
+  bool both = false;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (!both && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    both = fs::exists(o / "shards/eval/a/0000.partial/heartbeat") &&
+           fs::exists(o / "shards/eval/b/0000.partial/heartbeat");
+  }
+  ASSERT_TRUE(both) << cluster_->log_tail();
+  // One killed outright with SIGKILL, the task before its command (as the OOM killer or a lost node
+  // does: no word from either), one cancelled with scancel (SIGTERM, then Slurm's kill).
+  std::string pid;
+  {
+    std::ifstream info(o / "shards/eval/a/0000.partial/task.yaml");
+    std::string line;
+    while (std::getline(info, line))
+      if (line.rfind("pid: ", 0) == 0) pid = line.substr(5);
+  }
+  ASSERT_FALSE(pid.empty());
+  auto r = cluster_->run("C=$(cat /proc/" + pid + "/task/" + pid + "/children); kill -9 " + pid + " $C");
+  ASSERT_EQ(r.exit_code, 0) << r.output();
+  r = cluster_->run("scancel " + job + "_1");
+  ASSERT_EQ(r.exit_code, 0) << r.output();
+  ASSERT_TRUE(cluster_->wait_for_jobs(job, 240)) << cluster_->log_tail();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1800));  // the killed one's heartbeat goes stale
+
+  ASSERT_EQ(test::run_augrig("campaign status " + o.string() + " --tasks", &out), 0) << out;
+  EXPECT_NE(out.find("tasks 2 = done 0 + running 0 + failed 1 + stopped 1 + pending 0"), std::string::npos)
+      << out;
+  EXPECT_NE(out.find("task 0 (eval/a shard 0, frames 0+41): stopped: started on "), std::string::npos) << out;
+  EXPECT_NE(out.find("stopped without a word"), std::string::npos) << out;
+  EXPECT_NE(out.find("task 1 (eval/b shard 0, frames 0+31): failed: the command"), std::string::npos) << out;
+  EXPECT_NE(out.find("not done: augrig campaign resume"), std::string::npos) << out;
+  ASSERT_EQ(test::run_augrig("campaign merge " + o.string(), &out), 1) << out;
+
+  ASSERT_EQ(test::run_augrig("campaign resume " + o.string(), &out), 0) << out;
+  EXPECT_NE(out.find("2 of 2 task(s) not done: 0-1"), std::string::npos) << out;
+  wait_for(out);
+  ASSERT_EQ(test::run_augrig("campaign status " + o.string(), &out), 0) << out;
+  EXPECT_NE(out.find("tasks 2 = done 2 + "), std::string::npos) << out << "\n" << cluster_->log_tail();
+  ASSERT_EQ(test::run_augrig("campaign merge " + o.string() + " --no-plot", &out), 0) << out;
+  expect_equals_unsharded(o / "report", "a", "--full-frame", false);
+  expect_equals_unsharded(o / "report", "b", "--full-frame", false);
+}
+
+}  // namespace
+}  // namespace augrig
