@@ -54,19 +54,6 @@ const std::vector<OptionSpec>& campaign_specs() {
   return specs;
 }
 
-double now_s() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
-std::string iso_now() {
-  const std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char b[32];
-  std::strftime(b, sizeof b, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return b;
-}
-
 std::string fixed(double v, int digits) {
   char b[64];
   std::snprintf(b, sizeof b, "%.*f", digits, v);
@@ -235,7 +222,7 @@ int plan(const std::string& file, const ParsedArgs& a, std::ostream& out, std::o
   m.campaign_file = spec.file;
   m.out = spec.out;
   m.augrig = prog;
-  m.planned_at = iso_now();
+  m.planned_at = cp::utc_now_iso();
   m.slurm = spec.slurm;
   m.costs = costs;
   if (a.has("heartbeat-s")) {
@@ -278,7 +265,7 @@ int plan(const std::string& file, const ParsedArgs& a, std::ostream& out, std::o
 // Per variant and flight, and in all: the tasks by state. The counts add up to the tasks.
 int status(const std::string& arg, const ParsedArgs& a, std::ostream& out) {
   const cp::Manifest m = load_manifest_arg(arg);
-  const double now = now_s();
+  const double now = cp::wall_clock_s();
   constexpr int kStates = 5;
   std::map<std::string, std::array<std::size_t, kStates>> by;
   std::vector<std::string> order;
@@ -364,7 +351,7 @@ int resume(const std::string& arg, const ParsedArgs& a, std::ostream& out) {
   const cp::Manifest m = load_manifest_arg(arg);
   if (a.has("local") && a.has("dry-run")) usage_error("--local and --dry-run exclude each other");
   if (a.has("jobs") && !a.has("local")) usage_error("--jobs is for --local");
-  const double now = now_s();
+  const double now = cp::wall_clock_s();
   std::vector<std::size_t> ids;
   std::size_t running = 0;
   for (const cp::Task& t : m.tasks) {

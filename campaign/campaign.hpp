@@ -135,6 +135,10 @@ std::filesystem::path shard_dir(const std::filesystem::path& out, const std::str
 Status write_manifest(const Manifest& m);
 Expected<Manifest> load_manifest(const std::filesystem::path& file);
 
+// The wall clock: seconds since the epoch (what file times are aged against), and as ISO 8601 UTC.
+double wall_clock_s();
+std::string utc_now_iso();
+
 // `seconds` as Slurm's time limit, D-HH:MM:SS rounded up to whole minutes.
 std::string slurm_time(double seconds);
 

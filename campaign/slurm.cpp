@@ -172,12 +172,7 @@ Expected<std::string> submit(const Manifest& m, const fs::path& script) {
   if (job.empty() || job.find_first_not_of("0123456789") != std::string::npos)
     return make_error("campaign::submit(): sbatch ", script.string(), ": expected a job id, got '", out, "'");
   std::ofstream log(m.out / "jobs.log", std::ios::app);
-  const std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char b[32];
-  std::strftime(b, sizeof b, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  log << b << " job " << job << " " << script.string() << "\n";
+  log << utc_now_iso() << " job " << job << " " << script.string() << "\n";
   return job;
 }
 

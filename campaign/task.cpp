@@ -53,19 +53,6 @@ fs::path failed_of(const Task& t) {
   return t.out.string() + ".failed";
 }
 
-double now_wall_s() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
-std::string iso_now() {
-  const std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char b[32];
-  std::strftime(b, sizeof b, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return b;
-}
-
 std::string host_name() {
   char b[256] = {};
   if (gethostname(b, sizeof b - 1) != 0) return "?";
@@ -216,7 +203,7 @@ int run_task(const Manifest& m, std::size_t id, std::ostream& out, std::ostream&
       "task " + std::to_string(id) + " (flight " + t.flight + ", variant " + t.variant + ", shard " +
       std::to_string(t.shard.index) + ", frames " + std::to_string(t.shard.from_frame) + ".." +
       std::to_string(t.shard.from_frame + t.shard.frames - (t.shard.frames ? 1 : 0)) + ")";
-  const TaskStatus before = task_status(m, t, now_wall_s());
+  const TaskStatus before = task_status(m, t, wall_clock_s());
   if (before.state == TaskState::kDone) {
     out << "campaign: " << what << " is done already (" << t.out.string() << "); skipped\n";
     return 0;
@@ -244,9 +231,9 @@ int run_task(const Manifest& m, std::size_t id, std::ostream& out, std::ostream&
     e << YAML::BeginMap << YAML::Key << "task" << YAML::Value << id << YAML::Key << "command" << YAML::Value
       << joined(t.argv) << YAML::Key << "host" << YAML::Value << host << YAML::Key << "job" << YAML::Value
       << job << YAML::Key << "pid" << YAML::Value << ::getpid() << YAML::Key << "started_at" << YAML::Value
-      << iso_now() << YAML::EndMap;
+      << utc_now_iso() << YAML::EndMap;
     write_durably(partial / "task.yaml", std::string(e.c_str()) + "\n");
-    std::ofstream(partial / "heartbeat") << iso_now() << "\n";
+    std::ofstream(partial / "heartbeat") << utc_now_iso() << "\n";
   }
   fs::remove(failed_of(t), ec);
 
@@ -328,7 +315,7 @@ int run_task(const Manifest& m, std::size_t id, std::ostream& out, std::ostream&
     e << YAML::BeginMap << YAML::Key << "task" << YAML::Value << id << YAML::Key << "why" << YAML::Value
       << why << YAML::Key << "command" << YAML::Value << joined(t.argv) << YAML::Key << "host" << YAML::Value
       << host << YAML::Key << "job" << YAML::Value << job << YAML::Key << "wall_s" << YAML::Value << wall_s
-      << YAML::Key << "failed_at" << YAML::Value << iso_now() << YAML::Key << "log" << YAML::Value
+      << YAML::Key << "failed_at" << YAML::Value << utc_now_iso() << YAML::Key << "log" << YAML::Value
       << log.string() << YAML::Key << "last_lines" << YAML::Value << YAML::Literal << last << YAML::EndMap;
     write_durably(failed_of(t), std::string(e.c_str()) + "\n");
     err << "augrig campaign task: " << what << ": " << why << " (log: " << log.string() << ")\n";
@@ -341,7 +328,7 @@ int run_task(const Manifest& m, std::size_t id, std::ostream& out, std::ostream&
     << YAML::Value << wall_s << YAML::Key << "per_frame_s" << YAML::Value
     << (t.shard.frames ? wall_s / static_cast<double>(t.shard.frames) : 0.0) << YAML::Key << "max_rss_bytes"
     << YAML::Value << rss << YAML::Key << "host" << YAML::Value << host << YAML::Key << "job" << YAML::Value
-    << job << YAML::Key << "finished_at" << YAML::Value << iso_now() << YAML::EndMap;
+    << job << YAML::Key << "finished_at" << YAML::Value << utc_now_iso() << YAML::EndMap;
   if (!write_durably(partial / "done.yaml", std::string(e.c_str()) + "\n")) {
     err << "augrig campaign task: " << (partial / "done.yaml").string() << ": cannot write\n";
     return 1;
