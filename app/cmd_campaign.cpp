@@ -39,7 +39,7 @@ const char* kCampaignUsage =
 const std::vector<OptionSpec>& campaign_specs() {
   static const std::vector<OptionSpec> specs = {
       {"measure-frames", ArgKind::kValue, "N",
-       "plan: measure each variant's cost per frame on N frames of the first flight (default 6)"},
+       "plan: measure each variant's cost per frame on N frames of the first flight (default 20)"},
       {"per-frame-s", ArgKind::kValue, "S",
        "plan: take S seconds per frame instead of measuring (no memory figure: 2 GB asked)"},
       {"heartbeat-s", ArgKind::kValue, "S", "plan: tasks touch their heartbeat every S seconds (default 10)"},
@@ -210,7 +210,7 @@ int plan(const std::string& file, const ParsedArgs& a, std::ostream& out, std::o
   } else {
     const int n = a.has("measure-frames")
                       ? static_cast<int>(parse_integer("measure-frames", a.get("measure-frames"), 1, 10000))
-                      : 6;
+                      : 20;
     out << "measuring each variant's cost (" << n << " frames):\n";
     for (const auto& v : spec.variants)
       costs.emplace_back(v.name, measure_cost(spec, v, frames, n, prog, out));

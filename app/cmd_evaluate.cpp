@@ -21,6 +21,7 @@
 #include "pipeline/image_folder_source.hpp"
 #include "pipeline/scene_file.hpp"
 #include "recorder/euroc.hpp"
+#include "recorder/mcap_export.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/replay_source.hpp"
 #include "sim/flight_source.hpp"
@@ -193,6 +194,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   } else {
     const std::string dir = src.rfind("replay://", 0) == 0 ? src.substr(9) : src;
     if (!fs::exists(dir)) runtime_error(dir + ": no such recording, EuRoC folder or sim:// source");
+    if (recorder::is_mcap_path(dir) && !start.empty())
+      usage_error("--seek and --from-frame: an MCAP file is evaluated from its first frame");
     uri = "replay://" + dir + "?rate=fast" + start;
   }
   OpenedSource opened = unwrap(open_sources(uri));
@@ -230,6 +233,11 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
       range_in_source = true;
     }
     total_pairs = opened.replay->end_frame() - opened.replay->start_frame();
+  } else if (const auto* mc = dynamic_cast<const recorder::McapSource*>(opened.sources.front().get())) {
+    // An MCAP file from augrig export: read front to back, with the rig in its metadata.
+    if (mc->meta().count("rig_yaml"))
+      source_rig = unwrap(parse_rig(mc->meta().at("rig_yaml"), src + " (metadata augrig_recording, rig_yaml)"));
+    total_pairs = mc->frame_count();
   } else if (auto* e = dynamic_cast<recorder::EurocSource*>(opened.sources.front().get())) {
     origin_ns = e->first_t_ns();
     euroc_start = e->start_pair();

@@ -417,7 +417,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
         const Image& im = frame[id].image;
         const RigCamera& cam = p.rig.cameras[static_cast<std::size_t>(index_of(id))];
         if (im.width() != cam.model.width_px || im.height() != cam.model.height_px) {
-          const recorder::RecordedFrame* rf = recorded(frame);
+          // A recording's frames name its file; an MCAP file's (recorded frames too, no reader) its URI.
+          const recorder::RecordedFrame* rf = p.source_info.replay ? recorded(frame) : nullptr;
           fatal = make_error(rf ? p.source_info.replay->reader().path() : source.uri(), ": frame ",
                              rf ? rf->index : frame.pair_sequence, ": the ", to_string(id), " image is ", im.width(),
                              "x", im.height(), ", the rig's ", cam.name, " camera is ", cam.model.width_px, "x",

@@ -227,6 +227,31 @@ TEST(Evaluate, PartsOfARecordingOrEurocFolderConcatenateToTheWholeRun) {
 // A sequence (a frame index of PNG files, as `augrig sim` writes a flight) with its poses CSV: the
 // same frames and poses as the flight itself, so the same evaluation up to the poses' text
 // rounding (a pixel at a silhouette here and there).
+TEST(Evaluate, AnMcapFileEvaluatesAsTheRecordingItWasExportedFrom) {
+  std::string why;
+  const std::string rec = test::sim_recording("campaign/flight_a.yaml", 3, "campaign_a", &why);
+  ASSERT_FALSE(rec.empty()) << why;
+  const std::string dir = test::output_dir("evaluate_mcap");
+  std::string out;
+  ASSERT_EQ(augrig("export " + rec + " --format mcap " + dir + "/flight.mcap", &out), 0) << out;
+  // The rig comes from the file's metadata (the recording's is 640x480; the default 1280x960).
+  ASSERT_EQ(augrig("evaluate " + dir + "/flight.mcap --frames 6 --every 2 --no-plot --out " + dir + "/m", &out), 0)
+      << out;
+  ASSERT_EQ(augrig("evaluate " + rec + " --frames 6 --every 2 --no-plot --out " + dir + "/r", &out), 0) << out;
+  const Csv m = read_csv(dir + "/m/evaluation.csv"), r = read_csv(dir + "/r/evaluation.csv");
+  ASSERT_EQ(m.rows.size(), 3u);
+  ASSERT_EQ(r.rows.size(), 3u);
+  for (std::size_t i = 0; i < m.rows.size(); ++i)
+    for (const std::string& col : m.header) EXPECT_EQ(m.rows[i].at(col), r.rows[i].at(col)) << "row " << i << " " << col;
+  // Read front to back: no starting elsewhere.
+  EXPECT_EQ(augrig("evaluate " + dir + "/flight.mcap --from-frame 2", &out), 2) << out;
+  EXPECT_NE(out.find("an MCAP file is evaluated from its first frame"), std::string::npos) << out;
+  // A rig that does not fit its images is an error naming the file, not a crash.
+  EXPECT_EQ(augrig("evaluate " + dir + "/flight.mcap --rig default --frames 2", &out), 1) << out;
+  EXPECT_NE(out.find("flight.mcap"), std::string::npos) << out;
+  EXPECT_NE(out.find("the left image is 640x480, the rig's left camera is 1280x960"), std::string::npos) << out;
+}
+
 TEST(Evaluate, ASequenceWithItsPosesEvaluatesAsTheFlight) {
   const std::string dir = test::output_dir("evaluate_sequence");
   std::string out;
