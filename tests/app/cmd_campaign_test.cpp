@@ -12,6 +12,7 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include "tests/support/local_slurm.hpp"
 #include "tests/support/test_support.hpp"
@@ -171,7 +172,9 @@ class CampaignSlurm : public CampaignCli {
       skip_ = why;
       return;
     }
-    auto s = test::LocalSlurm::start(fs::path(AUGRIG_TEST_OUTPUT_DIR) / "cmd_campaign_slurm", 2);
+    // CTest runs each test in its own process, maybe at once: a cluster (and folder) per process.
+    auto s = test::LocalSlurm::start(
+        fs::path(AUGRIG_TEST_OUTPUT_DIR) / ("cmd_campaign_slurm_" + std::to_string(::getpid())), 2);
     if (!s) {
       skip_ = s.error().message;
       return;
@@ -179,7 +182,13 @@ class CampaignSlurm : public CampaignCli {
     cluster_ = std::move(*s);
     cluster_->apply_env();  // augrig's sbatch calls reach this cluster
   }
-  static void TearDownTestSuite() { cluster_.reset(); }
+  static void TearDownTestSuite() {
+    if (!cluster_) return;
+    const fs::path d = cluster_->dir();
+    cluster_.reset();  // stops it: nothing of it outlives the test
+    std::error_code ec;
+    fs::remove_all(d, ec);
+  }
   void SetUp() override {
     if (!cluster_) GTEST_SKIP() << "no local Slurm cluster: " << skip_;
     CampaignCli::SetUp();
