@@ -201,7 +201,7 @@ int nav_command(const std::vector<std::string>& args, std::ostream& out) {
           char buf[200];
           std::snprintf(buf, sizeof buf, " clock: offset %.3f ms +- %.3f ms (1-sigma)", est->offset_s * 1e3,
                         est->offset_sigma_s * 1e3);
-          line = who + buf;
+          line = who + buf + " " + nav::describe_sigma(*est);
           if (est->drift_observable) {
             std::snprintf(buf, sizeof buf, ", drift %.1f +- %.1f ppm", est->drift_ppm, est->drift_sigma_ppm);
             line += buf;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <limits>
 #include <numeric>
 #include <random>
@@ -396,52 +397,48 @@ struct Interval {
 
 }  // namespace
 
-Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>& rotations,
-                                               const Eigen::Matrix3d& R_cam_body,
-                                               const AngularRateFunction& omega_body,
-                                               const CameraClockOptions& opt) {
-  const char* fn = "nav::estimate_camera_clock(): ";
-  if (!omega_body) return make_error(fn, "no angular-rate function given");
-  if (!(opt.search_s > 0 && opt.coarse_step_s > 0 && opt.rate_sample_s > 0 && opt.derivative_step_s > 0))
-    return make_error(fn, "search_s, coarse_step_s, rate_sample_s and derivative_step_s must be > 0");
-  if (rotations.size() < static_cast<std::size_t>(std::max(opt.min_intervals, 8)))
-    return make_error(fn, rotations.size(), " frame intervals with a rotation; at least ",
-                      std::max(opt.min_intervals, 8), " needed");
-  CameraClockEstimate est;
-  TimestampNs t_min = rotations.front().t0_camera_ns, t_max = rotations.front().t1_camera_ns;
-  for (const FrameRotation& r : rotations) {
-    t_min = std::min(t_min, r.t0_camera_ns);
-    t_max = std::max(t_max, r.t1_camera_ns);
-  }
-  est.reference_camera_ns = t_min + (t_max - t_min) / 2;
-  const TimestampNs t_ref = est.reference_camera_ns;
-  const double half_span_s = ns_to_s(t_max - t_min) / 2;
-  // Shifts reach prior +- search, plus the derivative's step and what a drift of 200 ppm adds.
-  const double reach_s = opt.search_s + opt.derivative_step_s + 200e-6 * half_span_s + 2 * opt.rate_sample_s;
-  const double lo_shift = opt.prior_offset_s - reach_s, hi_shift = opt.prior_offset_s + reach_s;
-  const RateGrid grid(omega_body, t_ref, -half_span_s - hi_shift - 0.01, half_span_s - lo_shift + 0.01,
-                      opt.rate_sample_s);
+namespace {
 
-  std::vector<Interval> iv;
-  for (const FrameRotation& r : rotations) {
-    const double t0 = ns_to_s(r.t0_camera_ns - t_ref), t1 = ns_to_s(r.t1_camera_ns - t_ref);
-    if (!(t1 > t0) || !r.rotvec_cam_rad.allFinite()) continue;
-    if (!grid.valid(t0 - hi_shift, t1 - lo_shift)) continue;  // the nav rate must cover every shift
-    iv.push_back({t0, t1, r.rotvec_cam_rad / (t1 - t0)});
-  }
+// What one fit over a set of intervals gives.
+struct FitOutcome {
+  bool observable = false;
+  std::string reason;
+  bool with_drift = false;
+  double offset_s = kNaN, offset_sigma_s = kNaN;
+  double drift = kNaN, drift_sigma = kNaN;  // s/s, where with_drift
+  double scale = 1;
+  Eigen::Vector3d bias = Eigen::Vector3d::Zero();
+  double rms = 0, explained = 0;
+  std::vector<double> coarse_cost;
+  // Per interval: its part of the offset's information, the other parameters profiled out (they
+  // add up to 1 / var(offset) of the residuals' covariance, up to its scale).
+  std::vector<double> offset_information;
+  // Per interval: the parameters' change for a unit change of that interval's clock.
+  std::vector<Eigen::VectorXd> lever;
+};
+
+enum class DriftModel { kTry, kFit, kNone };  // kTry: fitted, and dropped where not observable
+
+// Coarse search, robust Gauss-Newton and the 1-sigma (residuals and Newey-West) over `iv`.
+FitOutcome fit_intervals(const std::vector<Interval>& iv, const RateGrid& grid,
+                         const Eigen::Matrix3d& R_cam_body, const CameraClockOptions& opt, int hac_lag,
+                         DriftModel drift_model, double fixed_drift = 0) {
+  FitOutcome out;
   const int n = static_cast<int>(iv.size());
-  if (n < std::max(opt.min_intervals, 8))
-    return make_error(fn, n, " frame intervals lie inside the angular-rate data (with the +-", opt.search_s,
-                      " s search); at least ", std::max(opt.min_intervals, 8), " needed");
-  est.intervals_used = n;
-  std::vector<double> spans;
-  for (const Interval& x : iv) spans.push_back(x.t1_s - x.t0_s);
-  const int hac_lag = std::max(0, static_cast<int>(std::lround(opt.hac_lag_s / median(spans))));
+  auto unobservable = [&](std::string why) {
+    out.observable = false;
+    out.reason = std::move(why);
+    return out;
+  };
+  if (n < std::max(opt.min_intervals, 8)) return unobservable("too few frame intervals");
 
   // Model: c_k = scale R_cam_body mean(omega over [t0 - d_k, t1 - d_k]) + bias, d_k = offset + drift tmid_k.
   auto model_rate = [&](int k, double d) {
     return Eigen::Vector3d(R_cam_body * grid.mean(iv[static_cast<std::size_t>(k)].t0_s - d,
                                                   iv[static_cast<std::size_t>(k)].t1_s - d));
+  };
+  auto tmid_of = [&](int k) {
+    return 0.5 * (iv[static_cast<std::size_t>(k)].t0_s + iv[static_cast<std::size_t>(k)].t1_s);
   };
   Eigen::Vector3d c_mean = Eigen::Vector3d::Zero();
   for (const Interval& x : iv) c_mean += x.c;
@@ -488,7 +485,7 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
   int best_i = 0;
   for (int i = -steps; i <= steps; ++i) {
     const double d = opt.prior_offset_s + i * opt.coarse_step_s;
-    for (int k = 0; k < n; ++k) m[static_cast<std::size_t>(k)] = model_rate(k, d);
+    for (int k = 0; k < n; ++k) m[static_cast<std::size_t>(k)] = model_rate(k, d + fixed_drift * tmid_of(k));
     double scale = 1;
     Eigen::Vector3d bias;
     solve_linear(m, ones, scale, bias);
@@ -496,7 +493,7 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
     for (int k = 0; k < n; ++k)
       cost += (iv[static_cast<std::size_t>(k)].c - scale * m[static_cast<std::size_t>(k)] - bias).squaredNorm();
     cost /= 3.0 * n;
-    est.coarse_cost.push_back(cost);
+    out.coarse_cost.push_back(cost);
     if (cost < best_cost) {
       best_cost = cost;
       best_d = d;
@@ -507,6 +504,8 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
   // ---- Gauss-Newton (robust, iteratively reweighted) ----
   // Parameters: offset, [drift], [scale], bias (3). The offset's Jacobian is the model's difference
   // over +-derivative_step_s: nav rate noise would otherwise pass for angular acceleration.
+  std::vector<double> info(static_cast<std::size_t>(n), 0.0);
+  std::vector<Eigen::VectorXd> lever;
   auto run = [&](bool with_drift, Eigen::VectorXd& p, Eigen::MatrixXd& cov_out, double& rms_out,
                  double& explained_out) -> bool {
     const int P = 1 + (with_drift ? 1 : 0) + (opt.estimate_scale ? 1 : 0) + 3;
@@ -515,7 +514,8 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
     std::vector<double> w(static_cast<std::size_t>(n), 1.0);
     double scale = 1;
     Eigen::Vector3d bias;
-    for (int k = 0; k < n; ++k) m[static_cast<std::size_t>(k)] = model_rate(k, best_d);
+    for (int k = 0; k < n; ++k)
+      m[static_cast<std::size_t>(k)] = model_rate(k, best_d + (with_drift ? 0.0 : fixed_drift * tmid_of(k)));
     solve_linear(m, w, scale, bias);
     p = Eigen::VectorXd::Zero(P);
     p(0) = best_d;
@@ -529,7 +529,7 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
       for (int k = 0; k < n; ++k) {
         const auto ku = static_cast<std::size_t>(k);
         const double tmid = 0.5 * (iv[ku].t0_s + iv[ku].t1_s);
-        const double d = q(0) + (with_drift ? q(1) * tmid : 0.0);
+        const double d = q(0) + (with_drift ? q(1) : fixed_drift) * tmid;
         const Eigen::Vector3d mk = model_rate(k, d);
         const Eigen::Vector3d dm = (model_rate(k, d + hs) - model_rate(k, d - hs)) / (2 * hs);
         r[ku] = iv[ku].c - sc * mk - q.tail<3>();
@@ -578,14 +578,13 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
     evaluate(p);
     Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
     std::vector<Eigen::VectorXd> score(static_cast<std::size_t>(n));
-    double wrss = 0, rss = 0, sw = 0;
+    double wrss = 0, rss = 0;
     for (int k = 0; k < n; ++k) {
       const auto ku = static_cast<std::size_t>(k);
       H += w[ku] * J[ku].transpose() * J[ku];
       score[ku] = w[ku] * J[ku].transpose() * r[ku];
       wrss += w[ku] * r[ku].squaredNorm();
       rss += r[ku].squaredNorm();
-      sw += w[ku];
     }
     const Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
     if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0)) return false;
@@ -611,20 +610,20 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
         cov_out.row(i) *= f;
         cov_out.col(i) *= f;
       }
+    // Each interval's part of the offset's information: its offset column less what the other
+    // parameters' columns explain of it (over all intervals), squared.
+    const Eigen::VectorXd beta = H.bottomRightCorner(P - 1, P - 1).ldlt().solve(H.col(0).tail(P - 1));
+    lever.assign(static_cast<std::size_t>(n), Eigen::VectorXd());
+    for (int k = 0; k < n; ++k) {
+      const auto ku = static_cast<std::size_t>(k);
+      info[ku] = w[ku] * (J[ku].col(0) - J[ku].rightCols(P - 1) * beta).squaredNorm();
+      lever[ku] = Hi * (w[ku] * J[ku].transpose() * J[ku].col(0));
+    }
     rms_out = std::sqrt(rss / (3.0 * n));
     explained_out = rss0 > 0 ? 1.0 - rss / rss0 : 0.0;
-    (void)sw;
     return true;
   };
 
-  auto unobservable = [&](std::string why) {
-    est.observable = false;
-    est.reason = std::move(why);
-    est.offset_s = est.offset_sigma_s = kNaN;
-    est.drift_ppm = est.drift_sigma_ppm = kNaN;
-    est.drift_observable = false;
-    return est;
-  };
   if (best_i == -steps || best_i == steps) {
     std::ostringstream why;
     why << "the best offset lies at the edge of the search (" << best_d << " s, searched "
@@ -634,18 +633,18 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
   Eigen::VectorXd p;
   Eigen::MatrixXd cov;
   double rms = 0, explained = 0;
-  bool with_drift = opt.estimate_drift;
+  bool with_drift = drift_model != DriftModel::kNone;
   bool ok = run(with_drift, p, cov, rms, explained);
-  if (with_drift && (!ok || !(std::sqrt(cov(1, 1)) * 1e6 <= opt.max_drift_sigma_ppm))) {
+  if (drift_model == DriftModel::kTry && (!ok || !(std::sqrt(cov(1, 1)) * 1e6 <= opt.max_drift_sigma_ppm))) {
     with_drift = false;  // drift not observable: fit the offset alone
     ok = run(false, p, cov, rms, explained);
   }
-  est.residual_rms_radps = rms;
-  est.explained = explained;
+  out.rms = rms;
+  out.explained = explained;
   if (!ok) return unobservable("the fit did not converge or is singular: too little angular acceleration");
   const int i_scale = with_drift ? 2 : 1;
-  est.scale = opt.estimate_scale ? p(i_scale) : 1.0;
-  est.bias_cam_radps = p.tail<3>();
+  out.scale = opt.estimate_scale ? p(i_scale) : 1.0;
+  out.bias = p.tail<3>();
   if (explained < opt.min_explained) {
     std::ostringstream why;
     why << "the nav angular rate explains " << std::round(explained * 1000) / 10 << " % of the camera rates' variation ("
@@ -659,15 +658,304 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
         << " ms: too little angular acceleration";
     return unobservable(why.str());
   }
-  est.observable = true;
-  est.offset_s = p(0);
-  est.offset_sigma_s = sigma;
-  est.drift_observable = with_drift;
+  out.observable = true;
+  out.offset_s = p(0);
+  out.offset_sigma_s = sigma;
+  out.with_drift = with_drift;
   if (with_drift) {
-    est.drift_ppm = p(1) * 1e6;
-    est.drift_sigma_ppm = std::sqrt(cov(1, 1)) * 1e6;
+    out.drift = p(1);
+    out.drift_sigma = std::sqrt(cov(1, 1));
+  }
+  out.offset_information = std::move(info);
+  out.lever = std::move(lever);
+  return out;
+}
+
+}  // namespace
+
+std::string describe_sigma(const CameraClockEstimate& e) {
+  if (!e.observable) return "not observable";
+  std::ostringstream o;
+  switch (e.sigma_source) {
+    case CameraClockEstimate::SigmaSource::kFit:
+      o << "from the fit's residuals";
+      break;
+    case CameraClockEstimate::SigmaSource::kJackknife:
+      o << "from the jackknife";
+      break;
+    case CameraClockEstimate::SigmaSource::kFloor:
+      o << "from the floor for few manoeuvres";
+      break;
+  }
+  o << " (information from about " << std::fixed << std::setprecision(1) << e.effective_blocks << " of "
+    << e.jackknife_blocks << " time " << (e.jackknife_blocks == 1 ? "block" : "blocks");
+  if (e.edge_cut) o << ", one cut by the data's start or end";
+  o << ")";
+  return o.str();
+}
+
+Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>& rotations,
+                                               const Eigen::Matrix3d& R_cam_body,
+                                               const AngularRateFunction& omega_body,
+                                               const CameraClockOptions& opt) {
+  const char* fn = "nav::estimate_camera_clock(): ";
+  if (!omega_body) return make_error(fn, "no angular-rate function given");
+  if (!(opt.search_s > 0 && opt.coarse_step_s > 0 && opt.rate_sample_s > 0 && opt.derivative_step_s > 0))
+    return make_error(fn, "search_s, coarse_step_s, rate_sample_s and derivative_step_s must be > 0");
+  if (!(opt.block_s > 0) || !(opt.block_bias_s >= 0) || !(opt.cut_block_bias_factor >= 1))
+    return make_error(fn, "block_s must be > 0, block_bias_s >= 0 and cut_block_bias_factor >= 1");
+  if (rotations.size() < static_cast<std::size_t>(std::max(opt.min_intervals, 8)))
+    return make_error(fn, rotations.size(), " frame intervals with a rotation; at least ",
+                      std::max(opt.min_intervals, 8), " needed");
+  CameraClockEstimate est;
+  TimestampNs t_min = rotations.front().t0_camera_ns, t_max = rotations.front().t1_camera_ns;
+  for (const FrameRotation& r : rotations) {
+    t_min = std::min(t_min, r.t0_camera_ns);
+    t_max = std::max(t_max, r.t1_camera_ns);
+  }
+  est.reference_camera_ns = t_min + (t_max - t_min) / 2;
+  const TimestampNs t_ref = est.reference_camera_ns;
+  const double half_span_s = ns_to_s(t_max - t_min) / 2;
+  // Shifts reach prior +- search, plus the derivative's step and what a drift of 200 ppm adds.
+  const double reach_s = opt.search_s + opt.derivative_step_s + 200e-6 * half_span_s + 2 * opt.rate_sample_s;
+  const double lo_shift = opt.prior_offset_s - reach_s, hi_shift = opt.prior_offset_s + reach_s;
+  const RateGrid grid(omega_body, t_ref, -half_span_s - hi_shift - 0.01, half_span_s - lo_shift + 0.01,
+                      opt.rate_sample_s);
+
+  std::vector<Interval> iv;
+  for (const FrameRotation& r : rotations) {
+    const double t0 = ns_to_s(r.t0_camera_ns - t_ref), t1 = ns_to_s(r.t1_camera_ns - t_ref);
+    if (!(t1 > t0) || !r.rotvec_cam_rad.allFinite()) continue;
+    if (!grid.valid(t0 - hi_shift, t1 - lo_shift)) continue;  // the nav rate must cover every shift
+    iv.push_back({t0, t1, r.rotvec_cam_rad / (t1 - t0)});
+  }
+  // In time order, for the blocks below.
+  std::stable_sort(iv.begin(), iv.end(),
+                   [](const Interval& a, const Interval& b) { return a.t0_s < b.t0_s; });
+  const int n = static_cast<int>(iv.size());
+  if (n < std::max(opt.min_intervals, 8))
+    return make_error(fn, n, " frame intervals lie inside the angular-rate data (with the +-", opt.search_s,
+                      " s search); at least ", std::max(opt.min_intervals, 8), " needed");
+  est.intervals_used = n;
+  std::vector<double> spans;
+  for (const Interval& x : iv) spans.push_back(x.t1_s - x.t0_s);
+  const int hac_lag = std::max(0, static_cast<int>(std::lround(opt.hac_lag_s / median(spans))));
+
+  FitOutcome full = fit_intervals(iv, grid, R_cam_body, opt, hac_lag,
+                                  opt.estimate_drift ? DriftModel::kTry : DriftModel::kNone);
+  est.coarse_cost = std::move(full.coarse_cost);
+  est.residual_rms_radps = full.rms;
+  est.explained = full.explained;
+  est.scale = full.scale;
+  est.bias_cam_radps = full.bias;
+  est.drift_ppm = est.drift_sigma_ppm = kNaN;
+  est.drift_sigma_fit_ppm = est.drift_sigma_jackknife_ppm = est.drift_sigma_floor_ppm = kNaN;
+  est.offset_sigma_fit_s = est.offset_sigma_jackknife_s = est.offset_sigma_floor_s = kNaN;
+  if (!full.observable) {
+    est.observable = false;
+    est.reason = full.reason;
+    est.offset_s = est.offset_sigma_s = kNaN;
+    return est;
+  }
+  est.observable = true;
+  est.offset_s = full.offset_s;
+  est.offset_sigma_fit_s = full.offset_sigma_s;
+  est.drift_observable = full.with_drift;
+  if (full.with_drift) {
+    est.drift_ppm = full.drift * 1e6;
+    est.drift_sigma_fit_ppm = full.drift_sigma * 1e6;
+  }
+
+  // ---- the 1-sigma beyond the residuals: blocks of time ----
+  // The images' own error lies along each manoeuvre's signal, so neither the residuals nor their
+  // autocorrelation show it; manoeuvres compared with each other do. The data are cut into blocks
+  // of about block_s, each cut moved to where the least information lies, so that a manoeuvre
+  // stays whole in one block.
+  const double t_lo = iv.front().t0_s, t_hi = iv.back().t1_s;
+  const int nominal_blocks =
+      std::clamp(static_cast<int>(std::floor((t_hi - t_lo) / opt.block_s)), 1, std::max(opt.max_blocks, 1));
+  std::vector<double> tm(static_cast<std::size_t>(n)), cum(static_cast<std::size_t>(n) + 1, 0.0);
+  for (int k = 0; k < n; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    tm[ku] = 0.5 * (iv[ku].t0_s + iv[ku].t1_s);
+    cum[ku + 1] = cum[ku] + full.offset_information[ku];
+  }
+  const double total_info = cum.back();
+  auto info_between = [&](double a, double b) {  // over the intervals with midpoints in [a, b)
+    const auto lo = std::lower_bound(tm.begin(), tm.end(), a) - tm.begin();
+    const auto hi = std::lower_bound(tm.begin(), tm.end(), b) - tm.begin();
+    return cum[static_cast<std::size_t>(hi)] - cum[static_cast<std::size_t>(lo)];
+  };
+  constexpr double kQuietS = 1.0;  // a cut counts the information within this of it
+  std::vector<double> cuts;
+  const double nominal_s = (t_hi - t_lo) / nominal_blocks;
+  // Moving a cut by half a block costs as much as the information near a cut on average: evenly
+  // spread information (turbulence) keeps the cuts near their nominal places.
+  const double move_cost = total_info * 2 * kQuietS / (t_hi - t_lo);
+  for (int i = 1; i < nominal_blocks; ++i) {
+    const double b0 = t_lo + i * nominal_s;
+    double best_t = b0, best = info_between(b0 - kQuietS, b0 + kQuietS);
+    for (int k = 0; k < n; ++k) {
+      const double t = iv[static_cast<std::size_t>(k)].t0_s;
+      if (std::abs(t - b0) > nominal_s / 2) continue;
+      const double cost =
+          info_between(t - kQuietS, t + kQuietS) + move_cost * std::abs(t - b0) / (nominal_s / 2);
+      if (cost < best) {
+        best = cost;
+        best_t = t;
+      }
+    }
+    if (cuts.empty() || best_t > cuts.back())
+      cuts.push_back(best_t);  // two cuts in one place: one block fewer
+  }
+  auto block_of = [&](double t) {
+    return static_cast<int>(std::upper_bound(cuts.begin(), cuts.end(), t) - cuts.begin());
+  };
+  {  // no empty blocks
+    std::vector<int> count(cuts.size() + 1, 0);
+    for (double t : tm) ++count[static_cast<std::size_t>(block_of(t))];
+    std::vector<double> kept;
+    for (std::size_t c = 0; c < cuts.size(); ++c)
+      if (count[c] > 0 && count[c + 1] > 0) kept.push_back(cuts[c]);
+    cuts = std::move(kept);
+  }
+  const int G = static_cast<int>(cuts.size()) + 1;
+  const auto Gu = static_cast<std::size_t>(G);
+  std::vector<int> block(static_cast<std::size_t>(n));
+  std::vector<double> share(Gu, 0.0);
+  const auto P = full.lever.front().size();
+  for (int k = 0; k < n; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    block[ku] = block_of(tm[ku]);
+    share[static_cast<std::size_t>(block[ku])] += full.offset_information[ku] / total_info;
+  }
+  double sum_share2 = 0;
+  for (double w : share) sum_share2 += w * w;
+  est.jackknife_blocks = G;
+  est.effective_blocks = 1.0 / sum_share2;
+
+  // Floor: the images' own clock error, block_bias_s (1-sigma), slowly varying: correlated over
+  // about block_s (a Bartlett kernel), so one manoeuvre counts as one and two manoeuvres 9 s apart
+  // as two, whatever the blocks. It reaches the parameters through each interval's lever. A
+  // manoeuvre cut by the data's start or end is one-sided: its ramp trades against the rate bias,
+  // and its error was 2 to 5 times a whole one's (docs/CLOCK_OFFSETS.md, "Limits"). Such a block
+  // has its information crowded at the edge: within kQuietS of it, over twice the block's mean.
+  std::vector<double> block_t0(Gu, t_hi), block_t1(Gu, t_lo);
+  for (int k = 0; k < n; ++k) {
+    const auto j = static_cast<std::size_t>(block[static_cast<std::size_t>(k)]);
+    block_t0[j] = std::min(block_t0[j], iv[static_cast<std::size_t>(k)].t0_s);
+    block_t1[j] = std::max(block_t1[j], iv[static_cast<std::size_t>(k)].t1_s);
+  }
+  auto cut_at_edge = [&](int j) {
+    const auto ju = static_cast<std::size_t>(j);
+    const double in_block = share[ju] * total_info, length = block_t1[ju] - block_t0[ju];
+    if (!(in_block > 0) || !(length > kQuietS)) return false;
+    double edge = 0;
+    if (j == 0) edge = std::max(edge, info_between(t_lo - 1, t_lo + kQuietS));
+    if (j == G - 1) edge = std::max(edge, info_between(t_hi - kQuietS, t_hi + 1));
+    return edge / kQuietS > 2 * in_block / length;
+  };
+  std::vector<double> block_bias(Gu, opt.block_bias_s);
+  for (int j = 0; j < G; ++j)
+    if (cut_at_edge(j)) {
+      block_bias[static_cast<std::size_t>(j)] *= opt.cut_block_bias_factor;
+      if (share[static_cast<std::size_t>(j)] >= 0.05) est.edge_cut = true;
+    }
+  Eigen::MatrixXd cov_floor =
+      Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(P), static_cast<Eigen::Index>(P));
+  for (int k = 0, l0 = 0; k < n; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    while (tm[static_cast<std::size_t>(l0)] <= tm[ku] - opt.block_s) ++l0;
+    Eigen::VectorXd near = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(P));
+    for (int l = l0; l < n && tm[static_cast<std::size_t>(l)] < tm[ku] + opt.block_s; ++l) {
+      const auto lu = static_cast<std::size_t>(l);
+      near += (1 - std::abs(tm[lu] - tm[ku]) / opt.block_s) *
+              block_bias[static_cast<std::size_t>(block[lu])] * full.lever[lu];
+    }
+    cov_floor += block_bias[static_cast<std::size_t>(block[ku])] * full.lever[ku] * near.transpose();
+  }
+  // Jackknife: the fit again with each block left out (same options but the search; no recursion).
+  // The offset's refits keep the drift at the full fit's: a refit from two manoeuvres on one side
+  // would otherwise extrapolate to the reference over a long lever and swamp the others. The
+  // drift's own refits need several blocks for two clock parameters.
+  const bool drift_refits = full.with_drift && est.effective_blocks >= 4;
+  // The refits search only +-10 ms about the full fit's offset (within the first search, so on the
+  // same rate grid): a tenth of the coarse search's cost. A refit whose best offset lies further
+  // off is on the window's edge, so unobservable: that block carried the estimate.
+  CameraClockOptions refit_opt = opt;
+  {
+    const double lo = std::max(opt.prior_offset_s - opt.search_s, full.offset_s - 0.01);
+    const double hi = std::min(opt.prior_offset_s + opt.search_s, full.offset_s + 0.01);
+    refit_opt.prior_offset_s = 0.5 * (lo + hi);
+    refit_opt.search_s = 0.5 * (hi - lo);
+  }
+  std::vector<double> d_offset, d_drift, w_offset, w_drift;
+  bool informative_lost = false;
+  if (G >= 3) {
+    for (int j = 0; j < G; ++j) {
+      std::vector<Interval> rest;
+      rest.reserve(iv.size());
+      for (int k = 0; k < n; ++k)
+        if (block[static_cast<std::size_t>(k)] != j) rest.push_back(iv[static_cast<std::size_t>(k)]);
+      const double w = share[static_cast<std::size_t>(j)];
+      const FitOutcome r = fit_intervals(rest, grid, R_cam_body, refit_opt, hac_lag, DriftModel::kNone,
+                                         full.with_drift ? full.drift : 0.0);
+      if (r.observable) {
+        d_offset.push_back(r.offset_s - full.offset_s);
+        w_offset.push_back(w);
+      } else if (w >= 0.05) {
+        informative_lost = true;  // the estimate hinges on this block
+      }
+      if (drift_refits) {
+        const FitOutcome rd = fit_intervals(rest, grid, R_cam_body, refit_opt, hac_lag, DriftModel::kFit);
+        if (rd.observable) {
+          d_drift.push_back(rd.drift - full.drift);
+          w_drift.push_back(w);
+        } else if (w >= 0.05) {
+          informative_lost = true;
+        }
+      }
+    }
+  }
+  est.jackknife_refits = static_cast<int>(d_offset.size());
+  // Blocks of unequal information: sum_j ((1 - w_j) d_j)^2 / (1 - sum w^2), with w_j a block's share.
+  // For G equal blocks it is the usual (G - 1) / G sum d_j^2; for a linear estimate it is unbiased.
+  auto jackknife = [&](const std::vector<double>& d, const std::vector<double>& w) {
+    double s = 0;
+    for (std::size_t i = 0; i < d.size(); ++i) s += std::pow((1 - w[i]) * d[i], 2);
+    return std::sqrt(s / (1 - sum_share2));
+  };
+  const bool usable = !informative_lost && d_offset.size() >= 3 && est.effective_blocks >= 2;
+  if (usable) {
+    est.offset_sigma_jackknife_s = jackknife(d_offset, w_offset);
+    if (drift_refits && d_drift.size() >= 3)
+      est.drift_sigma_jackknife_ppm = jackknife(d_drift, w_drift) * 1e6;
+  }
+  // The floor stands in where the jackknife has too few manoeuvres to compare (under 3 blocks'
+  // worth of information) or cannot see a cut one; with more, the manoeuvres' own scatter decides.
+  if (usable && est.effective_blocks >= 3 && !est.edge_cut) {
+    est.offset_sigma_floor_s = est.drift_sigma_floor_ppm = kNaN;
   } else {
-    est.drift_ppm = est.drift_sigma_ppm = kNaN;
+    est.offset_sigma_floor_s = std::sqrt(cov_floor(0, 0));
+    if (full.with_drift) est.drift_sigma_floor_ppm = std::sqrt(cov_floor(1, 1)) * 1e6;
+  }
+
+  // The 1-sigma: the largest of the three.
+  est.offset_sigma_s = est.offset_sigma_fit_s;
+  est.sigma_source = CameraClockEstimate::SigmaSource::kFit;
+  if (est.offset_sigma_jackknife_s > est.offset_sigma_s) {
+    est.offset_sigma_s = est.offset_sigma_jackknife_s;
+    est.sigma_source = CameraClockEstimate::SigmaSource::kJackknife;
+  }
+  if (est.offset_sigma_floor_s > est.offset_sigma_s) {
+    est.offset_sigma_s = est.offset_sigma_floor_s;
+    est.sigma_source = CameraClockEstimate::SigmaSource::kFloor;
+  }
+  if (full.with_drift) {
+    est.drift_sigma_ppm = est.drift_sigma_fit_ppm;
+    if (est.drift_sigma_jackknife_ppm > est.drift_sigma_ppm)
+      est.drift_sigma_ppm = est.drift_sigma_jackknife_ppm;
+    if (est.drift_sigma_floor_ppm > est.drift_sigma_ppm) est.drift_sigma_ppm = est.drift_sigma_floor_ppm;
   }
   return est;
 }

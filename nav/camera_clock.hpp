@@ -87,6 +87,16 @@ struct CameraClockOptions {
   double max_drift_sigma_ppm = 20;      // a larger 1-sigma: drift not observable, fitted as 0
   double min_explained = 0.5;      // the nav rate must explain this share of the rates' variation
   int min_intervals = 30;
+  // ---- the 1-sigma beyond the residuals (docs/CLOCK_OFFSETS.md, "1-sigma") ----
+  // Blocks of time for the jackknife and the floor: about block_s long (at most max_blocks), each
+  // cut moved to where little information lies, so that a manoeuvre (a 4 s roll-in) stays whole.
+  double block_s = 8;
+  int max_blocks = 12;
+  // Floor: the images' own clock error, this much (1-sigma; one roll-in came out up to 0.5 ms off
+  // at 480x360 and at 1280x960), correlated over about block_s; in a block cut by the data's start
+  // or end (a one-sided manoeuvre) cut_block_bias_factor times as much.
+  double block_bias_s = 0.5e-3;
+  double cut_block_bias_factor = 3;
 };
 
 struct CameraClockEstimate {
@@ -105,6 +115,20 @@ struct CameraClockEstimate {
   int frames = 0;                  // frames given (estimate_camera_clock only)
   // Coarse search: cost (mean squared residual) at offsets prior + i * coarse_step_s - search_s.
   std::vector<double> coarse_cost;
+
+  // Where offset_sigma_s and drift_sigma_ppm come from: each is the largest of three 1-sigmas (NaN
+  // where there is none). The fit's own (residuals or Newey-West) misses the images' error along a
+  // manoeuvre's signal; the jackknife over blocks of time (each left out in turn) shows it when the
+  // information comes from several manoeuvres; the floor (a bias of block_bias_s per block) stands
+  // in where it comes from fewer than three blocks or from one cut by the data's start or end.
+  enum class SigmaSource { kFit, kJackknife, kFloor };
+  SigmaSource sigma_source = SigmaSource::kFit;  // the offset's
+  double offset_sigma_fit_s = 0, offset_sigma_jackknife_s = 0, offset_sigma_floor_s = 0;
+  double drift_sigma_fit_ppm = 0, drift_sigma_jackknife_ppm = 0, drift_sigma_floor_ppm = 0;
+  int jackknife_blocks = 0;     // blocks of time the data were cut into
+  int jackknife_refits = 0;     // refits (each block left out) that were observable
+  double effective_blocks = 0;  // 1 / sum(share^2) of the blocks' information: about how many manoeuvres
+  bool edge_cut = false;        // a block that counts was cut by the data's start or end
 
   // Offset at a camera time (drift applied when observable): t_gps = t_camera - offset_at_s(t_camera).
   double offset_at_s(TimestampNs t_camera_ns) const;
@@ -135,7 +159,13 @@ class CameraRotationTracker {
   std::unique_ptr<Impl> impl_;
 };
 
-// Fits offset (and drift) to measured rotations: the smaller, cheap-to-test half.
+// Where the offset's 1-sigma came from, in words (for `augrig nav`), e.g. "from the floor for few
+// manoeuvres (information from about 1.9 of 5 time blocks, one cut by the data's start or end)".
+std::string describe_sigma(const CameraClockEstimate& estimate);
+
+// Fits offset (and drift) to measured rotations: the smaller, cheap-to-test half. After the fit, it
+// refits with each block of time left out (CameraClockOptions::block_s) for the jackknife: about
+// (blocks + 1) times the cost of one fit.
 Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>& rotations,
                                                const Eigen::Matrix3d& R_cam_body,
                                                const AngularRateFunction& omega_body,

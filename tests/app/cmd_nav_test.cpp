@@ -349,13 +349,26 @@ TEST(CmdNav, CameraClocksFromTheImages) {
   ASSERT_EQ(augrig("sim --scenario " + d + "/turns.yaml --out " + d + "/turns", &log), 0) << log;
   const std::string s = d + "/turns";
   ASSERT_EQ(augrig(nav_args(s, d + "/estimated.csv") + " --camera-clock --camera-clock-every 2", &log), 0) << log;
-  const auto offset_ms = [&](const std::string& camera) {
+  // "camera 0 (left) clock: offset 19.240 ms +- 0.670 ms (1-sigma) from ...": the offset and its 1-sigma.
+  const auto offset_ms = [&](const std::string& camera) -> std::pair<double, double> {
     const std::size_t at = log.find(camera + " clock: offset ");
     EXPECT_NE(at, std::string::npos) << log;
-    return at == std::string::npos ? NAN : std::stod(log.substr(at + camera.size() + 15));
+    if (at == std::string::npos) return {NAN, NAN};
+    const std::size_t pm = log.find(" +- ", at);
+    EXPECT_NE(pm, std::string::npos) << log;
+    return {std::stod(log.substr(at + camera.size() + 15)),
+            pm == std::string::npos ? NAN : std::stod(log.substr(pm + 4))};
   };
-  EXPECT_NEAR(offset_ms("camera 0 (left)"), 20.0, 1.0) << log;
-  EXPECT_NEAR(offset_ms("camera 1 (right)"), 0.0, 1.0) << log;
+  const auto [left_ms, left_sigma_ms] = offset_ms("camera 0 (left)");
+  const auto [right_ms, right_sigma_ms] = offset_ms("camera 1 (right)");
+  EXPECT_NEAR(left_ms, 20.0, 1.0) << log;
+  EXPECT_NEAR(right_ms, 0.0, 1.0) << log;
+  // The 1-sigma is honest: the truth within 2.5 of it (issue 20 §3). The 45 s hold one whole roll-in
+  // and the start of a roll-out cut by the data's end, which the fit's own 1-sigma (0.15 ms, for
+  // errors of 0.76 and 0.47 ms) did not cover.
+  EXPECT_LE(std::abs(left_ms - 20.0), 2.5 * left_sigma_ms) << log;
+  EXPECT_LE(std::abs(right_ms - 0.0), 2.5 * right_sigma_ms) << log;
+  EXPECT_NE(log.find("(1-sigma) from the "), std::string::npos) << log;
   // The IMUs' clocks (7 ms on the tanker's, whose angular rate the cameras are matched to; -4 ms
   // on the receiver's), estimated by the filters as aircraft.yaml asks (augrig sim sets imu_clock).
   const auto imu_ms = [&](const std::string& who) {
