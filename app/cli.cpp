@@ -71,9 +71,10 @@ OptionSpec pose_tolerance_option() {
 }
 
 OptionSpec boom_option(const std::string& default_text) {
-  return {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
-          "boom articulation: tracking the receptacle, fixed (degrees, degrees, metres) or a script (default: " +
-              default_text + ")"};
+  return {
+      "boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv",
+      "boom articulation: tracking the receptacle, fixed (degrees, degrees, metres) or a script (default: " +
+          default_text + ")"};
 }
 
 OptionSpec receiver_draw_option() {
@@ -155,7 +156,8 @@ double parse_real(const std::string& flag, const std::string& v) {
   return x;
 }
 
-std::vector<std::pair<std::string, std::string>> parse_named_list_arg(const std::string& v, const std::string& what) {
+std::vector<std::pair<std::string, std::string>> parse_named_list_arg(const std::string& v,
+                                                                      const std::string& what) {
   auto items = parse_named_list(v, what);
   if (!items) usage_error(items.error().message);
   return *items;
@@ -174,9 +176,9 @@ TimestampNs parse_pose_tolerance(const ParsedArgs& a) {
 }
 
 std::uint64_t parse_screenshot_at(const ParsedArgs& a) {
-  return a.has("screenshot-at")
-             ? static_cast<std::uint64_t>(parse_integer("screenshot-at", a.get("screenshot-at"), 1, 1LL << 40))
-             : 0;
+  return a.has("screenshot-at") ? static_cast<std::uint64_t>(
+                                      parse_integer("screenshot-at", a.get("screenshot-at"), 1, 1LL << 40))
+                                : 0;
 }
 
 BoomArg parse_boom_arg(const std::string& v) {
@@ -208,8 +210,8 @@ BoomArg parse_boom_arg(const std::string& v) {
 
 // Splits the positional arguments (neither an option nor an option's value) from the options.
 static std::vector<std::string> split_positionals(const std::vector<std::string>& args,
-                                           const std::vector<OptionSpec>& specs,
-                                           std::vector<std::string>& options) {
+                                                  const std::vector<OptionSpec>& specs,
+                                                  std::vector<std::string>& options) {
   std::vector<std::string> pos;
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
@@ -247,11 +249,12 @@ ParsedArgs parse_with_positionals(const std::vector<std::string>& args, const st
   return a;
 }
 
-std::unique_ptr<recorder::Recorder> create_recorder(const std::string& dir, const recorder::RecordingInfo& info,
-                                                    bool overwrite) {
+std::unique_ptr<recorder::Recorder> create_recorder(const std::string& dir,
+                                                    const recorder::RecordingInfo& info, bool overwrite) {
   const fs::path db = fs::path(dir) / "recording.sqlite";
   if (!overwrite && fs::exists(db))
-    runtime_error(db.string() + ": a recording is already there; give --overwrite to replace it, or another folder");
+    runtime_error(db.string() +
+                  ": a recording is already there; give --overwrite to replace it, or another folder");
   recorder::RecorderOptions o;
   o.overwrite = overwrite;
   return unwrap(recorder::Recorder::create(dir, info, o));

@@ -14,11 +14,11 @@
 #include <Eigen/Core>
 
 #include "app/commands.hpp"
+#include "core/expected.hpp"
+#include "core/frame.hpp"
 #include "pipeline/boom_stage.hpp"
 #include "pipeline/outputs.hpp"
 #include "pipeline/pipeline.hpp"
-#include "core/expected.hpp"
-#include "core/frame.hpp"
 #include "recorder/record.hpp"
 #include "render/augmenter.hpp"
 #include "render/boom_control.hpp"
@@ -32,7 +32,7 @@ namespace augrig::recorder {
 class RecordingReader;
 class Recorder;
 struct RecordingInfo;
-}
+}  // namespace augrig::recorder
 
 namespace augrig::app {
 
@@ -78,7 +78,8 @@ long long parse_integer(const std::string& flag, const std::string& v, long long
 double parse_real(const std::string& flag, const std::string& v);
 
 // "NAME=VALUE,..." (pipeline::parse_named_list), a usage error saying `what` otherwise.
-std::vector<std::pair<std::string, std::string>> parse_named_list_arg(const std::string& v, const std::string& what);
+std::vector<std::pair<std::string, std::string>> parse_named_list_arg(const std::string& v,
+                                                                      const std::string& what);
 
 // A display to open the window on (DISPLAY set and not empty).
 bool display_present();
@@ -125,11 +126,12 @@ class StatsCsv {
 // Parses the flags of `args` and exactly the positionals `names` (a usage error names what is
 // missing or extra); `positionals` gets them in order.
 ParsedArgs parse_with_positionals(const std::vector<std::string>& args, const std::vector<OptionSpec>& specs,
-                                  const std::vector<std::string>& names, std::vector<std::string>& positionals);
+                                  const std::vector<std::string>& names,
+                                  std::vector<std::string>& positionals);
 // A new recording in `dir` (--record), or a runtime error; one already there is replaced only with
 // `overwrite` (--overwrite), and the error says so.
-std::unique_ptr<recorder::Recorder> create_recorder(const std::string& dir, const recorder::RecordingInfo& info,
-                                                    bool overwrite);
+std::unique_ptr<recorder::Recorder> create_recorder(const std::string& dir,
+                                                    const recorder::RecordingInfo& info, bool overwrite);
 // Opens a recording, or fails the command naming it.
 std::unique_ptr<recorder::RecordingReader> open_recording(const std::string& dir);
 // A problem of the recording as a whole (RecordingReader::problems()), naming its file.

@@ -35,7 +35,8 @@ const std::vector<OptionSpec>& evaluate_specs() {
        "the stereo matcher and its parameters (docs/EVALUATE.md; default StereoSGBM 3-way, 64 disparities, "
        "block 5)"},
       {"out", ArgKind::kValue, "DIR",
-       "write evaluation.txt (the table), evaluation.csv (per frame), evaluation_sums.csv (per frame, exact), "
+       "write evaluation.txt (the table), evaluation.csv (per frame), evaluation_sums.csv (per frame, "
+       "exact), "
        "stats.csv and evaluation.png here"},
       {"every", ArgKind::kValue, "K",
        "evaluate the frames whose index in the source is a multiple of K (default 1: all)"},
@@ -228,15 +229,16 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
       }
     if (max_pairs) {
       const std::size_t start = opened.replay->start_frame();
-      check(opened.replay->set_end_frame(start + std::min<std::size_t>(static_cast<std::size_t>(max_pairs),
-                                                                        opened.replay->frame_count())));
+      check(opened.replay->set_end_frame(
+          start + std::min<std::size_t>(static_cast<std::size_t>(max_pairs), opened.replay->frame_count())));
       range_in_source = true;
     }
     total_pairs = opened.replay->end_frame() - opened.replay->start_frame();
   } else if (const auto* mc = dynamic_cast<const recorder::McapSource*>(opened.sources.front().get())) {
     // An MCAP file from augrig export: read front to back, with the rig in its metadata.
     if (mc->meta().count("rig_yaml"))
-      source_rig = unwrap(parse_rig(mc->meta().at("rig_yaml"), src + " (metadata augrig_recording, rig_yaml)"));
+      source_rig =
+          unwrap(parse_rig(mc->meta().at("rig_yaml"), src + " (metadata augrig_recording, rig_yaml)"));
     total_pairs = mc->frame_count();
   } else if (auto* e = dynamic_cast<recorder::EurocSource*>(opened.sources.front().get())) {
     origin_ns = e->first_t_ns();
@@ -300,14 +302,16 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     if (index % static_cast<std::uint64_t>(every) != 0) return {};
     eval::EvaluationImages images;
     const bool want_images =
-        images_every && index % (static_cast<std::uint64_t>(every) * static_cast<std::uint64_t>(images_every)) == 0;
+        images_every &&
+        index % (static_cast<std::uint64_t>(every) * static_cast<std::uint64_t>(images_every)) == 0;
     auto fe = evaluator->evaluate(raw, result, want_images ? &images : nullptr);
     if (!fe) return make_error("pair ", raw.pair_sequence, ": ", fe.error().message);
     const double t_s = ns_to_s(result.stats.t_ns - *origin_ns);
     if (csv)
       if (Status s = csv->add(index, t_s, result.stats, *fe); !s) return s;
     if (sums)
-      if (Status s = sums->add({index, t_s, result.stats.occluded_pct_left, result.stats.occluded_pct_right, *fe});
+      if (Status s =
+              sums->add({index, t_s, result.stats.occluded_pct_left, result.stats.occluded_pct_right, *fe});
           !s)
         return s;
     points.push_back(eval::evaluation_point(t_s, result.stats, *fe));
@@ -326,7 +330,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   parts.source = unwrap(start_stereo(std::move(opened)));
   parts.stop_flag = install_stop_signals();
   if (!range_in_source) parts.max_pairs = static_cast<std::uint64_t>(max_pairs);
-  parts.progress_total = parts.max_pairs ? std::min<std::uint64_t>(total_pairs, parts.max_pairs) : total_pairs;
+  parts.progress_total =
+      parts.max_pairs ? std::min<std::uint64_t>(total_pairs, parts.max_pairs) : total_pairs;
   parts.on_problem = [&err](const Error& e) { err << "augrig evaluate: " << user_message(e) << "\n"; };
   const eval::MatcherParams& m = eo.matcher;
   out << "evaluate: " << uri << "; rig " << rig.source << "; poses from " << parts.poses->describe() << "; "
@@ -351,7 +356,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     std::ofstream t(out_dir / "evaluation.txt", std::ios::binary);
     t << table;
     if (!t) runtime_error((out_dir / "evaluation.txt").string() + ": cannot write the table");
-    out << "Wrote " << (out_dir / "evaluation.txt").string() << ", evaluation.csv, evaluation_sums.csv and stats.csv";
+    out << "Wrote " << (out_dir / "evaluation.txt").string()
+        << ", evaluation.csv, evaluation_sums.csv and stats.csv";
     if (!a.has("no-plot") && !points.empty()) {
       check(
           eval::plot_evaluation(points, (out_dir / "evaluation.png").string(), "Stereo evaluation: " + src));

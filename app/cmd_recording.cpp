@@ -11,13 +11,12 @@
 
 #include "app/cli.hpp"
 #include "pipeline/scene_file.hpp"
+#include "pipeline/sources.hpp"
 #include "recorder/euroc.hpp"
 #include "recorder/mcap_export.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/recorder.hpp"
 #include "recorder/replay_source.hpp"
-#include "pipeline/sources.hpp"
-#include "pipeline/scene_file.hpp"
 
 namespace augrig::app {
 namespace {
@@ -66,8 +65,9 @@ const std::vector<OptionSpec>& replay_specs() {
            "writes the rest from it)"},
       rig_option("the recorded rig"),
       scene_option("each frame's recorded boom and receiver pose"),
-      poses_option("e.g. fused from the logs an export of this recording wrote; the boom tracks the receptacle "
-                   "unless --boom"),
+      poses_option(
+          "e.g. fused from the logs an export of this recording wrote; the boom tracks the receptacle "
+          "unless --boom"),
       pose_tolerance_option(),
       receiver_draw_option(),
       boom_option("the recorded boom; track where none was recorded"),
@@ -119,14 +119,16 @@ void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayCon
     runtime_error(c.from + ": no rig is stored with the frames; give one with --rig");
   parts.rig = a.has("rig") ? load_rig_arg(a.get("rig")) : c.stored_rig ? *c.stored_rig : Rig::paper_default();
   if (parts.rig.cameras.size() != 2)
-    runtime_error(parts.rig.source + ": the rig needs 2 cameras, has " + std::to_string(parts.rig.cameras.size()));
+    runtime_error(parts.rig.source + ": the rig needs 2 cameras, has " +
+                  std::to_string(parts.rig.cameras.size()));
   parts.models = unwrap(load_rig_models(parts.rig));
   parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
   if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
   if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
   if (a.has("scene")) {
     parts.poses = fixed_scene_poses(
-        unwrap(load_scene(a.get("scene"), parts.rig, BoomDimensions{}, parts.models.receptacle_m)), a.get("scene"));
+        unwrap(load_scene(a.get("scene"), parts.rig, BoomDimensions{}, parts.models.receptacle_m)),
+        a.get("scene"));
   } else if (a.has("poses")) {
     parts.poses = unwrap(poses_csv(a.get("poses"), parts.rig, parse_pose_tolerance(a)));
     parts.skip_frames_without_pose = true;  // a frame without its row is reported, not guessed
@@ -170,10 +172,11 @@ void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayCon
 int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out, std::ostream& err) {
   if (a.has("loop")) usage_error("--loop: a EuRoC folder plays once (replay a recording to loop)");
   if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
-  std::string params = "?tolerance_ns=" + std::to_string(a.has("pair-tolerance-ns")
-                                                              ? parse_integer("pair-tolerance-ns",
-                                                                              a.get("pair-tolerance-ns"), 0, 1LL << 40)
-                                                              : 0);
+  std::string params =
+      "?tolerance_ns=" +
+      std::to_string(a.has("pair-tolerance-ns")
+                         ? parse_integer("pair-tolerance-ns", a.get("pair-tolerance-ns"), 0, 1LL << 40)
+                         : 0);
   if (a.has("seek")) {
     if (parse_real("seek", a.get("seek")) < 0)
       usage_error("--seek: expected seconds from the first frame (>= 0), got '" + a.get("seek") + "'");
@@ -185,7 +188,8 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
   const std::string target = dir.rfind("euroc://", 0) == 0 ? dir.substr(8) : dir;
   OpenedSource opened = unwrap(open_sources("euroc://" + target + params));
   auto* euroc = dynamic_cast<recorder::EurocSource*>(opened.sources.front().get());
-  if (euroc && frames) check(euroc->set_end_pair(euroc->start_pair() + std::min(frames, euroc->pair_count())));
+  if (euroc && frames)
+    check(euroc->set_end_pair(euroc->start_pair() + std::min(frames, euroc->pair_count())));
   const std::size_t pairs = euroc ? euroc->pair_count() : 0;
   const std::uint64_t unpaired = euroc ? euroc->unpaired() : 0;
   PipelineParts parts;
@@ -200,11 +204,16 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
   const PipelineReport r = run_pipeline(pipeline, !a.has("headless"), a.get("out", "."), out, err);
   out << "Replayed " << r.pairs << " stereo frame(s)\n";
   if (r.recording_closed) {
-    out << "Recorded " << r.recorder_stats.frames_committed << " stereo frame(s) to " << a.get("record") << "\n";
-    if (!*r.recording_closed) runtime_error("the recording stopped: " + user_message(r.recording_closed->error()));
+    out << "Recorded " << r.recorder_stats.frames_committed << " stereo frame(s) to " << a.get("record")
+        << "\n";
+    if (!*r.recording_closed)
+      runtime_error("the recording stopped: " + user_message(r.recording_closed->error()));
   }
-  const std::uint64_t unreadable = r.source.camera_drops > unpaired ? (r.source.camera_drops - unpaired) / 2 : 0;
-  if (unreadable) runtime_error(std::to_string(unreadable) + " pair(s) could not be read (above); the others were replayed");
+  const std::uint64_t unreadable =
+      r.source.camera_drops > unpaired ? (r.source.camera_drops - unpaired) / 2 : 0;
+  if (unreadable)
+    runtime_error(std::to_string(unreadable) +
+                  " pair(s) could not be read (above); the others were replayed");
   return kExitOk;
 }
 
@@ -213,19 +222,23 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
 // stores (metadata augrig_recording) unless --rig gives another.
 int replay_mcap(const std::string& file, const ParsedArgs& a, std::ostream& out, std::ostream& err) {
   for (const char* flag : {"rate", "seek", "from-frame", "loop", "pair-tolerance-ns"})
-    if (a.has(flag)) usage_error(std::string("--") + flag + ": an MCAP file plays once, from its first frame, as fast as possible");
+    if (a.has(flag))
+      usage_error(std::string("--") + flag +
+                  ": an MCAP file plays once, from its first frame, as fast as possible");
   const std::string path = file.rfind("replay://", 0) == 0 ? file.substr(9) : file;
   OpenedSource opened = unwrap(open_sources("replay://" + path + "?rate=fast"));
   const auto* mcap = dynamic_cast<const recorder::McapSource*>(opened.sources.front().get());
   const std::size_t frames = mcap ? mcap->frame_count() : 0;
   std::optional<Rig> recorded_rig;
   if (mcap && mcap->meta().count("rig_yaml"))
-    recorded_rig = unwrap(parse_rig(mcap->meta().at("rig_yaml"), path + " (metadata augrig_recording, rig_yaml)"));
+    recorded_rig =
+        unwrap(parse_rig(mcap->meta().at("rig_yaml"), path + " (metadata augrig_recording, rig_yaml)"));
   PipelineParts parts;
   configure_replay(parts, a, {path, recorded_rig, false, true, ""});
   parts.max_pairs = replay_frames(a);  // the first N augmented
   out << "replay: " << path << " (MCAP), " << frames << " stereo frames; rig "
-      << (a.has("rig") ? parts.rig.source : std::string("as recorded")) << ", " << replay_poses_text(a) << "\n";
+      << (a.has("rig") ? parts.rig.source : std::string("as recorded")) << ", " << replay_poses_text(a)
+      << "\n";
   parts.source_info = opened;
   parts.source = unwrap(start_stereo(std::move(opened)));
   parts.progress_total = parts.max_pairs ? std::min<std::uint64_t>(frames, parts.max_pairs) : frames;
@@ -238,16 +251,19 @@ int replay_mcap(const std::string& file, const ParsedArgs& a, std::ostream& out,
   const PipelineReport r = run_pipeline(pipeline, !a.has("headless"), a.get("out", "."), out, err);
   out << "Replayed " << r.pairs << " stereo frame(s)\n";
   if (r.comparable)
-    out << "Recorded statistics reproduced exactly (same pixel counts) in " << r.reproduced << " of " << r.comparable
-        << " frame(s)\n";
+    out << "Recorded statistics reproduced exactly (same pixel counts) in " << r.reproduced << " of "
+        << r.comparable << " frame(s)\n";
   if (r.skipped_no_pose)
     out << r.skipped_no_pose << " frame(s) had no recorded scene and were not augmented (give --scene)\n";
   if (r.recording_closed) {
-    out << "Recorded " << r.recorder_stats.frames_committed << " stereo frame(s) to " << a.get("record") << "\n";
-    if (!*r.recording_closed) runtime_error("the recording stopped: " + user_message(r.recording_closed->error()));
+    out << "Recorded " << r.recorder_stats.frames_committed << " stereo frame(s) to " << a.get("record")
+        << "\n";
+    if (!*r.recording_closed)
+      runtime_error("the recording stopped: " + user_message(r.recording_closed->error()));
   }
   if (problems || r.source_failed)
-    runtime_error(path + ": the MCAP file is damaged or could not be read (above); the frames before were replayed");
+    runtime_error(path +
+                  ": the MCAP file is damaged or could not be read (above); the frames before were replayed");
   return kExitOk;
 }
 
@@ -256,7 +272,8 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   const ParsedArgs a = parse_with_positionals(args, replay_specs(), {"DIR"}, pos);
   if (a.help) {
     out << format_help(
-        "augrig replay DIR [--rate X|--fast] [--seek T_S|--from-frame N] [--frames N|--loop N] [--out DIR] [--rig RIG] "
+        "augrig replay DIR [--rate X|--fast] [--seek T_S|--from-frame N] [--frames N|--loop N] [--out DIR] "
+        "[--rig RIG] "
         "[--scene SCENE.yaml] [--record DIR] [--headless]",
         "DIR may also be a EuRoC/ASL folder (mav0/cam0, cam1): then --scene is required.\n"
         "Plays a recording's raw frames back (replay://DIR) through the pipeline again: with the recorded\n"
@@ -269,7 +286,8 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
     return kExitOk;
   }
   if (a.has("ground-truth") && !a.has("out") && !a.has("record"))
-    usage_error("--ground-truth needs --out DIR (where the files go) or --record DIR (stored in the new recording)");
+    usage_error(
+        "--ground-truth needs --out DIR (where the files go) or --record DIR (stored in the new recording)");
   if (pos[0].rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(pos[0]) / "mav0") ||
       fs::path(pos[0]).filename() == "mav0")
     return replay_euroc(pos[0], a, out, err);
@@ -280,7 +298,9 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
   // The replay:// URI carries the player's settings (pipeline/sources.hpp, docs/REPLAY.md).
   std::string params;
-  auto param = [&](const std::string& k, const std::string& v) { params += (params.empty() ? "?" : "&") + k + "=" + v; };
+  auto param = [&](const std::string& k, const std::string& v) {
+    params += (params.empty() ? "?" : "&") + k + "=" + v;
+  };
   double rate = 0;
   if (a.has("rate")) {
     rate = parse_real("rate", a.get("rate"));
@@ -292,7 +312,8 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   }
   if (a.has("seek")) {
     const double t = parse_real("seek", a.get("seek"));
-    if (t < 0) usage_error("--seek: expected seconds from the first frame (>= 0), got '" + a.get("seek") + "'");
+    if (t < 0)
+      usage_error("--seek: expected seconds from the first frame (>= 0), got '" + a.get("seek") + "'");
     param("seek_s", a.get("seek"));
   }
   if (a.has("from-frame"))
@@ -312,7 +333,8 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   const recorder::RecordingReader& reader = source.reader();
   // A truncated or damaged recording: what is missing is said now, the readable frames are
   // replayed, and the exit status is 1.
-  for (const std::string& p : reader.problems()) err << "augrig replay: " << recording_problem(reader, p) << "\n";
+  for (const std::string& p : reader.problems())
+    err << "augrig replay: " << recording_problem(reader, p) << "\n";
   if (source.frame_count() == 0)
     runtime_error(reader.path() + ": the recording holds no readable frames" +
                   (reader.problems().empty() ? std::string() : " (above: what is damaged or missing)"));
@@ -323,18 +345,20 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (!a.has("scene") && !a.has("poses"))
     if (auto first = reader.read_frame_info(source.start_frame());
         first && !first->boom && !first->T_body_receiver && !first->T_cam_receiver[0])
-      runtime_error(reader.path() + ": frame " + std::to_string(source.start_frame()) +
-                    " has no recorded scene (boom articulation, receiver pose); give one with --scene SCENE.yaml "
-                    "or --poses POSES.csv");
+      runtime_error(
+          reader.path() + ": frame " + std::to_string(source.start_frame()) +
+          " has no recorded scene (boom articulation, receiver pose); give one with --scene SCENE.yaml "
+          "or --poses POSES.csv");
   PipelineParts parts;
   configure_replay(parts, a, {reader.path(), recorded_rig, false, true, reader.meta("clock_domains")});
   parts.source_info = opened;
   const fs::path out_dir = a.get("out");
   out << "replay: " << source.uri() << ", " << source.frame_count() << " stereo frames, from frame "
-      << source.start_frame() << (frames ? " to " + std::to_string(source.end_frame() - 1) : std::string()) << ", "
-      << (rate > 0 ? "real rate x" + fmt_ms(rate) : std::string("as fast as possible"))
+      << source.start_frame() << (frames ? " to " + std::to_string(source.end_frame() - 1) : std::string())
+      << ", " << (rate > 0 ? "real rate x" + fmt_ms(rate) : std::string("as fast as possible"))
       << (passes > 1 ? ", " + std::to_string(passes) + " passes" : std::string()) << "; rig "
-      << (a.has("rig") ? parts.rig.source : std::string("as recorded")) << ", " << replay_poses_text(a) << "\n";
+      << (a.has("rig") ? parts.rig.source : std::string("as recorded")) << ", " << replay_poses_text(a)
+      << "\n";
   parts.on_problem = [&err](const Error& e) { err << "augrig replay: " << user_message(e) << "\n"; };
   parts.source = unwrap(start_stereo(std::move(opened)));
   parts.status_every_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 0;
@@ -351,25 +375,29 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
         << to_string(r.rasterizer) << " rasteriser)";
   out << "\n";
   if (r.comparable)
-    out << "Recorded statistics reproduced exactly (same pixel counts) in " << r.reproduced << " of " << r.comparable
-        << " frame(s)\n";
+    out << "Recorded statistics reproduced exactly (same pixel counts) in " << r.reproduced << " of "
+        << r.comparable << " frame(s)\n";
   if (r.skipped_no_pose)
     out << r.skipped_no_pose << " frame(s) had no recorded scene and were not augmented (give --scene)\n";
   const std::uint64_t one_camera = r.source.pairing.unpaired_left + r.source.pairing.unpaired_right;
-  if (one_camera) out << one_camera << " recorded frame(s) had only one camera's image and were not augmented\n";
+  if (one_camera)
+    out << one_camera << " recorded frame(s) had only one camera's image and were not augmented\n";
   if (a.has("out"))
     out << "Wrote " << (out_dir / "stats.csv").string() << " and the images of 1 in " << every << " frames\n";
   if (r.recording_closed) {
-    out << "Recorded " << r.recorder_stats.frames_committed << " stereo frame(s) to " << a.get("record") << " ("
-        << r.recorder_stats.frames_dropped << " dropped by the recorder)\n";
-    if (!*r.recording_closed) runtime_error("the recording stopped: " + user_message(r.recording_closed->error()));
+    out << "Recorded " << r.recorder_stats.frames_committed << " stereo frame(s) to " << a.get("record")
+        << " (" << r.recorder_stats.frames_dropped << " dropped by the recorder)\n";
+    if (!*r.recording_closed)
+      runtime_error("the recording stopped: " + user_message(r.recording_closed->error()));
   }
   const std::uint64_t damaged = pipeline.parts().source_info.replay->damaged_frames();
   if (!reader.problems().empty())
-    runtime_error("the recording is incomplete (above); " +
-                  (damaged ? std::to_string(damaged) + " listed frame(s) could not be read, " : std::string()) +
-                  "the others were replayed");
-  if (damaged) runtime_error(std::to_string(damaged) + " frame(s) could not be read (above); the others were replayed");
+    runtime_error(
+        "the recording is incomplete (above); " +
+        (damaged ? std::to_string(damaged) + " listed frame(s) could not be read, " : std::string()) +
+        "the others were replayed");
+  if (damaged)
+    runtime_error(std::to_string(damaged) + " frame(s) could not be read (above); the others were replayed");
   if (r.stopped_by_signal) return kExitRuntime;
   return kExitOk;
 }

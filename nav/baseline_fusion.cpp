@@ -94,8 +94,8 @@ std::string BaselineFusionReport::summary() const {
   o.precision(3);
   o << innovation_rms_m << " m RMS; the solutions' sigma ";
   o.precision(1);
-  o << "x" << sigma_scale << " (" << (sigma_scale > 1.5 ? "optimistic" : "held") << "), their error's correlation time "
-    << correlation_s << " s";
+  o << "x" << sigma_scale << " (" << (sigma_scale > 1.5 ? "optimistic" : "held")
+    << "), their error's correlation time " << correlation_s << " s";
   return o.str();
 }
 
@@ -204,7 +204,8 @@ Expected<BaselineFusion> BaselineFusion::fuse(
   // filling the gaps between them.
   std::vector<Step> steps;
   steps.reserve(measurements.size());
-  const TimestampNs fill_ns = std::max<TimestampNs>(1'000'000, static_cast<TimestampNs>(options.fill_step_s * 1e9));
+  const TimestampNs fill_ns =
+      std::max<TimestampNs>(1'000'000, static_cast<TimestampNs>(options.fill_step_s * 1e9));
   for (const BaselineMeasurement& m : measurements) {
     ++r.measurements;
     if (!m.valid || m.carr_soln == 0 || !m.ned_m.allFinite()) {
@@ -225,7 +226,8 @@ Expected<BaselineFusion> BaselineFusion::fuse(
       for (TimestampNs t = steps.back().t_ns + fill_ns; t + fill_ns / 2 < m.t_ns; t += fill_ns)
         if (const auto g = ins_baseline(t))
           steps.push_back({t, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero(), g->cov_ned_m2, false, false});
-    steps.push_back({m.t_ns, m.ned_m - ins->ned_m, baseline_noise(m, options), ins->cov_ned_m2, true, is_float});
+    steps.push_back(
+        {m.t_ns, m.ned_m - ins->ned_m, baseline_noise(m, options), ins->cov_ned_m2, true, is_float});
   }
   // How honest the solutions' sigma is, and how fast their error wanders, unless given: the pair
   // whose innovations are most likely.

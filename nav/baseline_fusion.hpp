@@ -53,8 +53,8 @@ struct InsBaselineSample {
 };
 
 struct BaselineFusionOptions {
-  double sigma_scale = 0;       // s; 0: the most likely of 1 .. 1000
-  double correlation_s = 0;     // tau; 0: the most likely of 0.3 .. 300 s
+  double sigma_scale = 0;             // s; 0: the most likely of 1 .. 1000
+  double correlation_s = 0;           // tau; 0: the most likely of 0.3 .. 300 s
   double sigma_floor_m = 0.005;       // no measurement trusted below this per axis
   double float_sigma_floor_m = 0.30;  // float solutions (ambiguities not fixed: biased by decimetres)
   bool use_float = true;
@@ -69,8 +69,8 @@ struct BaselineFusionOptions {
 Eigen::Matrix3d baseline_noise(const BaselineMeasurement& m, const BaselineFusionOptions& options);
 
 struct BaselineCorrection {
-  Eigen::Vector3d e_ned_m = Eigen::Vector3d::Zero();        // add to the INS baseline
-  Eigen::Matrix3d cov_ned_m2 = Eigen::Matrix3d::Zero();     // of the corrected baseline
+  Eigen::Vector3d e_ned_m = Eigen::Vector3d::Zero();     // add to the INS baseline
+  Eigen::Matrix3d cov_ned_m2 = Eigen::Matrix3d::Zero();  // of the corrected baseline
   Eigen::Vector3d sigma_ned_m() const { return cov_ned_m2.diagonal().cwiseSqrt(); }
 };
 
@@ -91,8 +91,8 @@ class BaselineFilter {
                  bool keep_history = false);
   // A measurement epoch: z = baseline - INS baseline, its noise R, the solutions' covariance Sigma
   // there. Times must increase (an older one is counted out of order and left out).
-  void measure(TimestampNs t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R, const Eigen::Matrix3d& Sigma,
-               bool is_float);
+  void measure(TimestampNs t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
+               const Eigen::Matrix3d& Sigma, bool is_float);
   // A prediction epoch (in a gap), after the first measurement.
   void predict(TimestampNs t_ns, const Eigen::Matrix3d& Sigma);
   // The newest state carried forward to t_ns; nullopt before it, before any measurement, or more

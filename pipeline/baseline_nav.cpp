@@ -60,15 +60,16 @@ Expected<RoverLog> load_rover_log(const std::string& path, TimestampNs reference
 }
 
 InsBaseline ins_baseline(const nav::NavState& tanker, const nav::NavState& receiver,
-                         const Eigen::Vector3d& tanker_antenna_body_m, const Eigen::Vector3d& receiver_antenna_body_m) {
+                         const Eigen::Vector3d& tanker_antenna_body_m,
+                         const Eigen::Vector3d& receiver_antenna_body_m) {
   const Eigen::Vector3d a = tanker.p_ecef_m + tanker.q_ecef_body * tanker_antenna_body_m;
   const Eigen::Vector3d b = receiver.p_ecef_m + receiver.q_ecef_body * receiver_antenna_body_m;
   const nav::Geodetic g = nav::geodetic_from_ecef(a);
   InsBaseline out;
   out.R_ecef_ned = nav::R_ecef_ned(g.lat_rad, g.lon_rad);
   out.ned_m = out.R_ecef_ned.transpose() * (b - a);
-  const Eigen::Matrix3d P = tanker.P.block<3, 3>(nav::kErrPos, nav::kErrPos) +
-                            receiver.P.block<3, 3>(nav::kErrPos, nav::kErrPos);
+  const Eigen::Matrix3d P =
+      tanker.P.block<3, 3>(nav::kErrPos, nav::kErrPos) + receiver.P.block<3, 3>(nav::kErrPos, nav::kErrPos);
   out.cov_ned_m2 = out.R_ecef_ned.transpose() * P * out.R_ecef_ned;
   return out;
 }
@@ -120,8 +121,8 @@ bool BaselineNav::correct(TimestampNs t_nav_ns, nav::NavState& tanker, nav::NavS
   if (!fusion_) return false;
   const auto c = fusion_->at(t_nav_ns);
   if (!c) return false;
-  apply_baseline_correction(*c, ins_baseline(tanker, receiver, tanker_antenna_m_, receiver_antenna_m_), tanker,
-                            receiver);
+  apply_baseline_correction(*c, ins_baseline(tanker, receiver, tanker_antenna_m_, receiver_antenna_m_),
+                            tanker, receiver);
   return true;
 }
 
@@ -129,9 +130,9 @@ bool BaselineNav::correct(TimestampNs t_nav_ns, nav::NavState& tanker, nav::NavS
 
 std::string LiveBaselineReport::summary() const {
   std::ostringstream o;
-  o << "moving baseline: " << received << " vectors received: " << received - invalid - float_skipped - out_of_order
-    << " usable, " << invalid << " without a valid vector, " << float_skipped << " float skipped, " << out_of_order
-    << " out of order";
+  o << "moving baseline: " << received
+    << " vectors received: " << received - invalid - float_skipped - out_of_order << " usable, " << invalid
+    << " without a valid vector, " << float_skipped << " float skipped, " << out_of_order << " out of order";
   return o.str();
 }
 
@@ -166,10 +167,9 @@ LiveBaselineReport LiveBaseline::report() const {
   return report_;
 }
 
-std::optional<nav::BaselineCorrection> LiveBaseline::at(TimestampNs t_ns, const nav::NavState& tanker,
-                                                         const nav::NavState& receiver, const StatesAt& states_at,
-                                                         const Eigen::Vector3d& tanker_antenna_body_m,
-                                                         const Eigen::Vector3d& receiver_antenna_body_m) const {
+std::optional<nav::BaselineCorrection> LiveBaseline::at(
+    TimestampNs t_ns, const nav::NavState& tanker, const nav::NavState& receiver, const StatesAt& states_at,
+    const Eigen::Vector3d& tanker_antenna_body_m, const Eigen::Vector3d& receiver_antenna_body_m) const {
   std::vector<nav::BaselineMeasurement> ms;
   {
     std::lock_guard lock(mutex_);
@@ -181,12 +181,12 @@ std::optional<nav::BaselineCorrection> LiveBaseline::at(TimestampNs t_ns, const 
   const Eigen::Matrix3d R_ned_ecef = now.R_ecef_ned.transpose();
   // The relative velocity's uncertainty (NED variances), for the weight of an older vector.
   // A forward filter's velocity sigma is optimistic between its jumps: at least min_relative_sigma_mps.
-  const Eigen::Vector3d var_v =
-      (R_ned_ecef *
-       (tanker.P.block<3, 3>(nav::kErrVel, nav::kErrVel) + receiver.P.block<3, 3>(nav::kErrVel, nav::kErrVel)) *
-       now.R_ecef_ned)
-          .diagonal()
-          .cwiseMax(min_relative_sigma_mps_ * min_relative_sigma_mps_);
+  const Eigen::Vector3d var_v = (R_ned_ecef *
+                                 (tanker.P.block<3, 3>(nav::kErrVel, nav::kErrVel) +
+                                  receiver.P.block<3, 3>(nav::kErrVel, nav::kErrVel)) *
+                                 now.R_ecef_ned)
+                                    .diagonal()
+                                    .cwiseMax(min_relative_sigma_mps_ * min_relative_sigma_mps_);
   struct Carried {
     Eigen::Vector3d b, var;
   };

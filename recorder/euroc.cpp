@@ -20,12 +20,11 @@
 #include <sstream>
 #include <thread>
 
-#include <zlib.h>
-
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <yaml-cpp/yaml.h>
+#include <zlib.h>
 
 #include "core/file_check.hpp"
 #include "nav/gps_time.hpp"
@@ -146,7 +145,8 @@ double snap_unit(double v) {
 std::string matrix_row_major(const Eigen::Matrix4d& T) {
   std::string s = "[";
   for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c) s += (r || c ? ", " : "") + num(r < 3 && c < 3 ? snap_unit(T(r, c)) : T(r, c));
+    for (int c = 0; c < 4; ++c)
+      s += (r || c ? ", " : "") + num(r < 3 && c < 3 ? snap_unit(T(r, c)) : T(r, c));
   return s + "]";
 }
 
@@ -192,7 +192,9 @@ class PngEncoder {
   PngEncoder(int compression, PngKind kind) : kind_(kind) {
     compression = std::clamp(compression, 0, 9);
     filter_ = compression == 0 ? 0 : kind == PngKind::kMask ? 2 : 1;
-    const int strategy = compression != 1 ? Z_DEFAULT_STRATEGY : kind == PngKind::kMask ? Z_RLE : Z_HUFFMAN_ONLY;
+    const int strategy = compression != 1         ? Z_DEFAULT_STRATEGY
+                         : kind == PngKind::kMask ? Z_RLE
+                                                  : Z_HUFFMAN_ONLY;
     // A band may refer back into the one before unless each starts a fresh stream; that matters
     // only where bands are swapped (images) and the coding has back-references (not Huffman-only,
     // not stored). Resetting costs a clear of the hash table per band.
@@ -214,19 +216,23 @@ class PngEncoder {
     out.width = image.width();
     out.height = image.height();
     out.channels = bytes_per_pixel(image.format());
-    const std::size_t row_bytes = static_cast<std::size_t>(out.width) * static_cast<std::size_t>(out.channels);
+    const std::size_t row_bytes =
+        static_cast<std::size_t>(out.width) * static_cast<std::size_t>(out.channels);
     const int bands = (out.height + kBandRows - 1) / kBandRows;
     out.bands.resize(static_cast<std::size_t>(bands));
-    const bool can_reuse = kind_ == PngKind::kImage && reuse && reuse_pixels && reuse->width == out.width && reuse->height == out.height &&
-                           reuse->channels == out.channels && reuse->bands.size() == out.bands.size() &&
-                           reuse_pixels->width() == out.width && reuse_pixels->height() == out.height;
+    const bool can_reuse = kind_ == PngKind::kImage && reuse && reuse_pixels && reuse->width == out.width &&
+                           reuse->height == out.height && reuse->channels == out.channels &&
+                           reuse->bands.size() == out.bands.size() && reuse_pixels->width() == out.width &&
+                           reuse_pixels->height() == out.height;
     for (int b = 0; b < bands; ++b) {
       const int y0 = b * kBandRows, y1 = std::min(out.height, y0 + kBandRows);
       if (can_reuse) {
         bool same = true;
-        for (int y = y0; y < y1 && same; ++y) same = std::memcmp(image.row(y), reuse_pixels->row(y), row_bytes) == 0;
+        for (int y = y0; y < y1 && same; ++y)
+          same = std::memcmp(image.row(y), reuse_pixels->row(y), row_bytes) == 0;
         // Up reaches into the row above the band: that row must be the same too.
-        if (same && filter_ == 2 && y0 > 0) same = std::memcmp(image.row(y0 - 1), reuse_pixels->row(y0 - 1), row_bytes) == 0;
+        if (same && filter_ == 2 && y0 > 0)
+          same = std::memcmp(image.row(y0 - 1), reuse_pixels->row(y0 - 1), row_bytes) == 0;
         if (same) {
           out.bands[static_cast<std::size_t>(b)] = reuse->bands[static_cast<std::size_t>(b)];
           continue;
@@ -251,8 +257,10 @@ class PngEncoder {
       }
       PngBand& band = out.bands[static_cast<std::size_t>(b)];
       band.length = filtered_.size();
-      band.adler = static_cast<std::uint32_t>(adler32(1L, filtered_.data(), static_cast<uInt>(filtered_.size())));
-      if ((b == 0 || reset_each_band_) && deflateReset(&z_) != Z_OK) return make_error("zlib: deflateReset failed");
+      band.adler =
+          static_cast<std::uint32_t>(adler32(1L, filtered_.data(), static_cast<uInt>(filtered_.size())));
+      if ((b == 0 || reset_each_band_) && deflateReset(&z_) != Z_OK)
+        return make_error("zlib: deflateReset failed");
       band.bytes.resize(deflateBound(&z_, static_cast<uLong>(filtered_.size())) + 64);
       z_.next_in = filtered_.data();
       z_.avail_in = static_cast<uInt>(filtered_.size());
@@ -351,7 +359,8 @@ class LowerEnvelope {
     if (knots_.empty()) return 0;
     if (x <= knots_.front().first) return knots_.front().second;
     if (x >= knots_.back().first) return knots_.back().second;
-    const auto it = std::upper_bound(knots_.begin(), knots_.end(), std::pair{x, std::numeric_limits<TimestampNs>::min()});
+    const auto it =
+        std::upper_bound(knots_.begin(), knots_.end(), std::pair{x, std::numeric_limits<TimestampNs>::min()});
     const auto& [x1, d1] = *it;
     const auto& [x0, d0] = *(it - 1);
     const double f = static_cast<double>(x - x0) / static_cast<double>(x1 - x0);
@@ -370,7 +379,7 @@ struct ExportClock {
   TimestampNs constant_ns[2] = {0, 0};  // kConstant: t - constant
   LowerEnvelope device_to_host[2];      // host - device, per camera (kThroughHost)
   bool frames_on_host = false;
-  LowerEnvelope host_to_gps;            // host arrival - GPS time (kThroughHost)
+  LowerEnvelope host_to_gps;  // host arrival - GPS time (kThroughHost)
 
   TimestampNs map(int camera, TimestampNs t_ns) const {
     switch (mode) {
@@ -415,7 +424,8 @@ void add_clock_offset_events(const std::vector<EventRecord>& events, LowerEnvelo
     };
     const std::string cam = field("camera");
     TimestampNs t = 0, off = 0;
-    if ((cam != "left" && cam != "right") || !parse_i64(field("t_device_ns"), t) || !parse_i64(field("offset_ns"), off))
+    if ((cam != "left" && cam != "right") || !parse_i64(field("t_device_ns"), t) ||
+        !parse_i64(field("offset_ns"), off))
       continue;
     device_to_host[cam == "left" ? 0 : 1].add(t, off);
   }
@@ -432,7 +442,8 @@ struct ImuStreamData {
   std::string first_error;
 };
 
-Expected<ImuStreamData> imu_stream_data(const std::vector<const NavInputRecord*>& rows, const std::string& name) {
+Expected<ImuStreamData> imu_stream_data(const std::vector<const NavInputRecord*>& rows,
+                                        const std::string& name) {
   ImuStreamData out;
   std::string text;
   bool any_text = false, any_binary = false;
@@ -761,7 +772,8 @@ std::string ground_truth_yaml(int k, const RigCamera& camera, double rate_hz, Cl
     << "comment: \"" << kGtContent[k] << "\"\n"
     << "rate_hz: " << num_rate << "\n"
     << "resolution: [" << camera.model.width_px << ", " << camera.model.height_px << "]\n"
-    << "augrig:\n  stream: " << (std::string(kGtFolder[k]).substr(5)) << "\n  clock: " << to_string(clock) << "\n";
+    << "augrig:\n  stream: " << (std::string(kGtFolder[k]).substr(5)) << "\n  clock: " << to_string(clock)
+    << "\n";
   return o.str();
 }
 
@@ -793,7 +805,8 @@ Status write_receiver_states(const fs::path& dir, const std::vector<std::pair<Ti
   if (ec) return make_error(dir.string(), ": cannot create the folder (", ec.message(), ")");
   std::string csv =
       "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], "
-      "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], "
+      "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad "
+      "s^-1], "
       "b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]\n";
   const std::size_t n = states.size();
   for (std::size_t i = 0; i < n; ++i) {
@@ -805,29 +818,30 @@ Status write_receiver_states(const fs::path& dir, const std::vector<std::pair<Ti
           (static_cast<double>(states[b].first - states[a].first) * 1e-9);
     const Eigen::Quaterniond q = T.rotation.normalized();
     csv += std::to_string(t);
-    for (double x : {T.translation_m.x(), T.translation_m.y(), T.translation_m.z(), q.w(), q.x(), q.y(), q.z(), v.x(),
-                     v.y(), v.z()})
+    for (double x : {T.translation_m.x(), T.translation_m.y(), T.translation_m.z(), q.w(), q.x(), q.y(),
+                     q.z(), v.x(), v.y(), v.z()})
       csv += "," + num(x);
     csv += ",0,0,0,0,0,0\n";
   }
   if (auto s = write_text(dir / "data.csv", csv); !s) return s;
-  return write_text(dir / "sensor.yaml",
-                    "# The receiver's pose relative to the tanker, as recorded (augrig export; docs/REPLAY.md).\n"
-                    "# EuRoC's columns: R = the tanker body frame (FRD: x forward, y right, z down), S = the receiver\n"
-                    "# body frame (FRD); p_RS_R the receiver's origin in R (m), q_RS its rotation (Hamilton, w first),\n"
-                    "# v_RS_R central differences of p_RS_R over the exported frames, biases 0: not estimated.\n"
-                    "# Timestamps: the left camera's (cam0) t_ns of each stereo frame, on the export's clock.\n"
-                    "sensor_type: groundtruth\ncomment: receiver pose relative to the tanker body frame\n");
+  return write_text(
+      dir / "sensor.yaml",
+      "# The receiver's pose relative to the tanker, as recorded (augrig export; docs/REPLAY.md).\n"
+      "# EuRoC's columns: R = the tanker body frame (FRD: x forward, y right, z down), S = the receiver\n"
+      "# body frame (FRD); p_RS_R the receiver's origin in R (m), q_RS its rotation (Hamilton, w first),\n"
+      "# v_RS_R central differences of p_RS_R over the exported frames, biases 0: not estimated.\n"
+      "# Timestamps: the left camera's (cam0) t_ns of each stereo frame, on the export's clock.\n"
+      "sensor_type: groundtruth\ncomment: receiver pose relative to the tanker body frame\n");
 }
 
 // export --ground-truth of a frame recorded without its depth: which, and how to get it.
 Error no_depth_error(const RecordingReader& reader, std::size_t i, std::uint64_t pair_sequence,
                      const std::string& how_many = "") {
   const fs::path db(reader.path());
-  const std::string dir = db.filename() == "recording.sqlite" && db.has_parent_path() ? db.parent_path().string()
-                                                                                      : db.string();
-  return make_error(reader.path(), ": frame ", i, " (pair_sequence ", pair_sequence, ") holds no receiver depth",
-                    how_many,
+  const std::string dir =
+      db.filename() == "recording.sqlite" && db.has_parent_path() ? db.parent_path().string() : db.string();
+  return make_error(reader.path(), ": frame ", i, " (pair_sequence ", pair_sequence,
+                    ") holds no receiver depth", how_many,
                     ", and the ground truth is made from it: the recording was made without --ground-truth. "
                     "Store it by replaying the recording into a new one: augrig replay ",
                     dir, " --record NEW --ground-truth --headless; then export NEW --ground-truth");
@@ -921,13 +935,15 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
       for (auto& e : clk.device_to_host) e.finish();
       clk.mode = ExportClock::Mode::kThroughHost;
       clk.clock = ClockDomain::kGps;
-      clk.note = std::string("frames: ") +
-                 (all_host ? "host CLOCK_MONOTONIC"
-                           : "each camera's device clock -> host CLOCK_MONOTONIC (lower envelope of t_host_ns - t_ns, or "
-                             "the recording's clock_offset events)") +
-                 " -> GPS time (lower envelope of the nav inputs' host arrival minus their own time, " +
-                 std::to_string(clk.host_to_gps.size()) + " samples; host - GPS " +
-                 fmt_offset_ms(clk.host_to_gps.at(0)) + " at the start)";
+      clk.note =
+          std::string("frames: ") +
+          (all_host
+               ? "host CLOCK_MONOTONIC"
+               : "each camera's device clock -> host CLOCK_MONOTONIC (lower envelope of t_host_ns - t_ns, or "
+                 "the recording's clock_offset events)") +
+          " -> GPS time (lower envelope of the nav inputs' host arrival minus their own time, " +
+          std::to_string(clk.host_to_gps.size()) + " samples; host - GPS " +
+          fmt_offset_ms(clk.host_to_gps.at(0)) + " at the start)";
     }
   }
   if (clk.clock == ClockDomain::kUnknown) {
@@ -935,8 +951,9 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
     clk.note = "the frames' recorded clock (" + std::string(to_string(clk.clock)) +
                "): the recording gives no way to GPS time";
     if (!by_stream.empty())
-      report.notes.push_back("the frames could not be put on GPS time (no camera offsets and no nav input with "
-                             "both its own time and its host arrival): imu0 and the nav logs keep their own clock");
+      report.notes.push_back(
+          "the frames could not be put on GPS time (no camera offsets and no nav input with "
+          "both its own time and its host arrival): imu0 and the nav logs keep their own clock");
   }
   report.clock = clk.clock;
   report.clock_note = clk.note;
@@ -978,7 +995,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
   auto progress = [&](bool final) {
     if (!options.progress) return;
     const auto now = std::chrono::steady_clock::now();
-    if (!final && std::chrono::duration<double>(now - last_progress).count() < options.progress_interval_s) return;
+    if (!final && std::chrono::duration<double>(now - last_progress).count() < options.progress_interval_s)
+      return;
     last_progress = now;
     EurocExportProgress p;
     p.frames_total = n;
@@ -1063,12 +1081,14 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
       job.camera = c;
       bool any = false;
       for (int k = 0; k < 3; ++k) {
-        if (images[k]->empty() || (k == 2 && !options.masks)) continue;  // masks read for the ground truth only
+        if (images[k]->empty() || (k == 2 && !options.masks))
+          continue;  // masks read for the ground truth only
         StreamOut& so = streams[k][c];
         if (!so.created) {
           fs::create_directories(so.dir / "data", ec);
           if (ec)
-            return fail(make_error((so.dir / "data").string(), ": cannot create the folder (", ec.message(), ")"));
+            return fail(
+                make_error((so.dir / "data").string(), ": cannot create the folder (", ec.message(), ")"));
           so.created = true;
           so.format = images[k]->format();
           so.clock = clk.clock;
@@ -1124,10 +1144,11 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
       for (int c = 0; c < 2; ++c) {
         const CameraModel& m = rig.cameras[static_cast<std::size_t>(c)].model;
         if (r.receiver_depth[c].width != m.width_px || r.receiver_depth[c].height != m.height_px)
-          return fail(make_error(reader.path(), ": frame ", i, ": the ", c ? "right" : "left", " receiver depth is ",
-                                 r.receiver_depth[c].width, "x", r.receiver_depth[c].height, ", the rig's ",
-                                 rig.cameras[static_cast<std::size_t>(c)].name, " camera ", m.width_px, "x",
-                                 m.height_px, ": the ground truth needs the rig the recording was made with"));
+          return fail(
+              make_error(reader.path(), ": frame ", i, ": the ", c ? "right" : "left", " receiver depth is ",
+                         r.receiver_depth[c].width, "x", r.receiver_depth[c].height, ", the rig's ",
+                         rig.cameras[static_cast<std::size_t>(c)].name, " camera ", m.width_px, "x",
+                         m.height_px, ": the ground truth needs the rig the recording was made with"));
       }
       CameraJob job;
       job.rec = shared;
@@ -1148,7 +1169,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
         if (!so.created) {
           fs::create_directories(so.dir / "data", ec);
           if (ec)
-            return fail(make_error((so.dir / "data").string(), ": cannot create the folder (", ec.message(), ")"));
+            return fail(
+                make_error((so.dir / "data").string(), ": cannot create the folder (", ec.message(), ")"));
           so.created = true;
         }
         if (!so.seen.insert(t).second) continue;  // a repeated time: reported with the images
@@ -1192,7 +1214,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
       if (w.width != cam.model.width_px || w.height != cam.model.height_px) {
         report.notes.push_back(w.dir.filename().string() + ": images are " + std::to_string(w.width) + "x" +
                                std::to_string(w.height) + ", the rig's " + cam.name + " camera is " +
-                               std::to_string(cam.model.width_px) + "x" + std::to_string(cam.model.height_px));
+                               std::to_string(cam.model.width_px) + "x" +
+                               std::to_string(cam.model.height_px));
       }
       const char* stream = k == 0 ? "raw" : k == 1 ? "augmented" : "mask";
       if (auto s = write_text(w.dir / "sensor.yaml", euroc_camera_yaml(cam, c == 0 ? "left" : "right", stream,
@@ -1207,8 +1230,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
     if (auto s = write_text(g.dir / "data.csv", std::string(kCameraCsvHeader) + "\n" + g.csv); !s)
       return make_error(where, s.error().message);
     if (auto s = write_text(g.dir / "sensor.yaml",
-                            ground_truth_yaml(k, rig.cameras[static_cast<std::size_t>(kGtCamera[k])], report.rate_hz,
-                                              clk.clock));
+                            ground_truth_yaml(k, rig.cameras[static_cast<std::size_t>(kGtCamera[k])],
+                                              report.rate_hz, clk.clock));
         !s)
       return make_error(where, s.error().message);
   }
@@ -1217,7 +1240,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
                            " ns): readers that pair cam0 and cam1 by identical timestamps need a tolerance");
   }
   if (options.augmented && streams[1][0].written + streams[1][1].written == 0)
-    report.notes.push_back("no augmented images in the recording: cam0_augmented, cam1_augmented not written");
+    report.notes.push_back(
+        "no augmented images in the recording: cam0_augmented, cam1_augmented not written");
   if (options.masks && streams[2][0].written + streams[2][1].written == 0)
     report.notes.push_back("no masks in the recording: cam0_mask, cam1_mask not written");
 
@@ -1237,17 +1261,20 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
         if (imus.size() == 1) stream = imus[0];
         several = imus.size() > 1;
         if (several)
-          report.notes.push_back("several IMU streams and none is 'imu' or 'tanker.imu': imu0 not written (choose one)");
+          report.notes.push_back(
+              "several IMU streams and none is 'imu' or 'tanker.imu': imu0 not written (choose one)");
       }
     } else if (!by_stream.count(stream)) {
-      report.problems.push_back("nav input stream '" + stream + "' is not in the recording; imu0 not exported");
+      report.problems.push_back("nav input stream '" + stream +
+                                "' is not in the recording; imu0 not exported");
       stream.clear();
     }
     if (stream.empty() && options.imu_stream.empty() && !several) {
       std::string names;
       for (const auto& [name, rows] : by_stream) names += (names.empty() ? "" : ", ") + name;
-      report.notes.push_back(by_stream.empty() ? "no nav inputs in the recording: imu0 not written"
-                                               : "no IMU stream among the nav inputs (" + names + "): imu0 not written");
+      report.notes.push_back(by_stream.empty()
+                                 ? "no nav inputs in the recording: imu0 not written"
+                                 : "no IMU stream among the nav inputs (" + names + "): imu0 not written");
     }
     if (!stream.empty()) {
       auto data = imu_stream_data(by_stream[stream], reader.path() + " nav_input '" + stream + "'");
@@ -1263,23 +1290,26 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
           // The increments' mean rates, stamped at the middle of their interval (t_ns - dt/2).
           const TimestampNs tm = s.t_ns - s_to_ns(0.5 * s.dt_s);
           const Eigen::Vector3d w = s.dtheta_rad / s.dt_s, a = s.dv_mps / s.dt_s;
-          csv += std::to_string(tm) + "," + num(w.x()) + "," + num(w.y()) + "," + num(w.z()) + "," + num(a.x()) +
-                 "," + num(a.y()) + "," + num(a.z()) + "\n";
+          csv += std::to_string(tm) + "," + num(w.x()) + "," + num(w.y()) + "," + num(w.z()) + "," +
+                 num(a.x()) + "," + num(a.y()) + "," + num(a.z()) + "\n";
           t.push_back(tm);
         }
         report.imu_stream = stream;
         report.imu_samples = t.size();
         if (data->repeats > 0)
-          report.notes.push_back("imu0: " + std::to_string(data->repeats) + " out-of-order or repeated samples dropped");
+          report.notes.push_back("imu0: " + std::to_string(data->repeats) +
+                                 " out-of-order or repeated samples dropped");
         if (data->undecodable > 0)
-          report.problems.push_back("imu0: " + std::to_string(data->undecodable) + " IMU datagram(s) of '" + stream +
-                                    "' do not decode, their samples are missing (first: " + data->first_error + ")");
+          report.problems.push_back(
+              "imu0: " + std::to_string(data->undecodable) + " IMU datagram(s) of '" + stream +
+              "' do not decode, their samples are missing (first: " + data->first_error + ")");
         if (data->clock != clk.clock)
           report.notes.push_back("imu0 is on the IMU's own clock (" + std::string(to_string(data->clock)) +
                                  "), not the frames' (" + std::string(to_string(clk.clock)) + ")");
         if (auto s = write_text(dir / "data.csv", csv); !s) return make_error(where, s.error().message);
         std::ostringstream y;
-        y << "# augrig export: nav input stream '" << stream << "' as rates. Each row is the mean rate over one\n"
+        y << "# augrig export: nav input stream '" << stream
+          << "' as rates. Each row is the mean rate over one\n"
           << "# recorded increment, stamped at the middle of its interval. The IMU axes are the body axes\n"
           << "# (tanker body FRD), so T_BS is the identity. Noise densities are not known to augrig.\n"
           << "sensor_type: imu\n"
@@ -1287,7 +1317,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
           << "T_BS:\n  cols: 4\n  rows: 4\n  data: " << matrix_row_major(Eigen::Matrix4d::Identity()) << "\n"
           << "rate_hz: " << num(median_rate_hz(t)) << "\n"
           << "augrig:\n  stream: " << stream << "\n  clock: " << to_string(data->clock) << "\n";
-        if (auto s = write_text(dir / "sensor.yaml", y.str()); !s) return make_error(where, s.error().message);
+        if (auto s = write_text(dir / "sensor.yaml", y.str()); !s)
+          return make_error(where, s.error().message);
       }
     }
 
@@ -1315,12 +1346,13 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
         nmea += r->data + "\r\n";
       }
       if (other > 0)
-        report.notes.push_back("nav/" + who + "/gps.nmea: " + std::to_string(other) + " input(s) of '" + gps->first +
-                               "' are not NMEA sentences (gpsd reports?) and are not in it");
+        report.notes.push_back("nav/" + who + "/gps.nmea: " + std::to_string(other) + " input(s) of '" +
+                               gps->first + "' are not NMEA sentences (gpsd reports?) and are not in it");
       if (auto s = write_text(dir / "gps.nmea", nmea); !s) return make_error(where, s.error().message);
       auto data = imu_stream_data(imu->second, reader.path() + " nav_input '" + imu->first + "'");
       if (!data) {
-        report.problems.push_back(strip_function(data.error().message) + "; nav/" + who + "/imu.csv not written");
+        report.problems.push_back(strip_function(data.error().message) + "; nav/" + who +
+                                  "/imu.csv not written");
         continue;
       }
       nav::CsvWriteOptions o;
@@ -1336,8 +1368,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
       if (!yaml.empty()) {
         if (auto s = write_text(dir / "aircraft.yaml", yaml); !s) return make_error(where, s.error().message);
       } else {
-        report.notes.push_back("nav/" + who + "/aircraft.yaml not written: the recording does not hold the " + who +
-                               "'s settings (give them: --aircraft " + who +
+        report.notes.push_back("nav/" + who + "/aircraft.yaml not written: the recording does not hold the " +
+                               who + "'s settings (give them: --aircraft " + who +
                                "=FILE); augrig nav uses defaults (no lever arm)");
       }
       report.nav_logs.push_back(who);
@@ -1349,7 +1381,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
       return make_error(where, strip_function(s.error().message));
     report.frame_index_rows = index.rows.size();
   }
-  if (auto s = write_text(out / "rig.yaml", rig_to_yaml(rig)); !s) return make_error(where, s.error().message);
+  if (auto s = write_text(out / "rig.yaml", rig_to_yaml(rig)); !s)
+    return make_error(where, s.error().message);
 
   if (!poses.empty()) {
     nav::CsvWriteOptions o;
@@ -1367,7 +1400,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
     if (auto s = write_receiver_states(out / "mav0" / "state_groundtruth_estimate0", receiver_states); !s)
       return make_error(where, s.error().message);
   } else {
-    report.notes.push_back("no receiver poses in the recording: mav0/state_groundtruth_estimate0 not written");
+    report.notes.push_back(
+        "no receiver poses in the recording: mav0/state_groundtruth_estimate0 not written");
   }
 
   if (!stats.empty()) {
@@ -1412,8 +1446,8 @@ Status export_body(const RecordingReader& reader, const fs::path& out, const Eur
 
 }  // namespace
 
-Status export_euroc(const RecordingReader& reader, const std::string& out_dir, const EurocExportOptions& options,
-                    EurocExportReport& report) {
+Status export_euroc(const RecordingReader& reader, const std::string& out_dir,
+                    const EurocExportOptions& options, EurocExportReport& report) {
   const std::string where = "recorder::export_euroc(): ";
   report = {};
   Rig rig;
@@ -1422,7 +1456,8 @@ Status export_euroc(const RecordingReader& reader, const std::string& out_dir, c
   } else {
     const std::string yaml = reader.meta("rig_yaml");
     if (yaml.empty())
-      return make_error(where, reader.path(), ": the recording stores no rig (meta rig_yaml is empty); give one");
+      return make_error(where, reader.path(),
+                        ": the recording stores no rig (meta rig_yaml is empty); give one");
     auto r = parse_rig(yaml, reader.path() + " (meta rig_yaml)");
     if (!r) return make_error(where, strip_function(r.error().message));
     rig = std::move(*r);

@@ -29,9 +29,9 @@ const char* const kCameraNames[2] = {"left", "right"};
 // transient_local for /tf_static, so that `ros2 bag play` latches it), keep-all history.
 std::string qos(bool transient_local) {
   const char* inf = "    sec: 2147483647\n    nsec: 4294967295\n";
-  return std::string("- history: 3\n  depth: 0\n  reliability: 1\n  durability: ") + (transient_local ? "1" : "2") +
-         "\n  deadline:\n" + inf + "  lifespan:\n" + inf + "  liveliness: 1\n  liveliness_lease_duration:\n" + inf +
-         "  avoid_ros_namespace_conventions: false";
+  return std::string("- history: 3\n  depth: 0\n  reliability: 1\n  durability: ") +
+         (transient_local ? "1" : "2") + "\n  deadline:\n" + inf + "  lifespan:\n" + inf +
+         "  liveliness: 1\n  liveliness_lease_duration:\n" + inf + "  avoid_ros_namespace_conventions: false";
 }
 
 // Channels by topic, made at their first message; schemas by type, shared.
@@ -43,9 +43,11 @@ class Channels {
     auto it = channels_.find(topic);
     if (it == channels_.end()) {
       auto s = schemas_.find(type);
-      if (s == schemas_.end()) s = schemas_.emplace(type, w_.add_schema(type, "ros2msg", ros2::schema_text(type))).first;
-      it = channels_.emplace(topic, w_.add_channel(s->second, topic, "cdr",
-                                                   {{"offered_qos_profiles", qos(topic == "/tf_static")}}))
+      if (s == schemas_.end())
+        s = schemas_.emplace(type, w_.add_schema(type, "ros2msg", ros2::schema_text(type))).first;
+      it = channels_
+               .emplace(topic, w_.add_channel(s->second, topic, "cdr",
+                                              {{"offered_qos_profiles", qos(topic == "/tf_static")}}))
                .first;
     }
     ++report.messages_by_topic[topic];
@@ -69,7 +71,8 @@ std::array<double, 36> covariance(double sigma_pos_m, double sigma_att_deg) {
   return c;
 }
 
-// "tanker.imu" -> "tanker_body"; "imu" -> "tanker_body" (a plain stream is the tanker's, as in the export to EuRoC).
+// "tanker.imu" -> "tanker_body"; "imu" -> "tanker_body" (a plain stream is the tanker's, as in the export to
+// EuRoC).
 std::string aircraft_of(const std::string& stream) {
   const auto dot = stream.find('.');
   return dot == std::string::npos ? "tanker" : stream.substr(0, dot);
@@ -108,8 +111,8 @@ Status export_nav(const RecordingReader& reader, Channels& ch, McapExportReport&
           text += r->data + "\n";
           continue;
         }
-        auto d = nav::decode_imu_datagram(
-            std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(r->data.data()), r->data.size()));
+        auto d = nav::decode_imu_datagram(std::span<const std::uint8_t>(
+            reinterpret_cast<const std::uint8_t*>(r->data.data()), r->data.size()));
         if (!d) {
           ++undecodable;
           continue;
@@ -125,16 +128,18 @@ Status export_nav(const RecordingReader& reader, Channels& ch, McapExportReport&
           samples.insert(samples.end(), log->samples.begin(), log->samples.end());
         }
       }
-      if (undecodable) report.problems.push_back("nav input stream '" + name + "': " + std::to_string(undecodable) +
-                                                 " IMU datagram(s) could not be decoded, left out");
+      if (undecodable)
+        report.problems.push_back("nav input stream '" + name + "': " + std::to_string(undecodable) +
+                                  " IMU datagram(s) could not be decoded, left out");
       std::stable_sort(samples.begin(), samples.end(),
                        [](const nav::ImuSample& a, const nav::ImuSample& b) { return a.t_ns < b.t_ns; });
       for (const nav::ImuSample& s : samples) {
         if (!(s.dt_s > 0)) continue;
         const std::int64_t t = s.t_ns - static_cast<std::int64_t>(std::llround(s.dt_s * 0.5e9));
         if (!ros2::check_stamp(t)) continue;
-        if (Status st = ch.write(topic, "sensor_msgs/msg/Imu", t,
-                                 ros2::imu(t, aircraft + "_body", s.dtheta_rad / s.dt_s, s.dv_mps / s.dt_s), report);
+        if (Status st =
+                ch.write(topic, "sensor_msgs/msg/Imu", t,
+                         ros2::imu(t, aircraft + "_body", s.dtheta_rad / s.dt_s, s.dv_mps / s.dt_s), report);
             !st)
           return st;
       }
@@ -153,19 +158,29 @@ Status export_nav(const RecordingReader& reader, Channels& ch, McapExportReport&
         if (!ros2::check_stamp(f.t_ns)) continue;
         int status = -1;
         switch (f.quality) {
-          case nav::FixQuality::kInvalid: status = -1; break;
-          case nav::FixQuality::kDgps: status = 1; break;
+          case nav::FixQuality::kInvalid:
+            status = -1;
+            break;
+          case nav::FixQuality::kDgps:
+            status = 1;
+            break;
           case nav::FixQuality::kRtkFixed:
-          case nav::FixQuality::kRtkFloat: status = 2; break;
-          default: status = 0; break;
+          case nav::FixQuality::kRtkFloat:
+            status = 2;
+            break;
+          default:
+            status = 0;
+            break;
         }
         // GST gives north, east, down; NavSatFix's covariance is east, north, up.
         Eigen::Vector3d sigma_enu = Eigen::Vector3d::Zero();
-        if (f.sigma_ned_m) sigma_enu = Eigen::Vector3d((*f.sigma_ned_m)[1], (*f.sigma_ned_m)[0], (*f.sigma_ned_m)[2]);
-        if (Status st = ch.write(topic, "sensor_msgs/msg/NavSatFix", f.t_ns,
-                                 ros2::nav_sat_fix(f.t_ns, aircraft + "_gps", status, f.antenna.lat_rad * 180.0 / M_PI,
-                                                   f.antenna.lon_rad * 180.0 / M_PI, f.antenna.h_m, sigma_enu),
-                                 report);
+        if (f.sigma_ned_m)
+          sigma_enu = Eigen::Vector3d((*f.sigma_ned_m)[1], (*f.sigma_ned_m)[0], (*f.sigma_ned_m)[2]);
+        if (Status st = ch.write(
+                topic, "sensor_msgs/msg/NavSatFix", f.t_ns,
+                ros2::nav_sat_fix(f.t_ns, aircraft + "_gps", status, f.antenna.lat_rad * 180.0 / M_PI,
+                                  f.antenna.lon_rad * 180.0 / M_PI, f.antenna.h_m, sigma_enu),
+                report);
             !st)
           return st;
       }
@@ -178,8 +193,8 @@ Status export_nav(const RecordingReader& reader, Channels& ch, McapExportReport&
 
 }  // namespace
 
-Status export_mcap(const RecordingReader& reader, const std::string& out_path, const McapExportOptions& options,
-                   McapExportReport& report) {
+Status export_mcap(const RecordingReader& reader, const std::string& out_path,
+                   const McapExportOptions& options, McapExportReport& report) {
   const std::string where = "recorder::export_mcap(): " + out_path + ": ";
   std::optional<Rig> rig = options.rig;
   if (!rig) {
@@ -224,8 +239,11 @@ Status export_mcap(const RecordingReader& reader, const std::string& out_path, c
     if (rig && !static_written) {
       std::vector<ros2::Transform> tf;
       for (int c = 0; c < 2; ++c)
-        tf.push_back({raw.t_key_ns, kBodyFrame, kCameraFrames[c], rig->cameras[static_cast<std::size_t>(c)].T_body_cam});
-      if (Status s = ch.write("/tf_static", "tf2_msgs/msg/TFMessage", raw.t_key_ns, ros2::tf_message(tf), report); !s)
+        tf.push_back({raw.t_key_ns, kBodyFrame, kCameraFrames[c],
+                      rig->cameras[static_cast<std::size_t>(c)].T_body_cam});
+      if (Status s =
+              ch.write("/tf_static", "tf2_msgs/msg/TFMessage", raw.t_key_ns, ros2::tf_message(tf), report);
+          !s)
         return s;
       static_written = true;
     }
@@ -247,9 +265,10 @@ Status export_mcap(const RecordingReader& reader, const std::string& out_path, c
           !s)
         return s;
       if (rig) {
-        if (Status s = ch.write(cam + "/camera_info", "sensor_msgs/msg/CameraInfo", fr.t_ns,
-                                ros2::camera_info(fr.t_ns, frame_id, rig->cameras[static_cast<std::size_t>(c)].model),
-                                report);
+        if (Status s = ch.write(
+                cam + "/camera_info", "sensor_msgs/msg/CameraInfo", fr.t_ns,
+                ros2::camera_info(fr.t_ns, frame_id, rig->cameras[static_cast<std::size_t>(c)].model),
+                report);
             !s)
           return s;
       }
@@ -266,18 +285,19 @@ Status export_mcap(const RecordingReader& reader, const std::string& out_path, c
           return s;
       }
       if (f->T_cam_receiver[c]) {
-        if (Status s = ch.write(cam + "/receiver_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", raw.t_key_ns,
-                                ros2::pose_with_covariance(raw.t_key_ns, frame_id, *f->T_cam_receiver[c],
-                                                           covariance(f->sigma_pos_m, f->sigma_att_deg)),
-                                report);
+        if (Status s =
+                ch.write(cam + "/receiver_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", raw.t_key_ns,
+                         ros2::pose_with_covariance(raw.t_key_ns, frame_id, *f->T_cam_receiver[c],
+                                                    covariance(f->sigma_pos_m, f->sigma_att_deg)),
+                         report);
             !s)
           return s;
       }
     }
     if (f->T_body_receiver) {
-      if (Status s = ch.write("/tf", "tf2_msgs/msg/TFMessage", raw.t_key_ns,
-                              ros2::tf_message({{raw.t_key_ns, kBodyFrame, kReceiverFrame, *f->T_body_receiver}}),
-                              report);
+      if (Status s = ch.write(
+              "/tf", "tf2_msgs/msg/TFMessage", raw.t_key_ns,
+              ros2::tf_message({{raw.t_key_ns, kBodyFrame, kReceiverFrame, *f->T_body_receiver}}), report);
           !s)
         return s;
     }
@@ -323,7 +343,8 @@ Expected<std::unique_ptr<McapSource>> McapSource::open(const std::string& uri_or
   const std::uint16_t frames = s->reader_->channel_id("/augrig/frame");
   if (frames == 0)
     return Error{"recorder::McapSource::open(): " + path +
-                 ": no /augrig/frame channel: not an MCAP file written by augrig export (augrig_msgs/msg/StereoFrameInfo)"};
+                 ": no /augrig/frame channel: not an MCAP file written by augrig export "
+                 "(augrig_msgs/msg/StereoFrameInfo)"};
   if (const auto& st = s->reader_->summary().statistics) {
     const auto it = st->channel_message_counts.find(frames);
     if (it != st->channel_message_counts.end()) s->frame_count_ = static_cast<std::size_t>(it->second);
@@ -390,7 +411,8 @@ Expected<ReadStatus> McapSource::read(Frame& out, std::chrono::nanoseconds) {
   }
   auto fail = [&](const std::string& what) -> Error {
     ++damaged_;
-    return Error{where + "frame " + std::to_string(info->index) + ": " + what + "; skipped, the next read() goes on"};
+    return Error{where + "frame " + std::to_string(info->index) + ": " + what +
+                 "; skipped, the next read() goes on"};
   };
   auto rf = std::make_shared<RecordedFrame>();
   rf->index = static_cast<std::size_t>(info->index);

@@ -102,7 +102,8 @@ const std::map<std::string, MsgDef>& definitions() {
       {"builtin_interfaces/Time", {"int32 sec\nuint32 nanosec\n", {}}},
       {"std_msgs/Header", {"builtin_interfaces/Time stamp\nstring frame_id\n", {"builtin_interfaces/Time"}}},
       {"sensor_msgs/Image",
-       {"std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\nuint8 is_bigendian\nuint32 step\n"
+       {"std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\nuint8 is_bigendian\nuint32 "
+        "step\n"
         "uint8[] data\n",
         {"std_msgs/Header"}}},
       {"sensor_msgs/RegionOfInterest",
@@ -209,11 +210,15 @@ std::string schema_text(const std::string& type) {
 }
 
 const std::vector<std::string>& known_types() {
-  static const std::vector<std::string> types = {
-      "augrig_msgs/msg/StereoFrameInfo", "sensor_msgs/msg/Image",      "sensor_msgs/msg/CameraInfo",
-      "tf2_msgs/msg/TFMessage",          "geometry_msgs/msg/PoseWithCovarianceStamped",
-      "augrig_msgs/msg/OcclusionStats",  "sensor_msgs/msg/Imu",        "sensor_msgs/msg/NavSatFix",
-      "diagnostic_msgs/msg/DiagnosticArray"};
+  static const std::vector<std::string> types = {"augrig_msgs/msg/StereoFrameInfo",
+                                                 "sensor_msgs/msg/Image",
+                                                 "sensor_msgs/msg/CameraInfo",
+                                                 "tf2_msgs/msg/TFMessage",
+                                                 "geometry_msgs/msg/PoseWithCovarianceStamped",
+                                                 "augrig_msgs/msg/OcclusionStats",
+                                                 "sensor_msgs/msg/Imu",
+                                                 "sensor_msgs/msg/NavSatFix",
+                                                 "diagnostic_msgs/msg/DiagnosticArray"};
   return types;
 }
 
@@ -221,13 +226,20 @@ const std::vector<std::string>& known_types() {
 
 std::string image_encoding(PixelFormat format) {
   switch (format) {
-    case PixelFormat::kMono8: return "mono8";
-    case PixelFormat::kRGB8: return "rgb8";
-    case PixelFormat::kRGBA8: return "rgba8";
-    case PixelFormat::kBayerRG8: return "bayer_rggb8";
-    case PixelFormat::kBayerGR8: return "bayer_grbg8";
-    case PixelFormat::kBayerGB8: return "bayer_gbrg8";
-    case PixelFormat::kBayerBG8: return "bayer_bggr8";
+    case PixelFormat::kMono8:
+      return "mono8";
+    case PixelFormat::kRGB8:
+      return "rgb8";
+    case PixelFormat::kRGBA8:
+      return "rgba8";
+    case PixelFormat::kBayerRG8:
+      return "bayer_rggb8";
+    case PixelFormat::kBayerGR8:
+      return "bayer_grbg8";
+    case PixelFormat::kBayerGB8:
+      return "bayer_gbrg8";
+    case PixelFormat::kBayerBG8:
+      return "bayer_bggr8";
   }
   return "mono8";
 }
@@ -249,7 +261,8 @@ std::string distortion_model_name(DistortionModel d) {
 
 Status check_stamp(std::int64_t t_ns) {
   if (t_ns < 0 || t_ns / 1'000'000'000 > 2147483647)
-    return Error{"a timestamp of " + std::to_string(t_ns) + " ns does not fit a ROS 2 builtin_interfaces/Time"};
+    return Error{"a timestamp of " + std::to_string(t_ns) +
+                 " ns does not fit a ROS 2 builtin_interfaces/Time"};
   return {};
 }
 
@@ -290,13 +303,16 @@ Pose read_pose(CdrReader& r) {
   return p;
 }
 
-Error bad(const std::string& type) { return Error{type + ": the message is shorter than its fields (damaged)"}; }
+Error bad(const std::string& type) {
+  return Error{type + ": the message is shorter than its fields (damaged)"};
+}
 
 }  // namespace
 
 std::vector<std::uint8_t> image(std::int64_t t_ns, const std::string& frame_id, ConstImageView im) {
   CdrWriter w;
-  const std::size_t row = static_cast<std::size_t>(im.width) * static_cast<std::size_t>(bytes_per_pixel(im.format));
+  const std::size_t row =
+      static_cast<std::size_t>(im.width) * static_cast<std::size_t>(bytes_per_pixel(im.format));
   w.data().reserve(64 + row * static_cast<std::size_t>(im.height));
   header(w, t_ns, frame_id);
   w.u32(static_cast<std::uint32_t>(im.height));
@@ -333,8 +349,8 @@ std::vector<std::uint8_t> camera_info(std::int64_t t_ns, const std::string& fram
   w.f64_array(k, 9);
   w.f64_array(r, 9);
   w.f64_array(p, 12);
-  w.u32(0);  // binning_x
-  w.u32(0);  // binning_y
+  w.u32(0);                              // binning_x
+  w.u32(0);                              // binning_y
   for (int i = 0; i < 4; ++i) w.u32(0);  // roi: the whole image
   w.boolean(false);
   return std::move(w.data());
@@ -351,8 +367,8 @@ std::vector<std::uint8_t> tf_message(const std::vector<Transform>& transforms) {
   return std::move(w.data());
 }
 
-std::vector<std::uint8_t> pose_with_covariance(std::int64_t t_ns, const std::string& frame_id, const Pose& pose,
-                                               const std::array<double, 36>& covariance) {
+std::vector<std::uint8_t> pose_with_covariance(std::int64_t t_ns, const std::string& frame_id,
+                                               const Pose& pose, const std::array<double, 36>& covariance) {
   CdrWriter w;
   header(w, t_ns, frame_id);
   pose_fields(w, pose);
@@ -376,8 +392,9 @@ std::vector<std::uint8_t> imu(std::int64_t t_ns, const std::string& frame_id, co
   return std::move(w.data());
 }
 
-std::vector<std::uint8_t> nav_sat_fix(std::int64_t t_ns, const std::string& frame_id, int status, double lat_deg,
-                                      double lon_deg, double alt_m, const Eigen::Vector3d& sigma_enu_m) {
+std::vector<std::uint8_t> nav_sat_fix(std::int64_t t_ns, const std::string& frame_id, int status,
+                                      double lat_deg, double lon_deg, double alt_m,
+                                      const Eigen::Vector3d& sigma_enu_m) {
   CdrWriter w;
   header(w, t_ns, frame_id);
   w.i8(static_cast<std::int8_t>(status));
@@ -517,13 +534,15 @@ Expected<Image> decode_image(const std::vector<std::uint8_t>& msg, std::int64_t*
   if (!r.ok()) return bad("sensor_msgs/msg/Image");
   PixelFormat f;
   if (!parse_image_encoding(encoding, f))
-    return Error{"sensor_msgs/msg/Image: encoding '" + encoding +
-                 "' is not one augrig reads (mono8, rgb8, rgba8, bayer_rggb8, bayer_grbg8, bayer_gbrg8, bayer_bggr8)"};
+    return Error{
+        "sensor_msgs/msg/Image: encoding '" + encoding +
+        "' is not one augrig reads (mono8, rgb8, rgba8, bayer_rggb8, bayer_grbg8, bayer_gbrg8, bayer_bggr8)"};
   const std::size_t row = static_cast<std::size_t>(width) * static_cast<std::size_t>(bytes_per_pixel(f));
   if (width == 0 || height == 0 || width > 32768 || height > 32768 || step < row ||
       n != static_cast<std::size_t>(step) * height)
-    return Error{"sensor_msgs/msg/Image: " + std::to_string(width) + "x" + std::to_string(height) + " " + encoding +
-                 ", step " + std::to_string(step) + ", holds " + std::to_string(n) + " bytes: sizes disagree"};
+    return Error{"sensor_msgs/msg/Image: " + std::to_string(width) + "x" + std::to_string(height) + " " +
+                 encoding + ", step " + std::to_string(step) + ", holds " + std::to_string(n) +
+                 " bytes: sizes disagree"};
   Image im(static_cast<int>(width), static_cast<int>(height), f);
   for (std::uint32_t y = 0; y < height; ++y)
     std::memcpy(im.row(static_cast<int>(y)), data + static_cast<std::size_t>(y) * step, row);

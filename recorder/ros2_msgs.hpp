@@ -37,10 +37,10 @@ class CdrWriter {
   void u64(std::uint64_t v) { le(v, 8); }
   void i64(std::int64_t v) { le(static_cast<std::uint64_t>(v), 8); }
   void f64(double v);
-  void string(const std::string& s);  // uint32 length with the NUL, the bytes, NUL
+  void string(const std::string& s);                 // uint32 length with the NUL, the bytes, NUL
   void bytes(const std::uint8_t* p, std::size_t n);  // uint8[]: uint32 count, the bytes
-  void f64_array(const double* v, std::size_t n);   // float64[N]: the values, no count
-  void f64_sequence(const std::vector<double>& v);  // float64[]: uint32 count, the values
+  void f64_array(const double* v, std::size_t n);    // float64[N]: the values, no count
+  void f64_sequence(const std::vector<double>& v);   // float64[]: uint32 count, the values
   std::vector<std::uint8_t>& data() { return b_; }
 
  private:
@@ -104,14 +104,15 @@ struct Transform {
 };
 std::vector<std::uint8_t> tf_message(const std::vector<Transform>& transforms);
 // covariance: 6x6 row-major over (x, y, z, rotation about x, y, z), m^2 and rad^2.
-std::vector<std::uint8_t> pose_with_covariance(std::int64_t t_ns, const std::string& frame_id, const Pose& pose,
-                                               const std::array<double, 36>& covariance);
+std::vector<std::uint8_t> pose_with_covariance(std::int64_t t_ns, const std::string& frame_id,
+                                               const Pose& pose, const std::array<double, 36>& covariance);
 // Orientation unknown (covariance[0] = -1, as sensor_msgs/Imu says).
 std::vector<std::uint8_t> imu(std::int64_t t_ns, const std::string& frame_id, const Eigen::Vector3d& w_rad_s,
                               const Eigen::Vector3d& a_mps2);
 // status: -1 no fix, 0 fix, 1 SBAS, 2 GBAS (RTK); position_covariance diagonal from sigmas when > 0.
-std::vector<std::uint8_t> nav_sat_fix(std::int64_t t_ns, const std::string& frame_id, int status, double lat_deg,
-                                      double lon_deg, double alt_m, const Eigen::Vector3d& sigma_enu_m);
+std::vector<std::uint8_t> nav_sat_fix(std::int64_t t_ns, const std::string& frame_id, int status,
+                                      double lat_deg, double lon_deg, double alt_m,
+                                      const Eigen::Vector3d& sigma_enu_m);
 std::vector<std::uint8_t> occlusion_stats(std::int64_t stamp_ns, const OcclusionStats& s);
 
 // What augrig_msgs/msg/StereoFrameInfo carries: a recorded stereo frame's pairing and scene.

@@ -78,12 +78,12 @@ struct Column {
   double OcclusionStats::*real_field;
 };
 
-#define AUGRIG_INT_COL(f)                                                                                  \
-  Column {                                                                                                 \
+#define AUGRIG_INT_COL(f)                                                                                   \
+  Column {                                                                                                  \
 #f, true, [](const OcclusionStats& s) { return static_cast<double>(s.f); }, &OcclusionStats::f, nullptr \
   }
-#define AUGRIG_PCT_COL(f)                                                              \
-  Column {                                                                             \
+#define AUGRIG_PCT_COL(f)                                                               \
+  Column {                                                                              \
 #f, false, [](const OcclusionStats& s) { return s.f; }, nullptr, &OcclusionStats::f \
   }
 const Column kColumns[] = {
@@ -456,14 +456,16 @@ Expected<std::vector<OcclusionStats>> read_stats_csv(const std::string& path) {
   };
   const std::size_t n = std::size(kColumns);
   std::string line;
-  if (!std::getline(in, line)) return make_error(where, ": empty, expected the header line (t_ns,receiver_px_left,...)");
+  if (!std::getline(in, line))
+    return make_error(where, ": empty, expected the header line (t_ns,receiver_px_left,...)");
   {
     const std::vector<std::string_view> cells = split(line);
     for (std::size_t i = 0; i < std::max(cells.size(), n); ++i) {
       if (i < cells.size() && i < n && cells[i] == kColumns[i].name) continue;
       return make_error(where, ":1: not a stats.csv header (docs/STATISTICS.md): column ", i + 1, " is '",
                         i < cells.size() ? std::string(cells[i]) : std::string("(none)"), "', expected '",
-                        i < n ? kColumns[i].name : "(none)", "' (", n, " columns, header ", cells.size(), ")");
+                        i < n ? kColumns[i].name : "(none)", "' (", n, " columns, header ", cells.size(),
+                        ")");
     }
   }
   std::vector<OcclusionStats> rows;
@@ -471,7 +473,8 @@ Expected<std::vector<OcclusionStats>> read_stats_csv(const std::string& path) {
     const std::vector<std::string_view> cells = split(line);
     if (cells.size() == 1 && cells[0].empty()) continue;  // a blank line (the file's end)
     if (cells.size() != n)
-      return make_error(where, ":", line_no, ": ", cells.size(), " fields, expected ", n, " (one per header column)");
+      return make_error(where, ":", line_no, ": ", cells.size(), " fields, expected ", n,
+                        " (one per header column)");
     OcclusionStats s;  // width and height are not in the file: 0
     for (std::size_t i = 0; i < n; ++i) {
       const Column& c = kColumns[i];
@@ -483,8 +486,8 @@ Expected<std::vector<OcclusionStats>> read_stats_csv(const std::string& path) {
       else if (b != e && *b != '+')
         r = std::from_chars(b, e, s.*c.real_field);
       if (b == e || r.ec != std::errc() || r.ptr != e)
-        return make_error(where, ":", line_no, ":", c.name, ": expected ", c.is_int ? "an integer" : "a number",
-                          ", got '", std::string(cells[i]), "'");
+        return make_error(where, ":", line_no, ":", c.name, ": expected ",
+                          c.is_int ? "an integer" : "a number", ", got '", std::string(cells[i]), "'");
     }
     rows.push_back(s);
   }

@@ -123,8 +123,9 @@ TEST(BaselineFusion, CentimetreBaselinesCorrectAMetresOffInsBaseline) {
   std::printf("corrected RMS %.4f m, %.0f %% within 1 sigma\n", s.rms_m, 100 * s.within_1sigma);
   EXPECT_GT(s.within_1sigma, 0.55) << "the reported sigma is honest";
   EXPECT_LT(s.within_1sigma, 0.95) << "and not wildly pessimistic";
-  EXPECT_NE(f->report().summary().find("601 measurements: " + std::to_string(f->report().used) + " used (0 float)"),
-            std::string::npos)
+  EXPECT_NE(
+      f->report().summary().find("601 measurements: " + std::to_string(f->report().used) + " used (0 float)"),
+      std::string::npos)
       << f->report().summary();
   // The model's density was chosen by the innovations' likelihood: a given one is used as given,
   // and one far off (a stiff model that cannot follow the error) does worse.
