@@ -11,6 +11,7 @@
 #include <system_error>
 #include <type_traits>
 
+#include "core/csv.hpp"
 #include "recorder/plot.hpp"
 
 namespace augrig::eval {
@@ -284,43 +285,17 @@ Expected<std::vector<EvaluatedFrame>> load_evaluation_sums(const std::filesystem
   std::ifstream in(path, std::ios::binary);
   if (!in) return make_error(where, ": cannot read the file");
   const std::string head = EvaluationSumsWriter::header();
-  std::vector<std::string_view> names;
-  for (std::size_t p = 0; p <= head.size();) {
-    const std::size_t q = std::min(head.find(',', p), head.size());
-    names.emplace_back(head.data() + p, q - p);
-    p = q + 1;
-  }
-  // A line's cells (a trailing '\r' of a file that went through Windows dropped).
-  auto split = [](std::string& line) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::vector<std::string_view> cells;
-    for (std::size_t p = 0; p <= line.size();) {
-      const std::size_t q = std::min(line.find(',', p), line.size());
-      cells.emplace_back(line.data() + p, q - p);
-      p = q + 1;
-    }
-    return cells;
-  };
+  const std::vector<std::string_view> names = split_csv_line(head);
   std::string line;
   if (!std::getline(in, line))
     return make_error(where, ": empty, expected the header line (", names.size(), " columns: frame,t_s,...)");
-  {
-    const std::vector<std::string_view> cells = split(line);
-    for (std::size_t i = 0; i < std::max(cells.size(), names.size()); ++i) {
-      if (i < cells.size() && i < names.size() && cells[i] == names[i]) continue;
-      return make_error(where, ":1: not evaluation_sums.csv's header: column ", i + 1, " is '",
-                        i < cells.size() ? std::string(cells[i]) : std::string("(none)"), "', expected '",
-                        i < names.size() ? std::string(names[i]) : std::string("(none)"), "' (", names.size(),
-                        " columns, header ", cells.size(), ")");
-    }
-  }
+  if (auto bad = check_csv_header(split_csv_line(line), names, where, "evaluation_sums.csv's header"))
+    return *bad;
   std::vector<EvaluatedFrame> frames;
   for (std::size_t line_no = 2; std::getline(in, line); ++line_no) {
-    const std::vector<std::string_view> cells = split(line);
-    if (cells.size() == 1 && cells[0].empty()) continue;  // a blank line (the file's end)
-    if (cells.size() != names.size())
-      return make_error(where, ":", line_no, ": ", cells.size(), " fields, expected ", names.size(),
-                        " (one per header column)");
+    const std::vector<std::string_view> cells = split_csv_line(line);
+    if (is_blank_csv_line(cells)) continue;  // the file's end
+    if (auto bad = check_csv_field_count(cells, names.size(), where, line_no)) return *bad;
     EvaluatedFrame f;
     std::size_t i = 0;
     std::optional<Error> bad;

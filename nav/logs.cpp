@@ -13,6 +13,7 @@
 #include <sstream>
 #include <system_error>
 
+#include "core/csv.hpp"
 #include "core/file_check.hpp"
 #include "nav/gps_time.hpp"
 
@@ -25,25 +26,6 @@ constexpr double kMaxImuDtS = 60.0;  // an IMU sample interval longer than a min
 constexpr std::array kClockDomains = {ClockDomain::kUnknown,      ClockDomain::kHostMonotonic,
                                       ClockDomain::kHostRealtime, ClockDomain::kDevice,
                                       ClockDomain::kGps,          ClockDomain::kSim};
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r' || s.back() == '\n')) {
-    s.remove_suffix(1);
-  }
-  return s;
-}
-
-std::vector<std::string_view> split(std::string_view line) {
-  std::vector<std::string_view> out;
-  for (std::size_t start = 0;;) {
-    const std::size_t comma = line.find(',', start);
-    out.push_back(
-        trim(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
-    if (comma == std::string_view::npos) return out;
-    start = comma + 1;
-  }
-}
 
 // The field as a message quotes it: printable ASCII only, at most 40 characters.
 std::string quoted(std::string_view s) {
@@ -109,7 +91,7 @@ class Table {
     bool have_header = false;
     while (std::getline(in, text)) {
       ++line;
-      const std::string_view s = trim(text);
+      const std::string_view s = trim_csv_cell(text);
       if (s.empty()) continue;
       if (s.front() == '#') {
         comment(s.substr(1), line);
@@ -120,7 +102,7 @@ class Table {
         have_header = true;
         continue;
       }
-      const auto fields = split(s);
+      const auto fields = split_csv_line_trimmed(s);
       if (fields.size() != header_.size()) {
         fail(line, "expected " + std::to_string(header_.size()) + " fields (" + join(header_) + "), got " +
                        std::to_string(fields.size()));
@@ -172,9 +154,9 @@ class Table {
   void comment(std::string_view s, std::size_t line) {
     const std::size_t colon = s.find(':');
     if (colon == std::string_view::npos) return;
-    const std::string key(trim(s.substr(0, colon)));
+    const std::string key(trim_csv_cell(s.substr(0, colon)));
     if (!is_identifier(key)) return;
-    const std::string value(trim(s.substr(colon + 1)));
+    const std::string value(trim_csv_cell(s.substr(colon + 1)));
     metadata.emplace(key, value);
     if (key != "clock") return;
     for (ClockDomain c : kClockDomains) {
@@ -189,7 +171,7 @@ class Table {
   }
 
   void header(std::string_view s, std::size_t line) {
-    for (std::string_view f : split(s)) header_.emplace_back(f);
+    for (std::string_view f : split_csv_line_trimmed(s)) header_.emplace_back(f);
     for (std::size_t i = 0; i < header_.size(); ++i) {
       const std::string& c = header_[i];
       if (std::find(required_.begin(), required_.end(), c) == required_.end() &&

@@ -26,6 +26,7 @@
 #include <yaml-cpp/yaml.h>
 #include <zlib.h>
 
+#include "core/csv.hpp"
 #include "core/file_check.hpp"
 #include "nav/gps_time.hpp"
 #include "nav/imu_stream.hpp"
@@ -58,24 +59,6 @@ std::string strip_function(const std::string& m) {
   const auto p = m.find("(): ");
   if (p != std::string::npos && p < 64 && m.find(' ') > p) return m.substr(p + 4);
   return m;
-}
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
-  return s;
-}
-
-std::vector<std::string_view> split(std::string_view line) {
-  std::vector<std::string_view> f;
-  std::size_t pos = 0;
-  for (;;) {
-    const auto c = line.find(',', pos);
-    f.push_back(trim(line.substr(pos, c == std::string_view::npos ? std::string_view::npos : c - pos)));
-    if (c == std::string_view::npos) break;
-    pos = c + 1;
-  }
-  return f;
 }
 
 bool parse_i64(std::string_view s, std::int64_t& v) {
@@ -1514,9 +1497,9 @@ Expected<std::vector<EurocCsvRow>> read_euroc_camera_csv(const std::string& path
   std::vector<EurocCsvRow> rows;
   std::string line;
   for (std::size_t no = 1; std::getline(in, line); ++no) {
-    const std::string_view l = trim(line);
+    const std::string_view l = trim_csv_cell(line);
     if (l.empty() || l.front() == '#') continue;
-    const auto f = split(l);
+    const auto f = split_csv_line_trimmed(l);
     if (f.size() != 2)
       return make_error(where, path, ":", no, ": expected 2 fields (timestamp [ns],filename), got ",
                         f.size());
@@ -1542,9 +1525,9 @@ Expected<std::vector<EurocImuRow>> read_euroc_imu_csv(const std::string& path) {
   std::vector<EurocImuRow> rows;
   std::string line;
   for (std::size_t no = 1; std::getline(in, line); ++no) {
-    const std::string_view l = trim(line);
+    const std::string_view l = trim_csv_cell(line);
     if (l.empty() || l.front() == '#') continue;
-    const auto f = split(l);
+    const auto f = split_csv_line_trimmed(l);
     if (f.size() != 7)
       return make_error(where, path, ":", no, ": expected 7 fields (timestamp, w_RS_S xyz, a_RS_S xyz), got ",
                         f.size());

@@ -17,6 +17,7 @@
 #include <string_view>
 #include <system_error>
 
+#include "core/csv.hpp"
 #include "core/worker.hpp"
 
 namespace augrig {
@@ -443,38 +444,20 @@ Expected<std::vector<OcclusionStats>> read_stats_csv(const std::string& path) {
   const std::string where = "render::read_stats_csv(): " + path;
   std::ifstream in(path, std::ios::binary);
   if (!in) return make_error(where, ": cannot read the file");
-  // A line's cells (a '\r' left by Windows line ends dropped).
-  auto split = [](std::string& line) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::vector<std::string_view> cells;
-    for (std::size_t p = 0; p <= line.size();) {
-      const std::size_t q = std::min(line.find(',', p), line.size());
-      cells.emplace_back(line.data() + p, q - p);
-      p = q + 1;
-    }
-    return cells;
-  };
   const std::size_t n = std::size(kColumns);
   std::string line;
   if (!std::getline(in, line))
     return make_error(where, ": empty, expected the header line (t_ns,receiver_px_left,...)");
-  {
-    const std::vector<std::string_view> cells = split(line);
-    for (std::size_t i = 0; i < std::max(cells.size(), n); ++i) {
-      if (i < cells.size() && i < n && cells[i] == kColumns[i].name) continue;
-      return make_error(where, ":1: not a stats.csv header (docs/STATISTICS.md): column ", i + 1, " is '",
-                        i < cells.size() ? std::string(cells[i]) : std::string("(none)"), "', expected '",
-                        i < n ? kColumns[i].name : "(none)", "' (", n, " columns, header ", cells.size(),
-                        ")");
-    }
-  }
+  std::vector<std::string_view> names;
+  for (const Column& c : kColumns) names.emplace_back(c.name);
+  if (auto bad =
+          check_csv_header(split_csv_line(line), names, where, "a stats.csv header (docs/STATISTICS.md)"))
+    return *bad;
   std::vector<OcclusionStats> rows;
   for (std::size_t line_no = 2; std::getline(in, line); ++line_no) {
-    const std::vector<std::string_view> cells = split(line);
-    if (cells.size() == 1 && cells[0].empty()) continue;  // a blank line (the file's end)
-    if (cells.size() != n)
-      return make_error(where, ":", line_no, ": ", cells.size(), " fields, expected ", n,
-                        " (one per header column)");
+    const std::vector<std::string_view> cells = split_csv_line(line);
+    if (is_blank_csv_line(cells)) continue;  // the file's end
+    if (auto bad = check_csv_field_count(cells, n, where, line_no)) return *bad;
     OcclusionStats s;  // width and height are not in the file: 0
     for (std::size_t i = 0; i < n; ++i) {
       const Column& c = kColumns[i];
