@@ -74,6 +74,12 @@ BaselineFilter forward(const std::vector<Step>& steps, double scale, double tau_
 }  // namespace
 
 // A measurement's noise: the receiver's accuracy, floored (float solutions higher).
+BaselineUse baseline_use(const BaselineMeasurement& m, const BaselineFusionOptions& options) {
+  if (!m.valid || m.carr_soln == 0 || !m.ned_m.allFinite()) return BaselineUse::kInvalid;
+  if (m.carr_soln == 1 && !options.use_float) return BaselineUse::kFloatSkipped;
+  return BaselineUse::kUse;
+}
+
 Eigen::Matrix3d baseline_noise(const BaselineMeasurement& m, const BaselineFusionOptions& options) {
   Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
   const bool is_float = m.carr_soln == 1;
@@ -208,15 +214,11 @@ Expected<BaselineFusion> BaselineFusion::fuse(
       std::max<TimestampNs>(1'000'000, static_cast<TimestampNs>(options.fill_step_s * 1e9));
   for (const BaselineMeasurement& m : measurements) {
     ++r.measurements;
-    if (!m.valid || m.carr_soln == 0 || !m.ned_m.allFinite()) {
-      ++r.invalid;
+    if (const BaselineUse use = baseline_use(m, options); use != BaselineUse::kUse) {
+      ++(use == BaselineUse::kInvalid ? r.invalid : r.float_skipped);
       continue;
     }
     const bool is_float = m.carr_soln == 1;
-    if (is_float && !options.use_float) {
-      ++r.float_skipped;
-      continue;
-    }
     const std::optional<InsBaselineSample> ins = ins_baseline(m.t_ns);
     if (!ins) {
       ++r.outside_ins;

@@ -64,6 +64,11 @@ struct BaselineFusionOptions {
   double max_gap_s = 5.0;          // no correction farther than this before the first or after the last
 };
 
+// What a fusion does with a measurement: uses it, or drops it as invalid (no valid vector, no
+// carrier solution, a non-finite vector) or as a float solution that `options` leave out.
+enum class BaselineUse { kUse, kInvalid, kFloatSkipped };
+BaselineUse baseline_use(const BaselineMeasurement& m, const BaselineFusionOptions& options);
+
 // A measurement's noise covariance (NED, diagonal): the receiver's accuracy, at least
 // sigma_floor_m, at least float_sigma_floor_m for float solutions.
 Eigen::Matrix3d baseline_noise(const BaselineMeasurement& m, const BaselineFusionOptions& options);

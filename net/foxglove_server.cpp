@@ -77,18 +77,6 @@ bool nesting_within(std::string_view text, int limit) {
   return true;
 }
 
-std::array<double, 36> covariance(double sigma_pos_m, double sigma_att_deg) {
-  // As the MCAP export: unknown sigmas (NaN) stay 0, ROS having no "unknown" for a pose covariance.
-  std::array<double, 36> c{};
-  const double p = std::isfinite(sigma_pos_m) ? sigma_pos_m * sigma_pos_m : 0.0;
-  const double a = std::isfinite(sigma_att_deg) ? std::pow(sigma_att_deg * M_PI / 180.0, 2) : 0.0;
-  for (int i = 0; i < 3; ++i) {
-    c[static_cast<std::size_t>(7 * i)] = p;
-    c[static_cast<std::size_t>(7 * (i + 3))] = a;
-  }
-  return c;
-}
-
 // The augmented image whole, from either AugmentedOutput: the raw image's message with the
 // changed box written over it. Empty when the view's sizes do not fit together.
 std::vector<std::uint8_t> augmented_message(TimestampNs t_ns, const char* frame_id, const Image& raw,
@@ -429,7 +417,7 @@ void FoxgloveServer::publish_pair(const StereoFrame& raw, const StereoResult* re
           im.rig.cameras[static_cast<std::size_t>(c)].T_body_cam.inverse() * scene->T_body_receiver;
       put(cam_channel(c, kReceiverPose), raw.t_key_ns,
           ros2::pose_with_covariance(raw.t_key_ns, frame_id, T_cam_receiver,
-                                     covariance(info.sigma_pos_m, info.sigma_att_deg)));
+                                     ros2::pose_covariance(info.sigma_pos_m, info.sigma_att_deg)));
     }
   }
   if (scene && wanted[kTf])

@@ -145,12 +145,8 @@ LiveBaseline::LiveBaseline(const nav::BaselineFusionOptions& options, double win
 void LiveBaseline::add(const nav::BaselineMeasurement& m) {
   std::lock_guard lock(mutex_);
   ++report_.received;
-  if (!m.valid || m.carr_soln == 0 || !m.ned_m.allFinite()) {
-    ++report_.invalid;
-    return;
-  }
-  if (m.carr_soln == 1 && !options_.use_float) {
-    ++report_.float_skipped;
+  if (const nav::BaselineUse use = nav::baseline_use(m, options_); use != nav::BaselineUse::kUse) {
+    ++(use == nav::BaselineUse::kInvalid ? report_.invalid : report_.float_skipped);
     return;
   }
   if (m.t_ns <= last_ns_) {

@@ -59,18 +59,6 @@ class Channels {
   std::map<std::string, std::uint16_t> schemas_, channels_;
 };
 
-std::array<double, 36> covariance(double sigma_pos_m, double sigma_att_deg) {
-  std::array<double, 36> c{};
-  // Unknown sigmas (NaN) stay 0: ROS has no "unknown" for a pose covariance; StereoFrameInfo keeps them.
-  const double p = std::isfinite(sigma_pos_m) ? sigma_pos_m * sigma_pos_m : 0.0;
-  const double a = std::isfinite(sigma_att_deg) ? std::pow(sigma_att_deg * M_PI / 180.0, 2) : 0.0;
-  for (int i = 0; i < 3; ++i) {
-    c[static_cast<std::size_t>(7 * i)] = p;
-    c[static_cast<std::size_t>(7 * (i + 3))] = a;
-  }
-  return c;
-}
-
 // "tanker.imu" -> "tanker_body"; "imu" -> "tanker_body" (a plain stream is the tanker's, as in the export to
 // EuRoC).
 std::string aircraft_of(const std::string& stream) {
@@ -288,7 +276,7 @@ Status export_mcap(const RecordingReader& reader, const std::string& out_path,
         if (Status s =
                 ch.write(cam + "/receiver_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", raw.t_key_ns,
                          ros2::pose_with_covariance(raw.t_key_ns, frame_id, *f->T_cam_receiver[c],
-                                                    covariance(f->sigma_pos_m, f->sigma_att_deg)),
+                                                    ros2::pose_covariance(f->sigma_pos_m, f->sigma_att_deg)),
                          report);
             !s)
           return s;

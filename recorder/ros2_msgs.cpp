@@ -367,6 +367,17 @@ std::vector<std::uint8_t> tf_message(const std::vector<Transform>& transforms) {
   return std::move(w.data());
 }
 
+std::array<double, 36> pose_covariance(double sigma_pos_m, double sigma_att_deg) {
+  std::array<double, 36> c{};
+  const double p = std::isfinite(sigma_pos_m) ? sigma_pos_m * sigma_pos_m : 0.0;
+  const double a = std::isfinite(sigma_att_deg) ? std::pow(deg_to_rad(sigma_att_deg), 2) : 0.0;
+  for (std::size_t i = 0; i < 3; ++i) {
+    c[7 * i] = p;
+    c[7 * (i + 3)] = a;
+  }
+  return c;
+}
+
 std::vector<std::uint8_t> pose_with_covariance(std::int64_t t_ns, const std::string& frame_id,
                                                const Pose& pose, const std::array<double, 36>& covariance) {
   CdrWriter w;

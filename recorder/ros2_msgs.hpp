@@ -106,6 +106,9 @@ std::vector<std::uint8_t> tf_message(const std::vector<Transform>& transforms);
 // covariance: 6x6 row-major over (x, y, z, rotation about x, y, z), m^2 and rad^2.
 std::vector<std::uint8_t> pose_with_covariance(std::int64_t t_ns, const std::string& frame_id,
                                                const Pose& pose, const std::array<double, 36>& covariance);
+// A pose covariance from the 1-sigmas of position (each axis) and attitude (each rotation), no
+// correlations. Unknown sigmas (NaN) give 0: ROS has no "unknown" for a pose covariance.
+std::array<double, 36> pose_covariance(double sigma_pos_m, double sigma_att_deg);
 // Orientation unknown (covariance[0] = -1, as sensor_msgs/Imu says).
 std::vector<std::uint8_t> imu(std::int64_t t_ns, const std::string& frame_id, const Eigen::Vector3d& w_rad_s,
                               const Eigen::Vector3d& a_mps2);

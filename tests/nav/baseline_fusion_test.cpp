@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -219,6 +220,30 @@ TEST(BaselineFusion, NothingUsableIsAnError) {
   EXPECT_NE(f.error().message.find("no usable moving-baseline measurement"), std::string::npos)
       << f.error().message;
   EXPECT_NE(f.error().message.find("3 without a valid vector"), std::string::npos) << f.error().message;
+}
+
+// What both fusions (this one and the live one) use: a fixed or float vector; not one without
+// relPosValid, without a carrier solution or with a non-finite component; floats only if allowed.
+TEST(BaselineFusion, WhichMeasurementsAreUsed) {
+  BaselineFusionOptions with_float, fixed_only;
+  fixed_only.use_float = false;
+  BaselineMeasurement m;
+  m.ned_m = {10, -2, 3};
+  EXPECT_EQ(baseline_use(m, fixed_only), BaselineUse::kUse);
+  m.carr_soln = 1;
+  EXPECT_EQ(baseline_use(m, with_float), BaselineUse::kUse);
+  EXPECT_EQ(baseline_use(m, fixed_only), BaselineUse::kFloatSkipped);
+  m.carr_soln = 0;
+  EXPECT_EQ(baseline_use(m, with_float), BaselineUse::kInvalid);
+  m.carr_soln = 2;
+  m.valid = false;
+  EXPECT_EQ(baseline_use(m, with_float), BaselineUse::kInvalid);
+  m.valid = true;
+  m.ned_m.y() = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(baseline_use(m, with_float), BaselineUse::kInvalid);
+  m.ned_m.y() = std::numeric_limits<double>::infinity();
+  m.carr_soln = 1;
+  EXPECT_EQ(baseline_use(m, fixed_only), BaselineUse::kInvalid);  // invalid before float
 }
 
 }  // namespace

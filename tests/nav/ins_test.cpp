@@ -491,14 +491,19 @@ TEST(Fusion, ImuClockOffsetIsEstimatedOnline) {
     ie.accel_vrw = c.imu_scale * 0.05 / 60.0;
     ie.gyro_bias = c.imu_scale * Vector3d(2.0, -1.5, 3.0) * deg_to_rad(1.0) / 3600.0;
     ie.accel_bias = c.imu_scale * 9.80665e-3 * Vector3d(1.0, -0.8, 1.5);
-    InsConfig off;
-    off.lever_arm_body_m = kLever;
-    off.imu.gyro_arw_rad_psqrts *= c.imu_scale;
-    off.imu.accel_vrw_mps_psqrts *= c.imu_scale;
-    off.imu.gyro_bias.sigma *= c.imu_scale;
-    off.imu.accel_bias.sigma *= c.imu_scale;
-    InsConfig on = off;
-    on.imu_clock.estimate = true;
+    // Built twice rather than copied: GCC 12 warns of copying the empty optional inside (a false
+    // "maybe uninitialized").
+    auto config = [&](bool estimate_clock) {
+      InsConfig k;
+      k.lever_arm_body_m = kLever;
+      k.imu.gyro_arw_rad_psqrts *= c.imu_scale;
+      k.imu.accel_vrw_mps_psqrts *= c.imu_scale;
+      k.imu.gyro_bias.sigma *= c.imu_scale;
+      k.imu.accel_bias.sigma *= c.imu_scale;
+      k.imu_clock.estimate = estimate_clock;
+      return k;
+    };
+    const InsConfig off = config(false), on = config(true);
     Flight f;
     f.weave_period_s = c.weave_period_s;
     const auto imu_true = make_imu(f, T, 200.0, s_to_ns(0.0011), ie, 31);
@@ -810,8 +815,8 @@ TEST(Fusion, InnovationsTellWhetherTheNoiseModelHolds) {
     const auto traj = fuse(imu, fixes, cfg, true);
     ASSERT_TRUE(traj) << traj.error().message;
     const InnovationStats& n = traj->report().innovations;
-    std::printf("  %-26s %zu fixes: mean NIS %.2f, median %.2f, %.1f %% within the 95 %% gate, scale %.2f\n", c.what,
-                n.count, n.mean_nis, n.median_nis, 100 * n.within_95, n.scale);
+    std::printf("  %-26s %zu fixes: mean NIS %.2f, median %.2f, %.1f %% within the 95 %% gate, scale %.2f\n",
+                c.what, n.count, n.mean_nis, n.median_nis, 100 * n.within_95, n.scale);
     // Every fix after the initialisation one is tested, used or not.
     EXPECT_EQ(n.count, traj->innovations().size());
     EXPECT_EQ(n.count, traj->report().fixes_used + traj->report().fixes_rejected - 1);
@@ -897,7 +902,8 @@ TEST(Fusion, ConvergenceIsWhenTheAttitudeSigmasSettle) {
   };
   const Vector3d now = sigma_at(r.converged_ns), before = sigma_at(r.converged_ns - s_to_ns(2.0));
   for (int i = 0; i < 3; ++i) EXPECT_GE(now[i], 0.75 * before[i]) << i;
-  const Vector3d prev = sigma_at(r.converged_ns - 1), prev_before = sigma_at(r.converged_ns - 1 - s_to_ns(2.0));
+  const Vector3d prev = sigma_at(r.converged_ns - 1),
+                 prev_before = sigma_at(r.converged_ns - 1 - s_to_ns(2.0));
   bool fell = false;
   for (int i = 0; i < 3; ++i) fell = fell || prev[i] < 0.75 * prev_before[i];
   EXPECT_TRUE(fell);

@@ -1,10 +1,14 @@
 // recorder/ros2_msgs.hpp, the parts the MCAP tests (mcap_writer_test.cpp, app/cmd_export_mcap_test.cpp)
 // do not reach: diagnostic_msgs/msg/DiagnosticArray, the live view's health topic. Its schema is
 // ROS 2 Humble's definition with its dependencies; its CDR round-trips field for field; damaged
-// messages are errors. tests/net/foxglove_server_test.cpp decodes it with @foxglove/rosmsg2-serialization.
+// messages are errors. A pose covariance from sigmas. tests/net/foxglove_server_test.cpp decodes it with
+// @foxglove/rosmsg2-serialization.
 #include "recorder/ros2_msgs.hpp"
 
 #include <algorithm>
+#include <array>
+#include <limits>
+#include <numbers>
 
 #include <gtest/gtest.h>
 
@@ -53,6 +57,24 @@ TEST(Ros2Msgs, DiagnosticArrayRoundTrips) {
         std::vector<std::uint8_t>(msg.begin(), msg.begin() + static_cast<std::ptrdiff_t>(len)));
     EXPECT_FALSE(cut) << len;
   }
+}
+
+TEST(Ros2Msgs, PoseCovarianceFromSigmas) {
+  const std::array<double, 36> c = pose_covariance(0.2, 1.5);
+  const double att_rad = 1.5 * std::numbers::pi / 180.0;
+  for (std::size_t r = 0; r < 6; ++r)
+    for (std::size_t k = 0; k < 6; ++k) {
+      const double want = r != k ? 0.0 : r < 3 ? 0.2 * 0.2 : att_rad * att_rad;
+      EXPECT_NEAR(c[6 * r + k], want, 1e-15) << r << "," << k;
+    }
+  // Unknown sigmas stay 0 (ROS has no "unknown"), each on its own.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::array<double, 36> u = pose_covariance(nan, 2.0);
+  EXPECT_EQ(u[0], 0.0);
+  EXPECT_EQ(u[14], 0.0);
+  EXPECT_GT(u[21], 0.0);
+  EXPECT_EQ(pose_covariance(0.1, nan)[35], 0.0);
+  EXPECT_DOUBLE_EQ(pose_covariance(0.1, nan)[7], 0.01);
 }
 
 }  // namespace
