@@ -58,6 +58,18 @@ OptionSpec scene_option(const std::string& default_text, bool folder) {
               (default_text.empty() ? std::string() : " (default: " + default_text + ")")};
 }
 
+OptionSpec allow_damaged_option() {
+  return {"allow-damaged", ArgKind::kFlag, "",
+          "input frames that cannot be read are reported and left out of the outputs, and the command still "
+          "exits 0 (campaign tasks)"};
+}
+
+void input_damage(const ParsedArgs& a, const std::string& command, const std::string& what,
+                  std::ostream& err) {
+  if (!a.has("allow-damaged")) runtime_error(what);
+  err << "augrig " << command << ": " << what << " (--allow-damaged: the command succeeds)\n";
+}
+
 OptionSpec poses_option(const std::string& extra) {
   return {"poses", ArgKind::kValue, "POSES.csv",
           "the receiver's pose per frame from `augrig nav`'s camera pose CSV, matched to the left frame's "

@@ -97,6 +97,15 @@ OptionSpec rig_option(const std::string& default_text, bool required = false);
 OptionSpec scene_option(const std::string& default_text, bool folder = false);  // folder: SCENE.yaml|DIR
 OptionSpec poses_option(const std::string& extra = "");
 OptionSpec pose_tolerance_option();
+// --allow-damaged (replay, evaluate): input frames that cannot be read (a damaged blob, a recording
+// cut short) are reported and left out of the outputs, and the command still exits 0. Campaign
+// tasks pass it: a shard of a damaged recording is done, with its missing frames counted, rather
+// than failed on every run.
+OptionSpec allow_damaged_option();
+// Damaged input (`what`): an error (exit 1); with --allow-damaged, a line on `err` and the command
+// goes on.
+void input_damage(const ParsedArgs& a, const std::string& command, const std::string& what,
+                  std::ostream& err);
 OptionSpec boom_option(const std::string& default_text);
 OptionSpec receiver_draw_option();
 

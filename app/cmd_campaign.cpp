@@ -4,21 +4,21 @@
 //   resume OUT           the tasks not done, submitted again (or run here with --local)
 //   merge OUT            the shards joined into a report per flight and one for the campaign
 //   task MANIFEST ID     one task, as the array job runs it
-#include <chrono>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <ctime>
 #include <map>
+#include <set>
 
-#include <fcntl.h>
 #include <spawn.h>
-#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include "app/cli.hpp"
 #include "campaign/campaign.hpp"
 #include "campaign/merge.hpp"
+#include "campaign/process.hpp"
 #include "campaign/slurm.hpp"
 #include "campaign/task.hpp"
 
@@ -75,66 +75,24 @@ cp::Manifest load_manifest_arg(const std::string& arg) {
   return unwrap(cp::load_manifest(p));
 }
 
-// One run of augrig with `args`, its output to `log`: wall seconds and peak memory.
-struct Measured {
-  bool ok = false;
-  double wall_s = 0;
-  std::int64_t max_rss_bytes = 0;
-};
-Measured run_measured(const fs::path& prog, const std::vector<std::string>& args, const fs::path& log) {
-  std::vector<std::string> a = args;
-  std::vector<char*> argv;
-  std::string p = prog.string();
-  argv.push_back(p.data());
-  for (auto& s : a) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
-  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  Measured m;
-  const auto t0 = std::chrono::steady_clock::now();
-  pid_t pid = 0;
-  const int rc = ::posix_spawn(&pid, p.c_str(), &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  if (rc != 0) return m;
-  int status = 0;
-  struct rusage ru {};
-  while (::wait4(pid, &status, 0, &ru) < 0 && errno == EINTR) {
-  }
-  m.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  m.max_rss_bytes = static_cast<std::int64_t>(ru.ru_maxrss) * 1024;
-  m.ok = WIFEXITED(status) && WEXITSTATUS(status) == 0;
-  return m;
-}
-
-std::string file_tail(const fs::path& p, std::size_t lines) {
-  std::ifstream in(p);
-  std::vector<std::string> all;
-  std::string l;
-  while (std::getline(in, l)) all.push_back(l);
-  std::string s;
-  for (std::size_t i = all.size() > lines ? all.size() - lines : 0; i < all.size(); ++i)
-    s += "  " + all[i] + "\n";
-  return s;
-}
-
-// A variant's cost: the shard command on 1 and on 1 + n frames of a flight; the difference is the
-// cost per frame, the rest the start-up (GL context, opening the recording, the rig).
-cp::TaskCost measure_cost(const cp::CampaignSpec& spec, const cp::VariantSpec& v,
-                          const std::vector<cp::FlightFrames>& frames, int n, const fs::path& prog,
-                          std::ostream& out) {
-  std::size_t fi = spec.flights.size();
+// The flights a variant's cost is measured on: the first of each kind of images (sizes and
+// formats), since a flight of larger images costs more time and memory per frame. Flights that
+// cannot be cut (MCAP) or have one frame are not measured.
+std::vector<std::size_t> flights_to_measure(const cp::CampaignSpec& spec,
+                                            const std::vector<cp::FlightFrames>& frames) {
+  std::vector<std::size_t> pick;
+  std::set<std::string> kinds;
   for (std::size_t i = 0; i < spec.flights.size(); ++i)
-    if (frames[i].splittable && frames[i].t_ns.size() >= 2) {
-      fi = i;
-      break;
-    }
-  if (fi == spec.flights.size())
-    runtime_error(
-        "variant '" + v.name +
-        "': no flight to measure its cost on (MCAP files only, or flights of one frame): give --per-frame-s");
+    if (frames[i].splittable && frames[i].t_ns.size() >= 2 && kinds.insert(frames[i].images).second)
+      pick.push_back(i);
+  return pick;
+}
+
+// A variant's cost on flight `fi`: the shard command on 1 and on 1 + n frames of it; the difference
+// is the cost per frame, the rest the start-up (GL context, opening the recording, the rig).
+cp::TaskCost measure_cost(const cp::CampaignSpec& spec, const cp::VariantSpec& v,
+                          const std::vector<cp::FlightFrames>& frames, std::size_t fi, int n,
+                          const fs::path& prog, std::ostream& out) {
   const cp::FlightSpec& f = spec.flights[fi];
   const std::size_t extra = std::min<std::size_t>(static_cast<std::size_t>(n), frames[fi].t_ns.size() - 1);
   // Whole evaluation periods, so that both runs evaluate in proportion.
@@ -145,19 +103,19 @@ cp::TaskCost measure_cost(const cp::CampaignSpec& spec, const cp::VariantSpec& v
   std::error_code ec;
   fs::remove_all(dir, ec);
   fs::create_directories(dir, ec);
-  Measured r[2];
+  cp::LoggedRun r[2];
   const std::size_t counts[2] = {small, large};
   for (int i = 0; i < 2; ++i) {
     cp::Shard s{0, 0, counts[i], 0, 0};
     std::vector<std::string> args = cp::task_command(f, v, s, false);
     const fs::path o = dir / ("run" + std::to_string(i));
     args.insert(args.end(), {"--out", o.string()});
-    r[i] = run_measured(prog, args, dir / ("run" + std::to_string(i) + ".log"));
-    if (!r[i].ok)
+    r[i] = cp::run_logged(prog, args, dir / ("run" + std::to_string(i) + ".log"));
+    if (!r[i].ok())
       runtime_error("variant '" + v.name + "' fails on flight " + f.name + " (" + std::to_string(counts[i]) +
                     " frame(s)); every task would: fix the campaign file. Its command's last lines (" +
                     (dir / ("run" + std::to_string(i) + ".log")).string() + "):\n" +
-                    file_tail(dir / ("run" + std::to_string(i) + ".log"), 6));
+                    cp::last_lines(dir / ("run" + std::to_string(i) + ".log"), 6, "  "));
   }
   cp::TaskCost c;
   c.per_frame_s = std::max(1e-4, (r[1].wall_s - r[0].wall_s) / static_cast<double>(large - small));
@@ -169,7 +127,7 @@ cp::TaskCost measure_cost(const cp::CampaignSpec& spec, const cp::VariantSpec& v
   fs::remove_all(dir, ec);
   out << "  variant " << v.name << ": " << fixed(c.per_frame_s * 1000, 1) << " ms per frame, start-up "
       << fixed(c.startup_s, 2) << " s, peak memory " << c.max_rss_bytes / (1 << 20) << " MB ("
-      << c.measured_on << ")\n";
+      << c.measured_on << (frames[fi].images.empty() ? "" : ", images " + frames[fi].images) << ")\n";
   return c;
 }
 
@@ -186,19 +144,18 @@ int plan(const std::string& file, const ParsedArgs& a, std::ostream& out, std::o
   std::vector<cp::FlightFrames> frames;
   for (const cp::FlightSpec& f : spec.flights) {
     frames.push_back(unwrap(cp::read_flight_frames(f)));
-    const auto& t = frames.back().t_ns;
-    std::optional<std::int64_t> t0, t1;
-    for (const auto& x : t)
-      if (x) {
-        if (!t0) t0 = x;
-        t1 = x;
-      }
+    const cp::FlightClock clock = cp::flight_clock(frames.back());
     out << "  flight " << f.name << " (" << cp::to_string(f.kind) << ", " << f.path.string() << "): ";
-    if (!frames.back().splittable)
+    if (!frames.back().splittable) {
       out << "read whole (one shard)\n";
-    else
-      out << t.size() << " stereo frame(s) over " << fixed(t0 ? static_cast<double>(*t1 - *t0) * 1e-9 : 0, 1)
-          << " s\n";
+      continue;
+    }
+    out << frames.back().t_ns.size() << " stereo frame(s) over "
+        << fixed(clock.elapsed_s.empty() ? 0 : clock.elapsed_s.back(), 1) << " s\n";
+    if (clock.steps_back)
+      out << "    its clock steps back at " << clock.steps_back << " frame(s) (first at frame "
+          << clock.first_step_back_frame << ", by up to " << fixed(clock.largest_step_back_s, 3)
+          << " s): shards count the typical frame interval there\n";
   }
 
   // The cost of each variant, measured on this machine (or given).
@@ -211,9 +168,26 @@ int plan(const std::string& file, const ParsedArgs& a, std::ostream& out, std::o
     const int n = a.has("measure-frames")
                       ? static_cast<int>(parse_integer("measure-frames", a.get("measure-frames"), 1, 10000))
                       : 20;
-    out << "measuring each variant's cost (" << n << " frames):\n";
-    for (const auto& v : spec.variants)
-      costs.emplace_back(v.name, measure_cost(spec, v, frames, n, prog, out));
+    const std::vector<std::size_t> measured = flights_to_measure(spec, frames);
+    if (measured.empty())
+      runtime_error(
+          "no flight to measure the variants' cost on (MCAP files only, or flights of one frame): give "
+          "--per-frame-s");
+    out << "measuring each variant's cost (" << n << " frames";
+    if (measured.size() > 1)
+      out << ", on each of " << measured.size() << " kinds of images: a task is given the largest cost";
+    out << "):\n";
+    for (const auto& v : spec.variants) {
+      cp::TaskCost worst;
+      for (std::size_t fi : measured) {
+        const cp::TaskCost c = measure_cost(spec, v, frames, fi, n, prog, out);
+        worst.per_frame_s = std::max(worst.per_frame_s, c.per_frame_s);
+        worst.startup_s = std::max(worst.startup_s, c.startup_s);
+        worst.max_rss_bytes = std::max(worst.max_rss_bytes, c.max_rss_bytes);
+        worst.measured_on += (worst.measured_on.empty() ? "" : "; ") + c.measured_on;
+      }
+      costs.emplace_back(v.name, worst);
+    }
   }
 
   cp::Manifest m;
@@ -272,7 +246,8 @@ int status(const std::string& arg, const ParsedArgs& a, std::ostream& out) {
   std::array<std::size_t, kStates> total{};
   std::vector<std::string> notes;
   double done_s = 0;
-  std::size_t done_frames = 0;
+  std::size_t done_frames = 0, left_out = 0, left_out_shards = 0;
+  std::map<std::string, std::size_t> left_out_by;
   for (const cp::Task& t : m.tasks) {
     const cp::TaskStatus s = cp::task_status(m, t, now);
     const std::string key = t.variant + "/" + t.flight;
@@ -285,6 +260,17 @@ int status(const std::string& arg, const ParsedArgs& a, std::ostream& out) {
     if (s.state == cp::TaskState::kDone) {
       done_s += s.wall_s;
       done_frames += t.shard.frames;
+      if (s.frames_left_out) {
+        left_out += s.frames_left_out;
+        left_out_by[key] += s.frames_left_out;
+        ++left_out_shards;
+        if (a.has("tasks"))
+          notes.push_back("  task " + std::to_string(t.id) + " (" + key + " shard " +
+                          std::to_string(t.shard.index) + ", frames " + std::to_string(t.shard.from_frame) +
+                          "+" + std::to_string(t.shard.frames) + "): done, " +
+                          std::to_string(s.frames_left_out) + " frame(s) left out (" +
+                          (t.out / "task.log").string() + ")");
+      }
     }
     if (a.has("tasks") && s.state != cp::TaskState::kDone)
       notes.push_back("  task " + std::to_string(t.id) + " (" + key + " shard " +
@@ -300,11 +286,19 @@ int status(const std::string& arg, const ParsedArgs& a, std::ostream& out) {
            std::to_string(c[0]);
   };
   out << "campaign '" << m.name << "' (" << m.file.string() << ", planned " << m.planned_at << ")\n";
-  for (const auto& k : order) out << "  " << k << ": tasks " << line(by[k]) << "\n";
+  for (const auto& k : order) {
+    out << "  " << k << ": tasks " << line(by[k]);
+    if (left_out_by.count(k)) out << "; " << left_out_by[k] << " frame(s) left out";
+    out << "\n";
+  }
   out << "tasks " << line(total) << "\n";
   if (done_frames)
     out << "done: " << done_frames << " frame(s) in " << fixed(done_s, 1) << " s of task time ("
         << fixed(done_s / static_cast<double>(done_frames) * 1000, 1) << " ms per frame)\n";
+  if (left_out)
+    out << "left out: " << left_out << " frame(s) in " << left_out_shards
+        << " done shard(s): their input could not be read (damaged) or had no pose; each shard's task.log "
+           "says which (--tasks lists them)\n";
   for (const auto& n : notes) out << n << "\n";
   if (total[2] == m.tasks.size())
     out << "all done: augrig campaign merge " << m.out.string() << "\n";

@@ -60,6 +60,7 @@ const std::vector<OptionSpec>& evaluate_specs() {
       {"no-plot", ArgKind::kFlag, "", "with --out: no evaluation.png (it needs gnuplot)"},
       {"pair-tolerance-ns", ArgKind::kValue, "NS",
        "EuRoC folders: pair frames whose timestamps differ by at most NS (default 0)"},
+      allow_damaged_option(),
   };
   return specs;
 }
@@ -369,8 +370,10 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   if (r.failed_pairs)
     runtime_error(std::to_string(r.failed_pairs) + " stereo frame(s) could not be augmented (above)");
   if (pipeline.parts().source_info.replay && pipeline.parts().source_info.replay->damaged_frames())
-    runtime_error(std::to_string(pipeline.parts().source_info.replay->damaged_frames()) +
-                  " frame(s) could not be read (above); the others were evaluated");
+    input_damage(a, "evaluate",
+                 std::to_string(pipeline.parts().source_info.replay->damaged_frames()) +
+                     " frame(s) could not be read (above); the others were evaluated",
+                 err);
   if (r.stopped_by_signal) return kExitRuntime;
   return kExitOk;
 }

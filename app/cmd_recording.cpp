@@ -79,6 +79,7 @@ const std::vector<OptionSpec>& replay_specs() {
       {"status-every", ArgKind::kValue, "S", "print a status line every S seconds (default 0: never)"},
       {"pair-tolerance-ns", ArgKind::kValue, "NS",
        "EuRoC folders: pair left and right frames whose timestamps differ by at most NS (default 0)"},
+      allow_damaged_option(),
   };
   return specs;
 }
@@ -212,8 +213,9 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
   const std::uint64_t unreadable =
       r.source.camera_drops > unpaired ? (r.source.camera_drops - unpaired) / 2 : 0;
   if (unreadable)
-    runtime_error(std::to_string(unreadable) +
-                  " pair(s) could not be read (above); the others were replayed");
+    input_damage(a, "replay",
+                 std::to_string(unreadable) + " pair(s) could not be read (above); the others were replayed",
+                 err);
   return kExitOk;
 }
 
@@ -262,8 +264,10 @@ int replay_mcap(const std::string& file, const ParsedArgs& a, std::ostream& out,
       runtime_error("the recording stopped: " + user_message(r.recording_closed->error()));
   }
   if (problems || r.source_failed)
-    runtime_error(path +
-                  ": the MCAP file is damaged or could not be read (above); the frames before were replayed");
+    input_damage(
+        a, "replay",
+        path + ": the MCAP file is damaged or could not be read (above); the frames before were replayed",
+        err);
   return kExitOk;
 }
 
@@ -392,12 +396,16 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   }
   const std::uint64_t damaged = pipeline.parts().source_info.replay->damaged_frames();
   if (!reader.problems().empty())
-    runtime_error(
+    input_damage(
+        a, "replay",
         "the recording is incomplete (above); " +
-        (damaged ? std::to_string(damaged) + " listed frame(s) could not be read, " : std::string()) +
-        "the others were replayed");
-  if (damaged)
-    runtime_error(std::to_string(damaged) + " frame(s) could not be read (above); the others were replayed");
+            (damaged ? std::to_string(damaged) + " listed frame(s) could not be read, " : std::string()) +
+            "the others were replayed",
+        err);
+  else if (damaged)
+    input_damage(a, "replay",
+                 std::to_string(damaged) + " frame(s) could not be read (above); the others were replayed",
+                 err);
   if (r.stopped_by_signal) return kExitRuntime;
   return kExitOk;
 }

@@ -77,8 +77,23 @@ Expected<CampaignSpec> parse_campaign(const std::string& yaml_text, const std::f
 struct FlightFrames {
   std::vector<std::optional<std::int64_t>> t_ns;
   bool splittable = true;  // MCAP files are read front to back: one shard
+  // Both cameras' image sizes and formats ("Mono8 1280x960 + Mono8 1280x960"; "" unknown): a
+  // variant's cost is measured once per kind of flight.
+  std::string images;
 };
 Expected<FlightFrames> read_flight_frames(const FlightSpec& flight);
+
+// A flight's recorded time as shards count it: seconds after its first readable frame, never
+// going back. A clock that steps back (a host clock set, a GPS time jump) or repeats a time counts
+// the flight's typical frame interval there instead, so that shards stay as long as asked for; an
+// unreadable frame takes its predecessor's time.
+struct FlightClock {
+  std::vector<double> elapsed_s;  // per frame
+  std::size_t steps_back = 0;     // frames whose time is not after the frame before
+  double largest_step_back_s = 0;
+  std::size_t first_step_back_frame = 0;
+};
+FlightClock flight_clock(const FlightFrames& f);
 
 // A range of a flight's frames, [from_frame, from_frame + frames).
 struct Shard {
@@ -86,7 +101,7 @@ struct Shard {
   std::size_t from_frame = 0, frames = 0;
   double t_from_s = 0, t_to_s = 0;  // seconds after the flight's first frame
 };
-// Cuts a flight into shards of `seconds` of recorded time (the last may be shorter); with
+// Cuts a flight into shards of `seconds` of recorded time (flight_clock; the last may be shorter); with
 // `align` > 1, every shard starts at a multiple of it (the evaluation cadence). A flight that
 // cannot be split, or is shorter, is one shard.
 std::vector<Shard> split_flight(const FlightFrames& f, double seconds, std::size_t align = 1);

@@ -85,6 +85,7 @@ std::string pct(double v) {
 struct FlightLine {
   std::string variant, flight;
   std::size_t shards = 0, frames = 0, evaluated = 0;
+  std::size_t left_out = 0;                                    // planned frames not in the outputs
   double occluded_left = NAN, occluded_right = NAN;            // mean over frames, % of the receiver
   double bad3[3] = {NAN, NAN, NAN}, rms[3] = {NAN, NAN, NAN};  // raw, augmented, augmented without boom
 };
@@ -155,6 +156,10 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
 
     // The occlusion statistics, frame by frame, and their summary.
     if (Status s = join_file(shards, "stats.csv", dir / "stats.csv", &fl.frames); !s) return s.error();
+    // Frames a shard left out (damaged input, no pose; each shard's task.log says which).
+    std::size_t planned = 0;
+    for (const Task* t : shards) planned += t->shard.frames;
+    if (planned > fl.frames) fl.left_out = planned - fl.frames;
     auto stats = read_stats_csv((dir / "stats.csv").string());
     if (!stats) return stats.error();
     if (!stats->empty()) {
@@ -209,9 +214,12 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
     }
     sum.frames += fl.frames;
     sum.evaluated += fl.evaluated;
+    sum.frames_left_out += fl.left_out;
     ++sum.flights_merged;
     out << "merged " << label << ": " << fl.shards << " shard(s), " << fl.frames << " frame(s)";
     if (evaluated) out << ", " << fl.evaluated << " evaluated";
+    if (fl.left_out)
+      out << ", " << fl.left_out << " left out (damaged input or no pose: the shards' task.log)";
     out << " -> " << dir.string() << "\n";
     lines.push_back(fl);
   }
@@ -219,10 +227,15 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
   // The campaign: a line per flight and variant, and per variant the tables over all its flights.
   std::ostringstream txt, csv;
   csv << "variant,flight,shards,frames,evaluated,occluded_pct_left_mean,occluded_pct_right_mean,"
-         "raw_bad3_pct,aug_bad3_pct,aug_noboom_bad3_pct,raw_rms_px,aug_rms_px,aug_noboom_rms_px\n";
+         "raw_bad3_pct,aug_bad3_pct,aug_noboom_bad3_pct,raw_rms_px,aug_rms_px,aug_noboom_rms_px,frames_left_"
+         "out\n";
   txt << "Campaign '" << m.name << "' (" << m.campaign_file.string() << "): " << sum.flights_merged
-      << " flight report(s) merged, " << sum.frames << " stereo frame(s), " << sum.evaluated
-      << " evaluated\n";
+      << " flight report(s) merged, " << sum.frames << " stereo frame(s), " << sum.evaluated << " evaluated";
+  if (sum.frames_left_out)
+    txt << "; " << sum.frames_left_out
+        << " planned frame(s) left out (damaged input, or no pose: the 'left out' column, each shard's "
+           "task.log)";
+  txt << "\n";
   if (!sum.incomplete.empty()) {
     txt << "Not merged (shards not done):\n";
     for (const auto& s : sum.incomplete) txt << "  " << s << "\n";
@@ -231,13 +244,13 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
          "bad > 3 px (%) and RMS error (px) over the receiver for the raw pair, the augmented pair, and the\n"
          "augmented pair with the boom's pixels left out.\n\n";
   char row[512];
-  std::snprintf(row, sizeof row, "%-14s %-16s %6s %8s %9s %8s %8s %8s %8s %9s %8s %8s %9s\n", "variant",
-                "flight", "shards", "frames", "evaluated", "occl L", "occl R", "bad3 raw", "bad3 aug",
-                "bad3 -boom", "rms raw", "rms aug", "rms -boom");
+  std::snprintf(row, sizeof row, "%-14s %-16s %6s %8s %8s %9s %8s %8s %8s %8s %9s %8s %8s %9s\n", "variant",
+                "flight", "shards", "frames", "left out", "evaluated", "occl L", "occl R", "bad3 raw",
+                "bad3 aug", "bad3 -boom", "rms raw", "rms aug", "rms -boom");
   txt << row;
   for (const FlightLine& l : lines) {
-    std::snprintf(row, sizeof row, "%-14s %-16s %6zu %8zu %9zu %8s %8s %8s %8s %9s %8s %8s %9s\n",
-                  l.variant.c_str(), l.flight.c_str(), l.shards, l.frames, l.evaluated,
+    std::snprintf(row, sizeof row, "%-14s %-16s %6zu %8zu %8zu %9zu %8s %8s %8s %8s %9s %8s %8s %9s\n",
+                  l.variant.c_str(), l.flight.c_str(), l.shards, l.frames, l.left_out, l.evaluated,
                   pct(l.occluded_left).c_str(), pct(l.occluded_right).c_str(), pct(l.bad3[0]).c_str(),
                   pct(l.bad3[1]).c_str(), pct(l.bad3[2]).c_str(), pct(l.rms[0]).c_str(),
                   pct(l.rms[1]).c_str(), pct(l.rms[2]).c_str());
@@ -245,7 +258,7 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
     csv << l.variant << ',' << l.flight << ',' << l.shards << ',' << l.frames << ',' << l.evaluated << ','
         << pct(l.occluded_left) << ',' << pct(l.occluded_right) << ',' << pct(l.bad3[0]) << ','
         << pct(l.bad3[1]) << ',' << pct(l.bad3[2]) << ',' << pct(l.rms[0]) << ',' << pct(l.rms[1]) << ','
-        << pct(l.rms[2]) << '\n';
+        << pct(l.rms[2]) << ',' << l.left_out << '\n';
   }
   std::vector<std::string> variants;
   for (const FlightLine& l : lines)

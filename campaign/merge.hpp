@@ -25,6 +25,7 @@ struct MergeSummary {
   std::filesystem::path report_dir;  // OUT/report
   std::size_t flights_merged = 0, flights_incomplete = 0;
   std::size_t frames = 0, evaluated = 0;
+  std::size_t frames_left_out = 0;      // planned frames not in the shards' outputs (damaged input, no pose)
   std::vector<std::string> incomplete;  // "variant/flight: shards 3, 7 not done"
 };
 

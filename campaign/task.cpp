@@ -1,12 +1,9 @@
 #include "campaign/task.hpp"
 
 #include <atomic>
-#include <cerrno>
 #include <chrono>
 #include <condition_variable>
-#include <cstring>
 #include <ctime>
-#include <deque>
 #include <fstream>
 #include <mutex>
 #include <ostream>
@@ -15,14 +12,11 @@
 
 #include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/resource.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
-extern char** environ;
+#include "campaign/process.hpp"
 
 namespace augrig::campaign {
 
@@ -112,18 +106,15 @@ void fsync_dir(const fs::path& dir) {
   }
 }
 
-// The last `n` lines of a file.
-std::string tail_lines(const fs::path& p, std::size_t n) {
+// The data rows of a CSV file (lines after the header that are not blank).
+std::size_t csv_data_rows(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
-  std::deque<std::string> lines;
   std::string line;
-  while (std::getline(in, line)) {
-    lines.push_back(line);
-    if (lines.size() > n) lines.pop_front();
-  }
-  std::string s;
-  for (const auto& l : lines) s += l + "\n";
-  return s;
+  std::size_t n = 0;
+  if (!std::getline(in, line)) return 0;
+  while (std::getline(in, line))
+    if (!line.empty() && line != "\r") ++n;
+  return n;
 }
 
 // SIGTERM/SIGINT (scancel, the time limit) go on to the command, which stops cleanly.
@@ -153,6 +144,7 @@ TaskStatus task_status(const Manifest& m, const Task& t, double now_s) {
       s.state = TaskState::kDone;
       if (d["wall_s"]) s.wall_s = d["wall_s"].as<double>(0);
       if (d["max_rss_bytes"]) s.max_rss_bytes = d["max_rss_bytes"].as<std::int64_t>(0);
+      if (d["frames_left_out"]) s.frames_left_out = d["frames_left_out"].as<std::size_t>(0);
       if (d["host"]) s.host = d["host"].Scalar();
       if (d["job"]) s.job = d["job"].Scalar();
       return s;
@@ -241,17 +233,8 @@ int run_task(const Manifest& m, std::size_t id, std::ostream& out, std::ostream&
   // stderr into task.log (kept with the shard).
   std::vector<std::string> args = t.argv;
   args.insert(args.end(), {"--out", partial.string()});
-  std::vector<char*> argv;
   const std::string prog = m.augrig.string();
-  argv.push_back(const_cast<char*>(prog.c_str()));
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
   const fs::path log = partial / "task.log";
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
-  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
   out << "campaign: " << what << " on " << host << (job.empty() ? "" : " as job " + job) << ": " << prog
       << " " << joined(args) << std::endl;
 
@@ -261,50 +244,29 @@ int run_task(const Manifest& m, std::size_t id, std::ostream& out, std::ostream&
   sigemptyset(&sa.sa_mask);
   sigaction(SIGTERM, &sa, &old_term);
   sigaction(SIGINT, &sa, &old_int);
-  const auto t0 = std::chrono::steady_clock::now();
-  pid_t pid = 0;
-  const int rc = ::posix_spawn(&pid, prog.c_str(), &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  std::string why;
-  int status = 0;
-  struct rusage ru {};
-  if (rc != 0) {
-    why = "cannot start " + prog + ": " + std::strerror(rc);
-  } else {
-    g_child = pid;
-    // The heartbeat says "alive" while the command runs; status ages it.
-    std::mutex mu;
-    std::condition_variable cv;
-    bool finished = false;
-    std::thread beat([&] {
-      std::unique_lock lock(mu);
-      while (!cv.wait_for(lock, std::chrono::duration<double>(m.heartbeat_s), [&] { return finished; })) {
-        const struct timespec times[2] = {{0, UTIME_NOW}, {0, UTIME_NOW}};
-        ::utimensat(AT_FDCWD, (partial / "heartbeat").c_str(), times, 0);
-      }
-    });
-    pid_t w = 0;
-    do {
-      w = ::wait4(pid, &status, 0, &ru);
-    } while (w < 0 && errno == EINTR);
-    g_child = 0;
-    {
-      std::lock_guard lock(mu);
-      finished = true;
+  // The heartbeat says "alive" while the command runs; status ages it.
+  std::mutex mu;
+  std::condition_variable cv;
+  bool finished = false;
+  std::thread beat([&] {
+    std::unique_lock lock(mu);
+    while (!cv.wait_for(lock, std::chrono::duration<double>(m.heartbeat_s), [&] { return finished; })) {
+      const struct timespec times[2] = {{0, UTIME_NOW}, {0, UTIME_NOW}};
+      ::utimensat(AT_FDCWD, (partial / "heartbeat").c_str(), times, 0);
     }
-    cv.notify_all();
-    beat.join();
-    if (w < 0)
-      why = std::string("lost the command: ") + std::strerror(errno);
-    else if (WIFSIGNALED(status))
-      why = std::string("the command was killed by signal ") + strsignal(WTERMSIG(status));
-    else if (WEXITSTATUS(status) != 0)
-      why = "the command exited with status " + std::to_string(WEXITSTATUS(status));
+  });
+  const LoggedRun run = run_logged(m.augrig, args, log, &g_child);
+  {
+    std::lock_guard lock(mu);
+    finished = true;
   }
+  cv.notify_all();
+  beat.join();
   sigaction(SIGTERM, &old_term, nullptr);
   sigaction(SIGINT, &old_int, nullptr);
-  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const std::string last = tail_lines(log, 8);
+  std::string why = run.why();
+  const double wall_s = run.wall_s;
+  const std::string last = last_lines(log, 8);
   out << last;
 
   if (why.empty() && !fs::is_regular_file(partial / "stats.csv")) why = "the command wrote no stats.csv";
@@ -321,11 +283,16 @@ int run_task(const Manifest& m, std::size_t id, std::ostream& out, std::ostream&
     err << "augrig campaign task: " << what << ": " << why << " (log: " << log.string() << ")\n";
     return 1;
   }
-  const std::int64_t rss = static_cast<std::int64_t>(ru.ru_maxrss) * 1024;
+  const std::int64_t rss = run.max_rss_bytes;
+  // The frames in the outputs: stats.csv has a row per augmented frame. The rest of the shard was
+  // left out (a damaged or unreadable frame, one without a pose): task.log says which.
+  const std::size_t frames_out = csv_data_rows(partial / "stats.csv");
+  const std::size_t left_out = t.shard.frames > frames_out ? t.shard.frames - frames_out : 0;
   YAML::Emitter e;
   e << YAML::BeginMap << YAML::Key << "task" << YAML::Value << id << YAML::Key << "command" << YAML::Value
-    << joined(t.argv) << YAML::Key << "frames" << YAML::Value << t.shard.frames << YAML::Key << "wall_s"
-    << YAML::Value << wall_s << YAML::Key << "per_frame_s" << YAML::Value
+    << joined(t.argv) << YAML::Key << "frames" << YAML::Value << t.shard.frames << YAML::Key << "frames_out"
+    << YAML::Value << frames_out << YAML::Key << "frames_left_out" << YAML::Value << left_out << YAML::Key
+    << "wall_s" << YAML::Value << wall_s << YAML::Key << "per_frame_s" << YAML::Value
     << (t.shard.frames ? wall_s / static_cast<double>(t.shard.frames) : 0.0) << YAML::Key << "max_rss_bytes"
     << YAML::Value << rss << YAML::Key << "host" << YAML::Value << host << YAML::Key << "job" << YAML::Value
     << job << YAML::Key << "finished_at" << YAML::Value << utc_now_iso() << YAML::EndMap;
@@ -340,7 +307,12 @@ int run_task(const Manifest& m, std::size_t id, std::ostream& out, std::ostream&
     return 1;
   }
   fsync_dir(t.out.parent_path());
-  out << "campaign: " << what << " done in " << wall_s << " s\n";
+  out << "campaign: " << what << " done in " << wall_s << " s";
+  if (left_out)
+    out << "; " << left_out << " of its " << t.shard.frames
+        << " frame(s) left out (damaged or unreadable input, or no pose: see "
+        << (t.out / "task.log").string() << ")";
+  out << "\n";
   return 0;
 }
 

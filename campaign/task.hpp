@@ -28,10 +28,11 @@ const char* to_string(TaskState s);
 
 struct TaskStatus {
   TaskState state = TaskState::kPending;
-  std::string detail;              // why failed/stopped/pending, in plain words
-  double wall_s = 0;               // done: the command's wall time
-  std::int64_t max_rss_bytes = 0;  // done: its peak memory
-  std::string host, job;           // who ran (or runs) it
+  std::string detail;               // why failed/stopped/pending, in plain words
+  double wall_s = 0;                // done: the command's wall time
+  std::int64_t max_rss_bytes = 0;   // done: its peak memory
+  std::size_t frames_left_out = 0;  // done: shard frames not in its outputs (damaged input, no pose)
+  std::string host, job;            // who ran (or runs) it
 };
 
 // The task's state from its files. `now_s`: the wall clock (seconds since the epoch) to age the

@@ -12,8 +12,11 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 #include <unistd.h>
 
+#include "recorder/store.hpp"
+#include "tests/support/campaign_fixture.hpp"
 #include "tests/support/local_slurm.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -22,32 +25,14 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::vector<std::string> lines_of(const fs::path& p) {
-  std::ifstream in(p);
-  std::vector<std::string> v;
-  std::string l;
-  while (std::getline(in, l)) v.push_back(l);
-  return v;
-}
+using test::lines_of;
 
 std::string flag_output(const std::string& out, const std::string& pattern) {
   std::smatch m;
   return std::regex_search(out, m, std::regex(pattern)) ? m[1].str() : "";
 }
 
-struct CampaignCli : ::testing::Test {
-  fs::path dir;
-  std::string rec_a, rec_b;
-  void SetUp() override {
-    std::string why;
-    rec_a = test::sim_recording("campaign/flight_a.yaml", 3, "campaign_a", &why);
-    ASSERT_FALSE(rec_a.empty()) << why;
-    rec_b = test::sim_recording("campaign/flight_b.yaml", 3, "campaign_b", &why);
-    ASSERT_FALSE(rec_b.empty()) << why;
-    dir = test::output_dir(std::string("cmd_campaign_") +
-                           ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::ofstream(dir / "boom.csv") << "t_s,elevation_deg,azimuth_deg,extension_m\n0,22,-10,0.5\n4,38,12,5\n";
-  }
+struct CampaignCli : test::CampaignFlights {
   // A campaign of both recordings: the recorded statistics, and a scripted boom evaluated every
   // 3rd frame (or `variants` instead); shards of `seconds`.
   fs::path campaign_file(const std::string& name, const std::string& shards, const std::string& slurm = "",
@@ -62,35 +47,6 @@ struct CampaignCli : ::testing::Test {
                      << variants << "shards: " << shards << "\n"
                      << slurm;
     return f;
-  }
-  // The unsharded runs of flight `f` that the merged reports must equal: the evaluation with
-  // `eval_flags`, and (`stats`) the replay's statistics.
-  void expect_equals_unsharded(const fs::path& report, const std::string& f,
-                               const std::string& eval_flags = "--every 3", bool stats = true) {
-    SCOPED_TRACE("flight " + f);
-    const std::string rec = f == "a" ? rec_a : rec_b;
-    const fs::path u = dir / ("unsharded_" + f);
-    std::string log;
-    ASSERT_EQ(test::run_augrig("evaluate " + rec + " --boom script:" + (dir / "boom.csv").string() + " " +
-                                   eval_flags + " --no-plot --out " + (u / "eval").string(),
-                               &log),
-              0)
-        << log;
-    if (stats) {
-      ASSERT_EQ(
-          test::run_augrig(
-              "replay " + rec + " --fast --headless --every 1000000 --out " + (u / "stats").string(), &log),
-          0)
-          << log;
-      EXPECT_EQ(lines_of(report / "stats" / f / "stats.csv"), lines_of(u / "stats" / "stats.csv"));
-    }
-    EXPECT_EQ(lines_of(report / "eval" / f / "stats.csv"), lines_of(u / "eval" / "stats.csv"));
-    EXPECT_EQ(lines_of(report / "eval" / f / "evaluation.csv"), lines_of(u / "eval" / "evaluation.csv"));
-    auto merged = lines_of(report / "eval" / f / "evaluation.txt"),
-         whole = lines_of(u / "eval" / "evaluation.txt");
-    ASSERT_GT(merged.size(), 5u);
-    ASSERT_EQ(merged.size(), whole.size());
-    EXPECT_TRUE(std::equal(merged.begin() + 1, merged.end(), whole.begin() + 1));  // all but the title
   }
 };
 
@@ -136,6 +92,94 @@ TEST_F(CampaignCli, PlansMeasuresRunsLocallyAndMerges) {
   EXPECT_NE(out.find("(4 flight report(s), 144 frame(s), 25 evaluated)"), std::string::npos) << out;
   expect_equals_unsharded(o / "report", "a");
   expect_equals_unsharded(o / "report", "b");
+}
+
+// Flights of other images cost other time and memory per frame: the plan measures a variant on
+// one flight of each kind and gives every task the largest cost of them.
+TEST_F(CampaignCli, EachKindOfImagesIsMeasuredAndTasksGetTheLargestCost) {
+  std::string why;
+  const std::string rec_c = test::sim_recording("campaign/flight_c.yaml", 3, "campaign_c", &why);
+  ASSERT_FALSE(rec_c.empty()) << why;
+  const fs::path file = dir / "kinds.yaml";
+  std::ofstream(file) << "augrig_campaign: 1\nname: kinds\nout: kinds-out\nrecordings:\n  - {path: " << rec_a
+                      << ", name: a}\n  - {path: " << rec_b << ", name: b}\n  - {path: " << rec_c
+                      << ", name: c}\nvariants:\n  - name: stats\nshards: {seconds: 1}\n";
+  std::string out;
+  ASSERT_EQ(test::run_augrig("campaign plan " + file.string() + " --measure-frames 3", &out), 0) << out;
+  EXPECT_NE(out.find("on each of 2 kinds of images: a task is given the largest cost"), std::string::npos)
+      << out;
+  // a and c measured (b's images are a's), each line naming its images.
+  const std::string a_line = flag_output(out, "(variant stats: [^\\n]*flight a, [^\\n]*)");
+  const std::string c_line = flag_output(out, "(variant stats: [^\\n]*flight c, [^\\n]*)");
+  EXPECT_TRUE(std::regex_search(a_line, std::regex("images \\S+ 640x480 \\+ \\S+ 640x480\\)$"))) << out;
+  EXPECT_TRUE(std::regex_search(c_line, std::regex("images \\S+ 320x240 \\+ \\S+ 320x240\\)$"))) << out;
+  EXPECT_EQ(out.find("flight b, frames"), std::string::npos) << out;
+  // The manifest's cost is the larger of the two measurements, field by field.
+  auto ms = [&](const std::string& line, const std::string& pattern) {
+    return std::stod(flag_output(line, pattern));
+  };
+  const std::string manifest = [&] {
+    std::ifstream in(dir / "kinds-out" / "manifest.yaml");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }();
+  const double per_frame_s = ms(manifest, "per_frame_s: ([0-9.e+-]+)");
+  EXPECT_NEAR(per_frame_s * 1000,
+              std::max(ms(a_line, ": ([0-9.]+) ms per frame"), ms(c_line, ": ([0-9.]+) ms per frame")), 0.051)
+      << manifest;
+  EXPECT_NE(manifest.find("flight a, frames 0..3"), std::string::npos) << manifest;
+  EXPECT_NE(manifest.find("; flight c, frames 0..3"), std::string::npos) << manifest;
+}
+
+// A flight with a damaged frame: the shard holding it is done, not failed on every run; the frame
+// is left out and counted (the task, status, merge, the report), and the merged files equal the
+// unsharded runs', which leave the same frame out.
+TEST_F(CampaignCli, ADamagedFrameIsLeftOutAndCountedNotAShardFailedForever) {
+  const fs::path bad = dir / "damaged";
+  fs::create_directories(bad);
+  fs::copy_file(fs::path(rec_a) / "recording.sqlite", bad / "recording.sqlite");
+  {
+    auto d = recorder::Database::open((bad / "recording.sqlite").string(), SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    // Frame 6 (evaluated: a multiple of 3): its left raw blob's byte 101 zeroed.
+    ASSERT_TRUE(
+        d->exec("UPDATE frames SET left_raw = CAST(substr(left_raw, 1, 100) || x'00' || substr(left_raw, "
+                "102) AS BLOB) "
+                "WHERE id = (SELECT id FROM frames ORDER BY id LIMIT 1 OFFSET 6)"));
+  }
+  std::string out;
+  ASSERT_EQ(test::run_augrig("check " + bad.string(), &out), 1) << out;  // the damage is real
+  const fs::path file = dir / "damaged.yaml";
+  std::ofstream(file) << "augrig_campaign: 1\nname: damaged\nout: damaged-out\nrecordings:\n  - {path: "
+                      << bad.string()
+                      << ", name: a}\nvariants:\n  - name: stats\n  - name: eval\n    boom: script:boom.csv\n"
+                         "    evaluate: {every: 3}\nshards: {seconds: 1.0}\n";
+  ASSERT_EQ(test::run_augrig("campaign plan " + file.string() + " --measure-frames 3", &out), 0) << out;
+  const fs::path o = dir / "damaged-out";
+  ASSERT_EQ(test::run_augrig("campaign resume " + o.string() + " --local --jobs 2", &out), 0) << out;
+  const std::string tasks = flag_output(out, "(\\d+) of \\d+ task\\(s\\) not done");
+  ASSERT_FALSE(tasks.empty()) << out;
+  EXPECT_NE(out.find(tasks + " of " + tasks + " task(s) ended (" + tasks + " ok, 0 failed)"),
+            std::string::npos)
+      << out;
+  ASSERT_EQ(test::run_augrig("campaign status " + o.string() + " --tasks", &out), 0) << out;
+  EXPECT_NE(out.find("tasks " + tasks + " = done " + tasks + " + running 0"), std::string::npos) << out;
+  EXPECT_NE(out.find("stats/a: tasks "), std::string::npos) << out;
+  EXPECT_NE(out.find("; 1 frame(s) left out\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("left out: 2 frame(s) in 2 done shard(s)"), std::string::npos) << out;
+  EXPECT_TRUE(std::regex_search(
+      out, std::regex("task \\d+ \\(stats/a shard 0, frames 0\\+\\d+\\): done, 1 frame\\(s\\) left out")))
+      << out;
+  ASSERT_EQ(test::run_augrig("campaign merge " + o.string() + " --no-plot", &out), 0) << out;
+  EXPECT_NE(out.find("merged stats/a: "), std::string::npos) << out;
+  EXPECT_NE(out.find(" 40 frame(s), 1 left out (damaged input"), std::string::npos) << out;
+  const auto csv = lines_of(o / "report" / "campaign.csv");
+  ASSERT_EQ(csv.size(), 3u);
+  EXPECT_NE(csv[0].find(",frames_left_out"), std::string::npos) << csv[0];
+  EXPECT_EQ(csv[1].substr(csv[1].rfind(',')), ",1") << csv[1];
+  rec_a = bad.string();  // the unsharded runs of the damaged copy
+  expect_equals_unsharded(o / "report", "a");
 }
 
 TEST_F(CampaignCli, BadInputsSayWhatAndWhere) {
@@ -191,7 +235,7 @@ class CampaignSlurm : public CampaignCli {
   }
   void SetUp() override {
     if (!cluster_) GTEST_SKIP() << "no local Slurm cluster: " << skip_;
-    CampaignCli::SetUp();
+    CampaignFlights::SetUp();
   }
   // Waits for the job a "submitted ... as job N" line names.
   void wait_for(const std::string& out) {

@@ -24,7 +24,10 @@ fs::path fake_recording(const fs::path& dir, const std::string& name) {
 
 struct Files {
   fs::path dir;
-  Files() : dir(test::output_dir("campaign_file")) {
+  // A folder per test: CTest runs the tests of this file at once, in separate processes.
+  Files()
+      : dir(test::output_dir(std::string("campaign_file_") +
+                             ::testing::UnitTest::GetInstance()->current_test_info()->name())) {
     fake_recording(dir, "f042");
     fake_recording(dir, "f043");
     fs::create_directories(dir / "euroc" / "mav0");
@@ -181,6 +184,33 @@ TEST(Shards, StartOnTheEvaluationCadenceAndSurviveGapsAndUnreadableFrames) {
   ASSERT_EQ(one.size(), 1u);
 }
 
+// A clock that steps back (an hour, then a repeated time) must not make one shard of the rest of
+// the flight: the step counts as a typical frame interval, and every shard stays ~2 s.
+TEST(Shards, AClockThatStepsBackStillCutsShardsOfTheAskedLength) {
+  FlightFrames f = frames_every(0.1, 200);                                 // 19.9 s at 10 Hz
+  for (std::size_t i = 70; i < 200; ++i) *f.t_ns[i] -= 3'600'000'000'000;  // back an hour at frame 70
+  *f.t_ns[150] = *f.t_ns[149];                                             // one time repeated
+  const FlightClock c = flight_clock(f);
+  EXPECT_EQ(c.steps_back, 2u);
+  EXPECT_EQ(c.first_step_back_frame, 70u);
+  EXPECT_NEAR(c.largest_step_back_s, 3600 - 0.1, 1e-6);
+  // 19.9 s of frames: the hour back counts 0.1 s; the repeated time 0.1 s more, the step after it
+  // its true 0.2 s.
+  EXPECT_NEAR(c.elapsed_s.back(), 20.0, 1e-6);
+  for (std::size_t i = 1; i < c.elapsed_s.size(); ++i) EXPECT_GT(c.elapsed_s[i], c.elapsed_s[i - 1]) << i;
+  const auto s = split_flight(f, 2.0, 3);
+  expect_tiling(s, 200);
+  for (const Shard& x : s) {
+    EXPECT_LE(x.frames, 24u) << "shard " << x.index;  // 20 frames, moved up to a multiple of 3
+    EXPECT_EQ(x.from_frame % 3, 0u);
+  }
+  EXPECT_GE(s.size(), 9u);
+  // A clock that never steps back counts exactly its time since the first frame.
+  const FlightClock m = flight_clock(frames_every(0.1, 95));
+  EXPECT_EQ(m.steps_back, 0u);
+  EXPECT_EQ(m.elapsed_s[20], 2.0);
+}
+
 TEST(Tasks, OneCommandPerShardAndVariant) {
   const Files f;
   auto spec = f.parse(
@@ -198,11 +228,12 @@ TEST(Tasks, OneCommandPerShardAndVariant) {
   EXPECT_EQ(t.variant, "stats");
   EXPECT_EQ(t.flight, "f042");
   EXPECT_EQ(t.out, spec->out / "shards" / "stats" / "f042" / "0001");
-  const std::vector<std::string> want = {"replay",       (f.dir / "f042").string(),
-                                         "--from-frame", "30",
-                                         "--frames",     "30",
-                                         "--fast",       "--headless",
-                                         "--every",      "1000000"};
+  const std::vector<std::string> want = {"replay",         (f.dir / "f042").string(),
+                                         "--from-frame",   "30",
+                                         "--frames",       "30",
+                                         "--fast",         "--headless",
+                                         "--every",        "1000000",
+                                         "--allow-damaged"};
   EXPECT_EQ(t.argv, want);
   const Task& e = tasks[7];
   EXPECT_EQ(e.variant, "eval");

@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "campaign/task.hpp"
+#include "tests/support/campaign_fixture.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig::campaign {
@@ -19,51 +20,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::vector<std::string> lines_of(const fs::path& p) {
-  std::ifstream in(p);
-  std::vector<std::string> v;
-  std::string l;
-  while (std::getline(in, l)) v.push_back(l);
-  return v;
-}
+using test::lines_of;
 
-// Drops the CSV columns whose header names end in `_ms` (wall times differ from run to run).
-std::vector<std::string> without_times(const std::vector<std::string>& rows) {
-  if (rows.empty()) return rows;
-  auto cells = [](const std::string& s) {
-    std::vector<std::string> c;
-    std::stringstream ss(s);
-    std::string x;
-    while (std::getline(ss, x, ',')) c.push_back(x);
-    if (!s.empty() && s.back() == ',') c.emplace_back();
-    return c;
-  };
-  const auto head = cells(rows[0]);
-  std::vector<std::string> out;
-  for (const auto& r : rows) {
-    const auto c = cells(r);
-    std::string k;
-    for (std::size_t i = 0; i < c.size() && i < head.size(); ++i)
-      if (head[i].size() < 3 || head[i].substr(head[i].size() - 3) != "_ms") k += c[i] + ",";
-    out.push_back(k);
-  }
-  return out;
-}
-
-struct MergeFixture : ::testing::Test {
-  fs::path dir;
-  std::string rec_a, rec_b;
-  void SetUp() override {
-    std::string why;
-    rec_a = test::sim_recording("campaign/flight_a.yaml", 3, "campaign_a", &why);
-    ASSERT_FALSE(rec_a.empty()) << why;
-    rec_b = test::sim_recording("campaign/flight_b.yaml", 3, "campaign_b", &why);
-    ASSERT_FALSE(rec_b.empty()) << why;
-    dir = test::output_dir(std::string("campaign_merge_") +
-                           ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    // A boom script that moves all the time: a shard that restarted its clock would differ.
-    std::ofstream(dir / "boom.csv") << "t_s,elevation_deg,azimuth_deg,extension_m\n0,22,-10,0.5\n4,38,12,5\n";
-  }
+struct MergeFixture : test::CampaignFlights {
   // Plans the campaign with shards of `seconds` and runs every task here.
   Manifest run_campaign(const std::string& name, double seconds, bool run_all = true) {
     const std::string text = "augrig_campaign: 1\nname: " + name + "\nout: " + name +
@@ -104,37 +63,8 @@ TEST_F(MergeFixture, ShardsMergeIntoTheUnshardedRunFrameForFrame) {
   EXPECT_EQ(s->flights_merged, 4u);
   EXPECT_EQ(s->frames, 2u * (41 + 31));
 
-  for (const std::string f : {"a", "b"}) {
-    SCOPED_TRACE("flight " + f);
-    const std::string rec = f == "a" ? rec_a : rec_b;
-    const fs::path u = dir / ("unsharded_" + f);
-    std::string log;
-    ASSERT_EQ(test::run_augrig("evaluate " + rec + " --boom script:" + (dir / "boom.csv").string() +
-                                   " --every 3 --no-plot --out " + (u / "eval").string(),
-                               &log),
-              0)
-        << log;
-    ASSERT_EQ(
-        test::run_augrig(
-            "replay " + rec + " --fast --headless --every 1000000 --out " + (u / "stats").string(), &log),
-        0)
-        << log;
-    const fs::path r = m.out / "report";
-    // Row for row: the occlusion statistics of both variants, the evaluation's rows and sums.
-    EXPECT_EQ(lines_of(r / "stats" / f / "stats.csv"), lines_of(u / "stats" / "stats.csv"));
-    EXPECT_EQ(lines_of(r / "eval" / f / "stats.csv"), lines_of(u / "eval" / "stats.csv"));
-    EXPECT_EQ(lines_of(r / "eval" / f / "evaluation.csv"), lines_of(u / "eval" / "evaluation.csv"));
-    EXPECT_EQ(without_times(lines_of(r / "eval" / f / "evaluation_sums.csv")),
-              without_times(lines_of(u / "eval" / "evaluation_sums.csv")));
-    // The table from the re-added sums is the unsharded run's, but for its title line.
-    auto merged = lines_of(r / "eval" / f / "evaluation.txt"),
-         whole = lines_of(u / "eval" / "evaluation.txt");
-    ASSERT_GT(merged.size(), 5u);
-    ASSERT_EQ(merged.size(), whole.size());
-    merged.erase(merged.begin());
-    whole.erase(whole.begin());
-    EXPECT_EQ(merged, whole);
-  }
+  expect_equals_unsharded(m.out / "report", "a");
+  expect_equals_unsharded(m.out / "report", "b");
   // The campaign's report: a line per flight and variant, the frames adding up.
   const auto csv = lines_of(m.out / "report" / "campaign.csv");
   ASSERT_EQ(csv.size(), 5u);
