@@ -185,13 +185,16 @@ Encoder::~Encoder() {
 
 Status Encoder::compress(const std::uint8_t* src, std::size_t n, std::vector<std::uint8_t>& out) {
   if (!cctx_) return make_error("zstd: could not create a compression context");
-  out.resize(ZSTD_compressBound(n));
-  const std::size_t r = ZSTD_compress2(cctx_, out.data(), out.size(), src, n);
+  // Into a buffer kept between calls, then the r compressed bytes copied out: growing a fresh
+  // `out` to zstd's bound zeroed 1.2 MB per 1280x960 image first (1.4 % of a live run's CPU, perf).
+  const std::size_t bound = ZSTD_compressBound(n);
+  if (compressed_.size() < bound) compressed_.resize(bound);
+  const std::size_t r = ZSTD_compress2(cctx_, compressed_.data(), compressed_.size(), src, n);
   if (ZSTD_isError(r)) {
     out.clear();
     return zstd_error("compress", r);
   }
-  out.resize(r);
+  out.assign(compressed_.data(), compressed_.data() + r);
   return {};
 }
 

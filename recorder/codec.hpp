@@ -85,6 +85,7 @@ class Encoder {
   Status compress(const std::uint8_t* src, std::size_t n, std::vector<std::uint8_t>& out);
   ZSTD_CCtx* cctx_ = nullptr;
   std::vector<std::uint8_t> scratch_;
+  std::vector<std::uint8_t> compressed_;  // zstd's output, at its bound size, kept between calls
 };
 
 // One per thread. Errors say what is wrong with the blob ("zstd: ...", "holds N bytes, expected M");
@@ -103,7 +104,8 @@ class Decoder {
   Status decode_difference(const std::uint8_t* blob, std::size_t n, const ChangedBox& box, const Image& raw,
                            Image& out);
   // `out` = the `width` x `height` values (an empty blob for 0 x 0).
-  Status decode_depth(const std::uint8_t* blob, std::size_t n, int width, int height, std::vector<float>& out);
+  Status decode_depth(const std::uint8_t* blob, std::size_t n, int width, int height,
+                      std::vector<float>& out);
 
  private:
   Status decompress(const std::uint8_t* blob, std::size_t n, std::uint8_t* dst, std::size_t expected);
