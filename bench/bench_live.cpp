@@ -159,9 +159,11 @@ Options parse_options(int argc, char** argv) {
       {"--rig", [&](int& i) { o.rig = value(i); }},
       {"--scene", [&](int& i) { o.scene = value(i); }},
   };
-  const std::map<std::string, bool*> flags = {
-      {"--keep", &o.keep}, {"--truth", &o.truth}, {"--display", &o.display}, {"--soak", &o.soak},
-      {"--gige", &o.gige}};
+  const std::map<std::string, bool*> flags = {{"--keep", &o.keep},
+                                              {"--truth", &o.truth},
+                                              {"--display", &o.display},
+                                              {"--soak", &o.soak},
+                                              {"--gige", &o.gige}};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     given[a] = true;
@@ -269,14 +271,17 @@ std::optional<double> read_rss_mib(pid_t pid) {
 // threads of its own, so its share cannot be split between them.
 const std::vector<std::pair<std::string, std::string>> kThreadGroups = {
     // group, thread name prefix ("main": the whole name; "": the rest)
-    {"main", "augrig"},           // the main thread: the pipeline when headless, else the window
-    {"pipeline", "augrig-pipe"},  // the pipeline when a window is open
-    {"capture", "augrig-cap"},    // a camera's capture; sim:// renders its frames there
-    {"replay", "augrig-replay"},  // a replayed recording's read-ahead (reading and decoding)
-    {"llvmpipe", "llvmpipe-"},    // software GL rasteriser threads
+    {"main", "augrig"},              // the main thread: the pipeline when headless, else the window
+    {"pipeline", "augrig-pipe"},     // the pipeline when a window is open
+    {"capture", "augrig-cap"},       // a camera's capture; sim:// renders its frames there
+    {"replay", "augrig-replay"},     // a replayed recording's read-ahead (reading and decoding)
+    {"llvmpipe", "llvmpipe-"},       // software GL rasteriser threads
     {"view-worker", "augrig-view"},  // the augmenter's second view (render/augmenter.cpp)
     {"aravis", "arv_gv_stream"},     // Aravis' stream threads: GVSP reassembly
-    {"recorder", "augrig-rec"},  {"nav-input", "augrig-nav"}, {"sim-nav", "augrig-simnav"}, {"other", ""},
+    {"recorder", "augrig-rec"},
+    {"nav-input", "augrig-nav"},
+    {"sim-nav", "augrig-simnav"},
+    {"other", ""},
 };
 
 // The groups in print order, "exited" (threads gone, their CPU still the process's) last.
@@ -625,10 +630,11 @@ Summary parse_summary(const std::string& log) {
         s.have_run =
             s.have_run && std::sscanf(l + p, "frames read: left %lu, right %lu", &s.left, &s.right) == 2;
     } else if (line.rfind("drops: ", 0) == 0) {
-      // "drops: camera C, transport T, pairing P, processing N (queue Q, failed F[ pairs][, ...]), recorder R"
+      // "drops: camera C, transport T, pairing P, processing N (queue Q, failed F[ pairs][, ...]), recorder
+      // R"
       const auto q = line.find("(queue "), f = line.find(", failed "), r = line.rfind("recorder ");
-      s.have_drops = std::sscanf(l, "drops: camera %lu, transport %lu, pairing %lu, processing %lu", &s.camera,
-                                 &s.transport, &s.pairing, &s.processing) == 4 &&
+      s.have_drops = std::sscanf(l, "drops: camera %lu, transport %lu, pairing %lu, processing %lu",
+                                 &s.camera, &s.transport, &s.pairing, &s.processing) == 4 &&
                      q != std::string::npos && f != std::string::npos && r != std::string::npos &&
                      std::sscanf(l + q, "(queue %lu", &s.queue) == 1 &&
                      std::sscanf(l + f, ", failed %lu", &s.failed) == 1 &&
@@ -865,7 +871,8 @@ int main(int argc, char** argv) {
   if (s.have_run && s.pairs == 0) missing.push_back("augmented pairs (none)");
   // A replay's frames have no mid-exposure on the host clock: augrig prints no latency for them.
   const bool replay = o.source.rfind("replay:", 0) == 0;
-  if (s.pairs && !s.display.found && !replay) missing.push_back("the line 'latency mid-exposure to display ...'");
+  if (s.pairs && !s.display.found && !replay)
+    missing.push_back("the line 'latency mid-exposure to display ...'");
   if (s.pairs && !s.recorder_latency.found && !replay)
     missing.push_back("the line 'latency mid-exposure to recorder ...'");
   if (!s.have_recorded) missing.push_back("the line 'recorded N stereo frames to ...'");
@@ -958,8 +965,9 @@ int main(int argc, char** argv) {
         100 * steady.xvfb_share, o.cores, steady.t0, r.samples.back().xvfb_cpu_s,
         100 * (steady.share + steady.xvfb_share));
   if (o.gige && steady.share >= 0)
-    std::printf("  cpu fake cameras    %.1f %% of %d cores (both arv-fake-gv-camera processes; not augrig's)\n",
-                100 * steady.cameras_share, o.cores);
+    std::printf(
+        "  cpu fake cameras    %.1f %% of %d cores (both arv-fake-gv-camera processes; not augrig's)\n",
+        100 * steady.cameras_share, o.cores);
   if (steady.share >= 0)
     std::printf(
         "  machine             %.1f %% of %d cores busy over the same time; other processes %.1f %%\n",
@@ -982,15 +990,16 @@ int main(int argc, char** argv) {
       pipeline, late, unpaired, s.transport, s.processing, s.recorder);
   for (const Latency* l : {&s.display, &s.recorder_latency})
     if (!l->found)
-      std::printf("  latency to %-8s n/a (augrig printed none: a replay's frames have no host mid-exposure)\n",
-                  l == &s.display ? "display" : "recorder");
+      std::printf(
+          "  latency to %-8s n/a (augrig printed none: a replay's frames have no host mid-exposure)\n",
+          l == &s.display ? "display" : "recorder");
     else
       std::printf("  latency to %-8s p50 %.1f ms, p99 %.1f ms, max %.1f ms (%lu pairs)%s\n",
-                l == &s.display ? "display" : "recorder", l->p50, l->p99, l->max, l->pairs,
-                // Whether a window was drawn: "run: live display open".
-                l != &s.display ? ""
-                : s.window      ? " (drawn in the window)"
-                                : " (hand-off; headless)");
+                  l == &s.display ? "display" : "recorder", l->p50, l->p99, l->max, l->pairs,
+                  // Whether a window was drawn: "run: live display open".
+                  l != &s.display ? ""
+                  : s.window      ? " (drawn in the window)"
+                                  : " (hand-off; headless)");
   if (s.have_nav)
     std::printf("  nav                 %lu pairs without a pose, %lu with a stale or missing pose\n",
                 s.no_pose, s.stale);

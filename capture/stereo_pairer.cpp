@@ -1,8 +1,8 @@
-#include "capture/stereo_pairer.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+
+#include "capture/stereo_pairer.hpp"
 
 namespace augrig {
 

@@ -30,7 +30,9 @@ namespace augrig {
 // recording played back): they pair as delivered, whatever their times (a loop or a seek goes back).
 enum class PairingMode : std::uint8_t { kTimestamp, kTriggerId, kAdjacent };
 constexpr std::string_view to_string(PairingMode m) {
-  return m == PairingMode::kTimestamp ? "timestamp" : m == PairingMode::kTriggerId ? "trigger_id" : "adjacent";
+  return m == PairingMode::kTimestamp   ? "timestamp"
+         : m == PairingMode::kTriggerId ? "trigger_id"
+                                        : "adjacent";
 }
 
 // Why a frame was dropped without a partner.

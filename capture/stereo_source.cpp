@@ -1,11 +1,10 @@
-#include "capture/stereo_source.hpp"
-
 #include <algorithm>
 #include <condition_variable>
 #include <deque>
 #include <mutex>
 #include <thread>
 
+#include "capture/stereo_source.hpp"
 #include "core/thread_name.hpp"
 
 namespace augrig {

@@ -1,5 +1,3 @@
-#include "pipeline/pipeline.hpp"
-
 #include <algorithm>
 #include <chrono>
 #include <iomanip>
@@ -7,6 +5,7 @@
 #include <thread>
 
 #include "core/clock.hpp"
+#include "pipeline/pipeline.hpp"
 #include "recorder/euroc.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/replay_source.hpp"
@@ -34,7 +33,8 @@ bool same_counts(const OcclusionStats& a, const OcclusionStats& b) {
          a.boom_px_left == b.boom_px_left && a.boom_px_right == b.boom_px_right &&
          a.boom_overlap_px == b.boom_overlap_px && a.occluded_px_left == b.occluded_px_left &&
          a.occluded_px_right == b.occluded_px_right && a.stereo_both_px == b.stereo_both_px &&
-         a.left_only_px == b.left_only_px && a.right_only_px == b.right_only_px && a.neither_px == b.neither_px;
+         a.left_only_px == b.left_only_px && a.right_only_px == b.right_only_px &&
+         a.neither_px == b.neither_px;
 }
 
 // The last latencies (ms) for the HUD's p50/p99.
@@ -167,7 +167,7 @@ struct Pipeline::State {
   TimestampNs replay_first_ns = 0, replay_last_ns = 0, shown_t_key_ns = 0;
   std::size_t shown_index = 0;
   int shown_pass = 0;
-  std::string phase;  // the flight's phase at the last pair (PipelineParts::phase_of)
+  std::string phase;              // the flight's phase at the last pair (PipelineParts::phase_of)
   TimestampNs last_t_key_ns = 0;  // the last pair's, for the health messages' stamps
 };
 
@@ -190,8 +190,10 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   bool boom_default_track = !p.boom;
 
   if (!p.capture_only && !p.rig.boom.configured)
-    return make_error(p.rig.source, ": no boom section: a capture-only rig (its cameras can be recorded, e.g. augrig run "
-                      "--capture-only); augmenting needs a rig with boom: {pivot_body_m, limits} (docs/RIG_FORMAT.md; give one "
+    return make_error(p.rig.source,
+                      ": no boom section: a capture-only rig (its cameras can be recorded, e.g. augrig run "
+                      "--capture-only); augmenting needs a rig with boom: {pivot_body_m, limits} "
+                      "(docs/RIG_FORMAT.md; give one "
                       "with --rig)");
   if (!p.capture_only && !p.poses) return make_error("pipeline::Pipeline::run(): no pose source");
 
@@ -272,8 +274,9 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
         p.phase_of = [phases = std::move(phases)](const StereoFrame& frame) -> std::string {
           const recorder::RecordedFrame* rf = recorded(frame);
           const TimestampNs t = rf && rf->record.stats ? rf->record.stats->t_ns : frame.t_key_ns;
-          const auto after = std::upper_bound(phases.begin(), phases.end(), t,
-                                              [](TimestampNs v, const recorder::PhaseEvent& e) { return v < e.t_ns; });
+          const auto after =
+              std::upper_bound(phases.begin(), phases.end(), t,
+                               [](TimestampNs v, const recorder::PhaseEvent& e) { return v < e.t_ns; });
           return after == phases.begin() ? std::string() : std::prev(after)->name;
         };
 
@@ -317,17 +320,17 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     }
     text << "; drops: camera " << st.camera_drops << ", pairing " << pairing << ", queue " << queue;
     if (rep.pairs == 0 && level == net::HealthLevel::kOk) level = net::HealthLevel::kStale;
-    p.serve->publish_health(s.last_t_key_ns, level, text.str(),
-                            {{"pairs", std::to_string(rep.pairs)},
-                             {"pairs_per_s", std::to_string(rate)},
-                             {"drops_camera", std::to_string(st.camera_drops)},
-                             {"drops_transport", std::to_string(st.transport_drops)},
-                             {"drops_pairing", std::to_string(pairing)},
-                             {"drops_queue", std::to_string(queue)},
-                             {"failed_pairs", std::to_string(rep.failed_pairs)},
-                             {"stale_pairs", std::to_string(rep.stale_pairs)},
-                             {"recorder_dropped",
-                              std::to_string(p.recorder ? p.recorder->stats().frames_dropped : 0)}});
+    p.serve->publish_health(
+        s.last_t_key_ns, level, text.str(),
+        {{"pairs", std::to_string(rep.pairs)},
+         {"pairs_per_s", std::to_string(rate)},
+         {"drops_camera", std::to_string(st.camera_drops)},
+         {"drops_transport", std::to_string(st.transport_drops)},
+         {"drops_pairing", std::to_string(pairing)},
+         {"drops_queue", std::to_string(queue)},
+         {"failed_pairs", std::to_string(rep.failed_pairs)},
+         {"stale_pairs", std::to_string(rep.stale_pairs)},
+         {"recorder_dropped", std::to_string(p.recorder ? p.recorder->stats().frames_dropped : 0)}});
   };
 
   auto problem = [&](const Error& e) {
@@ -377,7 +380,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     ++rep.pairs;
     note_phase(frame, fp.t_nav_ns.value_or(frame.t_key_ns));
     if (p.serve)
-      p.serve->publish_pair(frame, nullptr, scene ? &*scene : nullptr, {rep.pairs, fp.sigma_pos_m, fp.sigma_att_deg});
+      p.serve->publish_pair(frame, nullptr, scene ? &*scene : nullptr,
+                            {rep.pairs, fp.sigma_pos_m, fp.sigma_att_deg});
     if (p.view && !s.paused) {
       // The window shows the raw images (no masks: nothing is overlaid).
       for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
@@ -385,7 +389,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
         v.augmented = Image::copy_of(frame[id].image.cview());
         v.mask = Image();
       }
-      p.view->publish(result, scene.value_or(SceneState{BoomArticulation{}, Pose::identity(), false}), mid_host);
+      p.view->publish(result, scene.value_or(SceneState{BoomArticulation{}, Pose::identity(), false}),
+                      mid_host);
     } else if (!p.view && mid_host) {
       rep.display_latency.add(monotonic_now_ns() - mid_host);
     }
@@ -420,9 +425,9 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
           // A recording's frames name its file; an MCAP file's (recorded frames too, no reader) its URI.
           const recorder::RecordedFrame* rf = p.source_info.replay ? recorded(frame) : nullptr;
           fatal = make_error(rf ? p.source_info.replay->reader().path() : source.uri(), ": frame ",
-                             rf ? rf->index : frame.pair_sequence, ": the ", to_string(id), " image is ", im.width(),
-                             "x", im.height(), ", the rig's ", cam.name, " camera is ", cam.model.width_px, "x",
-                             cam.model.height_px, " (", p.rig.source,
+                             rf ? rf->index : frame.pair_sequence, ": the ", to_string(id), " image is ",
+                             im.width(), "x", im.height(), ", the rig's ", cam.name, " camera is ",
+                             cam.model.width_px, "x", cam.model.height_px, " (", p.rig.source,
                              "; give the rig that matches the images, or set the cameras' size)");
           return;
         }
@@ -436,7 +441,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     // pairing; only for frames stamped on this host's clock), then each stage.
     const TimestampNs t_in = monotonic_now_ns();
     const TimestampNs arrived = std::max(frame.left.t_host_ns, frame.right.t_host_ns);
-    if (arrived > 0 && t_in >= arrived && t_in - arrived < 10'000'000'000) rep.stage_queue.add(t_in - arrived);
+    if (arrived > 0 && t_in >= arrived && t_in - arrived < 10'000'000'000)
+      rep.stage_queue.add(t_in - arrived);
 
     if (p.capture_only) {
       capture(frame, mid_l, mid_host, t_in);
@@ -467,8 +473,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     if (stale != s.was_stale) {
       std::ostringstream e;
       e << (p.poses->live() ? "nav " : "pose ") << (stale ? "stale" : "good again") << " from pair "
-        << frame.pair_sequence
-        << " (t_ns " << frame.t_key_ns << ")";
+        << frame.pair_sequence << " (t_ns " << frame.t_key_ns << ")";
       if (stale && !fp.problems.empty()) e << ": " << fp.problems.front();
       log_event(s, e.str(), out);
       s.was_stale = stale;
@@ -562,7 +567,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       fr->raw = std::move(frame);
       fr->T_body_receiver = scene.T_body_receiver;
       fr->receiver_present = scene.receiver_present;
-      for (int c = 0; c < 2; ++c) fr->T_cam_receiver[c] = p.rig.cameras[c].T_body_cam.inverse() * scene.T_body_receiver;
+      for (int c = 0; c < 2; ++c)
+        fr->T_cam_receiver[c] = p.rig.cameras[c].T_body_cam.inverse() * scene.T_body_receiver;
       fr->sigma_pos_m = fp.sigma_pos_m;
       fr->sigma_att_deg = fp.sigma_att_deg;
       fr->boom = scene.boom;
@@ -641,7 +647,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       break;
     }
     if (rep.window_closed) break;
-    if (p.duration_s > 0 && std::chrono::duration<double>(SteadyClock::now() - t0).count() >= p.duration_s) break;
+    if (p.duration_s > 0 && std::chrono::duration<double>(SteadyClock::now() - t0).count() >= p.duration_s)
+      break;
     if (p.max_pairs && rep.pairs >= p.max_pairs) break;
     StereoFrame frame;
     // A paused replay reads nothing until a step or a seek.
@@ -714,8 +721,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       const double t = std::chrono::duration<double>(SteadyClock::now() - t0).count();
       const std::uint64_t done = rep.pairs + rep.failed_pairs + rep.skipped_no_pose;
       const double rate = done / std::max(t, 1e-9);
-      out << "  " << done << " of " << p.progress_total << " pairs, " << std::fixed << std::setprecision(1) << rate
-          << "/s";
+      out << "  " << done << " of " << p.progress_total << " pairs, " << std::fixed << std::setprecision(1)
+          << rate << "/s";
       if (rate > 0 && done < p.progress_total) {
         const auto eta_s = static_cast<long long>((p.progress_total - done) / rate + 0.5);
         out << ", ETA " << (eta_s >= 60 ? std::to_string(eta_s / 60) + " min " : "") << eta_s % 60 << " s";
@@ -734,14 +741,15 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
           << std::setprecision(1) << rep.pairs / std::max(t, 1e-9) << "/s), skew p50/p99 "
           << fmt_us(st.pairing.skew.p50_abs_ns()) << "/" << fmt_us(st.pairing.skew.p99_abs_ns())
           << " us, drops camera " << st.camera_drops << " transport " << st.transport_drops << " pairing "
-          << st.pairing.unpaired_left + st.pairing.unpaired_right << " queue " << st.queue_drops[0] + st.queue_drops[1]
-          << "\n";
+          << st.pairing.unpaired_left + st.pairing.unpaired_right << " queue "
+          << st.queue_drops[0] + st.queue_drops[1] << "\n";
       for (const ClockOffsetLog& c : st.clocks) {
         std::ostringstream e;
         e << "clock_offset camera=" << to_string(c.camera) << " t_device_ns=" << c.t_device_ns
           << " offset_ns=" << c.offset_ns << " drift_ppm=" << std::setprecision(3) << c.drift_ppm
           << " uncertainty_ns=" << c.uncertainty_ns << " samples=" << c.samples << " resets=" << c.resets;
-        if (p.recorder) p.recorder->push(recorder::EventRecord{c.t_host_ns, ClockDomain::kHostMonotonic, e.str()});
+        if (p.recorder)
+          p.recorder->push(recorder::EventRecord{c.t_host_ns, ClockDomain::kHostMonotonic, e.str()});
       }
     }
   }
@@ -760,7 +768,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   for (std::size_t i = 0; i < source.sources().size(); ++i) {
     const SourceHealth h = source.health()[i];
     if (!h.connected)
-      rep.lost_cameras.push_back(source.sources()[i]->uri() + " was lost and never came back (" + h.message + ")");
+      rep.lost_cameras.push_back(source.sources()[i]->uri() + " was lost and never came back (" + h.message +
+                                 ")");
   }
 
   // The drop ledger into the recording, and the recording closed: every frame is accounted for.
@@ -774,8 +783,8 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     };
     ledger(recorder::DropStage::kCamera, st.camera_drops, {}, "frame-id gaps reported by the cameras");
     ledger(recorder::DropStage::kTransport, st.transport_drops, {}, "incomplete or failed buffers");
-    ledger(recorder::DropStage::kPairing, st.pairing.unpaired_left + st.pairing.unpaired_right, st.pairing.unpaired_t,
-           "frames without a stereo partner");
+    ledger(recorder::DropStage::kPairing, st.pairing.unpaired_left + st.pairing.unpaired_right,
+           st.pairing.unpaired_t, "frames without a stereo partner");
     ledger(recorder::DropStage::kProcessing, st.queue_drops[0] + st.queue_drops[1], st.queue_drop_t,
            "capture queue full (the pipeline fell behind)");
     ledger(recorder::DropStage::kProcessing, rep.failed_pairs * 2, s.failed_t,
@@ -795,9 +804,9 @@ void Pipeline::print_summary(const PipelineReport& r, std::ostream& out) const {
   const std::uint64_t pairing = st.pairing.unpaired_left + st.pairing.unpaired_right;
   const std::uint64_t queue = st.queue_drops[0] + st.queue_drops[1];
   const std::uint64_t pending = st.pending.count;
-  out << "run: " << r.pairs << " stereo frames " << (parts_.capture_only ? "captured (not augmented)" : "augmented")
-      << " in " << std::fixed << std::setprecision(1) << r.wall_s << " s (" << r.pairs / std::max(r.wall_s, 1e-9)
-      << "/s";
+  out << "run: " << r.pairs << " stereo frames "
+      << (parts_.capture_only ? "captured (not augmented)" : "augmented") << " in " << std::fixed
+      << std::setprecision(1) << r.wall_s << " s (" << r.pairs / std::max(r.wall_s, 1e-9) << "/s";
   if (r.pairs && !parts_.capture_only)
     out << ", augmenter " << fmt_ms(r.augment_ms / static_cast<double>(r.pairs)) << " ms/frame, "
         << to_string(r.rasterizer) << " rasteriser";
@@ -807,11 +816,11 @@ void Pipeline::print_summary(const PipelineReport& r, std::ostream& out) const {
       << " pairs + " << pairing << " unpaired + " << queue << " dropped from full queues + " << pending
       << " pending at the stop\n";
   if (r.skipped_no_pose || r.seek_skipped_pairs)
-    out << "pairs read but not augmented: " << r.skipped_no_pose << " without a pose, " << r.seek_skipped_pairs
-        << " passed over by a seek\n";
-  out << "drops: camera " << st.camera_drops << ", transport " << st.transport_drops << ", pairing " << pairing
-      << ", processing " << queue + r.failed_pairs * 2 + pending << " (queue " << queue << ", failed "
-      << r.failed_pairs << " pairs, pending at the stop " << pending << "), recorder "
+    out << "pairs read but not augmented: " << r.skipped_no_pose << " without a pose, "
+        << r.seek_skipped_pairs << " passed over by a seek\n";
+  out << "drops: camera " << st.camera_drops << ", transport " << st.transport_drops << ", pairing "
+      << pairing << ", processing " << queue + r.failed_pairs * 2 + pending << " (queue " << queue
+      << ", failed " << r.failed_pairs << " pairs, pending at the stop " << pending << "), recorder "
       << r.recorder_stats.frames_dropped << "\n";
   // Latency from each pair's mid-exposure (the earlier camera's) on the host clock.
   auto latency_line = [&](const char* what, const SkewStats& h) {
@@ -870,8 +879,8 @@ void Pipeline::print_summary(const PipelineReport& r, std::ostream& out) const {
         << "\n";
   for (const ClockOffsetLog& c : st.clocks)
     out << "clock " << to_string(c.camera) << ": host - device " << c.offset_ns << " ns, drift "
-        << std::setprecision(2) << c.drift_ppm << " ppm, +-" << fmt_us(c.uncertainty_ns) << " us (" << c.samples
-        << " samples, " << c.resets << " resets)\n";
+        << std::setprecision(2) << c.drift_ppm << " ppm, +-" << fmt_us(c.uncertainty_ns) << " us ("
+        << c.samples << " samples, " << c.resets << " resets)\n";
   for (std::size_t i = 0; i < parts_.source->sources().size(); ++i) {
     const SourceHealth h = parts_.source->health()[i];
     if (h.disconnects)

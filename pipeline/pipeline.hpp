@@ -37,13 +37,13 @@
 
 #include "capture/stereo_source.hpp"
 #include "core/expected.hpp"
+#include "net/foxglove_server.hpp"
 #include "pipeline/boom_stage.hpp"
 #include "pipeline/nav_inputs.hpp"
 #include "pipeline/outputs.hpp"
 #include "pipeline/poses.hpp"
 #include "pipeline/sources.hpp"
 #include "pipeline/status.hpp"
-#include "net/foxglove_server.hpp"
 #include "recorder/recorder.hpp"
 #include "render/augmenter.hpp"
 #include "render/rig.hpp"
@@ -70,8 +70,8 @@ struct PipelineCommands {
 
 // Where the playback of a recording stands, for the window's timeline.
 struct Playback {
-  std::size_t frame = 0;        // the recorded index of the frame shown
-  std::size_t frame_count = 0;  // frames in the recording
+  std::size_t frame = 0;           // the recorded index of the frame shown
+  std::size_t frame_count = 0;     // frames in the recording
   double t_s = 0, duration_s = 0;  // from the first frame
   int pass = 0;
   double rate = 0;  // real rate x; 0: as fast as possible
@@ -136,7 +136,7 @@ struct FrameFiles {
 // Everything a pipeline is made of. The source (started or not), the poses and the rig are required.
 struct PipelineParts {
   Rig rig;
-  RigModels models;  // loaded before anything was opened (load_rig_models)
+  RigModels models;                      // loaded before anything was opened (load_rig_models)
   OpenedSourceInfo source_info;          // what the source URI opened into (live, sim clock, ...)
   std::unique_ptr<StereoSource> source;  // started; or:
   // a source run() starts once the augmenter is ready: cameras capture from the moment they are
@@ -161,10 +161,10 @@ struct PipelineParts {
   // only, raw), and once a second the run's health in plain words. Never blocks the pipeline.
   std::shared_ptr<net::FoxgloveServer> serve;
   // Stop conditions besides the end of the source.
-  double duration_s = 0;          // 0: none
-  std::uint64_t max_pairs = 0;    // augmented pairs; 0: none
+  double duration_s = 0;                   // 0: none
+  std::uint64_t max_pairs = 0;             // augmented pairs; 0: none
   std::atomic<bool>* stop_flag = nullptr;  // raised by a signal handler
-  double status_every_s = 0;      // a status line this often (0: never)
+  double status_every_s = 0;               // a status line this often (0: never)
   // A progress line ("N of M pairs, X/s, ETA") about once a second on `out` when M is known (a
   // file source); 0: none. Interactive runs (a window) have the window instead.
   std::uint64_t progress_total = 0;
@@ -198,12 +198,12 @@ struct PipelineParts {
 
 // What a run did: the numbers behind its summary.
 struct PipelineReport {
-  std::uint64_t pairs = 0;              // augmented (captured, with PipelineParts::capture_only)
-  std::uint64_t failed_pairs = 0;       // augmentation failed
-  std::uint64_t no_pose_pairs = 0;      // without a pose (boom only, or skipped)
-  std::uint64_t skipped_no_pose = 0;    // of those, not augmented (skip_frames_without_pose)
-  std::uint64_t stale_pairs = 0;        // with a stale or missing pose
-  std::uint64_t seek_skipped_pairs = 0; // read ahead of a seek and passed over
+  std::uint64_t pairs = 0;                       // augmented (captured, with PipelineParts::capture_only)
+  std::uint64_t failed_pairs = 0;                // augmentation failed
+  std::uint64_t no_pose_pairs = 0;               // without a pose (boom only, or skipped)
+  std::uint64_t skipped_no_pose = 0;             // of those, not augmented (skip_frames_without_pose)
+  std::uint64_t stale_pairs = 0;                 // with a stale or missing pose
+  std::uint64_t seek_skipped_pairs = 0;          // read ahead of a seek and passed over
   std::uint64_t comparable = 0, reproduced = 0;  // replay: recorded statistics reproduced exactly
   double wall_s = 0, augment_ms = 0;
   Rasterizer rasterizer = Rasterizer::kAuto;

@@ -1,5 +1,3 @@
-#include "capture/stereo_pairer.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -8,6 +6,8 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include "capture/stereo_pairer.hpp"
 
 namespace augrig {
 namespace {
@@ -271,7 +271,7 @@ TEST(StereoPairer, EachPairIsMadeByTheArrivalOfItsSecondFrame) {
   c.clock_offsets = ClockOffsetConfig{};
   StereoPairer p = make_pairer(c);
   TwoCameraRig rig;
-  rig.latency_mean_ns = 3e6;  // enough to swap the cameras' arrival order often
+  rig.latency_mean_ns = 3e6;            // enough to swap the cameras' arrival order often
   std::map<std::uint64_t, int> pushed;  // sequence -> frames of it pushed
   int left_second = 0, right_second = 0;
   for (const auto& s : rig.run(600)) {
