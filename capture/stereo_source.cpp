@@ -1,10 +1,11 @@
+#include "capture/stereo_source.hpp"
+
 #include <algorithm>
 #include <condition_variable>
 #include <deque>
 #include <mutex>
 #include <thread>
 
-#include "capture/stereo_source.hpp"
 #include "core/thread_name.hpp"
 
 namespace augrig {
@@ -131,6 +132,10 @@ void StereoSource::stop() {
   impl_->changed.notify_all();
   for (std::thread& t : impl_->threads)
     if (t.joinable()) t.join();
+}
+
+bool StereoSource::lossless() const {
+  return impl_->options.lossless;
 }
 
 Expected<ReadStatus> StereoSource::read(StereoFrame& out, std::chrono::nanoseconds timeout) {

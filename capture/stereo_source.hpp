@@ -59,7 +59,10 @@ class StereoSource {
   // The next stereo frame. kEndOfStream once every source ended and nothing pairs any more; an
   // Error when a source failed (its message names it).
   Expected<ReadStatus> read(StereoFrame& out, std::chrono::nanoseconds timeout);
-  void stop();  // ends the capture threads
+  // Ends the capture threads. What they had queued stays: read() with a zero timeout still returns
+  // the pairs it makes (then kTimeout), and stats() counts the rest as pending.
+  void stop();
+  bool lossless() const;  // StereoSourceOptions::lossless: capture waits for room (finite sources)
 
   std::string uri() const;
   StereoSourceStats stats() const;

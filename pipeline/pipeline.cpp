@@ -1,3 +1,5 @@
+#include "pipeline/pipeline.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <iomanip>
@@ -5,7 +7,6 @@
 #include <thread>
 
 #include "core/clock.hpp"
-#include "pipeline/pipeline.hpp"
 #include "recorder/euroc.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/replay_source.hpp"
@@ -639,6 +640,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   };
 
   PipelineCommands pending;
+  bool duration_reached = false;
   for (;;) {
     if (fatal) break;
     if (p.stop_flag && p.stop_flag->load()) {
@@ -647,8 +649,10 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       break;
     }
     if (rep.window_closed) break;
-    if (p.duration_s > 0 && std::chrono::duration<double>(SteadyClock::now() - t0).count() >= p.duration_s)
+    if (p.duration_s > 0 && std::chrono::duration<double>(SteadyClock::now() - t0).count() >= p.duration_s) {
+      duration_reached = true;
       break;
+    }
     if (p.max_pairs && rep.pairs >= p.max_pairs) break;
     StereoFrame frame;
     // A paused replay reads nothing until a step or a seek.
@@ -753,6 +757,19 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       }
     }
   }
+  // Stopped by the duration, a signal or the window on a live source: capture stops, and what the
+  // cameras had already delivered still goes through (the pairs in the queues and the pairer), so
+  // that only frames whose partner never came stay pending. A frame limit stops exactly there; a
+  // lossless (finite) source's read-ahead stays pending, as it is still in its file.
+  if (!fatal && (duration_reached || rep.stopped_by_signal || rep.window_closed) && !source.lossless()) {
+    source.stop();
+    StereoFrame frame;
+    for (Expected<ReadStatus> r = source.read(frame, std::chrono::nanoseconds(0));
+         !fatal && r && *r == ReadStatus::kFrame; r = source.read(frame, std::chrono::nanoseconds(0))) {
+      process(frame);
+      ++rep.pairs_after_stop;
+    }
+  }
   if (p.view) p.view->finish();
   if (p.serve) {
     p.serve->publish_health(s.last_t_key_ns, net::HealthLevel::kStale,
@@ -783,8 +800,11 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     };
     ledger(recorder::DropStage::kCamera, st.camera_drops, {}, "frame-id gaps reported by the cameras");
     ledger(recorder::DropStage::kTransport, st.transport_drops, {}, "incomplete or failed buffers");
-    ledger(recorder::DropStage::kPairing, st.pairing.unpaired_left + st.pairing.unpaired_right,
-           st.pairing.unpaired_t, "frames without a stereo partner");
+    ledger(recorder::DropStage::kPairing, st.pairing.unpaired_at_start.count, st.pairing.unpaired_at_start,
+           "frames without a stereo partner before the first pair (the cameras' streams began at different "
+           "moments)");
+    ledger(recorder::DropStage::kPairing, st.pairing.unpaired_after_start.count,
+           st.pairing.unpaired_after_start, "frames without a stereo partner");
     ledger(recorder::DropStage::kProcessing, st.queue_drops[0] + st.queue_drops[1], st.queue_drop_t,
            "capture queue full (the pipeline fell behind)");
     ledger(recorder::DropStage::kProcessing, rep.failed_pairs * 2, s.failed_t,
@@ -815,6 +835,13 @@ void Pipeline::print_summary(const PipelineReport& r, std::ostream& out) const {
   out << "); frames read: left " << st.frames[0] << ", right " << st.frames[1] << " = 2 x " << pairs_read
       << " pairs + " << pairing << " unpaired + " << queue << " dropped from full queues + " << pending
       << " pending at the stop\n";
+  if (st.pairing.unpaired_at_start.count)
+    out << "pairing at the start: " << st.pairing.unpaired_at_start.count
+        << " of the unpaired frames came before the first pair (the cameras' streams began at different "
+           "moments)\n";
+  if (r.pairs_after_stop)
+    out << "stop: " << r.pairs_after_stop
+        << " pair(s) the cameras had delivered before it were still augmented (in the pairs above)\n";
   if (r.skipped_no_pose || r.seek_skipped_pairs)
     out << "pairs read but not augmented: " << r.skipped_no_pose << " without a pose, "
         << r.seek_skipped_pairs << " passed over by a seek\n";

@@ -198,12 +198,15 @@ struct PipelineParts {
 
 // What a run did: the numbers behind its summary.
 struct PipelineReport {
-  std::uint64_t pairs = 0;                       // augmented (captured, with PipelineParts::capture_only)
-  std::uint64_t failed_pairs = 0;                // augmentation failed
-  std::uint64_t no_pose_pairs = 0;               // without a pose (boom only, or skipped)
-  std::uint64_t skipped_no_pose = 0;             // of those, not augmented (skip_frames_without_pose)
-  std::uint64_t stale_pairs = 0;                 // with a stale or missing pose
-  std::uint64_t seek_skipped_pairs = 0;          // read ahead of a seek and passed over
+  std::uint64_t pairs = 0;               // augmented (captured, with PipelineParts::capture_only)
+  std::uint64_t failed_pairs = 0;        // augmentation failed
+  std::uint64_t no_pose_pairs = 0;       // without a pose (boom only, or skipped)
+  std::uint64_t skipped_no_pose = 0;     // of those, not augmented (skip_frames_without_pose)
+  std::uint64_t stale_pairs = 0;         // with a stale or missing pose
+  std::uint64_t seek_skipped_pairs = 0;  // read ahead of a seek and passed over
+  // Live runs stopped by the duration, a signal or the window: pairs the cameras had delivered
+  // before the stop, augmented after it (in `pairs` too).
+  std::uint64_t pairs_after_stop = 0;
   std::uint64_t comparable = 0, reproduced = 0;  // replay: recorded statistics reproduced exactly
   double wall_s = 0, augment_ms = 0;
   Rasterizer rasterizer = Rasterizer::kAuto;

@@ -1,3 +1,5 @@
+#include "capture/stereo_pairer.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -6,8 +8,6 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-
-#include "capture/stereo_pairer.hpp"
 
 namespace augrig {
 namespace {
@@ -85,6 +85,35 @@ TEST(StereoPairer, UnpairedAndPendingFramesHaveTheirTimeSpans) {
   EXPECT_EQ(p.stats().unpaired_t.count, 3u);
   EXPECT_EQ(p.stats().unpaired_t.last_t_ns, 104 * kPeriod);
   EXPECT_EQ(p.pending_t().count, 0u);
+  expect_ledger_balanced(p);
+}
+
+// A camera whose stream starts later leaves the other's first frames without a partner: counted
+// apart as "at the start". After the first pair, a lost partner is counted as such, and so are
+// frames refused for their time even before it.
+TEST(StereoPairer, FramesWithoutPartnerBeforeTheFirstPairAreCountedAtTheStart) {
+  StereoPairer p(1'000'000);
+  EXPECT_FALSE(p.push(make(CameraId::kLeft, 100 * kPeriod, 0)));
+  EXPECT_FALSE(p.push(make(CameraId::kLeft, 100 * kPeriod, 1)));  // a duplicate: refused, not "start"
+  EXPECT_FALSE(p.push(make(CameraId::kLeft, 101 * kPeriod + 40, 2)));
+  EXPECT_FALSE(p.push(make(CameraId::kRight, 101 * kPeriod - 9 * kPeriod / 10, 0)));  // no left near it
+  EXPECT_FALSE(p.push(make(CameraId::kLeft, 102 * kPeriod, 3)));
+  EXPECT_TRUE(p.push(make(CameraId::kRight, 102 * kPeriod + 20, 1)));  // the first pair
+  EXPECT_FALSE(p.push(make(CameraId::kLeft, 103 * kPeriod, 4)));
+  EXPECT_FALSE(p.push(make(CameraId::kRight, 104 * kPeriod, 2)));  // left 4 lost its partner
+  const PairerStats& s = p.stats();
+  EXPECT_EQ(s.pairs, 1u);
+  // Left 0 and 2 and right 0 at the start; left 1 refused (out of order), left 4 after the start.
+  EXPECT_EQ(s.unpaired_at_start.count, 3u);
+  EXPECT_EQ(s.unpaired_at_start.first_t_ns, 100 * kPeriod);
+  EXPECT_EQ(s.unpaired_at_start.last_t_ns, 101 * kPeriod + 40);
+  EXPECT_EQ(s.unpaired_after_start.count, 2u);
+  EXPECT_EQ(s.unpaired_after_start.last_t_ns, 103 * kPeriod);
+  EXPECT_EQ(s.unpaired_at_start.count + s.unpaired_after_start.count, s.unpaired_t.count);
+  EXPECT_EQ(s.unpaired(UnpairedReason::kOutOfOrder), 1u);
+  p.flush();  // right 2: after the start
+  EXPECT_EQ(p.stats().unpaired_after_start.count, 3u);
+  EXPECT_EQ(p.stats().unpaired_at_start.count, 3u);
   expect_ledger_balanced(p);
 }
 

@@ -130,7 +130,8 @@ TEST(Pipeline, SimIntoEverySinkThenReplayReproducesIt) {
       if (shown.id != before) {
         ++taken;
         // The window gets whole augmented images, the raw frame's size.
-        whole = whole && shown.result.left.augmented.width() == 1280 && shown.result.left.mask.width() == 1280;
+        whole =
+            whole && shown.result.left.augmented.width() == 1280 && shown.result.left.mask.width() == 1280;
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(2));
     }
@@ -283,7 +284,8 @@ TEST(Pipeline, SimPhasesAreRecordedAtTheirFirstPair) {
   ASSERT_TRUE(rec) << rec.error().message;
   p.recorder = std::move(*rec);
   std::vector<recorder::PhaseEvent> expected;
-  p.on_pair = [&](const StereoFrame& raw, const StereoResult& r, const SceneState&, const FramePoses&) -> Status {
+  p.on_pair = [&](const StereoFrame& raw, const StereoResult& r, const SceneState&,
+                  const FramePoses&) -> Status {
     const auto it = phase_at.find(raw.left.t_ns);
     EXPECT_NE(it, phase_at.end());
     if (it != phase_at.end() && (expected.empty() || expected.back().name != it->second))
@@ -357,7 +359,8 @@ TEST(Pipeline, CaptureOnlyRecordsRawAndAugmentsLater) {
   expect_ledger_adds_up(*r);
   std::ostringstream summary;
   pipeline.print_summary(*r, summary);
-  EXPECT_NE(summary.str().find("10 stereo frames captured (not augmented)"), std::string::npos) << summary.str();
+  EXPECT_NE(summary.str().find("10 stereo frames captured (not augmented)"), std::string::npos)
+      << summary.str();
   ASSERT_TRUE(r->recording_closed && *r->recording_closed);
   auto reader = recorder::RecordingReader::open((dir / "rec").string());
   ASSERT_TRUE(reader) << reader.error().message;
@@ -379,7 +382,8 @@ TEST(Pipeline, CaptureOnlyRecordsRawAndAugmentsLater) {
     Pipeline replay(std::move(q));
     auto rr = replay.run(out, err);
     ASSERT_FALSE(rr);
-    EXPECT_NE(rr.error().message.find("no boom section: a capture-only rig"), std::string::npos) << rr.error().message;
+    EXPECT_NE(rr.error().message.find("no boom section: a capture-only rig"), std::string::npos)
+        << rr.error().message;
   }
   // ...a rig with a boom does, from the recorded poses, the boom tracking the receptacle.
   PipelineParts q = parts_for("replay://" + (dir / "rec").string() + "?rate=fast");
@@ -481,6 +485,41 @@ TEST(Pipeline, StopFlagEndsTheRunAndTheLedgerAddsUp) {
   EXPECT_TRUE(r->stopped_by_signal);
   EXPECT_EQ(r->pairs, 3u);
   expect_ledger_adds_up(*r);
+}
+
+// A live source stopped (by a signal here; the duration and the window stop the same way): what
+// the cameras had delivered before the stop is still augmented, so that only a frame whose partner
+// never came can stay pending. The simulated cameras run paced (rate 1: live, not lossless); the
+// pipeline sleeps at the third pair, so frames queue up behind it.
+TEST(Pipeline, ALiveStopStillAugmentsWhatTheCamerasHadDelivered) {
+  PipelineParts p = parts_for(kScenario + "?every=1&rate=1");
+  ASSERT_FALSE(p.source->lossless());
+  std::atomic<bool> stop{false};
+  p.stop_flag = &stop;
+  int seen = 0;
+  p.on_pair = [&](const StereoFrame&, const StereoResult&, const SceneState&, const FramePoses&) -> Status {
+    if (++seen == 3) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+      stop = true;
+    }
+    return {};
+  };
+  Pipeline pipeline(std::move(p));
+  std::ostringstream out, err;
+  auto r = pipeline.run(out, err);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_TRUE(r->stopped_by_signal);
+  EXPECT_GE(r->pairs_after_stop, 1u) << out.str();
+  EXPECT_EQ(r->pairs, 3u + r->pairs_after_stop);
+  EXPECT_EQ(static_cast<std::uint64_t>(seen), r->pairs) << "every pair after the stop went to the sinks";
+  // One source delivers left then right: a stop between the two leaves at most the left pending.
+  EXPECT_LE(r->source.pending.count, 1u) << out.str();
+  expect_ledger_adds_up(*r);
+  std::ostringstream summary;
+  pipeline.print_summary(*r, summary);
+  EXPECT_NE(summary.str().find("stop: " + std::to_string(r->pairs_after_stop) + " pair(s)"),
+            std::string::npos)
+      << summary.str();
 }
 
 }  // namespace
