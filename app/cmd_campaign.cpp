@@ -147,7 +147,9 @@ int plan(const std::string& file, const ParsedArgs& a, std::ostream& out, std::o
     const cp::FlightClock clock = cp::flight_clock(frames.back());
     out << "  flight " << f.name << " (" << cp::to_string(f.kind) << ", " << f.path.string() << "): ";
     if (!frames.back().splittable) {
-      out << "read whole (one shard)\n";
+      out << "read whole (one shard)";
+      if (frames.back().whole_frames) out << ", " << frames.back().whole_frames << " stereo frame(s)";
+      out << "\n";
       continue;
     }
     out << frames.back().t_ns.size() << " stereo frame(s) over "

@@ -302,10 +302,15 @@ std::string images_of(PixelFormat fl, int wl, int hl, PixelFormat fr, int wr, in
 Expected<FlightFrames> read_flight_frames(const FlightSpec& flight) {
   FlightFrames f;
   switch (flight.kind) {
-    case FlightKind::kMcap:
-      // Read front to back only; its frame count needs a full read, which the task does anyway.
+    case FlightKind::kMcap: {
+      // Read front to back only, so not split. Opened here all the same: a damaged file (cut short,
+      // no summary) fails the plan with its reason, not every task that would read it.
+      auto src = recorder::McapSource::open(flight.path.string());
+      if (!src) return make_error("campaign::read_flight_frames(): ", src.error().message);
       f.splittable = false;
+      f.whole_frames = (*src)->frame_count();
       return f;
+    }
     case FlightKind::kRecording: {
       auto reader = recorder::RecordingReader::open(flight.path.string());
       if (!reader) return reader.error();
@@ -404,7 +409,7 @@ std::vector<Shard> split_flight(const FlightFrames& f, double seconds, std::size
   align = std::max<std::size_t>(align, 1);
   const std::vector<double> t_s = flight_clock(f).elapsed_s;
   if (!f.splittable || n == 0) {
-    out.push_back(Shard{0, 0, n, 0, n ? t_s.back() : 0});
+    out.push_back(Shard{0, 0, f.splittable ? n : f.whole_frames, 0, n ? t_s.back() : 0});
     return out;
   }
   std::size_t from = 0;

@@ -77,6 +77,9 @@ Expected<CampaignSpec> parse_campaign(const std::string& yaml_text, const std::f
 struct FlightFrames {
   std::vector<std::optional<std::int64_t>> t_ns;
   bool splittable = true;  // MCAP files are read front to back: one shard
+  // A flight read whole (MCAP): its stereo frames, from the file's statistics (0: not known). Its
+  // one shard counts them, so that its time limit and its frames left out do.
+  std::size_t whole_frames = 0;
   // Both cameras' image sizes and formats ("Mono8 1280x960 + Mono8 1280x960"; "" unknown): a
   // variant's cost is measured once per kind of flight.
   std::string images;

@@ -182,6 +182,46 @@ TEST_F(CampaignCli, ADamagedFrameIsLeftOutAndCountedNotAShardFailedForever) {
   expect_equals_unsharded(o / "report", "a");
 }
 
+// An MCAP flight is read whole: one shard, of the frames its statistics count (its time limit and
+// its frames left out follow from them). One cut short fails the plan, naming the file and why,
+// rather than every task that would read it.
+TEST_F(CampaignCli, AnMcapFlightIsOneShardOfItsFramesAndADamagedOneFailsThePlan) {
+  const fs::path mcap = dir / "a.mcap";
+  std::string out;
+  ASSERT_EQ(test::run_augrig("export " + rec_a + " --format mcap " + mcap.string() + " 2>&1", &out), 0)
+      << out;
+  auto campaign = [&](const std::string& name, const fs::path& flight) {
+    const fs::path file = dir / (name + ".yaml");
+    std::ofstream(file) << "augrig_campaign: 1\nname: " << name << "\nout: " << name
+                        << "-out\nrecordings:\n  - " << rec_a << "\n  - {path: " << flight.string()
+                        << ", name: m}\nvariants:\n  - name: stats\n";
+    return file;
+  };
+  ASSERT_EQ(
+      test::run_augrig("campaign plan " + campaign("whole", mcap).string() + " --measure-frames 3", &out), 0)
+      << out;
+  EXPECT_NE(
+      out.find("flight m (MCAP file, " + mcap.string() + "): read whole (one shard), 41 stereo frame(s)"),
+      std::string::npos)
+      << out;
+  const fs::path o = dir / "whole-out";
+  ASSERT_EQ(test::run_augrig("campaign resume " + o.string() + " --local --jobs 2", &out), 0) << out;
+  ASSERT_EQ(test::run_augrig("campaign status " + o.string() + " --tasks", &out), 0) << out;
+  // Both flights' 41 frames counted: the MCAP one's from its statistics (it counted 0 before).
+  EXPECT_NE(out.find("done: 82 frame(s) in "), std::string::npos) << out;
+  EXPECT_EQ(out.find("left out"), std::string::npos) << out;
+
+  const fs::path cut = dir / "cut.mcap";
+  fs::copy_file(mcap, cut);
+  fs::resize_file(cut, fs::file_size(cut) / 2);
+  EXPECT_EQ(test::run_augrig("campaign plan " + campaign("cut", cut).string() + " --measure-frames 3", &out),
+            1)
+      << out;
+  EXPECT_NE(out.find("recorder::McapReader: " + cut.string() + ": offset "), std::string::npos) << out;
+  EXPECT_NE(out.find("the file is truncated"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir / "cut-out" / "manifest.yaml"));
+}
+
 TEST_F(CampaignCli, BadInputsSayWhatAndWhere) {
   std::string out;
   EXPECT_EQ(test::run_augrig("campaign", &out), 2) << out;

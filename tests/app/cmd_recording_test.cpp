@@ -502,6 +502,13 @@ TEST(CmdRecording, ReplayOfATruncatedRecordingSaysWhatIsMissing) {
   ASSERT_EQ(augrig("replay " + half, &log), 1) << log;
   EXPECT_NE(log.find("the recording's summary says 60 frames were recorded"), std::string::npos) << log;
   EXPECT_NE(log.find("augrig replay: the recording is incomplete (above)"), std::string::npos) << log;
+  // evaluate as replay: exit 1, or 0 with --allow-damaged (a campaign's shards), the damage said.
+  ASSERT_EQ(augrig("evaluate " + half + " --out " + half + "/eval --no-plot", &log), 1) << log;
+  EXPECT_NE(log.find("augrig evaluate: the recording is incomplete (above)"), std::string::npos) << log;
+  ASSERT_EQ(augrig("evaluate " + half + " --out " + half + "/eval --no-plot --allow-damaged", &log), 0)
+      << log;
+  EXPECT_NE(log.find("the others were evaluated (--allow-damaged: the command succeeds)"), std::string::npos)
+      << log;
 
   // Cut before the first frame: nothing to replay, and it says so with exit 1.
   const std::string head = truncated_copy(long_recording(), "cmd_recording_truncated_head", 3 * 65536);

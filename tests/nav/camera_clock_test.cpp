@@ -75,7 +75,9 @@ std::vector<FrameRotation> exact_rotations(const Sines& s, const Eigen::Matrix3d
   return out;
 }
 
-AngularRateFunction rate_of(const Sines& s) {
+// The body rate of a signal (Sines, Pulses) on GPS time, as the fit asks for it.
+template <typename Signal>
+AngularRateFunction rate_of(const Signal& s) {
   return [s](TimestampNs t_ns) -> std::optional<Eigen::Vector3d> { return s.rate(ns_to_s(t_ns - kGps0)); };
 }
 
@@ -171,10 +173,6 @@ std::vector<FrameRotation> pulse_rotations(const Pulses& p, const Eigen::Matrix3
     out.push_back(r);
   }
   return out;
-}
-
-AngularRateFunction rate_of(const Pulses& p) {
-  return [p](TimestampNs t_ns) -> std::optional<Eigen::Vector3d> { return p.rate(ns_to_s(t_ns - kGps0)); };
 }
 
 // The reported 1-sigma covers a clock error along each manoeuvre's own signal, which the fit's own
