@@ -70,6 +70,21 @@ void input_damage(const ParsedArgs& a, const std::string& command, const std::st
   err << "augrig " << command << ": " << what << " (--allow-damaged: the command succeeds)\n";
 }
 
+void recording_damage(const ParsedArgs& a, const std::string& command, bool incomplete,
+                      std::uint64_t unreadable, const std::string& done, std::ostream& err) {
+  const std::string others = "the others were " + done;
+  if (incomplete)
+    input_damage(a, command,
+                 "the recording is incomplete (above); " +
+                     (unreadable ? std::to_string(unreadable) + " listed frame(s) could not be read, "
+                                 : std::string()) +
+                     others,
+                 err);
+  else if (unreadable)
+    input_damage(a, command, std::to_string(unreadable) + " frame(s) could not be read (above); " + others,
+                 err);
+}
+
 OptionSpec poses_option(const std::string& extra) {
   return {"poses", ArgKind::kValue, "POSES.csv",
           "the receiver's pose per frame from `augrig nav`'s camera pose CSV, matched to the left frame's "

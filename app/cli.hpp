@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -106,6 +107,11 @@ OptionSpec allow_damaged_option();
 // goes on.
 void input_damage(const ParsedArgs& a, const std::string& command, const std::string& what,
                   std::ostream& err);
+// A replayed recording's damage, after the outputs, as input_damage(): the recording is incomplete
+// (its reader listed problems) and/or `unreadable` frames could not be read; `done` says what
+// became of the others ("replayed", "evaluated").
+void recording_damage(const ParsedArgs& a, const std::string& command, bool incomplete,
+                      std::uint64_t unreadable, const std::string& done, std::ostream& err);
 OptionSpec boom_option(const std::string& default_text);
 OptionSpec receiver_draw_option();
 

@@ -370,20 +370,9 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   if (r.failed_pairs)
     runtime_error(std::to_string(r.failed_pairs) + " stereo frame(s) could not be augmented (above)");
   // Damage exits 1 as in `replay` (an incomplete recording too), unless --allow-damaged.
-  if (const recorder::ReplaySource* replay = pipeline.parts().source_info.replay) {
-    const std::uint64_t damaged = replay->damaged_frames();
-    if (!replay->reader().problems().empty())
-      input_damage(
-          a, "evaluate",
-          "the recording is incomplete (above); " +
-              (damaged ? std::to_string(damaged) + " listed frame(s) could not be read, " : std::string()) +
-              "the others were evaluated",
-          err);
-    else if (damaged)
-      input_damage(a, "evaluate",
-                   std::to_string(damaged) + " frame(s) could not be read (above); the others were evaluated",
-                   err);
-  }
+  if (const recorder::ReplaySource* replay = pipeline.parts().source_info.replay)
+    recording_damage(a, "evaluate", !replay->reader().problems().empty(), replay->damaged_frames(),
+                     "evaluated", err);
   if (r.stopped_by_signal) return kExitRuntime;
   return kExitOk;
 }

@@ -394,18 +394,8 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
     if (!*r.recording_closed)
       runtime_error("the recording stopped: " + user_message(r.recording_closed->error()));
   }
-  const std::uint64_t damaged = pipeline.parts().source_info.replay->damaged_frames();
-  if (!reader.problems().empty())
-    input_damage(
-        a, "replay",
-        "the recording is incomplete (above); " +
-            (damaged ? std::to_string(damaged) + " listed frame(s) could not be read, " : std::string()) +
-            "the others were replayed",
-        err);
-  else if (damaged)
-    input_damage(a, "replay",
-                 std::to_string(damaged) + " frame(s) could not be read (above); the others were replayed",
-                 err);
+  recording_damage(a, "replay", !reader.problems().empty(),
+                   pipeline.parts().source_info.replay->damaged_frames(), "replayed", err);
   if (r.stopped_by_signal) return kExitRuntime;
   return kExitOk;
 }

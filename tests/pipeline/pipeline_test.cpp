@@ -467,39 +467,16 @@ TEST(Pipeline, PosesCsvDrivesTheAugmentation) {
   EXPECT_EQ(csv.all_stats[1].receiver_px_left, 0) << "no pose: no receiver in the masks";
 }
 
-// A stop by signal mid-run: the frames still queued are counted as pending, and it adds up.
-TEST(Pipeline, StopFlagEndsTheRunAndTheLedgerAddsUp) {
-  PipelineParts p = parts_for(kScenario + "?every=1&rate=0");
+// Runs `p` until a "signal" that comes with the third pair, after holding the pipeline for `hold`
+// (the cameras go on meanwhile); `seen` counts the pairs that reached the sinks, `summary` gets
+// the run's output and its summary.
+Expected<PipelineReport> run_signalled_at_third_pair(PipelineParts p, std::chrono::milliseconds hold,
+                                                     int& seen, std::string& summary) {
   std::atomic<bool> stop{false};
   p.stop_flag = &stop;
-  // The "signal" comes with the third pair; whatever the cameras had queued beyond it is pending.
-  int seen = 0;
-  p.on_pair = [&](const StereoFrame&, const StereoResult&, const SceneState&, const FramePoses&) -> Status {
-    if (++seen == 3) stop = true;
-    return {};
-  };
-  Pipeline pipeline(std::move(p));
-  std::ostringstream out, err;
-  auto r = pipeline.run(out, err);
-  ASSERT_TRUE(r) << r.error().message;
-  EXPECT_TRUE(r->stopped_by_signal);
-  EXPECT_EQ(r->pairs, 3u);
-  expect_ledger_adds_up(*r);
-}
-
-// A live source stopped (by a signal here; the duration and the window stop the same way): what
-// the cameras had delivered before the stop is still augmented, so that only a frame whose partner
-// never came can stay pending. The simulated cameras run paced (rate 1: live, not lossless); the
-// pipeline sleeps at the third pair, so frames queue up behind it.
-TEST(Pipeline, ALiveStopStillAugmentsWhatTheCamerasHadDelivered) {
-  PipelineParts p = parts_for(kScenario + "?every=1&rate=1");
-  ASSERT_FALSE(p.source->lossless());
-  std::atomic<bool> stop{false};
-  p.stop_flag = &stop;
-  int seen = 0;
   p.on_pair = [&](const StereoFrame&, const StereoResult&, const SceneState&, const FramePoses&) -> Status {
     if (++seen == 3) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+      std::this_thread::sleep_for(hold);
       stop = true;
     }
     return {};
@@ -507,19 +484,45 @@ TEST(Pipeline, ALiveStopStillAugmentsWhatTheCamerasHadDelivered) {
   Pipeline pipeline(std::move(p));
   std::ostringstream out, err;
   auto r = pipeline.run(out, err);
+  if (r) pipeline.print_summary(*r, out);
+  summary = out.str();
+  return r;
+}
+
+// A stop by signal mid-run of a lossless source: whatever it had queued beyond the third pair is
+// counted as pending (it is still in its file), and it adds up.
+TEST(Pipeline, StopFlagEndsTheRunAndTheLedgerAddsUp) {
+  int seen = 0;
+  std::string summary;
+  auto r = run_signalled_at_third_pair(parts_for(kScenario + "?every=1&rate=0"), std::chrono::milliseconds(0),
+                                       seen, summary);
   ASSERT_TRUE(r) << r.error().message;
   EXPECT_TRUE(r->stopped_by_signal);
-  EXPECT_GE(r->pairs_after_stop, 1u) << out.str();
+  EXPECT_EQ(r->pairs, 3u);
+  EXPECT_EQ(r->pairs_after_stop, 0u);
+  expect_ledger_adds_up(*r);
+}
+
+// A live source stopped (by a signal here; the duration and the window stop the same way): what
+// the cameras had delivered before the stop is still augmented, so that only a frame whose partner
+// never came can stay pending. The simulated cameras run paced (rate 1: live, not lossless); the
+// pipeline holds at the third pair, so frames queue up behind it.
+TEST(Pipeline, ALiveStopStillAugmentsWhatTheCamerasHadDelivered) {
+  PipelineParts p = parts_for(kScenario + "?every=1&rate=1");
+  ASSERT_FALSE(p.source->lossless());
+  int seen = 0;
+  std::string summary;
+  auto r = run_signalled_at_third_pair(std::move(p), std::chrono::milliseconds(300), seen, summary);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_TRUE(r->stopped_by_signal);
+  EXPECT_GE(r->pairs_after_stop, 1u) << summary;
   EXPECT_EQ(r->pairs, 3u + r->pairs_after_stop);
   EXPECT_EQ(static_cast<std::uint64_t>(seen), r->pairs) << "every pair after the stop went to the sinks";
   // One source delivers left then right: a stop between the two leaves at most the left pending.
-  EXPECT_LE(r->source.pending.count, 1u) << out.str();
+  EXPECT_LE(r->source.pending.count, 1u) << summary;
   expect_ledger_adds_up(*r);
-  std::ostringstream summary;
-  pipeline.print_summary(*r, summary);
-  EXPECT_NE(summary.str().find("stop: " + std::to_string(r->pairs_after_stop) + " pair(s)"),
-            std::string::npos)
-      << summary.str();
+  EXPECT_NE(summary.find("stop: " + std::to_string(r->pairs_after_stop) + " pair(s)"), std::string::npos)
+      << summary;
 }
 
 }  // namespace
