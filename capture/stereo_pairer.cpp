@@ -129,7 +129,6 @@ const ClockOffsetEstimator* StereoPairer::clock_estimator(CameraId camera) const
 void StereoPairer::drop(const Frame& frame, UnpairedReason reason) {
   (frame.camera == CameraId::kLeft ? stats_.unpaired_left : stats_.unpaired_right) += 1;
   stats_.unpaired_by_reason[static_cast<std::size_t>(reason)] += 1;
-  stats_.unpaired_t.add(frame.t_ns);
   const bool waited = reason == UnpairedReason::kNoPartner || reason == UnpairedReason::kMaxPending ||
                       reason == UnpairedReason::kMaxAge;
   (waited && stats_.pairs == 0 ? stats_.unpaired_at_start : stats_.unpaired_after_start).add(frame.t_ns);

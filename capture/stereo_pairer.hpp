@@ -90,20 +90,26 @@ struct PairerStats {
   // Unpaired frames of both cameras by reason (index: UnpairedReason); sums to unpaired_left +
   // unpaired_right.
   std::array<std::uint64_t, kUnpairedReasonCount> unpaired_by_reason{};
-  TimeSpan unpaired_t;  // every unpaired frame's t_ns (both cameras)
-  // Of them, the frames that waited in vain for a partner (no partner, max pending, max age) before
-  // the first pair: cameras start streaming at different moments (a free-running camera's first
-  // frame comes when its acquisition starts, in no step with the other's), so one camera's first
-  // frames may have no partner to wait for. The drop ledger shows them on a row of their own. A
-  // camera that never delivers leaves all its partner's frames here, and no pair.
+  // The unpaired frames' t_ns (both cameras) in two parts (unpaired_t() joins them). First the
+  // frames that waited in vain for a partner (no partner, max pending, max age) before the first
+  // pair: cameras start streaming at different moments (a free-running camera's first frame comes
+  // when its acquisition starts, in no step with the other's), so one camera's first frames may
+  // have no partner to wait for. The drop ledger shows them on a row of their own. A camera that
+  // never delivers leaves all its partner's frames here, and no pair.
   TimeSpan unpaired_at_start;
-  TimeSpan unpaired_after_start;              // the other unpaired frames: unpaired_t = at start + after
+  TimeSpan unpaired_after_start;              // the other unpaired frames
   std::uint64_t sequence_restarts = 0;        // trigger mode: a camera's sequence went backwards
   std::uint64_t trigger_offsets_learned = 0;  // trigger mode: times the id offset was (re)learned
   // What was refused or restarted and why, "StereoPairer::push(): ..." (at most max_messages).
   std::vector<std::string> messages;
 
   std::uint64_t unpaired(UnpairedReason r) const { return unpaired_by_reason[static_cast<std::size_t>(r)]; }
+  // Every unpaired frame's t_ns (both cameras): the two parts together.
+  TimeSpan unpaired_t() const {
+    TimeSpan all = unpaired_at_start;
+    all.add(unpaired_after_start);
+    return all;
+  }
 };
 
 struct StereoPairerConfig {

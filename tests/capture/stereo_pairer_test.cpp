@@ -73,7 +73,7 @@ TEST(StereoPairer, UnpairedAndPendingFramesHaveTheirTimeSpans) {
   EXPECT_TRUE(p.push(make(CameraId::kRight, 101 * kPeriod + 5, 1)));  // left 100 has no partner
   EXPECT_FALSE(p.push(make(CameraId::kLeft, 103 * kPeriod, 3)));
   EXPECT_FALSE(p.push(make(CameraId::kRight, 104 * kPeriod, 4)));  // left 103 goes unpaired
-  const TimeSpan& u = p.stats().unpaired_t;
+  const TimeSpan u = p.stats().unpaired_t();
   EXPECT_EQ(u.count, p.stats().unpaired_left + p.stats().unpaired_right);
   EXPECT_EQ(u.count, 2u);
   EXPECT_EQ(u.first_t_ns, 100 * kPeriod);
@@ -82,8 +82,8 @@ TEST(StereoPairer, UnpairedAndPendingFramesHaveTheirTimeSpans) {
   EXPECT_EQ(w.count, 1u);
   EXPECT_EQ(w.first_t_ns, 104 * kPeriod);
   p.flush();
-  EXPECT_EQ(p.stats().unpaired_t.count, 3u);
-  EXPECT_EQ(p.stats().unpaired_t.last_t_ns, 104 * kPeriod);
+  EXPECT_EQ(p.stats().unpaired_t().count, 3u);
+  EXPECT_EQ(p.stats().unpaired_t().last_t_ns, 104 * kPeriod);
   EXPECT_EQ(p.pending_t().count, 0u);
   expect_ledger_balanced(p);
 }
@@ -109,7 +109,7 @@ TEST(StereoPairer, FramesWithoutPartnerBeforeTheFirstPairAreCountedAtTheStart) {
   EXPECT_EQ(s.unpaired_at_start.last_t_ns, 101 * kPeriod + 40);
   EXPECT_EQ(s.unpaired_after_start.count, 2u);
   EXPECT_EQ(s.unpaired_after_start.last_t_ns, 103 * kPeriod);
-  EXPECT_EQ(s.unpaired_at_start.count + s.unpaired_after_start.count, s.unpaired_t.count);
+  EXPECT_EQ(s.unpaired_at_start.count + s.unpaired_after_start.count, s.unpaired_t().count);
   EXPECT_EQ(s.unpaired(UnpairedReason::kOutOfOrder), 1u);
   p.flush();  // right 2: after the start
   EXPECT_EQ(p.stats().unpaired_after_start.count, 3u);
