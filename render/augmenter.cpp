@@ -159,8 +159,9 @@ struct ViewState {
   // std::fill_n of a float pattern is a scalar loop at -O2).
   std::vector<float> no_depth_row;
   std::vector<BoomShading> shading;  // CPU rasteriser: per boom triangle drawn this frame
-  // CPU rasteriser: which kBlock x kBlock blocks of the virtual image it wrote this frame, and per
-  // group of kGroup raw pixels of a row, the blocks their 2x2 sample neighbourhoods lie in.
+  // CPU rasteriser: which 8 x 8 blocks of the virtual image it wrote this frame (kReceiverBlock,
+  // kBoomBlock bits; ids and depth are zero elsewhere), and per group of kGroup raw pixels of a
+  // row, the blocks their 2x2 sample neighbourhoods lie in.
   std::vector<std::uint8_t> occupied;
   int blocks_x = 0;
   struct BlockRange {
@@ -191,6 +192,9 @@ struct RowScratch {
 
 constexpr std::uint32_t kDrawShift = 24;
 constexpr int kBlockShift = 3;  // virtual image blocks of 8 x 8 samples
+constexpr int kBlockSize = 1 << kBlockShift;
+// ViewState::occupied's bits: the CPU rasteriser wrote the block's receiver ids, its boom ids.
+constexpr std::uint8_t kReceiverBlock = 1, kBoomBlock = 2;
 constexpr int kGroup = 32;      // raw pixels per occupancy test
 
 // Whether any sample around the raw pixels of group g of row v may hold an id this frame.
@@ -646,14 +650,40 @@ VBox AugmenterImpl::raw_box_of(const ViewState& vs, const VBox& b) const {
 // Zeroes what the previous frame wrote into the CPU images (ids, and the CPU rasteriser's depth),
 // so they are zero outside this frame's boxes, and finds this frame's boxes.
 void AugmenterImpl::update_boxes(ViewState& vs) const {
-  auto zero_boxes = [&](auto& image, const std::vector<VBox>& boxes) {
-    for (const VBox& b : boxes)
-      for (int y = b.y0; y < b.y1; ++y)
-        std::fill_n(&image[static_cast<std::size_t>(y) * vs.vp.width + b.x0], b.x1 - b.x0, 0);
-  };
-  zero_boxes(vs.boom_ids, vs.boom_vboxes);
-  zero_boxes(vs.recv_ids, vs.recv_vboxes);
-  if (!vs.inv_z.empty()) zero_boxes(vs.inv_z, vs.boom_vboxes), zero_boxes(vs.inv_z, vs.recv_vboxes);
+  const int Wv = vs.vp.width, Hv = vs.vp.height;
+  if (!vs.occupied.empty()) {
+    // The CPU rasteriser wrote only in the blocks it marked (a bit per image): zero those, runs
+    // of marked blocks at a time. An oblique boom covers a fraction of its boxes.
+    auto zero_blocks = [&](auto& image, std::uint8_t bits) {
+      for (int bj = 0; bj * kBlockSize < Hv; ++bj) {
+        const std::uint8_t* marks = &vs.occupied[static_cast<std::size_t>(bj) * vs.blocks_x];
+        const int y0 = bj * kBlockSize, y1 = std::min(y0 + kBlockSize, Hv);
+        for (int bi = 0; bi < vs.blocks_x;) {
+          if (!(marks[bi] & bits)) {
+            ++bi;
+            continue;
+          }
+          int be = bi + 1;
+          while (be < vs.blocks_x && (marks[be] & bits)) ++be;
+          const int x0 = bi * kBlockSize, x1 = std::min(be * kBlockSize, Wv);
+          for (int y = y0; y < y1; ++y)
+            std::fill_n(&image[static_cast<std::size_t>(y) * Wv + x0], x1 - x0, 0);
+          bi = be;
+        }
+      }
+    };
+    zero_blocks(vs.boom_ids, kBoomBlock);
+    zero_blocks(vs.recv_ids, kReceiverBlock);
+    zero_blocks(vs.inv_z, kBoomBlock | kReceiverBlock);
+  } else {
+    auto zero_boxes = [&](auto& image, const std::vector<VBox>& boxes) {
+      for (const VBox& b : boxes)
+        for (int y = b.y0; y < b.y1; ++y)
+          std::fill_n(&image[static_cast<std::size_t>(y) * Wv + b.x0], b.x1 - b.x0, 0);
+    };
+    zero_boxes(vs.boom_ids, vs.boom_vboxes);
+    zero_boxes(vs.recv_ids, vs.recv_vboxes);
+  }
   vs.boom_vboxes = project_boxes(vs, {ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope});
   vs.recv_vboxes = receiver_on_ ? project_boxes(vs, {ObjectKind::kReceiver}) : std::vector<VBox>{};
 }
@@ -677,6 +707,7 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
   for (const ObjectKind kind : {ObjectKind::kReceiver, ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope}) {
     const bool boom = kind != ObjectKind::kReceiver;
     if (boom ? vs.boom_vboxes.empty() : vs.recv_vboxes.empty()) continue;
+    const std::uint8_t block_bit = boom ? kBoomBlock : kReceiverBlock;
     const Pose T_cam_obj = T_cam_body * (kind == ObjectKind::kReceiver    ? scene.T_body_receiver
                                          : kind == ObjectKind::kBoomFixed ? T_body_boom_
                                                                           : T_body_telescope_);
@@ -693,7 +724,7 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
         const std::uint32_t id = tag | static_cast<std::uint32_t>(k);
         raster(grid, rt, inv_z, [&](std::size_t i, int x, int y) {
           ids[i] = id;
-          occupied[(y >> kBlockShift) * blocks_x + (x >> kBlockShift)] = 1;
+          occupied[(y >> kBlockShift) * blocks_x + (x >> kBlockShift)] |= block_bit;
         });
         if (!boom) continue;
         // Its colour, for the resolve: vertex j's attributes weighted by the edge plane through
@@ -1465,8 +1496,37 @@ Image whole_augmented(const Image& raw, const ViewResult& r) {
 }
 
 void make_whole_augmented(const Image& raw, ViewResult& r) {
-  if (r.augmented.width() != raw.width() || r.augmented.height() != raw.height())
-    r.augmented = whole_augmented(raw, r);
+  Image& a = r.augmented;
+  const int W = raw.width(), H = raw.height();
+  if (a.width() == W && a.height() == H) return;
+  const PixelBox b = r.augmented_box;
+  const int bw = a.width(), bh = a.height();
+  const std::size_t bpp = bytes_per_pixel(raw.format()), box_bytes = static_cast<std::size_t>(bw) * bpp;
+  const bool box_fits = bw == b.width() && bh == b.height() && b.x0 >= 0 && b.y0 >= 0 && b.x1 <= W &&
+                        b.y1 <= H && a.stride_bytes() == box_bytes;
+  if (a.format() != raw.format() || (bw * bh > 0 && !box_fits)) {
+    a = whole_augmented(raw, r);
+    return;
+  }
+  // In place, with no allocation once the buffer has grown (a live pipeline's buffers circulate
+  // through the window, whole): the box's rows, packed from the start, move to their places last
+  // row first (each one's place lies at or after where it is, and after the rows above it), then
+  // the raw image fills the rest.
+  a.reshape(W, H, raw.format());
+  if (bw * bh > 0)
+    for (int y = bh - 1; y >= 0; --y)
+      std::memmove(a.row(b.y0 + y) + static_cast<std::size_t>(b.x0) * bpp,
+                   a.data() + static_cast<std::size_t>(y) * box_bytes, box_bytes);
+  const std::size_t row_bytes = static_cast<std::size_t>(W) * bpp;
+  const std::size_t left = static_cast<std::size_t>(std::max(b.x0, 0)) * bpp, right = left + box_bytes;
+  for (int y = 0; y < H; ++y) {
+    if (bw * bh == 0 || y < b.y0 || y >= b.y0 + bh) {
+      std::memcpy(a.row(y), raw.row(y), row_bytes);
+    } else {
+      std::memcpy(a.row(y), raw.row(y), left);
+      std::memcpy(a.row(y) + right, raw.row(y) + right, row_bytes - right);
+    }
+  }
 }
 
 }  // namespace augrig

@@ -335,6 +335,18 @@ TEST_P(RasterizerTest, ChangedBoxOutputIsTheWholeImageInsideItsBox) {
         EXPECT_TRUE(pixels_equal(made_whole.augmented, w.augmented));
         make_whole_augmented(raw, made_whole);  // already whole: unchanged
         EXPECT_TRUE(pixels_equal(made_whole.augmented, w.augmented));
+        {  // the live pipeline's case: the box was made in a buffer that held a whole image (stale bytes)
+          ViewResult reused = v;
+          Image stale = Image::copy_of(w.augmented.cview());
+          for (int y = 0; y < stale.height(); ++y)
+            for (std::size_t k = 0; k < static_cast<std::size_t>(stale.width()) * bytes_per_pixel(fmt); ++k)
+              stale.row(y)[k] = static_cast<std::uint8_t>(~stale.row(y)[k]);
+          stale.reshape(v.augmented.width(), v.augmented.height(), fmt);
+          std::memcpy(stale.data(), v.augmented.data(), v.augmented.stride_bytes() * v.augmented.height());
+          reused.augmented = std::move(stale);
+          make_whole_augmented(raw, reused);
+          EXPECT_TRUE(pixels_equal(reused.augmented, w.augmented));
+        }
         EXPECT_TRUE(pixels_equal(v.mask, w.mask));
         // Every change lies in the box.
         const int bpp = bytes_per_pixel(fmt);
