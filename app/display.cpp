@@ -144,10 +144,12 @@ inline Block block_of(int ox, int oy, int f, int w, int h) {
   return {ox * f, std::min(ox * f + f, w), oy * f, std::min(oy * f + f, h)};
 }
 
-// The block means of `im` into `rgba` (ow x oh texels, alpha 255).
-void reduce_colour(const Image& im, int f, int ow, int oh, std::uint8_t* rgba) {
+// The block means of `im` into `rgba` (ow x oh texels, alpha 255); red goes to byte `r_at` of a
+// texel and blue to byte 2 - r_at (0: RGBA, 2: BGRA).
+void reduce_colour(const Image& im, int f, int ow, int oh, std::uint8_t* rgba, int r_at) {
   const int w = im.width(), h = im.height();
   const PixelFormat fmt = im.format();
+  const int at[3] = {r_at, 1, 2 - r_at};  // byte of channel c
   if (is_bayer(fmt) && f % 2 == 0 && w >= 2 && h >= 2) {
     // Whole 2x2 cells only: each site's colour from bayer_channel(); an odd last column or row
     // (a cell cut in half) takes the last whole cell's colour.
@@ -160,6 +162,7 @@ void reduce_colour(const Image& im, int f, int ow, int oh, std::uint8_t* rgba) {
       // the cell's four (0 1 / 2 3). The same values as the general loop below.
       int ir = 0, ib = 0, ig[2] = {0, 0}, ng = 0;
       for (int k = 0; k < 4; ++k) (ch[k] == 0 ? ir : ch[k] == 2 ? ib : ig[ng++]) = k;
+      if (r_at == 2) std::swap(ir, ib);  // BGRA: the blue site's value goes to byte 0
       done_w = we / 2, done_h = he / 2;
       for (int oy = 0; oy < done_h; ++oy) {
         const std::uint8_t* rows[2] = {im.row(2 * oy), im.row(2 * oy + 1)};
@@ -201,7 +204,7 @@ void reduce_colour(const Image& im, int f, int ow, int oh, std::uint8_t* rgba) {
         }
         for (int c = 0; c < 3; ++c) {
           const unsigned n = cells * static_cast<unsigned>(per_cell[c]);
-          d[c] = static_cast<std::uint8_t>((sum[c] + n / 2) / n);
+          d[at[c]] = static_cast<std::uint8_t>((sum[c] + n / 2) / n);
         }
         d[3] = 255;
       }
@@ -227,9 +230,9 @@ void reduce_colour(const Image& im, int f, int ow, int oh, std::uint8_t* rgba) {
       const std::uint8_t* s = src->row(y);
       std::uint8_t* d = rgba + static_cast<std::size_t>(y) * w * 4;
       for (int x = 0; x < w; ++x, s += bpp, d += 4) {
-        d[0] = s[0];
+        d[at[0]] = s[0];
         d[1] = s[c1];
-        d[2] = s[c2];
+        d[at[2]] = s[c2];
         d[3] = 255;
       }
     }
@@ -249,7 +252,7 @@ void reduce_colour(const Image& im, int f, int ow, int oh, std::uint8_t* rgba) {
         }
       }
       const unsigned n = static_cast<unsigned>((b.x1 - b.x0) * (b.y1 - b.y0));
-      for (int c = 0; c < 3; ++c) d[c] = static_cast<std::uint8_t>((sum[c] + n / 2) / n);
+      for (int c = 0; c < 3; ++c) d[at[c]] = static_cast<std::uint8_t>((sum[c] + n / 2) / n);
       d[3] = 255;
     }
   }
@@ -282,7 +285,9 @@ uniform int u_flip;
 uniform vec2 u_uv_max;  // the image's far edges in texture coordinates (a partial last block)
 out vec2 v_uv;
 void main() {
-  vec2 p = vec2((gl_VertexID & 1) != 0 ? 1.0 : -1.0, (gl_VertexID & 2) != 0 ? 1.0 : -1.0);
+  // Corners in fan order: llvmpipe takes a 4-vertex fan (not a strip) as one rectangle.
+  int i = gl_VertexID;
+  vec2 p = vec2((i == 1 || i == 2) ? 1.0 : -1.0, i >= 2 ? 1.0 : -1.0);
   // (0, 0) is the image's top-left; GL-rendered textures (u_flip 1) have row 0 at the bottom.
   v_uv = u_uv_max * vec2(0.5 * (p.x + 1.0), u_flip == 1 ? 0.5 * (p.y + 1.0) : 0.5 * (1.0 - p.y));
   gl_Position = vec4(p, 0.0, 1.0);
@@ -362,17 +367,21 @@ class GlTexture {
     id_ = 0;
     w_ = h_ = 0;
   }
-  // RGBA8 w x h, allocated once per size; then sub-image updates only.
-  void upload(int w, int h, const std::uint8_t* rgba) {
+  // BGRA8 w x h (TexelOrder::kBgra texels), allocated once per size; then sub-image updates only.
+  // The unsized internal format lets Mesa store the texels as given (B8G8R8A8): an upload is a
+  // copy, and a NEAREST 1:1 draw of it llvmpipe's row copy (GL_RGBA8 would be R8G8B8A8: its
+  // general shader path, about 3 ms a redraw for the two views on 2 cores).
+  void upload(int w, int h, const std::uint8_t* bgra) {
     if (!id_ || w != w_ || h != h_) {
       reset();
       id_ = gl::make_rgba_texture(w, h);
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA, w, h, 0, GL_BGRA, GL_UNSIGNED_BYTE, nullptr);
       w_ = w, h_ = h;
     }
     glBindTexture(GL_TEXTURE_2D, id_);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
     glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
-    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w, h, GL_BGRA, GL_UNSIGNED_BYTE, bgra);
   }
   GLuint id() const { return id_; }
 
@@ -580,13 +589,19 @@ class DisplayImpl final : public Display {
       wi.frustum_depth_m = frustum_depth_m_;
       const double area = static_cast<double>(layout_.world.w) * layout_.world.h;
       const double k = std::min(1.0, std::sqrt(opt_.world_view_max_px / std::max(area, 1.0)));
-      // Sizes in steps of 16 px, so a window drag re-makes the target rarely.
-      const int w = std::max(16, static_cast<int>(layout_.world.w * k) / 16 * 16);
-      const int h = std::max(16, static_cast<int>(layout_.world.h * k) / 16 * 16);
+      // Within the pixel budget, at the view's size, drawn 1:1 (NEAREST: llvmpipe's row copy); else
+      // reduced, in steps of 16 px so that a window drag re-makes the target rarely.
+      const bool exact = k >= 1.0 && layout_.world.w >= 16 && layout_.world.h >= 16;
+      const int w = exact ? layout_.world.w : std::max(16, static_cast<int>(layout_.world.w * k) / 16 * 16);
+      const int h = exact ? layout_.world.h : std::max(16, static_cast<int>(layout_.world.h * k) / 16 * 16);
       auto tex = world_->render(wi, w, h);
       last_world_ = now;
       if (tex) {
         world_tex_ = *tex;
+        glBindTexture(GL_TEXTURE_2D, world_tex_);
+        const GLint filter = exact ? GL_NEAREST : GL_LINEAR;
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filter);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filter);
       } else {
         world_tex_ = 0;
         note(t_s, tex.error().message);
@@ -912,7 +927,7 @@ class DisplayImpl final : public Display {
     glUniform1i(glGetUniformLocation(copy_program_, "u_flip"), gl_rendered ? 1 : 0);
     glUniform2f(glGetUniformLocation(copy_program_, "u_uv_max"), uv_max[0], uv_max[1]);
     glBindVertexArray(empty_vao_);
-    glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+    glDrawArrays(GL_TRIANGLE_FAN, 0, 4);
   }
 
   // One view's texture at `factor` (view_decimation() of its rectangle), the overlay composed in.
@@ -925,7 +940,7 @@ class DisplayImpl final : public Display {
       return;
     }
     int tw = 0, th = 0;
-    compose_view_rgba(*im, overlay_, i, in.masks, factor, v.rgba, tw, th);
+    compose_view_rgba(*im, overlay_, i, in.masks, factor, v.rgba, tw, th, TexelOrder::kBgra);
     v.texture.upload(tw, th, v.rgba.data());
     // Pixel-exact views copy texels (NEAREST, no blur, cheaper on llvmpipe); fitted ones filter.
     v.exact = v.scale.exact;
@@ -1194,14 +1209,15 @@ ViewScale view_scale(int image_w, int image_h, PixelFormat format, int cell_w, i
 
 void compose_view_rgba(const Image& image, MaskOverlay overlay, int view,
                        const std::array<const Image*, 2>& masks, int factor, std::vector<std::uint8_t>& rgba,
-                       int& out_w, int& out_h) {
+                       int& out_w, int& out_h, TexelOrder order) {
   const int f = std::max(1, factor);
   const int w = image.width(), h = image.height();
   out_w = (w + f - 1) / f;
   out_h = (h + f - 1) / f;
   rgba.resize(static_cast<std::size_t>(out_w) * out_h * 4);
   if (image.empty()) return;
-  reduce_colour(image, f, out_w, out_h, rgba.data());
+  const int r_at = order == TexelOrder::kBgra ? 2 : 0;
+  reduce_colour(image, f, out_w, out_h, rgba.data(), r_at);
 
   auto fits = [&](const Image* m) {
     return m && m->format() == PixelFormat::kMono8 && m->width() == w && m->height() == h;
@@ -1224,9 +1240,9 @@ void compose_view_rgba(const Image& image, MaskOverlay overlay, int view,
   std::uint8_t* d = rgba.data();
   for (std::size_t k = 0; k < cls.size(); ++k, d += 4) {
     const auto& row = lut->out[cls[k]];
-    d[0] = row[0][d[0]];
+    d[r_at] = row[0][d[r_at]];
     d[1] = row[1][d[1]];
-    d[2] = row[2][d[2]];
+    d[2 - r_at] = row[2][d[2 - r_at]];
   }
 }
 

@@ -164,13 +164,17 @@ struct ViewScale {
 inline constexpr double kPixelExactMinFill = 0.8;
 ViewScale view_scale(int image_w, int image_h, PixelFormat format, int cell_w, int cell_h);
 
-// `image` composed for view `view` (0 left, 1 right) with `overlay` over it: tightly packed RGBA8
-// rows (alpha 255) of ceil(w / factor) x ceil(h / factor) texels into `rgba`, their size into
-// out_w, out_h. The overlay needs Mono8 masks of the image's size (kOcclusion: masks[view];
-// kBoomOverlap: both); without them the plain image is composed.
+// Byte order of a composed texel. The window's textures are BGRA: llvmpipe draws a BGRA texture
+// sampled NEAREST as a row copy, any other format through the general shader path.
+enum class TexelOrder : std::uint8_t { kRgba, kBgra };
+
+// `image` composed for view `view` (0 left, 1 right) with `overlay` over it: tightly packed rows
+// of 4-byte texels (RGBA or BGRA, alpha 255) of ceil(w / factor) x ceil(h / factor) texels into
+// `rgba`, their size into out_w, out_h. The overlay needs Mono8 masks of the image's size
+// (kOcclusion: masks[view]; kBoomOverlap: both); without them the plain image is composed.
 void compose_view_rgba(const Image& image, MaskOverlay overlay, int view,
                        const std::array<const Image*, 2>& masks, int factor, std::vector<std::uint8_t>& rgba,
-                       int& out_w, int& out_h);
+                       int& out_w, int& out_h, TexelOrder order = TexelOrder::kRgba);
 
 // Every shortcut, as the help overlay and docs/DISPLAY.md list them: {keys, what}.
 struct Shortcut {

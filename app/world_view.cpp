@@ -212,6 +212,8 @@ struct WorldView::Gpu {
   Status make_target(int w, int h) {
     destroy_target();
     color = gl::make_rgba_texture(w, h);
+    // BGRA storage (unsized internal format): the window draws it 1:1 as llvmpipe's row copy.
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA, w, h, 0, GL_BGRA, GL_UNSIGNED_BYTE, nullptr);
     glGenRenderbuffers(1, &depth);
     glBindRenderbuffer(GL_RENDERBUFFER, depth);
     glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, w, h);

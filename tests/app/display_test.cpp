@@ -731,6 +731,16 @@ TEST(DisplayCompose, MatchesAStraightforwardReferenceForEveryFormatSizeAndOverla
         EXPECT_EQ(bad, 0u) << "first at texel " << first / 4 << " (" << (first / 4) % std::max(ow, 1) << ", "
                            << (first / 4) / std::max(ow, 1) << ") channel " << first % 4 << ": "
                            << int(got[first]) << " vs " << int(want[first]);
+        // The window's order: the same texels with red and blue swapped, from every path.
+        std::vector<std::uint8_t> bgra;
+        compose_view_rgba(im, ov, view, masks, c.f, bgra, ow, oh, TexelOrder::kBgra);
+        ASSERT_EQ(bgra.size(), got.size());
+        std::size_t bad_bgra = 0;
+        for (std::size_t k = 0; k < got.size(); k += 4)
+          if (bgra[k] != got[k + 2] || bgra[k + 1] != got[k + 1] || bgra[k + 2] != got[k] ||
+              bgra[k + 3] != got[k + 3])
+            ++bad_bgra;
+        EXPECT_EQ(bad_bgra, 0u) << "BGRA texels unlike the RGBA ones swapped";
       }
   }
 }
