@@ -411,6 +411,7 @@ class DisplayImpl final : public Display {
     if (glfw_backend_) ImGui_ImplGlfw_Shutdown();
     if (imgui_) ImGui::DestroyContext(imgui_);
     world_.reset();
+    panel_.destroy();
     for (ViewState& v : views_) v.texture.reset();
     for (GLuint p : {line_program_, copy_program_})
       if (p) glDeleteProgram(p);
@@ -618,14 +619,6 @@ class DisplayImpl final : public Display {
     // Colour only: nothing here tests depth, and llvmpipe clears a depth-stencil buffer's depth
     // alone pixel by pixel (keeping the stencil bits): 1.6 Mpx a redraw at 1600x1000.
     glClear(GL_COLOR_BUFFER_BIT);
-    if (const PixelRect& h = layout_.hud; !h.empty()) {  // the status panel's background
-      const std::array<float, 3> bg = hud::panel_background(clear);
-      glEnable(GL_SCISSOR_TEST);
-      glScissor(h.x, fbh - h.y - h.h, h.w, h.h);
-      glClearColor(bg[0], bg[1], bg[2], 1.0f);
-      glClear(GL_COLOR_BUFFER_BIT);
-      glDisable(GL_SCISSOR_TEST);
-    }
     for (int i = 0; i < 2; ++i)
       if (views_[i].image_w) draw_texture(views_[i].texture.id(), layout_.views[i], fbh, false, views_[i].uv_max);
     if (validation_) draw_validation(in, fbh);
@@ -635,7 +628,21 @@ class DisplayImpl final : public Display {
 
     draw_hud(in, fb_scale);
     ImGui::Render();
-    ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+    // The status panel: its ImGui lists drawn into a texture when due, which every redraw copies;
+    // the rest of ImGui (labels, popups, the help window) drawn each time, over it.
+    const bool panel_due = input || screenshot_pending_ ||
+                           std::chrono::duration<double>(now - last_panel_).count() >= opt_.panel_refresh_s;
+    const ImDrawData* imgui = ImGui::GetDrawData();
+    std::vector<ImDrawList*> panel_lists, other_lists;
+    split_panel_lists(*imgui, fb_scale, panel_lists, other_lists);
+    if (const PixelRect& h = layout_.hud; !h.empty()) {
+      if (panel_due || panel_.w != h.w || panel_.h != h.h)
+        draw_panel(*imgui, panel_lists, h, fb_scale, clear);
+      draw_texture(panel_.texture, h, fbh, true);
+      glBindVertexArray(0);
+      glViewport(0, 0, fbw, fbh);
+    }
+    render_imgui_lists(*imgui, imgui->DisplayPos, imgui->DisplaySize, other_lists);
 
     if (screenshot_pending_) {
       screenshot_pending_ = false;
@@ -1005,6 +1012,64 @@ class DisplayImpl final : public Display {
     glDisable(GL_BLEND);
   }
 
+  // ImGui's lists split by where they draw: wholly inside the status panel (its window and child
+  // windows, ImGui clips them to it) or anywhere else.
+  void split_panel_lists(const ImDrawData& d, float fb_scale, std::vector<ImDrawList*>& panel,
+                         std::vector<ImDrawList*>& other) const {
+    const float k = 1.0f / fb_scale;
+    const PixelRect& h = layout_.hud;
+    const ImVec4 r(h.x * k, h.y * k, (h.x + h.w) * k, (h.y + h.h) * k);
+    for (int l = 0; l < d.CmdListsCount; ++l) {
+      ImDrawList* list = d.CmdLists[l];
+      bool inside = !h.empty();
+      for (const ImDrawCmd& c : list->CmdBuffer)
+        inside = inside && c.ClipRect.x >= r.x && c.ClipRect.y >= r.y && c.ClipRect.z <= r.z &&
+                 c.ClipRect.w <= r.w;
+      (inside ? panel : other).push_back(list);
+    }
+  }
+
+  // Renders `lists` with ImGui's OpenGL backend into the bound framebuffer, its origin at `pos`.
+  static void render_imgui_lists(const ImDrawData& d, ImVec2 pos, ImVec2 size,
+                                 std::vector<ImDrawList*>& lists) {
+    ImDrawData part = d;
+    part.CmdLists = lists.data();
+    part.CmdListsCount = static_cast<int>(lists.size());
+    part.TotalIdxCount = part.TotalVtxCount = 0;
+    for (const ImDrawList* l : lists)
+      part.TotalIdxCount += l->IdxBuffer.Size, part.TotalVtxCount += l->VtxBuffer.Size;
+    part.DisplayPos = pos;
+    part.DisplaySize = size;
+    if (!lists.empty()) ImGui_ImplOpenGL3_RenderDrawData(&part);
+  }
+
+  // The status panel into its texture (BGRA, drawn 1:1 NEAREST: llvmpipe's row copy): its
+  // background colour, then its ImGui lists. Leaves framebuffer 0 bound.
+  void draw_panel(const ImDrawData& d, std::vector<ImDrawList*>& lists, const PixelRect& h, float fb_scale,
+                  const std::array<float, 3>& under) {
+    if (panel_.w != h.w || panel_.h != h.h) {
+      panel_.destroy();
+      panel_.texture = gl::make_rgba_texture(h.w, h.h);
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA, h.w, h.h, 0, GL_BGRA, GL_UNSIGNED_BYTE, nullptr);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+      glGenFramebuffers(1, &panel_.fbo);
+      glBindFramebuffer(GL_FRAMEBUFFER, panel_.fbo);
+      glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, panel_.texture, 0);
+      panel_.w = h.w, panel_.h = h.h;
+    }
+    glBindFramebuffer(GL_FRAMEBUFFER, panel_.fbo);
+    glViewport(0, 0, h.w, h.h);
+    glDisable(GL_SCISSOR_TEST);
+    const std::array<float, 3> bg = hud::panel_background(under);
+    glClearColor(bg[0], bg[1], bg[2], 1.0f);
+    glClear(GL_COLOR_BUFFER_BIT);
+    const float k = 1.0f / fb_scale;
+    render_imgui_lists(d, ImVec2(h.x * k, h.y * k), ImVec2(h.w * k, h.h * k), lists);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    last_panel_ = Clock::now();
+  }
+
   void draw_hud(const DisplayInput& in, float fb_scale) {
     const float k = 1.0f / fb_scale;  // framebuffer pixels -> ImGui coordinates
     const int m = static_cast<int>(std::lround(6 * content_scale_));
@@ -1155,7 +1220,17 @@ class DisplayImpl final : public Display {
   DisplayLayout layout_;
   hud::OcclusionHistory history_;
   std::deque<std::pair<double, std::string>> own_messages_;
-  Clock::time_point start_, last_frame_, last_draw_, fps_since_, last_world_;
+  Clock::time_point start_, last_frame_, last_draw_, fps_since_, last_world_, last_panel_;
+  struct Panel {  // the status panel's last drawing
+    GLuint fbo = 0, texture = 0;
+    int w = 0, h = 0;
+    void destroy() {
+      if (fbo) glDeleteFramebuffers(1, &fbo);
+      if (texture) glDeleteTextures(1, &texture);
+      fbo = texture = 0;
+      w = h = 0;
+    }
+  } panel_;
   GLuint world_tex_ = 0;  // the world view's last render (WorldView's target)
   int fps_frames_ = 0;
   double display_fps_ = std::numeric_limits<double>::quiet_NaN();

@@ -109,6 +109,9 @@ struct DisplayOptions {
   double plot_seconds = 10.0;         // occlusion history shown
   double frustum_depth_m = 25.0;      // world view: frusta and image quads this far (<= far plane)
   double hud_refresh_s = 0.25;        // redraw at least this often for the HUD, even with no new frame
+  // The status panel's pixels are drawn anew at most this often, at once on input or for a
+  // screenshot; between, redraws copy them (llvmpipe sets up each of its ~3000 triangles).
+  double panel_refresh_s = 0.1;
   double world_refresh_s = 0.1;       // re-render the world view at most this often, except on input
   // Models drawn in the world view (and the validation overlay); null: the built-in ones.
   std::shared_ptr<const BoomModel> boom_model;
