@@ -706,6 +706,7 @@ class DisplayImpl final : public Display {
   bool help_visible() const override { return help_; }
   bool clip_recording() const override { return clip_active_; }
   std::uint64_t frames_drawn() const override { return frames_drawn_; }
+  std::uint64_t panel_draws() const override { return panel_draws_; }
   const DisplayLayout& layout() const override { return layout_; }
   GLFWwindow* window() override { return win_; }
 
@@ -1068,6 +1069,7 @@ class DisplayImpl final : public Display {
     render_imgui_lists(d, ImVec2(h.x * k, h.y * k), ImVec2(h.w * k, h.h * k), lists);
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
     last_panel_ = Clock::now();
+    ++panel_draws_;
   }
 
   void draw_hud(const DisplayInput& in, float fb_scale) {
@@ -1213,7 +1215,7 @@ class DisplayImpl final : public Display {
   bool closed_ = false;
   bool events_ = true;  // something happened that needs a redraw
   int settle_frames_ = 0;
-  std::uint64_t frames_drawn_ = 0;
+  std::uint64_t frames_drawn_ = 0, panel_draws_ = 0;
 
   DisplayBoomMode hud_mode_ = DisplayBoomMode::kFixed;
   DisplayCommands pending_;

@@ -210,6 +210,8 @@ class Display {
   virtual bool help_visible() const = 0;
   virtual bool clip_recording() const = 0;
   virtual std::uint64_t frames_drawn() const = 0;  // frame() calls that redrew the window
+  // Redraws that drew the status panel anew; the others copied its last drawing (panel_refresh_s).
+  virtual std::uint64_t panel_draws() const = 0;
 
   virtual const DisplayLayout& layout() const = 0;
   virtual GLFWwindow* window() = 0;

@@ -112,13 +112,15 @@ DisplayInput input_for(const Augmented& a, std::uint64_t frame_id = 1) {
   } while (0)
 
 std::unique_ptr<Display> open_display(const std::string& out_dir, int w = 1280, int h = 800,
-                                      int clip_frames = 150, double hud_refresh_s = 0.25) {
+                                      int clip_frames = 150, double hud_refresh_s = 0.25,
+                                      double panel_refresh_s = 0.1) {
   DisplayOptions o;
   o.width = w;
   o.height = h;
   o.screenshot_dir = out_dir;
   o.clip_max_frames = clip_frames;
   o.hud_refresh_s = hud_refresh_s;
+  o.panel_refresh_s = panel_refresh_s;
   auto d = Display::create(o);
   EXPECT_TRUE(d) << d.error().message;
   return d ? std::move(*d) : nullptr;
@@ -610,6 +612,42 @@ TEST(DisplayWindow, RedrawsOnlyWhenSomethingChanged) {
   ASSERT_TRUE(d->frame(input_for(a, 2)));
   EXPECT_GT(d->frames_drawn(), n) << "a screenshot draws the window it saves";
   EXPECT_EQ(d->poll_commands().screenshots.size(), 1u);
+}
+
+// The status panel is drawn anew when due, on input and for a screenshot; a new frame alone copies
+// its last drawing (what it shows then is checked by the screenshot tests above).
+TEST(DisplayWindow, TheStatusPanelIsDrawnAnewOnlyWhenDue) {
+  REQUIRE_DISPLAY();
+  const Augmented& a = augmented();
+  ASSERT_TRUE(a.error.empty()) << a.error;
+  auto d = open_display(test::output_dir("display_panel"), 960, 600, 150, /*hud_refresh_s=*/3600.0,
+                        /*panel_refresh_s=*/3600.0);
+  ASSERT_TRUE(d);
+  for (int i = 0; i < 8; ++i) ASSERT_TRUE(d->frame(input_for(a, 1)));  // the start-up frames settle
+  const std::uint64_t drawn = d->frames_drawn(), panel = d->panel_draws();
+  EXPECT_GE(panel, 1u) << "the first redraw draws the panel";
+  for (std::uint64_t id = 2; id < 6; ++id) ASSERT_TRUE(d->frame(input_for(a, id)));
+  EXPECT_EQ(d->frames_drawn(), drawn + 4) << "each new frame redraws the window";
+  EXPECT_EQ(d->panel_draws(), panel) << "and copies the panel";
+
+  press(*d, GLFW_KEY_LEFT_SHIFT);  // any input
+  ASSERT_TRUE(d->frame(input_for(a, 6)));
+  EXPECT_EQ(d->panel_draws(), panel + 1) << "input draws the panel at once";
+
+  for (int i = 0; i < 8; ++i) ASSERT_TRUE(d->frame(input_for(a, 6)));  // ImGui settles after input
+  const std::uint64_t settled = d->panel_draws();
+  d->request_screenshot();
+  ASSERT_TRUE(d->frame(input_for(a, 6)));
+  EXPECT_EQ(d->panel_draws(), settled + 1) << "a screenshot saves the panel as it is now";
+  EXPECT_EQ(d->poll_commands().screenshots.size(), 1u);
+
+  // Due every time: each redraw draws it.
+  d.reset();
+  auto every =
+      open_display(test::output_dir("display_panel"), 960, 600, 150, 3600.0, /*panel_refresh_s=*/0.0);
+  ASSERT_TRUE(every);
+  for (std::uint64_t id = 1; id < 6; ++id) ASSERT_TRUE(every->frame(input_for(a, id)));
+  EXPECT_EQ(every->panel_draws(), every->frames_drawn());
 }
 
 // ---- The views' composition at about their size on screen (no window needed) -------------------
