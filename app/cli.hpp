@@ -114,6 +114,9 @@ void recording_damage(const ParsedArgs& a, const std::string& command, bool inco
                       std::uint64_t unreadable, const std::string& done, std::ostream& err);
 OptionSpec boom_option(const std::string& default_text);
 OptionSpec receiver_draw_option();
+// --look plain|camera (render/camera_look.hpp) into `options`, with the rig's per-camera look keys.
+OptionSpec look_option();
+void apply_look_arg(const ParsedArgs& a, const Rig& rig, AugmentOptions& options);
 
 std::unique_ptr<GlContext> make_gl_context();
 void make_dirs(const fs::path& dir);

@@ -41,6 +41,7 @@ const std::vector<OptionSpec>& demo_specs() {
       {"overwrite", ArgKind::kFlag, "", "with --record: replace a recording already in DIR"},
       {"bayer", ArgKind::kOptionalValue, "[=RG|GR|GB|BG]", "simulate raw Bayer cameras (default pattern RG)"},
       receiver_draw_option(),
+      look_option(),
       {"headless", ArgKind::kFlag, "",
        "the batch demo even when a display is present (without it, a display opens the live window)"},
       {"duration", ArgKind::kValue, "S",
@@ -110,7 +111,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
     std::string uri = "sim://" + a.get("scenario", "demo") + "?every=" + a.get("every", "3");
     if (a.has("bayer")) uri += "&bayer=" + (a.get("bayer").empty() ? std::string("RG") : a.get("bayer"));
     std::vector<std::string> run_args = {"--source", uri, "--out", out_dir.string(), "--nav", "sim"};
-    for (const char* pass : {"boom", "duration", "record", "receiver-draw", "frames", "screenshot-at"})
+    for (const char* pass : {"boom", "duration", "record", "receiver-draw", "look", "frames", "screenshot-at"})
       if (a.has(pass)) run_args.insert(run_args.end(), {std::string("--") + pass, a.get(pass)});
     if (a.has("overwrite")) run_args.push_back("--overwrite");
     if (a.has("ground-truth")) run_args.insert(run_args.end(), {"--every", "30", "--ground-truth"});
@@ -192,6 +193,7 @@ int demo(const std::vector<std::string>& args, std::ostream& out, std::ostream& 
   parts.models.receptacle_m = flight.receptacle_m();
   parts.boom_dims = scenario.boom;
   parts.boom = boom_arg;
+  apply_look_arg(a, rig, options);
   parts.augment = options;
   const auto rel_shared = std::make_shared<const RelativeNav>(rel);
   parts.poses = offline_nav_poses(rel_shared, "the simulated logs");

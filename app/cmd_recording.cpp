@@ -70,6 +70,7 @@ const std::vector<OptionSpec>& replay_specs() {
           "unless --boom"),
       pose_tolerance_option(),
       receiver_draw_option(),
+      look_option(),
       boom_option("the recorded boom; track where none was recorded"),
       {"record", ArgKind::kValue, "DIR", "record the re-augmented run (a new recording, docs/RECORDING.md)"},
       {"overwrite", ArgKind::kFlag, "", "with --record: replace a recording already in DIR"},
@@ -124,6 +125,7 @@ void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayCon
                   std::to_string(parts.rig.cameras.size()));
   parts.models = unwrap(load_rig_models(parts.rig));
   parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+  apply_look_arg(a, parts.rig, parts.augment);
   if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
   if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
   if (a.has("scene")) {

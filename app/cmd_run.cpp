@@ -182,6 +182,7 @@ const std::vector<OptionSpec>& run_specs() {
       pose_tolerance_option(),
       boom_option("the pose source's boom where it has one, a scene or a recording; else track"),
       receiver_draw_option(),
+      look_option(),
       {"record", ArgKind::kValue, "DIR", "record raw, augmented and mask frames with poses and statistics"},
       {"overwrite", ArgKind::kFlag, "", "with --record: replace a recording already in DIR"},
       {"capture-only", ArgKind::kFlag, "",
@@ -489,6 +490,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   const std::string poses_text = parts.poses ? parts.poses->describe() : std::string("none (capture only)");
   if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
   parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+  apply_look_arg(a, parts.rig, parts.augment);
 
   if (a.has("record")) {
     recorder::RecordingInfo rinfo;

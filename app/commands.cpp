@@ -60,6 +60,7 @@ const std::vector<OptionSpec>& augment_specs() {
       {"no-receiver", ArgKind::kFlag, "",
        "do not render the receiver (no receiver mask bit, no stereo classes)"},
       receiver_draw_option(),
+      look_option(),
       {"status-every", ArgKind::kValue, "S",
        "a status line (pairs, rate, drops) every S seconds (default 0: never)"},
       {"ground-truth", ArgKind::kFlag, "", kGroundTruthHelp},
@@ -213,6 +214,7 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   parts.models = receiver;
   parts.source_info = opened;
   parts.poses = std::move(poses);
+  apply_look_arg(a, rig, options);
   parts.augment = options;
   parts.skip_frames_without_pose = true;  // a pair without a pose is counted and reported, not guessed
   parts.keep_all_stats = true;  // stats.csv may be rewritten with the scene files' t_ns

@@ -5,7 +5,10 @@
 // one of render/soft_raster.hpp) in the same run, and each form of the augmented output (the whole
 // image, a frame-sized copy per camera; or the changed box, AugmentedOutput). Prints tables for
 // docs/PERFORMANCE.md.
+// With --look camera the boom also gets the camera look (render/camera_look.hpp: the default sun,
+// a 0.7 px PSF, a configured noise level function) and the `look` column its share.
 //   build/bench_render [--frames N] [--case K] [--raster opengl|cpu|both] [--augmented whole|box|both]
+//                      [--look plain|camera|both]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -63,9 +66,13 @@ Rig rig_with(bool distorted, double cameras_forward_m = 0) {
 }
 
 void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, int frames, bool profile,
-              double cameras_forward_m, Rasterizer raster, AugmentedOutput output) {
+              double cameras_forward_m, Rasterizer raster, AugmentedOutput output, Look look) {
   const Rig rig = rig_with(distorted, cameras_forward_m);
   AugmentOptions opt;
+  opt.look = look;
+  CameraLookParams lp;
+  lp.noise = {3, {0.2, 0.15, 0.25}, {2.0, 1.5, 2.5}};
+  opt.camera_looks = {lp, lp};
   opt.rasterizer = raster;
   opt.augmented_output = output;
   opt.receiver_proxy = receiver;
@@ -82,13 +89,15 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
   sf.left = textured_frame(rig.left().model, fmt, CameraId::kLeft);
   sf.right = textured_frame(rig.right().model, fmt, CameraId::kRight);
   StereoResult out;
-  Series render, masks, stats, total, debayer, clear, draw, readback, boom_pct, recv_pct;
+  Series render, masks, look_ms, stats, total, debayer, clear, draw, readback, boom_pct, recv_pct;
   for (int i = -5; i < frames; ++i) {  // 5 warm-up frames
     // Sweep the approach from pre-contact to contact so boxes and coverage vary.
     const double s = std::max(0, i) / std::max(1.0, frames - 1.0);
-    const SceneState scene =
+    SceneState scene =
         scene_at_contact(rig, (*aug)->boom_model().dims, receptacle, {0.50 + 0.04 * s, 0.02, 1.0 + 3.0 * s},
                          Eigen::Vector3d(-12.0 * (1 - s), 0, 4.0 * (1 - s)));
+    scene.light = SceneLight::default_sun();
+    sf.left.t_ns = sf.right.t_ns = i;
     const auto t0 = std::chrono::steady_clock::now();
     if (auto st = (*aug)->augment(sf, scene, out); !st) {
       std::fprintf(stderr, "%s\n", st.error().message.c_str());
@@ -110,6 +119,7 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
     draw.v.push_back(t.gl_draw_ms);
     readback.v.push_back(t.gl_readback_ms);
     masks.v.push_back(t.masks_ms);
+    look_ms.v.push_back(t.look_ms);
     stats.v.push_back(t.stats_ms);
     total.v.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
     debayer.v.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
@@ -120,10 +130,10 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
     return;
   }
   std::printf(
-      "| %-44s | %-6s | %-6s | %5.1f%% | %5.1f%% | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n", name,
-      to_string((*aug)->rasterizer()), output == AugmentedOutput::kWholeImage ? "whole" : "box",
-      boom_pct.median(), receiver ? recv_pct.median() : 0.0, render.median(), masks.median(), stats.median(),
-      is_bayer(fmt) ? debayer.median() : 0.0, total.median(), total.p90());
+      "| %-44s | %-6s | %-6s | %-6s | %5.1f%% | %5.1f%% | %6.2f | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n",
+      name, to_string((*aug)->rasterizer()), output == AugmentedOutput::kWholeImage ? "whole" : "box",
+      to_string(look), boom_pct.median(), receiver ? recv_pct.median() : 0.0, render.median(), masks.median(),
+      look_ms.median(), stats.median(), is_bayer(fmt) ? debayer.median() : 0.0, total.median(), total.p90());
 }
 
 }  // namespace
@@ -132,6 +142,7 @@ int main(int argc, char** argv) {
   int frames = 60, only = -1;
   std::vector<Rasterizer> rasters = {Rasterizer::kOpenGl, Rasterizer::kCpu};
   std::vector<AugmentedOutput> outputs = {AugmentedOutput::kWholeImage, AugmentedOutput::kChangedBox};
+  std::vector<Look> looks = {Look::kPlain};
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc) {
       frames = std::atoi(argv[++i]);
@@ -157,10 +168,19 @@ int main(int argc, char** argv) {
         return std::fprintf(stderr, "bench_render: --augmented takes whole, box or both, not '%s'\n",
                             o.c_str()),
                2;
+    } else if (std::strcmp(argv[i], "--look") == 0 && i + 1 < argc) {
+      const std::string l = argv[++i];
+      Look one = Look::kPlain;
+      if (l == "both")
+        looks = {Look::kPlain, Look::kCamera};
+      else if (parse_look(l, one))
+        looks = {one};
+      else
+        return std::fprintf(stderr, "bench_render: --look takes plain, camera or both, not '%s'\n", l.c_str()), 2;
     } else {
       std::fprintf(stderr,
                    "usage: bench_render [--frames N] [--case 0..6] [--raster opengl|cpu|both] "
-                   "[--augmented whole|box|both]\n");
+                   "[--augmented whole|box|both] [--look plain|camera|both]\n");
       return 2;
     }
   }
@@ -173,12 +193,11 @@ int main(int argc, char** argv) {
               frames);
   std::printf("renderer: %s\n\n", (*ctx)->renderer().c_str());
   std::printf(
-      "| case                                         | raster | output | boom | receiver | render | "
-      "masks+composite | stats | debayer | total (median / p90) |\n");
+      "| case                                         | raster | output | look   | boom | receiver | render | "
+      "masks+composite | look | stats | debayer | total (median / p90) |\n");
   std::printf(
-      "|----------------------------------------------|--------|--------|-----:|-----:|-------:|-------:|----"
-      "-"
-      "-:|------:|------:|\n");
+      "|----------------------------------------------|--------|--------|--------|-----:|-----:|-------:|-------:|"
+      "-----:|------:|------:|------:|\n");
   struct Case {
     const char* name;
     bool distorted, receiver;
@@ -198,9 +217,10 @@ int main(int argc, char** argv) {
   for (int i = 0; i < kCases; ++i)
     for (const Rasterizer r : rasters)
       for (const AugmentedOutput o : outputs)
-        if (only < 0 || only == i)
-          run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames, false,
-                   cases[i].cameras_forward_m, r, o);
+        for (const Look l : looks)
+          if (only < 0 || only == i)
+            run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames, false,
+                     cases[i].cameras_forward_m, r, o, l);
   if (std::find(rasters.begin(), rasters.end(), Rasterizer::kOpenGl) == rasters.end()) return 0;
   // Where the GL time goes (glFinish between stages, so these sum to more than `render` above).
   std::printf("\nGL stages, both views (ms, medians, with glFinish between stages):\n\n");
@@ -209,6 +229,6 @@ int main(int argc, char** argv) {
   for (int i = 0; i < kCases; ++i)
     if (only < 0 || only == i)
       run_case(cases[i].name, cases[i].distorted, cases[i].receiver, cases[i].fmt, frames, true,
-               cases[i].cameras_forward_m, Rasterizer::kOpenGl, outputs.back());
+               cases[i].cameras_forward_m, Rasterizer::kOpenGl, outputs.back(), looks.back());
   return 0;
 }

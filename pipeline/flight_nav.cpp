@@ -361,6 +361,7 @@ FramePose frame_pose(const nav::NavState& tanker, const nav::NavState& receiver,
                      const Eigen::Vector3d& receptacle_m) {
   FramePose f;
   f.t_nav_ns = t_nav_ns;
+  f.T_ecef_tanker = Pose{tanker.q_ecef_body, tanker.p_ecef_m};
   // Camera-relative in double before anything narrows to float (render/ does that).
   f.body = nav::relative_pose(pose_with_covariance(tanker), pose_with_covariance(receiver));
   f.camera = nav::in_frame(rig.cameras[camera].T_body_cam.inverse(), f.body);

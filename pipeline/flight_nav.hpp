@@ -87,6 +87,7 @@ struct FramePose {
   nav::RelativePose camera;  // receiver in the camera (T_cam_receiver)
   BoomCommand boom;          // track-receptacle articulation
   bool baseline_corrected = false;  // the moving baseline corrected the relative position
+  Pose T_ecef_tanker;               // the tanker's body in ECEF at t_nav_ns (the sun's direction)
   nav::CameraPoseRow row(std::uint64_t sequence, int camera_index, TimestampNs t_camera_ns) const;
 };
 

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "core/clock.hpp"
+#include "pipeline/look_stage.hpp"
 #include "recorder/euroc.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/replay_source.hpp"
@@ -215,6 +216,15 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     augmenter = std::move(*augmenter_or);
     rep.rasterizer = augmenter->rasterizer();
   }
+  // The camera look's sun and noise (nothing with the plain look).
+  LookConfig look_config;
+  look_config.look = p.augment.look;
+  look_config.cameras = p.augment.camera_looks;
+  look_config.cameras.resize(p.rig.cameras.size());
+  look_config.synchronous = !p.source_info.live;  // cameras: estimated beside the pipeline
+  LookStage look(look_config);
+  if (augmenter)
+    if (auto st = look.configure(*augmenter); !st) return st.error();
   if (!p.source) {
     // One augmentation of a blank pair first (buffers, worker threads), then the cameras start:
     // the first real pair then finds the pipeline ready instead of queues filling behind it.
@@ -226,7 +236,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
         blank[id].camera = id;
       }
       StereoResult warm;
-      (void)augmenter->augment(blank, SceneState{BoomArticulation{}, Pose::identity(), false}, warm);
+      (void)augmenter->augment(blank, SceneState{BoomArticulation{}, Pose::identity(), false, {}}, warm);
     }
     if (!p.unstarted_source) return make_error("pipeline::Pipeline::run(): no source");
     auto started = start_stereo(std::move(*p.unstarted_source));
@@ -390,7 +400,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
         v.augmented = Image::copy_of(frame[id].image.cview());
         v.mask = Image();
       }
-      p.view->publish(result, scene.value_or(SceneState{BoomArticulation{}, Pose::identity(), false}),
+      p.view->publish(result, scene.value_or(SceneState{BoomArticulation{}, Pose::identity(), false, {}}),
                       mid_host);
     } else if (!p.view && mid_host) {
       rep.display_latency.add(monotonic_now_ns() - mid_host);
@@ -468,7 +478,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       }
       // Without a pose the frame is still shown and recorded: the boom alone, the receiver left out
       // of the masks, and the frame marked.
-      fp.scene = SceneState{BoomArticulation{}, Pose::identity(), false};
+      fp.scene = SceneState{BoomArticulation{}, Pose::identity(), false, {}};
     }
     if (stale) ++rep.stale_pairs;
     if (stale != s.was_stale) {
@@ -487,6 +497,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       boom_default_track = false;
     }
     boom.apply(scene, ns_to_s(frame.left.t_ns - s.first_t_ns));
+    for (const std::string& note : look.before_augment(frame, scene, *augmenter)) log_event(s, note, out);
 
     // 3. The augmentation.
     const TimestampNs t_aug = monotonic_now_ns();
@@ -747,6 +758,11 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
           << " us, drops camera " << st.camera_drops << " transport " << st.transport_drops << " pairing "
           << st.pairing.unpaired_left + st.pairing.unpaired_right << " queue "
           << st.queue_drops[0] + st.queue_drops[1] << "\n";
+      if (look.look() == Look::kCamera) {
+        out << "    " << look.status() << "\n";
+        if (p.recorder)
+          p.recorder->push(recorder::EventRecord{monotonic_now_ns(), ClockDomain::kHostMonotonic, look.status()});
+      }
       for (const ClockOffsetLog& c : st.clocks) {
         std::ostringstream e;
         e << "clock_offset camera=" << to_string(c.camera) << " t_device_ns=" << c.t_device_ns

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "pipeline/look_stage.hpp"
 #include "recorder/replay_source.hpp"
 #include "sim/flight_source.hpp"
 
@@ -29,7 +30,7 @@ class SimTruthPoses final : public PoseProvider {
  public:
   explicit SimTruthPoses(const SimulatedFlight& sim) {
     for (const sim::FrameTruth& f : sim::frame_truths(sim.scenario, *sim.flight, sim.logs.cameras))
-      by_frame_[{f.camera, f.t_camera_ns}] = f;
+      by_frame_[{f.camera, f.t_camera_ns}] = {f, sun_light(f.t_gps_ns, sim.flight->tanker(f.t_true_s).T_ecef_body())};
   }
   std::string describe() const override { return "the simulation's truth"; }
   FramePoses at(const StereoFrame& frame, TimestampNs) override {
@@ -42,7 +43,8 @@ class SimTruthPoses final : public PoseProvider {
     }
     // The receiver's true pose; the boom is augrig's to fly (it tracks, as in the demo), the
     // scenario's boom only its starting point.
-    p.scene = SceneState{it->second.boom, it->second.T_body_receiver, true};
+    const sim::FrameTruth& truth = it->second.first;
+    p.scene = SceneState{truth.boom, truth.T_body_receiver, true, it->second.second};
     p.hud.status = "simulation truth";
     p.hud.fix = nav::FixQuality::kRtkFixed;
     p.hud.age_s = 0;
@@ -52,7 +54,7 @@ class SimTruthPoses final : public PoseProvider {
   }
 
  private:
-  std::map<std::pair<int, TimestampNs>, sim::FrameTruth> by_frame_;
+  std::map<std::pair<int, TimestampNs>, std::pair<sim::FrameTruth, SceneLight>> by_frame_;
 };
 
 class LiveNavPoses final : public PoseProvider {
@@ -78,7 +80,8 @@ class LiveNavPoses final : public PoseProvider {
     FramePoses p;
     if (fn.pose) {
       // The receiver only: the boom stage aims the boom (LiveNav's tracking is the same command).
-      p.scene = SceneState{fn.pose->boom.articulation, fn.pose->body.T_a_receiver, true};
+      p.scene = SceneState{fn.pose->boom.articulation, fn.pose->body.T_a_receiver, true,
+                           sun_light(fn.pose->t_nav_ns, fn.pose->T_ecef_tanker)};
       p.sigma_pos_m = fn.hud.sigma_pos_m;
       p.sigma_att_deg = fn.hud.sigma_att_deg;
     }
@@ -200,7 +203,7 @@ class OfflineNavPoses final : public PoseProvider {
       p.hud.status = "no pose: outside the nav data";
       return p;
     }
-    p.scene = SceneState{fp->boom.articulation, fp->body.T_a_receiver, true};
+    p.scene = SceneState{fp->boom.articulation, fp->body.T_a_receiver, true, sun_light(fp->t_nav_ns, fp->T_ecef_tanker)};
     p.sigma_pos_m = fp->body.sigma_position_m();
     p.sigma_att_deg = rad_to_deg(fp->body.sigma_attitude_rad());
     p.hud.status = "fused from logs (smoothed)";

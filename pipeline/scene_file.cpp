@@ -120,12 +120,36 @@ void parse_receiver(const Ctx& c, const YAML::Node& root, const Rig& rig, const 
   scene.T_body_receiver = T_body_frame * Pose::from(parse_ypr(c, rec), t);
 }
 
+// `sun: {azimuth_deg, elevation_deg, direct, sky, ground}`: the sun in the tanker body frame
+// (azimuth from the nose, positive to the right; elevation above the wings' plane) and the light's
+// shares (SceneLight::sun()'s clear sky by default; direct 0 for an overcast sky).
+SceneLight parse_sun(const Ctx& c, const YAML::Node& sun) {
+  const std::string what = "a map {azimuth_deg, elevation_deg, direct, sky, ground}";
+  expect_map(c, sun, "sun", what);
+  check_keys(c, sun, "sun", {"azimuth_deg", "elevation_deg", "direct", "sky", "ground"});
+  const double az = deg_to_rad(to_number(c, require(c, sun, "sun", "azimuth_deg", "degrees from the nose"),
+                                         "sun.azimuth_deg", "degrees from the nose, positive right"));
+  const YAML::Node el_node = require(c, sun, "sun", "elevation_deg", "degrees above the wings' plane");
+  const double el_deg = to_number(c, el_node, "sun.elevation_deg", "degrees above the wings' plane");
+  if (el_deg < -90 || el_deg > 90) fail(c, el_node, "sun.elevation_deg", "expected -90..90 degrees, got " + fmt(el_deg));
+  const double el = deg_to_rad(el_deg);
+  SceneLight l = SceneLight::sun(Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), -std::sin(el)),
+                                 true, LightSource::kConfigured);
+  for (const auto& [key, value] :
+       {std::pair{"direct", &l.direct}, std::pair{"sky", &l.sky}, std::pair{"ground", &l.ground}})
+    if (const YAML::Node n = sun[key]; n.IsDefined()) {
+      *value = to_number(c, n, std::string("sun.") + key, "a share of the light, 0..2");
+      if (!(*value >= 0 && *value <= 2)) fail(c, n, std::string("sun.") + key, "expected 0..2, got " + fmt(*value));
+    }
+  return l;
+}
+
 SceneState parse_root(const Ctx& c, const YAML::Node& root, const Rig& rig, const BoomDimensions& dims,
                       const Eigen::Vector3d& receptacle_m, SceneExtras& extras) {
   if (!root.IsMap()) {
     fail(c, root, "", "expected a scene file (a map starting with 'augrig_scene: 1'), " + got(root));
   }
-  check_keys(c, root, "", {"augrig_scene", "t_ns", "boom", "receiver"});
+  check_keys(c, root, "", {"augrig_scene", "t_ns", "boom", "receiver", "sun"});
   const YAML::Node version = require(c, root, "", "augrig_scene", "the format version, augrig_scene: 1");
   if (!version.IsScalar() || version.Scalar() != "1") {
     fail(c, version, "augrig_scene", "expected format version 1, " + got(version));
@@ -140,6 +164,7 @@ SceneState parse_root(const Ctx& c, const YAML::Node& root, const Rig& rig, cons
   SceneState scene;
   scene.boom = parse_boom(c, root, rig);
   parse_receiver(c, root, rig, dims, receptacle_m, scene);
+  if (const YAML::Node sun = root["sun"]; sun.IsDefined()) scene.light = parse_sun(c, sun);
   return scene;
 }
 

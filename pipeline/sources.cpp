@@ -35,8 +35,9 @@ Error uri_error(const SourceUri& u, const std::string& what) {
 class SimSource final : public FrameSource {
  public:
   SimSource(std::string uri, std::shared_ptr<const SimulatedFlight> sim, int every,
-            std::shared_ptr<sim::SimClock> clock)
-      : uri_(std::move(uri)), sim_(std::move(sim)), every_(every), clock_(std::move(clock)) {}
+            std::shared_ptr<sim::SimClock> clock, bool physical_boom)
+      : uri_(std::move(uri)), sim_(std::move(sim)), every_(every), clock_(std::move(clock)),
+        physical_boom_(physical_boom) {}
   std::string uri() const override { return uri_; }
   std::uint64_t frames_dropped() const override { return dropped_; }
 
@@ -47,6 +48,7 @@ class SimSource final : public FrameSource {
           every_);
       if (!src) return make_error(uri_, ": ", src.error().message);
       source_ = std::move(*src);
+      source_->set_physical_boom(physical_boom_);
     }
     if (clock_->paced()) {
       // Live-like: a frame whose time is more than a frame period past is lost, not rendered late
@@ -92,6 +94,7 @@ class SimSource final : public FrameSource {
   std::shared_ptr<const SimulatedFlight> sim_;
   int every_;
   std::shared_ptr<sim::SimClock> clock_;
+  bool physical_boom_ = false;
   std::unique_ptr<sim::FlightSource> source_;
   std::array<std::uint64_t, 2> next_sequence_{};  // per camera: the camera model's own drops show as gaps
   std::atomic<std::uint64_t> dropped_{0};
@@ -232,7 +235,7 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
 
   OpenedSource out;
   if (u.scheme == "sim") {
-    if (Status s = u.check_known({"every", "rate", "bayer"}); !s) return s.error();
+    if (Status s = u.check_known({"every", "rate", "bayer", "boom"}); !s) return s.error();
     auto scenario = scenario_of(u);
     if (!scenario) return uri_error(u, scenario.error().message);
     // bayer=RG|GR|GB|BG: the cameras deliver raw mosaics of that pattern, as GigE rigs do.
@@ -246,6 +249,10 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
       if (f == PixelFormat::kMono8) return uri_error(u, "bayer: expected RG, GR, GB or BG, got '" + b + "'");
       scenario->sensors.cameras.format = f;
     }
+    // boom=physical: the boom is in the simulated scene (the frames a real boom would give), for
+    // comparing augrig's augmentation with it (docs/LOOK.md); boom=none (default): boom-free frames.
+    const std::string boom = u.get("boom", "none");
+    if (boom != "none" && boom != "physical") return uri_error(u, "boom: expected none or physical, got '" + boom + "'");
     auto every = u.get_integer("every", 1, 1, 1'000'000);
     auto rate = u.get_number("rate", 1.0, 0, 1e6);
     if (!every) return every.error();
@@ -268,7 +275,7 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     out.options.pairing.tolerance_ns =
         skew + static_cast<std::int64_t>(0.25e9 / scenario->sensors.cameras.fps);
     out.options.lossless = *rate == 0;
-    out.sources.push_back(std::make_unique<SimSource>(uri, out.sim, static_cast<int>(*every), out.sim_clock));
+    out.sources.push_back(std::make_unique<SimSource>(uri, out.sim, static_cast<int>(*every), out.sim_clock, boom == "physical"));
     return out;
   }
   if (u.scheme == "replay" && recorder::is_mcap_path(u.target)) {

@@ -75,6 +75,10 @@ uniform vec3 u_base_color;
 uniform sampler2D u_texture;
 uniform int u_has_texture;
 uniform vec3 u_light_cam;   // unit vector towards the light, camera frame
+uniform vec3 u_down_cam;    // SceneLight: sky and ground hemispheres about the local vertical,
+uniform vec3 u_sky;         // plus direct * cosine, per colour channel
+uniform vec3 u_ground;
+uniform vec3 u_direct;
 uniform uint u_draw_id;     // 1..255, 0 = nothing
 uniform float u_alpha;
 layout(location = 0) out vec4 o_color;
@@ -87,7 +91,9 @@ void main() {
   vec3 albedo = u_base_color;
   if (u_has_texture != 0) albedo *= texture(u_texture, v_uv).rgb;
   float diffuse = max(dot(n, u_light_cam), 0.0);
-  o_color = vec4(albedo * (0.35 + 0.65 * diffuse), u_alpha);
+  float nd = dot(n, u_down_cam);
+  vec3 hemi = u_sky == u_ground ? u_sky : u_sky * 0.5 * (1.0 - nd) + u_ground * 0.5 * (1.0 + nd);
+  o_color = vec4(albedo * (hemi + u_direct * diffuse), u_alpha);
   // Exact integers through RGBA8: k / 255 is stored as k.
   uint prim = uint(gl_PrimitiveID);
   o_id = vec4(float(prim & 255u), float((prim >> 8) & 255u), float((prim >> 16) & 255u), float(u_draw_id)) / 255.0;
@@ -265,6 +271,8 @@ class AugmenterImpl final : public Augmenter {
 
   Status augment(const StereoFrame& frame, const SceneState& scene, StereoResult& out) override;
   Status augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) override;
+  Status set_camera_look(int camera, const CameraLookParams& params) override;
+  const CameraLookParams& camera_look(int camera) const override { return looks_.at(camera); }
   const AugmentTimings& timings() const override { return timings_; }
   Rasterizer rasterizer() const override { return cpu_raster_ ? Rasterizer::kCpu : Rasterizer::kOpenGl; }
   const Rig& rig() const override { return rig_; }
@@ -277,6 +285,13 @@ class AugmenterImpl final : public Augmenter {
   void render_view(ViewState& vs, const SceneState& scene);
   void raster_view(ViewState& vs, const SceneState& scene) const;
   void update_boxes(ViewState& vs) const;
+  // Whether the camera look applies this frame, and the light the boom is shaded with.
+  bool camera_look_on() const {
+    return options_.look == Look::kCamera && options_.receiver_draw == ReceiverDraw::kMaskOnly;
+  }
+  const SceneLight& light_of(const SceneState& scene) const { return camera_look_on() ? scene.light : fixed_light_; }
+  // The camera look over one view's changed box (after its rows are resolved).
+  void look_view(int camera, const Frame& raw, ViewResult& out);
   // The CPU pass per raw pixel (masks, receiver depth, composite) in two steps: begin_resolve()
   // clears what the last frame wrote and copies the raw box; resolve_rows() then takes chunks of
   // rows from `next_row` until none is left, so both threads can share one view's rows.
@@ -319,11 +334,14 @@ class AugmenterImpl final : public Augmenter {
   std::array<std::uint32_t, 256> first_tri_of_draw_{};  // by draw id
   std::vector<ViewState> views_;
   std::array<RowScratch, 2> row_scratch_;  // one per thread resolving rows
+  std::vector<CameraLookParams> looks_;     // per camera
+  std::vector<LookBuffers> look_buffers_;   // per camera
+  const SceneLight fixed_light_ = SceneLight::fixed();
   gl::Framebuffer fb_;
   struct Program {
     GLuint id = 0;
-    GLint cam_from_obj = -1, proj = -1, base_color = -1, has_texture = -1, light = -1, draw_id = -1,
-          alpha = -1, texture = -1;
+    GLint cam_from_obj = -1, proj = -1, base_color = -1, has_texture = -1, light = -1, down = -1, sky = -1,
+          ground = -1, direct = -1, draw_id = -1, alpha = -1, texture = -1;
   };
   Program shaded_, ids_only_;
   bool zero_to_one_ = false;
@@ -344,6 +362,10 @@ class AugmenterImpl final : public Augmenter {
 Status AugmenterImpl::init() {
   if (rig_.cameras.size() != 2)
     return make_error("Augmenter::create(): the rig needs 2 cameras, has ", rig_.cameras.size());
+  looks_.assign(rig_.cameras.size(), CameraLookParams{});
+  look_buffers_.resize(rig_.cameras.size());
+  for (std::size_t c = 0; c < options_.camera_looks.size() && c < looks_.size(); ++c)
+    if (auto s = set_camera_look(static_cast<int>(c), options_.camera_looks[c]); !s) return s;
   if (options_.boom_model) {
     boom_ = *options_.boom_model;
   } else if (rig_.boom.model.path.empty()) {
@@ -373,6 +395,10 @@ Status AugmenterImpl::init() {
     prog->base_color = glGetUniformLocation(*id, "u_base_color");
     prog->has_texture = glGetUniformLocation(*id, "u_has_texture");
     prog->light = glGetUniformLocation(*id, "u_light_cam");
+    prog->down = glGetUniformLocation(*id, "u_down_cam");
+    prog->sky = glGetUniformLocation(*id, "u_sky");
+    prog->ground = glGetUniformLocation(*id, "u_ground");
+    prog->direct = glGetUniformLocation(*id, "u_direct");
     prog->draw_id = glGetUniformLocation(*id, "u_draw_id");
     prog->alpha = glGetUniformLocation(*id, "u_alpha");
     prog->texture = glGetUniformLocation(*id, "u_texture");
@@ -701,8 +727,8 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
   std::fill(vs.occupied.begin(), vs.occupied.end(), 0);
   std::uint8_t* occupied = vs.occupied.data();
   const int blocks_x = vs.blocks_x;
-  // Light from above the tanker, as the GL shader has it.
-  const Eigen::Vector3d light = T_cam_body.R() * Eigen::Vector3d(0.3, 0.2, -1.0).normalized();
+  const SceneLight& sl = light_of(scene);
+  const Eigen::Vector3d light = T_cam_body.R() * sl.towards_light_body, down = T_cam_body.R() * sl.down_body;
   RasterTriangle rt;
   for (const ObjectKind kind : {ObjectKind::kReceiver, ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope}) {
     const bool boom = kind != ObjectKind::kReceiver;
@@ -731,22 +757,29 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
         // the other two (CamTriangle::edge[j + 1]); normals flipped on back faces, as in GL.
         const std::uint32_t* vi = &m.indices[3 * k];
         const double facing = t.n_dot_v0 < 0 ? 1.0 : -1.0;
-        Eigen::Vector3d sum = Eigen::Vector3d::Zero(), lit = sum, u = sum, v = sum;
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero(), u = sum, v = sum;
+        Eigen::Matrix3d lit = Eigen::Matrix3d::Zero();  // column ch: the channel's sum of k_j c_j
         for (int j = 0; j < 3; ++j) {
           const Eigen::Vector3d& c = t.edge[(j + 1) % 3];
           const Eigen::Vector3d n_j = facing * (R * m.normals[vi[j]].cast<double>()).normalized();
           sum += c;
-          lit += (0.35 + 0.65 * std::max(n_j.dot(light), 0.0)) * c;
+          const Eigen::Vector3d k_j = sl.on(n_j, light, down);
+          for (int ch = 0; ch < 3; ++ch) lit.col(ch) += k_j[ch] * c;
           if (tex) u += m.uvs[vi[j]].x() * c, v += m.uvs[vi[j]].y() * c;
         }
         BoomShading& sh = vs.shading[d.first_tri + k];
         F32x4* coeff[3] = {&sh.dx, &sh.dy, &sh.d1};
+        F32x4* coeff_gb[3] = {&sh.gx, &sh.gy, &sh.g1};
         for (int a = 0; a < 3; ++a) {
-          *coeff[a] = F32x4{static_cast<float>(sum[a]), static_cast<float>(lit[a]), static_cast<float>(u[a]),
+          *coeff[a] = F32x4{static_cast<float>(sum[a]), static_cast<float>(lit(a, 0)), static_cast<float>(u[a]),
                             static_cast<float>(v[a])};
+          *coeff_gb[a] = F32x4{static_cast<float>(lit(a, 1)), static_cast<float>(lit(a, 2)), 0.f, 0.f};
           sh.base[a] = 255.f * m.base_color[a];
         }
         sh.base[3] = 0;
+        const Eigen::Vector3d lo = sl.lowest(), hi = sl.highest();
+        sh.light_lo = F32x4{static_cast<float>(lo[0]), static_cast<float>(lo[1]), static_cast<float>(lo[2]), 0.f};
+        sh.light_hi = F32x4{static_cast<float>(hi[0]), static_cast<float>(hi[1]), static_cast<float>(hi[2]), 0.f};
         sh.texture = tex;
         sh.texture_1d = d.texture_1d;
         if (tex && !d.flat_texel.empty() && d.flat_texel[k] >= 0) {
@@ -770,13 +803,21 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
 
   glBindFramebuffer(GL_FRAMEBUFFER, fb_.fbo);
   glViewport(0, 0, vs.vp.width, vs.vp.height);
-  // Light from above the tanker, a little forward and to the right, in this camera's frame.
-  const Eigen::Vector3f light = (T_cam_body.R() * Eigen::Vector3d(0.3, 0.2, -1.0).normalized()).cast<float>();
+  // The light in this camera's frame (the plain look's: above the tanker, a little forward and
+  // to the right).
+  const SceneLight& sl = light_of(scene);
+  const Eigen::Vector3f light = (T_cam_body.R() * sl.towards_light_body).cast<float>();
+  const Eigen::Vector3f down = (T_cam_body.R() * sl.down_body).cast<float>();
   for (const Program* p : {&shaded_, &ids_only_}) {
     glUseProgram(p->id);
     glUniformMatrix4fv(p->proj, 1, GL_FALSE, vs.proj.data());
     if (p->texture >= 0) glUniform1i(p->texture, 0);
     if (p->light >= 0) glUniform3f(p->light, light.x(), light.y(), light.z());
+    if (p->down >= 0) glUniform3f(p->down, down.x(), down.y(), down.z());
+    const Eigen::Vector3f sky = sl.sky.cast<float>(), ground = sl.ground.cast<float>(), direct = sl.direct.cast<float>();
+    if (p->sky >= 0) glUniform3f(p->sky, sky.x(), sky.y(), sky.z());
+    if (p->ground >= 0) glUniform3f(p->ground, ground.x(), ground.y(), ground.z());
+    if (p->direct >= 0) glUniform3f(p->direct, direct.x(), direct.y(), direct.z());
     if (p->alpha >= 0) glUniform1f(p->alpha, 1.0f);
   }
   glEnable(GL_DEPTH_TEST);
@@ -1037,10 +1078,14 @@ void AugmenterImpl::begin_resolve(ViewState& vs, const Frame& raw, ViewResult& o
   const VBox full{0, 0, W, H};
 
   // Outputs are reused: clear only what the previous frame wrote.
-  if (out.mask.width() != W || out.mask.height() != H || out.mask.format() != PixelFormat::kMono8) {
+  const bool look = camera_look_on();
+  if (out.mask.width() != W || out.mask.height() != H || out.mask.format() != PixelFormat::kMono8 ||
+      (look && (out.boom_alpha.width() != W || out.boom_alpha.height() != H))) {
     out.mask = Image(W, H, PixelFormat::kMono8);
+    if (look) out.boom_alpha = Image(W, H, PixelFormat::kMono8);
     out.boom_box = out.receiver_box = {};
   }
+  if (!look) out.boom_alpha = Image();
   if (out.receiver_depth.width != W || out.receiver_depth.height != H) {
     out.receiver_depth = {W, H, std::vector<float>(static_cast<std::size_t>(W) * H, DepthImage::kNone)};
     out.receiver_box = {};
@@ -1048,6 +1093,10 @@ void AugmenterImpl::begin_resolve(ViewState& vs, const Frame& raw, ViewResult& o
   for (const PixelBox& b : {out.boom_box, out.receiver_box}) {
     const VBox c = intersect({b.x0, b.y0, b.x1, b.y1}, full);
     for (int y = c.y0; y < c.y1; ++y) std::memset(out.mask.row(y) + c.x0, 0, c.x1 - c.x0);
+  }
+  if (look) {  // the coverage is written only inside the boom's box
+    const VBox c = intersect({out.boom_box.x0, out.boom_box.y0, out.boom_box.x1, out.boom_box.y1}, full);
+    for (int y = c.y0; y < c.y1; ++y) std::memset(out.boom_alpha.row(y) + c.x0, 0, c.x1 - c.x0);
   }
   {  // receiver depth is written only where the receiver is, inside its box
     const VBox c =
@@ -1075,7 +1124,11 @@ void AugmenterImpl::begin_resolve(ViewState& vs, const Frame& raw, ViewResult& o
   // row v - ay0.
   const Image& src = raw.image;
   const bool overlay_drawn = !vs.recv_rgba.empty();
-  const VBox changed = overlay_drawn ? work : boom_raw;
+  VBox changed = overlay_drawn ? work : boom_raw;
+  if (look && !changed.empty()) {  // the camera's PSF spreads the boom a little beyond its pixels
+    const int m = psf_margin_px(looks_[vs.cam - rig_.cameras.data()]);
+    changed = intersect({changed.x0 - m, changed.y0 - m, changed.x1 + m, changed.y1 + m}, full);
+  }
   out.augmented_box = to_pixel_box(changed);
   const bool whole = options_.augmented_output == AugmentedOutput::kWholeImage;
   const VBox copy = whole ? full : changed;
@@ -1130,6 +1183,8 @@ void AugmenterImpl::resolve_rows(const ViewState& vs, const Frame& raw, ViewResu
       float* drow = &out.receiver_depth.z_m[static_cast<std::size_t>(v) * W];
       // Null outside the changed box (rows with the receiver alone): nothing is composited there.
       std::uint8_t* arow = v >= copy.y0 && v < copy.y1 ? out.augmented.row(v - ay0) : nullptr;
+      // The camera look's coverage row (null with the plain look).
+      std::uint8_t* alrow = out.boom_alpha.empty() ? nullptr : out.boom_alpha.row(v);
       spans.clear();
       for (const VBox& b : raw_boxes)
         if (v >= b.y0 && v < b.y1 && !b.empty()) spans.emplace_back(b.x0, b.x1);
@@ -1168,6 +1223,7 @@ void AugmenterImpl::resolve_rows(const ViewState& vs, const Frame& raw, ViewResu
         };
         // Writes an opaque boom colour (0..255, rounded here) in the raw pixel's format.
         auto put_opaque = [&](F32x4 c) __attribute__((always_inline)) {
+          if (alrow) alrow[u] = 255;
           c += 0.5f;
           std::uint8_t* px = arow + static_cast<std::size_t>(u - ax0) * bpp;
           if constexpr (rgb) {
@@ -1289,6 +1345,7 @@ void AugmenterImpl::resolve_rows(const ViewState& vs, const Frame& raw, ViewResu
         }
         if (alpha <= 0) return;
         if (alpha > 1) alpha = 1;
+        if (alrow) alrow[u] = static_cast<std::uint8_t>(alpha * 255.f + 0.5f);
         std::uint8_t* px = arow + static_cast<std::size_t>(u - ax0) * bpp;
         const float ia = 1 - alpha;
         auto mix = [&](std::uint8_t raw_value, float premult) {
@@ -1334,6 +1391,28 @@ void AugmenterImpl::resolve_rows(const ViewState& vs, const Frame& raw, ViewResu
   });
 }
 
+Status AugmenterImpl::set_camera_look(int camera, const CameraLookParams& params) {
+  if (camera < 0 || camera >= static_cast<int>(looks_.size()))
+    return make_error("Augmenter::set_camera_look(): no camera ", camera);
+  if (!(params.psf_sigma_px >= 0 && params.psf_sigma_px <= kMaxPsfSigmaPx))
+    return make_error("Augmenter::set_camera_look(): camera ", camera, ": PSF sigma ", params.psf_sigma_px,
+                      " px is outside 0..", kMaxPsfSigmaPx);
+  if (!(params.gamma >= 0.2 && params.gamma <= 5))
+    return make_error("Augmenter::set_camera_look(): camera ", camera, ": gamma ", params.gamma,
+                      " is outside 0.2..5");
+  looks_[camera] = params;
+  return {};
+}
+
+void AugmenterImpl::look_view(int camera, const Frame& raw, ViewResult& out) {
+  if (!camera_look_on() || out.augmented_box.empty()) return;
+  const PixelBox& box = out.augmented_box;
+  const bool whole = out.augmented.width() == raw.image.width() && out.augmented.height() == raw.image.height();
+  const ImageView aug = whole ? sub_view(out.augmented.view(), box) : out.augmented.view();
+  apply_camera_look(raw.image.view(), out.boom_alpha.cview(), aug, box, looks_[camera],
+                    static_cast<std::uint64_t>(raw.t_ns), camera, look_buffers_[camera]);
+}
+
 Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) {
   if (camera < 0 || camera >= static_cast<int>(views_.size()))
     return make_error("Augmenter::augment_view(): no camera ", camera);
@@ -1348,6 +1427,7 @@ Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneStat
   else
     render_view(vs, scene);
   resolve_view(vs, raw, out, row_scratch_[0]);
+  look_view(camera, raw, out);
   return {};
 }
 
@@ -1429,6 +1509,16 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
     timings_.render_ms = ms(t1 - t0) + ms(t2 - t1);
     worker().wait();
     timings_.masks_ms = left_cpu_ms + right_cpu;
+  }
+
+  timings_.look_ms = 0;
+  if (camera_look_on()) {  // the views in parallel: neither reads the other's pixels
+    const auto a = Clock::now();
+    worker().start([&] { look_view(0, frame.left, out.left); });
+    const Worker::Join join{worker()};
+    look_view(1, frame.right, out.right);
+    worker().wait();
+    timings_.look_ms = ms(Clock::now() - a);
   }
 
   const auto t4 = Clock::now();

@@ -19,6 +19,7 @@
 #include "core/expected.hpp"
 #include "core/frame.hpp"
 #include "core/pose.hpp"
+#include "render/camera_look.hpp"
 #include "render/models.hpp"
 #include "render/rig.hpp"
 #include "render/stats.hpp"
@@ -55,6 +56,13 @@ struct AugmentOptions {
   AugmentedOutput augmented_output = AugmentedOutput::kWholeImage;
   // bench/: glFinish between GL stages so AugmentTimings splits clear/draw/readback (slower overall).
   bool profile_stages = false;
+  // The boom's look (render/camera_look.hpp): kPlain, the clean rendering under a fixed light, or
+  // kCamera, lit by SceneState::light and passed through each camera's PSF, tone curve and noise
+  // (the parameters below, changed between frames by set_camera_look()). Masks, depth and
+  // statistics are the same either way. Validation overlays (ReceiverDraw other than kMaskOnly)
+  // are drawn plain.
+  Look look = Look::kPlain;
+  std::vector<CameraLookParams> camera_looks;  // per rig camera; missing ones get the defaults
   // Models to use instead of the rig's (tests, the simulator); null: build or load the rig's.
   std::shared_ptr<const BoomModel> boom_model;
   std::shared_ptr<const Model> receiver_model;
@@ -65,6 +73,7 @@ struct SceneState {
   BoomArticulation boom;
   Pose T_body_receiver;  // receiver body frame in the tanker body frame
   bool receiver_present = true;
+  SceneLight light;  // the light on the boom (used by Look::kCamera; the plain look's is fixed)
 };
 
 // The scene at contact: boom at `a`, the receiver (level, the tanker's attitude) placed so its
@@ -82,6 +91,9 @@ struct ViewResult {
   DepthImage receiver_depth;  // z of the receiver along each pixel centre's ray
   PixelBox boom_box;          // raw pixels the boom may touch (its anti-aliased footprint)
   PixelBox receiver_box;      // raw pixels the receiver may cover
+  // Look::kCamera only: the boom's coverage of each raw pixel as composited before the camera
+  // look (Mono8, frame-sized, 255 = opaque; zero outside boom_box). Empty with the plain look.
+  Image boom_alpha;
 };
 
 // The whole augmented image of `r` (either AugmentedOutput) over the raw image it was made from.
@@ -105,6 +117,7 @@ struct AugmentTimings {
   double gl_readback_ms = 0;
   double masks_ms = 0;  // CPU pass, both views summed: masks, exact edge rays, depth and the
                         // composite of the augmented images (one pass over the pixels)
+  double look_ms = 0;   // the camera look, both views summed (0 with the plain look)
   double stats_ms = 0;  // counts and stereo classes
   double total_ms = 0;  // wall time of the whole augment() call (the stages above overlap)
 };
@@ -119,6 +132,10 @@ class Augmenter {
   virtual Status augment(const StereoFrame& frame, const SceneState& scene, StereoResult& out) = 0;
   // One camera only (index into rig.cameras); no statistics.
   virtual Status augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) = 0;
+
+  // Look::kCamera: camera `camera`'s look from the next frame on (a refreshed noise estimate).
+  virtual Status set_camera_look(int camera, const CameraLookParams& params) = 0;
+  virtual const CameraLookParams& camera_look(int camera) const = 0;
 
   virtual const AugmentTimings& timings() const = 0;
   virtual Rasterizer rasterizer() const = 0;  // kOpenGl or kCpu: what kAuto chose

@@ -26,9 +26,14 @@ using F32x4 = float __attribute__((vector_size(16)));
 // are interpolated per pixel.
 struct BoomShading {
   // Four planes, one per lane, evaluated together as dx x + dy y + d1: the sum of c_j; the sum of
-  // k_j c_j with k_j = 0.35 + 0.65 max(n_j . l, 0) at vertex j; the sums of u_j c_j and v_j c_j.
+  // k_j c_j with k_j = SceneLight::on(n_j) at vertex j, red channel; the sums of u_j c_j and v_j c_j.
   F32x4 dx, dy, d1;
+  // The sums k_j c_j of the green and blue channels (lanes 0 and 1; the others unused).
+  F32x4 gx, gy, g1;
   F32x4 base;  // base colour * 255 (the alpha lane is not used)
+  // The light's range per channel over the vertices (render/camera_look.hpp's SceneLight: lowest()
+  // to highest(); the plain look's fixed light is 0.35 to 1).
+  F32x4 light_lo = {0.35f, 0.35f, 0.35f, 0.35f}, light_hi = {1.f, 1.f, 1.f, 1.f};
   const Texture* texture = nullptr;
   bool texture_1d = false;  // its rows are all the same: v is not needed
 };
@@ -83,19 +88,22 @@ inline F32x4 sample_texture(const Texture& tex, float u, float v, bool one_row) 
 }
 
 // The boom's colour (0..255; alpha lane not set) on the ray (x, y, 1) through triangle `s`:
-// ambient 0.35 plus diffuse 0.65 of the normalised interpolated normal, times base colour and
-// texture.
+// the light (sky and ground hemispheres plus direct times the cosine at the vertices, interpolated), times base
+// colour and texture.
 // A pixel centre just outside its triangle (an edge pixel whose sample lies inside) extrapolates
-// the attributes: the light is held to the vertices' range [0.35, 1] and the texture coordinates
+// the attributes: the light is held to its range [light_lo, light_hi] and the texture coordinates
 // to a range whose texel index fits an int, and the colour is clamped to 0..255 as GL's UNORM
 // framebuffer clamps it (a negative colour converted to uint8 is undefined behaviour).
 inline F32x4 shade(const BoomShading& s, float x, float y) {
   const F32x4 planes = s.dx * x + s.dy * y + s.d1;
   const float inv = planes[0] > 0 ? 1.f / planes[0] : 0.f;
-  const F32x4 q = planes * inv;  // 1, light, u, v
+  const F32x4 q = planes * inv;  // 1, red light, u, v
+  const F32x4 gb = (s.gx * x + s.gy * y + s.g1) * inv;  // green and blue light
   // Written so that NaN goes to the low end too (every comparison with NaN is false).
   auto hold = [](float a, float lo, float hi) { return a > lo ? (a < hi ? a : hi) : lo; };
-  F32x4 c = s.base * hold(q[1], 0.35f, 1.f);
+  const F32x4 light = {hold(q[1], s.light_lo[0], s.light_hi[0]), hold(gb[0], s.light_lo[1], s.light_hi[1]),
+                       hold(gb[1], s.light_lo[2], s.light_hi[2]), 0.f};
+  F32x4 c = s.base * light;
   if (s.texture) {
     constexpr float kMaxUv = 1e4f;  // the texture repeats: exact far beyond any real coordinate
     c *= sample_texture(*s.texture, hold(q[2], -kMaxUv, kMaxUv), hold(q[3], -kMaxUv, kMaxUv), s.texture_1d) *

@@ -222,12 +222,58 @@ void parse_distortion(const Ctx& c, const YAML::Node& n, const std::string& key,
   fail(c, mn, mk, "unknown distortion model; expected one of none, radtan, equidistant, " + got(mn));
 }
 
+// A number of `key` in [lo, hi].
+double number_in(const Ctx& c, const YAML::Node& n, const std::string& key, double lo, double hi,
+                 const std::string& what) {
+  const double v = to_number(c, n, key, what);
+  if (!(v >= lo && v <= hi)) fail(c, n, key, "expected " + what + " in " + fmt(lo) + ".." + fmt(hi) + ", got " + fmt(v));
+  return v;
+}
+
+// `look: {psf_sigma_px, gamma, noise_a, noise_b, seed}`: noise_a and noise_b one number (every
+// channel) or three (R, G, B), given together.
+CameraLookParams parse_look_keys(const Ctx& c, const YAML::Node& n, const std::string& key) {
+  expect_map(c, n, key, "a map {psf_sigma_px, gamma, noise_a, noise_b, seed}");
+  check_keys(c, n, key, {"psf_sigma_px", "gamma", "noise_a", "noise_b", "seed"});
+  CameraLookParams p;
+  if (const YAML::Node v = n["psf_sigma_px"]; v.IsDefined())
+    p.psf_sigma_px = number_in(c, v, key + ".psf_sigma_px", 0, kMaxPsfSigmaPx, "a PSF 1-sigma in pixels");
+  if (const YAML::Node v = n["gamma"]; v.IsDefined())
+    p.gamma = number_in(c, v, key + ".gamma", 0.2, 5, "a tone-curve exponent (1: linear)");
+  if (const YAML::Node v = n["seed"]; v.IsDefined())
+    p.seed = static_cast<std::uint64_t>(number_in(c, v, key + ".seed", 0, 9007199254740992.0, "a whole number"));
+  const YAML::Node a = n["noise_a"], b = n["noise_b"];
+  if (a.IsDefined() != b.IsDefined())
+    fail(c, a.IsDefined() ? a : b, key + (a.IsDefined() ? ".noise_b" : ".noise_a"),
+         "missing: noise_a and noise_b (sigma^2 = a I + b, DN) are given together");
+  if (!a.IsDefined()) return p;
+  auto channels = [&](const YAML::Node& v, const std::string& k, const std::string& what) {
+    std::vector<double> x;
+    if (v.IsSequence() && v.size() == 3) {
+      x = to_numbers(c, v, k, 3, "3 numbers (R, G, B) of " + what);
+    } else {
+      x = {to_number(c, v, k, "a number (every channel) or 3 (R, G, B) of " + what)};
+    }
+    for (double e : x)
+      if (!(e >= 0 && e < 1e4)) fail(c, v, k, "expected " + what + " >= 0, got " + fmt(e));
+    return x;
+  };
+  const auto va = channels(a, key + ".noise_a", "shot-noise slope (DN)");
+  const auto vb = channels(b, key + ".noise_b", "read-noise variance (DN^2)");
+  p.noise.channels = va.size() == 3 || vb.size() == 3 ? 3 : 1;
+  for (int ch = 0; ch < 3; ++ch) {
+    p.noise.a[ch] = va[std::min<std::size_t>(ch, va.size() - 1)];
+    p.noise.b[ch] = vb[std::min<std::size_t>(ch, vb.size() - 1)];
+  }
+  return p;
+}
+
 RigCamera parse_camera(const Ctx& c, const YAML::Node& n, int index, const StereoCalibration* calib) {
   const std::string key = "cameras[" + std::to_string(index) + "]";
   expect_map(c, n, key, "a camera map {name, resolution, intrinsics, distortion, T_body_cam, near_m, far_m}");
   check_keys(c, n, key,
              {"name", "resolution", "intrinsics", "hfov_deg", "distortion", "T_body_cam", "near_m", "far_m",
-              "source"});
+              "source", "look"});
   RigCamera cam;
   cam.name = index == 0 ? "left" : "right";
   if (const YAML::Node v = n["name"]; v.IsDefined())
@@ -324,6 +370,7 @@ RigCamera parse_camera(const Ctx& c, const YAML::Node& n, int index, const Stere
     const YAML::Node v = n["far_m"].IsDefined() ? n["far_m"] : n;
     fail(c, v, key + ".far_m", "expected far_m > near_m (" + fmt(cam.near_m) + "), got " + fmt(cam.far_m));
   }
+  if (const YAML::Node v = n["look"]; v.IsDefined()) cam.look = parse_look_keys(c, v, key + ".look");
   return cam;
 }
 
@@ -525,8 +572,8 @@ Rig Rig::paper_default() {
   const CameraModel model = CameraModel::pinhole_from_hfov(1280, 960, deg_to_rad(56.0));
   const Eigen::Matrix3d R = R_body_cam_from_mount_ypr(kPi, deg_to_rad(-25.0), 0.0);
   // Looking aft, image-right is the port side (-y), so the left camera sits on the starboard side.
-  rig.cameras.push_back({"left", model, Pose::from(R, {0.0, 0.25, 2.0}), 1.0, 100.0, ""});
-  rig.cameras.push_back({"right", model, Pose::from(R, {0.0, -0.25, 2.0}), 1.0, 100.0, ""});
+  rig.cameras.push_back({"left", model, Pose::from(R, {0.0, 0.25, 2.0}), 1.0, 100.0, "", {}});
+  rig.cameras.push_back({"right", model, Pose::from(R, {0.0, -0.25, 2.0}), 1.0, 100.0, "", {}});
   rig.boom.pivot_body_m = {-4.0, 0.0, 2.3};
   rig.boom.limits = {deg_to_rad(20.0), deg_to_rad(40.0), deg_to_rad(-15.0), deg_to_rad(15.0), 0.0, 5.8};
   rig.receiver.receptacle_m = {4.0, 0.0, -0.9};
@@ -576,6 +623,18 @@ std::string rig_to_yaml(const Rig& rig) {
     }
     o << "    near_m: " << fmt(cam.near_m) << "\n    far_m: " << fmt(cam.far_m) << "\n";
     if (!cam.source_uri.empty()) o << "    source: " << quote(cam.source_uri) << "\n";
+    if (const CameraLookParams& lk = cam.look; !(lk == CameraLookParams{})) {
+      o << "    look: {psf_sigma_px: " << fmt(lk.psf_sigma_px) << ", gamma: " << fmt(lk.gamma) << ", seed: " << lk.seed;
+      if (lk.noise.channels == 1) {
+        o << ", noise_a: " << fmt(lk.noise.a[0]) << ", noise_b: " << fmt(lk.noise.b[0]);
+      } else if (lk.noise.channels == 3) {
+        o << ", noise_a: ";
+        write_vec(o, {lk.noise.a[0], lk.noise.a[1], lk.noise.a[2]});
+        o << ", noise_b: ";
+        write_vec(o, {lk.noise.b[0], lk.noise.b[1], lk.noise.b[2]});
+      }
+      o << "}\n";
+    }
   }
   const RigPairing& p = rig.pairing;
   o << "pairing: {tolerance_us: " << fmt(p.tolerance_us) << ", mode: " << p.mode << ", clock: " << p.clock

@@ -11,6 +11,7 @@
 
 #include "core/expected.hpp"
 #include "core/pose.hpp"
+#include "render/camera_look.hpp"
 #include "render/camera_model.hpp"
 
 namespace augrig {
@@ -24,6 +25,9 @@ struct RigCamera {
   double near_m = 1.0;  // no real or virtual object comes nearer than this
   double far_m = 100.0;
   std::string source_uri;  // optional, used by live capture (empty: none)
+  // The camera look's parameters (render/camera_look.hpp; `look:` in the rig file): its PSF, tone
+  // curve, and noise level function (empty: estimated from its frames during a run).
+  CameraLookParams look;
 };
 
 // Axis convention of a model file, converted explicitly on load: which model-file axis points

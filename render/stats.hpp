@@ -47,6 +47,7 @@ struct OcclusionStats {
   std::int64_t neither_px = 0;      // visible to neither camera
   double receiver_pct_left = 0, receiver_pct_right = 0;  // of W*H
   double boom_pct_left = 0, boom_pct_right = 0;          // of W*H
+  friend bool operator==(const OcclusionStats&, const OcclusionStats&) = default;
 };
 
 struct StereoClassOptions {

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "nav/geodesy.hpp"
+#include "nav/solar_position.hpp"
 
 namespace augrig::sim {
 
@@ -57,6 +58,8 @@ SkyState sky_at(const Scenario& scenario, const Flight& flight, double t_s) {
   const Eigen::Vector3d d_ned = nav::R_ecef_ned(scenario.start.lat_rad, scenario.start.lon_rad).transpose() *
                                 (k.p_ecef_m - nav::ecef_from_geodetic(scenario.start));
   sky.north_east_m = d_ned.head<2>();
+  // The sun from the ephemeris the camera look uses (nav/solar_position.hpp), at the frame's GPS time.
+  sky.sun_ned = nav::solar_position(scenario.start_gps_ns + s_to_ns(t_s), g).sun_ned;
   return sky;
 }
 
@@ -76,7 +79,10 @@ Expected<std::unique_ptr<FlightSource>> FlightSource::create(const Scenario& sce
   if (!renderer) return renderer.error();
   s->renderer_ = std::move(*renderer);
   s->sensor_.format = scenario.sensors.cameras.format;
-  s->sensor_.noise_sigma = scenario.sensors.cameras.noise_sigma;
+  const CameraTimingConfig& cam = scenario.sensors.cameras;
+  s->sensor_.noise_sigma = cam.noise_sigma;
+  s->sensor_.noise_a = cam.noise_a, s->sensor_.psf_sigma_px = cam.psf_sigma_px;
+  s->sensor_.gain = cam.gain, s->sensor_.gamma = cam.gamma;
   return s;
 }
 
@@ -86,8 +92,10 @@ Expected<ReadStatus> FlightSource::read(Frame& out, std::chrono::nanoseconds) {
   // Sensor noise differs per frame but is reproducible: seeded by the scenario and the frame.
   SensorOptions sensor = sensor_;
   sensor.noise_seed = derive_seed(scenario_.seed, "camera-noise") ^ (t.sequence * 0x9E3779B97F4A7C15ull);
-  if (auto s = renderer_->render(t.camera, sky_at(scenario_, *flight_, t.t_true_s), t.T_body_receiver, true,
-                                 sensor, out.image);
+  const SkyState sky = sky_at(scenario_, *flight_, t.t_true_s);
+  if (auto s = physical_boom_
+                   ? renderer_->render_with_boom(t.camera, sky, t.T_body_receiver, true, t.boom, sensor, out.image)
+                   : renderer_->render(t.camera, sky, t.T_body_receiver, true, sensor, out.image);
       !s)
     return s.error();
   out.camera = t.camera == 0 ? CameraId::kLeft : CameraId::kRight;

@@ -61,6 +61,10 @@ class FlightSource final : public FrameSource {
   // Truth of the frame read() returned last.
   const FrameTruth& last_truth() const { return frames_.at(next_ - 1); }
   std::size_t frame_count() const { return frames_.size(); }
+  // Renders the boom physically in the scene (SyntheticSceneRenderer::render_with_boom) at each
+  // frame's true articulation: the frames a flight with a real boom would have given.
+  void set_physical_boom(bool on) { physical_boom_ = on; }
+  bool physical_boom() const { return physical_boom_; }
 
  private:
   FlightSource() = default;
@@ -69,6 +73,7 @@ class FlightSource final : public FrameSource {
   std::vector<FrameTruth> frames_;
   std::unique_ptr<SyntheticSceneRenderer> renderer_;
   SensorOptions sensor_;
+  bool physical_boom_ = false;
   std::size_t next_ = 0;
 };
 

@@ -630,7 +630,7 @@ void parse_cameras(const Ctx& c, const YAML::Node& parent, Scenario& s) {
       optional_map(c, parent, "sensors", "cameras",
                    "a map {fps, clock_offset_ns, jitter_ns, drop_probability, bayer, noise, ...}",
                    {"fps", "clock_offset_ns", "clock_drift_ppm", "exposure_offset_ns", "jitter_ns",
-                    "drop_probability", "bayer", "noise"});
+                    "drop_probability", "bayer", "noise", "noise_a", "psf_sigma_px", "gain", "gamma"});
   CameraTimingConfig& cam = s.sensors.cameras;
   cam = CameraTimingConfig{};
   if (!n.IsDefined()) return;
@@ -659,6 +659,10 @@ void parse_cameras(const Ctx& c, const YAML::Node& parent, Scenario& s) {
     }
   }
   cam.noise_sigma = number(c, n, path, "noise", cam.noise_sigma, kNonNegative, "digital numbers");
+  cam.noise_a = number(c, n, path, "noise_a", cam.noise_a, {0.0, 100.0}, "DN of variance per DN of signal");
+  cam.psf_sigma_px = number(c, n, path, "psf_sigma_px", cam.psf_sigma_px, {0.0, 8.0}, "pixels");
+  cam.gain = number(c, n, path, "gain", cam.gain, {0.0, 100.0, true, false}, "raw DN per DN of radiance");
+  cam.gamma = number(c, n, path, "gamma", cam.gamma, {0.2, 5.0}, "");
 }
 
 void parse_sensors(const Ctx& c, const YAML::Node& root, Scenario& s) {
@@ -845,6 +849,7 @@ void make_noise_free(Scenario& s) {
   s.sensors.cameras.jitter_ns = 0;
   s.sensors.cameras.drop_probability = 0;
   s.sensors.cameras.noise_sigma = 0;
+  s.sensors.cameras.noise_a = 0;
 }
 
 }  // namespace augrig::sim

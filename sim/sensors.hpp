@@ -251,7 +251,13 @@ struct CameraTimingConfig {
   double drop_probability = 0.0;  // per frame, independent
   // For the image renderer (not used by the timing model).
   PixelFormat format = PixelFormat::kRGB8;  // RGB or a Bayer mosaic
-  double noise_sigma = 0.0;                 // additive Gaussian noise, digital numbers
+  double noise_sigma = 0.0;                 // additive Gaussian (read) noise, digital numbers
+  // The camera's response to the whole image (sim/camera_sensor.hpp): Gaussian PSF (pixels), shot
+  // noise (variance per DN of signal), exposure x gain, tone curve. Defaults: none.
+  double psf_sigma_px = 0.0;
+  double noise_a = 0.0;
+  double gain = 1.0;
+  double gamma = 1.0;
   bool operator==(const CameraTimingConfig&) const = default;
 };
 

@@ -15,7 +15,9 @@
 #include "core/image.hpp"
 #include "core/pose.hpp"
 #include "render/mesh.hpp"
+#include "render/models.hpp"
 #include "render/rig.hpp"
+#include "sim/camera_sensor.hpp"
 
 namespace augrig {
 
@@ -28,12 +30,24 @@ struct SkyState {
   // Unit vector towards the sun in NED (lights the receiver, glows in the sky); default: south-east,
   // 55 deg above the horizon.
   Eigen::Vector3d sun_ned = Eigen::Vector3d(-0.406, 0.406, -0.819);
+  // The objects' diffuse light: true, the sky's and the ground's radiance as rendered, averaged over
+  // each hemisphere (CPU back end: physically consistent with the frame); false, the fixed ambient
+  // of the OpenGL shader (blue-grey sky 0.36-0.46, ground 0.22), which the OpenGL back end always uses.
+  bool ambient_from_world = true;
 };
 
 struct SensorOptions {
   PixelFormat format = PixelFormat::kRGB8;  // Bayer formats are mosaicked from RGB
-  double noise_sigma = 0.0;                 // additive Gaussian noise, digital numbers
+  double noise_sigma = 0.0;                 // additive Gaussian (read) noise, digital numbers
   std::uint64_t noise_seed = 1;             // the noise of a render depends on this and the camera only
+  // The camera's response (sim/camera_sensor.hpp), applied to the whole image: PSF, shot noise
+  // (variance noise_a x signal), gain and tone curve. At their defaults the renderer adds the read
+  // noise to its clean render directly (the fast path of earlier flights, byte for byte).
+  double psf_sigma_px = 0.0;
+  double noise_a = 0.0;
+  double gain = 1.0;
+  double gamma = 1.0;
+  CameraResponse response() const { return {psf_sigma_px, noise_a, noise_sigma, gain, gamma}; }
 };
 
 enum class SceneBackend {
@@ -60,6 +74,14 @@ class SyntheticSceneRenderer {
   // Raw pixels whose ray the lens model cannot invert are black. Byte-identical for equal inputs.
   virtual Status render(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
                         const SensorOptions& sensor, Image& out) = 0;
+  // The same view with the boom physically in the scene at articulation `boom` (the rig's boom
+  // model, or the built-in one), lit and occluded as the receiver is, before the camera's response:
+  // the frame a flight with a real boom would have given. The CPU back end only.
+  virtual Status render_with_boom(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
+                                  const BoomArticulation& boom, const SensorOptions& sensor, Image& out) {
+    (void)camera, (void)sky, (void)T_body_receiver, (void)receiver_present, (void)boom, (void)sensor, (void)out;
+    return make_error("SyntheticSceneRenderer::render_with_boom(): only the CPU back end renders the boom");
+  }
 };
 
 }  // namespace augrig

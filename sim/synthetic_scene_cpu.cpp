@@ -27,6 +27,7 @@
 #include <cstring>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -310,6 +311,8 @@ struct FrameSky {
   Eigen::Vector3d cam_ned;  // north, east (world metres), down
   Eigen::Vector3d sun;      // unit
   double sun_factor = 1;    // ground brightness from the sun's height
+  // The diffuse light on the objects from the sky and the ground hemispheres (0..1 of full scale).
+  Eigen::Vector3f ambient_sky{0.36f, 0.40f, 0.46f}, ambient_ground{0.22f, 0.22f, 0.20f};
 };
 
 // What a ray sees, exactly: the corner nodes of the background blocks and the pixels of blocks
@@ -354,6 +357,46 @@ RaySample sample_ray(const Eigen::Vector3d& ray_cam, double ang_px, const FrameS
     r.sky[k] = static_cast<float>(
         std::clamp(horizon[k] + (zenith[k] - horizon[k]) * m + glow_col[k] * glow, 0.0, 1.0) * 255.0);
   return r;
+}
+
+// The sky's and the ground's radiance as this renderer draws them, averaged over each hemisphere
+// with the cosine weight of a surface facing it (stratified cosine-weighted directions): the
+// irradiance a surface facing straight up or down receives, over pi. The ground's colour is the
+// tile's mean albedo (its coarsest level) with the woods, tint, sun and haze of each direction.
+void hemisphere_light(const GroundTile& tile, FrameSky& f) {
+  Eigen::Vector3f albedo = Eigen::Vector3f::Zero();
+  float alpha = 0;
+  for (std::uint32_t y = 0; y < 4; ++y)
+    for (std::uint32_t x = 0; x < 4; ++x) {
+      const std::uint32_t t = tile.levels.back()[tiled_index(2, x, y)];
+      for (int c = 0; c < 3; ++c) albedo[c] += static_cast<float>((t >> (8 * c)) & 0xffu) / 16.0f;
+      alpha += static_cast<float>(t >> 24) / 16.0f;
+    }
+  FrameSky ned = f;
+  ned.R_ned_cam = Eigen::Matrix3d::Identity();
+  constexpr int kRings = 16, kAzimuths = 32;
+  Eigen::Vector3d sky = Eigen::Vector3d::Zero(), ground = Eigen::Vector3d::Zero();
+  for (int i = 0; i < kRings; ++i)
+    for (int j = 0; j < kAzimuths; ++j) {
+      const double u = (i + 0.5) / kRings, phi = 2 * kPi * (j + 0.5) / kAzimuths;
+      const double r = std::sqrt(u), up = std::sqrt(1 - u);
+      for (int half = 0; half < 2; ++half) {
+        const Eigen::Vector3d d(r * std::cos(phi), r * std::sin(phi), half ? up : -up);  // NED: z down
+        const RaySample s = sample_ray(d, 0.0, ned);
+        if (!s.valid) continue;
+        if (!s.ground) {
+          for (int c = 0; c < 3; ++c) sky[c] += s.sky[static_cast<std::size_t>(c)] / 255.0;
+          continue;
+        }
+        const float sm = woods_weight(s.wood, alpha);
+        for (int c = 0; c < 3; ++c) {
+          const float wood = kWoodBase[c] + kWoodSlope[c] * alpha;
+          ground[c] += ((albedo[c] + sm * (wood - albedo[c])) * s.k1 + s.h * kHaze[c]) / 255.0;
+        }
+      }
+    }
+  f.ambient_sky = (sky / (kRings * kAzimuths)).cast<float>();
+  f.ambient_ground = (ground / (kRings * kAzimuths)).cast<float>();
 }
 
 inline int mip_level(float lam) { return std::clamp(static_cast<int>(lam + 0.5f), 0, kTileLevels - 1); }
@@ -786,10 +829,13 @@ struct ModelTexture {
   Pyramid levels;
 };
 
+// A mesh of the scene's objects: the receiver's, or (render_with_boom) one of the boom's two parts.
+enum Part { kReceiverPart, kBoomFixedPart, kBoomTelescopePart, kParts };
 struct ReceiverMesh {
   const Mesh* mesh = nullptr;
   int texture = -1;  // index into textures_, -1 none
   bool cull = false;
+  Part part = kReceiverPart;
 };
 
 // What shading a drawn triangle needs, relative to its first vertex: at a sample with weights b1,
@@ -976,21 +1022,36 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   CpuSceneRenderer(const Rig& rig, int threads) : rig_(rig), bands_(threads) {}
   Status init(std::shared_ptr<const Model> receiver);
   Status render(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
-                const SensorOptions& sensor, Image& out) override;
+                const SensorOptions& sensor, Image& out) override {
+    return render_view(camera, sky, T_body_receiver, receiver_present, nullptr, sensor, out);
+  }
+  Status render_with_boom(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
+                          const BoomArticulation& boom, const SensorOptions& sensor, Image& out) override {
+    return render_view(camera, sky, T_body_receiver, receiver_present, &boom, sensor, out);
+  }
 
  private:
   template <int kMode>
   void background_rows(const CameraTables& ct, const FrameSky& f, int by0, int by1, PixelFormat fmt, Image& out) const;
   void background(const CameraTables& ct, const FrameSky& f, PixelFormat fmt, Image& out);
-  void draw_receiver(const CameraTables& ct, const RigCamera& cam, const FrameSky& f, const Pose& T_body_receiver,
-                     PixelFormat fmt, Image& out);
+  Status render_view(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
+                     const BoomArticulation* boom, const SensorOptions& sensor, Image& out);
+  // The clean render (no noise) of a view: background, then the objects placed (a part without
+  // a pose is not drawn).
+  void render_clean(int camera, const SkyState& sky, const std::array<std::optional<Pose>, kParts>& T_body_part,
+                    PixelFormat fmt, Image& out);
+  void add_mesh(const Mesh& m, bool cull, Part part, std::vector<const Texture*>& seen);
+  void draw_objects(const CameraTables& ct, const RigCamera& cam, const FrameSky& f,
+                    const std::array<std::optional<Pose>, kParts>& T_body_part, PixelFormat fmt, Image& out);
   void add_noise(int camera, const SensorOptions& sensor, Image& out);
 
   Rig rig_;
   Bands bands_;
   std::shared_ptr<const GroundTile> tile_;
   Model receiver_;
+  BoomModel boom_;  // drawn by render_with_boom only
   std::vector<ReceiverMesh> meshes_;
+  Image radiance_;  // the clean render that a camera response turns into the frame
   std::vector<ModelTexture> textures_;
   std::vector<CameraTables> cameras_;
   std::vector<float> gauss_;  // 65536 quantiles of N(0, 1): 16 random bits -> one Gaussian sample
@@ -1019,6 +1080,27 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   std::vector<std::uint8_t> shared_bg_;
 };
 
+void CpuSceneRenderer::add_mesh(const Mesh& m, bool cull, Part part, std::vector<const Texture*>& seen) {
+  ReceiverMesh rm;
+  rm.mesh = &m;
+  rm.cull = cull;
+  rm.part = part;
+  if (m.texture && m.texture->width > 0 && m.texture->height > 0 && !m.uvs.empty()) {
+    const auto it = std::find(seen.begin(), seen.end(), m.texture.get());
+    if (it != seen.end()) {
+      rm.texture = static_cast<int>(it - seen.begin());
+    } else {
+      const Texture& t = *m.texture;
+      std::vector<std::uint32_t> packed(static_cast<std::size_t>(t.width) * t.height);
+      for (std::size_t i = 0; i < packed.size(); ++i) std::memcpy(&packed[i], &t.rgba[4 * i], 4);
+      textures_.push_back({make_pyramid(std::move(packed), t.width, t.height, 16)});
+      seen.push_back(m.texture.get());
+      rm.texture = static_cast<int>(textures_.size()) - 1;
+    }
+  }
+  meshes_.push_back(rm);
+}
+
 Status CpuSceneRenderer::init(std::shared_ptr<const Model> receiver) {
   if (rig_.cameras.empty()) return make_error("SyntheticSceneRenderer::create(): the rig has no cameras");
   bool builtin = false;
@@ -1032,27 +1114,21 @@ Status CpuSceneRenderer::init(std::shared_ptr<const Model> receiver) {
     if (!m) return make_error("SyntheticSceneRenderer::create(): ", m.error().message);
     receiver_ = std::move(*m);
   }
-  // Textures with mipmaps, shared between the meshes that share them.
-  std::vector<const Texture*> seen;
-  for (const Mesh& m : receiver_.meshes) {
-    ReceiverMesh rm;
-    rm.mesh = &m;
-    rm.cull = builtin;  // consistently wound built-in meshes can be culled; files may not be
-    if (m.texture && m.texture->width > 0 && m.texture->height > 0 && !m.uvs.empty()) {
-      const auto it = std::find(seen.begin(), seen.end(), m.texture.get());
-      if (it != seen.end()) {
-        rm.texture = static_cast<int>(it - seen.begin());
-      } else {
-        const Texture& t = *m.texture;
-        std::vector<std::uint32_t> packed(static_cast<std::size_t>(t.width) * t.height);
-        for (std::size_t i = 0; i < packed.size(); ++i) std::memcpy(&packed[i], &t.rgba[4 * i], 4);
-        textures_.push_back({make_pyramid(std::move(packed), t.width, t.height, 16)});
-        seen.push_back(m.texture.get());
-        rm.texture = static_cast<int>(textures_.size()) - 1;
-      }
-    }
-    meshes_.push_back(rm);
+  // The boom as the augmenter has it (render/augmenter.cpp): the rig's model file as one rigid
+  // part, or the built-in boom's two parts.
+  if (rig_.boom.model.path.empty()) {
+    boom_ = make_builtin_boom();
+  } else {
+    auto m = load_model(rig_.boom.model);
+    if (!m) return make_error("SyntheticSceneRenderer::create(): ", m.error().message);
+    boom_.fixed = std::move(*m);
   }
+  // Textures with mipmaps, shared between the meshes that share them. Consistently wound built-in
+  // receiver meshes can be culled; files may not be, nor the boom (its ends are open tubes).
+  std::vector<const Texture*> seen;
+  for (const Mesh& m : receiver_.meshes) add_mesh(m, builtin, kReceiverPart, seen);
+  for (const Mesh& m : boom_.fixed.meshes) add_mesh(m, false, kBoomFixedPart, seen);
+  for (const Mesh& m : boom_.telescope.meshes) add_mesh(m, false, kBoomTelescopePart, seen);
 
   std::size_t max_samples = 0;
   cameras_.resize(rig_.cameras.size());
@@ -1265,27 +1341,29 @@ void CpuSceneRenderer::background(const CameraTables& ct, const FrameSky& f, Pix
 }
 
 
-void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& cam, const FrameSky& f,
-                                     const Pose& T_body_receiver, PixelFormat fmt, Image& out) {
-  // Camera-relative in double, as the augmenter.
-  const Pose T_cam_obj = cam.T_body_cam.inverse() * T_body_receiver;
-  const Eigen::Matrix3d R_cam_obj = T_cam_obj.R();
+void CpuSceneRenderer::draw_objects(const CameraTables& ct, const RigCamera& cam, const FrameSky& f,
+                                    const std::array<std::optional<Pose>, kParts>& T_body_part, PixelFormat fmt,
+                                    Image& out) {
   const Eigen::Matrix3d R_cam_ned = f.R_ned_cam.transpose();
   const Eigen::Vector3f sun_cam = (R_cam_ned * f.sun).cast<float>();
   const Eigen::Vector3f up_cam = (R_cam_ned * Eigen::Vector3d(0, 0, -1)).cast<float>();
   // Per vertex light (Gouraud): the sun (Lambert) and the hemispherical sky/ground ambient of the
   // OpenGL shader; a back face seen (meshes not culled) is lit from its other side.
+  // A sun below the horizon lights nothing directly.
+  const float sun_up = f.sun.z() < 0 ? 1.0f : 0.0f;
   auto light = [&](const Eigen::Vector3f& n) {
-    const float diffuse = std::max(n.dot(sun_cam), 0.0f);
+    const float diffuse = sun_up * std::max(n.dot(sun_cam), 0.0f);
     const float sky = 0.5f + 0.5f * n.dot(up_cam);
-    const Eigen::Vector3f ambient = Eigen::Vector3f(0.22f, 0.22f, 0.20f) +
-                                    sky * (Eigen::Vector3f(0.36f, 0.40f, 0.46f) - Eigen::Vector3f(0.22f, 0.22f, 0.20f));
+    const Eigen::Vector3f ambient = f.ambient_ground + sky * (f.ambient_sky - f.ambient_ground);
     return Eigen::Vector3f(Eigen::Vector3f(1.0f, 0.97f, 0.92f) * 0.75f * diffuse + ambient);
   };
   verts_cam_.clear(), light_front_.clear(), light_back_.clear(), vert_offset_.clear();
-  const Eigen::Matrix3f R_f = R_cam_obj.cast<float>();
   for (const ReceiverMesh& m : meshes_) {
     vert_offset_.push_back(verts_cam_.size());
+    if (!T_body_part[m.part]) continue;
+    // Camera-relative in double, as the augmenter.
+    const Pose T_cam_obj = cam.T_body_cam.inverse() * *T_body_part[m.part];
+    const Eigen::Matrix3f R_f = T_cam_obj.R().cast<float>();
     for (std::size_t i = 0; i < m.mesh->positions_m.size(); ++i) {
       verts_cam_.push_back(T_cam_obj * m.mesh->positions_m[i].cast<double>());
       const Eigen::Vector3f n = i < m.mesh->normals.size() ? Eigen::Vector3f(R_f * m.mesh->normals[i]) : Eigen::Vector3f::Zero();
@@ -1302,6 +1380,7 @@ void CpuSceneRenderer::draw_receiver(const CameraTables& ct, const RigCamera& ca
   RasterTriangle rt;
   for (std::size_t mi = 0; mi < meshes_.size(); ++mi) {
     const ReceiverMesh& m = meshes_[mi];
+    if (!T_body_part[m.part]) continue;
     const std::vector<std::uint32_t>& idx = m.mesh->indices;
     const std::size_t off = vert_offset_[mi];
     for (std::size_t k = 0; k + 2 < idx.size(); k += 3) {
@@ -1515,15 +1594,38 @@ bool same_sky(const SkyState& a, const SkyState& b) {
          a.sun_ned == b.sun_ned;
 }
 
-Status CpuSceneRenderer::render(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
-                                const SensorOptions& sensor, Image& out) {
+Status CpuSceneRenderer::render_view(int camera, const SkyState& sky, const Pose& T_body_receiver,
+                                     bool receiver_present, const BoomArticulation* boom, const SensorOptions& sensor,
+                                     Image& out) {
   if (camera < 0 || camera >= static_cast<int>(cameras_.size()))
     return make_error("SyntheticSceneRenderer::render(): no camera ", camera, " (the rig has ", cameras_.size(), ")");
   if (!(sky.altitude_m > 0)) return make_error("SyntheticSceneRenderer::render(): altitude must be > 0 m");
   if (!(sensor.noise_sigma >= 0)) return make_error("SyntheticSceneRenderer::render(): noise_sigma must be >= 0");
+  const CameraResponse response = sensor.response();
+  if (Status s = check_camera_response(response); !s) return s;
+  std::array<std::optional<Pose>, kParts> T_body_part;
+  if (receiver_present) T_body_part[kReceiverPart] = T_body_receiver;
+  if (boom) {
+    T_body_part[kBoomFixedPart] = boom_pose(rig_.boom.pivot_body_m, *boom);
+    T_body_part[kBoomTelescopePart] = *T_body_part[kBoomFixedPart] * telescope_pose(*boom);
+  }
+  if (!needs_camera_model(response)) {
+    // The fast path: the clean render in the frame's format, read noise added to it.
+    render_clean(camera, sky, T_body_part, sensor.format, out);
+    if (sensor.noise_sigma > 0) add_noise(camera, sensor, out);
+    return {};
+  }
+  // A camera: the scene's radiance in RGB, then the whole camera's response over it.
+  render_clean(camera, sky, T_body_part, PixelFormat::kRGB8, radiance_);
+  apply_camera_response(radiance_, response, sensor.format, sensor.noise_seed, camera, out, bands_.count());
+  return {};
+}
+
+void CpuSceneRenderer::render_clean(int camera, const SkyState& sky,
+                                    const std::array<std::optional<Pose>, kParts>& T_body_part, PixelFormat fmt,
+                                    Image& out) {
   const CameraTables& ct = cameras_[camera];
   const RigCamera& cam = rig_.cameras[camera];
-  const PixelFormat fmt = sensor.format;
   if (out.width() != ct.width || out.height() != ct.height || out.format() != fmt) out = Image(ct.width, ct.height, fmt);
 
   // The background is seen from the group's first camera when the ground's disparity between the
@@ -1544,6 +1646,7 @@ Status CpuSceneRenderer::render(int camera, const SkyState& sky, const Pose& T_b
                -sky.altitude_m + cam_offset_ned.z()};
   f.sun = sky.sun_ned.normalized();
   f.sun_factor = 0.75 + 0.35 * std::max(-f.sun.z(), 0.0);
+  if (sky.ambient_from_world) hemisphere_light(*tile_, f);
 
   const bool group_shares = [&] {
     for (const CameraTables& o : cameras_)
@@ -1561,9 +1664,9 @@ Status CpuSceneRenderer::render(int camera, const SkyState& sky, const Pose& T_b
       shared_bg_.assign(out.data(), out.data() + bytes);
     }
   }
-  if (receiver_present && !meshes_.empty()) draw_receiver(ct, cam, f, T_body_receiver, fmt, out);
-  if (sensor.noise_sigma > 0) add_noise(camera, sensor, out);
-  return {};
+  if (std::any_of(T_body_part.begin(), T_body_part.end(), [](const auto& p) { return p.has_value(); }) &&
+      !meshes_.empty())
+    draw_objects(ct, cam, f, T_body_part, fmt, out);
 }
 
 }  // namespace

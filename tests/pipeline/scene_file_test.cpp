@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <string>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -168,6 +169,37 @@ TEST(SceneFile, ElevationOutsideLimitsNamesTheLimitsInDegrees) {
   EXPECT_NE(s.error().message.find("inline.yaml:2:"), std::string::npos) << s.error().message;
   EXPECT_NE(s.error().message.find("key 'boom.elevation_deg'"), std::string::npos) << s.error().message;
   EXPECT_NE(s.error().message.find("[20, 40] degrees, got 45"), std::string::npos) << s.error().message;
+}
+
+// `sun:` sets the camera look's light in the body frame (azimuth from the nose, positive right;
+// elevation above the wings' plane); without it the scene keeps the plain look's fixed light.
+TEST(SceneFile, SunKeySetsTheLightInTheBodyFrame) {
+  const std::string head =
+      "augrig_scene: 1\nboom: {elevation_deg: 30, azimuth_deg: 0, extension_m: 2}\nreceiver: {at_contact: true}\n";
+  auto s = parse_scene(head + "sun: {azimuth_deg: 90, elevation_deg: 30, direct: 0, sky: 0.6, ground: 0.3}\n",
+                       "sun.yaml", Rig::paper_default(), BoomDimensions{}, kReceptacle);
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->light.source, LightSource::kConfigured);
+  expect_vec(s->light.towards_light_body, 0, std::cos(deg_to_rad(30)), -0.5);  // to the right, above
+  EXPECT_EQ(s->light.direct, 0);
+  EXPECT_EQ(s->light.sky, 0.6);
+  EXPECT_EQ(s->light.ground, 0.3);
+  s = parse_scene(head, "nosun.yaml", Rig::paper_default(), BoomDimensions{}, kReceptacle);
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->light.source, LightSource::kFixed);
+  for (const auto& [line, key, phrase] :
+       {std::tuple{"sun: {azimuth_deg: 0, elevation_deg: 95}", "sun.elevation_deg", "-90..90 degrees, got 95"},
+        std::tuple{"sun: {elevation_deg: 10}", "sun.azimuth_deg", "missing"},
+        std::tuple{"sun: {azimuth_deg: 0, elevation_deg: 10, direct: -1}", "sun.direct", "0..2, got -1"},
+        std::tuple{"sun: {azimuth_deg: 0, elevation_deg: 10, ambient: 1}", "sun.ambient", "unknown key"},
+        std::tuple{"sun: 45", "sun", "a map {azimuth_deg"}}) {
+    const auto bad = parse_scene(head + line + "\n", "bad.yaml", Rig::paper_default(), BoomDimensions{}, kReceptacle);
+    ASSERT_FALSE(bad) << line;
+    const std::string& m = bad.error().message;
+    EXPECT_NE(m.find("bad.yaml:4:"), std::string::npos) << m;
+    EXPECT_NE(m.find(std::string("key '") + key + "'"), std::string::npos) << m;
+    EXPECT_NE(m.find(phrase), std::string::npos) << m;
+  }
 }
 
 }  // namespace

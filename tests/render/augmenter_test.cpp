@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <random>
 #include <string>
 #include <tuple>
 
@@ -736,6 +737,168 @@ TEST_P(RasterizerTest, InterpenetratingPartsGiveTheNearestDepth) {
     EXPECT_EQ(r.far_from_edge, 0);
     EXPECT_EQ(r.depth_bad, 0);
   }
+}
+
+// A raw frame with sensor noise sigma^2 = a I + b over test::gradient_frame's signal, plus
+// (textured) a checkerboard of +-30 DN, as a researcher's noisy input.
+Frame noisy_frame(const CameraModel& cm, PixelFormat fmt, CameraId id, const NoiseLevelFunction& f, bool textured,
+                  unsigned seed) {
+  Frame fr = test::gradient_frame(cm, fmt, id);
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n01;
+  const int bpp = bytes_per_pixel(fmt), nc = fmt == PixelFormat::kRGB8 || fmt == PixelFormat::kRGBA8 ? 3 : 1;
+  for (int y = 0; y < fr.image.height(); ++y)
+    for (int x = 0; x < fr.image.width(); ++x)
+      for (int c = 0; c < nc; ++c) {
+        std::uint8_t& px = fr.image.row(y)[x * bpp + c];
+        const double s = std::clamp(0.6 * px + 40 + (textured ? ((x / 11 + y / 13) % 2 ? 30 : -30) : 0), 10.0, 240.0);
+        const double v = s + std::sqrt(f.variance(noise_channel(fmt, x, y, c), s)) * n01(rng);
+        px = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+      }
+  return fr;
+}
+
+// The ratio of the robust high-pass noise inside the boom (pixels whose 5x5 neighbourhood is
+// all boom) to what the NLF gives at each pixel's level (read off the noise-free look), per
+// channel; same-colour neighbours ([1 -2 1] x [1 -2 1], step 2 on a mosaic).
+double boom_noise_ratio(const Image& look, const Image& level, const Image& mask, const NoiseLevelFunction& f, int c) {
+  const int bpp = bytes_per_pixel(look.format()), s = is_bayer(look.format()) ? 2 : 1;
+  std::vector<double> r;
+  for (int y = 2 * s + 2; y < look.height() - 2 * s - 2; ++y)
+    for (int x = 2 * s + 2; x < look.width() - 2 * s - 2; ++x) {
+      bool inside = true;
+      for (int dy = -2 * s; dy <= 2 * s && inside; ++dy)
+        for (int dx = -2 * s; dx <= 2 * s && inside; ++dx) inside = (mask.row(y + dy)[x + dx] & kMaskBoom) != 0;
+      if (!inside) continue;
+      auto hp = [&](const Image& im) {
+        auto p = [&](int dx, int dy) { return static_cast<double>(im.row(y + dy * s)[(x + dx * s) * bpp + c]); };
+        return (p(-1, -1) - 2 * p(0, -1) + p(1, -1) - 2 * p(-1, 0) + 4 * p(0, 0) - 2 * p(1, 0) + p(-1, 1) -
+                2 * p(0, 1) + p(1, 1)) / 6.0;
+      };
+      const double sigma = std::sqrt(f.variance(noise_channel(look.format(), x, y, c), level.row(y)[x * bpp + c]) + 1.0 / 12);
+      r.push_back(std::abs(hp(look) - hp(level)) / sigma);  // the boom's own shading and texture cancel
+    }
+  if (r.size() < 2000) return 0;
+  std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+  return r[r.size() / 2] / 0.6745;
+}
+
+// The camera look changes the boom's pixels only: masks, depth, statistics and classes are the
+// plain look's; inside the boom the noise is the camera's (flat and textured, RGB and Bayer);
+// nothing changes beyond the PSF's reach; the changed-box output is the whole image's box.
+TEST_P(RasterizerTest, CameraLookAddsTheCamerasNoiseAndLeavesMasksAlone) {
+  const Rig rig = distorted_rig();
+  NoiseLevelFunction f;
+  f.channels = 3;
+  f.a = {0.15, 0.1, 0.2};
+  f.b = {2.0, 1.0, 3.0};
+  AugmentOptions plain_opt = options();
+  AugmentOptions look_opt = plain_opt;
+  look_opt.look = Look::kCamera;
+  CameraLookParams lp;
+  lp.noise = f;
+  lp.psf_sigma_px = 0.8;
+  look_opt.camera_looks = {lp, lp};
+  // The noise-free camera look: the level each noisy pixel scatters about.
+  AugmentOptions level_opt = look_opt;
+  level_opt.camera_looks[0].noise = level_opt.camera_looks[1].noise = {};
+  auto plain = Augmenter::create(rig, plain_opt);
+  auto look = test::whole_and_box_augmenters(rig, look_opt);
+  auto level = Augmenter::create(rig, level_opt);
+  ASSERT_TRUE(plain && look && level);
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  SceneState scene = contact_scene(rig, (*plain)->boom_model(), receptacle, {0.5, 0.05, 2.0});
+  scene.light = SceneLight::default_sun();
+  for (const auto& [fmt, textured] : {std::pair{PixelFormat::kRGB8, false}, std::pair{PixelFormat::kBayerRG8, true},
+                                      std::pair{PixelFormat::kMono8, true}}) {
+    NoiseLevelFunction fm = f;
+    if (fmt == PixelFormat::kMono8) fm.channels = 1;
+    for (Augmenter* a : {look->whole.get(), look->box.get(), level->get()}) {
+      CameraLookParams p = a->camera_look(0);
+      if (!p.noise.empty()) p.noise = fm;
+      ASSERT_TRUE(a->set_camera_look(0, p) && a->set_camera_look(1, p));
+    }
+    SCOPED_TRACE(std::string(to_string(fmt)) + (textured ? " textured" : " flat"));
+    StereoFrame sf;
+    sf.left = noisy_frame(rig.left().model, fmt, CameraId::kLeft, fm, textured, 1);
+    sf.right = noisy_frame(rig.right().model, fmt, CameraId::kRight, fm, textured, 2);
+    StereoResult p, w, b, l;
+    ASSERT_TRUE((*plain)->augment(sf, scene, p));
+    ASSERT_TRUE(look->whole->augment(sf, scene, w));
+    ASSERT_TRUE(look->box->augment(sf, scene, b));
+    ASSERT_TRUE((*level)->augment(sf, scene, l));
+    EXPECT_EQ(p.stats, w.stats);
+    EXPECT_EQ(p.stereo_classes, w.stereo_classes);
+    for (int c = 0; c < 2; ++c) {
+      const Image& raw = c == 0 ? sf.left.image : sf.right.image;
+      const ViewResult &vp = c == 0 ? p.left : p.right, &vw = c == 0 ? w.left : w.right,
+                       &vb = c == 0 ? b.left : b.right, &vl = c == 0 ? l.left : l.right;
+      EXPECT_TRUE(pixels_equal(vp.mask, vw.mask));
+      EXPECT_EQ(vp.receiver_depth.z_m, vw.receiver_depth.z_m);
+      EXPECT_TRUE(vp.boom_alpha.empty());
+      EXPECT_TRUE(pixels_equal(whole_augmented(raw, vb), vw.augmented));
+      EXPECT_FALSE(pixels_equal(vp.augmented, vw.augmented));
+      const int nc = fmt == PixelFormat::kRGB8 ? 3 : 1;
+      for (int ch = 0; ch < nc; ++ch) {
+        const double ratio = boom_noise_ratio(vw.augmented, vl.augmented, vw.mask, fm, ch);
+        EXPECT_GT(ratio, 0.9) << "camera " << c << " channel " << ch;
+        EXPECT_LT(ratio, 1.1) << "camera " << c << " channel " << ch;
+      }
+      // Beyond the PSF's reach of the boom's coverage, the raw pixels stay.
+      const int m = psf_margin_px(lp), bpp = bytes_per_pixel(fmt);
+      std::int64_t far_changed = 0;
+      for (int y = 0; y < raw.height(); ++y)
+        for (int x = 0; x < raw.width(); ++x) {
+          if (!std::memcmp(raw.row(y) + x * bpp, vw.augmented.row(y) + x * bpp, bpp)) continue;
+          bool near = false;
+          for (int dy = -m; dy <= m && !near; ++dy)
+            for (int dx = -m; dx <= m && !near; ++dx) {
+              const int yy = std::clamp(y + dy, 0, raw.height() - 1), xx = std::clamp(x + dx, 0, raw.width() - 1);
+              near = vw.boom_alpha.row(yy)[xx] != 0;
+            }
+          far_changed += !near;
+        }
+      EXPECT_EQ(far_changed, 0);
+    }
+  }
+}
+
+// The camera look's light: a sun behind the boom leaves its lit side away from the cameras (darker
+// than a sun behind the cameras), a sun below the horizon leaves the sky's ambient only.
+TEST_P(RasterizerTest, CameraLookShadesTheBoomWithTheScenesLight) {
+  const Rig rig = Rig::paper_default();
+  AugmentOptions opt = options();
+  opt.look = Look::kCamera;
+  CameraLookParams lp;
+  lp.psf_sigma_px = 0;
+  opt.camera_looks = {lp, lp};
+  auto aug = Augmenter::create(rig, opt);
+  ASSERT_TRUE(aug) << aug.error().message;
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, {0.5, 0.0, 2.0});
+  const Frame raw = test::gradient_frame(rig.left().model, PixelFormat::kMono8, CameraId::kLeft);
+  auto mean_boom = [&](const SceneLight& light) {
+    scene.light = light;
+    ViewResult out;
+    EXPECT_TRUE((*aug)->augment_view(0, raw, scene, out));
+    double sum = 0;
+    std::int64_t n = 0;
+    for (int y = 0; y < raw.image.height(); ++y)
+      for (int x = 0; x < raw.image.width(); ++x)
+        if (out.mask.row(y)[x] & kMaskBoom) sum += out.augmented.row(y)[x], ++n;
+    EXPECT_GT(n, 1000);
+    return sum / std::max<std::int64_t>(n, 1);
+  };
+  // The cameras sit forward of the pivot and below the boom's line (extended forward, it passes
+  // 1.9 m above them): they see the boom's underside, lit by light from below and ahead, not by a
+  // sun overhead (then the ambient alone, as at night).
+  const double lit = mean_boom(SceneLight::sun(Eigen::Vector3d(0.2, 0.1, 1), true, LightSource::kConfigured));
+  const double overhead = mean_boom(SceneLight::sun(Eigen::Vector3d(0.2, 0.1, -1), true, LightSource::kConfigured));
+  const double night = mean_boom(SceneLight::sun(Eigen::Vector3d(0.2, 0.1, -1), false, LightSource::kConfigured));
+  EXPECT_GT(lit, 2 * overhead);
+  EXPECT_NEAR(overhead, night, 0.3 * night);
 }
 
 // kAuto takes the CPU rasteriser exactly where OpenGL is itself software.

@@ -2,6 +2,7 @@
 // model paths), the canonical writer's round trip, and error messages that name file, line and key.
 #include "render/rig.hpp"
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -461,6 +462,19 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
        "cameras[1].distortion.coeffs", "as element 4"},
       {"tiny hfov", base_with(5, "    hfov_deg: 1e-300"), 3, "cameras[0]",
        "expected focal lengths fx, fy in [1, 1e7]"},
+      // The camera look's keys (docs/LOOK.md).
+      {"look PSF out of range", base_with(16, "    near_m: 1.0\n    look: {psf_sigma_px: 20}"), 17,
+       "cameras[1].look.psf_sigma_px", "a PSF 1-sigma in pixels in 0..8, got 20"},
+      {"look noise_a alone", base_with(16, "    near_m: 1.0\n    look: {noise_a: 0.2}"), 17,
+       "cameras[1].look.noise_b", "noise_a and noise_b (sigma^2 = a I + b, DN) are given together"},
+      {"look noise of 2 channels", base_with(16, "    near_m: 1.0\n    look: {noise_a: [1, 2], noise_b: 1}"), 17,
+       "cameras[1].look.noise_a", "or 3 (R, G, B)"},
+      {"look negative noise", base_with(16, "    near_m: 1.0\n    look: {noise_a: 0.1, noise_b: -1}"), 17,
+       "cameras[1].look.noise_b", "read-noise variance (DN^2) >= 0, got -1"},
+      {"look gamma", base_with(16, "    near_m: 1.0\n    look: {gamma: 0}"), 17, "cameras[1].look.gamma",
+       "in 0.2..5, got 0"},
+      {"look typo", base_with(16, "    near_m: 1.0\n    look: {psf: 1}"), 17, "cameras[1].look.psf",
+       "unknown key"},
   };
   // Only one camera: the right camera's lines removed.
   std::vector<BadRig> all = cases;
@@ -485,6 +499,31 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
     EXPECT_NE(m.find(c.message), std::string::npos) << m;
   }
   EXPECT_GE(all.size(), 10u);
+}
+
+// The camera look's keys are read and written back; without noise keys the noise is estimated.
+TEST(Rig, CameraLookKeysRoundTrip) {
+  const auto rig = parse_rig(
+      base_with(16, "    near_m: 1.0\n    look: {psf_sigma_px: 1.2, gamma: 2.2, noise_a: [0.1, 0.2, 0.3], "
+                    "noise_b: 4, seed: 9}"),
+      "<string>");
+  ASSERT_TRUE(rig) << rig.error().message;
+  const CameraLookParams& l = rig->right().look;
+  EXPECT_EQ(l.psf_sigma_px, 1.2);
+  EXPECT_EQ(l.gamma, 2.2);
+  EXPECT_EQ(l.seed, 9u);
+  EXPECT_EQ(l.noise.channels, 3);
+  EXPECT_EQ(l.noise.a, (std::array<double, 3>{0.1, 0.2, 0.3}));
+  EXPECT_EQ(l.noise.b, (std::array<double, 3>{4, 4, 4}));
+  EXPECT_EQ(rig->left().look, CameraLookParams{});  // defaults; noise estimated
+  const auto again = parse_rig(rig_to_yaml(*rig), "<round trip>");
+  ASSERT_TRUE(again) << again.error().message;
+  EXPECT_EQ(again->right().look, l);
+  EXPECT_EQ(again->left().look, CameraLookParams{});
+  const auto mono = parse_rig(base_with(16, "    near_m: 1.0\n    look: {noise_a: 0.5, noise_b: 2}"), "<string>");
+  ASSERT_TRUE(mono) << mono.error().message;
+  EXPECT_EQ(mono->right().look.noise.channels, 1);
+  EXPECT_EQ(parse_rig(rig_to_yaml(*mono), "<round trip>")->right().look, mono->right().look);
 }
 
 // A directory given as the rig file used to read as an empty document ("got nothing (null)").

@@ -360,6 +360,62 @@ TEST_F(SyntheticSceneTest, ReceiverSilhouetteIsTheAugmentersReceiverMask) {
   }
 }
 
+// The boom physically in the scene (render_with_boom, issue 33 §3) is where the augmenter puts
+// its boom: the pixels it changes are the augmenter's boom mask (the boom front-most at the pixel
+// centre), but for silhouette pixels, and it hides the receiver where the augmenter says it does.
+TEST_F(SyntheticSceneTest, PhysicalBoomIsWhereTheAugmentersBoomMaskIs) {
+  for (const Rig& rig : {Rig::paper_default(), distorted_rig()}) {
+    auto r = make(rig);
+    ASSERT_TRUE(r);
+    AugmentOptions ao;
+    ao.rasterizer = Rasterizer::kCpu;
+    auto aug = Augmenter::create(rig, ao);
+    ASSERT_TRUE(aug) << aug.error().message;
+    // Near contact: the boom crosses the receiver's nose in both views.
+    SceneState scene;
+    scene.boom = {deg_to_rad(30.0), deg_to_rad(2.0), 3.0};
+    scene.T_body_receiver = Pose::from(Eigen::Matrix3d::Identity(), {-16.0, 0.3, 11.0});
+    for (int c = 0; c < 2; ++c) {
+      SCOPED_TRACE(rig.cameras[c].model.distortion_name() + " camera " + std::to_string(c));
+      Image with, without;
+      ASSERT_TRUE(r->render_with_boom(c, SkyState{}, scene.T_body_receiver, true, scene.boom, SensorOptions{}, with));
+      ASSERT_TRUE(r->render(c, SkyState{}, scene.T_body_receiver, true, SensorOptions{}, without));
+      const std::vector<std::uint8_t> sim = silhouette(with, without);
+      Frame raw;
+      raw.image = without;
+      raw.camera = c == 0 ? CameraId::kLeft : CameraId::kRight;
+      ViewResult vr;
+      ASSERT_TRUE((*aug)->augment_view(c, raw, scene, vr));
+      long boom_px = 0, differ = 0, over_receiver = 0;
+      for (int y = 0; y < with.height(); ++y)
+        for (int x = 0; x < with.width(); ++x) {
+          const std::uint8_t m = vr.mask.row(y)[x];
+          const bool b = (m & kMaskBoom) != 0;
+          boom_px += b;
+          over_receiver += b && (m & kMaskReceiver);
+          differ += b != (sim[static_cast<std::size_t>(y) * with.width() + x] != 0);
+        }
+      ASSERT_GT(boom_px, 20000);
+      ASSERT_GT(over_receiver, 500);
+      std::printf("boom %ld px (%ld over the receiver), %ld differ from the augmenter's mask (%.2f %%)\n", boom_px,
+                  over_receiver, differ, 100.0 * differ / boom_px);
+      const bool distorted = rig.cameras[c].model.distortion != DistortionModel::kNone;
+      EXPECT_LT(differ, (distorted ? 0.02 : 0.005) * boom_px);
+      if (c == 0 && !distorted) write_png(test::output_dir("sim_physical_boom") + "/left.png", with);
+    }
+  }
+}
+
+// Without the CPU back end's boom, the OpenGL back end says so.
+TEST_F(SyntheticSceneTest, OnlyTheCpuBackEndRendersTheBoom) {
+  auto r = make(Rig::paper_default(), SceneBackend::kOpenGL);
+  ASSERT_TRUE(r);
+  Image img;
+  const auto s = r->render_with_boom(0, SkyState{}, receiver_pose(), true, BoomArticulation{}, SensorOptions{}, img);
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("only the CPU back end"), std::string::npos) << s.error().message;
+}
+
 // The CPU and OpenGL back ends render the same world: the same sky and ground to within the
 // filtering differences, and the receiver on the same pixels.
 TEST_F(SyntheticSceneTest, BackEndsAgree) {

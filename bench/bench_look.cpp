@@ -1,0 +1,347 @@
+// bench_look: augrig's augmented boom against a boom that was there (issue 33 §3, docs/LOOK.md).
+// The simulator renders each selected stereo frame of a flight twice through the same camera
+// (sim/camera_sensor.hpp: PSF, shot and read noise, gain, tone curve, Bayer mosaic): boom-free,
+// and with the boom physically in the scene (SyntheticSceneRenderer::render_with_boom). augrig
+// augments the boom-free frames, seeing only them (the camera look estimates the noise and the
+// ground's light from them; the sun comes from the ephemeris), once per look. Over the boom's
+// footprint (mask bit kMaskBoom) it then measures, per look:
+//   - the mean and RMS difference from the physical frames, DN;
+//   - the noise: robust high-pass sigma inside the boom's interior, augmented over physical
+//     (goal 0.9 to 1.1), and the boom's over the background's in the augmented frames;
+//   - the edge: 10-90 % width across the boom's silhouette, augmented minus physical (goal <= 0.3 px);
+//   - a patch classifier (OpenCV ml: random trees and logistic regression on patch statistics)
+//     trained on the even frames to tell augmented from physical boom patches and tested on the
+//     odd ones: the AUC (0.5: cannot tell; goal <= 0.60 with the camera look).
+//   build/bench_look [--scenario NAME] [--frames N] [--bayer] [--psf PX] [--noise-a A] [--noise DN]
+//                    [--gain G] [--out DIR]
+// --out writes crops of the left view (plain | camera | physical) as PNG, for docs/LOOK.md.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/conventions.hpp"
+#include "eval/look_compare.hpp"
+#include "pipeline/look_stage.hpp"
+#include "render/augmenter.hpp"
+#include "render/gl_context.hpp"
+#include "render/image_file.hpp"
+#include "sim/flight_source.hpp"
+#include "sim/scenario.hpp"
+#include "sim/sensors.hpp"
+
+using namespace augrig;
+
+namespace {
+
+struct Args {
+  std::string scenario = "demo";
+  int frames = 24;  // stereo frames compared (half train, half test)
+  bool bayer = false;
+  double psf_px = 0.8, noise_a = 0.12, noise_dn = 1.5, gain = 1.0;
+  std::string out;
+};
+
+[[noreturn]] void usage(const char* why) {
+  std::fprintf(stderr,
+               "bench_look: %s\nusage: bench_look [--scenario NAME] [--frames N] [--bayer] [--psf PX] "
+               "[--noise-a A] [--noise DN] [--gain G] [--out DIR]\n",
+               why);
+  std::exit(2);
+}
+
+Args parse(int argc, char** argv) {
+  Args a;
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) usage(("missing value after " + k).c_str());
+      return argv[++i];
+    };
+    if (k == "--scenario") a.scenario = value();
+    else if (k == "--frames") a.frames = std::stoi(value());
+    else if (k == "--bayer") a.bayer = true;
+    else if (k == "--psf") a.psf_px = std::stod(value());
+    else if (k == "--noise-a") a.noise_a = std::stod(value());
+    else if (k == "--noise") a.noise_dn = std::stod(value());
+    else if (k == "--gain") a.gain = std::stod(value());
+    else if (k == "--out") a.out = value();
+    else usage(("unknown option " + k).c_str());
+  }
+  if (a.frames < 4) usage("--frames must be >= 4");
+  return a;
+}
+
+// One selected stereo frame: its two views' truths (left, right).
+struct Pair {
+  const sim::FrameTruth* left = nullptr;
+  const sim::FrameTruth* right = nullptr;
+};
+
+// `n` pairs spread evenly over the flight, both cameras delivered.
+std::vector<Pair> pick_pairs(const std::vector<sim::FrameTruth>& truths, int n) {
+  std::vector<Pair> all;
+  for (const sim::FrameTruth& t : truths) {
+    if (t.camera != 0) continue;
+    for (const sim::FrameTruth& r : truths)
+      if (r.camera == 1 && r.sequence == t.sequence) all.push_back({&t, &r});
+  }
+  std::vector<Pair> out;
+  for (int i = 0; i < n && !all.empty(); ++i)
+    out.push_back(all[std::min(all.size() - 1, (all.size() * (2 * static_cast<std::size_t>(i) + 1)) / (2 * n))]);
+  return out;
+}
+
+// Renders a pair's views (boom-free or with the physical boom) through the scenario's camera.
+StereoFrame render_pair(sim::FlightSource& src, const Pair& p) {
+  (void)p;
+  StereoFrame f;
+  for (Frame* out : {&f.left, &f.right}) {
+    auto r = src.read(*out, {});
+    if (!r || *r != ReadStatus::kFrame) {
+      std::fprintf(stderr, "bench_look: the simulator gave no frame: %s\n", r ? "end of stream" : r.error().message.c_str());
+      std::exit(1);
+    }
+  }
+  f.t_key_ns = (f.left.t_ns + f.right.t_ns) / 2;
+  return f;
+}
+
+Image boom_mask(const Image& mask) {
+  Image m(mask.width(), mask.height(), PixelFormat::kMono8);
+  for (int y = 0; y < mask.height(); ++y)
+    for (int x = 0; x < mask.width(); ++x) m.row(y)[x] = (mask.row(y)[x] & kMaskBoom) ? 255 : 0;
+  return m;
+}
+
+// The mask shrunk by `r` pixels (a pixel stays if its (2r+1)^2 neighbourhood is all in).
+Image eroded(const Image& m, int r) {
+  Image out(m.width(), m.height(), PixelFormat::kMono8);
+  for (int y = 0; y < m.height(); ++y)
+    for (int x = 0; x < m.width(); ++x) {
+      bool in = true;
+      for (int dy = -r; dy <= r && in; ++dy)
+        for (int dx = -r; dx <= r && in; ++dx) {
+          const int xx = x + dx, yy = y + dy;
+          in = xx >= 0 && yy >= 0 && xx < m.width() && yy < m.height() && m.row(yy)[xx];
+        }
+      out.row(y)[x] = in ? 255 : 0;
+    }
+  return out;
+}
+
+// The background near the boom (a band 4..12 px outside it): the noise the boom should match.
+Image background_band(const Image& m) {
+  Image grown(m.width(), m.height(), PixelFormat::kMono8), near(m.width(), m.height(), PixelFormat::kMono8);
+  auto dilate = [&m](Image& out, int r) {
+    for (int y = 0; y < m.height(); ++y)
+      for (int x = 0; x < m.width(); ++x) {
+        bool any = false;
+        for (int dy = -r; dy <= r && !any; dy += 2)
+          for (int dx = -r; dx <= r && !any; dx += 2) {
+            const int xx = std::clamp(x + dx, 0, m.width() - 1), yy = std::clamp(y + dy, 0, m.height() - 1);
+            any = m.row(yy)[xx] != 0;
+          }
+        out.row(y)[x] = any ? 255 : 0;
+      }
+  };
+  dilate(grown, 12), dilate(near, 4);
+  for (int y = 0; y < m.height(); ++y)
+    for (int x = 0; x < m.width(); ++x) grown.row(y)[x] = grown.row(y)[x] && !near.row(y)[x] ? 255 : 0;
+  return grown;
+}
+
+struct LookTotals {
+  double diff_sum = 0, diff_sq = 0;
+  std::size_t pixels = 0;
+  std::vector<double> noise_ratio, boom_vs_background, edge_aug, edge_phys;
+  std::vector<std::vector<float>> train_a, train_b, test_a, test_b;  // augmented, physical patches
+};
+
+double median(std::vector<double> v) {
+  std::erase_if(v, [](double x) { return !std::isfinite(x); });
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+// Patches of 16 px, 8 px apart, whose centre and most of whose pixels are boom.
+void add_patches(const Image& aug, const Image& phys, const Image& boom, bool train, LookTotals& t) {
+  constexpr int kSize = 16;
+  for (int y = 0; y + kSize <= boom.height(); y += 8)
+    for (int x = 0; x + kSize <= boom.width(); x += 8) {
+      int in = 0;
+      for (int dy = 0; dy < kSize; ++dy)
+        for (int dx = 0; dx < kSize; ++dx) in += boom.row(y + dy)[x + dx] != 0;
+      if (in < kSize * kSize * 3 / 4) continue;
+      (train ? t.train_a : t.test_a).push_back(eval::patch_features(aug.view(), x, y, kSize));
+      (train ? t.train_b : t.test_b).push_back(eval::patch_features(phys.view(), x, y, kSize));
+    }
+}
+
+void measure_view(const Image& aug, const Image& phys, const Image& mask, bool train, LookTotals& t) {
+  const Image boom = boom_mask(mask);
+  if (auto d = eval::region_difference(aug.view(), phys.view(), boom.view()); d && d->pixels > 0) {
+    t.diff_sum += d->mean_dn * static_cast<double>(d->pixels);
+    t.diff_sq += d->rms_dn * d->rms_dn * static_cast<double>(d->pixels);
+    t.pixels += d->pixels;
+  }
+  const Image interior = eroded(boom, 2), band = background_band(boom);
+  auto sigma = [](const Image& img, const Image& m) {
+    const Expected<double> s = eval::robust_noise_sigma(img.view(), m.view());
+    return s ? *s : NAN;
+  };
+  const double s_aug = sigma(aug, interior), s_phys = sigma(phys, interior), s_bg = sigma(aug, band);
+  t.noise_ratio.push_back(s_aug / s_phys);
+  t.boom_vs_background.push_back(s_aug / s_bg);
+  const Expected<eval::EdgeWidth> ea = eval::edge_width(aug.view(), boom.view());
+  const Expected<eval::EdgeWidth> ep = eval::edge_width(phys.view(), boom.view());
+  if (ea && ep && ea->profiles >= 20 && ep->profiles >= 20) {
+    t.edge_aug.push_back(ea->width_10_90_px);
+    t.edge_phys.push_back(ep->width_10_90_px);
+  }
+  add_patches(aug, phys, boom, train, t);
+}
+
+// A crop of `img` (RGB8) around `box`, `pad` pixels wider, into `dst` at column `at`.
+void paste_crop(const Image& img, const PixelBox& box, int pad, Image& dst, int at) {
+  for (int y = 0; y < dst.height(); ++y)
+    for (int x = 0; x < dst.width() / 3; ++x) {
+      const int sx = std::clamp(box.x0 - pad + x, 0, img.width() - 1), sy = std::clamp(box.y0 - pad + y, 0, img.height() - 1);
+      const int bpp = bytes_per_pixel(img.format());
+      for (int c = 0; c < 3; ++c)
+        dst.row(y)[3 * (at + x) + c] = img.row(sy)[bpp * sx + (bpp == 1 ? 0 : c)];
+    }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = parse(argc, argv);
+  auto scenario = sim::builtin_scenario(args.scenario);
+  if (!scenario) {
+    std::fprintf(stderr, "bench_look: %s\n", scenario.error().message.c_str());
+    return 1;
+  }
+  sim::CameraTimingConfig& cam = scenario->sensors.cameras;
+  cam.psf_sigma_px = args.psf_px, cam.noise_a = args.noise_a, cam.noise_sigma = args.noise_dn, cam.gain = args.gain;
+  if (args.bayer) cam.format = PixelFormat::kBayerRG8;
+  auto flight = sim::Flight::create(*scenario);
+  if (!flight) {
+    std::fprintf(stderr, "bench_look: %s\n", flight.error().message.c_str());
+    return 1;
+  }
+  const sim::SensorLogs logs = sim::simulate_sensors(*scenario, *flight);
+  const std::vector<sim::FrameTruth> truths = sim::frame_truths(*scenario, *flight, logs.cameras);
+  const std::vector<Pair> pairs = pick_pairs(truths, args.frames);
+  std::vector<sim::FrameTruth> chosen;
+  for (const Pair& p : pairs) chosen.push_back(*p.left), chosen.push_back(*p.right);
+  auto free_src = sim::FlightSource::create(*scenario, *flight, chosen);
+  auto phys_src = sim::FlightSource::create(*scenario, *flight, chosen);
+  if (!free_src || !phys_src) {
+    std::fprintf(stderr, "bench_look: %s\n", (!free_src ? free_src : phys_src).error().message.c_str());
+    return 1;
+  }
+  (*phys_src)->set_physical_boom(true);
+  std::printf("bench_look: scenario %s, %zu stereo frames, %s, camera: PSF %.2f px, noise a %.3g, read %.2f DN, gain %.2f\n",
+              args.scenario.c_str(), pairs.size(), args.bayer ? "BayerRG8" : "RGB8", args.psf_px, args.noise_a,
+              args.noise_dn, args.gain);
+
+  auto ctx = create_gl_context(GlBackend::kEglHeadless);  // the augmenter needs one, even rasterising on the CPU
+  if (!ctx) {
+    std::fprintf(stderr, "bench_look: %s\n", ctx.error().message.c_str());
+    return 1;
+  }
+  // The looks compared: each its own augmenter (CPU rasteriser: the same masks) and look stage.
+  const Look looks[] = {Look::kPlain, Look::kCamera};
+  std::vector<std::unique_ptr<Augmenter>> augmenters;
+  std::vector<std::unique_ptr<pipeline::LookStage>> stages;
+  for (Look l : looks) {
+    AugmentOptions o;
+    o.rasterizer = Rasterizer::kCpu;
+    o.look = l;
+    auto a = Augmenter::create(scenario->rig, o);
+    if (!a) {
+      std::fprintf(stderr, "bench_look: %s\n", a.error().message.c_str());
+      return 1;
+    }
+    pipeline::LookConfig lc;
+    lc.look = l;
+    lc.cameras.assign(scenario->rig.cameras.size(), CameraLookParams{});
+    for (std::size_t c = 0; c < lc.cameras.size(); ++c) lc.cameras[c] = scenario->rig.cameras[c].look;
+    lc.noise_every_s = 0;  // every frame given: the frames here are seconds apart
+    auto st = std::make_unique<pipeline::LookStage>(lc);
+    if (auto s = st->configure(**a); !s) return 1;
+    augmenters.push_back(std::move(*a));
+    stages.push_back(std::move(st));
+  }
+
+  std::vector<LookTotals> totals(std::size(looks));
+  std::vector<StereoResult> results(std::size(looks));
+  Image crops;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    const Pair& p = pairs[i];
+    const StereoFrame raw = render_pair(**free_src, p), phys = render_pair(**phys_src, p);
+    const Pose T_ecef_tanker = flight->tanker(p.left->t_true_s).T_ecef_body();
+    for (std::size_t l = 0; l < std::size(looks); ++l) {
+      SceneState scene{p.left->boom, p.left->T_body_receiver, true,
+                       pipeline::sun_light(p.left->t_gps_ns, T_ecef_tanker)};
+      for (const std::string& note : stages[l]->before_augment(raw, scene, *augmenters[l]))
+        if (i == 0) std::printf("  %s\n", note.c_str());
+      if (auto s = augmenters[l]->augment(raw, scene, results[l]); !s) {
+        std::fprintf(stderr, "bench_look: %s\n", s.error().message.c_str());
+        return 1;
+      }
+      const bool train = i % 2 == 0;
+      measure_view(results[l].left.augmented, phys.left.image, results[l].left.mask, train, totals[l]);
+      measure_view(results[l].right.augmented, phys.right.image, results[l].right.mask, train, totals[l]);
+    }
+    // The crops: the frame where the boom's box is largest in the middle of the flight.
+    if (!args.out.empty() && i == pairs.size() / 2) {
+      const PixelBox& b = results[1].left.boom_box;
+      const int w = std::min(b.x1 - b.x0 + 16, 480), h = std::min(b.y1 - b.y0 + 16, 360);
+      crops = Image(3 * w, h, PixelFormat::kRGB8);
+      paste_crop(results[0].left.augmented, b, 8, crops, 0);
+      paste_crop(results[1].left.augmented, b, 8, crops, w);
+      paste_crop(phys.left.image, b, 8, crops, 2 * w);
+    }
+    std::fprintf(stderr, "\r  frame %zu/%zu", i + 1, pairs.size());
+  }
+  std::fprintf(stderr, "\n");
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  std::printf("\n| look | boom px | mean diff DN | RMS diff DN | noise aug/phys | noise boom/bg | edge 10-90 aug px | "
+              "edge phys px | edge diff px | AUC trees | AUC logistic |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (std::size_t l = 0; l < std::size(looks); ++l) {
+    const LookTotals& t = totals[l];
+    const double n = std::max<double>(1.0, static_cast<double>(t.pixels));
+    const Expected<eval::ClassifierResult> cr = eval::classify_patches(t.train_a, t.train_b, t.test_a, t.test_b);
+    eval::ClassifierResult c;
+    c.auc_random_trees = c.auc_logistic = NAN;
+    if (cr) c = *cr;
+    else std::fprintf(stderr, "bench_look: %s\n", cr.error().message.c_str());
+    const double ea = median(t.edge_aug), ep = median(t.edge_phys);
+    std::printf("| %s | %zu | %+.2f | %.2f | %.3f | %.3f | %.2f | %.2f | %+.2f | %.3f | %.3f |\n", to_string(looks[l]),
+                t.pixels, t.diff_sum / n, std::sqrt(t.diff_sq / n), median(t.noise_ratio),
+                median(t.boom_vs_background), ea, ep, ea - ep, c.auc_random_trees, c.auc_logistic);
+  }
+  for (std::size_t l = 0; l < std::size(looks); ++l)
+    if (looks[l] == Look::kCamera) std::printf("\n%s\n", stages[l]->status().c_str());
+  std::printf("(%zu train / %zu test patches per class; %.1f s)\n", totals[0].train_a.size(), totals[0].test_a.size(),
+              secs);
+  if (!args.out.empty() && crops.width() > 0) {
+    std::filesystem::create_directories(args.out);
+    const std::string path = args.out + "/look_crops.png";
+    if (auto s = write_png_file(path, crops); !s) {
+      std::fprintf(stderr, "bench_look: %s\n", s.error().message.c_str());
+      return 1;
+    }
+    std::printf("crops (plain | camera | physical boom): %s\n", path.c_str());
+  }
+  return 0;
+}

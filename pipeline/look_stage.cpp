@@ -1,0 +1,223 @@
+#include "pipeline/look_stage.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <iomanip>
+#include <sstream>
+
+#include "core/thread_name.hpp"
+#include "nav/geodesy.hpp"
+#include "nav/solar_position.hpp"
+
+namespace augrig::pipeline {
+
+namespace {
+
+std::string camera_name(std::size_t c) {
+  return c == 0 ? "left" : c == 1 ? "right" : "camera " + std::to_string(c);
+}
+
+// "a 0.213 b 1.90" per channel (R G B for colour).
+std::string describe(const NoiseLevelFunction& f) {
+  if (f.empty()) return "none yet";
+  std::ostringstream o;
+  char buf[64];
+  for (int c = 0; c < f.channels; ++c) {
+    std::snprintf(buf, sizeof buf, "a %.3g b %.3g", f.a[c], f.b[c]);
+    o << (c ? ", " : "") << (f.channels == 3 ? std::string(1, "RGB"[c]) + " " : "") << buf;
+  }
+  return o.str();
+}
+
+// The mean linear level of an image over a grid of every 8th pixel (all channels but alpha),
+// through the tone curve x^gamma: the light the scene around the cameras sends back (for cameras
+// looking down at the receiver, mostly the ground's or the clouds').
+double mean_linear_level(const Image& img, double gamma) {
+  const int bpp = bytes_per_pixel(img.format()), nc = img.format() == PixelFormat::kRGBA8 ? 3 : bpp;
+  double sum = 0;
+  std::size_t n = 0;
+  for (int y = 3; y < img.height(); y += 8)
+    for (int x = 3; x < img.width(); x += 8)
+      for (int c = 0; c < nc; ++c, ++n) {
+        const double v = img.row(y)[x * bpp + c] / 255.0;
+        sum += gamma == 1.0 ? v : std::pow(v, gamma);
+      }
+  return n ? sum / static_cast<double>(n) : 0.0;
+}
+
+}  // namespace
+
+SceneLight sun_light(TimestampNs t_gps_ns, const Pose& T_ecef_tanker) {
+  const nav::Geodetic where = nav::geodetic_from_ecef(T_ecef_tanker.translation_m);
+  const nav::SolarPosition sun = nav::solar_position(t_gps_ns, where);
+  const Eigen::Matrix3d R_body_ecef = T_ecef_tanker.R().transpose();
+  const Eigen::Vector3d towards_sun_body = R_body_ecef * nav::sun_direction_ecef(sun, where);
+  const Eigen::Vector3d down_body = R_body_ecef * nav::R_ecef_ned(where.lat_rad, where.lon_rad).col(2);
+  constexpr double kEarthRadius_m = 6371000.0;
+  const double dip_rad = std::acos(kEarthRadius_m / (kEarthRadius_m + std::max(where.h_m, 0.0)));
+  return SceneLight::sun(towards_sun_body, kPi / 2 - sun.zenith_rad > -dip_rad, LightSource::kEphemeris, down_body);
+}
+
+LookStage::LookStage(LookConfig config) : config_(std::move(config)) {
+  noise_.resize(config_.cameras.size());
+  fresh_.assign(config_.cameras.size(), false);
+  bool estimate = false;
+  for (std::size_t c = 0; c < config_.cameras.size(); ++c) {
+    noise_[c].configured = !config_.cameras[c].noise.empty();
+    noise_[c].nlf = config_.cameras[c].noise;
+    estimate |= !noise_[c].configured;
+    estimators_.emplace_back();
+  }
+  estimating_ = config_.look == Look::kCamera && estimate;
+  if (estimating_ && !config_.synchronous) thread_ = std::thread([this] { estimator_loop(); });
+}
+
+LookStage::~LookStage() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+Status LookStage::configure(Augmenter& augmenter) const {
+  if (config_.look != Look::kCamera) return {};
+  for (std::size_t c = 0; c < config_.cameras.size(); ++c)
+    if (auto s = augmenter.set_camera_look(static_cast<int>(c), config_.cameras[c]); !s) return s;
+  return {};
+}
+
+std::vector<std::string> LookStage::before_augment(const StereoFrame& frame, SceneState& scene, Augmenter& augmenter) {
+  std::vector<std::string> notes;
+  if (config_.look != Look::kCamera) return notes;
+  // The sun: the pose source's where it knows time and place; else the default, said once.
+  if (scene.light.source == LightSource::kFixed) {
+    scene.light = SceneLight::default_sun();
+    if (!default_sun_said_)
+      notes.push_back(
+          "look: no time or position for the sun from the pose source; the boom is lit by the default sun "
+          "(45 deg up, 45 deg right of the nose; docs/LOOK.md)");
+    default_sun_said_ = true;
+  }
+  last_light_ = scene.light.source;
+  const TimestampNs t = frame.t_key_ns, every = s_to_ns(config_.noise_every_s);
+  if (sampled_ && (t < next_sample_ns_ - 2 * every)) sampled_ = false;  // time went back (a loop, a seek)
+  const bool sample = !sampled_ || t >= next_sample_ns_;
+  // The ground's light: what the frames around the boom send back (cheap: a sparse grid).
+  if (sample) {
+    const double g = config_.cameras.empty() ? 1.0 : config_.cameras[0].gamma;
+    ground_ = 0.5 * (mean_linear_level(frame.left.image, g) + mean_linear_level(frame.right.image, g));
+  }
+  if (ground_ && scene.light.source != LightSource::kConfigured) scene.light.ground = *ground_;
+  const bool due = estimating_ && sample;
+  std::unique_lock lock(mutex_);
+  if (due && config_.synchronous) {
+    // At the frames' own times, before this pair: runs are repeatable.
+    lock.unlock();
+    estimate({&frame.left.image, &frame.right.image});
+    lock.lock();
+  } else if (due && !busy_ && pending_.empty()) {
+    // Copied: the pair's buffers go on down the pipeline.
+    pending_ = {Image::copy_of(frame.left.image.view()), Image::copy_of(frame.right.image.view())};
+    busy_ = true;
+    cv_.notify_all();
+  }
+  if (sample) sampled_ = true, next_sample_ns_ = t + every;
+  hand_over(augmenter, notes);
+  return notes;
+}
+
+void LookStage::estimator_loop() {
+  set_thread_name("augrig-noise");
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    cv_.wait(lock, [&] { return stop_ || !pending_.empty(); });
+    if (stop_) return;
+    std::vector<Image> frames = std::move(pending_);
+    pending_.clear();
+    lock.unlock();
+    estimate({&frames[0], frames.size() > 1 ? &frames[1] : nullptr});
+    lock.lock();
+    busy_ = false;
+    cv_.notify_all();
+  }
+}
+
+void LookStage::estimate(const std::vector<const Image*>& frames) {
+  // A few ms per frame; only this function touches the estimators.
+  std::vector<std::optional<Expected<NoiseFitReport>>> fits(frames.size());
+  for (std::size_t c = 0; c < frames.size() && c < estimators_.size(); ++c) {
+    if (noise_[c].configured || !frames[c]) continue;
+    if (estimators_[c].frames() >= static_cast<std::uint64_t>(config_.noise_window)) estimators_[c].clear();
+    if (auto s = estimators_[c].add(*frames[c]); !s) {
+      fits[c] = s.error();
+      continue;
+    }
+    fits[c] = estimators_[c].fit();
+  }
+  std::lock_guard lock(mutex_);
+  for (std::size_t c = 0; c < fits.size(); ++c) {
+    if (!fits[c]) continue;
+    CameraNoiseState& n = noise_[c];
+    if (*fits[c]) {
+      n.nlf = (*fits[c])->nlf;
+      n.note = (*fits[c])->note;
+      n.frames = estimators_[c].frames();
+      ++n.fits;
+      fresh_[c] = true;
+    } else {
+      n.note = fits[c]->error().message;
+    }
+  }
+}
+
+void LookStage::hand_over(Augmenter& augmenter, std::vector<std::string>& notes) {
+  for (std::size_t c = 0; c < fresh_.size(); ++c) {
+    CameraNoiseState& n = noise_[c];
+    if (!n.configured && n.fits == 0 && !n.note.empty() && !n.failure_said) {
+      notes.push_back("look: " + camera_name(c) + " camera's noise cannot be estimated from its frames yet (" +
+                      n.note + "); none is added until it can (or give the rig's look.noise_a/noise_b)");
+      n.failure_said = true;
+    }
+    if (!fresh_[c]) continue;
+    fresh_[c] = false;
+    CameraLookParams p = augmenter.camera_look(static_cast<int>(c));
+    p.noise = noise_[c].nlf;
+    if (auto s = augmenter.set_camera_look(static_cast<int>(c), p); !s) notes.push_back(s.error().message);
+    if (noise_[c].fits == 1)
+      notes.push_back("look: " + camera_name(c) + " camera's noise estimated from its frames: " +
+                      describe(noise_[c].nlf) + (noise_[c].note.empty() ? "" : " (" + noise_[c].note + ")"));
+  }
+}
+
+void LookStage::flush() {
+  std::unique_lock lock(mutex_);
+  cv_.wait(lock, [&] { return stop_ || (!busy_ && pending_.empty()); });
+}
+
+std::vector<CameraNoiseState> LookStage::noise() const {
+  std::lock_guard lock(mutex_);
+  return noise_;
+}
+
+std::string LookStage::status() const {
+  if (config_.look != Look::kCamera) return "look plain";
+  std::ostringstream o;
+  o << "look camera: sun " << to_string(last_light_);
+  if (ground_) o << ", ground light " << std::setprecision(3) << *ground_;
+  o << "; noise";
+  std::lock_guard lock(mutex_);
+  for (std::size_t c = 0; c < noise_.size(); ++c) {
+    o << (c ? "; " : " ") << camera_name(c) << " " << describe(noise_[c].nlf);
+    if (noise_[c].configured)
+      o << " (configured)";
+    else if (noise_[c].fits)
+      o << " (" << noise_[c].fits << " estimates)";
+    else if (!noise_[c].note.empty())
+      o << " (" << noise_[c].note << ")";
+  }
+  return o.str();
+}
+
+}  // namespace augrig::pipeline

@@ -1,0 +1,270 @@
+// Tests of render/camera_look: the noise generator's distribution, and the look over synthetic
+// noisy frames with a known boom layer, measured as a researcher would: a robust high-pass sigma
+// inside the boom against the noise level function's, edge widths against the PSF's, pixels left
+// alone outside the boom's blurred footprint, the same pixels for the same frame.
+#include "render/camera_look.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace augrig {
+namespace {
+
+// sigma^2 = a I + b per channel.
+NoiseLevelFunction nlf(int channels, double a, double b) {
+  NoiseLevelFunction f;
+  f.channels = channels;
+  for (int c = 0; c < 3; ++c) f.a[c] = a * (1 + 0.3 * c), f.b[c] = b * (1 + 0.2 * c);
+  return f;
+}
+
+int channels_of(PixelFormat f) {
+  return f == PixelFormat::kRGB8 || f == PixelFormat::kRGBA8 ? 3 : 1;
+}
+
+// A raw frame: `signal(x, y, c)` plus noise drawn from `f` (the channel as noise_channel() names it).
+template <typename Signal>
+Image noisy_frame(int w, int h, PixelFormat fmt, const NoiseLevelFunction& f, Signal signal, unsigned seed) {
+  Image img(w, h, fmt);
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n01;
+  const int bpp = bytes_per_pixel(fmt), nc = channels_of(fmt);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < bpp; ++c) {
+        if (c >= nc) {
+          img.row(y)[x * bpp + c] = 255;
+          continue;
+        }
+        const double s = signal(x, y, c);
+        const double v = s + std::sqrt(f.variance(noise_channel(fmt, x, y, c), s)) * n01(rng);
+        img.row(y)[x * bpp + c] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+      }
+  return img;
+}
+
+// The plain composite of a boom of colour `boom(c)` over `raw` with coverage `alpha`.
+template <typename Colour>
+Image composite(const Image& raw, const Image& alpha, Colour boom) {
+  Image out = Image::copy_of(raw.view());
+  const int bpp = bytes_per_pixel(raw.format()), nc = channels_of(raw.format());
+  for (int y = 0; y < raw.height(); ++y)
+    for (int x = 0; x < raw.width(); ++x) {
+      const float a = alpha.row(y)[x] / 255.f;
+      if (a <= 0) continue;
+      for (int c = 0; c < nc; ++c) {
+        const int ch = is_bayer(raw.format()) ? bayer_channel(raw.format(), x, y) : c;
+        const float v = (1 - a) * raw.row(y)[x * bpp + c] + a * boom(ch);
+        out.row(y)[x * bpp + c] = static_cast<std::uint8_t>(std::clamp(v + 0.5f, 0.f, 255.f));
+      }
+    }
+  return out;
+}
+
+// Coverage of a disc of radius r at (cx, cy), 4x4 supersampled.
+Image disc_alpha(int w, int h, double cx, double cy, double r) {
+  Image a(w, h, PixelFormat::kMono8);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      int in = 0;
+      for (int j = 0; j < 4; ++j)
+        for (int i = 0; i < 4; ++i) {
+          const double dx = x - 0.375 + 0.25 * i - cx, dy = y - 0.375 + 0.25 * j - cy;
+          in += dx * dx + dy * dy <= r * r;
+        }
+      a.row(y)[x] = static_cast<std::uint8_t>(std::lround(in * 255.0 / 16));
+    }
+  return a;
+}
+
+// Robust high-pass sigma of channel c over the pixels where `inside(x, y)`: the residual of the
+// same-colour neighbours' [1 -2 1] x [1 -2 1] (step 2 on a Bayer mosaic), normalised to the noise
+// sigma (sum of squared weights 36), its median absolute value / 0.6745.
+template <typename Inside>
+double robust_hp_sigma(const Image& img, int c, Inside inside) {
+  const int bpp = bytes_per_pixel(img.format()), s = is_bayer(img.format()) ? 2 : 1;
+  std::vector<double> r;
+  for (int y = s; y < img.height() - s; ++y)
+    for (int x = s; x < img.width() - s; ++x) {
+      if (!inside(x, y)) continue;
+      auto p = [&](int dx, int dy) { return static_cast<double>(img.row(y + dy * s)[(x + dx * s) * bpp + c]); };
+      const double v = p(-1, -1) - 2 * p(0, -1) + p(1, -1) - 2 * p(-1, 0) + 4 * p(0, 0) - 2 * p(1, 0) + p(-1, 1) -
+                       2 * p(0, 1) + p(1, 1);
+      r.push_back(std::abs(v) / 6.0);
+    }
+  std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+  return r[r.size() / 2] / 0.6745;
+}
+
+TEST(CameraLook, GaussianDeviatesAreStandardNormalAndDeterministic) {
+  double m1 = 0, m2 = 0, m4 = 0, mx = 0;
+  const int n = 400000;
+  for (int i = 0; i < n; ++i) {
+    const double g = gaussian_for_key(static_cast<std::uint64_t>(i));
+    m1 += g, m2 += g * g, m4 += g * g * g * g, mx = std::max(mx, std::abs(g));
+  }
+  m1 /= n, m2 /= n, m4 /= n;
+  EXPECT_NEAR(m1, 0.0, 0.005);
+  EXPECT_NEAR(m2, 1.0, 0.01);
+  EXPECT_NEAR(m4 / (m2 * m2), 3.0, 0.1);  // Gaussian kurtosis
+  EXPECT_GT(mx, 3.0);
+  EXPECT_LT(mx, 4.0);
+  EXPECT_EQ(gaussian_for_key(12345), gaussian_for_key(12345));
+}
+
+TEST(CameraLook, ParsesItsNames) {
+  Look l = Look::kPlain;
+  EXPECT_TRUE(parse_look("camera", l));
+  EXPECT_EQ(l, Look::kCamera);
+  EXPECT_TRUE(parse_look("plain", l));
+  EXPECT_EQ(l, Look::kPlain);
+  EXPECT_FALSE(parse_look("Camera", l));
+  EXPECT_STREQ(to_string(Look::kCamera), "camera");
+}
+
+struct NoiseCase {
+  PixelFormat fmt;
+  double a, b;
+  bool textured;
+};
+
+class CameraLookNoise : public ::testing::TestWithParam<NoiseCase> {};
+
+// Inside the boom the look's noise matches the NLF at the boom's level (a plain composite has
+// none), for flat and textured backgrounds, RGB, Mono and Bayer, several signal-dependent levels.
+TEST_P(CameraLookNoise, BoomNoiseMatchesTheNoiseLevelFunction) {
+  const NoiseCase& k = GetParam();
+  const int w = 240, h = 200;
+  const int nc = channels_of(k.fmt);
+  const NoiseLevelFunction f = nlf(is_bayer(k.fmt) || nc == 3 ? 3 : 1, k.a, k.b);
+  auto signal = [&](int x, int y, int c) {
+    const double base = 90 + 10 * c;
+    return k.textured ? base + 50 * std::sin(x * 0.21) * std::cos(y * 0.17) + (((x / 9) + (y / 7)) % 2 ? 30 : -30)
+                      : base;
+  };
+  const Image raw = noisy_frame(w, h, k.fmt, f, signal, 7);
+  const Image alpha = disc_alpha(w, h, 120.3, 99.6, 70);
+  auto boom = [](int ch) { return 150.f + 20.f * ch; };
+  const Image plain = composite(raw, alpha, boom);
+  Image look = Image::copy_of(plain.view());
+  CameraLookParams p;
+  p.noise = f;
+  p.psf_sigma_px = 0.8;
+  LookBuffers buf;
+  const PixelBox box{30, 10, 211, 190};
+  apply_camera_look(raw.view(), alpha.view(), sub_view(look.view(), box), box, p, 1000, 0, buf);
+
+  auto deep_inside = [&](int x, int y) { return std::hypot(x - 120.3, y - 99.6) < 62; };
+  for (int c = 0; c < nc; ++c) {
+    for (int site = 0; site < (is_bayer(k.fmt) ? 4 : 1); ++site) {
+      const int sx = site & 1, sy = site >> 1;
+      auto in_site = [&](int x, int y) { return deep_inside(x, y) && (!is_bayer(k.fmt) || ((x & 1) == sx && (y & 1) == sy)); };
+      const int ch = is_bayer(k.fmt) ? bayer_channel(k.fmt, sx, sy) : c;
+      const double want = std::sqrt(f.variance(ch, boom(ch)) + 1.0 / 12);  // + rounding to 8 bits
+      const double got = robust_hp_sigma(look, c, in_site);
+      SCOPED_TRACE(testing::Message() << to_string(k.fmt) << " c" << c << " site " << site << " a " << k.a
+                                      << " b " << k.b << (k.textured ? " textured" : " flat"));
+      EXPECT_GT(got / want, 0.9);
+      EXPECT_LT(got / want, 1.1);
+      EXPECT_LT(robust_hp_sigma(plain, c, in_site), 0.3 * want);  // the plain look: a clean CG object
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Formats, CameraLookNoise,
+                         ::testing::Values(NoiseCase{PixelFormat::kRGB8, 0.0, 4.0, false},
+                                           NoiseCase{PixelFormat::kRGB8, 0.2, 1.0, true},
+                                           NoiseCase{PixelFormat::kRGBA8, 0.05, 0.5, true},
+                                           NoiseCase{PixelFormat::kMono8, 0.5, 2.0, false},
+                                           NoiseCase{PixelFormat::kMono8, 0.02, 9.0, true},
+                                           NoiseCase{PixelFormat::kBayerRG8, 0.3, 1.0, false},
+                                           NoiseCase{PixelFormat::kBayerGB8, 0.1, 4.0, true}));
+
+// The edge's 10-90 % width across a vertical boom edge follows the PSF (Gaussian: 2.563 sigma),
+// measured on the noise-free look; outside the blurred footprint the raw pixels stay.
+TEST(CameraLook, EdgesFollowThePsfAndNothingElseChanges) {
+  const int w = 120, h = 40;
+  const Image raw = noisy_frame(w, h, PixelFormat::kMono8, nlf(1, 0, 0), [](int, int, int) { return 40.0; }, 1);
+  Image alpha(w, h, PixelFormat::kMono8);
+  const double edge_x = 60.3;  // the boom covers x < edge_x
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      alpha.row(y)[x] = static_cast<std::uint8_t>(std::lround(255 * std::clamp(edge_x - (x - 0.5), 0.0, 1.0)));
+  const Image plain = composite(raw, alpha, [](int) { return 200.f; });
+  for (const double sigma : {0.0, 0.7, 1.5, 3.0}) {
+    Image look = Image::copy_of(plain.view());
+    CameraLookParams p;
+    p.psf_sigma_px = sigma;
+    LookBuffers buf;
+    const PixelBox box{0, 0, w, h};
+    apply_camera_look(raw.view(), alpha.cview(), look.view(), box, p, 1, 0, buf);
+    // Sub-pixel crossings of 10 % and 90 % on the middle row (the edge falls with x).
+    const std::uint8_t* r = look.row(h / 2);
+    auto crossing = [&](double level) {
+      for (int x = 1; x < w; ++x)
+        if (r[x - 1] >= level && r[x] < level) return x - 1 + (r[x - 1] - level) / double(r[x - 1] - r[x]);
+      return -1.0;
+    };
+    const double width = crossing(40 + 0.1 * 160) - crossing(40 + 0.9 * 160);
+    // A 1-pixel box (the pixel's own area) convolved with the Gaussian; with no PSF the sharp
+    // plain edge (one mixed pixel: between 1 and 1.5 px read off the samples).
+    SCOPED_TRACE(sigma);
+    if (sigma > 0)
+      EXPECT_NEAR(width, 2.563 * std::sqrt(sigma * sigma + 1.0 / 12), 0.35);
+    else
+      EXPECT_LE(width, 1.5);
+    const int m = psf_margin_px(p);
+    for (int y = 0; y < h; ++y)
+      for (int x = static_cast<int>(edge_x) + m + 1; x < w; ++x) ASSERT_EQ(look.row(y)[x], raw.row(y)[x]);
+  }
+}
+
+// The same (seed, frame, camera) gives the same pixels; another frame or camera other noise.
+TEST(CameraLook, NoiseIsDeterministicPerSeedFrameAndCamera) {
+  const int w = 64, h = 64;
+  const NoiseLevelFunction f = nlf(3, 0.1, 2);
+  const Image raw = noisy_frame(w, h, PixelFormat::kRGB8, f, [](int, int, int) { return 80.0; }, 3);
+  const Image alpha = disc_alpha(w, h, 32, 32, 20);
+  const Image plain = composite(raw, alpha, [](int) { return 160.f; });
+  auto run = [&](std::uint64_t seed, std::uint64_t frame, int camera) {
+    Image look = Image::copy_of(plain.view());
+    CameraLookParams p;
+    p.noise = f;
+    p.seed = seed;
+    LookBuffers buf;
+    apply_camera_look(raw.view(), alpha.cview(), look.view(), {0, 0, w, h}, p, frame, camera, buf);
+    return look;
+  };
+  const Image a = run(1, 100, 0);
+  EXPECT_TRUE(pixels_equal(a, run(1, 100, 0)));
+  EXPECT_FALSE(pixels_equal(a, run(1, 101, 0)));
+  EXPECT_FALSE(pixels_equal(a, run(1, 100, 1)));
+  EXPECT_FALSE(pixels_equal(a, run(2, 100, 0)));
+}
+
+// With a tone curve the composite is made in linear light: a half-covered pixel of a white boom
+// over black is encoded as half the linear light, not as half the encoded value.
+TEST(CameraLook, CompositesInLinearLight) {
+  const int w = 16, h = 16;
+  const Image raw = noisy_frame(w, h, PixelFormat::kMono8, nlf(1, 0, 0), [](int, int, int) { return 0.0; }, 1);
+  Image alpha(w, h, PixelFormat::kMono8);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) alpha.row(y)[x] = x < 8 ? 255 : x == 8 ? 128 : 0;
+  const Image plain = composite(raw, alpha, [](int) { return 255.f; });
+  Image look = Image::copy_of(plain.view());
+  CameraLookParams p;
+  p.psf_sigma_px = 0;
+  p.gamma = 2.2;
+  LookBuffers buf;
+  apply_camera_look(raw.view(), alpha.cview(), look.view(), {0, 0, w, h}, p, 1, 0, buf);
+  EXPECT_EQ(look.row(4)[3], 255);
+  EXPECT_NEAR(look.row(4)[8], 255 * std::pow(128 / 255.0, 1 / 2.2), 1.5);
+  EXPECT_EQ(look.row(4)[12], 0);
+}
+
+}  // namespace
+}  // namespace augrig
