@@ -62,15 +62,24 @@ Args parse(int argc, char** argv) {
       if (i + 1 >= argc) usage(("missing value after " + k).c_str());
       return argv[++i];
     };
-    if (k == "--scenario") a.scenario = value();
-    else if (k == "--frames") a.frames = std::stoi(value());
-    else if (k == "--bayer") a.bayer = true;
-    else if (k == "--psf") a.psf_px = std::stod(value());
-    else if (k == "--noise-a") a.noise_a = std::stod(value());
-    else if (k == "--noise") a.noise_dn = std::stod(value());
-    else if (k == "--gain") a.gain = std::stod(value());
-    else if (k == "--out") a.out = value();
-    else usage(("unknown option " + k).c_str());
+    if (k == "--scenario")
+      a.scenario = value();
+    else if (k == "--frames")
+      a.frames = std::stoi(value());
+    else if (k == "--bayer")
+      a.bayer = true;
+    else if (k == "--psf")
+      a.psf_px = std::stod(value());
+    else if (k == "--noise-a")
+      a.noise_a = std::stod(value());
+    else if (k == "--noise")
+      a.noise_dn = std::stod(value());
+    else if (k == "--gain")
+      a.gain = std::stod(value());
+    else if (k == "--out")
+      a.out = value();
+    else
+      usage(("unknown option " + k).c_str());
   }
   if (a.frames < 4) usage("--frames must be >= 4");
   return a;
@@ -92,7 +101,8 @@ std::vector<Pair> pick_pairs(const std::vector<sim::FrameTruth>& truths, int n) 
   }
   std::vector<Pair> out;
   for (int i = 0; i < n && !all.empty(); ++i)
-    out.push_back(all[std::min(all.size() - 1, (all.size() * (2 * static_cast<std::size_t>(i) + 1)) / (2 * n))]);
+    out.push_back(
+        all[std::min(all.size() - 1, (all.size() * (2 * static_cast<std::size_t>(i) + 1)) / (2 * n))]);
   return out;
 }
 
@@ -103,7 +113,8 @@ StereoFrame render_pair(sim::FlightSource& src, const Pair& p) {
   for (Frame* out : {&f.left, &f.right}) {
     auto r = src.read(*out, {});
     if (!r || *r != ReadStatus::kFrame) {
-      std::fprintf(stderr, "bench_look: the simulator gave no frame: %s\n", r ? "end of stream" : r.error().message.c_str());
+      std::fprintf(stderr, "bench_look: the simulator gave no frame: %s\n",
+                   r ? "end of stream" : r.error().message.c_str());
       std::exit(1);
     }
   }
@@ -211,10 +222,10 @@ void measure_view(const Image& aug, const Image& phys, const Image& mask, bool t
 void paste_crop(const Image& img, const PixelBox& box, int pad, Image& dst, int at) {
   for (int y = 0; y < dst.height(); ++y)
     for (int x = 0; x < dst.width() / 3; ++x) {
-      const int sx = std::clamp(box.x0 - pad + x, 0, img.width() - 1), sy = std::clamp(box.y0 - pad + y, 0, img.height() - 1);
+      const int sx = std::clamp(box.x0 - pad + x, 0, img.width() - 1),
+                sy = std::clamp(box.y0 - pad + y, 0, img.height() - 1);
       const int bpp = bytes_per_pixel(img.format());
-      for (int c = 0; c < 3; ++c)
-        dst.row(y)[3 * (at + x) + c] = img.row(sy)[bpp * sx + (bpp == 1 ? 0 : c)];
+      for (int c = 0; c < 3; ++c) dst.row(y)[3 * (at + x) + c] = img.row(sy)[bpp * sx + (bpp == 1 ? 0 : c)];
     }
 }
 
@@ -228,7 +239,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   sim::CameraTimingConfig& cam = scenario->sensors.cameras;
-  cam.psf_sigma_px = args.psf_px, cam.noise_a = args.noise_a, cam.noise_sigma = args.noise_dn, cam.gain = args.gain;
+  cam.psf_sigma_px = args.psf_px, cam.noise_a = args.noise_a, cam.noise_sigma = args.noise_dn,
+  cam.gain = args.gain;
   if (args.bayer) cam.format = PixelFormat::kBayerRG8;
   auto flight = sim::Flight::create(*scenario);
   if (!flight) {
@@ -247,17 +259,32 @@ int main(int argc, char** argv) {
     return 1;
   }
   (*phys_src)->set_physical_boom(true);
-  std::printf("bench_look: scenario %s, %zu stereo frames, %s, camera: PSF %.2f px, noise a %.3g, read %.2f DN, gain %.2f\n",
-              args.scenario.c_str(), pairs.size(), args.bayer ? "BayerRG8" : "RGB8", args.psf_px, args.noise_a,
-              args.noise_dn, args.gain);
+  std::printf(
+      "bench_look: scenario %s, %zu stereo frames, %s, camera: PSF %.2f px, noise a %.3g, read %.2f DN, gain "
+      "%.2f\n",
+      args.scenario.c_str(), pairs.size(), args.bayer ? "BayerRG8" : "RGB8", args.psf_px, args.noise_a,
+      args.noise_dn, args.gain);
 
-  auto ctx = create_gl_context(GlBackend::kEglHeadless);  // the augmenter needs one, even rasterising on the CPU
+  auto ctx =
+      create_gl_context(GlBackend::kEglHeadless);  // the augmenter needs one, even rasterising on the CPU
   if (!ctx) {
     std::fprintf(stderr, "bench_look: %s\n", ctx.error().message.c_str());
     return 1;
   }
   // The looks compared: each its own augmenter (CPU rasteriser: the same masks) and look stage.
-  const Look looks[] = {Look::kPlain, Look::kCamera};
+  // The looks compared, and a diagnostic: the camera look given the simulator's own light (its
+  // fixed ambient and sun, sim/synthetic_scene_cpu.cpp) instead of measuring it, which separates
+  // the light's estimation from the rest of the insertion.
+  struct Variant {
+    Look look;
+    bool true_light;
+    const char* name;
+  };
+  const Variant variants[] = {{Look::kPlain, false, "plain"},
+                              {Look::kCamera, false, "camera"},
+                              {Look::kCamera, true, "camera, the simulator's light"}};
+  std::vector<Look> looks;
+  for (const Variant& v : variants) looks.push_back(v.look);
   std::vector<std::unique_ptr<Augmenter>> augmenters;
   std::vector<std::unique_ptr<pipeline::LookStage>> stages;
   for (Look l : looks) {
@@ -282,6 +309,7 @@ int main(int argc, char** argv) {
 
   std::vector<LookTotals> totals(std::size(looks));
   std::vector<StereoResult> results(std::size(looks));
+  std::vector<double> probe_ms(std::size(looks), 0.0);  // the slowest light measurement
   Image crops;
   const auto t0 = std::chrono::steady_clock::now();
   for (std::size_t i = 0; i < pairs.size(); ++i) {
@@ -291,12 +319,27 @@ int main(int argc, char** argv) {
     for (std::size_t l = 0; l < std::size(looks); ++l) {
       SceneState scene{p.left->boom, p.left->T_body_receiver, true,
                        pipeline::sun_light(p.left->t_gps_ns, T_ecef_tanker)};
+      if (variants[l].true_light) {
+        const bool sun_up = scene.light.direct.maxCoeff() > 0;
+        scene.light.direct =
+            sun_up ? Eigen::Vector3d(0.75, 0.75 * 0.97, 0.75 * 0.92) : Eigen::Vector3d::Zero();
+        scene.light.sky = Eigen::Vector3d(0.36, 0.40, 0.46),
+        scene.light.ground = Eigen::Vector3d(0.22, 0.22, 0.20);
+        scene.light.source = LightSource::kConfigured;
+      }
       for (const std::string& note : stages[l]->before_augment(raw, scene, *augmenters[l]))
         if (i == 0) std::printf("  %s\n", note.c_str());
       if (auto s = augmenters[l]->augment(raw, scene, results[l]); !s) {
         std::fprintf(stderr, "bench_look: %s\n", s.error().message.c_str());
         return 1;
       }
+      const auto p0 = std::chrono::steady_clock::now();
+      stages[l]->after_augment(raw, scene, results[l], scenario->rig);
+      probe_ms[l] =
+          std::max(probe_ms[l],
+                   std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - p0).count());
+      // The first pair only warms the look up (its first noise estimate and light measurement).
+      if (i == 0) continue;
       const bool train = i % 2 == 0;
       measure_view(results[l].left.augmented, phys.left.image, results[l].left.mask, train, totals[l]);
       measure_view(results[l].right.augmented, phys.right.image, results[l].right.mask, train, totals[l]);
@@ -315,25 +358,33 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "\n");
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-  std::printf("\n| look | boom px | mean diff DN | RMS diff DN | noise aug/phys | noise boom/bg | edge 10-90 aug px | "
-              "edge phys px | edge diff px | AUC trees | AUC logistic |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf(
+      "\n| look | boom px | mean diff DN | RMS diff DN | noise aug/phys | noise boom/bg | edge 10-90 aug px "
+      "| "
+      "edge phys px | edge diff px | AUC trees | AUC logistic "
+      "|\n|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (std::size_t l = 0; l < std::size(looks); ++l) {
     const LookTotals& t = totals[l];
     const double n = std::max<double>(1.0, static_cast<double>(t.pixels));
-    const Expected<eval::ClassifierResult> cr = eval::classify_patches(t.train_a, t.train_b, t.test_a, t.test_b);
+    const Expected<eval::ClassifierResult> cr =
+        eval::classify_patches(t.train_a, t.train_b, t.test_a, t.test_b);
     eval::ClassifierResult c;
     c.auc_random_trees = c.auc_logistic = NAN;
-    if (cr) c = *cr;
-    else std::fprintf(stderr, "bench_look: %s\n", cr.error().message.c_str());
+    if (cr)
+      c = *cr;
+    else
+      std::fprintf(stderr, "bench_look: %s\n", cr.error().message.c_str());
     const double ea = median(t.edge_aug), ep = median(t.edge_phys);
-    std::printf("| %s | %zu | %+.2f | %.2f | %.3f | %.3f | %.2f | %.2f | %+.2f | %.3f | %.3f |\n", to_string(looks[l]),
-                t.pixels, t.diff_sum / n, std::sqrt(t.diff_sq / n), median(t.noise_ratio),
+    std::printf("| %s | %zu | %+.2f | %.2f | %.3f | %.3f | %.2f | %.2f | %+.2f | %.3f | %.3f |\n",
+                variants[l].name, t.pixels, t.diff_sum / n, std::sqrt(t.diff_sq / n), median(t.noise_ratio),
                 median(t.boom_vs_background), ea, ep, ea - ep, c.auc_random_trees, c.auc_logistic);
   }
   for (std::size_t l = 0; l < std::size(looks); ++l)
-    if (looks[l] == Look::kCamera) std::printf("\n%s\n", stages[l]->status().c_str());
-  std::printf("(%zu train / %zu test patches per class; %.1f s)\n", totals[0].train_a.size(), totals[0].test_a.size(),
-              secs);
+    if (looks[l] == Look::kCamera && !variants[l].true_light)
+      std::printf("\n%s\n(light measured on the receiver in %.2f ms at most per sampled pair)\n",
+                  stages[l]->status().c_str(), probe_ms[l]);
+  std::printf("(%zu train / %zu test patches per class; %.1f s)\n", totals[0].train_a.size(),
+              totals[0].test_a.size(), secs);
   if (!args.out.empty() && crops.width() > 0) {
     std::filesystem::create_directories(args.out);
     const std::string path = args.out + "/look_crops.png";

@@ -29,20 +29,32 @@ std::string describe(const NoiseLevelFunction& f) {
   return o.str();
 }
 
-// The mean linear level of an image over a grid of every 8th pixel (all channels but alpha),
-// through the tone curve x^gamma: the light the scene around the cameras sends back (for cameras
-// looking down at the receiver, mostly the ground's or the clouds').
-double mean_linear_level(const Image& img, double gamma) {
-  const int bpp = bytes_per_pixel(img.format()), nc = img.format() == PixelFormat::kRGBA8 ? 3 : bpp;
-  double sum = 0;
-  std::size_t n = 0;
-  for (int y = 3; y < img.height(); y += 8)
-    for (int x = 3; x < img.width(); x += 8)
-      for (int c = 0; c < nc; ++c, ++n) {
-        const double v = img.row(y)[x * bpp + c] / 255.0;
-        sum += gamma == 1.0 ? v : std::pow(v, gamma);
+// The mean linear level per colour channel (R, G, B) of an image over a grid of every 8th pixel
+// (a Bayer mosaic: the 2x2 cell there; Mono: one level for all three), through the tone curve
+// x^gamma: the light the scene around the cameras sends back (for cameras looking down at the
+// receiver, mostly the ground's or the clouds'), with its colour.
+Eigen::Vector3d mean_linear_level(const Image& img, double gamma) {
+  const PixelFormat f = img.format();
+  const int bpp = bytes_per_pixel(f);
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  auto add = [&](int c, std::uint8_t v8) {
+    const double v = v8 / 255.0;
+    sum[c] += gamma == 1.0 ? v : std::pow(v, gamma), n[c] += 1;
+  };
+  for (int y = 2; y + 1 < img.height(); y += 8)
+    for (int x = 2; x + 1 < img.width(); x += 8) {
+      if (is_bayer(f)) {
+        for (int dy = 0; dy < 2; ++dy)
+          for (int dx = 0; dx < 2; ++dx) add(bayer_channel(f, x + dx, y + dy), img.row(y + dy)[x + dx]);
+      } else if (bpp == 1) {
+        for (int c = 0; c < 3; ++c) add(c, img.row(y)[x]);
+      } else {
+        for (int c = 0; c < 3; ++c) add(c, img.row(y)[x * bpp + c]);
       }
-  return n ? sum / static_cast<double>(n) : 0.0;
+    }
+  for (int c = 0; c < 3; ++c) sum[c] = n[c] > 0 ? sum[c] / n[c] : 0.0;
+  return sum;
 }
 
 }  // namespace
@@ -55,7 +67,8 @@ SceneLight sun_light(TimestampNs t_gps_ns, const Pose& T_ecef_tanker) {
   const Eigen::Vector3d down_body = R_body_ecef * nav::R_ecef_ned(where.lat_rad, where.lon_rad).col(2);
   constexpr double kEarthRadius_m = 6371000.0;
   const double dip_rad = std::acos(kEarthRadius_m / (kEarthRadius_m + std::max(where.h_m, 0.0)));
-  return SceneLight::sun(towards_sun_body, kPi / 2 - sun.zenith_rad > -dip_rad, LightSource::kEphemeris, down_body);
+  return SceneLight::sun(towards_sun_body, kPi / 2 - sun.zenith_rad > -dip_rad, LightSource::kEphemeris,
+                         down_body);
 }
 
 LookStage::LookStage(LookConfig config) : config_(std::move(config)) {
@@ -81,14 +94,16 @@ LookStage::~LookStage() {
   if (thread_.joinable()) thread_.join();
 }
 
-Status LookStage::configure(Augmenter& augmenter) const {
+Status LookStage::configure(Augmenter& augmenter) {
   if (config_.look != Look::kCamera) return {};
+  probe_.emplace(augmenter.receiver_model());
   for (std::size_t c = 0; c < config_.cameras.size(); ++c)
     if (auto s = augmenter.set_camera_look(static_cast<int>(c), config_.cameras[c]); !s) return s;
   return {};
 }
 
-std::vector<std::string> LookStage::before_augment(const StereoFrame& frame, SceneState& scene, Augmenter& augmenter) {
+std::vector<std::string> LookStage::before_augment(const StereoFrame& frame, SceneState& scene,
+                                                   Augmenter& augmenter) {
   std::vector<std::string> notes;
   if (config_.look != Look::kCamera) return notes;
   // The sun: the pose source's where it knows time and place; else the default, said once.
@@ -107,9 +122,20 @@ std::vector<std::string> LookStage::before_augment(const StereoFrame& frame, Sce
   // The ground's light: what the frames around the boom send back (cheap: a sparse grid).
   if (sample) {
     const double g = config_.cameras.empty() ? 1.0 : config_.cameras[0].gamma;
-    ground_ = 0.5 * (mean_linear_level(frame.left.image, g) + mean_linear_level(frame.right.image, g));
+    ground_ = Eigen::Vector3d(
+        0.5 * (mean_linear_level(frame.left.image, g) + mean_linear_level(frame.right.image, g)));
   }
-  if (ground_ && scene.light.source != LightSource::kConfigured) scene.light.ground = *ground_;
+  if (scene.light.source != LightSource::kConfigured) {
+    if (probe_fit_) {
+      // Measured on the receiver; the sun's share only while the sun is up.
+      const bool sun_up = scene.light.direct.maxCoeff() > 0;
+      scene.light.direct = sun_up ? probe_fit_->direct : Eigen::Vector3d::Zero();
+      scene.light.sky = probe_fit_->sky, scene.light.ground = probe_fit_->ground;
+    } else if (ground_) {
+      scene.light.ground = *ground_;
+    }
+  }
+  probe_due_ = sample && probe_ && scene.light.source != LightSource::kConfigured;
   const bool due = estimating_ && sample;
   std::unique_lock lock(mutex_);
   if (due && config_.synchronous) {
@@ -126,6 +152,32 @@ std::vector<std::string> LookStage::before_augment(const StereoFrame& frame, Sce
   if (sample) sampled_ = true, next_sample_ns_ = t + every;
   hand_over(augmenter, notes);
   return notes;
+}
+
+void LookStage::after_augment(const StereoFrame& frame, const SceneState& scene, const StereoResult& result,
+                              const Rig& rig) {
+  if (!probe_due_ || !scene.receiver_present || rig.cameras.size() < 2) return;
+  probe_due_ = false;
+  probe_->clear();
+  const double g = config_.cameras.empty() ? 1.0 : config_.cameras[0].gamma;
+  probe_->add_view(frame.left.image, result.left.mask, result.left.receiver_depth, rig.cameras[0],
+                   scene.T_body_receiver, g);
+  probe_->add_view(frame.right.image, result.right.mask, result.right.receiver_depth, rig.cameras[1],
+                   scene.T_body_receiver, g);
+  std::string why;
+  const bool sun_up = scene.light.direct.maxCoeff() > 0;
+  if (auto fit = probe_->fit(scene.light.towards_light_body, scene.light.down_body, sun_up, &why)) {
+    // Smoothed over the sampled pairs: the light changes slowly, the points in view do not.
+    if (probe_fit_) {
+      fit->direct = 0.5 * (fit->direct + probe_fit_->direct);
+      fit->sky = 0.5 * (fit->sky + probe_fit_->sky);
+      fit->ground = 0.5 * (fit->ground + probe_fit_->ground);
+    }
+    probe_fit_ = fit;
+    probe_note_.clear();
+  } else {
+    probe_note_ = why;
+  }
 }
 
 void LookStage::estimator_loop() {
@@ -176,8 +228,9 @@ void LookStage::hand_over(Augmenter& augmenter, std::vector<std::string>& notes)
   for (std::size_t c = 0; c < fresh_.size(); ++c) {
     CameraNoiseState& n = noise_[c];
     if (!n.configured && n.fits == 0 && !n.note.empty() && !n.failure_said) {
-      notes.push_back("look: " + camera_name(c) + " camera's noise cannot be estimated from its frames yet (" +
-                      n.note + "); none is added until it can (or give the rig's look.noise_a/noise_b)");
+      notes.push_back("look: " + camera_name(c) +
+                      " camera's noise cannot be estimated from its frames yet (" + n.note +
+                      "); none is added until it can (or give the rig's look.noise_a/noise_b)");
       n.failure_said = true;
     }
     if (!fresh_[c]) continue;
@@ -204,8 +257,15 @@ std::vector<CameraNoiseState> LookStage::noise() const {
 std::string LookStage::status() const {
   if (config_.look != Look::kCamera) return "look plain";
   std::ostringstream o;
-  o << "look camera: sun " << to_string(last_light_);
-  if (ground_) o << ", ground light " << std::setprecision(3) << *ground_;
+  o << "look camera: sun " << to_string(last_light_) << std::setprecision(3);
+  auto rgb = [&o](const Eigen::Vector3d& v) { o << v.x() << " " << v.y() << " " << v.z(); };
+  if (probe_fit_) {
+    o << "; light on the receiver (" << probe_fit_->samples << " points): direct ";
+    rgb(probe_fit_->direct), o << ", sky ", rgb(probe_fit_->sky), o << ", ground ", rgb(probe_fit_->ground);
+  } else if (ground_) {
+    o << ", ground light ", rgb(*ground_);
+    if (!probe_note_.empty()) o << " (receiver: " << probe_note_ << ")";
+  }
   o << "; noise";
   std::lock_guard lock(mutex_);
   for (std::size_t c = 0; c < noise_.size(); ++c) {

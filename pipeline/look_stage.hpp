@@ -1,8 +1,13 @@
 // LookStage: what the camera look (render/camera_look.hpp) needs per frame, kept off the
 // per-frame path where it costs time:
 //   - the sun: where the pose source gave none (no time or position), the documented default
-//     sun, said once; the ground's diffuse light measured in the frames themselves (their mean
-//     linear level), unless a scene file sets the light;
+//     sun, said once;
+//   - the light's three terms (direct sun, sky, ground; per colour channel) measured on the
+//     receiver, whose shape and colours are known (render/light_probe.hpp), from the frames and
+//     masks of each sampled pair, used from the next pair on; until the receiver has been measured
+//     (or where it cannot be: out of view, too few ways its surfaces face), the ground's light is
+//     the frames' mean linear level and the sun and sky SceneLight::sun()'s clear sky. A scene
+//     file's `sun` key sets all three instead;
 //   - each camera's noise level function: configured (rig), or estimated online from its raw
 //     frames (render/noise_level.hpp) on a thread of its own, one frame per camera every
 //     `noise_every_s` of frame time, refitted after each, restarted every `noise_window` frames so
@@ -20,6 +25,7 @@
 
 #include "core/frame.hpp"
 #include "render/augmenter.hpp"
+#include "render/light_probe.hpp"
 #include "render/noise_level.hpp"
 
 namespace augrig::pipeline {
@@ -37,12 +43,12 @@ struct LookConfig {
 
 // One camera's noise as the run knows it, for status lines, the recording and the report.
 struct CameraNoiseState {
-  NoiseLevelFunction nlf;       // empty: none yet
-  bool configured = false;      // from the rig, not estimated
-  std::uint64_t fits = 0;       // estimates made so far
-  std::uint64_t frames = 0;     // frames the last estimate used
-  std::string note;             // the estimator's last word (a fallback, too little to go on)
-  bool failure_said = false;    // a note said that no estimate could be made yet
+  NoiseLevelFunction nlf;     // empty: none yet
+  bool configured = false;    // from the rig, not estimated
+  std::uint64_t fits = 0;     // estimates made so far
+  std::uint64_t frames = 0;   // frames the last estimate used
+  std::string note;           // the estimator's last word (a fallback, too little to go on)
+  bool failure_said = false;  // a note said that no estimate could be made yet
 };
 
 // The sun on the boom for a tanker at `p_ecef_m` with attitude `R_ecef_body` at GPS time
@@ -57,14 +63,21 @@ class LookStage {
   LookStage(const LookStage&) = delete;
   LookStage& operator=(const LookStage&) = delete;
 
-  // Gives the augmenter every camera's configured look (once, before the first frame).
-  Status configure(Augmenter& augmenter) const;
+  // Gives the augmenter every camera's configured look (once, before the first frame) and takes
+  // its receiver model for the light probe.
+  Status configure(Augmenter& augmenter);
   // Per pair, before it is augmented: the default sun where the scene has none, new noise
   // estimates to the augmenter, and (now and then) the pair's raw frames to the estimator.
   // Returns a note to print once (the default sun, a camera's first noise estimate), or empty.
   std::vector<std::string> before_augment(const StereoFrame& frame, SceneState& scene, Augmenter& augmenter);
+  // Per pair, after it is augmented: on the pairs sampled by before_augment(), the light measured
+  // on the receiver (its visible points in both views).
+  void after_augment(const StereoFrame& frame, const SceneState& scene, const StereoResult& result,
+                     const Rig& rig);
   // Waits for the estimator's frame in progress (tests; the end of a run).
   void flush();
+  // The light last measured on the receiver, if any.
+  const std::optional<LightFit>& receiver_light() const { return probe_fit_; }
 
   Look look() const { return config_.look; }
   std::vector<CameraNoiseState> noise() const;
@@ -84,7 +97,11 @@ class LookStage {
   LightSource last_light_ = LightSource::kFixed;
   TimestampNs next_sample_ns_ = 0;
   bool sampled_ = false;
-  std::optional<double> ground_;  // the ground's light from the frames (SceneLight::ground)
+  std::optional<Eigen::Vector3d> ground_;  // the ground's light from the frames (SceneLight::ground), R G B
+  bool probe_due_ = false;                 // before_augment() sampled this pair
+  std::optional<LightProbe> probe_;        // the camera look with a receiver model
+  std::optional<LightFit> probe_fit_;
+  std::string probe_note_;  // why the last pair could not be measured
 
   mutable std::mutex mutex_;
   std::condition_variable cv_;

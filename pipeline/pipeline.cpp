@@ -502,6 +502,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
     // 3. The augmentation.
     const TimestampNs t_aug = monotonic_now_ns();
     const Status augmented = augmenter->augment(frame, scene, result);
+    if (augmented) look.after_augment(frame, scene, result, p.rig);
     const TimestampNs t_sinks = monotonic_now_ns();
     rep.stage_augment.add(t_sinks - t_aug);
     if (Status st = augmented; !st) {

@@ -138,8 +138,10 @@ SceneLight parse_sun(const Ctx& c, const YAML::Node& sun) {
   for (const auto& [key, value] :
        {std::pair{"direct", &l.direct}, std::pair{"sky", &l.sky}, std::pair{"ground", &l.ground}})
     if (const YAML::Node n = sun[key]; n.IsDefined()) {
-      *value = to_number(c, n, std::string("sun.") + key, "a share of the light, 0..2");
-      if (!(*value >= 0 && *value <= 2)) fail(c, n, std::string("sun.") + key, "expected 0..2, got " + fmt(*value));
+      // One share for every channel (a grey light).
+      const double v = to_number(c, n, std::string("sun.") + key, "a share of the light, 0..2");
+      if (!(v >= 0 && v <= 2)) fail(c, n, std::string("sun.") + key, "expected 0..2, got " + fmt(v));
+      *value = Eigen::Vector3d::Constant(v);
     }
   return l;
 }

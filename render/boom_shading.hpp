@@ -88,16 +88,15 @@ inline F32x4 sample_texture(const Texture& tex, float u, float v, bool one_row) 
 }
 
 // The boom's colour (0..255; alpha lane not set) on the ray (x, y, 1) through triangle `s`:
-// the light (sky and ground hemispheres plus direct times the cosine at the vertices, interpolated), times base
-// colour and texture.
-// A pixel centre just outside its triangle (an edge pixel whose sample lies inside) extrapolates
-// the attributes: the light is held to its range [light_lo, light_hi] and the texture coordinates
-// to a range whose texel index fits an int, and the colour is clamped to 0..255 as GL's UNORM
+// the light (sky and ground hemispheres plus direct times the cosine at the vertices, interpolated), times
+// base colour and texture. A pixel centre just outside its triangle (an edge pixel whose sample lies inside)
+// extrapolates the attributes: the light is held to its range [light_lo, light_hi] and the texture
+// coordinates to a range whose texel index fits an int, and the colour is clamped to 0..255 as GL's UNORM
 // framebuffer clamps it (a negative colour converted to uint8 is undefined behaviour).
 inline F32x4 shade(const BoomShading& s, float x, float y) {
   const F32x4 planes = s.dx * x + s.dy * y + s.d1;
   const float inv = planes[0] > 0 ? 1.f / planes[0] : 0.f;
-  const F32x4 q = planes * inv;  // 1, red light, u, v
+  const F32x4 q = planes * inv;                         // 1, red light, u, v
   const F32x4 gb = (s.gx * x + s.gy * y + s.g1) * inv;  // green and blue light
   // Written so that NaN goes to the low end too (every comparison with NaN is false).
   auto hold = [](float a, float lo, float hi) { return a > lo ? (a < hi ? a : hi) : lo; };

@@ -47,7 +47,8 @@ std::vector<float> gaussian_kernel(double sigma) {
   const int r = static_cast<int>(std::ceil(3.0 * sigma));
   std::vector<float> k(static_cast<std::size_t>(2 * r + 1));
   double sum = 0;
-  for (int i = -r; i <= r; ++i) sum += k[static_cast<std::size_t>(i + r)] = static_cast<float>(std::exp(-0.5 * i * i / (sigma * sigma)));
+  for (int i = -r; i <= r; ++i)
+    sum += k[static_cast<std::size_t>(i + r)] = static_cast<float>(std::exp(-0.5 * i * i / (sigma * sigma)));
   for (float& v : k) v = static_cast<float>(v / sum);
   return k;
 }
@@ -72,7 +73,8 @@ Status check_camera_response(const CameraResponse& r) {
   const char* where = "SyntheticSceneRenderer::render(): ";
   if (!(r.psf_sigma_px >= 0 && r.psf_sigma_px <= kMaxPsfSigmaPx))
     return make_error(where, "psf_sigma_px must be 0 to ", kMaxPsfSigmaPx, " px, got ", r.psf_sigma_px);
-  if (!(r.noise_a >= 0 && r.noise_a <= 100)) return make_error(where, "noise_a must be 0 to 100 DN, got ", r.noise_a);
+  if (!(r.noise_a >= 0 && r.noise_a <= 100))
+    return make_error(where, "noise_a must be 0 to 100 DN, got ", r.noise_a);
   if (!(r.noise_sigma >= 0 && r.noise_sigma <= 100))
     return make_error(where, "noise_sigma must be 0 to 100 DN, got ", r.noise_sigma);
   if (!(r.gain > 0 && r.gain <= 100)) return make_error(where, "gain must be > 0 and <= 100, got ", r.gain);
@@ -80,8 +82,8 @@ Status check_camera_response(const CameraResponse& r) {
   return {};
 }
 
-void apply_camera_response(const Image& radiance, const CameraResponse& r, PixelFormat format, std::uint64_t seed,
-                           int camera, Image& out, int threads) {
+void apply_camera_response(const Image& radiance, const CameraResponse& r, PixelFormat format,
+                           std::uint64_t seed, int camera, Image& out, int threads) {
   const int W = radiance.width(), H = radiance.height();
   if (out.width() != W || out.height() != H || out.format() != format) out = Image(W, H, format);
   const std::vector<float> k = gaussian_kernel(r.psf_sigma_px);
@@ -98,7 +100,8 @@ void apply_camera_response(const Image& radiance, const CameraResponse& r, Pixel
         for (int c = 0; c < 3; ++c) {
           float s = 0;
           for (int i = -kr; i <= kr; ++i)
-            s += k[static_cast<std::size_t>(i + kr)] * static_cast<float>(src[3 * std::clamp(x + i, 0, W - 1) + c]);
+            s += k[static_cast<std::size_t>(i + kr)] *
+                 static_cast<float>(src[3 * std::clamp(x + i, 0, W - 1) + c]);
           dst[3 * x + c] = s;
         }
     }
@@ -120,7 +123,8 @@ void apply_camera_response(const Image& radiance, const CameraResponse& r, Pixel
 
   // 2-6. Vertical pass, gain, colour filter, noise, tone curve, 8 bits.
   const auto& gauss = gaussian_table();
-  const std::uint64_t key = splitmix64(seed ^ (0x51ed270b27a3e1f1ull * (static_cast<std::uint64_t>(camera) + 1)));
+  const std::uint64_t key =
+      splitmix64(seed ^ (0x51ed270b27a3e1f1ull * (static_cast<std::uint64_t>(camera) + 1)));
   const double b = r.noise_sigma * r.noise_sigma;
   const bool bayer = is_bayer(format);
   in_bands(H, threads, [&](int y0, int y1) {

@@ -38,7 +38,7 @@ Status check_camera_response(const CameraResponse& r);
 // The finished frame of camera `camera` in `format` from the scene's radiance `radiance`
 // (RGB8, linear DN), with the noise of (`seed`, `camera`). `threads` row bands (1..8): the output
 // does not depend on it.
-void apply_camera_response(const Image& radiance, const CameraResponse& r, PixelFormat format, std::uint64_t seed,
-                           int camera, Image& out, int threads = 1);
+void apply_camera_response(const Image& radiance, const CameraResponse& r, PixelFormat format,
+                           std::uint64_t seed, int camera, Image& out, int threads = 1);
 
 }  // namespace augrig

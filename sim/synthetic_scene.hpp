@@ -30,10 +30,11 @@ struct SkyState {
   // Unit vector towards the sun in NED (lights the receiver, glows in the sky); default: south-east,
   // 55 deg above the horizon.
   Eigen::Vector3d sun_ned = Eigen::Vector3d(-0.406, 0.406, -0.819);
-  // The objects' diffuse light: true, the sky's and the ground's radiance as rendered, averaged over
-  // each hemisphere (CPU back end: physically consistent with the frame); false, the fixed ambient
-  // of the OpenGL shader (blue-grey sky 0.36-0.46, ground 0.22), which the OpenGL back end always uses.
-  bool ambient_from_world = true;
+  // The objects' diffuse light: false (default), the fixed ambient of the OpenGL shader (blue-grey
+  // sky 0.36-0.46, ground 0.22), which the OpenGL back end always uses; true (CPU back end), the
+  // sky's and the ground's radiance as rendered, averaged over each hemisphere: consistent with
+  // the frame, brighter (up-facing white surfaces clip under a high sun).
+  bool ambient_from_world = false;
 };
 
 struct SensorOptions {

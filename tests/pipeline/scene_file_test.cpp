@@ -181,9 +181,9 @@ TEST(SceneFile, SunKeySetsTheLightInTheBodyFrame) {
   ASSERT_TRUE(s) << s.error().message;
   EXPECT_EQ(s->light.source, LightSource::kConfigured);
   expect_vec(s->light.towards_light_body, 0, std::cos(deg_to_rad(30)), -0.5);  // to the right, above
-  EXPECT_EQ(s->light.direct, 0);
-  EXPECT_EQ(s->light.sky, 0.6);
-  EXPECT_EQ(s->light.ground, 0.3);
+  EXPECT_EQ(s->light.direct, Eigen::Vector3d::Zero());
+  EXPECT_EQ(s->light.sky, Eigen::Vector3d::Constant(0.6));
+  EXPECT_EQ(s->light.ground, Eigen::Vector3d::Constant(0.3));
   s = parse_scene(head, "nosun.yaml", Rig::paper_default(), BoomDimensions{}, kReceptacle);
   ASSERT_TRUE(s) << s.error().message;
   EXPECT_EQ(s->light.source, LightSource::kFixed);

@@ -17,6 +17,10 @@ BoomShading linear_in_x(float light0, float slope, const Texture* tex = nullptr)
   s.dx = F32x4{0.f, slope, 1.f, 1.f};
   s.dy = F32x4{0.f, 0.f, 0.f, 0.f};
   s.d1 = F32x4{1.f, light0, 0.f, 0.f};
+  // Green and blue lit as red.
+  s.gx = F32x4{slope, slope, 0.f, 0.f};
+  s.gy = F32x4{0.f, 0.f, 0.f, 0.f};
+  s.g1 = F32x4{light0, light0, 0.f, 0.f};
   s.base = F32x4{200.f, 100.f, 50.f, 255.f};
   s.texture = tex;
   return s;
