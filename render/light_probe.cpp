@@ -109,31 +109,40 @@ void LightProbe::add_view(const Image& raw, const Image& mask, const DepthImage&
     const double step = std::max(1.0, std::sqrt((x1 - x0) * (y1 - y0) / kMaxPixels));
     Eigen::Vector3d sum = Eigen::Vector3d::Zero(), n = Eigen::Vector3d::Zero();
     bool clipped = false;
-    for (double yy = std::ceil(y0); yy <= y1; yy += step)
-      for (double xx = std::ceil(x0); xx <= x1; xx += step) {
-        const int x = static_cast<int>(xx), y = static_cast<int>(yy);
-        const Eigen::Vector2d d = Eigen::Vector2d(x, y) - uv[0];
-        const double b1 = (d.x() * e2.y() - d.y() * e2.x()) / det,
-                     b2 = (e1.x() * d.y() - e1.y() * d.x()) / det;
-        if (b1 < kMargin || b2 < kMargin || 1 - b1 - b2 < kMargin) continue;
-        // The receiver alone on the pixel, and this triangle the surface it sees.
-        const std::uint8_t m = mask.row(y)[x];
-        if (!(m & kMaskReceiver) || (m & kMaskBoom)) continue;
-        const double z = pc[0].z() + b1 * (pc[1].z() - pc[0].z()) + b2 * (pc[2].z() - pc[0].z());
-        if (!(std::abs(depth.at(x, y) - z) < std::max(0.05, 0.01 * z))) continue;
-        const std::uint8_t* px = raw.row(y) + static_cast<std::ptrdiff_t>(x) * bpp;
-        if (is_bayer(f)) {
-          const int c = bayer_channel(f, x, y);
-          clipped |= px[0] >= 250;
-          sum[c] += linear(px[0]), n[c] += 1;
-        } else {
-          for (int c = 0; c < 3; ++c) {
-            const std::uint8_t v = px[bpp == 1 ? 0 : c];
-            clipped |= v >= 250;
-            sum[c] += linear(v), n[c] += 1;
-          }
+    // A pixel well inside this triangle, on the receiver alone, and this triangle the surface it sees.
+    auto on_triangle = [&](int x, int y) {
+      const Eigen::Vector2d d = Eigen::Vector2d(x, y) - uv[0];
+      const double b1 = (d.x() * e2.y() - d.y() * e2.x()) / det, b2 = (e1.x() * d.y() - e1.y() * d.x()) / det;
+      if (b1 < kMargin || b2 < kMargin || 1 - b1 - b2 < kMargin) return false;
+      const std::uint8_t m = mask.row(y)[x];
+      if (!(m & kMaskReceiver) || (m & kMaskBoom)) return false;
+      const double z = pc[0].z() + b1 * (pc[1].z() - pc[0].z()) + b2 * (pc[2].z() - pc[0].z());
+      return std::abs(depth.at(x, y) - z) < std::max(0.05, 0.01 * z);
+    };
+    auto add = [&](int c, std::uint8_t v) {
+      clipped |= v >= 250;
+      sum[c] += linear(v), n[c] += 1;
+    };
+    if (is_bayer(f)) {
+      // Whole 2x2 cells on an even lattice, each of their pixels on the triangle read for its site's
+      // channel: every channel from the same points, no pixel twice.
+      const double cell_step = 2.0 * std::max(1.0, std::round(step / 2));
+      for (double yy = 2 * std::floor(y0 / 2); yy <= y1; yy += cell_step)
+        for (double xx = 2 * std::floor(x0 / 2); xx <= x1; xx += cell_step)
+          for (int dy = 0; dy < 2; ++dy)
+            for (int dx = 0; dx < 2; ++dx) {
+              const int x = static_cast<int>(xx) + dx, y = static_cast<int>(yy) + dy;
+              if (x < W && y < H && on_triangle(x, y)) add(bayer_channel(f, x, y), raw.row(y)[x]);
+            }
+    } else {
+      for (double yy = std::ceil(y0); yy <= y1; yy += step)
+        for (double xx = std::ceil(x0); xx <= x1; xx += step) {
+          const int x = static_cast<int>(xx), y = static_cast<int>(yy);
+          if (!on_triangle(x, y)) continue;
+          const std::uint8_t* px = raw.row(y) + static_cast<std::ptrdiff_t>(x) * bpp;
+          for (int c = 0; c < 3; ++c) add(c, px[bpp == 1 ? 0 : c]);
         }
-      }
+    }
     if (clipped || n.minCoeff() < 2) continue;  // clipped: the light is above what it reads
     Sample s;
     s.n_body = R_body_recv * pt.n;
