@@ -42,8 +42,8 @@ SceneLight SceneLight::default_sun() {
   return sun(Eigen::Vector3d(c * c, c * s, -s), true, LightSource::kDefaultSun);
 }
 
-SceneLight SceneLight::sun(const Eigen::Vector3d& towards_sun_body, bool sun_above_horizon, LightSource source,
-                           const Eigen::Vector3d& down_body) {
+SceneLight SceneLight::sun(const Eigen::Vector3d& towards_sun_body, bool sun_above_horizon,
+                           LightSource source, const Eigen::Vector3d& down_body) {
   // A clear sky: the sun gives about 80 % of the light on a surface facing it, the sky the rest
   // (clear-sky ratios of diffuse to global irradiance are 0.1-0.25); the ground returns about a
   // fifth of what falls on it (a land albedo), until the frames say how bright it is.
@@ -58,7 +58,8 @@ SceneLight SceneLight::sun(const Eigen::Vector3d& towards_sun_body, bool sun_abo
 }
 
 int psf_margin_px(const CameraLookParams& p) {
-  return p.psf_sigma_px > 0 ? static_cast<int>(std::ceil(3.0 * std::min(p.psf_sigma_px, kMaxPsfSigmaPx))) + 1 : 0;
+  return p.psf_sigma_px > 0 ? static_cast<int>(std::ceil(3.0 * std::min(p.psf_sigma_px, kMaxPsfSigmaPx))) + 1
+                            : 0;
 }
 
 namespace {
@@ -110,10 +111,12 @@ void build_tone_tables(double gamma, LookBuffers& b) {
   if (b.table_gamma == gamma && !b.decode.empty()) return;
   b.decode.resize(kToneTable + 1);
   b.encode.resize(kToneTable + 1);
+  b.carry.resize(kToneTable + 1);
   for (int i = 0; i <= kToneTable; ++i) {
     const double x = static_cast<double>(i) / kToneTable;
     b.decode[i] = static_cast<float>(255.0 * std::pow(x, gamma));
     b.encode[i] = static_cast<float>(255.0 * std::pow(x, 1.0 / gamma));
+    b.carry[i] = static_cast<float>(std::pow(std::max(255.0 * x, 0.5), gamma - 1));  // the noise's carry
   }
   b.table_gamma = gamma;
 }
@@ -140,7 +143,8 @@ std::vector<float> gaussian_kernel(double sigma, int step) {
   const int r = static_cast<int>(std::ceil(3.0 * sigma / step));
   std::vector<float> w(2 * r + 1);
   double sum = 0;
-  for (int k = -r; k <= r; ++k) sum += w[k + r] = static_cast<float>(std::exp(-0.5 * std::pow(k * step / sigma, 2)));
+  for (int k = -r; k <= r; ++k)
+    sum += w[k + r] = static_cast<float>(std::exp(-0.5 * std::pow(k * step / sigma, 2)));
   for (float& x : w) x = static_cast<float>(x / sum);
   return w;
 }
@@ -152,29 +156,70 @@ int inside(int i, int n, int step) {
   return std::clamp(i, 0, n - 1);
 }
 
-// Separable blur of a w x h plane of `nc` interleaved channels, in place (tmp: scratch).
-void blur(std::vector<float>& p, std::vector<float>& tmp, int w, int h, int nc, int step,
-          const std::vector<float>& k) {
-  const int r = static_cast<int>(k.size() / 2);
-  tmp.resize(p.size());
-  for (int y = 0; y < h; ++y) {
-    const float* src = &p[static_cast<std::size_t>(y) * w * nc];
-    float* dst = &tmp[static_cast<std::size_t>(y) * w * nc];
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < nc; ++c) {
-        float s = 0;
-        for (int j = -r; j <= r; ++j) s += k[j + r] * src[inside(x + j * step, w, step) * nc + c];
-        dst[x * nc + c] = s;
-      }
-  }
+// The columns [lo, hi) of box row y that hold the layer (spans[2y], spans[2y + 1]); lo == hi: none.
+struct Span {
+  int lo, hi;
+  bool empty() const { return lo >= hi; }
+};
+Span span_of(const std::vector<int>& spans, int y) {
+  return {spans[2 * y], spans[2 * y + 1]};
+}
+
+// dst[i] += k * src[i] for i in [0, n): the blur's inner loop, which the compiler vectorises.
+void add_scaled(float* __restrict dst, const float* __restrict src, float k, int n) {
+  for (int i = 0; i < n; ++i) dst[i] += k * src[i];
+}
+
+// Separable blur of the layer (w x h pixels of `nc` interleaved floats) in place, reading each row
+// only over its span and writing each row only over its new span (`spans`, updated), so that a
+// thin diagonal boom costs its footprint, not its box. Values outside a row's span are never read.
+void blur(std::vector<float>& p, std::vector<float>& tmp, std::vector<int>& spans, int w, int h, int nc,
+          int step, const std::vector<float>& k) {
+  const int r = static_cast<int>(k.size() / 2), reach = r * step;
   const std::size_t row = static_cast<std::size_t>(w) * nc;
+  tmp.resize(p.size());
+  // Horizontal: row y's span widened by the kernel's reach, taps past the box's edges reflected.
+  std::vector<int> wide(spans.size());
   for (int y = 0; y < h; ++y) {
-    float* dst = &p[y * row];
-    std::fill(dst, dst + row, 0.f);
+    const Span s = span_of(spans, y);
+    const Span o = s.empty() ? s : Span{std::max(0, s.lo - reach), std::min(w, s.hi + reach)};
+    wide[2 * y] = o.lo, wide[2 * y + 1] = o.hi;
+    if (o.empty()) continue;
+    const float* src = &p[y * row];
+    float* dst = &tmp[y * row];
+    std::fill(dst + o.lo * nc, dst + o.hi * nc, 0.f);
     for (int j = -r; j <= r; ++j) {
-      const float* src = &tmp[inside(y + j * step, h, step) * row];
-      const float kj = k[j + r];
-      for (std::size_t i = 0; i < row; ++i) dst[i] += kj * src[i];
+      const int d = j * step;  // output x reads source x + d, where the source is in [s.lo, s.hi)
+      const int x0 = std::max(o.lo, s.lo - d), x1 = std::min(o.hi, s.hi - d);
+      if (x0 < x1) add_scaled(dst + x0 * nc, src + (x0 + d) * nc, k[j + r], (x1 - x0) * nc);
+      // Taps off the box: reflected into it (a box the image's edge cut), read where the span is.
+      auto reflected = [&](int from, int to) {
+        for (int x = std::max(from, o.lo); x < std::min(to, o.hi); ++x) {
+          const int xs = inside(x + d, w, step);
+          if (xs >= s.lo && xs < s.hi)
+            for (int c = 0; c < nc; ++c) dst[x * nc + c] += k[j + r] * src[xs * nc + c];
+        }
+      };
+      reflected(0, -d);     // x + d < 0
+      reflected(w - d, w);  // x + d >= w
+    }
+  }
+  // Vertical: row y's new span is the union of its neighbours' wide spans.
+  for (int y = 0; y < h; ++y) {
+    Span o{w, 0};
+    for (int j = -r; j <= r; ++j) {
+      const Span s = span_of(wide, inside(y + j * step, h, step));
+      if (!s.empty()) o = {std::min(o.lo, s.lo), std::max(o.hi, s.hi)};
+    }
+    spans[2 * y] = o.lo, spans[2 * y + 1] = std::max(o.lo, o.hi);
+    if (o.empty()) continue;
+    float* dst = &p[y * row];
+    std::fill(dst + o.lo * nc, dst + o.hi * nc, 0.f);
+    for (int j = -r; j <= r; ++j) {
+      const int ys = inside(y + j * step, h, step);
+      const Span s = span_of(wide, ys);
+      const int x0 = std::max(o.lo, s.lo), x1 = std::min(o.hi, s.hi);
+      if (x0 < x1) add_scaled(dst + x0 * nc, &tmp[ys * row + x0 * nc], k[j + r], (x1 - x0) * nc);
     }
   }
 }
@@ -186,7 +231,8 @@ float gaussian_for_key(std::uint64_t key) {
 }
 
 void apply_camera_look(ConstImageView raw, ConstImageView alpha, ImageView aug, const PixelBox& box,
-                       const CameraLookParams& params, std::uint64_t frame_key, int camera, LookBuffers& buf) {
+                       const CameraLookParams& params, std::uint64_t frame_key, int camera,
+                       LookBuffers& buf) {
   if (box.empty()) return;
   const Layout L = layout_of(raw.format);
   const int bw = box.width(), bh = box.height(), nc = L.nc;
@@ -195,62 +241,82 @@ void apply_camera_look(ConstImageView raw, ConstImageView alpha, ImageView aug, 
   auto dec = [&](float e) { return linear ? e : lookup(buf.decode, e); };
   auto enc = [&](float l) { return linear ? l : lookup(buf.encode, l); };
 
-  // 1. The boom's layer from the plain composite A = (1 - a) R + a C: coverage a and the
-  //    premultiplied colour a C. C is the rendered radiance, linear already.
-  const std::size_t n = static_cast<std::size_t>(bw) * bh;
-  buf.layer.assign(n * nc, 0.f);
-  buf.alpha.assign(n, 0.f);
+  // 1. The boom's layer from the plain composite A = (1 - a) R + a C, per pixel the premultiplied
+  //    colour a C (C is the rendered radiance, linear already) and the coverage a, interleaved;
+  //    each row only over the columns its coverage spans.
+  const int nl = nc + 1;
+  const std::size_t row_floats = static_cast<std::size_t>(bw) * nl;
+  buf.layer.resize(row_floats * bh);
+  buf.spans.assign(2 * static_cast<std::size_t>(bh), 0);
   bool any = false;
   for (int y = 0; y < bh; ++y) {
     const std::uint8_t* ar = alpha.row(box.y0 + y) + box.x0;
+    int lo = 0, hi = bw;
+    while (lo < bw && !ar[lo]) ++lo;
+    while (hi > lo && !ar[hi - 1]) --hi;
+    buf.spans[2 * y] = lo, buf.spans[2 * y + 1] = hi;
+    if (lo >= hi) continue;
+    any = true;
     const std::uint8_t* rr = raw.row(box.y0 + y) + static_cast<std::size_t>(box.x0) * L.bpp;
     const std::uint8_t* pr = aug.row(y);
-    for (int x = 0; x < bw; ++x) {
-      if (!ar[x]) continue;
-      any = true;
+    float* lr = &buf.layer[y * row_floats];
+    for (int x = lo; x < hi; ++x) {
       const float a = ar[x] * (1.f / 255.f);
-      const std::size_t i = static_cast<std::size_t>(y) * bw + x;
-      buf.alpha[i] = a;
+      float* l = lr + x * nl;
       for (int c = 0; c < nc; ++c) {
         const float A = pr[x * L.bpp + c], R = rr[x * L.bpp + c];
-        buf.layer[i * nc + c] = std::clamp(A - (1 - a) * R, 0.f, 255.f * a);
+        l[c] = a > 0 ? std::clamp(A - (1 - a) * R, 0.f, 255.f * a) : 0.f;
       }
+      l[nc] = a;
     }
   }
   if (!any) return;
 
-  // 2. Optics: the layer and its coverage through the PSF.
+  // 2. Optics: the layer and its coverage through the PSF (the spans widen by its reach).
   if (params.psf_sigma_px > 0) {
     const std::vector<float> k = gaussian_kernel(std::min(params.psf_sigma_px, kMaxPsfSigmaPx), L.step);
-    blur(buf.layer, buf.tmp, bw, bh, nc, L.step, k);
-    blur(buf.alpha, buf.tmp, bw, bh, 1, L.step, k);
+    blur(buf.layer, buf.tmp, buf.spans, bw, bh, nl, L.step, k);
   }
 
   // 3. Composite in linear light, back through the tone curve, and 4. the sensor's noise: the
   //    NLF's variance at the new value less what the raw pixel's noise carries into it.
   const float* gt = normal_table().data();
-  const std::uint64_t view_key = splitmix64(params.seed ^ splitmix64(frame_key ^ (0x51ed270b27e4a5c3ULL * (camera + 1))));
+  const std::uint64_t view_key =
+      splitmix64(params.seed ^ splitmix64(frame_key ^ (0x51ed270b27e4a5c3ULL * (camera + 1))));
+  const bool noisy = !params.noise.empty();
   for (int y = 0; y < bh; ++y) {
     const std::uint8_t* rr = raw.row(box.y0 + y) + static_cast<std::size_t>(box.x0) * L.bpp;
     std::uint8_t* pr = aug.row(y);
+    const float* lr = &buf.layer[y * row_floats];
     const int v = box.y0 + y;
-    for (int x = 0; x < bw; ++x) {
-      const std::size_t i = static_cast<std::size_t>(y) * bw + x;
-      const float ab = std::min(buf.alpha[i], 1.f);
+    // The NLF's sigma^2 = a I + b of each channel of the pixels of this row, by column parity
+    // (a Bayer row alternates two sites); a channel without noise (RGBA's alpha) has a = b = 0.
+    float na[2][3] = {}, nb[2][3] = {};
+    for (int px = 0; px < 2 && noisy; ++px)
+      for (int c = 0; c < nc; ++c) {
+        const int ch = noise_channel(raw.format, box.x0 + px, v, c);
+        na[px][c] = static_cast<float>(params.noise.variance(ch, 1.0) - params.noise.variance(ch, 0.0));
+        nb[px][c] = static_cast<float>(params.noise.variance(ch, 0.0));
+      }
+    for (int x = buf.spans[2 * y]; x < buf.spans[2 * y + 1]; ++x) {
+      const float* l = lr + x * nl;
+      const float ab = std::min(l[nc], 1.f);
       if (ab < 1.f / 1024.f) continue;  // the blur's far tail: the raw pixel stays as it is
       const int u = box.x0 + x;
-      const std::uint64_t h = splitmix64(view_key ^ (static_cast<std::uint64_t>(v) << 32 | static_cast<std::uint32_t>(u)));
+      const std::uint64_t h =
+          noisy ? splitmix64(view_key ^ (static_cast<std::uint64_t>(v) << 32 | static_cast<std::uint32_t>(u)))
+                : 0;
       for (int c = 0; c < nc; ++c) {
         const float R = rr[x * L.bpp + c];
-        float out = enc((1 - ab) * dec(R) + buf.layer[i * nc + c]);
-        if (!params.noise.empty()) {
-          const int ch = noise_channel(raw.format, u, v, c);
+        float out = enc((1 - ab) * dec(R) + l[c]);
+        if (noisy) {
           // d(out)/d(R) = (1 - ab) enc'(.) dec'(R) = (1 - ab) (R / out)^(gamma - 1)
-          const float carry = linear ? 1 - ab : (1 - ab) * static_cast<float>(std::pow(std::max(R, 0.5f) / std::max(out, 0.5f), params.gamma - 1));
-          const double need = params.noise.variance(ch, out) - carry * carry * params.noise.variance(ch, R);
+          const float carry = linear ? 1 - ab : (1 - ab) * lookup(buf.carry, R) / lookup(buf.carry, out);
+          const float a = na[x & 1][c], b = nb[x & 1][c];
+          const float need = std::max(a * out + b, 0.f) - carry * carry * std::max(a * R + b, 0.f);
           if (need > 0) {
             const auto bits = static_cast<std::uint32_t>(c == 0 ? h >> 32 : c == 1 ? h : splitmix64(h) >> 32);
-            out += static_cast<float>(std::sqrt(need)) * gaussian_from_bits(gt, bits);
+            out += std::sqrt(need) * gaussian_from_bits(gt, bits);
           }
         }
         pr[x * L.bpp + c] = static_cast<std::uint8_t>(std::clamp(out + 0.5f, 0.f, 255.f));

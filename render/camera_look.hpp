@@ -53,7 +53,8 @@ const char* to_string(LightSource s);
 // blue sky and a green-brown ground tint the boom as they tint everything else.
 struct SceneLight {
   Eigen::Vector3d towards_light_body = Eigen::Vector3d(0.3, 0.2, -1.0).normalized();  // unit vector
-  Eigen::Vector3d down_body = Eigen::Vector3d::UnitZ();  // the local vertical, down (NED z), in the body frame
+  Eigen::Vector3d down_body =
+      Eigen::Vector3d::UnitZ();  // the local vertical, down (NED z), in the body frame
   // The sun's share on a surface facing it (0: sun below the horizon, overcast), R, G, B.
   Eigen::Vector3d direct = Eigen::Vector3d::Constant(0.65);
   Eigen::Vector3d sky = Eigen::Vector3d::Constant(0.35);     // diffuse light from the upper hemisphere
@@ -69,12 +70,14 @@ struct SceneLight {
                         const Eigen::Vector3d& down_body = Eigen::Vector3d::UnitZ());
   // The light factor per channel on a surface of unit normal n (body or any frame the three
   // vectors share).
-  Eigen::Vector3d on(const Eigen::Vector3d& n, const Eigen::Vector3d& towards_light, const Eigen::Vector3d& down) const {
+  Eigen::Vector3d on(const Eigen::Vector3d& n, const Eigen::Vector3d& towards_light,
+                     const Eigen::Vector3d& down) const {
     Eigen::Vector3d l;
     for (int c = 0; c < 3; ++c) {
       // An even ambient exactly (the plain look's light, as before the hemispheres).
-      const double diffuse =
-          sky[c] == ground[c] ? sky[c] : sky[c] * 0.5 * (1 - n.dot(down)) + ground[c] * 0.5 * (1 + n.dot(down));
+      const double diffuse = sky[c] == ground[c]
+                                 ? sky[c]
+                                 : sky[c] * 0.5 * (1 - n.dot(down)) + ground[c] * 0.5 * (1 + n.dot(down));
       l[c] = diffuse + direct[c] * std::max(n.dot(towards_light), 0.0);
     }
     return l;
@@ -100,8 +103,9 @@ int psf_margin_px(const CameraLookParams& p);
 
 // Reused buffers of apply_camera_look() (one per view): allocated once per box size.
 struct LookBuffers {
-  std::vector<float> layer, alpha, tmp;  // premultiplied linear colour, coverage, blur scratch
-  std::vector<float> decode, encode;     // tone-curve tables for the gamma they were built for
+  std::vector<float> layer, tmp;             // premultiplied linear colour and coverage; blur scratch
+  std::vector<int> spans;                    // per box row: the columns the boom's layer covers
+  std::vector<float> decode, encode, carry;  // tone-curve tables for the gamma they were built for
   double table_gamma = 0;
 };
 

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 namespace augrig {
 namespace {
@@ -91,9 +92,11 @@ double robust_hp_sigma(const Image& img, int c, Inside inside) {
   for (int y = s; y < img.height() - s; ++y)
     for (int x = s; x < img.width() - s; ++x) {
       if (!inside(x, y)) continue;
-      auto p = [&](int dx, int dy) { return static_cast<double>(img.row(y + dy * s)[(x + dx * s) * bpp + c]); };
-      const double v = p(-1, -1) - 2 * p(0, -1) + p(1, -1) - 2 * p(-1, 0) + 4 * p(0, 0) - 2 * p(1, 0) + p(-1, 1) -
-                       2 * p(0, 1) + p(1, 1);
+      auto p = [&](int dx, int dy) {
+        return static_cast<double>(img.row(y + dy * s)[(x + dx * s) * bpp + c]);
+      };
+      const double v = p(-1, -1) - 2 * p(0, -1) + p(1, -1) - 2 * p(-1, 0) + 4 * p(0, 0) - 2 * p(1, 0) +
+                       p(-1, 1) - 2 * p(0, 1) + p(1, 1);
       r.push_back(std::abs(v) / 6.0);
     }
   std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
@@ -143,8 +146,9 @@ TEST_P(CameraLookNoise, BoomNoiseMatchesTheNoiseLevelFunction) {
   const NoiseLevelFunction f = nlf(is_bayer(k.fmt) || nc == 3 ? 3 : 1, k.a, k.b);
   auto signal = [&](int x, int y, int c) {
     const double base = 90 + 10 * c;
-    return k.textured ? base + 50 * std::sin(x * 0.21) * std::cos(y * 0.17) + (((x / 9) + (y / 7)) % 2 ? 30 : -30)
-                      : base;
+    return k.textured
+               ? base + 50 * std::sin(x * 0.21) * std::cos(y * 0.17) + (((x / 9) + (y / 7)) % 2 ? 30 : -30)
+               : base;
   };
   const Image raw = noisy_frame(w, h, k.fmt, f, signal, 7);
   const Image alpha = disc_alpha(w, h, 120.3, 99.6, 70);
@@ -162,7 +166,9 @@ TEST_P(CameraLookNoise, BoomNoiseMatchesTheNoiseLevelFunction) {
   for (int c = 0; c < nc; ++c) {
     for (int site = 0; site < (is_bayer(k.fmt) ? 4 : 1); ++site) {
       const int sx = site & 1, sy = site >> 1;
-      auto in_site = [&](int x, int y) { return deep_inside(x, y) && (!is_bayer(k.fmt) || ((x & 1) == sx && (y & 1) == sy)); };
+      auto in_site = [&](int x, int y) {
+        return deep_inside(x, y) && (!is_bayer(k.fmt) || ((x & 1) == sx && (y & 1) == sy));
+      };
       const int ch = is_bayer(k.fmt) ? bayer_channel(k.fmt, sx, sy) : c;
       const double want = std::sqrt(f.variance(ch, boom(ch)) + 1.0 / 12);  // + rounding to 8 bits
       const double got = robust_hp_sigma(look, c, in_site);
@@ -188,12 +194,14 @@ INSTANTIATE_TEST_SUITE_P(Formats, CameraLookNoise,
 // measured on the noise-free look; outside the blurred footprint the raw pixels stay.
 TEST(CameraLook, EdgesFollowThePsfAndNothingElseChanges) {
   const int w = 120, h = 40;
-  const Image raw = noisy_frame(w, h, PixelFormat::kMono8, nlf(1, 0, 0), [](int, int, int) { return 40.0; }, 1);
+  const Image raw = noisy_frame(
+      w, h, PixelFormat::kMono8, nlf(1, 0, 0), [](int, int, int) { return 40.0; }, 1);
   Image alpha(w, h, PixelFormat::kMono8);
   const double edge_x = 60.3;  // the boom covers x < edge_x
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x)
-      alpha.row(y)[x] = static_cast<std::uint8_t>(std::lround(255 * std::clamp(edge_x - (x - 0.5), 0.0, 1.0)));
+      alpha.row(y)[x] =
+          static_cast<std::uint8_t>(std::lround(255 * std::clamp(edge_x - (x - 0.5), 0.0, 1.0)));
   const Image plain = composite(raw, alpha, [](int) { return 200.f; });
   for (const double sigma : {0.0, 0.7, 1.5, 3.0}) {
     Image look = Image::copy_of(plain.view());
@@ -223,11 +231,78 @@ TEST(CameraLook, EdgesFollowThePsfAndNothingElseChanges) {
   }
 }
 
+// The blur, which reads and writes each row only over the boom's span, against OpenCV's separable
+// filter over the whole image: a thin diagonal band that leaves the image at two edges, a gap in
+// it, and a separate blob; RGB and Mono (replicated borders), Bayer per site; linear and gamma 2.2.
+TEST(CameraLook, BlurOverTheSpansIsOpenCvsOverTheWholeImage) {
+  const int w = 160, h = 120;
+  Image alpha(w, h, PixelFormat::kMono8);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const double d = std::abs((x - 30) - 1.1 * y) / std::hypot(1.0, 1.1);  // distance to the band's axis
+      double a = std::clamp(6.5 - d, 0.0, 1.0);
+      if (y > 50 && y < 56) a = 0;                  // the gap
+      if (std::hypot(x - 40, y - 90) < 7.3) a = 1;  // the blob
+      alpha.row(y)[x] = static_cast<std::uint8_t>(std::lround(255 * a));
+    }
+  for (const PixelFormat fmt : {PixelFormat::kRGB8, PixelFormat::kMono8, PixelFormat::kBayerRG8})
+    for (const double gamma : {1.0, 2.2})
+      for (const double sigma : {0.6, 1.7}) {
+        SCOPED_TRACE(std::string(to_string(fmt)) + ", gamma " + std::to_string(gamma) + ", sigma " +
+                     std::to_string(sigma));
+        const int nc = channels_of(fmt), bpp = bytes_per_pixel(fmt), step = is_bayer(fmt) ? 2 : 1;
+        const Image raw = noisy_frame(
+            w, h, fmt, nlf(nc, 0, 0),
+            [](int x, int y, int c) { return 60 + 50 * std::sin(0.3 * x + 0.2 * y + c); }, 7);
+        const Image plain = composite(raw, alpha, [](int c) { return 150.f + 30 * c; });
+        Image look = Image::copy_of(plain.view());
+        CameraLookParams p;
+        p.psf_sigma_px = sigma;
+        p.gamma = gamma;
+        LookBuffers buf;
+        apply_camera_look(raw.view(), alpha.cview(), look.view(), PixelBox{0, 0, w, h}, p, 1, 0, buf);
+        // The reference: linear layer and coverage planes per channel (per Bayer site), blurred by
+        // OpenCV with the same sampled Gaussian, composited with exact powers.
+        auto dec = [&](double e) { return 255 * std::pow(e / 255, gamma); };
+        auto enc = [&](double l) { return 255 * std::pow(std::clamp(l, 0.0, 255.0) / 255, 1 / gamma); };
+        for (int sy = 0; sy < step; ++sy)
+          for (int sx = 0; sx < step; ++sx)
+            for (int c = 0; c < nc; ++c) {
+              const int pw = w / step, ph = h / step;
+              cv::Mat L(ph, pw, CV_32F), A(ph, pw, CV_32F);
+              for (int y = 0; y < ph; ++y)
+                for (int x = 0; x < pw; ++x) {
+                  const int X = x * step + sx, Y = y * step + sy;
+                  const float a = alpha.row(Y)[X] / 255.f;
+                  const float R = raw.row(Y)[X * bpp + c], P = plain.row(Y)[X * bpp + c];
+                  A.at<float>(y, x) = a;
+                  L.at<float>(y, x) = a > 0 ? std::clamp(P - (1 - a) * R, 0.f, 255 * a) : 0.f;
+                }
+              const int r = static_cast<int>(std::ceil(3 * sigma / step));
+              const cv::Mat k = cv::getGaussianKernel(2 * r + 1, sigma / step, CV_32F);
+              cv::sepFilter2D(L, L, -1, k, k, {-1, -1}, 0, cv::BORDER_REPLICATE);
+              cv::sepFilter2D(A, A, -1, k, k, {-1, -1}, 0, cv::BORDER_REPLICATE);
+              int off = 0;
+              for (int y = 0; y < ph; ++y)
+                for (int x = 0; x < pw; ++x) {
+                  const int X = x * step + sx, Y = y * step + sy;
+                  const double ab = std::min(A.at<float>(y, x), 1.f), R = raw.row(Y)[X * bpp + c];
+                  const double want = ab < 1.0 / 1024 ? R : enc((1 - ab) * dec(R) + L.at<float>(y, x));
+                  const int got = look.row(Y)[X * bpp + c];
+                  if (std::abs(got - want) > 1.0 && off++ < 5)
+                    ADD_FAILURE() << "pixel (" << X << ", " << Y << ") channel " << c << ": " << got
+                                  << ", want " << want;
+                }
+            }
+      }
+}
+
 // The same (seed, frame, camera) gives the same pixels; another frame or camera other noise.
 TEST(CameraLook, NoiseIsDeterministicPerSeedFrameAndCamera) {
   const int w = 64, h = 64;
   const NoiseLevelFunction f = nlf(3, 0.1, 2);
-  const Image raw = noisy_frame(w, h, PixelFormat::kRGB8, f, [](int, int, int) { return 80.0; }, 3);
+  const Image raw = noisy_frame(
+      w, h, PixelFormat::kRGB8, f, [](int, int, int) { return 80.0; }, 3);
   const Image alpha = disc_alpha(w, h, 32, 32, 20);
   const Image plain = composite(raw, alpha, [](int) { return 160.f; });
   auto run = [&](std::uint64_t seed, std::uint64_t frame, int camera) {
@@ -250,7 +325,8 @@ TEST(CameraLook, NoiseIsDeterministicPerSeedFrameAndCamera) {
 // over black is encoded as half the linear light, not as half the encoded value.
 TEST(CameraLook, CompositesInLinearLight) {
   const int w = 16, h = 16;
-  const Image raw = noisy_frame(w, h, PixelFormat::kMono8, nlf(1, 0, 0), [](int, int, int) { return 0.0; }, 1);
+  const Image raw = noisy_frame(
+      w, h, PixelFormat::kMono8, nlf(1, 0, 0), [](int, int, int) { return 0.0; }, 1);
   Image alpha(w, h, PixelFormat::kMono8);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) alpha.row(y)[x] = x < 8 ? 255 : x == 8 ? 128 : 0;
