@@ -112,11 +112,11 @@ OptionSpec receiver_draw_option() {
 OptionSpec look_option() {
   return {"look", ArgKind::kValue, "plain|camera",
           "the boom's look: camera (sun and sky, the camera's PSF and sensor noise estimated from its frames) "
-          "or plain (a clean rendering under a fixed light); default plain (docs/LOOK.md)"};
+          "or plain (a clean rendering under a fixed light); default camera (docs/LOOK.md)"};
 }
 
 void apply_look_arg(const ParsedArgs& a, const Rig& rig, AugmentOptions& options) {
-  const std::string v = a.get("look", "plain");
+  const std::string v = a.get("look", "camera");
   if (!parse_look(v, options.look)) usage_error("--look: expected plain or camera, got '" + v + "'");
   options.camera_looks.clear();
   for (const RigCamera& c : rig.cameras) options.camera_looks.push_back(c.look);

@@ -161,7 +161,7 @@ struct Span {
   int lo, hi;
   bool empty() const { return lo >= hi; }
 };
-Span span_of(const std::vector<int>& spans, int y) {
+Span span_of(const int* spans, int y) {
   return {spans[2 * y], spans[2 * y + 1]};
 }
 
@@ -173,13 +173,13 @@ void add_scaled(float* __restrict dst, const float* __restrict src, float k, int
 // Separable blur of the layer (w x h pixels of `nc` interleaved floats) in place, reading each row
 // only over its span and writing each row only over its new span (`spans`, updated), so that a
 // thin diagonal boom costs its footprint, not its box. Values outside a row's span are never read.
-void blur(std::vector<float>& p, std::vector<float>& tmp, std::vector<int>& spans, int w, int h, int nc,
-          int step, const std::vector<float>& k) {
+void blur(float* p, std::vector<float>& tmp, int* spans, int w, int h, int nc, int step,
+          const std::vector<float>& k) {
   const int r = static_cast<int>(k.size() / 2), reach = r * step;
   const std::size_t row = static_cast<std::size_t>(w) * nc;
-  tmp.resize(p.size());
+  tmp.resize(row * h);
   // Horizontal: row y's span widened by the kernel's reach, taps past the box's edges reflected.
-  std::vector<int> wide(spans.size());
+  std::vector<int> wide(2 * static_cast<std::size_t>(h));
   for (int y = 0; y < h; ++y) {
     const Span s = span_of(spans, y);
     const Span o = s.empty() ? s : Span{std::max(0, s.lo - reach), std::min(w, s.hi + reach)};
@@ -208,7 +208,7 @@ void blur(std::vector<float>& p, std::vector<float>& tmp, std::vector<int>& span
   for (int y = 0; y < h; ++y) {
     Span o{w, 0};
     for (int j = -r; j <= r; ++j) {
-      const Span s = span_of(wide, inside(y + j * step, h, step));
+      const Span s = span_of(wide.data(), inside(y + j * step, h, step));
       if (!s.empty()) o = {std::min(o.lo, s.lo), std::max(o.hi, s.hi)};
     }
     spans[2 * y] = o.lo, spans[2 * y + 1] = std::max(o.lo, o.hi);
@@ -217,10 +217,48 @@ void blur(std::vector<float>& p, std::vector<float>& tmp, std::vector<int>& span
     std::fill(dst + o.lo * nc, dst + o.hi * nc, 0.f);
     for (int j = -r; j <= r; ++j) {
       const int ys = inside(y + j * step, h, step);
-      const Span s = span_of(wide, ys);
+      const Span s = span_of(wide.data(), ys);
       const int x0 = std::max(o.lo, s.lo), x1 = std::min(o.hi, s.hi);
       if (x0 < x1) add_scaled(dst + x0 * nc, &tmp[ys * row + x0 * nc], k[j + r], (x1 - x0) * nc);
     }
+  }
+}
+
+// The PSF on a Bayer mosaic, whose layer holds each pixel's own site's colour (a C) and its
+// coverage a (interleaved pairs). A lens blurs before the mosaic, at full resolution: the coverage
+// is colour-blind and is blurred so, pixel by pixel. The colour, known at same-site pixels only,
+// is taken as locally constant: its unpremultiplied value at each pixel is the ratio of a
+// same-site blur of a C and of a (at least 1 px wide, to reach two sites each way), and is
+// premultiplied by the full-resolution coverage.
+void blur_mosaic(LookBuffers& buf, int w, int h, double sigma) {
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  buf.layer.resize(3 * n);  // [a C, a] pairs, then the full-resolution coverage plane
+  buf.spans.resize(4 * static_cast<std::size_t>(h));
+  float* pairs = buf.layer.data();
+  float* cover = pairs + 2 * n;
+  int* site_spans = buf.spans.data();
+  int* cover_spans = site_spans + 2 * h;
+  for (int y = 0; y < h; ++y) {
+    const Span s = span_of(site_spans, y);
+    cover_spans[2 * y] = s.lo, cover_spans[2 * y + 1] = s.hi;
+    for (int x = s.lo; x < s.hi; ++x)
+      cover[static_cast<std::size_t>(y) * w + x] = pairs[2 * (static_cast<std::size_t>(y) * w + x) + 1];
+  }
+  blur(cover, buf.tmp, cover_spans, w, h, 1, 1, gaussian_kernel(sigma, 1));
+  blur(pairs, buf.tmp, site_spans, w, h, 2, 2, gaussian_kernel(std::max(sigma, 1.0), 2));
+  // Back into the pairs over both spans' union; a pixel no same-site colour reaches keeps none.
+  for (int y = 0; y < h; ++y) {
+    const Span c = span_of(cover_spans, y), s = span_of(site_spans, y);
+    const Span u = c.empty() ? s : s.empty() ? c : Span{std::min(c.lo, s.lo), std::max(c.hi, s.hi)};
+    for (int x = u.lo; x < u.hi; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * w + x;
+      const float a = x >= c.lo && x < c.hi ? cover[i] : 0.f;
+      const bool known = x >= s.lo && x < s.hi && pairs[2 * i + 1] > 1e-6f;
+      const float colour = known ? pairs[2 * i] / pairs[2 * i + 1] : 0.f;
+      pairs[2 * i] = known ? colour * a : 0.f;
+      pairs[2 * i + 1] = known ? a : 0.f;
+    }
+    site_spans[2 * y] = u.lo, site_spans[2 * y + 1] = std::max(u.lo, u.hi);
   }
 }
 
@@ -274,8 +312,11 @@ void apply_camera_look(ConstImageView raw, ConstImageView alpha, ImageView aug, 
 
   // 2. Optics: the layer and its coverage through the PSF (the spans widen by its reach).
   if (params.psf_sigma_px > 0) {
-    const std::vector<float> k = gaussian_kernel(std::min(params.psf_sigma_px, kMaxPsfSigmaPx), L.step);
-    blur(buf.layer, buf.tmp, buf.spans, bw, bh, nl, L.step, k);
+    const double sigma = std::min(params.psf_sigma_px, kMaxPsfSigmaPx);
+    if (L.step == 1)
+      blur(buf.layer.data(), buf.tmp, buf.spans.data(), bw, bh, nl, 1, gaussian_kernel(sigma, 1));
+    else
+      blur_mosaic(buf, bw, bh, sigma);
   }
 
   // 3. Composite in linear light, back through the tone curve, and 4. the sensor's noise: the

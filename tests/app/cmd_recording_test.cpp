@@ -9,8 +9,6 @@
 
 #include <gtest/gtest.h>
 
-#include "tests/support/window_shot.hpp"
-
 #include "app/commands.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/reader.hpp"
@@ -19,6 +17,7 @@
 #include "render/augmenter.hpp"
 #include "render/gl_context.hpp"
 #include "tests/support/test_support.hpp"
+#include "tests/support/window_shot.hpp"
 
 namespace augrig {
 namespace {
@@ -179,7 +178,8 @@ TEST(CmdRecording, CheckErrors) {
 TEST(CmdRecording, ReplayReproducesTheRecordedStatistics) {
   const std::string out = output_dir("cmd_recording_replay");
   std::string log;
-  ASSERT_EQ(augrig("replay " + recording() + " --out " + out + " --every 3", &log), 0) << log;
+  // The recording's augmented images were made with the plain look (write_recording).
+  ASSERT_EQ(augrig("replay " + recording() + " --out " + out + " --every 3 --look plain", &log), 0) << log;
   EXPECT_NE(log.find("Replayed 8 stereo frame(s)"), std::string::npos) << log;
   EXPECT_NE(log.find("Recorded statistics reproduced exactly (same pixel counts) in 8 of 8 frame(s)"),
             std::string::npos)
@@ -206,13 +206,14 @@ TEST(CmdRecording, ReplayInTheWindowShowsTheBoomWhereTheMasksSay) {
   if (run_command("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run is not installed";
   const std::string dir = output_dir("cmd_recording_replay_window");
   std::string log;
-  ASSERT_EQ(augrig("run --source 'sim://demo?every=30&rate=0' --frames 4 --headless --status-every 0 --record " + dir +
-                       "/rec",
-                   &log),
-            0)
+  ASSERT_EQ(
+      augrig("run --source 'sim://demo?every=30&rate=0' --frames 4 --headless --status-every 0 --record " +
+                 dir + "/rec",
+             &log),
+      0)
       << log;
-  ASSERT_EQ(run_command("xvfb-run -a " + augrig_binary() + " replay " + dir + "/rec --screenshot-at 3 --out " + dir +
-                            "/out --record " + dir + "/again 2>&1",
+  ASSERT_EQ(run_command("xvfb-run -a " + augrig_binary() + " replay " + dir +
+                            "/rec --screenshot-at 3 --out " + dir + "/out --record " + dir + "/again 2>&1",
                         &log),
             0)
       << log;
@@ -387,8 +388,9 @@ std::vector<std::string> stats_rows(const std::string& path) {
 
 // The rows of replays of consecutive ranges [from, from + frames), one after the other. `exit`:
 // the exit status every part is expected to end with.
-std::vector<std::string> replay_parts(const std::string& source, const std::string& args, const std::string& dir,
-                                      const std::vector<std::pair<int, int>>& ranges, int exit = 0) {
+std::vector<std::string> replay_parts(const std::string& source, const std::string& args,
+                                      const std::string& dir, const std::vector<std::pair<int, int>>& ranges,
+                                      int exit = 0) {
   std::vector<std::string> rows;
   for (const auto& [from, frames] : ranges) {
     const std::string out = dir + "/part" + std::to_string(from);
@@ -444,7 +446,8 @@ TEST(CmdRecording, AScriptedBoomKeepsTheRecordingsClockFromAnyStart) {
   }
   const std::string boom = "--boom script:" + dir + "/boom.csv";
   std::string log;
-  ASSERT_EQ(augrig("replay " + recording() + " " + boom + " --headless --out " + dir + "/whole", &log), 0) << log;
+  ASSERT_EQ(augrig("replay " + recording() + " " + boom + " --headless --out " + dir + "/whole", &log), 0)
+      << log;
   const std::vector<std::string> whole = stats_rows(dir + "/whole/stats.csv");
   ASSERT_EQ(whole.size(), 8u);
   // The boom moves: frame 3's counts are not frame 0's (with the clock from the first frame
@@ -460,8 +463,10 @@ TEST(CmdRecording, AScriptedBoomKeepsTheRecordingsClockFromAnyStart) {
     std::ofstream rig(dir + "/rig.yaml");
     rig << rig_to_yaml(small_rig());
   }
-  const std::string euroc_args = boom + " --rig " + dir + "/rig.yaml --scene " + test::data_path("scenes/body.yaml");
-  ASSERT_EQ(augrig("replay " + dir + "/euroc " + euroc_args + " --headless --out " + dir + "/euroc_whole", &log), 0)
+  const std::string euroc_args =
+      boom + " --rig " + dir + "/rig.yaml --scene " + test::data_path("scenes/body.yaml");
+  ASSERT_EQ(
+      augrig("replay " + dir + "/euroc " + euroc_args + " --headless --out " + dir + "/euroc_whole", &log), 0)
       << log;
   const std::vector<std::string> euroc_whole = stats_rows(dir + "/euroc_whole/stats.csv");
   ASSERT_EQ(euroc_whole.size(), 8u);
@@ -524,21 +529,28 @@ TEST(CmdRecording, SchemaOneRecordingChecksReplaysAndExportsAndGainsDepthByRepla
   {
     auto d = recorder::Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
     ASSERT_TRUE(d);
-    ASSERT_TRUE(d->exec("DROP TABLE depth; UPDATE meta SET value = '1' WHERE key = 'schema_version'; "
-                        "DELETE FROM meta WHERE key = 'codec.depth'"));
+    ASSERT_TRUE(
+        d->exec("DROP TABLE depth; UPDATE meta SET value = '1' WHERE key = 'schema_version'; "
+                "DELETE FROM meta WHERE key = 'codec.depth'"));
   }
   std::string log;
   ASSERT_EQ(augrig("check " + dir, &log), 0) << log;
   EXPECT_NE(log.find("schema version: 1"), std::string::npos) << log;
-  EXPECT_NE(log.find("receiver depth: 0 frames (record with --ground-truth to store it)"), std::string::npos) << log;
+  EXPECT_NE(log.find("receiver depth: 0 frames (record with --ground-truth to store it)"), std::string::npos)
+      << log;
   ASSERT_EQ(augrig("export " + dir + " --format euroc " + dir + "/export --no-plot 2>&1", &log), 0) << log;
   EXPECT_TRUE(fs::exists(dir + "/export/mav0/cam0/data.csv"));
-  EXPECT_EQ(augrig("export " + dir + " --format euroc " + dir + "/export_gt --ground-truth --no-plot 2>&1", &log), 1)
+  EXPECT_EQ(
+      augrig("export " + dir + " --format euroc " + dir + "/export_gt --ground-truth --no-plot 2>&1", &log),
+      1)
       << log;
-  EXPECT_NE(log.find("frame 0 (pair_sequence 0) holds no receiver depth (8 of 8 frames hold none)"), std::string::npos)
+  EXPECT_NE(log.find("frame 0 (pair_sequence 0) holds no receiver depth (8 of 8 frames hold none)"),
+            std::string::npos)
       << log;
-  ASSERT_EQ(augrig("replay " + dir + " --headless --record " + dir + "/gt --ground-truth 2>&1", &log), 0) << log;
-  EXPECT_NE(log.find("Recorded statistics reproduced exactly (same pixel counts) in 8 of 8"), std::string::npos)
+  ASSERT_EQ(augrig("replay " + dir + " --headless --record " + dir + "/gt --ground-truth 2>&1", &log), 0)
+      << log;
+  EXPECT_NE(log.find("Recorded statistics reproduced exactly (same pixel counts) in 8 of 8"),
+            std::string::npos)
       << log;
   auto rd = recorder::RecordingReader::open(dir + "/gt");
   ASSERT_TRUE(rd) << rd.error().message;

@@ -19,6 +19,7 @@
 #include "core/npy.hpp"
 #include "nav/logs.hpp"
 #include "recorder/reader.hpp"
+#include "render/camera_look.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig {
@@ -237,13 +238,15 @@ cv::Mat check_view(const fs::path& out, const std::string& side, const cv::Mat& 
   EXPECT_EQ(mask.type(), CV_8UC1) << side;
   if (aug.size() != input.size() || aug.type() != input.type() || mask.type() != CV_8UC1) return {};
   long long changed_outside = 0;
+  const int reach = psf_margin_px(CameraLookParams{});
   for (int y = 0; y < mask.rows; ++y) {
     for (int x = 0; x < mask.cols; ++x) {
       EXPECT_LE(mask.at<std::uint8_t>(y, x), 3) << side << " mask at " << x << "," << y;
-      // Far from the boom (no boom bit within 1 px) the raw pixel must come through untouched.
+      // Far from the boom (no boom bit within the default camera look's PSF reach) the raw pixel
+      // must come through untouched.
       bool near_boom = false;
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -reach; dy <= reach; ++dy)
+        for (int dx = -reach; dx <= reach; ++dx) {
           const int u = x + dx, v = y + dy;
           if (u >= 0 && v >= 0 && u < mask.cols && v < mask.rows && (mask.at<std::uint8_t>(v, u) & 1))
             near_boom = true;
@@ -427,7 +430,8 @@ const std::string& flown_dataset() {
                                      testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(d);
     std::string log;
-    EXPECT_EQ(augrig("sim --scenario " + data_path("scenarios/short_approach.yaml") + " --every 3 --out " + d + "/D",
+    EXPECT_EQ(augrig("sim --scenario " + data_path("scenarios/short_approach.yaml") + " --every 3 --out " +
+                         d + "/D",
                      &log),
               0)
         << log;
@@ -454,7 +458,8 @@ std::map<long long, std::vector<long long>> stats_by_t(const fs::path& csv) {
 
 TEST(Augment, FlownSequenceWithNavPosesAgreesWithTheTruthWithinTheNavError) {
   const std::string d = flown_dataset();
-  const std::string common = "augment --rig " + d + "/D/rig.yaml --frames " + d + "/D/frames/index.csv --out ";
+  const std::string common =
+      "augment --rig " + d + "/D/rig.yaml --frames " + d + "/D/frames/index.csv --out ";
   std::string log, truth_log;
   ASSERT_EQ(augrig(common + d + "/O --poses " + d + "/P/poses.csv", &log), 0) << log;
   ASSERT_EQ(augrig(common + d + "/T --poses " + d + "/D/truth/poses.csv", &truth_log), 0) << truth_log;
@@ -480,7 +485,8 @@ TEST(Augment, FlownSequenceWithNavPosesAgreesWithTheTruthWithinTheNavError) {
   ASSERT_TRUE(nav && truth);
   std::map<std::pair<long long, int>, nav::CameraPoseRow> truth_at;
   for (const auto& r : truth->rows) truth_at[{r.t_ns, r.camera}] = r;
-  const auto got = stats_by_t(fs::path(d) / "O" / "stats.csv"), want = stats_by_t(fs::path(d) / "T" / "stats.csv");
+  const auto got = stats_by_t(fs::path(d) / "O" / "stats.csv"),
+             want = stats_by_t(fs::path(d) / "T" / "stats.csv");
   ASSERT_EQ(got.size(), 21u);
   ASSERT_EQ(want.size(), 21u);
   int compared = 0;
@@ -491,7 +497,8 @@ TEST(Augment, FlownSequenceWithNavPosesAgreesWithTheTruthWithinTheNavError) {
     ASSERT_NE(g, got.end());
     ASSERT_NE(w, want.end());
     const double dz = std::abs(r.z_m - t->second.z_m) / t->second.z_m;
-    const double dot = std::abs(r.qw * t->second.qw + r.qx * t->second.qx + r.qy * t->second.qy + r.qz * t->second.qz);
+    const double dot =
+        std::abs(r.qw * t->second.qw + r.qx * t->second.qx + r.qy * t->second.qy + r.qz * t->second.qz);
     const double theta = 2 * std::acos(std::min(1.0, dot));
     const double tol = 2 * dz + 2 * theta + 0.01;
     const int col = 1 + r.camera;  // receiver_px_left, receiver_px_right
@@ -520,8 +527,8 @@ TEST(Augment, FlownSequenceCountsUnpairedFramesAndPairsWithoutAPose) {
       if (l.rfind("3,0,", 0) != 0) poses << l << "\n";
   }
   std::string log;
-  ASSERT_EQ(augrig("augment --rig " + d + "/D/rig.yaml --frames " + d + "/D/frames/index_gaps.csv --poses " + d +
-                       "/P/poses_gap.csv --out " + d + "/G",
+  ASSERT_EQ(augrig("augment --rig " + d + "/D/rig.yaml --frames " + d + "/D/frames/index_gaps.csv --poses " +
+                       d + "/P/poses_gap.csv --out " + d + "/G",
                    &log),
             0)
       << log;
@@ -542,7 +549,8 @@ TEST(Augment, IndexedImagesOfAnotherSizeThanTheRigFailAtOnceWithOneMessage) {
   fs::create_directories(dir + "/right");
   ASSERT_TRUE(cv::imwrite(dir + "/left/a.png", pattern(640, 480, CV_8UC3, 0)));
   ASSERT_TRUE(cv::imwrite(dir + "/right/a.png", pattern(640, 480, CV_8UC3, 1)));
-  std::ofstream(dir + "/index.csv") << "sequence,camera,t_ns,file\n0,0,1000,left/a.png\n0,1,1000,right/a.png\n";
+  std::ofstream(dir + "/index.csv")
+      << "sequence,camera,t_ns,file\n0,0,1000,left/a.png\n0,1,1000,right/a.png\n";
   std::string out;
   EXPECT_EQ(augrig("augment --rig " + d + "/D/rig.yaml --frames " + dir + "/index.csv --poses " + d +
                        "/P/poses.csv --out " + dir + "/out",
@@ -554,9 +562,12 @@ TEST(Augment, IndexedImagesOfAnotherSizeThanTheRigFailAtOnceWithOneMessage) {
   EXPECT_NE(out.find("640x480"), std::string::npos) << out;
   EXPECT_NE(out.find("1280x960"), std::string::npos) << out;
   // The flags say what is missing or in conflict (exit 2).
-  EXPECT_EQ(augrig("augment --rig default --frames " + dir + "/index.csv --out " + dir + "/out", &out), 2) << out;
+  EXPECT_EQ(augrig("augment --rig default --frames " + dir + "/index.csv --out " + dir + "/out", &out), 2)
+      << out;
   EXPECT_NE(out.find("--scene"), std::string::npos) << out;
-  EXPECT_EQ(augrig("augment --rig default --frames " + dir + "/index.csv --left x --poses p --out o", &out), 2) << out;
+  EXPECT_EQ(augrig("augment --rig default --frames " + dir + "/index.csv --left x --poses p --out o", &out),
+            2)
+      << out;
 }
 
 // ---- demo ----------------------------------------------------------------------------------------
@@ -594,7 +605,8 @@ TEST(Demo, RecordsWhatItAugmentedAndTheRecordingChecksClean) {
   EXPECT_NE(log.find("4 stereo frames"), std::string::npos) << log;
   std::string check;
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
-  EXPECT_NE(check.find("frames: 4 (4 intact, 4 augmented, 4 with masks, 4 with statistics)"), std::string::npos)
+  EXPECT_NE(check.find("frames: 4 (4 intact, 4 augmented, 4 with masks, 4 with statistics)"),
+            std::string::npos)
       << check;
   EXPECT_NE(check.find("tanker.gps"), std::string::npos) << check;
   EXPECT_NE(check.find("problems: none"), std::string::npos) << check;
