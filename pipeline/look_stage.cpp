@@ -167,11 +167,15 @@ void LookStage::after_augment(const StereoFrame& frame, const SceneState& scene,
   std::string why;
   const bool sun_up = scene.light.direct.maxCoeff() > 0;
   if (auto fit = probe_->fit(scene.light.towards_light_body, scene.light.down_body, sun_up, &why)) {
-    // Smoothed over the sampled pairs: the light changes slowly, the points in view do not.
+    // Smoothed over the sampled pairs: the light changes slowly, the points in view do not. Each
+    // fit weighs as many points as it used, the previous one half its own: a receiver coming
+    // closer (ten times the points) is soon measured by what it shows now, not by its far past.
     if (probe_fit_) {
-      fit->direct = 0.5 * (fit->direct + probe_fit_->direct);
-      fit->sky = 0.5 * (fit->sky + probe_fit_->sky);
-      fit->ground = 0.5 * (fit->ground + probe_fit_->ground);
+      const double w_new = static_cast<double>(fit->samples),
+                   w_old = 0.5 * static_cast<double>(probe_fit_->samples), w = 1.0 / (w_new + w_old);
+      fit->direct = w * (w_new * fit->direct + w_old * probe_fit_->direct);
+      fit->sky = w * (w_new * fit->sky + w_old * probe_fit_->sky);
+      fit->ground = w * (w_new * fit->ground + w_old * probe_fit_->ground);
     }
     probe_fit_ = fit;
     probe_note_.clear();

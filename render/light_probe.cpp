@@ -143,7 +143,8 @@ void LightProbe::add_view(const Image& raw, const Image& mask, const DepthImage&
           for (int c = 0; c < 3; ++c) add(c, px[bpp == 1 ? 0 : c]);
         }
     }
-    if (clipped || n.minCoeff() < 2) continue;  // clipped: the light is above what it reads
+    // Clipped: the light is above what it reads. A Bayer triangle needs each site colour once.
+    if (clipped || n.minCoeff() < 1) continue;
     Sample s;
     s.n_body = R_body_recv * pt.n;
     s.albedo = pt.albedo;
