@@ -86,21 +86,24 @@ using Clock = std::chrono::steady_clock;
 // The overlay's look is render/visualize's, not a copy of its colours: blend_over() works per
 // channel, so running it once over probe images (every background value 0..255 under every mask
 // class) tabulates exactly what it does: lut[class][channel][background] -> output.
+// Classes: mask values & 7 (boom, receiver, shadow bits) for Fig. 8; 0..3 for Fig. 7b.
+constexpr int kOverlayClasses = 8;
 struct OverlayLut {
-  std::array<std::array<std::array<std::uint8_t, 256>, 3>, 4> out;
-  std::array<Eigen::Vector3f, 4> colour;  // the visualisation's own colour per class, 0..1
+  std::array<std::array<std::array<std::uint8_t, 256>, 3>, kOverlayClasses> out;
+  std::array<Eigen::Vector3f, kOverlayClasses> colour;  // the visualisation's own colour per class, 0..1
 };
 
 // `visualize(masks)` receives probe masks (`class_of(i)` gives mask values for class i, one per
 // probe image) and returns the visualisation.
 template <typename Visualize>
 OverlayLut tabulate(Visualize visualize) {
-  Image bg(4 * 256, 1, PixelFormat::kRGB8);
-  for (int x = 0; x < 4 * 256; ++x) std::fill_n(bg.row(0) + 3 * x, 3, static_cast<std::uint8_t>(x % 256));
+  Image bg(kOverlayClasses * 256, 1, PixelFormat::kRGB8);
+  for (int x = 0; x < kOverlayClasses * 256; ++x)
+    std::fill_n(bg.row(0) + 3 * x, 3, static_cast<std::uint8_t>(x % 256));
   const Image vis = visualize([](int x) { return x / 256; });
   const Image out = blend_over(bg, vis);
   OverlayLut lut;
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < kOverlayClasses; ++i) {
     for (int c = 0; c < 3; ++c) {
       for (int b = 0; b < 256; ++b) lut.out[i][c][b] = out.row(0)[3 * (256 * i + b) + c];
       lut.colour[i][c] = vis.row(0)[3 * (256 * i) + c] / 255.0f;
@@ -111,8 +114,8 @@ OverlayLut tabulate(Visualize visualize) {
 
 template <typename ValueOf>
 Image probe_mask(ValueOf value_of_x) {
-  Image m(4 * 256, 1, PixelFormat::kMono8);
-  for (int x = 0; x < 4 * 256; ++x) m.row(0)[x] = static_cast<std::uint8_t>(value_of_x(x));
+  Image m(kOverlayClasses * 256, 1, PixelFormat::kMono8);
+  for (int x = 0; x < kOverlayClasses * 256; ++x) m.row(0)[x] = static_cast<std::uint8_t>(value_of_x(x));
   return m;
 }
 
@@ -1305,7 +1308,7 @@ void compose_view_rgba(const Image& image, MaskOverlay overlay, int view,
   if (overlay == MaskOverlay::kOcclusion && fits(masks[own])) {
     lut = &overlay_luts().occlusion[own];
     or_blocks(*masks[own], f, out_w, out_h, cls);
-    for (std::uint8_t& c : cls) c &= 3;
+    for (std::uint8_t& c : cls) c &= kMaskBoom | kMaskReceiver | kMaskShadow;
   } else if (overlay == MaskOverlay::kBoomOverlap && fits(masks[0]) && fits(masks[1])) {
     lut = &overlay_luts().overlap;
     or_blocks(*masks[0], f, out_w, out_h, cls);

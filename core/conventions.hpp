@@ -83,5 +83,9 @@ constexpr TimestampNs s_to_ns(double t_s) {
 // Mask image bits (render/augmenter.hpp writes them, render/stats.hpp reads them).
 inline constexpr std::uint8_t kMaskBoom = 1u << 0;  // the boom is the front-most surface at the pixel centre
 inline constexpr std::uint8_t kMaskReceiver = 1u << 1;  // the receiver lies on the pixel centre's ray
+// The receiver is the front-most surface at the pixel centre (bit 1 set, bit 0 not) and the ray
+// from that surface point towards the sun's centre passes through the boom: the boom's shadow.
+// Set only where the sun is known and above the horizon (render/boom_shadow.hpp).
+inline constexpr std::uint8_t kMaskShadow = 1u << 2;
 
 }  // namespace augrig

@@ -105,17 +105,18 @@ Status LookStage::configure(Augmenter& augmenter) {
 std::vector<std::string> LookStage::before_augment(const StereoFrame& frame, SceneState& scene,
                                                    Augmenter& augmenter) {
   std::vector<std::string> notes;
-  if (config_.look != Look::kCamera) return notes;
-  // The sun: the pose source's where it knows time and place; else the default, said once.
+  // The sun: the pose source's where it knows time and place; else the default, said once. In
+  // either look: the boom's shadow on the receiver (a mask bit) follows it.
   if (scene.light.source == LightSource::kFixed) {
     scene.light = SceneLight::default_sun();
     if (!default_sun_said_)
       notes.push_back(
-          "look: no time or position for the sun from the pose source; the boom is lit by the default sun "
-          "(45 deg up, 45 deg right of the nose; docs/LOOK.md)");
+          "look: no time or position for the sun from the pose source; the boom is lit and casts its shadow "
+          "by the default sun (45 deg up, 45 deg right of the nose; docs/LOOK.md)");
     default_sun_said_ = true;
   }
   last_light_ = scene.light.source;
+  if (config_.look != Look::kCamera) return notes;
   const TimestampNs t = frame.t_key_ns, every = s_to_ns(config_.noise_every_s);
   if (sampled_ && (t < next_sample_ns_ - 2 * every)) sampled_ = false;  // time went back (a loop, a seek)
   const bool sample = !sampled_ || t >= next_sample_ns_;
@@ -128,8 +129,7 @@ std::vector<std::string> LookStage::before_augment(const StereoFrame& frame, Sce
   if (scene.light.source != LightSource::kConfigured) {
     if (probe_fit_) {
       // Measured on the receiver; the sun's share only while the sun is up.
-      const bool sun_up = scene.light.direct.maxCoeff() > 0;
-      scene.light.direct = sun_up ? probe_fit_->direct : Eigen::Vector3d::Zero();
+      scene.light.direct = scene.light.sun_up ? probe_fit_->direct : Eigen::Vector3d::Zero();
       scene.light.sky = probe_fit_->sky, scene.light.ground = probe_fit_->ground;
     } else if (ground_) {
       scene.light.ground = *ground_;
@@ -165,8 +165,7 @@ void LookStage::after_augment(const StereoFrame& frame, const SceneState& scene,
   probe_->add_view(frame.right.image, result.right.mask, result.right.receiver_depth, rig.cameras[1],
                    scene.T_body_receiver, g);
   std::string why;
-  const bool sun_up = scene.light.direct.maxCoeff() > 0;
-  if (auto fit = probe_->fit(scene.light.towards_light_body, scene.light.down_body, sun_up, &why)) {
+  if (auto fit = probe_->fit(scene.light.towards_light_body, scene.light.down_body, scene.light.sun_up, &why)) {
     // Smoothed over the sampled pairs: the light changes slowly, the points in view do not. Each
     // fit weighs as many points as it used, the previous one half its own: a receiver coming
     // closer (ten times the points) is soon measured by what it shows now, not by its far past.

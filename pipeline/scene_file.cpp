@@ -143,6 +143,8 @@ SceneLight parse_sun(const Ctx& c, const YAML::Node& sun) {
       if (!(v >= 0 && v <= 2)) fail(c, n, std::string("sun.") + key, "expected 0..2, got " + fmt(v));
       *value = Eigen::Vector3d::Constant(v);
     }
+  // An overcast sky (no direct light) casts no shadow; a sun below the wings' plane still may.
+  l.sun_up = l.direct.maxCoeff() > 0;
   return l;
 }
 

@@ -27,6 +27,7 @@
 
 #include "core/worker.hpp"
 #include "render/boom_shading.hpp"
+#include "render/boom_shadow.hpp"
 #include "render/gl_util.hpp"
 #include "render/projection.hpp"
 #include "render/soft_raster.hpp"
@@ -186,6 +187,15 @@ struct ViewState {
   };
   std::vector<Plane> planes;  // one per triangle, this frame
   std::vector<Eigen::Vector3d> scratch_vertices;
+  // The boom's shadow this frame (camera frame; empty when the sun is down or unknown), the
+  // receiver pixels in it with the share of light it takes (the camera look only), the sun and
+  // the local vertical in this camera's frame, the receiver's rotation into it.
+  BoomShadow shadow;
+  std::vector<Eigen::Vector3d> shadow_vertices;
+  std::vector<ShadowPixel> shadow_pixels;
+  Eigen::Vector3d sun_cam, down_cam;
+  Eigen::Matrix3d R_cam_receiver;
+  Image spare;  // grow_augmented()'s second buffer
 };
 
 // What a thread resolving rows (of either view) keeps for itself: rows of one view may be
@@ -292,6 +302,13 @@ class AugmenterImpl final : public Augmenter {
   const SceneLight& light_of(const SceneState& scene) const { return camera_look_on() ? scene.light : fixed_light_; }
   // The camera look over one view's changed box (after its rows are resolved).
   void look_view(int camera, const Frame& raw, ViewResult& out);
+  // After a view's rows are resolved: the boom's shadow on the receiver (kMaskShadow; with the
+  // camera look, the shares of light it takes), the camera look, the shadow's darkening.
+  void finish_view(int camera, const Frame& raw, ViewResult& out, const SceneState& scene, double& shadow_ms,
+                   double& look_ms);
+  void shadow_view(ViewState& vs, ViewResult& out, const SceneState& scene) const;
+  Eigen::Vector3d receiver_normal(const ViewState& vs, std::size_t pixel, const Eigen::Vector3d& p_cam) const;
+  void grow_augmented(ViewState& vs, const Frame& raw, ViewResult& out, const PixelBox& need) const;
   // The CPU pass per raw pixel (masks, receiver depth, composite) in two steps: begin_resolve()
   // clears what the last frame wrote and copies the raw box; resolve_rows() then takes chunks of
   // rows from `next_row` until none is left, so both threads can share one view's rows.
@@ -357,6 +374,7 @@ class AugmenterImpl final : public Augmenter {
   // Per-frame state shared by prepare/render.
   Pose T_body_boom_, T_body_telescope_;
   bool receiver_on_ = false;
+  bool shadow_on_ = false;  // the receiver drawn and the sun up: the boom's shadow is looked for
 };
 
 Status AugmenterImpl::init() {
@@ -587,6 +605,23 @@ void AugmenterImpl::prepare_view(ViewState& vs, const SceneState& scene) {
       vs.planes[d.first_tri + k] = {tri.n.x(), tri.n.y(), tri.n.z(), tri.n_dot_v0};
     }
   }
+  // The boom's triangles projected along the sun: its shadow, in this camera's frame.
+  vs.shadow.clear();
+  if (!shadow_on_) return;
+  const Eigen::Matrix3d R_cam_body = T_cam_body.R();
+  vs.sun_cam = R_cam_body * scene.light.towards_light_body.normalized();
+  vs.down_cam = R_cam_body * scene.light.down_body.normalized();
+  vs.R_cam_receiver = R_cam_body * scene.T_body_receiver.R();
+  auto& sv = vs.shadow_vertices;
+  sv.clear();
+  for (const DrawItem& d : draws_) {
+    if (d.kind == ObjectKind::kReceiver) continue;
+    for (std::size_t k = 0; k < d.mesh->triangle_count(); ++k) {
+      const CamTriangle& t = vs.tris[d.first_tri + k];
+      sv.push_back(t.v0), sv.push_back(t.v0 + t.e1), sv.push_back(t.v0 + t.e2);
+    }
+  }
+  vs.shadow.build(sv, vs.sun_cam);
 }
 
 // Virtual-image boxes of the draw items of `kinds` seen from this camera: one per chunk, from its
@@ -1413,6 +1448,145 @@ void AugmenterImpl::look_view(int camera, const Frame& raw, ViewResult& out) {
                     static_cast<std::uint64_t>(raw.t_ns), camera, look_buffers_[camera]);
 }
 
+// The receiver's normal at a raw pixel's surface point `p_cam` (camera frame, facing the camera):
+// the triangle one of the pixel's four virtual samples holds whose plane passes nearest the
+// point (creases), its vertex normals interpolated there (the model's smooth surface).
+Eigen::Vector3d AugmenterImpl::receiver_normal(const ViewState& vs, std::size_t pixel,
+                                               const Eigen::Vector3d& p_cam) const {
+  Eigen::Vector3d n = -p_cam;
+  const MapEntry& e = vs.map[pixel];
+  std::uint32_t best = 0;
+  double best_gap = std::numeric_limits<double>::infinity();
+  if (e.idx >= 0) {
+    const auto i = static_cast<std::size_t>(e.idx), w = static_cast<std::size_t>(vs.vp.width);
+    for (const std::size_t j : {i, i + 1, i + w, i + w + 1}) {
+      if (j >= vs.recv_ids.size()) continue;
+      const std::uint32_t id = vs.recv_ids[j];
+      if (!id || is_boom(id)) continue;
+      const CamTriangle& t = triangle(vs, id);
+      const double gap = std::abs(t.n.dot(p_cam) - t.n_dot_v0) / std::max(t.n.norm(), 1e-300);
+      if (gap < best_gap) best_gap = gap, best = id;
+    }
+  }
+  if (best) {
+    const CamTriangle& t = triangle(vs, best);
+    n = t.n;
+    const DrawItem& d = draws_[(best >> kDrawShift) - 1];
+    const std::size_t k = best & kPrimMask;
+    if (d.mesh->normals.size() == d.mesh->positions_m.size()) {
+      // Barycentric weights of the point in the triangle's plane.
+      const double nn = t.n.squaredNorm();
+      const Eigen::Vector3d r = p_cam - t.v0;
+      const double b1 = r.cross(t.e2).dot(t.n) / nn, b2 = t.e1.cross(r).dot(t.n) / nn;
+      const std::uint32_t* vi = &d.mesh->indices[3 * k];
+      const Eigen::Vector3d smooth =
+          vs.R_cam_receiver * ((1 - b1 - b2) * d.mesh->normals[vi[0]].cast<double>() +
+                               b1 * d.mesh->normals[vi[1]].cast<double>() + b2 * d.mesh->normals[vi[2]].cast<double>());
+      if (smooth.allFinite() && smooth.squaredNorm() > 1e-12) n = smooth.dot(t.n) >= 0 ? smooth : Eigen::Vector3d(-smooth);
+    }
+  }
+  if (n.dot(p_cam) > 0) n = -n;  // the side the camera sees
+  return n.normalized();
+}
+
+// Every receiver pixel whose surface point (its centre's ray at the receiver's depth) sees the
+// sun through the boom gets kMaskShadow; with the camera look, its share of light the shadow takes.
+void AugmenterImpl::shadow_view(ViewState& vs, ViewResult& out, const SceneState& scene) const {
+  vs.shadow_pixels.clear();
+  if (vs.shadow.empty()) return;
+  const int W = vs.cam->model.width_px, H = vs.cam->model.height_px;
+  const VBox rb = intersect({out.receiver_box.x0, out.receiver_box.y0, out.receiver_box.x1, out.receiver_box.y1},
+                            {0, 0, W, H});
+  const Eigen::Matrix3d& R = vs.shadow.R_sun_F();
+  const bool look = camera_look_on();
+  const SceneLight& sl = scene.light;
+  for (int y = rb.y0; y < rb.y1; ++y) {
+    std::uint8_t* m = out.mask.row(y);
+    const std::size_t row = static_cast<std::size_t>(y) * W;
+    const float* z = &out.receiver_depth.z_m[row];
+    const Eigen::Vector2f* ray = &vs.vp.ray_xy[row];
+    for (int x = rb.x0; x < rb.x1; ++x) {
+      if (m[x] != kMaskReceiver) continue;  // the receiver, in front of the boom there
+      const double zx = z[x];
+      const Eigen::Vector3d q = zx * (R.col(0) * ray[x].x() + R.col(1) * ray[x].y() + R.col(2));
+      if (!vs.shadow.may_cover(q.x(), q.y()) || !vs.shadow.in_shadow_sun(q)) continue;
+      m[x] |= kMaskShadow;
+      if (!look) continue;
+      // The direct light's share of what falls on the surface there (SceneLight::on()).
+      const Eigen::Vector3d p(ray[x].x() * zx, ray[x].y() * zx, zx);
+      const Eigen::Vector3d n = receiver_normal(vs, row + x, p);
+      const double facing = std::max(n.dot(vs.sun_cam), 0.0);
+      const Eigen::Vector3d all = sl.on(n, vs.sun_cam, vs.down_cam);
+      ShadowPixel sp{x, y, {}};
+      for (int c = 0; c < 3; ++c) sp.share[c] = all[c] > 0 ? static_cast<float>(sl.direct[c] * facing / all[c]) : 0.f;
+      vs.shadow_pixels.push_back(sp);
+    }
+  }
+}
+
+// Widens the augmented image's box to hold `need` as well (the shadow's darkening can reach past
+// the boom's box): a whole image only says so; a box image is made anew, the raw image round
+// what it held.
+void AugmenterImpl::grow_augmented(ViewState& vs, const Frame& raw, ViewResult& out, const PixelBox& need) const {
+  const PixelBox& b = out.augmented_box;
+  const VBox old{b.x0, b.y0, b.x1, b.y1};
+  const VBox u = unite(old, {need.x0, need.y0, need.x1, need.y1});
+  if (u.x0 == old.x0 && u.y0 == old.y0 && u.x1 == old.x1 && u.y1 == old.y1) return;
+  const Image& src = raw.image;
+  const bool whole = out.augmented.width() == src.width() && out.augmented.height() == src.height();
+  if (!whole) {
+    const std::size_t bpp = bytes_per_pixel(src.format());
+    Image& g = vs.spare;
+    g.reshape(u.x1 - u.x0, u.y1 - u.y0, src.format());
+    for (int y = u.y0; y < u.y1; ++y) {
+      std::uint8_t* dst = g.row(y - u.y0);
+      if (y >= old.y0 && y < old.y1 && !old.empty()) {
+        std::memcpy(dst, src.row(y) + u.x0 * bpp, (old.x0 - u.x0) * bpp);
+        std::memcpy(dst + (old.x0 - u.x0) * bpp, out.augmented.row(y - old.y0), (old.x1 - old.x0) * bpp);
+        std::memcpy(dst + (old.x1 - u.x0) * bpp, src.row(y) + old.x1 * bpp, (u.x1 - old.x1) * bpp);
+      } else {
+        std::memcpy(dst, src.row(y) + u.x0 * bpp, (u.x1 - u.x0) * bpp);
+      }
+    }
+    std::swap(out.augmented, g);
+  }
+  out.augmented_box = to_pixel_box(u);
+}
+
+void AugmenterImpl::finish_view(int camera, const Frame& raw, ViewResult& out, const SceneState& scene,
+                                double& shadow_ms, double& look_ms) {
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
+  ViewState& vs = views_[camera];
+  const auto a = Clock::now();
+  shadow_view(vs, out, scene);
+  // The darkening spreads by the PSF: the augmented image must hold it before the look runs.
+  PixelBox dark{};
+  if (!vs.shadow_pixels.empty()) {
+    VBox sb{raw.image.width(), raw.image.height(), 0, 0};
+    for (const ShadowPixel& p : vs.shadow_pixels)
+      sb.x0 = std::min(sb.x0, p.u), sb.y0 = std::min(sb.y0, p.v), sb.x1 = std::max(sb.x1, p.u + 1),
+      sb.y1 = std::max(sb.y1, p.v + 1);
+    const int m = psf_margin_px(looks_[camera]);
+    dark = to_pixel_box(intersect({sb.x0 - m, sb.y0 - m, sb.x1 + m, sb.y1 + m},
+                                  {0, 0, raw.image.width(), raw.image.height()}));
+    grow_augmented(vs, raw, out, dark);
+  }
+  const auto b = Clock::now();
+  look_view(camera, raw, out);
+  const auto c = Clock::now();
+  if (!dark.empty()) {
+    const PixelBox& box = out.augmented_box;
+    const bool whole = out.augmented.width() == raw.image.width() && out.augmented.height() == raw.image.height();
+    const PixelBox at =
+        whole ? dark : PixelBox{dark.x0 - box.x0, dark.y0 - box.y0, dark.x1 - box.x0, dark.y1 - box.y0};
+    apply_shadow_look(sub_view(out.augmented.view(), at), dark, vs.shadow_pixels, looks_[camera], static_cast<std::uint64_t>(raw.t_ns), camera,
+                      look_buffers_[camera]);
+  }
+  shadow_ms += ms(b - a) + ms(Clock::now() - c);
+  look_ms += ms(c - b);
+}
+
 Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) {
   if (camera < 0 || camera >= static_cast<int>(views_.size()))
     return make_error("Augmenter::augment_view(): no camera ", camera);
@@ -1420,6 +1594,7 @@ Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneStat
   T_body_boom_ = boom_pose(rig_.boom.pivot_body_m, scene.boom);
   T_body_telescope_ = T_body_boom_ * telescope_pose(scene.boom);
   receiver_on_ = scene.receiver_present && options_.receiver_proxy;
+  shadow_on_ = receiver_on_ && scene.light.sun_up;
   ViewState& vs = views_[camera];
   prepare_view(vs, scene);
   if (cpu_raster_)
@@ -1427,7 +1602,8 @@ Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneStat
   else
     render_view(vs, scene);
   resolve_view(vs, raw, out, row_scratch_[0]);
-  look_view(camera, raw, out);
+  double shadow_ms = 0, look_ms = 0;
+  finish_view(camera, raw, out, scene, shadow_ms, look_ms);
   return {};
 }
 
@@ -1439,6 +1615,7 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   T_body_boom_ = boom_pose(rig_.boom.pivot_body_m, scene.boom);
   T_body_telescope_ = T_body_boom_ * telescope_pose(scene.boom);
   receiver_on_ = scene.receiver_present && options_.receiver_proxy;
+  shadow_on_ = receiver_on_ && scene.light.sun_up;
 
   timings_.gl_clear_ms = timings_.gl_draw_ms = timings_.gl_readback_ms = 0;
   const auto t0 = Clock::now();
@@ -1511,15 +1688,16 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
     timings_.masks_ms = left_cpu_ms + right_cpu;
   }
 
-  timings_.look_ms = 0;
-  if (camera_look_on()) {  // the views in parallel: neither reads the other's pixels
-    const auto a = Clock::now();
-    worker().start([&] { look_view(0, frame.left, out.left); });
+  // The shadow and the look, the views in parallel: neither reads the other's pixels.
+  double shadow_ms[2] = {0, 0}, look_ms[2] = {0, 0};
+  if (camera_look_on() || shadow_on_) {
+    worker().start([&] { finish_view(0, frame.left, out.left, scene, shadow_ms[0], look_ms[0]); });
     const Worker::Join join{worker()};
-    look_view(1, frame.right, out.right);
+    finish_view(1, frame.right, out.right, scene, shadow_ms[1], look_ms[1]);
     worker().wait();
-    timings_.look_ms = ms(Clock::now() - a);
   }
+  timings_.shadow_ms = shadow_ms[0] + shadow_ms[1];
+  timings_.look_ms = look_ms[0] + look_ms[1];
 
   const auto t4 = Clock::now();
   // The classes reuse this view's own pixel rays (same undistortion as the masks).

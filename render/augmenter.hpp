@@ -1,7 +1,8 @@
 // Augmenter: renders the virtual boom (and the receiver as a mask-only proxy) into each camera's
 // raw frames, perspective-correct for that camera's intrinsics, distortion and extrinsics, and
 // produces per camera the augmented image, the 8-bit mask (kMaskBoom | kMaskReceiver, decided at
-// the pixel centre) and the receiver depth; per stereo frame the occlusion statistics.
+// the pixel centre, and kMaskShadow where the sun is up: the receiver in the boom's shadow) and
+// the receiver depth; per stereo frame the occlusion statistics.
 //
 // Flow per view: the boom's and receiver's projected boxes are found; each object is rasterised
 // into a virtual pinhole image that covers the lens' undistorted field (triangle ids and shaded
@@ -118,6 +119,7 @@ struct AugmentTimings {
   double masks_ms = 0;  // CPU pass, both views summed: masks, exact edge rays, depth and the
                         // composite of the augmented images (one pass over the pixels)
   double look_ms = 0;   // the camera look, both views summed (0 with the plain look)
+  double shadow_ms = 0; // the boom's shadow on the receiver (mask bit, the camera look's darkening), summed
   double stats_ms = 0;  // counts and stereo classes
   double total_ms = 0;  // wall time of the whole augment() call (the stages above overlap)
 };

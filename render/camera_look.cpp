@@ -56,6 +56,7 @@ SceneLight SceneLight::sun(const Eigen::Vector3d& towards_sun_body, bool sun_abo
   l.sky = Eigen::Vector3d::Constant(0.2);
   l.ground = Eigen::Vector3d::Constant(0.2);
   l.source = source;
+  l.sun_up = sun_above_horizon;
   return l;
 }
 
@@ -358,6 +359,85 @@ void apply_camera_look(ConstImageView raw, ConstImageView alpha, ImageView aug, 
           const float carry = linear ? 1 - ab : (1 - ab) * lookup(buf.carry, R) / lookup(buf.carry, out);
           const float a = na[x & 1][c], b = nb[x & 1][c];
           const float need = std::max(a * out + b, 0.f) - carry * carry * std::max(a * R + b, 0.f);
+          if (need > 0) {
+            const auto bits = static_cast<std::uint32_t>(c == 0 ? h >> 32 : c == 1 ? h : splitmix64(h) >> 32);
+            out += std::sqrt(need) * gaussian_from_bits(gt, bits);
+          }
+        }
+        pr[x * L.bpp + c] = static_cast<std::uint8_t>(std::clamp(out + 0.5f, 0.f, 255.f));
+      }
+    }
+  }
+}
+
+void apply_shadow_look(ImageView aug, const PixelBox& box, const std::vector<ShadowPixel>& shadow,
+                       const CameraLookParams& params, std::uint64_t frame_key, int camera, LookBuffers& buf) {
+  if (box.empty() || shadow.empty()) return;
+  const PixelFormat fmt = aug.format;
+  const Layout L = layout_of(fmt);
+  const int bw = box.width(), bh = box.height();
+  const bool linear = params.gamma == 1.0;
+  if (!linear) build_tone_tables(params.gamma, buf);
+  auto dec = [&](float e) { return linear ? e : lookup(buf.decode, e); };
+  auto enc = [&](float l) { return linear ? l : lookup(buf.encode, l); };
+
+  // 1. The shares as a field over the box, each row over the columns its shadow spans.
+  const std::size_t row_floats = static_cast<std::size_t>(bw) * 3;
+  buf.shade.resize(row_floats * bh);
+  buf.shade_spans.assign(2 * static_cast<std::size_t>(bh), 0);
+  for (int y = 0; y < bh; ++y) buf.shade_spans[2 * y] = bw;
+  for (const ShadowPixel& p : shadow) {
+    const int x = p.u - box.x0, y = p.v - box.y0;
+    if (x < 0 || y < 0 || x >= bw || y >= bh) continue;
+    int& lo = buf.shade_spans[2 * y];
+    int& hi = buf.shade_spans[2 * y + 1];
+    // Zero the columns a row's span gains, then place the share.
+    float* row = &buf.shade[y * row_floats];
+    if (lo >= hi) {
+      std::fill(row + 3 * x, row + 3 * x + 3, 0.f), lo = x, hi = x + 1;
+    } else if (x < lo) {
+      std::fill(row + 3 * x, row + 3 * lo, 0.f), lo = x;
+    } else if (x >= hi) {
+      std::fill(row + 3 * hi, row + 3 * (x + 1), 0.f), hi = x + 1;
+    }
+    for (int c = 0; c < 3; ++c) row[3 * x + c] = p.share[c];
+  }
+  for (int y = 0; y < bh; ++y)
+    if (buf.shade_spans[2 * y] > buf.shade_spans[2 * y + 1]) buf.shade_spans[2 * y] = buf.shade_spans[2 * y + 1] = 0;
+
+  // 2. Optics: at full resolution for every format (the light is colour-blind to the mosaic).
+  if (params.psf_sigma_px > 0)
+    blur(buf.shade.data(), buf.tmp, buf.shade_spans.data(), bw, bh, 3, 1,
+         gaussian_kernel(std::min(params.psf_sigma_px, kMaxPsfSigmaPx), 1));
+
+  // 3. Each pixel's linear value scaled, back through the tone curve; 4. the noise topped up, as in
+  //    apply_camera_look() but from its own stream (a pixel both looks touch gets two draws).
+  const float* gt = normal_table().data();
+  const std::uint64_t view_key = splitmix64(
+      params.seed ^ splitmix64(frame_key ^ (0x51ed270b27e4a5c3ULL * (camera + 1))) ^ 0x2545f4914f6cdd1dULL);
+  const bool noisy = !params.noise.empty();
+  const int nc = L.nc;
+  for (int y = 0; y < bh; ++y) {
+    const int v = box.y0 + y;
+    std::uint8_t* pr = aug.row(y);
+    const float* sr = &buf.shade[y * row_floats];
+    for (int x = buf.shade_spans[2 * y]; x < buf.shade_spans[2 * y + 1]; ++x) {
+      const int u = box.x0 + x;
+      const std::uint64_t h =
+          noisy ? splitmix64(view_key ^ (static_cast<std::uint64_t>(v) << 32 | static_cast<std::uint32_t>(u))) : 0;
+      for (int c = 0; c < nc; ++c) {
+        // The light's channel of this sample: its own (RGB), its site's (Bayer), green (Mono).
+        const int lc = nc == 3 ? c : is_bayer(fmt) ? bayer_channel(fmt, u, v) : 1;
+        const float share = std::clamp(sr[3 * x + lc], 0.f, 1.f);
+        if (share < 1.f / 1024.f) continue;  // the blur's far tail
+        const float g = 1 - share, A = pr[x * L.bpp + c];
+        float out = enc(g * dec(A));
+        if (noisy) {
+          const int ch = noise_channel(fmt, u, v, c);
+          const float a = static_cast<float>(params.noise.variance(ch, 1.0) - params.noise.variance(ch, 0.0)),
+                      b = static_cast<float>(params.noise.variance(ch, 0.0));
+          const float carry = linear ? g : g * lookup(buf.carry, A) / lookup(buf.carry, out);
+          const float need = std::max(a * out + b, 0.f) - carry * carry * std::max(a * A + b, 0.f);
           if (need > 0) {
             const auto bits = static_cast<std::uint32_t>(c == 0 ? h >> 32 : c == 1 ? h : splitmix64(h) >> 32);
             out += std::sqrt(need) * gaussian_from_bits(gt, bits);

@@ -60,6 +60,9 @@ struct SceneLight {
   Eigen::Vector3d sky = Eigen::Vector3d::Constant(0.35);     // diffuse light from the upper hemisphere
   Eigen::Vector3d ground = Eigen::Vector3d::Constant(0.35);  // ... from the lower hemisphere
   LightSource source = LightSource::kFixed;
+  // The sun is known and above the horizon: the boom casts a shadow (kMaskShadow) along
+  // towards_light_body. Geometry, not light: the same in either look (the fixed light has none).
+  bool sun_up = false;
 
   // The plain look's light (the values above: an even ambient of 0.35).
   static SceneLight fixed();
@@ -107,6 +110,8 @@ struct LookBuffers {
   std::vector<int> spans;                    // per box row: the columns the boom's layer covers
   std::vector<float> decode, encode, carry;  // tone-curve tables for the gamma they were built for
   double table_gamma = 0;
+  std::vector<float> shade;      // apply_shadow_look(): the shadow's share of the light, R G B per pixel
+  std::vector<int> shade_spans;  // ... and its columns per box row
 };
 
 // Re-composites the boom inside `box` (image coordinates, lying in the image) with the camera
@@ -115,6 +120,21 @@ struct LookBuffers {
 // pixels of `box` (a view whose (0, 0) is the box's top-left pixel) and receives the result.
 // `frame_key` identifies the frame (its timestamp) for the noise.
 void apply_camera_look(ConstImageView raw, ConstImageView alpha, ImageView aug, const PixelBox& box,
+                       const CameraLookParams& params, std::uint64_t frame_key, int camera, LookBuffers& buf);
+
+// A receiver pixel in the boom's shadow (image coordinates) and the share of its light, R G B,
+// that the shadow takes away: the direct light's, direct max(n.s, 0) / (ambient + direct max(n.s, 0)).
+struct ShadowPixel {
+  int u, v;
+  float share[3];
+};
+
+// Darkens the receiver in the boom's shadow, after apply_camera_look(): the shares as a field over
+// `box` (image coordinates, lying in the image, holding every shadow pixel and the PSF's margin
+// round them), blurred by the PSF (a shadow's edge passes through the lens like any other edge),
+// each pixel's linear value scaled by 1 - share, the sensor's noise topped up to the NLF's level
+// at the darker value. `aug` holds the pixels of `box` ((0, 0) its top-left) and is changed in place.
+void apply_shadow_look(ImageView aug, const PixelBox& box, const std::vector<ShadowPixel>& shadow,
                        const CameraLookParams& params, std::uint64_t frame_key, int camera, LookBuffers& buf);
 
 // A standard normal deviate for counter `key` (a splitmix64 hash through the inverse normal

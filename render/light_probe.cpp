@@ -115,7 +115,8 @@ void LightProbe::add_view(const Image& raw, const Image& mask, const DepthImage&
       const double b1 = (d.x() * e2.y() - d.y() * e2.x()) / det, b2 = (e1.x() * d.y() - e1.y() * d.x()) / det;
       if (b1 < kMargin || b2 < kMargin || 1 - b1 - b2 < kMargin) return false;
       const std::uint8_t m = mask.row(y)[x];
-      if (!(m & kMaskReceiver) || (m & kMaskBoom)) return false;
+      // Not the boom, nor the receiver in its shadow (lit by the sky alone there).
+      if (!(m & kMaskReceiver) || (m & (kMaskBoom | kMaskShadow))) return false;
       const double z = pc[0].z() + b1 * (pc[1].z() - pc[0].z()) + b2 * (pc[2].z() - pc[0].z());
       return std::abs(depth.at(x, y) - z) < std::max(0.05, 0.01 * z);
     };

@@ -87,7 +87,7 @@ struct Column {
   Column {                                                                              \
 #f, false, [](const OcclusionStats& s) { return s.f; }, nullptr, &OcclusionStats::f \
   }
-const Column kColumns[] = {
+constexpr Column kColumns[] = {
     AUGRIG_INT_COL(t_ns),
     AUGRIG_INT_COL(receiver_px_left),
     AUGRIG_INT_COL(receiver_px_right),
@@ -107,7 +107,16 @@ const Column kColumns[] = {
     AUGRIG_PCT_COL(receiver_pct_right),
     AUGRIG_PCT_COL(boom_pct_left),
     AUGRIG_PCT_COL(boom_pct_right),
+    // Appended later: files written before have exactly the columns above (kColumnsBeforeShadow).
+    AUGRIG_INT_COL(shadow_px_left),
+    AUGRIG_INT_COL(shadow_px_right),
+    AUGRIG_PCT_COL(shadow_pct_left),
+    AUGRIG_PCT_COL(shadow_pct_right),
 };
+// The stats.csv columns before the shadow columns were appended: read_stats_csv() still reads
+// such files (their shadow fields 0).
+constexpr std::size_t kColumnsBeforeShadow = 19;
+static_assert(std::string_view(kColumns[kColumnsBeforeShadow - 1].name) == "boom_pct_right");
 #undef AUGRIG_INT_COL
 #undef AUGRIG_PCT_COL
 
@@ -120,11 +129,12 @@ std::string fmt_int(std::int64_t v) {
   return std::to_string(v);
 }
 
-// Counts that need only the masks, in one pass over both. Bit tests, so other bits are ignored.
-// SWAR: 8 pixels per 64-bit word, one byte lane per pixel; the lanes are summed every 255 words
-// before they could overflow (the build targets baseline x86-64, so no reliance on popcnt/AVX).
+// Counts that need only the masks, in one pass over both. Bit tests (bits 0, 1 and 2), so other
+// bits are ignored. SWAR: one byte lane per pixel, 16 pixels a step (two 64-bit words in an SSE2
+// register), then 8, then a scalar tail; the lanes are summed every 255 steps before they could
+// overflow (the build targets baseline x86-64, so no reliance on popcnt/AVX).
 struct MaskCounts {
-  std::int64_t rl = 0, rr = 0, bl = 0, br = 0, ov = 0, ol = 0, orr = 0;
+  std::int64_t rl = 0, rr = 0, bl = 0, br = 0, ov = 0, ol = 0, orr = 0, sl = 0, sr = 0;
 };
 
 constexpr std::uint64_t kLanes = 0x0101010101010101ull;
@@ -137,6 +147,34 @@ std::int64_t lane_sum(std::uint64_t v) {
 
 void add(MaskCounts& a, const MaskCounts& b) {
   a.rl += b.rl, a.rr += b.rr, a.bl += b.bl, a.br += b.br, a.ov += b.ov, a.ol += b.ol, a.orr += b.orr;
+  a.sl += b.sl, a.sr += b.sr;
+}
+
+// The SWAR lanes of one word type: std::uint64_t (8 pixels), or two of them in an SSE2 register
+// (16 pixels, GCC/Clang vector extensions; baseline x86-64 has SSE2).
+using U64x2 = std::uint64_t __attribute__((vector_size(16)));
+std::int64_t lane_sum(U64x2 v) {
+  return lane_sum(v[0]) + lane_sum(v[1]);
+}
+
+// Up to `words` words of W from a[x], b[x] on (each lane counts at most 255 of them), x moved past
+// them, their counts added to c.
+template <typename W>
+void count_words(const std::uint8_t* a, const std::uint8_t* b, int& x, int words, MaskCounts& c) {
+  W rl{}, rr{}, bl{}, br{}, ov{}, ol{}, orr{}, sl{}, sr{};
+  for (int k = 0; k < words; ++k, x += static_cast<int>(sizeof(W))) {
+    W va, vb;
+    std::memcpy(&va, a + x, sizeof(W));
+    std::memcpy(&vb, b + x, sizeof(W));
+    const W ba = va & kLanes, bb = vb & kLanes;
+    const W ra = (va >> 1) & kLanes, rb = (vb >> 1) & kLanes;
+    bl += ba, br += bb, rl += ra, rr += rb;
+    ov += ba & bb, ol += ba & ra, orr += bb & rb;
+    sl += (va >> 2) & kLanes, sr += (vb >> 2) & kLanes;
+  }
+  c.rl += lane_sum(rl), c.rr += lane_sum(rr), c.bl += lane_sum(bl), c.br += lane_sum(br);
+  c.ov += lane_sum(ov), c.ol += lane_sum(ol), c.orr += lane_sum(orr);
+  c.sl += lane_sum(sl), c.sr += lane_sum(sr);
 }
 
 // Rows y0, y0 + step, ... below y1 and columns [x0, w) of the masks (columns from x0 rounded down
@@ -147,24 +185,13 @@ MaskCounts count_masks(const Image& ml, const Image& mr, int x0, int y0, int w, 
     const std::uint8_t* a = ml.row(y);
     const std::uint8_t* b = mr.row(y);
     int x = x0 & ~7;
-    while (x + 8 <= w) {
-      std::uint64_t rl = 0, rr = 0, bl = 0, br = 0, ov = 0, ol = 0, orr = 0;
-      for (int k = 0; k < 255 && x + 8 <= w; ++k, x += 8) {
-        std::uint64_t va, vb;
-        std::memcpy(&va, a + x, 8);
-        std::memcpy(&vb, b + x, 8);
-        const std::uint64_t ba = va & kLanes, bb = vb & kLanes;
-        const std::uint64_t ra = (va >> 1) & kLanes, rb = (vb >> 1) & kLanes;
-        bl += ba, br += bb, rl += ra, rr += rb;
-        ov += ba & bb, ol += ba & ra, orr += bb & rb;
-      }
-      c.rl += lane_sum(rl), c.rr += lane_sum(rr), c.bl += lane_sum(bl), c.br += lane_sum(br);
-      c.ov += lane_sum(ov), c.ol += lane_sum(ol), c.orr += lane_sum(orr);
-    }
+    while (x + 16 <= w) count_words<U64x2>(a, b, x, std::min(255, (w - x) / 16), c);
+    if (x + 8 <= w) count_words<std::uint64_t>(a, b, x, 1, c);
     for (; x < w; ++x) {
       const unsigned va = a[x], vb = b[x];
       c.bl += va & 1u, c.br += vb & 1u, c.rl += (va >> 1) & 1u, c.rr += (vb >> 1) & 1u;
       c.ov += va & vb & 1u, c.ol += va & (va >> 1) & 1u, c.orr += vb & (vb >> 1) & 1u;
+      c.sl += (va >> 2) & 1u, c.sr += (vb >> 2) & 1u;
     }
   }
   return c;
@@ -215,6 +242,8 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
     s.boom_overlap_px = c.ov;
     s.occluded_px_left = c.ol;
     s.occluded_px_right = c.orr;
+    s.shadow_px_left = c.sl;
+    s.shadow_px_right = c.sr;
     const std::int64_t area = static_cast<std::int64_t>(n);
     s.boom_overlap_pct_union = pct(s.boom_overlap_px, s.boom_px_left + s.boom_px_right - s.boom_overlap_px);
     s.occluded_pct_left = pct(s.occluded_px_left, s.receiver_px_left);
@@ -223,6 +252,8 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
     s.receiver_pct_right = pct(s.receiver_px_right, area);
     s.boom_pct_left = pct(s.boom_px_left, area);
     s.boom_pct_right = pct(s.boom_px_right, area);
+    s.shadow_pct_left = pct(s.shadow_px_left, s.receiver_px_left);
+    s.shadow_pct_right = pct(s.shadow_px_right, s.receiver_px_right);
   };
   if (!options.compute_classes) {
     // The masks alone: one pass over the content box on this thread.
@@ -444,21 +475,25 @@ Expected<std::vector<OcclusionStats>> read_stats_csv(const std::string& path) {
   const std::string where = "render::read_stats_csv(): " + path;
   std::ifstream in(path, std::ios::binary);
   if (!in) return make_error(where, ": cannot read the file");
-  const std::size_t n = std::size(kColumns);
   std::string line;
   if (!std::getline(in, line))
     return make_error(where, ": empty, expected the header line (t_ns,receiver_px_left,...)");
+  // The whole column list, or exactly the columns before the shadow columns (an older file): a
+  // header as long as the older one is checked against that, any other against the whole list.
+  const std::vector<std::string_view> header = split_csv_line(line);
+  const std::size_t n = header.size() == kColumnsBeforeShadow ? kColumnsBeforeShadow : std::size(kColumns);
   std::vector<std::string_view> names;
-  for (const Column& c : kColumns) names.emplace_back(c.name);
-  if (auto bad =
-          check_csv_header(split_csv_line(line), names, where, "a stats.csv header (docs/STATISTICS.md)"))
+  for (std::size_t i = 0; i < n; ++i) names.emplace_back(kColumns[i].name);
+  if (auto bad = check_csv_header(header, names, where,
+                                  "a stats.csv header (docs/STATISTICS.md: all its columns, or the first 19 "
+                                  "of a file written before the shadow columns)"))
     return *bad;
   std::vector<OcclusionStats> rows;
   for (std::size_t line_no = 2; std::getline(in, line); ++line_no) {
     const std::vector<std::string_view> cells = split_csv_line(line);
     if (is_blank_csv_line(cells)) continue;  // the file's end
     if (auto bad = check_csv_field_count(cells, n, where, line_no)) return *bad;
-    OcclusionStats s;  // width and height are not in the file: 0
+    OcclusionStats s;  // width and height are not in the file: 0; nor in an older file the shadow's
     for (std::size_t i = 0; i < n; ++i) {
       const Column& c = kColumns[i];
       const char* b = cells[i].data();
@@ -503,6 +538,10 @@ std::string format_table1(const OcclusionStats& s, const std::string& title) {
   row("Boom occlusion left", s.occluded_px_left, s.occluded_pct_left,
       "receiver pixels left (" + std::to_string(s.receiver_px_left) + " px)");
   row("Boom occlusion right", s.occluded_px_right, s.occluded_pct_right,
+      "receiver pixels right (" + std::to_string(s.receiver_px_right) + " px)");
+  row("Boom shadow on receiver left", s.shadow_px_left, s.shadow_pct_left,
+      "receiver pixels left (" + std::to_string(s.receiver_px_left) + " px)");
+  row("Boom shadow on receiver right", s.shadow_px_right, s.shadow_pct_right,
       "receiver pixels right (" + std::to_string(s.receiver_px_right) + " px)");
   const std::string recv_left = "receiver pixels left (" + std::to_string(s.receiver_px_left) + " px)";
   row("Stereo: visible to both", s.stereo_both_px, pct(s.stereo_both_px, s.receiver_px_left), recv_left);

@@ -47,6 +47,10 @@ struct OcclusionStats {
   std::int64_t neither_px = 0;      // visible to neither camera
   double receiver_pct_left = 0, receiver_pct_right = 0;  // of W*H
   double boom_pct_left = 0, boom_pct_right = 0;          // of W*H
+  // The boom's shadow on the receiver: mask bit 2 (kMaskShadow; the augmenter sets it only with
+  // bit 1 and never with bit 0, and only where the sun is known and above the horizon).
+  std::int64_t shadow_px_left = 0, shadow_px_right = 0;  // mask bit 2
+  double shadow_pct_left = 0, shadow_pct_right = 0;      // of that camera's receiver pixels
   friend bool operator==(const OcclusionStats&, const OcclusionStats&) = default;
 };
 
@@ -81,7 +85,7 @@ std::shared_ptr<const std::vector<Eigen::Vector2f>> shared_undistorted_xy_map(co
 // Per-pixel class image produced alongside the counts (left camera raw pixels).
 enum class StereoClass : std::uint8_t { kNone = 0, kBoth = 1, kLeftOnly = 2, kRightOnly = 3, kNeither = 4 };
 
-// Counts everything from the masks (Mono8, kMaskBoom / kMaskReceiver bits) and, for the stereo
+// Counts everything from the masks (Mono8, kMaskBoom / kMaskReceiver / kMaskShadow bits) and, for the stereo
 // classes, the receiver depth images and the rig geometry. `classes_out` (optional) receives one
 // StereoClass per left pixel.
 OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left, const Image& mask_right,
@@ -95,8 +99,9 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
 void write_stats_csv_header(std::ostream& out);
 void write_stats_csv_row(std::ostream& out, const OcclusionStats& s);
 // Reads what write_stats_csv_header() and write_stats_csv_row() wrote, rows in file order (width
-// and height are not in the file: 0). The header must be exactly the column list; errors name
-// file:line and the column, and what was expected.
+// and height are not in the file: 0). The header must be exactly the column list, or exactly the
+// 19 columns written before the shadow columns were appended (their shadow fields read 0); errors
+// name file:line and the column, and what was expected.
 Expected<std::vector<OcclusionStats>> read_stats_csv(const std::string& path);
 // Table-1-style summary of one frame (or of the mean of several) for stdout.
 std::string format_table1(const OcclusionStats& s, const std::string& title);

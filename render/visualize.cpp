@@ -18,6 +18,7 @@ struct Rgb {
 };
 constexpr Rgb kBlack{0, 0, 0};
 constexpr Rgb kRed{255, 0, 0};
+constexpr Rgb kDarkRed{128, 0, 0};  // the receiver in the boom's shadow: red at half intensity
 constexpr Rgb kGreen{0, 255, 0};
 constexpr Rgb kBlue{0, 0, 255};
 constexpr Rgb kCyan{0, 255, 255};
@@ -82,12 +83,18 @@ Image visualize_boom_overlap(const Image& mask_left, const Image& mask_right) {
 Image visualize_receiver_occlusion(const Image& mask, bool left_camera) {
   require_mono8(mask, "visualize_receiver_occlusion");
   Image out(mask.width(), mask.height(), PixelFormat::kRGB8);
-  // Indexed by (mask & 3): nothing, boom only, receiver only, boom over receiver.
-  const Rgb lut[4] = {kBlack, left_camera ? kCyan : kBlue, kRed, left_camera ? kWhite : kMagenta};
+  // Indexed by (mask & 7): nothing, boom only, receiver only, boom over receiver; then the same
+  // with the shadow bit, which only changes the receiver alone (in the boom's shadow: darker red).
+  // The augmenter never sets the shadow bit without the receiver's or with the boom's; there it
+  // is ignored.
+  const Rgb boom = left_camera ? kCyan : kBlue, over = left_camera ? kWhite : kMagenta;
+  const Rgb lut[8] = {kBlack, boom, kRed, over, kBlack, boom, kDarkRed, over};
+  static_assert((kMaskBoom | kMaskReceiver | kMaskShadow) == 7);
   for (int y = 0; y < out.height(); ++y) {
     const std::uint8_t* m = mask.row(y);
     std::uint8_t* o = out.row(y);
-    for (int x = 0; x < out.width(); ++x) put(o + 3 * x, lut[m[x] & (kMaskBoom | kMaskReceiver)]);
+    for (int x = 0; x < out.width(); ++x)
+      put(o + 3 * x, lut[m[x] & (kMaskBoom | kMaskReceiver | kMaskShadow)]);
   }
   return out;
 }

@@ -1,6 +1,7 @@
 // Colour visualisations of masks in the seed paper's colours (its Fig. 7 and 8):
 //   boom left cyan, boom right blue, overlap of both green (combined boom image);
-//   receiver red, boom over receiver white (left) / magenta (right);
+//   receiver red (dark red (128,0,0) where in the boom's shadow, mask bit kMaskShadow), boom over
+//   receiver white (left) / magenta (right);
 //   stereo classes (its Fig. 2): visible to both red, neither green, left only cyan, right only blue.
 // Outputs are RGB8 images the size of the masks.
 #pragma once

@@ -35,7 +35,8 @@ const char* kCsvHeader =
     "t_ns,receiver_px_left,receiver_px_right,boom_px_left,boom_px_right,boom_overlap_px,boom_overlap_pct_"
     "union,"
     "occluded_px_left,occluded_px_right,occluded_pct_left,occluded_pct_right,stereo_both_px,left_only_px,"
-    "right_only_px,neither_px,receiver_pct_left,receiver_pct_right,boom_pct_left,boom_pct_right";
+    "right_only_px,neither_px,receiver_pct_left,receiver_pct_right,boom_pct_left,boom_pct_right,"
+    "shadow_px_left,shadow_px_right,shadow_pct_left,shadow_pct_right";
 
 int augrig(const std::string& args, std::string* output = nullptr) {
   return run_command(augrig_binary() + " " + args, output);
@@ -225,7 +226,7 @@ TEST_F(AugmentInputs, FolderCountMismatchNamesBothFolders) {
 
 struct MaskCounts {
   long long receiver_l = 0, receiver_r = 0, boom_l = 0, boom_r = 0, overlap = 0, occluded_l = 0,
-            occluded_r = 0;
+            occluded_r = 0, shadow_l = 0, shadow_r = 0;
 };
 
 // Checks one camera's outputs; returns its mask.
@@ -241,14 +242,14 @@ cv::Mat check_view(const fs::path& out, const std::string& side, const cv::Mat& 
   const int reach = psf_margin_px(CameraLookParams{});
   for (int y = 0; y < mask.rows; ++y) {
     for (int x = 0; x < mask.cols; ++x) {
-      EXPECT_LE(mask.at<std::uint8_t>(y, x), 3) << side << " mask at " << x << "," << y;
-      // Far from the boom (no boom bit within the default camera look's PSF reach) the raw pixel
-      // must come through untouched.
+      EXPECT_LE(mask.at<std::uint8_t>(y, x), 7) << side << " mask at " << x << "," << y;
+      // Far from the boom and its shadow (no boom or shadow bit within the default camera look's
+      // PSF reach) the raw pixel must come through untouched.
       bool near_boom = false;
       for (int dy = -reach; dy <= reach; ++dy)
         for (int dx = -reach; dx <= reach; ++dx) {
           const int u = x + dx, v = y + dy;
-          if (u >= 0 && v >= 0 && u < mask.cols && v < mask.rows && (mask.at<std::uint8_t>(v, u) & 1))
+          if (u >= 0 && v >= 0 && u < mask.cols && v < mask.rows && (mask.at<std::uint8_t>(v, u) & 5))
             near_boom = true;
         }
       if (!near_boom && aug.at<cv::Vec3b>(y, x) != input.at<cv::Vec3b>(y, x)) ++changed_outside;
@@ -290,13 +291,14 @@ TEST(Augment, SinglePairAtContactWritesConsistentOutputs) {
       const int l = ml.at<std::uint8_t>(y, x), r = mr.at<std::uint8_t>(y, x);
       c.receiver_l += (l & 2) != 0, c.receiver_r += (r & 2) != 0;
       c.boom_l += l & 1, c.boom_r += r & 1, c.overlap += (l & r & 1);
-      c.occluded_l += l == 3, c.occluded_r += r == 3;
+      c.occluded_l += (l & 3) == 3, c.occluded_r += (r & 3) == 3;
+      c.shadow_l += (l & 4) != 0, c.shadow_r += (r & 4) != 0;
     }
   const auto lines = read_lines(out / "stats.csv");
   ASSERT_EQ(lines.size(), 2u);
   EXPECT_EQ(lines[0], kCsvHeader);
   const auto v = csv_row(lines[1]);
-  ASSERT_EQ(v.size(), 19u);
+  ASSERT_EQ(v.size(), 23u);
   EXPECT_EQ(v[0], 1000000000);  // t_ns from the scene file
   EXPECT_EQ(v[1], c.receiver_l);
   EXPECT_EQ(v[2], c.receiver_r);
@@ -306,6 +308,8 @@ TEST(Augment, SinglePairAtContactWritesConsistentOutputs) {
   EXPECT_EQ(v[7], c.occluded_l);
   EXPECT_EQ(v[8], c.occluded_r);
   EXPECT_EQ(v[11] + v[12] + v[13] + v[14], c.receiver_l);  // stereo classes partition the left receiver
+  EXPECT_EQ(v[19], c.shadow_l);
+  EXPECT_EQ(v[20], c.shadow_r);
   // At contact the boom and receiver are both in view and the boom hides part of the receiver.
   EXPECT_GT(c.boom_l, 1000);
   EXPECT_GT(c.receiver_l, 1000);

@@ -671,6 +671,8 @@ Image busy_mask(int w, int h, int seed, int thin_x) {
       std::uint8_t v = ((x + 2 * y + seed) % 11 < 3) ? kMaskBoom : 0;
       if ((x / 5 + y / 4 + seed) % 3 == 0) v |= kMaskReceiver;
       if (x == thin_x) v |= kMaskBoom;
+      // The boom's shadow on the receiver where the boom does not hide it (mask value 6).
+      if (v == kMaskReceiver && (x / 3 + y / 2 + seed) % 2 == 0) v |= kMaskShadow;
       if (y < 3 && x != thin_x) v = 0;  // the top rows: the thin boom alone
       m.row(y)[x] = v;
     }

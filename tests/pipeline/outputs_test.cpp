@@ -104,7 +104,8 @@ const char* kReadmeColumns =
     "t_ns,receiver_px_left,receiver_px_right,boom_px_left,boom_px_right,boom_overlap_px,boom_overlap_pct_"
     "union,"
     "occluded_px_left,occluded_px_right,occluded_pct_left,occluded_pct_right,stereo_both_px,left_only_px,"
-    "right_only_px,neither_px,receiver_pct_left,receiver_pct_right,boom_pct_left,boom_pct_right";
+    "right_only_px,neither_px,receiver_pct_left,receiver_pct_right,boom_pct_left,boom_pct_right,"
+    "shadow_px_left,shadow_px_right,shadow_pct_left,shadow_pct_right";
 
 std::vector<std::string> lines_of(const fs::path& p) {
   std::ifstream in(p);
@@ -141,6 +142,8 @@ TEST(StatsCsvWriter, HeaderAndOneRowPerAddFlushedAsItGoes) {
   a.stereo_both_px = 57707, a.left_only_px = 5070, a.right_only_px = 4613, a.neither_px = 7692;
   a.receiver_pct_left = 6.1102, a.receiver_pct_right = 6.1099;
   a.boom_pct_left = 4.8721, a.boom_pct_right = 4.8776;
+  a.shadow_px_left = 4321, a.shadow_px_right = 4302;
+  a.shadow_pct_left = 5.755041, a.shadow_pct_right = 5.729508;
   ASSERT_TRUE((*w)->add(a));
   // Flushed per row: the row is in the file while the writer is open.
   std::vector<std::string> lines = lines_of(path);
@@ -169,6 +172,10 @@ TEST(StatsCsvWriter, HeaderAndOneRowPerAddFlushedAsItGoes) {
   EXPECT_NEAR(std::stod(col("boom_overlap_pct_union")), 9.312213, 0.00005);
   EXPECT_NEAR(std::stod(col("occluded_pct_left")), 16.388748, 0.00005);
   EXPECT_NEAR(std::stod(col("boom_pct_right")), 4.8776, 0.00005);
+  EXPECT_EQ(col("shadow_px_left"), "4321");
+  EXPECT_EQ(col("shadow_px_right"), "4302");
+  EXPECT_NEAR(std::stod(col("shadow_pct_left")), 5.755041, 0.00005);
+  EXPECT_NEAR(std::stod(col("shadow_pct_right")), 5.729508, 0.00005);
   EXPECT_EQ(split_csv(lines[2])[0], "5");
 }
 

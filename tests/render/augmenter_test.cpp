@@ -4,6 +4,8 @@
 // and render/soft_raster.hpp), and the two are compared with each other.
 #include "render/augmenter.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -845,7 +847,7 @@ TEST_P(RasterizerTest, CameraLookAddsTheCamerasNoiseAndLeavesMasksAlone) {
         EXPECT_GT(ratio, 0.9) << "camera " << c << " channel " << ch;
         EXPECT_LT(ratio, 1.1) << "camera " << c << " channel " << ch;
       }
-      // Beyond the PSF's reach of the boom's coverage, the raw pixels stay.
+      // Beyond the PSF's reach of the boom's coverage and its shadow, the raw pixels stay.
       const int m = psf_margin_px(lp), bpp = bytes_per_pixel(fmt);
       std::int64_t far_changed = 0;
       for (int y = 0; y < raw.height(); ++y)
@@ -855,7 +857,7 @@ TEST_P(RasterizerTest, CameraLookAddsTheCamerasNoiseAndLeavesMasksAlone) {
           for (int dy = -m; dy <= m && !near; ++dy)
             for (int dx = -m; dx <= m && !near; ++dx) {
               const int yy = std::clamp(y + dy, 0, raw.height() - 1), xx = std::clamp(x + dx, 0, raw.width() - 1);
-              near = vw.boom_alpha.row(yy)[xx] != 0;
+              near = vw.boom_alpha.row(yy)[xx] != 0 || (vw.mask.row(yy)[xx] & kMaskShadow);
             }
           far_changed += !near;
         }
@@ -899,6 +901,228 @@ TEST_P(RasterizerTest, CameraLookShadesTheBoomWithTheScenesLight) {
   const double night = mean_boom(SceneLight::sun(Eigen::Vector3d(0.2, 0.1, -1), false, LightSource::kConfigured));
   EXPECT_GT(lit, 2 * overhead);
   EXPECT_NEAR(overhead, night, 0.3 * night);
+}
+
+// The boom's triangles in a camera's frame, and whether the ray p + t s (t > 0) meets one: brute
+// force (Moeller-Trumbore, each triangle behind a bounding-sphere test), nothing shared with
+// render/boom_shadow.
+struct BoomTriangles {
+  std::vector<std::array<Eigen::Vector3d, 3>> tris;
+  std::vector<std::pair<Eigen::Vector3d, double>> spheres;
+  void add(const Model& model, const Pose& T_cam_obj) {
+    for (const Mesh& m : model.meshes)
+      for (std::size_t k = 0; k + 2 < m.indices.size(); k += 3) {
+        std::array<Eigen::Vector3d, 3> t;
+        for (int j = 0; j < 3; ++j) t[j] = T_cam_obj * m.positions_m[m.indices[k + j]].cast<double>();
+        const Eigen::Vector3d c = (t[0] + t[1] + t[2]) / 3;
+        spheres.emplace_back(c, std::max({(t[0] - c).norm(), (t[1] - c).norm(), (t[2] - c).norm()}) + 1e-6);
+        tris.push_back(t);
+      }
+  }
+  bool hit(const Eigen::Vector3d& p, const Eigen::Vector3d& s) const {
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+      const Eigen::Vector3d w = spheres[i].first - p;
+      const double along = w.dot(s);
+      if (along < -spheres[i].second || (w - along * s).squaredNorm() > spheres[i].second * spheres[i].second)
+        continue;
+      const auto& t = tris[i];
+      const Eigen::Vector3d e1 = t[1] - t[0], e2 = t[2] - t[0], h = s.cross(e2);
+      const double a = e1.dot(h);
+      if (std::abs(a) < 1e-15) continue;
+      const Eigen::Vector3d q = p - t[0];
+      const double u = q.dot(h) / a;
+      if (u < 0 || u > 1) continue;
+      const Eigen::Vector3d r = q.cross(e1);
+      const double v = s.dot(r) / a;
+      if (v < 0 || u + v > 1) continue;
+      if (e2.dot(r) / a > 1e-9) return true;
+    }
+    return false;
+  }
+};
+
+// A sun overhead and a little ahead: the boom's shadow falls on the receiver at contact.
+SceneLight overhead_sun() {
+  return SceneLight::sun(Eigen::Vector3d(0.25, -0.1, -1), true, LightSource::kConfigured);
+}
+
+// kMaskShadow against a ray cast towards the sun from the receiver's surface point (OpenCV's
+// pixel rays, the ray caster's depth, brute force over the boom); the same bits in either look
+// and in the statistics; none with the sun down.
+TEST_P(MaskOracleTest, ShadowBitAgreesWithARayCastTowardsTheSun) {
+  const auto [distorted, raster] = GetParam();
+  const Rig rig = distorted ? distorted_rig() : Rig::paper_default();
+  AugmentOptions opt;
+  opt.rasterizer = raster;
+  AugmentOptions look_opt = opt;
+  look_opt.look = Look::kCamera;
+  auto aug = Augmenter::create(rig, opt);
+  auto look = Augmenter::create(rig, look_opt);
+  ASSERT_TRUE(aug && look);
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  const BoomArticulation a{0.52, 0.03, 3.0};
+  SceneState scene = contact_scene(rig, (*aug)->boom_model(), receptacle, a);
+  scene.light = overhead_sun();
+  StereoFrame sf;
+  sf.left = test::gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+  sf.right = test::gradient_frame(rig.right().model, PixelFormat::kRGB8, CameraId::kRight);
+  StereoResult out, looked;
+  ASSERT_TRUE((*aug)->augment(sf, scene, out));
+  ASSERT_TRUE((*look)->augment(sf, scene, looked));
+  EXPECT_EQ(out.stats, looked.stats);
+  for (int c = 0; c < 2; ++c) {
+    const RigCamera& cam = rig.cameras[c];
+    const Image& ours = c == 0 ? out.left.mask : out.right.mask;
+    EXPECT_TRUE(pixels_equal(ours, c == 0 ? looked.left.mask : looked.right.mask));
+    const Pose T_cam_body = cam.T_body_cam.inverse();
+    const Pose T_body_boom = boom_pose(rig.boom.pivot_body_m, a);
+    test::RayCaster boom, receiver;
+    BoomTriangles occluder;
+    boom.add((*aug)->boom_model().fixed, T_cam_body * T_body_boom);
+    boom.add((*aug)->boom_model().telescope, T_cam_body * T_body_boom * telescope_pose(a));
+    occluder.add((*aug)->boom_model().fixed, T_cam_body * T_body_boom);
+    occluder.add((*aug)->boom_model().telescope, T_cam_body * T_body_boom * telescope_pose(a));
+    receiver.add((*aug)->receiver_model(), T_cam_body * scene.T_body_receiver);
+    const std::vector<Eigen::Vector2d> rays = test::opencv_pixel_rays(cam.model);
+    const Image oracle = test::ray_cast_mask(cam.model, rays, boom, receiver);
+    const Eigen::Vector3d sun = (T_cam_body.R() * scene.light.towards_light_body).normalized();
+    const int W = ours.width(), H = ours.height();
+    // The oracle's bit at a pixel: receiver alone there, and the sun's ray from its point blocked.
+    auto shadowed = [&](int x, int y) {
+      if (oracle.row(y)[x] != kMaskReceiver) return false;
+      const Eigen::Vector2d& r = rays[static_cast<std::size_t>(y) * W + x];
+      return occluder.hit(receiver.hit_z(r.x(), r.y()) * Eigen::Vector3d(r.x(), r.y(), 1), sun);
+    };
+    std::int64_t compared = 0, in_shadow = 0, disagree = 0, far_from_edge = 0, bits = 0;
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        const std::uint8_t m = ours.row(y)[x];
+        bits += (m & kMaskShadow) != 0;
+        if ((m & kMaskShadow) && (m & kMaskBoom)) {
+          ADD_FAILURE() << "shadow under the boom at " << x << ", " << y;
+        }
+        if (x % 2 || y % 2 || (m & 3) != oracle.row(y)[x] || oracle.row(y)[x] != kMaskReceiver) continue;
+        const bool expected = shadowed(x, y);
+        ++compared, in_shadow += expected;
+        if (expected == ((m & kMaskShadow) != 0)) continue;
+        ++disagree;
+        bool edge = false;  // the oracle changes within one pixel
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx)
+            edge |= shadowed(std::clamp(x + dx, 0, W - 1), std::clamp(y + dy, 0, H - 1)) != expected;
+        far_from_edge += !edge;
+      }
+    const OcclusionStats& st = out.stats;
+    EXPECT_EQ(bits, c == 0 ? st.shadow_px_left : st.shadow_px_right);
+    std::printf("camera %d: %lld receiver px compared, %lld in shadow, %lld disagree (%lld far from an edge)\n", c,
+                static_cast<long long>(compared), static_cast<long long>(in_shadow), static_cast<long long>(disagree),
+                static_cast<long long>(far_from_edge));
+    EXPECT_GT(in_shadow, 300) << "the scene must show the boom's shadow on the receiver";
+    EXPECT_LE(disagree, std::max<std::int64_t>(in_shadow / 200, 3));
+    EXPECT_EQ(far_from_edge, 0);
+  }
+  // The sun below the horizon, or unknown: no shadow.
+  for (const SceneLight& l : {SceneLight::sun(scene.light.towards_light_body, false, LightSource::kEphemeris),
+                              SceneLight::fixed()}) {
+    scene.light = l;
+    ASSERT_TRUE((*aug)->augment(sf, scene, out));
+    EXPECT_EQ(out.stats.shadow_px_left + out.stats.shadow_px_right, 0);
+  }
+}
+
+// The camera look darkens the receiver in the boom's shadow by the direct light's share there (a
+// flat, noise-free frame: the ratio is read off directly), tops its noise up to the camera's
+// level at the darker value (a noisy frame), and the changed-box output holds it all.
+TEST_P(RasterizerTest, CameraLookDarkensTheReceiverInTheBoomsShadow) {
+  const Rig rig = Rig::paper_default();
+  AugmentOptions opt = options();
+  opt.look = Look::kCamera;
+  CameraLookParams lp;
+  lp.psf_sigma_px = 0;
+  opt.camera_looks = {lp, lp};
+  auto look = test::whole_and_box_augmenters(rig, opt);
+  ASSERT_TRUE(look);
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  SceneState scene = contact_scene(rig, look->whole->boom_model(), receptacle, {0.52, 0.03, 3.0});
+  scene.light = overhead_sun();
+  // A flat grey frame: in the shadow the value is 128 (1 - share) with share = direct (n.s) / all.
+  StereoFrame sf;
+  for (int c = 0; c < 2; ++c) {
+    Frame& f = c == 0 ? sf.left : sf.right;
+    f = test::gradient_frame(rig.cameras[c].model, PixelFormat::kMono8, c == 0 ? CameraId::kLeft : CameraId::kRight);
+    for (int y = 0; y < f.image.height(); ++y) std::memset(f.image.row(y), 128, f.image.width());
+  }
+  StereoResult w, b;
+  ASSERT_TRUE(look->whole->augment(sf, scene, w));
+  ASSERT_TRUE(look->box->augment(sf, scene, b));
+  std::int64_t shadow = 0, darker = 0;
+  double lo = 255, hi = 0;
+  for (int c = 0; c < 2; ++c) {
+    const ViewResult &vw = c == 0 ? w.left : w.right, &vb = c == 0 ? b.left : b.right;
+    const Image& raw = c == 0 ? sf.left.image : sf.right.image;
+    EXPECT_TRUE(pixels_equal(whole_augmented(raw, vb), vw.augmented));
+    for (int y = 0; y < raw.height(); ++y)
+      for (int x = 0; x < raw.width(); ++x) {
+        const std::uint8_t m = vw.mask.row(y)[x], v = vw.augmented.row(y)[x];
+        if (!(m & kMaskShadow)) {
+          if (!vw.boom_alpha.row(y)[x]) {
+            EXPECT_EQ(v, 128) << x << ", " << y;
+          }
+          continue;
+        }
+        if (vw.boom_alpha.row(y)[x]) continue;  // the boom's anti-aliased edge over it
+        ++shadow, darker += v < 128;
+        lo = std::min(lo, static_cast<double>(v)), hi = std::max(hi, static_cast<double>(v));
+      }
+  }
+  // SceneLight::sun()'s clear sky: direct 0.8, sky and ground 0.2: a surface facing the sun keeps
+  // 0.2 / 1.0 of its light; one at a grazing angle nearly all.
+  EXPECT_GT(shadow, 600);
+  EXPECT_GT(darker, shadow * 9 / 10);
+  EXPECT_GE(lo, 128 * 0.2 - 1);
+  EXPECT_LT(lo, 128 * 0.5);
+  std::printf("shadow %lld px, %lld darker, values %.0f..%.0f\n", static_cast<long long>(shadow),
+              static_cast<long long>(darker), lo, hi);
+
+  // Noisy frames: the shadow's noise is the camera's at its darker level (its interior, 5x5 all
+  // shadow, no boom), against the noise-free look's values there.
+  NoiseLevelFunction f;
+  f.channels = 1;
+  f.a = {0.2, 0, 0};
+  f.b = {2.0, 0, 0};
+  auto level = Augmenter::create(rig, opt);
+  ASSERT_TRUE(level);
+  lp.noise = f;
+  ASSERT_TRUE(look->whole->set_camera_look(0, lp) && look->whole->set_camera_look(1, lp));
+  sf.left = noisy_frame(rig.left().model, PixelFormat::kMono8, CameraId::kLeft, f, false, 3);
+  sf.right = noisy_frame(rig.right().model, PixelFormat::kMono8, CameraId::kRight, f, false, 4);
+  StereoResult l;
+  ASSERT_TRUE(look->whole->augment(sf, scene, w));
+  ASSERT_TRUE((*level)->augment(sf, scene, l));
+  for (int c = 0; c < 2; ++c) {
+    const ViewResult &vw = c == 0 ? w.left : w.right, &vl = c == 0 ? l.left : l.right;
+    std::vector<double> r;
+    for (int y = 3; y < vw.mask.height() - 3; ++y)
+      for (int x = 3; x < vw.mask.width() - 3; ++x) {
+        bool inside = true;
+        for (int dy = -2; dy <= 2 && inside; ++dy)
+          for (int dx = -2; dx <= 2 && inside; ++dx)
+            inside = (vw.mask.row(y + dy)[x + dx] & kMaskShadow) && !vw.boom_alpha.row(y + dy)[x + dx];
+        if (!inside || vl.augmented.row(y)[x] >= 120) continue;  // darkened (faces the sun)
+        auto p = [&](int dx, int dy) { return static_cast<double>(vw.augmented.row(y + dy)[x + dx]); };
+        const double hp = (p(-1, -1) - 2 * p(0, -1) + p(1, -1) - 2 * p(-1, 0) + 4 * p(0, 0) - 2 * p(1, 0) +
+                           p(-1, 1) - 2 * p(0, 1) + p(1, 1)) / 6.0;
+        r.push_back(std::abs(hp) / std::sqrt(f.variance(0, vl.augmented.row(y)[x]) + 1.0 / 12));
+      }
+    ASSERT_GT(r.size(), 300u) << "camera " << c;
+    std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+    const double ratio = r[r.size() / 2] / 0.6745;
+    std::printf("camera %d: noise in the shadow over the camera's: %.3f (%zu px)\n", c, ratio, r.size());
+    EXPECT_GT(ratio, 0.9);
+    EXPECT_LT(ratio, 1.1);
+  }
 }
 
 // kAuto takes the CPU rasteriser exactly where OpenGL is itself software.

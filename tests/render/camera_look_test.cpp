@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <string>
 #include <random>
 #include <vector>
 
@@ -355,6 +357,62 @@ TEST(CameraLook, CompositesInLinearLight) {
   EXPECT_EQ(look.row(4)[3], 255);
   EXPECT_NEAR(look.row(4)[8], 255 * std::pow(128 / 255.0, 1 / 2.2), 1.5);
   EXPECT_EQ(look.row(4)[12], 0);
+}
+
+// The shadow's darkening (apply_shadow_look): a disc of shadow taking half the red, a quarter of
+// the green and three quarters of the blue light, on flat frames of every format: inside, each
+// sample keeps its channel's share (its site's colour on a mosaic, green on Mono) through the tone
+// curve; its edge spreads by the PSF and no further; the same pixels for the same frame.
+TEST(CameraLook, ShadowDarkensBySharePerChannelWithinThePsfsReach) {
+  for (const PixelFormat fmt : {PixelFormat::kRGB8, PixelFormat::kRGBA8, PixelFormat::kMono8, PixelFormat::kBayerRG8,
+                                PixelFormat::kBayerGB8}) {
+    for (const double gamma : {1.0, 2.2}) {
+      SCOPED_TRACE(std::string(to_string(fmt)) + " gamma " + std::to_string(gamma));
+      const int W = 160, H = 120, bpp = bytes_per_pixel(fmt), nc = channels_of(fmt);
+      Image img(W, H, fmt);
+      for (int y = 0; y < H; ++y) std::memset(img.row(y), 200, static_cast<std::size_t>(W) * bpp);
+      std::vector<ShadowPixel> shadow;
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+          if ((x - 80) * (x - 80) + (y - 60) * (y - 60) <= 30 * 30) shadow.push_back({x, y, {0.5f, 0.25f, 0.75f}});
+      CameraLookParams p;
+      p.psf_sigma_px = 1.2;
+      p.gamma = gamma;
+      const int m = psf_margin_px(p);
+      const PixelBox box{80 - 30 - m, 60 - 30 - m, 80 + 31 + m, 60 + 31 + m};
+      LookBuffers buf;
+      Image out = Image::copy_of(img.cview());
+      apply_shadow_look(sub_view(out.view(), box), box, shadow, p, 42, 0, buf);
+      const double keep[3] = {0.5, 0.75, 0.25};
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+          const double r = std::hypot(x - 80, y - 60);
+          for (int c = 0; c < nc; ++c) {
+            const int v = out.row(y)[x * bpp + c];
+            if (r > 30 + m + 1) {
+              ASSERT_EQ(v, 200) << x << ", " << y;  // beyond the blur's reach
+            } else if (r < 30 - m) {
+              const int lc = nc == 3 ? c : is_bayer(fmt) ? bayer_channel(fmt, x, y) : 1;
+              const double want = 255 * std::pow(keep[lc] * std::pow(200 / 255.0, gamma), 1 / gamma);
+              ASSERT_NEAR(v, want, 1.0) << x << ", " << y << " channel " << c;
+            }
+          }
+          if (fmt == PixelFormat::kRGBA8) {
+            ASSERT_EQ(out.row(y)[x * 4 + 3], 200);  // alpha is no light
+          }
+        }
+      // The edge is soft: between the inside and the outside along a row through the centre.
+      const int lc = nc == 3 ? 0 : is_bayer(fmt) ? bayer_channel(fmt, 110, 60) : 1;
+      const int at_edge = out.row(60)[110 * bpp];
+      const double inside = 255 * std::pow(keep[lc] * std::pow(200 / 255.0, gamma), 1 / gamma);
+      EXPECT_GT(at_edge, inside + 3);
+      EXPECT_LT(at_edge, 197);
+      // Deterministic, and the same with no noise configured as with none to add.
+      Image again = Image::copy_of(img.cview());
+      apply_shadow_look(sub_view(again.view(), box), box, shadow, p, 42, 0, buf);
+      EXPECT_EQ(0, std::memcmp(again.data(), out.data(), static_cast<std::size_t>(out.stride_bytes()) * H));
+    }
+  }
 }
 
 }  // namespace

@@ -64,7 +64,7 @@ TEST(OcclusionStats, RandomMasksMatchBruteForceCounts) {
       Image ml = padded_mask(w, h, pad), mr = padded_mask(w, h, pad);
       for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
-          // Full random bytes: the upper bits must be ignored, only bits 0 and 1 count.
+          // Full random bytes: the upper bits must be ignored, only bits 0, 1 and 2 count.
           ml.row(y)[x] = static_cast<std::uint8_t>(byte(rng));
           mr.row(y)[x] = static_cast<std::uint8_t>(byte(rng));
         }
@@ -75,7 +75,7 @@ TEST(OcclusionStats, RandomMasksMatchBruteForceCounts) {
                                                        Pose::identity(), {}, &classes);
 
       std::int64_t rl = 0, rr = 0, bl = 0, br = 0, both_boom = 0, any_boom = 0, ol = 0, orr = 0;
-      std::int64_t lonly = 0, neither = 0;
+      std::int64_t lonly = 0, neither = 0, sl = 0, sr = 0;
       for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
           const int a = ml.row(y)[x], b = mr.row(y)[x];
@@ -89,6 +89,8 @@ TEST(OcclusionStats, RandomMasksMatchBruteForceCounts) {
           if (a_boom || b_boom) ++any_boom;
           if (a_boom && a_recv) ++ol;
           if (b_boom && b_recv) ++orr;
+          if ((a / 4) % 2 == 1) ++sl;  // bit 2, whatever the others (a bit test, like the rest)
+          if ((b / 4) % 2 == 1) ++sr;
           if (a_recv && !a_boom) ++lonly;
           if (a_recv && a_boom) ++neither;
           const auto c = static_cast<StereoClass>(classes[static_cast<std::size_t>(y) * w + x]);
@@ -108,6 +110,8 @@ TEST(OcclusionStats, RandomMasksMatchBruteForceCounts) {
       EXPECT_EQ(s.boom_overlap_px, both_boom);
       EXPECT_EQ(s.occluded_px_left, ol);
       EXPECT_EQ(s.occluded_px_right, orr);
+      EXPECT_EQ(s.shadow_px_left, sl);
+      EXPECT_EQ(s.shadow_px_right, sr);
       EXPECT_EQ(s.stereo_both_px, 0);
       EXPECT_EQ(s.right_only_px, 0);
       EXPECT_EQ(s.left_only_px, lonly);
@@ -121,6 +125,82 @@ TEST(OcclusionStats, RandomMasksMatchBruteForceCounts) {
       EXPECT_NEAR(s.boom_overlap_pct_union, any_boom ? 100.0 * both_boom / any_boom : 0.0, 1e-9);
       EXPECT_NEAR(s.occluded_pct_left, rl ? 100.0 * ol / rl : 0.0, 1e-9);
       EXPECT_NEAR(s.occluded_pct_right, rr ? 100.0 * orr / rr : 0.0, 1e-9);
+      EXPECT_NEAR(s.shadow_pct_left, rl ? 100.0 * sl / rl : 0.0, 1e-9);
+      EXPECT_NEAR(s.shadow_pct_right, rr ? 100.0 * sr / rr : 0.0, 1e-9);
+    }
+  }
+}
+
+// The shadow bit as the augmenter sets it (on receiver pixels not covered by the boom), in masks
+// built by hand: its counts against plain loops, at widths that take the 16-pixel SWAR steps alone
+// (1280), steps and a scalar tail (37: 2 steps + 5), an 8-pixel word and a tail (13), more steps
+// than the 255 a lane can count before it is summed, then a step, a word and a tail (4107 =
+// 256 * 16 + 8 + 3), the tail alone (7) and one pixel; and every other count and the classes
+// exactly those of the same masks without the bit.
+TEST(OcclusionStats, ShadowBitCountedAndChangesNothingElse) {
+  for (const int w : {1, 7, 13, 37, 1280, 4107}) {
+    for (const bool classes_on : {true, false}) {
+      const int h = 9, pad = 5;
+      SCOPED_TRACE("width " + std::to_string(w) + (classes_on ? ", classes" : ", masks only"));
+      Image ml = padded_mask(w, h, pad), mr = padded_mask(w, h, pad);
+      Image ml0 = padded_mask(w, h, pad), mr0 = padded_mask(w, h, pad);  // the same without bit 2
+      std::int64_t want_sl = 0, want_sr = 0, want_rl = 0, want_rr = 0;
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          // Receiver on most of the image; the boom a diagonal band; its shadow another band on
+          // the receiver, the whole of row 0 (every lane of every word), none in row 8.
+          const bool recv_l = (x + y) % 5 != 0, recv_r = (x + 2 * y) % 7 != 1;
+          const bool boom_l = (x - y + 64) % 9 < 2, boom_r = (x - y + 66) % 9 < 2;
+          const bool shade_l = y == 0 || (y < 8 && (x + 3 * y) % 4 != 0);
+          const bool shade_r = y == 0 || (y < 8 && (2 * x + y) % 3 == 0);
+          std::uint8_t l = static_cast<std::uint8_t>((recv_l ? kMaskReceiver : 0) | (boom_l ? kMaskBoom : 0));
+          std::uint8_t r = static_cast<std::uint8_t>((recv_r ? kMaskReceiver : 0) | (boom_r ? kMaskBoom : 0));
+          ml0.row(y)[x] = l;
+          mr0.row(y)[x] = r;
+          if (l == kMaskReceiver && shade_l) l |= kMaskShadow, ++want_sl;
+          if (r == kMaskReceiver && shade_r) r |= kMaskShadow, ++want_sr;
+          want_rl += recv_l;
+          want_rr += recv_r;
+          ml.row(y)[x] = l;
+          mr.row(y)[x] = r;
+        }
+      const DepthImage d = depth_filled(w, h, 20.f);
+      const Pose T_right_left = Pose::from(Eigen::Matrix3d::Identity(), Eigen::Vector3d(-0.3, 0, 0));
+      StereoClassOptions o;
+      o.compute_classes = classes_on;
+      std::vector<std::uint8_t> classes, classes0;
+      const OcclusionStats s =
+          compute_occlusion_stats(5, ml, mr, d, d, pinhole(w, h), pinhole(w, h), T_right_left, o, &classes);
+      const OcclusionStats s0 = compute_occlusion_stats(5, ml0, mr0, d, d, pinhole(w, h), pinhole(w, h),
+                                                        T_right_left, o, &classes0);
+      EXPECT_GT(want_sl, 0);
+      EXPECT_GT(want_sr, 0);
+      EXPECT_EQ(s.receiver_px_left, want_rl);
+      EXPECT_EQ(s.receiver_px_right, want_rr);
+      EXPECT_EQ(s.shadow_px_left, want_sl);
+      EXPECT_EQ(s.shadow_px_right, want_sr);
+      EXPECT_DOUBLE_EQ(s.shadow_pct_left,
+                       100.0 * static_cast<double>(want_sl) / static_cast<double>(want_rl));
+      EXPECT_DOUBLE_EQ(s.shadow_pct_right,
+                       100.0 * static_cast<double>(want_sr) / static_cast<double>(want_rr));
+      EXPECT_EQ(s0.shadow_px_left, 0);
+      EXPECT_EQ(s0.shadow_px_right, 0);
+      EXPECT_EQ(s0.shadow_pct_left, 0.0);
+      // Everything else is as without the bit.
+      OcclusionStats without_shadow = s;
+      without_shadow.shadow_px_left = without_shadow.shadow_px_right = 0;
+      without_shadow.shadow_pct_left = without_shadow.shadow_pct_right = 0;
+      EXPECT_EQ(without_shadow, s0);
+      EXPECT_EQ(classes, classes0);
+      if (classes_on) {
+        EXPECT_EQ(s.stereo_both_px + s.left_only_px + s.right_only_px + s.neither_px, s.receiver_px_left);
+        EXPECT_TRUE(w <= 15 || s.stereo_both_px > 0);  // the disparity is 15 px
+      }
+      // A content box around everything counts the same.
+      StereoClassOptions boxed = o;
+      boxed.content_x0 = 0, boxed.content_y0 = 0, boxed.content_x1 = w, boxed.content_y1 = h;
+      EXPECT_EQ(compute_occlusion_stats(5, ml, mr, d, d, pinhole(w, h), pinhole(w, h), T_right_left, boxed),
+                s);
     }
   }
 }
@@ -158,6 +238,8 @@ TEST(OcclusionStats, ContentBoxGivesTheSameCountsAsTheWholeImage) {
     EXPECT_EQ(boxed.boom_overlap_px, all.boom_overlap_px);
     EXPECT_EQ(boxed.occluded_px_left, all.occluded_px_left);
     EXPECT_EQ(boxed.occluded_px_right, all.occluded_px_right);
+    EXPECT_EQ(boxed.shadow_px_left, all.shadow_px_left);
+    EXPECT_EQ(boxed.shadow_px_right, all.shadow_px_right);
     EXPECT_EQ(boxed.stereo_both_px, all.stereo_both_px);
     EXPECT_EQ(boxed.left_only_px, all.left_only_px);
     EXPECT_EQ(boxed.right_only_px, all.right_only_px);
@@ -667,7 +749,7 @@ TEST(StatsCsv, HeaderIsExact) {
             "t_ns,receiver_px_left,receiver_px_right,boom_px_left,boom_px_right,boom_overlap_px,"
             "boom_overlap_pct_union,occluded_px_left,occluded_px_right,occluded_pct_left,occluded_pct_right,"
             "stereo_both_px,left_only_px,right_only_px,neither_px,receiver_pct_left,receiver_pct_right,"
-            "boom_pct_left,boom_pct_right\n");
+            "boom_pct_left,boom_pct_right,shadow_px_left,shadow_px_right,shadow_pct_left,shadow_pct_right\n");
 }
 
 OcclusionStats sample_stats() {
@@ -693,6 +775,10 @@ OcclusionStats sample_stats() {
   s.receiver_pct_right = 1.0 / 3.0;
   s.boom_pct_left = 3.33416;
   s.boom_pct_right = 99.99996;
+  s.shadow_px_left = 12;
+  s.shadow_px_right = 13;
+  s.shadow_pct_left = 2.5;
+  s.shadow_pct_right = 0.123456;
   return s;
 }
 
@@ -701,7 +787,7 @@ TEST(StatsCsv, RowFormat) {
   write_stats_csv_row(o, sample_stats());
   EXPECT_EQ(o.str(),
             "1234567890123456789,1,2,3,4,5,7.1845,6,7,0.2461,100.0000,8,9,10,11,0.0000,0.3333,3.3342,"
-            "100.0000\n");
+            "100.0000,12,13,2.5000,0.1235\n");
 }
 
 // What write_stats_csv_header() and write_stats_csv_row() wrote, as a file.
@@ -730,6 +816,11 @@ TEST(StatsCsv, ReadBackAndWrittenAgainIsTheSameText) {
   EXPECT_EQ((*rows)[1].receiver_px_left, 1234567890123);
   EXPECT_EQ((*rows)[0].neither_px, 11);
   EXPECT_EQ((*rows)[0].boom_pct_right, 100.0);  // 99.99996 as written: 100.0000
+  EXPECT_EQ((*rows)[0].shadow_px_left, 12);
+  EXPECT_EQ((*rows)[0].shadow_px_right, 13);
+  EXPECT_EQ((*rows)[0].shadow_pct_left, 2.5);
+  EXPECT_EQ((*rows)[0].shadow_pct_right, 0.1235);
+  EXPECT_EQ((*rows)[2].shadow_px_left, 0);
   EXPECT_EQ((*rows)[0].width, 0);  // not in the file
   EXPECT_EQ((*rows)[0].height, 0);
   std::ostringstream again;
@@ -761,7 +852,8 @@ TEST(StatsCsv, ABadFileIsAnErrorNamingFileLineAndColumn) {
   const std::string dir = test::output_dir("stats_csv_read_bad");
   const std::string text = write_stats_file(dir + "/good.csv", {sample_stats(), sample_stats()});
   const std::string header = text.substr(0, text.find('\n'));
-  const std::string row = text.substr(header.size() + 1, text.find('\n', header.size() + 1) - header.size() - 1);
+  const std::string row =
+      text.substr(header.size() + 1, text.find('\n', header.size() + 1) - header.size() - 1);
   auto error_of = [&](const std::string& name, const std::string& content) {
     std::ofstream(dir + "/" + name, std::ios::binary) << content;
     auto r = read_stats_csv(dir + "/" + name);
@@ -778,16 +870,17 @@ TEST(StatsCsv, ABadFileIsAnErrorNamingFileLineAndColumn) {
   EXPECT_NE(m.find("column 15 is 'none_px', expected 'neither_px'"), std::string::npos) << m;
   m = error_of("fewer.csv", header.substr(0, header.rfind(',')) + "\n");
   EXPECT_NE(m.find("fewer.csv:1:"), std::string::npos) << m;
-  EXPECT_NE(m.find("expected 'boom_pct_right'"), std::string::npos) << m;
+  EXPECT_NE(m.find("column 23 is '(none)', expected 'shadow_pct_right'"), std::string::npos) << m;
   m = error_of("more.csv", header + ",frame\n");
-  EXPECT_NE(m.find("column 20 is 'frame', expected '(none)'"), std::string::npos) << m;
+  EXPECT_NE(m.find("column 24 is 'frame', expected '(none)'"), std::string::npos) << m;
   // A row: a field missing, a count that is not an integer, a percentage that is not a number.
   m = error_of("short.csv", header + "\n" + row + "\n" + row.substr(0, row.rfind(',')) + "\n");
-  EXPECT_NE(m.find("short.csv:3: 18 fields, expected 19"), std::string::npos) << m;
+  EXPECT_NE(m.find("short.csv:3: 22 fields, expected 23"), std::string::npos) << m;
   m = error_of("count.csv", header + "\n" + replace(row, ",8,9,", ",8.5,9,") + "\n");
   EXPECT_NE(m.find("count.csv:2:stereo_both_px: expected an integer, got '8.5'"), std::string::npos) << m;
   m = error_of("pct.csv", header + "\n" + replace(row, ",7.1845,", ",7.18x,") + "\n");
-  EXPECT_NE(m.find("pct.csv:2:boom_overlap_pct_union: expected a number, got '7.18x'"), std::string::npos) << m;
+  EXPECT_NE(m.find("pct.csv:2:boom_overlap_pct_union: expected a number, got '7.18x'"), std::string::npos)
+      << m;
   m = error_of("t.csv", header + "\n" + replace(row, "1234567890123456789,", ",") + "\n");
   EXPECT_NE(m.find("t.csv:2:t_ns: expected an integer, got ''"), std::string::npos) << m;
   m = error_of("empty.csv", "");
@@ -797,6 +890,125 @@ TEST(StatsCsv, ABadFileIsAnErrorNamingFileLineAndColumn) {
   EXPECT_NE(none.error().message.find("render::read_stats_csv(): " + dir + "/none.csv: cannot read"),
             std::string::npos)
       << none.error().message;
+}
+
+// The first n cells of every line of `text`.
+std::string first_cells(const std::string& text, int n) {
+  std::istringstream in(text);
+  std::string out;
+  for (std::string line; std::getline(in, line);) {
+    std::size_t end = 0;
+    for (int k = 0; k < n && end != std::string::npos; ++k) end = line.find(',', end ? end + 1 : 0);
+    out += line.substr(0, end) + "\n";
+  }
+  return out;
+}
+
+// A file written before the four shadow columns were appended: exactly the 19 columns up to
+// boom_pct_right. It still reads, every other field as written and the shadow fields 0.
+TEST(StatsCsv, AFileWithTheColumnsBeforeTheShadowColumnsStillReads) {
+  const std::string dir = test::output_dir("stats_csv_read_old");
+  OcclusionStats a = sample_stats(), b = sample_stats();
+  b.t_ns = 7;
+  b.neither_px = 99;
+  const std::string text = write_stats_file(dir + "/new.csv", {a, b});
+  const std::string old = first_cells(text, 19);
+  ASSERT_EQ(old.substr(0, old.find('\n')),
+            "t_ns,receiver_px_left,receiver_px_right,boom_px_left,boom_px_right,boom_overlap_px,"
+            "boom_overlap_pct_union,occluded_px_left,occluded_px_right,occluded_pct_left,occluded_pct_right,"
+            "stereo_both_px,left_only_px,right_only_px,neither_px,receiver_pct_left,receiver_pct_right,"
+            "boom_pct_left,boom_pct_right");
+  std::ofstream(dir + "/old.csv", std::ios::binary) << old;
+  auto rows = read_stats_csv(dir + "/old.csv");
+  ASSERT_TRUE(rows) << rows.error().message;
+  auto now = read_stats_csv(dir + "/new.csv");
+  ASSERT_TRUE(now) << now.error().message;
+  ASSERT_EQ(rows->size(), 2u);
+  ASSERT_EQ(now->size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    OcclusionStats want = (*now)[i];
+    EXPECT_NE(want.shadow_px_left, 0);
+    want.shadow_px_left = want.shadow_px_right = 0;
+    want.shadow_pct_left = want.shadow_pct_right = 0;
+    EXPECT_EQ((*rows)[i], want) << i;
+  }
+  EXPECT_EQ((*rows)[1].neither_px, 99);
+  // Written again, it has the whole header and zeros in the shadow columns.
+  std::ostringstream again;
+  write_stats_csv_header(again);
+  for (const OcclusionStats& s : *rows) write_stats_csv_row(again, s);
+  EXPECT_EQ(first_cells(again.str(), 19), old);
+  EXPECT_NE(again.str().find(",100.0000,0,0,0.0000,0.0000\n"), std::string::npos) << again.str();
+  // Its summary has the shadow columns, at 0.
+  const std::string summary = format_run_summary(*rows);
+  EXPECT_NE(summary.find("shadow_px_left "), std::string::npos) << summary;
+}
+
+// Any header other than the whole column list or the older 19 columns is refused, naming the file,
+// line 1 and what was expected; so is an older file whose rows have the newer columns.
+TEST(StatsCsv, OtherHeadersAreRefused) {
+  const std::string dir = test::output_dir("stats_csv_read_headers");
+  const std::string text = write_stats_file(dir + "/good.csv", {sample_stats()});
+  const std::string header = text.substr(0, text.find('\n'));
+  const std::string row = text.substr(header.size() + 1);
+  const std::string old_header = first_cells(header, 19);  // ends in '\n'
+  auto error_of = [&](const std::string& name, const std::string& content) {
+    std::ofstream(dir + "/" + name, std::ios::binary) << content;
+    auto r = read_stats_csv(dir + "/" + name);
+    EXPECT_FALSE(r) << name;
+    return r ? std::string() : r.error().message;
+  };
+  // The older header less its last column, or with one more than it.
+  std::string m = error_of("old_fewer.csv", first_cells(header, 18));
+  EXPECT_NE(m.find(dir + "/old_fewer.csv:1: not a stats.csv header"), std::string::npos) << m;
+  EXPECT_NE(m.find("column 19 is '(none)', expected 'boom_pct_right'"), std::string::npos) << m;
+  m = error_of("old_more.csv", first_cells(header, 20));
+  EXPECT_NE(m.find("old_more.csv:1:"), std::string::npos) << m;
+  EXPECT_NE(m.find("column 21 is '(none)', expected 'shadow_px_right'"), std::string::npos) << m;
+  // The older header with a column renamed, or its columns in another order.
+  std::string renamed = old_header;
+  renamed.replace(renamed.find("boom_pct_right"), 14, "boom_pct_rite");
+  m = error_of("old_renamed.csv", renamed);
+  EXPECT_NE(m.find("old_renamed.csv:1:"), std::string::npos) << m;
+  EXPECT_NE(m.find("column 19 is 'boom_pct_rite', expected 'boom_pct_right'"), std::string::npos) << m;
+  // The shadow columns in another order.
+  std::string swapped = header;
+  swapped.replace(swapped.find("shadow_px_left,shadow_px_right"), 30, "shadow_px_right,shadow_px_left");
+  m = error_of("swapped.csv", swapped + "\n");
+  EXPECT_NE(m.find("swapped.csv:1:"), std::string::npos) << m;
+  EXPECT_NE(m.find("column 20 is 'shadow_px_right', expected 'shadow_px_left'"), std::string::npos) << m;
+  // The shadow columns without the older ones before them.
+  m = error_of("shadow_only.csv", "t_ns,shadow_px_left,shadow_px_right,shadow_pct_left,shadow_pct_right\n");
+  EXPECT_NE(m.find("column 2 is 'shadow_px_left', expected 'receiver_px_left'"), std::string::npos) << m;
+  // The older header over rows of the newer kind.
+  m = error_of("old_header_new_rows.csv", old_header + row);
+  EXPECT_NE(m.find("old_header_new_rows.csv:2: 23 fields, expected 19"), std::string::npos) << m;
+}
+
+TEST(StatsTable1, ShadowRowsAfterTheOcclusionRows) {
+  OcclusionStats s = sample_stats();
+  s.receiver_px_left = 1000, s.receiver_px_right = 800;
+  s.shadow_px_left = 125, s.shadow_px_right = 20;
+  s.shadow_pct_left = 12.5, s.shadow_pct_right = 2.5;
+  const std::string t = format_table1(s, "Shadow");
+  const auto occl = t.find("Boom occlusion right");
+  const auto left = t.find("Boom shadow on receiver left");
+  const auto right = t.find("Boom shadow on receiver right");
+  const auto stereo = t.find("Stereo: visible to both");
+  ASSERT_NE(occl, std::string::npos) << t;
+  ASSERT_NE(left, std::string::npos) << t;
+  ASSERT_NE(right, std::string::npos) << t;
+  EXPECT_LT(occl, left);
+  EXPECT_LT(left, right);
+  EXPECT_LT(right, stereo);
+  auto line_at = [&](std::size_t p) { return t.substr(p, t.find('\n', p) - p); };
+  char want[256];
+  std::snprintf(want, sizeof want, "%-36s %12lld %9.2f%%  %s", "Boom shadow on receiver left", 125LL, 12.5,
+                "receiver pixels left (1000 px)");
+  EXPECT_EQ(line_at(left), want);
+  std::snprintf(want, sizeof want, "%-36s %12lld %9.2f%%  %s", "Boom shadow on receiver right", 20LL, 2.5,
+                "receiver pixels right (800 px)");
+  EXPECT_EQ(line_at(right), want);
 }
 
 TEST(StatsSummary, MeanMinMaxPerColumn) {

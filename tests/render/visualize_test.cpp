@@ -30,8 +30,8 @@ Image padded(int w, int h, PixelFormat f, int pad) {
   return im;
 }
 
-constexpr Rgb kBlack{0, 0, 0}, kRed{255, 0, 0}, kGreen{0, 255, 0}, kBlue{0, 0, 255}, kCyan{0, 255, 255},
-    kMagenta{255, 0, 255}, kWhite{255, 255, 255};
+constexpr Rgb kBlack{0, 0, 0}, kRed{255, 0, 0}, kDarkRed{128, 0, 0}, kGreen{0, 255, 0}, kBlue{0, 0, 255},
+    kCyan{0, 255, 255}, kMagenta{255, 0, 255}, kWhite{255, 255, 255};
 
 TEST(Visualize, BoomOverlapColours) {
   Image l = padded(4, 2, PixelFormat::kMono8, 3), r = padded(4, 2, PixelFormat::kMono8, 1);
@@ -57,21 +57,50 @@ TEST(Visualize, BoomOverlapColours) {
 }
 
 TEST(Visualize, ReceiverOcclusionColours) {
-  Image m = padded(4, 1, PixelFormat::kMono8, 2);
-  m.row(0)[0] = 0x04;                       // no bits of ours
-  m.row(0)[1] = kMaskBoom;                  // boom off the receiver
-  m.row(0)[2] = kMaskReceiver;              // receiver
-  m.row(0)[3] = kMaskBoom | kMaskReceiver;  // boom over receiver
+  Image m = padded(5, 2, PixelFormat::kMono8, 2);
+  m.row(0)[0] = 0x08;                         // no bits of ours
+  m.row(0)[1] = kMaskBoom;                    // boom off the receiver
+  m.row(0)[2] = kMaskReceiver;                // receiver
+  m.row(0)[3] = kMaskBoom | kMaskReceiver;    // boom over receiver
+  m.row(0)[4] = kMaskReceiver | kMaskShadow;  // receiver in the boom's shadow
+  // Row 1: the same with higher bits, which change nothing.
+  for (int x = 0; x < 5; ++x) m.row(1)[x] = static_cast<std::uint8_t>(m.row(0)[x] | 0xF0);
   const Image left = visualize_receiver_occlusion(m, true);
   const Image right = visualize_receiver_occlusion(m, false);
-  EXPECT_EQ(rgb_at(left, 0, 0), kBlack);
-  EXPECT_EQ(rgb_at(left, 1, 0), kCyan);
-  EXPECT_EQ(rgb_at(left, 2, 0), kRed);
-  EXPECT_EQ(rgb_at(left, 3, 0), kWhite);
-  EXPECT_EQ(rgb_at(right, 0, 0), kBlack);
-  EXPECT_EQ(rgb_at(right, 1, 0), kBlue);
-  EXPECT_EQ(rgb_at(right, 2, 0), kRed);
-  EXPECT_EQ(rgb_at(right, 3, 0), kMagenta);
+  for (int y = 0; y < 2; ++y) {
+    EXPECT_EQ(rgb_at(left, 0, y), kBlack);
+    EXPECT_EQ(rgb_at(left, 1, y), kCyan);
+    EXPECT_EQ(rgb_at(left, 2, y), kRed);
+    EXPECT_EQ(rgb_at(left, 3, y), kWhite);
+    EXPECT_EQ(rgb_at(left, 4, y), kDarkRed);
+    EXPECT_EQ(rgb_at(right, 0, y), kBlack);
+    EXPECT_EQ(rgb_at(right, 1, y), kBlue);
+    EXPECT_EQ(rgb_at(right, 2, y), kRed);
+    EXPECT_EQ(rgb_at(right, 3, y), kMagenta);
+    EXPECT_EQ(rgb_at(right, 4, y), kDarkRed);
+  }
+}
+
+// The shadow bit never comes without the receiver's or with the boom's; where it does, it is
+// ignored: the colours of the other bits, as before the bit existed.
+TEST(Visualize, ShadowBitChangesOnlyTheReceiverAlone) {
+  for (const bool left_camera : {true, false}) {
+    Image with(8, 1, PixelFormat::kMono8), without(8, 1, PixelFormat::kMono8);
+    for (int v = 0; v < 8; ++v) {
+      with.row(0)[v] = static_cast<std::uint8_t>(v);
+      without.row(0)[v] = static_cast<std::uint8_t>(v & ~kMaskShadow);
+    }
+    const Image a = visualize_receiver_occlusion(with, left_camera);
+    const Image b = visualize_receiver_occlusion(without, left_camera);
+    for (int v = 0; v < 8; ++v) {
+      if (v == (kMaskReceiver | kMaskShadow)) {
+        EXPECT_EQ(rgb_at(a, v, 0), kDarkRed);
+        EXPECT_NE(rgb_at(b, v, 0), kDarkRed);
+      } else {
+        EXPECT_EQ(rgb_at(a, v, 0), rgb_at(b, v, 0)) << "mask value " << v;
+      }
+    }
+  }
 }
 
 TEST(Visualize, StereoClassColours) {
