@@ -122,10 +122,10 @@ StereoFrame render_pair(sim::FlightSource& src, const Pair& p) {
   return f;
 }
 
-Image boom_mask(const Image& mask) {
+Image bit_mask(const Image& mask, std::uint8_t bit) {
   Image m(mask.width(), mask.height(), PixelFormat::kMono8);
   for (int y = 0; y < mask.height(); ++y)
-    for (int x = 0; x < mask.width(); ++x) m.row(y)[x] = (mask.row(y)[x] & kMaskBoom) ? 255 : 0;
+    for (int x = 0; x < mask.width(); ++x) m.row(y)[x] = (mask.row(y)[x] & bit) ? 255 : 0;
   return m;
 }
 
@@ -169,6 +169,10 @@ Image background_band(const Image& m) {
 struct LookTotals {
   double diff_sum = 0, diff_sq = 0;
   std::size_t pixels = 0;
+  // Over the receiver in the boom's shadow (mask bit kMaskShadow): the same differences and noise.
+  double shadow_diff_sum = 0, shadow_diff_sq = 0;
+  std::size_t shadow_pixels = 0;
+  std::vector<double> shadow_noise_ratio;
   std::vector<double> noise_ratio, boom_vs_background, edge_aug, edge_phys;
   std::vector<std::vector<float>> train_a, train_b, test_a, test_b;  // augmented, physical patches
 };
@@ -194,8 +198,23 @@ void add_patches(const Image& aug, const Image& phys, const Image& boom, bool tr
     }
 }
 
+// The receiver in the boom's shadow: the differences over it, and the noise in its interior.
+void measure_shadow(const Image& aug, const Image& phys, const Image& mask, LookTotals& t) {
+  const Image shadow = bit_mask(mask, kMaskShadow);
+  if (auto d = eval::region_difference(aug.view(), phys.view(), shadow.view()); d && d->pixels > 0) {
+    t.shadow_diff_sum += d->mean_dn * static_cast<double>(d->pixels);
+    t.shadow_diff_sq += d->rms_dn * d->rms_dn * static_cast<double>(d->pixels);
+    t.shadow_pixels += d->pixels;
+  }
+  const Image interior = eroded(shadow, 2);
+  const Expected<double> sa = eval::robust_noise_sigma(aug.view(), interior.view()),
+                         sp = eval::robust_noise_sigma(phys.view(), interior.view());
+  if (sa && sp) t.shadow_noise_ratio.push_back(*sa / *sp);
+}
+
 void measure_view(const Image& aug, const Image& phys, const Image& mask, bool train, LookTotals& t) {
-  const Image boom = boom_mask(mask);
+  measure_shadow(aug, phys, mask, t);
+  const Image boom = bit_mask(mask, kMaskBoom);
   if (auto d = eval::region_difference(aug.view(), phys.view(), boom.view()); d && d->pixels > 0) {
     t.diff_sum += d->mean_dn * static_cast<double>(d->pixels);
     t.diff_sq += d->rms_dn * d->rms_dn * static_cast<double>(d->pixels);
@@ -378,6 +397,15 @@ int main(int argc, char** argv) {
     std::printf("| %s | %zu | %+.2f | %.2f | %.3f | %.3f | %.2f | %.2f | %+.2f | %.3f | %.3f |\n",
                 variants[l].name, t.pixels, t.diff_sum / n, std::sqrt(t.diff_sq / n), median(t.noise_ratio),
                 median(t.boom_vs_background), ea, ep, ea - ep, c.auc_random_trees, c.auc_logistic);
+  }
+  std::printf(
+      "\nThe receiver in the boom's shadow (mask bit 2; the plain look leaves the boom-free frame there):\n\n"
+      "| look | shadow px | mean diff DN | RMS diff DN | noise aug/phys |\n|---|---|---|---|---|\n");
+  for (std::size_t l = 0; l < std::size(looks); ++l) {
+    const LookTotals& t = totals[l];
+    const double n = std::max<double>(1.0, static_cast<double>(t.shadow_pixels));
+    std::printf("| %s | %zu | %+.2f | %.2f | %.3f |\n", variants[l].name, t.shadow_pixels, t.shadow_diff_sum / n,
+                std::sqrt(t.shadow_diff_sq / n), median(t.shadow_noise_ratio));
   }
   for (std::size_t l = 0; l < std::size(looks); ++l)
     if (looks[l] == Look::kCamera && !variants[l].true_light)

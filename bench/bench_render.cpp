@@ -89,14 +89,16 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
   sf.left = textured_frame(rig.left().model, fmt, CameraId::kLeft);
   sf.right = textured_frame(rig.right().model, fmt, CameraId::kRight);
   StereoResult out;
-  Series render, masks, look_ms, stats, total, debayer, clear, draw, readback, boom_pct, recv_pct;
+  Series render, masks, look_ms, shadow_ms, shadow_pct, stats, total, debayer, clear, draw, readback, boom_pct, recv_pct;
   for (int i = -5; i < frames; ++i) {  // 5 warm-up frames
     // Sweep the approach from pre-contact to contact so boxes and coverage vary.
     const double s = std::max(0, i) / std::max(1.0, frames - 1.0);
     SceneState scene =
         scene_at_contact(rig, (*aug)->boom_model().dims, receptacle, {0.50 + 0.04 * s, 0.02, 1.0 + 3.0 * s},
                          Eigen::Vector3d(-12.0 * (1 - s), 0, 4.0 * (1 - s)));
-    scene.light = SceneLight::default_sun();
+    // A low sun ahead (19 deg up): the boom's shadow falls on the receiver over the approach.
+    scene.light = receiver ? SceneLight::sun(Eigen::Vector3d(1, -0.1, -0.35), true, LightSource::kConfigured)
+                           : SceneLight::default_sun();
     sf.left.t_ns = sf.right.t_ns = i;
     const auto t0 = std::chrono::steady_clock::now();
     if (auto st = (*aug)->augment(sf, scene, out); !st) {
@@ -120,6 +122,8 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
     readback.v.push_back(t.gl_readback_ms);
     masks.v.push_back(t.masks_ms);
     look_ms.v.push_back(t.look_ms);
+    shadow_ms.v.push_back(t.shadow_ms);
+    shadow_pct.v.push_back(out.stats.shadow_pct_left);
     stats.v.push_back(t.stats_ms);
     total.v.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
     debayer.v.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
@@ -130,10 +134,11 @@ void run_case(const char* name, bool distorted, bool receiver, PixelFormat fmt, 
     return;
   }
   std::printf(
-      "| %-44s | %-6s | %-6s | %-6s | %5.1f%% | %5.1f%% | %6.2f | %6.2f | %6.2f | %6.2f | %6.2f | %7.2f / %-6.2f |\n",
+      "| %-44s | %-6s | %-6s | %-6s | %5.1f%% | %5.1f%% | %5.1f%% | %6.2f | %6.2f | %6.2f | %6.2f | %6.2f | %6.2f | "
+      "%7.2f / %-6.2f |\n",
       name, to_string((*aug)->rasterizer()), output == AugmentedOutput::kWholeImage ? "whole" : "box",
-      to_string(look), boom_pct.median(), receiver ? recv_pct.median() : 0.0, render.median(), masks.median(),
-      look_ms.median(), stats.median(), is_bayer(fmt) ? debayer.median() : 0.0, total.median(), total.p90());
+      to_string(look), boom_pct.median(), receiver ? recv_pct.median() : 0.0, receiver ? shadow_pct.median() : 0.0,
+      render.median(), masks.median(), shadow_ms.median(), look_ms.median(), stats.median(), is_bayer(fmt) ? debayer.median() : 0.0, total.median(), total.p90());
 }
 
 }  // namespace
@@ -193,11 +198,11 @@ int main(int argc, char** argv) {
               frames);
   std::printf("renderer: %s\n\n", (*ctx)->renderer().c_str());
   std::printf(
-      "| case                                         | raster | output | look   | boom | receiver | render | "
-      "masks+composite | look | stats | debayer | total (median / p90) |\n");
+      "| case                                         | raster | output | look   | boom | receiver | shadow (%% of "
+      "receiver) | render | masks+composite | shadow | look | stats | debayer | total (median / p90) |\n");
   std::printf(
-      "|----------------------------------------------|--------|--------|--------|-----:|-----:|-------:|-------:|"
-      "-----:|------:|------:|------:|\n");
+      "|----------------------------------------------|--------|--------|--------|-----:|-----:|-----:|-------:|"
+      "-------:|-----:|-----:|------:|------:|------:|\n");
   struct Case {
     const char* name;
     bool distorted, receiver;

@@ -11,7 +11,9 @@
 //      per pixel exactly. Bayer pixels compute their own channel only;
 //   2. the receiver, rasterised by render/soft_raster at the virtual pinhole's samples (the raw
 //      pixels themselves without distortion), lit per vertex, textured per pixel, shaded in runs
-//      of one triangle along a row (shade_run) found through a bitmask of covered samples;
+//      of one triangle along a row (shade_run) found through a bitmask of covered samples; with
+//      the boom drawn (render_with_boom) under a sun above the horizon, receiver samples whose
+//      surface point sees the sun through the boom (render/boom_shadow) get the ambient light only;
 //   3. sensor noise from a counter-based generator per row, so row bands on several threads give
 //      the same bytes as one.
 // Cameras with equal intrinsics and orientation (a parallel stereo rig) share one background per
@@ -26,6 +28,7 @@
 #include <condition_variable>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -39,6 +42,7 @@
 #endif
 
 #include "core/conventions.hpp"
+#include "render/boom_shadow.hpp"
 #include "render/models.hpp"
 #include "render/projection.hpp"
 #include "render/soft_raster.hpp"
@@ -846,8 +850,18 @@ struct TriShade {
   float albedo[3] = {};  // base colour, 0..255
   const Pyramid* tex = nullptr;
   int level = 0;  // texture mip level
+  int shadow = -1;  // index of its TriShadow (a receiver triangle the boom's shadow may reach), -1 none
   const std::uint32_t* texels = nullptr;  // of that level, tw x th
   int tw = 0, th = 0;
+};
+
+// A receiver triangle that the boom's shadow may reach (render_with_boom under a sun above the
+// horizon), relative to its first vertex as TriShade: the per-vertex light without the sun's
+// diffuse term (what a sample in the shadow gets) and the vertices in the shadow's sun frame.
+struct TriShadow {
+  float amb0[3] = {}, damb1[3] = {}, damb2[3] = {};
+  Eigen::Vector3d q0 = Eigen::Vector3d::Zero(), dq1 = Eigen::Vector3d::Zero(), dq2 = Eigen::Vector3d::Zero();
+  const BoomShadow* shadow = nullptr;
 };
 
 struct DrawnTriangle {
@@ -889,19 +903,29 @@ struct DrawnTriangle {
 // n covered samples along a row from raw pixel x, whose edge functions are e0, e1, e2 at the
 // first and step by d0, d1, d2: only the Bayer site's channel, or all three, each the same
 // arithmetic in every format.
-template <int kMode>
-void shade_run(std::uint8_t* row, int x, int n, const int* chan, const TriShade& t, double e0, double e1, double e2,
-               double d0, double d1, double d2) {
+// kShadow: `s` is the triangle's TriShadow, and a sample whose surface point the boom shades gets
+// its ambient light only.
+template <int kMode, bool kShadow>
+void shade_run(std::uint8_t* row, int x, int n, const int* chan, const TriShade& t, const TriShadow* s, double e0,
+               double e1, double e2, double d0, double d1, double d2) {
   for (int i = 0; i < n; ++i, ++x, e0 += d0, e1 += d1, e2 += d2) {
     const double inv = 1.0 / (e0 + e1 + e2);
     const auto b1 = static_cast<float>(e2 * inv), b2 = static_cast<float>(e0 * inv);
+    const float *lit0 = t.lit0, *dlit1 = t.dlit1, *dlit2 = t.dlit2;
+    if constexpr (kShadow) {
+      const Eigen::Vector3d q = s->q0 + (e2 * inv) * s->dq1 + (e0 * inv) * s->dq2;
+      if (s->shadow->may_cover(q.x(), q.y()) && s->shadow->in_shadow_sun(q))
+        lit0 = s->amb0, dlit1 = s->damb1, dlit2 = s->damb2;
+    } else {
+      (void)s;
+    }
     std::uint64_t g = 0;
     if (t.tex)
       g = sample_texture(t.texels, t.tw, t.th, t.uv0[0] + b1 * t.duv1[0] + b2 * t.duv2[0],
                          t.uv0[1] + b1 * t.duv1[1] + b2 * t.duv2[1]);
     auto value = [&](int c) {
       const float albedo = t.tex ? t.albedo[c] * (static_cast<float>(lane(g, c)) * (1.0f / 255.0f)) : t.albedo[c];
-      return to_u8(albedo * (t.lit0[c] + b1 * t.dlit1[c] + b2 * t.dlit2[c]));
+      return to_u8(albedo * (lit0[c] + b1 * dlit1[c] + b2 * dlit2[c]));
     };
     if constexpr (kMode == kModeBayer)
       row[x] = value(chan[x & 1]);
@@ -1043,6 +1067,17 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   void add_mesh(const Mesh& m, bool cull, Part part, std::vector<const Texture*>& seen);
   void draw_objects(const CameraTables& ct, const RigCamera& cam, const FrameSky& f,
                     const std::array<std::optional<Pose>, kParts>& T_body_part, PixelFormat fmt, Image& out);
+  // draw_objects' steps: the placed vertices in the camera frame and their light (with `ambient`
+  // also the light without the sun's diffuse term); the boom's shadow (false: none cast); the
+  // triangles set up and rasterised (returns the box of covered samples); their samples shaded
+  // into the raw pixels; the scratch cleared.
+  void light_vertices(const RigCamera& cam, const FrameSky& f,
+                      const std::array<std::optional<Pose>, kParts>& T_body_part, bool ambient);
+  bool build_shadow(const Eigen::Vector3d& sun_cam, const std::array<std::optional<Pose>, kParts>& T_body_part);
+  SampleBox raster_objects(const CameraTables& ct, const std::array<std::optional<Pose>, kParts>& T_body_part,
+                           bool shadowed);
+  void shade_objects(const CameraTables& ct, const RigCamera& cam, const SampleBox& box, PixelFormat fmt, Image& out);
+  void clear_samples(const CameraTables& ct, const SampleBox& box);
   void add_noise(int camera, const SensorOptions& sensor, Image& out);
 
   Rig rig_;
@@ -1067,8 +1102,15 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   std::vector<std::uint64_t> covered_;
   std::vector<Eigen::Vector3d> verts_cam_;
   std::vector<Eigen::Vector3f> light_front_, light_back_;
+  std::vector<Eigen::Vector3f> ambient_front_, ambient_back_;  // without the sun: filled when a shadow is cast
   std::vector<std::size_t> vert_offset_;
   std::vector<DrawnTriangle> tris_;
+  // The boom's shadow on the receiver (render_with_boom, sun above the horizon), in the camera
+  // frame: its triangles, its sun-frame footprint (u, v bounds) and the receiver triangles it may reach.
+  BoomShadow shadow_;
+  std::vector<Eigen::Vector3d> shadow_tris_;
+  Eigen::Vector2d shadow_lo_ = Eigen::Vector2d::Zero(), shadow_hi_ = Eigen::Vector2d::Zero();
+  std::vector<TriShadow> tri_shadows_;
 
   // The last background of a camera group, for the other cameras of the group in the same frame.
   struct SharedKey {
@@ -1344,6 +1386,19 @@ void CpuSceneRenderer::background(const CameraTables& ct, const FrameSky& f, Pix
 void CpuSceneRenderer::draw_objects(const CameraTables& ct, const RigCamera& cam, const FrameSky& f,
                                     const std::array<std::optional<Pose>, kParts>& T_body_part, PixelFormat fmt,
                                     Image& out) {
+  // The boom shades the receiver only where it is drawn with it under a sun above the horizon.
+  const bool boom_drawn = T_body_part[kBoomFixedPart] || T_body_part[kBoomTelescopePart];
+  const bool may_shade = boom_drawn && T_body_part[kReceiverPart] && f.sun.z() < 0;
+  light_vertices(cam, f, T_body_part, may_shade);
+  const bool shadowed = may_shade && build_shadow(f.R_ned_cam.transpose() * f.sun, T_body_part);
+  const SampleBox box = raster_objects(ct, T_body_part, shadowed);
+  if (box.x0 >= box.x1 || box.y0 >= box.y1) return;
+  shade_objects(ct, cam, box, fmt, out);
+  clear_samples(ct, box);
+}
+
+void CpuSceneRenderer::light_vertices(const RigCamera& cam, const FrameSky& f,
+                                      const std::array<std::optional<Pose>, kParts>& T_body_part, bool ambient) {
   const Eigen::Matrix3d R_cam_ned = f.R_ned_cam.transpose();
   const Eigen::Vector3f sun_cam = (R_cam_ned * f.sun).cast<float>();
   const Eigen::Vector3f up_cam = (R_cam_ned * Eigen::Vector3d(0, 0, -1)).cast<float>();
@@ -1351,13 +1406,16 @@ void CpuSceneRenderer::draw_objects(const CameraTables& ct, const RigCamera& cam
   // OpenGL shader; a back face seen (meshes not culled) is lit from its other side.
   // A sun below the horizon lights nothing directly.
   const float sun_up = f.sun.z() < 0 ? 1.0f : 0.0f;
+  auto sky_light = [&](const Eigen::Vector3f& n) {
+    const float sky = 0.5f + 0.5f * n.dot(up_cam);
+    return Eigen::Vector3f(f.ambient_ground + sky * (f.ambient_sky - f.ambient_ground));
+  };
   auto light = [&](const Eigen::Vector3f& n) {
     const float diffuse = sun_up * std::max(n.dot(sun_cam), 0.0f);
-    const float sky = 0.5f + 0.5f * n.dot(up_cam);
-    const Eigen::Vector3f ambient = f.ambient_ground + sky * (f.ambient_sky - f.ambient_ground);
-    return Eigen::Vector3f(Eigen::Vector3f(1.0f, 0.97f, 0.92f) * 0.75f * diffuse + ambient);
+    return Eigen::Vector3f(Eigen::Vector3f(1.0f, 0.97f, 0.92f) * 0.75f * diffuse + sky_light(n));
   };
   verts_cam_.clear(), light_front_.clear(), light_back_.clear(), vert_offset_.clear();
+  ambient_front_.clear(), ambient_back_.clear();
   for (const ReceiverMesh& m : meshes_) {
     vert_offset_.push_back(verts_cam_.size());
     if (!T_body_part[m.part]) continue;
@@ -1369,13 +1427,40 @@ void CpuSceneRenderer::draw_objects(const CameraTables& ct, const RigCamera& cam
       const Eigen::Vector3f n = i < m.mesh->normals.size() ? Eigen::Vector3f(R_f * m.mesh->normals[i]) : Eigen::Vector3f::Zero();
       light_front_.push_back(light(n));
       light_back_.push_back(light(-n));
+      if (ambient) ambient_front_.push_back(sky_light(n)), ambient_back_.push_back(sky_light(-n));
     }
   }
+}
+
+bool CpuSceneRenderer::build_shadow(const Eigen::Vector3d& sun_cam,
+                                    const std::array<std::optional<Pose>, kParts>& T_body_part) {
+  // The boom's triangles as drawn (both parts), in the camera frame.
+  shadow_tris_.clear();
+  for (std::size_t mi = 0; mi < meshes_.size(); ++mi) {
+    const ReceiverMesh& m = meshes_[mi];
+    if (m.part == kReceiverPart || !T_body_part[m.part]) continue;
+    const std::vector<std::uint32_t>& idx = m.mesh->indices;
+    for (std::size_t k = 0; k + 2 < idx.size(); k += 3)
+      for (std::size_t j = 0; j < 3; ++j) shadow_tris_.push_back(verts_cam_[vert_offset_[mi] + idx[k + j]]);
+  }
+  shadow_.build(shadow_tris_, sun_cam);
+  if (shadow_.empty()) return false;
+  // Its footprint on the plane across the sun: receiver triangles outside it are never shaded.
+  shadow_lo_ = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()), shadow_hi_ = -shadow_lo_;
+  for (const Eigen::Vector3d& p : shadow_tris_) {
+    const Eigen::Vector2d uv = (shadow_.R_sun_F() * p).head<2>();
+    shadow_lo_ = shadow_lo_.cwiseMin(uv), shadow_hi_ = shadow_hi_.cwiseMax(uv);
+  }
+  return true;
+}
+
+SampleBox CpuSceneRenderer::raster_objects(const CameraTables& ct,
+                                           const std::array<std::optional<Pose>, kParts>& T_body_part, bool shadowed) {
   const VirtualPinhole& vp = ct.vp;
   const SampleGrid grid{vp.fx, vp.fy, vp.cx, vp.cy, vp.width, vp.height, ct.near_m};
   const SampleBox all{0, 0, vp.width, vp.height};
   const std::size_t words = (static_cast<std::size_t>(vp.width) + 63) / 64;  // covered_ per row
-  tris_.clear();
+  tris_.clear(), tri_shadows_.clear();
   SampleBox box{vp.width, vp.height, 0, 0};
   RasterTriangle rt;
   for (std::size_t mi = 0; mi < meshes_.size(); ++mi) {
@@ -1391,9 +1476,10 @@ void CpuSceneRenderer::draw_objects(const CameraTables& ct, const RigCamera& cam
       DrawnTriangle d;
       d.rt = rt;
       TriShade& ts = d.shade;
+      // Counter-clockwise from outside faces the camera (det < 0): a back face is lit from behind.
+      const bool back = p0.dot(p1.cross(p2)) > 0;
       {
-        // Counter-clockwise from outside faces the camera (det < 0): a back face is lit from behind.
-        const std::vector<Eigen::Vector3f>& L = p0.dot(p1.cross(p2)) > 0 ? light_back_ : light_front_;
+        const std::vector<Eigen::Vector3f>& L = back ? light_back_ : light_front_;
         const Eigen::Vector3f& l0 = L[off + idx[k]];
         const Eigen::Vector3f& l1 = L[off + idx[k + 1]];
         const Eigen::Vector3f& l2 = L[off + idx[k + 2]];
@@ -1407,6 +1493,25 @@ void CpuSceneRenderer::draw_objects(const CameraTables& ct, const RigCamera& cam
           const Eigen::Vector2f& c = m.mesh->uvs[idx[k + 2]];
           ts.tex = &textures_[m.texture].levels;
           for (int j = 0; j < 2; ++j) ts.uv0[j] = a[j], ts.duv1[j] = b[j] - a[j], ts.duv2[j] = c[j] - a[j];
+        }
+      }
+      if (shadowed && m.part == kReceiverPart) {
+        // A receiver triangle whose sun-frame footprint meets the boom's may be shaded by it.
+        const Eigen::Matrix3d& R = shadow_.R_sun_F();
+        const Eigen::Vector3d q0 = R * p0, q1 = R * p1, q2 = R * p2;
+        const Eigen::Vector2d lo = q0.head<2>().cwiseMin(q1.head<2>()).cwiseMin(q2.head<2>());
+        const Eigen::Vector2d hi = q0.head<2>().cwiseMax(q1.head<2>()).cwiseMax(q2.head<2>());
+        if ((lo.array() <= shadow_hi_.array()).all() && (hi.array() >= shadow_lo_.array()).all()) {
+          TriShadow s;
+          const std::vector<Eigen::Vector3f>& A = back ? ambient_back_ : ambient_front_;
+          const Eigen::Vector3f& a0 = A[off + idx[k]];
+          const Eigen::Vector3f& a1 = A[off + idx[k + 1]];
+          const Eigen::Vector3f& a2 = A[off + idx[k + 2]];
+          for (int c = 0; c < 3; ++c) s.amb0[c] = a0[c], s.damb1[c] = a1[c] - a0[c], s.damb2[c] = a2[c] - a0[c];
+          s.q0 = q0, s.dq1 = q1 - q0, s.dq2 = q2 - q0;
+          s.shadow = &shadow_;
+          ts.shadow = static_cast<int>(tri_shadows_.size());
+          tri_shadows_.push_back(s);
         }
       }
       if (m.texture >= 0 && p0.z() > 0 && p1.z() > 0 && p2.z() > 0) {
@@ -1439,22 +1544,34 @@ void CpuSceneRenderer::draw_objects(const CameraTables& ct, const RigCamera& cam
       box.x1 = std::max(box.x1, rt.bounds.x1), box.y1 = std::max(box.y1, rt.bounds.y1);
     }
   }
-  if (box.x0 >= box.x1 || box.y0 >= box.y1) return;
+  return box;
+}
 
+void CpuSceneRenderer::shade_objects(const CameraTables& ct, const RigCamera& cam, const SampleBox& box,
+                                     PixelFormat fmt, Image& out) {
+  const VirtualPinhole& vp = ct.vp;
+  const std::size_t words = (static_cast<std::size_t>(vp.width) + 63) / 64;  // covered_ per row
   const int bayer_fmt = is_bayer(fmt);
+  // A run of samples of one triangle: the shadow's test only for a triangle that it may reach.
   auto run = [&](std::uint8_t* row, int x, int n, int y, const RasterTriangle& rt, const TriShade& ts, double X,
                  double Y) {
     const int chan[2] = {bayer_fmt ? bayer_channel(fmt, 0, y) : 0, bayer_fmt ? bayer_channel(fmt, 1, y) : 0};
     const double e0 = rt.ea[0] * X + rt.eb[0] * Y + rt.ec[0], e1 = rt.ea[1] * X + rt.eb[1] * Y + rt.ec[1],
                  e2 = rt.ea[2] * X + rt.eb[2] * Y + rt.ec[2];
-    if (bayer_fmt)
-      shade_run<kModeBayer>(row, x, n, chan, ts, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
-    else if (fmt == PixelFormat::kMono8)
-      shade_run<kModeMono>(row, x, n, chan, ts, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
-    else if (fmt == PixelFormat::kRGB8)
-      shade_run<kModeRgb>(row, x, n, chan, ts, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
+    auto shade = [&]<bool kShadow>(const TriShadow* s) {
+      if (bayer_fmt)
+        shade_run<kModeBayer, kShadow>(row, x, n, chan, ts, s, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
+      else if (fmt == PixelFormat::kMono8)
+        shade_run<kModeMono, kShadow>(row, x, n, chan, ts, s, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
+      else if (fmt == PixelFormat::kRGB8)
+        shade_run<kModeRgb, kShadow>(row, x, n, chan, ts, s, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
+      else
+        shade_run<kModeRgba, kShadow>(row, x, n, chan, ts, s, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
+    };
+    if (ts.shadow < 0)
+      shade.template operator()<false>(nullptr);
     else
-      shade_run<kModeRgba>(row, x, n, chan, ts, e0, e1, e2, rt.ea[0], rt.ea[1], rt.ea[2]);
+      shade.template operator()<true>(&tri_shadows_[static_cast<std::size_t>(ts.shadow)]);
   };
   if (vp.identity) {
     // Runs of samples of one triangle along each row: edge functions stepped, one division a pixel.
@@ -1531,7 +1648,12 @@ void CpuSceneRenderer::draw_objects(const CameraTables& ct, const RigCamera& cam
       }
     }
   }
-  // Leave the scratch clean for the next frame: the covered samples are the written ones.
+}
+
+// Leave the scratch clean for the next frame: the covered samples are the written ones.
+void CpuSceneRenderer::clear_samples(const CameraTables& ct, const SampleBox& box) {
+  const VirtualPinhole& vp = ct.vp;
+  const std::size_t words = (static_cast<std::size_t>(vp.width) + 63) / 64;  // covered_ per row
   for (int y = box.y0; y < box.y1; ++y) {
     std::uint64_t* cov = covered_.data() + static_cast<std::size_t>(y) * words;
     for (int w = box.x0 >> 6; w <= (box.x1 - 1) >> 6; ++w) {

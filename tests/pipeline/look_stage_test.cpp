@@ -211,9 +211,22 @@ TEST_F(LookStageTest, ConfiguredNoiseAndThePlainLookAreLeftAsTheyAre) {
   LookConfig plain;
   plain.cameras.resize(2);
   LookStage off(plain);
+  // The plain look measures nothing; it takes the default sun (for the boom's shadow, a mask bit
+  // in either look), says so once, and leaves a known sun as it is.
   SceneState untouched;
-  EXPECT_TRUE(off.before_augment(noisy_pair(rig, 0.1, 1.0, 7, 1), untouched, *aug).empty());
-  EXPECT_EQ(untouched.light.source, LightSource::kFixed);
+  const auto notes = off.before_augment(noisy_pair(rig, 0.1, 1.0, 7, 1), untouched, *aug);
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_NE(notes[0].find("default sun"), std::string::npos) << notes[0];
+  EXPECT_EQ(untouched.light.source, LightSource::kDefaultSun);
+  EXPECT_TRUE(untouched.light.sun_up);
+  EXPECT_EQ(untouched.light.direct, SceneLight::default_sun().direct);
+  SceneState again;
+  EXPECT_TRUE(off.before_augment(noisy_pair(rig, 0.1, 1.0, 7, 2), again, *aug).empty());
+  SceneState known;
+  known.light = SceneLight::sun(Eigen::Vector3d(0, 0, -1), false, LightSource::kEphemeris);
+  EXPECT_TRUE(off.before_augment(noisy_pair(rig, 0.1, 1.0, 7, 3), known, *aug).empty());
+  EXPECT_EQ(known.light.source, LightSource::kEphemeris);
+  EXPECT_FALSE(known.light.sun_up);
   EXPECT_EQ(off.status(), "look plain");
 }
 

@@ -1,16 +1,22 @@
 // The synthetic scene renderer against geometry computed independently with the camera model:
 // where the horizon must be, where the receiver must be, the stereo disparity, the sensor formats;
 // the CPU back end's receiver silhouette against the augmenter's receiver mask, and against the
-// OpenGL back end.
+// OpenGL back end; the physical boom's shadow on the receiver against a ray cast.
 #include "sim/synthetic_scene.hpp"
 #include "sim/synthetic_scene_cpu.hpp"
 
+#include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <memory>
+#include <optional>
+#include <vector>
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -595,6 +601,394 @@ TEST_F(SyntheticSceneTest, RenderTimeAndSamples) {
   }
   ASSERT_TRUE(r->render(0, SkyState{}, receiver_pose(), true, SensorOptions{}, img));
   write_png(dir + "/level_left.png", img);
+}
+
+// ---- The boom's shadow on the receiver (render_with_boom) against an independent ray cast ----
+
+// A triangle of the scene in the camera frame, with its vertex normals (camera frame).
+struct CamTri {
+  Eigen::Vector3d p[3], n[3];
+};
+
+// Möller–Trumbore: the ray o + t d (t > t_min) through the triangle; u, v the weights of p[1], p[2].
+bool ray_triangle(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const CamTri& tri, double t_min,
+                  double& t, double& u, double& v) {
+  const Eigen::Vector3d e1 = tri.p[1] - tri.p[0], e2 = tri.p[2] - tri.p[0], h = d.cross(e2);
+  const double det = e1.dot(h);
+  if (std::abs(det) < 1e-14 * e1.norm() * e2.norm() * d.norm()) return false;
+  const double f = 1.0 / det;
+  const Eigen::Vector3d s = o - tri.p[0];
+  u = f * s.dot(h);
+  if (u < 0 || u > 1) return false;
+  const Eigen::Vector3d q = s.cross(e1);
+  v = f * d.dot(q);
+  if (v < 0 || u + v > 1) return false;
+  t = f * e2.dot(q);
+  return t > t_min;
+}
+
+// The triangles binned by the 2D bounding box of their vertices under `proj` (a perspective or a
+// parallel projection, under which a triangle's image is the triangle of its vertices' images):
+// the candidates for a ray are those of its cell. Triangles `proj` cannot map are always candidates.
+class TriBins {
+ public:
+  TriBins(const std::vector<CamTri>& tris,
+          const std::function<std::optional<Eigen::Vector2d>(const Eigen::Vector3d&)>& proj)
+      : proj_(proj) {
+    std::vector<std::array<Eigen::Vector2d, 2>> boxes(tris.size());
+    std::vector<bool> mapped(tris.size(), true);
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+      boxes[i] = {Eigen::Vector2d::Constant(1e300), Eigen::Vector2d::Constant(-1e300)};
+      for (const Eigen::Vector3d& p : tris[i].p) {
+        const auto q = proj(p);
+        if (!q) {
+          mapped[i] = false;
+          break;
+        }
+        boxes[i][0] = boxes[i][0].cwiseMin(*q), boxes[i][1] = boxes[i][1].cwiseMax(*q);
+      }
+      if (!mapped[i]) {
+        always_.push_back(static_cast<int>(i));
+        continue;
+      }
+      lo_ = lo_.cwiseMin(boxes[i][0]), hi_ = hi_.cwiseMax(boxes[i][1]);
+    }
+    cell_ = std::max((hi_ - lo_).maxCoeff() / kCells, 1e-9);
+    cells_.resize(kCells * kCells);
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+      if (!mapped[i]) continue;
+      const auto [i0, j0] = index(boxes[i][0]);
+      const auto [i1, j1] = index(boxes[i][1]);
+      for (int j = j0; j <= j1; ++j)
+        for (int k = i0; k <= i1; ++k)
+          cells_[static_cast<std::size_t>(j) * kCells + k].push_back(static_cast<int>(i));
+    }
+  }
+  // fn(triangle index) for the candidates of the ray whose image under proj is that of `p`.
+  template <class Fn>
+  void candidates(const Eigen::Vector3d& p, Fn&& fn) const {
+    for (const int i : always_) fn(i);
+    const auto q = proj_(p);
+    if (!q || (q->array() < lo_.array()).any() || (q->array() > hi_.array()).any()) return;
+    const auto [i, j] = index(*q);
+    for (const int t : cells_[static_cast<std::size_t>(j) * kCells + i]) fn(t);
+  }
+
+ private:
+  static constexpr int kCells = 96;
+  std::pair<int, int> index(const Eigen::Vector2d& q) const {
+    return {std::clamp(static_cast<int>((q.x() - lo_.x()) / cell_), 0, kCells - 1),
+            std::clamp(static_cast<int>((q.y() - lo_.y()) / cell_), 0, kCells - 1)};
+  }
+  std::function<std::optional<Eigen::Vector2d>(const Eigen::Vector3d&)> proj_;
+  Eigen::Vector2d lo_ = Eigen::Vector2d::Constant(1e300), hi_ = Eigen::Vector2d::Constant(-1e300);
+  double cell_ = 1;
+  std::vector<std::vector<int>> cells_;
+  std::vector<int> always_;
+};
+
+// A model's triangles placed by T_cam_obj.
+void add_triangles(const Model& model, const Pose& T_cam_obj, std::vector<CamTri>& out) {
+  for (const Mesh& m : model.meshes)
+    for (std::size_t k = 0; k + 2 < m.indices.size(); k += 3) {
+      CamTri t;
+      for (int j = 0; j < 3; ++j) {
+        const std::uint32_t i = m.indices[k + static_cast<std::size_t>(j)];
+        t.p[j] = T_cam_obj * m.positions_m[i].cast<double>();
+        t.n[j] = i < m.normals.size() ? Eigen::Vector3d(T_cam_obj.R() * m.normals[i].cast<double>())
+                                      : Eigen::Vector3d::Zero();
+      }
+      out.push_back(t);
+    }
+}
+
+// What a raw pixel's centre ray sees, by ray casting: nothing, the boom, or the receiver lit or
+// in the boom's shadow (the ray from its surface point towards the sun crosses a boom triangle).
+enum class Seen : std::uint8_t { kNothing, kBoom, kLit, kShade };
+struct PixelOracle {
+  Seen seen = Seen::kNothing;
+  int tri = -1;         // the receiver triangle hit
+  double u = 0, v = 0;  // the hit's weights of its vertices 1 and 2
+  // kBoom: the boom's surface point faces the sun and sees it through another boom triangle.
+  bool boom_self_shade = false;
+};
+
+// The oracle of one camera: the receiver and the boom (at `boom`) as the renderer places them,
+// and the sky's sun (the shadow's geometry only, above the horizon or not).
+class ShadowOracle {
+ public:
+  ShadowOracle(const Rig& rig, int camera, const SkyState& sky, const Pose& T_body_receiver,
+               const BoomArticulation& boom)
+      : cam_(rig.cameras[camera]), vp_(make_virtual_pinhole(cam_.model).value()) {
+    const Pose T_cam_body = cam_.T_body_cam.inverse();
+    add_triangles(make_builtin_receiver(), T_cam_body * T_body_receiver, receiver_);
+    const BoomModel bm = make_builtin_boom();
+    const Pose T_body_fixed = boom_pose(rig.boom.pivot_body_m, boom);
+    add_triangles(bm.fixed, T_cam_body * T_body_fixed, boom_);
+    add_triangles(bm.telescope, T_cam_body * T_body_fixed * telescope_pose(boom), boom_);
+    const Eigen::Matrix3d R_cam_ned = (sky.R_ned_body * cam_.T_body_cam.R()).transpose();
+    sun_cam_ = (R_cam_ned * sky.sun_ned).normalized();
+    up_cam_ = R_cam_ned * Eigen::Vector3d(0, 0, -1);
+    auto perspective = [](const Eigen::Vector3d& p) -> std::optional<Eigen::Vector2d> {
+      if (!(p.z() > 0.05)) return std::nullopt;
+      return Eigen::Vector2d(p.x() / p.z(), p.y() / p.z());
+    };
+    const Eigen::Vector3d e1 = sun_cam_.unitOrthogonal(), e2 = sun_cam_.cross(e1);
+    auto along_sun = [e1, e2](const Eigen::Vector3d& p) -> std::optional<Eigen::Vector2d> {
+      return Eigen::Vector2d(e1.dot(p), e2.dot(p));
+    };
+    receiver_bins_ = std::make_unique<TriBins>(receiver_, perspective);
+    boom_bins_ = std::make_unique<TriBins>(boom_, perspective);
+    shadow_bins_ = std::make_unique<TriBins>(boom_, along_sun);
+  }
+
+  PixelOracle at(int x, int y) const {
+    PixelOracle o;
+    const Eigen::Vector2f& r = vp_.ray_xy[static_cast<std::size_t>(y) * cam_.model.width_px + x];
+    if (!std::isfinite(r.x()) || !std::isfinite(r.y())) return o;
+    const Eigen::Vector3d d(r.x(), r.y(), 1.0), origin = Eigen::Vector3d::Zero();
+    double t_receiver = 1e300, t_boom = 1e300, t, u, v;
+    receiver_bins_->candidates(d, [&](int i) {
+      if (ray_triangle(origin, d, receiver_[static_cast<std::size_t>(i)], 0.0, t, u, v) && t < t_receiver)
+        t_receiver = t, o.tri = i, o.u = u, o.v = v;
+    });
+    int boom_tri = -1;
+    boom_bins_->candidates(d, [&](int i) {
+      if (ray_triangle(origin, d, boom_[static_cast<std::size_t>(i)], 0.0, t, u, v) && t < t_boom)
+        t_boom = t, boom_tri = i;
+    });
+    if (t_boom < t_receiver) {
+      o.seen = Seen::kBoom;
+      const CamTri& tri = boom_[static_cast<std::size_t>(boom_tri)];
+      const Eigen::Vector3d p = t_boom * d, n = (tri.p[1] - tri.p[0]).cross(tri.p[2] - tri.p[0]);
+      if (n.dot(sun_cam_) * n.dot(d) < 0)  // the side the camera sees faces the sun
+        shadow_bins_->candidates(p, [&](int i) {
+          o.boom_self_shade =
+              o.boom_self_shade ||
+              (i != boom_tri && ray_triangle(p, sun_cam_, boom_[static_cast<std::size_t>(i)], 1e-6, t, u, v));
+        });
+    } else if (o.tri >= 0) {
+      const Eigen::Vector3d p = t_receiver * d;
+      bool shade = false;
+      shadow_bins_->candidates(p, [&](int i) {
+        shade = shade || ray_triangle(p, sun_cam_, boom_[static_cast<std::size_t>(i)], 1e-6, t, u, v);
+      });
+      o.seen = shade ? Seen::kShade : Seen::kLit;
+    }
+    return o;
+  }
+
+  // The renderer's light at a receiver hit (CPU back end, the fixed ambient of SkyState), per
+  // channel: the sun's diffuse term and the hemispherical ambient, interpolated from the vertices.
+  void light(const PixelOracle& o, Eigen::Vector3d& direct, Eigen::Vector3d& ambient) const {
+    const CamTri& tri = receiver_[static_cast<std::size_t>(o.tri)];
+    // A back face seen is lit from its other side.
+    const double side = tri.p[0].dot(tri.p[1].cross(tri.p[2])) > 0 ? -1.0 : 1.0;
+    const Eigen::Vector3d sky(0.36, 0.40, 0.46), ground(0.22, 0.22, 0.20), sun_colour(1.0, 0.97, 0.92);
+    const double w[3] = {1 - o.u - o.v, o.u, o.v};
+    direct.setZero(), ambient.setZero();
+    for (int j = 0; j < 3; ++j) {
+      const Eigen::Vector3d n = side * tri.n[j];
+      direct += w[j] * 0.75 * std::max(n.dot(sun_cam_), 0.0) * sun_colour;
+      ambient += w[j] * (ground + (0.5 + 0.5 * n.dot(up_cam_)) * (sky - ground));
+    }
+  }
+
+ private:
+  const RigCamera& cam_;
+  VirtualPinhole vp_;
+  std::vector<CamTri> receiver_, boom_;
+  Eigen::Vector3d sun_cam_, up_cam_;
+  std::unique_ptr<TriBins> receiver_bins_, boom_bins_, shadow_bins_;
+};
+
+// The oracle every 2 px over the receiver's box; a pixel counts only where the 8 samples around
+// it (2 px away) see what it sees: >= 2 px from the boom's and the shadow's edges and the silhouettes.
+struct OracleGrid {
+  int x0 = 0, y0 = 0, nx = 0, ny = 0;
+  std::vector<PixelOracle> at;
+  template <class Fn>
+  void interior(Fn&& fn) const {
+    for (int j = 1; j + 1 < ny; ++j)
+      for (int i = 1; i + 1 < nx; ++i) {
+        const PixelOracle& o = at[static_cast<std::size_t>(j) * nx + i];
+        bool same = true;
+        for (int dj = -1; dj <= 1 && same; ++dj)
+          for (int di = -1; di <= 1 && same; ++di)
+            same = at[static_cast<std::size_t>(j + dj) * nx + i + di].seen == o.seen;
+        if (same) fn(x0 + 2 * i, y0 + 2 * j, o);
+      }
+  }
+};
+OracleGrid oracle_grid(const ShadowOracle& oracle, const Box& b, int width, int height) {
+  OracleGrid g;
+  g.x0 = std::max(0, static_cast<int>(b.u0) - 4), g.y0 = std::max(0, static_cast<int>(b.v0) - 4);
+  const int x1 = std::min(width, static_cast<int>(b.u1) + 5),
+            y1 = std::min(height, static_cast<int>(b.v1) + 5);
+  g.nx = (x1 - g.x0 + 1) / 2, g.ny = (y1 - g.y0 + 1) / 2;
+  g.at.resize(static_cast<std::size_t>(g.nx) * g.ny);
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i)
+      g.at[static_cast<std::size_t>(j) * g.nx + i] = oracle.at(g.x0 + 2 * i, g.y0 + 2 * j);
+  return g;
+}
+
+// Near contact, the boom over the receiver's nose in both views (as the test above).
+const BoomArticulation kShadowBoom{deg_to_rad(30.0), deg_to_rad(2.0), 3.0};
+Pose shadow_receiver_pose() {
+  return Pose::from(Eigen::Matrix3d::Identity(), {-16.0, 0.3, 11.0});
+}
+
+// The sun 60 deg up, ahead of a level tanker (heading north) and a little to the right: the boom's
+// shadow falls on the receiver's nose behind the boom, in view of both cameras.
+SkyState shadow_sky() {
+  SkyState sky;
+  sky.sun_ned = Eigen::Vector3d(0.5, 0.1, -0.86).normalized();
+  return sky;
+}
+
+// With the boom physically in the scene, a receiver pixel whose surface point sees the sun through
+// a boom triangle (an independent ray cast: Möller–Trumbore over the boom's and the receiver's
+// triangles) is lit by the ambient light alone: the boom-free render's pixel times
+// ambient / (ambient + direct) of the renderer's Gouraud light (computed here from the vertex
+// normals), and exactly the pixel a render without the sun gives; every other receiver pixel is
+// the boom-free render's. Pixels within 2 px of the boom's or the shadow's edge are not judged.
+TEST_F(SyntheticSceneTest, PhysicalBoomShadowsTheReceiverWhereARayCastSaysSo) {
+  const SkyState sky = shadow_sky();
+  SkyState night = sky;  // the same view lit by the sky and the ground alone
+  night.sun_ned.z() = -night.sun_ned.z();
+  for (const Rig& rig : {Rig::paper_default(), distorted_rig()}) {
+    auto r = make(rig);
+    ASSERT_TRUE(r);
+    for (int c = 0; c < 2; ++c) {
+      const bool distorted = rig.cameras[c].model.distortion != DistortionModel::kNone;
+      SCOPED_TRACE(rig.cameras[c].model.distortion_name() + " camera " + std::to_string(c));
+      Image with, without, ambient, alone;
+      ASSERT_TRUE(
+          r->render_with_boom(c, sky, shadow_receiver_pose(), true, kShadowBoom, SensorOptions{}, with));
+      // The boom without the receiver: no shadow to cast, the boom as it is lit.
+      ASSERT_TRUE(
+          r->render_with_boom(c, sky, shadow_receiver_pose(), false, kShadowBoom, SensorOptions{}, alone));
+      ASSERT_TRUE(r->render(c, sky, shadow_receiver_pose(), true, SensorOptions{}, without));
+      ASSERT_TRUE(r->render(c, night, shadow_receiver_pose(), true, SensorOptions{}, ambient));
+      const ShadowOracle oracle(rig, c, sky, shadow_receiver_pose(), kShadowBoom);
+      const OracleGrid grid =
+          oracle_grid(oracle, project_model(make_builtin_receiver(), rig.cameras[c], shadow_receiver_pose()),
+                      with.width(), with.height());
+      long lit = 0, lit_changed = 0, shade = 0, shade_not_ambient = 0, facing = 0, facing_not_darker = 0;
+      long ratio_checked = 0, ratio_off = 0, boom = 0, boom_changed = 0, boom_self_shade = 0;
+      double worst = 0;
+      grid.interior([&](int x, int y, const PixelOracle& o) {
+        const std::uint8_t* w = px(with, x, y);
+        const std::uint8_t* b = px(without, x, y);
+        if (o.seen == Seen::kBoom) {  // the boom shades the receiver only, not itself
+          ++boom, boom_self_shade += o.boom_self_shade;
+          boom_changed += std::memcmp(w, px(alone, x, y), 3) != 0;
+          return;
+        }
+        if (o.seen == Seen::kLit) {
+          ++lit;
+          lit_changed += std::memcmp(w, b, 3) != 0;
+          return;
+        }
+        if (o.seen != Seen::kShade) return;
+        ++shade;
+        shade_not_ambient += std::memcmp(w, px(ambient, x, y), 3) != 0;
+        Eigen::Vector3d direct, amb;
+        oracle.light(o, direct, amb);
+        bool darker = true;
+        for (int k = 0; k < 3; ++k) {
+          darker = darker && w[k] < b[k];
+          if (b[k] == 255) continue;  // clipped: the light is not known
+          // Both renders round: the shadowed value is within 0.5 (1 + ratio) of the ratio's.
+          const double err = std::abs(w[k] - b[k] * amb[k] / (amb[k] + direct[k]));
+          worst = std::max(worst, err), ++ratio_checked, ratio_off += err > 1.25;
+        }
+        // Facing the sun enough to lose a quarter of its light, and bright enough to show it.
+        if ((direct.array() > 0.25 * (amb + direct).array()).all() && std::min({b[0], b[1], b[2]}) >= 20)
+          ++facing, facing_not_darker += !darker;
+      });
+      std::printf(
+          "%s camera %d, every 2nd pixel: receiver %ld lit, %ld in the boom's shadow (%ld facing the sun), "
+          "ratio within %.2f DN; boom %ld (%ld facing the sun through the boom)\n",
+          rig.cameras[c].model.distortion_name().c_str(), c, lit, shade, facing, worst, boom,
+          boom_self_shade);
+      // Enough of each (every 2nd pixel in x and y) that the test cannot pass by seeing none.
+      ASSERT_GT(lit, 10000);
+      ASSERT_GT(shade, 500);
+      ASSERT_GT(facing, 300);
+      EXPECT_EQ(lit_changed, 0);
+      EXPECT_EQ(shade_not_ambient, 0);
+      EXPECT_EQ(facing_not_darker, 0);
+      EXPECT_GT(ratio_checked, 3 * 500);
+      EXPECT_EQ(ratio_off, 0) << "worst " << worst << " DN";
+      ASSERT_GT(boom, 2000);
+      EXPECT_EQ(boom_changed, 0);
+      if (c == 0) {
+        // The shading per Bayer site is the RGB render's (the shadow's path for each output format).
+        SensorOptions bayer;
+        bayer.format = PixelFormat::kBayerGB8;
+        Image raw;
+        ASSERT_TRUE(r->render_with_boom(c, sky, shadow_receiver_pose(), true, kShadowBoom, bayer, raw));
+        long bad = 0;
+        for (int y = 0; y < raw.height(); ++y)
+          for (int x = 0; x < raw.width(); ++x)
+            bad += raw.row(y)[x] != px(with, x, y)[bayer_channel(bayer.format, x, y)];
+        EXPECT_EQ(bad, 0);
+        if (!distorted) write_png(test::output_dir("sim_boom_shadow") + "/left.png", with);
+      }
+    }
+  }
+  // What the shadow costs: the boom rendered under the sun and without it (no shadow to test).
+  const Rig rig = Rig::paper_default();
+  auto r = make(rig);
+  ASSERT_TRUE(r);
+  Image img;
+  for (const auto& [name, s] : {std::pair{"sun (the shadow)", sky}, std::pair{"no sun (no shadow)", night}}) {
+    const int n = 20;
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int i = 0; i < n; ++i)
+      ASSERT_TRUE(
+          r->render_with_boom(i % 2, s, shadow_receiver_pose(), true, kShadowBoom, SensorOptions{}, img));
+    std::printf("render_with_boom, %s: %.2f ms a view\n", name,
+                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / n);
+  }
+}
+
+// A sun below the horizon lights nothing directly, so the boom shades nothing: in inverted flight
+// (rolled 180 deg) the sun is where it was in the body frame, the shadow's geometry the same as
+// above, but below the horizon; every receiver pixel the boom does not cover is the boom-free one.
+TEST_F(SyntheticSceneTest, PhysicalBoomCastsNoShadowWithTheSunBelowTheHorizon) {
+  const SkyState up = shadow_sky();
+  SkyState down = up;
+  const Eigen::Matrix3d roll180 = Eigen::Vector3d(1, -1, -1).asDiagonal();
+  down.R_ned_body = up.R_ned_body * roll180;
+  down.sun_ned = down.R_ned_body * up.R_ned_body.transpose() * up.sun_ned;
+  ASSERT_GT(down.sun_ned.z(), 0.4);
+  for (const Rig& rig : {Rig::paper_default(), distorted_rig()}) {
+    auto r = make(rig);
+    ASSERT_TRUE(r);
+    for (int c = 0; c < 2; ++c) {
+      SCOPED_TRACE(rig.cameras[c].model.distortion_name() + " camera " + std::to_string(c));
+      Image with, without;
+      ASSERT_TRUE(
+          r->render_with_boom(c, down, shadow_receiver_pose(), true, kShadowBoom, SensorOptions{}, with));
+      ASSERT_TRUE(r->render(c, down, shadow_receiver_pose(), true, SensorOptions{}, without));
+      const ShadowOracle oracle(rig, c, down, shadow_receiver_pose(), kShadowBoom);
+      const OracleGrid grid =
+          oracle_grid(oracle, project_model(make_builtin_receiver(), rig.cameras[c], shadow_receiver_pose()),
+                      with.width(), with.height());
+      long lit = 0, shade = 0, changed = 0;
+      grid.interior([&](int x, int y, const PixelOracle& o) {
+        if (o.seen != Seen::kLit && o.seen != Seen::kShade) return;
+        (o.seen == Seen::kLit ? lit : shade)++;
+        changed += std::memcmp(px(with, x, y), px(without, x, y), 3) != 0;
+      });
+      ASSERT_GT(lit, 10000);
+      ASSERT_GT(shade, 500);  // the boom would shade these under a sun above the horizon
+      EXPECT_EQ(changed, 0);
+    }
+  }
 }
 
 }  // namespace
