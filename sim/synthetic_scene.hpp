@@ -76,8 +76,9 @@ class SyntheticSceneRenderer {
   virtual Status render(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
                         const SensorOptions& sensor, Image& out) = 0;
   // The same view with the boom physically in the scene at articulation `boom` (the rig's boom
-  // model, or the built-in one), lit and occluded as the receiver is, before the camera's response:
-  // the frame a flight with a real boom would have given. The CPU back end only.
+  // model, or the built-in one), lit and occluded as the receiver is, casting its shadow on the
+  // receiver under a sun above the horizon, before the camera's response: the frame a flight with
+  // a real boom would have given. The CPU back end only.
   virtual Status render_with_boom(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
                                   const BoomArticulation& boom, const SensorOptions& sensor, Image& out) {
     (void)camera, (void)sky, (void)T_body_receiver, (void)receiver_present, (void)boom, (void)sensor, (void)out;
