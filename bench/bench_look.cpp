@@ -19,6 +19,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <string>
@@ -371,6 +372,10 @@ int main(int argc, char** argv) {
       paste_crop(results[0].left.augmented, b, 8, crops, 0);
       paste_crop(results[1].left.augmented, b, 8, crops, w);
       paste_crop(phys.left.image, b, 8, crops, 2 * w);
+    }
+    if (std::getenv("BENCH_LOOK_TRACE")) {
+      const std::string st = stages[1]->status();
+      std::fprintf(stderr, "pair %zu: %s\n", i, st.substr(0, st.find("; noise")).c_str());
     }
     std::fprintf(stderr, "\r  frame %zu/%zu", i + 1, pairs.size());
   }

@@ -144,12 +144,13 @@ void LightProbe::add_view(const Image& raw, const Image& mask, const DepthImage&
           for (int c = 0; c < 3; ++c) add(c, px[bpp == 1 ? 0 : c]);
         }
     }
-    // Clipped: the light is above what it reads. A Bayer triangle needs each site colour once.
-    if (clipped || n.minCoeff() < 1) continue;
+    // Clipped: the light is above what it reads. A Bayer triangle samples the colours it holds.
+    if (clipped || n.maxCoeff() < 1) continue;
     Sample s;
     s.n_body = R_body_recv * pt.n;
     s.albedo = pt.albedo;
-    s.observed = sum.cwiseQuotient(n);
+    s.observed = sum.cwiseQuotient(n.cwiseMax(1.0));
+    s.pixels = n;
     s.grey = bpp == 1 && !is_bayer(f);
     samples_.push_back(s);
   }
@@ -181,7 +182,15 @@ std::optional<LightFit> LightProbe::fit(const Eigen::Vector3d& towards_sun_body,
     auto rho = [&](const Sample& q) {
       return grey ? kLuma[0] * q.albedo[0] + kLuma[1] * q.albedo[1] + kLuma[2] * q.albedo[2] : q.albedo[c];
     };
+    // The samples of this channel (grey: all of them).
+    auto has = [&](std::size_t i) { return grey || samples_[i].pixels[c] >= 1; };
     std::vector<double> w(samples_.size(), 1.0), r(samples_.size());
+    for (std::size_t i = 0; i < samples_.size(); ++i) w[i] = has(i) ? 1.0 : 0.0;
+    std::size_t present = 0;
+    for (std::size_t i = 0; i < samples_.size(); ++i) present += has(i);
+    if (present < kMinSamples)
+      return fail(std::to_string(present) + " points of the receiver in view for one colour, " +
+                  std::to_string(kMinSamples) + " needed");
     Eigen::Vector3d x = Eigen::Vector3d::Zero();
     std::array<bool, 3> active{sun_up, true, true};
     for (int iter = 0; iter < 12; ++iter) {
@@ -212,16 +221,17 @@ std::optional<LightFit> LightProbe::fit(const Eigen::Vector3d& towards_sun_body,
       }
       for (int k = 0; k < 3; ++k) x[k] = active[static_cast<std::size_t>(k)] ? std::max(x[k], 0.0) : 0.0;
       // Tukey's biweight on the residuals, scaled by their median absolute deviation.
-      for (std::size_t i = 0; i < samples_.size(); ++i)
+      std::vector<double> abs_r;
+      for (std::size_t i = 0; i < samples_.size(); ++i) {
         r[i] = samples_[i].observed[c] - rho(samples_[i]) * basis[i].dot(x);
-      std::vector<double> abs_r(r.size());
-      for (std::size_t i = 0; i < r.size(); ++i) abs_r[i] = std::abs(r[i]);
+        if (has(i)) abs_r.push_back(std::abs(r[i]));
+      }
       std::nth_element(abs_r.begin(), abs_r.begin() + static_cast<std::ptrdiff_t>(abs_r.size() / 2),
                        abs_r.end());
       const double cutoff = 4.685 * std::max(1.4826 * abs_r[abs_r.size() / 2], 1e-4);
       for (std::size_t i = 0; i < r.size(); ++i) {
         const double u = r[i] / cutoff;
-        w[i] = std::abs(u) < 1 ? (1 - u * u) * (1 - u * u) : 0.0;
+        w[i] = has(i) && std::abs(u) < 1 ? (1 - u * u) * (1 - u * u) : 0.0;
       }
     }
     std::size_t inliers = 0;

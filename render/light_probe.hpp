@@ -64,6 +64,8 @@ class LightProbe {
   struct Sample {
     Eigen::Vector3d n_body;
     Eigen::Vector3d albedo, observed;  // observed: linear 0..1 per channel
+    Eigen::Vector3d pixels;            // pixels read per channel (a small triangle on a Bayer
+                                       // mosaic may hold none of a colour: no sample of it)
     bool grey = false;                 // a Mono camera: only the luma is known
   };
   std::vector<Point> points_;

@@ -42,7 +42,7 @@ class LightProbeTest : public test::GlTest {
     auto aug = Augmenter::create(rig, ao);
     EXPECT_TRUE(aug);
     SceneState scene;
-    scene.T_body_receiver = receiver_pose();
+    scene.T_body_receiver = pose_;
     scene.boom = {deg_to_rad(30.0), 0.0, 1.0};
     LightProbe probe((*aug)->receiver_model());
     EXPECT_GT(probe.points(), 500u);
@@ -60,6 +60,7 @@ class LightProbeTest : public test::GlTest {
     return probe.fit(R_body_ned * sky.sun_ned, R_body_ned * Eigen::Vector3d::UnitZ(), sky.sun_ned.z() < 0,
                      why);
   }
+  Pose pose_ = receiver_pose();
 };
 
 void expect_light(const LightFit& f, const Eigen::Vector3d& direct, const Eigen::Vector3d& sky,
@@ -110,6 +111,29 @@ TEST_F(LightProbeTest, BayerAndMonoFrames) {
   auto luma = [&](const Eigen::Vector3d& v) { return kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2]; };
   expect_light(*mono, Eigen::Vector3d::Constant(luma(kDirect)), Eigen::Vector3d::Constant(luma(kSky)),
                Eigen::Vector3d::Constant(luma(kGround)), 0.06);
+}
+
+// A far receiver (32 m aft, 13 m below) on a Bayer mosaic: many of its triangles hold a few pixels,
+// not always of every colour. Each colour is fitted from the triangles that hold it, so the fit
+// has nearly the points a colour camera gives (it had a fifth of them when a triangle needed all
+// three) and finds the same light.
+TEST_F(LightProbeTest, AFarReceiverOnABayerMosaicIsMeasuredFromEachColoursOwnPoints) {
+  pose_ = Pose::from(rotation_from_ypr(0.1, 0.05, 0.2), {-32.0, 0.5, 13.0});
+  SensorOptions sensor;
+  sensor.noise_sigma = 1.0;
+  std::string why;
+  const auto rgb = measure(Rig::paper_default(), sky_with_sun({-0.4, 0.4, -0.82}), sensor, &why);
+  ASSERT_TRUE(rgb) << why;
+  sensor.format = PixelFormat::kBayerRG8;
+  const auto bayer = measure(Rig::paper_default(), sky_with_sun({-0.4, 0.4, -0.82}), sensor, &why);
+  ASSERT_TRUE(bayer) << why;
+  for (const LightFit* f : {&*rgb, &*bayer})
+    std::printf("far receiver: %zu points: direct %.3f %.3f %.3f sky %.3f %.3f %.3f ground %.3f %.3f %.3f\n",
+                f->samples, f->direct[0], f->direct[1], f->direct[2], f->sky[0], f->sky[1], f->sky[2],
+                f->ground[0], f->ground[1], f->ground[2]);
+  EXPECT_GT(rgb->samples, 100u);
+  EXPECT_GT(bayer->samples, rgb->samples * 3 / 4);
+  expect_light(*bayer, kDirect, kSky, kGround, 0.08);
 }
 
 TEST_F(LightProbeTest, SunBelowTheHorizonLeavesTheDiffuseLightOnly) {
