@@ -83,7 +83,7 @@ Image contact_sheet(const StereoFrame& stereo, const StereoResult& r) {
       contact_tile(blend_over(raw, visualize_boom_overlap(r.left.mask, r.right.mask)),
                    "boom: left cyan, right blue, both green"),
       contact_tile(blend_over(raw, visualize_receiver_occlusion(r.left.mask, true)),
-                   "left: receiver red, boom cyan, boom over receiver white"),
+                   "left: receiver red (in the boom's shadow dark red), boom cyan, boom over receiver white"),
   };
   cv::Mat top, bottom, sheet;
   cv::hconcat(tiles[0], tiles[1], top);

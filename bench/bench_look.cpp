@@ -375,7 +375,11 @@ int main(int argc, char** argv) {
     }
     if (std::getenv("BENCH_LOOK_TRACE")) {
       const std::string st = stages[1]->status();
-      std::fprintf(stderr, "pair %zu: %s\n", i, st.substr(0, st.find("; noise")).c_str());
+      const Image boom = bit_mask(results[1].left.mask, kMaskBoom);
+      const auto d1 = eval::region_difference(results[1].left.augmented.cview(), phys.left.image.cview(), boom.view());
+      const auto d2 = eval::region_difference(results[2].left.augmented.cview(), phys.left.image.cview(), boom.view());
+      std::fprintf(stderr, "\npair %zu: left boom diff camera %+.2f, sim light %+.2f DN; %s\n", i,
+                   d1 ? d1->mean_dn : NAN, d2 ? d2->mean_dn : NAN, st.substr(0, st.find("; noise")).c_str());
     }
     std::fprintf(stderr, "\r  frame %zu/%zu", i + 1, pairs.size());
   }
