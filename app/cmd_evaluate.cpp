@@ -9,13 +9,19 @@
 // are the whole run's: a frame is named and selected by its index in the source (recording order),
 // its time counts from the source's first frame, and --frames ends a recording's or EuRoC folder's
 // range in the source (frames --from-frame .. + N - 1, whatever in it is skipped).
+//
+// --look plain|camera draws the boom in that look (as `run`, `replay`); --look physical (issue 33
+// §3, simulated flights only) scores the simulator's frames with the boom physically in the scene
+// as the augmented pair, the augmenter (plain look) still making the masks, depth and classes.
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "app/cli.hpp"
+#include "capture/source_uri.hpp"
 #include "eval/evaluator.hpp"
 #include "eval/report.hpp"
 #include "pipeline/image_folder_source.hpp"
@@ -50,7 +56,14 @@ const std::vector<OptionSpec>& evaluate_specs() {
       scene_option("the source's poses"),
       poses_option(),
       pose_tolerance_option(),
-      boom_option("the source's: recorded, simulated, or tracking"),
+      {"boom", ArgKind::kValue, "track|fixed:EL,AZ,EXT|script:FILE.csv|scenario",
+       "boom articulation: tracking the receptacle, fixed (degrees, degrees, metres), a script, or "
+       "scenario: a simulated flight's own boom (the one --look physical shows) (default: the source's: "
+       "recorded, the scenario's with --look physical, else tracking)"},
+      {"look", ArgKind::kValue, "plain|camera|physical",
+       "the augmented pair's boom: drawn in the camera look (sun and sky, the camera's PSF and noise; "
+       "docs/LOOK.md) or the plain one, or physical: a simulated flight's frames with the boom in the "
+       "scene (sim:// only); default camera"},
       {"from-frame", ArgKind::kValue, "N", "recordings and EuRoC folders: start at frame N"},
       {"seek", ArgKind::kValue, "T_S",
        "recordings and EuRoC folders: start T_S seconds after the first frame"},
@@ -110,12 +123,44 @@ void write_disparity_view(const fs::path& path, const eval::EvaluationImages& im
   if (!cv::imwrite(path.string(), row)) runtime_error(path.string() + ": cannot write the disparity view");
 }
 
+// The value of `key` in a source URI's query, if it parses and has one (a URI that does not parse
+// is reported when the source is opened).
+std::optional<std::string> uri_param(const std::string& uri, const std::string& key) {
+  const auto u = parse_source_uri(uri);
+  if (!u || !u->has(key)) return std::nullopt;
+  return u->get(key);
+}
+
+// A simulated flight's truth with the scenario's own boom as the boom (the simulator's, where
+// --look physical draws it), not as tracking's starting point.
+class ScenarioBoomPoses final : public PoseProvider {
+ public:
+  explicit ScenarioBoomPoses(std::unique_ptr<PoseProvider> truth) : truth_(std::move(truth)) {}
+  std::string describe() const override { return truth_->describe() + ", the scenario's boom"; }
+  FramePoses at(const StereoFrame& frame, TimestampNs mid_host_left_ns) override {
+    FramePoses p = truth_->at(frame, mid_host_left_ns);
+    p.boom_given = p.scene.has_value();
+    return p;
+  }
+
+ private:
+  std::unique_ptr<PoseProvider> truth_;
+};
+
+// What the table's title says of the augmented pair's boom.
+std::string look_text(const std::string& look) {
+  if (look == "physical") return "look: physical boom (the simulator's frames with the boom in the scene)";
+  if (look == "plain") return "look: plain (the boom drawn in, a clean rendering under a fixed light)";
+  return "look: camera (the boom drawn in with the sun and sky, the camera's PSF and noise)";
+}
+
 int evaluate_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   std::vector<std::string> pos;
   const ParsedArgs a = parse_with_positionals(args, evaluate_specs(), {"SOURCE"}, pos);
   if (a.help) {
     out << format_help(
-        "augrig evaluate SOURCE [--matcher MATCHER.yaml] [--out DIR] [--every K] [--frames N] [--images K]",
+        "augrig evaluate SOURCE [--matcher MATCHER.yaml] [--out DIR] [--every K] [--frames N] [--images K]\n"
+        "                       [--look plain|camera|physical]",
         "SOURCE: a recording (DIR or replay://DIR), a simulated flight (sim://SCENARIO, e.g. sim://demo), a\n"
         "sequence (a frame index INDEX.csv as `augrig sim` writes it), or a EuRoC/ASL folder (the last two "
         "with\n"
@@ -126,7 +171,12 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
         "only, neither), with the boom's pixels kept and left out. Prints the run's table (the seed paper's\n"
         "Table 1 rows with the matcher's errors); --out writes it with a CSV row per frame and the plots\n"
         "(docs/EVALUATE.md). Rows are named by the source's frame index and timed from its first frame:\n"
-        "--from-frame A --frames N writes the whole run's rows of those frames.",
+        "--from-frame A --frames N writes the whole run's rows of those frames.\n"
+        "--look: the boom of the augmented pair: camera (default) or plain as `run` draws it, or physical\n"
+        "(sim:// only): the simulator's frames with the boom in the scene are the augmented pair (and the\n"
+        "raw one: both columns score the same frames); the masks, depth and classes come from the\n"
+        "augmenter as always, flying the scenario's boom (--boom scenario, which plain and camera runs of\n"
+        "a sim:// flight may give too). scripts/evaluate_looks.sh compares the three on one flight.",
         evaluate_specs());
     return kExitOk;
   }
@@ -141,6 +191,10 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
   if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
   if (a.has("full-frame") && a.has("context")) usage_error("--full-frame and --context exclude each other");
+  const std::string look = a.get("look", "camera");
+  if (look != "plain" && look != "camera" && look != "physical")
+    usage_error("--look: expected plain, camera or physical, got '" + look + "'");
+  const bool physical = look == "physical";
   eval::EvaluatorOptions eo;
   if (a.has("matcher")) eo.matcher = unwrap(eval::load_matcher_params(a.get("matcher")));
   eo.full_frame = a.has("full-frame");
@@ -170,6 +224,30 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     start = "&from_frame=" + std::to_string(parse_integer("from-frame", a.get("from-frame"), 0, 1LL << 40));
   }
   if (a.has("pair-tolerance-ns") && !is_euroc) usage_error("--pair-tolerance-ns is for EuRoC folders");
+  if (physical) {
+    if (!is_sim)
+      usage_error("--look physical: only a simulated flight (sim://SCENARIO) has frames with the boom in the "
+                  "scene; '" + src + "' is not one");
+    // The boom in the frames is where the simulation puts it: the augmenter's (masks, classes) must
+    // be the same one.
+    if (a.has("boom") && a.get("boom") != "scenario")
+      usage_error("--look physical and --boom " + a.get("boom") +
+                  ": the physical boom is the scenario's (--boom scenario), the masks must be of that boom");
+    for (const char* flag : {"scene", "poses"})
+      if (a.has(flag))
+        usage_error(std::string("--look physical and --") + flag +
+                    ": the physical boom and the receiver are the simulated flight's; the poses must be too");
+    const auto boom = uri_param(src, "boom");
+    if (boom && *boom != "physical")
+      usage_error("--look physical: the source says boom=" + *boom +
+                  "; leave boom= out (or give boom=physical)");
+    if (!boom) src += std::string(src.find('?') == std::string::npos ? "?" : "&") + "boom=physical";
+  }
+  // --boom scenario (--look physical's boom): the simulated flight's own, as its truth gives it.
+  const bool scenario_boom = physical || a.get("boom") == "scenario";
+  if (scenario_boom && (!is_sim || a.has("scene") || a.has("poses")))
+    usage_error("--boom scenario: only a simulated flight (sim://SCENARIO) with its own poses has the "
+                "scenario's boom");
   std::string uri;
   if (is_sim) {
     // Every frame, as fast as the evaluation goes (lockstep: none dropped).
@@ -269,12 +347,16 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     parts.poses = unwrap(poses_csv(a.get("poses"), rig, parse_pose_tolerance(a)));
   } else if (is_sim) {
     parts.poses = sim_truth_poses(*opened.sim);
+    if (scenario_boom) parts.poses = std::make_unique<ScenarioBoomPoses>(std::move(parts.poses));
   } else {
     parts.poses = recorded_poses(source_rig);
   }
   // A frame without a pose (not in the poses CSV, no recorded scene) is counted, not guessed.
   parts.skip_frames_without_pose = !is_sim && !a.has("scene");
-  if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
+  if (a.has("boom") && !scenario_boom) parts.boom = parse_boom_arg(a.get("boom"));
+  // The physical boom: the augmenter's plain look (AugmentOptions' default) only for the masks,
+  // depth, classes and statistics; its images are not scored.
+  if (!physical) apply_look_arg(a, rig, parts.augment);
   const fs::path out_dir = a.get("out");
   std::unique_ptr<eval::EvaluationCsvWriter> csv;
   std::unique_ptr<eval::EvaluationSumsWriter> sums;
@@ -290,6 +372,9 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   eval::RunEvaluation run;
   std::vector<eval::EvaluationPoint> points;
   std::uint64_t seen = 0;  // augmented pairs: the frame index of a frame index or simulated flight
+  // --look physical: the augmenter's result with no augmented image, so that the evaluator's
+  // augmented pair (whole_augmented()) is the source's frames, the boom in the scene.
+  StereoResult frames_as_augmented;
   parts.on_pair = [&](const StereoFrame& raw, const StereoResult& result, const SceneState&,
                       const FramePoses&) -> Status {
     if (seen++ == 0 && !origin_ns) origin_ns = result.stats.t_ns;
@@ -305,7 +390,16 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     const bool want_images =
         images_every &&
         index % (static_cast<std::uint64_t>(every) * static_cast<std::uint64_t>(images_every)) == 0;
-    auto fe = evaluator->evaluate(raw, result, want_images ? &images : nullptr);
+    const StereoResult* scored = &result;
+    if (physical) {
+      frames_as_augmented = result;
+      for (ViewResult* v : {&frames_as_augmented.left, &frames_as_augmented.right}) {
+        v->augmented = Image();
+        v->augmented_box = PixelBox{};
+      }
+      scored = &frames_as_augmented;
+    }
+    auto fe = evaluator->evaluate(raw, *scored, want_images ? &images : nullptr);
     if (!fe) return make_error("pair ", raw.pair_sequence, ": ", fe.error().message);
     const double t_s = ns_to_s(result.stats.t_ns - *origin_ns);
     if (csv)
@@ -338,13 +432,17 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   out << "evaluate: " << uri << "; rig " << rig.source << "; poses from " << parts.poses->describe() << "; "
       << (m.algorithm == "bm" ? "StereoBM" : "StereoSGBM " + m.mode) << ", disparities " << m.min_disparity
       << ".." << m.min_disparity + m.num_disparities - 1 << ", block " << m.block_size << "; "
-      << (every == 1 ? std::string("every frame") : "every " + std::to_string(every) + "th frame") << "\n";
+      << (every == 1 ? std::string("every frame") : "every " + std::to_string(every) + "th frame") << "; "
+      << look_text(look) << "\n";
   const auto wall0 = Clock::now();
   Pipeline pipeline(std::move(parts));
   const PipelineReport r = run_pipeline(pipeline, false, a.has("out") ? out_dir.string() : ".", out, err);
   const double wall_s = ms_since(wall0) / 1000.0;
 
-  const std::string table = eval::format_evaluation_table(run, "Stereo evaluation: " + src, m);
+  // The source as given (a physical boom's boom=physical is said by the look), the look on the
+  // title line: the rest of the table is what a campaign's merge rebuilds from the sums.
+  const std::string table =
+      eval::format_evaluation_table(run, "Stereo evaluation: " + pos[0] + "; " + look_text(look), m);
   out << "\n" << table;
   const double per = run.frames ? 1.0 / static_cast<double>(run.frames) : 0.0;
   out << "\nEvaluated " << run.frames << " of " << r.pairs << " augmented stereo frame(s) in "
@@ -360,8 +458,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     out << "Wrote " << (out_dir / "evaluation.txt").string()
         << ", evaluation.csv, evaluation_sums.csv and stats.csv";
     if (!a.has("no-plot") && !points.empty()) {
-      check(
-          eval::plot_evaluation(points, (out_dir / "evaluation.png").string(), "Stereo evaluation: " + src));
+      check(eval::plot_evaluation(points, (out_dir / "evaluation.png").string(),
+                                  "Stereo evaluation: " + pos[0] + ", look " + look));
       out << ", evaluation.png";
     }
     if (images_every) out << " and the disparity images of 1 in " << images_every << " evaluated frames";

@@ -443,6 +443,9 @@ std::vector<std::string> task_command(const FlightSpec& flight, const VariantSpe
   if (!v.boom.empty()) a.insert(a.end(), {"--boom", v.boom});
   if (!v.receiver_draw.empty()) a.insert(a.end(), {"--receiver-draw", v.receiver_draw});
   if (v.evaluate) {
+    // The plain look: a shard must give the whole run's rows, and the camera look's light and
+    // noise estimates build up from a run's first frame (docs/CAMPAIGN.md).
+    a.insert(a.end(), {"--look", "plain"});
     if (!v.matcher.empty()) a.insert(a.end(), {"--matcher", v.matcher});
     if (v.every != 1) a.insert(a.end(), {"--every", std::to_string(v.every)});
     if (v.context_px) a.insert(a.end(), {"--context", std::to_string(*v.context_px)});

@@ -98,6 +98,9 @@ TEST(Evaluate, SimulatedFlightRawMatchesAndTheBoomSpoilsWhatItOccludes) {
   std::stringstream table;
   table << t.rdbuf();
   EXPECT_NE(table.str().find("The boom's pixels left out"), std::string::npos);
+  // The camera look by default, said on the title line.
+  EXPECT_EQ(table.str().rfind("Stereo evaluation: sim://demo?every=90; look: camera (", 0), 0u)
+      << table.str();
   EXPECT_TRUE(fs::exists(dir + "/stats.csv"));
   EXPECT_TRUE(fs::exists(dir + "/disparity/000000_true.png"));
   EXPECT_TRUE(fs::exists(dir + "/disparity/000004_view.png"));
@@ -115,9 +118,14 @@ TEST(Evaluate, ARecordingEvaluatesAsTheFlightItRecorded) {
              &out),
       0)
       << out;
-  ASSERT_EQ(augrig("evaluate " + dir + "/rec --out " + dir + "/from_rec --no-plot", &out), 0) << out;
-  ASSERT_EQ(augrig("evaluate 'sim://demo?every=120' --frames 5 --out " + dir + "/from_sim --no-plot", &out),
-            0)
+  // The plain look: a recording stores no sun, so the camera look would light the boom by the
+  // default sun there and by the ephemeris' in the flight (docs/LOOK.md).
+  ASSERT_EQ(augrig("evaluate " + dir + "/rec --look plain --out " + dir + "/from_rec --no-plot", &out), 0)
+      << out;
+  ASSERT_EQ(
+      augrig("evaluate 'sim://demo?every=120' --look plain --frames 5 --out " + dir + "/from_sim --no-plot",
+             &out),
+      0)
       << out;
   const Csv a = read_csv(dir + "/from_rec/evaluation.csv"), b = read_csv(dir + "/from_sim/evaluation.csv");
   ASSERT_EQ(a.rows.size(), 5u);
@@ -186,8 +194,10 @@ TEST(Evaluate, PartsOfARecordingOrEurocFolderConcatenateToTheWholeRun) {
       0)
       << out;
   // Every 2nd frame, the disparity images of every 2nd evaluated one; the first part ends on an odd
-  // frame count, so the second starts on a frame --every skips.
-  expect_parts_make_the_whole(dir + "/rec", "--every 2 --images 2", dir, {{0, 3}, {3, 4}});
+  // frame count, so the second starts on a frame --every skips. The plain look: the camera look's
+  // light and noise estimates build up from the run's first frame, so a part's boom is not drawn
+  // exactly as in the whole run (docs/EVALUATE.md).
+  expect_parts_make_the_whole(dir + "/rec", "--every 2 --images 2 --look plain", dir, {{0, 3}, {3, 4}});
   const Csv whole = read_csv(dir + "/whole/evaluation.csv");
   ASSERT_EQ(whole.rows.size(), 4u);
   for (std::size_t r = 0; r < 4; ++r) EXPECT_EQ(whole.rows[r].at("frame"), std::to_string(2 * r));
@@ -210,14 +220,18 @@ TEST(Evaluate, PartsOfARecordingOrEurocFolderConcatenateToTheWholeRun) {
   std::ifstream t(dir + "/whole/evaluation.txt");
   std::stringstream table;
   table << t.rdbuf();
-  EXPECT_EQ(eval::format_evaluation_table(run, "Stereo evaluation: " + dir + "/rec", eval::MatcherParams{}),
+  EXPECT_EQ(eval::format_evaluation_table(run,
+                                          "Stereo evaluation: " + dir +
+                                              "/rec; look: plain (the boom drawn in, a clean rendering under "
+                                              "a fixed light)",
+                                          eval::MatcherParams{}),
             table.str());
 
   // The recording as a EuRoC folder, with the recorded poses.
   ASSERT_EQ(augrig("export " + dir + "/rec --format euroc " + dir + "/euroc --no-plot", &out), 0) << out;
   expect_parts_make_the_whole(dir + "/euroc",
                               "--poses " + dir + "/euroc/poses.csv --rig " + dir +
-                                  "/euroc/rig.yaml --pair-tolerance-ns 1000000 --every 3",
+                                  "/euroc/rig.yaml --pair-tolerance-ns 1000000 --every 3 --look plain",
                               dir + "/euroc_parts", {{0, 2}, {2, 3}, {5, 9}});
   const Csv euroc = read_csv(dir + "/euroc_parts/part5/evaluation.csv");
   ASSERT_EQ(euroc.rows.size(), 1u);
@@ -256,15 +270,18 @@ TEST(Evaluate, ASequenceWithItsPosesEvaluatesAsTheFlight) {
   const std::string dir = test::output_dir("evaluate_sequence");
   std::string out;
   ASSERT_EQ(augrig("sim --scenario demo --every 400 --out " + dir + "/ds", &out), 0) << out;
+  // The plain look: the poses CSV has no sun (the camera look would take the default one).
   ASSERT_EQ(augrig("evaluate " + dir + "/ds/frames/index.csv --poses " + dir + "/ds/truth/poses.csv --rig " +
-                       dir + "/ds/rig.yaml --boom fixed:30,0,3.5 --out " + dir + "/seq --no-plot",
+                       dir + "/ds/rig.yaml --boom fixed:30,0,3.5 --look plain --out " + dir +
+                       "/seq --no-plot",
                    &out),
             0)
       << out;
   // The flight's own boom tracks the receptacle; the poses CSV holds the scenario's: one boom for both.
-  ASSERT_EQ(
-      augrig("evaluate 'sim://demo?every=400' --boom fixed:30,0,3.5 --out " + dir + "/sim --no-plot", &out),
-      0)
+  ASSERT_EQ(augrig("evaluate 'sim://demo?every=400' --boom fixed:30,0,3.5 --look plain --out " + dir +
+                       "/sim --no-plot",
+                   &out),
+            0)
       << out;
   const Csv a = read_csv(dir + "/seq/evaluation.csv"), b = read_csv(dir + "/sim/evaluation.csv");
   ASSERT_EQ(a.rows.size(), b.rows.size());
@@ -280,6 +297,56 @@ TEST(Evaluate, ASequenceWithItsPosesEvaluatesAsTheFlight) {
   // Without poses a sequence cannot be augmented: said before anything is opened.
   EXPECT_EQ(augrig("evaluate " + dir + "/ds/frames/index.csv", &out), 2) << out;
   EXPECT_NE(out.find("--poses POSES.csv"), std::string::npos) << out;
+}
+
+// --look physical: the simulator's frames with the boom in the scene are the augmented pair (and,
+// being the source's frames, the raw one too); the augmenter flies the scenario's boom, the one in
+// the frames, so its masks and stereo classes are those of the physical boom.
+TEST(Evaluate, ThePhysicalBoomIsTheSimulatorsFramesWithTheScenariosBoom) {
+  const std::string dir = test::output_dir("evaluate_physical");
+  std::string out;
+  ASSERT_EQ(
+      augrig("evaluate 'sim://demo?every=400' --look physical --out " + dir + "/physical --no-plot", &out), 0)
+      << out;
+  EXPECT_NE(out.find("sim://demo?every=400&boom=physical"), std::string::npos) << out;
+  EXPECT_NE(out.find("the scenario's boom"), std::string::npos) << out;
+  {
+    std::ifstream t(dir + "/physical/evaluation.txt");
+    std::string title;
+    std::getline(t, title);
+    EXPECT_EQ(title,
+              "Stereo evaluation: sim://demo?every=400; look: physical boom (the simulator's frames with the "
+              "boom in the scene)");
+  }
+  // The camera look with the same boom (--boom scenario): the same masks and classes.
+  ASSERT_EQ(
+      augrig("evaluate 'sim://demo?every=400' --boom scenario --out " + dir + "/camera --no-plot", &out), 0)
+      << out;
+  const Csv p = read_csv(dir + "/physical/evaluation.csv"), c = read_csv(dir + "/camera/evaluation.csv");
+  ASSERT_EQ(p.rows.size(), 3u);
+  ASSERT_EQ(c.rows.size(), 3u);
+  int occluded_frames = 0;
+  for (std::size_t r = 0; r < p.rows.size(); ++r) {
+    SCOPED_TRACE("frame " + p.rows[r].at("frame"));
+    // The same frames in both columns: every figure the same.
+    for (const std::string& col : p.header)
+      if (col.rfind("raw_", 0) == 0) {
+        EXPECT_EQ(p.rows[r].at(col), p.rows[r].at("aug_" + col.substr(4))) << col;
+      }
+    for (const std::string& col : p.header)
+      if (col.size() > 7 && col.substr(col.size() - 7) == "_pixels") {
+        EXPECT_EQ(p.rows[r].at(col), c.rows[r].at(col)) << col;
+      }
+    // The boom is in the frames, where the masks say: what it hides from the left camera is
+    // matched to the boom; what both cameras see is matched as on a boom-free pair (with augrig's
+    // tracking boom instead, up to a quarter of these pixels were the physical boom's).
+    EXPECT_LT(p.num(r, "raw_all_both_bad3_pct"), 3);
+    if (p.num(r, "aug_all_right_only_pixels") > 200) {
+      ++occluded_frames;
+      EXPECT_GT(p.num(r, "aug_all_right_only_bad3_pct"), 50);
+    }
+  }
+  EXPECT_GE(occluded_frames, 2);
 }
 
 TEST(Evaluate, BadInputsAndFlags) {
@@ -301,6 +368,17 @@ TEST(Evaluate, BadInputsAndFlags) {
   EXPECT_NE(out.find("--scene SCENE.yaml or --poses"), std::string::npos) << out;
   EXPECT_EQ(augrig("evaluate 'sim://demo' --seek 3", &out), 2) << out;
   EXPECT_EQ(augrig("evaluate 'sim://no-such-scenario'", &out), 1) << out;
+  // The looks: the physical boom only in a simulated flight, and with its own boom.
+  EXPECT_EQ(augrig("evaluate 'sim://demo' --look bogus", &out), 2) << out;
+  EXPECT_NE(out.find("--look: expected plain, camera or physical, got 'bogus'"), std::string::npos) << out;
+  EXPECT_EQ(augrig("evaluate " + dir + "/euroc --poses p.csv --look physical", &out), 2) << out;
+  EXPECT_NE(out.find("--look physical: only a simulated flight"), std::string::npos) << out;
+  EXPECT_EQ(augrig("evaluate 'sim://demo?boom=none' --look physical", &out), 2) << out;
+  EXPECT_NE(out.find("--look physical: the source says boom=none"), std::string::npos) << out;
+  EXPECT_EQ(augrig("evaluate 'sim://demo' --look physical --boom track", &out), 2) << out;
+  EXPECT_NE(out.find("--look physical and --boom track"), std::string::npos) << out;
+  EXPECT_EQ(augrig("evaluate " + dir + "/euroc --poses p.csv --boom scenario", &out), 2) << out;
+  EXPECT_NE(out.find("--boom scenario: only a simulated flight"), std::string::npos) << out;
   // A search range the receiver's disparity does not fit in: said plainly.
   {
     std::ofstream m(dir + "/narrow.yaml");

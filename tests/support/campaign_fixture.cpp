@@ -57,9 +57,9 @@ void CampaignFlights::expect_equals_unsharded(const fs::path& report, const std:
   const std::string rec = f == "a" ? rec_a : rec_b;
   const fs::path u = dir / ("unsharded_" + f);
   std::string log;
-  // --allow-damaged as the tasks run: a damaged frame is left out of both alike.
+  // --allow-damaged and --look plain as the tasks run: a damaged frame is left out of both alike.
   ASSERT_EQ(run_augrig("evaluate " + rec + " --boom script:" + (dir / "boom.csv").string() + " " +
-                           eval_flags + " --allow-damaged --no-plot --out " + (u / "eval").string(),
+                           eval_flags + " --look plain --allow-damaged --no-plot --out " + (u / "eval").string(),
                        &log),
             0)
       << log;
