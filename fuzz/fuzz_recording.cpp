@@ -1,11 +1,11 @@
 // RecordingReader (recorder/reader.hpp) on damaged rows: every run builds a recording with the
-// real schema (recorder/store.hpp) whose one frame, nav input, drop and event rows hold values the
+// real schema (recorder/store.hpp) whose one frame, nav input, drop, event and look rows hold values the
 // input picks, then opens it, reads everything back and checks it. SQLite's own file format is
 // not the target (SQLite is fuzzed upstream); what a row can say to augrig is.
 //
-// Input: per column (the frames table's, then nav_input's, drops' and events'), a tag byte and
-// its value: 0 NULL, 1 i64, 2 i16, 3 f64, 4 a known name (pixel format, clock, drop stage; index
-// byte), 5 text (length byte), 6 blob (u16 length), 7 blob compressed to a valid zstd frame
+// Input: per column (the frames table's, then nav_input's, drops', events' and look's), a tag byte
+// and its value: 0 NULL, 1 i64, 2 i16, 3 f64, 4 a known name (pixel format, clock, drop stage, look
+// kind or source; index byte), 5 text (length byte), 6 blob (u16 length), 7 blob compressed to a valid zstd frame
 // (u16 length), so that the image decoders see frames that pass their header checks.
 #include <cstdio>
 #include <string>
@@ -33,6 +33,7 @@ const std::vector<std::string>& known_names() {
                           ClockDomain::kDevice, ClockDomain::kGps, ClockDomain::kSim})
       v.emplace_back(to_string(c));
     for (const char* s : {"camera", "transport", "pairing", "processing", "recorder"}) v.emplace_back(s);
+    for (const char* s : {"noise", "light", "estimated", "configured", "ephemeris", "default sun"}) v.emplace_back(s);
     return v;
   }();
   return names;
@@ -110,12 +111,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // A scratch file: no journal, no syncs.
   sqlite3_exec(db, "PRAGMA journal_mode=OFF; PRAGMA synchronous=OFF", nullptr, nullptr, nullptr);
   if (sqlite3_exec(db, recorder::schema_sql().c_str(), nullptr, nullptr, nullptr) != SQLITE_OK) std::abort();
-  sqlite3_exec(db, "INSERT INTO meta VALUES ('schema_version', '1')", nullptr, nullptr, nullptr);
+  const std::string version = "INSERT INTO meta VALUES ('schema_version', '" + std::to_string(recorder::kSchemaVersion) + "')";
+  sqlite3_exec(db, version.c_str(), nullptr, nullptr, nullptr);
   insert(in, db, recorder::frame_insert_sql());
   insert(in, db, "INSERT INTO nav_input (stream, t_ns, clock, arrival_ns, data) VALUES (?, ?, ?, ?, ?)");
   insert(in, db,
          "INSERT INTO drops (stage, item, count, first_t_ns, last_t_ns, reason) VALUES (?, ?, ?, ?, ?, ?)");
   insert(in, db, "INSERT INTO events (t_ns, clock, text) VALUES (?, ?, ?)");
+  insert(in, db, recorder::look_insert_sql());
   sqlite3_close(db);
 
   auto reader = recorder::RecordingReader::open(path);
@@ -131,6 +134,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const auto nav = (*reader)->nav_inputs();
   const auto drops = (*reader)->drops();
   const auto events = (*reader)->events();
+  const auto look = (*reader)->look();
+  if (fuzz::verbose() && !look) std::fprintf(stderr, "look: %s\n", look.error().message.c_str());
   const std::string report = (*reader)->check().to_string();
   if (fuzz::verbose())
     std::fprintf(stderr, "nav inputs %zu, drops %zu, events %zu\n%s\n", nav ? nav->size() : 0,

@@ -34,6 +34,7 @@ struct RecordingReader::Impl {
   std::vector<std::string> problems;
   mutable std::map<unsigned, Statement> selects;  // per FrameParts
   bool depth_table = false;                        // schema 2: the depth table is there
+  bool look_table = false;                         // schema 3: the look table is there
   mutable Statement depth_select, depth_exists;
   mutable Decoder decoder;
   bool raw_codec_current = false;  // meta codec.raw is this build's kRawCodec: raw blobs may be copied
@@ -108,9 +109,11 @@ Expected<std::unique_ptr<RecordingReader>> RecordingReader::open(const std::stri
                       " is newer than this reader's (", kSchemaVersion, "); use a newer augrig");
 
   impl->raw_codec_current = impl->meta.count("codec.raw") && impl->meta["codec.raw"] == kRawCodec;
-  // Recordings of schema 1 have no depth table: they hold no depth.
+  // Recordings of schema 1 have no depth table: they hold no depth; before schema 3 no look table.
   if (auto t = impl->db.query_text("SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'depth'"))
     impl->depth_table = *t == "depth";
+  if (auto t = impl->db.query_text("SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'look'"))
+    impl->look_table = *t == "look";
 
   auto ids = Statement::prepare(impl->db.get(), "SELECT id FROM frames ORDER BY id");
   if (!ids) return make_error(where, path, ": the frames table cannot be read: ", ids.error().message);
@@ -176,7 +179,7 @@ Expected<FrameRecord> RecordingReader::read_frame(std::size_t i, unsigned parts,
   if (parts & kPartAugmented) parts |= kPartRaw;
   auto it = I.selects.find(parts);
   if (it == I.selects.end()) {
-    auto st = Statement::prepare(I.db.get(), frame_select_sql(parts) + " WHERE id = ?");
+    auto st = Statement::prepare(I.db.get(), frame_select_sql(parts, I.schema_version) + " WHERE id = ?");
     if (!st) return I.frame_error(i, st.error().message);
     it = I.selects.emplace(parts, std::move(*st)).first;
   }
@@ -382,6 +385,20 @@ Expected<std::vector<EventRecord>> RecordingReader::events() const {
       });
 }
 
+Expected<std::vector<LookRecord>> RecordingReader::look() const {
+  const std::string where = "recorder::RecordingReader::look(): " + impl_->path + ": ";
+  if (!impl_->look_table) return std::vector<LookRecord>{};  // recorded before schema 3
+  auto st = Statement::prepare(impl_->db.get(), look_select_sql());
+  if (!st) return make_error(where, st.error().message);
+  return read_rows<LookRecord>(impl_->db.get(), *st, where,
+                               [&](sqlite3_stmt* s, std::size_t i) -> Expected<LookRecord> {
+                                 LookRecord r;
+                                 if (auto ok = read_look_row(s, r); !ok)
+                                   return make_error(where, "look row ", i, ": ", ok.error().message);
+                                 return r;
+                               });
+}
+
 CheckReport RecordingReader::check() const {
   const Impl& I = *impl_;
   CheckReport r;
@@ -473,6 +490,11 @@ CheckReport RecordingReader::check() const {
   });
   each_row("SELECT count(*) FROM events", "events",
            [&](sqlite3_stmt* s) { r.events = static_cast<std::size_t>(sqlite3_column_int64(s, 0)); });
+  if (auto look_rows = look(); !look_rows) {
+    problem(look_rows.error().message);
+  } else {
+    for (const LookRecord& l : *look_rows) ++(std::holds_alternative<LookNoise>(l.update) ? r.look_noise : r.look_light);
+  }
   each_row("PRAGMA quick_check(20)", "SQLite quick_check", [&](sqlite3_stmt* s) {
     const std::string line = column_text(s, 0);
     if (line != "ok") problem(I.path + ": SQLite quick_check: " + line);
@@ -514,6 +536,7 @@ std::string CheckReport::to_string() const {
   for (const auto& [s, n] : nav_inputs_by_stream) o << " " << s << " " << n;
   o << "\n";
   o << "events: " << events << "\n";
+  o << "look updates: " << look_noise << " noise, " << look_light << " light\n";
   o << "problems: " << (problems.empty() ? "none" : std::to_string(problems.size())) << "\n";
   for (const std::string& p : problems) o << "  " << p << "\n";
   return o.str();

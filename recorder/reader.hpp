@@ -50,6 +50,8 @@ struct CheckReport {
   std::map<std::string, std::uint64_t> drops_by_stage;  // summed counts, every stage listed
   std::map<std::string, std::size_t> nav_inputs_by_stream;
   std::size_t events = 0;
+  // Rows of the `look` table (schema 3): noise level functions and light fits recorded.
+  std::size_t look_noise = 0, look_light = 0;
   std::uint64_t image_bytes = 0;      // uncompressed images of the frames read
   std::uint64_t stored_bytes = 0;     // their blobs
   std::vector<std::string> problems;  // empty: everything decoded and matched
@@ -93,6 +95,9 @@ class RecordingReader {
       const std::optional<std::string>& stream = std::nullopt) const;
   Expected<std::vector<DropRecord>> drops() const;
   Expected<std::vector<EventRecord>> events() const;
+  // The camera look's updates in recording order (empty for a recording made before schema 3, or
+  // with the plain look). An error names the file, the row and the column.
+  Expected<std::vector<LookRecord>> look() const;
 
   // Damage found while opening (an unreadable part of the frames table), for check().
   const std::vector<std::string>& problems() const;

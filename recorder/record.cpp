@@ -27,6 +27,21 @@ bool parse_clock_domain(std::string_view name, ClockDomain& out) {
   return false;
 }
 
+std::string_view look_kind(const LookRecord& r) {
+  return std::holds_alternative<LookNoise>(r.update) ? "noise" : "light";
+}
+
+bool parse_light_source(std::string_view name, LightSource& out) {
+  for (LightSource s :
+       {LightSource::kFixed, LightSource::kDefaultSun, LightSource::kConfigured, LightSource::kEphemeris}) {
+    if (name == to_string(s)) {
+      out = s;
+      return true;
+    }
+  }
+  return false;
+}
+
 namespace {
 
 void append_number(std::string& s, double v) {

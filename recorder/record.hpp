@@ -1,6 +1,6 @@
 // What a recording holds, item by item: stereo frames (raw, augmented, masks, the receiver depth,
-// the poses and boom articulation used, occlusion statistics), nav inputs exactly as received, the drop ledger and
-// free-text events. The Recorder (recorder/recorder.hpp) takes these items and the
+// the poses and boom articulation used, occlusion statistics), nav inputs exactly as received, the drop ledger,
+// free-text events and the camera look's updates (noise level functions, the light measured). The Recorder (recorder/recorder.hpp) takes these items and the
 // RecordingReader (recorder/reader.hpp) gives them back; docs/RECORDING.md has the schema.
 #pragma once
 
@@ -18,7 +18,9 @@
 #include "core/frame.hpp"
 #include "core/pose.hpp"
 #include "nav/types.hpp"
+#include "render/camera_look.hpp"
 #include "render/models.hpp"
+#include "render/noise_level.hpp"
 #include "render/stats.hpp"
 
 namespace augrig::recorder {
@@ -143,7 +145,7 @@ struct DropRecord {
   TimestampNs first_t_ns = 0;
   TimestampNs last_t_ns = 0;
   std::string reason;
-  std::string item = "frame";  // "frame", "nav_input", "event"
+  std::string item = "frame";  // "frame", "nav_input", "event", "look"
 };
 
 struct EventRecord {
@@ -152,7 +154,40 @@ struct EventRecord {
   std::string text;
 };
 
-using RecordItem = std::variant<FrameRecord, NavInputRecord, DropRecord, EventRecord>;
+// One update of what the camera look knows (pipeline/look_stage.hpp, docs/LOOK.md), recorded when
+// it changes rather than per frame: a camera's noise level function, or the light measured on the
+// receiver.
+struct LookNoise {
+  int camera = 0;            // rig camera index: 0 left, 1 right
+  NoiseLevelFunction nlf;    // channels 1 (grey) or 3 (R, G, B); a in DN, b in DN^2
+  bool configured = false;   // the rig's (look.noise_a/noise_b), not estimated from the frames
+  std::uint64_t frames = 0;  // frames the estimate used (0 when configured)
+  std::string note;          // the estimator's word on it ("one level only: a = 0"), may be empty
+};
+struct LookLight {
+  // render/light_probe.hpp LightFit: per channel R, G, B, in SceneLight's units.
+  Eigen::Vector3d direct = Eigen::Vector3d::Zero(), sky = Eigen::Vector3d::Zero(),
+                  ground = Eigen::Vector3d::Zero();
+  std::uint64_t samples = 0;  // points the fit used
+  double rms = 0;             // the inliers' residual RMS
+  // The scene's sun when it was measured: where its direction came from, whether it was up, and
+  // the unit vector towards it in the tanker's body frame.
+  LightSource source = LightSource::kFixed;
+  bool sun_up = false;
+  Eigen::Vector3d towards_sun_body = Eigen::Vector3d::Zero();
+};
+struct LookRecord {
+  TimestampNs t_ns = 0;  // the pair whose frames gave it (its t_key_ns), in `clock`
+  ClockDomain clock = ClockDomain::kUnknown;
+  std::variant<LookNoise, LookLight> update;
+};
+// "noise" or "light", the `look` table's kind.
+std::string_view look_kind(const LookRecord& r);
+// Parses render/camera_look.hpp's LightSource names ("ephemeris", "default sun", ...); false for
+// anything else.
+bool parse_light_source(std::string_view name, LightSource& out);
+
+using RecordItem = std::variant<FrameRecord, NavInputRecord, DropRecord, EventRecord, LookRecord>;
 
 // Which images RecordingReader::read_frame() decodes (a bit set); metadata, poses and statistics
 // always come.

@@ -81,7 +81,31 @@ struct PendingFrame {
   FrameRecord record;
 };
 
-using SmallItem = std::variant<NavInputRecord, EventRecord>;
+// Nav inputs, events and look updates: written in push order, in the frames' transactions.
+using SmallItem = std::variant<NavInputRecord, EventRecord, LookRecord>;
+constexpr std::size_t kSmallKinds = std::variant_size_v<SmallItem>;
+// Per SmallItem index: the ledger's item name, and the name in messages.
+constexpr const char* kSmallItem[kSmallKinds] = {"nav_input", "event", "look"};
+constexpr const char* kSmallWhat[kSmallKinds] = {"nav input", "event", "look update"};
+
+TimestampNs small_t_ns(const SmallItem& item) {
+  return std::visit([](const auto& x) { return x.t_ns; }, item);
+}
+
+// The writer's open transaction: what it holds, for the counters on its commit and the ledger on
+// its rollback. The writer thread's alone.
+struct WriterTxn {
+  bool open = false;
+  Clock::time_point start{};
+  std::uint64_t frames = 0, image_bytes = 0, stored_bytes = 0, raw_copied = 0;
+  std::array<std::uint64_t, kSmallKinds> small{};  // per SmallItem index
+  TimestampNs first = 0, last = 0;
+  void clear() {
+    open = false;
+    frames = image_bytes = stored_bytes = raw_copied = 0;
+    small = {};
+  }
+};
 
 std::size_t image_bytes_of(const Image& img) {
   return static_cast<std::size_t>(img.width()) * img.height() * bytes_per_pixel(img.format());
@@ -214,6 +238,36 @@ Status reserve_space(const std::string& path, std::int64_t bytes) {
   return {};
 }
 
+// The meta rows create() writes: what the recording is, how it was written, its blob encodings.
+std::vector<std::pair<std::string, std::string>> initial_meta(const RecorderOptions& opt, const RecordingInfo& info) {
+  std::vector<std::pair<std::string, std::string>> kv = {
+      {"schema_version", std::to_string(kSchemaVersion)},
+      {"software", std::string("augrig ") + AUGRIG_VERSION},
+      {"created_utc", utc_now_iso8601()},
+      {"created_host_realtime_ns", std::to_string(clock_ns(CLOCK_REALTIME))},
+      {"created_host_monotonic_ns", std::to_string(clock_ns(CLOCK_MONOTONIC))},
+      {"rig_yaml", info.rig_yaml},
+      {"scene", info.scene},
+      {"clock_domains", info.clock_domains},
+      {"recorder_options",
+       "queue_capacity=" + std::to_string(opt.queue_capacity) +
+           " small_queue_capacity=" + std::to_string(opt.small_queue_capacity) +
+           " commit_interval_ms=" + std::to_string(opt.commit_interval.count()) +
+           " checkpoint_interval_ms=" + std::to_string(opt.checkpoint_interval.count()) +
+           " zstd_level=" + std::to_string(opt.zstd_level) +
+           " compression_threads=" + std::to_string(opt.compression_threads) +
+           " max_bytes=" + std::to_string(opt.max_bytes) + " page_size=" + std::to_string(kPageSize) +
+           " synchronous=NORMAL"},
+      {"codec.raw", std::string(kRawCodec)},
+      {"codec.aug",
+       "zstd frame of (augmented XOR raw) inside [x0,x1) x [y0,y1), rows packed tight; "
+       "empty blob: no change"},
+      {"codec.mask", "zstd frame of the Mono8 mask, rows packed tight"},
+      {"codec.depth", std::string(kDepthCodec)},
+  };
+  return kv;
+}
+
 }  // namespace
 
 struct Recorder::Impl {
@@ -222,7 +276,7 @@ struct Recorder::Impl {
   RecorderOptions opt;
   Database db;       // the writer's connection (create/close on the caller's thread, else the writer's)
   Database ckpt_db;  // the checkpointer's
-  Statement ins_frame, ins_depth, ins_nav, ins_event, ins_drop, ins_meta;
+  Statement ins_frame, ins_depth, ins_nav, ins_event, ins_look, ins_drop, ins_meta;
 
   mutable std::mutex m;
   std::condition_variable cv_work, cv_writer, cv_ckpt;
@@ -247,6 +301,7 @@ struct Recorder::Impl {
 
   std::vector<std::thread> workers;
   std::thread writer, checkpointer;
+  WriterTxn tx;  // the writer thread's
 
   // ---- under m -------------------------------------------------------------------------------
   void drop_locked(DropStage stage, const std::string& item, const std::string& reason, std::uint64_t count,
@@ -279,6 +334,15 @@ struct Recorder::Impl {
   void encode(Encoder& enc, FrameRecord& f, Encoded& e);
   Status insert_frame(const Encoded& e);
   Status insert_small(const SmallItem& item);
+  // ---- the writer's transaction (writer thread) -----------------------------------------------
+  // `failing`: frames of the failed statement itself (not counted as written), lost with the rest.
+  void rollback_txn(const std::string& what, std::uint64_t failing = 0);
+  bool begin_txn();
+  void commit_txn();
+  // Between transactions: the checkpoint that lets the next transaction restart the WAL.
+  void restart_checkpoint();
+  void write_smalls(const std::deque<SmallItem>& smalls);
+  void write_frames(std::vector<std::unique_ptr<Encoded>>& frames);
   Status insert_ledger(std::map<LedgerKey, Tally>& rows);
   Status put_meta(const std::string& key, const std::string& value);
   Status write_summary();
@@ -442,6 +506,13 @@ Status Recorder::Impl::insert_small(const SmallItem& item) {
       sqlite3_bind_text64(s, 5, n->data.data(), n->data.size(), SQLITE_STATIC, SQLITE_UTF8);
     rc = sqlite3_step(s);
     ins_nav.reset();
+  } else if (const auto* look = std::get_if<LookRecord>(&item)) {
+    if (auto b = bind_look_row(ins_look.get(), *look); !b) {
+      ins_look.reset();
+      return b;
+    }
+    rc = sqlite3_step(ins_look.get());
+    ins_look.reset();
   } else {
     const auto& ev = std::get<EventRecord>(item);
     sqlite3_stmt* s = ins_event.get();
@@ -483,101 +554,146 @@ Status Recorder::Impl::put_meta(const std::string& key, const std::string& value
   return {};
 }
 
-void Recorder::Impl::writer_main() {
-  bool txn = false;
-  Clock::time_point txn_start{};
-  // What the open transaction holds, for the counters on commit and the ledger on a rollback.
-  std::uint64_t t_frames = 0, t_nav = 0, t_events = 0, t_image_bytes = 0, t_stored_bytes = 0;
-  std::uint64_t t_raw_copied = 0;
-  TimestampNs t_first = 0, t_last = 0;
+void Recorder::Impl::rollback_txn(const std::string& what, std::uint64_t failing) {
+  // SQLite may have rolled back already (SQLITE_FULL, SQLITE_IOERR); make sure.
+  if (!sqlite3_get_autocommit(db.get())) sqlite3_exec(db.get(), "ROLLBACK", nullptr, nullptr, nullptr);
+  const std::string why = diagnose_write_failure(path, what, opt.max_bytes);
+  std::string held = std::to_string(tx.frames + failing) + " frames, " + std::to_string(tx.small[0]) +
+                     " nav inputs, " + std::to_string(tx.small[1]) + " events";
+  if (tx.small[2]) held += ", " + std::to_string(tx.small[2]) + " look updates";
+  std::lock_guard lk(m);
+  fail_locked("recorder::Recorder: " + path + ": " + what + why +
+                  "; the recording stopped there, the transaction in progress (" + held + ") was rolled back",
+              what);
+  const std::string reason = "rolled back: " + what;
+  drop_locked(DropStage::kRecorder, "frame", reason, tx.frames + failing, tx.first, tx.last);
+  for (std::size_t k = 0; k < kSmallKinds; ++k) drop_locked(DropStage::kRecorder, kSmallItem[k], reason, tx.small[k], 0, 0);
+  st.frames_written -= std::min(st.frames_written, tx.frames);
+  tx.clear();
+}
 
-  // `failing`: frames of the failed statement itself (not counted as written), lost with the rest.
-  auto rollback = [&](const std::string& what, std::uint64_t failing = 0) {
-    // SQLite may have rolled back already (SQLITE_FULL, SQLITE_IOERR); make sure.
-    if (!sqlite3_get_autocommit(db.get())) sqlite3_exec(db.get(), "ROLLBACK", nullptr, nullptr, nullptr);
-    const std::string why = diagnose_write_failure(path, what, opt.max_bytes);
+bool Recorder::Impl::begin_txn() {
+  if (tx.open) return true;
+  if (auto s = db.exec("BEGIN"); !s) {
+    rollback_txn("BEGIN failed: " + s.error().message);
+    return false;
+  }
+  tx.open = true;
+  tx.start = Clock::now();
+  tx.first = tx.last = 0;
+  return true;
+}
+
+void Recorder::Impl::commit_txn() {
+  std::map<LedgerKey, Tally> rows;
+  {
     std::lock_guard lk(m);
-    fail_locked("recorder::Recorder: " + path + ": " + what + why +
-                    "; the recording stopped there, the transaction " + "in progress (" +
-                    std::to_string(t_frames + failing) + " frames, " + std::to_string(t_nav) +
-                    " nav inputs, " + std::to_string(t_events) + " events) was rolled back",
-                what);
-    const std::string reason = "rolled back: " + what;
-    drop_locked(DropStage::kRecorder, "frame", reason, t_frames + failing, t_first, t_last);
-    drop_locked(DropStage::kRecorder, "nav_input", reason, t_nav, 0, 0);
-    drop_locked(DropStage::kRecorder, "event", reason, t_events, 0, 0);
-    st.frames_written -= std::min(st.frames_written, t_frames);
-    txn = false;
-    t_frames = t_nav = t_events = t_image_bytes = t_stored_bytes = t_raw_copied = 0;
-  };
-  auto begin = [&]() -> bool {
-    if (txn) return true;
-    if (auto s = db.exec("BEGIN"); !s) {
-      rollback("BEGIN failed: " + s.error().message);
-      return false;
-    }
-    txn = true;
-    txn_start = Clock::now();
-    t_first = t_last = 0;
-    return true;
-  };
-  auto commit = [&] {
-    std::map<LedgerKey, Tally> rows;
+    rows.swap(ledger);
+  }
+  const auto t0 = Clock::now();
+  Status s = insert_ledger(rows);
+  if (s) s = db.exec("COMMIT");
+  if (!s) {
     {
-      std::lock_guard lk(m);
-      rows.swap(ledger);
-    }
-    const auto t0 = Clock::now();
-    Status s = insert_ledger(rows);
-    if (s) s = db.exec("COMMIT");
-    if (!s) {
-      {
-        std::lock_guard lk(m);  // keep them for the summary's attempt
-        for (auto& [k, t] : rows) {
-          Tally& d = ledger[k];
-          if (d.count == 0) d.first_t_ns = t.first_t_ns;
-          d.count += t.count;
-          d.last_t_ns = t.last_t_ns;
-        }
+      std::lock_guard lk(m);  // keep them for the summary's attempt
+      for (auto& [k, t] : rows) {
+        Tally& d = ledger[k];
+        if (d.count == 0) d.first_t_ns = t.first_t_ns;
+        d.count += t.count;
+        d.last_t_ns = t.last_t_ns;
       }
-      rollback("COMMIT failed: " + s.error().message);
-      return;
     }
-    const double ms = ms_between(t0, Clock::now());
-    std::lock_guard lk(m);
-    st.frames_committed += t_frames;
-    st.nav_inputs_committed += t_nav;
-    st.events_committed += t_events;
-    st.image_bytes += t_image_bytes;
-    st.stored_bytes += t_stored_bytes;
-    st.raw_blobs_copied += t_raw_copied;
-    st.commits += 1;
-    st.commit_ms += ms;
-    txn = false;
-    t_frames = t_nav = t_events = t_image_bytes = t_stored_bytes = t_raw_copied = 0;
-  };
-  // Between transactions: the checkpoint that lets the next transaction restart the WAL.
-  auto restart_checkpoint = [&] {
-    if (txn || failed.load() || !restart_wanted.exchange(false)) return;
-    const auto t0 = Clock::now();
-    int log = 0, done = 0;
-    const int rc = sqlite3_wal_checkpoint_v2(db.get(), nullptr, SQLITE_CHECKPOINT_PASSIVE, &log, &done);
-    const double ms = ms_between(t0, Clock::now());
-    if (rc != SQLITE_OK && rc != SQLITE_BUSY && rc != SQLITE_LOCKED) {
-      const std::string e = describe_sqlite_error(db.get(), rc);
-      const std::string why = diagnose_write_failure(path, e, 0);
-      std::lock_guard lk(m);
-      fail_locked("recorder::Recorder: " + path + ": checkpointing the WAL into the database failed: " + e +
-                      why +
-                      "; the recording stopped there (everything committed is in the WAL and stays readable)",
-                  "checkpoint failed: " + e);
-      return;
-    }
-    std::lock_guard lk(m);
-    st.checkpoints += 1;
-    st.checkpoint_ms += ms;
-  };
+    rollback_txn("COMMIT failed: " + s.error().message);
+    return;
+  }
+  const double ms = ms_between(t0, Clock::now());
+  std::lock_guard lk(m);
+  st.frames_committed += tx.frames;
+  st.nav_inputs_committed += tx.small[0];
+  st.events_committed += tx.small[1];
+  st.look_updates_committed += tx.small[2];
+  st.image_bytes += tx.image_bytes;
+  st.stored_bytes += tx.stored_bytes;
+  st.raw_blobs_copied += tx.raw_copied;
+  st.commits += 1;
+  st.commit_ms += ms;
+  tx.clear();
+}
 
+void Recorder::Impl::restart_checkpoint() {
+  if (tx.open || failed.load() || !restart_wanted.exchange(false)) return;
+  const auto t0 = Clock::now();
+  int log = 0, done = 0;
+  const int rc = sqlite3_wal_checkpoint_v2(db.get(), nullptr, SQLITE_CHECKPOINT_PASSIVE, &log, &done);
+  const double ms = ms_between(t0, Clock::now());
+  if (rc != SQLITE_OK && rc != SQLITE_BUSY && rc != SQLITE_LOCKED) {
+    const std::string e = describe_sqlite_error(db.get(), rc);
+    const std::string why = diagnose_write_failure(path, e, 0);
+    std::lock_guard lk(m);
+    fail_locked("recorder::Recorder: " + path + ": checkpointing the WAL into the database failed: " + e + why +
+                    "; the recording stopped there (everything committed is in the WAL and stays readable)",
+                "checkpoint failed: " + e);
+    return;
+  }
+  std::lock_guard lk(m);
+  st.checkpoints += 1;
+  st.checkpoint_ms += ms;
+}
+
+void Recorder::Impl::write_smalls(const std::deque<SmallItem>& smalls) {
+  for (const SmallItem& item : smalls) {
+    const std::size_t kind = item.index();
+    if (!failed.load() && begin_txn()) {
+      tx.small[kind] += 1;  // a failing item goes with its transaction
+      if (auto s = insert_small(item); !s)
+        rollback_txn(std::string("writing a ") + kSmallWhat[kind] + " failed: " + s.error().message);
+      continue;
+    }
+    std::lock_guard lk(m);
+    const TimestampNs t = small_t_ns(item);
+    drop_locked(DropStage::kRecorder, kSmallItem[kind], stopped_reason(), 1, t, t);
+  }
+}
+
+void Recorder::Impl::write_frames(std::vector<std::unique_ptr<Encoded>>& frames) {
+  for (auto& e : frames) {
+    if (opt.writer_delay_for_testing.count() > 0) std::this_thread::sleep_for(opt.writer_delay_for_testing);
+    bool written = false, lost_in_rollback = false;
+    std::string reason;  // empty: dropped because the recording has stopped
+    if (!e->error.empty()) {
+      reason = "encoding failed: " + e->error;
+    } else if (!e->skipped && !failed.load() && begin_txn()) {
+      const double cpu0 = thread_cpu_ms();
+      if (tx.first == 0) tx.first = e->t_ns;
+      tx.last = e->t_ns;
+      if (auto s = insert_frame(*e); !s) {
+        rollback_txn("writing frame " + std::to_string(e->row.pair_sequence) + " failed: " + s.error().message, 1);
+        lost_in_rollback = true;
+      } else {
+        written = true;
+        tx.frames += 1;
+        tx.raw_copied += static_cast<std::uint64_t>(e->raw_copied);
+        tx.image_bytes += e->image_bytes;
+        tx.stored_bytes += e->stored_bytes;
+        std::lock_guard lk(m);
+        st.insert_ms += thread_cpu_ms() - cpu0;
+      }
+    }
+    e->copied_from = {};  // the replayed frame's blobs are freed here, outside the lock
+    std::lock_guard lk(m);
+    if (written)
+      st.frames_written += 1;
+    else if (!reason.empty())
+      drop_locked(DropStage::kRecorder, "frame", reason, 1, e->t_ns, e->t_ns);
+    else if (!lost_in_rollback)
+      drop_locked(DropStage::kRecorder, "frame", stopped_reason(), 1, e->t_ns, e->t_ns);
+    --in_flight;
+    e->row = FrameRow{};
+    if (spare.size() < workers.size() + 2) spare.push_back(std::move(e));
+  }
+}
+
+void Recorder::Impl::writer_main() {
   for (;;) {
     std::vector<std::unique_ptr<Encoded>> frames;
     std::deque<SmallItem> smalls;
@@ -589,7 +705,7 @@ void Recorder::Impl::writer_main() {
       // Without a transaction the writer still wakes every commit_interval, for ledger entries
       // (push() of a DropRecord wakes nobody).
       const Clock::time_point deadline =
-          txn ? txn_start + opt.commit_interval : Clock::now() + opt.commit_interval;
+          tx.open ? tx.start + opt.commit_interval : Clock::now() + opt.commit_interval;
       cv_writer.wait_until(lk, deadline, [&] { return have_work() || finished(); });
       for (auto it = ready.find(next_write); it != ready.end() && frames.size() < 8;
            it = ready.find(next_write)) {
@@ -602,79 +718,27 @@ void Recorder::Impl::writer_main() {
     }
 
     const bool was_failed = failed.load();
-    if (was_failed && txn) commit();  // stopped by the checkpointer: keep what this transaction holds
-    for (const SmallItem& item : smalls) {
-      const bool is_nav = std::holds_alternative<NavInputRecord>(item);
-      if (!failed.load() && begin()) {
-        if (auto s = insert_small(item); !s) {
-          (is_nav ? t_nav : t_events) += 1;  // the failing item goes with its transaction
-          rollback(std::string("writing a ") + (is_nav ? "nav input" : "event") +
-                   " failed: " + s.error().message);
-        } else {
-          (is_nav ? t_nav : t_events) += 1;
-        }
-        continue;
-      }
-      std::lock_guard lk(m);
-      const TimestampNs t = is_nav ? std::get<NavInputRecord>(item).t_ns : std::get<EventRecord>(item).t_ns;
-      drop_locked(DropStage::kRecorder, is_nav ? "nav_input" : "event", stopped_reason(), 1, t, t);
-    }
-    for (auto& e : frames) {
-      if (opt.writer_delay_for_testing.count() > 0) std::this_thread::sleep_for(opt.writer_delay_for_testing);
-      bool written = false, lost_in_rollback = false;
-      std::string reason;  // empty: dropped because the recording has stopped
-      if (!e->error.empty()) {
-        reason = "encoding failed: " + e->error;
-      } else if (!e->skipped && !failed.load() && begin()) {
-        const double cpu0 = thread_cpu_ms();
-        if (auto s = insert_frame(*e); !s) {
-          if (t_first == 0) t_first = e->t_ns;
-          t_last = e->t_ns;
-          rollback("writing frame " + std::to_string(e->row.pair_sequence) + " failed: " + s.error().message,
-                   1);
-          lost_in_rollback = true;
-        } else {
-          written = true;
-          t_frames += 1;
-          t_raw_copied += static_cast<std::uint64_t>(e->raw_copied);
-          t_image_bytes += e->image_bytes;
-          t_stored_bytes += e->stored_bytes;
-          if (t_first == 0) t_first = e->t_ns;
-          t_last = e->t_ns;
-          std::lock_guard lk(m);
-          st.insert_ms += thread_cpu_ms() - cpu0;
-        }
-      }
-      e->copied_from = {};  // the replayed frame's blobs are freed here, outside the lock
-      std::lock_guard lk(m);
-      if (written)
-        st.frames_written += 1;
-      else if (!reason.empty())
-        drop_locked(DropStage::kRecorder, "frame", reason, 1, e->t_ns, e->t_ns);
-      else if (!lost_in_rollback)
-        drop_locked(DropStage::kRecorder, "frame", stopped_reason(), 1, e->t_ns, e->t_ns);
-      --in_flight;
-      e->row = FrameRow{};
-      if (spare.size() < workers.size() + 2) spare.push_back(std::move(e));
-    }
+    if (was_failed && tx.open) commit_txn();  // stopped by the checkpointer: keep what this transaction holds
+    write_smalls(smalls);
+    write_frames(frames);
 
     bool finished;
     {
       std::lock_guard lk(m);
       finished = stopping && in_flight == 0 && small.empty() && ready.empty();
     }
-    if (txn && (finished || stopping || Clock::now() - txn_start >= opt.commit_interval)) commit();
+    if (tx.open && (finished || stopping || Clock::now() - tx.start >= opt.commit_interval)) commit_txn();
     restart_checkpoint();
-    if (!txn && !failed.load()) {
+    if (!tx.open && !failed.load()) {
       // Ledger entries that arrived while nothing else did.
       bool pending;
       {
         std::lock_guard lk(m);
         pending = !ledger.empty();
       }
-      if (pending && begin()) commit();
+      if (pending && begin_txn()) commit_txn();
     }
-    if (finished && !txn) return;
+    if (finished && !tx.open) return;
   }
 }
 
@@ -742,6 +806,7 @@ Status Recorder::Impl::write_summary() {
   put("summary.frames", std::to_string(s.frames_committed));
   put("summary.nav_inputs", std::to_string(s.nav_inputs_committed));
   put("summary.events", std::to_string(s.events_committed));
+  put("summary.look_updates", std::to_string(s.look_updates_committed));
   for (DropStage stage : kAllDropStages)
     put("summary.drops." + std::string(to_string(stage)), std::to_string(drops[static_cast<int>(stage)]));
   put("summary.image_bytes", std::to_string(s.image_bytes));
@@ -854,31 +919,7 @@ Expected<std::unique_ptr<Recorder>> Recorder::create(const std::string& dir, con
   auto meta = Statement::prepare(d.get(), "INSERT OR REPLACE INTO meta (key, value) VALUES (?, ?)");
   if (!meta) return fail("preparing", meta.error());
   impl->ins_meta = std::move(*meta);
-  std::vector<std::pair<std::string, std::string>> kv = {
-      {"schema_version", std::to_string(kSchemaVersion)},
-      {"software", std::string("augrig ") + AUGRIG_VERSION},
-      {"created_utc", utc_now_iso8601()},
-      {"created_host_realtime_ns", std::to_string(clock_ns(CLOCK_REALTIME))},
-      {"created_host_monotonic_ns", std::to_string(clock_ns(CLOCK_MONOTONIC))},
-      {"rig_yaml", info.rig_yaml},
-      {"scene", info.scene},
-      {"clock_domains", info.clock_domains},
-      {"recorder_options",
-       "queue_capacity=" + std::to_string(impl->opt.queue_capacity) +
-           " small_queue_capacity=" + std::to_string(impl->opt.small_queue_capacity) +
-           " commit_interval_ms=" + std::to_string(impl->opt.commit_interval.count()) +
-           " checkpoint_interval_ms=" + std::to_string(impl->opt.checkpoint_interval.count()) +
-           " zstd_level=" + std::to_string(impl->opt.zstd_level) +
-           " compression_threads=" + std::to_string(impl->opt.compression_threads) +
-           " max_bytes=" + std::to_string(impl->opt.max_bytes) + " page_size=" + std::to_string(kPageSize) +
-           " synchronous=NORMAL"},
-      {"codec.raw", std::string(kRawCodec)},
-      {"codec.aug",
-       "zstd frame of (augmented XOR raw) inside [x0,x1) x [y0,y1), rows packed tight; "
-       "empty blob: no change"},
-      {"codec.mask", "zstd frame of the Mono8 mask, rows packed tight"},
-      {"codec.depth", std::string(kDepthCodec)},
-  };
+  std::vector<std::pair<std::string, std::string>> kv = initial_meta(impl->opt, info);
   for (const auto& [k, v] : info.extra) kv.emplace_back(k, v);
   for (const auto& [k, v] : kv)
     if (auto s = impl->put_meta(k, v); !s) return fail("writing meta", s.error());
@@ -896,6 +937,7 @@ Expected<std::unique_ptr<Recorder>> Recorder::create(const std::string& dir, con
         {&impl->ins_nav,
          "INSERT INTO nav_input (stream, t_ns, clock, arrival_ns, data) VALUES (?, ?, ?, ?, ?)"},
         {&impl->ins_event, "INSERT INTO events (t_ns, clock, text) VALUES (?, ?, ?)"},
+        {&impl->ins_look, look_insert_sql()},
         {&impl->ins_drop,
          "INSERT INTO drops (stage, item, count, first_t_ns, last_t_ns, reason) VALUES (?, ?, ?, ?, ?, "
          "?)"}}) {
@@ -957,9 +999,15 @@ bool Recorder::push(RecordItem&& item) {
     I.drop_locked(d->stage, d->item, d->reason, d->count, d->first_t_ns, d->last_t_ns);
     return true;
   }
-  const bool is_nav = std::holds_alternative<NavInputRecord>(item);
-  const TimestampNs t = is_nav ? std::get<NavInputRecord>(item).t_ns : std::get<EventRecord>(item).t_ns;
-  const char* kind = is_nav ? "nav_input" : "event";
+  SmallItem small_item;
+  if (auto* n = std::get_if<NavInputRecord>(&item))
+    small_item = std::move(*n);
+  else if (auto* ev = std::get_if<EventRecord>(&item))
+    small_item = std::move(*ev);
+  else
+    small_item = std::move(std::get<LookRecord>(item));
+  const TimestampNs t = small_t_ns(small_item);
+  const char* kind = kSmallItem[small_item.index()];
   std::unique_lock lk(I.m);
   if (I.closed) return false;
   if (I.failed.load()) {
@@ -967,16 +1015,13 @@ bool Recorder::push(RecordItem&& item) {
     return false;
   }
   if (I.small.size() >= I.opt.small_queue_capacity) {
-    I.drop_locked(
-        DropStage::kRecorder, kind,
-        "queue full (capacity " + std::to_string(I.opt.small_queue_capacity) + " nav inputs and events)", 1,
-        t, t);
+    I.drop_locked(DropStage::kRecorder, kind,
+                  "queue full (capacity " + std::to_string(I.opt.small_queue_capacity) +
+                      " nav inputs, events and look updates)",
+                  1, t, t);
     return false;
   }
-  if (is_nav)
-    I.small.emplace_back(std::move(std::get<NavInputRecord>(item)));
-  else
-    I.small.emplace_back(std::move(std::get<EventRecord>(item)));
+  I.small.push_back(std::move(small_item));
   lk.unlock();
   I.cv_writer.notify_one();
   return true;
@@ -1051,6 +1096,7 @@ Status Recorder::close() {
   I.ins_depth = {};
   I.ins_nav = {};
   I.ins_event = {};
+  I.ins_look = {};
   I.ins_drop = {};
   I.ins_meta = {};
   I.db.close();

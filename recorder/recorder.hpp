@@ -43,9 +43,9 @@ namespace augrig::recorder {
 
 struct RecorderOptions {
   // Frames inside the recorder (queued, being compressed, or waiting to be written) at most;
-  // a frame pushed beyond this is dropped. Nav inputs and events have their own bound.
+  // a frame pushed beyond this is dropped. Nav inputs, events and look updates have their own bound.
   std::size_t queue_capacity = 64;
-  std::size_t small_queue_capacity = 1 << 16;  // nav inputs and events
+  std::size_t small_queue_capacity = 1 << 16;  // nav inputs, events and look updates
   std::chrono::milliseconds commit_interval{250};
   std::chrono::milliseconds checkpoint_interval{1000};
   int zstd_level = 1;           // 1..3 keep up with 1280x960 stereo at well over 100 fps on 2 cores
@@ -67,7 +67,8 @@ struct RecorderStats {
   std::uint64_t frames_in_flight = 0;  // accepted, not yet written or dropped
   std::uint64_t nav_inputs_committed = 0;
   std::uint64_t events_committed = 0;
-  std::uint64_t small_items_dropped = 0;  // nav inputs and events dropped by the recorder
+  std::uint64_t look_updates_committed = 0;  // LookRecords
+  std::uint64_t small_items_dropped = 0;     // nav inputs, events and look updates dropped by the recorder
   std::uint64_t commits = 0;
   std::uint64_t checkpoints = 0;
   std::uint64_t image_bytes = 0;   // uncompressed bytes of the images of written frames

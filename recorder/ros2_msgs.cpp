@@ -163,7 +163,9 @@ const std::map<std::string, MsgDef>& definitions() {
         "float64 boom_overlap_pct_union\nint64 occluded_px_left\nint64 occluded_px_right\n"
         "float64 occluded_pct_left\nfloat64 occluded_pct_right\nint64 stereo_both_px\nint64 left_only_px\n"
         "int64 right_only_px\nint64 neither_px\nfloat64 receiver_pct_left\nfloat64 receiver_pct_right\n"
-        "float64 boom_pct_left\nfloat64 boom_pct_right\n",
+        "float64 boom_pct_left\nfloat64 boom_pct_right\n"
+        "# Appended: the boom's shadow on the receiver (mask bit 2). A message without them reads 0.\n"
+        "int64 shadow_px_left\nint64 shadow_px_right\nfloat64 shadow_pct_left\nfloat64 shadow_pct_right\n",
         {"std_msgs/Header"}}},
       {"augrig_msgs/CameraFrameInfo",
        {"# One camera's frame of a stereo frame: its counter, mid-exposure time on its clock, host arrival.\n"
@@ -446,6 +448,10 @@ std::vector<std::uint8_t> occlusion_stats(std::int64_t stamp_ns, const Occlusion
   w.f64(s.receiver_pct_right);
   w.f64(s.boom_pct_left);
   w.f64(s.boom_pct_right);
+  w.i64(s.shadow_px_left);
+  w.i64(s.shadow_px_right);
+  w.f64(s.shadow_pct_left);
+  w.f64(s.shadow_pct_right);
   return std::move(w.data());
 }
 
@@ -612,6 +618,14 @@ Expected<OcclusionStats> decode_occlusion_stats(const std::vector<std::uint8_t>&
   s.receiver_pct_right = r.f64();
   s.boom_pct_left = r.f64();
   s.boom_pct_right = r.f64();
+  // A message written before the shadow fields were appended ends here (but for padding to 4
+  // bytes): its shadow reads 0.
+  if (r.ok() && r.remaining() >= 4) {
+    s.shadow_px_left = r.i64();
+    s.shadow_px_right = r.i64();
+    s.shadow_pct_left = r.f64();
+    s.shadow_pct_right = r.f64();
+  }
   if (!r.ok()) return bad("augrig_msgs/msg/OcclusionStats");
   return s;
 }

@@ -60,6 +60,9 @@ class CdrReader {
   // Checks the encapsulation header (CDR little endian); !ok() otherwise.
   CdrReader(const std::uint8_t* p, std::size_t n);
   bool ok() const { return ok_; }
+  // Bytes not read yet: a message that ends before fields appended to its type later has none
+  // (or, padded to 4 bytes by a ROS 2 writer, fewer than 4).
+  std::size_t remaining() const { return i_ < n_ ? n_ - i_ : 0; }
   std::uint8_t u8() { return static_cast<std::uint8_t>(le(1)); }
   std::int8_t i8() { return static_cast<std::int8_t>(le(1)); }
   bool boolean() { return u8() != 0; }

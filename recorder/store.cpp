@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <iterator>
+#include <limits>
 
 namespace augrig::recorder {
 
@@ -185,7 +187,8 @@ void visit_pose(V& v, const std::string& prefix, Pose& p) {
 }
 
 // The statistics columns carry render/stats.hpp's (and stats.csv's) names; the stats' own t_ns,
-// width and height get a "stats_" prefix since `frames` has a t_ns of its own.
+// width and height get a "stats_" prefix since `frames` has a t_ns of its own. `since(N)`: the
+// columns that follow were added by schema version N (the visitors other than the schema's ignore it).
 template <typename V>
 void visit_stats(V& v, OcclusionStats& s) {
   v.integer("stats_t_ns", s.t_ns);
@@ -211,6 +214,13 @@ void visit_stats(V& v, OcclusionStats& s) {
   AUGRIG_REC_REAL(receiver_pct_right);
   AUGRIG_REC_REAL(boom_pct_left);
   AUGRIG_REC_REAL(boom_pct_right);
+  // Appended by schema 3, as stats.csv appended them: an older recording reads them as 0.
+  v.since(3);
+  AUGRIG_REC_INT(shadow_px_left);
+  AUGRIG_REC_INT(shadow_px_right);
+  AUGRIG_REC_REAL(shadow_pct_left);
+  AUGRIG_REC_REAL(shadow_pct_right);
+  v.since(1);
 #undef AUGRIG_REC_INT
 #undef AUGRIG_REC_REAL
 }
@@ -267,11 +277,17 @@ void visit_frame_row(V& v, FrameRow& r) {
 struct SchemaVisitor {
   std::vector<std::string> names, defs;
   std::vector<unsigned> blob_parts;  // per column: parts that fetch it (0: not a blob)
+  std::vector<int> added_in;         // per column: the schema version that added it
+  std::vector<bool> is_real;
   bool nullable = false;
+  int version = 1;
+  void since(int v) { version = v; }
   void add(const std::string& name, const char* type, bool not_null, unsigned parts = 0) {
     names.push_back(name);
     defs.push_back(name + " " + type + (not_null && !nullable ? " NOT NULL" : ""));
     blob_parts.push_back(parts);
+    added_in.push_back(version);
+    is_real.push_back(std::string_view(type) == "REAL");
   }
   template <typename T>
   void integer(const std::string& name, T&) {
@@ -305,6 +321,7 @@ struct BindVisitor {
   int i = 1;
   bool null_mode = false;
   int rc = SQLITE_OK;
+  void since(int) {}
   void check(int r) {
     if (rc == SQLITE_OK) rc = r;
   }
@@ -353,6 +370,7 @@ struct ReadVisitor {
   int i = 1;  // column 0 is id
   bool skip = false;
   std::string error;
+  void since(int) {}
   bool is_null(int col) const { return sqlite3_column_type(st, col) == SQLITE_NULL; }
   void fail(const std::string& name, const std::string& what) {
     if (error.empty()) error = "column " + name + ": " + what;
@@ -428,6 +446,81 @@ struct ReadVisitor {
   }
 };
 
+// The `look` table's columns after id, in table order: CREATE, INSERT and SELECT are all made from
+// this one list. A noise row fills camera .. note, a light row direct_r .. sun_z; the rest are NULL.
+struct LookColumn {
+  const char* name;
+  const char* type;
+};
+constexpr LookColumn kLookColumns[] = {
+    {"t_ns", "INTEGER NOT NULL"},
+    {"clock", "TEXT NOT NULL"},
+    {"kind", "TEXT NOT NULL CHECK (kind IN ('noise', 'light'))"},
+    {"source", "TEXT NOT NULL"},
+    {"camera", "INTEGER"},
+    {"channels", "INTEGER"},
+    {"a0", "REAL"},
+    {"a1", "REAL"},
+    {"a2", "REAL"},
+    {"b0", "REAL"},
+    {"b1", "REAL"},
+    {"b2", "REAL"},
+    {"frames", "INTEGER"},
+    {"note", "TEXT"},
+    {"direct_r", "REAL"},
+    {"direct_g", "REAL"},
+    {"direct_b", "REAL"},
+    {"sky_r", "REAL"},
+    {"sky_g", "REAL"},
+    {"sky_b", "REAL"},
+    {"ground_r", "REAL"},
+    {"ground_g", "REAL"},
+    {"ground_b", "REAL"},
+    {"samples", "INTEGER"},
+    {"rms", "REAL"},
+    {"sun_up", "INTEGER"},
+    {"sun_x", "REAL"},
+    {"sun_y", "REAL"},
+    {"sun_z", "REAL"},
+};
+// Column indices into kLookColumns (the SELECT's result columns; the INSERT's parameters are + 1).
+enum LookCol : int {
+  kLookT,
+  kLookClock,
+  kLookKind,
+  kLookSource,
+  kLookCamera,
+  kLookChannels,
+  kLookA,
+  kLookB = kLookA + 3,
+  kLookFrames = kLookB + 3,
+  kLookNote,
+  kLookDirect,
+  kLookSky = kLookDirect + 3,
+  kLookGround = kLookSky + 3,
+  kLookSamples = kLookGround + 3,
+  kLookRms,
+  kLookSunUp,
+  kLookSun,
+  kLookColumnCount = kLookSun + 3,
+};
+static_assert(std::size(kLookColumns) == kLookColumnCount, "kLookColumns and LookCol disagree");
+
+// A noise row's `source`: the rig's or estimated from the frames.
+constexpr std::string_view kNoiseConfigured = "configured", kNoiseEstimated = "estimated";
+
+std::string look_table_sql() {
+  std::string s = "CREATE TABLE look (id INTEGER PRIMARY KEY";
+  for (const LookColumn& c : kLookColumns) s += std::string(", ") + c.name + " " + c.type;
+  return s + ");\n";
+}
+
+std::string look_column_list() {
+  std::string s;
+  for (const LookColumn& c : kLookColumns) s += std::string(s.empty() ? "" : ", ") + c.name;
+  return s;
+}
+
 std::string join(const std::vector<std::string>& v, const char* sep) {
   std::string s;
   for (std::size_t k = 0; k < v.size(); ++k) {
@@ -441,6 +534,14 @@ std::string join(const std::vector<std::string>& v, const char* sep) {
 
 std::vector<std::string> frame_column_names() {
   return frame_schema().names;
+}
+
+std::vector<std::string> frame_columns_added_after(int schema_version) {
+  const SchemaVisitor& s = frame_schema();
+  std::vector<std::string> out;
+  for (std::size_t k = 0; k < s.names.size(); ++k)
+    if (s.added_in[k] > schema_version) out.push_back(s.names[k]);
+  return out;
 }
 
 std::string schema_sql() {
@@ -459,6 +560,7 @@ std::string schema_sql() {
        "first_t_ns INTEGER NOT NULL, last_t_ns INTEGER NOT NULL, reason TEXT NOT NULL);\n";
   s += "CREATE TABLE events (id INTEGER PRIMARY KEY, t_ns INTEGER NOT NULL, clock TEXT NOT NULL, "
        "text TEXT NOT NULL);\n";
+  s += look_table_sql();
   return s;
 }
 
@@ -477,13 +579,15 @@ Status bind_frame_row(sqlite3_stmt* st, const FrameRow& row) {
   return {};
 }
 
-std::string frame_select_sql(unsigned parts) {
+std::string frame_select_sql(unsigned parts, int schema_version) {
   const SchemaVisitor& s = frame_schema();
   std::string q = "SELECT id";
   for (std::size_t k = 0; k < s.names.size(); ++k) {
     q += ", ";
     if (s.blob_parts[k] != 0 && (s.blob_parts[k] & parts) == 0)
       q += "NULL AS " + s.names[k];
+    else if (s.added_in[k] > schema_version)
+      q += std::string(s.is_real[k] ? "0.0" : "0") + " AS " + s.names[k];  // not in an older recording
     else
       q += s.names[k];
   }
@@ -554,6 +658,174 @@ Status read_depth_row(sqlite3_stmt* st, DepthRow& row) {
     row.blob[c] = {static_cast<const std::uint8_t*>(sqlite3_column_blob(st, col + 4)),
                    static_cast<std::size_t>(sqlite3_column_bytes(st, col + 4)), true};
   }
+  return {};
+}
+
+}  // namespace augrig::recorder
+
+namespace augrig::recorder {
+
+std::string look_insert_sql() {
+  std::string q = "INSERT INTO look (" + look_column_list() + ") VALUES (";
+  for (int k = 0; k < kLookColumnCount; ++k) q += k ? ", ?" : "?";
+  return q + ")";
+}
+
+Status bind_look_row(sqlite3_stmt* st, const LookRecord& row) {
+  int rc = SQLITE_OK;
+  auto check = [&](int r) {
+    if (rc == SQLITE_OK) rc = r;
+  };
+  auto integer = [&](int col, std::int64_t v) { check(sqlite3_bind_int64(st, col + 1, v)); };
+  // NaN is stored as NULL, as in `frames`.
+  auto real = [&](int col, double v) {
+    check(std::isnan(v) ? sqlite3_bind_null(st, col + 1) : sqlite3_bind_double(st, col + 1, v));
+  };
+  auto text = [&](int col, std::string_view t) {
+    check(sqlite3_bind_text(st, col + 1, t.data(), static_cast<int>(t.size()), SQLITE_TRANSIENT));
+  };
+  for (int col = 0; col < kLookColumnCount; ++col) check(sqlite3_bind_null(st, col + 1));
+  integer(kLookT, row.t_ns);
+  text(kLookClock, to_string(row.clock));
+  text(kLookKind, look_kind(row));
+  if (const auto* n = std::get_if<LookNoise>(&row.update)) {
+    if (n->nlf.channels != 1 && n->nlf.channels != 3)
+      return make_error("binding look columns: a noise level function of ", n->nlf.channels,
+                        " channels (expected 1 or 3)");
+    text(kLookSource, n->configured ? kNoiseConfigured : kNoiseEstimated);
+    integer(kLookCamera, n->camera);
+    integer(kLookChannels, n->nlf.channels);
+    for (int k = 0; k < n->nlf.channels; ++k) {
+      real(kLookA + k, n->nlf.a[static_cast<std::size_t>(k)]);
+      real(kLookB + k, n->nlf.b[static_cast<std::size_t>(k)]);
+    }
+    integer(kLookFrames, static_cast<std::int64_t>(n->frames));
+    text(kLookNote, n->note);
+  } else {
+    const LookLight& l = std::get<LookLight>(row.update);
+    text(kLookSource, to_string(l.source));
+    for (int k = 0; k < 3; ++k) {
+      real(kLookDirect + k, l.direct[k]);
+      real(kLookSky + k, l.sky[k]);
+      real(kLookGround + k, l.ground[k]);
+      real(kLookSun + k, l.towards_sun_body[k]);
+    }
+    integer(kLookSamples, static_cast<std::int64_t>(l.samples));
+    real(kLookRms, l.rms);
+    integer(kLookSunUp, l.sun_up ? 1 : 0);
+  }
+  if (rc != SQLITE_OK) return make_error("binding look columns: ", sqlite3_errstr(rc));
+  return {};
+}
+
+std::string look_select_sql() {
+  return "SELECT " + look_column_list() + " FROM look ORDER BY id";
+}
+
+namespace {
+
+// Reads one `look` row's columns, keeping the first error ("column a1: expected a number, got NULL").
+struct LookReader {
+  sqlite3_stmt* st;
+  std::string error;
+
+  void fail(int col, const std::string& what) {
+    if (error.empty()) error = std::string("column ") + kLookColumns[col].name + ": " + what;
+  }
+  static const char* type_name(int t) {
+    switch (t) {
+      case SQLITE_INTEGER:
+        return "an integer";
+      case SQLITE_FLOAT:
+        return "a real";
+      case SQLITE_TEXT:
+        return "text";
+      case SQLITE_BLOB:
+        return "a blob";
+      default:
+        return "NULL";
+    }
+  }
+  std::int64_t integer(int col, std::int64_t lo, std::int64_t hi) {
+    const int t = sqlite3_column_type(st, col);
+    if (t != SQLITE_INTEGER) {
+      fail(col, std::string("expected an integer, got ") + type_name(t));
+      return lo;
+    }
+    const std::int64_t v = sqlite3_column_int64(st, col);
+    if (v < lo || v > hi) fail(col, std::to_string(v) + " is outside " + std::to_string(lo) + ".." + std::to_string(hi));
+    return v;
+  }
+  // `nullable`: NULL reads as NaN (stored from a NaN).
+  double real(int col, bool nullable = false) {
+    const int t = sqlite3_column_type(st, col);
+    if (t == SQLITE_FLOAT || t == SQLITE_INTEGER) return sqlite3_column_double(st, col);
+    if (t == SQLITE_NULL && nullable) return FrameRecord::kNaN;
+    fail(col, std::string("expected a number, got ") + type_name(t));
+    return FrameRecord::kNaN;
+  }
+  Eigen::Vector3d rgb(int col) { return {real(col), real(col + 1), real(col + 2)}; }
+  std::string text(int col, bool nullable = false) {
+    const int t = sqlite3_column_type(st, col);
+    if (t == SQLITE_NULL && nullable) return {};
+    if (t != SQLITE_TEXT) {
+      fail(col, std::string("expected text, got ") + type_name(t));
+      return {};
+    }
+    return {reinterpret_cast<const char*>(sqlite3_column_text(st, col)),
+            static_cast<std::size_t>(sqlite3_column_bytes(st, col))};
+  }
+
+  LookNoise noise() {
+    LookNoise n;
+    const std::string source = text(kLookSource);
+    if (error.empty() && source != kNoiseConfigured && source != kNoiseEstimated)
+      fail(kLookSource, "\"" + source + "\" is neither configured nor estimated");
+    n.configured = source == kNoiseConfigured;
+    n.camera = static_cast<int>(integer(kLookCamera, 0, 255));
+    n.nlf.channels = static_cast<int>(integer(kLookChannels, 1, 3));
+    if (error.empty() && n.nlf.channels == 2) fail(kLookChannels, "2 channels (expected 1 or 3)");
+    for (int k = 0; k < n.nlf.channels && error.empty(); ++k) {
+      n.nlf.a[static_cast<std::size_t>(k)] = real(kLookA + k);
+      n.nlf.b[static_cast<std::size_t>(k)] = real(kLookB + k);
+    }
+    n.frames = static_cast<std::uint64_t>(integer(kLookFrames, 0, std::numeric_limits<std::int64_t>::max()));
+    n.note = text(kLookNote, true);
+    return n;
+  }
+  LookLight light() {
+    LookLight l;
+    const std::string source = text(kLookSource);
+    if (error.empty() && !parse_light_source(source, l.source))
+      fail(kLookSource, "unknown light source \"" + source + "\"");
+    l.direct = rgb(kLookDirect);
+    l.sky = rgb(kLookSky);
+    l.ground = rgb(kLookGround);
+    l.samples = static_cast<std::uint64_t>(integer(kLookSamples, 0, std::numeric_limits<std::int64_t>::max()));
+    l.rms = real(kLookRms, true);
+    l.sun_up = integer(kLookSunUp, 0, 1) != 0;
+    l.towards_sun_body = rgb(kLookSun);
+    return l;
+  }
+};
+
+}  // namespace
+
+Status read_look_row(sqlite3_stmt* st, LookRecord& row) {
+  row = LookRecord{};
+  LookReader r{st, {}};
+  row.t_ns = r.integer(kLookT, std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::max());
+  const std::string clock = r.text(kLookClock);
+  if (r.error.empty() && !parse_clock_domain(clock, row.clock))
+    r.fail(kLookClock, "unknown clock domain \"" + clock + "\"");
+  const std::string kind = r.text(kLookKind);
+  if (kind == "noise")
+    row.update = r.noise();
+  else if (kind == "light")
+    row.update = r.light();
+  else
+    r.fail(kLookKind, "unknown kind \"" + kind + "\" (expected noise or light)");
+  if (!r.error.empty()) return Error{r.error};
   return {};
 }
 

@@ -1,7 +1,8 @@
 // store: the SQLite side of a recording, shared by the Recorder and the RecordingReader: the
 // schema (version kSchemaVersion, docs/RECORDING.md), small RAII wrappers around sqlite3 handles,
 // and the one definition of the `frames` row, from which the CREATE TABLE, the INSERT and the
-// SELECT are all generated so that they cannot disagree; the `depth` row (schema version 2) beside it.
+// SELECT are all generated so that they cannot disagree; the `depth` row (schema version 2) and the
+// `look` row (schema version 3) beside it.
 #pragma once
 
 #include <array>
@@ -21,7 +22,9 @@ namespace augrig::recorder {
 
 // 2: the `depth` table (receiver depth per frame, when recorded). A version 1 recording has no
 // such table and is read as holding no depth.
-inline constexpr int kSchemaVersion = 2;
+// 3: the four shadow counts of the statistics in `frames` (shadow_px_left ... shadow_pct_right) and
+// the `look` table. An older recording has neither: its shadow counts read 0, its look updates none.
+inline constexpr int kSchemaVersion = 3;
 inline constexpr std::string_view kDatabaseFile = "recording.sqlite";
 
 // DIR/recording.sqlite for a folder; a path that is not a folder is returned as it is.
@@ -74,10 +77,13 @@ class Statement {
   sqlite3_stmt* st_ = nullptr;
 };
 
-// The CREATE statements of the schema (tables meta, frames, depth, nav_input, drops, events).
+// The CREATE statements of the schema (tables meta, frames, depth, nav_input, drops, events, look).
 std::string schema_sql();
 // Column names of `frames` in table order (without id), for docs and tests.
 std::vector<std::string> frame_column_names();
+// The columns of `frames` that a recording of `schema_version` lacks (added by a later version),
+// in table order: frame_select_sql() reads them as 0 there.
+std::vector<std::string> frame_columns_added_after(int schema_version);
 
 // A blob in a row: for writing, the bytes to bind (`present` false: NULL); for reading, the
 // bytes SQLite returned, valid until the statement steps or resets.
@@ -121,7 +127,9 @@ std::string frame_insert_sql();
 Status bind_frame_row(sqlite3_stmt* st, const FrameRow& row);
 // "SELECT id, ... FROM frames" (no WHERE), fetching the blobs of `parts` (FrameParts, record.hpp;
 // the others come back NULL), and the matching reader for a row it returned. Errors name the column.
-std::string frame_select_sql(unsigned parts);
+// `schema_version`: the recording's; the columns added after it are selected as 0 (an older
+// recording's shadow counts read 0).
+std::string frame_select_sql(unsigned parts, int schema_version = kSchemaVersion);
 Status read_frame_row(sqlite3_stmt* st, FrameRow& row);
 
 // One row of `depth`: a frame's receiver depth (record.hpp DepthRecord), in its own table so that
@@ -140,5 +148,14 @@ std::string depth_insert_sql();
 Status bind_depth_row(sqlite3_stmt* st, const DepthRow& row);
 std::string depth_select_sql();
 Status read_depth_row(sqlite3_stmt* st, DepthRow& row);
+
+// The `look` table (schema version 3): one row per update of the camera look (record.hpp
+// LookRecord), a camera's noise level function or the light measured on the receiver; the columns
+// of the other kind are NULL. "INSERT INTO look (...) VALUES (...)" and its binder; "SELECT ... FROM
+// look ORDER BY id" and the reader of its row, whose errors name the column and what it holds.
+std::string look_insert_sql();
+Status bind_look_row(sqlite3_stmt* st, const LookRecord& row);
+std::string look_select_sql();
+Status read_look_row(sqlite3_stmt* st, LookRecord& row);
 
 }  // namespace augrig::recorder

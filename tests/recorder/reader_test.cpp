@@ -2,7 +2,9 @@
 // database and a truncated database give per-frame errors naming the file and the frame while the
 // intact frames still read bit-exact; files that are no recording at all fail open() with an error
 // naming the file; check() reports what a recording holds. Recorded receiver depth: damage is
-// reported naming the frame; a recording of schema 1 (no depth table) still reads and checks.
+// reported naming the frame; a recording of schema 1 (no depth table) still reads and checks. The
+// look table reads back in order and is counted; a recording of schema 2 (no shadow columns, no
+// look table) reads its shadow as 0; a damaged look row is an error naming the row and the column.
 #include "recorder/reader.hpp"
 
 #include <filesystem>
@@ -209,8 +211,8 @@ TEST(RecordingReader, NewerSchemaIsRefused) {
   ASSERT_FALSE(rd);
   EXPECT_EQ(rd.error().message,
             "recorder::RecordingReader::open(): " + dir +
-                "/recording.sqlite: schema version 99 is newer than this reader's (2); use a "
-                "newer augrig");
+                "/recording.sqlite: schema version 99 is newer than this reader's (" +
+                std::to_string(kSchemaVersion) + "); use a newer augrig");
 }
 
 TEST(RecordingReader, CheckReportsWhatTheRecordingHolds) {
@@ -223,7 +225,7 @@ TEST(RecordingReader, CheckReportsWhatTheRecordingHolds) {
   EXPECT_TRUE(r.ok()) << r.to_string();
   EXPECT_TRUE(r.closed_cleanly);
   EXPECT_EQ(r.summary_status, "ok");
-  EXPECT_EQ(r.schema_version, 2);
+  EXPECT_EQ(r.schema_version, kSchemaVersion);
   EXPECT_EQ(r.frames, 5u);
   EXPECT_EQ(r.frames_ok, 5u);
   EXPECT_EQ(r.frames_with_masks, 5u);
@@ -244,6 +246,7 @@ TEST(RecordingReader, CheckReportsWhatTheRecordingHolds) {
   EXPECT_NE(text.find("drops: camera 0 pairing 0 processing 0 recorder 0 transport 0"), std::string::npos)
       << text;
   EXPECT_NE(text.find("nav inputs: gps 1"), std::string::npos) << text;
+  EXPECT_NE(text.find("look updates: 0 noise, 0 light\n"), std::string::npos) << text;
 }
 
 // A depth image of w x h: +inf except a disc of a tilted plane (a receiver), with a hole.
@@ -331,8 +334,10 @@ TEST(RecordingReader, SchemaOneRecordingWithoutDepthStillReadsAndChecks) {
   {
     auto d = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
     ASSERT_TRUE(d);
-    ASSERT_TRUE(d->exec("DROP TABLE depth; UPDATE meta SET value = '1' WHERE key = 'schema_version'; "
-                        "DELETE FROM meta WHERE key = 'codec.depth'; VACUUM"));
+    ASSERT_TRUE(d->exec("DROP TABLE depth; DROP TABLE look; UPDATE meta SET value = '1' WHERE key = "
+                        "'schema_version'; DELETE FROM meta WHERE key = 'codec.depth'"));
+    for (const std::string& c : frame_columns_added_after(1)) ASSERT_TRUE(d->exec("ALTER TABLE frames DROP COLUMN " + c));
+    ASSERT_TRUE(d->exec("VACUUM"));
   }
   auto rd = RecordingReader::open(dir);
   ASSERT_TRUE(rd) << rd.error().message;
@@ -349,6 +354,124 @@ TEST(RecordingReader, SchemaOneRecordingWithoutDepthStillReadsAndChecks) {
   EXPECT_NE(r.to_string().find("receiver depth: 0 frames (record with --ground-truth to store it)"),
             std::string::npos)
       << r.to_string();
+}
+
+// The camera look's updates come back in push order, counted by check().
+TEST(RecordingReader, LookUpdatesReadBackAndAreCounted) {
+  const std::string dir = test::output_dir("reader/look");
+  {
+    auto rec = Recorder::create(dir, RecordingInfo{});
+    ASSERT_TRUE(rec) << rec.error().message;
+    ASSERT_TRUE((*rec)->push(frame(0)));
+    for (int c = 0; c < 2; ++c)
+      ASSERT_TRUE((*rec)->push(
+          LookRecord{1'000'000'000, ClockDomain::kSim, LookNoise{c, {1, {0.2 + c, 0, 0}, {2.0, 0, 0}}, false, 4, ""}}));
+    LookLight l;
+    l.direct = {0.6, 0.6, 0.6};
+    l.samples = 200;
+    l.source = LightSource::kEphemeris;
+    l.sun_up = true;
+    l.towards_sun_body = {0, 0, -1};
+    ASSERT_TRUE((*rec)->push(LookRecord{1'040'000'000, ClockDomain::kSim, l}));
+    ASSERT_TRUE((*rec)->close());
+    EXPECT_EQ((*rec)->stats().look_updates_committed, 3u);
+  }
+  auto rd = RecordingReader::open(dir);
+  ASSERT_TRUE(rd) << rd.error().message;
+  EXPECT_EQ((*rd)->meta("summary.look_updates"), "3");
+  auto look = (*rd)->look();
+  ASSERT_TRUE(look) << look.error().message;
+  ASSERT_EQ(look->size(), 3u);
+  for (int c = 0; c < 2; ++c) {
+    const auto* n = std::get_if<LookNoise>(&(*look)[static_cast<std::size_t>(c)].update);
+    ASSERT_TRUE(n) << c;
+    EXPECT_EQ(n->camera, c);
+    EXPECT_EQ(n->nlf.a[0], 0.2 + c);
+    EXPECT_EQ(n->frames, 4u);
+  }
+  const auto* l = std::get_if<LookLight>(&(*look)[2].update);
+  ASSERT_TRUE(l);
+  EXPECT_EQ((*look)[2].t_ns, 1'040'000'000);
+  EXPECT_EQ((*look)[2].clock, ClockDomain::kSim);
+  EXPECT_EQ(l->samples, 200u);
+  EXPECT_EQ(l->source, LightSource::kEphemeris);
+  const CheckReport r = (*rd)->check();
+  EXPECT_TRUE(r.ok()) << r.to_string();
+  EXPECT_EQ(r.look_noise, 2u);
+  EXPECT_EQ(r.look_light, 1u);
+  EXPECT_NE(r.to_string().find("look updates: 2 noise, 1 light\n"), std::string::npos) << r.to_string();
+
+  // A damaged row: an error naming the file, the row and the column, in look() and in check().
+  {
+    auto d = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->exec("UPDATE look SET b0 = 'loud' WHERE id = 2"));
+  }
+  auto rd2 = RecordingReader::open(dir);
+  ASSERT_TRUE(rd2);
+  auto bad = (*rd2)->look();
+  ASSERT_FALSE(bad);
+  const std::string want = "recorder::RecordingReader::look(): " + (*rd2)->path() +
+                           ": look row 1: column b0: expected a number, got text";
+  EXPECT_EQ(bad.error().message, want);
+  const CheckReport r2 = (*rd2)->check();
+  ASSERT_FALSE(r2.ok());
+  EXPECT_EQ(r2.problems.front(), want);
+}
+
+// A recording as schema 2 wrote it: frames without the shadow columns, no look table. Its frames
+// read as recorded with the shadow counts 0, it has no look updates, and it checks clean.
+TEST(RecordingReader, SchemaTwoRecordingReadsItsShadowAsZero) {
+  const std::string dir = test::output_dir("reader/schema2");
+  std::vector<OcclusionStats> sent;
+  {
+    auto rec = Recorder::create(dir, RecordingInfo{});
+    ASSERT_TRUE(rec) << rec.error().message;
+    for (std::uint64_t i = 0; i < 3; ++i) {
+      FrameRecord f = frame(i);
+      OcclusionStats st;
+      st.t_ns = f.raw.t_key_ns;
+      st.receiver_px_left = 1000 + static_cast<std::int64_t>(i);
+      st.occluded_pct_right = 12.5;
+      st.boom_pct_right = 1.0 / 3.0;
+      st.shadow_px_left = 77;  // not in a schema 2 recording
+      st.shadow_pct_right = 3.5;
+      f.stats = st;
+      sent.push_back(st);
+      ASSERT_TRUE((*rec)->push(std::move(f)));
+    }
+    ASSERT_TRUE((*rec)->push(LookRecord{5, ClockDomain::kSim, LookNoise{0, {1, {0.1, 0, 0}, {1, 0, 0}}, true, 0, ""}}));
+    ASSERT_TRUE((*rec)->close());
+  }
+  {
+    auto d = Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->exec("DROP TABLE look; UPDATE meta SET value = '2' WHERE key = 'schema_version'; "
+                        "DELETE FROM meta WHERE key = 'summary.look_updates'"));
+    for (const std::string& c : frame_columns_added_after(2)) ASSERT_TRUE(d->exec("ALTER TABLE frames DROP COLUMN " + c));
+    ASSERT_TRUE(d->exec("VACUUM"));
+  }
+  auto rd = RecordingReader::open(dir);
+  ASSERT_TRUE(rd) << rd.error().message;
+  EXPECT_EQ((*rd)->schema_version(), 2);
+  ASSERT_EQ((*rd)->frame_count(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    auto f = (*rd)->read_frame(i);
+    ASSERT_TRUE(f) << f.error().message;
+    ASSERT_TRUE(f->stats);
+    OcclusionStats want = sent[i];
+    want.shadow_px_left = 0;
+    want.shadow_pct_right = 0;
+    EXPECT_EQ(*f->stats, want) << i;
+    EXPECT_TRUE(pixels_equal(f->raw.left.image, frame(i).raw.left.image)) << i;
+  }
+  auto look = (*rd)->look();
+  ASSERT_TRUE(look) << look.error().message;
+  EXPECT_TRUE(look->empty());
+  const CheckReport r = (*rd)->check();
+  EXPECT_TRUE(r.ok()) << r.to_string();
+  EXPECT_EQ(r.frames_with_stats, 3u);
+  EXPECT_NE(r.to_string().find("look updates: 0 noise, 0 light"), std::string::npos) << r.to_string();
 }
 
 }  // namespace

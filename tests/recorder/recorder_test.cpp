@@ -122,6 +122,8 @@ FrameRecord make_frame(std::uint64_t i, PixelFormat f, int w, int h, bool random
   st.boom_overlap_pct_union = 100.0 / 3.0;
   st.occluded_pct_left = std::nextafter(12.5, 13.0);
   st.neither_px = 3;
+  st.shadow_px_left = 40 + static_cast<std::int64_t>(i);
+  st.shadow_pct_right = std::nextafter(2.5, 3.0);
   r.stats = st;
   return r;
 }
@@ -176,6 +178,7 @@ void expect_same_frame(const FrameRecord& a, const FrameRecord& b) {
     EXPECT_EQ(a.stats->height, b.stats->height);
     EXPECT_TRUE(same_double(a.stats->occluded_pct_left, b.stats->occluded_pct_left));
     EXPECT_TRUE(same_double(a.stats->boom_overlap_pct_union, b.stats->boom_overlap_pct_union));
+    EXPECT_EQ(*a.stats, *b.stats);  // every field, the shadow counts too
   }
 }
 
@@ -241,6 +244,19 @@ TEST(Recorder, RoundTripIsBitExactForEveryFormat) {
                  std::string("\x00\xff\x10\x00zz", 6), true});
   for (NavInputRecord n : nav) ASSERT_TRUE((*rec)->push(std::move(n)));
   ASSERT_TRUE((*rec)->push(EventRecord{42, ClockDomain::kHostMonotonic, "contact"}));
+  LookLight light;
+  light.direct = {0.6, 0.61, 0.62};
+  light.sky = {0.1, 0.2, 1.0 / 3.0};
+  light.ground = {0.3, 0.3, 0.25};
+  light.samples = 648;
+  light.rms = 0.02;
+  light.source = LightSource::kEphemeris;
+  light.sun_up = true;
+  light.towards_sun_body = Eigen::Vector3d(1, 2, -3).normalized();
+  const std::vector<LookRecord> look = {
+      {43, ClockDomain::kDevice, LookNoise{1, {3, {0.2, 0.21, 0.22}, {1.5, 1.6, 1.7}}, false, 7, "note"}},
+      {44, ClockDomain::kDevice, light}};
+  for (LookRecord l : look) ASSERT_TRUE((*rec)->push(std::move(l)));
   ASSERT_TRUE((*rec)->push(DropRecord{DropStage::kPairing, 3, 10, 20, "no partner within 5 ms", "frame"}));
   ASSERT_TRUE((*rec)->push(DropRecord{DropStage::kCamera, 2, 30, 40, "sequence gap", "frame"}));
   ASSERT_TRUE((*rec)->push(DropRecord{DropStage::kPairing, 1, 50, 50, "no partner within 5 ms", "frame"}));
@@ -253,6 +269,7 @@ TEST(Recorder, RoundTripIsBitExactForEveryFormat) {
   EXPECT_EQ(st.frames_dropped, 0u);
   EXPECT_EQ(st.nav_inputs_committed, 3u);
   EXPECT_EQ(st.events_committed, 1u);
+  EXPECT_EQ(st.look_updates_committed, 2u);
   EXPECT_FALSE((*rec)->push(EventRecord{1, ClockDomain::kHostMonotonic, "after close"}));
   // Closed: only the database is left, the WAL was checkpointed away.
   EXPECT_TRUE(std::filesystem::exists(dir + "/recording.sqlite"));
@@ -289,6 +306,23 @@ TEST(Recorder, RoundTripIsBitExactForEveryFormat) {
     EXPECT_TRUE(raw->augmented[0].empty());
     EXPECT_TRUE(raw->mask[1].empty());
   }
+  auto look_back = (*rd)->look();
+  ASSERT_TRUE(look_back) << look_back.error().message;
+  ASSERT_EQ(look_back->size(), 2u);
+  EXPECT_EQ((*look_back)[0].t_ns, 43);
+  EXPECT_EQ((*look_back)[0].clock, ClockDomain::kDevice);
+  const auto* noise_back = std::get_if<LookNoise>(&(*look_back)[0].update);
+  ASSERT_TRUE(noise_back);
+  EXPECT_EQ(noise_back->nlf, std::get<LookNoise>(look[0].update).nlf);
+  EXPECT_EQ(noise_back->frames, 7u);
+  EXPECT_EQ(noise_back->note, "note");
+  const auto* light_back = std::get_if<LookLight>(&(*look_back)[1].update);
+  ASSERT_TRUE(light_back);
+  EXPECT_EQ(light_back->direct, light.direct);
+  EXPECT_EQ(light_back->sky, light.sky);
+  EXPECT_EQ(light_back->ground, light.ground);
+  EXPECT_EQ(light_back->towards_sun_body, light.towards_sun_body);
+  EXPECT_EQ(light_back->rms, light.rms);
   auto nav_back = (*rd)->nav_inputs();
   ASSERT_TRUE(nav_back) << nav_back.error().message;
   ASSERT_EQ(nav_back->size(), nav.size());
@@ -348,7 +382,7 @@ TEST(Recorder, RoundTripIsBitExactForEveryFormat) {
                   &out),
               0)
         << out;
-    EXPECT_EQ(out, std::to_string(sent.size()) + "|0|160\n2\n");
+    EXPECT_EQ(out, std::to_string(sent.size()) + "|0|160\n" + std::to_string(kSchemaVersion) + "\n");
   }
 }
 

@@ -1,12 +1,14 @@
 // recorder/ros2_msgs.hpp, the parts the MCAP tests (mcap_writer_test.cpp, app/cmd_export_mcap_test.cpp)
 // do not reach: diagnostic_msgs/msg/DiagnosticArray, the live view's health topic. Its schema is
 // ROS 2 Humble's definition with its dependencies; its CDR round-trips field for field; damaged
-// messages are errors. A pose covariance from sigmas. tests/net/foxglove_server_test.cpp decodes it with
+// messages are errors. augrig_msgs/msg/OcclusionStats with its appended shadow fields, and a message
+// written before them read with the shadow 0. A pose covariance from sigmas. tests/net/foxglove_server_test.cpp decodes it with
 // @foxglove/rosmsg2-serialization.
 #include "recorder/ros2_msgs.hpp"
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <limits>
 #include <numbers>
 
@@ -14,6 +16,51 @@
 
 namespace augrig::recorder::ros2 {
 namespace {
+
+TEST(Ros2Msgs, OcclusionStatsRoundTripsWithTheShadowAppended) {
+  const std::string text = schema_text("augrig_msgs/msg/OcclusionStats");
+  const std::string tail = "float64 boom_pct_right\n"
+                           "# Appended: the boom's shadow on the receiver (mask bit 2). A message without them reads 0.\n"
+                           "int64 shadow_px_left\nint64 shadow_px_right\nfloat64 shadow_pct_left\nfloat64 shadow_pct_right\n";
+  const std::string own = text.substr(0, text.find(std::string(80, '=')));
+  ASSERT_GE(own.size(), tail.size());
+  EXPECT_EQ(own.substr(own.size() - tail.size()), tail) << text;
+
+  OcclusionStats s;
+  s.t_ns = 1'700'000'000'000'000'123;
+  s.width = 1280;
+  s.height = 960;
+  s.receiver_px_left = 51234;
+  s.boom_px_right = 777;
+  s.boom_overlap_pct_union = 100.0 / 3.0;
+  s.neither_px = 12;
+  s.boom_pct_right = 0.625;
+  s.shadow_px_left = 4321;
+  s.shadow_px_right = 4000;
+  s.shadow_pct_left = std::nextafter(8.4, 9.0);
+  s.shadow_pct_right = 7.75;
+  const std::vector<std::uint8_t> msg = occlusion_stats(s.t_ns, s);
+  auto back = decode_occlusion_stats(msg);
+  ASSERT_TRUE(back) << back.error().message;
+  EXPECT_EQ(*back, s);
+
+  // A message written before the shadow fields (32 bytes: two int64, two float64) reads with them 0,
+  // padded to 4 bytes or not; any other cut is damage.
+  const std::size_t old_size = msg.size() - 32;
+  OcclusionStats before = s;
+  before.shadow_px_left = before.shadow_px_right = 0;
+  before.shadow_pct_left = before.shadow_pct_right = 0;
+  for (std::size_t len = 0; len < msg.size(); ++len) {
+    auto cut = decode_occlusion_stats(std::vector<std::uint8_t>(msg.begin(), msg.begin() + static_cast<std::ptrdiff_t>(len)));
+    if (len >= old_size && len < old_size + 4) {
+      ASSERT_TRUE(cut) << len << ": " << cut.error().message;
+      EXPECT_EQ(*cut, before) << len;
+    } else {
+      ASSERT_FALSE(cut) << len;
+      EXPECT_EQ(cut.error().message, "augrig_msgs/msg/OcclusionStats: the message is shorter than its fields (damaged)");
+    }
+  }
+}
 
 TEST(Ros2Msgs, DiagnosticArraySchemaNamesItsDependencies) {
   const std::string text = schema_text("diagnostic_msgs/msg/DiagnosticArray");

@@ -1,8 +1,11 @@
 // The SQLite side: the schema as documented (the statistics columns carry render/stats' names),
-// a frames row through INSERT and SELECT unchanged (optional groups, NaN), and SQLite errors
-// described with their code.
+// a frames row through INSERT and SELECT unchanged (optional groups, NaN), a recording of schema 2
+// (no shadow columns) read with its shadow as 0, the `look` row both ways and its errors naming the
+// column, and SQLite errors described with their code.
 #include "recorder/store.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <set>
 #include <sstream>
@@ -45,6 +48,12 @@ TEST(Store, SchemaHasTheDocumentedTables) {
   EXPECT_EQ(table_columns(db, "drops"),
             (std::vector<std::string>{"id", "stage", "item", "count", "first_t_ns", "last_t_ns", "reason"}));
   EXPECT_EQ(table_columns(db, "events"), (std::vector<std::string>{"id", "t_ns", "clock", "text"}));
+  EXPECT_EQ(table_columns(db, "look"),
+            (std::vector<std::string>{"id",       "t_ns",     "clock",    "kind",     "source",  "camera",
+                                      "channels", "a0",       "a1",       "a2",       "b0",      "b1",
+                                      "b2",       "frames",   "note",     "direct_r", "direct_g", "direct_b",
+                                      "sky_r",    "sky_g",    "sky_b",    "ground_r", "ground_g", "ground_b",
+                                      "samples",  "rms",      "sun_up",   "sun_x",    "sun_y",   "sun_z"}));
   std::vector<std::string> frames = frame_column_names();
   frames.insert(frames.begin(), "id");
   EXPECT_EQ(table_columns(db, "frames"), frames);
@@ -71,20 +80,21 @@ TEST(Store, StatisticsColumnsAreNamedAsInStatsCsv) {
   std::istringstream in(h);
   std::string col;
   int n = 0;
-  int shadow = 0;
   while (std::getline(in, col, ',')) {
-    // The shadow counts are not stored (docs/STATISTICS.md): the masks carry their bit.
-    if (col.rfind("shadow_", 0) == 0) {
-      EXPECT_FALSE(have.count(col)) << col;
-      ++shadow;
-      continue;
-    }
     const std::string expect = col == "t_ns" ? "stats_t_ns" : col;  // frames has its own t_ns
     EXPECT_TRUE(have.count(expect)) << expect;
     ++n;
   }
-  EXPECT_GE(n, 19);
-  EXPECT_EQ(shadow, 4);
+  EXPECT_EQ(n, 23);
+  // The shadow counts came with schema 3, appended as in stats.csv.
+  const std::vector<std::string> shadow = {"shadow_px_left", "shadow_px_right", "shadow_pct_left",
+                                           "shadow_pct_right"};
+  EXPECT_EQ(frame_columns_added_after(2), shadow);
+  EXPECT_EQ(frame_columns_added_after(1), shadow);
+  EXPECT_TRUE(frame_columns_added_after(kSchemaVersion).empty());
+  const auto at = std::find(names.begin(), names.end(), "boom_pct_right");
+  ASSERT_NE(at, names.end());
+  EXPECT_EQ(std::vector<std::string>(at + 1, at + 5), shadow);
 }
 
 TEST(Store, FrameRowRoundTrip) {
@@ -109,6 +119,10 @@ TEST(Store, FrameRowRoundTrip) {
   full.stats->t_ns = 42;
   full.stats->boom_px_left = 99;
   full.stats->occluded_pct_right = 12.5;
+  full.stats->shadow_px_left = 321;
+  full.stats->shadow_px_right = 7;
+  full.stats->shadow_pct_left = 100.0 / 3.0;
+  full.stats->shadow_pct_right = 0.25;
   full.raw[0] = {bytes.data(), bytes.size(), true};
   full.raw[1] = {bytes.data(), 2, true};
   full.aug[0] = {nullptr, 0, true};  // empty blob: nothing changed
@@ -159,6 +173,7 @@ TEST(Store, FrameRowRoundTrip) {
   EXPECT_EQ(r.stats->t_ns, 42);
   EXPECT_EQ(r.stats->boom_px_left, 99);
   EXPECT_EQ(r.stats->occluded_pct_right, 12.5);
+  EXPECT_EQ(*r.stats, *full.stats);
   ASSERT_TRUE(r.raw[0].present);
   EXPECT_EQ(std::vector<std::uint8_t>(r.raw[0].data, r.raw[0].data + r.raw[0].size), bytes);
   EXPECT_EQ(r.raw[1].size, 2u);
@@ -183,6 +198,184 @@ TEST(Store, FrameRowRoundTrip) {
   ASSERT_TRUE(read_frame_row(meta_only->get(), r));
   EXPECT_FALSE(r.raw[0].present);
   EXPECT_EQ(r.cam[0].width, 1280);
+}
+
+// A recording of schema 2 has no shadow columns: its frames read with the shadow counts 0 and
+// everything else as stored; read as the current schema it fails naming the missing column.
+TEST(Store, SchemaTwoFramesReadTheShadowAsZero) {
+  Database db = fresh_db("schema2");
+  ASSERT_TRUE(db.exec(schema_sql()));
+  auto ins = Statement::prepare(db.get(), frame_insert_sql());
+  ASSERT_TRUE(ins) << ins.error().message;
+  const std::vector<std::uint8_t> bytes = {9, 8, 7};
+  FrameRow row;
+  row.cam[0].format = row.cam[1].format = PixelFormat::kMono8;
+  row.raw[0] = row.raw[1] = {bytes.data(), bytes.size(), true};
+  row.stats = OcclusionStats{};
+  row.stats->receiver_px_left = 1234;
+  row.stats->boom_pct_right = 2.5;
+  row.stats->shadow_px_left = 55;
+  row.stats->shadow_pct_right = 4.5;
+  ASSERT_TRUE(bind_frame_row(ins->get(), row));
+  ASSERT_EQ(ins->step(), SQLITE_DONE);
+  for (const std::string& c : frame_columns_added_after(2))
+    ASSERT_TRUE(db.exec("ALTER TABLE frames DROP COLUMN " + c)) << c;
+
+  auto sel = Statement::prepare(db.get(), frame_select_sql(kPartsAll, 2));
+  ASSERT_TRUE(sel) << sel.error().message;
+  ASSERT_EQ(sel->step(), SQLITE_ROW);
+  FrameRow r;
+  ASSERT_TRUE(read_frame_row(sel->get(), r));
+  ASSERT_TRUE(r.stats);
+  OcclusionStats want = *row.stats;
+  want.shadow_px_left = 0;
+  want.shadow_pct_right = 0;
+  EXPECT_EQ(*r.stats, want);
+  EXPECT_EQ(std::vector<std::uint8_t>(r.raw[1].data, r.raw[1].data + r.raw[1].size), bytes);
+
+  auto current = Statement::prepare(db.get(), frame_select_sql(kPartsAll));
+  ASSERT_FALSE(current);
+  EXPECT_NE(current.error().message.find("no such column: shadow_px_left"), std::string::npos)
+      << current.error().message;
+}
+
+// The single value of a query ("" when it fails).
+std::string query(Database& db, const std::string& sql) {
+  auto v = db.query_text(sql);
+  EXPECT_TRUE(v) << sql << ": " << v.error().message;
+  return v ? *v : std::string();
+}
+
+LookRecord noise_update() {
+  LookNoise n;
+  n.camera = 1;
+  n.nlf = {3, {0.21, 0.19, 1.0 / 3.0}, {1.9, 2.0, 0.0}};
+  n.frames = 12;
+  n.note = "one level only";
+  return {1'000'000'007, ClockDomain::kGps, n};
+}
+
+LookRecord light_update() {
+  LookLight l;
+  l.direct = {0.61, 0.62, 0.63};
+  l.sky = {0.2, 0.25, 0.4};
+  l.ground = {0.3, 0.28, 0.2};
+  l.samples = 648;
+  l.rms = 0.012;
+  l.source = LightSource::kEphemeris;
+  l.sun_up = true;
+  l.towards_sun_body = Eigen::Vector3d(0.3, -0.2, -1.0).normalized();
+  return {-5, ClockDomain::kSim, l};
+}
+
+void expect_same_look(const LookRecord& a, const LookRecord& b) {
+  EXPECT_EQ(a.t_ns, b.t_ns);
+  EXPECT_EQ(a.clock, b.clock);
+  ASSERT_EQ(a.update.index(), b.update.index());
+  if (const auto* n = std::get_if<LookNoise>(&a.update)) {
+    const LookNoise& m = std::get<LookNoise>(b.update);
+    EXPECT_EQ(n->camera, m.camera);
+    EXPECT_EQ(n->nlf, m.nlf);
+    EXPECT_EQ(n->configured, m.configured);
+    EXPECT_EQ(n->frames, m.frames);
+    EXPECT_EQ(n->note, m.note);
+  } else {
+    const LookLight& l = std::get<LookLight>(a.update);
+    const LookLight& k = std::get<LookLight>(b.update);
+    EXPECT_EQ(l.direct, k.direct);
+    EXPECT_EQ(l.sky, k.sky);
+    EXPECT_EQ(l.ground, k.ground);
+    EXPECT_EQ(l.samples, k.samples);
+    EXPECT_TRUE(l.rms == k.rms || (std::isnan(l.rms) && std::isnan(k.rms)));
+    EXPECT_EQ(l.source, k.source);
+    EXPECT_EQ(l.sun_up, k.sun_up);
+    EXPECT_EQ(l.towards_sun_body, k.towards_sun_body);
+  }
+}
+
+// Both kinds of `look` row through INSERT and SELECT unchanged, the other kind's columns NULL.
+TEST(Store, LookRowRoundTrip) {
+  Database db = fresh_db("look");
+  ASSERT_TRUE(db.exec(schema_sql()));
+  auto ins = Statement::prepare(db.get(), look_insert_sql());
+  ASSERT_TRUE(ins) << ins.error().message;
+  LookRecord grey = noise_update();
+  std::get<LookNoise>(grey.update) = {0, {1, {0.5, 0, 0}, {3.0, 0, 0}}, true, 0, ""};
+  LookRecord dark = light_update();
+  auto& l = std::get<LookLight>(dark.update);
+  l.sun_up = false;
+  l.direct = Eigen::Vector3d::Zero();
+  l.source = LightSource::kDefaultSun;
+  l.rms = FrameRecord::kNaN;
+  const std::vector<LookRecord> sent = {noise_update(), light_update(), grey, dark};
+  for (const LookRecord& r : sent) {
+    ASSERT_TRUE(bind_look_row(ins->get(), r));
+    ASSERT_EQ(ins->step(), SQLITE_DONE);
+    ins->reset();
+  }
+  EXPECT_EQ(query(db, "SELECT count(*) FROM look WHERE kind = 'noise' AND direct_r IS NULL AND sun_up IS NULL"),
+            "2");
+  EXPECT_EQ(query(db, "SELECT count(*) FROM look WHERE kind = 'light' AND camera IS NULL AND a0 IS NULL"), "2");
+  EXPECT_EQ(query(db, "SELECT a1 IS NULL FROM look WHERE channels = 1"), "1");  // grey: one channel
+  EXPECT_EQ(query(db, "SELECT group_concat(source, ',') FROM look"), "estimated,ephemeris,configured,default sun");
+
+  auto sel = Statement::prepare(db.get(), look_select_sql());
+  ASSERT_TRUE(sel) << sel.error().message;
+  for (const LookRecord& want : sent) {
+    ASSERT_EQ(sel->step(), SQLITE_ROW);
+    LookRecord got;
+    ASSERT_TRUE(read_look_row(sel->get(), got));
+    expect_same_look(want, got);
+  }
+  EXPECT_EQ(sel->step(), SQLITE_DONE);
+  // A noise level function of 2 channels is not one.
+  LookRecord two = noise_update();
+  std::get<LookNoise>(two.update).nlf.channels = 2;
+  const Status s = bind_look_row(ins->get(), two);
+  ASSERT_FALSE(s);
+  EXPECT_EQ(s.error().message, "binding look columns: a noise level function of 2 channels (expected 1 or 3)");
+}
+
+// A `look` row that is not what the recorder writes fails with the column and what it holds.
+TEST(Store, BadLookValuesAreNamed) {
+  Database db = fresh_db("look_bad");
+  ASSERT_TRUE(db.exec(schema_sql()));
+  auto ins = Statement::prepare(db.get(), look_insert_sql());
+  for (const LookRecord& r : {noise_update(), light_update()}) {
+    ASSERT_TRUE(bind_look_row(ins->get(), r));
+    ASSERT_EQ(ins->step(), SQLITE_DONE);
+    ins->reset();
+  }
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"UPDATE look SET channels = 2 WHERE kind = 'noise'", "column channels: 2 channels (expected 1 or 3)"},
+      {"UPDATE look SET channels = 4 WHERE kind = 'noise'", "column channels: 4 is outside 1..3"},
+      {"UPDATE look SET a2 = NULL WHERE kind = 'noise'", "column a2: expected a number, got NULL"},
+      {"UPDATE look SET source = 'guessed' WHERE kind = 'noise'",
+       "column source: \"guessed\" is neither configured nor estimated"},
+      {"UPDATE look SET camera = 'left' WHERE kind = 'noise'", "column camera: expected an integer, got text"},
+      {"UPDATE look SET clock = 'mars' WHERE kind = 'noise'", "column clock: unknown clock domain \"mars\""},
+      {"UPDATE look SET source = 'moon' WHERE kind = 'light'", "column source: unknown light source \"moon\""},
+      {"UPDATE look SET sky_g = 'bright' WHERE kind = 'light'", "column sky_g: expected a number, got text"},
+      {"UPDATE look SET sun_up = 2 WHERE kind = 'light'", "column sun_up: 2 is outside 0..1"},
+  };
+  for (const auto& [sql, want] : cases) {
+    SCOPED_TRACE(sql);
+    ASSERT_TRUE(db.exec("BEGIN"));
+    ASSERT_TRUE(db.exec(sql));
+    std::string got;
+    {
+      auto sel = Statement::prepare(db.get(), look_select_sql());
+      ASSERT_TRUE(sel);
+      while (sel->step() == SQLITE_ROW && got.empty()) {
+        LookRecord r;
+        if (const Status s = read_look_row(sel->get(), r); !s) got = s.error().message;
+      }
+    }
+    EXPECT_EQ(got, want);
+    ASSERT_TRUE(db.exec("ROLLBACK"));
+  }
+  // The table refuses a kind it does not know.
+  EXPECT_FALSE(db.exec("UPDATE look SET kind = 'exposure'"));
 }
 
 TEST(Store, BadColumnValuesAreNamed) {
