@@ -8,6 +8,7 @@
 
 #include "core/clock.hpp"
 #include "pipeline/look_stage.hpp"
+#include "pipeline/look_updates.hpp"
 #include "recorder/euroc.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/replay_source.hpp"
@@ -223,6 +224,7 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
   look_config.cameras.resize(p.rig.cameras.size());
   look_config.synchronous = !p.source_info.live;  // cameras: estimated beside the pipeline
   LookStage look(look_config);
+  LookUpdates look_updates;  // what the look learns, for the recording's `look` table
   if (augmenter)
     if (auto st = look.configure(*augmenter); !st) return st.error();
   if (!p.source) {
@@ -511,6 +513,10 @@ Expected<PipelineReport> Pipeline::run(std::ostream& out, std::ostream& err) {
       problem(make_error("pair ", frame.pair_sequence, ": ", st.error().message));
       return;
     }
+    // The look's new estimates to the recording, when there are any (a sink: timed with the sinks).
+    if (p.recorder)
+      for (recorder::LookRecord& u : look_updates.take(look, *augmenter, frame, scene.light))
+        p.recorder->push(std::move(u));
     rep.augment_ms += augmenter->timings().total_ms;
     result.stats.t_ns = fp.t_nav_ns.value_or(frame.t_key_ns);
     ++rep.pairs;

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -327,6 +328,82 @@ TEST(Pipeline, SimPhasesAreRecordedAtTheirFirstPair) {
   for (std::size_t k = 0; k < again.size(); ++k) {
     EXPECT_EQ(again[k].name, expected[k].name);
     EXPECT_EQ(again[k].t_ns, expected[k].t_ns);
+  }
+}
+
+// The camera look's updates go into the recording's look table as they come, not per frame: the
+// light each time it is measured anew on the receiver (a pair every 0.5 s of frame time), each row
+// stamped with a recorded pair's time and clock, the same update never twice in a row; the noise
+// level functions likewise (this flight's textured frames give the estimator nothing: none; the
+// noise rows are look_updates_test's). The plain look records none.
+TEST(Pipeline, CameraLookUpdatesAreRecordedAsTheyCome) {
+  const fs::path dir = test::output_dir("pipeline_look_updates");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  for (Look look : {Look::kCamera, Look::kPlain}) {
+    const std::string name = look == Look::kCamera ? "camera" : "plain";
+    SCOPED_TRACE(name);
+    PipelineParts p = parts_for(kScenario + "?every=3&rate=0");
+    p.augment.look = look;
+    recorder::RecordingInfo info;
+    info.rig_yaml = rig_to_yaml(p.rig);
+    auto rec = recorder::Recorder::create((dir / name).string(), info);
+    ASSERT_TRUE(rec) << rec.error().message;
+    p.recorder = std::move(*rec);
+    Pipeline pipeline(std::move(p));
+    std::ostringstream out, err;
+    auto r = pipeline.run(out, err);
+    ASSERT_TRUE(r) << r.error().message;
+    ASSERT_GE(r->pairs, 15u) << err.str();
+    ASSERT_TRUE(r->recording_closed && *r->recording_closed);
+    auto reader = recorder::RecordingReader::open((dir / name).string());
+    ASSERT_TRUE(reader) << reader.error().message;
+    auto rows = (*reader)->look();
+    ASSERT_TRUE(rows) << rows.error().message;
+    if (look == Look::kPlain) {
+      EXPECT_TRUE(rows->empty());
+      continue;
+    }
+    std::map<TimestampNs, ClockDomain> pairs;  // t_key_ns -> the left camera's clock
+    for (std::size_t i = 0; i < (*reader)->frame_count(); ++i) {
+      auto f = (*reader)->read_frame_info(i);
+      ASSERT_TRUE(f) << f.error().message;
+      pairs[f->raw.t_key_ns] = f->raw.left.clock;
+    }
+    std::size_t noise[2] = {0, 0}, light = 0;
+    std::optional<recorder::LookLight> last_light;
+    std::optional<NoiseLevelFunction> last_noise[2];
+    for (const recorder::LookRecord& u : *rows) {
+      const auto at = pairs.find(u.t_ns);
+      ASSERT_NE(at, pairs.end()) << "t_ns " << u.t_ns << " is no recorded pair's";
+      EXPECT_EQ(u.clock, at->second);
+      if (const auto* n = std::get_if<recorder::LookNoise>(&u.update)) {
+        ASSERT_GE(n->camera, 0);
+        ASSERT_LT(n->camera, 2);
+        EXPECT_FALSE(n->configured);
+        EXPECT_GT(n->frames, 0u);
+        EXPECT_TRUE(n->nlf.channels == 1 || n->nlf.channels == 3);
+        EXPECT_FALSE(last_noise[n->camera] && *last_noise[n->camera] == n->nlf) << "the same estimate twice";
+        last_noise[n->camera] = n->nlf;
+        ++noise[n->camera];
+      } else {
+        const auto& l = std::get<recorder::LookLight>(u.update);
+        EXPECT_GT(l.samples, 0u);
+        EXPECT_NEAR(l.towards_sun_body.norm(), 1.0, 1e-9);
+        EXPECT_NE(l.source, LightSource::kFixed);
+        EXPECT_FALSE(last_light && last_light->direct == l.direct && last_light->sky == l.sky &&
+                     last_light->ground == l.ground && last_light->samples == l.samples && last_light->rms == l.rms)
+            << "the same fit twice";
+        last_light = l;
+        ++light;
+      }
+    }
+    EXPECT_GE(light, 1u) << "the receiver in view is measured";
+    EXPECT_LT(rows->size(), r->pairs) << "updates, not rows per frame";
+    EXPECT_EQ(noise[0], noise[1]) << "both cameras estimated at the same pairs";
+    const recorder::CheckReport check = (*reader)->check();
+    EXPECT_EQ(check.look_noise, noise[0] + noise[1]);
+    EXPECT_EQ(check.look_light, light);
   }
 }
 
