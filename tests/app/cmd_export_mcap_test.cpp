@@ -150,6 +150,11 @@ TEST(CmdExportMcap, IndependentReadersValidateItAndDecodeTheRecording) {
     EXPECT_EQ(stats["receiver_px_left"], std::to_string(f->stats->receiver_px_left));
     EXPECT_EQ(stats["occluded_px_right"], std::to_string(f->stats->occluded_px_right));
     EXPECT_EQ(stats["boom_overlap_pct_union"].get<double>(), f->stats->boom_overlap_pct_union);
+    // The shadow fields, appended last, decode by the schema text as well.
+    EXPECT_EQ(stats["shadow_px_left"], std::to_string(f->stats->shadow_px_left));
+    EXPECT_EQ(stats["shadow_px_right"], std::to_string(f->stats->shadow_px_right));
+    EXPECT_EQ(stats["shadow_pct_left"].get<double>(), f->stats->shadow_pct_left);
+    EXPECT_EQ(stats["shadow_pct_right"].get<double>(), f->stats->shadow_pct_right);
     const auto& frame = topics["/augrig/frame"]["messages"][i];
     EXPECT_EQ(frame["t_key_ns"], t_key);
     EXPECT_EQ(frame["boom_extension_m"].get<double>(), f->boom->extension_m);

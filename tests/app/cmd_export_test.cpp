@@ -1,7 +1,9 @@
 // augrig export through the real binary (docs/REPLAY.md): on a recording this test writes with
 // recorder::Recorder from frames it augments itself, the EuRoC layout, exit codes and messages of
 // bad inputs, a truncated recording, and OUT/INCOMPLETE of a killed export; --ground-truth against
-// the replay's own ground-truth files and the masks, and its error on a recording without depth.
+// the replay's own ground-truth files and the masks, and its error on a recording without depth;
+// a run's stats.csv, shadow columns included, against the export of its recording (EuRoC and the
+// MCAP statistics messages), and a recording of schema 2 exported with its shadow 0.
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -10,6 +12,7 @@
 #include <limits>
 #include <map>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -21,9 +24,12 @@
 #include "nav/logs.hpp"
 #include "pipeline/flight_nav.hpp"
 #include "sim/scenario.hpp"
+#include "recorder/mcap_reader.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/recorder.hpp"
+#include "recorder/ros2_msgs.hpp"
+#include "recorder/store.hpp"
 #include "render/augmenter.hpp"
 #include "render/gl_context.hpp"
 #include "tests/support/test_support.hpp"
@@ -435,6 +441,98 @@ TEST(CmdExport, GroundTruthAgreesWithTheReplaysFilesAndTheMasks) {
     EXPECT_EQ(mismatched, 0u);
   }
   EXPECT_GT(receiver_px, 1000u) << "the receiver must be in view for the comparison to mean anything";
+}
+
+// The rows of a stats.csv (read_stats_csv: the current header or the 19 columns before the shadow's).
+std::vector<OcclusionStats> stats_rows(const std::string& path) {
+  auto rows = read_stats_csv(path);
+  EXPECT_TRUE(rows) << rows.error().message;
+  return rows ? *rows : std::vector<OcclusionStats>{};
+}
+
+// Every /augrig/occlusion_stats message of an MCAP file, decoded, in file order.
+std::vector<OcclusionStats> mcap_stats(const std::string& path) {
+  std::vector<OcclusionStats> out;
+  auto r = recorder::McapReader::open(path);
+  EXPECT_TRUE(r) << r.error().message;
+  if (!r) return out;
+  const std::uint16_t channel = (*r)->channel_id("/augrig/occlusion_stats");
+  EXPECT_NE(channel, 0);
+  recorder::McapMessage m;
+  for (;;) {
+    auto more = (*r)->next(m);
+    EXPECT_TRUE(more) << more.error().message;
+    if (!more || !*more) break;
+    if (m.channel_id != channel) continue;
+    auto st = recorder::ros2::decode_occlusion_stats(m.data);
+    EXPECT_TRUE(st) << st.error().message;
+    if (st) out.push_back(*st);
+  }
+  return out;
+}
+
+// A stats.csv row (percentages to 4 decimals) but for t_ns, which the export puts on the clock it
+// chooses.
+std::string counts_of(OcclusionStats s) {
+  s.t_ns = 0;
+  std::ostringstream row;
+  write_stats_csv_row(row, s);
+  return row.str();
+}
+
+// A simulated run with the camera look (the default) under the ephemeris sun, which casts the
+// boom's shadow on the receiver near contact, records (the look's updates too) and writes
+// stats.csv; exported, its recording gives back the same rows, the shadow columns included, in
+// stats.csv and in the MCAP statistics messages. The same recording as schema 2 wrote it (no
+// shadow columns) exports with the shadow 0 and every other column as before.
+TEST(CmdExport, ARunsShadowColumnsComeBackFromItsRecording) {
+  const std::string dir = output_dir("cmd_export_shadow");
+  std::string log;
+  ASSERT_EQ(augrig("run --source 'sim://demo?every=200&rate=0' --frames 5 --headless --status-every 0 --record " + dir +
+                       "/rec --out " + dir + "/run 2>&1",
+                   &log),
+            0)
+      << log;
+  const std::vector<OcclusionStats> run = stats_rows(dir + "/run/stats.csv");
+  ASSERT_EQ(run.size(), 5u);  // frames 0, 200, ..., 800: the shadow falls on the receiver near contact
+  std::int64_t shadow_px = 0;
+  for (const OcclusionStats& s : run) shadow_px += s.shadow_px_left + s.shadow_px_right;
+  ASSERT_GT(shadow_px, 0) << "the run must see the boom's shadow for the comparison to mean anything";
+  // Each pair (6.7 s apart) sampled by the look: both cameras' noise estimated and the light measured.
+  ASSERT_EQ(augrig("check " + dir + "/rec", &log), 0) << log;
+  EXPECT_NE(log.find("look updates: 10 noise, 5 light\n"), std::string::npos) << log;
+
+  ASSERT_EQ(augrig("export " + dir + "/rec --format euroc " + dir + "/euroc --no-plot 2>&1", &log), 0) << log;
+  const std::vector<OcclusionStats> exported = stats_rows(dir + "/euroc/stats.csv");
+  ASSERT_EQ(exported.size(), run.size());
+  for (std::size_t i = 0; i < run.size(); ++i) EXPECT_EQ(counts_of(exported[i]), counts_of(run[i])) << "row " << i;
+
+  ASSERT_EQ(augrig("export " + dir + "/rec --format mcap " + dir + "/rec.mcap 2>&1", &log), 0) << log;
+  const std::vector<OcclusionStats> messages = mcap_stats(dir + "/rec.mcap");
+  ASSERT_EQ(messages.size(), run.size());
+  for (std::size_t i = 0; i < run.size(); ++i) EXPECT_EQ(counts_of(messages[i]), counts_of(run[i])) << "message " << i;
+
+  // As schema 2 wrote it: no shadow columns.
+  const std::string old = output_dir("cmd_export_shadow_schema2");
+  fs::copy_file(dir + "/rec/recording.sqlite", old + "/recording.sqlite", fs::copy_options::overwrite_existing);
+  {
+    auto d = recorder::Database::open(old + "/recording.sqlite", SQLITE_OPEN_READWRITE);
+    ASSERT_TRUE(d);
+    ASSERT_TRUE(d->exec("DROP TABLE look; UPDATE meta SET value = '2' WHERE key = 'schema_version'"));
+    for (const std::string& c : recorder::frame_columns_added_after(2))
+      ASSERT_TRUE(d->exec("ALTER TABLE frames DROP COLUMN " + c)) << c;
+  }
+  ASSERT_EQ(augrig("check " + old, &log), 0) << log;
+  EXPECT_NE(log.find("schema version: 2"), std::string::npos) << log;
+  ASSERT_EQ(augrig("export " + old + " --format euroc " + old + "/euroc --no-plot 2>&1", &log), 0) << log;
+  const std::vector<OcclusionStats> before = stats_rows(old + "/euroc/stats.csv");
+  ASSERT_EQ(before.size(), run.size());
+  for (std::size_t i = 0; i < run.size(); ++i) {
+    OcclusionStats want = run[i];
+    want.shadow_px_left = want.shadow_px_right = 0;
+    want.shadow_pct_left = want.shadow_pct_right = 0;
+    EXPECT_EQ(counts_of(before[i]), counts_of(want)) << "row " << i;
+  }
 }
 
 }  // namespace

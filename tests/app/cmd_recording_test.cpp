@@ -521,8 +521,9 @@ TEST(CmdRecording, ReplayOfATruncatedRecordingSaysWhatIsMissing) {
   EXPECT_EQ(log.find("Replayed"), std::string::npos) << log;
 }
 
-// A recording as schema 1 wrote it (no depth table, schema_version 1): check, replay and export
-// work as before; replay --record --ground-truth turns it into one holding the depth per frame.
+// A recording as schema 1 wrote it (no depth table, no shadow columns, no look table, schema_version
+// 1): check, replay and export work as before; replay --record --ground-truth turns it into one
+// holding the depth per frame.
 TEST(CmdRecording, SchemaOneRecordingChecksReplaysAndExportsAndGainsDepthByReplay) {
   const std::string dir = output_dir("cmd_recording_schema1");
   fs::copy_file(recording() + "/recording.sqlite", dir + "/recording.sqlite");
@@ -530,8 +531,10 @@ TEST(CmdRecording, SchemaOneRecordingChecksReplaysAndExportsAndGainsDepthByRepla
     auto d = recorder::Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
     ASSERT_TRUE(d);
     ASSERT_TRUE(
-        d->exec("DROP TABLE depth; UPDATE meta SET value = '1' WHERE key = 'schema_version'; "
+        d->exec("DROP TABLE depth; DROP TABLE look; UPDATE meta SET value = '1' WHERE key = 'schema_version'; "
                 "DELETE FROM meta WHERE key = 'codec.depth'"));
+    for (const std::string& c : recorder::frame_columns_added_after(1))
+      ASSERT_TRUE(d->exec("ALTER TABLE frames DROP COLUMN " + c)) << c;
   }
   std::string log;
   ASSERT_EQ(augrig("check " + dir, &log), 0) << log;
