@@ -52,6 +52,15 @@ LightProbe::LightProbe(const Model& receiver) {
       if (i2 < m.normals.size() && n.dot((m.normals[i0] + m.normals[i1] + m.normals[i2]).cast<double>()) < 0)
         n = -n;
       p.n = n;
+      const bool smooth = std::max({i0, i1, i2}) < m.normals.size();
+      for (int j = 0; j < 3; ++j) {
+        const std::uint32_t vi = m.indices[k + static_cast<std::size_t>(j)];
+        Eigen::Vector3d vn = smooth ? m.normals[vi].cast<double>() : n;
+        // A vertex normal that is not a direction, or one across the surface from the face's, is
+        // not a smooth surface's: the flat normal stands in.
+        vn = vn.norm() > 1e-6 ? vn.normalized() : n;
+        p.vn[static_cast<std::size_t>(j)] = vn.dot(n) > 0 ? vn : n;
+      }
       p.albedo = base;
       if (textured) {
         // The texture's mean over the triangle (an 8 x 8 stratified grid of barycentric points):
@@ -84,6 +93,7 @@ void LightProbe::add_view(const Image& raw, const Image& mask, const DepthImage&
   auto linear = [gamma](double v8) { return gamma == 1.0 ? v8 / 255.0 : std::pow(v8 / 255.0, gamma); };
   constexpr double kMargin = 0.15;  // barycentric margin: pixels near the triangle's edges are left out
   constexpr int kMaxPixels = 48;    // pixels read per triangle at most (a grid over its box)
+  constexpr int kEdgeReach = 1;     // pixels: a PSF of up to ~1 px sigma reaches no further
   for (const Point& pt : points_) {
     std::array<Eigen::Vector3d, 3> pc;
     std::array<Eigen::Vector2d, 3> uv;
@@ -107,22 +117,39 @@ void LightProbe::add_view(const Image& raw, const Image& mask, const DepthImage&
                  y1 = std::max({uv[0].y(), uv[1].y(), uv[2].y()});
     if (x0 < 1 || y0 < 1 || x1 > W - 2 || y1 > H - 2) continue;
     const double step = std::max(1.0, std::sqrt((x1 - x0) * (y1 - y0) / kMaxPixels));
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), n = Eigen::Vector3d::Zero();
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), n = Eigen::Vector3d::Zero(),
+                    bary = Eigen::Vector3d::Zero();
+    double bary_n = 0;
     bool clipped = false;
+    double last_b1 = 0, last_b2 = 0;  // the barycentric weights of the last pixel on_triangle() took
     // A pixel well inside this triangle, on the receiver alone, and this triangle the surface it sees.
     auto on_triangle = [&](int x, int y) {
       const Eigen::Vector2d d = Eigen::Vector2d(x, y) - uv[0];
       const double b1 = (d.x() * e2.y() - d.y() * e2.x()) / det, b2 = (e1.x() * d.y() - e1.y() * d.x()) / det;
       if (b1 < kMargin || b2 < kMargin || 1 - b1 - b2 < kMargin) return false;
+      last_b1 = b1, last_b2 = b2;
       const std::uint8_t m = mask.row(y)[x];
       // Not the boom, nor the receiver in its shadow (lit by the sky alone there).
       if (!(m & kMaskReceiver) || (m & (kMaskBoom | kMaskShadow))) return false;
       const double z = pc[0].z() + b1 * (pc[1].z() - pc[0].z()) + b2 * (pc[2].z() - pc[0].z());
-      return std::abs(depth.at(x, y) - z) < std::max(0.05, 0.01 * z);
+      if (std::abs(depth.at(x, y) - z) >= std::max(0.05, 0.01 * z)) return false;
+      // Away from the receiver's silhouettes and its parts' edges by the lens' reach: the PSF mixes
+      // the background (or a nearer part) into pixels next to them, and the silhouettes are where
+      // the surfaces facing sideways and down are, the ones that tell the ground's light.
+      const double jump = std::max(0.3, 0.03 * z);
+      for (int k = 0; k < 8; ++k) {
+        static constexpr int kDx[8] = {1, 1, 0, -1, -1, -1, 0, 1}, kDy[8] = {0, 1, 1, 1, 0, -1, -1, -1};
+        const int xx = std::clamp(x + kEdgeReach * kDx[k], 0, W - 1),
+                  yy = std::clamp(y + kEdgeReach * kDy[k], 0, H - 1);
+        const std::uint8_t mn = mask.row(yy)[xx];
+        if (!(mn & kMaskReceiver) || (mn & kMaskBoom) || std::abs(depth.at(xx, yy) - z) > jump) return false;
+      }
+      return true;
     };
     auto add = [&](int c, std::uint8_t v) {
       clipped |= v >= 250;
       sum[c] += linear(v), n[c] += 1;
+      bary += Eigen::Vector3d(1 - last_b1 - last_b2, last_b1, last_b2), bary_n += 1;
     };
     if (is_bayer(f)) {
       // Whole 2x2 cells on an even lattice, each of their pixels on the triangle read for its site's
@@ -147,7 +174,9 @@ void LightProbe::add_view(const Image& raw, const Image& mask, const DepthImage&
     // Clipped: the light is above what it reads. A Bayer triangle samples the colours it holds.
     if (clipped || n.maxCoeff() < 1) continue;
     Sample s;
-    s.n_body = R_body_recv * pt.n;
+    for (int j = 0; j < 3; ++j)
+      s.vn_body[static_cast<std::size_t>(j)] = R_body_recv * pt.vn[static_cast<std::size_t>(j)];
+    s.bary = bary / bary_n;
     s.albedo = pt.albedo;
     s.observed = sum.cwiseQuotient(n.cwiseMax(1.0));
     s.pixels = n;
@@ -168,12 +197,16 @@ std::optional<LightFit> LightProbe::fit(const Eigen::Vector3d& towards_sun_body,
     return fail(std::to_string(samples_.size()) + " points of the receiver in view, " +
                 std::to_string(kMinSamples) + " needed");
   const Eigen::Vector3d s = towards_sun_body.normalized(), d = down_body.normalized();
-  // The light basis of each sample: the sun's cosine and the two hemispheres' shares.
-  std::vector<Eigen::Vector3d> basis(samples_.size());
-  for (std::size_t i = 0; i < samples_.size(); ++i) {
-    const Eigen::Vector3d& nb = samples_[i].n_body;
-    basis[i] = {sun_up ? std::max(nb.dot(s), 0.0) : 0.0, 0.5 * (1 - nb.dot(d)), 0.5 * (1 + nb.dot(d))};
-  }
+  // The light basis of each sample: the sun's cosine and the two hemispheres' shares at each
+  // vertex, weighted as its pixels weigh the vertices (Gouraud).
+  std::vector<Eigen::Vector3d> basis(samples_.size(), Eigen::Vector3d::Zero());
+  for (std::size_t i = 0; i < samples_.size(); ++i)
+    for (std::size_t j = 0; j < 3; ++j) {
+      const Eigen::Vector3d& nb = samples_[i].vn_body[j];
+      basis[i] += samples_[i].bary[static_cast<Eigen::Index>(j)] *
+                  Eigen::Vector3d(sun_up ? std::max(nb.dot(s), 0.0) : 0.0, 0.5 * (1 - nb.dot(d)),
+                                  0.5 * (1 + nb.dot(d)));
+    }
   const bool grey = samples_.front().grey;
   LightFit out;
   double rms_sum = 0;
@@ -185,15 +218,26 @@ std::optional<LightFit> LightProbe::fit(const Eigen::Vector3d& towards_sun_body,
     // The samples of this channel (grey: all of them).
     auto has = [&](std::size_t i) { return grey || samples_[i].pixels[c] >= 1; };
     std::vector<double> w(samples_.size(), 1.0), r(samples_.size());
-    for (std::size_t i = 0; i < samples_.size(); ++i) w[i] = has(i) ? 1.0 : 0.0;
+    // A sample's weight by the pixels behind it: a mean of n pixels has the texture's and the
+    // noise's variance over n, plus the model's own error, which more pixels do not reduce (a
+    // triangle of 4 pixels weighs half one of many). On a Bayer mosaic a small triangle may hold
+    // one pixel of a colour: it counts, but little.
+    auto prior = [&](std::size_t i) {
+      const double n = grey ? samples_[i].pixels.maxCoeff() : samples_[i].pixels[c];
+      return n / (n + 4.0);
+    };
+    for (std::size_t i = 0; i < samples_.size(); ++i) w[i] = has(i) ? prior(i) : 0.0;
     std::size_t present = 0;
     for (std::size_t i = 0; i < samples_.size(); ++i) present += has(i);
     if (present < kMinSamples)
       return fail(std::to_string(present) + " points of the receiver in view for one colour, " +
                   std::to_string(kMinSamples) + " needed");
     Eigen::Vector3d x = Eigen::Vector3d::Zero();
-    std::array<bool, 3> active{sun_up, true, true};
+    std::array<bool, 3> active{};
     for (int iter = 0; iter < 12; ++iter) {
+      // Every term starts each round active: one dropped under the first round's outliers comes
+      // back once they weigh nothing.
+      active = {sun_up, true, true};
       // Weighted least squares over the active terms; a term that comes out negative is dropped
       // (held at 0) and the rest solved again.
       for (int pass = 0; pass < 3; ++pass) {
@@ -231,7 +275,7 @@ std::optional<LightFit> LightProbe::fit(const Eigen::Vector3d& towards_sun_body,
       const double cutoff = 4.685 * std::max(1.4826 * abs_r[abs_r.size() / 2], 1e-4);
       for (std::size_t i = 0; i < r.size(); ++i) {
         const double u = r[i] / cutoff;
-        w[i] = has(i) && std::abs(u) < 1 ? (1 - u * u) * (1 - u * u) : 0.0;
+        w[i] = has(i) && std::abs(u) < 1 ? prior(i) * (1 - u * u) * (1 - u * u) : 0.0;
       }
     }
     std::size_t inliers = 0;

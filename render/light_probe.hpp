@@ -3,7 +3,11 @@
 // and ground as the boom: every visible surface point of known albedo rho and normal n gives, per
 // colour channel,
 //   observed / 255 = rho * (direct * max(n . s, 0) + sky * (1 - n . d) / 2 + ground * (1 + n . d) / 2)
-// (render/camera_look.hpp's SceneLight, linear light). Points on many normals (the wings' tops, the
+// (render/camera_look.hpp's SceneLight, linear light), with the light evaluated at the triangle's
+// vertices on their smooth normals and interpolated over it (Gouraud, as the boom is shaded): a
+// pixel's light is sum_j b_j L(n_j), so each sample keeps its pixels' mean barycentric weights and
+// its vertex normals. (A triangle's flat normal would miss the sun that a grazing side's vertices
+// catch, and the fit would hand that light to the ground.) Points on many normals (the wings' tops, the
 // fuselage's sides, the nacelles) make the three terms a small least-squares problem per channel,
 // solved robustly (Tukey's biweight: texture edges, specks and shadows are outliers) with the terms
 // kept >= 0. The camera look lights the boom with the result (pipeline/look_stage.hpp).
@@ -57,16 +61,18 @@ class LightProbe {
  private:
   // A triangle of the receiver: its pixels' mean is its mean albedo times the light on its normal.
   struct Point {
-    std::array<Eigen::Vector3d, 3> v;  // vertices, receiver frame
-    Eigen::Vector3d n;                 // unit, outwards, receiver frame
-    Eigen::Vector3d albedo;            // the texture's mean over the triangle times the base colour
+    std::array<Eigen::Vector3d, 3> v;   // vertices, receiver frame
+    Eigen::Vector3d n;                  // unit, outwards, receiver frame (the flat normal)
+    std::array<Eigen::Vector3d, 3> vn;  // the vertices' smooth normals, outwards (flat where none)
+    Eigen::Vector3d albedo;             // the texture's mean over the triangle times the base colour
   };
   struct Sample {
-    Eigen::Vector3d n_body;
-    Eigen::Vector3d albedo, observed;  // observed: linear 0..1 per channel
-    Eigen::Vector3d pixels;            // pixels read per channel (a small triangle on a Bayer
-                                       // mosaic may hold none of a colour: no sample of it)
-    bool grey = false;                 // a Mono camera: only the luma is known
+    std::array<Eigen::Vector3d, 3> vn_body;  // the vertex normals, body frame
+    Eigen::Vector3d bary;                    // the pixels' mean barycentric weights of the vertices
+    Eigen::Vector3d albedo, observed;        // observed: linear 0..1 per channel
+    Eigen::Vector3d pixels;                  // pixels read per channel (a small triangle on a Bayer
+                                             // mosaic may hold none of a colour: no sample of it)
+    bool grey = false;                       // a Mono camera: only the luma is known
   };
   std::vector<Point> points_;
   std::vector<Sample> samples_;
