@@ -5,6 +5,9 @@
 #include <iomanip>
 #include <sstream>
 
+#include <pthread.h>
+#include <sched.h>
+
 #include "core/thread_name.hpp"
 #include "nav/geodesy.hpp"
 #include "nav/solar_position.hpp"
@@ -165,7 +168,8 @@ void LookStage::after_augment(const StereoFrame& frame, const SceneState& scene,
   probe_->add_view(frame.right.image, result.right.mask, result.right.receiver_depth, rig.cameras[1],
                    scene.T_body_receiver, g);
   std::string why;
-  if (auto fit = probe_->fit(scene.light.towards_light_body, scene.light.down_body, scene.light.sun_up, &why)) {
+  if (auto fit =
+          probe_->fit(scene.light.towards_light_body, scene.light.down_body, scene.light.sun_up, &why)) {
     // Smoothed over the sampled pairs: the light changes slowly, the points in view do not. Each
     // fit weighs as many points as it used, the previous one half its own: a receiver coming
     // closer (ten times the points) is soon measured by what it shows now, not by its far past.
@@ -185,6 +189,12 @@ void LookStage::after_augment(const StereoFrame& frame, const SceneState& scene,
 
 void LookStage::estimator_loop() {
   set_thread_name("augrig-noise");
+  // Background work: on a machine whose cores the capture, the augmenter and the window already
+  // keep busy it runs in their idle time (SCHED_IDLE, this thread only) and never delays a frame;
+  // a late estimate only means the previous one is used a little longer.
+  const sched_param idle{};
+  if (pthread_setschedparam(pthread_self(), SCHED_IDLE, &idle) != 0)
+    std::fprintf(stderr, "look: the noise estimator runs at normal priority (SCHED_IDLE refused)\n");
   std::unique_lock lock(mutex_);
   for (;;) {
     cv_.wait(lock, [&] { return stop_ || !pending_.empty(); });

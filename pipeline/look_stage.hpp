@@ -9,7 +9,7 @@
 //     the frames' mean linear level and the sun and sky SceneLight::sun()'s clear sky. A scene
 //     file's `sun` key sets all three instead;
 //   - each camera's noise level function: configured (rig), or estimated online from its raw
-//     frames (render/noise_level.hpp) on a thread of its own, one frame per camera every
+//     frames (render/noise_level.hpp) on a thread of its own (idle priority), one frame per camera every
 //     `noise_every_s` of frame time, refitted after each, restarted every `noise_window` frames so
 //     that a change of gain is followed; each new fit reaches the augmenter between two frames.
 // With the plain look it does nothing.
