@@ -23,6 +23,7 @@
 
 #include "core/image.hpp"
 #include "render/noise_level.hpp"
+#include "render/pbr.hpp"
 
 namespace augrig {
 
@@ -42,6 +43,14 @@ enum class LightSource : std::uint8_t {
   kEphemeris,   // computed from the frame's GPS time and the tanker's position and attitude
 };
 const char* to_string(LightSource s);
+
+// The light on a surface of a given finish (render/pbr.hpp) seen from a given side: its colour is
+// 255 (albedo * scale + add) per channel, albedo being base colour times texture. A metal's
+// reflection takes its albedo's colour (scale); the dielectric's, a white sheen, does not (add).
+struct SurfaceLight {
+  Eigen::Vector3d scale = Eigen::Vector3d::Zero();
+  Eigen::Vector3d add = Eigen::Vector3d::Zero();
+};
 
 // The light on the boom in the tanker's body frame: the sun, and two hemispheres of diffuse
 // light, the sky's above the horizon and the ground's (or clouds') below it. A surface of normal n
@@ -85,6 +94,11 @@ struct SceneLight {
     }
     return l;
   }
+  // The same light on a surface of finish `f` seen along unit `v` (towards the eye): the diffuse
+  // light above times (1 - metallic), plus the sun's GGX lobe and the hemispheres' sheen with
+  // Schlick's Fresnel (F0 0.04 for the dielectric, the albedo for the metal). docs/LOOK.md.
+  SurfaceLight on(const Eigen::Vector3d& n, const Eigen::Vector3d& v, const Eigen::Vector3d& towards_light,
+                  const Eigen::Vector3d& down, const SurfaceFinish& f) const;
   Eigen::Vector3d lowest() const { return sky.cwiseMin(ground); }
   Eigen::Vector3d highest() const { return sky.cwiseMax(ground) + direct; }
 };
