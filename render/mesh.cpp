@@ -218,6 +218,7 @@ struct GltfContext {
   const tinygltf::Model& gm;
   const std::string& path;
   std::map<int, std::shared_ptr<const Texture>> textures;  // by image index, shared between primitives
+  std::set<int> noted_materials;  // materials whose ignored metallicRoughnessTexture was noted
 };
 
 int component_size(int type) {
@@ -412,6 +413,38 @@ const char* mode_name(int mode) {
   }
 }
 
+// A primitive's material into `mesh`: base colour factor and texture, metallic and roughness
+// (tinygltf gives the spec's defaults, 1 and 1, for factors the file leaves out). Returns the
+// TEXCOORD set the base colour texture names.
+Expected<int> gltf_material(GltfContext& ctx, int index, const std::string& what, Mesh& mesh) {
+  const tinygltf::Material& mat = ctx.gm.materials[index];
+  const std::string name =
+      "material " + std::to_string(index) + (mat.name.empty() ? "" : " '" + mat.name + "'");
+  const auto& pbr = mat.pbrMetallicRoughness;
+  if (pbr.baseColorFactor.size() >= 3) {
+    mesh.base_color = Eigen::Vector3f(static_cast<float>(pbr.baseColorFactor[0]),
+                                      static_cast<float>(pbr.baseColorFactor[1]),
+                                      static_cast<float>(pbr.baseColorFactor[2]));
+  }
+  int texcoord_set = 0;
+  if (pbr.baseColorTexture.index >= 0) {
+    auto tex = gltf_texture(ctx, pbr.baseColorTexture.index, what);
+    if (!tex) return tex.error();
+    mesh.texture = *tex;
+    texcoord_set = pbr.baseColorTexture.texCoord;
+  }
+  mesh.finish = SurfaceFinish{pbr.metallicFactor, pbr.roughnessFactor};
+  mesh.finish_from_file = true;
+  if (const std::string why = finish_problem(mesh.finish, "metallicFactor", "roughnessFactor"); !why.empty())
+    return make_error(kWhere, ctx.path, ": ", name, ": pbrMetallicRoughness: ", why);
+  // The texture would vary them over the surface; the factors alone are a uniform finish. Said
+  // once per material.
+  if (pbr.metallicRoughnessTexture.index >= 0 && ctx.noted_materials.insert(index).second)
+    std::fprintf(stderr, "%s%s: warning: %s: metallicRoughnessTexture ignored (its factors are used)\n",
+                 kWhere, ctx.path.c_str(), name.c_str());
+  return texcoord_set;
+}
+
 // One primitive -> one Mesh, positions and normals in the glTF scene frame (node transform applied).
 Expected<Mesh> gltf_primitive(GltfContext& ctx, int mesh_index, int prim_index, const Eigen::Matrix4d& M) {
   const auto& gm = ctx.gm;
@@ -463,22 +496,13 @@ Expected<Mesh> gltf_primitive(GltfContext& ctx, int mesh_index, int prim_index, 
     }
   }
 
-  // Material: base colour factor and texture (which names its TEXCOORD set).
+  // Material: base colour factor and texture (which names its TEXCOORD set), metallic, roughness.
   int texcoord_set = 0;
   if (prim.material >= 0) {
     if (prim.material >= static_cast<int>(gm.materials.size())) return fail("material does not exist");
-    const auto& pbr = gm.materials[prim.material].pbrMetallicRoughness;
-    if (pbr.baseColorFactor.size() >= 3) {
-      mesh.base_color = Eigen::Vector3f(static_cast<float>(pbr.baseColorFactor[0]),
-                                        static_cast<float>(pbr.baseColorFactor[1]),
-                                        static_cast<float>(pbr.baseColorFactor[2]));
-    }
-    if (pbr.baseColorTexture.index >= 0) {
-      auto tex = gltf_texture(ctx, pbr.baseColorTexture.index, what);
-      if (!tex) return tex.error();
-      mesh.texture = *tex;
-      texcoord_set = pbr.baseColorTexture.texCoord;
-    }
+    auto set = gltf_material(ctx, prim.material, what, mesh);
+    if (!set) return set.error();
+    texcoord_set = *set;
   }
   if (const auto it = prim.attributes.find("TEXCOORD_" + std::to_string(texcoord_set));
       it != prim.attributes.end()) {
@@ -598,7 +622,7 @@ Expected<Model> load_gltf(const std::string& path, bool binary) {
     return make_error(kWhere, path, ": ", what);
   }
 
-  GltfContext ctx{gm, path, {}};
+  GltfContext ctx{gm, path, {}, {}};
   Model model;
   std::vector<int> roots;
   if (!gm.scenes.empty()) {
@@ -627,10 +651,12 @@ Expected<Model> load_gltf(const std::string& path, bool binary) {
 // and it only notes a missing material library among its warnings. Non-finite or unparsable
 // v/vn/vt numbers are an Error; a missing mtllib is a warning on stderr (the model still loads,
 // with the default material). `dir` is where tinyobjloader looks for the .mtl files.
-Expected<void> check_obj_text(const std::string& path, const std::filesystem::path& dir) {
+Expected<std::vector<std::filesystem::path>> check_obj_text(const std::string& path,
+                                                            const std::filesystem::path& dir) {
   namespace fs = std::filesystem;
   std::ifstream in(path, std::ios::binary);
   if (!in) return make_error(kWhere, path, ": cannot open the file (", std::strerror(errno), ")");
+  std::vector<fs::path> libraries;
   std::string line;
   for (std::size_t no = 1; std::getline(in, line); ++no) {
     std::istringstream ls(line.substr(0, line.find('#')));
@@ -655,7 +681,9 @@ Expected<void> check_obj_text(const std::string& path, const std::filesystem::pa
       while (ls >> name) {
         const fs::path p = fs::path(name).is_absolute() ? fs::path(name) : dir / name;
         std::error_code ec;
-        if (!fs::is_regular_file(p, ec)) {
+        if (fs::is_regular_file(p, ec)) {
+          libraries.push_back(p);
+        } else {
           std::fprintf(
               stderr, "%s%s:%zu: warning: material library '%s' %s (%s): using the default material\n",
               kWhere, path.c_str(), no, name.c_str(),
@@ -665,13 +693,68 @@ Expected<void> check_obj_text(const std::string& path, const std::filesystem::pa
     }
   }
   if (in.bad()) return make_error(kWhere, path, ": read error");
-  return {};
+  return libraries;
+}
+
+// An OBJ material's metallic and roughness keys as its .mtl gives them (NaN: absent): PBR's Pm
+// and Pr, and Phong's shininess Ns.
+struct MtlFinish {
+  double pm = NAN, pr = NAN, ns = NAN;
+  bool any() const { return !std::isnan(pm) || !std::isnan(pr) || !std::isnan(ns); }
+  // Pr, else Ns as the Blinn-Phong exponent of the same lobe width (alpha^2 = 2 / (Ns + 2),
+  // alpha = roughness^2), else the built-in paint's; Pm, else 0 (a Phong material is a dielectric).
+  SurfaceFinish finish() const {
+    const double r = !std::isnan(pr)   ? pr
+                     : !std::isnan(ns) ? std::pow(2.0 / (ns + 2.0), 0.25)
+                                       : kPaintedBoom.roughness;
+    return {std::isnan(pm) ? 0.0 : pm, r};
+  }
+};
+
+// The Pm, Pr and Ns keys of every material of the OBJ's libraries, by material name (the first
+// definition of a name, as tinyobjloader keeps it), read here because tinyobjloader fills absent
+// ones with values of its own. A value out of its range (Pm, Pr: [0, 1]; Ns: >= 0) is an Error
+// naming the OBJ, the material, and the library's line.
+Expected<std::map<std::string, MtlFinish>> mtl_finishes(const std::string& path,
+                                                        const std::vector<std::filesystem::path>& libraries) {
+  std::map<std::string, MtlFinish> out;
+  for (const std::filesystem::path& lib : libraries) {
+    std::ifstream in(lib, std::ios::binary);
+    std::string line, name;
+    std::set<std::string> here;  // defined in this library (a name defined earlier keeps its keys)
+    for (std::size_t no = 1; std::getline(in, line); ++no) {
+      std::istringstream ls(line.substr(0, line.find('#')));
+      std::string key, tok;
+      if (!(ls >> key)) continue;
+      if (key == "newmtl") {
+        name.clear();
+        ls >> name;
+        if (!out.count(name)) here.insert(name), out[name] = {};
+        continue;
+      }
+      if ((key != "Pm" && key != "Pr" && key != "Ns") || !here.count(name)) continue;
+      ls >> tok;
+      char* end = nullptr;
+      const double x = std::strtod(tok.c_str(), &end);
+      const bool unit = key != "Ns";
+      if (tok.empty() || end != tok.c_str() + tok.size() || !(x >= 0.0) || (unit && x > 1.0) ||
+          !std::isfinite(x))
+        return make_error(kWhere, path, ": material '", name, "' (", lib.string(), ":", no, "): '", key,
+                          unit ? "' must be a number in [0, 1]" : "' must be a finite number >= 0", ", got '",
+                          tok.substr(0, 40), "'");
+      (key == "Pm" ? out[name].pm : key == "Pr" ? out[name].pr : out[name].ns) = x;
+    }
+  }
+  return out;
 }
 
 Expected<Model> load_obj(const std::string& path) {
   namespace fs = std::filesystem;
   const fs::path dir = fs::path(path).parent_path();
-  if (auto st = check_obj_text(path, dir); !st) return st.error();
+  auto libraries = check_obj_text(path, dir);
+  if (!libraries) return libraries.error();
+  auto finishes = mtl_finishes(path, *libraries);
+  if (!finishes) return finishes.error();
   tinyobj::ObjReaderConfig config;
   // We fan-triangulate ourselves after validating indices: tinyobjloader's own triangulation reads
   // vertex positions through unchecked face indices.
@@ -768,6 +851,8 @@ Expected<Model> load_obj(const std::string& path) {
     if (mat >= 0) {
       const auto& m = materials[mat];
       mesh.base_color = Eigen::Vector3f(m.diffuse[0], m.diffuse[1], m.diffuse[2]);
+      if (const auto f = finishes->find(m.name); f != finishes->end() && f->second.any())
+        mesh.finish = f->second.finish(), mesh.finish_from_file = true;
       if (!m.diffuse_texname.empty()) {
         std::string name = m.diffuse_texname;
         std::replace(name.begin(), name.end(), '\\', '/');  // Windows exporters

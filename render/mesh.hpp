@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 
 #include "core/expected.hpp"
+#include "render/pbr.hpp"
 #include "render/rig.hpp"
 
 namespace augrig {
@@ -31,6 +32,11 @@ struct Mesh {
   std::vector<std::uint32_t> indices;    // 3 per triangle
   Eigen::Vector3f base_color{0.8f, 0.8f, 0.8f};  // linear 0..1, multiplied with the texture
   std::shared_ptr<const Texture> texture;        // may be null
+  // Metallic and roughness (render/pbr.hpp): the file's (a glTF material's pbrMetallicRoughness,
+  // an OBJ material's Pm / Pr / Ns), else the built-in boom's paint until the rig's
+  // `boom.material` sets it (apply_boom_material(), render/models.hpp).
+  SurfaceFinish finish = kPaintedBoom;
+  bool finish_from_file = false;  // the model file gave it
 
   std::size_t triangle_count() const { return indices.size() / 3; }
   // Axis-aligned bounds of the positions; {min, max}.
@@ -48,7 +54,10 @@ struct Model {
 void compute_normals(Mesh& mesh);
 
 // Loads .gltf/.glb/.obj by extension, converting axes and scale; all primitives/shapes are kept
-// (node transforms applied for glTF), textures from baseColorTexture / map_Kd when present.
+// (node transforms applied for glTF), textures from baseColorTexture / map_Kd when present,
+// metallic and roughness from pbrMetallicRoughness (glTF's defaults, 1 and 1, where a material
+// leaves them out) or from an OBJ material's Pm, Pr and Ns (roughness (2 / (Ns + 2))^(1/4));
+// either out of [0, 1] (Ns below 0) is an Error naming the file and the material.
 Expected<Model> load_model(const ModelSource& source);
 
 }  // namespace augrig

@@ -297,6 +297,13 @@ void ruddevator(Builder& b, const BoomDimensions& d, double side) {
 
 }  // namespace
 
+void apply_boom_material(BoomModel& boom, const std::optional<SurfaceFinish>& material) {
+  if (!material) return;
+  for (Model* part : {&boom.fixed, &boom.telescope})
+    for (Mesh& m : part->meshes)
+      if (!m.finish_from_file) m.finish = *material;
+}
+
 BoomModel make_builtin_boom(const BoomDimensions& d) {
   BoomModel boom;
   boom.dims = d;

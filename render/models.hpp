@@ -2,6 +2,8 @@
 // receiver with a textured livery (texture gives stereo matching something to match later).
 #pragma once
 
+#include <optional>
+
 #include <Eigen/Core>
 
 #include "core/pose.hpp"
@@ -39,6 +41,10 @@ struct BoomModel {
   BoomDimensions dims;
 };
 BoomModel make_builtin_boom(const BoomDimensions& dims = {});
+// The rig's `boom.material` (BoomConfig::material) on every mesh whose finish its model file did
+// not give: all of the built-in boom's, a file's meshes without a material. Absent: unchanged (the
+// built-in paint, kPaintedBoom, or what a caller set).
+void apply_boom_material(BoomModel& boom, const std::optional<SurfaceFinish>& material);
 
 // Generic light twin (~13.3 m long, ~16.6 m span) in its body frame (FRD, origin near the CG),
 // textured livery. `receptacle_m` receives the refuelling receptacle's position (top of the nose).

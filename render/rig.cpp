@@ -230,6 +230,18 @@ double number_in(const Ctx& c, const YAML::Node& n, const std::string& key, doub
   return v;
 }
 
+// `material: {metallic, roughness}`, each in [0, 1]; one left out keeps the built-in paint's.
+SurfaceFinish parse_finish(const Ctx& c, const YAML::Node& n, const std::string& key) {
+  expect_map(c, n, key, "a map {metallic, roughness}");
+  check_keys(c, n, key, {"metallic", "roughness"});
+  SurfaceFinish f = kPaintedBoom;
+  if (const YAML::Node v = n["metallic"]; v.IsDefined())
+    f.metallic = number_in(c, v, key + ".metallic", 0, 1, "a metallic factor (0 paint, 1 bare metal)");
+  if (const YAML::Node v = n["roughness"]; v.IsDefined())
+    f.roughness = number_in(c, v, key + ".roughness", 0, 1, "a roughness (0 mirror, 1 matte)");
+  return f;
+}
+
 // `look: {psf_sigma_px, gamma, noise_a, noise_b, seed}`: noise_a and noise_b one number (every
 // channel) or three (R, G, B), given together.
 CameraLookParams parse_look_keys(const Ctx& c, const YAML::Node& n, const std::string& key) {
@@ -442,12 +454,14 @@ Rig parse_root(const Ctx& c, const YAML::Node& root) {
     rig.boom = Rig::paper_default().boom;
     rig.boom.configured = false;
   } else {
-    expect_map(c, boom, "boom", "a map {pivot_body_m, model, limits}");
-    check_keys(c, boom, "boom", {"pivot_body_m", "model", "limits"});
+    expect_map(c, boom, "boom", "a map {pivot_body_m, model, material, limits}");
+    check_keys(c, boom, "boom", {"pivot_body_m", "model", "material", "limits"});
     rig.boom.pivot_body_m =
         to_vec3(c, require(c, boom, "boom", "pivot_body_m", "[x, y, z] in metres (body FRD)"),
                 "boom.pivot_body_m", "[x, y, z] in metres (body FRD)");
     if (const YAML::Node m = boom["model"]; m.IsDefined()) rig.boom.model = parse_model(c, m, "boom.model");
+    if (const YAML::Node m = boom["material"]; m.IsDefined())
+      rig.boom.material = parse_finish(c, m, "boom.material");
     const YAML::Node lim =
         require(c, boom, "boom", "limits", "a map {elevation_deg, azimuth_deg, extension_m}");
     expect_map(c, lim, "boom.limits", "a map {elevation_deg, azimuth_deg, extension_m}");
@@ -645,6 +659,8 @@ std::string rig_to_yaml(const Rig& rig) {
     write_vec(o, {rig.boom.pivot_body_m.x(), rig.boom.pivot_body_m.y(), rig.boom.pivot_body_m.z()});
     o << "\n  model: ";
     write_model(o, rig.boom.model);
+    if (const auto& f = rig.boom.material)
+      o << "  material: {metallic: " << fmt(f->metallic) << ", roughness: " << fmt(f->roughness) << "}\n";
     o << "  limits:\n    elevation_deg: [" << fmt_deg(l.elevation_min_rad) << ", "
       << fmt_deg(l.elevation_max_rad) << "]\n    azimuth_deg: [" << fmt_deg(l.azimuth_min_rad) << ", "
       << fmt_deg(l.azimuth_max_rad) << "]";

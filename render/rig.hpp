@@ -3,6 +3,7 @@
 // and key, and what was expected. Rig::paper_default() reproduces the seed paper's rig.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -58,6 +59,9 @@ struct BoomConfig {
   bool configured = true;
   Eigen::Vector3d pivot_body_m = Eigen::Vector3d::Zero();
   ModelSource model;  // a model file is in the boom frame (x along the boom), at extension 0
+  // `material: {metallic, roughness}`: the built-in boom's finish, and a model file's where the
+  // file gives none; absent, the built-in paint (kPaintedBoom). apply_boom_material().
+  std::optional<SurfaceFinish> material;
   BoomLimits limits;
 };
 

@@ -4,6 +4,7 @@
 #include "render/mesh.hpp"
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <tuple>
 
@@ -314,6 +315,107 @@ TEST(LoadModel, BadScaleAndEmptyPath) {
   auto model = load_model(ModelSource{});
   ASSERT_FALSE(model);
   EXPECT_EQ(model.error().message.rfind("mesh::load_model(): ", 0), 0u);
+}
+
+// ---- Metallic and roughness (issue 33: the boom's material from its model) ----
+
+// A glTF with one triangle drawn by one primitive per material in `materials` (a JSON array's
+// contents) plus one primitive without a material; written to a test folder, its path returned.
+std::string write_gltf(const std::string& name, const std::string& materials, int n_materials) {
+  std::string prims;
+  for (int i = 0; i < n_materials; ++i)
+    prims += R"({"attributes": {"POSITION": 0}, "material": )" + std::to_string(i) + "}, ";
+  prims += R"({"attributes": {"POSITION": 0}})";
+  const std::string json = R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+  "nodes": [{"mesh": 0}], "meshes": [{"primitives": [)" +
+                           prims + R"(]}],
+  "materials": [)" + materials +
+                           R"(],
+  "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],
+  "bufferViews": [{"buffer": 0, "byteLength": 36}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                 "min": [0, 0, 0], "max": [1, 1, 0]}]})";
+  const std::string path = test::output_dir("mesh_finish") + "/" + name;
+  std::ofstream(path) << json;
+  return path;
+}
+
+TEST(LoadGltf, MetallicAndRoughnessFromEachMaterialAndTheSpecsDefaults) {
+  const std::string path =
+      write_gltf("finishes.gltf",
+                 R"({"name": "brass", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.6, 0.2, 1],
+                                           "metallicFactor": 1.0, "roughnessFactor": 0.25}},
+                                         {"name": "paint", "pbrMetallicRoughness": {"metallicFactor": 0, "roughnessFactor": 0.6}},
+                                         {"name": "factors left out", "pbrMetallicRoughness": {}},
+                                         {"name": "no pbr block"})",
+                 4);
+  auto model = load_model(ModelSource{path, ModelAxes::gltf(), 1.0});
+  ASSERT_TRUE(model) << model.error().message;
+  ASSERT_EQ(model->meshes.size(), 5u);
+  const SurfaceFinish want[] = {{1.0, 0.25}, {0.0, 0.6}, {1.0, 1.0}, {1.0, 1.0}};
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_TRUE(model->meshes[i].finish_from_file) << i;
+    EXPECT_DOUBLE_EQ(model->meshes[i].finish.metallic, want[i].metallic) << i;
+    EXPECT_DOUBLE_EQ(model->meshes[i].finish.roughness, want[i].roughness) << i;
+  }
+  expect_near(model->meshes[0].base_color, {0.9f, 0.6f, 0.2f});
+  // No material: the built-in paint until the rig's boom.material says otherwise.
+  EXPECT_FALSE(model->meshes[4].finish_from_file);
+  EXPECT_EQ(model->meshes[4].finish, kPaintedBoom);
+}
+
+TEST(LoadGltf, MetallicOrRoughnessOutOfRangeNamesTheFileAndMaterial) {
+  for (const auto& [pbr, what] :
+       {std::pair<std::string, std::string>{R"("metallicFactor": 1.5)", "metallicFactor 1.5"},
+        {R"("roughnessFactor": -0.25)", "roughnessFactor -0.25"}}) {
+    const std::string path = write_gltf(
+        "bad_finish.gltf", R"({"name": "ok"}, {"name": "hot", "pbrMetallicRoughness": {)" + pbr + "}}", 2);
+    auto model = load_model(ModelSource{path, ModelAxes::gltf(), 1.0});
+    ASSERT_FALSE(model) << pbr;
+    EXPECT_EQ(model.error().message, "mesh::load_model(): " + path +
+                                         ": material 1 'hot': pbrMetallicRoughness: " + what +
+                                         " is outside [0, 1]");
+  }
+}
+
+// An OBJ material's Pm and Pr, or Ns as a Blinn-Phong exponent of the same lobe width; one with
+// none of them is left to the rig (not from the file).
+TEST(LoadObj, MetallicAndRoughnessFromPmPrAndNs) {
+  const std::string dir = test::output_dir("mesh_finish_obj");
+  std::ofstream(dir + "/m.mtl") << "newmtl pbr\nKd 0.5 0.5 0.5\nPm 1\nPr 0.3\n"
+                                   "newmtl phong\nKd 0.5 0.5 0.5\nNs 30\n"
+                                   "newmtl matte\nKd 0.5 0.5 0.5\n";
+  std::ofstream(dir + "/m.obj") << "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                   "usemtl pbr\nf 1 2 3\nusemtl phong\nf 1 3 2\nusemtl matte\nf 2 1 3\n";
+  auto model = load_model(ModelSource{dir + "/m.obj", ModelAxes::frd(), 1.0});
+  ASSERT_TRUE(model) << model.error().message;
+  ASSERT_EQ(model->meshes.size(), 3u);
+  for (const Mesh& m : model->meshes) {
+    SCOPED_TRACE(m.name);
+    if (m.name == "pbr") {
+      EXPECT_TRUE(m.finish_from_file);
+      EXPECT_EQ(m.finish, (SurfaceFinish{1.0, 0.3}));
+    } else if (m.name == "phong") {
+      // alpha^2 = 2 / (Ns + 2) = 1 / 16: alpha 0.25, roughness 0.5; a Phong material is a dielectric.
+      EXPECT_TRUE(m.finish_from_file);
+      EXPECT_DOUBLE_EQ(m.finish.metallic, 0.0);
+      EXPECT_NEAR(m.finish.roughness, 0.5, 1e-12);
+    } else {
+      EXPECT_EQ(m.name, "matte");
+      EXPECT_FALSE(m.finish_from_file);
+      EXPECT_EQ(m.finish, kPaintedBoom);
+    }
+  }
+  std::ofstream(dir + "/m.mtl") << "newmtl pbr\nKd 0.5 0.5 0.5\n\nPr 1.5\n";
+  model = load_model(ModelSource{dir + "/m.obj", ModelAxes::frd(), 1.0});
+  ASSERT_FALSE(model);
+  EXPECT_EQ(model.error().message, "mesh::load_model(): " + dir + "/m.obj: material 'pbr' (" + dir +
+                                       "/m.mtl:4): 'Pr' must be a number in [0, 1], got '1.5'");
+  std::ofstream(dir + "/m.mtl") << "newmtl phong\nNs -2\n";
+  model = load_model(ModelSource{dir + "/m.obj", ModelAxes::frd(), 1.0});
+  ASSERT_FALSE(model);
+  EXPECT_NE(model.error().message.find("material 'phong'"), std::string::npos) << model.error().message;
+  EXPECT_NE(model.error().message.find("'Ns' must be a finite number >= 0, got '-2'"), std::string::npos);
 }
 
 }  // namespace

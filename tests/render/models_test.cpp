@@ -166,6 +166,23 @@ TEST(BuiltinBoom, DimensionsAndBudget) {
   EXPECT_NEAR(tmax - tmin, 0.08, 0.01);
 }
 
+// The built-in boom is painted (render/pbr.hpp: kPaintedBoom) until the rig's boom.material says
+// otherwise; a model file's own finish stays.
+TEST(BuiltinBoom, PaintedUnlessTheRigSaysOtherwise) {
+  BoomModel boom = make_builtin_boom();
+  for (const Model* part : {&boom.fixed, &boom.telescope})
+    for (const Mesh& m : part->meshes) EXPECT_EQ(m.finish, kPaintedBoom) << m.name;
+  boom.fixed.meshes[0].finish = SurfaceFinish{1.0, 0.2};
+  boom.fixed.meshes[0].finish_from_file = true;
+  apply_boom_material(boom, std::nullopt);
+  EXPECT_EQ(boom.fixed.meshes[1].finish, kPaintedBoom);
+  apply_boom_material(boom, SurfaceFinish{0.5, 0.7});
+  EXPECT_EQ(boom.fixed.meshes[0].finish, (SurfaceFinish{1.0, 0.2})) << "the file's";
+  for (const Model* part : {&boom.fixed, &boom.telescope})
+    for (std::size_t i = part == &boom.fixed ? 1 : 0; i < part->meshes.size(); ++i)
+      EXPECT_EQ(part->meshes[i].finish, (SurfaceFinish{0.5, 0.7})) << part->meshes[i].name;
+}
+
 TEST(BuiltinBoom, ScalesWithDimensions) {
   BoomDimensions d;
   d.nozzle_length_m = 0.6;

@@ -467,14 +467,21 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
        "cameras[1].look.psf_sigma_px", "a PSF 1-sigma in pixels in 0..8, got 20"},
       {"look noise_a alone", base_with(16, "    near_m: 1.0\n    look: {noise_a: 0.2}"), 17,
        "cameras[1].look.noise_b", "noise_a and noise_b (sigma^2 = a I + b, DN) are given together"},
-      {"look noise of 2 channels", base_with(16, "    near_m: 1.0\n    look: {noise_a: [1, 2], noise_b: 1}"), 17,
-       "cameras[1].look.noise_a", "or 3 (R, G, B)"},
+      {"look noise of 2 channels", base_with(16, "    near_m: 1.0\n    look: {noise_a: [1, 2], noise_b: 1}"),
+       17, "cameras[1].look.noise_a", "or 3 (R, G, B)"},
       {"look negative noise", base_with(16, "    near_m: 1.0\n    look: {noise_a: 0.1, noise_b: -1}"), 17,
        "cameras[1].look.noise_b", "read-noise variance (DN^2) >= 0, got -1"},
       {"look gamma", base_with(16, "    near_m: 1.0\n    look: {gamma: 0}"), 17, "cameras[1].look.gamma",
        "in 0.2..5, got 0"},
       {"look typo", base_with(16, "    near_m: 1.0\n    look: {psf: 1}"), 17, "cameras[1].look.psf",
        "unknown key"},
+      // The boom's finish.
+      {"boom metallic", base_with(20, "  model: builtin\n  material: {metallic: 2}"), 21,
+       "boom.material.metallic", "expected a metallic factor (0 paint, 1 bare metal) in 0..1, got 2"},
+      {"boom roughness", base_with(20, "  model: builtin\n  material: {roughness: -0.5}"), 21,
+       "boom.material.roughness", "expected a roughness (0 mirror, 1 matte) in 0..1, got -0.5"},
+      {"boom material typo", base_with(20, "  model: builtin\n  material: {shininess: 3}"), 21,
+       "boom.material.shininess", "unknown key"},
   };
   // Only one camera: the right camera's lines removed.
   std::vector<BadRig> all = cases;
@@ -524,6 +531,26 @@ TEST(Rig, CameraLookKeysRoundTrip) {
   ASSERT_TRUE(mono) << mono.error().message;
   EXPECT_EQ(mono->right().look.noise.channels, 1);
   EXPECT_EQ(parse_rig(rig_to_yaml(*mono), "<round trip>")->right().look, mono->right().look);
+}
+
+// The boom's finish (`boom.material`) is read and written back; absent, none is set (the built-in
+// paint, or the model file's own).
+TEST(Rig, BoomMaterialRoundTrip) {
+  const auto rig =
+      parse_rig(base_with(20, "  model: builtin\n  material: {metallic: 1, roughness: 0.35}"), "<string>");
+  ASSERT_TRUE(rig) << rig.error().message;
+  ASSERT_TRUE(rig->boom.material);
+  EXPECT_EQ(*rig->boom.material, (SurfaceFinish{1.0, 0.35}));
+  const auto again = parse_rig(rig_to_yaml(*rig), "<round trip>");
+  ASSERT_TRUE(again) << again.error().message;
+  EXPECT_EQ(again->boom.material, rig->boom.material);
+  const auto half = parse_rig(base_with(20, "  model: builtin\n  material: {roughness: 0.8}"), "<string>");
+  ASSERT_TRUE(half) << half.error().message;
+  EXPECT_EQ(*half->boom.material, (SurfaceFinish{kPaintedBoom.metallic, 0.8}));
+  const auto none = parse_rig(kBaseRig, "<string>");
+  ASSERT_TRUE(none);
+  EXPECT_FALSE(none->boom.material);
+  EXPECT_FALSE(parse_rig(rig_to_yaml(*none), "<round trip>")->boom.material);
 }
 
 // A directory given as the rig file used to read as an empty document ("got nothing (null)").
