@@ -57,6 +57,67 @@ void main() {
 }
 )";
 
+// The shaded pass's vertex shader: the camera look's specular light of the mesh's finish per
+// vertex (Gouraud, as the CPU rasteriser and the simulator evaluate it), for either face: the
+// GLSL twin of render/pbr.cpp's SceneLight::on(n, v, ...), less the diffuse share (1 - metallic)
+// times the light the fragment shader computes.
+constexpr char kShadedVertexShader[] = R"(#version 330 core
+layout(location = 0) in vec3 a_pos;
+layout(location = 1) in vec3 a_normal;
+layout(location = 2) in vec2 a_uv;
+uniform mat4 u_cam_from_obj;
+uniform mat4 u_proj;
+uniform int u_specular;  // 0: no specular light (the plain look, the receiver)
+uniform float u_metallic;
+uniform float u_roughness;
+uniform vec3 u_light_cam;
+uniform vec3 u_down_cam;
+uniform vec3 u_sky;
+uniform vec3 u_ground;
+uniform vec3 u_direct;
+out vec3 v_normal_cam;
+out vec2 v_uv;
+out vec3 v_scale_front, v_add_front, v_scale_back, v_add_back;
+void specular_light(vec3 n, vec3 v, out vec3 scale, out vec3 add) {
+  float m = clamp(u_metallic, 0.0, 1.0), r = clamp(u_roughness, 0.0, 1.0), rs = max(r, 0.05);
+  float a2 = rs * rs * rs * rs;
+  float nl = dot(n, u_light_cam), nv = max(dot(n, v), 1e-4);
+  float s = 0.0, w = 0.0;
+  vec3 hs = u_light_cam + v;
+  if (nl > 0.0 && length(hs) > 1e-6) {
+    vec3 h = normalize(hs);
+    float nh = max(dot(n, h), 0.0);
+    float d = nh * nh * (a2 - 1.0) + 1.0;
+    float vis = 0.5 / (nl * sqrt(nv * nv * (1.0 - a2) + a2) + nv * sqrt(nl * nl * (1.0 - a2) + a2));
+    float k = 1.0 - clamp(dot(v, h), 0.0, 1.0);
+    s = a2 / (d * d) * vis * nl;
+    w = k * k * k * k * k;
+  }
+  float x = 1.0 - r, y = 0.0425 - 0.0275 * r, z = 1.04 - 0.572 * r, c = -0.04 + 0.022 * r;
+  float a004 = min(x * x, exp2(-9.28 * clamp(dot(n, v), 0.0, 1.0))) * x + y;
+  float A = -1.04 * a004 + z, B = max(1.04 * a004 + c, 0.0);
+  vec3 mirror = 2.0 * dot(n, v) * n - v;
+  float q = dot(n + (1.0 - rs * rs) * (mirror - n), u_down_cam);
+  vec3 hemi = u_sky * 0.5 * (1.0 - q) + u_ground * 0.5 * (1.0 + q);
+  vec3 sun = u_direct * s;
+  float f0 = 0.04 * (1.0 - m);
+  scale = m * ((1.0 - w) * sun + A * hemi);
+  add = sun * (f0 * (1.0 - w) + w) + hemi * (f0 * A + B);
+}
+void main() {
+  vec4 p = u_cam_from_obj * vec4(a_pos, 1.0);
+  v_normal_cam = mat3(u_cam_from_obj) * a_normal;
+  v_uv = a_uv;
+  gl_Position = u_proj * p;
+  v_scale_front = v_add_front = v_scale_back = v_add_back = vec3(0.0);
+  if (u_specular != 0) {
+    vec3 n = normalize(v_normal_cam), v = normalize(-p.xyz);
+    specular_light(n, v, v_scale_front, v_add_front);
+    specular_light(-n, v, v_scale_back, v_add_back);
+  }
+}
+)";
+
 // Ids only: the mask-only receiver needs no colour (saves texture fetches and lighting per fragment).
 constexpr char kIdFragmentShader[] = R"(#version 330 core
 uniform uint u_draw_id;
@@ -72,6 +133,9 @@ void main() {
 constexpr char kFragmentShader[] = R"(#version 330 core
 in vec3 v_normal_cam;
 in vec2 v_uv;
+in vec3 v_scale_front, v_add_front, v_scale_back, v_add_back;
+uniform int u_specular;
+uniform float u_metallic;
 uniform vec3 u_base_color;
 uniform sampler2D u_texture;
 uniform int u_has_texture;
@@ -94,7 +158,12 @@ void main() {
   float diffuse = max(dot(n, u_light_cam), 0.0);
   float nd = dot(n, u_down_cam);
   vec3 hemi = u_sky == u_ground ? u_sky : u_sky * 0.5 * (1.0 - nd) + u_ground * 0.5 * (1.0 + nd);
-  o_color = vec4(albedo * (hemi + u_direct * diffuse), u_alpha);
+  if (u_specular != 0) {
+    vec3 scale = gl_FrontFacing ? v_scale_front : v_scale_back, add = gl_FrontFacing ? v_add_front : v_add_back;
+    o_color = vec4(albedo * ((1.0 - u_metallic) * (hemi + u_direct * diffuse) + scale) + add, u_alpha);
+  } else {
+    o_color = vec4(albedo * (hemi + u_direct * diffuse), u_alpha);
+  }
   // Exact integers through RGBA8: k / 255 is stored as k.
   uint prim = uint(gl_PrimitiveID);
   o_id = vec4(float(prim & 255u), float((prim >> 8) & 255u), float((prim >> 16) & 255u), float(u_draw_id)) / 255.0;
@@ -119,6 +188,7 @@ struct DrawItem {
   // Spatially compact triangle ranges [first, first + count) of the mesh: each gets its own
   // screen box, so a long diagonal part (the boom's tube) costs its footprint, not its bounding box.
   std::vector<std::pair<std::uint32_t, std::uint32_t>> chunks;
+  std::size_t first_vertex;  // this mesh's first vertex in ViewState::vertex_light
 };
 
 // A triangle in the current view's camera frame, ready for exact ray tests from the origin.
@@ -131,6 +201,75 @@ struct CamTriangle {
   double n_dot_v0;
   Eigen::Vector3d v0, e1, e2;
 };
+
+// Triangle k of boom draw `d` coloured for the CPU resolve (render/boom_shading.hpp): vertex j's
+// attributes weighted by the edge plane through the other two (CamTriangle::edge[j + 1]); normals
+// flipped on back faces, as in GL. With `vertex_light` (the camera look): the light on the mesh's
+// finish seen from the camera at the origin (SceneLight::on(n, v, ...)), its albedo-coloured part
+// in the light planes and the rest in the specular planes, computed once per vertex and side this
+// frame (a vertex is shared by about six triangles); without, the diffuse light alone, as before.
+struct VertexLightCache {
+  SurfaceLight* light;
+  std::uint32_t* stamp;
+  std::uint32_t now;
+};
+void set_boom_shading(BoomShading& sh, const CamTriangle& t, const DrawItem& d, std::size_t k,
+                      const Eigen::Matrix3d& R, const SceneLight& sl, const Eigen::Vector3d& light,
+                      const Eigen::Vector3d& down, const VertexLightCache* vertex_light, const Texture* tex) {
+  const bool specular = vertex_light != nullptr;
+  const Mesh& m = *d.mesh;
+  const std::uint32_t* vi = &m.indices[3 * k];
+  const double facing = t.n_dot_v0 < 0 ? 1.0 : -1.0;
+  const Eigen::Vector3d corner[3] = {t.v0, t.v0 + t.e1, t.v0 + t.e2};
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero(), u = sum, v = sum;
+  Eigen::Matrix3d lit = Eigen::Matrix3d::Zero(), add = lit;  // column ch: the channel's sum of k_j c_j
+  Eigen::Vector3d lo = sl.lowest(), hi = sl.highest(), add_hi = Eigen::Vector3d::Zero();
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::Vector3d& c = t.edge[(j + 1) % 3];
+    const Eigen::Vector3d n_j = facing * (R * m.normals[vi[j]].cast<double>()).normalized();
+    sum += c;
+    if (specular) {
+      const std::size_t slot = 2 * (d.first_vertex + vi[j]) + (facing < 0);
+      if (vertex_light->stamp[slot] != vertex_light->now) {
+        vertex_light->light[slot] = sl.on(n_j, -corner[j].normalized(), light, down, m.finish);
+        vertex_light->stamp[slot] = vertex_light->now;
+      }
+      const SurfaceLight& s = vertex_light->light[slot];
+      for (int ch = 0; ch < 3; ++ch) lit.col(ch) += s.scale[ch] * c, add.col(ch) += 255.0 * s.add[ch] * c;
+      // A glint or a metal's dark side may leave the diffuse light's range: the vertices' own.
+      lo = lo.cwiseMin(s.scale), hi = hi.cwiseMax(s.scale), add_hi = add_hi.cwiseMax(255.0 * s.add);
+    } else {
+      const Eigen::Vector3d k_j = sl.on(n_j, light, down);
+      for (int ch = 0; ch < 3; ++ch) lit.col(ch) += k_j[ch] * c;
+    }
+    if (tex) u += m.uvs[vi[j]].x() * c, v += m.uvs[vi[j]].y() * c;
+  }
+  F32x4* coeff[3] = {&sh.dx, &sh.dy, &sh.d1};
+  F32x4* coeff_gb[3] = {&sh.gx, &sh.gy, &sh.g1};
+  F32x4* coeff_s[3] = {&sh.sx, &sh.sy, &sh.s1};
+  auto f = [](double x) { return static_cast<float>(x); };
+  for (int a = 0; a < 3; ++a) {
+    *coeff[a] = F32x4{f(sum[a]), f(lit(a, 0)), f(u[a]), f(v[a])};
+    *coeff_gb[a] = F32x4{f(lit(a, 1)), f(lit(a, 2)), 0.f, 0.f};
+    *coeff_s[a] = F32x4{f(add(a, 0)), f(add(a, 1)), f(add(a, 2)), 0.f};
+    sh.base[a] = 255.f * m.base_color[a];
+  }
+  sh.base[3] = 0;
+  sh.light_lo = F32x4{f(lo[0]), f(lo[1]), f(lo[2]), 0.f};
+  sh.light_hi = F32x4{f(hi[0]), f(hi[1]), f(hi[2]), 0.f};
+  sh.add_hi = F32x4{f(add_hi[0]), f(add_hi[1]), f(add_hi[2]), 0.f};
+  sh.specular = specular;
+  sh.texture = tex;
+  sh.texture_1d = d.texture_1d;
+  if (tex && !d.flat_texel.empty() && d.flat_texel[k] >= 0) {
+    // One texel colour over the whole triangle: folded into the base colour.
+    std::uint8_t rgba[4];
+    const auto packed = static_cast<std::uint32_t>(d.flat_texel[k]);
+    std::memcpy(rgba, &packed, 4);
+    for (int a = 0; a < 3; ++a) sh.base[a] *= rgba[a] * (1.f / 255.f);
+    sh.texture = nullptr;
+  }
+}
 
 // Camera z where the ray d = (x, y, 1) from the camera centre hits `t`, or +inf: inside-ness is
 // three signs against the edge planes, and z (the ray parameter, d.z being 1) comes from the plane.
@@ -166,6 +305,12 @@ struct ViewState {
   // std::fill_n of a float pattern is a scalar loop at -O2).
   std::vector<float> no_depth_row;
   std::vector<BoomShading> shading;  // CPU rasteriser: per boom triangle drawn this frame
+  // The camera look's light on the boom per vertex and side (2 i: front, 2 i + 1: back), computed
+  // once per vertex rather than per triangle corner: the slot holds this frame's where its stamp
+  // is `light_stamp` (CPU rasteriser).
+  std::vector<SurfaceLight> vertex_light;
+  std::vector<std::uint32_t> vertex_stamp;
+  std::uint32_t light_stamp = 0;
   // CPU rasteriser: which 8 x 8 blocks of the virtual image it wrote this frame (kReceiverBlock,
   // kBoomBlock bits; ids and depth are zero elsewhere), and per group of kGroup raw pixels of a
   // row, the blocks their 2x2 sample neighbourhoods lie in.
@@ -278,6 +423,7 @@ class AugmenterImpl final : public Augmenter {
   }
 
   Status init();
+  Status make_programs();
 
   Status augment(const StereoFrame& frame, const SceneState& scene, StereoResult& out) override;
   Status augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) override;
@@ -344,7 +490,7 @@ class AugmenterImpl final : public Augmenter {
   BoomModel boom_;
   Model receiver_;
   std::vector<DrawItem> draws_;
-  std::size_t total_tris_ = 0;
+  std::size_t total_tris_ = 0, total_verts_ = 0;
   // Triangles sharing a vertex (welded by position) with each triangle, global indices (CSR):
   // silhouette triangles seen edge-on are slivers that no sample lands in, but a sampled neighbour does.
   std::vector<std::uint32_t> ring_offsets_, ring_;
@@ -358,7 +504,8 @@ class AugmenterImpl final : public Augmenter {
   struct Program {
     GLuint id = 0;
     GLint cam_from_obj = -1, proj = -1, base_color = -1, has_texture = -1, light = -1, down = -1, sky = -1,
-          ground = -1, direct = -1, draw_id = -1, alpha = -1, texture = -1;
+          ground = -1, direct = -1, draw_id = -1, alpha = -1, texture = -1, specular = -1, metallic = -1,
+          roughness = -1;
   };
   Program shaded_, ids_only_;
   bool zero_to_one_ = false;
@@ -377,6 +524,33 @@ class AugmenterImpl final : public Augmenter {
   bool shadow_on_ = false;  // the receiver drawn and the sun up: the boom's shadow is looked for
 };
 
+// The shaded pass's and the ids pass's GL programs, and their uniforms' locations.
+Status AugmenterImpl::make_programs() {
+  for (auto [prog, name, vs, fs] :
+       {std::tuple{&shaded_, "augmenter shaded", kShadedVertexShader, kFragmentShader},
+        std::tuple{&ids_only_, "augmenter ids", kVertexShader, kIdFragmentShader}}) {
+    auto id = gl::make_program(name, vs, fs);
+    if (!id) return id.error();
+    prog->id = *id;
+    prog->cam_from_obj = glGetUniformLocation(*id, "u_cam_from_obj");
+    prog->proj = glGetUniformLocation(*id, "u_proj");
+    prog->base_color = glGetUniformLocation(*id, "u_base_color");
+    prog->has_texture = glGetUniformLocation(*id, "u_has_texture");
+    prog->light = glGetUniformLocation(*id, "u_light_cam");
+    prog->down = glGetUniformLocation(*id, "u_down_cam");
+    prog->sky = glGetUniformLocation(*id, "u_sky");
+    prog->ground = glGetUniformLocation(*id, "u_ground");
+    prog->direct = glGetUniformLocation(*id, "u_direct");
+    prog->draw_id = glGetUniformLocation(*id, "u_draw_id");
+    prog->alpha = glGetUniformLocation(*id, "u_alpha");
+    prog->texture = glGetUniformLocation(*id, "u_texture");
+    prog->specular = glGetUniformLocation(*id, "u_specular");
+    prog->metallic = glGetUniformLocation(*id, "u_metallic");
+    prog->roughness = glGetUniformLocation(*id, "u_roughness");
+  }
+  return {};
+}
+
 Status AugmenterImpl::init() {
   if (rig_.cameras.size() != 2)
     return make_error("Augmenter::create(): the rig needs 2 cameras, has ", rig_.cameras.size());
@@ -393,6 +567,7 @@ Status AugmenterImpl::init() {
     if (!m) return m.error();
     boom_.fixed = std::move(*m);  // a user boom is one rigid part (no telescope)
   }
+  apply_boom_material(boom_, rig_.boom.material);
   if (options_.receiver_model) {
     receiver_ = *options_.receiver_model;
   } else if (rig_.receiver.model.path.empty()) {
@@ -403,24 +578,7 @@ Status AugmenterImpl::init() {
     receiver_ = std::move(*m);
   }
 
-  for (auto [prog, name, fs] : {std::tuple{&shaded_, "augmenter shaded", kFragmentShader},
-                                std::tuple{&ids_only_, "augmenter ids", kIdFragmentShader}}) {
-    auto id = gl::make_program(name, kVertexShader, fs);
-    if (!id) return id.error();
-    prog->id = *id;
-    prog->cam_from_obj = glGetUniformLocation(*id, "u_cam_from_obj");
-    prog->proj = glGetUniformLocation(*id, "u_proj");
-    prog->base_color = glGetUniformLocation(*id, "u_base_color");
-    prog->has_texture = glGetUniformLocation(*id, "u_has_texture");
-    prog->light = glGetUniformLocation(*id, "u_light_cam");
-    prog->down = glGetUniformLocation(*id, "u_down_cam");
-    prog->sky = glGetUniformLocation(*id, "u_sky");
-    prog->ground = glGetUniformLocation(*id, "u_ground");
-    prog->direct = glGetUniformLocation(*id, "u_direct");
-    prog->draw_id = glGetUniformLocation(*id, "u_draw_id");
-    prog->alpha = glGetUniformLocation(*id, "u_alpha");
-    prog->texture = glGetUniformLocation(*id, "u_texture");
-  }
+  if (auto s = make_programs(); !s) return s;
 
   // A software GL pays per pixel for each attachment it clears, writes and reads back: there the
   // CPU rasteriser, which writes one id and one depth per covered sample, is faster.
@@ -478,8 +636,9 @@ Status AugmenterImpl::init() {
         }
       }
       draws_.push_back({kind, &m, gl::upload(m), static_cast<std::uint8_t>(draws_.size() + 1), total_tris_,
-                        cull, texture_1d, std::move(flat_texel), std::move(chunks)});
+                        cull, texture_1d, std::move(flat_texel), std::move(chunks), total_verts_});
       total_tris_ += m.triangle_count();
+      total_verts_ += m.positions_m.size();
     }
     return {};
   };
@@ -534,6 +693,8 @@ Status AugmenterImpl::init() {
     if (cpu_raster_) {
       vs.inv_z.assign(vn, 0.f);
       vs.shading.resize(total_tris_);
+      vs.vertex_light.resize(2 * total_verts_);
+      vs.vertex_stamp.assign(2 * total_verts_, 0);
       vs.blocks_x = (vs.vp.width >> kBlockShift) + 1;
       vs.occupied.assign(static_cast<std::size_t>(vs.blocks_x) * ((vs.vp.height >> kBlockShift) + 1), 0);
       const int W = cm.width_px, H = cm.height_px;
@@ -764,6 +925,13 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
   const int blocks_x = vs.blocks_x;
   const SceneLight& sl = light_of(scene);
   const Eigen::Vector3d light = T_cam_body.R() * sl.towards_light_body, down = T_cam_body.R() * sl.down_body;
+  // The camera look's specular light, per vertex once this frame.
+  if (++vs.light_stamp == 0) {  // wrapped round: every slot is stale again
+    std::fill(vs.vertex_stamp.begin(), vs.vertex_stamp.end(), 0);
+    vs.light_stamp = 1;
+  }
+  const VertexLightCache vertex_cache{vs.vertex_light.data(), vs.vertex_stamp.data(), vs.light_stamp};
+  const VertexLightCache* cache = camera_look_on() ? &vertex_cache : nullptr;
   RasterTriangle rt;
   for (const ObjectKind kind : {ObjectKind::kReceiver, ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope}) {
     const bool boom = kind != ObjectKind::kReceiver;
@@ -787,44 +955,7 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
           ids[i] = id;
           occupied[(y >> kBlockShift) * blocks_x + (x >> kBlockShift)] |= block_bit;
         });
-        if (!boom) continue;
-        // Its colour, for the resolve: vertex j's attributes weighted by the edge plane through
-        // the other two (CamTriangle::edge[j + 1]); normals flipped on back faces, as in GL.
-        const std::uint32_t* vi = &m.indices[3 * k];
-        const double facing = t.n_dot_v0 < 0 ? 1.0 : -1.0;
-        Eigen::Vector3d sum = Eigen::Vector3d::Zero(), u = sum, v = sum;
-        Eigen::Matrix3d lit = Eigen::Matrix3d::Zero();  // column ch: the channel's sum of k_j c_j
-        for (int j = 0; j < 3; ++j) {
-          const Eigen::Vector3d& c = t.edge[(j + 1) % 3];
-          const Eigen::Vector3d n_j = facing * (R * m.normals[vi[j]].cast<double>()).normalized();
-          sum += c;
-          const Eigen::Vector3d k_j = sl.on(n_j, light, down);
-          for (int ch = 0; ch < 3; ++ch) lit.col(ch) += k_j[ch] * c;
-          if (tex) u += m.uvs[vi[j]].x() * c, v += m.uvs[vi[j]].y() * c;
-        }
-        BoomShading& sh = vs.shading[d.first_tri + k];
-        F32x4* coeff[3] = {&sh.dx, &sh.dy, &sh.d1};
-        F32x4* coeff_gb[3] = {&sh.gx, &sh.gy, &sh.g1};
-        for (int a = 0; a < 3; ++a) {
-          *coeff[a] = F32x4{static_cast<float>(sum[a]), static_cast<float>(lit(a, 0)), static_cast<float>(u[a]),
-                            static_cast<float>(v[a])};
-          *coeff_gb[a] = F32x4{static_cast<float>(lit(a, 1)), static_cast<float>(lit(a, 2)), 0.f, 0.f};
-          sh.base[a] = 255.f * m.base_color[a];
-        }
-        sh.base[3] = 0;
-        const Eigen::Vector3d lo = sl.lowest(), hi = sl.highest();
-        sh.light_lo = F32x4{static_cast<float>(lo[0]), static_cast<float>(lo[1]), static_cast<float>(lo[2]), 0.f};
-        sh.light_hi = F32x4{static_cast<float>(hi[0]), static_cast<float>(hi[1]), static_cast<float>(hi[2]), 0.f};
-        sh.texture = tex;
-        sh.texture_1d = d.texture_1d;
-        if (tex && !d.flat_texel.empty() && d.flat_texel[k] >= 0) {
-          // One texel colour over the whole triangle: folded into the base colour.
-          std::uint8_t rgba[4];
-          const auto packed = static_cast<std::uint32_t>(d.flat_texel[k]);
-          std::memcpy(rgba, &packed, 4);
-          for (int a = 0; a < 3; ++a) sh.base[a] *= rgba[a] * (1.f / 255.f);
-          sh.texture = nullptr;
-        }
+        if (boom) set_boom_shading(vs.shading[d.first_tri + k], t, d, k, R, sl, light, down, cache, tex);
       }
     }
   }
@@ -873,6 +1004,10 @@ void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
       const Eigen::Vector3f& c = d.mesh->base_color;
       glUniform1ui(p.draw_id, d.draw_id);
       if (p.base_color >= 0) glUniform3f(p.base_color, c.x(), c.y(), c.z());
+      // The finish's specular light: the boom's, with the camera look's light only.
+      if (p.specular >= 0) glUniform1i(p.specular, camera_look_on() && kind != ObjectKind::kReceiver ? 1 : 0);
+      if (p.metallic >= 0) glUniform1f(p.metallic, static_cast<float>(d.mesh->finish.metallic));
+      if (p.roughness >= 0) glUniform1f(p.roughness, static_cast<float>(d.mesh->finish.roughness));
       if (p.has_texture >= 0) glUniform1i(p.has_texture, d.gpu.has_texture ? 1 : 0);
       if (d.gpu.has_texture && p.has_texture >= 0) {
         glActiveTexture(GL_TEXTURE0);

@@ -26,7 +26,8 @@ using F32x4 = float __attribute__((vector_size(16)));
 // are interpolated per pixel.
 struct BoomShading {
   // Four planes, one per lane, evaluated together as dx x + dy y + d1: the sum of c_j; the sum of
-  // k_j c_j with k_j = SceneLight::on(n_j) at vertex j, red channel; the sums of u_j c_j and v_j c_j.
+  // k_j c_j with k_j = SceneLight::on(n_j) at vertex j (the camera look: its SurfaceLight's scale),
+  // red channel; the sums of u_j c_j and v_j c_j.
   F32x4 dx, dy, d1;
   // The sums k_j c_j of the green and blue channels (lanes 0 and 1; the others unused).
   F32x4 gx, gy, g1;
@@ -34,6 +35,12 @@ struct BoomShading {
   // The light's range per channel over the vertices (render/camera_look.hpp's SceneLight: lowest()
   // to highest(); the plain look's fixed light is 0.35 to 1).
   F32x4 light_lo = {0.35f, 0.35f, 0.35f, 0.35f}, light_hi = {1.f, 1.f, 1.f, 1.f};
+  // The camera look's specular light that does not take the albedo's colour (render/pbr.hpp:
+  // SurfaceLight::add, times 255), R G B lanes: the sums a_j c_j, and its largest vertex value.
+  // Only where `specular` (the plain look has none: its pixels stay as they were).
+  F32x4 sx = {}, sy = {}, s1 = {};
+  F32x4 add_hi = {};
+  bool specular = false;
   const Texture* texture = nullptr;
   bool texture_1d = false;  // its rows are all the same: v is not needed
 };
@@ -89,10 +96,11 @@ inline F32x4 sample_texture(const Texture& tex, float u, float v, bool one_row) 
 
 // The boom's colour (0..255; alpha lane not set) on the ray (x, y, 1) through triangle `s`:
 // the light (sky and ground hemispheres plus direct times the cosine at the vertices, interpolated), times
-// base colour and texture. A pixel centre just outside its triangle (an edge pixel whose sample lies inside)
-// extrapolates the attributes: the light is held to its range [light_lo, light_hi] and the texture
-// coordinates to a range whose texel index fits an int, and the colour is clamped to 0..255 as GL's UNORM
-// framebuffer clamps it (a negative colour converted to uint8 is undefined behaviour).
+// base colour and texture, plus (camera look) the specular light that does not take their colour. A pixel
+// centre just outside its triangle (an edge pixel whose sample lies inside) extrapolates the attributes: the
+// light is held to its range [light_lo, light_hi] and the texture coordinates to a range whose texel index
+// fits an int, and the colour is clamped to 0..255 as GL's UNORM framebuffer clamps it (a negative colour
+// converted to uint8 is undefined behaviour).
 inline F32x4 shade(const BoomShading& s, float x, float y) {
   const F32x4 planes = s.dx * x + s.dy * y + s.d1;
   const float inv = planes[0] > 0 ? 1.f / planes[0] : 0.f;
@@ -107,6 +115,10 @@ inline F32x4 shade(const BoomShading& s, float x, float y) {
     constexpr float kMaxUv = 1e4f;  // the texture repeats: exact far beyond any real coordinate
     c *= sample_texture(*s.texture, hold(q[2], -kMaxUv, kMaxUv), hold(q[3], -kMaxUv, kMaxUv), s.texture_1d) *
          (1.f / 255.f);
+  }
+  if (s.specular) {  // a sheen or glint added over the albedo's colour, held to the vertices' range
+    const F32x4 a = (s.sx * x + s.sy * y + s.s1) * inv;
+    for (int i = 0; i < 3; ++i) c[i] += hold(a[i], 0.f, s.add_hi[i]);
   }
   for (int i = 0; i < 4; ++i) c[i] = hold(c[i], 0.f, 255.f);
   return c;

@@ -43,6 +43,7 @@
 
 #include "core/conventions.hpp"
 #include "render/boom_shadow.hpp"
+#include "render/camera_look.hpp"
 #include "render/models.hpp"
 #include "render/projection.hpp"
 #include "render/soft_raster.hpp"
@@ -846,6 +847,10 @@ struct ReceiverMesh {
 // b2 of p1 and p2, a quantity q is q0 + b1 (q1 - q0) + b2 (q2 - q0).
 struct TriShade {
   float lit0[3] = {}, dlit1[3] = {}, dlit2[3] = {};  // per-vertex light (Gouraud)
+  // The boom's: the specular light that does not take the albedo's colour, 0..255 (the lit0 ...
+  // above are then its SurfaceLight's scale, render/pbr.hpp), per vertex.
+  float add0[3] = {}, dadd1[3] = {}, dadd2[3] = {};
+  bool specular = false;
   float uv0[2] = {}, duv1[2] = {}, duv2[2] = {};
   float albedo[3] = {};  // base colour, 0..255
   const Pyramid* tex = nullptr;
@@ -925,7 +930,8 @@ void shade_run(std::uint8_t* row, int x, int n, const int* chan, const TriShade&
                          t.uv0[1] + b1 * t.duv1[1] + b2 * t.duv2[1]);
     auto value = [&](int c) {
       const float albedo = t.tex ? t.albedo[c] * (static_cast<float>(lane(g, c)) * (1.0f / 255.0f)) : t.albedo[c];
-      return to_u8(albedo * (lit0[c] + b1 * dlit1[c] + b2 * dlit2[c]));
+      const float v = albedo * (lit0[c] + b1 * dlit1[c] + b2 * dlit2[c]);
+      return to_u8(t.specular ? v + (t.add0[c] + b1 * t.dadd1[c] + b2 * t.dadd2[c]) : v);
     };
     if constexpr (kMode == kModeBayer)
       row[x] = value(chan[x & 1]);
@@ -1103,6 +1109,9 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   std::vector<Eigen::Vector3d> verts_cam_;
   std::vector<Eigen::Vector3f> light_front_, light_back_;
   std::vector<Eigen::Vector3f> ambient_front_, ambient_back_;  // without the sun: filled when a shadow is cast
+  // The boom's specular light per vertex (SurfaceLight::add times 255; light_* hold its scale), 0
+  // for the receiver's vertices.
+  std::vector<Eigen::Vector3f> add_front_, add_back_;
   std::vector<std::size_t> vert_offset_;
   std::vector<DrawnTriangle> tris_;
   // The boom's shadow on the receiver (render_with_boom, sun above the horizon), in the camera
@@ -1165,6 +1174,7 @@ Status CpuSceneRenderer::init(std::shared_ptr<const Model> receiver) {
     if (!m) return make_error("SyntheticSceneRenderer::create(): ", m.error().message);
     boom_.fixed = std::move(*m);
   }
+  apply_boom_material(boom_, rig_.boom.material);
   // Textures with mipmaps, shared between the meshes that share them. Consistently wound built-in
   // receiver meshes can be culled; files may not be, nor the boom (its ends are open tubes).
   std::vector<const Texture*> seen;
@@ -1414,8 +1424,15 @@ void CpuSceneRenderer::light_vertices(const RigCamera& cam, const FrameSky& f,
     const float diffuse = sun_up * std::max(n.dot(sun_cam), 0.0f);
     return Eigen::Vector3f(Eigen::Vector3f(1.0f, 0.97f, 0.92f) * 0.75f * diffuse + sky_light(n));
   };
+  // The same light as a SceneLight for the boom's finish (render/pbr.hpp): the boom the camera
+  // look draws, drawn here physically.
+  SceneLight boom_light;
+  boom_light.towards_light_body = sun_cam.cast<double>();
+  boom_light.down_body = -up_cam.cast<double>();
+  boom_light.direct = Eigen::Vector3d(1.0, 0.97, 0.92) * (0.75 * sun_up);
+  boom_light.sky = f.ambient_sky.cast<double>(), boom_light.ground = f.ambient_ground.cast<double>();
   verts_cam_.clear(), light_front_.clear(), light_back_.clear(), vert_offset_.clear();
-  ambient_front_.clear(), ambient_back_.clear();
+  ambient_front_.clear(), ambient_back_.clear(), add_front_.clear(), add_back_.clear();
   for (const ReceiverMesh& m : meshes_) {
     vert_offset_.push_back(verts_cam_.size());
     if (!T_body_part[m.part]) continue;
@@ -1425,8 +1442,20 @@ void CpuSceneRenderer::light_vertices(const RigCamera& cam, const FrameSky& f,
     for (std::size_t i = 0; i < m.mesh->positions_m.size(); ++i) {
       verts_cam_.push_back(T_cam_obj * m.mesh->positions_m[i].cast<double>());
       const Eigen::Vector3f n = i < m.mesh->normals.size() ? Eigen::Vector3f(R_f * m.mesh->normals[i]) : Eigen::Vector3f::Zero();
-      light_front_.push_back(light(n));
-      light_back_.push_back(light(-n));
+      if (m.part == kReceiverPart) {
+        light_front_.push_back(light(n));
+        light_back_.push_back(light(-n));
+        add_front_.push_back(Eigen::Vector3f::Zero()), add_back_.push_back(Eigen::Vector3f::Zero());
+      } else {
+        // The boom's finish, seen from the camera at the origin (its normals are unit).
+        const Eigen::Vector3d nd = n.cast<double>(), v = -verts_cam_.back().normalized();
+        for (const double side : {1.0, -1.0}) {
+          const SurfaceLight sl = boom_light.on(side * nd, v, boom_light.towards_light_body,
+                                                boom_light.down_body, m.mesh->finish);
+          (side > 0 ? light_front_ : light_back_).push_back(sl.scale.cast<float>());
+          (side > 0 ? add_front_ : add_back_).push_back((255.0 * sl.add).cast<float>());
+        }
+      }
       if (ambient) ambient_front_.push_back(sky_light(n)), ambient_back_.push_back(sky_light(-n));
     }
   }
@@ -1486,6 +1515,13 @@ SampleBox CpuSceneRenderer::raster_objects(const CameraTables& ct,
         for (int c = 0; c < 3; ++c) {
           ts.lit0[c] = l0[c], ts.dlit1[c] = l1[c] - l0[c], ts.dlit2[c] = l2[c] - l0[c];
           ts.albedo[c] = m.mesh->base_color[c] * 255.0f;
+        }
+        if (m.part != kReceiverPart) {
+          const std::vector<Eigen::Vector3f>& A = back ? add_back_ : add_front_;
+          const Eigen::Vector3f &a0 = A[off + idx[k]], &a1 = A[off + idx[k + 1]], &a2 = A[off + idx[k + 2]];
+          for (int c = 0; c < 3; ++c)
+            ts.add0[c] = a0[c], ts.dadd1[c] = a1[c] - a0[c], ts.dadd2[c] = a2[c] - a0[c];
+          ts.specular = true;
         }
         if (m.texture >= 0) {
           const Eigen::Vector2f& a = m.mesh->uvs[idx[k]];

@@ -539,6 +539,85 @@ TEST_F(AugmenterTest, RasterizersAgreeWithEachOther) {
   }
 }
 
+// The camera look's finish (render/pbr.hpp): GL's vertex shader and the CPU rasteriser evaluate
+// the same specular light at the vertices, so a glossy boom under a sun that its outer tube
+// mirrors into the left camera agrees between them within the plain look's tolerances, and
+// glints in both. The plain look ignores the finish: its pixels do not change with it.
+TEST_F(AugmenterTest, RasterizersAgreeOnTheCameraLooksGlint) {
+  Rig rig = distorted_rig();
+  Eigen::Vector3d receptacle;
+  make_builtin_receiver(&receptacle);
+  const BoomModel boom = make_builtin_boom();
+  SceneState scene = contact_scene(rig, boom, receptacle, {0.5, 0.03, 2.5});
+  // The mirror direction of the left camera's view off the outer tube 4 m along, facing it.
+  const Pose T_body_boom = boom_pose(rig.boom.pivot_body_m, scene.boom);
+  const Eigen::Vector3d cam = rig.left().T_body_cam.translation_m,
+                        p = T_body_boom * Eigen::Vector3d(4.0, 0, 0);
+  const Eigen::Vector3d axis = T_body_boom.R().col(0), to_cam = cam - p;
+  const Eigen::Vector3d n = (to_cam - to_cam.dot(axis) * axis).normalized(), v = to_cam.normalized();
+  scene.light = SceneLight::sun(2 * n.dot(v) * n - v, true, LightSource::kConfigured);
+  StereoFrame sf;
+  sf.left = test::gradient_frame(rig.left().model, PixelFormat::kRGB8, CameraId::kLeft);
+  sf.right = test::gradient_frame(rig.right().model, PixelFormat::kRGB8, CameraId::kRight);
+  CameraLookParams lp;
+  lp.psf_sigma_px = 0;  // no blur, no noise: the shading alone
+  StereoResult out[2], plain[2][2];
+  for (int k = 0; k < 2; ++k) {
+    AugmentOptions opt;
+    opt.rasterizer = k == 0 ? Rasterizer::kOpenGl : Rasterizer::kCpu;
+    for (int gloss = 0; gloss < 2; ++gloss) {
+      rig.boom.material = gloss ? SurfaceFinish{1.0, 0.1} : kPaintedBoom;
+      auto aug = Augmenter::create(rig, opt);
+      ASSERT_TRUE(aug) << aug.error().message;
+      ASSERT_TRUE((*aug)->augment(sf, scene, plain[k][gloss]));
+    }
+    for (int c = 0; c < 2; ++c) {
+      const Image& a = c ? plain[k][0].right.augmented : plain[k][0].left.augmented;
+      const Image& b = c ? plain[k][1].right.augmented : plain[k][1].left.augmented;
+      ASSERT_EQ(a.size_bytes(), b.size_bytes());
+      EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size_bytes()), 0)
+          << "the plain look changed with the finish";
+    }
+    rig.boom.material = SurfaceFinish{0.0, 0.3};
+    opt.look = Look::kCamera;
+    opt.camera_looks = {lp, lp};
+    auto aug = Augmenter::create(rig, opt);
+    ASSERT_TRUE(aug) << aug.error().message;
+    ASSERT_TRUE((*aug)->augment(sf, scene, out[k]));
+  }
+  const ViewResult &gl = out[0].left, &cpu = out[1].left;
+  std::int64_t interior = 0, colour_far = 0, sum_diff = 0, glint[2] = {0, 0};
+  const int W = gl.mask.width(), H = gl.mask.height();
+  for (int y = 1; y + 1 < H; ++y)
+    for (int x = 1; x + 1 < W; ++x) {
+      bool all_boom = true;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+          all_boom &= (gl.mask.row(y + dy)[x + dx] & cpu.mask.row(y + dy)[x + dx] & kMaskBoom) != 0;
+      if (!all_boom) continue;
+      ++interior;
+      int d = 0;
+      for (int ch = 0; ch < 3; ++ch)
+        d = std::max(d, std::abs(gl.augmented.row(y)[3 * x + ch] - cpu.augmented.row(y)[3 * x + ch]));
+      sum_diff += d;
+      colour_far += d > 8;
+      glint[0] += gl.augmented.row(y)[3 * x] == 255, glint[1] += cpu.augmented.row(y)[3 * x] == 255;
+    }
+  const double mean_diff =
+      static_cast<double>(sum_diff) / static_cast<double>(std::max<std::int64_t>(interior, 1));
+  std::printf(
+      "camera look, glossy boom: interior %lld px, colour mean diff %.2f, > 8 apart at %lld; glint "
+      "(saturated) GL %lld px, CPU %lld px\n",
+      static_cast<long long>(interior), mean_diff, static_cast<long long>(colour_far),
+      static_cast<long long>(glint[0]), static_cast<long long>(glint[1]));
+  EXPECT_GT(interior, 20000);
+  EXPECT_LT(mean_diff, 2.0);
+  EXPECT_LT(colour_far, interior / 20);
+  EXPECT_GT(glint[1], 200);
+  EXPECT_NEAR(static_cast<double>(glint[0]), static_cast<double>(glint[1]),
+              0.2 * static_cast<double>(glint[1]));
+}
+
 // A grid of n x n quads (two triangles each) over the parallelogram origin + s a + t b,
 // s, t in [0, 1], appended to `m`. Both windings are drawn (custom models are not culled).
 void add_grid(Mesh& m, const Eigen::Vector3d& origin, const Eigen::Vector3d& a, const Eigen::Vector3d& b,

@@ -991,5 +991,141 @@ TEST_F(SyntheticSceneTest, PhysicalBoomCastsNoShadowWithTheSunBelowTheHorizon) {
   }
 }
 
+// ---- The boom's finish (render/pbr.hpp): the same glint in the physical and the augmented boom ----
+
+// The outer tube's vertex, about `along_m` from the pivot, that faces camera `c` most, in the body
+// frame (position, unit normal), for the boom at `a`.
+std::pair<Eigen::Vector3d, Eigen::Vector3d> tube_vertex_facing(const Rig& rig, const BoomArticulation& a,
+                                                               int c, double along_m) {
+  const BoomModel boom = make_builtin_boom();
+  const Pose T_body_boom = boom_pose(rig.boom.pivot_body_m, a);
+  const Eigen::Vector3d cam = rig.cameras[c].T_body_cam.translation_m;
+  std::pair<Eigen::Vector3d, Eigen::Vector3d> best;
+  double best_nv = -2;
+  for (const Mesh& m : boom.fixed.meshes) {
+    if (m.name != "outer_tube") continue;
+    for (std::size_t i = 0; i < m.positions_m.size(); ++i) {
+      if (std::abs(m.positions_m[i].x() - along_m) > 0.8) continue;
+      const Eigen::Vector3d p = T_body_boom * m.positions_m[i].cast<double>();
+      const Eigen::Vector3d n = (T_body_boom.R() * m.normals[i].cast<double>()).normalized();
+      if (const double nv = n.dot((cam - p).normalized()); nv > best_nv) best_nv = nv, best = {p, n};
+    }
+  }
+  return best;
+}
+
+// The finish is one model in the simulator's physical boom and the augmenter's camera look (per
+// vertex, render/pbr.hpp): a glossy boom under a sun that the outer tube mirrors into the left
+// camera glints, in both renders, where the mirror geometry says, and the two booms' pixels agree.
+// The glint is the glossy boom's excess over a matte twin's (roughness 1).
+TEST_F(SyntheticSceneTest, PhysicalAndAugmentedBoomsGlintAtTheSamePlace) {
+  const BoomArticulation art{deg_to_rad(30.0), 0.0, 2.0};
+  Rig rig = Rig::paper_default();
+  const auto [p, n] = tube_vertex_facing(rig, art, 0, 4.0);
+  const Eigen::Vector3d v = (rig.cameras[0].T_body_cam.translation_m - p).normalized();
+  const Eigen::Vector3d l = 2 * n.dot(v) * n - v;
+  // The cameras see the boom's underside: its mirror images of the sky lie below the wings' plane.
+  // The tanker inverted (rolled 180 deg) puts that sun above the horizon.
+  SkyState sky;
+  sky.R_ned_body = Eigen::Vector3d(1, -1, -1).asDiagonal();
+  sky.sun_ned = sky.R_ned_body * l;
+  ASSERT_LT(sky.sun_ned.z(), -0.2) << "the sun is up";
+  // The simulator's light (sim/synthetic_scene_cpu.cpp) as the augmenter's SceneLight.
+  SceneState scene;
+  scene.boom = art;
+  scene.receiver_present = false;
+  scene.light = SceneLight::sun(l, true, LightSource::kConfigured,
+                                sky.R_ned_body.transpose() * Eigen::Vector3d::UnitZ());
+  scene.light.direct = Eigen::Vector3d(1.0, 0.97, 0.92) * 0.75;
+  scene.light.sky = Eigen::Vector3d(0.36, 0.40, 0.46), scene.light.ground = Eigen::Vector3d(0.22, 0.22, 0.20);
+  AugmentOptions ao;
+  ao.rasterizer = Rasterizer::kCpu;
+  ao.look = Look::kCamera;
+  CameraLookParams lp;
+  lp.psf_sigma_px = 0;  // no blur, no noise: the shading alone
+  ao.camera_looks = {lp, lp};
+  const Pose T_cam_body = rig.cameras[0].T_body_cam.inverse();
+  const auto glint_px = rig.cameras[0].model.project(T_cam_body * p);
+  ASSERT_TRUE(glint_px);
+  // Left view: the simulator's render and the augmented boom-free render, glossy and matte.
+  Image phys[2], aug[2], mask;
+  for (int k = 0; k < 2; ++k) {
+    rig.boom.material = SurfaceFinish{0.0, k == 0 ? 0.3 : 1.0};
+    auto r = make(rig);
+    ASSERT_TRUE(r);
+    Image without;
+    ASSERT_TRUE(r->render_with_boom(0, sky, Pose{}, false, art, SensorOptions{}, phys[k]));
+    ASSERT_TRUE(r->render(0, sky, Pose{}, false, SensorOptions{}, without));
+    auto a = Augmenter::create(rig, ao);
+    ASSERT_TRUE(a) << a.error().message;
+    Frame raw;
+    raw.image = without;
+    raw.camera = CameraId::kLeft;
+    ViewResult vr;
+    ASSERT_TRUE((*a)->augment_view(0, raw, scene, vr));
+    aug[k] = vr.augmented;
+    mask = vr.mask;
+  }
+  const std::string dir = test::output_dir("sim_glint");
+  write_png(dir + "/physical_glossy.png", phys[0]), write_png(dir + "/physical_matte.png", phys[1]);
+  write_png(dir + "/augmented_glossy.png", aug[0]);
+  // Over the boom's interior (boom all around: no silhouette pixel): the glint, and the pixels.
+  const int W = mask.width(), H = mask.height();
+  auto lum = [](const Image& im, int x, int y) {
+    const std::uint8_t* q = im.row(y) + 3 * x;
+    return (q[0] + q[1] + q[2]) / 3.0;
+  };
+  // Per render: the largest glint near the mirror vertex's pixel, the mean glint over the interior,
+  // and the centroid of where it is above half the physical glint's peak. (The glint is a line along
+  // the tube, where its normals mirror the sun into the camera, brightest at grazing angles near the
+  // fairing: test-output/sim_glint/.)
+  struct Glint {
+    double at_vertex = 0, peak = 0, sum = 0, cx = 0, cy = 0, w = 0;
+  } g[2];
+  std::vector<std::array<double, 2>> glint;
+  std::vector<std::pair<int, int>> where;
+  double sum_abs = 0, glint_abs = 0;
+  for (int y = 1; y + 1 < H; ++y)
+    for (int x = 1; x + 1 < W; ++x) {
+      bool all_boom = true;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) all_boom &= (mask.row(y + dy)[x + dx] & kMaskBoom) != 0;
+      if (!all_boom) continue;
+      sum_abs += std::abs(lum(aug[0], x, y) - lum(phys[0], x, y));
+      glint.push_back({lum(phys[0], x, y) - lum(phys[1], x, y), lum(aug[0], x, y) - lum(aug[1], x, y)});
+      where.emplace_back(x, y);
+      glint_abs += std::abs(glint.back()[0] - glint.back()[1]);
+      const bool near_vertex = std::abs(x - glint_px->x()) <= 3 && std::abs(y - glint_px->y()) <= 3;
+      for (int i = 0; i < 2; ++i) {
+        g[i].peak = std::max(g[i].peak, glint.back()[i]), g[i].sum += glint.back()[i];
+        if (near_vertex) g[i].at_vertex = std::max(g[i].at_vertex, glint.back()[i]);
+      }
+    }
+  const auto interior = static_cast<double>(std::max<std::size_t>(glint.size(), 1));
+  for (std::size_t k = 0; k < glint.size(); ++k)
+    for (int i = 0; i < 2; ++i)
+      if (glint[k][i] > 0.5 * g[0].peak) g[i].cx += where[k].first, g[i].cy += where[k].second, g[i].w += 1;
+  for (int i = 0; i < 2; ++i) g[i].cx /= std::max(g[i].w, 1.0), g[i].cy /= std::max(g[i].w, 1.0);
+  std::printf(
+      "glint (glossy over matte) near the mirror vertex (%.1f, %.1f): physical %.1f DN, augmented %.1f DN; "
+      "peaks %.1f and %.1f DN, their regions above half the physical peak: centroids (%.1f, %.1f) and (%.1f, "
+      "%.1f); boom "
+      "interior %zu px: mean glint %.2f and %.2f DN, mean |augmented - physical| %.2f DN (glint %.2f DN)\n",
+      glint_px->x(), glint_px->y(), g[0].at_vertex, g[1].at_vertex, g[0].peak, g[1].peak, g[0].cx, g[0].cy,
+      g[1].cx, g[1].cy, glint.size(), g[0].sum / interior, g[1].sum / interior, sum_abs / interior,
+      glint_abs / interior);
+  ASSERT_GT(glint.size(), 5000u);
+  for (int i = 0; i < 2; ++i) {
+    SCOPED_TRACE(i ? "augmented" : "physical");
+    EXPECT_GT(g[i].at_vertex, 40.0);
+    EXPECT_GT(g[i].at_vertex, 3 * g[i].sum / interior) << "a glint, not a sheen all over";
+  }
+  EXPECT_NEAR(g[1].at_vertex, g[0].at_vertex, 3.0);
+  EXPECT_NEAR(g[1].cx, g[0].cx, 2.0);
+  EXPECT_NEAR(g[1].cy, g[0].cy, 2.0);
+  EXPECT_LT(glint_abs / interior, 1.0);
+  EXPECT_LT(sum_abs / interior, 2.0);
+}
+
 }  // namespace
 }  // namespace augrig
