@@ -77,5 +77,29 @@ TEST(BoomShading, BehindTheEyeTheWeightsGiveNoColourNotNaN) {
   for (int i = 0; i < 4; ++i) EXPECT_FALSE(std::isnan(c[i]));
 }
 
+// The camera look's specular light adds over the albedo's colour (a glint is not tinted by the
+// paint), held like the light to its vertices' range when extrapolated; without `specular` its
+// planes are not read (the plain look's pixels stay as they were).
+TEST(BoomShading, SpecularLightAddsAndStaysInItsVerticesRange) {
+  BoomShading s = linear_in_x(0.5f, 0.f);
+  s.sx = F32x4{10.f, 10.f, 10.f, 0.f};  // added light 20 + 10 x (0..255)
+  s.s1 = F32x4{20.f, 20.f, 20.f, 0.f};
+  s.add_hi = F32x4{40.f, 40.f, 40.f, 0.f};
+  const F32x4 off = shade(s, 1.f, 0.f);
+  s.specular = true;
+  const F32x4 on = shade(s, 1.f, 0.f);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_FLOAT_EQ(off[i], 0.5f * s.base[i]);
+    EXPECT_FLOAT_EQ(on[i], 0.5f * s.base[i] + 30.f);
+  }
+  for (float x : {-1e6f, -3.f, 3.f, 1e6f}) {
+    const F32x4 c = shade(s, x, 0.f);
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_GE(c[i], 0.5f * s.base[i] - 1e-3f) << "x " << x;
+      EXPECT_LE(c[i], 0.5f * s.base[i] + 40.f + 1e-3f) << "x " << x;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace augrig::detail
