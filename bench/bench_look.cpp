@@ -13,7 +13,10 @@
 //     trained on the even frames to tell augmented from physical boom patches and tested on the
 //     odd ones: the AUC (0.5: cannot tell; goal <= 0.60 with the camera look).
 //   build/bench_look [--scenario NAME] [--frames N] [--bayer] [--psf PX] [--noise-a A] [--noise DN]
-//                    [--gain G] [--out DIR]
+//                    [--gain G] [--true-noise] [--out DIR]
+// --true-noise gives the camera looks the simulator's noise level function (as a rig would
+// configure it) instead of estimating it: what the estimate costs. A table of the patch
+// statistics (median augmented / physical) says which of them the classifier sees.
 // --out writes crops of the left view (plain | camera | physical) as PNG, for docs/LOOK.md.
 #include <algorithm>
 #include <chrono>
@@ -43,6 +46,7 @@ struct Args {
   std::string scenario = "demo";
   int frames = 24;  // stereo frames compared (half train, half test)
   bool bayer = false;
+  bool true_noise = false;  // the camera looks given the simulator's NLF instead of estimating it
   double psf_px = 0.8, noise_a = 0.12, noise_dn = 1.5, gain = 1.0;
   std::string out;
 };
@@ -50,7 +54,7 @@ struct Args {
 [[noreturn]] void usage(const char* why) {
   std::fprintf(stderr,
                "bench_look: %s\nusage: bench_look [--scenario NAME] [--frames N] [--bayer] [--psf PX] "
-               "[--noise-a A] [--noise DN] [--gain G] [--out DIR]\n",
+               "[--noise-a A] [--noise DN] [--gain G] [--true-noise] [--out DIR]\n",
                why);
   std::exit(2);
 }
@@ -69,6 +73,8 @@ Args parse(int argc, char** argv) {
       a.frames = std::stoi(value());
     else if (k == "--bayer")
       a.bayer = true;
+    else if (k == "--true-noise")
+      a.true_noise = true;
     else if (k == "--psf")
       a.psf_px = std::stod(value());
     else if (k == "--noise-a")
@@ -319,7 +325,15 @@ int main(int argc, char** argv) {
     pipeline::LookConfig lc;
     lc.look = l;
     lc.cameras.assign(scenario->rig.cameras.size(), CameraLookParams{});
-    for (std::size_t c = 0; c < lc.cameras.size(); ++c) lc.cameras[c] = scenario->rig.cameras[c].look;
+    for (std::size_t c = 0; c < lc.cameras.size(); ++c) {
+      lc.cameras[c] = scenario->rig.cameras[c].look;
+      if (args.true_noise) {
+        // A diagnostic: the simulator's own noise (shot a I + read sigma^2), as a rig would configure it.
+        NoiseLevelFunction& n = lc.cameras[c].noise;
+        n.channels = 3;  // RGB channels or Bayer site colours
+        n.a.fill(args.noise_a), n.b.fill(args.noise_dn * args.noise_dn);
+      }
+    }
     lc.noise_every_s = 0;  // every frame given: the frames here are seconds apart
     auto st = std::make_unique<pipeline::LookStage>(lc);
     if (auto s = st->configure(**a); !s) return 1;
@@ -376,8 +390,10 @@ int main(int argc, char** argv) {
     if (std::getenv("BENCH_LOOK_TRACE")) {
       const std::string st = stages[1]->status();
       const Image boom = bit_mask(results[1].left.mask, kMaskBoom);
-      const auto d1 = eval::region_difference(results[1].left.augmented.cview(), phys.left.image.cview(), boom.view());
-      const auto d2 = eval::region_difference(results[2].left.augmented.cview(), phys.left.image.cview(), boom.view());
+      const auto d1 =
+          eval::region_difference(results[1].left.augmented.cview(), phys.left.image.cview(), boom.view());
+      const auto d2 =
+          eval::region_difference(results[2].left.augmented.cview(), phys.left.image.cview(), boom.view());
       std::fprintf(stderr, "\npair %zu: left boom diff camera %+.2f, sim light %+.2f DN; %s\n", i,
                    d1 ? d1->mean_dn : NAN, d2 ? d2->mean_dn : NAN, st.substr(0, st.find("; noise")).c_str());
     }
@@ -407,14 +423,35 @@ int main(int argc, char** argv) {
                 variants[l].name, t.pixels, t.diff_sum / n, std::sqrt(t.diff_sq / n), median(t.noise_ratio),
                 median(t.boom_vs_background), ea, ep, ea - ep, c.auc_random_trees, c.auc_logistic);
   }
+  // Which statistic tells them apart: per feature, the median over the patches of augmented over
+  // physical at the same place (1: alike).
+  static constexpr const char* kFeatures[] = {"mean",          "variance",   "gradient",
+                                              "laplacian var", "DCT band 0", "DCT band 1",
+                                              "DCT band 2",    "DCT band 3", "noise"};
+  std::printf("\nPatch statistics, median augmented / physical at the same place:\n\n| look |");
+  for (const char* f : kFeatures) std::printf(" %s |", f);
+  std::printf("\n|---|");
+  for (std::size_t k = 0; k < std::size(kFeatures); ++k) std::printf("---|");
+  std::printf("\n");
+  for (std::size_t l = 0; l < std::size(looks); ++l) {
+    const LookTotals& t = totals[l];
+    std::printf("| %s |", variants[l].name);
+    for (std::size_t k = 0; k < std::size(kFeatures); ++k) {
+      std::vector<double> r;
+      for (std::size_t i = 0; i < t.test_a.size(); ++i)
+        if (k < t.test_a[i].size() && t.test_b[i][k] != 0) r.push_back(t.test_a[i][k] / t.test_b[i][k]);
+      std::printf(" %.3f |", median(r));
+    }
+    std::printf("\n");
+  }
   std::printf(
       "\nThe receiver in the boom's shadow (mask bit 2; the plain look leaves the boom-free frame there):\n\n"
       "| look | shadow px | mean diff DN | RMS diff DN | noise aug/phys |\n|---|---|---|---|---|\n");
   for (std::size_t l = 0; l < std::size(looks); ++l) {
     const LookTotals& t = totals[l];
     const double n = std::max<double>(1.0, static_cast<double>(t.shadow_pixels));
-    std::printf("| %s | %zu | %+.2f | %.2f | %.3f |\n", variants[l].name, t.shadow_pixels, t.shadow_diff_sum / n,
-                std::sqrt(t.shadow_diff_sq / n), median(t.shadow_noise_ratio));
+    std::printf("| %s | %zu | %+.2f | %.2f | %.3f |\n", variants[l].name, t.shadow_pixels,
+                t.shadow_diff_sum / n, std::sqrt(t.shadow_diff_sq / n), median(t.shadow_noise_ratio));
   }
   for (std::size_t l = 0; l < std::size(looks); ++l)
     if (looks[l] == Look::kCamera && !variants[l].true_light)
