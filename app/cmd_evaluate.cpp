@@ -226,8 +226,10 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   if (a.has("pair-tolerance-ns") && !is_euroc) usage_error("--pair-tolerance-ns is for EuRoC folders");
   if (physical) {
     if (!is_sim)
-      usage_error("--look physical: only a simulated flight (sim://SCENARIO) has frames with the boom in the "
-                  "scene; '" + src + "' is not one");
+      usage_error(
+          "--look physical: only a simulated flight (sim://SCENARIO) has frames with the boom in the "
+          "scene; '" +
+          src + "' is not one");
     // The boom in the frames is where the simulation puts it: the augmenter's (masks, classes) must
     // be the same one.
     if (a.has("boom") && a.get("boom") != "scenario")
@@ -246,8 +248,9 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   // --boom scenario (--look physical's boom): the simulated flight's own, as its truth gives it.
   const bool scenario_boom = physical || a.get("boom") == "scenario";
   if (scenario_boom && (!is_sim || a.has("scene") || a.has("poses")))
-    usage_error("--boom scenario: only a simulated flight (sim://SCENARIO) with its own poses has the "
-                "scenario's boom");
+    usage_error(
+        "--boom scenario: only a simulated flight (sim://SCENARIO) with its own poses has the "
+        "scenario's boom");
   std::string uri;
   if (is_sim) {
     // Every frame, as fast as the evaluation goes (lockstep: none dropped).
@@ -442,7 +445,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   // The source as given (a physical boom's boom=physical is said by the look), the look on the
   // title line: the rest of the table is what a campaign's merge rebuilds from the sums.
   const std::string table =
-      eval::format_evaluation_table(run, "Stereo evaluation: " + pos[0] + "; " + look_text(look), m);
+      eval::format_evaluation_table(run, "Stereo evaluation: " + pos[0] + "; " + look_text(look), m,
+                                    look == "physical" ? "the boom in the scene" : "the boom drawn in");
   out << "\n" << table;
   const double per = run.frames ? 1.0 / static_cast<double>(run.frames) : 0.0;
   out << "\nEvaluated " << run.frames << " of " << r.pairs << " augmented stereo frame(s) in "

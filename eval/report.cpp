@@ -138,7 +138,7 @@ void RunEvaluation::add(const FrameEvaluation& f) {
 }
 
 std::string format_evaluation_table(const RunEvaluation& run, const std::string& title,
-                                    const MatcherParams& m) {
+                                    const MatcherParams& m, const std::string& boom) {
   std::ostringstream o;
   o << title << '\n';
   o << run.frames << " stereo frame(s) evaluated, " << run.frames_with_receiver
@@ -158,7 +158,7 @@ std::string format_evaluation_table(const RunEvaluation& run, const std::string&
        "f B / d in metres. '-': no pixels to say it of.\n";
   char line[256];
   std::snprintf(line, sizeof line, "%-24s %10s | %-46s | %-46s\n", "", "", "Raw pair",
-                "Augmented pair (the boom drawn in)");
+                ("Augmented pair (" + boom + ")").c_str());
   const std::string head = std::string(line);
   std::snprintf(line, sizeof line, "%-24s %10s |%7s%8s%8s%7s%7s%9s |%7s%8s%8s%7s%7s%9s\n", "", "Pixels",
                 "valid%", "mean", "RMS", ">1px%", ">3px%", "rangeRMS", "valid%", "mean", "RMS", ">1px%",

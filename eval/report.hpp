@@ -34,9 +34,11 @@ struct RunEvaluation {
 
 // The table: per class, pixels and for the raw and the augmented pair valid %, mean and RMS error,
 // bad > 1 / > 3 px and the range RMS; once over all pixels, once with the boom's left pixels left
-// out (an evaluation that trusts the masks). `title` heads it; `matcher` says what matched.
+// out (an evaluation that trusts the masks). `title` heads it; `matcher` says what matched;
+// `boom` says how the augmented pair holds the boom (drawn in, or there in the scene).
 std::string format_evaluation_table(const RunEvaluation& run, const std::string& title,
-                                    const MatcherParams& matcher);
+                                    const MatcherParams& matcher,
+                                    const std::string& boom = "the boom drawn in");
 
 // One CSV row per evaluated frame: frame, t_s, the occlusion percentages, the matched region, the
 // receiver's pixels and those out of the search range, and per pair (raw, aug),
@@ -70,8 +72,8 @@ EvaluationPoint evaluation_point(double t_s, const OcclusionStats& stats, const 
 // that re-adding the frames in order rebuilds the run's RunEvaluation and its plot exactly (a run
 // split into parts merges into the whole run's table, bit for bit).
 struct EvaluatedFrame {
-  std::uint64_t frame = 0;  // the source's frame index (recording order)
-  double t_s = 0;           // seconds after the source's first frame
+  std::uint64_t frame = 0;                               // the source's frame index (recording order)
+  double t_s = 0;                                        // seconds after the source's first frame
   double occluded_pct_left = 0, occluded_pct_right = 0;  // from the frame's OcclusionStats
   // The raw and augmented PairScore (every DisparityErrors field), receiver_px, out_of_range_px,
   // the matched rectangle and the prepare/match/score times.

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <sstream>
 
@@ -145,7 +146,8 @@ std::vector<std::string> rows_of(const std::string& path, const std::vector<std:
   std::string line;
   EXPECT_TRUE(std::getline(f, line)) << path;
   std::vector<bool> keep;
-  for (const std::string& h : split(line)) keep.push_back(std::find(drop.begin(), drop.end(), h) == drop.end());
+  for (const std::string& h : split(line))
+    keep.push_back(std::find(drop.begin(), drop.end(), h) == drop.end());
   std::vector<std::string> rows;
   while (std::getline(f, line)) {
     const std::vector<std::string> cells = split(line);
@@ -170,8 +172,8 @@ void expect_parts_make_the_whole(const std::string& source, const std::string& a
   std::vector<std::string> evaluation, sums, stats;
   for (const auto& [from, frames] : ranges) {
     const std::string part = dir + "/part" + std::to_string(from);
-    ASSERT_EQ(augrig("evaluate " + source + " " + args + " --from-frame " + std::to_string(from) + " --frames " +
-                         std::to_string(frames) + " --out " + part + " --no-plot",
+    ASSERT_EQ(augrig("evaluate " + source + " " + args + " --from-frame " + std::to_string(from) +
+                         " --frames " + std::to_string(frames) + " --out " + part + " --no-plot",
                      &out),
               0)
         << out;
@@ -249,21 +251,25 @@ TEST(Evaluate, AnMcapFileEvaluatesAsTheRecordingItWasExportedFrom) {
   std::string out;
   ASSERT_EQ(augrig("export " + rec + " --format mcap " + dir + "/flight.mcap", &out), 0) << out;
   // The rig comes from the file's metadata (the recording's is 640x480; the default 1280x960).
-  ASSERT_EQ(augrig("evaluate " + dir + "/flight.mcap --frames 6 --every 2 --no-plot --out " + dir + "/m", &out), 0)
+  ASSERT_EQ(
+      augrig("evaluate " + dir + "/flight.mcap --frames 6 --every 2 --no-plot --out " + dir + "/m", &out), 0)
       << out;
-  ASSERT_EQ(augrig("evaluate " + rec + " --frames 6 --every 2 --no-plot --out " + dir + "/r", &out), 0) << out;
+  ASSERT_EQ(augrig("evaluate " + rec + " --frames 6 --every 2 --no-plot --out " + dir + "/r", &out), 0)
+      << out;
   const Csv m = read_csv(dir + "/m/evaluation.csv"), r = read_csv(dir + "/r/evaluation.csv");
   ASSERT_EQ(m.rows.size(), 3u);
   ASSERT_EQ(r.rows.size(), 3u);
   for (std::size_t i = 0; i < m.rows.size(); ++i)
-    for (const std::string& col : m.header) EXPECT_EQ(m.rows[i].at(col), r.rows[i].at(col)) << "row " << i << " " << col;
+    for (const std::string& col : m.header)
+      EXPECT_EQ(m.rows[i].at(col), r.rows[i].at(col)) << "row " << i << " " << col;
   // Read front to back: no starting elsewhere.
   EXPECT_EQ(augrig("evaluate " + dir + "/flight.mcap --from-frame 2", &out), 2) << out;
   EXPECT_NE(out.find("an MCAP file is evaluated from its first frame"), std::string::npos) << out;
   // A rig that does not fit its images is an error naming the file, not a crash.
   EXPECT_EQ(augrig("evaluate " + dir + "/flight.mcap --rig default --frames 2", &out), 1) << out;
   EXPECT_NE(out.find("flight.mcap"), std::string::npos) << out;
-  EXPECT_NE(out.find("the left image is 640x480, the rig's left camera is 1280x960"), std::string::npos) << out;
+  EXPECT_NE(out.find("the left image is 640x480, the rig's left camera is 1280x960"), std::string::npos)
+      << out;
 }
 
 TEST(Evaluate, ASequenceWithItsPosesEvaluatesAsTheFlight) {
@@ -271,11 +277,11 @@ TEST(Evaluate, ASequenceWithItsPosesEvaluatesAsTheFlight) {
   std::string out;
   ASSERT_EQ(augrig("sim --scenario demo --every 400 --out " + dir + "/ds", &out), 0) << out;
   // The plain look: the poses CSV has no sun (the camera look would take the default one).
-  ASSERT_EQ(augrig("evaluate " + dir + "/ds/frames/index.csv --poses " + dir + "/ds/truth/poses.csv --rig " +
-                       dir + "/ds/rig.yaml --boom fixed:30,0,3.5 --look plain --out " + dir +
-                       "/seq --no-plot",
-                   &out),
-            0)
+  ASSERT_EQ(
+      augrig("evaluate " + dir + "/ds/frames/index.csv --poses " + dir + "/ds/truth/poses.csv --rig " + dir +
+                 "/ds/rig.yaml --boom fixed:30,0,3.5 --look plain --out " + dir + "/seq --no-plot",
+             &out),
+      0)
       << out;
   // The flight's own boom tracks the receptacle; the poses CSV holds the scenario's: one boom for both.
   ASSERT_EQ(augrig("evaluate 'sim://demo?every=400' --boom fixed:30,0,3.5 --look plain --out " + dir +
@@ -317,6 +323,10 @@ TEST(Evaluate, ThePhysicalBoomIsTheSimulatorsFramesWithTheScenariosBoom) {
     EXPECT_EQ(title,
               "Stereo evaluation: sim://demo?every=400; look: physical boom (the simulator's frames with the "
               "boom in the scene)");
+    // The table's augmented columns say that the boom is there, not drawn in.
+    const std::string rest((std::istreambuf_iterator<char>(t)), std::istreambuf_iterator<char>());
+    EXPECT_NE(rest.find("Augmented pair (the boom in the scene)"), std::string::npos) << rest;
+    EXPECT_EQ(rest.find("drawn in"), std::string::npos) << rest;
   }
   // The camera look with the same boom (--boom scenario): the same masks and classes.
   ASSERT_EQ(
