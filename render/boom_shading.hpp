@@ -117,8 +117,14 @@ inline F32x4 shade(const BoomShading& s, float x, float y) {
          (1.f / 255.f);
   }
   if (s.specular) {  // a sheen or glint added over the albedo's colour, held to the vertices' range
-    const F32x4 a = (s.sx * x + s.sy * y + s.s1) * inv;
-    for (int i = 0; i < 3; ++i) c[i] += hold(a[i], 0.f, s.add_hi[i]);
+    F32x4 a = (s.sx * x + s.sy * y + s.s1) * inv;
+#if defined(__SSE2__)
+    // Two instructions for the four lanes (maxps returns its second operand for NaN: 0).
+    a = reinterpret_cast<F32x4>(_mm_min_ps(_mm_max_ps(a, _mm_setzero_ps()), s.add_hi));
+#else
+    for (int i = 0; i < 4; ++i) a[i] = hold(a[i], 0.f, s.add_hi[i]);
+#endif
+    c += a;  // the alpha lane's planes and range are 0
   }
   for (int i = 0; i < 4; ++i) c[i] = hold(c[i], 0.f, 255.f);
   return c;
