@@ -41,8 +41,13 @@ class BoomStage {
   BoomStage(const Rig& rig, const Eigen::Vector3d& receptacle_m, std::optional<BoomArg> arg,
             const BoomDimensions& dims = {});
 
-  // Sets scene.boom for a frame `t_s` after the source's first frame (above).
+  // Sets scene.boom for a frame `t_s` after the source's first frame (above), and how fast it moves
+  // (scene.boom_rate_per_s, the camera look's motion blur): a script's slope (the articulation a
+  // millisecond either side); a tracking boom's or the pose source's change since the last frame
+  // (none across a gap over kMaxRateGap_s or back in time: a seek, a loop); a fixed or
+  // hand-flown boom holds still (a nudge is a step, not a motion over an exposure).
   void apply(SceneState& scene, double t_s);
+  static constexpr double kMaxRateGap_s = 0.25;
 
   DisplayBoomMode mode() const { return mode_; }
   // Taking the boom by hand (again) starts where it is: the hand boom of an earlier take-over is
@@ -63,6 +68,9 @@ class BoomStage {
   std::optional<BoomArg> arg_;
   DisplayBoomMode mode_ = DisplayBoomMode::kFixed;
   std::optional<BoomArticulation> interactive_, last_;
+  double last_t_s_ = 0;
+  DisplayBoomMode last_mode_ = DisplayBoomMode::kFixed;
+  BoomArticulation rate(const BoomArticulation& now, double t_s) const;
 };
 
 }  // namespace augrig::pipeline

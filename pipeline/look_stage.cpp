@@ -120,6 +120,7 @@ std::vector<std::string> LookStage::before_augment(const StereoFrame& frame, Sce
   }
   last_light_ = scene.light.source;
   if (config_.look != Look::kCamera) return notes;
+  if (!exposure_said_) notes.push_back(exposure_note(frame)), exposure_said_ = true;
   const TimestampNs t = frame.t_key_ns, every = s_to_ns(config_.noise_every_s);
   if (sampled_ && (t < next_sample_ns_ - 2 * every)) sampled_ = false;  // time went back (a loop, a seek)
   const bool sample = !sampled_ || t >= next_sample_ns_;
@@ -155,6 +156,27 @@ std::vector<std::string> LookStage::before_augment(const StereoFrame& frame, Sce
   if (sample) sampled_ = true, next_sample_ns_ = t + every;
   hand_over(augmenter, notes);
   return notes;
+}
+
+std::string LookStage::exposure_note(const StereoFrame& frame) const {
+  // Motion blur needs the exposure (render/motion_blur.hpp): the rig's key, else the frames'.
+  std::ostringstream o;
+  o << "look: exposure";
+  bool unknown = true;
+  for (std::size_t c = 0; c < config_.cameras.size() && c < 2; ++c) {
+    const double rig_ms = config_.cameras[c].exposure_ms;
+    const std::int64_t frame_ns = (c == 0 ? frame.left : frame.right).exposure_ns;
+    o << (c ? "; " : " ") << camera_name(c) << " ";
+    if (rig_ms >= 0)
+      o << rig_ms << " ms (the rig's look.exposure_ms)", unknown = false;
+    else if (frame_ns > 0)
+      o << 1e-6 * static_cast<double>(frame_ns) << " ms (its frames')", unknown = false;
+    else
+      o << "unknown";
+  }
+  o << (unknown ? ": the boom is drawn without motion blur (give the rig's look.exposure_ms; docs/LOOK.md)"
+                : ": a moving boom is blurred over it, a camera without one is not");
+  return o.str();
 }
 
 void LookStage::after_augment(const StereoFrame& frame, const SceneState& scene, const StereoResult& result,

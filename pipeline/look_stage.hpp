@@ -90,10 +90,13 @@ class LookStage {
   void estimate(const std::vector<const Image*>& frames);
   // With `mutex_` held: hands newly fitted NLFs to the augmenter; the notes of first estimates.
   void hand_over(Augmenter& augmenter, std::vector<std::string>& notes);
+  // "look: exposure left 4 ms (the rig's look.exposure_ms); right unknown: ...", said once.
+  std::string exposure_note(const StereoFrame& frame) const;
 
   LookConfig config_;
   bool estimating_ = false;  // some camera's noise is estimated
   bool default_sun_said_ = false;
+  bool exposure_said_ = false;
   LightSource last_light_ = LightSource::kFixed;
   TimestampNs next_sample_ns_ = 0;
   bool sampled_ = false;

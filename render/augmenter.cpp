@@ -29,6 +29,7 @@
 #include "render/boom_shading.hpp"
 #include "render/boom_shadow.hpp"
 #include "render/gl_util.hpp"
+#include "render/motion_blur.hpp"
 #include "render/projection.hpp"
 #include "render/soft_raster.hpp"
 
@@ -341,6 +342,14 @@ struct ViewState {
   Eigen::Vector3d sun_cam, down_cam;
   Eigen::Matrix3d R_cam_receiver;
   Image spare;  // grow_augmented()'s second buffer
+  // The boom's parts in the body frame at the instant this view is drawn at (mid-exposure, or a
+  // sub-exposure instant of motion_view()).
+  Pose T_body_boom, T_body_telescope;
+  // Motion blur: drawing a sub-exposure instant (its shadow is not built, its augmented image is
+  // its changed box only), and that instant's result (its pixels and coverage only are used).
+  bool sub_instant = false;
+  ViewResult instant;
+  PixelBox dark;  // finish_shadow(): the pixels the shadow's darkening may reach (empty: none)
 };
 
 // What a thread resolving rows (of either view) keeps for itself: rows of one view may be
@@ -447,12 +456,32 @@ class AugmenterImpl final : public Augmenter {
   }
   const SceneLight& light_of(const SceneState& scene) const { return camera_look_on() ? scene.light : fixed_light_; }
   // The camera look over one view's changed box (after its rows are resolved).
-  void look_view(int camera, const Frame& raw, ViewResult& out);
-  // After a view's rows are resolved: the boom's shadow on the receiver (kMaskShadow; with the
-  // camera look, the shares of light it takes), the camera look, the shadow's darkening.
-  void finish_view(int camera, const Frame& raw, ViewResult& out, const SceneState& scene, double& shadow_ms,
-                   double& look_ms);
+  void look_view(int camera, const Frame& raw, ViewResult& out, bool motion);
   void shadow_view(ViewState& vs, ViewResult& out, const SceneState& scene) const;
+  // After a view's rows are resolved, in two steps: the boom's shadow on the receiver (kMaskShadow;
+  // with the camera look, the shares of light it takes; the augmented box grown for its
+  // darkening), then the camera look and the shadow's darkening. Between them, motion_view().
+  void finish_shadow(int camera, const Frame& raw, ViewResult& out, const SceneState& scene);
+  void finish_look(int camera, const Frame& raw, ViewResult& out, bool motion, double& shadow_ms,
+                   double& look_ms);
+  // Both steps and the motion between them, the views in parallel where they can be.
+  void finish_views(const Frame* const raws[2], ViewResult* const outs[2], const SceneState& scene);
+  // Motion blur: the camera look's layer of one view averaged over sub-exposure instants (its
+  // boom redrawn at each, masks and depth left as mid-exposure's); false when the boom moves
+  // less than kMotionMinPx over the exposure (or no exposure is known): the mid-exposure layer.
+  bool motion_view(int camera, const Frame& raw, ViewResult& out, const SceneState& scene,
+                   RowScratch& scratch, int& samples);
+  double exposure_s(int camera, const Frame& raw) const {
+    const double ms = looks_[camera].exposure_ms;
+    return ms >= 0 ? 1e-3 * ms : 1e-9 * static_cast<double>(std::max<std::int64_t>(raw.exposure_ns, 0));
+  }
+  // Draws every view's boom at `a` from now on (mid-exposure's).
+  void set_boom(const BoomArticulation& a) {
+    for (ViewState& vs : views_) {
+      vs.T_body_boom = boom_pose(rig_.boom.pivot_body_m, a);
+      vs.T_body_telescope = vs.T_body_boom * telescope_pose(a);
+    }
+  }
   Eigen::Vector3d receiver_normal(const ViewState& vs, std::size_t pixel, const Eigen::Vector3d& p_cam) const;
   void grow_augmented(ViewState& vs, const Frame& raw, ViewResult& out, const PixelBox& need) const;
   // The CPU pass per raw pixel (masks, receiver depth, composite) in two steps: begin_resolve()
@@ -519,7 +548,6 @@ class AugmenterImpl final : public Augmenter {
   }
 
   // Per-frame state shared by prepare/render.
-  Pose T_body_boom_, T_body_telescope_;
   bool receiver_on_ = false;
   bool shadow_on_ = false;  // the receiver drawn and the sun up: the boom's shadow is looked for
 };
@@ -744,8 +772,8 @@ void AugmenterImpl::prepare_view(ViewState& vs, const SceneState& scene) {
   for (const DrawItem& d : draws_) {
     if (d.kind == ObjectKind::kReceiver && !receiver_on_) continue;  // nothing will refer to it
     const Pose T_cam_obj = T_cam_body * (d.kind == ObjectKind::kReceiver    ? scene.T_body_receiver
-                                         : d.kind == ObjectKind::kBoomFixed ? T_body_boom_
-                                                                            : T_body_telescope_);
+                                         : d.kind == ObjectKind::kBoomFixed ? vs.T_body_boom
+                                                                            : vs.T_body_telescope);
     const Eigen::Matrix3d R = T_cam_obj.R();
     const Eigen::Vector3d t = T_cam_obj.translation_m;
     auto& V = vs.scratch_vertices;
@@ -766,7 +794,8 @@ void AugmenterImpl::prepare_view(ViewState& vs, const SceneState& scene) {
       vs.planes[d.first_tri + k] = {tri.n.x(), tri.n.y(), tri.n.z(), tri.n_dot_v0};
     }
   }
-  // The boom's triangles projected along the sun: its shadow, in this camera's frame.
+  // The boom's triangles projected along the sun: its shadow, in this camera's frame (mid-exposure's).
+  if (vs.sub_instant) return;
   vs.shadow.clear();
   if (!shadow_on_) return;
   const Eigen::Matrix3d R_cam_body = T_cam_body.R();
@@ -938,8 +967,8 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
     if (boom ? vs.boom_vboxes.empty() : vs.recv_vboxes.empty()) continue;
     const std::uint8_t block_bit = boom ? kBoomBlock : kReceiverBlock;
     const Pose T_cam_obj = T_cam_body * (kind == ObjectKind::kReceiver    ? scene.T_body_receiver
-                                         : kind == ObjectKind::kBoomFixed ? T_body_boom_
-                                                                          : T_body_telescope_);
+                                         : kind == ObjectKind::kBoomFixed ? vs.T_body_boom
+                                                                          : vs.T_body_telescope);
     const Eigen::Matrix3d R = T_cam_obj.R();
     for (const DrawItem& d : draws_) {
       if (d.kind != kind) continue;
@@ -963,7 +992,7 @@ void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
 
 void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
   const Pose T_cam_body = vs.cam->T_body_cam.inverse();
-  const Pose T_cam_boom = T_cam_body * T_body_boom_, T_cam_tele = T_cam_body * T_body_telescope_;
+  const Pose T_cam_boom = T_cam_body * vs.T_body_boom, T_cam_tele = T_cam_body * vs.T_body_telescope;
   const Pose T_cam_recv = T_cam_body * scene.T_body_receiver;
   update_boxes(vs);
 
@@ -1300,7 +1329,7 @@ void AugmenterImpl::begin_resolve(ViewState& vs, const Frame& raw, ViewResult& o
     changed = intersect({changed.x0 - m, changed.y0 - m, changed.x1 + m, changed.y1 + m}, full);
   }
   out.augmented_box = to_pixel_box(changed);
-  const bool whole = options_.augmented_output == AugmentedOutput::kWholeImage;
+  const bool whole = options_.augmented_output == AugmentedOutput::kWholeImage && !vs.sub_instant;
   const VBox copy = whole ? full : changed;
   vs.copy = copy;
   const int cw = std::max(copy.x1 - copy.x0, 0), ch = std::max(copy.y1 - copy.y0, 0);
@@ -1574,13 +1603,17 @@ Status AugmenterImpl::set_camera_look(int camera, const CameraLookParams& params
   return {};
 }
 
-void AugmenterImpl::look_view(int camera, const Frame& raw, ViewResult& out) {
+void AugmenterImpl::look_view(int camera, const Frame& raw, ViewResult& out, bool motion) {
   if (!camera_look_on() || out.augmented_box.empty()) return;
   const PixelBox& box = out.augmented_box;
   const bool whole = out.augmented.width() == raw.image.width() && out.augmented.height() == raw.image.height();
   const ImageView aug = whole ? sub_view(out.augmented.view(), box) : out.augmented.view();
-  apply_camera_look(raw.image.view(), out.boom_alpha.cview(), aug, box, looks_[camera],
-                    static_cast<std::uint64_t>(raw.t_ns), camera, look_buffers_[camera]);
+  if (motion)  // motion_view() made the layer over the box and put the raw pixels back
+    apply_look_layer(raw.image.view(), aug, looks_[camera], static_cast<std::uint64_t>(raw.t_ns), camera,
+                     look_buffers_[camera]);
+  else
+    apply_camera_look(raw.image.view(), out.boom_alpha.cview(), aug, box, looks_[camera],
+                      static_cast<std::uint64_t>(raw.t_ns), camera, look_buffers_[camera]);
 }
 
 // The receiver's normal at a raw pixel's surface point `p_cam` (camera frame, facing the camera):
@@ -1688,46 +1721,142 @@ void AugmenterImpl::grow_augmented(ViewState& vs, const Frame& raw, ViewResult& 
   out.augmented_box = to_pixel_box(u);
 }
 
-void AugmenterImpl::finish_view(int camera, const Frame& raw, ViewResult& out, const SceneState& scene,
-                                double& shadow_ms, double& look_ms) {
-  using Clock = std::chrono::steady_clock;
-  auto ms = [](Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
+void AugmenterImpl::finish_shadow(int camera, const Frame& raw, ViewResult& out, const SceneState& scene) {
   ViewState& vs = views_[camera];
-  const auto a = Clock::now();
   shadow_view(vs, out, scene);
   // The darkening spreads by the PSF: the augmented image must hold it before the look runs.
-  PixelBox dark{};
-  if (!vs.shadow_pixels.empty()) {
-    VBox sb{raw.image.width(), raw.image.height(), 0, 0};
-    for (const ShadowPixel& p : vs.shadow_pixels)
-      sb.x0 = std::min(sb.x0, p.u), sb.y0 = std::min(sb.y0, p.v), sb.x1 = std::max(sb.x1, p.u + 1),
-      sb.y1 = std::max(sb.y1, p.v + 1);
-    const int m = psf_margin_px(looks_[camera]);
-    dark = to_pixel_box(intersect({sb.x0 - m, sb.y0 - m, sb.x1 + m, sb.y1 + m},
-                                  {0, 0, raw.image.width(), raw.image.height()}));
-    grow_augmented(vs, raw, out, dark);
-  }
+  vs.dark = {};
+  if (vs.shadow_pixels.empty()) return;
+  VBox sb{raw.image.width(), raw.image.height(), 0, 0};
+  for (const ShadowPixel& p : vs.shadow_pixels)
+    sb.x0 = std::min(sb.x0, p.u), sb.y0 = std::min(sb.y0, p.v), sb.x1 = std::max(sb.x1, p.u + 1),
+    sb.y1 = std::max(sb.y1, p.v + 1);
+  const int m = psf_margin_px(looks_[camera]);
+  vs.dark = to_pixel_box(
+      intersect({sb.x0 - m, sb.y0 - m, sb.x1 + m, sb.y1 + m}, {0, 0, raw.image.width(), raw.image.height()}));
+  grow_augmented(vs, raw, out, vs.dark);
+}
+
+void AugmenterImpl::finish_look(int camera, const Frame& raw, ViewResult& out, bool motion, double& shadow_ms,
+                                double& look_ms) {
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
+  const auto a = Clock::now();
+  look_view(camera, raw, out, motion);
   const auto b = Clock::now();
-  look_view(camera, raw, out);
-  const auto c = Clock::now();
-  if (!dark.empty()) {
-    const PixelBox& box = out.augmented_box;
-    const bool whole = out.augmented.width() == raw.image.width() && out.augmented.height() == raw.image.height();
-    const PixelBox at =
-        whole ? dark : PixelBox{dark.x0 - box.x0, dark.y0 - box.y0, dark.x1 - box.x0, dark.y1 - box.y0};
-    apply_shadow_look(sub_view(out.augmented.view(), at), dark, vs.shadow_pixels, looks_[camera], static_cast<std::uint64_t>(raw.t_ns), camera,
-                      look_buffers_[camera]);
+  look_ms += ms(b - a);
+  const PixelBox& dark = views_[camera].dark;
+  if (dark.empty()) return;
+  const PixelBox& box = out.augmented_box;
+  const bool whole =
+      out.augmented.width() == raw.image.width() && out.augmented.height() == raw.image.height();
+  const PixelBox at =
+      whole ? dark : PixelBox{dark.x0 - box.x0, dark.y0 - box.y0, dark.x1 - box.x0, dark.y1 - box.y0};
+  apply_shadow_look(sub_view(out.augmented.view(), at), dark, views_[camera].shadow_pixels, looks_[camera],
+                    static_cast<std::uint64_t>(raw.t_ns), camera, look_buffers_[camera]);
+  shadow_ms += ms(Clock::now() - b);
+}
+
+void AugmenterImpl::finish_views(const Frame* const raws[2], ViewResult* const outs[2],
+                                 const SceneState& scene) {
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
+  double shadow_ms[2] = {0, 0}, look_ms[2] = {0, 0}, motion_ms[2] = {0, 0};
+  int samples[2] = {1, 1};
+  bool motion[2] = {false, false};
+  auto motion_of = [&](int c) {
+    const auto a = Clock::now();
+    motion[c] = motion_view(c, *raws[c], *outs[c], scene, row_scratch_[c], samples[c]);
+    motion_ms[c] = ms(Clock::now() - a);
+  };
+  auto shadow_of = [&](int c) {
+    const auto a = Clock::now();
+    finish_shadow(c, *raws[c], *outs[c], scene);
+    shadow_ms[c] += ms(Clock::now() - a);
+    if (cpu_raster_) motion_of(c);  // GL draws on this thread only: below
+  };
+  {
+    worker().start([&] { shadow_of(0); });
+    const Worker::Join join{worker()};
+    shadow_of(1);
+    worker().wait();
   }
-  shadow_ms += ms(b - a) + ms(Clock::now() - c);
-  look_ms += ms(c - b);
+  if (!cpu_raster_) motion_of(0), motion_of(1);
+  {
+    worker().start([&] { finish_look(0, *raws[0], *outs[0], motion[0], shadow_ms[0], look_ms[0]); });
+    const Worker::Join join{worker()};
+    finish_look(1, *raws[1], *outs[1], motion[1], shadow_ms[1], look_ms[1]);
+    worker().wait();
+  }
+  timings_.shadow_ms = shadow_ms[0] + shadow_ms[1];
+  timings_.motion_ms = motion_ms[0] + motion_ms[1];
+  timings_.look_ms = look_ms[0] + look_ms[1] + timings_.motion_ms;
+  timings_.motion_samples = std::max(samples[0], samples[1]);
+}
+
+bool AugmenterImpl::motion_view(int camera, const Frame& raw, ViewResult& out, const SceneState& scene,
+                                RowScratch& scratch, int& samples) {
+  samples = 1;
+  if (!camera_look_on() || out.boom_box.empty()) return false;
+  ViewState& vs = views_[camera];
+  const double exposure = exposure_s(camera, raw);
+  const double motion_px =
+      boom_motion_px(boom_, rig_.boom.pivot_body_m, *vs.cam, scene.boom, scene.boom_rate_per_s, exposure);
+  samples = motion_samples(motion_px);
+  if (samples == 1) return false;
+  // The layer's box: the mid-exposure boom's, widened by the half-trail each way and the PSF.
+  const int W = raw.image.width(), H = raw.image.height();
+  const int m = static_cast<int>(std::ceil(0.5 * motion_px)) + 2 + psf_margin_px(looks_[camera]);
+  const PixelBox& bb = out.boom_box;
+  grow_augmented(vs, raw, out,
+                 to_pixel_box(intersect({bb.x0 - m, bb.y0 - m, bb.x1 + m, bb.y1 + m}, {0, 0, W, H})));
+  const PixelBox& box = out.augmented_box;
+  LookBuffers& buf = look_buffers_[camera];
+  begin_look_layer(box, raw.image.format(), buf);
+  // The raw pixels back where the mid-exposure composite changed them: the look composites anew.
+  const bool whole = out.augmented.width() == W && out.augmented.height() == H;
+  const std::size_t bpp = bytes_per_pixel(raw.image.format());
+  const PixelBox ob = to_pixel_box(intersect({bb.x0, bb.y0, bb.x1, bb.y1}, {box.x0, box.y0, box.x1, box.y1}));
+  for (int y = ob.y0; y < ob.y1; ++y)
+    std::memcpy(out.augmented.row(whole ? y : y - box.y0) + (whole ? ob.x0 : ob.x0 - box.x0) * bpp,
+                raw.image.row(y) + ob.x0 * bpp, ob.width() * bpp);
+  // Each instant drawn whole (the receiver occludes the boom), only its boom's pixels kept.
+  vs.sub_instant = true;
+  const float weight = 1.f / static_cast<float>(samples);
+  for (int k = 0; k < samples; ++k) {
+    const BoomArticulation a =
+        articulation_at(scene.boom, scene.boom_rate_per_s, sub_exposure_offset_s(k, samples, exposure));
+    vs.T_body_boom = boom_pose(rig_.boom.pivot_body_m, a);
+    vs.T_body_telescope = vs.T_body_boom * telescope_pose(a);
+    prepare_view(vs, scene);
+    if (cpu_raster_)
+      raster_view(vs, scene);
+    else
+      render_view(vs, scene);
+    ViewResult& r = vs.instant;
+    begin_resolve(vs, raw, r);
+    std::atomic<int> next_row{0};
+    resolve_rows(vs, raw, r, next_row, scratch);
+    const PixelBox part = to_pixel_box(intersect({r.boom_box.x0, r.boom_box.y0, r.boom_box.x1, r.boom_box.y1},
+                                                 {box.x0, box.y0, box.x1, box.y1}));
+    if (part.empty()) continue;
+    // r.augmented holds r.augmented_box, which holds its boom's box.
+    const PixelBox at{part.x0 - r.augmented_box.x0, part.y0 - r.augmented_box.y0,
+                      part.x1 - r.augmented_box.x0, part.y1 - r.augmented_box.y0};
+    add_to_look_layer(raw.image.view(), r.boom_alpha.cview(), sub_view(r.augmented.cview(), at), part, weight,
+                      buf);
+  }
+  vs.sub_instant = false;
+  vs.T_body_boom = boom_pose(rig_.boom.pivot_body_m, scene.boom);
+  vs.T_body_telescope = vs.T_body_boom * telescope_pose(scene.boom);
+  return true;
 }
 
 Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) {
   if (camera < 0 || camera >= static_cast<int>(views_.size()))
     return make_error("Augmenter::augment_view(): no camera ", camera);
   if (auto s = check_frame(camera, raw); !s) return s;
-  T_body_boom_ = boom_pose(rig_.boom.pivot_body_m, scene.boom);
-  T_body_telescope_ = T_body_boom_ * telescope_pose(scene.boom);
+  set_boom(scene.boom);
   receiver_on_ = scene.receiver_present && options_.receiver_proxy;
   shadow_on_ = receiver_on_ && scene.light.sun_up;
   ViewState& vs = views_[camera];
@@ -1738,7 +1867,10 @@ Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneStat
     render_view(vs, scene);
   resolve_view(vs, raw, out, row_scratch_[0]);
   double shadow_ms = 0, look_ms = 0;
-  finish_view(camera, raw, out, scene, shadow_ms, look_ms);
+  finish_shadow(camera, raw, out, scene);
+  int samples = 1;
+  const bool motion = motion_view(camera, raw, out, scene, row_scratch_[0], samples);
+  finish_look(camera, raw, out, motion, shadow_ms, look_ms);
   return {};
 }
 
@@ -1747,8 +1879,7 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   auto ms = [](Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
   for (int c = 0; c < 2; ++c)
     if (auto s = check_frame(c, c == 0 ? frame.left : frame.right); !s) return s;
-  T_body_boom_ = boom_pose(rig_.boom.pivot_body_m, scene.boom);
-  T_body_telescope_ = T_body_boom_ * telescope_pose(scene.boom);
+  set_boom(scene.boom);
   receiver_on_ = scene.receiver_present && options_.receiver_proxy;
   shadow_on_ = receiver_on_ && scene.light.sun_up;
 
@@ -1824,15 +1955,13 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   }
 
   // The shadow and the look, the views in parallel: neither reads the other's pixels.
-  double shadow_ms[2] = {0, 0}, look_ms[2] = {0, 0};
+  timings_.shadow_ms = timings_.look_ms = timings_.motion_ms = 0;
+  timings_.motion_samples = 1;
   if (camera_look_on() || shadow_on_) {
-    worker().start([&] { finish_view(0, frame.left, out.left, scene, shadow_ms[0], look_ms[0]); });
-    const Worker::Join join{worker()};
-    finish_view(1, frame.right, out.right, scene, shadow_ms[1], look_ms[1]);
-    worker().wait();
+    const Frame* const raws[2] = {&frame.left, &frame.right};
+    ViewResult* const outs[2] = {&out.left, &out.right};
+    finish_views(raws, outs, scene);
   }
-  timings_.shadow_ms = shadow_ms[0] + shadow_ms[1];
-  timings_.look_ms = look_ms[0] + look_ms[1];
 
   const auto t4 = Clock::now();
   // The classes reuse this view's own pixel rays (same undistortion as the masks).

@@ -75,6 +75,11 @@ struct SceneState {
   Pose T_body_receiver;  // receiver body frame in the tanker body frame
   bool receiver_present = true;
   SceneLight light;  // the light on the boom (used by Look::kCamera; the plain look's is fixed)
+  // How fast the boom's articulation changes at mid-exposure (rad/s, m/s; zero: still). With the
+  // camera look and a known exposure (CameraLookParams::exposure_ms, else Frame::exposure_ns) the
+  // boom's colour and coverage are averaged over the exposure (render/motion_blur.hpp); its masks,
+  // depth and statistics stay those of `boom`, mid-exposure.
+  BoomArticulation boom_rate_per_s;
 };
 
 // The scene at contact: boom at `a`, the receiver (level, the tanker's attitude) placed so its
@@ -121,6 +126,8 @@ struct AugmentTimings {
   double look_ms = 0;   // the camera look, both views summed (0 with the plain look)
   double shadow_ms = 0; // the boom's shadow on the receiver (mask bit, the camera look's darkening), summed
   double stats_ms = 0;  // counts and stereo classes
+  double motion_ms = 0;    // the camera look's sub-exposure instants (motion blur), summed (in look_ms too)
+  int motion_samples = 1;  // the most sub-exposure instants a view's boom was drawn at (1: still)
   double total_ms = 0;  // wall time of the whole augment() call (the stages above overlap)
 };
 

@@ -272,9 +272,67 @@ float gaussian_for_key(std::uint64_t key) {
   return gaussian_from_bits(normal_table().data(), static_cast<std::uint32_t>(splitmix64(key) >> 32));
 }
 
+void begin_look_layer(const PixelBox& box, PixelFormat format, LookBuffers& buf) {
+  const int nl = layout_of(format).nc + 1;
+  buf.layer_box = box;
+  buf.layer.resize(static_cast<std::size_t>(box.width()) * nl * box.height());
+  buf.spans.assign(2 * static_cast<std::size_t>(box.height()), 0);
+}
+
+void add_to_look_layer(ConstImageView raw, ConstImageView alpha, ConstImageView composite,
+                       const PixelBox& part, float weight, LookBuffers& buf) {
+  // The boom's layer from the plain composite A = (1 - a) R + a C, per pixel the premultiplied
+  // colour a C (C is the rendered radiance, linear already) and the coverage a, interleaved;
+  // each row only over the columns its coverage spans.
+  const PixelBox& box = buf.layer_box;
+  const Layout L = layout_of(raw.format);
+  const int bw = box.width(), nc = L.nc, nl = nc + 1;
+  const std::size_t row_floats = static_cast<std::size_t>(bw) * nl;
+  for (int y = part.y0; y < part.y1; ++y) {
+    const std::uint8_t* ar = alpha.row(y) + part.x0;
+    int lo = 0, hi = part.width();
+    while (lo < hi && !ar[lo]) ++lo;
+    while (hi > lo && !ar[hi - 1]) --hi;
+    if (lo >= hi) continue;
+    const int by = y - box.y0, x0 = part.x0 - box.x0;  // the part's columns in the box
+    float* lr = &buf.layer[by * row_floats];
+    int& slo = buf.spans[2 * by];
+    int& shi = buf.spans[2 * by + 1];
+    // Zero the columns the row's span gains.
+    if (slo >= shi) {
+      std::fill(lr + (x0 + lo) * nl, lr + (x0 + hi) * nl, 0.f), slo = x0 + lo, shi = x0 + hi;
+    } else {
+      if (x0 + lo < slo) std::fill(lr + (x0 + lo) * nl, lr + slo * nl, 0.f), slo = x0 + lo;
+      if (x0 + hi > shi) std::fill(lr + shi * nl, lr + (x0 + hi) * nl, 0.f), shi = x0 + hi;
+    }
+    const std::uint8_t* rr = raw.row(y) + static_cast<std::size_t>(part.x0) * L.bpp;
+    const std::uint8_t* pr = composite.row(y - part.y0);
+    for (int x = lo; x < hi; ++x) {
+      const float a = ar[x] * (1.f / 255.f);
+      if (!(a > 0)) continue;
+      float* l = lr + (x0 + x) * nl;
+      for (int c = 0; c < nc; ++c) {
+        const float A = pr[x * L.bpp + c], R = rr[x * L.bpp + c];
+        l[c] += weight * std::clamp(A - (1 - a) * R, 0.f, 255.f * a);
+      }
+      l[nc] += weight * a;
+    }
+  }
+}
+
 void apply_camera_look(ConstImageView raw, ConstImageView alpha, ImageView aug, const PixelBox& box,
                        const CameraLookParams& params, std::uint64_t frame_key, int camera,
                        LookBuffers& buf) {
+  if (box.empty()) return;
+  begin_look_layer(box, raw.format, buf);
+  add_to_look_layer(raw, alpha, ConstImageView{aug.data, aug.width, aug.height, aug.stride_bytes, aug.format},
+                    box, 1.f, buf);
+  apply_look_layer(raw, aug, params, frame_key, camera, buf);
+}
+
+void apply_look_layer(ConstImageView raw, ImageView aug, const CameraLookParams& params,
+                      std::uint64_t frame_key, int camera, LookBuffers& buf) {
+  const PixelBox& box = buf.layer_box;
   if (box.empty()) return;
   const Layout L = layout_of(raw.format);
   const int bw = box.width(), bh = box.height(), nc = L.nc;
@@ -282,36 +340,10 @@ void apply_camera_look(ConstImageView raw, ConstImageView alpha, ImageView aug, 
   if (!linear) build_tone_tables(params.gamma, buf);
   auto dec = [&](float e) { return linear ? e : lookup(buf.decode, e); };
   auto enc = [&](float l) { return linear ? l : lookup(buf.encode, l); };
-
-  // 1. The boom's layer from the plain composite A = (1 - a) R + a C, per pixel the premultiplied
-  //    colour a C (C is the rendered radiance, linear already) and the coverage a, interleaved;
-  //    each row only over the columns its coverage spans.
   const int nl = nc + 1;
   const std::size_t row_floats = static_cast<std::size_t>(bw) * nl;
-  buf.layer.resize(row_floats * bh);
-  buf.spans.assign(2 * static_cast<std::size_t>(bh), 0);
   bool any = false;
-  for (int y = 0; y < bh; ++y) {
-    const std::uint8_t* ar = alpha.row(box.y0 + y) + box.x0;
-    int lo = 0, hi = bw;
-    while (lo < bw && !ar[lo]) ++lo;
-    while (hi > lo && !ar[hi - 1]) --hi;
-    buf.spans[2 * y] = lo, buf.spans[2 * y + 1] = hi;
-    if (lo >= hi) continue;
-    any = true;
-    const std::uint8_t* rr = raw.row(box.y0 + y) + static_cast<std::size_t>(box.x0) * L.bpp;
-    const std::uint8_t* pr = aug.row(y);
-    float* lr = &buf.layer[y * row_floats];
-    for (int x = lo; x < hi; ++x) {
-      const float a = ar[x] * (1.f / 255.f);
-      float* l = lr + x * nl;
-      for (int c = 0; c < nc; ++c) {
-        const float A = pr[x * L.bpp + c], R = rr[x * L.bpp + c];
-        l[c] = a > 0 ? std::clamp(A - (1 - a) * R, 0.f, 255.f * a) : 0.f;
-      }
-      l[nc] = a;
-    }
-  }
+  for (int y = 0; y < bh && !any; ++y) any = buf.spans[2 * y] < buf.spans[2 * y + 1];
   if (!any) return;
 
   // 2. Optics: the layer and its coverage through the PSF (the spans widen by its reach).

@@ -109,11 +109,16 @@ struct CameraLookParams {
   double psf_sigma_px = 0.7;  // Gaussian PSF, 1-sigma in pixels; 0: no blur
   double gamma = 1.0;         // encoded = 255 (linear / 255)^(1 / gamma); 1: the image is linear
   std::uint64_t seed = 0;     // noise seed (with the frame's time and the camera)
+  // The exposure time (motion blur, render/motion_blur.hpp). Below 0: not known here, the frames'
+  // own Frame::exposure_ns where they carry one, else none; 0: instantaneous (no motion blur).
+  double exposure_ms = -1;
   friend bool operator==(const CameraLookParams&, const CameraLookParams&) = default;
 };
 
 // Largest accepted PSF sigma: a wider blur is no lens a camera-rig would fly with.
 inline constexpr double kMaxPsfSigmaPx = 8.0;
+// Longest accepted exposure (the rig's look.exposure_ms): a second is no flight-test camera's.
+inline constexpr double kMaxExposureMs = 1000.0;
 
 // The margin, in pixels, by which the PSF spreads the boom beyond the pixels it covers.
 int psf_margin_px(const CameraLookParams& p);
@@ -122,6 +127,7 @@ int psf_margin_px(const CameraLookParams& p);
 struct LookBuffers {
   std::vector<float> layer, tmp;             // premultiplied linear colour and coverage; blur scratch
   std::vector<int> spans;                    // per box row: the columns the boom's layer covers
+  PixelBox layer_box;                        // the box the layer is over (begin_look_layer())
   std::vector<float> decode, encode, carry;  // tone-curve tables for the gamma they were built for
   double table_gamma = 0;
   std::vector<float> shade;      // apply_shadow_look(): the shadow's share of the light, R G B per pixel
@@ -135,6 +141,17 @@ struct LookBuffers {
 // `frame_key` identifies the frame (its timestamp) for the noise.
 void apply_camera_look(ConstImageView raw, ConstImageView alpha, ImageView aug, const PixelBox& box,
                        const CameraLookParams& params, std::uint64_t frame_key, int camera, LookBuffers& buf);
+
+// The same in three steps, for a layer averaged over sub-exposure instants (motion blur): an
+// empty layer over `box`; each instant's layer added with its weight (`composite`: that instant's
+// plain composite of `part` ((0, 0) its top-left; `part` inside `box`), `alpha` its coverage,
+// frame-sized); the camera over the layer, the raw pixels of `aug` (which holds `box`'s pixels)
+// re-composited where it covers them. apply_camera_look() is these with one instant of weight 1.
+void begin_look_layer(const PixelBox& box, PixelFormat format, LookBuffers& buf);
+void add_to_look_layer(ConstImageView raw, ConstImageView alpha, ConstImageView composite,
+                       const PixelBox& part, float weight, LookBuffers& buf);
+void apply_look_layer(ConstImageView raw, ImageView aug, const CameraLookParams& params,
+                      std::uint64_t frame_key, int camera, LookBuffers& buf);
 
 // A receiver pixel in the boom's shadow (image coordinates) and the share of its light, R G B,
 // that the shadow takes away: the direct light's, direct max(n.s, 0) / (ambient + direct max(n.s, 0)).

@@ -242,16 +242,19 @@ SurfaceFinish parse_finish(const Ctx& c, const YAML::Node& n, const std::string&
   return f;
 }
 
-// `look: {psf_sigma_px, gamma, noise_a, noise_b, seed}`: noise_a and noise_b one number (every
-// channel) or three (R, G, B), given together.
+// `look: {psf_sigma_px, gamma, noise_a, noise_b, seed, exposure_ms}`: noise_a and noise_b one
+// number (every channel) or three (R, G, B), given together.
 CameraLookParams parse_look_keys(const Ctx& c, const YAML::Node& n, const std::string& key) {
-  expect_map(c, n, key, "a map {psf_sigma_px, gamma, noise_a, noise_b, seed}");
-  check_keys(c, n, key, {"psf_sigma_px", "gamma", "noise_a", "noise_b", "seed"});
+  expect_map(c, n, key, "a map {psf_sigma_px, gamma, noise_a, noise_b, seed, exposure_ms}");
+  check_keys(c, n, key, {"psf_sigma_px", "gamma", "noise_a", "noise_b", "seed", "exposure_ms"});
   CameraLookParams p;
   if (const YAML::Node v = n["psf_sigma_px"]; v.IsDefined())
     p.psf_sigma_px = number_in(c, v, key + ".psf_sigma_px", 0, kMaxPsfSigmaPx, "a PSF 1-sigma in pixels");
   if (const YAML::Node v = n["gamma"]; v.IsDefined())
     p.gamma = number_in(c, v, key + ".gamma", 0.2, 5, "a tone-curve exponent (1: linear)");
+  if (const YAML::Node v = n["exposure_ms"]; v.IsDefined())
+    p.exposure_ms =
+        number_in(c, v, key + ".exposure_ms", 0, kMaxExposureMs, "an exposure time in milliseconds");
   if (const YAML::Node v = n["seed"]; v.IsDefined())
     p.seed = static_cast<std::uint64_t>(number_in(c, v, key + ".seed", 0, 9007199254740992.0, "a whole number"));
   const YAML::Node a = n["noise_a"], b = n["noise_b"];
@@ -639,6 +642,7 @@ std::string rig_to_yaml(const Rig& rig) {
     if (!cam.source_uri.empty()) o << "    source: " << quote(cam.source_uri) << "\n";
     if (const CameraLookParams& lk = cam.look; !(lk == CameraLookParams{})) {
       o << "    look: {psf_sigma_px: " << fmt(lk.psf_sigma_px) << ", gamma: " << fmt(lk.gamma) << ", seed: " << lk.seed;
+      if (lk.exposure_ms >= 0) o << ", exposure_ms: " << fmt(lk.exposure_ms);
       if (lk.noise.channels == 1) {
         o << ", noise_a: " << fmt(lk.noise.a[0]) << ", noise_b: " << fmt(lk.noise.b[0]);
       } else if (lk.noise.channels == 3) {

@@ -1,6 +1,7 @@
 #include "sim/flight_source.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "nav/geodesy.hpp"
 #include "nav/solar_position.hpp"
@@ -47,6 +48,13 @@ nav::CameraPoseRow pose_row(const FrameTruth& t) {
   return r;
 }
 
+BoomArticulation boom_rate(const Flight& flight, double t_s) {
+  constexpr double h_s = 1e-4;  // the boom follows turbulence: a step well under its time scales
+  const BoomArticulation a0 = flight.boom(t_s - h_s), a1 = flight.boom(t_s + h_s);
+  return {(a1.elevation_rad - a0.elevation_rad) / (2 * h_s), (a1.azimuth_rad - a0.azimuth_rad) / (2 * h_s),
+          (a1.extension_m - a0.extension_m) / (2 * h_s)};
+}
+
 SkyState sky_at(const Scenario& scenario, const Flight& flight, double t_s) {
   const KinematicState k = flight.tanker(t_s);
   const nav::Geodetic g = nav::geodetic_from_ecef(k.p_ecef_m);
@@ -83,6 +91,7 @@ Expected<std::unique_ptr<FlightSource>> FlightSource::create(const Scenario& sce
   s->sensor_.noise_sigma = cam.noise_sigma;
   s->sensor_.noise_a = cam.noise_a, s->sensor_.psf_sigma_px = cam.psf_sigma_px;
   s->sensor_.gain = cam.gain, s->sensor_.gamma = cam.gamma;
+  s->sensor_.exposure_ms = cam.exposure_ms;
   return s;
 }
 
@@ -94,10 +103,12 @@ Expected<ReadStatus> FlightSource::read(Frame& out, std::chrono::nanoseconds) {
   sensor.noise_seed = derive_seed(scenario_.seed, "camera-noise") ^ (t.sequence * 0x9E3779B97F4A7C15ull);
   const SkyState sky = sky_at(scenario_, *flight_, t.t_true_s);
   if (auto s = physical_boom_
-                   ? renderer_->render_with_boom(t.camera, sky, t.T_body_receiver, true, t.boom, sensor, out.image)
+                   ? renderer_->render_with_boom(t.camera, sky, t.T_body_receiver, true, t.boom,
+                                                 boom_rate(*flight_, t.t_true_s), sensor, out.image)
                    : renderer_->render(t.camera, sky, t.T_body_receiver, true, sensor, out.image);
       !s)
     return s.error();
+  out.exposure_ns = std::llround(1e6 * sensor.exposure_ms);  // 0: unknown, as a camera that says none
   out.camera = t.camera == 0 ? CameraId::kLeft : CameraId::kRight;
   out.sequence = t.sequence;
   out.t_ns = t.t_camera_ns;

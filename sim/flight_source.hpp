@@ -39,6 +39,9 @@ nav::CameraPoseRow pose_row(const FrameTruth& t);
 std::vector<FrameTruth> frame_truths(const Scenario& scenario, const Flight& flight,
                                      const std::vector<std::vector<CameraFrameTime>>& cameras);
 
+// How fast the flight's boom moves at t_s (rad/s, m/s): a central difference of Flight::boom().
+BoomArticulation boom_rate(const Flight& flight, double t_s);
+
 // The sky state (tanker attitude, height, ground position) the renderer needs at t_s.
 SkyState sky_at(const Scenario& scenario, const Flight& flight, double t_s);
 

@@ -626,11 +626,11 @@ std::vector<T> per_camera(const Ctx& c, const YAML::Node& map, const std::string
 
 void parse_cameras(const Ctx& c, const YAML::Node& parent, Scenario& s) {
   const std::string path = "sensors.cameras";
-  const YAML::Node n =
-      optional_map(c, parent, "sensors", "cameras",
-                   "a map {fps, clock_offset_ns, jitter_ns, drop_probability, bayer, noise, ...}",
-                   {"fps", "clock_offset_ns", "clock_drift_ppm", "exposure_offset_ns", "jitter_ns",
-                    "drop_probability", "bayer", "noise", "noise_a", "psf_sigma_px", "gain", "gamma"});
+  const YAML::Node n = optional_map(
+      c, parent, "sensors", "cameras",
+      "a map {fps, clock_offset_ns, jitter_ns, drop_probability, bayer, noise, ...}",
+      {"fps", "clock_offset_ns", "clock_drift_ppm", "exposure_offset_ns", "jitter_ns", "drop_probability",
+       "bayer", "noise", "noise_a", "psf_sigma_px", "gain", "gamma", "exposure_ms"});
   CameraTimingConfig& cam = s.sensors.cameras;
   cam = CameraTimingConfig{};
   if (!n.IsDefined()) return;
@@ -663,6 +663,7 @@ void parse_cameras(const Ctx& c, const YAML::Node& parent, Scenario& s) {
   cam.psf_sigma_px = number(c, n, path, "psf_sigma_px", cam.psf_sigma_px, {0.0, 8.0}, "pixels");
   cam.gain = number(c, n, path, "gain", cam.gain, {0.0, 100.0, true, false}, "raw DN per DN of radiance");
   cam.gamma = number(c, n, path, "gamma", cam.gamma, {0.2, 5.0}, "");
+  cam.exposure_ms = number(c, n, path, "exposure_ms", cam.exposure_ms, {0.0, kMaxExposureMs}, "milliseconds");
 }
 
 void parse_sensors(const Ctx& c, const YAML::Node& root, Scenario& s) {

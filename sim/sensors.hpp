@@ -258,6 +258,9 @@ struct CameraTimingConfig {
   double noise_a = 0.0;
   double gain = 1.0;
   double gamma = 1.0;
+  // The exposure time (0: an instant). A boom physically in the scene (FlightSource's physical
+  // boom) is integrated over it (motion blur); the frames carry it (Frame::exposure_ns).
+  double exposure_ms = 0.0;
   bool operator==(const CameraTimingConfig&) const = default;
 };
 

@@ -48,6 +48,9 @@ struct SensorOptions {
   double noise_a = 0.0;
   double gain = 1.0;
   double gamma = 1.0;
+  // The exposure time: render_with_boom() integrates a moving boom over it (motion blur; 0: an
+  // instant, the default, as before). Nothing else in the scene moves during it.
+  double exposure_ms = 0.0;
   CameraResponse response() const { return {psf_sigma_px, noise_a, noise_sigma, gain, gamma}; }
 };
 
@@ -79,10 +82,23 @@ class SyntheticSceneRenderer {
   // model, or the built-in one), lit and occluded as the receiver is, casting its shadow on the
   // receiver under a sun above the horizon, before the camera's response: the frame a flight with
   // a real boom would have given. The CPU back end only.
-  virtual Status render_with_boom(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
-                                  const BoomArticulation& boom, const SensorOptions& sensor, Image& out) {
-    (void)camera, (void)sky, (void)T_body_receiver, (void)receiver_present, (void)boom, (void)sensor, (void)out;
+  // `boom` is the articulation at mid-exposure; moving at `boom_rate_per_s` (rad/s, m/s) over
+  // sensor.exposure_ms, the scene is rendered at sub-exposure instants (render/motion_blur.hpp:
+  // as many as the boom's trail in the image needs) and the radiance averaged before the camera's
+  // response, as a sensor integrates light: the boom's motion blur.
+  virtual Status render_with_boom(int camera, const SkyState& sky, const Pose& T_body_receiver,
+                                  bool receiver_present, const BoomArticulation& boom,
+                                  const BoomArticulation& boom_rate_per_s, const SensorOptions& sensor,
+                                  Image& out) {
+    (void)camera, (void)sky, (void)T_body_receiver, (void)receiver_present, (void)boom, (void)boom_rate_per_s,
+        (void)sensor, (void)out;
     return make_error("SyntheticSceneRenderer::render_with_boom(): only the CPU back end renders the boom");
+  }
+  // A boom held still.
+  Status render_with_boom(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
+                          const BoomArticulation& boom, const SensorOptions& sensor, Image& out) {
+    return render_with_boom(camera, sky, T_body_receiver, receiver_present, boom, BoomArticulation{}, sensor,
+                            out);
   }
 };
 

@@ -45,6 +45,7 @@
 #include "render/boom_shadow.hpp"
 #include "render/camera_look.hpp"
 #include "render/models.hpp"
+#include "render/motion_blur.hpp"
 #include "render/projection.hpp"
 #include "render/soft_raster.hpp"
 
@@ -1053,11 +1054,13 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   Status init(std::shared_ptr<const Model> receiver);
   Status render(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
                 const SensorOptions& sensor, Image& out) override {
-    return render_view(camera, sky, T_body_receiver, receiver_present, nullptr, sensor, out);
+    return render_view(camera, sky, T_body_receiver, receiver_present, nullptr, {}, sensor, out);
   }
+  using SyntheticSceneRenderer::render_with_boom;
   Status render_with_boom(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
-                          const BoomArticulation& boom, const SensorOptions& sensor, Image& out) override {
-    return render_view(camera, sky, T_body_receiver, receiver_present, &boom, sensor, out);
+                          const BoomArticulation& boom, const BoomArticulation& boom_rate_per_s,
+                          const SensorOptions& sensor, Image& out) override {
+    return render_view(camera, sky, T_body_receiver, receiver_present, &boom, boom_rate_per_s, sensor, out);
   }
 
  private:
@@ -1065,7 +1068,12 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   void background_rows(const CameraTables& ct, const FrameSky& f, int by0, int by1, PixelFormat fmt, Image& out) const;
   void background(const CameraTables& ct, const FrameSky& f, PixelFormat fmt, Image& out);
   Status render_view(int camera, const SkyState& sky, const Pose& T_body_receiver, bool receiver_present,
-                     const BoomArticulation* boom, const SensorOptions& sensor, Image& out);
+                     const BoomArticulation* boom, const BoomArticulation& boom_rate_per_s,
+                     const SensorOptions& sensor, Image& out);
+  // The clean render averaged over the exposure's sub-exposure instants (motion blur).
+  void render_moving(int camera, const SkyState& sky, std::array<std::optional<Pose>, kParts> T_body_part,
+                     const BoomArticulation& boom, const BoomArticulation& boom_rate_per_s, double exposure_s,
+                     int samples, PixelFormat fmt, Image& out);
   // The clean render (no noise) of a view: background, then the objects placed (a part without
   // a pose is not drawn).
   void render_clean(int camera, const SkyState& sky, const std::array<std::optional<Pose>, kParts>& T_body_part,
@@ -1093,6 +1101,8 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   BoomModel boom_;  // drawn by render_with_boom only
   std::vector<ReceiverMesh> meshes_;
   Image radiance_;  // the clean render that a camera response turns into the frame
+  Image instant_;   // render_moving(): one sub-exposure instant
+  std::vector<std::uint32_t> exposure_sum_;  // ... and their sum, per byte
   std::vector<ModelTexture> textures_;
   std::vector<CameraTables> cameras_;
   std::vector<float> gauss_;  // 65536 quantiles of N(0, 1): 16 random bits -> one Gaussian sample
@@ -1753,7 +1763,8 @@ bool same_sky(const SkyState& a, const SkyState& b) {
 }
 
 Status CpuSceneRenderer::render_view(int camera, const SkyState& sky, const Pose& T_body_receiver,
-                                     bool receiver_present, const BoomArticulation* boom, const SensorOptions& sensor,
+                                     bool receiver_present, const BoomArticulation* boom,
+                                     const BoomArticulation& boom_rate_per_s, const SensorOptions& sensor,
                                      Image& out) {
   if (camera < 0 || camera >= static_cast<int>(cameras_.size()))
     return make_error("SyntheticSceneRenderer::render(): no camera ", camera, " (the rig has ", cameras_.size(), ")");
@@ -1761,22 +1772,66 @@ Status CpuSceneRenderer::render_view(int camera, const SkyState& sky, const Pose
   if (!(sensor.noise_sigma >= 0)) return make_error("SyntheticSceneRenderer::render(): noise_sigma must be >= 0");
   const CameraResponse response = sensor.response();
   if (Status s = check_camera_response(response); !s) return s;
+  if (!(sensor.exposure_ms >= 0 && sensor.exposure_ms <= kMaxExposureMs))
+    return make_error("SyntheticSceneRenderer::render(): exposure_ms must be in 0..", kMaxExposureMs);
   std::array<std::optional<Pose>, kParts> T_body_part;
   if (receiver_present) T_body_part[kReceiverPart] = T_body_receiver;
   if (boom) {
     T_body_part[kBoomFixedPart] = boom_pose(rig_.boom.pivot_body_m, *boom);
     T_body_part[kBoomTelescopePart] = *T_body_part[kBoomFixedPart] * telescope_pose(*boom);
   }
+  const double exposure_s = 1e-3 * sensor.exposure_ms;
+  const int samples = boom
+                          ? motion_samples(boom_motion_px(boom_, rig_.boom.pivot_body_m, rig_.cameras[camera],
+                                                          *boom, boom_rate_per_s, exposure_s))
+                          : 1;
+  auto clean = [&](PixelFormat fmt, Image& img) {
+    if (samples == 1)
+      render_clean(camera, sky, T_body_part, fmt, img);
+    else
+      render_moving(camera, sky, T_body_part, *boom, boom_rate_per_s, exposure_s, samples, fmt, img);
+  };
   if (!needs_camera_model(response)) {
     // The fast path: the clean render in the frame's format, read noise added to it.
-    render_clean(camera, sky, T_body_part, sensor.format, out);
+    clean(sensor.format, out);
     if (sensor.noise_sigma > 0) add_noise(camera, sensor, out);
     return {};
   }
   // A camera: the scene's radiance in RGB, then the whole camera's response over it.
-  render_clean(camera, sky, T_body_part, PixelFormat::kRGB8, radiance_);
+  clean(PixelFormat::kRGB8, radiance_);
   apply_camera_response(radiance_, response, sensor.format, sensor.noise_seed, camera, out, bands_.count());
   return {};
+}
+
+void CpuSceneRenderer::render_moving(int camera, const SkyState& sky,
+                                     std::array<std::optional<Pose>, kParts> T_body_part,
+                                     const BoomArticulation& boom, const BoomArticulation& boom_rate_per_s,
+                                     double exposure_s, int samples, PixelFormat fmt, Image& out) {
+  // A sensor integrates the light over its exposure: the scene at each instant, averaged (in
+  // radiance, before the camera's response; rounded once, at the end).
+  for (int k = 0; k < samples; ++k) {
+    const BoomArticulation a =
+        articulation_at(boom, boom_rate_per_s, sub_exposure_offset_s(k, samples, exposure_s));
+    T_body_part[kBoomFixedPart] = boom_pose(rig_.boom.pivot_body_m, a);
+    T_body_part[kBoomTelescopePart] = *T_body_part[kBoomFixedPart] * telescope_pose(a);
+    render_clean(camera, sky, T_body_part, fmt, instant_);
+    const std::size_t row = static_cast<std::size_t>(instant_.width()) * bytes_per_pixel(fmt);
+    if (k == 0) exposure_sum_.assign(row * instant_.height(), 0);
+    for (int y = 0; y < instant_.height(); ++y) {
+      const std::uint8_t* src = instant_.row(y);
+      std::uint32_t* dst = &exposure_sum_[y * row];
+      for (std::size_t i = 0; i < row; ++i) dst[i] += src[i];
+    }
+  }
+  if (out.width() != instant_.width() || out.height() != instant_.height() || out.format() != fmt)
+    out = Image(instant_.width(), instant_.height(), fmt);
+  const std::size_t row = static_cast<std::size_t>(out.width()) * bytes_per_pixel(fmt);
+  const auto n = static_cast<std::uint32_t>(samples);
+  for (int y = 0; y < out.height(); ++y) {
+    const std::uint32_t* src = &exposure_sum_[y * row];
+    std::uint8_t* dst = out.row(y);
+    for (std::size_t i = 0; i < row; ++i) dst[i] = static_cast<std::uint8_t>((src[i] + n / 2) / n);
+  }
 }
 
 void CpuSceneRenderer::render_clean(int camera, const SkyState& sky,
