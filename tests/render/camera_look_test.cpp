@@ -338,6 +338,55 @@ TEST(CameraLook, NoiseIsDeterministicPerSeedFrameAndCamera) {
   EXPECT_FALSE(pixels_equal(a, run(2, 100, 0)));
 }
 
+// The layer built instant by instant (motion blur): one instant of weight 1, or two equal halves,
+// is apply_camera_look() byte for byte (every format); two discs at different places average to
+// a layer between them, composited over the raw pixels (the plain composite's pixels unread).
+TEST(CameraLook, LayerAveragedOverInstantsIsTheLookOfTheirMean) {
+  const int w = 64, h = 48;
+  for (PixelFormat fmt : {PixelFormat::kRGB8, PixelFormat::kBayerRG8, PixelFormat::kMono8}) {
+    SCOPED_TRACE(to_string(fmt));
+    const NoiseLevelFunction f = nlf(channels_of(fmt), 0.1, 2);
+    const Image raw = noisy_frame(
+        w, h, fmt, f, [](int, int, int) { return 70.0; }, 5);
+    const Image alpha = disc_alpha(w, h, 30, 24, 12), alpha2 = disc_alpha(w, h, 36, 24, 12);
+    const Image plain = composite(raw, alpha, [](int c) { return 150.f + 20 * c; });
+    const Image plain2 = composite(raw, alpha2, [](int c) { return 150.f + 20 * c; });
+    CameraLookParams p;
+    p.noise = f;
+    p.psf_sigma_px = 0.8;
+    const PixelBox box{2, 3, w - 1, h - 2};
+    LookBuffers buf;
+    Image ref = Image::copy_of(plain.view());
+    apply_camera_look(raw.view(), alpha.cview(), sub_view(ref.view(), box), box, p, 7, 1, buf);
+    for (int halves : {1, 2}) {
+      Image look = Image::copy_of(raw.view());  // the look does not read the composite's pixels
+      begin_look_layer(box, fmt, buf);
+      for (int k = 0; k < halves; ++k)
+        add_to_look_layer(raw.view(), alpha.cview(), sub_view(plain.cview(), box), box, 1.f / halves, buf);
+      apply_look_layer(raw.view(), sub_view(look.view(), box), p, 7, 1, buf);
+      EXPECT_TRUE(pixels_equal(look, ref)) << halves << " instants";
+    }
+    // Two instants apart: the pixels covered by one only are between the raw and the boom.
+    Image look = Image::copy_of(raw.view());
+    CameraLookParams clean = p;
+    clean.noise = {};
+    begin_look_layer(box, fmt, buf);
+    add_to_look_layer(raw.view(), alpha.cview(), sub_view(plain.cview(), box), box, 0.5f, buf);
+    const PixelBox part{20, 10, 50, 40};  // an instant's own box, inside the layer's
+    add_to_look_layer(raw.view(), alpha2.cview(), sub_view(plain2.cview(), part), part, 0.5f, buf);
+    apply_look_layer(raw.view(), sub_view(look.view(), box), clean, 7, 1, buf);
+    const int bpp = bytes_per_pixel(fmt);
+    const double at_left = look.row(24)[21 * bpp], at_middle = look.row(24)[33 * bpp],
+                 at_right = look.row(24)[45 * bpp];
+    const double r_left = raw.row(24)[21 * bpp], r_right = raw.row(24)[45 * bpp];
+    EXPECT_GT(at_middle, 140);
+    EXPECT_GT(at_left, r_left + 20);  // half covered: about halfway
+    EXPECT_LT(at_left, at_middle - 20);
+    EXPECT_GT(at_right, r_right + 20);
+    EXPECT_LT(at_right, at_middle - 20);
+  }
+}
+
 // With a tone curve the composite is made in linear light: a half-covered pixel of a white boom
 // over black is encoded as half the linear light, not as half the encoded value.
 TEST(CameraLook, CompositesInLinearLight) {

@@ -475,6 +475,12 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
        "in 0.2..5, got 0"},
       {"look typo", base_with(16, "    near_m: 1.0\n    look: {psf: 1}"), 17, "cameras[1].look.psf",
        "unknown key"},
+      {"look exposure negative", base_with(16, "    near_m: 1.0\n    look: {exposure_ms: -2}"), 17,
+       "cameras[1].look.exposure_ms", "expected an exposure time in milliseconds in 0..1000, got -2"},
+      {"look exposure too long", base_with(16, "    near_m: 1.0\n    look: {exposure_ms: 2000}"), 17,
+       "cameras[1].look.exposure_ms", "in 0..1000, got 2000"},
+      {"look exposure not a number", base_with(16, "    near_m: 1.0\n    look: {exposure_ms: fast}"), 17,
+       "cameras[1].look.exposure_ms", "an exposure time in milliseconds"},
       // The boom's finish.
       {"boom metallic", base_with(20, "  model: builtin\n  material: {metallic: 2}"), 21,
        "boom.material.metallic", "expected a metallic factor (0 paint, 1 bare metal) in 0..1, got 2"},
@@ -531,6 +537,22 @@ TEST(Rig, CameraLookKeysRoundTrip) {
   ASSERT_TRUE(mono) << mono.error().message;
   EXPECT_EQ(mono->right().look.noise.channels, 1);
   EXPECT_EQ(parse_rig(rig_to_yaml(*mono), "<round trip>")->right().look, mono->right().look);
+}
+
+// The exposure (motion blur): unknown unless given (the frames' own then), 0 an instant; written back.
+TEST(Rig, CameraLookExposureRoundTrip) {
+  const auto rig = parse_rig(base_with(16, "    near_m: 1.0\n    look: {exposure_ms: 4.5}"), "<string>");
+  ASSERT_TRUE(rig) << rig.error().message;
+  EXPECT_EQ(rig->right().look.exposure_ms, 4.5);
+  EXPECT_LT(rig->left().look.exposure_ms, 0);  // not known here
+  const auto again = parse_rig(rig_to_yaml(*rig), "<round trip>");
+  ASSERT_TRUE(again) << again.error().message;
+  EXPECT_EQ(again->right().look, rig->right().look);
+  EXPECT_EQ(again->left().look, CameraLookParams{});
+  const auto instant = parse_rig(base_with(16, "    near_m: 1.0\n    look: {exposure_ms: 0}"), "<string>");
+  ASSERT_TRUE(instant) << instant.error().message;
+  EXPECT_EQ(instant->right().look.exposure_ms, 0.0);
+  EXPECT_EQ(parse_rig(rig_to_yaml(*instant), "<round trip>")->right().look.exposure_ms, 0.0);
 }
 
 // The boom's finish (`boom.material`) is read and written back; absent, none is set (the built-in
