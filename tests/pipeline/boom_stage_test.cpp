@@ -349,6 +349,54 @@ TEST(BoomStage, ModeChangesFromTheWindow) {
   expect_art(p.boom, art(35, 0, 3), 1e-12, "the user's fixed boom");
 }
 
+// How fast the boom moves (the camera look's motion blur): a script's slope, clamped with it; a
+// fixed or hand-flown boom none; a tracking boom's and the pose source's change since the last
+// frame, none on a mode's first frame, across a gap or back in time.
+TEST(BoomStage, RateIsTheScriptsSlopeOrTheChangeSinceTheLastFrame) {
+  const Rig rig = Rig::paper_default();
+  BoomStage scripted(rig, kReceptacle, script_arg());
+  SceneState s;
+  scripted.apply(s, 1.0);  // (20, 0, 1) -> (30, 10, 3) over 2 s
+  expect_art(s.boom_rate_per_s, art(5, 5, 1), 1e-9, "the script's slope");
+  scripted.apply(s, 3.5);  // clamped in every axis: held at the limits
+  expect_art(s.boom_rate_per_s, art(0, 0, 0), 1e-9, "clamped");
+
+  BoomStage fixed(rig, kReceptacle, fixed_arg(art(33, -5, 4)));
+  for (double t : {0.0, 0.033}) {
+    fixed.apply(s, t);
+    expect_art(s.boom_rate_per_s, {}, 0, "fixed");
+  }
+
+  BoomStage given(rig, kReceptacle, std::nullopt);
+  s.boom = art(25, 1, 2);
+  given.apply(s, 10.0);
+  expect_art(s.boom_rate_per_s, {}, 0, "the first frame");
+  s.boom = art(25.1, 0.9, 2.05);
+  given.apply(s, 10.05);
+  expect_art(s.boom_rate_per_s, art(2, -2, 1), 1e-9, "the pose source's change over 50 ms");
+  s.boom = art(26, 0, 2);
+  given.apply(s, 10.05 + BoomStage::kMaxRateGap_s + 0.01);
+  expect_art(s.boom_rate_per_s, {}, 0, "across a gap");
+  s.boom = art(25, 0, 2);
+  given.apply(s, 9.0);
+  expect_art(s.boom_rate_per_s, {}, 0, "back in time");
+
+  BoomStage track(rig, kReceptacle, track_arg());
+  s.T_body_receiver = receiver_with_receptacle_at({-14, 0, 8}, kReceptacle);
+  track.apply(s, 0.0);
+  const BoomArticulation first = s.boom;
+  s.T_body_receiver = receiver_with_receptacle_at({-14, 0.1, 8}, kReceptacle);
+  track.apply(s, 0.04);
+  EXPECT_NEAR(s.boom_rate_per_s.azimuth_rad, (s.boom.azimuth_rad - first.azimuth_rad) / 0.04, 1e-9);
+  EXPECT_NE(s.boom_rate_per_s.azimuth_rad, 0.0);
+  track.set_mode(DisplayBoomMode::kInteractive);
+  track.apply(s, 0.08);
+  expect_art(s.boom_rate_per_s, {}, 0, "hand-flown");
+  track.set_mode(DisplayBoomMode::kTrackReceptacle);
+  track.apply(s, 0.12);
+  expect_art(s.boom_rate_per_s, {}, 0, "a mode's first frame");
+}
+
 TEST(BoomArg, CommandPerMode) {
   const BoomLimits L = Rig::paper_default().boom.limits;
   const BoomCommand tracked{art(27, 3, 2), true, 0.4};

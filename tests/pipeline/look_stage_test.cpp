@@ -230,5 +230,37 @@ TEST_F(LookStageTest, ConfiguredNoiseAndThePlainLookAreLeftAsTheyAre) {
   EXPECT_EQ(off.status(), "look plain");
 }
 
+// Where the exposure (the camera look's motion blur) comes from, said once per run: the rig's key,
+// the frames' own, or nowhere (no motion blur).
+TEST_F(LookStageTest, SaysOnceWhereEachCamerasExposureComesFrom) {
+  const Rig rig = Rig::paper_default();
+  auto aug = augmenter(rig);
+  ASSERT_TRUE(aug);
+  auto first_note = [&](LookConfig c, std::int64_t right_exposure_ns) {
+    c.cameras[0].noise = c.cameras[1].noise = NoiseLevelFunction{1, {0.1, 0.1, 0.1}, {1, 1, 1}};
+    LookStage stage(c);
+    EXPECT_TRUE(stage.configure(*aug));
+    StereoFrame pair = noisy_pair(rig, 0.1, 1.0, 3, 1'000'000'000);
+    pair.right.exposure_ns = right_exposure_ns;
+    SceneState scene;
+    std::string said;
+    for (const std::string& n : stage.before_augment(pair, scene, *aug))
+      if (n.find("exposure") != std::string::npos) said += n;
+    for (const std::string& n : stage.before_augment(pair, scene, *aug))
+      EXPECT_EQ(n.find("exposure"), std::string::npos) << "said again: " << n;
+    return said;
+  };
+  LookConfig c = camera_look(true);
+  EXPECT_EQ(
+      first_note(c, 0),
+      "look: exposure left unknown; right unknown: the boom is drawn without motion blur (give the rig's "
+      "look.exposure_ms; docs/LOOK.md)");
+  c.cameras[0].exposure_ms = 4;
+  EXPECT_EQ(
+      first_note(c, 2'500'000),
+      "look: exposure left 4 ms (the rig's look.exposure_ms); right 2.5 ms (its frames'): a moving boom is "
+      "blurred over it, a camera without one is not");
+}
+
 }  // namespace
 }  // namespace augrig::pipeline
