@@ -48,13 +48,14 @@ struct Args {
   bool bayer = false;
   bool true_noise = false;  // the camera looks given the simulator's NLF instead of estimating it
   double psf_px = 0.8, noise_a = 0.12, noise_dn = 1.5, gain = 1.0;
+  double exposure_ms = 0;  // the simulated camera's: its frames carry it to the camera look
   std::string out;
 };
 
 [[noreturn]] void usage(const char* why) {
   std::fprintf(stderr,
                "bench_look: %s\nusage: bench_look [--scenario NAME] [--frames N] [--bayer] [--psf PX] "
-               "[--noise-a A] [--noise DN] [--gain G] [--true-noise] [--out DIR]\n",
+               "[--noise-a A] [--noise DN] [--gain G] [--true-noise] [--exposure-ms MS] [--out DIR]\n",
                why);
   std::exit(2);
 }
@@ -83,6 +84,8 @@ Args parse(int argc, char** argv) {
       a.noise_dn = std::stod(value());
     else if (k == "--gain")
       a.gain = std::stod(value());
+    else if (k == "--exposure-ms")
+      a.exposure_ms = std::stod(value());
     else if (k == "--out")
       a.out = value();
     else
@@ -267,6 +270,7 @@ int main(int argc, char** argv) {
   sim::CameraTimingConfig& cam = scenario->sensors.cameras;
   cam.psf_sigma_px = args.psf_px, cam.noise_a = args.noise_a, cam.noise_sigma = args.noise_dn,
   cam.gain = args.gain;
+  cam.exposure_ms = args.exposure_ms;  // the physical boom's motion blur (and the frames' exposure)
   if (args.bayer) cam.format = PixelFormat::kBayerRG8;
   auto flight = sim::Flight::create(*scenario);
   if (!flight) {
@@ -353,6 +357,7 @@ int main(int argc, char** argv) {
     for (std::size_t l = 0; l < std::size(looks); ++l) {
       SceneState scene{p.left->boom, p.left->T_body_receiver, true,
                        pipeline::sun_light(p.left->t_gps_ns, T_ecef_tanker)};
+      scene.boom_rate_per_s = sim::boom_rate(*flight, p.left->t_true_s);  // as the physical boom moves
       if (variants[l].true_light) {
         const bool sun_up = scene.light.direct.maxCoeff() > 0;
         scene.light.direct =
