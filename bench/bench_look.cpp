@@ -13,7 +13,10 @@
 //     trained on the even frames to tell augmented from physical boom patches and tested on the
 //     odd ones: the AUC (0.5: cannot tell; goal <= 0.60 with the camera look).
 //   build/bench_look [--scenario NAME] [--frames N] [--bayer] [--psf PX] [--noise-a A] [--noise DN]
-//                    [--gain G] [--true-noise] [--out DIR]
+//                    [--gain G] [--true-noise] [--look-cadence S] [--out DIR]
+// The looks see the flight as a run's look stage does: a boom-free pair every S seconds of frame
+// time (default 0.5, LookConfig's) goes to the noise estimator and the light probe, whether or
+// not it is one of the N compared pairs; --look-cadence 0 gives them the compared pairs only.
 // --true-noise gives the camera looks the simulator's noise level function (as a rig would
 // configure it) instead of estimating it: what the estimate costs. A table of the patch
 // statistics (median augmented / physical) says which of them the classifier sees.
@@ -47,6 +50,7 @@ struct Args {
   int frames = 24;  // stereo frames compared (half train, half test)
   bool bayer = false;
   bool true_noise = false;  // the camera looks given the simulator's NLF instead of estimating it
+  double look_cadence_s = 0.5;  // frame time between the pairs the look stages sample (0: compared only)
   double psf_px = 0.8, noise_a = 0.12, noise_dn = 1.5, gain = 1.0;
   double exposure_ms = 0;  // the simulated camera's: its frames carry it to the camera look
   std::string out;
@@ -55,7 +59,7 @@ struct Args {
 [[noreturn]] void usage(const char* why) {
   std::fprintf(stderr,
                "bench_look: %s\nusage: bench_look [--scenario NAME] [--frames N] [--bayer] [--psf PX] "
-               "[--noise-a A] [--noise DN] [--gain G] [--true-noise] [--exposure-ms MS] [--out DIR]\n",
+               "[--noise-a A] [--noise DN] [--gain G] [--true-noise] [--exposure-ms MS] [--look-cadence S] [--out DIR]\n",
                why);
   std::exit(2);
 }
@@ -86,12 +90,15 @@ Args parse(int argc, char** argv) {
       a.gain = std::stod(value());
     else if (k == "--exposure-ms")
       a.exposure_ms = std::stod(value());
+    else if (k == "--look-cadence")
+      a.look_cadence_s = std::stod(value());
     else if (k == "--out")
       a.out = value();
     else
       usage(("unknown option " + k).c_str());
   }
   if (a.frames < 4) usage("--frames must be >= 4");
+  if (!(a.look_cadence_s >= 0)) usage("--look-cadence must be >= 0 s");
   return a;
 }
 
@@ -101,24 +108,47 @@ struct Pair {
   const sim::FrameTruth* right = nullptr;
 };
 
-// `n` pairs spread evenly over the flight, both cameras delivered.
-std::vector<Pair> pick_pairs(const std::vector<sim::FrameTruth>& truths, int n) {
+// Every pair of the flight with both cameras delivered, in time order.
+std::vector<Pair> all_pairs(const std::vector<sim::FrameTruth>& truths) {
   std::vector<Pair> all;
   for (const sim::FrameTruth& t : truths) {
     if (t.camera != 0) continue;
     for (const sim::FrameTruth& r : truths)
       if (r.camera == 1 && r.sequence == t.sequence) all.push_back({&t, &r});
   }
-  std::vector<Pair> out;
+  return all;
+}
+
+// One pair the looks are given: `compared` ones are also rendered with the physical boom and
+// measured (their index among the compared pairs in `index`).
+struct Step {
+  Pair pair;
+  bool compared = false;
+  std::size_t index = 0;
+};
+
+// `n` compared pairs spread evenly over the flight, and between them the pairs a run's look
+// stage would sample (one every `cadence_s` of frame time; none when 0).
+std::vector<Step> pick_steps(const std::vector<Pair>& all, int n, double cadence_s) {
+  std::vector<bool> compared(all.size(), false);
   for (int i = 0; i < n && !all.empty(); ++i)
-    out.push_back(
-        all[std::min(all.size() - 1, (all.size() * (2 * static_cast<std::size_t>(i) + 1)) / (2 * n))]);
+    compared[std::min(all.size() - 1, (all.size() * (2 * static_cast<std::size_t>(i) + 1)) /
+                                          (2 * static_cast<std::size_t>(n)))] = true;
+  std::vector<Step> out;
+  double next_s = -1e300;
+  for (std::size_t k = 0; k < all.size(); ++k) {
+    const bool sampled = cadence_s > 0 && all[k].left->t_true_s >= next_s;
+    if (sampled) next_s = all[k].left->t_true_s + cadence_s;
+    if (compared[k] || sampled) out.push_back({all[k], compared[k], 0});
+  }
+  std::size_t index = 0;
+  for (Step& s : out)
+    if (s.compared) s.index = index++;
   return out;
 }
 
 // Renders a pair's views (boom-free or with the physical boom) through the scenario's camera.
-StereoFrame render_pair(sim::FlightSource& src, const Pair& p) {
-  (void)p;
+StereoFrame render_pair(sim::FlightSource& src) {
   StereoFrame f;
   for (Frame* out : {&f.left, &f.right}) {
     auto r = src.read(*out, {});
@@ -279,21 +309,27 @@ int main(int argc, char** argv) {
   }
   const sim::SensorLogs logs = sim::simulate_sensors(*scenario, *flight);
   const std::vector<sim::FrameTruth> truths = sim::frame_truths(*scenario, *flight, logs.cameras);
-  const std::vector<Pair> pairs = pick_pairs(truths, args.frames);
-  std::vector<sim::FrameTruth> chosen;
-  for (const Pair& p : pairs) chosen.push_back(*p.left), chosen.push_back(*p.right);
-  auto free_src = sim::FlightSource::create(*scenario, *flight, chosen);
-  auto phys_src = sim::FlightSource::create(*scenario, *flight, chosen);
+  const std::vector<Step> steps = pick_steps(all_pairs(truths), args.frames, args.look_cadence_s);
+  std::vector<sim::FrameTruth> given, compared;
+  std::vector<Pair> pairs;  // the compared ones
+  for (const Step& s : steps) {
+    given.push_back(*s.pair.left), given.push_back(*s.pair.right);
+    if (!s.compared) continue;
+    compared.push_back(*s.pair.left), compared.push_back(*s.pair.right);
+    pairs.push_back(s.pair);
+  }
+  auto free_src = sim::FlightSource::create(*scenario, *flight, given);
+  auto phys_src = sim::FlightSource::create(*scenario, *flight, compared);
   if (!free_src || !phys_src) {
     std::fprintf(stderr, "bench_look: %s\n", (!free_src ? free_src : phys_src).error().message.c_str());
     return 1;
   }
   (*phys_src)->set_physical_boom(true);
   std::printf(
-      "bench_look: scenario %s, %zu stereo frames, %s, camera: PSF %.2f px, noise a %.3g, read %.2f DN, gain "
-      "%.2f\n",
-      args.scenario.c_str(), pairs.size(), args.bayer ? "BayerRG8" : "RGB8", args.psf_px, args.noise_a,
-      args.noise_dn, args.gain);
+      "bench_look: scenario %s, %zu stereo frames compared (the looks given %zu), %s, camera: PSF %.2f px, "
+      "noise a %.3g, read %.2f DN, gain %.2f\n",
+      args.scenario.c_str(), pairs.size(), steps.size(), args.bayer ? "BayerRG8" : "RGB8", args.psf_px,
+      args.noise_a, args.noise_dn, args.gain);
 
   auto ctx =
       create_gl_context(GlBackend::kEglHeadless);  // the augmenter needs one, even rasterising on the CPU
@@ -338,7 +374,7 @@ int main(int argc, char** argv) {
         n.a.fill(args.noise_a), n.b.fill(args.noise_dn * args.noise_dn);
       }
     }
-    lc.noise_every_s = 0;  // every frame given: the frames here are seconds apart
+    lc.noise_every_s = args.look_cadence_s;  // 0: every pair given (the compared ones, seconds apart)
     auto st = std::make_unique<pipeline::LookStage>(lc);
     if (auto s = st->configure(**a); !s) return 1;
     augmenters.push_back(std::move(*a));
@@ -350,9 +386,11 @@ int main(int argc, char** argv) {
   std::vector<double> probe_ms(std::size(looks), 0.0);  // the slowest light measurement
   Image crops;
   const auto t0 = std::chrono::steady_clock::now();
-  for (std::size_t i = 0; i < pairs.size(); ++i) {
-    const Pair& p = pairs[i];
-    const StereoFrame raw = render_pair(**free_src, p), phys = render_pair(**phys_src, p);
+  for (std::size_t k = 0; k < steps.size(); ++k) {
+    const Pair& p = steps[k].pair;
+    const std::size_t i = steps[k].index;
+    const StereoFrame raw = render_pair(**free_src);
+    const StereoFrame phys = steps[k].compared ? render_pair(**phys_src) : StereoFrame{};
     const Pose T_ecef_tanker = flight->tanker(p.left->t_true_s).T_ecef_body();
     for (std::size_t l = 0; l < std::size(looks); ++l) {
       SceneState scene{p.left->boom, p.left->T_body_receiver, true,
@@ -367,7 +405,7 @@ int main(int argc, char** argv) {
         scene.light.source = LightSource::kConfigured;
       }
       for (const std::string& note : stages[l]->before_augment(raw, scene, *augmenters[l]))
-        if (i == 0) std::printf("  %s\n", note.c_str());
+        if (k == 0) std::printf("  %s\n", note.c_str());
       if (auto s = augmenters[l]->augment(raw, scene, results[l]); !s) {
         std::fprintf(stderr, "bench_look: %s\n", s.error().message.c_str());
         return 1;
@@ -377,12 +415,14 @@ int main(int argc, char** argv) {
       probe_ms[l] =
           std::max(probe_ms[l],
                    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - p0).count());
-      // The first pair only warms the look up (its first noise estimate and light measurement).
-      if (i == 0) continue;
+      // The first compared pair only warms the look up (its first noise estimate and light measurement).
+      if (!steps[k].compared || i == 0) continue;
       const bool train = i % 2 == 0;
       measure_view(results[l].left.augmented, phys.left.image, results[l].left.mask, train, totals[l]);
       measure_view(results[l].right.augmented, phys.right.image, results[l].right.mask, train, totals[l]);
     }
+    std::fprintf(stderr, "\r  pair %zu/%zu", k + 1, steps.size());
+    if (!steps[k].compared) continue;
     // The crops: the frame where the boom's box is largest in the middle of the flight.
     if (!args.out.empty() && i == pairs.size() / 2) {
       const PixelBox& b = results[1].left.boom_box;
@@ -402,7 +442,6 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "\npair %zu: left boom diff camera %+.2f, sim light %+.2f DN; %s\n", i,
                    d1 ? d1->mean_dn : NAN, d2 ? d2->mean_dn : NAN, st.substr(0, st.find("; noise")).c_str());
     }
-    std::fprintf(stderr, "\r  frame %zu/%zu", i + 1, pairs.size());
   }
   std::fprintf(stderr, "\n");
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
