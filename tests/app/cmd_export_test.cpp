@@ -23,7 +23,6 @@
 #include "core/npy.hpp"
 #include "nav/logs.hpp"
 #include "pipeline/flight_nav.hpp"
-#include "sim/scenario.hpp"
 #include "recorder/mcap_reader.hpp"
 #include "recorder/plot.hpp"
 #include "recorder/reader.hpp"
@@ -32,6 +31,8 @@
 #include "recorder/store.hpp"
 #include "render/augmenter.hpp"
 #include "render/gl_context.hpp"
+#include "sim/scenario.hpp"
+#include "tests/support/recording_fixture.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig {
@@ -41,85 +42,16 @@ namespace fs = std::filesystem;
 using test::augrig_binary;
 using test::output_dir;
 using test::run_command;
-
-constexpr int kFrames = 8;
-constexpr TimestampNs kT0 = 2'000'000'000;
-constexpr TimestampNs kPeriod = 33'000'000;
+using test::small_rig;
+using test::truncated_copy;
 
 int augrig(const std::string& args, std::string* output = nullptr) {
   return test::run_augrig(args, output);
 }
 
-Rig small_rig() {
-  Rig rig = Rig::paper_default();
-  for (RigCamera& c : rig.cameras) c.model = CameraModel::pinhole_from_hfov(128, 96, deg_to_rad(56.0));
-  return *parse_rig(rig_to_yaml(rig), "<string>");
-}
-
-Image raw_image(int i, int c) {
-  Image im(128, 96, PixelFormat::kMono8);
-  std::mt19937 rng(static_cast<unsigned>(10 * i + c));
-  for (int y = 0; y < im.height(); ++y)
-    for (int x = 0; x < im.width(); ++x) im.row(y)[x] = static_cast<std::uint8_t>(x + y + rng() % 16);
-  return im;
-}
-
-// A recording of kFrames stereo frames augmented here, with everything the recorder stores.
-std::string write_recording(const std::string& dir, int frames = kFrames) {
-  const Rig rig = small_rig();
-  auto ctx = create_gl_context(GlBackend::kEglHeadless);
-  EXPECT_TRUE(ctx) << ctx.error().message;
-  Eigen::Vector3d receptacle;
-  AugmentOptions options;
-  options.receiver_model = std::make_shared<const Model>(make_builtin_receiver(&receptacle));
-  auto augmenter = Augmenter::create(rig, options);
-  EXPECT_TRUE(augmenter) << augmenter.error().message;
-  recorder::RecordingInfo info;
-  info.rig_yaml = rig_to_yaml(rig);
-  auto rec = recorder::Recorder::create(dir, info);
-  EXPECT_TRUE(rec) << rec.error().message;
-  StereoResult result;
-  for (int i = 0; i < frames; ++i) {
-    recorder::FrameRecord r;
-    r.raw.pair_sequence = static_cast<std::uint64_t>(i);
-    r.raw.t_key_ns = kT0 + i * kPeriod;
-    for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
-      Frame& f = r.raw[id];
-      f.camera = id;
-      f.t_ns = r.raw.t_key_ns;
-      f.clock = ClockDomain::kSim;
-      f.sequence = static_cast<std::uint64_t>(i);
-      f.image = raw_image(i, index_of(id));
-    }
-    const BoomArticulation a{deg_to_rad(26.0 + i % 8), deg_to_rad(i % 8 - 4.0), 1.0 + 0.3 * (i % 8)};
-    const SceneState scene =
-        scene_at_contact(rig, BoomDimensions{}, receptacle, a, Eigen::Vector3d(0, 0, 0.5));
-    EXPECT_TRUE((*augmenter)->augment(r.raw, scene, result));
-    result.stats.t_ns = r.raw.t_key_ns;
-    for (int c = 0; c < 2; ++c) {
-      const ViewResult& v = c == 0 ? result.left : result.right;
-      r.augmented[c] = v.augmented;
-      r.mask[c] = v.mask;
-      r.T_cam_receiver[c] =
-          rig.cameras[static_cast<std::size_t>(c)].T_body_cam.inverse() * scene.T_body_receiver;
-    }
-    r.T_body_receiver = scene.T_body_receiver;
-    r.receiver_present = scene.receiver_present;
-    r.boom = scene.boom;
-    r.stats = result.stats;
-    EXPECT_TRUE((*rec)->push(std::move(r)));
-  }
-  EXPECT_TRUE((*rec)->close());
-  return dir;
-}
-
 // One recording per test process (CTest runs each test in its own process, in parallel).
 const std::string& recording() {
-  static const std::string dir =
-      write_recording(output_dir(std::string("cmd_export_") +
-                                 testing::UnitTest::GetInstance()->current_test_info()->name()) +
-                      "/rec");
-  return dir;
+  return test::recording_of_this_test("cmd_export_");
 }
 
 std::size_t lines_of(const std::string& path) {
@@ -130,25 +62,8 @@ std::size_t lines_of(const std::string& path) {
   return n;
 }
 
-// The first `bytes` of a recording's database, as `head -c` leaves a file copied half-way.
-std::string truncated_copy(const std::string& from, const std::string& name, std::uintmax_t bytes) {
-  const std::string dir = output_dir(name);
-  std::ifstream in(from + "/recording.sqlite", std::ios::binary);
-  std::string data(bytes, '\0');
-  in.read(data.data(), static_cast<std::streamsize>(bytes));
-  data.resize(static_cast<std::size_t>(in.gcount()));
-  std::ofstream(dir + "/recording.sqlite", std::ios::binary) << data;
-  return dir;
-}
-
 const std::string& long_recording() {
-  // Per test, as recording(): CTest runs the tests of this file in parallel processes.
-  static const std::string dir =
-      write_recording(output_dir(std::string("cmd_export_long_") +
-                                 testing::UnitTest::GetInstance()->current_test_info()->name()) +
-                          "/rec",
-                      60);
-  return dir;
+  return test::recording_of_this_test("cmd_export_long_", 60);
 }
 
 // A recording cut in half: export said "Exported 99 of 99" and exited 0 while the summary said
@@ -202,7 +117,8 @@ TEST(CmdExport, WritesTheEurocLayout) {
   // Without --format: EuRoC into a folder (here one that holds an export already), MCAP into a .mcap.
   EXPECT_EQ(augrig("export " + recording() + " " + out, &log), 1) << log;
   EXPECT_NE(log.find("augrig export: " + out + "/mav0: exists already"), std::string::npos) << log;
-  ASSERT_EQ(augrig("export " + recording() + " " + out + "_default.mcap --no-augmented --no-masks", &log), 0) << log;
+  ASSERT_EQ(augrig("export " + recording() + " " + out + "_default.mcap --no-augmented --no-masks", &log), 0)
+      << log;
   {
     std::ifstream m(out + "_default.mcap", std::ios::binary);
     char magic[5] = {};
@@ -211,9 +127,7 @@ TEST(CmdExport, WritesTheEurocLayout) {
   }
   EXPECT_EQ(augrig("export " + recording() + " --format euroc", &log), 2) << log;
   EXPECT_NE(log.find("expected DIR OUT, got '" + recording() + "'"), std::string::npos) << log;
-  EXPECT_EQ(
-      augrig("export " + output_dir("cmd_export_missing") + "/x --format=euroc " + out + "2", &log),
-      1)
+  EXPECT_EQ(augrig("export " + output_dir("cmd_export_missing") + "/x --format=euroc " + out + "2", &log), 1)
       << log;
   EXPECT_NE(log.find("/x: no such file"), std::string::npos) << log;
 }
@@ -241,14 +155,15 @@ TEST(CmdExport, AKilledExportIsMarkedIncomplete) {
       // Killed after the export had finished (the marker is removed last): then all of it is there.
       for (const char* csv : {"/mav0/cam0/data.csv", "/mav0/cam1_mask/data.csv"}) {
         std::ifstream a(done + csv), b(out + csv);
-        const std::string want((std::istreambuf_iterator<char>(a)), {}), got((std::istreambuf_iterator<char>(b)), {});
-        EXPECT_EQ(got, want) << "killed after " << after << " s without INCOMPLETE, yet " << csv << " differs";
+        const std::string want((std::istreambuf_iterator<char>(a)), {}),
+            got((std::istreambuf_iterator<char>(b)), {});
+        EXPECT_EQ(got, want) << "killed after " << after << " s without INCOMPLETE, yet " << csv
+                             << " differs";
       }
     }
   }
   EXPECT_GT(killed, 0) << "no export was killed part-way: the test did not test";
 }
-
 
 // A recording made with live nav (IMU as binary datagrams, rows with t_ns 0 and clock unknown)
 // exports: imu0 from the datagrams, per aircraft the logs augrig nav fuses, the frame index on GPS
@@ -267,9 +182,10 @@ TEST(CmdExport, ALiveNavRecordingIsReFusedOffline) {
       << log;
   // The aircraft settings the run used (--nav sim: the scenario's sensors), as files.
   const sim::Scenario scenario = *sim::builtin_scenario("demo");
-  for (const auto& [who, sensors] : {std::pair{"tanker", &scenario.sensors.tanker},
-                                     std::pair{"receiver", &scenario.sensors.receiver}})
-    std::ofstream(dir + "/" + who + ".yaml") << pipeline::aircraft_config_to_yaml(pipeline::ins_config_for(*sensors));
+  for (const auto& [who, sensors] :
+       {std::pair{"tanker", &scenario.sensors.tanker}, std::pair{"receiver", &scenario.sensors.receiver}})
+    std::ofstream(dir + "/" + who + ".yaml")
+        << pipeline::aircraft_config_to_yaml(pipeline::ins_config_for(*sensors));
   const std::string out = dir + "/euroc";
   ASSERT_EQ(augrig("export " + dir + "/rec --format euroc " + out + " --no-plot --aircraft tanker=" + dir +
                        "/tanker.yaml,receiver=" + dir + "/receiver.yaml",
@@ -364,33 +280,43 @@ bool same_png(const std::string& a, const std::string& b) {
 TEST(CmdExport, GroundTruthAgreesWithTheReplaysFilesAndTheMasks) {
   const std::string dir = output_dir("cmd_export_ground_truth");
   std::string log;
-  ASSERT_EQ(augrig("run --source 'sim://demo?every=60&rate=0' --frames 3 --headless --status-every 0 --record " + dir +
-                       "/plain 2>&1",
-                   &log),
-            0)
+  ASSERT_EQ(
+      augrig("run --source 'sim://demo?every=60&rate=0' --frames 3 --headless --status-every 0 --record " +
+                 dir + "/plain 2>&1",
+             &log),
+      0)
       << log;
   // No depth recorded: a clear error, non-zero exit, nothing written.
-  EXPECT_EQ(augrig("export " + dir + "/plain --format euroc " + dir + "/refused --ground-truth --no-plot 2>&1", &log), 1)
+  EXPECT_EQ(
+      augrig("export " + dir + "/plain --format euroc " + dir + "/refused --ground-truth --no-plot 2>&1",
+             &log),
+      1)
       << log;
-  EXPECT_NE(log.find("augrig export: " + dir + "/plain/recording.sqlite: frame 0 (pair_sequence "), std::string::npos)
+  EXPECT_NE(log.find("augrig export: " + dir + "/plain/recording.sqlite: frame 0 (pair_sequence "),
+            std::string::npos)
       << log;
   EXPECT_NE(log.find("holds no receiver depth (3 of 3 frames hold none)"), std::string::npos) << log;
-  EXPECT_NE(log.find("augrig replay " + dir + "/plain --record NEW --ground-truth"), std::string::npos) << log;
+  EXPECT_NE(log.find("augrig replay " + dir + "/plain --record NEW --ground-truth"), std::string::npos)
+      << log;
   EXPECT_FALSE(fs::exists(dir + "/refused/mav0"));
   // Without --ground-truth the same recording exports as ever.
-  ASSERT_EQ(augrig("export " + dir + "/plain --format euroc " + dir + "/plain_export --no-plot 2>&1", &log), 0) << log;
+  ASSERT_EQ(augrig("export " + dir + "/plain --format euroc " + dir + "/plain_export --no-plot 2>&1", &log),
+            0)
+      << log;
   EXPECT_FALSE(fs::exists(dir + "/plain_export/mav0/cam0_depth"));
 
-  ASSERT_EQ(augrig("replay " + dir + "/plain --headless --out " + dir + "/files --every 1 --ground-truth --record " +
-                       dir + "/gt 2>&1",
+  ASSERT_EQ(augrig("replay " + dir + "/plain --headless --out " + dir +
+                       "/files --every 1 --ground-truth --record " + dir + "/gt 2>&1",
                    &log),
             0)
       << log;
   ASSERT_EQ(augrig("check " + dir + "/gt", &log), 0) << log;
   EXPECT_NE(log.find("receiver depth: 3 frames\n"), std::string::npos) << log;
   const std::string out = dir + "/export";
-  ASSERT_EQ(augrig("export " + dir + "/gt --format euroc " + out + " --ground-truth --no-plot --threads 2 2>&1", &log),
-            0)
+  ASSERT_EQ(
+      augrig("export " + dir + "/gt --format euroc " + out + " --ground-truth --no-plot --threads 2 2>&1",
+             &log),
+      0)
       << log;
   EXPECT_NE(log.find("cam0_stereo_class (3 frames)"), std::string::npos) << log;
   const std::string mav0 = out + "/mav0/";
@@ -420,7 +346,8 @@ TEST(CmdExport, GroundTruthAgreesWithTheReplaysFilesAndTheMasks) {
     auto z0_files = read_npy_f32(f + "left/depth/" + stem + ".npy");
     auto z1_files = read_npy_f32(f + "right/depth/" + stem + ".npy");
     auto uv_files = read_npy_f32(f + "left/right_px/" + stem + ".npy");
-    for (const auto* a : {&z0, &z1, &uvx, &z0_files, &z1_files, &uv_files}) ASSERT_TRUE(*a) << a->error().message;
+    for (const auto* a : {&z0, &z1, &uvx, &z0_files, &z1_files, &uv_files})
+      ASSERT_TRUE(*a) << a->error().message;
     EXPECT_EQ(z0->shape, (std::vector<std::int64_t>{960, 1280}));
     EXPECT_EQ(uvx->shape, (std::vector<std::int64_t>{960, 1280, 2}));
     EXPECT_TRUE(same_bits(z0->values, z0_files->values));
@@ -428,7 +355,8 @@ TEST(CmdExport, GroundTruthAgreesWithTheReplaysFilesAndTheMasks) {
     EXPECT_TRUE(same_bits(uvx->values, uv_files->values));
     EXPECT_TRUE(same_png(mav0 + "cam0_depth_mm/data/" + mm0[k], f + "left/depth_mm/" + stem + ".png"));
     EXPECT_TRUE(same_png(mav0 + "cam1_depth_mm/data/" + mm1[k], f + "right/depth_mm/" + stem + ".png"));
-    EXPECT_TRUE(same_png(mav0 + "cam0_stereo_class/data/" + cls[k], f + "left/stereo_class/" + stem + ".png"));
+    EXPECT_TRUE(
+        same_png(mav0 + "cam0_stereo_class/data/" + cls[k], f + "left/stereo_class/" + stem + ".png"));
     // Finite depth exactly where the exported mask has the receiver bit.
     const cv::Mat mask = cv::imread(mav0 + "cam0_mask/data/" + masks[k], cv::IMREAD_UNCHANGED);
     ASSERT_EQ(mask.total(), z0->values.size());
@@ -488,10 +416,11 @@ std::string counts_of(OcclusionStats s) {
 TEST(CmdExport, ARunsShadowColumnsComeBackFromItsRecording) {
   const std::string dir = output_dir("cmd_export_shadow");
   std::string log;
-  ASSERT_EQ(augrig("run --source 'sim://demo?every=200&rate=0' --frames 5 --headless --status-every 0 --record " + dir +
-                       "/rec --out " + dir + "/run 2>&1",
-                   &log),
-            0)
+  ASSERT_EQ(
+      augrig("run --source 'sim://demo?every=200&rate=0' --frames 5 --headless --status-every 0 --record " +
+                 dir + "/rec --out " + dir + "/run 2>&1",
+             &log),
+      0)
       << log;
   const std::vector<OcclusionStats> run = stats_rows(dir + "/run/stats.csv");
   ASSERT_EQ(run.size(), 5u);  // frames 0, 200, ..., 800: the shadow falls on the receiver near contact
@@ -505,16 +434,19 @@ TEST(CmdExport, ARunsShadowColumnsComeBackFromItsRecording) {
   ASSERT_EQ(augrig("export " + dir + "/rec --format euroc " + dir + "/euroc --no-plot 2>&1", &log), 0) << log;
   const std::vector<OcclusionStats> exported = stats_rows(dir + "/euroc/stats.csv");
   ASSERT_EQ(exported.size(), run.size());
-  for (std::size_t i = 0; i < run.size(); ++i) EXPECT_EQ(counts_of(exported[i]), counts_of(run[i])) << "row " << i;
+  for (std::size_t i = 0; i < run.size(); ++i)
+    EXPECT_EQ(counts_of(exported[i]), counts_of(run[i])) << "row " << i;
 
   ASSERT_EQ(augrig("export " + dir + "/rec --format mcap " + dir + "/rec.mcap 2>&1", &log), 0) << log;
   const std::vector<OcclusionStats> messages = mcap_stats(dir + "/rec.mcap");
   ASSERT_EQ(messages.size(), run.size());
-  for (std::size_t i = 0; i < run.size(); ++i) EXPECT_EQ(counts_of(messages[i]), counts_of(run[i])) << "message " << i;
+  for (std::size_t i = 0; i < run.size(); ++i)
+    EXPECT_EQ(counts_of(messages[i]), counts_of(run[i])) << "message " << i;
 
   // As schema 2 wrote it: no shadow columns.
   const std::string old = output_dir("cmd_export_shadow_schema2");
-  fs::copy_file(dir + "/rec/recording.sqlite", old + "/recording.sqlite", fs::copy_options::overwrite_existing);
+  fs::copy_file(dir + "/rec/recording.sqlite", old + "/recording.sqlite",
+                fs::copy_options::overwrite_existing);
   {
     auto d = recorder::Database::open(old + "/recording.sqlite", SQLITE_OPEN_READWRITE);
     ASSERT_TRUE(d);

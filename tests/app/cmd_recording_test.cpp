@@ -16,6 +16,7 @@
 #include "recorder/store.hpp"
 #include "render/augmenter.hpp"
 #include "render/gl_context.hpp"
+#include "tests/support/recording_fixture.hpp"
 #include "tests/support/test_support.hpp"
 #include "tests/support/window_shot.hpp"
 
@@ -26,85 +27,16 @@ namespace fs = std::filesystem;
 using test::augrig_binary;
 using test::output_dir;
 using test::run_command;
-
-constexpr int kFrames = 8;
-constexpr TimestampNs kT0 = 2'000'000'000;
-constexpr TimestampNs kPeriod = 33'000'000;
+using test::small_rig;
+using test::truncated_copy;
 
 int augrig(const std::string& args, std::string* output = nullptr) {
   return test::run_augrig(args, output);
 }
 
-Rig small_rig() {
-  Rig rig = Rig::paper_default();
-  for (RigCamera& c : rig.cameras) c.model = CameraModel::pinhole_from_hfov(128, 96, deg_to_rad(56.0));
-  return *parse_rig(rig_to_yaml(rig), "<string>");
-}
-
-Image raw_image(int i, int c) {
-  Image im(128, 96, PixelFormat::kMono8);
-  std::mt19937 rng(static_cast<unsigned>(10 * i + c));
-  for (int y = 0; y < im.height(); ++y)
-    for (int x = 0; x < im.width(); ++x) im.row(y)[x] = static_cast<std::uint8_t>(x + y + rng() % 16);
-  return im;
-}
-
-// A recording of kFrames stereo frames augmented here, with everything the recorder stores.
-std::string write_recording(const std::string& dir, int frames = kFrames) {
-  const Rig rig = small_rig();
-  auto ctx = create_gl_context(GlBackend::kEglHeadless);
-  EXPECT_TRUE(ctx) << ctx.error().message;
-  Eigen::Vector3d receptacle;
-  AugmentOptions options;
-  options.receiver_model = std::make_shared<const Model>(make_builtin_receiver(&receptacle));
-  auto augmenter = Augmenter::create(rig, options);
-  EXPECT_TRUE(augmenter) << augmenter.error().message;
-  recorder::RecordingInfo info;
-  info.rig_yaml = rig_to_yaml(rig);
-  auto rec = recorder::Recorder::create(dir, info);
-  EXPECT_TRUE(rec) << rec.error().message;
-  StereoResult result;
-  for (int i = 0; i < frames; ++i) {
-    recorder::FrameRecord r;
-    r.raw.pair_sequence = static_cast<std::uint64_t>(i);
-    r.raw.t_key_ns = kT0 + i * kPeriod;
-    for (CameraId id : {CameraId::kLeft, CameraId::kRight}) {
-      Frame& f = r.raw[id];
-      f.camera = id;
-      f.t_ns = r.raw.t_key_ns;
-      f.clock = ClockDomain::kSim;
-      f.sequence = static_cast<std::uint64_t>(i);
-      f.image = raw_image(i, index_of(id));
-    }
-    const BoomArticulation a{deg_to_rad(26.0 + i % 8), deg_to_rad(i % 8 - 4.0), 1.0 + 0.3 * (i % 8)};
-    const SceneState scene =
-        scene_at_contact(rig, BoomDimensions{}, receptacle, a, Eigen::Vector3d(0, 0, 0.5));
-    EXPECT_TRUE((*augmenter)->augment(r.raw, scene, result));
-    result.stats.t_ns = r.raw.t_key_ns;
-    for (int c = 0; c < 2; ++c) {
-      const ViewResult& v = c == 0 ? result.left : result.right;
-      r.augmented[c] = v.augmented;
-      r.mask[c] = v.mask;
-      r.T_cam_receiver[c] =
-          rig.cameras[static_cast<std::size_t>(c)].T_body_cam.inverse() * scene.T_body_receiver;
-    }
-    r.T_body_receiver = scene.T_body_receiver;
-    r.receiver_present = scene.receiver_present;
-    r.boom = scene.boom;
-    r.stats = result.stats;
-    EXPECT_TRUE((*rec)->push(std::move(r)));
-  }
-  EXPECT_TRUE((*rec)->close());
-  return dir;
-}
-
 // One recording per test process (CTest runs each test in its own process, in parallel).
 const std::string& recording() {
-  static const std::string dir =
-      write_recording(output_dir(std::string("cmd_recording_") +
-                                 testing::UnitTest::GetInstance()->current_test_info()->name()) +
-                      "/rec");
-  return dir;
+  return test::recording_of_this_test("cmd_recording_");
 }
 
 // A copy of the recording with frame 3's left raw blob damaged.
@@ -474,25 +406,8 @@ TEST(CmdRecording, AScriptedBoomKeepsTheRecordingsClockFromAnyStart) {
   EXPECT_EQ(replay_parts(dir + "/euroc", euroc_args, dir + "/euroc_parts", {{0, 5}, {5, 3}}), euroc_whole);
 }
 
-// The first `bytes` of a recording's database, as `head -c` leaves a file copied half-way.
-std::string truncated_copy(const std::string& from, const std::string& name, std::uintmax_t bytes) {
-  const std::string dir = output_dir(name);
-  std::ifstream in(from + "/recording.sqlite", std::ios::binary);
-  std::string data(bytes, '\0');
-  in.read(data.data(), static_cast<std::streamsize>(bytes));
-  data.resize(static_cast<std::size_t>(in.gcount()));
-  std::ofstream(dir + "/recording.sqlite", std::ios::binary) << data;
-  return dir;
-}
-
 const std::string& long_recording() {
-  // Per test, as recording(): CTest runs the tests of this file in parallel processes.
-  static const std::string dir =
-      write_recording(output_dir(std::string("cmd_recording_long_") +
-                                 testing::UnitTest::GetInstance()->current_test_info()->name()) +
-                          "/rec",
-                      60);
-  return dir;
+  return test::recording_of_this_test("cmd_recording_long_", 60);
 }
 
 // A recording cut in half: replay said "Replayed 99" and exited 0 while the summary said 201. It
@@ -530,9 +445,9 @@ TEST(CmdRecording, SchemaOneRecordingChecksReplaysAndExportsAndGainsDepthByRepla
   {
     auto d = recorder::Database::open(dir + "/recording.sqlite", SQLITE_OPEN_READWRITE);
     ASSERT_TRUE(d);
-    ASSERT_TRUE(
-        d->exec("DROP TABLE depth; DROP TABLE look; UPDATE meta SET value = '1' WHERE key = 'schema_version'; "
-                "DELETE FROM meta WHERE key = 'codec.depth'"));
+    ASSERT_TRUE(d->exec(
+        "DROP TABLE depth; DROP TABLE look; UPDATE meta SET value = '1' WHERE key = 'schema_version'; "
+        "DELETE FROM meta WHERE key = 'codec.depth'"));
     for (const std::string& c : recorder::frame_columns_added_after(1))
       ASSERT_TRUE(d->exec("ALTER TABLE frames DROP COLUMN " + c)) << c;
   }
