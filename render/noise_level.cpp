@@ -17,6 +17,8 @@ constexpr double kTailZt = 2.326;                // one-sided 99 % normal quanti
 constexpr double kSeedQuantile = 0.02;           // seed a bin at its 2 % least textured blocks
 constexpr double kSeedZ = -2.054;                // normal quantile of kSeedQuantile
 constexpr int kMaxIterations = 12;
+constexpr double kDropZ = 3;        // a bin this many standard errors above the line is textured
+constexpr double kFitFloor = 0.01;  // relative model error added to a bin's sampling error
 
 using BlockStat = NoiseLevelEstimator::BlockStat;
 
@@ -42,35 +44,74 @@ struct BlockModel {
   double median_v, median_t;  // median / mean
   double tail_v, tail_t;      // 99.9 % quantile / mean
   double seed_t;              // kSeedQuantile quantile / mean of t
+  double se_v;                // standard error of a median of v / mean, times sqrt(blocks)
 };
 
-// t is chi^2_{B^2-3} / (B^2-3) exactly. v = x'Mx / tr M (M = A'A, A the mask at the interior
-// positions) is a sum of chi^2_1 with unequal weights: a Satterthwaite chi^2 (11.4 dof at B = 8)
-// puts its median 1.4 % high, so match its first three cumulants with a shifted, scaled chi^2
-// instead (Pearson 1959): median within 0.5 %, 99.9 % quantile within 0.1 %. M is the Kronecker
-// square of the 1D G = A1'A1, so the cumulants 2^(r-1) (r-1)! tr(M^r) need tr(G^r)^2 only.
-BlockModel block_model(int B) {
-  const int m = B - 2;
+// The 1D [1 -2 1] mask at a block row's interior positions: G = A1'A1 (B x B) and g = A1'c1, the
+// mask's response to an alternating row (c1 = +-1 at the m = B - 2 positions).
+struct RowMask {
+  std::vector<double> G, g;
+};
+RowMask row_mask(int B) {
   const std::size_t n = static_cast<std::size_t>(B);
-  std::vector<double> g(n * n, 0.0);
+  RowMask r{std::vector<double>(n * n, 0.0), std::vector<double>(n, 0.0)};
   constexpr double kTap[3] = {1, -2, 1};
-  for (int r = 0; r < m; ++r)
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) g[static_cast<std::size_t>((r + i) * B + r + j)] += kTap[i] * kTap[j];
-  double tr1 = 0, tr2 = 0, tr3 = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    tr1 += g[i * n + i];
-    for (std::size_t j = 0; j < n; ++j) {
-      tr2 += g[i * n + j] * g[j * n + i];
-      for (std::size_t k = 0; k < n; ++k) tr3 += g[i * n + j] * g[j * n + k] * g[k * n + i];
+  for (int c = 0; c < B - 2; ++c)
+    for (int i = 0; i < 3; ++i) {
+      r.g[static_cast<std::size_t>(c + i)] += (c % 2 ? -1 : 1) * kTap[i];
+      for (int j = 0; j < 3; ++j) r.G[static_cast<std::size_t>((c + i) * B + c + j)] += kTap[i] * kTap[j];
     }
+  return r;
+}
+
+// tr Q of the quincunx's v = x'Qx / tr Q, Q = M - hh'/m^2 (h = g (x) g: the checkerboard's
+// direction taken out of the residuals).
+double checker_trace(int B) {
+  const RowMask r = row_mask(B);
+  double g2 = 0;
+  for (double x : r.g) g2 += x * x;
+  const double m = B - 2.0;
+  return 36 * m * m - g2 * g2 / (m * m);
+}
+
+// t is chi^2_{B^2-3} / (B^2-3) exactly (B^2-4 with the checkerboard out). v = x'Qx / tr Q (Q = M = A'A, A the
+// mask at the interior positions; the quincunx's Q = M - hh'/m^2) is a sum of chi^2_1 with unequal weights: a
+// Satterthwaite chi^2 (11.4 dof at B = 8) puts its median 1.4 % high, so match its first three cumulants
+// 2^(r-1) (r-1)! tr(Q^r) with a shifted, scaled chi^2 instead (Pearson 1959): median within 0.5 %, 99.9 %
+// quantile within 0.1 %. M = G (x) G, so tr(M^r) = tr(G^r)^2, and the rank-one term needs g'G^k g only.
+BlockModel block_model(int B, bool checker) {
+  const RowMask rm = row_mask(B);
+  const std::vector<double>& G = rm.G;
+  const std::size_t n = static_cast<std::size_t>(B);
+  std::vector<double> G2(n * n, 0.0), Gg(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j) {
+      Gg[i] += G[i * n + j] * rm.g[j];
+      for (std::size_t k = 0; k < n; ++k) G2[i * n + j] += G[i * n + k] * G[k * n + j];
+    }
+  double tr1 = 0, tr2 = 0, tr3 = 0, a0 = 0, a1 = 0, a2 = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    tr1 += G[i * n + i];
+    for (std::size_t j = 0; j < n; ++j) tr2 += G2[i * n + j] * (i == j), tr3 += G2[i * n + j] * G[j * n + i];
+    a0 += rm.g[i] * rm.g[i], a1 += rm.g[i] * Gg[i], a2 += Gg[i] * Gg[i];
   }
-  const double k1 = tr1 * tr1, k2 = 2 * tr2 * tr2, k3 = 8 * tr3 * tr3;
+  double t1 = tr1 * tr1, t2 = tr2 * tr2, t3 = tr3 * tr3;  // tr(Q^r)
+  if (checker) {
+    const double e = 1.0 / ((B - 2.0) * (B - 2.0)), h2 = a0 * a0, hk = a1 * a1, hk2 = a2 * a2;
+    t1 -= e * h2;
+    t2 += -2 * e * hk + e * e * h2 * h2;
+    t3 += -3 * e * hk2 + 3 * e * e * hk * h2 - e * e * e * h2 * h2 * h2;
+  }
+  const double k1 = t1, k2 = 2 * t2, k3 = 8 * t3;
   const double skew = k3 / std::pow(k2, 1.5), h = 8 / (skew * skew);  // chi^2_h has skewness sqrt(8/h)
   auto v_ratio = [&](double z) { return 1 + std::sqrt(k2 / (2 * h)) * h * (chi2_ratio(h, z) - 1) / k1; };
-  const double dof_t = B * B - 3.0;  // residual of a 3-parameter plane
-  return {v_ratio(0), chi2_ratio(dof_t, 0), v_ratio(kTailZ), chi2_ratio(dof_t, kTailZt),
-          chi2_ratio(dof_t, kSeedZ)};
+  const double dof_t = B * B - (checker ? 4.0 : 3.0);  // residual of a plane (and the checkerboard)
+  return {v_ratio(0),
+          chi2_ratio(dof_t, 0),
+          v_ratio(kTailZ),
+          chi2_ratio(dof_t, kTailZt),
+          chi2_ratio(dof_t, kSeedZ),
+          1.2533 * std::sqrt(k2) / k1};
 }
 
 Status check_options(const NoiseEstimateOptions& o, const char* fn) {
@@ -213,20 +254,50 @@ struct ChannelFit {
 
 // The NLF line through a channel's usable bins: iteratively reweighted (weights blocks /
 // sigma^4 from the fitted variance, so chance-low bins get no extra weight).
-std::pair<double, double> fit_bins(const std::vector<BinFit>& fits, double q) {
-  std::vector<double> x, y, w, var;
-  for (const BinFit& f : fits) {
-    if (!f.usable) continue;
-    x.push_back(f.level), y.push_back(f.var_v - q), var.push_back(std::max(f.var_v, 1e-6));
-    w.push_back(f.kept_samples / (var.back() * var.back()));
-  }
+std::pair<double, double> fit_line(const std::vector<double>& x, const std::vector<double>& y,
+                                   const std::vector<double>& n, double q) {
+  std::vector<double> w(x.size()), var(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i)
+    var[i] = std::max(y[i] + q, 1e-6), w[i] = n[i] / (var[i] * var[i]);
   std::pair<double, double> ab{0, 0};
   for (int it = 0; it < 3; ++it) {
     ab = fit_nonnegative_line(x, y, w);
     for (std::size_t i = 0; i < x.size(); ++i) {
       const double v = std::max(ab.first * x[i] + ab.second + q, 1e-6);
-      w[i] = w[i] * var[i] * var[i] / (v * v), var[i] = v;
+      w[i] = n[i] / (v * v);
     }
+  }
+  return ab;
+}
+
+// Texture that passes for noise only ever raises a bin's variance: bins significantly above the
+// line (their sampling error, `se_v` / sqrt(blocks) relative, and kFitFloor) are dropped one at a
+// time, the worst first, and the line refitted, while min_bins remain. Returns a, b; `drop` marks
+// the dropped bins (indices into fits).
+std::pair<double, double> fit_bins(const std::vector<BinFit>& fits, double q, double se_v, int min_bins,
+                                   std::vector<char>* drop = nullptr) {
+  std::vector<double> x, y, n;
+  std::vector<std::size_t> idx;
+  for (std::size_t j = 0; j < fits.size(); ++j) {
+    const BinFit& f = fits[j];
+    if (!f.usable) continue;
+    x.push_back(f.level), y.push_back(f.var_v - q), n.push_back(f.kept_samples), idx.push_back(j);
+  }
+  if (drop) drop->assign(fits.size(), 0);
+  std::pair<double, double> ab = fit_line(x, y, n, q);
+  while (x.size() > static_cast<std::size_t>(std::max(min_bins, 2))) {
+    std::size_t worst = 0;
+    double worst_z = 0;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      const double v = std::max(ab.first * x[i] + ab.second + q, 1e-6);
+      const double z = (y[i] + q - v) / (v * std::sqrt(se_v * se_v / n[i] + kFitFloor * kFitFloor));
+      if (z > worst_z) worst_z = z, worst = i;
+    }
+    if (worst_z <= kDropZ) break;
+    if (drop) (*drop)[idx[worst]] = 1;
+    for (auto* vec : {&x, &y, &n}) vec->erase(vec->begin() + static_cast<std::ptrdiff_t>(worst));
+    idx.erase(idx.begin() + static_cast<std::ptrdiff_t>(worst));
+    ab = fit_line(x, y, n, q);
   }
   return ab;
 }
@@ -256,10 +327,18 @@ ChannelFit fit_channel(const std::vector<BinData>& bins, const BlockModel& bm, c
   ChannelFit c;
   if (!used.empty() && !too_few_levels()) {
     // Second pass: each block judged against the first line at its own level.
-    const auto [a, b] = fit_bins(fits, q);
+    const auto [a, b] = fit_bins(fits, q, bm.se_v, o.min_bins);
     const Line line{a, b + q};
     for (std::size_t j = 0; j < bins.size(); ++j)
       if (fits[j].usable) fits[j] = fit_bin(bins[j], bm, o, fits[j], &line);
+    used = usable();
+  }
+  if (!used.empty() && !too_few_levels()) {
+    // Bins the line drops as textured count as such.
+    std::vector<char> drop;
+    fit_bins(fits, q, bm.se_v, o.min_bins, &drop);
+    for (std::size_t j = 0; j < fits.size(); ++j)
+      if (drop[j]) fits[j].texture += fits[j].kept, fits[j].kept = 0, fits[j].usable = false;
     used = usable();
   }
   for (const BinFit& f : fits)
@@ -281,16 +360,21 @@ ChannelFit fit_channel(const std::vector<BinData>& bins, const BlockModel& bm, c
              " DN; needs " + std::to_string(std::max(o.min_bins, 2)) + " bins " + num(0.5 * bin_width) +
              " DN apart): a = 0, b = the measured variance";
   } else {
-    std::tie(c.a, c.b) = fit_bins(fits, q);
+    std::tie(c.a, c.b) = fit_bins(fits, q, bm.se_v, o.min_bins);
   }
   return c;
 }
 
-// Where one same-colour plane's blocks lie in an image.
+// Where one same-colour lattice's blocks lie in an image: block (bj, bi)'s pixel (j, i) is image
+// pixel (x0, y0) + (B bj + j) * dj + (B bi + i) * di. A site plane steps (0, 2) and (2, 0) (1 for
+// RGB and Mono); the Bayer green quincunx steps along the diagonals, (1, 1) and (1, -1).
 struct PlaneScan {
-  const std::uint8_t* origin = nullptr;  // the plane's pixel (0, 0)
-  std::size_t row_bytes = 0, col_bytes = 0;
-  int blocks_x = 0, blocks_y = 0;
+  const std::uint8_t* data = nullptr;  // the image's pixel (0, 0), at the channel's byte
+  std::ptrdiff_t stride = 0, bpp = 0;
+  int width = 0, height = 0;
+  int x0 = 0, y0 = 0, djx = 0, djy = 0, dix = 0, diy = 0;
+  int bj0 = 0, bj1 = 0, bi0 = 0, bi1 = 0;   // block index ranges
+  bool checker = false;                     // remove the two green sites' offset (quincunx)
   std::array<std::uint8_t, 256> clipped{};  // 1 for values at or beyond the clip levels
   const int* weight = nullptr;              // level weight per block row and column
 };
@@ -304,16 +388,26 @@ void scan_plane(const PlaneScan& p, int b_runtime, Emit&& emit) {
   int px[kB > 0 ? kB * kB : kMaxB * kMaxB];
   int d2[kB > 0 ? kB * kB : kMaxB * kMaxB];
   const double sum_x2 = B * (B * B - 1.0) / 3.0 * B;  // sum of (2x - B + 1)^2 over the block
-  const double level_norm = 1.0 / (6.0 * m * 6.0 * m), v_norm = 1.0 / (36.0 * m * m);
-  for (int by = 0; by < p.blocks_y; ++by) {
-    for (int bx = 0; bx < p.blocks_x; ++bx) {
-      const std::uint8_t* block = p.origin + static_cast<std::size_t>(by * B) * p.row_bytes +
-                                  static_cast<std::size_t>(bx * B) * p.col_bytes;
+  const double level_norm = 1.0 / (6.0 * m * 6.0 * m);
+  // The quincunx's checkerboard (the green sites' offset) is taken out of v and t.
+  const double v_norm = 1.0 / (p.checker ? checker_trace(B) : 36.0 * m * m);
+  const int t_dof = n - (p.checker ? 4 : 3);
+  const std::ptrdiff_t row_step = p.djy * p.stride + p.djx * p.bpp,
+                       col_step = p.diy * p.stride + p.dix * p.bpp;
+  auto inside = [&p](int x, int y) { return x >= 0 && y >= 0 && x < p.width && y < p.height; };
+  for (int by = p.bj0; by < p.bj1; ++by) {
+    for (int bx = p.bi0; bx < p.bi1; ++bx) {
+      const int x = p.x0 + by * B * p.djx + bx * B * p.dix, y = p.y0 + by * B * p.djy + bx * B * p.diy;
+      const int xe = (B - 1) * p.djx, ye = (B - 1) * p.djy, xi = (B - 1) * p.dix, yi = (B - 1) * p.diy;
+      if (!inside(x, y) || !inside(x + xe, y + ye) || !inside(x + xi, y + yi) ||
+          !inside(x + xe + xi, y + ye + yi))
+        continue;  // a quincunx block across the image's edge
+      const std::uint8_t* block = p.data + y * p.stride + x * p.bpp;
       unsigned clipped = 0;  // a table and OR: no min/max dependency chain
       for (int j = 0; j < B; ++j) {
-        const std::uint8_t* src = block + static_cast<std::size_t>(j) * p.row_bytes;
+        const std::uint8_t* src = block + j * row_step;
         for (int i = 0; i < B; ++i) {
-          const std::uint8_t v = src[static_cast<std::size_t>(i) * p.col_bytes];
+          const std::uint8_t v = src[i * col_step];
           px[j * B + i] = v;
           clipped |= p.clipped[v];
         }
@@ -322,8 +416,8 @@ void scan_plane(const PlaneScan& p, int b_runtime, Emit&& emit) {
         emit(nullptr);
         continue;
       }
-      // Plane-fit sums (centred, doubled coordinates) and the v-weighted level.
-      std::int64_t s = 0, s2 = 0, sx = 0, sy = 0, level = 0;
+      // Plane-fit sums (centred, doubled coordinates), the v-weighted level, the checkerboard.
+      std::int64_t s = 0, s2 = 0, sx = 0, sy = 0, level = 0, sc = 0;
       for (int j = 0; j < B; ++j) {
         const int* r = px + j * B;
         int rs = 0, rsx = 0, rs2 = 0, rw = 0;
@@ -333,25 +427,31 @@ void scan_plane(const PlaneScan& p, int b_runtime, Emit&& emit) {
         }
         s += rs, s2 += rs2, sx += rsx, sy += static_cast<std::int64_t>(2 * j - B + 1) * rs;
         level += static_cast<std::int64_t>(p.weight[j]) * rw;
+        if (p.checker)
+          for (int i = 0; i < B; ++i) sc += (i + j) % 2 ? -r[i] : r[i];
       }
       const double ds = static_cast<double>(s), dsx = static_cast<double>(sx), dsy = static_cast<double>(sy);
-      const double plane_ss = static_cast<double>(s2) - ds * ds / n - (dsx * dsx + dsy * dsy) / sum_x2;
+      const double dsc = static_cast<double>(sc);
+      const double plane_ss =
+          static_cast<double>(s2) - ds * ds / n - (dsx * dsx + dsy * dsy) / sum_x2 - dsc * dsc / n;
       // Immerkaer's mask, separably: vertical then horizontal [1 -2 1].
       for (int j = 1; j <= m; ++j)
         for (int i = 0; i < B; ++i)
           d2[(j - 1) * B + i] = px[(j - 1) * B + i] - 2 * px[j * B + i] + px[(j + 1) * B + i];
-      std::int64_t ss = 0;
+      std::int64_t ss = 0, rc = 0;
       for (int j = 0; j < m; ++j) {
-        int row_ss = 0;  // < 64 * 4080^2 fits in 31 bits
+        int row_ss = 0, row_c = 0;  // < 64 * 4080^2 fits in 31 bits
         for (int i = 1; i <= m; ++i) {
           const int r = d2[j * B + i - 1] - 2 * d2[j * B + i] + d2[j * B + i + 1];
-          row_ss += r * r;
+          row_ss += r * r, row_c += (i + j) % 2 ? -r : r;
         }
-        ss += row_ss;
+        ss += row_ss, rc += row_c;
       }
+      const double v_ss = static_cast<double>(ss) -
+                          (p.checker ? static_cast<double>(rc) * static_cast<double>(rc) / (m * m) : 0.0);
       const BlockStat stat{static_cast<float>(static_cast<double>(level) * level_norm),
-                           static_cast<float>(static_cast<double>(ss) * v_norm),
-                           static_cast<float>(std::max(plane_ss, 0.0) / (n - 3))};
+                           static_cast<float>(std::max(v_ss, 0.0) * v_norm),
+                           static_cast<float>(std::max(plane_ss, 0.0) / t_dof)};
       emit(&stat);
     }
   }
@@ -405,14 +505,22 @@ void NoiseLevelEstimator::add_block(int channel, const BlockStat& s) {
 }
 
 void NoiseLevelEstimator::add_plane(const Image& image, const Plane& p) {
-  const int B = options_.block_px;
+  const int B = options_.block_px, w = image.width(), h = image.height();
   PlaneScan scan;
-  const std::size_t bpp = static_cast<std::size_t>(bytes_per_pixel(image.format()));
-  scan.origin = image.row(p.y0) + static_cast<std::size_t>(p.x0) * bpp + static_cast<std::size_t>(p.byte);
-  scan.row_bytes = image.stride_bytes() * static_cast<std::size_t>(p.step);
-  scan.col_bytes = bpp * static_cast<std::size_t>(p.step);
-  scan.blocks_x = (image.width() - p.x0 + p.step - 1) / p.step / B;
-  scan.blocks_y = (image.height() - p.y0 + p.step - 1) / p.step / B;
+  scan.data = image.data() + p.byte;
+  scan.stride = static_cast<std::ptrdiff_t>(image.stride_bytes());
+  scan.bpp = bytes_per_pixel(image.format());
+  scan.width = w, scan.height = h, scan.x0 = p.x0, scan.y0 = p.y0;
+  if (p.step > 0) {  // a site plane or a channel
+    scan.djy = scan.dix = p.step;
+    scan.bj1 = (h - p.y0 + p.step - 1) / p.step / B;
+    scan.bi1 = (w - p.x0 + p.step - 1) / p.step / B;
+  } else {  // the green quincunx: rows along (1, 1), columns along (1, -1)
+    scan.djx = scan.djy = scan.dix = 1, scan.diy = -1;
+    scan.checker = true;
+    scan.bj1 = (w + h) / (2 * B) + 1;
+    scan.bi0 = -h / (2 * B) - 1, scan.bi1 = w / (2 * B) + 1;
+  }
   for (int v = 0; v < 256; ++v)
     scan.clipped[static_cast<std::size_t>(v)] = v <= options_.clip_low_dn || v >= options_.clip_high_dn;
   scan.weight = weight_.data();
@@ -451,8 +559,12 @@ Status NoiseLevelEstimator::add(const Image& image) {
     for (int c = std::max(1, x - 1); c <= std::min(B - 2, x + 1); ++c)
       weight_[static_cast<std::size_t>(x)] += c == x ? 4 : 1;
   if (is_bayer(f)) {
+    // R and B on their site planes; G on the quincunx of both green sites (twice as dense: fine
+    // texture that the planes' 2 px spacing would alias into their high-pass mostly leaves it).
     for (int y0 = 0; y0 < 2; ++y0)
-      for (int x0 = 0; x0 < 2; ++x0) add_plane(image, {x0, y0, 2, 0, bayer_channel(f, x0, y0)});
+      for (int x0 = 0; x0 < 2; ++x0)
+        if (bayer_channel(f, x0, y0) != 1) add_plane(image, {x0, y0, 2, 0, bayer_channel(f, x0, y0)});
+    add_plane(image, {bayer_channel(f, 0, 0) == 1 ? 0 : 1, 0, 0, 0, 1});
   } else {
     for (int c = 0; c < channels_; ++c) add_plane(image, {0, 0, 1, c, c});
   }
@@ -463,7 +575,8 @@ Status NoiseLevelEstimator::add(const Image& image) {
 Expected<NoiseFitReport> NoiseLevelEstimator::fit() const {
   if (Status s = check_options(options_, "NoiseLevelEstimator::fit()"); !s) return s.error();
   if (frames_ == 0) return make_error("NoiseLevelEstimator::fit(): no frames added");
-  const BlockModel bm = block_model(options_.block_px);
+  const BlockModel plane_model = block_model(options_.block_px, false);
+  const BlockModel quincunx_model = block_model(options_.block_px, true);
   NoiseFitReport r;
   r.nlf.channels = channels_;
   double texture = 0, clipped = 0;
@@ -481,7 +594,8 @@ Expected<NoiseFitReport> NoiseLevelEstimator::fit() const {
                         " or >= ", num(options_.clip_high_dn), " DN): needs unclipped image regions");
     std::vector<BinData> bins;
     for (const Bin& b : bins_[c]) bins.push_back({&b.samples, b.blocks});
-    const ChannelFit f = fit_channel(bins, bm, options_, name);
+    const bool quincunx = is_bayer(format_) && ch == 1;
+    const ChannelFit f = fit_channel(bins, quincunx ? quincunx_model : plane_model, options_, name);
     if (f.bins == 0) {
       const std::string white =
           f.not_white

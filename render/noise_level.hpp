@@ -3,22 +3,27 @@
 //     sigma^2(I) = a * I + b        (DN^2)
 // per colour channel: a is the shot (Poissonian) part, b the read (Gaussian) part (Foi,
 // Trimeche, Katkovnik & Egiazarian, IEEE TIP 2008). Bayer mosaics are measured per site colour
-// on the raw mosaic (R, G, B sites; both green sites are G), RGB per channel (RGBA's alpha is
-// ignored), Mono8 as one channel.
+// on the raw mosaic (R and B on their site planes, G on the quincunx of both green sites), RGB
+// per channel (RGBA's alpha is ignored), Mono8 as one channel.
 //
 // Quantisation: the NLF is the noise before the 8-bit rounding. The camera's 8-bit values carry
 // 1/12 DN^2 more (rounding of a noisy value); the fit subtracts it, so that a renderer that adds
 // N(0, variance()) to a continuous value and then rounds (render/camera_look) gives back the
 // variance measured in the camera's frames.
 //
-// Method. Each same-colour plane (a Bayer site is a plane at stride 2) is cut into blocks of
-// block_px x block_px plane pixels. Per block, three numbers:
+// Method. Each same-colour lattice is cut into blocks of block_px x block_px lattice pixels: a
+// plane (RGB or Mono channel; a Bayer R or B site at stride 2) into squares, the Bayer green
+// quincunx (both green sites, a square lattice along the image's diagonals, 1.41 px apart) into
+// diamonds (those that cross the image's edge are left out). Per block, three numbers:
 //   v  the noise variance from Immerkaer's (1996) high-pass [1 -2 1] (x) [1 -2 1] on the block's
 //      interior: v = sum(r^2) / (36 n). The mask cancels every signal of the form f(x) + g(y)
 //      (ramps, quadratics, horizontal and vertical edges) and nearly all smooth texture.
 //   L  the block's level: its mean weighted as v weights the pixels, so that for any signal the
 //      mask cancels E[v] = a L + b exactly, even where the level varies inside the block.
 //   t  the full-band noise variance: the variance about a least-squares plane (texture detector).
+// On the quincunx the two green sites' imbalance (gain, black level) is a checkerboard, which the
+// mask passes at full gain: each block's checkerboard component is taken out of v (v = (sum(r^2)
+// - (sum(r c))^2 / n) / tr Q, c = +-1 alternating, Q the form's matrix) and of t (B^2 - 4 dof).
 // Blocks with a pixel <= clip_low_dn or >= clip_high_dn are rejected as clipped when added. The
 // others go into level bins, each a bounded reservoir (a uniform sample over all frames).
 // The fit finds, per bin, the noise-only population by a fixed-point iteration seeded at the
@@ -35,19 +40,27 @@
 // lies within max_band_ratio of 1 (white noise gives 1; texture or correlated noise do not). A
 // weighted least-squares line through the bins (weights blocks / sigma^4, iterated on the
 // fitted variance) gives a and b, with a >= 0 and b >= 0 enforced by refitting on the active
-// constraint. A second pass rescales each block's thresholds by the line at its own level and
-// refits. With fewer than min_bins usable levels (or all within half a bin), shot and read noise
-// cannot be told apart: a = 0 and b = the measured variance, and the report's note says so.
+// constraint. Texture that passes for noise only ever raises a bin, so a bin more than 3 standard
+// errors above the line (its blocks' sampling error, plus 1 % for the model) is dropped, the worst
+// first, and the line refitted, while min_bins remain. A second pass rescales each block's
+// thresholds by the line at its own level and refits. With fewer than min_bins usable levels (or
+// all within half a bin), shot and read noise cannot be told apart: a = 0 and b = the measured
+// variance, and the report's note says so.
 //
 // Limits: noise is assumed white (raw sensor data); demosaiced or denoised RGB has spatially
 // correlated noise, and its bins fail the band-ratio test (fit()'s error says so). Fine
-// texture of about one noise sigma or less in amplitude (periods under ~3 px) is
-// indistinguishable from noise in a block and reads as extra noise where it covers most of a
-// level; stronger texture is rejected.
+// texture of about one noise sigma or less in amplitude is indistinguishable from noise in a
+// block and reads as extra noise where it covers most of a level; stronger texture is rejected.
+// "Fine" is relative to the lattice: periods under ~3 px on a plane at 1 px, but up to ~8 px on
+// a Bayer R or B site plane (2 px apart), against ~5 px on G's quincunx. On the demo flight's
+// BayerRG8 frames (true a 0.12, b 2.25; 16-frame fits) the woods' texture made G read a 0.106,
+// b 4.5 on the site planes (sigma at 30 DN +15 %, at 100 DN +3 %) and reads a 0.117, b 2.9 on the
+// quincunx (+4 %, +1 %); R and B still read sigma +4 to 6 % at 30 DN.
 //
-// Cost (one core, 1280 x 960): add() about 2 ms for Mono8 and Bayer, 6 ms for RGB8; fit() 5 to
-// 15 ms with full reservoirs. Not thread-safe: a caller that adds on the frame thread and fits
-// elsewhere locks both, or fits a copy (a few MB at most).
+// Cost (one core, 1280 x 960): add() about 2 ms for Mono8, 2.5 ms for Bayer (the quincunx's
+// diagonal reads: ~15 % more than four site planes), 6 ms for RGB8; fit() 5 to 15 ms with full
+// reservoirs. Not thread-safe: a caller that adds on the frame thread and fits elsewhere locks
+// both, or fits a copy (a few MB at most).
 #pragma once
 
 #include <array>
@@ -126,7 +139,7 @@ class NoiseLevelEstimator {
     std::uint64_t blocks = 0;        // blocks ever added to the bin
   };
   struct Plane {
-    int x0, y0, step, byte, channel;
+    int x0, y0, step, byte, channel;  // step 0: the Bayer green quincunx from (x0, y0)
   };
   void add_plane(const Image& image, const Plane& p);
   void add_block(int channel, const BlockStat& s);

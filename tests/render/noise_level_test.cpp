@@ -273,7 +273,8 @@ TEST(NoiseLevel, RecoversPerColourNoiseInEveryBayerPattern) {
     ASSERT_EQ(r->nlf.channels, 3);
     for (int c = 0; c < 3; ++c)
       expect_sigma(std::string(to_string(f)), *r, c, t[static_cast<std::size_t>(c)]);
-    // Both green sites feed G: twice the blocks of R or B.
+    // Both green sites feed G's quincunx: twice the blocks of R or B (less the diamonds that
+    // cross the image's edge).
     EXPECT_NEAR(static_cast<double>(r->blocks_used[1]) / static_cast<double>(r->blocks_used[0]), 2.0, 0.4);
   }
 }
@@ -292,6 +293,56 @@ TEST(NoiseLevel, BayerSitesAreTheFormatsOwn) {
   ASSERT_TRUE(wrong) << wrong.error().message;
   EXPECT_NEAR(wrong->nlf.variance(0, 128), 9.0, 1.5);  // R read at the B sites
   EXPECT_NEAR(wrong->nlf.variance(2, 128), 36.0, 5.0);
+}
+
+// Fine texture of one noise sigma over the dark half of a Bayer frame (the simulator's woods, seen
+// at the demo flight's distance): four sinusoids at periods of 5 to 6.5 px across the diagonals.
+// A site plane samples it every 2 px, where it lands in Immerkaer's pass band and reads as noise
+// (R and B: sigma +8 to 9 % at 30 DN); G is measured on the quincunx of both green sites, 1.41 px
+// apart, where the same texture mostly falls below the pass band. Truth: the a, b it was drawn with.
+TEST(NoiseLevel, FineTextureOnTheGreenQuincunxIsNotNoise) {
+  const int w = 1280, h = 960;
+  const Truth camera{0.12, 2.25};  // the demo flight's simulated camera
+  const Truths t{camera, camera, camera};
+  constexpr double kAngle[4] = {0.35, 1.13, 1.92, 2.71}, kPeriod[4] = {5.0, 5.5, 6.0, 6.5};
+  const Signal woods = [&](int x, int y, int) {
+    const double m = 20 + 215.0 * y / (h - 1);
+    if (y >= h / 2) return m;
+    double tex = 0;  // variance 4 * 0.7^2 / 2 = 0.98 noise variances
+    for (int k = 0; k < 4; ++k) {
+      const double f = 2 * kPi / kPeriod[k];
+      tex += 0.7 * std::sin(f * (x * std::cos(kAngle[k]) + y * std::sin(kAngle[k])) + k);
+    }
+    return m + tex * std::sqrt(camera.variance(m));
+  };
+  const Expected<NoiseFitReport> r =
+      estimate_noise_level(synthesise(w, h, PixelFormat::kBayerRG8, woods, t, 57));
+  ASSERT_TRUE(r) << r.error().message;
+  const NoiseLevelFunction& n = r->nlf;
+  for (int c : {0, 2})
+    std::printf("  site plane %c: sigma at 30 DN %+.1f %% (fine texture read as noise)\n", c ? 'B' : 'R',
+                100 * (std::sqrt(n.variance(c, 30) / camera.variance(30)) - 1));
+  expect_sigma("G, textured dark half", *r, 1, camera, 0.03);
+  const double got30 = std::sqrt(n.variance(1, 30)), want30 = std::sqrt(camera.variance(30));
+  std::printf("  G sigma at 30 DN %.3f / %.3f (%+.1f %%)\n", got30, want30, 100 * (got30 / want30 - 1));
+  EXPECT_NEAR(got30, want30, 0.03 * want30);
+}
+
+// Real sensors' two green sites differ in gain and offset: the quincunx takes the checkerboard
+// this makes out of each block, so G reads the noise alone. Truth: the a, b drawn with.
+TEST(NoiseLevel, GreenSiteImbalanceIsRemoved) {
+  const int w = 640, h = 480;
+  const Truths t{{{0.12, 2.25}, {0.12, 2.25}, {0.12, 2.25}}};
+  for (PixelFormat f : {PixelFormat::kBayerRG8, PixelFormat::kBayerGB8}) {
+    const Signal ramp = smooth_ramp(w, h);
+    const Signal imbalanced = [&](int x, int y, int ch) {
+      const bool second_green = ch == 1 && y % 2 == 1;  // the green sites of odd rows
+      return second_green ? 1.04 * ramp(x, y, ch) + 1.5 : ramp(x, y, ch);
+    };
+    const Expected<NoiseFitReport> r = estimate_noise_level(synthesise(w, h, f, imbalanced, t, 61));
+    ASSERT_TRUE(r) << r.error().message;
+    expect_sigma(std::string(to_string(f)) + " G, sites 4 % apart", *r, 1, t[1], 0.03);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
