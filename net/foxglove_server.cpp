@@ -12,11 +12,10 @@
 #include <nlohmann/json.hpp>
 
 #include "core/clock.hpp"
-#include "recorder/ros2_msgs.hpp"
+#include "ros2/messages.hpp"
 
 namespace augrig::net {
 
-namespace ros2 = recorder::ros2;
 using json = nlohmann::json;
 
 namespace {

@@ -1,7 +1,7 @@
 // FoxgloveServer: the live view of a run for a ground crew, as the Foxglove WebSocket protocol v1
 // (subprotocol "foxglove.websocket.v1") over net/websocket.hpp. On connect a client gets
 // "serverInfo" and one "advertise" of every channel: the topics, ROS 2 types, CDR messages and
-// ros2msg schemas of the MCAP export (docs/MCAP.md, recorder/ros2_msgs.hpp), so Foxglove shows a
+// ros2msg schemas of the MCAP export (docs/MCAP.md, ros2/messages.hpp), so Foxglove shows a
 // live run exactly as it shows an exported file, plus /diagnostics, the pipeline's health in
 // plain words. Clients "subscribe" and "unsubscribe"; each message goes to each subscriber as
 // binary Message Data (opcode 0x01, subscription id, log time in ns, the CDR message). A message is

@@ -13,7 +13,7 @@
 #include "nav/logs.hpp"
 #include "nav/nmea.hpp"
 #include "recorder/mcap_writer.hpp"
-#include "recorder/ros2_msgs.hpp"
+#include "ros2/messages.hpp"
 
 namespace augrig::recorder {
 namespace fs = std::filesystem;

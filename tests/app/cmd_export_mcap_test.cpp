@@ -15,7 +15,7 @@
 
 #include "recorder/mcap_export.hpp"
 #include "recorder/reader.hpp"
-#include "recorder/ros2_msgs.hpp"
+#include "ros2/messages.hpp"
 #include "render/rig.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -92,7 +92,7 @@ TEST(CmdExportMcap, IndependentReadersValidateItAndDecodeTheRecording) {
   EXPECT_NE(j["channels"]["/tf_static"]["qos"].get<std::string>().find("durability: 1"), std::string::npos);
   for (const auto& [type, s] : j["schemas"].items()) {
     EXPECT_EQ(s["encoding"], "ros2msg");
-    EXPECT_EQ(s["text"], recorder::ros2::schema_text(type)) << type;
+    EXPECT_EQ(s["text"], ros2::schema_text(type)) << type;
   }
   EXPECT_EQ(j["channels"]["/augrig/occlusion_stats"]["type"], "augrig_msgs/msg/OcclusionStats");
 
@@ -115,7 +115,7 @@ TEST(CmdExportMcap, IndependentReadersValidateItAndDecodeTheRecording) {
       EXPECT_EQ(raw["log_time"], t);
       EXPECT_EQ(raw["stamp_ns"], t);
       EXPECT_EQ(raw["frame_id"], c == 0 ? "left_camera" : "right_camera");
-      EXPECT_EQ(raw["encoding"], recorder::ros2::image_encoding(fr.image.format()));
+      EXPECT_EQ(raw["encoding"], ros2::image_encoding(fr.image.format()));
       EXPECT_EQ(raw["width"], fr.image.width());
       EXPECT_EQ(raw["fnv1a"].get<std::uint32_t>(), fnv1a(fr.image)) << cam << " frame " << i;
       EXPECT_EQ(topics[cam + "/image_augmented"]["messages"][i]["fnv1a"].get<std::uint32_t>(), fnv1a(f->augmented[c]));
@@ -124,7 +124,7 @@ TEST(CmdExportMcap, IndependentReadersValidateItAndDecodeTheRecording) {
       const CameraModel& cm = rig.cameras[static_cast<std::size_t>(c)].model;
       const auto& info = topics[cam + "/camera_info"]["messages"][i];
       EXPECT_EQ(info["stamp_ns"], t);
-      EXPECT_EQ(info["distortion_model"], recorder::ros2::distortion_model_name(cm.distortion));
+      EXPECT_EQ(info["distortion_model"], ros2::distortion_model_name(cm.distortion));
       EXPECT_EQ(info["k"], json::array({cm.fx_px, 0.0, cm.cx_px, 0.0, cm.fy_px, cm.cy_px, 0.0, 0.0, 1.0}));
       EXPECT_EQ(info["d"].size(), cm.distortion == DistortionModel::kEquidistant ? 4u : 5u);
       const auto& pose = topics[cam + "/receiver_pose"]["messages"][i];

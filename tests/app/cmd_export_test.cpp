@@ -27,7 +27,7 @@
 #include "recorder/plot.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/recorder.hpp"
-#include "recorder/ros2_msgs.hpp"
+#include "ros2/messages.hpp"
 #include "recorder/store.hpp"
 #include "render/augmenter.hpp"
 #include "render/gl_context.hpp"
@@ -392,7 +392,7 @@ std::vector<OcclusionStats> mcap_stats(const std::string& path) {
     EXPECT_TRUE(more) << more.error().message;
     if (!more || !*more) break;
     if (m.channel_id != channel) continue;
-    auto st = recorder::ros2::decode_occlusion_stats(m.data);
+    auto st = ros2::decode_occlusion_stats(m.data);
     EXPECT_TRUE(st) << st.error().message;
     if (st) out.push_back(*st);
   }

@@ -22,7 +22,7 @@
 #include "nav/nmea.hpp"
 #include "nav/udp_socket.hpp"
 #include "recorder/reader.hpp"
-#include "recorder/ros2_msgs.hpp"
+#include "ros2/messages.hpp"
 #include "render/rig.hpp"
 #include "sim/flight.hpp"
 #include "sim/flight_source.hpp"
@@ -822,18 +822,18 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
     ++got[sid];
     if (sid == 1) {
       std::int64_t stamp = 0;
-      auto im = recorder::ros2::decode_image(msg, &stamp);
+      auto im = ros2::decode_image(msg, &stamp);
       ASSERT_TRUE(im) << im.error().message;
       EXPECT_EQ(im->width(), 1280);
       EXPECT_EQ(im->height(), 960);
       EXPECT_GT(stamp, last_image_ns);
       last_image_ns = stamp;
     } else if (sid == 2) {
-      auto st = recorder::ros2::decode_occlusion_stats(msg);
+      auto st = ros2::decode_occlusion_stats(msg);
       ASSERT_TRUE(st) << st.error().message;
       EXPECT_GT(st->boom_px_left, 0);
     } else if (sid == 3) {
-      auto d = recorder::ros2::decode_diagnostic_array(msg);
+      auto d = ros2::decode_diagnostic_array(msg);
       ASSERT_TRUE(d) << d.error().message;
       ASSERT_FALSE(d->empty());
       health = d->front().message;

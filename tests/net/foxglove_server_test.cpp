@@ -25,7 +25,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "recorder/ros2_msgs.hpp"
+#include "ros2/messages.hpp"
 #include "tests/support/test_support.hpp"
 #include "tests/support/ws_test_client.hpp"
 
@@ -33,7 +33,7 @@ namespace augrig::net {
 namespace {
 
 namespace fs = std::filesystem;
-namespace ros2 = recorder::ros2;
+
 using json = nlohmann::json;
 using test::TestWsClient;
 using Clock = std::chrono::steady_clock;

@@ -1,5 +1,5 @@
 // McapWriter and McapReader (recorder/mcap_writer.hpp, mcap_reader.hpp) and the CDR of
-// recorder/ros2_msgs.hpp: messages across many chunks come back in order with their indexes and
+// ros2/messages.hpp: messages across many chunks come back in order with their indexes and
 // statistics; any truncation or flipped byte of a file is an Error (or, for bytes no check covers,
 // a file that still reads), never a crash; images, poses and statistics through CDR bit for bit.
 // The independent readers from npm check the same files in tests/app/cmd_export_mcap_test.cpp.
@@ -14,7 +14,7 @@
 
 #include "recorder/mcap_reader.hpp"
 #include "recorder/mcap_writer.hpp"
-#include "recorder/ros2_msgs.hpp"
+#include "ros2/messages.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig::recorder {

@@ -1,6 +1,6 @@
-// ros2_msgs (ros2_msgs.hpp): CDR fields, the .msg definitions (ROS 2 Humble's field lists, without
+// ros2 messages (messages.hpp): CDR fields, the .msg definitions (ROS 2 Humble's field lists, without
 // their comments), and each message written field by field in its definition's order.
-#include "recorder/ros2_msgs.hpp"
+#include "ros2/messages.hpp"
 
 #include <cmath>
 #include <cstring>
@@ -8,7 +8,7 @@
 #include <map>
 #include <set>
 
-namespace augrig::recorder::ros2 {
+namespace augrig::ros2 {
 
 // ---- CDR ------------------------------------------------------------------------------------------
 
@@ -680,4 +680,4 @@ Expected<std::vector<DiagnosticStatus>> decode_diagnostic_array(const std::vecto
   return out;
 }
 
-}  // namespace augrig::recorder::ros2
+}  // namespace augrig::ros2

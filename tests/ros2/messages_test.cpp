@@ -1,10 +1,10 @@
-// recorder/ros2_msgs.hpp, the parts the MCAP tests (mcap_writer_test.cpp, app/cmd_export_mcap_test.cpp)
+// ros2/messages.hpp, the parts the MCAP tests (mcap_writer_test.cpp, app/cmd_export_mcap_test.cpp)
 // do not reach: diagnostic_msgs/msg/DiagnosticArray, the live view's health topic. Its schema is
 // ROS 2 Humble's definition with its dependencies; its CDR round-trips field for field; damaged
 // messages are errors. augrig_msgs/msg/OcclusionStats with its appended shadow fields, and a message
 // written before them read with the shadow 0. A pose covariance from sigmas. tests/net/foxglove_server_test.cpp decodes it with
 // @foxglove/rosmsg2-serialization.
-#include "recorder/ros2_msgs.hpp"
+#include "ros2/messages.hpp"
 
 #include <algorithm>
 #include <array>
@@ -14,7 +14,7 @@
 
 #include <gtest/gtest.h>
 
-namespace augrig::recorder::ros2 {
+namespace augrig::ros2 {
 namespace {
 
 TEST(Ros2Msgs, OcclusionStatsRoundTripsWithTheShadowAppended) {
@@ -125,4 +125,4 @@ TEST(Ros2Msgs, PoseCovarianceFromSigmas) {
 }
 
 }  // namespace
-}  // namespace augrig::recorder::ros2
+}  // namespace augrig::ros2

@@ -22,7 +22,7 @@
 #include "render/models.hpp"
 #include "render/stats.hpp"
 
-namespace augrig::recorder::ros2 {
+namespace augrig::ros2 {
 
 // Appends CDR fields to a message that starts with the encapsulation header.
 class CdrWriter {
@@ -162,4 +162,4 @@ Expected<StereoFrameInfo> decode_stereo_frame_info(const std::vector<std::uint8_
 Expected<std::vector<DiagnosticStatus>> decode_diagnostic_array(const std::vector<std::uint8_t>& msg,
                                                                 std::int64_t* stamp_ns = nullptr);
 
-}  // namespace augrig::recorder::ros2
+}  // namespace augrig::ros2
