@@ -158,13 +158,6 @@ std::string recording_problem(const recorder::RecordingReader& reader, const std
 // SIGINT and SIGTERM raise the returned flag (a pipeline's stop_flag): the run stops cleanly.
 std::atomic<bool>* install_stop_signals();
 
-// Runs a configured pipeline to its end, with the live window when `want_window` and a display is
-// present (the pipeline then on a worker thread); prints the summary (app/cmd_run.cpp).
-// `screenshot_at` N > 0: a screenshot once the N-th pair is shown, printed as "screenshot PATH
-// (framebuffer WxH; left view x,y,w,h; right view ...; hud ...; pair N)".
-PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::string& screenshot_dir,
-                            std::ostream& out, std::ostream& err, std::uint64_t screenshot_at = 0);
-
 // Runs a command body, turning its errors (and anything unexpected) into one stderr line and an exit code.
 template <typename Body>
 int guarded(const std::string& command, std::ostream& err, Body&& body) {

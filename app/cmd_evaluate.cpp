@@ -21,6 +21,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "app/cli.hpp"
+#include "app/window_runner.hpp"
 #include "capture/source_uri.hpp"
 #include "eval/evaluator.hpp"
 #include "eval/report.hpp"
@@ -343,17 +344,15 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   parts.rig = rig;
   parts.models = unwrap(load_rig_models(rig));
   parts.source_info = opened;
-  if (a.has("scene")) {
-    parts.poses = fixed_scene_poses(
-        unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, parts.models.receptacle_m)), a.get("scene"));
-  } else if (a.has("poses")) {
-    parts.poses = unwrap(poses_csv(a.get("poses"), rig, parse_pose_tolerance(a)));
-  } else if (is_sim) {
-    parts.poses = sim_truth_poses(*opened.sim);
-    if (scenario_boom) parts.poses = std::make_unique<ScenarioBoomPoses>(std::move(parts.poses));
-  } else {
-    parts.poses = recorded_poses(source_rig);
-  }
+  PoseSources ps;
+  ps.scene_path = a.get("scene", "");
+  ps.poses_csv_path = a.get("poses", "");
+  ps.pose_tolerance_ns = parse_pose_tolerance(a);
+  ps.recorded = !is_sim;  // a recording's (EuRoC folders have none: their frames are counted)
+  ps.recorded_rig = source_rig;
+  ps.sim = opened.sim.get();
+  parts.poses = unwrap(choose_poses(ps, rig, parts.models.receptacle_m)).provider;
+  if (scenario_boom) parts.poses = std::make_unique<ScenarioBoomPoses>(std::move(parts.poses));
   // A frame without a pose (not in the poses CSV, no recorded scene) is counted, not guessed.
   parts.skip_frames_without_pose = !is_sim && !a.has("scene");
   if (a.has("boom") && !scenario_boom) parts.boom = parse_boom_arg(a.get("boom"));

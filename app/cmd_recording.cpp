@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "app/cli.hpp"
+#include "app/window_runner.hpp"
 #include "pipeline/scene_file.hpp"
 #include "pipeline/sources.hpp"
 #include "recorder/euroc.hpp"
@@ -128,19 +129,18 @@ void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayCon
   apply_look_arg(a, parts.rig, parts.augment);
   if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
   if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
-  if (a.has("scene")) {
-    parts.poses = fixed_scene_poses(
-        unwrap(load_scene(a.get("scene"), parts.rig, BoomDimensions{}, parts.models.receptacle_m)),
-        a.get("scene"));
-  } else if (a.has("poses")) {
-    parts.poses = unwrap(poses_csv(a.get("poses"), parts.rig, parse_pose_tolerance(a)));
-    parts.skip_frames_without_pose = true;  // a frame without its row is reported, not guessed
-  } else if (c.recorded_poses) {
-    parts.poses = recorded_poses(c.stored_rig);
-    parts.skip_frames_without_pose = true;  // a frame without its scene is reported, not guessed
-  } else {
+  PoseSources ps;
+  ps.scene_path = a.get("scene", "");
+  ps.poses_csv_path = a.get("poses", "");
+  ps.pose_tolerance_ns = parse_pose_tolerance(a);
+  ps.recorded = c.recorded_poses;
+  ps.recorded_rig = c.stored_rig;
+  ChosenPoses chosen = unwrap(choose_poses(ps, parts.rig, parts.models.receptacle_m));
+  if (!chosen.provider)
     usage_error(c.from + " has no recorded scene: give one with --scene SCENE.yaml or --poses POSES.csv");
-  }
+  parts.poses = std::move(chosen.provider);
+  // A frame without its CSV row or its recorded scene is reported, not guessed.
+  parts.skip_frames_without_pose = chosen.may_miss_frames;
   // A boom script's t_s counts from the recording's (EuRoC folder's) first frame, not the first
   // frame replayed: a replay from frame N flies the boom as the whole replay does there.
   if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));

@@ -11,21 +11,19 @@
 #include <map>
 #include <mutex>
 #include <sstream>
-#include <thread>
 
 #include "app/cli.hpp"
 #include "app/commands.hpp"
-#include "app/display.hpp"
+#include "app/window_runner.hpp"
+#include "capture/aravis_source.hpp"
+#include "capture/v4l2_source.hpp"
+#include "core/clock.hpp"
+#include "nav/imu_stream.hpp"
+#include "nav/live_input.hpp"
 #include "pipeline/flight_nav.hpp"
 #include "pipeline/live_nav.hpp"
 #include "pipeline/scene_file.hpp"
 #include "pipeline/sources.hpp"
-#include "capture/aravis_source.hpp"
-#include "capture/v4l2_source.hpp"
-#include "core/clock.hpp"
-#include "core/thread_name.hpp"
-#include "nav/imu_stream.hpp"
-#include "nav/live_input.hpp"
 #include "recorder/recorder.hpp"
 #include "recorder/replay_source.hpp"
 #include "sim/flight_source.hpp"
@@ -240,117 +238,28 @@ struct RunSetup {
   std::string banner;
 };
 
-}  // namespace
-
-// Runs a configured pipeline to its end: on this thread when headless; with a window, the window
-// on this thread (GLFW wants the main thread) and the pipeline on a worker, talking only through
-// the LiveView mailbox. Prints the summary; returns the report (errors become CommandErrors).
-PipelineReport run_pipeline(Pipeline& pipeline, bool want_window, const std::string& screenshot_dir,
-                            std::ostream& out, std::ostream& err, std::uint64_t screenshot_at) {
-  std::unique_ptr<Display> display;
-  if (want_window && display_present()) {
-    DisplayOptions dopt;
-    dopt.screenshot_dir = screenshot_dir;
-    dopt.receiver_model = pipeline.parts().models.receiver_model;
-    auto d = Display::create(dopt);
-    if (d) {
-      display = std::move(*d);
-      out << "live display open (F1 lists the keys)\n";
-    } else {
-      err << "augrig: no window: " << user_message(d.error()) << "; running headless\n";
+// The live fusion of both aircraft's nav streams (--nav): their settings from the simulation
+// (--nav sim) or defaults, each replaced by --aircraft's file; `ins_used` gets them.
+std::unique_ptr<LiveNav> make_live_nav(const ParsedArgs& a, const Rig& rig,
+                                       const Eigen::Vector3d& receptacle_m, const SimulatedFlight* sim,
+                                       nav::InsConfig ins_used[2]) {
+  if (sim) {
+    ins_used[0] = ins_config_for(sim->scenario.sensors.tanker);
+    ins_used[1] = ins_config_for(sim->scenario.sensors.receiver);
+  }
+  if (a.has("aircraft")) {
+    for (const auto& [who, file] :
+         parse_named_list_arg(a.get("aircraft"), "--aircraft: expected tanker=FILE,receiver=FILE")) {
+      const auto ac = aircraft_of_stream(who);
+      if (!ac) usage_error("--aircraft: expected tanker=FILE or receiver=FILE, got '" + who + "'");
+      ins_used[static_cast<int>(*ac)] = unwrap(load_aircraft_config(file));
     }
   }
-  std::optional<Expected<PipelineReport>> result;
-  std::vector<std::string> screenshots;
-  bool display_was_open = false;
-  if (!display) {
-    result = pipeline.run(out, err);
-  } else {
-    const std::shared_ptr<LiveView> view = pipeline.parts().view;
-    std::optional<std::string> internal;
-    std::thread worker([&] {
-      set_thread_name("augrig-pipe");
-      try {
-        result = pipeline.run(out, err);
-      } catch (const std::exception& e) {
-        internal = e.what();
-      }
-      view->finish();
-    });
-    // The window's loop: at each new pair, else about 60 times a second; it never holds the pipeline.
-    LiveView::Shown shown;
-    const Rig& rig = pipeline.rig();
-    // --screenshot-at N: one screenshot once the N-th pair is shown (written by the next frame()),
-    // its layout printed so that a test can find the views in it.
-    bool shot_requested = false, shot_written = false;
-    auto note_screenshots = [&](const std::vector<std::string>& shots) {
-      for (const std::string& shot : shots) {
-        const DisplayLayout& L = display->layout();
-        std::ostringstream line;
-        auto rect = [&](const PixelRect& r) {
-          line << r.x << "," << r.y << "," << r.w << "," << r.h;
-        };
-        line << shot << " (framebuffer " << L.framebuffer_w << "x" << L.framebuffer_h << "; left view ";
-        rect(L.views[0]);
-        line << "; right view ";
-        rect(L.views[1]);
-        line << "; hud ";
-        rect(L.hud);
-        line << "; pair " << shown.id << ")";
-        screenshots.push_back(line.str());
-        shot_written = true;
-      }
-    };
-    int frames_after_end = 0;
-    for (bool last = false;;) {
-      last = view->finished();
-      const TimestampNs new_mid_host_ns = view->take_newest(shown);
-      DisplayInput in;
-      if (shown.id) in = display_input(shown.result, rig, shown.scene, shown.id);
-      // The HUD from the pipeline, with the occlusion of the very pair shown (display_input's).
-      std::optional<OcclusionStats> shown_occlusion = in.hud.occlusion;
-      in.hud = view->hud();
-      if (shown.id) in.hud.occlusion = shown_occlusion;
-      in.playback = view->playback();
-      in.rig = &rig;
-      if (screenshot_at && !shot_requested && shown.id >= screenshot_at) {
-        display->request_screenshot();
-        shot_requested = true;
-      }
-      const bool open = display->frame(in);
-      view->drawn(new_mid_host_ns);  // drawn and swapped: on its way to the screen
-      DisplayCommands c = display->poll_commands();
-      note_screenshots(c.screenshots);
-      // The pipeline stopped: one more frame when a requested screenshot is still to be written.
-      if (last && (!shot_requested || shot_written || ++frames_after_end > 10)) break;
-      PipelineCommands pc;
-      pc.quit = c.quit || !open;
-      pc.toggle_pause = c.toggle_pause;
-      pc.toggle_recording = c.toggle_recording;
-      pc.boom_mode = c.boom_mode;
-      pc.boom_nudge = c.boom_nudge;
-      pc.steps = c.steps;
-      pc.seek_frame = c.seek_frame;
-      pc.rate = c.rate;
-      view->post(pc);
-      // Until the next pair is handed over (drawn at once: the latency to the screen is the
-      // draw's), or 16 ms for input and the HUD.
-      view->wait_newer(shown.id, std::chrono::milliseconds(16));
-    }
-    worker.join();
-    display.reset();
-    display_was_open = true;
-    if (internal) runtime_error("internal error: " + *internal);
-  }
-  for (const std::string& shot : screenshots) out << "screenshot " << shot << "\n";
-  if (screenshot_at && screenshots.empty() && display_was_open)
-    err << "augrig: no screenshot: fewer than " << screenshot_at << " pairs were shown\n";
-  PipelineReport report = unwrap(std::move(*result));
-  pipeline.print_summary(report, out);
-  return report;
+  LiveNavOptions nopt;
+  if (a.has("nav-stale")) nopt.stale_after_s = parse_real("nav-stale", a.get("nav-stale"));
+  if (!(nopt.stale_after_s > 0)) usage_error("--nav-stale: expected seconds > 0");
+  return std::make_unique<LiveNav>(rig, BoomDimensions{}, receptacle_m, ins_used[0], ins_used[1], nopt);
 }
-
-namespace {
 
 int run_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   const ParsedArgs a = parse_or_usage(args, run_specs());
@@ -448,44 +357,28 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
     usage_error("--scene, --poses and --nav with streams of both aircraft are three sources of poses: give one");
   if (a.has("nav") && !nav_sim && !use_nav && !a.has("scene") && !a.has("poses") && !opened.replay && !is_sim)
     usage_error("--nav needs streams of both aircraft (tanker.*, receiver.*) to give poses");
-  if (a.has("scene")) {
-    parts.poses = fixed_scene_poses(
-        unwrap(load_scene(a.get("scene"), *rig, boom_dims, parts.models.receptacle_m)), a.get("scene"));
-  } else if (a.has("poses")) {
-    parts.poses = unwrap(poses_csv(a.get("poses"), *rig, parse_pose_tolerance(a)));
-  } else if (use_nav) {
-    nav::InsConfig* ins = ins_used;
+  PoseSources ps;
+  ps.scene_path = a.get("scene", "");
+  ps.boom_dims = boom_dims;
+  ps.poses_csv_path = a.get("poses", "");
+  ps.pose_tolerance_ns = parse_pose_tolerance(a);
+  if (use_nav && ps.scene_path.empty() && ps.poses_csv_path.empty()) {
+    setup.live_nav =
+        make_live_nav(a, *rig, parts.models.receptacle_m, nav_sim ? info.sim.get() : nullptr, ins_used);
+    ps.live_nav = parts.live_nav = setup.live_nav.get();
     if (nav_sim) {
-      ins[0] = ins_config_for(info.sim->scenario.sensors.tanker);
-      ins[1] = ins_config_for(info.sim->scenario.sensors.receiver);
+      ps.camera_offset_ns = info.sim->scenario.sensors.cameras.clock_offset_ns;
+      ps.camera_offset_ns.resize(2, 0);
     }
-    if (a.has("aircraft")) {
-      for (const auto& [who, file] : parse_named_list_arg(a.get("aircraft"), "--aircraft: expected tanker=FILE,receiver=FILE")) {
-        const auto ac = aircraft_of_stream(who);
-        if (!ac) usage_error("--aircraft: expected tanker=FILE or receiver=FILE, got '" + who + "'");
-        ins[static_cast<int>(*ac)] = unwrap(load_aircraft_config(file));
-      }
-    }
-    LiveNavOptions nopt;
-    if (a.has("nav-stale")) nopt.stale_after_s = parse_real("nav-stale", a.get("nav-stale"));
-    if (!(nopt.stale_after_s > 0)) usage_error("--nav-stale: expected seconds > 0");
-    setup.live_nav = std::make_unique<LiveNav>(*rig, boom_dims, parts.models.receptacle_m, ins[0], ins[1], nopt);
-    std::vector<TimestampNs> offsets;
-    if (nav_sim) {
-      offsets = info.sim->scenario.sensors.cameras.clock_offset_ns;
-      offsets.resize(2, 0);
-    }
-    parts.poses = live_nav_poses(*setup.live_nav, offsets);
-    parts.live_nav = setup.live_nav.get();
-  } else if (opened.replay) {
-    parts.poses = recorded_poses(recorded_rig);
-  } else if (is_sim) {
-    parts.poses = sim_truth_poses(*info.sim);
-  } else if (!capture_only) {
+  }
+  ps.recorded = opened.replay != nullptr;
+  ps.recorded_rig = recorded_rig;
+  if (is_sim) ps.sim = info.sim.get();
+  parts.poses = unwrap(choose_poses(ps, *rig, parts.models.receptacle_m)).provider;
+  if (!parts.poses && !capture_only)
     usage_error(
         "a pose source is needed: --scene SCENE.yaml, --poses POSES.csv, or --nav with streams of both "
         "aircraft (tanker.*, receiver.*)");
-  }
   parts.capture_only = capture_only;
   const std::string poses_text = parts.poses ? parts.poses->describe() : std::string("none (capture only)");
   if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));

@@ -14,14 +14,14 @@
 #include <optional>
 #include <sstream>
 
-
 #include "app/cli.hpp"
+#include "app/window_runner.hpp"
+#include "capture/stereo_pairer.hpp"
+#include "core/frame.hpp"
 #include "pipeline/image_folder_source.hpp"
 #include "pipeline/scene_file.hpp"
 #include "pipeline/scene_folder_poses.hpp"
 #include "pipeline/sources.hpp"
-#include "capture/stereo_pairer.hpp"
-#include "core/frame.hpp"
 #include "render/augmenter.hpp"
 #include "render/gl_context.hpp"
 #include "render/image_file.hpp"
@@ -166,25 +166,20 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   const RigModels receiver = unwrap(load_rig_models(rig));
   options.receiver_model = receiver.receiver_model;
   if (receiver.boom_model) options.boom_model = receiver.boom_model;
-  std::unique_ptr<PoseProvider> poses;
-  // The scene files' t_ns for stats.csv (folders only: there a pair's t_ns is its index).
-  std::vector<std::optional<TimestampNs>> scene_t_ns;
+  // The poses: a CSV, a scene file, or a folder of scene files (one per pair); the scene files'
+  // t_ns for stats.csv (folders only: there a pair's t_ns is its index).
+  PoseSources ps;
+  ps.scene_path = a.get("scene", "");
+  ps.scene_folder_ok = true;
+  ps.poses_csv_path = a.get("poses", "");
+  ps.pose_tolerance_ns = pose_tolerance_ns;
+  ChosenPoses chosen = unwrap(choose_poses(ps, rig, receiver.receptacle_m));
+  std::unique_ptr<PoseProvider> poses = std::move(chosen.provider);
+  const std::vector<std::optional<TimestampNs>> scene_t_ns = std::move(chosen.scene_t_ns);
   std::error_code ec;
-  if (a.has("poses")) {
-    poses = unwrap(poses_csv(a.get("poses"), rig, pose_tolerance_ns));
-  } else if (fs::is_directory(a.get("scene"), ec)) {
-    auto folder = unwrap(SceneFolderPoses::load(a.get("scene"), rig, receiver.receptacle_m));
-    if (folder->size() != expected_pairs)
-      runtime_error(a.get("scene") + ": has " + std::to_string(folder->size()) +
-                    " scene file(s) (.yaml), expected one per pair (" + std::to_string(expected_pairs) + ")");
-    for (std::size_t k = 0; k < folder->size(); ++k) scene_t_ns.push_back(folder->extras(k).t_ns);
-    poses = std::move(folder);
-  } else {
-    SceneExtras extras;
-    poses = fixed_scene_poses(
-        unwrap(load_scene(a.get("scene"), rig, BoomDimensions{}, receiver.receptacle_m, &extras)), a.get("scene"));
-    scene_t_ns.push_back(extras.t_ns);
-  }
+  if (!a.has("poses") && fs::is_directory(a.get("scene"), ec) && scene_t_ns.size() != expected_pairs)
+    runtime_error(a.get("scene") + ": has " + std::to_string(scene_t_ns.size()) +
+                  " scene file(s) (.yaml), expected one per pair (" + std::to_string(expected_pairs) + ")");
   // The first image of each camera is read up front too: the common mistakes (wrong file, size,
   // depth) show here, naming the file, before the GL context exists.
   for (CameraId c : {CameraId::kLeft, CameraId::kRight}) {

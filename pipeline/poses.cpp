@@ -1,8 +1,11 @@
 #include "pipeline/poses.hpp"
 
 #include <cmath>
+#include <filesystem>
 
 #include "pipeline/look_stage.hpp"
+#include "pipeline/scene_file.hpp"
+#include "pipeline/scene_folder_poses.hpp"
 #include "recorder/replay_source.hpp"
 #include "sim/flight_source.hpp"
 
@@ -30,7 +33,8 @@ class SimTruthPoses final : public PoseProvider {
  public:
   explicit SimTruthPoses(const SimulatedFlight& sim) {
     for (const sim::FrameTruth& f : sim::frame_truths(sim.scenario, *sim.flight, sim.logs.cameras))
-      by_frame_[{f.camera, f.t_camera_ns}] = {f, sun_light(f.t_gps_ns, sim.flight->tanker(f.t_true_s).T_ecef_body())};
+      by_frame_[{f.camera, f.t_camera_ns}] = {
+          f, sun_light(f.t_gps_ns, sim.flight->tanker(f.t_true_s).T_ecef_body())};
   }
   std::string describe() const override { return "the simulation's truth"; }
   FramePoses at(const StereoFrame& frame, TimestampNs) override {
@@ -59,7 +63,8 @@ class SimTruthPoses final : public PoseProvider {
 
 class LiveNavPoses final : public PoseProvider {
  public:
-  LiveNavPoses(const LiveNav& nav, std::vector<TimestampNs> offsets) : nav_(nav), offsets_(std::move(offsets)) {}
+  LiveNavPoses(const LiveNav& nav, std::vector<TimestampNs> offsets)
+      : nav_(nav), offsets_(std::move(offsets)) {}
   std::string describe() const override { return "the live nav (GPS/INS of both aircraft)"; }
   bool live() const override { return true; }
   FramePoses at(const StereoFrame& frame, TimestampNs mid_host_left_ns) override {
@@ -171,7 +176,8 @@ class PosesCsv final : public PoseProvider {
     s.T_body_receiver = T_body_cam_ * T_cam_receiver;
     if (std::isfinite(best->boom_elevation_deg) && std::isfinite(best->boom_azimuth_deg) &&
         std::isfinite(best->boom_extension_m)) {
-      s.boom = {deg_to_rad(best->boom_elevation_deg), deg_to_rad(best->boom_azimuth_deg), best->boom_extension_m};
+      s.boom = {deg_to_rad(best->boom_elevation_deg), deg_to_rad(best->boom_azimuth_deg),
+                best->boom_extension_m};
       p.boom_given = true;
     }
     p.scene = s;
@@ -203,7 +209,8 @@ class OfflineNavPoses final : public PoseProvider {
       p.hud.status = "no pose: outside the nav data";
       return p;
     }
-    p.scene = SceneState{fp->boom.articulation, fp->body.T_a_receiver, true, sun_light(fp->t_nav_ns, fp->T_ecef_tanker)};
+    p.scene = SceneState{fp->boom.articulation, fp->body.T_a_receiver, true,
+                         sun_light(fp->t_nav_ns, fp->T_ecef_tanker)};
     p.sigma_pos_m = fp->body.sigma_position_m();
     p.sigma_att_deg = rad_to_deg(fp->body.sigma_attitude_rad());
     p.hud.status = "fused from logs (smoothed)";
@@ -239,10 +246,49 @@ Expected<std::unique_ptr<PoseProvider>> poses_csv(const std::string& path, const
   bool any_left = false;
   for (const nav::CameraPoseRow& r : log->rows) any_left = any_left || r.camera == 0;
   if (!any_left) return make_error("pipeline::poses_csv(): ", path, ": no row of camera 0 (the left camera)");
-  return std::unique_ptr<PoseProvider>(std::make_unique<PosesCsv>(path, rig, tolerance_ns, std::move(log->rows)));
+  return std::unique_ptr<PoseProvider>(
+      std::make_unique<PosesCsv>(path, rig, tolerance_ns, std::move(log->rows)));
 }
 std::unique_ptr<PoseProvider> offline_nav_poses(std::shared_ptr<const RelativeNav> nav, std::string name) {
   return std::make_unique<OfflineNavPoses>(std::move(nav), std::move(name));
+}
+
+Expected<ChosenPoses> choose_poses(const PoseSources& src, const Rig& rig,
+                                   const Eigen::Vector3d& receptacle_m) {
+  const char* kWhere = "choose_poses(): ";
+  const int alternatives =
+      int{!src.scene_path.empty()} + int{!src.poses_csv_path.empty()} + int{src.live_nav != nullptr};
+  if (alternatives > 1)
+    return make_error(kWhere, "a scene, a poses CSV and the live nav are three sources of poses: give one");
+  ChosenPoses c;
+  std::error_code ec;
+  if (!src.scene_path.empty() && src.scene_folder_ok && std::filesystem::is_directory(src.scene_path, ec)) {
+    // One scene file per pair.
+    auto folder = SceneFolderPoses::load(src.scene_path, rig, receptacle_m);
+    if (!folder) return folder.error();
+    for (std::size_t k = 0; k < (*folder)->size(); ++k) c.scene_t_ns.push_back((*folder)->extras(k).t_ns);
+    c.provider = std::move(*folder);
+    c.may_miss_frames = true;
+  } else if (!src.scene_path.empty()) {
+    SceneExtras extras;
+    auto scene = load_scene(src.scene_path, rig, src.boom_dims, receptacle_m, &extras);
+    if (!scene) return scene.error();
+    c.provider = fixed_scene_poses(*scene, src.scene_path);
+    c.scene_t_ns.push_back(extras.t_ns);
+  } else if (!src.poses_csv_path.empty()) {
+    auto csv = poses_csv(src.poses_csv_path, rig, src.pose_tolerance_ns);
+    if (!csv) return csv.error();
+    c.provider = std::move(*csv);
+    c.may_miss_frames = true;
+  } else if (src.live_nav) {
+    c.provider = live_nav_poses(*src.live_nav, src.camera_offset_ns);
+  } else if (src.recorded) {
+    c.provider = recorded_poses(src.recorded_rig);
+    c.may_miss_frames = true;
+  } else if (src.sim) {
+    c.provider = sim_truth_poses(*src.sim);
+  }
+  return c;
 }
 
 }  // namespace augrig::pipeline

@@ -71,4 +71,32 @@ Expected<std::unique_ptr<PoseProvider>> poses_csv(const std::string& path, const
 // Both aircraft fused from their logs (forward filter and RTS smoother), at each frame's time.
 std::unique_ptr<PoseProvider> offline_nav_poses(std::shared_ptr<const RelativeNav> nav, std::string name);
 
+// The sources of poses a command offers, taken in the one order every command uses: a scene file
+// (or, for folders of pairs, a folder of scene files), a poses CSV, the live nav, the poses
+// recorded with replayed frames, the simulation's truth. Unset fields are not offered.
+struct PoseSources {
+  std::string scene_path;                     // --scene: a scene file, or a folder if scene_folder_ok
+  bool scene_folder_ok = false;               // a folder of scene files, one per pair (augment)
+  BoomDimensions boom_dims;                   // the scene files' boom
+  std::string poses_csv_path;                 // --poses
+  TimestampNs pose_tolerance_ns = 0;          // --pose-tolerance-ms
+  const LiveNav* live_nav = nullptr;          // --nav with streams of both aircraft
+  std::vector<TimestampNs> camera_offset_ns;  // with live_nav: the cameras' offsets (live_nav_poses)
+  bool recorded = false;                      // the frames carry their scene (a replayed recording)
+  std::optional<Rig> recorded_rig;            // with recorded: the rig the poses were recorded with
+  const SimulatedFlight* sim = nullptr;       // a sim:// flight
+};
+struct ChosenPoses {
+  std::unique_ptr<PoseProvider> provider;  // null when none was offered
+  // The provider may have no pose for some frames (a CSV's rows, a recording's frames, a folder's
+  // files): a command that must not guess skips those frames (PipelineParts::skip_frames_without_pose).
+  bool may_miss_frames = false;
+  // The scene files' own timestamps, in pair order (a scene file: one; a folder: one per file).
+  std::vector<std::optional<TimestampNs>> scene_t_ns;
+};
+// The first source offered, in PoseSources' order; errors of a scene file or CSV name the file.
+// Several of scene, CSV and live nav at once is an error (they are alternatives, not a ladder).
+Expected<ChosenPoses> choose_poses(const PoseSources& sources, const Rig& rig,
+                                   const Eigen::Vector3d& receptacle_m);
+
 }  // namespace augrig::pipeline

@@ -2,7 +2,9 @@
 // poses.csv and the simulation's truth, each asked for frames made here. Oracles: the scenes and
 // records given (copied through unchanged), the rig's left camera pose composed with the camera-
 // relative pose as 4x4 matrices, a poses.csv written here by hand, and sim::frame_truths of a
-// short scenario for the frames its source actually delivers.
+// short scenario for the frames its source actually delivers. choose_poses(): the one order of the
+// sources every command offers, each source's own provider (by what it answers), the alternatives
+// that exclude each other, a folder of scene files with their timestamps, errors naming the file.
 #include "pipeline/poses.hpp"
 
 #include <algorithm>
@@ -20,6 +22,7 @@
 #include <gtest/gtest.h>
 
 #include "core/conventions.hpp"
+#include "pipeline/scene_file.hpp"
 #include "recorder/replay_source.hpp"
 #include "sim/flight_source.hpp"
 #include "tests/support/test_support.hpp"
@@ -412,6 +415,145 @@ TEST(SimTruthPoses, TheTruthOfEachFrameTheSourceDelivers) {
   if (!truth.count({0, first_right->first.second})) {
     EXPECT_FALSE(provider->at(frame_at(first_right->first.second), 0).scene);
   }
+}
+
+// ---- choose_poses(): the one order every command takes its pose sources in ----
+
+const Eigen::Vector3d kReceptacle(5.0, 0.0, -1.0);
+
+// All of the sources that can stand together offered: recorded frames, the simulation, and
+// (per test) one of scene, CSV or live nav.
+struct Offered {
+  std::shared_ptr<const SimulatedFlight> sim;
+  PoseSources sources;
+};
+Offered recorded_and_sim() {
+  auto opened = open_sources("sim://" + test::data_path("scenarios/short_approach.yaml") + "?rate=0");
+  EXPECT_TRUE(opened) << opened.error().message;
+  Offered o;
+  o.sim = opened->sim;
+  o.sources.recorded = true;
+  o.sources.recorded_rig = Rig::paper_default();
+  o.sources.sim = o.sim.get();
+  return o;
+}
+
+TEST(ChoosePoses, SceneThenCsvThenRecordedThenSimulationThenNone) {
+  const Rig rig = Rig::paper_default();
+  const std::string scene = test::data_path("scenes/contact.yaml");
+  const PosesFile csv = write_poses(test::output_dir("choose_poses_order"));
+
+  Offered o = recorded_and_sim();
+  o.sources.scene_path = scene;
+  auto c = choose_poses(o.sources, rig, kReceptacle);
+  ASSERT_TRUE(c) << c.error().message;
+  EXPECT_EQ(c->provider->describe(), "the scene " + scene);
+  EXPECT_FALSE(c->may_miss_frames) << "a scene answers every frame";
+  ASSERT_EQ(c->scene_t_ns.size(), 1u);
+  EXPECT_EQ(c->scene_t_ns[0], TimestampNs{1'000'000'000}) << "the scene file's own t_ns";
+  // The scene's pose, whatever frame is asked.
+  const auto want = load_scene(scene, rig, BoomDimensions{}, kReceptacle);
+  ASSERT_TRUE(want);
+  const FramePoses fp = c->provider->at(frame_at(123), 0);
+  ASSERT_TRUE(fp.scene);
+  expect_pose_eq(fp.scene->T_body_receiver, want->T_body_receiver, "the scene's receiver");
+
+  o.sources.scene_path.clear();
+  o.sources.poses_csv_path = csv.path;
+  c = choose_poses(o.sources, rig, kReceptacle);
+  ASSERT_TRUE(c) << c.error().message;
+  EXPECT_EQ(c->provider->describe(), "the poses of " + csv.path);
+  EXPECT_TRUE(c->may_miss_frames) << "a frame without its row";
+  EXPECT_TRUE(c->scene_t_ns.empty());
+  EXPECT_TRUE(c->provider->at(frame_at(1000), 0).scene) << "the CSV's row at t 1000";
+  EXPECT_FALSE(c->provider->at(frame_at(1500), 0).scene) << "no row at t 1500 (tolerance 0)";
+
+  o.sources.poses_csv_path.clear();
+  c = choose_poses(o.sources, rig, kReceptacle);
+  ASSERT_TRUE(c) << c.error().message;
+  EXPECT_EQ(c->provider->describe(), "the poses recorded with each frame");
+  EXPECT_TRUE(c->may_miss_frames) << "a frame recorded without a scene";
+
+  o.sources.recorded = false;
+  c = choose_poses(o.sources, rig, kReceptacle);
+  ASSERT_TRUE(c) << c.error().message;
+  EXPECT_EQ(c->provider->describe(), "the simulation's truth");
+  EXPECT_FALSE(c->may_miss_frames);
+
+  o.sources.sim = nullptr;
+  c = choose_poses(o.sources, rig, kReceptacle);
+  ASSERT_TRUE(c) << c.error().message;
+  EXPECT_FALSE(c->provider) << "nothing offered: no provider (the command says what it needs)";
+}
+
+TEST(ChoosePoses, TheLiveNavBeforeRecordedAndSimulationWithTheCamerasOffsets) {
+  const Rig rig = Rig::paper_default();
+  const LiveNav nav(rig, BoomDimensions{}, kReceptacle, nav::InsConfig{}, nav::InsConfig{}, LiveNavOptions{});
+  Offered o = recorded_and_sim();
+  o.sources.live_nav = &nav;
+  o.sources.camera_offset_ns = {0, 0};
+  auto c = choose_poses(o.sources, rig, kReceptacle);
+  ASSERT_TRUE(c) << c.error().message;
+  EXPECT_EQ(c->provider->describe(), "the live nav (GPS/INS of both aircraft)");
+  EXPECT_TRUE(c->provider->live());
+  EXPECT_FALSE(c->may_miss_frames) << "a live frame without a pose is shown, marked stale";
+  // No nav data yet: no pose, and the provider says why.
+  const FramePoses fp = c->provider->at(frame_at(1000), 0);
+  EXPECT_FALSE(fp.scene);
+  EXPECT_FALSE(fp.problems.empty());
+}
+
+TEST(ChoosePoses, SceneCsvAndLiveNavAreAlternatives) {
+  const Rig rig = Rig::paper_default();
+  const LiveNav nav(rig, BoomDimensions{}, kReceptacle, nav::InsConfig{}, nav::InsConfig{}, LiveNavOptions{});
+  const std::string scene = test::data_path("scenes/contact.yaml");
+  const PosesFile csv = write_poses(test::output_dir("choose_poses_alternatives"));
+  for (int mask : {3, 5, 6, 7}) {
+    PoseSources s;
+    if (mask & 1) s.scene_path = scene;
+    if (mask & 2) s.poses_csv_path = csv.path;
+    if (mask & 4) s.live_nav = &nav;
+    auto c = choose_poses(s, rig, kReceptacle);
+    ASSERT_FALSE(c) << "sources " << mask;
+    EXPECT_NE(c.error().message.find("give one"), std::string::npos) << c.error().message;
+  }
+}
+
+TEST(ChoosePoses, AFolderOfSceneFilesOnlyWhereTheCommandTakesOne) {
+  const Rig rig = Rig::paper_default();
+  const std::string dir = test::output_dir("choose_poses_folder");
+  fs::copy_file(test::data_path("scenes/contact.yaml"), dir + "/0001.yaml");
+  fs::copy_file(test::data_path("scenes/body.yaml"), dir + "/0002.yaml");
+  PoseSources s;
+  s.scene_path = dir;
+  s.scene_folder_ok = true;
+  auto c = choose_poses(s, rig, kReceptacle);
+  ASSERT_TRUE(c) << c.error().message;
+  EXPECT_TRUE(c->may_miss_frames) << "a pair beyond the folder's files";
+  ASSERT_EQ(c->scene_t_ns.size(), 2u) << "one per file, in name order";
+  EXPECT_EQ(c->scene_t_ns[0], TimestampNs{1'000'000'000});
+  EXPECT_FALSE(c->scene_t_ns[1]) << "body.yaml gives no t_ns";
+
+  // Where a command takes one scene for every frame, a folder is a scene file that does not read.
+  s.scene_folder_ok = false;
+  c = choose_poses(s, rig, kReceptacle);
+  ASSERT_FALSE(c);
+  EXPECT_NE(c.error().message.find(dir), std::string::npos) << c.error().message;
+}
+
+TEST(ChoosePoses, ABadSceneOrCsvFailsNamingTheFile) {
+  const Rig rig = Rig::paper_default();
+  PoseSources s;
+  s.scene_path = test::data_path("scenes/bad_syntax.yaml");
+  auto c = choose_poses(s, rig, kReceptacle);
+  ASSERT_FALSE(c);
+  EXPECT_NE(c.error().message.find("bad_syntax.yaml"), std::string::npos) << c.error().message;
+
+  s.scene_path.clear();
+  s.poses_csv_path = test::output_dir("choose_poses_bad_csv") + "/missing.csv";
+  c = choose_poses(s, rig, kReceptacle);
+  ASSERT_FALSE(c);
+  EXPECT_NE(c.error().message.find("missing.csv"), std::string::npos) << c.error().message;
 }
 
 }  // namespace
