@@ -585,16 +585,20 @@ Expected<NoiseFitReport> NoiseLevelEstimator::fit() const {
     const std::size_t c = static_cast<std::size_t>(ch);
     const std::string name = channel_name(channels_, ch);
     const std::string where = "NoiseLevelEstimator::fit(): channel " + name + ": ";
+    const bool quincunx = is_bayer(format_) && ch == 1;  // Bayer G: read on the green quincunx
     r.blocks_seen += seen_[c];
     if (seen_[c] == 0)
       return make_error(where, "no blocks (frames smaller than one ", options_.block_px, " x ",
-                        options_.block_px, " block of the channel's plane)");
+                        options_.block_px, " block of the channel's ",
+                        quincunx
+                            ? "quincunx: a diamond " + std::to_string(2 * options_.block_px - 1) +
+                                  " px across, at 2 x " + std::to_string(options_.block_px) + " px steps)"
+                            : std::string("plane)"));
     if (clipped_[c] == seen_[c])
       return make_error(where, "all ", seen_[c], " blocks clipped (a pixel <= ", num(options_.clip_low_dn),
                         " or >= ", num(options_.clip_high_dn), " DN): needs unclipped image regions");
     std::vector<BinData> bins;
     for (const Bin& b : bins_[c]) bins.push_back({&b.samples, b.blocks});
-    const bool quincunx = is_bayer(format_) && ch == 1;
     const ChannelFit f = fit_channel(bins, quincunx ? quincunx_model : plane_model, options_, name);
     if (f.bins == 0) {
       const std::string white =

@@ -115,6 +115,16 @@ TEST(NoiseLevel, OtherBlockSizes) {
     EXPECT_EQ(r->blocks_seen, static_cast<std::uint64_t>((w / block) * (h / block)));
     expect_sigma("block_px " + std::to_string(block), *r, 0, t[0]);
   }
+  // The Bayer green quincunx's block model (its checkerboard taken out) at those sides too.
+  const Truths tb{{{0.1, 1}, {0.1, 1}, {0.1, 1}}};
+  const Image bayer = synthesise(w, h, PixelFormat::kBayerRG8, smooth_ramp(w, h), tb, 4);
+  for (int block : {6, 12, 16}) {
+    NoiseEstimateOptions o;
+    o.block_px = block;
+    const Expected<NoiseFitReport> r = estimate_noise_level(bayer, o);
+    ASSERT_TRUE(r) << r.error().message;
+    expect_sigma("Bayer G, block_px " + std::to_string(block), *r, 1, tb[1]);
+  }
 }
 
 // Large white Gaussian noise, no rounding to speak of: the medians' correction to means (a
@@ -129,6 +139,15 @@ TEST(NoiseLevel, MedianCorrectionIsUnbiased) {
   const double var = r->nlf.variance(0, 130);
   std::printf("  variance at 130 DN: %.2f (true 100, %+.2f%%)\n", var, var - 100);
   EXPECT_NEAR(var, 100.0, 3.0);
+  // The green quincunx's own model (Q = M less the checkerboard's direction), on twice the
+  // frame's area for as many G blocks.
+  const Truths tb{{{0, 100}, {0, 100}, {0, 100}}};
+  const Expected<NoiseFitReport> g =
+      estimate_noise_level(synthesise(2 * w, h, PixelFormat::kBayerRG8, flat, tb, 78));
+  ASSERT_TRUE(g) << g.error().message;
+  const double var_g = g->nlf.variance(1, 130);
+  std::printf("  Bayer G variance at 130 DN: %.2f (true 100, %+.2f%%)\n", var_g, var_g - 100);
+  EXPECT_NEAR(var_g, 100.0, 3.0);
 }
 
 // ---------------------------------------------------------------------------------------------
