@@ -28,7 +28,9 @@ configure: deps $(BUILD)/build.ninja
 build: configure
 	cmake --build $(BUILD) -j $(JOBS)
 
-demo: build
+# The demo builds only the augrig binary and its libraries, not the tests and benches.
+demo: configure
+	cmake --build $(BUILD) -j $(JOBS) --target augrig
 	./$(BUILD)/augrig demo --out $(DEMO_OUT)
 
 test: build
