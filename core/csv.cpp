@@ -1,6 +1,11 @@
 #include "core/csv.hpp"
 
 #include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+
+#include "core/file_check.hpp"
 
 namespace augrig {
 
@@ -46,6 +51,29 @@ std::optional<Error> check_csv_field_count(const std::vector<std::string_view>& 
   if (cells.size() == columns) return std::nullopt;
   return make_error(std::string(where), ":", line_no, ": ", cells.size(), " fields, expected ", columns,
                     " (one per header column)");
+}
+
+bool parse_csv_int64(std::string_view cell, std::int64_t& v) {
+  const auto r = std::from_chars(cell.data(), cell.data() + cell.size(), v);
+  return r.ec == std::errc() && r.ptr == cell.data() + cell.size() && !cell.empty();
+}
+
+bool parse_csv_double(std::string_view cell, double& v) {
+  const auto r = std::from_chars(cell.data(), cell.data() + cell.size(), v);
+  return r.ec == std::errc() && r.ptr == cell.data() + cell.size() && !cell.empty() && std::isfinite(v);
+}
+
+Status for_each_csv_row(const std::string& path, std::string_view where, const CsvRowFn& row) {
+  if (auto d = check_not_directory(std::string(where), path); !d) return d.error();
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return make_error(std::string(where), path, ": cannot open the file");
+  std::string line;
+  for (std::size_t no = 1; std::getline(in, line); ++no) {
+    const std::string_view l = trim_csv_cell(line);
+    if (l.empty() || l.front() == '#') continue;
+    if (Status s = row(no, split_csv_line_trimmed(l)); !s) return s;
+  }
+  return {};
 }
 
 }  // namespace augrig

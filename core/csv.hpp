@@ -3,6 +3,8 @@
 // line and the column. No quoting: these files hold numbers and plain names only.
 #pragma once
 
+#include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -37,5 +39,19 @@ std::optional<Error> check_csv_header(const std::vector<std::string_view>& cells
 // per header column)".
 std::optional<Error> check_csv_field_count(const std::vector<std::string_view>& cells, std::size_t columns,
                                            std::string_view where, std::size_t line_no);
+
+// A whole cell as a number, nothing before or after it (trim first): int64 in decimal, or a finite
+// double (std::from_chars: no '+', no "nan" or "inf" accepted as a value).
+bool parse_csv_int64(std::string_view cell, std::int64_t& v);
+bool parse_csv_double(std::string_view cell, double& v);
+
+// One data line of a file: its 1-based line number and its cells, trimmed.
+using CsvRowFn = std::function<Status(std::size_t line_no, const std::vector<std::string_view>& cells)>;
+
+// Reads `path` line by line and calls `row` for every line that is neither blank nor a comment
+// ('#' first, after spaces: a header such as EuRoC's "#timestamp [ns],..."); stops at the first
+// error `row` returns and returns it. A directory or a file that cannot be opened is
+// "WHERE PATH: is a directory, expected a file" or "WHERE PATH: cannot open the file".
+Status for_each_csv_row(const std::string& path, std::string_view where, const CsvRowFn& row);
 
 }  // namespace augrig
