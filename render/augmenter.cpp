@@ -1,11 +1,10 @@
 // The augmenter (render/augmenter.hpp). Per view:
 //   1. everything is moved into the camera frame in double precision (T_cam_body * T_body_obj);
-//   2. the receiver is rasterised (ids only), then the boom depth-tested against it (ids, and
-//      with OpenGL its shaded colour), into the virtual pinhole image; ids pack the draw id in
-//      the top byte and the triangle in the low 24 bits. OpenGL clears and reads back only the
-//      projected boxes of spatial chunks of each mesh; where GL is itself software, the CPU
-//      rasteriser (render/soft_raster.hpp) writes ids and depth straight into the CPU images
-//      and the boom is coloured per pixel in step 4 instead;
+//   2. a raster backend (render/backends/raster_backend.hpp: OpenGL, or the CPU rasteriser where
+//      GL is itself software) draws the receiver (ids only), then the boom depth-tested against
+//      it (ids, and its colour per sample or per triangle), into the virtual pinhole image, only
+//      inside the projected boxes of spatial chunks of each mesh; ids pack the draw id in the
+//      top byte and the triangle in the low 24 bits;
 //   3. the CPU visits the raw pixels of those boxes: each centre maps into the virtual image
 //      (shifted half a sample when anti-aliasing an undistorted lens); where the 2x2 ids around it
 //      agree the answer is read off (a triangle covering all four samples covers the centre),
@@ -22,255 +21,29 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <tuple>
 #include <unordered_map>
 
 #include "core/worker.hpp"
+#include "render/backends/raster_backend.hpp"
 #include "render/boom_shading.hpp"
 #include "render/boom_shadow.hpp"
-#include "render/gl_util.hpp"
 #include "render/motion_blur.hpp"
 #include "render/projection.hpp"
-#include "render/soft_raster.hpp"
 
 namespace augrig {
 
 namespace {
 
-using detail::BoomShading;
 using detail::F32x4;
 using detail::load_rgba;
 using detail::shade;
-
-constexpr char kVertexShader[] = R"(#version 330 core
-layout(location = 0) in vec3 a_pos;
-layout(location = 1) in vec3 a_normal;
-layout(location = 2) in vec2 a_uv;
-uniform mat4 u_cam_from_obj;  // T_cam_obj, camera-relative so float is precise enough
-uniform mat4 u_proj;          // camera frame -> clip (render/projection.hpp)
-out vec3 v_normal_cam;
-out vec2 v_uv;
-void main() {
-  vec4 p = u_cam_from_obj * vec4(a_pos, 1.0);
-  v_normal_cam = mat3(u_cam_from_obj) * a_normal;
-  v_uv = a_uv;
-  gl_Position = u_proj * p;
-}
-)";
-
-// The shaded pass's vertex shader: the camera look's specular light of the mesh's finish per
-// vertex (Gouraud, as the CPU rasteriser and the simulator evaluate it), for either face: the
-// GLSL twin of render/pbr.cpp's SceneLight::on(n, v, ...), less the diffuse share (1 - metallic)
-// times the light the fragment shader computes.
-constexpr char kShadedVertexShader[] = R"(#version 330 core
-layout(location = 0) in vec3 a_pos;
-layout(location = 1) in vec3 a_normal;
-layout(location = 2) in vec2 a_uv;
-uniform mat4 u_cam_from_obj;
-uniform mat4 u_proj;
-uniform int u_specular;  // 0: no specular light (the plain look, the receiver)
-uniform float u_metallic;
-uniform float u_roughness;
-uniform vec3 u_light_cam;
-uniform vec3 u_down_cam;
-uniform vec3 u_sky;
-uniform vec3 u_ground;
-uniform vec3 u_direct;
-out vec3 v_normal_cam;
-out vec2 v_uv;
-out vec3 v_scale_front, v_add_front, v_scale_back, v_add_back;
-void specular_light(vec3 n, vec3 v, out vec3 scale, out vec3 add) {
-  float m = clamp(u_metallic, 0.0, 1.0), r = clamp(u_roughness, 0.0, 1.0), rs = max(r, 0.05);
-  float a2 = rs * rs * rs * rs;
-  float nl = dot(n, u_light_cam), nv = max(dot(n, v), 1e-4);
-  float s = 0.0, w = 0.0;
-  vec3 hs = u_light_cam + v;
-  if (nl > 0.0 && length(hs) > 1e-6) {
-    vec3 h = normalize(hs);
-    float nh = max(dot(n, h), 0.0);
-    float d = nh * nh * (a2 - 1.0) + 1.0;
-    float vis = 0.5 / (nl * sqrt(nv * nv * (1.0 - a2) + a2) + nv * sqrt(nl * nl * (1.0 - a2) + a2));
-    float k = 1.0 - clamp(dot(v, h), 0.0, 1.0);
-    s = a2 / (d * d) * vis * nl;
-    w = k * k * k * k * k;
-  }
-  float x = 1.0 - r, y = 0.0425 - 0.0275 * r, z = 1.04 - 0.572 * r, c = -0.04 + 0.022 * r;
-  float a004 = min(x * x, exp2(-9.28 * clamp(dot(n, v), 0.0, 1.0))) * x + y;
-  float A = -1.04 * a004 + z, B = max(1.04 * a004 + c, 0.0);
-  vec3 mirror = 2.0 * dot(n, v) * n - v;
-  float q = dot(n + (1.0 - rs * rs) * (mirror - n), u_down_cam);
-  vec3 hemi = u_sky * 0.5 * (1.0 - q) + u_ground * 0.5 * (1.0 + q);
-  vec3 sun = u_direct * s;
-  float f0 = 0.04 * (1.0 - m);
-  scale = m * ((1.0 - w) * sun + A * hemi);
-  add = sun * (f0 * (1.0 - w) + w) + hemi * (f0 * A + B);
-}
-void main() {
-  vec4 p = u_cam_from_obj * vec4(a_pos, 1.0);
-  v_normal_cam = mat3(u_cam_from_obj) * a_normal;
-  v_uv = a_uv;
-  gl_Position = u_proj * p;
-  v_scale_front = v_add_front = v_scale_back = v_add_back = vec3(0.0);
-  if (u_specular != 0) {
-    vec3 n = normalize(v_normal_cam), v = normalize(-p.xyz);
-    specular_light(n, v, v_scale_front, v_add_front);
-    specular_light(-n, v, v_scale_back, v_add_back);
-  }
-}
-)";
-
-// Ids only: the mask-only receiver needs no colour (saves texture fetches and lighting per fragment).
-constexpr char kIdFragmentShader[] = R"(#version 330 core
-uniform uint u_draw_id;
-layout(location = 1) out vec4 o_id;
-layout(location = 2) out vec4 o_id2;
-void main() {
-  uint prim = uint(gl_PrimitiveID);
-  o_id = vec4(float(prim & 255u), float((prim >> 8) & 255u), float((prim >> 16) & 255u), float(u_draw_id)) / 255.0;
-  o_id2 = o_id;
-}
-)";
-
-constexpr char kFragmentShader[] = R"(#version 330 core
-in vec3 v_normal_cam;
-in vec2 v_uv;
-in vec3 v_scale_front, v_add_front, v_scale_back, v_add_back;
-uniform int u_specular;
-uniform float u_metallic;
-uniform vec3 u_base_color;
-uniform sampler2D u_texture;
-uniform int u_has_texture;
-uniform vec3 u_light_cam;   // unit vector towards the light, camera frame
-uniform vec3 u_down_cam;    // SceneLight: sky and ground hemispheres about the local vertical,
-uniform vec3 u_sky;         // plus direct * cosine, per colour channel
-uniform vec3 u_ground;
-uniform vec3 u_direct;
-uniform uint u_draw_id;     // 1..255, 0 = nothing
-uniform float u_alpha;
-layout(location = 0) out vec4 o_color;
-layout(location = 1) out vec4 o_id;
-layout(location = 2) out vec4 o_id2;     // same id; which target keeps it is chosen by glColorMaski
-layout(location = 3) out vec4 o_color2;
-void main() {
-  vec3 n = normalize(v_normal_cam);
-  if (!gl_FrontFacing) n = -n;
-  vec3 albedo = u_base_color;
-  if (u_has_texture != 0) albedo *= texture(u_texture, v_uv).rgb;
-  float diffuse = max(dot(n, u_light_cam), 0.0);
-  float nd = dot(n, u_down_cam);
-  vec3 hemi = u_sky == u_ground ? u_sky : u_sky * 0.5 * (1.0 - nd) + u_ground * 0.5 * (1.0 + nd);
-  if (u_specular != 0) {
-    vec3 scale = gl_FrontFacing ? v_scale_front : v_scale_back, add = gl_FrontFacing ? v_add_front : v_add_back;
-    o_color = vec4(albedo * ((1.0 - u_metallic) * (hemi + u_direct * diffuse) + scale) + add, u_alpha);
-  } else {
-    o_color = vec4(albedo * (hemi + u_direct * diffuse), u_alpha);
-  }
-  // Exact integers through RGBA8: k / 255 is stored as k.
-  uint prim = uint(gl_PrimitiveID);
-  o_id = vec4(float(prim & 255u), float((prim >> 8) & 255u), float((prim >> 16) & 255u), float(u_draw_id)) / 255.0;
-  o_id2 = o_id;
-  o_color2 = o_color;
-}
-)";
-
-enum class ObjectKind : std::uint8_t { kBoomFixed, kBoomTelescope, kReceiver };
-
-struct DrawItem {
-  ObjectKind kind;
-  const Mesh* mesh;
-  gl::GpuMesh gpu;
-  std::uint8_t draw_id;   // value written to the id buffer's alpha
-  std::size_t first_tri;  // this mesh's first triangle in ViewState::tris
-  bool cull;              // built-in, consistently wound meshes only
-  bool texture_1d;        // a texture whose rows are all the same (bands along u)
-  // Per triangle of a texture_1d mesh: the one RGBA colour (packed) of every texel its bilinear
-  // samples can reach, or -1 where they differ. Such triangles need no texture sampling.
-  std::vector<std::int64_t> flat_texel;
-  // Spatially compact triangle ranges [first, first + count) of the mesh: each gets its own
-  // screen box, so a long diagonal part (the boom's tube) costs its footprint, not its bounding box.
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> chunks;
-  std::size_t first_vertex;  // this mesh's first vertex in ViewState::vertex_light
-};
-
-// A triangle in the current view's camera frame, ready for exact ray tests from the origin.
-struct CamTriangle {
-  // First what the ray test reads (two cache lines rather than three).
-  // Planes through the camera centre and each edge, signed so that a ray from the camera passes
-  // through the triangle, in front of the camera, iff all three dot products with it are >= 0.
-  Eigen::Vector3d edge[3];
-  Eigen::Vector3d n;  // n = e1 x e2
-  double n_dot_v0;
-  Eigen::Vector3d v0, e1, e2;
-};
-
-// Triangle k of boom draw `d` coloured for the CPU resolve (render/boom_shading.hpp): vertex j's
-// attributes weighted by the edge plane through the other two (CamTriangle::edge[j + 1]); normals
-// flipped on back faces, as in GL. With `vertex_light` (the camera look): the light on the mesh's
-// finish seen from the camera at the origin (SceneLight::on(n, v, ...)), its albedo-coloured part
-// in the light planes and the rest in the specular planes, computed once per vertex and side this
-// frame (a vertex is shared by about six triangles); without, the diffuse light alone, as before.
-struct VertexLightCache {
-  SurfaceLight* light;
-  std::uint32_t* stamp;
-  std::uint32_t now;
-};
-void set_boom_shading(BoomShading& sh, const CamTriangle& t, const DrawItem& d, std::size_t k,
-                      const Eigen::Matrix3d& R, const SceneLight& sl, const Eigen::Vector3d& light,
-                      const Eigen::Vector3d& down, const VertexLightCache* vertex_light, const Texture* tex) {
-  const bool specular = vertex_light != nullptr;
-  const Mesh& m = *d.mesh;
-  const std::uint32_t* vi = &m.indices[3 * k];
-  const double facing = t.n_dot_v0 < 0 ? 1.0 : -1.0;
-  const Eigen::Vector3d corner[3] = {t.v0, t.v0 + t.e1, t.v0 + t.e2};
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero(), u = sum, v = sum;
-  Eigen::Matrix3d lit = Eigen::Matrix3d::Zero(), add = lit;  // column ch: the channel's sum of k_j c_j
-  Eigen::Vector3d lo = sl.lowest(), hi = sl.highest(), add_hi = Eigen::Vector3d::Zero();
-  for (int j = 0; j < 3; ++j) {
-    const Eigen::Vector3d& c = t.edge[(j + 1) % 3];
-    const Eigen::Vector3d n_j = facing * (R * m.normals[vi[j]].cast<double>()).normalized();
-    sum += c;
-    if (specular) {
-      const std::size_t slot = 2 * (d.first_vertex + vi[j]) + (facing < 0);
-      if (vertex_light->stamp[slot] != vertex_light->now) {
-        vertex_light->light[slot] = sl.on(n_j, -corner[j].normalized(), light, down, m.finish);
-        vertex_light->stamp[slot] = vertex_light->now;
-      }
-      const SurfaceLight& s = vertex_light->light[slot];
-      for (int ch = 0; ch < 3; ++ch) lit.col(ch) += s.scale[ch] * c, add.col(ch) += 255.0 * s.add[ch] * c;
-      // A glint or a metal's dark side may leave the diffuse light's range: the vertices' own.
-      lo = lo.cwiseMin(s.scale), hi = hi.cwiseMax(s.scale), add_hi = add_hi.cwiseMax(255.0 * s.add);
-    } else {
-      const Eigen::Vector3d k_j = sl.on(n_j, light, down);
-      for (int ch = 0; ch < 3; ++ch) lit.col(ch) += k_j[ch] * c;
-    }
-    if (tex) u += m.uvs[vi[j]].x() * c, v += m.uvs[vi[j]].y() * c;
-  }
-  F32x4* coeff[3] = {&sh.dx, &sh.dy, &sh.d1};
-  F32x4* coeff_gb[3] = {&sh.gx, &sh.gy, &sh.g1};
-  F32x4* coeff_s[3] = {&sh.sx, &sh.sy, &sh.s1};
-  auto f = [](double x) { return static_cast<float>(x); };
-  for (int a = 0; a < 3; ++a) {
-    *coeff[a] = F32x4{f(sum[a]), f(lit(a, 0)), f(u[a]), f(v[a])};
-    *coeff_gb[a] = F32x4{f(lit(a, 1)), f(lit(a, 2)), 0.f, 0.f};
-    *coeff_s[a] = F32x4{f(add(a, 0)), f(add(a, 1)), f(add(a, 2)), 0.f};
-    sh.base[a] = 255.f * m.base_color[a];
-  }
-  sh.base[3] = 0;
-  sh.light_lo = F32x4{f(lo[0]), f(lo[1]), f(lo[2]), 0.f};
-  sh.light_hi = F32x4{f(hi[0]), f(hi[1]), f(hi[2]), 0.f};
-  sh.add_hi = F32x4{f(add_hi[0]), f(add_hi[1]), f(add_hi[2]), 0.f};
-  sh.specular = specular;
-  sh.texture = tex;
-  sh.texture_1d = d.texture_1d;
-  if (tex && !d.flat_texel.empty() && d.flat_texel[k] >= 0) {
-    // One texel colour over the whole triangle: folded into the base colour.
-    std::uint8_t rgba[4];
-    const auto packed = static_cast<std::uint32_t>(d.flat_texel[k]);
-    std::memcpy(rgba, &packed, 4);
-    for (int a = 0; a < 3; ++a) sh.base[a] *= rgba[a] * (1.f / 255.f);
-    sh.texture = nullptr;
-  }
-}
+using raster_backends::CamTriangle;
+using raster_backends::DrawItem;
+using raster_backends::kBlockShift;
+using raster_backends::kDrawShift;
+using raster_backends::kPrimMask;
+using raster_backends::ObjectKind;
+using raster_backends::VBox;
 
 // Camera z where the ray d = (x, y, 1) from the camera centre hits `t`, or +inf: inside-ness is
 // three signs against the edge planes, and z (the ray parameter, d.z being 1) comes from the plane.
@@ -289,45 +62,24 @@ struct MapEntry {
   float fx, fy;      // bilinear fractions
 };
 
-struct VBox {
-  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-  bool empty() const { return x1 <= x0 || y1 <= y0; }
-};
-
-struct ViewState {
-  const RigCamera* cam = nullptr;
-  VirtualPinhole vp;
-  std::array<float, 16> proj{};
-  std::vector<MapEntry> map;                       // per raw pixel
-  std::vector<std::uint32_t> boom_ids, recv_ids;   // virtual image, packed ids; zero outside the last boxes
-  std::vector<std::uint8_t> boom_rgba, recv_rgba;  // virtual image colour (recv only for overlays)
-  std::vector<float> inv_z;  // CPU rasteriser's depth (1/z); zero outside the last boxes
+// One view: what its raster backend sees (raster_backends::RasterView: the camera, the virtual image,
+// this frame's triangles and boxes, the id and colour images) and what the resolve adds.
+struct ViewState : raster_backends::RasterView {
+  std::vector<MapEntry> map;  // per raw pixel
   // A raw row of DepthImage::kNone: copied over depth rows to clear them (a copy is vectorised,
   // std::fill_n of a float pattern is a scalar loop at -O2).
   std::vector<float> no_depth_row;
-  std::vector<BoomShading> shading;  // CPU rasteriser: per boom triangle drawn this frame
-  // The camera look's light on the boom per vertex and side (2 i: front, 2 i + 1: back), computed
-  // once per vertex rather than per triangle corner: the slot holds this frame's where its stamp
-  // is `light_stamp` (CPU rasteriser).
-  std::vector<SurfaceLight> vertex_light;
-  std::vector<std::uint32_t> vertex_stamp;
-  std::uint32_t light_stamp = 0;
-  // CPU rasteriser: which 8 x 8 blocks of the virtual image it wrote this frame (kReceiverBlock,
-  // kBoomBlock bits; ids and depth are zero elsewhere), and per group of kGroup raw pixels of a
-  // row, the blocks their 2x2 sample neighbourhoods lie in.
-  std::vector<std::uint8_t> occupied;
-  int blocks_x = 0;
+  // Where the backend marks the blocks it writes (RasterView::occupied): per group of kGroup raw
+  // pixels of a row, the blocks their 2x2 sample neighbourhoods lie in.
   struct BlockRange {
     std::uint16_t bi0, bi1, bj0, bj1;  // inclusive; bi0 > bi1 when no pixel of the group has a ray
   };
   std::vector<BlockRange> groups;
   int groups_x = 0;
-  std::vector<VBox> boom_vboxes, recv_vboxes;  // boxes rendered and read back this frame
   // This frame's resolve, set by begin_resolve(): the raw boxes of the rendered boxes, the raw
   // pixels to visit (their union's box) and the part of the raw image the augmented image holds.
   std::vector<VBox> raw_boxes;
   VBox work, copy;
-  std::vector<CamTriangle> tris;  // all draw items' triangles, this frame
   struct Plane {
     double nx, ny, nz, c;  // n . p = c; depth along the ray (x, y, 1) is c / (n . (x, y, 1))
   };
@@ -360,24 +112,31 @@ struct RowScratch {
   std::vector<std::pair<int, int>> spans;  // the row's spans of raw boxes
 };
 
-constexpr std::uint32_t kDrawShift = 24;
-constexpr int kBlockShift = 3;  // virtual image blocks of 8 x 8 samples
-constexpr int kBlockSize = 1 << kBlockShift;
-// ViewState::occupied's bits: the CPU rasteriser wrote the block's receiver ids, its boom ids.
-constexpr std::uint8_t kReceiverBlock = 1, kBoomBlock = 2;
-constexpr int kGroup = 32;      // raw pixels per occupancy test
+// One row of one view being resolved by one thread: what its pixels read and write.
+struct ResolveRow {
+  const ViewState& vs;
+  RowScratch& scratch;
+  const std::uint32_t *bids, *rids;  // the virtual image's ids
+  std::uint8_t* mrow;                // the mask's row
+  float* drow;                       // the receiver depth's row
+  std::uint8_t* arow;                // the augmented image's row (null outside the changed box)
+  std::uint8_t* alrow;               // the camera look's coverage row (null with the plain look)
+  PixelFormat fmt;
+  int bpp, W, Wv, v;
+  int ax0;  // the augmented image's first column: raw pixel u is its byte (u - ax0) * bpp
+};
+
+constexpr int kGroup = 32;  // raw pixels per occupancy test
 
 // Whether any sample around the raw pixels of group g of row v may hold an id this frame.
 bool group_occupied(const ViewState& vs, int v, int g) {
-  if (vs.occupied.empty()) return true;  // OpenGL: nothing known
+  if (vs.occupied.empty()) return true;  // the backend marks no blocks: nothing known
   const ViewState::BlockRange& r = vs.groups[static_cast<std::size_t>(v) * vs.groups_x + g];
   for (int bj = r.bj0; bj <= r.bj1; ++bj)
     for (int bi = r.bi0; bi <= r.bi1; ++bi)
       if (vs.occupied[static_cast<std::size_t>(bj) * vs.blocks_x + bi]) return true;
   return false;
 }
-constexpr std::uint32_t kPrimMask = (1u << 24) - 1;
-
 PixelBox to_pixel_box(const VBox& b) {
   return {b.x0, b.y0, b.x1, b.y1};
 }
@@ -424,31 +183,28 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> split_into_chunks(Mesh& mes
 class AugmenterImpl final : public Augmenter {
  public:
   AugmenterImpl(const Rig& rig, const AugmentOptions& options) : rig_(rig), options_(options) {}
-  ~AugmenterImpl() override {
-    for (auto& d : draws_) d.gpu.destroy();
-    fb_.destroy();
-    for (Program* p : {&shaded_, &ids_only_})
-      if (p->id) glDeleteProgram(p->id);
-  }
 
   Status init();
-  Status make_programs();
 
   Status augment(const StereoFrame& frame, const SceneState& scene, StereoResult& out) override;
   Status augment_view(int camera, const Frame& raw, const SceneState& scene, ViewResult& out) override;
   Status set_camera_look(int camera, const CameraLookParams& params) override;
   const CameraLookParams& camera_look(int camera) const override { return looks_.at(camera); }
   const AugmentTimings& timings() const override { return timings_; }
-  Rasterizer rasterizer() const override { return cpu_raster_ ? Rasterizer::kCpu : Rasterizer::kOpenGl; }
+  Rasterizer rasterizer() const override { return backend_->kind(); }
   const Rig& rig() const override { return rig_; }
   const BoomModel& boom_model() const override { return boom_; }
   const Model& receiver_model() const override { return receiver_; }
 
  private:
+  Status load_models();
+  Status add_draws(ObjectKind kind, Model& model, bool cull);
+  Status init_view(std::size_t camera);
+  void init_groups(ViewState& vs) const;
   Status check_frame(int camera, const Frame& raw) const;
   void prepare_view(ViewState& vs, const SceneState& scene);
-  void render_view(ViewState& vs, const SceneState& scene);
-  void raster_view(ViewState& vs, const SceneState& scene) const;
+  // The backend clears what it drew last frame, then draws this frame's boxes.
+  void rasterise(ViewState& vs, const SceneState& scene);
   void update_boxes(ViewState& vs) const;
   // Whether the camera look applies this frame, and the light the boom is shaded with.
   bool camera_look_on() const {
@@ -466,6 +222,11 @@ class AugmenterImpl final : public Augmenter {
                    double& look_ms);
   // Both steps and the motion between them, the views in parallel where they can be.
   void finish_views(const Frame* const raws[2], ViewResult* const outs[2], const SceneState& scene);
+  // augment()'s steps: both views drawn and resolved (two threads, or the backend's one), then
+  // the statistics.
+  void draw_and_resolve_concurrently(const StereoFrame& frame, const SceneState& scene, StereoResult& out);
+  void draw_and_resolve_serially(const StereoFrame& frame, const SceneState& scene, StereoResult& out);
+  void stereo_stats(const StereoFrame& frame, StereoResult& out);
   // Motion blur: the camera look's layer of one view averaged over sub-exposure instants (its
   // boom redrawn at each, masks and depth left as mid-exposure's); false when the boom moves
   // less than kMotionMinPx over the exposure (or no exposure is known): the mid-exposure layer.
@@ -490,6 +251,31 @@ class AugmenterImpl final : public Augmenter {
   void begin_resolve(ViewState& vs, const Frame& raw, ViewResult& out) const;
   void resolve_rows(const ViewState& vs, const Frame& raw, ViewResult& out, std::atomic<int>& next_row,
                     RowScratch& scratch) const;
+  // resolve_rows()' parts, compiled per RowFlags and inlined into the row loop.
+  template <class Flags>
+  void resolve_rows_as(const ViewState& vs, const Frame& raw, ViewResult& out, std::atomic<int>& next_row,
+                       RowScratch& scratch) const;
+  template <class Flags>
+  __attribute__((always_inline)) void resolve_pixel(const ResolveRow& r, int u) const;
+  template <class Flags>
+  __attribute__((always_inline)) void resolve_edge_pixel(const ResolveRow& row, int u, const MapEntry& e,
+                                                         const Eigen::Vector2f& ray, const std::uint32_t b[4],
+                                                         const std::uint32_t r[4]) const;
+  template <class Flags>
+  __attribute__((always_inline)) double centre_depth(const ResolveRow& row, const std::uint32_t* ids,
+                                                     bool any, bool all, bool same, double x, double y) const;
+  template <class Flags>
+  __attribute__((always_inline)) F32x4 boom_colour(const ViewState& vs, std::uint32_t packed, std::size_t s,
+                                                   const Eigen::Vector2f& ray) const;
+  template <class Flags>
+  __attribute__((always_inline)) void put_opaque(const ResolveRow& r, int u, F32x4 c) const;
+  __attribute__((always_inline)) static void blend(const ResolveRow& r, int u, float alpha, float cr,
+                                                   float cg, float cb);
+  // The receiver's (or boom's) depth at a pixel centre's ray from its triangle's plane.
+  double plane_depth(const ViewState& vs, std::uint32_t packed, const Eigen::Vector2f& ray) const {
+    const ViewState::Plane& pl = vs.planes[global_index(packed)];
+    return pl.c / (pl.nx * ray.x() + pl.ny * ray.y() + pl.nz);
+  }
   void resolve_view(ViewState& vs, const Frame& raw, ViewResult& out, RowScratch& scratch) const {
     begin_resolve(vs, raw, out);
     std::atomic<int> next_row{0};
@@ -519,7 +305,7 @@ class AugmenterImpl final : public Augmenter {
   BoomModel boom_;
   Model receiver_;
   std::vector<DrawItem> draws_;
-  std::size_t total_tris_ = 0, total_verts_ = 0;
+  std::size_t total_tris_ = 0;
   // Triangles sharing a vertex (welded by position) with each triangle, global indices (CSR):
   // silhouette triangles seen edge-on are slivers that no sample lands in, but a sampled neighbour does.
   std::vector<std::uint32_t> ring_offsets_, ring_;
@@ -529,16 +315,7 @@ class AugmenterImpl final : public Augmenter {
   std::vector<CameraLookParams> looks_;     // per camera
   std::vector<LookBuffers> look_buffers_;   // per camera
   const SceneLight fixed_light_ = SceneLight::fixed();
-  gl::Framebuffer fb_;
-  struct Program {
-    GLuint id = 0;
-    GLint cam_from_obj = -1, proj = -1, base_color = -1, has_texture = -1, light = -1, down = -1, sky = -1,
-          ground = -1, direct = -1, draw_id = -1, alpha = -1, texture = -1, specular = -1, metallic = -1,
-          roughness = -1;
-  };
-  Program shaded_, ids_only_;
-  bool zero_to_one_ = false;
-  bool cpu_raster_ = false;
+  std::unique_ptr<raster_backends::RasterBackend> backend_;
   AugmentTimings timings_;
   // Runs the left view beside the calling thread's right view; started on first use.
   std::unique_ptr<Worker> worker_;
@@ -552,33 +329,6 @@ class AugmenterImpl final : public Augmenter {
   bool shadow_on_ = false;  // the receiver drawn and the sun up: the boom's shadow is looked for
 };
 
-// The shaded pass's and the ids pass's GL programs, and their uniforms' locations.
-Status AugmenterImpl::make_programs() {
-  for (auto [prog, name, vs, fs] :
-       {std::tuple{&shaded_, "augmenter shaded", kShadedVertexShader, kFragmentShader},
-        std::tuple{&ids_only_, "augmenter ids", kVertexShader, kIdFragmentShader}}) {
-    auto id = gl::make_program(name, vs, fs);
-    if (!id) return id.error();
-    prog->id = *id;
-    prog->cam_from_obj = glGetUniformLocation(*id, "u_cam_from_obj");
-    prog->proj = glGetUniformLocation(*id, "u_proj");
-    prog->base_color = glGetUniformLocation(*id, "u_base_color");
-    prog->has_texture = glGetUniformLocation(*id, "u_has_texture");
-    prog->light = glGetUniformLocation(*id, "u_light_cam");
-    prog->down = glGetUniformLocation(*id, "u_down_cam");
-    prog->sky = glGetUniformLocation(*id, "u_sky");
-    prog->ground = glGetUniformLocation(*id, "u_ground");
-    prog->direct = glGetUniformLocation(*id, "u_direct");
-    prog->draw_id = glGetUniformLocation(*id, "u_draw_id");
-    prog->alpha = glGetUniformLocation(*id, "u_alpha");
-    prog->texture = glGetUniformLocation(*id, "u_texture");
-    prog->specular = glGetUniformLocation(*id, "u_specular");
-    prog->metallic = glGetUniformLocation(*id, "u_metallic");
-    prog->roughness = glGetUniformLocation(*id, "u_roughness");
-  }
-  return {};
-}
-
 Status AugmenterImpl::init() {
   if (rig_.cameras.size() != 2)
     return make_error("Augmenter::create(): the rig needs 2 cameras, has ", rig_.cameras.size());
@@ -586,6 +336,33 @@ Status AugmenterImpl::init() {
   look_buffers_.resize(rig_.cameras.size());
   for (std::size_t c = 0; c < options_.camera_looks.size() && c < looks_.size(); ++c)
     if (auto s = set_camera_look(static_cast<int>(c), options_.camera_looks[c]); !s) return s;
+  if (auto s = load_models(); !s) return s;
+  auto backend = raster_backends::make_raster_backend(options_);
+  if (!backend) return backend.error();
+  backend_ = std::move(*backend);
+
+  const bool builtin_boom = rig_.boom.model.path.empty() && !options_.boom_model;
+  if (auto s = add_draws(ObjectKind::kBoomFixed, boom_.fixed, builtin_boom); !s) return s;
+  if (auto s = add_draws(ObjectKind::kBoomTelescope, boom_.telescope, builtin_boom); !s) return s;
+  const bool builtin_receiver = rig_.receiver.model.path.empty() && !options_.receiver_model;
+  if (auto s = add_draws(ObjectKind::kReceiver, receiver_, builtin_receiver); !s) return s;
+  for (const DrawItem& d : draws_) first_tri_of_draw_[d.draw_id] = static_cast<std::uint32_t>(d.first_tri);
+  build_rings();
+
+  views_.resize(rig_.cameras.size());
+  std::vector<raster_backends::RasterView*> views;
+  for (std::size_t c = 0; c < rig_.cameras.size(); ++c) {
+    if (auto s = init_view(c); !s) return s;
+    views.push_back(&views_[c]);
+  }
+  if (auto s = backend_->init(draws_, views); !s) return s;
+  for (ViewState& vs : views_) init_groups(vs);
+  for (RowScratch& r : row_scratch_) r.visit_stamp.assign(total_tris_, 0);
+  return {};
+}
+
+// The rig's models, or those the options give.
+Status AugmenterImpl::load_models() {
   if (options_.boom_model) {
     boom_ = *options_.boom_model;
   } else if (rig_.boom.model.path.empty()) {
@@ -605,157 +382,80 @@ Status AugmenterImpl::init() {
     if (!m) return m.error();
     receiver_ = std::move(*m);
   }
-
-  if (auto s = make_programs(); !s) return s;
-
-  // A software GL pays per pixel for each attachment it clears, writes and reads back: there the
-  // CPU rasteriser, which writes one id and one depth per covered sample, is faster.
-  const auto* renderer_name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
-  const std::string renderer = renderer_name ? renderer_name : "";
-  const bool software_gl = renderer.find("llvmpipe") != std::string::npos ||
-                           renderer.find("softpipe") != std::string::npos ||
-                           renderer.find("swrast") != std::string::npos ||
-                           renderer.find("Software Rasterizer") != std::string::npos;
-  cpu_raster_ =
-      options_.receiver_draw == ReceiverDraw::kMaskOnly &&
-      (options_.rasterizer == Rasterizer::kCpu || (options_.rasterizer == Rasterizer::kAuto && software_gl));
-
-  // One draw item per mesh; its id (1..255) goes into the id buffer's alpha byte.
-  auto add = [&](ObjectKind kind, Model& model, bool cull) -> Status {
-    for (Mesh& m : model.meshes) {
-      if (draws_.size() >= 255)
-        return make_error("Augmenter::create(): models have more than 255 meshes in total; merge them");
-      if (m.triangle_count() > kPrimMask)
-        return make_error("Augmenter::create(): mesh '", m.name, "' has more than 2^24 triangles");
-      auto chunks = split_into_chunks(m, 4);  // before upload: it reorders the triangles
-      // Rows all equal: bilinear sampling needs one row (the built-in boom's bands).
-      bool texture_1d = m.texture && m.texture->height > 0;
-      if (texture_1d) {
-        const std::size_t row_bytes = static_cast<std::size_t>(m.texture->width) * 4;
-        for (int r = 1; r < m.texture->height && texture_1d; ++r)
-          texture_1d = std::equal(m.texture->rgba.begin(), m.texture->rgba.begin() + row_bytes,
-                                  m.texture->rgba.begin() + r * row_bytes);
-      }
-      std::vector<std::int64_t> flat_texel;
-      if (texture_1d && !m.uvs.empty()) {
-        const Texture& tex = *m.texture;
-        auto texel = [&](long i) {  // packed RGBA of row 0, column i wrapped (repeat)
-          const long w = tex.width, c = ((i % w) + w) % w;
-          std::uint32_t v;
-          std::memcpy(&v, &tex.rgba[static_cast<std::size_t>(c) * 4], 4);
-          return static_cast<std::int64_t>(v);
-        };
-        flat_texel.assign(m.triangle_count(), -1);
-        for (std::size_t t = 0; t < m.triangle_count(); ++t) {
-          double u0 = 1e300, u1 = -1e300;
-          for (int j = 0; j < 3; ++j) {
-            const double u = m.uvs[m.indices[3 * t + j]].x();
-            u0 = std::min(u0, u), u1 = std::max(u1, u);
-          }
-          // Texels i and i + 1 at x = u w - 0.5, i = floor(x), over [u0, u1]; one more each side
-          // for the rounding of the per-pixel u.
-          const double x0 = u0 * tex.width - 0.5, x1 = u1 * tex.width - 0.5;
-          if (!(x1 - x0 < tex.width)) continue;
-          const long i0 = static_cast<long>(std::floor(x0)) - 1, i1 = static_cast<long>(std::floor(x1)) + 2;
-          const std::int64_t first = texel(i0);
-          bool same = true;
-          for (long i = i0 + 1; i <= i1 && same; ++i) same = texel(i) == first;
-          if (same) flat_texel[t] = first;
-        }
-      }
-      draws_.push_back({kind, &m, gl::upload(m), static_cast<std::uint8_t>(draws_.size() + 1), total_tris_,
-                        cull, texture_1d, std::move(flat_texel), std::move(chunks), total_verts_});
-      total_tris_ += m.triangle_count();
-      total_verts_ += m.positions_m.size();
-    }
-    return {};
-  };
-  const bool builtin_boom = rig_.boom.model.path.empty() && !options_.boom_model;
-  if (auto s = add(ObjectKind::kBoomFixed, boom_.fixed, builtin_boom); !s) return s;
-  if (auto s = add(ObjectKind::kBoomTelescope, boom_.telescope, builtin_boom); !s) return s;
-  if (auto s =
-          add(ObjectKind::kReceiver, receiver_, rig_.receiver.model.path.empty() && !options_.receiver_model);
-      !s)
-    return s;
-
-  for (const DrawItem& d : draws_) first_tri_of_draw_[d.draw_id] = static_cast<std::uint32_t>(d.first_tri);
-  build_rings();
-  zero_to_one_ = gl::has_clip_control();
-  // Reversed-Z: depth 1 at the near plane, 0 at far; float depth keeps precision at 100 m.
-  // Context state, set once (changing it per view makes llvmpipe revalidate).
-  if (zero_to_one_) glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
-  int fw = 0, fh = 0;
-  views_.resize(rig_.cameras.size());
-  for (std::size_t c = 0; c < rig_.cameras.size(); ++c) {
-    ViewState& vs = views_[c];
-    vs.cam = &rig_.cameras[c];
-    const CameraModel& cm = vs.cam->model;
-    // Anti-aliasing samples the virtual image between raw pixel centres (render/projection.hpp).
-    auto vp = make_virtual_pinhole(cm, 1.0, options_.antialias, vs.cam->name);
-    if (!vp) return vp.error();
-    vs.vp = std::move(*vp);
-    vs.proj = gl_projection(vs.vp.fx, vs.vp.fy, vs.vp.cx, vs.vp.cy, vs.vp.width, vs.vp.height, vs.cam->near_m,
-                            vs.cam->far_m, zero_to_one_);
-    // Raw pixel centre -> top-left virtual sample of its bilinear neighbourhood.
-    vs.map.resize(vs.vp.ray_xy.size());
-    for (std::size_t i = 0; i < vs.map.size(); ++i) {
-      const Eigen::Vector2f& r = vs.vp.ray_xy[i];
-      if (!std::isfinite(r.x())) {
-        vs.map[i] = {-1, 0, 0};
-        continue;
-      }
-      if (vs.vp.identity) {
-        vs.map[i] = {static_cast<std::int32_t>(i), 0.f, 0.f};
-        continue;
-      }
-      const Eigen::Vector2d p = vs.vp.to_virtual(r.cast<double>());
-      const int i0 = std::clamp(static_cast<int>(std::floor(p.x())), 0, vs.vp.width - 2);
-      const int j0 = std::clamp(static_cast<int>(std::floor(p.y())), 0, vs.vp.height - 2);
-      vs.map[i] = {j0 * vs.vp.width + i0, static_cast<float>(p.x() - i0), static_cast<float>(p.y() - j0)};
-    }
-    const std::size_t vn = static_cast<std::size_t>(vs.vp.width) * vs.vp.height;
-    vs.boom_ids.assign(vn, 0);
-    vs.recv_ids.assign(vn, 0);
-    if (!cpu_raster_) vs.boom_rgba.assign(vn * 4, 0);  // the CPU rasteriser colours in the resolve
-    if (options_.receiver_draw != ReceiverDraw::kMaskOnly) vs.recv_rgba.assign(vn * 4, 0);
-    if (cpu_raster_) {
-      vs.inv_z.assign(vn, 0.f);
-      vs.shading.resize(total_tris_);
-      vs.vertex_light.resize(2 * total_verts_);
-      vs.vertex_stamp.assign(2 * total_verts_, 0);
-      vs.blocks_x = (vs.vp.width >> kBlockShift) + 1;
-      vs.occupied.assign(static_cast<std::size_t>(vs.blocks_x) * ((vs.vp.height >> kBlockShift) + 1), 0);
-      const int W = cm.width_px, H = cm.height_px;
-      vs.groups_x = (W + kGroup - 1) / kGroup;
-      vs.groups.assign(static_cast<std::size_t>(vs.groups_x) * H, {1, 0, 1, 0});
-      for (int v = 0; v < H; ++v)
-        for (int u = 0; u < W; ++u) {
-          const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
-          if (e.idx < 0) continue;
-          const int i0 = e.idx % vs.vp.width, j0 = e.idx / vs.vp.width;
-          const auto bi0 = static_cast<std::uint16_t>(i0 >> kBlockShift),
-                     bi1 = static_cast<std::uint16_t>((i0 + 1) >> kBlockShift),
-                     bj0 = static_cast<std::uint16_t>(j0 >> kBlockShift),
-                     bj1 = static_cast<std::uint16_t>((j0 + 1) >> kBlockShift);
-          ViewState::BlockRange& r = vs.groups[static_cast<std::size_t>(v) * vs.groups_x + u / kGroup];
-          if (r.bi0 > r.bi1)
-            r = {bi0, bi1, bj0, bj1};
-          else
-            r = {std::min(r.bi0, bi0), std::max(r.bi1, bi1), std::min(r.bj0, bj0), std::max(r.bj1, bj1)};
-        }
-    }
-    vs.tris.resize(total_tris_);
-    vs.planes.resize(total_tris_);
-    fw = std::max(fw, vs.vp.width);
-    fh = std::max(fh, vs.vp.height);
-  }
-  for (RowScratch& r : row_scratch_) r.visit_stamp.assign(total_tris_, 0);
-  if (auto s = fb_.create(fw, fh); !s) return s;
-  const GLenum targets[4] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2,
-                             GL_COLOR_ATTACHMENT3};
-  glDrawBuffers(4, targets);  // framebuffer state: set once, passes choose with colour masks
-  if (auto e = gl::drain_errors(); !e.empty()) return make_error("Augmenter::create(): OpenGL errors:", e);
   return {};
+}
+
+// One draw item per mesh; its id (1..255) goes into the id images' top byte.
+Status AugmenterImpl::add_draws(ObjectKind kind, Model& model, bool cull) {
+  for (Mesh& m : model.meshes) {
+    if (draws_.size() >= 255)
+      return make_error("Augmenter::create(): models have more than 255 meshes in total; merge them");
+    if (m.triangle_count() > kPrimMask)
+      return make_error("Augmenter::create(): mesh '", m.name, "' has more than 2^24 triangles");
+    auto chunks = split_into_chunks(m, 4);  // before the backend sees it: it reorders the triangles
+    draws_.push_back(
+        {kind, &m, static_cast<std::uint8_t>(draws_.size() + 1), total_tris_, cull, std::move(chunks)});
+    total_tris_ += m.triangle_count();
+  }
+  return {};
+}
+
+// Camera `camera`'s virtual image, its raw pixels' map into it and its (zero) id images.
+Status AugmenterImpl::init_view(std::size_t camera) {
+  ViewState& vs = views_[camera];
+  vs.index = static_cast<int>(camera);
+  vs.cam = &rig_.cameras[camera];
+  const CameraModel& cm = vs.cam->model;
+  // Anti-aliasing samples the virtual image between raw pixel centres (render/projection.hpp).
+  auto vp = make_virtual_pinhole(cm, 1.0, options_.antialias, vs.cam->name);
+  if (!vp) return vp.error();
+  vs.vp = std::move(*vp);
+  // Raw pixel centre -> top-left virtual sample of its bilinear neighbourhood.
+  vs.map.resize(vs.vp.ray_xy.size());
+  for (std::size_t i = 0; i < vs.map.size(); ++i) {
+    const Eigen::Vector2f& r = vs.vp.ray_xy[i];
+    if (!std::isfinite(r.x())) {
+      vs.map[i] = {-1, 0, 0};
+      continue;
+    }
+    if (vs.vp.identity) {
+      vs.map[i] = {static_cast<std::int32_t>(i), 0.f, 0.f};
+      continue;
+    }
+    const Eigen::Vector2d p = vs.vp.to_virtual(r.cast<double>());
+    const int i0 = std::clamp(static_cast<int>(std::floor(p.x())), 0, vs.vp.width - 2);
+    const int j0 = std::clamp(static_cast<int>(std::floor(p.y())), 0, vs.vp.height - 2);
+    vs.map[i] = {j0 * vs.vp.width + i0, static_cast<float>(p.x() - i0), static_cast<float>(p.y() - j0)};
+  }
+  const std::size_t vn = static_cast<std::size_t>(vs.vp.width) * vs.vp.height;
+  vs.boom_ids.assign(vn, 0);
+  vs.recv_ids.assign(vn, 0);
+  vs.tris.resize(total_tris_);
+  vs.planes.resize(total_tris_);
+  return {};
+}
+
+// ViewState::groups, where the backend marks the blocks it writes (RasterView::occupied).
+void AugmenterImpl::init_groups(ViewState& vs) const {
+  if (vs.occupied.empty()) return;
+  const int W = vs.cam->model.width_px, H = vs.cam->model.height_px;
+  vs.groups_x = (W + kGroup - 1) / kGroup;
+  vs.groups.assign(static_cast<std::size_t>(vs.groups_x) * H, {1, 0, 1, 0});
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u) {
+      const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
+      if (e.idx < 0) continue;
+      const int i0 = e.idx % vs.vp.width, j0 = e.idx / vs.vp.width;
+      const auto bi0 = static_cast<std::uint16_t>(i0 >> kBlockShift),
+                 bi1 = static_cast<std::uint16_t>((i0 + 1) >> kBlockShift),
+                 bj0 = static_cast<std::uint16_t>(j0 >> kBlockShift),
+                 bj1 = static_cast<std::uint16_t>((j0 + 1) >> kBlockShift);
+      ViewState::BlockRange& r = vs.groups[static_cast<std::size_t>(v) * vs.groups_x + u / kGroup];
+      if (r.bi0 > r.bi1)
+        r = {bi0, bi1, bj0, bj1};
+      else
+        r = {std::min(r.bi0, bi0), std::max(r.bi1, bi1), std::min(r.bj0, bj0), std::max(r.bj1, bj1)};
+    }
 }
 
 Status AugmenterImpl::check_frame(int camera, const Frame& raw) const {
@@ -898,232 +598,25 @@ VBox AugmenterImpl::raw_box_of(const ViewState& vs, const VBox& b) const {
                    full);
 }
 
-// Zeroes what the previous frame wrote into the CPU images (ids, and the CPU rasteriser's depth),
-// so they are zero outside this frame's boxes, and finds this frame's boxes.
+// Has the backend zero what it drew last frame (the id images are zero outside the boxes), and
+// finds this frame's boxes.
 void AugmenterImpl::update_boxes(ViewState& vs) const {
-  const int Wv = vs.vp.width, Hv = vs.vp.height;
-  if (!vs.occupied.empty()) {
-    // The CPU rasteriser wrote only in the blocks it marked (a bit per image): zero those, runs
-    // of marked blocks at a time. An oblique boom covers a fraction of its boxes.
-    auto zero_blocks = [&](auto& image, std::uint8_t bits) {
-      for (int bj = 0; bj * kBlockSize < Hv; ++bj) {
-        const std::uint8_t* marks = &vs.occupied[static_cast<std::size_t>(bj) * vs.blocks_x];
-        const int y0 = bj * kBlockSize, y1 = std::min(y0 + kBlockSize, Hv);
-        for (int bi = 0; bi < vs.blocks_x;) {
-          if (!(marks[bi] & bits)) {
-            ++bi;
-            continue;
-          }
-          int be = bi + 1;
-          while (be < vs.blocks_x && (marks[be] & bits)) ++be;
-          const int x0 = bi * kBlockSize, x1 = std::min(be * kBlockSize, Wv);
-          for (int y = y0; y < y1; ++y)
-            std::fill_n(&image[static_cast<std::size_t>(y) * Wv + x0], x1 - x0, 0);
-          bi = be;
-        }
-      }
-    };
-    zero_blocks(vs.boom_ids, kBoomBlock);
-    zero_blocks(vs.recv_ids, kReceiverBlock);
-    zero_blocks(vs.inv_z, kBoomBlock | kReceiverBlock);
-  } else {
-    auto zero_boxes = [&](auto& image, const std::vector<VBox>& boxes) {
-      for (const VBox& b : boxes)
-        for (int y = b.y0; y < b.y1; ++y)
-          std::fill_n(&image[static_cast<std::size_t>(y) * Wv + b.x0], b.x1 - b.x0, 0);
-    };
-    zero_boxes(vs.boom_ids, vs.boom_vboxes);
-    zero_boxes(vs.recv_ids, vs.recv_vboxes);
-  }
+  backend_->clear(vs);
   vs.boom_vboxes = project_boxes(vs, {ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope});
   vs.recv_vboxes = receiver_on_ ? project_boxes(vs, {ObjectKind::kReceiver}) : std::vector<VBox>{};
 }
 
-// The CPU rasteriser: the same passes as render_view() (receiver ids, then the boom's ids and
-// shaded colour, depth-tested against it), written straight into the CPU images. Every sample a
-// triangle covers lies in its chunk's box, so the images stay zero outside this frame's boxes.
-void AugmenterImpl::raster_view(ViewState& vs, const SceneState& scene) const {
+void AugmenterImpl::rasterise(ViewState& vs, const SceneState& scene) {
   update_boxes(vs);
   const Pose T_cam_body = vs.cam->T_body_cam.inverse();
-  const SampleGrid grid{vs.vp.fx,     vs.vp.fy,        vs.vp.cx,      vs.vp.cy,
-                        vs.vp.width,  vs.vp.height,    vs.cam->near_m, vs.cam->far_m};
-  const SampleBox all{0, 0, vs.vp.width, vs.vp.height};
-  float* inv_z = vs.inv_z.data();
-  std::fill(vs.occupied.begin(), vs.occupied.end(), 0);
-  std::uint8_t* occupied = vs.occupied.data();
-  const int blocks_x = vs.blocks_x;
-  const SceneLight& sl = light_of(scene);
-  const Eigen::Vector3d light = T_cam_body.R() * sl.towards_light_body, down = T_cam_body.R() * sl.down_body;
-  // The camera look's specular light, per vertex once this frame.
-  if (++vs.light_stamp == 0) {  // wrapped round: every slot is stale again
-    std::fill(vs.vertex_stamp.begin(), vs.vertex_stamp.end(), 0);
-    vs.light_stamp = 1;
-  }
-  const VertexLightCache vertex_cache{vs.vertex_light.data(), vs.vertex_stamp.data(), vs.light_stamp};
-  const VertexLightCache* cache = camera_look_on() ? &vertex_cache : nullptr;
-  RasterTriangle rt;
-  for (const ObjectKind kind : {ObjectKind::kReceiver, ObjectKind::kBoomFixed, ObjectKind::kBoomTelescope}) {
-    const bool boom = kind != ObjectKind::kReceiver;
-    if (boom ? vs.boom_vboxes.empty() : vs.recv_vboxes.empty()) continue;
-    const std::uint8_t block_bit = boom ? kBoomBlock : kReceiverBlock;
-    const Pose T_cam_obj = T_cam_body * (kind == ObjectKind::kReceiver    ? scene.T_body_receiver
-                                         : kind == ObjectKind::kBoomFixed ? vs.T_body_boom
-                                                                          : vs.T_body_telescope);
-    const Eigen::Matrix3d R = T_cam_obj.R();
-    for (const DrawItem& d : draws_) {
-      if (d.kind != kind) continue;
-      const Mesh& m = *d.mesh;
-      std::uint32_t* ids = boom ? vs.boom_ids.data() : vs.recv_ids.data();
-      const std::uint32_t tag = static_cast<std::uint32_t>(d.draw_id) << kDrawShift;
-      const Texture* tex = m.texture && m.texture->width > 0 && !m.uvs.empty() ? m.texture.get() : nullptr;
-      for (std::size_t k = 0; k < m.triangle_count(); ++k) {
-        const CamTriangle& t = vs.tris[d.first_tri + k];
-        if (!rt.setup(grid, t.v0, t.v0 + t.e1, t.v0 + t.e2, d.cull, all)) continue;
-        const std::uint32_t id = tag | static_cast<std::uint32_t>(k);
-        raster(grid, rt, inv_z, [&](std::size_t i, int x, int y) {
-          ids[i] = id;
-          occupied[(y >> kBlockShift) * blocks_x + (x >> kBlockShift)] |= block_bit;
-        });
-        if (boom) set_boom_shading(vs.shading[d.first_tri + k], t, d, k, R, sl, light, down, cache, tex);
-      }
-    }
-  }
-}
-
-void AugmenterImpl::render_view(ViewState& vs, const SceneState& scene) {
-  const Pose T_cam_body = vs.cam->T_body_cam.inverse();
-  const Pose T_cam_boom = T_cam_body * vs.T_body_boom, T_cam_tele = T_cam_body * vs.T_body_telescope;
-  const Pose T_cam_recv = T_cam_body * scene.T_body_receiver;
-  update_boxes(vs);
-
-  glBindFramebuffer(GL_FRAMEBUFFER, fb_.fbo);
-  glViewport(0, 0, vs.vp.width, vs.vp.height);
-  // The light in this camera's frame (the plain look's: above the tanker, a little forward and
-  // to the right).
-  const SceneLight& sl = light_of(scene);
-  const Eigen::Vector3f light = (T_cam_body.R() * sl.towards_light_body).cast<float>();
-  const Eigen::Vector3f down = (T_cam_body.R() * sl.down_body).cast<float>();
-  for (const Program* p : {&shaded_, &ids_only_}) {
-    glUseProgram(p->id);
-    glUniformMatrix4fv(p->proj, 1, GL_FALSE, vs.proj.data());
-    if (p->texture >= 0) glUniform1i(p->texture, 0);
-    if (p->light >= 0) glUniform3f(p->light, light.x(), light.y(), light.z());
-    if (p->down >= 0) glUniform3f(p->down, down.x(), down.y(), down.z());
-    const Eigen::Vector3f sky = sl.sky.cast<float>(), ground = sl.ground.cast<float>(), direct = sl.direct.cast<float>();
-    if (p->sky >= 0) glUniform3f(p->sky, sky.x(), sky.y(), sky.z());
-    if (p->ground >= 0) glUniform3f(p->ground, ground.x(), ground.y(), ground.z());
-    if (p->direct >= 0) glUniform3f(p->direct, direct.x(), direct.y(), direct.z());
-    if (p->alpha >= 0) glUniform1f(p->alpha, 1.0f);
-  }
-  glEnable(GL_DEPTH_TEST);
-  glDepthFunc(GL_GREATER);  // reversed-Z
-  glFrontFace(GL_CW);       // y-down projection (render/projection.hpp)
-  glDisable(GL_BLEND);
-
-  auto draw_kind = [&](ObjectKind kind, const Pose& T_cam_obj, const Program& p) {
-    glUseProgram(p.id);
-    Eigen::Matrix4f M = T_cam_obj.matrix().cast<float>();
-    glUniformMatrix4fv(p.cam_from_obj, 1, GL_FALSE, M.data());  // Eigen is column-major too
-    for (const DrawItem& d : draws_) {
-      if (d.kind != kind) continue;
-      if (d.cull)
-        glEnable(GL_CULL_FACE);
-      else
-        glDisable(GL_CULL_FACE);
-      const Eigen::Vector3f& c = d.mesh->base_color;
-      glUniform1ui(p.draw_id, d.draw_id);
-      if (p.base_color >= 0) glUniform3f(p.base_color, c.x(), c.y(), c.z());
-      // The finish's specular light: the boom's, with the camera look's light only.
-      if (p.specular >= 0) glUniform1i(p.specular, camera_look_on() && kind != ObjectKind::kReceiver ? 1 : 0);
-      if (p.metallic >= 0) glUniform1f(p.metallic, static_cast<float>(d.mesh->finish.metallic));
-      if (p.roughness >= 0) glUniform1f(p.roughness, static_cast<float>(d.mesh->finish.roughness));
-      if (p.has_texture >= 0) glUniform1i(p.has_texture, d.gpu.has_texture ? 1 : 0);
-      if (d.gpu.has_texture && p.has_texture >= 0) {
-        glActiveTexture(GL_TEXTURE0);
-        glBindTexture(GL_TEXTURE_2D, d.gpu.texture);
-      }
-      d.gpu.draw();
-    }
-  };
-
-  // Optional stage profile (bench/): wait for the GL to finish each stage.
-  auto last = std::chrono::steady_clock::now();
-  auto stage = [&](double& acc) {
-    if (!options_.profile_stages) return;
-    glFinish();
-    const auto now = std::chrono::steady_clock::now();
-    acc += std::chrono::duration<double, std::milli>(now - last).count();
-    last = now;
-  };
-
-  // The four targets stay bound (set once in init); each pass chooses what it writes with colour
-  // masks: 0 boom colour, 1 boom ids, 2 receiver ids, 3 receiver colour (overlays only).
-  auto write_only = [](bool c0, bool c1, bool c2, bool c3) {
-    glColorMaski(0, c0, c0, c0, c0);
-    glColorMaski(1, c1, c1, c1, c1);
-    glColorMaski(2, c2, c2, c2, c2);
-    glColorMaski(3, c3, c3, c3, c3);
-  };
-  const bool overlay = !vs.recv_rgba.empty();
-
-  // One scissored clear per box of the id targets and depth (the boom is depth-tested against the
-  // receiver). Colours are read only where an id is set, so they need no clear: llvmpipe clears
-  // cost per pixel and per attachment.
-  write_only(false, true, true, false);
-  glEnable(GL_SCISSOR_TEST);
-  glClearColor(0, 0, 0, 0);
-  glClearDepth(0.0);
-  for (const auto* list : {&vs.recv_vboxes, &vs.boom_vboxes})
-    for (const VBox& b : *list) {
-      glScissor(b.x0, b.y0, b.x1 - b.x0, b.y1 - b.y0);
-      glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    }
-  glDisable(GL_SCISSOR_TEST);  // every fragment falls inside its chunk's (cleared) box
-  stage(timings_.gl_clear_ms);
-
-  // Receiver pass: ids into target 2 (colour into 3 for the validation overlays).
-  if (!vs.recv_vboxes.empty()) {
-    if (options_.receiver_draw == ReceiverDraw::kWireframe) {
-      // Ids from filled triangles; the wireframe colour is drawn after, without touching ids or depth.
-      write_only(false, false, true, false);
-      draw_kind(ObjectKind::kReceiver, T_cam_recv, ids_only_);
-      write_only(false, false, false, true);
-      glDepthMask(GL_FALSE);
-      glDepthFunc(GL_GEQUAL);
-      glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
-      draw_kind(ObjectKind::kReceiver, T_cam_recv, shaded_);
-      glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
-      glDepthFunc(GL_GREATER);
-      glDepthMask(GL_TRUE);
-    } else if (options_.receiver_draw == ReceiverDraw::kTranslucent) {
-      write_only(false, false, true, overlay);
-      draw_kind(ObjectKind::kReceiver, T_cam_recv, shaded_);
-    } else {
-      write_only(false, false, true, false);
-      draw_kind(ObjectKind::kReceiver, T_cam_recv, ids_only_);  // mask-only proxy: ids and depth
-    }
-  }
-  // Boom pass: colour and ids of the boom where it is in front of the receiver.
-  if (!vs.boom_vboxes.empty()) {
-    write_only(true, true, false, false);
-    draw_kind(ObjectKind::kBoomFixed, T_cam_boom, shaded_);
-    draw_kind(ObjectKind::kBoomTelescope, T_cam_tele, shaded_);
-  }
-  write_only(true, true, true, true);
-  stage(timings_.gl_draw_ms);
-
-  for (const VBox& b : vs.recv_vboxes) {
-    gl::read_rgba_box(GL_COLOR_ATTACHMENT2, b.x0, b.y0, b.x1, b.y1,
-                      reinterpret_cast<std::uint8_t*>(vs.recv_ids.data()), vs.vp.width);
-    if (!vs.recv_rgba.empty())
-      gl::read_rgba_box(GL_COLOR_ATTACHMENT3, b.x0, b.y0, b.x1, b.y1, vs.recv_rgba.data(), vs.vp.width);
-  }
-  for (const VBox& b : vs.boom_vboxes) {
-    gl::read_rgba_box(GL_COLOR_ATTACHMENT1, b.x0, b.y0, b.x1, b.y1,
-                      reinterpret_cast<std::uint8_t*>(vs.boom_ids.data()), vs.vp.width);
-    gl::read_rgba_box(GL_COLOR_ATTACHMENT0, b.x0, b.y0, b.x1, b.y1, vs.boom_rgba.data(), vs.vp.width);
-  }
-  stage(timings_.gl_readback_ms);
+  raster_backends::RasterFrame f;
+  f.T_cam_obj[static_cast<int>(ObjectKind::kBoomFixed)] = T_cam_body * vs.T_body_boom;
+  f.T_cam_obj[static_cast<int>(ObjectKind::kBoomTelescope)] = T_cam_body * vs.T_body_telescope;
+  f.T_cam_obj[static_cast<int>(ObjectKind::kReceiver)] = T_cam_body * scene.T_body_receiver;
+  f.R_cam_body = T_cam_body.R();
+  f.light = &light_of(scene);
+  f.camera_look = camera_look_on();
+  backend_->draw(vs, f, timings_);
 }
 
 void AugmenterImpl::build_rings() {
@@ -1344,250 +837,281 @@ void AugmenterImpl::begin_resolve(ViewState& vs, const Frame& raw, ViewResult& o
                   copy_bytes);
 }
 
+// The rows' code is compiled once per combination of these flags, so that the per-pixel code
+// carries no tests (nor loads) for what this frame does not have.
+template <bool kOverlay, bool kCpu, bool kRecv, bool kIdentity, bool kRgb>
+struct RowFlags {
+  static constexpr bool overlay = kOverlay;    // a validation overlay's receiver colour (OpenGL)
+  static constexpr bool cpu = kCpu;            // the boom's colour per triangle (shades_per_pixel())
+  static constexpr bool recv = kRecv;          // the receiver was drawn
+  static constexpr bool identity = kIdentity;  // the virtual samples are the raw pixel centres
+  static constexpr bool rgb = kRgb;            // RGB8 or RGBA8
+};
+
 void AugmenterImpl::resolve_rows(const ViewState& vs, const Frame& raw, ViewResult& out,
                                  std::atomic<int>& next_row, RowScratch& scratch) const {
-  const CameraModel& cm = vs.cam->model;
-  const int W = cm.width_px, Wv = vs.vp.width;
-  const Image& src = raw.image;
-  const VBox work = vs.work, copy = vs.copy;
-  const std::vector<VBox>& raw_boxes = vs.raw_boxes;
-  std::vector<std::pair<int, int>>& spans = scratch.spans;
-  const int ax0 = copy.x0, ay0 = copy.y0;
-
-  const std::uint32_t* bids = vs.boom_ids.data();
-  const std::uint32_t* rids = vs.recv_ids.data();
-  const PixelFormat fmt = src.format();
-  const int bpp = bytes_per_pixel(fmt);
-  // The rows' code is compiled once per combination of these flags, so that the per-pixel code
-  // carries no tests (nor loads) for what this frame does not have.
-  auto rows = [&](auto overlay_c, auto cpu_c, auto recv_c, auto identity_c, auto rgb_c) {
-    constexpr bool overlay = decltype(overlay_c)::value;
-    constexpr bool cpu = decltype(cpu_c)::value;
-    constexpr bool recv = decltype(recv_c)::value;
-    constexpr bool identity = decltype(identity_c)::value;
-    constexpr bool rgb = decltype(rgb_c)::value;  // RGB8 or RGBA8
-    if constexpr (overlay && cpu) return;         // overlays are drawn by OpenGL only
-
-    // Chunks of rows, first come first served: a thread the machine delays leaves its rows to
-    // the other.
-    constexpr int kChunkRows = 8;
-    int chunk_end = 0;
-    auto take_chunk = [&] {
-      const int first = work.y0 + next_row.fetch_add(kChunkRows, std::memory_order_relaxed);
-      chunk_end = std::min(first + kChunkRows, work.y1);
-      return first;
-    };
-    for (int v = take_chunk(); v < work.y1; v = v + 1 < chunk_end ? v + 1 : take_chunk()) {
-      std::uint8_t* mrow = out.mask.row(v);
-      float* drow = &out.receiver_depth.z_m[static_cast<std::size_t>(v) * W];
-      // Null outside the changed box (rows with the receiver alone): nothing is composited there.
-      std::uint8_t* arow = v >= copy.y0 && v < copy.y1 ? out.augmented.row(v - ay0) : nullptr;
-      // The camera look's coverage row (null with the plain look).
-      std::uint8_t* alrow = out.boom_alpha.empty() ? nullptr : out.boom_alpha.row(v);
-      spans.clear();
-      for (const VBox& b : raw_boxes)
-        if (v >= b.y0 && v < b.y1 && !b.empty()) spans.emplace_back(b.x0, b.x1);
-      std::sort(spans.begin(), spans.end());
-      std::size_t n_spans = 0;
-      for (const auto& sp : spans) {  // merge overlapping spans in place
-        if (n_spans && sp.first <= spans[n_spans - 1].second)
-          spans[n_spans - 1].second = std::max(spans[n_spans - 1].second, sp.second);
-        else
-          spans[n_spans++] = sp;
-      }
-      // One raw pixel: mask, receiver depth and composite (every pixel at most once per frame).
-      auto pixel = [&](int u) __attribute__((always_inline)) {
-        const MapEntry& e = vs.map[static_cast<std::size_t>(v) * W + u];
-        if (e.idx < 0) return;
-        // The 2x2 samples' ids, read once (the byte stores below could alias them). One sample
-        // when the grids coincide; no receiver loads when none was drawn.
-        const std::uint32_t* pb = bids + e.idx;
-        const std::uint32_t* pr = rids + e.idx;
-        const std::size_t o1 = identity ? 0 : 1, o2 = identity ? 0 : Wv, o3 = identity ? 0 : Wv + 1;
-        const std::uint32_t b0 = pb[0], b1 = pb[o1], b2 = pb[o2], b3 = pb[o3];
-        const std::uint32_t r0 = recv ? pr[0] : 0, r1 = recv ? pr[o1] : 0, r2 = recv ? pr[o2] : 0,
-                            r3 = recv ? pr[o3] : 0;
-        // Most pixels of a box see nothing: one OR over the samples skips them.
-        if (!(b0 | b1 | b2 | b3 | r0 | r1 | r2 | r3)) return;
-        const Eigen::Vector2f& ray = vs.vp.ray_xy[static_cast<std::size_t>(v) * W + u];
-        auto plane_depth = [&](std::uint32_t packed) {
-          const ViewState::Plane& pl = vs.planes[global_index(packed)];
-          return pl.c / (pl.nx * ray.x() + pl.ny * ray.y() + pl.nz);
-        };
-        // The boom's colour (0..255) here for the triangle virtual sample `s` holds: GL's shaded
-        // sample, or (CPU rasteriser) that triangle shaded exactly at this pixel's centre.
-        auto boom_colour = [&](std::uint32_t packed, std::size_t s) {
-          return cpu ? shade(vs.shading[global_index(packed)], ray.x(), ray.y())
-                     : load_rgba(&vs.boom_rgba[s * 4]);
-        };
-        // Writes an opaque boom colour (0..255, rounded here) in the raw pixel's format.
-        auto put_opaque = [&](F32x4 c) __attribute__((always_inline)) {
-          if (alrow) alrow[u] = 255;
-          c += 0.5f;
-          std::uint8_t* px = arow + static_cast<std::size_t>(u - ax0) * bpp;
-          if constexpr (rgb) {
-            px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
-            px[2] = static_cast<std::uint8_t>(c[2]);
-            return;
-          }
-          switch (fmt) {
-            case PixelFormat::kRGB8:
-            case PixelFormat::kRGBA8:
-              px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
-              px[2] = static_cast<std::uint8_t>(c[2]);
-              break;
-            case PixelFormat::kMono8:
-              px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]);
-              break;
-            default:
-              px[0] = static_cast<std::uint8_t>(c[bayer_channel(fmt, u, v)]);
-          }
-        };
-        if (identity && !overlay) {
-          // The samples ARE the pixel centres: GL's coverage and depth test are already exact there.
-          mrow[u] = static_cast<std::uint8_t>((b0 ? kMaskBoom : 0) | (r0 ? kMaskReceiver : 0));
-          if (r0) drow[u] = static_cast<float>(plane_depth(r0));
-          if (b0) put_opaque(boom_colour(b0, static_cast<std::size_t>(e.idx)));
-          return;
-        }
-        if (!(b0 | b1 | b2 | b3) && r0 == r1 && r0 == r2 && r0 == r3 && !overlay) {
-          // Inside one receiver triangle with no boom around: the most common covered pixel.
-          mrow[u] = kMaskReceiver;
-          drow[u] = static_cast<float>(plane_depth(r0));
-          return;
-        }
-        if (b0 && b1 && b2 && b3 && !overlay) {
-          const bool recv_none = !(r0 | r1 | r2 | r3);
-          const bool recv_one = r0 && r0 == r1 && r0 == r2 && r0 == r3;
-          if (recv_none || recv_one) {
-            // Boom all around, in front of the receiver at every sample (GL's depth test) and no
-            // receiver silhouette nearby: an opaque boom pixel, its colour bilinear.
-            mrow[u] = static_cast<std::uint8_t>(kMaskBoom | (recv_one ? kMaskReceiver : 0));
-            if (recv_one) drow[u] = static_cast<float>(plane_depth(r0));
-            if (cpu) {
-              // Any of the four triangles: the interpolated normal and texture are continuous.
-              put_opaque(boom_colour(b0, 0));
-            } else {
-              const std::uint8_t* c0 = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
-              const std::uint8_t* c2 = c0 + static_cast<std::size_t>(Wv) * 4;
-              const float w0 = (1 - e.fx) * (1 - e.fy), w1 = e.fx * (1 - e.fy), w2 = (1 - e.fx) * e.fy,
-                          w3 = e.fx * e.fy;
-              put_opaque(w0 * load_rgba(c0) + w1 * load_rgba(c0 + 4) + w2 * load_rgba(c2) +
-                         w3 * load_rgba(c2 + 4));
-            }
-            return;
-          }
-        }
-        // The 2x2 samples around the centre (one sample when the grids coincide).
-        const int ns = identity ? 1 : 4;
-        const std::uint32_t off[4] = {0, 1, static_cast<std::uint32_t>(Wv),
-                                      static_cast<std::uint32_t>(Wv) + 1};
-        // The ids read above (with one sample, all four are that sample's).
-        const std::uint32_t b[4] = {b0, b1, b2, b3}, r[4] = {r0, r1, r2, r3};
-        const bool b_any = (b0 | b1 | b2 | b3) != 0, b_all = b0 && b1 && b2 && b3,
-                   b_same = b0 == b1 && b0 == b2 && b0 == b3;
-        const bool r_any = (r0 | r1 | r2 | r3) != 0, r_all = r0 && r1 && r2 && r3,
-                   r_same = r0 == r1 && r0 == r2 && r0 == r3;
-        const double x = ray.x(), y = ray.y();
-        const Eigen::Vector3d d(x, y, 1.0);
-
-        // An object's depth at the pixel centre from its samples' ids: read off when one triangle
-        // covers all samples (it then covers the centre, triangles being convex), else exact ray
-        // tests with the candidates. Covered all around, the centre is covered too: only its depth
-        // is sought, and when the centre's triangle is not among the samples' (a sliver) the first
-        // sample's plane gives it. At a silhouette the slivers' neighbours are searched as well.
-        auto centre_depth = [&](const std::uint32_t* ids, bool any, bool all, bool same) {
-          if (!any) return std::numeric_limits<double>::infinity();
-          if (all && !same && !identity) return covered_depth(vs, scratch, ids, x, y);
-          if (!(all && same)) {
-            const double z = nearest_hit(vs, scratch, ids, ns, x, y, !all);
-            if (std::isfinite(z) || !all) return z;
-          }
-          const CamTriangle& t = triangle(vs, ids[0]);
-          return t.n_dot_v0 / t.n.dot(d);
-        };
-        const double z_r = centre_depth(r, r_any, r_all, r_same);
-        // Boom, front-most where the rasteriser's depth test kept it at the samples.
-        const double z_b = centre_depth(b, b_any, b_all, b_same);
-        const bool has_r = std::isfinite(z_r) && z_r > 0;
-        const bool has_b = std::isfinite(z_b) && z_b > 0 && (!has_r || z_b < z_r);
-        mrow[u] = static_cast<std::uint8_t>((has_b ? kMaskBoom : 0) | (has_r ? kMaskReceiver : 0));
-        if (has_r) drow[u] = static_cast<float>(z_r);
-
-        // Composite: the boom's bilinear coverage of the centre, anti-aliasing its edges.
-        float alpha = 0, cr = 0, cg = 0, cb = 0;
-        if (b_any) {
-          const float w[4] = {(1 - e.fx) * (1 - e.fy), e.fx * (1 - e.fy), (1 - e.fx) * e.fy, e.fx * e.fy};
-          for (int k = 0; k < ns; ++k) {
-            if (!b[k]) continue;
-            const float wk = identity ? 1.0f : w[k];
-            const F32x4 c = boom_colour(b[k], static_cast<std::size_t>(e.idx) + off[k]);
-            alpha += wk, cr += wk * c[0], cg += wk * c[1], cb += wk * c[2];
-          }
-          if (!options_.antialias) {
-            const float s = alpha > 0 ? 1.0f / alpha : 0.f;
-            cr *= s, cg *= s, cb *= s;
-            alpha = has_b ? 1.f : 0.f;
-            cr *= alpha, cg *= alpha, cb *= alpha;
-          }
-        }
-        if (overlay && has_r && !has_b) {
-          // Validation overlay: the receiver model drawn translucent (or its wireframe) at its pose.
-          const std::uint8_t* c = &vs.recv_rgba[static_cast<std::size_t>(e.idx) * 4];
-          const float a =
-              options_.receiver_draw == ReceiverDraw::kTranslucent ? 0.45f : (c[3] > 0 ? 1.0f : 0.0f);
-          if (a > 0 && alpha < 1) {
-            const float k = a * (1 - alpha);
-            cr += k * (0.5f * c[0] + 127.f), cg += k * 0.5f * c[1], cb += k * 0.5f * c[2];
-            alpha += k;
-          }
-        }
-        if (alpha <= 0) return;
-        if (alpha > 1) alpha = 1;
-        if (alrow) alrow[u] = static_cast<std::uint8_t>(alpha * 255.f + 0.5f);
-        std::uint8_t* px = arow + static_cast<std::size_t>(u - ax0) * bpp;
-        const float ia = 1 - alpha;
-        auto mix = [&](std::uint8_t raw_value, float premult) {
-          return static_cast<std::uint8_t>(std::clamp(raw_value * ia + premult + 0.5f, 0.f, 255.f));
-        };
-        switch (fmt) {
-          case PixelFormat::kRGB8:
-          case PixelFormat::kRGBA8:
-            px[0] = mix(px[0], cr), px[1] = mix(px[1], cg), px[2] = mix(px[2], cb);
-            break;
-          case PixelFormat::kMono8:
-            px[0] = mix(px[0], 0.299f * cr + 0.587f * cg + 0.114f * cb);
-            break;
-          default: {  // Bayer: the site's own colour channel
-            const int ch = bayer_channel(fmt, u, v);
-            px[0] = mix(px[0], ch == 0 ? cr : ch == 1 ? cg : cb);
-          }
-        }
-      };
-      // Groups of kGroup raw pixels whose virtual samples hold nothing are skipped whole (CPU
-      // rasteriser: it marks the blocks it writes).
-      for (std::size_t si = 0; si < n_spans; ++si)
-        for (int g0 = spans[si].first; g0 < spans[si].second;) {
-          const int g1 = std::min(spans[si].second, (g0 / kGroup + 1) * kGroup);
-          if (group_occupied(vs, v, g0 / kGroup))
-            for (int u = g0; u < g1; ++u) pixel(u);
-          g0 = g1;
-        }
-    }
-  };
+  const PixelFormat fmt = raw.image.format();
   using T = std::true_type;
   using F = std::false_type;
   auto with = [](bool b, auto f) { return b ? f(T{}) : f(F{}); };
   with(!vs.recv_rgba.empty(), [&](auto o) {
-    with(cpu_raster_, [&](auto c) {
+    with(backend_->shades_per_pixel(), [&](auto c) {
       with(!vs.recv_vboxes.empty(), [&](auto r) {
         with(vs.vp.identity, [&](auto i) {
-          with(fmt == PixelFormat::kRGB8 || fmt == PixelFormat::kRGBA8,
-               [&](auto rgb) { rows(o, c, r, i, rgb); });
+          with(fmt == PixelFormat::kRGB8 || fmt == PixelFormat::kRGBA8, [&](auto rgb) {
+            using Flags = RowFlags<decltype(o)::value, decltype(c)::value, decltype(r)::value,
+                                   decltype(i)::value, decltype(rgb)::value>;
+            if constexpr (!(Flags::overlay && Flags::cpu))  // overlays are drawn by OpenGL only
+              resolve_rows_as<Flags>(vs, raw, out, next_row, scratch);
+          });
         });
       });
     });
   });
+}
+
+template <class Flags>
+void AugmenterImpl::resolve_rows_as(const ViewState& vs, const Frame& raw, ViewResult& out,
+                                    std::atomic<int>& next_row, RowScratch& scratch) const {
+  const CameraModel& cm = vs.cam->model;
+  const int W = cm.width_px;
+  const VBox work = vs.work, copy = vs.copy;
+  std::vector<std::pair<int, int>>& spans = scratch.spans;
+  // Chunks of rows, first come first served: a thread the machine delays leaves its rows to the other.
+  constexpr int kChunkRows = 8;
+  int chunk_end = 0;
+  auto take_chunk = [&] {
+    const int first = work.y0 + next_row.fetch_add(kChunkRows, std::memory_order_relaxed);
+    chunk_end = std::min(first + kChunkRows, work.y1);
+    return first;
+  };
+  for (int v = take_chunk(); v < work.y1; v = v + 1 < chunk_end ? v + 1 : take_chunk()) {
+    const ResolveRow row{
+        vs, scratch, vs.boom_ids.data(), vs.recv_ids.data(), out.mask.row(v),
+        &out.receiver_depth.z_m[static_cast<std::size_t>(v) * W],
+        // Null outside the changed box (rows with the receiver alone): nothing is composited there.
+        v >= copy.y0 && v < copy.y1 ? out.augmented.row(v - copy.y0) : nullptr,
+        // The camera look's coverage row (null with the plain look).
+        out.boom_alpha.empty() ? nullptr : out.boom_alpha.row(v), raw.image.format(),
+        bytes_per_pixel(raw.image.format()), W, vs.vp.width, v, copy.x0};
+    spans.clear();
+    for (const VBox& b : vs.raw_boxes)
+      if (v >= b.y0 && v < b.y1 && !b.empty()) spans.emplace_back(b.x0, b.x1);
+    std::sort(spans.begin(), spans.end());
+    std::size_t n_spans = 0;
+    for (const auto& sp : spans) {  // merge overlapping spans in place
+      if (n_spans && sp.first <= spans[n_spans - 1].second)
+        spans[n_spans - 1].second = std::max(spans[n_spans - 1].second, sp.second);
+      else
+        spans[n_spans++] = sp;
+    }
+    // Groups of kGroup raw pixels whose virtual samples hold nothing are skipped whole (where the
+    // backend marks the blocks it writes).
+    for (std::size_t si = 0; si < n_spans; ++si)
+      for (int g0 = spans[si].first; g0 < spans[si].second;) {
+        const int g1 = std::min(spans[si].second, (g0 / kGroup + 1) * kGroup);
+        if (group_occupied(vs, v, g0 / kGroup))
+          for (int u = g0; u < g1; ++u) resolve_pixel<Flags>(row, u);
+        g0 = g1;
+      }
+  }
+}
+
+// One raw pixel: mask, receiver depth and composite (every pixel at most once per frame).
+template <class Flags>
+inline __attribute__((always_inline)) void AugmenterImpl::resolve_pixel(const ResolveRow& r, int u) const {
+  constexpr bool overlay = Flags::overlay, cpu = Flags::cpu, recv = Flags::recv, identity = Flags::identity;
+  const ViewState& vs = r.vs;
+  const MapEntry& e = vs.map[static_cast<std::size_t>(r.v) * r.W + u];
+  if (e.idx < 0) return;
+  // The 2x2 samples' ids, read once (the byte stores below could alias them). One sample when
+  // the grids coincide; no receiver loads when none was drawn.
+  const std::uint32_t* pb = r.bids + e.idx;
+  const std::uint32_t* pr = r.rids + e.idx;
+  const std::size_t o1 = identity ? 0 : 1, o2 = identity ? 0 : r.Wv, o3 = identity ? 0 : r.Wv + 1;
+  const std::uint32_t b0 = pb[0], b1 = pb[o1], b2 = pb[o2], b3 = pb[o3];
+  const std::uint32_t r0 = recv ? pr[0] : 0, r1 = recv ? pr[o1] : 0, r2 = recv ? pr[o2] : 0,
+                      r3 = recv ? pr[o3] : 0;
+  // Most pixels of a box see nothing: one OR over the samples skips them.
+  if (!(b0 | b1 | b2 | b3 | r0 | r1 | r2 | r3)) return;
+  const Eigen::Vector2f& ray = vs.vp.ray_xy[static_cast<std::size_t>(r.v) * r.W + u];
+  if (identity && !overlay) {
+    // The samples ARE the pixel centres: the rasteriser's coverage and depth test are already exact there.
+    r.mrow[u] = static_cast<std::uint8_t>((b0 ? kMaskBoom : 0) | (r0 ? kMaskReceiver : 0));
+    if (r0) r.drow[u] = static_cast<float>(plane_depth(vs, r0, ray));
+    if (b0) put_opaque<Flags>(r, u, boom_colour<Flags>(vs, b0, static_cast<std::size_t>(e.idx), ray));
+    return;
+  }
+  if (!(b0 | b1 | b2 | b3) && r0 == r1 && r0 == r2 && r0 == r3 && !overlay) {
+    // Inside one receiver triangle with no boom around: the most common covered pixel.
+    r.mrow[u] = kMaskReceiver;
+    r.drow[u] = static_cast<float>(plane_depth(vs, r0, ray));
+    return;
+  }
+  if (b0 && b1 && b2 && b3 && !overlay) {
+    const bool recv_none = !(r0 | r1 | r2 | r3);
+    const bool recv_one = r0 && r0 == r1 && r0 == r2 && r0 == r3;
+    if (recv_none || recv_one) {
+      // Boom all around, in front of the receiver at every sample (the depth test) and no
+      // receiver silhouette nearby: an opaque boom pixel, its colour bilinear.
+      r.mrow[u] = static_cast<std::uint8_t>(kMaskBoom | (recv_one ? kMaskReceiver : 0));
+      if (recv_one) r.drow[u] = static_cast<float>(plane_depth(vs, r0, ray));
+      if (cpu) {
+        // Any of the four triangles: the interpolated normal and texture are continuous.
+        put_opaque<Flags>(r, u, boom_colour<Flags>(vs, b0, 0, ray));
+      } else {
+        const std::uint8_t* c0 = &vs.boom_rgba[static_cast<std::size_t>(e.idx) * 4];
+        const std::uint8_t* c2 = c0 + static_cast<std::size_t>(r.Wv) * 4;
+        const float w0 = (1 - e.fx) * (1 - e.fy), w1 = e.fx * (1 - e.fy), w2 = (1 - e.fx) * e.fy,
+                    w3 = e.fx * e.fy;
+        put_opaque<Flags>(
+            r, u, w0 * load_rgba(c0) + w1 * load_rgba(c0 + 4) + w2 * load_rgba(c2) + w3 * load_rgba(c2 + 4));
+      }
+      return;
+    }
+  }
+  const std::uint32_t b[4] = {b0, b1, b2, b3}, rr[4] = {r0, r1, r2, r3};
+  resolve_edge_pixel<Flags>(r, u, e, ray, b, rr);
+}
+
+// A pixel near an edge or a crossing: each object's depth at the centre, the masks, and the
+// boom's (and an overlay's) coverage composited over the raw pixel.
+template <class Flags>
+inline __attribute__((always_inline)) void AugmenterImpl::resolve_edge_pixel(const ResolveRow& row, int u,
+                                                                             const MapEntry& e,
+                                                                             const Eigen::Vector2f& ray,
+                                                                             const std::uint32_t b[4],
+                                                                             const std::uint32_t r[4]) const {
+  constexpr bool overlay = Flags::overlay, identity = Flags::identity;
+  const ViewState& vs = row.vs;
+  const bool b_any = (b[0] | b[1] | b[2] | b[3]) != 0, b_all = b[0] && b[1] && b[2] && b[3],
+             b_same = b[0] == b[1] && b[0] == b[2] && b[0] == b[3];
+  const bool r_any = (r[0] | r[1] | r[2] | r[3]) != 0, r_all = r[0] && r[1] && r[2] && r[3],
+             r_same = r[0] == r[1] && r[0] == r[2] && r[0] == r[3];
+  const double x = ray.x(), y = ray.y();
+  const double z_r = centre_depth<Flags>(row, r, r_any, r_all, r_same, x, y);
+  // Boom, front-most where the rasteriser's depth test kept it at the samples.
+  const double z_b = centre_depth<Flags>(row, b, b_any, b_all, b_same, x, y);
+  const bool has_r = std::isfinite(z_r) && z_r > 0;
+  const bool has_b = std::isfinite(z_b) && z_b > 0 && (!has_r || z_b < z_r);
+  row.mrow[u] = static_cast<std::uint8_t>((has_b ? kMaskBoom : 0) | (has_r ? kMaskReceiver : 0));
+  if (has_r) row.drow[u] = static_cast<float>(z_r);
+
+  // Composite: the boom's bilinear coverage of the centre, anti-aliasing its edges.
+  float alpha = 0, cr = 0, cg = 0, cb = 0;
+  if (b_any) {
+    // The 2x2 samples around the centre (one sample when the grids coincide).
+    const int ns = identity ? 1 : 4;
+    const std::uint32_t off[4] = {0, 1, static_cast<std::uint32_t>(row.Wv),
+                                  static_cast<std::uint32_t>(row.Wv) + 1};
+    const float w[4] = {(1 - e.fx) * (1 - e.fy), e.fx * (1 - e.fy), (1 - e.fx) * e.fy, e.fx * e.fy};
+    for (int k = 0; k < ns; ++k) {
+      if (!b[k]) continue;
+      const float wk = identity ? 1.0f : w[k];
+      const F32x4 c = boom_colour<Flags>(vs, b[k], static_cast<std::size_t>(e.idx) + off[k], ray);
+      alpha += wk, cr += wk * c[0], cg += wk * c[1], cb += wk * c[2];
+    }
+    if (!options_.antialias) {
+      const float s = alpha > 0 ? 1.0f / alpha : 0.f;
+      cr *= s, cg *= s, cb *= s;
+      alpha = has_b ? 1.f : 0.f;
+      cr *= alpha, cg *= alpha, cb *= alpha;
+    }
+  }
+  if (overlay && has_r && !has_b) {
+    // Validation overlay: the receiver model drawn translucent (or its wireframe) at its pose.
+    const std::uint8_t* c = &vs.recv_rgba[static_cast<std::size_t>(e.idx) * 4];
+    const float a = options_.receiver_draw == ReceiverDraw::kTranslucent ? 0.45f : (c[3] > 0 ? 1.0f : 0.0f);
+    if (a > 0 && alpha < 1) {
+      const float k = a * (1 - alpha);
+      cr += k * (0.5f * c[0] + 127.f), cg += k * 0.5f * c[1], cb += k * 0.5f * c[2];
+      alpha += k;
+    }
+  }
+  if (alpha <= 0) return;
+  if (alpha > 1) alpha = 1;
+  blend(row, u, alpha, cr, cg, cb);
+}
+
+// An object's depth at the pixel centre (x, y, 1) from its samples' ids: read off when one
+// triangle covers all samples (it then covers the centre, triangles being convex), else exact
+// ray tests with the candidates. Covered all around, the centre is covered too: only its depth
+// is sought, and when the centre's triangle is not among the samples' (a sliver) the first
+// sample's plane gives it. At a silhouette the slivers' neighbours are searched as well.
+template <class Flags>
+inline __attribute__((always_inline)) double AugmenterImpl::centre_depth(const ResolveRow& row,
+                                                                         const std::uint32_t* ids, bool any,
+                                                                         bool all, bool same, double x,
+                                                                         double y) const {
+  constexpr bool identity = Flags::identity;
+  if (!any) return std::numeric_limits<double>::infinity();
+  if (all && !same && !identity) return covered_depth(row.vs, row.scratch, ids, x, y);
+  if (!(all && same)) {
+    const double z = nearest_hit(row.vs, row.scratch, ids, identity ? 1 : 4, x, y, !all);
+    if (std::isfinite(z) || !all) return z;
+  }
+  const CamTriangle& t = triangle(row.vs, ids[0]);
+  return t.n_dot_v0 / t.n.dot(Eigen::Vector3d(x, y, 1.0));
+}
+
+// The boom's colour (0..255) here for the triangle virtual sample `s` holds: the backend's shaded
+// sample, or (shades_per_pixel()) that triangle shaded exactly at this pixel's centre.
+template <class Flags>
+inline __attribute__((always_inline)) F32x4 AugmenterImpl::boom_colour(const ViewState& vs,
+                                                                       std::uint32_t packed, std::size_t s,
+                                                                       const Eigen::Vector2f& ray) const {
+  return Flags::cpu ? shade(vs.shading[global_index(packed)], ray.x(), ray.y())
+                    : load_rgba(&vs.boom_rgba[s * 4]);
+}
+
+// Writes an opaque boom colour (0..255, rounded here) in the raw pixel's format.
+template <class Flags>
+inline __attribute__((always_inline)) void AugmenterImpl::put_opaque(const ResolveRow& r, int u,
+                                                                     F32x4 c) const {
+  if (r.alrow) r.alrow[u] = 255;
+  c += 0.5f;
+  std::uint8_t* px = r.arow + static_cast<std::size_t>(u - r.ax0) * r.bpp;
+  if constexpr (Flags::rgb) {
+    px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
+    px[2] = static_cast<std::uint8_t>(c[2]);
+    return;
+  }
+  switch (r.fmt) {
+    case PixelFormat::kRGB8:
+    case PixelFormat::kRGBA8:
+      px[0] = static_cast<std::uint8_t>(c[0]), px[1] = static_cast<std::uint8_t>(c[1]),
+      px[2] = static_cast<std::uint8_t>(c[2]);
+      break;
+    case PixelFormat::kMono8:
+      px[0] = static_cast<std::uint8_t>(0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]);
+      break;
+    default:
+      px[0] = static_cast<std::uint8_t>(c[bayer_channel(r.fmt, u, r.v)]);
+  }
+}
+
+// Blends the premultiplied colour (cr, cg, cb) of coverage `alpha` over the raw pixel u.
+inline __attribute__((always_inline)) void AugmenterImpl::blend(const ResolveRow& r, int u, float alpha,
+                                                                float cr, float cg, float cb) {
+  if (r.alrow) r.alrow[u] = static_cast<std::uint8_t>(alpha * 255.f + 0.5f);
+  std::uint8_t* px = r.arow + static_cast<std::size_t>(u - r.ax0) * r.bpp;
+  const float ia = 1 - alpha;
+  auto mix = [&](std::uint8_t raw_value, float premult) {
+    return static_cast<std::uint8_t>(std::clamp(raw_value * ia + premult + 0.5f, 0.f, 255.f));
+  };
+  switch (r.fmt) {
+    case PixelFormat::kRGB8:
+    case PixelFormat::kRGBA8:
+      px[0] = mix(px[0], cr), px[1] = mix(px[1], cg), px[2] = mix(px[2], cb);
+      break;
+    case PixelFormat::kMono8:
+      px[0] = mix(px[0], 0.299f * cr + 0.587f * cg + 0.114f * cb);
+      break;
+    default: {  // Bayer: the site's own colour channel
+      const int ch = bayer_channel(r.fmt, u, r.v);
+      px[0] = mix(px[0], ch == 0 ? cr : ch == 1 ? cg : cb);
+    }
+  }
 }
 
 Status AugmenterImpl::set_camera_look(int camera, const CameraLookParams& params) {
@@ -1773,7 +1297,7 @@ void AugmenterImpl::finish_views(const Frame* const raws[2], ViewResult* const o
     const auto a = Clock::now();
     finish_shadow(c, *raws[c], *outs[c], scene);
     shadow_ms[c] += ms(Clock::now() - a);
-    if (cpu_raster_) motion_of(c);  // GL draws on this thread only: below
+    if (backend_->concurrent_views()) motion_of(c);  // else it draws on this thread only: below
   };
   {
     worker().start([&] { shadow_of(0); });
@@ -1781,7 +1305,7 @@ void AugmenterImpl::finish_views(const Frame* const raws[2], ViewResult* const o
     shadow_of(1);
     worker().wait();
   }
-  if (!cpu_raster_) motion_of(0), motion_of(1);
+  if (!backend_->concurrent_views()) motion_of(0), motion_of(1);
   {
     worker().start([&] { finish_look(0, *raws[0], *outs[0], motion[0], shadow_ms[0], look_ms[0]); });
     const Worker::Join join{worker()};
@@ -1829,10 +1353,7 @@ bool AugmenterImpl::motion_view(int camera, const Frame& raw, ViewResult& out, c
     vs.T_body_boom = boom_pose(rig_.boom.pivot_body_m, a);
     vs.T_body_telescope = vs.T_body_boom * telescope_pose(a);
     prepare_view(vs, scene);
-    if (cpu_raster_)
-      raster_view(vs, scene);
-    else
-      render_view(vs, scene);
+    rasterise(vs, scene);
     ViewResult& r = vs.instant;
     begin_resolve(vs, raw, r);
     std::atomic<int> next_row{0};
@@ -1861,10 +1382,7 @@ Status AugmenterImpl::augment_view(int camera, const Frame& raw, const SceneStat
   shadow_on_ = receiver_on_ && scene.light.sun_up;
   ViewState& vs = views_[camera];
   prepare_view(vs, scene);
-  if (cpu_raster_)
-    raster_view(vs, scene);
-  else
-    render_view(vs, scene);
+  rasterise(vs, scene);
   resolve_view(vs, raw, out, row_scratch_[0]);
   double shadow_ms = 0, look_ms = 0;
   finish_shadow(camera, raw, out, scene);
@@ -1885,74 +1403,10 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
 
   timings_.gl_clear_ms = timings_.gl_draw_ms = timings_.gl_readback_ms = 0;
   const auto t0 = Clock::now();
-  if (cpu_raster_) {
-    // No GL: each thread rasterises one view, begins its resolve and resolves its rows, chunk by
-    // chunk; then it helps with what is left of the other view's rows, once that view has begun.
-    // The views rarely cost the same (the receiver fills one more than the other), and a thread
-    // the machine delays would otherwise hold up the frame.
-    const Frame* raws[2] = {&frame.left, &frame.right};
-    ViewResult* results[2] = {&out.left, &out.right};
-    enum : int { kNotYet, kBegun, kFailed };
-    struct alignas(64) Shared {  // a cache line per view: each thread mostly takes its own rows
-      std::atomic<int> next_row{0};
-      std::atomic<int> state{kNotYet};  // of the view's resolve
-    };
-    Shared view_state[2];
-    struct Times {
-      double raster = 0, resolve = 0;
-    };
-    auto both = [&](int c, Times& t) {
-      try {
-        const auto a = Clock::now();
-        prepare_view(views_[c], scene);
-        raster_view(views_[c], scene);
-        const auto b = Clock::now();
-        begin_resolve(views_[c], *raws[c], *results[c]);
-        t.raster = ms(b - a), t.resolve = ms(Clock::now() - b);
-      } catch (...) {
-        view_state[c].state.store(kFailed);  // the other thread must not wait for this view, nor resolve it
-        view_state[c].state.notify_all();
-        throw;
-      }
-      view_state[c].state.store(kBegun);
-      view_state[c].state.notify_all();
-      const auto a = Clock::now();
-      resolve_rows(views_[c], *raws[c], *results[c], view_state[c].next_row, row_scratch_[c]);
-      const int o = 1 - c;
-      for (int s = view_state[o].state.load(); s == kNotYet; s = view_state[o].state.load())
-        view_state[o].state.wait(s);
-      if (view_state[o].state.load() == kBegun)
-        resolve_rows(views_[o], *raws[o], *results[o], view_state[o].next_row, row_scratch_[c]);
-      t.resolve += ms(Clock::now() - a);
-    };
-    Times left, right;
-    worker().start([&] { both(0, left); });
-    const Worker::Join join{worker()};
-    both(1, right);
-    worker().wait();
-    timings_.render_ms = left.raster + right.raster;
-    timings_.masks_ms = left.resolve + right.resolve;
-  } else {
-    // GL runs on this thread; the left view's CPU work overlaps the right view's rendering.
-    prepare_view(views_[0], scene);
-    render_view(views_[0], scene);
-    const auto t1 = Clock::now();
-    double left_cpu_ms = 0;
-    worker().start([&] {
-      const auto a = Clock::now();
-      resolve_view(views_[0], frame.left, out.left, row_scratch_[0]);
-      left_cpu_ms = ms(Clock::now() - a);
-    });
-    const Worker::Join join{worker()};
-    prepare_view(views_[1], scene);
-    render_view(views_[1], scene);
-    const auto t2 = Clock::now();
-    resolve_view(views_[1], frame.right, out.right, row_scratch_[1]);
-    const double right_cpu = ms(Clock::now() - t2);
-    timings_.render_ms = ms(t1 - t0) + ms(t2 - t1);
-    worker().wait();
-    timings_.masks_ms = left_cpu_ms + right_cpu;
-  }
+  if (backend_->concurrent_views())
+    draw_and_resolve_concurrently(frame, scene, out);
+  else
+    draw_and_resolve_serially(frame, scene, out);
 
   // The shadow and the look, the views in parallel: neither reads the other's pixels.
   timings_.shadow_ms = timings_.look_ms = timings_.motion_ms = 0;
@@ -1964,6 +1418,93 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   }
 
   const auto t4 = Clock::now();
+  stereo_stats(frame, out);
+  timings_.stats_ms = ms(Clock::now() - t4);
+  timings_.total_ms = ms(Clock::now() - t0);
+  return backend_->errors();
+}
+
+// Each thread draws one view, begins its resolve and resolves its rows, chunk by chunk; then it
+// helps with what is left of the other view's rows, once that view has begun. The views rarely
+// cost the same (the receiver fills one more than the other), and a thread the machine delays
+// would otherwise hold up the frame.
+void AugmenterImpl::draw_and_resolve_concurrently(const StereoFrame& frame, const SceneState& scene,
+                                                  StereoResult& out) {
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
+  const Frame* raws[2] = {&frame.left, &frame.right};
+  ViewResult* results[2] = {&out.left, &out.right};
+  enum : int { kNotYet, kBegun, kFailed };
+  struct alignas(64) Shared {  // a cache line per view: each thread mostly takes its own rows
+    std::atomic<int> next_row{0};
+    std::atomic<int> state{kNotYet};  // of the view's resolve
+  };
+  Shared view_state[2];
+  struct Times {
+    double raster = 0, resolve = 0;
+  };
+  auto both = [&](int c, Times& t) {
+    try {
+      const auto a = Clock::now();
+      prepare_view(views_[c], scene);
+      rasterise(views_[c], scene);
+      const auto b = Clock::now();
+      begin_resolve(views_[c], *raws[c], *results[c]);
+      t.raster = ms(b - a), t.resolve = ms(Clock::now() - b);
+    } catch (...) {
+      view_state[c].state.store(kFailed);  // the other thread must not wait for this view, nor resolve it
+      view_state[c].state.notify_all();
+      throw;
+    }
+    view_state[c].state.store(kBegun);
+    view_state[c].state.notify_all();
+    const auto a = Clock::now();
+    resolve_rows(views_[c], *raws[c], *results[c], view_state[c].next_row, row_scratch_[c]);
+    const int o = 1 - c;
+    for (int s = view_state[o].state.load(); s == kNotYet; s = view_state[o].state.load())
+      view_state[o].state.wait(s);
+    if (view_state[o].state.load() == kBegun)
+      resolve_rows(views_[o], *raws[o], *results[o], view_state[o].next_row, row_scratch_[c]);
+    t.resolve += ms(Clock::now() - a);
+  };
+  Times left, right;
+  worker().start([&] { both(0, left); });
+  const Worker::Join join{worker()};
+  both(1, right);
+  worker().wait();
+  timings_.render_ms = left.raster + right.raster;
+  timings_.masks_ms = left.resolve + right.resolve;
+}
+
+// The backend draws on this thread only (OpenGL: its context's); the left view's CPU work
+// overlaps the right view's drawing.
+void AugmenterImpl::draw_and_resolve_serially(const StereoFrame& frame, const SceneState& scene,
+                                              StereoResult& out) {
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); };
+  const auto t0 = Clock::now();
+  prepare_view(views_[0], scene);
+  rasterise(views_[0], scene);
+  const auto t1 = Clock::now();
+  double left_cpu_ms = 0;
+  worker().start([&] {
+    const auto a = Clock::now();
+    resolve_view(views_[0], frame.left, out.left, row_scratch_[0]);
+    left_cpu_ms = ms(Clock::now() - a);
+  });
+  const Worker::Join join{worker()};
+  prepare_view(views_[1], scene);
+  rasterise(views_[1], scene);
+  const auto t2 = Clock::now();
+  resolve_view(views_[1], frame.right, out.right, row_scratch_[1]);
+  const double right_cpu = ms(Clock::now() - t2);
+  timings_.render_ms = ms(t1 - t0) + ms(t2 - t1);
+  worker().wait();
+  timings_.masks_ms = left_cpu_ms + right_cpu;
+}
+
+// The occlusion statistics and stereo classes from both views' masks and depth.
+void AugmenterImpl::stereo_stats(const StereoFrame& frame, StereoResult& out) {
   // The classes reuse this view's own pixel rays (same undistortion as the masks).
   StereoClassOptions copt = options_.class_options;
   copt.compute_classes = receiver_on_ && options_.stereo_classes;
@@ -1981,10 +1522,6 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
                                       rig_.T_right_left(), copt,
                                       copt.compute_classes ? &out.stereo_classes : nullptr);
   if (!copt.compute_classes) out.stereo_classes.clear();
-  timings_.stats_ms = ms(Clock::now() - t4);
-  timings_.total_ms = ms(Clock::now() - t0);
-  if (auto e = gl::drain_errors(); !e.empty()) return make_error("Augmenter::augment(): OpenGL errors:", e);
-  return {};
 }
 
 }  // namespace

@@ -197,6 +197,256 @@ MaskCounts count_masks(const Image& ml, const Image& mr, int x0, int y0, int w, 
   return c;
 }
 
+// The counts that need only the masks, and the percentages from them.
+void set_mask_counts(OcclusionStats& s, const MaskCounts& c, std::size_t n) {
+  s.receiver_px_left = c.rl;
+  s.receiver_px_right = c.rr;
+  s.boom_px_left = c.bl;
+  s.boom_px_right = c.br;
+  s.boom_overlap_px = c.ov;
+  s.occluded_px_left = c.ol;
+  s.occluded_px_right = c.orr;
+  s.shadow_px_left = c.sl;
+  s.shadow_px_right = c.sr;
+  const std::int64_t area = static_cast<std::int64_t>(n);
+  s.boom_overlap_pct_union = pct(s.boom_overlap_px, s.boom_px_left + s.boom_px_right - s.boom_overlap_px);
+  s.occluded_pct_left = pct(s.occluded_px_left, s.receiver_px_left);
+  s.occluded_pct_right = pct(s.occluded_px_right, s.receiver_px_right);
+  s.receiver_pct_left = pct(s.receiver_px_left, area);
+  s.receiver_pct_right = pct(s.receiver_px_right, area);
+  s.boom_pct_left = pct(s.boom_px_left, area);
+  s.boom_pct_right = pct(s.boom_px_right, area);
+  s.shadow_pct_left = pct(s.shadow_px_left, s.receiver_px_left);
+  s.shadow_pct_right = pct(s.shadow_px_right, s.receiver_px_right);
+}
+
+// The stereo classes of the left receiver pixels, and the mask counts on the way, rows of one
+// parity at a time (two threads take alternate rows, which shares the receiver between them
+// wherever it lies in the box). The rig and the right lens are held as plain scalars: this runs
+// once per receiver pixel.
+class StereoClassifier {
+ public:
+  using Counts = std::array<std::int64_t, 5>;  // by StereoClass
+  struct Pass {
+    MaskCounts masks;
+    Counts classes{};
+  };
+
+  // The content box [cx0, cx1) x [cy0, cy1) holds every mask bit.
+  StereoClassifier(const Image& mask_left, const Image& mask_right, const DepthImage& depth_left,
+                   const DepthImage& depth_right, const CameraModel& right, const Pose& T_right_left,
+                   const StereoClassOptions& options, const std::vector<Eigen::Vector2f>& rays,
+                   std::vector<std::uint8_t>* classes_out, int cx0, int cy0, int cx1, int cy1);
+  // Every second row from `parity`: the mask counts, the class image and the class counts.
+  Pass classify_rows(int parity) const;
+
+ private:
+  void classify_row(int y, Counts& counts) const;
+  void visible_right(const int* xs, int n, const float* zl, const Eigen::Vector2f* ry, bool* vis) const;
+  bool seen_at(double u, double v, double zr) const;
+
+  const Image &mask_left_, &mask_right_;
+  const DepthImage& depth_left_;
+  const float* depth_r_;
+  const CameraModel& right_;
+  const std::vector<Eigen::Vector2f>& rays_;
+  std::vector<std::uint8_t>* classes_out_;
+  int w_, h_, cx0_, cy0_, cx1_, cy1_;
+  double r00_, r01_, r02_, r10_, r11_, r12_, r20_, r21_, r22_, tx_, ty_, tz_;
+  double u_max_, v_max_, tol_m_, tol_rel_;
+  double right_max_radius_;  // once, not per pixel
+  bool batched_, radtan_;
+  double k1_, k2_, p1_, p2_, k3_, fx_, fy_, cxr_, cyr_;
+};
+
+StereoClassifier::StereoClassifier(const Image& mask_left, const Image& mask_right,
+                                   const DepthImage& depth_left, const DepthImage& depth_right,
+                                   const CameraModel& right, const Pose& T_right_left,
+                                   const StereoClassOptions& options,
+                                   const std::vector<Eigen::Vector2f>& rays,
+                                   std::vector<std::uint8_t>* classes_out, int cx0, int cy0, int cx1, int cy1)
+    : mask_left_(mask_left),
+      mask_right_(mask_right),
+      depth_left_(depth_left),
+      depth_r_(depth_right.z_m.data()),
+      right_(right),
+      rays_(rays),
+      classes_out_(classes_out),
+      w_(mask_left.width()),
+      h_(mask_left.height()),
+      cx0_(cx0),
+      cy0_(cy0),
+      cx1_(cx1),
+      cy1_(cy1) {
+  const Eigen::Matrix3d R = T_right_left.R();
+  r00_ = R(0, 0), r01_ = R(0, 1), r02_ = R(0, 2), r10_ = R(1, 0), r11_ = R(1, 1), r12_ = R(1, 2);
+  r20_ = R(2, 0), r21_ = R(2, 1), r22_ = R(2, 2);
+  tx_ = T_right_left.translation_m.x(), ty_ = T_right_left.translation_m.y(),
+  tz_ = T_right_left.translation_m.z();
+  u_max_ = w_ - 0.5, v_max_ = h_ - 0.5;
+  tol_m_ = options.depth_tolerance_m, tol_rel_ = options.depth_tolerance_rel;
+  right_max_radius_ = right.max_valid_radius();
+  // Pinhole and radial-tangential lenses project two points at a time (visible_right()).
+  batched_ = right.distortion == DistortionModel::kNone || right.distortion == DistortionModel::kRadTan;
+  radtan_ = right.distortion == DistortionModel::kRadTan;
+  k1_ = right.coeffs[0], k2_ = right.coeffs[1], p1_ = right.coeffs[2], p2_ = right.coeffs[3],
+  k3_ = right.coeffs[4];
+  fx_ = right.fx_px, fy_ = right.fy_px, cxr_ = right.cx_px, cyr_ = right.cy_px;
+}
+
+// Is the right camera's surface at its pixel (u, v), for a point at depth zr in its frame, that
+// point: in the image, no boom in front of it, and the receiver's depth there zr?
+inline bool StereoClassifier::seen_at(double u, double v, double zr) const {
+  // Projections land on exact pixel centres in rectified rigs; float rays put them 1e-5 px off.
+  // Snapping within this keeps the 2x2 neighbourhood from picking up a spurious extra column.
+  constexpr double kSnapPx = 1e-3;
+  const int w = w_, h = h_;
+  if (!(u >= -0.5 && u < u_max_ && v >= -0.5 && v < v_max_)) return false;
+  // Left/top pixel centre of the neighbourhood: floor(u + snap) by truncation (u + snap + 2 > 0;
+  // std::floor is a libm call on baseline x86-64). fu in [-snap, 1 - snap) is u's offset from it.
+  const int xa = static_cast<int>(u + kSnapPx + 2.0) - 2, ya = static_cast<int>(v + kSnapPx + 2.0) - 2;
+  const double fu = u - xa, fv = v - ya;
+  // Boom in front of the point in the right view: its bit at the nearest pixel centre.
+  const int un = std::min(xa + (fu >= 0.5), w - 1), vn = std::min(ya + (fv >= 0.5), h - 1);
+  if (mask_right_.row(std::max(vn, 0))[std::max(un, 0)] & kMaskBoom) return false;
+  // Self-occlusion: is the right camera's nearest receiver surface around (u, v) this point?
+  // Any of the (up to 2x2) surrounding pixel centres agreeing suffices: sub-pixel slack.
+  const int x0 = std::max(xa, 0), x1 = std::min(fu > kSnapPx ? xa + 1 : xa, w - 1);
+  const int y0 = std::max(ya, 0), y1 = std::min(fv > kSnapPx ? ya + 1 : ya, h - 1);
+  const double tol = tol_m_ + tol_rel_ * zr;
+  const float* depth_r = depth_r_;
+  auto near = [&](int xx, int yy) {  // +inf (no receiver there) never passes
+    return std::abs(static_cast<double>(depth_r[static_cast<std::size_t>(yy) * w + xx]) - zr) <= tol;
+  };
+  return near(x0, y0) || (x1 != x0 && near(x1, y0)) ||
+         (y1 != y0 && (near(x0, y1) || (x1 != x0 && near(x1, y1))));
+}
+
+// For the left receiver points zl[x] * (x_n, y_n, 1) of pixels xs[0..n) of one row (rays ry),
+// whether each is the surface the right camera sees, into vis[]. The points move into the right
+// camera's frame two at a time (SSE2 doubles, GCC/Clang vector extensions), and so does their
+// projection for a pinhole or radial-tangential lens, in the same operations and order as
+// CameraModel::project() (the same answers); other lenses project one point at a time.
+void StereoClassifier::visible_right(const int* xs, int n, const float* zl, const Eigen::Vector2f* ry,
+                                     bool* vis) const {
+  using F64x2 = double __attribute__((vector_size(16)));
+  const double k1 = k1_, k2 = k2_, p1 = p1_, p2 = p2_, k3 = k3_;
+  for (int i = 0; i < n; i += 2) {
+    const int xa = xs[i], xb = xs[i + 1 < n ? i + 1 : i];
+    const F64x2 z{zl[xa], zl[xb]};
+    const F64x2 xn{ry[xa].x(), ry[xb].x()}, yn{ry[xa].y(), ry[xb].y()};
+    const F64x2 px = z * xn, py = z * yn;
+    const F64x2 X = r00_ * px + r01_ * py + r02_ * z + tx_, Y = r10_ * px + r11_ * py + r12_ * z + ty_,
+                Z = r20_ * px + r21_ * py + r22_ * z + tz_;
+    const F64x2 x = X / Z, y = Y / Z;
+    F64x2 u = x, v = y;
+    if (radtan_) {
+      const F64x2 r2 = x * x + y * y;
+      const F64x2 radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+      u = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+      v = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+    }
+    u = fx_ * u + cxr_, v = fy_ * v + cyr_;
+    for (int l = 0; l < 2 && i + l < n; ++l) {
+      // No receiver (inf) or no ray (NaN) at the left pixel: not seen.
+      bool ok = z[l] < std::numeric_limits<double>::infinity() && xn[l] == xn[l] && yn[l] == yn[l];
+      double ul = u[l], vl = v[l];
+      if (batched_) {  // project()'s guards
+        ok = ok && Z[l] > 0.0 && (!radtan_ || std::sqrt(x[l] * x[l] + y[l] * y[l]) < right_max_radius_);
+      } else if (ok) {
+        const auto uv = right_.project(Eigen::Vector3d(X[l], Y[l], Z[l]), right_max_radius_);
+        ok = uv.has_value();
+        if (ok) ul = uv->x(), vl = uv->y();
+      }
+      vis[i + l] = ok && seen_at(ul, vl, Z[l]);
+    }
+  }
+}
+
+// Row y's left receiver pixels, a batch at a time: x, then whether the right camera sees the
+// same point; their classes counted and written.
+void StereoClassifier::classify_row(int y, Counts& counts) const {
+  constexpr std::uint64_t kReceiverLanes = kLanes * kMaskReceiver;
+  const int w = w_;
+  const std::uint8_t* ml = mask_left_.row(y);
+  const float* zl = depth_left_.z_m.data() + static_cast<std::size_t>(y) * w;
+  const Eigen::Vector2f* ry = rays_.data() + static_cast<std::size_t>(y) * w;
+  std::uint8_t* cls = classes_out_ ? classes_out_->data() + static_cast<std::size_t>(y) * w : nullptr;
+  if (cls) std::memset(cls, static_cast<int>(StereoClass::kNone), static_cast<std::size_t>(w));
+  constexpr int kBatch = 64;
+  int xs[kBatch];
+  bool vis[kBatch];
+  int nb = 0;
+  auto flush = [&] {
+    visible_right(xs, nb, zl, ry, vis);
+    for (int i = 0; i < nb; ++i) {
+      const bool vis_left = !(ml[xs[i]] & kMaskBoom);
+      const StereoClass c = vis_left ? (vis[i] ? StereoClass::kBoth : StereoClass::kLeftOnly)
+                                     : (vis[i] ? StereoClass::kRightOnly : StereoClass::kNeither);
+      ++counts[static_cast<int>(c)];
+      if (cls) cls[xs[i]] = static_cast<std::uint8_t>(c);
+    }
+    nb = 0;
+  };
+  for (int x = cx0_ & ~7; x < cx1_; ++x) {
+    if ((x & 7) == 0 && x + 8 <= cx1_) {  // skip 8 receiver-free pixels at once
+      std::uint64_t v8;
+      std::memcpy(&v8, ml + x, 8);
+      if (!(v8 & kReceiverLanes)) {
+        x += 7;
+        continue;
+      }
+    }
+    if (!(ml[x] & kMaskReceiver)) continue;
+    xs[nb++] = x;
+    if (nb == kBatch) flush();
+  }
+  flush();
+}
+
+StereoClassifier::Pass StereoClassifier::classify_rows(int parity) const {
+  Pass pass;
+  const int w = w_;
+  if (classes_out_)  // kNone outside the content box
+    for (int y = parity; y < h_; y += 2)
+      if (y < cy0_ || y >= cy1_)
+        std::memset(classes_out_->data() + static_cast<std::size_t>(y) * w,
+                    static_cast<int>(StereoClass::kNone), static_cast<std::size_t>(w));
+  const int y_begin = cy0_ + ((cy0_ & 1) != parity);
+  add(pass.masks, count_masks(mask_left_, mask_right_, cx0_, y_begin, cx1_, cy1_, 2));
+  if (pass.masks.rl == 0 && !classes_out_) return pass;  // no left receiver pixel in these rows
+  for (int y = y_begin; y < cy1_; y += 2) classify_row(y, pass.classes);
+  return pass;
+}
+
+// The stereo classes' inputs checked, the class image sized; the left camera's pixel rays (the
+// caller's or the cached map).
+const std::vector<Eigen::Vector2f>* class_inputs(const Image& mask_left, const Image& mask_right,
+                                                 const DepthImage& depth_left, const DepthImage& depth_right,
+                                                 const CameraModel& left, const CameraModel& right,
+                                                 const StereoClassOptions& options,
+                                                 std::vector<std::uint8_t>* classes_out,
+                                                 std::shared_ptr<const std::vector<Eigen::Vector2f>>& owned) {
+  check_depth(depth_left, mask_left, "receiver_depth_left");
+  check_depth(depth_right, mask_right, "receiver_depth_right");
+  if (left.width_px != mask_left.width() || left.height_px != mask_left.height() ||
+      right.width_px != mask_right.width() || right.height_px != mask_right.height())
+    throw std::invalid_argument("compute_occlusion_stats: camera size differs from its mask's size");
+  const std::size_t n =
+      static_cast<std::size_t>(mask_left.width()) * static_cast<std::size_t>(mask_left.height());
+  // Every class is written by the two threads of compute_occlusion_stats(), row by row (kNone
+  // outside the receiver).
+  if (classes_out) classes_out->resize(n);
+  const std::vector<Eigen::Vector2f>* rays = options.left_rays_xy;
+  if (rays && rays->size() != n)
+    throw std::invalid_argument("compute_occlusion_stats: left_rays_xy has the wrong size");
+  if (!rays) {
+    owned = cached_xy_map(left);
+    rays = owned.get();
+  }
+  return rays;
+}
+
 }  // namespace
 
 std::shared_ptr<const std::vector<Eigen::Vector2f>> shared_undistorted_xy_map(const CameraModel& camera) {
@@ -234,215 +484,36 @@ OcclusionStats compute_occlusion_stats(TimestampNs t_ns, const Image& mask_left,
   // Only the content box can hold mask bits.
   const int cx0 = std::clamp(options.content_x0, 0, w), cx1 = std::clamp(options.content_x1, cx0, w);
   const int cy0 = std::clamp(options.content_y0, 0, h), cy1 = std::clamp(options.content_y1, cy0, h);
-  auto set_mask_counts = [&](const MaskCounts& c) {
-    s.receiver_px_left = c.rl;
-    s.receiver_px_right = c.rr;
-    s.boom_px_left = c.bl;
-    s.boom_px_right = c.br;
-    s.boom_overlap_px = c.ov;
-    s.occluded_px_left = c.ol;
-    s.occluded_px_right = c.orr;
-    s.shadow_px_left = c.sl;
-    s.shadow_px_right = c.sr;
-    const std::int64_t area = static_cast<std::int64_t>(n);
-    s.boom_overlap_pct_union = pct(s.boom_overlap_px, s.boom_px_left + s.boom_px_right - s.boom_overlap_px);
-    s.occluded_pct_left = pct(s.occluded_px_left, s.receiver_px_left);
-    s.occluded_pct_right = pct(s.occluded_px_right, s.receiver_px_right);
-    s.receiver_pct_left = pct(s.receiver_px_left, area);
-    s.receiver_pct_right = pct(s.receiver_px_right, area);
-    s.boom_pct_left = pct(s.boom_px_left, area);
-    s.boom_pct_right = pct(s.boom_px_right, area);
-    s.shadow_pct_left = pct(s.shadow_px_left, s.receiver_px_left);
-    s.shadow_pct_right = pct(s.shadow_px_right, s.receiver_px_right);
-  };
   if (!options.compute_classes) {
     // The masks alone: one pass over the content box on this thread.
-    set_mask_counts(count_masks(mask_left, mask_right, cx0, cy0, cx1, cy1));
+    set_mask_counts(s, count_masks(mask_left, mask_right, cx0, cy0, cx1, cy1), n);
     if (classes_out) classes_out->clear();
     return s;
   }
-  check_depth(receiver_depth_left, mask_left, "receiver_depth_left");
-  check_depth(receiver_depth_right, mask_right, "receiver_depth_right");
-  if (left.width_px != mask_left.width() || left.height_px != mask_left.height() ||
-      right.width_px != mask_right.width() || right.height_px != mask_right.height())
-    throw std::invalid_argument("compute_occlusion_stats: camera size differs from its mask's size");
-
-  // Every class is written by the two threads below, row by row (kNone outside the receiver).
-  if (classes_out) classes_out->resize(n);
-
-  // Normalised pixel-centre coordinates of the left camera: caller's map or the cached one.
   std::shared_ptr<const std::vector<Eigen::Vector2f>> owned;
-  const std::vector<Eigen::Vector2f>* rays = options.left_rays_xy;
-  if (rays && rays->size() != n)
-    throw std::invalid_argument("compute_occlusion_stats: left_rays_xy has the wrong size");
-  if (!rays) {
-    owned = cached_xy_map(left);
-    rays = owned.get();
-  }
-
-  // The rig transform as plain scalars: this runs once per receiver pixel.
-  const Eigen::Matrix3d R = T_right_left.R();
-  const double r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2), r10 = R(1, 0), r11 = R(1, 1), r12 = R(1, 2),
-               r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
-  const double tx = T_right_left.translation_m.x(), ty = T_right_left.translation_m.y(),
-               tz = T_right_left.translation_m.z();
-  const double u_max = w - 0.5, v_max = h - 0.5;
-  const double tol_m = options.depth_tolerance_m, tol_rel = options.depth_tolerance_rel;
-  const float* depth_r = receiver_depth_right.z_m.data();
-  // Projections land on exact pixel centres in rectified rigs; float rays put them 1e-5 px off.
-  // Snapping within this keeps the 2x2 neighbourhood from picking up a spurious extra column.
-  constexpr double kSnapPx = 1e-3;
-
-  const double right_max_radius = right.max_valid_radius();  // once, not per pixel
-  // Is the right camera's surface at its pixel (u, v), for a point at depth zr in its frame, that
-  // point: in the image, no boom in front of it, and the receiver's depth there zr?
-  auto seen_at = [&](double u, double v, double zr) {
-    if (!(u >= -0.5 && u < u_max && v >= -0.5 && v < v_max)) return false;
-    // Left/top pixel centre of the neighbourhood: floor(u + snap) by truncation (u + snap + 2 > 0;
-    // std::floor is a libm call on baseline x86-64). fu in [-snap, 1 - snap) is u's offset from it.
-    const int xa = static_cast<int>(u + kSnapPx + 2.0) - 2, ya = static_cast<int>(v + kSnapPx + 2.0) - 2;
-    const double fu = u - xa, fv = v - ya;
-    // Boom in front of the point in the right view: its bit at the nearest pixel centre.
-    const int un = std::min(xa + (fu >= 0.5), w - 1), vn = std::min(ya + (fv >= 0.5), h - 1);
-    if (mask_right.row(std::max(vn, 0))[std::max(un, 0)] & kMaskBoom) return false;
-    // Self-occlusion: is the right camera's nearest receiver surface around (u, v) this point?
-    // Any of the (up to 2x2) surrounding pixel centres agreeing suffices: sub-pixel slack.
-    const int x0 = std::max(xa, 0), x1 = std::min(fu > kSnapPx ? xa + 1 : xa, w - 1);
-    const int y0 = std::max(ya, 0), y1 = std::min(fv > kSnapPx ? ya + 1 : ya, h - 1);
-    const double tol = tol_m + tol_rel * zr;
-    auto near = [&](int xx, int yy) {  // +inf (no receiver there) never passes
-      return std::abs(static_cast<double>(depth_r[static_cast<std::size_t>(yy) * w + xx]) - zr) <= tol;
-    };
-    return near(x0, y0) || (x1 != x0 && near(x1, y0)) ||
-           (y1 != y0 && (near(x0, y1) || (x1 != x0 && near(x1, y1))));
-  };
-  // For the left receiver points zl[x] * (x_n, y_n, 1) of pixels xs[0..n) of one row (rays ry),
-  // whether each is the surface the right camera sees, into vis[]. The points move into the right
-  // camera's frame two at a time (SSE2 doubles, GCC/Clang vector extensions), and so does their
-  // projection for a pinhole or radial-tangential lens, in the same operations and order as
-  // CameraModel::project() (the same answers); other lenses project one point at a time.
-  const bool batched =
-      right.distortion == DistortionModel::kNone || right.distortion == DistortionModel::kRadTan;
-  const bool radtan = right.distortion == DistortionModel::kRadTan;
-  const double k1 = right.coeffs[0], k2 = right.coeffs[1], p1 = right.coeffs[2], p2 = right.coeffs[3],
-               k3 = right.coeffs[4];
-  const double fx = right.fx_px, fy = right.fy_px, cxr = right.cx_px, cyr = right.cy_px;
-  auto visible_right = [&](const int* xs, int n, const float* zl, const Eigen::Vector2f* ry, bool* vis) {
-    using F64x2 = double __attribute__((vector_size(16)));
-    for (int i = 0; i < n; i += 2) {
-      const int xa = xs[i], xb = xs[i + 1 < n ? i + 1 : i];
-      const F64x2 z{zl[xa], zl[xb]};
-      const F64x2 xn{ry[xa].x(), ry[xb].x()}, yn{ry[xa].y(), ry[xb].y()};
-      const F64x2 px = z * xn, py = z * yn;
-      const F64x2 X = r00 * px + r01 * py + r02 * z + tx, Y = r10 * px + r11 * py + r12 * z + ty,
-                  Z = r20 * px + r21 * py + r22 * z + tz;
-      const F64x2 x = X / Z, y = Y / Z;
-      F64x2 u = x, v = y;
-      if (radtan) {
-        const F64x2 r2 = x * x + y * y;
-        const F64x2 radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
-        u = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
-        v = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
-      }
-      u = fx * u + cxr, v = fy * v + cyr;
-      for (int l = 0; l < 2 && i + l < n; ++l) {
-        // No receiver (inf) or no ray (NaN) at the left pixel: not seen.
-        bool ok = z[l] < std::numeric_limits<double>::infinity() && xn[l] == xn[l] && yn[l] == yn[l];
-        double ul = u[l], vl = v[l];
-        if (batched) {  // project()'s guards
-          ok = ok && Z[l] > 0.0 && (!radtan || std::sqrt(x[l] * x[l] + y[l] * y[l]) < right_max_radius);
-        } else if (ok) {
-          const auto uv = right.project(Eigen::Vector3d(X[l], Y[l], Z[l]), right_max_radius);
-          ok = uv.has_value();
-          if (ok) ul = uv->x(), vl = uv->y();
-        }
-        vis[i + l] = ok && seen_at(ul, vl, Z[l]);
-      }
-    }
-  };
-
-  // Every second row from y_begin: the mask counts, the class image and the class counts (by
-  // StereoClass). Two threads take alternate rows, which shares the receiver between them wherever
-  // it lies in the box.
-  constexpr std::uint64_t kReceiverLanes = kLanes * kMaskReceiver;
-  using Counts = std::array<std::int64_t, 5>;
-  struct Pass {
-    MaskCounts masks;
-    Counts classes{};
-  };
-  auto classify_rows = [&](int parity) {
-    Pass pass;
-    if (classes_out)
-      for (int y = parity; y < h; y += 2)
-        if (y < cy0 || y >= cy1)
-          std::memset(classes_out->data() + static_cast<std::size_t>(y) * w,
-                      static_cast<int>(StereoClass::kNone), static_cast<std::size_t>(w));
-    const int y_begin = cy0 + ((cy0 & 1) != parity);
-    add(pass.masks, count_masks(mask_left, mask_right, cx0, y_begin, cx1, cy1, 2));
-    if (pass.masks.rl == 0 && !classes_out) return pass;  // no left receiver pixel in these rows
-    Counts& counts = pass.classes;
-    for (int y = y_begin; y < cy1; y += 2) {
-      const std::uint8_t* ml = mask_left.row(y);
-      const float* zl = receiver_depth_left.z_m.data() + static_cast<std::size_t>(y) * w;
-      const Eigen::Vector2f* ry = rays->data() + static_cast<std::size_t>(y) * w;
-      std::uint8_t* cls = classes_out ? classes_out->data() + static_cast<std::size_t>(y) * w : nullptr;
-      if (cls) std::memset(cls, static_cast<int>(StereoClass::kNone), static_cast<std::size_t>(w));
-      // The row's left receiver pixels, a batch at a time: x, then whether the right camera sees
-      // the same point.
-      constexpr int kBatch = 64;
-      int xs[kBatch];
-      bool vis[kBatch];
-      int nb = 0;
-      auto flush = [&] {
-        visible_right(xs, nb, zl, ry, vis);
-        for (int i = 0; i < nb; ++i) {
-          const bool vis_left = !(ml[xs[i]] & kMaskBoom);
-          const StereoClass c = vis_left ? (vis[i] ? StereoClass::kBoth : StereoClass::kLeftOnly)
-                                         : (vis[i] ? StereoClass::kRightOnly : StereoClass::kNeither);
-          ++counts[static_cast<int>(c)];
-          if (cls) cls[xs[i]] = static_cast<std::uint8_t>(c);
-        }
-        nb = 0;
-      };
-      for (int x = cx0 & ~7; x < cx1; ++x) {
-        if ((x & 7) == 0 && x + 8 <= cx1) {  // skip 8 receiver-free pixels at once
-          std::uint64_t v8;
-          std::memcpy(&v8, ml + x, 8);
-          if (!(v8 & kReceiverLanes)) {
-            x += 7;
-            continue;
-          }
-        }
-        if (!(ml[x] & kMaskReceiver)) continue;
-        xs[nb++] = x;
-        if (nb == kBatch) flush();
-      }
-      flush();
-    }
-    return pass;
-  };
+  const std::vector<Eigen::Vector2f>* rays =
+      class_inputs(mask_left, mask_right, receiver_depth_left, receiver_depth_right, left, right, options,
+                   classes_out, owned);
+  const StereoClassifier classifier(mask_left, mask_right, receiver_depth_left, receiver_depth_right, right,
+                                    T_right_left, options, *rays, classes_out, cx0, cy0, cx1, cy1);
   // Even rows on the caller's worker, or a thread of their own; odd rows here.
-  Pass even_pass;
+  StereoClassifier::Pass even_pass;
   std::future<void> even;
   if (options.worker)
-    options.worker->start([&] { even_pass = classify_rows(0); });
+    options.worker->start([&] { even_pass = classifier.classify_rows(0); });
   else
-    even = std::async(std::launch::async, [&] { even_pass = classify_rows(0); });
-  const Pass odd = classify_rows(1);  // allocates nothing, throws nothing
+    even = std::async(std::launch::async, [&] { even_pass = classifier.classify_rows(0); });
+  const StereoClassifier::Pass odd = classifier.classify_rows(1);  // allocates nothing, throws nothing
   options.worker ? options.worker->wait() : even.get();
   MaskCounts masks = even_pass.masks;
   add(masks, odd.masks);
-  set_mask_counts(masks);
-  Counts counts = even_pass.classes;
+  set_mask_counts(s, masks, n);
+  StereoClassifier::Counts counts = even_pass.classes;
   for (int k = 0; k < 5; ++k) counts[k] += odd.classes[k];
-  const std::int64_t both = counts[static_cast<int>(StereoClass::kBoth)];
-  const std::int64_t left_only = counts[static_cast<int>(StereoClass::kLeftOnly)];
-  const std::int64_t right_only = counts[static_cast<int>(StereoClass::kRightOnly)];
-  const std::int64_t neither = counts[static_cast<int>(StereoClass::kNeither)];
-  s.stereo_both_px = both;
-  s.left_only_px = left_only;
-  s.right_only_px = right_only;
-  s.neither_px = neither;
+  s.stereo_both_px = counts[static_cast<int>(StereoClass::kBoth)];
+  s.left_only_px = counts[static_cast<int>(StereoClass::kLeftOnly)];
+  s.right_only_px = counts[static_cast<int>(StereoClass::kRightOnly)];
+  s.neither_px = counts[static_cast<int>(StereoClass::kNeither)];
   return s;
 }
 
