@@ -419,6 +419,274 @@ struct FitOutcome {
 
 enum class DriftModel { kTry, kFit, kNone };  // kTry: fitted, and dropped where not observable
 
+// One Gauss-Newton fit's working state: its parameters' layout, the robust weights, the residuals
+// and their Jacobians. Parameters: offset, [drift], [scale], bias (3).
+struct GaussNewton {
+  bool with_drift = false;
+  int P = 0, i_scale = 1, i_bias = 0;
+  std::vector<double> w;
+  std::vector<Eigen::Vector3d> r;
+  std::vector<Eigen::Matrix<double, 3, Eigen::Dynamic>> J;
+};
+
+// The fit over one set of intervals. Model: c_k = scale R_cam_body mean(omega over [t0 - d_k,
+// t1 - d_k]) + bias, d_k = offset + drift tmid_k; a drift not fitted is fixed_drift.
+class IntervalFit {
+ public:
+  IntervalFit(const std::vector<Interval>& iv, const RateGrid& grid, const Eigen::Matrix3d& R_cam_body,
+              const CameraClockOptions& opt, int hac_lag, double fixed_drift)
+      : iv_(iv),
+        grid_(grid),
+        R_(R_cam_body),
+        opt_(opt),
+        hac_lag_(hac_lag),
+        fixed_drift_(fixed_drift),
+        n_(static_cast<int>(iv.size())) {
+    Eigen::Vector3d c_mean = Eigen::Vector3d::Zero();
+    for (const Interval& x : iv_) c_mean += x.c;
+    c_mean /= n_;
+    for (const Interval& x : iv_) rss0_ += (x.c - c_mean).squaredNorm();
+  }
+
+  // The offset on the coarse grid prior +- i coarse_step_s, |i| <= steps, of the least cost (each
+  // step's cost in coarse_cost); returns its i and sets best_d.
+  int coarse_search(int steps, double& best_d, std::vector<double>& coarse_cost) const;
+  // The robust Gauss-Newton from best_d and its 1-sigma (the larger of the residuals' and
+  // Newey-West's); false where it does not converge or is singular. On success also sets info and
+  // lever below.
+  bool run(bool with_drift, double best_d, Eigen::VectorXd& p, Eigen::MatrixXd& cov_out, double& rms_out,
+           double& explained_out);
+
+  // Per interval, from the last successful run: its part of the offset's information and its lever.
+  std::vector<double> info;
+  std::vector<Eigen::VectorXd> lever;
+
+ private:
+  const Interval& at(int k) const { return iv_[static_cast<std::size_t>(k)]; }
+  Eigen::Vector3d model_rate(int k, double d) const {
+    return Eigen::Vector3d(R_ * grid_.mean(at(k).t0_s - d, at(k).t1_s - d));
+  }
+  double tmid(int k) const { return 0.5 * (at(k).t0_s + at(k).t1_s); }
+  // Linear part (scale, bias) for given model rates m: least squares, weights w.
+  void solve_linear(const std::vector<Eigen::Vector3d>& m, const std::vector<double>& w, double& scale,
+                    Eigen::Vector3d& bias) const;
+  GaussNewton start(bool with_drift, double best_d, Eigen::VectorXd& p) const;
+  void evaluate(GaussNewton& g, const Eigen::VectorXd& q) const;
+  void huber_weights(GaussNewton& g) const;
+  bool iterate(GaussNewton& g, Eigen::VectorXd& p) const;
+  bool finish(const GaussNewton& g, Eigen::MatrixXd& cov_out, double& rms_out, double& explained_out);
+
+  const std::vector<Interval>& iv_;
+  const RateGrid& grid_;
+  const Eigen::Matrix3d& R_;
+  const CameraClockOptions& opt_;
+  const int hac_lag_;
+  const double fixed_drift_;
+  const int n_;
+  double rss0_ = 0;
+};
+
+void IntervalFit::solve_linear(const std::vector<Eigen::Vector3d>& m, const std::vector<double>& w,
+                               double& scale, Eigen::Vector3d& bias) const {
+  if (!opt_.estimate_scale) {
+    scale = 1;
+    Eigen::Vector3d s = Eigen::Vector3d::Zero();
+    double sw = 0;
+    for (int k = 0; k < n_; ++k) {
+      s += w[static_cast<std::size_t>(k)] * (at(k).c - m[static_cast<std::size_t>(k)]);
+      sw += w[static_cast<std::size_t>(k)];
+    }
+    bias = s / sw;
+    return;
+  }
+  Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
+  Eigen::Vector4d b = Eigen::Vector4d::Zero();
+  for (int k = 0; k < n_; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    for (int a = 0; a < 3; ++a) {
+      Eigen::Vector4d j = Eigen::Vector4d::Zero();
+      j(0) = m[ku](a);
+      j(1 + a) = 1;
+      A += w[ku] * j * j.transpose();
+      b += w[ku] * j * iv_[ku].c(a);
+    }
+  }
+  const Eigen::Vector4d x = A.ldlt().solve(b);
+  scale = x(0);
+  bias = x.tail<3>();
+}
+
+int IntervalFit::coarse_search(int steps, double& best_d, std::vector<double>& coarse_cost) const {
+  const auto nu = static_cast<std::size_t>(n_);
+  const std::vector<double> ones(nu, 1.0);
+  std::vector<Eigen::Vector3d> m(nu);
+  double best_cost = std::numeric_limits<double>::infinity();
+  int best_i = 0;
+  for (int i = -steps; i <= steps; ++i) {
+    const double d = opt_.prior_offset_s + i * opt_.coarse_step_s;
+    for (int k = 0; k < n_; ++k) m[static_cast<std::size_t>(k)] = model_rate(k, d + fixed_drift_ * tmid(k));
+    double scale = 1;
+    Eigen::Vector3d bias;
+    solve_linear(m, ones, scale, bias);
+    double cost = 0;
+    for (int k = 0; k < n_; ++k)
+      cost += (at(k).c - scale * m[static_cast<std::size_t>(k)] - bias).squaredNorm();
+    cost /= 3.0 * n_;
+    coarse_cost.push_back(cost);
+    if (cost < best_cost) {
+      best_cost = cost;
+      best_d = d;
+      best_i = i;
+    }
+  }
+  return best_i;
+}
+
+// The parameters' layout and their start: the linear part solved at best_d.
+GaussNewton IntervalFit::start(bool with_drift, double best_d, Eigen::VectorXd& p) const {
+  const auto nu = static_cast<std::size_t>(n_);
+  GaussNewton g;
+  g.with_drift = with_drift;
+  g.P = 1 + (with_drift ? 1 : 0) + (opt_.estimate_scale ? 1 : 0) + 3;
+  g.i_scale = with_drift ? 2 : 1;
+  g.i_bias = g.P - 3;
+  g.w.assign(nu, 1.0);
+  g.r.resize(nu);
+  g.J.resize(nu);
+  std::vector<Eigen::Vector3d> m(nu);
+  double scale = 1;
+  Eigen::Vector3d bias;
+  for (int k = 0; k < n_; ++k)
+    m[static_cast<std::size_t>(k)] = model_rate(k, best_d + (with_drift ? 0.0 : fixed_drift_ * tmid(k)));
+  solve_linear(m, g.w, scale, bias);
+  p = Eigen::VectorXd::Zero(g.P);
+  p(0) = best_d;
+  if (opt_.estimate_scale) p(g.i_scale) = scale;
+  p.tail<3>() = bias;
+  return g;
+}
+
+// Residuals and Jacobians at q. The offset's Jacobian is the model's difference over
+// +-derivative_step_s: nav rate noise would otherwise pass for angular acceleration.
+void IntervalFit::evaluate(GaussNewton& g, const Eigen::VectorXd& q) const {
+  const double hs = opt_.derivative_step_s;
+  const double sc = opt_.estimate_scale ? q(g.i_scale) : 1.0;
+  for (int k = 0; k < n_; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    const double tm = 0.5 * (iv_[ku].t0_s + iv_[ku].t1_s);
+    const double d = q(0) + (g.with_drift ? q(1) : fixed_drift_) * tm;
+    const Eigen::Vector3d mk = model_rate(k, d);
+    const Eigen::Vector3d dm = (model_rate(k, d + hs) - model_rate(k, d - hs)) / (2 * hs);
+    g.r[ku] = iv_[ku].c - sc * mk - q.tail<3>();
+    g.J[ku].setZero(3, g.P);
+    g.J[ku].col(0) = -sc * dm;
+    if (g.with_drift) g.J[ku].col(1) = -sc * dm * tm;
+    if (opt_.estimate_scale) g.J[ku].col(g.i_scale) = -mk;
+    g.J[ku].block<3, 3>(0, g.i_bias) = -Eigen::Matrix3d::Identity();
+  }
+}
+
+// Huber weights at 2 sigma of the residual norms (MAD): bad rotations count less.
+void IntervalFit::huber_weights(GaussNewton& g) const {
+  std::vector<double> norms(static_cast<std::size_t>(n_));
+  for (int k = 0; k < n_; ++k) norms[static_cast<std::size_t>(k)] = g.r[static_cast<std::size_t>(k)].norm();
+  const double s = std::max(median(norms) / 1.54, 1e-12);  // median of a 3-D norm ~ 1.54 sigma
+  for (int k = 0; k < n_; ++k) {
+    const double z = norms[static_cast<std::size_t>(k)] / (2.5 * s);
+    g.w[static_cast<std::size_t>(k)] = z <= 1 ? 1.0 : 1.0 / z;
+  }
+}
+
+// The iteratively reweighted steps; true once the offset's step is below 1e-8 s.
+bool IntervalFit::iterate(GaussNewton& g, Eigen::VectorXd& p) const {
+  for (int it = 0; it < 40; ++it) {
+    evaluate(g, p);
+    if (it >= 2) huber_weights(g);
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(g.P, g.P);
+    Eigen::VectorXd gr = Eigen::VectorXd::Zero(g.P);
+    for (int k = 0; k < n_; ++k) {
+      const auto ku = static_cast<std::size_t>(k);
+      H += g.w[ku] * g.J[ku].transpose() * g.J[ku];
+      gr += g.w[ku] * g.J[ku].transpose() * g.r[ku];
+    }
+    const Eigen::VectorXd dp = -H.ldlt().solve(gr);
+    if (!dp.allFinite()) return false;
+    // Keep steps within the coarse search's resolution region to stay in the right valley.
+    Eigen::VectorXd step = dp;
+    const double max_step = std::max(2 * opt_.coarse_step_s, 1e-4);
+    if (std::abs(step(0)) > max_step) step *= max_step / std::abs(step(0));
+    p += step;
+    if (std::abs(p(0) - opt_.prior_offset_s) > opt_.search_s + opt_.coarse_step_s) return false;
+    if (g.with_drift && !(std::abs(p(1)) < 200e-6)) return false;  // beyond the rate grid's reach
+    if (it >= 4 && std::abs(step(0)) < 1e-8) return true;
+  }
+  return false;
+}
+
+// The covariance at the converged parameters (g evaluated there), each interval's information
+// and lever, the residuals' rms and the share of the rates' variation explained.
+bool IntervalFit::finish(const GaussNewton& g, Eigen::MatrixXd& cov_out, double& rms_out,
+                         double& explained_out) {
+  const int P = g.P, n = n_;
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
+  std::vector<Eigen::VectorXd> score(static_cast<std::size_t>(n));
+  double wrss = 0, rss = 0;
+  for (int k = 0; k < n; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    H += g.w[ku] * g.J[ku].transpose() * g.J[ku];
+    score[ku] = g.w[ku] * g.J[ku].transpose() * g.r[ku];
+    wrss += g.w[ku] * g.r[ku].squaredNorm();
+    rss += g.r[ku].squaredNorm();
+  }
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0)) return false;
+  const Eigen::MatrixXd Hi = ldlt.solve(Eigen::MatrixXd::Identity(P, P));
+  const double dof = std::max(3.0 * n - P, 1.0);
+  const Eigen::MatrixXd cov_plain = Hi * (wrss / dof);
+  // Newey-West (Bartlett) over hac_lag_s: neighbouring rates share frames and what is left of
+  // the parallax is slow, so the residuals are not independent.
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(P, P);
+  for (int k = 0; k < n; ++k)
+    S += score[static_cast<std::size_t>(k)] * score[static_cast<std::size_t>(k)].transpose();
+  for (int l = 1; l <= hac_lag_; ++l) {
+    const double wl = 1.0 - static_cast<double>(l) / (hac_lag_ + 1);
+    for (int k = 0; k + l < n; ++k) {
+      const Eigen::MatrixXd x =
+          score[static_cast<std::size_t>(k)] * score[static_cast<std::size_t>(k + l)].transpose();
+      S += wl * (x + x.transpose());
+    }
+  }
+  const Eigen::MatrixXd cov_hac = Hi * S * Hi * (3.0 * n / dof);
+  cov_out = cov_plain;
+  for (int i = 0; i < P; ++i)  // the larger of the two, per parameter
+    if (cov_hac(i, i) > cov_out(i, i)) {
+      const double f = std::sqrt(cov_hac(i, i) / cov_out(i, i));
+      cov_out.row(i) *= f;
+      cov_out.col(i) *= f;
+    }
+  // Each interval's part of the offset's information: its offset column less what the other
+  // parameters' columns explain of it (over all intervals), squared.
+  const Eigen::VectorXd beta = H.bottomRightCorner(P - 1, P - 1).ldlt().solve(H.col(0).tail(P - 1));
+  info.assign(static_cast<std::size_t>(n), 0.0);
+  lever.assign(static_cast<std::size_t>(n), Eigen::VectorXd());
+  for (int k = 0; k < n; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    info[ku] = g.w[ku] * (g.J[ku].col(0) - g.J[ku].rightCols(P - 1) * beta).squaredNorm();
+    lever[ku] = Hi * (g.w[ku] * g.J[ku].transpose() * g.J[ku].col(0));
+  }
+  rms_out = std::sqrt(rss / (3.0 * n));
+  explained_out = rss0_ > 0 ? 1.0 - rss / rss0_ : 0.0;
+  return true;
+}
+
+bool IntervalFit::run(bool with_drift, double best_d, Eigen::VectorXd& p, Eigen::MatrixXd& cov_out,
+                      double& rms_out, double& explained_out) {
+  GaussNewton g = start(with_drift, best_d, p);
+  if (!iterate(g, p)) return false;
+  evaluate(g, p);
+  return finish(g, cov_out, rms_out, explained_out);
+}
+
 // Coarse search, robust Gauss-Newton and the 1-sigma (residuals and Newey-West) over `iv`.
 FitOutcome fit_intervals(const std::vector<Interval>& iv, const RateGrid& grid,
                          const Eigen::Matrix3d& R_cam_body, const CameraClockOptions& opt, int hac_lag,
@@ -431,199 +699,11 @@ FitOutcome fit_intervals(const std::vector<Interval>& iv, const RateGrid& grid,
     return out;
   };
   if (n < std::max(opt.min_intervals, 8)) return unobservable("too few frame intervals");
+  IntervalFit fit(iv, grid, R_cam_body, opt, hac_lag, fixed_drift);
 
-  // Model: c_k = scale R_cam_body mean(omega over [t0 - d_k, t1 - d_k]) + bias, d_k = offset + drift tmid_k.
-  auto model_rate = [&](int k, double d) {
-    return Eigen::Vector3d(R_cam_body * grid.mean(iv[static_cast<std::size_t>(k)].t0_s - d,
-                                                  iv[static_cast<std::size_t>(k)].t1_s - d));
-  };
-  auto tmid_of = [&](int k) {
-    return 0.5 * (iv[static_cast<std::size_t>(k)].t0_s + iv[static_cast<std::size_t>(k)].t1_s);
-  };
-  Eigen::Vector3d c_mean = Eigen::Vector3d::Zero();
-  for (const Interval& x : iv) c_mean += x.c;
-  c_mean /= n;
-  double rss0 = 0;
-  for (const Interval& x : iv) rss0 += (x.c - c_mean).squaredNorm();
-
-  // Linear part (scale, bias) for given model rates m: least squares, weights w.
-  auto solve_linear = [&](const std::vector<Eigen::Vector3d>& m, const std::vector<double>& w, double& scale,
-                          Eigen::Vector3d& bias) {
-    if (!opt.estimate_scale) {
-      scale = 1;
-      Eigen::Vector3d s = Eigen::Vector3d::Zero();
-      double sw = 0;
-      for (int k = 0; k < n; ++k) {
-        s += w[static_cast<std::size_t>(k)] * (iv[static_cast<std::size_t>(k)].c - m[static_cast<std::size_t>(k)]);
-        sw += w[static_cast<std::size_t>(k)];
-      }
-      bias = s / sw;
-      return;
-    }
-    Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
-    Eigen::Vector4d b = Eigen::Vector4d::Zero();
-    for (int k = 0; k < n; ++k) {
-      const auto ku = static_cast<std::size_t>(k);
-      for (int a = 0; a < 3; ++a) {
-        Eigen::Vector4d j = Eigen::Vector4d::Zero();
-        j(0) = m[ku](a);
-        j(1 + a) = 1;
-        A += w[ku] * j * j.transpose();
-        b += w[ku] * j * iv[ku].c(a);
-      }
-    }
-    const Eigen::Vector4d x = A.ldlt().solve(b);
-    scale = x(0);
-    bias = x.tail<3>();
-  };
-
-  // ---- coarse search ----
-  std::vector<double> ones(static_cast<std::size_t>(n), 1.0);
-  std::vector<Eigen::Vector3d> m(static_cast<std::size_t>(n));
   const int steps = static_cast<int>(std::floor(opt.search_s / opt.coarse_step_s));
-  double best_cost = std::numeric_limits<double>::infinity(), best_d = opt.prior_offset_s;
-  int best_i = 0;
-  for (int i = -steps; i <= steps; ++i) {
-    const double d = opt.prior_offset_s + i * opt.coarse_step_s;
-    for (int k = 0; k < n; ++k) m[static_cast<std::size_t>(k)] = model_rate(k, d + fixed_drift * tmid_of(k));
-    double scale = 1;
-    Eigen::Vector3d bias;
-    solve_linear(m, ones, scale, bias);
-    double cost = 0;
-    for (int k = 0; k < n; ++k)
-      cost += (iv[static_cast<std::size_t>(k)].c - scale * m[static_cast<std::size_t>(k)] - bias).squaredNorm();
-    cost /= 3.0 * n;
-    out.coarse_cost.push_back(cost);
-    if (cost < best_cost) {
-      best_cost = cost;
-      best_d = d;
-      best_i = i;
-    }
-  }
-
-  // ---- Gauss-Newton (robust, iteratively reweighted) ----
-  // Parameters: offset, [drift], [scale], bias (3). The offset's Jacobian is the model's difference
-  // over +-derivative_step_s: nav rate noise would otherwise pass for angular acceleration.
-  std::vector<double> info(static_cast<std::size_t>(n), 0.0);
-  std::vector<Eigen::VectorXd> lever;
-  auto run = [&](bool with_drift, Eigen::VectorXd& p, Eigen::MatrixXd& cov_out, double& rms_out,
-                 double& explained_out) -> bool {
-    const int P = 1 + (with_drift ? 1 : 0) + (opt.estimate_scale ? 1 : 0) + 3;
-    const int i_scale = with_drift ? 2 : 1;
-    const int i_bias = P - 3;
-    std::vector<double> w(static_cast<std::size_t>(n), 1.0);
-    double scale = 1;
-    Eigen::Vector3d bias;
-    for (int k = 0; k < n; ++k)
-      m[static_cast<std::size_t>(k)] = model_rate(k, best_d + (with_drift ? 0.0 : fixed_drift * tmid_of(k)));
-    solve_linear(m, w, scale, bias);
-    p = Eigen::VectorXd::Zero(P);
-    p(0) = best_d;
-    if (opt.estimate_scale) p(i_scale) = scale;
-    p.tail<3>() = bias;
-    const double hs = opt.derivative_step_s;
-    std::vector<Eigen::Vector3d> r(static_cast<std::size_t>(n));
-    std::vector<Eigen::Matrix<double, 3, Eigen::Dynamic>> J(static_cast<std::size_t>(n));
-    auto evaluate = [&](const Eigen::VectorXd& q) {
-      const double sc = opt.estimate_scale ? q(i_scale) : 1.0;
-      for (int k = 0; k < n; ++k) {
-        const auto ku = static_cast<std::size_t>(k);
-        const double tmid = 0.5 * (iv[ku].t0_s + iv[ku].t1_s);
-        const double d = q(0) + (with_drift ? q(1) : fixed_drift) * tmid;
-        const Eigen::Vector3d mk = model_rate(k, d);
-        const Eigen::Vector3d dm = (model_rate(k, d + hs) - model_rate(k, d - hs)) / (2 * hs);
-        r[ku] = iv[ku].c - sc * mk - q.tail<3>();
-        J[ku].setZero(3, P);
-        J[ku].col(0) = -sc * dm;
-        if (with_drift) J[ku].col(1) = -sc * dm * tmid;
-        if (opt.estimate_scale) J[ku].col(i_scale) = -mk;
-        J[ku].block<3, 3>(0, i_bias) = -Eigen::Matrix3d::Identity();
-      }
-    };
-    bool converged = false;
-    for (int it = 0; it < 40; ++it) {
-      evaluate(p);
-      if (it >= 2) {
-        // Huber weights at 2 sigma of the residual norms (MAD): bad rotations count less.
-        std::vector<double> norms(static_cast<std::size_t>(n));
-        for (int k = 0; k < n; ++k) norms[static_cast<std::size_t>(k)] = r[static_cast<std::size_t>(k)].norm();
-        const double s = std::max(median(norms) / 1.54, 1e-12);  // median of a 3-D norm ~ 1.54 sigma
-        for (int k = 0; k < n; ++k) {
-          const double z = norms[static_cast<std::size_t>(k)] / (2.5 * s);
-          w[static_cast<std::size_t>(k)] = z <= 1 ? 1.0 : 1.0 / z;
-        }
-      }
-      Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
-      Eigen::VectorXd g = Eigen::VectorXd::Zero(P);
-      for (int k = 0; k < n; ++k) {
-        const auto ku = static_cast<std::size_t>(k);
-        H += w[ku] * J[ku].transpose() * J[ku];
-        g += w[ku] * J[ku].transpose() * r[ku];
-      }
-      const Eigen::VectorXd dp = -H.ldlt().solve(g);
-      if (!dp.allFinite()) return false;
-      // Keep steps within the coarse search's resolution region to stay in the right valley.
-      Eigen::VectorXd step = dp;
-      const double max_step = std::max(2 * opt.coarse_step_s, 1e-4);
-      if (std::abs(step(0)) > max_step) step *= max_step / std::abs(step(0));
-      p += step;
-      if (std::abs(p(0) - opt.prior_offset_s) > opt.search_s + opt.coarse_step_s) return false;
-      if (with_drift && !(std::abs(p(1)) < 200e-6)) return false;  // beyond the rate grid's reach
-      if (it >= 4 && std::abs(step(0)) < 1e-8) {
-        converged = true;
-        break;
-      }
-    }
-    if (!converged) return false;
-    evaluate(p);
-    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
-    std::vector<Eigen::VectorXd> score(static_cast<std::size_t>(n));
-    double wrss = 0, rss = 0;
-    for (int k = 0; k < n; ++k) {
-      const auto ku = static_cast<std::size_t>(k);
-      H += w[ku] * J[ku].transpose() * J[ku];
-      score[ku] = w[ku] * J[ku].transpose() * r[ku];
-      wrss += w[ku] * r[ku].squaredNorm();
-      rss += r[ku].squaredNorm();
-    }
-    const Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
-    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0)) return false;
-    const Eigen::MatrixXd Hi = ldlt.solve(Eigen::MatrixXd::Identity(P, P));
-    const double dof = std::max(3.0 * n - P, 1.0);
-    const Eigen::MatrixXd cov_plain = Hi * (wrss / dof);
-    // Newey-West (Bartlett) over hac_lag_s: neighbouring rates share frames and what is left of
-    // the parallax is slow, so the residuals are not independent.
-    Eigen::MatrixXd S = Eigen::MatrixXd::Zero(P, P);
-    for (int k = 0; k < n; ++k) S += score[static_cast<std::size_t>(k)] * score[static_cast<std::size_t>(k)].transpose();
-    for (int l = 1; l <= hac_lag; ++l) {
-      const double wl = 1.0 - static_cast<double>(l) / (hac_lag + 1);
-      for (int k = 0; k + l < n; ++k) {
-        const Eigen::MatrixXd x = score[static_cast<std::size_t>(k)] * score[static_cast<std::size_t>(k + l)].transpose();
-        S += wl * (x + x.transpose());
-      }
-    }
-    const Eigen::MatrixXd cov_hac = Hi * S * Hi * (3.0 * n / dof);
-    cov_out = cov_plain;
-    for (int i = 0; i < P; ++i)  // the larger of the two, per parameter
-      if (cov_hac(i, i) > cov_out(i, i)) {
-        const double f = std::sqrt(cov_hac(i, i) / cov_out(i, i));
-        cov_out.row(i) *= f;
-        cov_out.col(i) *= f;
-      }
-    // Each interval's part of the offset's information: its offset column less what the other
-    // parameters' columns explain of it (over all intervals), squared.
-    const Eigen::VectorXd beta = H.bottomRightCorner(P - 1, P - 1).ldlt().solve(H.col(0).tail(P - 1));
-    lever.assign(static_cast<std::size_t>(n), Eigen::VectorXd());
-    for (int k = 0; k < n; ++k) {
-      const auto ku = static_cast<std::size_t>(k);
-      info[ku] = w[ku] * (J[ku].col(0) - J[ku].rightCols(P - 1) * beta).squaredNorm();
-      lever[ku] = Hi * (w[ku] * J[ku].transpose() * J[ku].col(0));
-    }
-    rms_out = std::sqrt(rss / (3.0 * n));
-    explained_out = rss0 > 0 ? 1.0 - rss / rss0 : 0.0;
-    return true;
-  };
-
+  double best_d = opt.prior_offset_s;
+  const int best_i = fit.coarse_search(steps, best_d, out.coarse_cost);
   if (best_i == -steps || best_i == steps) {
     std::ostringstream why;
     why << "the best offset lies at the edge of the search (" << best_d << " s, searched "
@@ -634,10 +714,10 @@ FitOutcome fit_intervals(const std::vector<Interval>& iv, const RateGrid& grid,
   Eigen::MatrixXd cov;
   double rms = 0, explained = 0;
   bool with_drift = drift_model != DriftModel::kNone;
-  bool ok = run(with_drift, p, cov, rms, explained);
+  bool ok = fit.run(with_drift, best_d, p, cov, rms, explained);
   if (drift_model == DriftModel::kTry && (!ok || !(std::sqrt(cov(1, 1)) * 1e6 <= opt.max_drift_sigma_ppm))) {
     with_drift = false;  // drift not observable: fit the offset alone
-    ok = run(false, p, cov, rms, explained);
+    ok = fit.run(false, best_d, p, cov, rms, explained);
   }
   out.rms = rms;
   out.explained = explained;
@@ -666,8 +746,8 @@ FitOutcome fit_intervals(const std::vector<Interval>& iv, const RateGrid& grid,
     out.drift = p(1);
     out.drift_sigma = std::sqrt(cov(1, 1));
   }
-  out.offset_information = std::move(info);
-  out.lever = std::move(lever);
+  out.offset_information = std::move(fit.info);
+  out.lever = std::move(fit.lever);
   return out;
 }
 
@@ -694,10 +774,12 @@ std::string describe_sigma(const CameraClockEstimate& e) {
   return o.str();
 }
 
-Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>& rotations,
-                                               const Eigen::Matrix3d& R_cam_body,
-                                               const AngularRateFunction& omega_body,
-                                               const CameraClockOptions& opt) {
+namespace {
+
+constexpr double kQuietS = 1.0;  // a cut counts the information within this of it
+
+Status check_clock_inputs(const std::vector<FrameRotation>& rotations, const AngularRateFunction& omega_body,
+                          const CameraClockOptions& opt) {
   const char* fn = "nav::estimate_camera_clock(): ";
   if (!omega_body) return make_error(fn, "no angular-rate function given");
   if (!(opt.search_s > 0 && opt.coarse_step_s > 0 && opt.rate_sample_s > 0 && opt.derivative_step_s > 0))
@@ -707,42 +789,38 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
   if (rotations.size() < static_cast<std::size_t>(std::max(opt.min_intervals, 8)))
     return make_error(fn, rotations.size(), " frame intervals with a rotation; at least ",
                       std::max(opt.min_intervals, 8), " needed");
-  CameraClockEstimate est;
-  TimestampNs t_min = rotations.front().t0_camera_ns, t_max = rotations.front().t1_camera_ns;
-  for (const FrameRotation& r : rotations) {
-    t_min = std::min(t_min, r.t0_camera_ns);
-    t_max = std::max(t_max, r.t1_camera_ns);
-  }
-  est.reference_camera_ns = t_min + (t_max - t_min) / 2;
-  const TimestampNs t_ref = est.reference_camera_ns;
-  const double half_span_s = ns_to_s(t_max - t_min) / 2;
-  // Shifts reach prior +- search, plus the derivative's step and what a drift of 200 ppm adds.
-  const double reach_s = opt.search_s + opt.derivative_step_s + 200e-6 * half_span_s + 2 * opt.rate_sample_s;
-  const double lo_shift = opt.prior_offset_s - reach_s, hi_shift = opt.prior_offset_s + reach_s;
-  const RateGrid grid(omega_body, t_ref, -half_span_s - hi_shift - 0.01, half_span_s - lo_shift + 0.01,
-                      opt.rate_sample_s);
+  return {};
+}
 
+// The shifts of nav time the fit may ask for: prior +- search, plus the derivative's step and
+// what a drift of 200 ppm adds over half the data's span.
+struct ShiftReach {
+  double lo_s, hi_s;
+};
+
+ShiftReach shift_reach(const CameraClockOptions& opt, double half_span_s) {
+  const double reach_s = opt.search_s + opt.derivative_step_s + 200e-6 * half_span_s + 2 * opt.rate_sample_s;
+  return {opt.prior_offset_s - reach_s, opt.prior_offset_s + reach_s};
+}
+
+// The camera's mean rates over its frame intervals (camera time relative to t_ref) that the nav
+// rate covers at every shift, in time order for the blocks.
+std::vector<Interval> covered_intervals(const std::vector<FrameRotation>& rotations, TimestampNs t_ref,
+                                        const RateGrid& grid, const ShiftReach& reach) {
   std::vector<Interval> iv;
   for (const FrameRotation& r : rotations) {
     const double t0 = ns_to_s(r.t0_camera_ns - t_ref), t1 = ns_to_s(r.t1_camera_ns - t_ref);
     if (!(t1 > t0) || !r.rotvec_cam_rad.allFinite()) continue;
-    if (!grid.valid(t0 - hi_shift, t1 - lo_shift)) continue;  // the nav rate must cover every shift
+    if (!grid.valid(t0 - reach.hi_s, t1 - reach.lo_s)) continue;  // the nav rate must cover every shift
     iv.push_back({t0, t1, r.rotvec_cam_rad / (t1 - t0)});
   }
-  // In time order, for the blocks below.
   std::stable_sort(iv.begin(), iv.end(),
                    [](const Interval& a, const Interval& b) { return a.t0_s < b.t0_s; });
-  const int n = static_cast<int>(iv.size());
-  if (n < std::max(opt.min_intervals, 8))
-    return make_error(fn, n, " frame intervals lie inside the angular-rate data (with the +-", opt.search_s,
-                      " s search); at least ", std::max(opt.min_intervals, 8), " needed");
-  est.intervals_used = n;
-  std::vector<double> spans;
-  for (const Interval& x : iv) spans.push_back(x.t1_s - x.t0_s);
-  const int hac_lag = std::max(0, static_cast<int>(std::lround(opt.hac_lag_s / median(spans))));
+  return iv;
+}
 
-  FitOutcome full = fit_intervals(iv, grid, R_cam_body, opt, hac_lag,
-                                  opt.estimate_drift ? DriftModel::kTry : DriftModel::kNone);
+// The full fit's results into the estimate; false where it is not observable.
+bool take_full_fit(FitOutcome& full, CameraClockEstimate& est) {
   est.coarse_cost = std::move(full.coarse_cost);
   est.residual_rms_radps = full.rms;
   est.explained = full.explained;
@@ -755,7 +833,7 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
     est.observable = false;
     est.reason = full.reason;
     est.offset_s = est.offset_sigma_s = kNaN;
-    return est;
+    return false;
   }
   est.observable = true;
   est.offset_s = full.offset_s;
@@ -765,29 +843,70 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
     est.drift_ppm = full.drift * 1e6;
     est.drift_sigma_fit_ppm = full.drift_sigma * 1e6;
   }
+  return true;
+}
 
-  // ---- the 1-sigma beyond the residuals: blocks of time ----
-  // The images' own error lies along each manoeuvre's signal, so neither the residuals nor their
-  // autocorrelation show it; manoeuvres compared with each other do. The data are cut into blocks
-  // of about block_s, each cut moved to where the least information lies, so that a manoeuvre
-  // stays whole in one block.
-  const double t_lo = iv.front().t0_s, t_hi = iv.back().t1_s;
+// The data cut into blocks of time for the 1-sigma beyond the residuals. The images' own error
+// lies along each manoeuvre's signal, so neither the residuals nor their autocorrelation show it;
+// manoeuvres compared with each other do. The data are cut into blocks of about block_s, each cut
+// moved to where the least information lies, so that a manoeuvre stays whole in one block.
+class TimeBlocks {
+ public:
+  TimeBlocks(const std::vector<Interval>& iv, const FitOutcome& full, const CameraClockOptions& opt);
+
+  double t_lo, t_hi;
+  std::vector<double> tm;     // per interval: its midpoint
+  double total_info = 0;      // the offset's information over all intervals
+  int G = 1;                  // blocks
+  std::vector<int> block;     // per interval: its block
+  std::vector<double> share;  // per block: its share of the information
+  double sum_share2 = 0;
+
+  // The information of the intervals with midpoints in [a, b).
+  double info_between(double a, double b) const {
+    const auto lo = std::lower_bound(tm.begin(), tm.end(), a) - tm.begin();
+    const auto hi = std::lower_bound(tm.begin(), tm.end(), b) - tm.begin();
+    return cum_[static_cast<std::size_t>(hi)] - cum_[static_cast<std::size_t>(lo)];
+  }
+
+ private:
+  void place_cuts(const std::vector<Interval>& iv, int nominal_blocks);
+  void drop_empty_blocks();
+  int block_of(double t) const {
+    return static_cast<int>(std::upper_bound(cuts_.begin(), cuts_.end(), t) - cuts_.begin());
+  }
+
+  std::vector<double> cum_;  // the information's running sum over the intervals
+  std::vector<double> cuts_;
+};
+
+TimeBlocks::TimeBlocks(const std::vector<Interval>& iv, const FitOutcome& full, const CameraClockOptions& opt)
+    : t_lo(iv.front().t0_s), t_hi(iv.back().t1_s) {
+  const int n = static_cast<int>(iv.size());
   const int nominal_blocks =
       std::clamp(static_cast<int>(std::floor((t_hi - t_lo) / opt.block_s)), 1, std::max(opt.max_blocks, 1));
-  std::vector<double> tm(static_cast<std::size_t>(n)), cum(static_cast<std::size_t>(n) + 1, 0.0);
+  tm.assign(static_cast<std::size_t>(n), 0.0);
+  cum_.assign(static_cast<std::size_t>(n) + 1, 0.0);
   for (int k = 0; k < n; ++k) {
     const auto ku = static_cast<std::size_t>(k);
     tm[ku] = 0.5 * (iv[ku].t0_s + iv[ku].t1_s);
-    cum[ku + 1] = cum[ku] + full.offset_information[ku];
+    cum_[ku + 1] = cum_[ku] + full.offset_information[ku];
   }
-  const double total_info = cum.back();
-  auto info_between = [&](double a, double b) {  // over the intervals with midpoints in [a, b)
-    const auto lo = std::lower_bound(tm.begin(), tm.end(), a) - tm.begin();
-    const auto hi = std::lower_bound(tm.begin(), tm.end(), b) - tm.begin();
-    return cum[static_cast<std::size_t>(hi)] - cum[static_cast<std::size_t>(lo)];
-  };
-  constexpr double kQuietS = 1.0;  // a cut counts the information within this of it
-  std::vector<double> cuts;
+  total_info = cum_.back();
+  place_cuts(iv, nominal_blocks);
+  drop_empty_blocks();
+  G = static_cast<int>(cuts_.size()) + 1;
+  block.assign(static_cast<std::size_t>(n), 0);
+  share.assign(static_cast<std::size_t>(G), 0.0);
+  for (int k = 0; k < n; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    block[ku] = block_of(tm[ku]);
+    share[static_cast<std::size_t>(block[ku])] += full.offset_information[ku] / total_info;
+  }
+  for (double w : share) sum_share2 += w * w;
+}
+
+void TimeBlocks::place_cuts(const std::vector<Interval>& iv, int nominal_blocks) {
   const double nominal_s = (t_hi - t_lo) / nominal_blocks;
   // Moving a cut by half a block costs as much as the information near a cut on average: evenly
   // spread information (turbulence) keeps the cuts near their nominal places.
@@ -795,8 +914,8 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
   for (int i = 1; i < nominal_blocks; ++i) {
     const double b0 = t_lo + i * nominal_s;
     double best_t = b0, best = info_between(b0 - kQuietS, b0 + kQuietS);
-    for (int k = 0; k < n; ++k) {
-      const double t = iv[static_cast<std::size_t>(k)].t0_s;
+    for (const Interval& x : iv) {
+      const double t = x.t0_s;
       if (std::abs(t - b0) > nominal_s / 2) continue;
       const double cost =
           info_between(t - kQuietS, t + kQuietS) + move_cost * std::abs(t - b0) / (nominal_s / 2);
@@ -805,142 +924,126 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
         best_t = t;
       }
     }
-    if (cuts.empty() || best_t > cuts.back())
-      cuts.push_back(best_t);  // two cuts in one place: one block fewer
+    if (cuts_.empty() || best_t > cuts_.back())
+      cuts_.push_back(best_t);  // two cuts in one place: one block fewer
   }
-  auto block_of = [&](double t) {
-    return static_cast<int>(std::upper_bound(cuts.begin(), cuts.end(), t) - cuts.begin());
-  };
-  {  // no empty blocks
-    std::vector<int> count(cuts.size() + 1, 0);
-    for (double t : tm) ++count[static_cast<std::size_t>(block_of(t))];
-    std::vector<double> kept;
-    for (std::size_t c = 0; c < cuts.size(); ++c)
-      if (count[c] > 0 && count[c + 1] > 0) kept.push_back(cuts[c]);
-    cuts = std::move(kept);
-  }
-  const int G = static_cast<int>(cuts.size()) + 1;
-  const auto Gu = static_cast<std::size_t>(G);
-  std::vector<int> block(static_cast<std::size_t>(n));
-  std::vector<double> share(Gu, 0.0);
-  const auto P = full.lever.front().size();
-  for (int k = 0; k < n; ++k) {
-    const auto ku = static_cast<std::size_t>(k);
-    block[ku] = block_of(tm[ku]);
-    share[static_cast<std::size_t>(block[ku])] += full.offset_information[ku] / total_info;
-  }
-  double sum_share2 = 0;
-  for (double w : share) sum_share2 += w * w;
-  est.jackknife_blocks = G;
-  est.effective_blocks = 1.0 / sum_share2;
+}
 
-  // Floor: the images' own clock error, block_bias_s (1-sigma), slowly varying: correlated over
-  // about block_s (a Bartlett kernel), so one manoeuvre counts as one and two manoeuvres 9 s apart
-  // as two, whatever the blocks. It reaches the parameters through each interval's lever. A
-  // manoeuvre cut by the data's start or end is one-sided: its ramp trades against the rate bias,
-  // and its error was 2 to 5 times a whole one's (docs/CLOCK_OFFSETS.md, "Limits"). Such a block
-  // has its information crowded at the edge: within kQuietS of it, over twice the block's mean.
-  std::vector<double> block_t0(Gu, t_hi), block_t1(Gu, t_lo);
+void TimeBlocks::drop_empty_blocks() {
+  std::vector<int> count(cuts_.size() + 1, 0);
+  for (double t : tm) ++count[static_cast<std::size_t>(block_of(t))];
+  std::vector<double> kept;
+  for (std::size_t c = 0; c < cuts_.size(); ++c)
+    if (count[c] > 0 && count[c + 1] > 0) kept.push_back(cuts_[c]);
+  cuts_ = std::move(kept);
+}
+
+// Floor: the images' own clock error, block_bias_s (1-sigma), slowly varying: correlated over
+// about block_s (a Bartlett kernel), so one manoeuvre counts as one and two manoeuvres 9 s apart
+// as two, whatever the blocks. It reaches the parameters through each interval's lever. A
+// manoeuvre cut by the data's start or end is one-sided: its ramp trades against the rate bias,
+// and its error was 2 to 5 times a whole one's (docs/CLOCK_OFFSETS.md, "Limits"). Such a block
+// has its information crowded at the edge: within kQuietS of it, over twice the block's mean.
+// Sets edge_cut where a block that counts is cut so.
+Eigen::MatrixXd floor_covariance(const std::vector<Interval>& iv, const TimeBlocks& b, const FitOutcome& full,
+                                 const CameraClockOptions& opt, bool& edge_cut) {
+  const int n = static_cast<int>(iv.size());
+  const auto Gu = static_cast<std::size_t>(b.G);
+  std::vector<double> block_t0(Gu, b.t_hi), block_t1(Gu, b.t_lo);
   for (int k = 0; k < n; ++k) {
-    const auto j = static_cast<std::size_t>(block[static_cast<std::size_t>(k)]);
+    const auto j = static_cast<std::size_t>(b.block[static_cast<std::size_t>(k)]);
     block_t0[j] = std::min(block_t0[j], iv[static_cast<std::size_t>(k)].t0_s);
     block_t1[j] = std::max(block_t1[j], iv[static_cast<std::size_t>(k)].t1_s);
   }
   auto cut_at_edge = [&](int j) {
     const auto ju = static_cast<std::size_t>(j);
-    const double in_block = share[ju] * total_info, length = block_t1[ju] - block_t0[ju];
+    const double in_block = b.share[ju] * b.total_info, length = block_t1[ju] - block_t0[ju];
     if (!(in_block > 0) || !(length > kQuietS)) return false;
     double edge = 0;
-    if (j == 0) edge = std::max(edge, info_between(t_lo - 1, t_lo + kQuietS));
-    if (j == G - 1) edge = std::max(edge, info_between(t_hi - kQuietS, t_hi + 1));
+    if (j == 0) edge = std::max(edge, b.info_between(b.t_lo - 1, b.t_lo + kQuietS));
+    if (j == b.G - 1) edge = std::max(edge, b.info_between(b.t_hi - kQuietS, b.t_hi + 1));
     return edge / kQuietS > 2 * in_block / length;
   };
   std::vector<double> block_bias(Gu, opt.block_bias_s);
-  for (int j = 0; j < G; ++j)
+  for (int j = 0; j < b.G; ++j)
     if (cut_at_edge(j)) {
       block_bias[static_cast<std::size_t>(j)] *= opt.cut_block_bias_factor;
-      if (share[static_cast<std::size_t>(j)] >= 0.05) est.edge_cut = true;
+      if (b.share[static_cast<std::size_t>(j)] >= 0.05) edge_cut = true;
     }
-  Eigen::MatrixXd cov_floor =
-      Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(P), static_cast<Eigen::Index>(P));
+  const auto P = static_cast<Eigen::Index>(full.lever.front().size());
+  const std::vector<double>& tm = b.tm;
+  Eigen::MatrixXd cov_floor = Eigen::MatrixXd::Zero(P, P);
   for (int k = 0, l0 = 0; k < n; ++k) {
     const auto ku = static_cast<std::size_t>(k);
     while (tm[static_cast<std::size_t>(l0)] <= tm[ku] - opt.block_s) ++l0;
-    Eigen::VectorXd near = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(P));
+    Eigen::VectorXd near = Eigen::VectorXd::Zero(P);
     for (int l = l0; l < n && tm[static_cast<std::size_t>(l)] < tm[ku] + opt.block_s; ++l) {
       const auto lu = static_cast<std::size_t>(l);
       near += (1 - std::abs(tm[lu] - tm[ku]) / opt.block_s) *
-              block_bias[static_cast<std::size_t>(block[lu])] * full.lever[lu];
+              block_bias[static_cast<std::size_t>(b.block[lu])] * full.lever[lu];
     }
-    cov_floor += block_bias[static_cast<std::size_t>(block[ku])] * full.lever[ku] * near.transpose();
+    cov_floor += block_bias[static_cast<std::size_t>(b.block[ku])] * full.lever[ku] * near.transpose();
   }
-  // Jackknife: the fit again with each block left out (same options but the search; no recursion).
-  // The offset's refits keep the drift at the full fit's: a refit from two manoeuvres on one side
-  // would otherwise extrapolate to the reference over a long lever and swamp the others. The
-  // drift's own refits need several blocks for two clock parameters.
-  const bool drift_refits = full.with_drift && est.effective_blocks >= 4;
-  // The refits search only +-10 ms about the full fit's offset (within the first search, so on the
-  // same rate grid): a tenth of the coarse search's cost. A refit whose best offset lies further
-  // off is on the window's edge, so unobservable: that block carried the estimate.
-  CameraClockOptions refit_opt = opt;
-  {
-    const double lo = std::max(opt.prior_offset_s - opt.search_s, full.offset_s - 0.01);
-    const double hi = std::min(opt.prior_offset_s + opt.search_s, full.offset_s + 0.01);
-    refit_opt.prior_offset_s = 0.5 * (lo + hi);
-    refit_opt.search_s = 0.5 * (hi - lo);
-  }
-  std::vector<double> d_offset, d_drift, w_offset, w_drift;
-  bool informative_lost = false;
-  if (G >= 3) {
-    for (int j = 0; j < G; ++j) {
-      std::vector<Interval> rest;
-      rest.reserve(iv.size());
-      for (int k = 0; k < n; ++k)
-        if (block[static_cast<std::size_t>(k)] != j) rest.push_back(iv[static_cast<std::size_t>(k)]);
-      const double w = share[static_cast<std::size_t>(j)];
-      const FitOutcome r = fit_intervals(rest, grid, R_cam_body, refit_opt, hac_lag, DriftModel::kNone,
-                                         full.with_drift ? full.drift : 0.0);
-      if (r.observable) {
-        d_offset.push_back(r.offset_s - full.offset_s);
-        w_offset.push_back(w);
-      } else if (w >= 0.05) {
-        informative_lost = true;  // the estimate hinges on this block
-      }
-      if (drift_refits) {
-        const FitOutcome rd = fit_intervals(rest, grid, R_cam_body, refit_opt, hac_lag, DriftModel::kFit);
-        if (rd.observable) {
-          d_drift.push_back(rd.drift - full.drift);
-          w_drift.push_back(w);
-        } else if (w >= 0.05) {
-          informative_lost = true;
-        }
-      }
-    }
-  }
-  est.jackknife_refits = static_cast<int>(d_offset.size());
-  // Blocks of unequal information: sum_j ((1 - w_j) d_j)^2 / (1 - sum w^2), with w_j a block's share.
-  // For G equal blocks it is the usual (G - 1) / G sum d_j^2; for a linear estimate it is unbiased.
-  auto jackknife = [&](const std::vector<double>& d, const std::vector<double>& w) {
-    double s = 0;
-    for (std::size_t i = 0; i < d.size(); ++i) s += std::pow((1 - w[i]) * d[i], 2);
-    return std::sqrt(s / (1 - sum_share2));
-  };
-  const bool usable = !informative_lost && d_offset.size() >= 3 && est.effective_blocks >= 2;
-  if (usable) {
-    est.offset_sigma_jackknife_s = jackknife(d_offset, w_offset);
-    if (drift_refits && d_drift.size() >= 3)
-      est.drift_sigma_jackknife_ppm = jackknife(d_drift, w_drift) * 1e6;
-  }
-  // The floor stands in where the jackknife has too few manoeuvres to compare (under 3 blocks'
-  // worth of information) or cannot see a cut one; with more, the manoeuvres' own scatter decides.
-  if (usable && est.effective_blocks >= 3 && !est.edge_cut) {
-    est.offset_sigma_floor_s = est.drift_sigma_floor_ppm = kNaN;
-  } else {
-    est.offset_sigma_floor_s = std::sqrt(cov_floor(0, 0));
-    if (full.with_drift) est.drift_sigma_floor_ppm = std::sqrt(cov_floor(1, 1)) * 1e6;
-  }
+  return cov_floor;
+}
 
-  // The 1-sigma: the largest of the three.
+// The jackknife's refits: each block left out, the changes of offset (and drift) and the blocks'
+// shares as weights.
+struct Refits {
+  std::vector<double> d_offset, d_drift, w_offset, w_drift;
+  bool informative_lost = false;  // a block that counts left a refit unobservable
+};
+
+// Refits search only +-10 ms about the full fit's offset (within the first search, so on the
+// same rate grid): a tenth of the coarse search's cost. A refit whose best offset lies further
+// off is on the window's edge, so unobservable: that block carried the estimate.
+CameraClockOptions refit_options(const CameraClockOptions& opt, const FitOutcome& full) {
+  CameraClockOptions refit_opt = opt;
+  const double lo = std::max(opt.prior_offset_s - opt.search_s, full.offset_s - 0.01);
+  const double hi = std::min(opt.prior_offset_s + opt.search_s, full.offset_s + 0.01);
+  refit_opt.prior_offset_s = 0.5 * (lo + hi);
+  refit_opt.search_s = 0.5 * (hi - lo);
+  return refit_opt;
+}
+
+// The fit again with each block left out (same options but the search; no recursion). The
+// offset's refits keep the drift at the full fit's: a refit from two manoeuvres on one side would
+// otherwise extrapolate to the reference over a long lever and swamp the others.
+Refits jackknife_refits(const std::vector<Interval>& iv, const TimeBlocks& b, const FitOutcome& full,
+                        const RateGrid& grid, const Eigen::Matrix3d& R_cam_body,
+                        const CameraClockOptions& opt, int hac_lag, bool drift_refits) {
+  Refits out;
+  if (b.G < 3) return out;
+  const CameraClockOptions refit_opt = refit_options(opt, full);
+  for (int j = 0; j < b.G; ++j) {
+    std::vector<Interval> rest;
+    rest.reserve(iv.size());
+    for (std::size_t k = 0; k < iv.size(); ++k)
+      if (b.block[k] != j) rest.push_back(iv[k]);
+    const double w = b.share[static_cast<std::size_t>(j)];
+    const FitOutcome r = fit_intervals(rest, grid, R_cam_body, refit_opt, hac_lag, DriftModel::kNone,
+                                       full.with_drift ? full.drift : 0.0);
+    if (r.observable) {
+      out.d_offset.push_back(r.offset_s - full.offset_s);
+      out.w_offset.push_back(w);
+    } else if (w >= 0.05) {
+      out.informative_lost = true;  // the estimate hinges on this block
+    }
+    if (drift_refits) {
+      const FitOutcome rd = fit_intervals(rest, grid, R_cam_body, refit_opt, hac_lag, DriftModel::kFit);
+      if (rd.observable) {
+        out.d_drift.push_back(rd.drift - full.drift);
+        out.w_drift.push_back(w);
+      } else if (w >= 0.05) {
+        out.informative_lost = true;
+      }
+    }
+  }
+  return out;
+}
+
+// The 1-sigma: the largest of the fit's, the jackknife's and the floor's.
+void take_largest_sigma(bool with_drift, CameraClockEstimate& est) {
   est.offset_sigma_s = est.offset_sigma_fit_s;
   est.sigma_source = CameraClockEstimate::SigmaSource::kFit;
   if (est.offset_sigma_jackknife_s > est.offset_sigma_s) {
@@ -951,12 +1054,85 @@ Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>&
     est.offset_sigma_s = est.offset_sigma_floor_s;
     est.sigma_source = CameraClockEstimate::SigmaSource::kFloor;
   }
-  if (full.with_drift) {
+  if (with_drift) {
     est.drift_sigma_ppm = est.drift_sigma_fit_ppm;
     if (est.drift_sigma_jackknife_ppm > est.drift_sigma_ppm)
       est.drift_sigma_ppm = est.drift_sigma_jackknife_ppm;
     if (est.drift_sigma_floor_ppm > est.drift_sigma_ppm) est.drift_sigma_ppm = est.drift_sigma_floor_ppm;
   }
+}
+
+// The 1-sigma beyond the residuals: the jackknife over blocks of time, and a floor for few
+// manoeuvres.
+void block_sigmas(const std::vector<Interval>& iv, const FitOutcome& full, const RateGrid& grid,
+                  const Eigen::Matrix3d& R_cam_body, const CameraClockOptions& opt, int hac_lag,
+                  CameraClockEstimate& est) {
+  const TimeBlocks b(iv, full, opt);
+  est.jackknife_blocks = b.G;
+  est.effective_blocks = 1.0 / b.sum_share2;
+  const Eigen::MatrixXd cov_floor = floor_covariance(iv, b, full, opt, est.edge_cut);
+  // The drift's own refits need several blocks for two clock parameters.
+  const bool drift_refits = full.with_drift && est.effective_blocks >= 4;
+  const Refits rf = jackknife_refits(iv, b, full, grid, R_cam_body, opt, hac_lag, drift_refits);
+  est.jackknife_refits = static_cast<int>(rf.d_offset.size());
+  // Blocks of unequal information: sum_j ((1 - w_j) d_j)^2 / (1 - sum w^2), with w_j a block's share.
+  // For G equal blocks it is the usual (G - 1) / G sum d_j^2; for a linear estimate it is unbiased.
+  auto jackknife = [&](const std::vector<double>& d, const std::vector<double>& w) {
+    double s = 0;
+    for (std::size_t i = 0; i < d.size(); ++i) s += std::pow((1 - w[i]) * d[i], 2);
+    return std::sqrt(s / (1 - b.sum_share2));
+  };
+  const bool usable = !rf.informative_lost && rf.d_offset.size() >= 3 && est.effective_blocks >= 2;
+  if (usable) {
+    est.offset_sigma_jackknife_s = jackknife(rf.d_offset, rf.w_offset);
+    if (drift_refits && rf.d_drift.size() >= 3)
+      est.drift_sigma_jackknife_ppm = jackknife(rf.d_drift, rf.w_drift) * 1e6;
+  }
+  // The floor stands in where the jackknife has too few manoeuvres to compare (under 3 blocks'
+  // worth of information) or cannot see a cut one; with more, the manoeuvres' own scatter decides.
+  if (usable && est.effective_blocks >= 3 && !est.edge_cut) {
+    est.offset_sigma_floor_s = est.drift_sigma_floor_ppm = kNaN;
+  } else {
+    est.offset_sigma_floor_s = std::sqrt(cov_floor(0, 0));
+    if (full.with_drift) est.drift_sigma_floor_ppm = std::sqrt(cov_floor(1, 1)) * 1e6;
+  }
+  take_largest_sigma(full.with_drift, est);
+}
+
+}  // namespace
+
+Expected<CameraClockEstimate> fit_camera_clock(const std::vector<FrameRotation>& rotations,
+                                               const Eigen::Matrix3d& R_cam_body,
+                                               const AngularRateFunction& omega_body,
+                                               const CameraClockOptions& opt) {
+  if (auto st = check_clock_inputs(rotations, omega_body, opt); !st) return st.error();
+  CameraClockEstimate est;
+  TimestampNs t_min = rotations.front().t0_camera_ns, t_max = rotations.front().t1_camera_ns;
+  for (const FrameRotation& r : rotations) {
+    t_min = std::min(t_min, r.t0_camera_ns);
+    t_max = std::max(t_max, r.t1_camera_ns);
+  }
+  est.reference_camera_ns = t_min + (t_max - t_min) / 2;
+  const TimestampNs t_ref = est.reference_camera_ns;
+  const double half_span_s = ns_to_s(t_max - t_min) / 2;
+  const ShiftReach reach = shift_reach(opt, half_span_s);
+  const RateGrid grid(omega_body, t_ref, -half_span_s - reach.hi_s - 0.01, half_span_s - reach.lo_s + 0.01,
+                      opt.rate_sample_s);
+  const std::vector<Interval> iv = covered_intervals(rotations, t_ref, grid, reach);
+  const int n = static_cast<int>(iv.size());
+  if (n < std::max(opt.min_intervals, 8))
+    return make_error("nav::estimate_camera_clock(): ", n,
+                      " frame intervals lie inside the angular-rate data (with the +-", opt.search_s,
+                      " s search); at least ", std::max(opt.min_intervals, 8), " needed");
+  est.intervals_used = n;
+  std::vector<double> spans;
+  for (const Interval& x : iv) spans.push_back(x.t1_s - x.t0_s);
+  const int hac_lag = std::max(0, static_cast<int>(std::lround(opt.hac_lag_s / median(spans))));
+
+  FitOutcome full = fit_intervals(iv, grid, R_cam_body, opt, hac_lag,
+                                  opt.estimate_drift ? DriftModel::kTry : DriftModel::kNone);
+  if (!take_full_fit(full, est)) return est;
+  block_sigmas(iv, full, grid, R_cam_body, opt, hac_lag, est);
   return est;
 }
 
