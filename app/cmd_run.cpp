@@ -181,6 +181,7 @@ const std::vector<OptionSpec>& run_specs() {
       boom_option("the pose source's boom where it has one, a scene or a recording; else track"),
       receiver_draw_option(),
       look_option(),
+      sink_option(),
       {"record", ArgKind::kValue, "DIR", "record raw, augmented and mask frames with poses and statistics"},
       {"overwrite", ArgKind::kFlag, "", "with --record: replace a recording already in DIR"},
       {"capture-only", ArgKind::kFlag, "",
@@ -384,6 +385,7 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   if (a.has("boom")) parts.boom = parse_boom_arg(a.get("boom"));
   parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
   apply_look_arg(a, parts.rig, parts.augment);
+  apply_sink_args(a, parts);
 
   if (a.has("record")) {
     recorder::RecordingInfo rinfo;
