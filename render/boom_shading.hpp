@@ -1,6 +1,6 @@
 // The CPU rasteriser's boom colour: one boom triangle shaded exactly at a raw pixel's centre, as
-// the GL shader of render/augmenter.cpp shades its samples (Gouraud lighting, bilinear repeating
-// texture) and as a UNORM framebuffer stores it (clamped to 0..255). Internal to the augmenter;
+// the GL shader of render/backends/gl_raster.cpp shades its samples (Gouraud lighting, bilinear repeating
+// texture) and as a UNORM framebuffer stores it (clamped to 0..255). Internal to the raster backends;
 // a header of its own so that its edge cases are tested directly.
 #pragma once
 
