@@ -88,10 +88,13 @@ class RasterBackend {
   // Where the boom's colour is: RasterView::shading, shaded at each pixel centre, or (false)
   // RasterView::boom_rgba's samples, interpolated.
   virtual bool shades_per_pixel() const = 0;
-  // Once, after the augmenter set each view's cam, vp, tris and id images (all zero).
+  // Once, after the augmenter set each view's cam, vp, tris and id images (all zero); `draws`
+  // outlives the backend, which reads it on every draw().
   virtual Status init(const std::vector<DrawItem>& draws, const std::vector<RasterView*>& views) = 0;
   // Zeroes what the last draw() wrote into the id images, before the augmenter sets new boxes.
   virtual void clear(RasterView& v) = 0;
+  // The receiver's ids, then the boom's ids and colour where it is in front, inside the view's
+  // boxes only (its id images stay zero elsewhere). GL stage times go to `timings`.
   virtual void draw(RasterView& v, const RasterFrame& f, AugmentTimings& timings) = 0;
   virtual Status errors() const = 0;  // the backend's pending errors, after a frame
 };
