@@ -267,16 +267,9 @@ class SyntheticSceneRendererImpl final : public SyntheticSceneRenderer {
 Status SyntheticSceneRendererImpl::init(std::shared_ptr<const Model> receiver) {
   if (rig_.cameras.empty()) return make_error("SyntheticSceneRenderer::create(): the rig has no cameras");
   bool builtin = false;
-  if (receiver) {
-    receiver_ = *receiver;
-  } else if (rig_.receiver.model.path.empty()) {
-    receiver_ = make_builtin_receiver();
-    builtin = true;
-  } else {
-    auto m = load_model(rig_.receiver.model);
-    if (!m) return make_error("SyntheticSceneRenderer::create(): ", m.error().message);
-    receiver_ = std::move(*m);
-  }
+  auto rec = load_scene_receiver(rig_, std::move(receiver), builtin);
+  if (!rec) return rec.error();
+  receiver_ = std::move(*rec);
 
   auto sky = gl::make_program("synthetic sky", kFullScreenVertexShader, kSkyFragmentShader);
   if (!sky) return make_error("SyntheticSceneRenderer::create(): ", sky.error().message);

@@ -455,81 +455,163 @@ struct GroundBlock {
   float w = 0, dw = 0, w_row = 0, ddw = 0, k = 0, dk = 0, k_row = 0, ddk = 0, h = 0, dh = 0, h_row = 0, ddh = 0;
 };
 
+#if defined(__SSE2__)
+// ground_block's SSE2 parts: four pixels at a time, helpers as the AVX2 loop's below.
+namespace ground_sse2 {
+
+inline __m128i mul(__m128i v, std::uint32_t d) {  // v * d per 32-bit lane (low 32 bits), SSE2 has no pmulld
+  const __m128i dd = _mm_set1_epi32(static_cast<int>(d));
+  const __m128i even = _mm_mul_epu32(v, dd), odd = _mm_mul_epu32(_mm_srli_epi64(v, 32), dd);
+  return _mm_unpacklo_epi32(_mm_shuffle_epi32(even, 0x08), _mm_shuffle_epi32(odd, 0x08));
+}
+inline __m128i ilin(std::uint32_t v, std::uint32_t d) {
+  return _mm_add_epi32(_mm_set1_epi32(static_cast<int>(v)), mul(_mm_setr_epi32(0, 1, 2, 3), d));
+}
+inline __m128i i4(std::uint32_t d) {
+  return _mm_set1_epi32(static_cast<int>(4u * d));
+}
+inline __m128 lin(float v, float d) {
+  return _mm_add_ps(_mm_set1_ps(v), _mm_mul_ps(_mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f), _mm_set1_ps(d)));
+}
+inline __m128 f4(float d) {
+  return _mm_set1_ps(4.0f * d);
+}
+
+// Row starts of 4 lanes and their per-row steps; per-pixel steps of 4 lanes (4 x the step) and theirs.
+struct Lanes {
+  __m128i s_start, t_start, ds4, dt4;
+  const __m128i s_next, t_next, dds4, ddt4;
+  __m128 w_start, k_start, h_start, dw4, dk4, dh4;
+  const __m128 w_next, k_next, h_next, ddw4, ddk4, ddh4;
+  explicit Lanes(const GroundBlock& g)
+      : s_start(ilin(g.s, g.ds)),
+        t_start(ilin(g.t, g.dt)),
+        ds4(i4(g.ds)),
+        dt4(i4(g.dt)),
+        s_next(ilin(g.s_row, g.dds)),
+        t_next(ilin(g.t_row, g.ddt)),
+        dds4(i4(g.dds)),
+        ddt4(i4(g.ddt)),
+        w_start(lin(g.w, g.dw)),
+        k_start(lin(g.k, g.dk)),
+        h_start(lin(g.h, g.dh)),
+        dw4(f4(g.dw)),
+        dk4(f4(g.dk)),
+        dh4(f4(g.dh)),
+        w_next(lin(g.w_row, g.ddw)),
+        k_next(lin(g.k_row, g.ddk)),
+        h_next(lin(g.h_row, g.ddh)),
+        ddw4(f4(g.ddw)),
+        ddk4(f4(g.ddk)),
+        ddh4(f4(g.ddh)) {}
+  void next_row() {
+    s_start = _mm_add_epi32(s_start, s_next), t_start = _mm_add_epi32(t_start, t_next);
+    ds4 = _mm_add_epi32(ds4, dds4), dt4 = _mm_add_epi32(dt4, ddt4);
+    w_start = _mm_add_ps(w_start, w_next), k_start = _mm_add_ps(k_start, k_next),
+    h_start = _mm_add_ps(h_start, h_next);
+    dw4 = _mm_add_ps(dw4, ddw4), dk4 = _mm_add_ps(dk4, ddk4), dh4 = _mm_add_ps(dh4, ddh4);
+  }
+};
+
+// tiled_index(shift, x, y) = row(y) + col(x): 5 (((y / 4) << shift) + y % 4) + 20 (x / 4) + x % 4.
+inline __m128i col(__m128i x) {
+  const __m128i q = _mm_srli_epi32(x, 2);
+  return _mm_add_epi32(_mm_add_epi32(_mm_slli_epi32(q, 4), _mm_slli_epi32(q, 2)),
+                       _mm_and_si128(x, _mm_set1_epi32(3)));
+}
+inline __m128i row_of(__m128i y, __m128i row_shift) {
+  const __m128i r =
+      _mm_or_si128(_mm_sll_epi32(_mm_srli_epi32(y, 2), row_shift), _mm_and_si128(y, _mm_set1_epi32(3)));
+  return _mm_add_epi32(_mm_slli_epi32(r, 2), r);
+}
+inline __m128i lerp16(__m128i a, __m128i b, __m128i wt) {
+  const __m128i w256 = _mm_set1_epi16(256), half = _mm_set1_epi16(128);
+  return _mm_srli_epi16(
+      _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(a, _mm_sub_epi16(w256, wt)), _mm_mullo_epi16(b, wt)), half),
+      8);
+}
+// Weights of 4 pixels (32-bit lanes, 0..255) spread over the 4 channels of pixels 0-1 and 2-3.
+inline void spread(__m128i wt, __m128i& lo, __m128i& hi) {
+  const __m128i w16 = _mm_packs_epi32(wt, wt);
+  const __m128i wd = _mm_unpacklo_epi16(w16, w16);
+  lo = _mm_unpacklo_epi32(wd, wd), hi = _mm_unpackhi_epi32(wd, wd);
+}
+// Texels (x0, y) and (x0 + 1, y) of the 4 pixels, as [left of 0-3] and [right of 0-3].
+inline void fetch(const std::uint32_t* tex, const std::uint32_t* ix, __m128i& left, __m128i& right) {
+  auto pair = [tex](std::uint32_t i) { return _mm_loadl_epi64(reinterpret_cast<const __m128i*>(tex + i)); };
+  const __m128i p01 = _mm_shuffle_epi32(_mm_unpacklo_epi64(pair(ix[0]), pair(ix[1])), 0xd8);
+  const __m128i p23 = _mm_shuffle_epi32(_mm_unpacklo_epi64(pair(ix[2]), pair(ix[3])), 0xd8);
+  left = _mm_unpacklo_epi64(p01, p23), right = _mm_unpackhi_epi64(p01, p23);
+}
+// The 4 bilinearly filtered RGBA8 texels at the 16.16 texel coordinates (sv, tv).
+inline __m128i filtered(const std::uint32_t* tex, __m128i sv, __m128i tv, __m128i mask, __m128i row_shift) {
+  const __m128i ff = _mm_set1_epi32(0xff), zero = _mm_setzero_si128();
+  const __m128i x0v = _mm_and_si128(_mm_srli_epi32(sv, 16), mask);
+  const __m128i y0v = _mm_and_si128(_mm_srli_epi32(tv, 16), mask);
+  const __m128i y1v = _mm_and_si128(_mm_add_epi32(y0v, _mm_set1_epi32(1)), mask);
+  alignas(16) std::uint32_t i0[4], i1[4];
+  const __m128i c0 = col(x0v);
+  _mm_store_si128(reinterpret_cast<__m128i*>(i0), _mm_add_epi32(row_of(y0v, row_shift), c0));
+  _mm_store_si128(reinterpret_cast<__m128i*>(i1), _mm_add_epi32(row_of(y1v, row_shift), c0));
+  __m128i a, b, c, d;
+  fetch(tex, i0, a, b);
+  fetch(tex, i1, c, d);
+  __m128i wxl, wxh, wyl, wyh;
+  spread(_mm_and_si128(_mm_srli_epi32(sv, 8), ff), wxl, wxh);
+  spread(_mm_and_si128(_mm_srli_epi32(tv, 8), ff), wyl, wyh);
+  const __m128i lo = lerp16(lerp16(_mm_unpacklo_epi8(a, zero), _mm_unpacklo_epi8(b, zero), wxl),
+                            lerp16(_mm_unpacklo_epi8(c, zero), _mm_unpacklo_epi8(d, zero), wxl), wyl);
+  const __m128i hi = lerp16(lerp16(_mm_unpackhi_epi8(a, zero), _mm_unpackhi_epi8(b, zero), wxh),
+                            lerp16(_mm_unpackhi_epi8(c, zero), _mm_unpackhi_epi8(d, zero), wxh), wyh);
+  return _mm_packus_epi16(lo, hi);
+}
+// The woods weight as put_ground's: a from the fine texture (the texels' alpha), sm its smoothstep.
+inline void woods(__m128i v, __m128 wv, __m128& av, __m128& sm) {
+  const __m128 f0 = _mm_setzero_ps(), f1 = _mm_set1_ps(1.0f), f2 = _mm_set1_ps(2.0f), f3 = _mm_set1_ps(3.0f);
+  av = _mm_cvtepi32_ps(_mm_srli_epi32(v, 24));
+  const __m128 z = _mm_min_ps(_mm_max_ps(_mm_add_ps(wv, _mm_mul_ps(av, _mm_set1_ps(kWoodA))), f0), f1);
+  sm = _mm_mul_ps(_mm_mul_ps(z, z), _mm_sub_ps(f3, _mm_mul_ps(f2, z)));
+}
+
+// One channel per lane: ch_even for pixels 0 and 2, ch_odd for 1 and 3.
+struct Channel {
+  __m128i shift_even, shift_odd;
+  __m128 base, slope, haze;
+};
+inline Channel make_channel(int ch_even, int ch_odd) {
+  return Channel{
+      _mm_cvtsi32_si128(8 * ch_even), _mm_cvtsi32_si128(8 * ch_odd),
+      _mm_setr_ps(kWoodBase[ch_even], kWoodBase[ch_odd], kWoodBase[ch_even], kWoodBase[ch_odd]),
+      _mm_setr_ps(kWoodSlope[ch_even], kWoodSlope[ch_odd], kWoodSlope[ch_even], kWoodSlope[ch_odd]),
+      _mm_setr_ps(kHaze[ch_even], kHaze[ch_odd], kHaze[ch_even], kHaze[ch_odd])};
+}
+// One channel of 4 filtered texels, shaded as put_ground: 4 bytes in the low lane.
+template <bool kWoods>
+inline __m128i channel(__m128i v, __m128 a, __m128 sm, __m128 k1, __m128 hz, const Channel& ch) {
+  const __m128i ff = _mm_set1_epi32(0xff), odd = _mm_setr_epi32(0, -1, 0, -1);
+  const __m128i ce = _mm_and_si128(_mm_srl_epi32(v, ch.shift_even), ff);
+  const __m128i co = _mm_and_si128(_mm_srl_epi32(v, ch.shift_odd), ff);
+  const __m128 c = _mm_cvtepi32_ps(_mm_or_si128(_mm_andnot_si128(odd, ce), _mm_and_si128(odd, co)));
+  __m128 val;
+  if constexpr (kWoods) {
+    const __m128 wood = _mm_add_ps(ch.base, _mm_mul_ps(ch.slope, a));
+    val = _mm_add_ps(_mm_mul_ps(_mm_add_ps(c, _mm_mul_ps(sm, _mm_sub_ps(wood, c))), k1),
+                     _mm_mul_ps(hz, ch.haze));
+  } else {
+    val = _mm_add_ps(_mm_mul_ps(c, k1), _mm_mul_ps(hz, ch.haze));
+  }
+  const __m128i q = _mm_cvttps_epi32(
+      _mm_min_ps(_mm_add_ps(_mm_max_ps(val, _mm_setzero_ps()), _mm_set1_ps(0.5f)), _mm_set1_ps(255.0f)));
+  return _mm_packus_epi16(_mm_packs_epi32(q, q), q);
+}
+
 template <int kMode, bool kWoods>
 void ground_block(Image& out, PixelFormat fmt, int x0, int n, int y0, int y1, const std::uint32_t* tex, int shift,
                   const GroundBlock& g) {
-#if defined(__SSE2__)
-  const __m128i mask = _mm_set1_epi32((1 << shift) - 1), one = _mm_set1_epi32(1), three = _mm_set1_epi32(3);
-  const __m128i ff = _mm_set1_epi32(0xff), zero = _mm_setzero_si128();
-  const __m128i w256 = _mm_set1_epi16(256), half = _mm_set1_epi16(128);
+  const __m128i mask = _mm_set1_epi32((1 << shift) - 1);
   const __m128i row_shift = _mm_cvtsi32_si128(shift);  // (y / 4) tiles of 2^(shift - 2) x 20 texels
-  const __m128i step = _mm_setr_epi32(0, 1, 2, 3);
-  auto mul = [](__m128i v, std::uint32_t d) {  // v * d per 32-bit lane (low 32 bits), SSE2 has no pmulld
-    const __m128i dd = _mm_set1_epi32(static_cast<int>(d));
-    const __m128i even = _mm_mul_epu32(v, dd), odd = _mm_mul_epu32(_mm_srli_epi64(v, 32), dd);
-    return _mm_unpacklo_epi32(_mm_shuffle_epi32(even, 0x08), _mm_shuffle_epi32(odd, 0x08));
-  };
-  auto ilin = [&](std::uint32_t v, std::uint32_t d) {
-    return _mm_add_epi32(_mm_set1_epi32(static_cast<int>(v)), mul(step, d));
-  };
-  auto i4 = [](std::uint32_t d) { return _mm_set1_epi32(static_cast<int>(4u * d)); };
-  // Row starts of 4 lanes and their per-row steps; per-pixel steps of 4 lanes (4 x the step) and theirs.
-  __m128i s_start = ilin(g.s, g.ds), t_start = ilin(g.t, g.dt), ds4 = i4(g.ds), dt4 = i4(g.dt);
-  const __m128i s_next = ilin(g.s_row, g.dds), t_next = ilin(g.t_row, g.ddt), dds4 = i4(g.dds), ddt4 = i4(g.ddt);
-  const __m128 idx = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
-  auto lin = [&](float v, float d) { return _mm_add_ps(_mm_set1_ps(v), _mm_mul_ps(idx, _mm_set1_ps(d))); };
-  auto f4 = [](float d) { return _mm_set1_ps(4.0f * d); };
-  __m128 w_start = lin(g.w, g.dw), k_start = lin(g.k, g.dk), h_start = lin(g.h, g.dh);
-  __m128 dw4 = f4(g.dw), dk4 = f4(g.dk), dh4 = f4(g.dh);
-  const __m128 w_next = lin(g.w_row, g.ddw), k_next = lin(g.k_row, g.ddk), h_next = lin(g.h_row, g.ddh);
-  const __m128 ddw4 = f4(g.ddw), ddk4 = f4(g.ddk), ddh4 = f4(g.ddh);
-  // tiled_index(shift, x, y) = row(y) + col(x): 5 (((y / 4) << shift) + y % 4) + 20 (x / 4) + x % 4.
-  auto col = [&](__m128i x) {
-    const __m128i q = _mm_srli_epi32(x, 2);
-    return _mm_add_epi32(_mm_add_epi32(_mm_slli_epi32(q, 4), _mm_slli_epi32(q, 2)), _mm_and_si128(x, three));
-  };
-  auto row_of = [&](__m128i y) {
-    const __m128i r = _mm_or_si128(_mm_sll_epi32(_mm_srli_epi32(y, 2), row_shift), _mm_and_si128(y, three));
-    return _mm_add_epi32(_mm_slli_epi32(r, 2), r);
-  };
-  auto lerp16 = [&](__m128i a, __m128i b, __m128i wt) {
-    return _mm_srli_epi16(
-        _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(a, _mm_sub_epi16(w256, wt)), _mm_mullo_epi16(b, wt)), half), 8);
-  };
-  // Weights of 4 pixels (32-bit lanes, 0..255) spread over the 4 channels of pixels 0-1 and 2-3.
-  auto spread = [](__m128i wt, __m128i& lo, __m128i& hi) {
-    const __m128i w16 = _mm_packs_epi32(wt, wt);
-    const __m128i wd = _mm_unpacklo_epi16(w16, w16);
-    lo = _mm_unpacklo_epi32(wd, wd), hi = _mm_unpackhi_epi32(wd, wd);
-  };
-  const __m128 kwa = _mm_set1_ps(kWoodA), f0 = _mm_setzero_ps(), f1 = _mm_set1_ps(1.0f), f2 = _mm_set1_ps(2.0f),
-               f3 = _mm_set1_ps(3.0f), fhalf = _mm_set1_ps(0.5f), f255 = _mm_set1_ps(255.0f);
-  // One channel per lane: ch_even for pixels 0 and 2, ch_odd for 1 and 3.
-  struct Channel {
-    __m128i shift_even, shift_odd;
-    __m128 base, slope, haze;
-  };
-  auto make_channel = [](int ch_even, int ch_odd) {
-    return Channel{_mm_cvtsi32_si128(8 * ch_even), _mm_cvtsi32_si128(8 * ch_odd),
-                   _mm_setr_ps(kWoodBase[ch_even], kWoodBase[ch_odd], kWoodBase[ch_even], kWoodBase[ch_odd]),
-                   _mm_setr_ps(kWoodSlope[ch_even], kWoodSlope[ch_odd], kWoodSlope[ch_even], kWoodSlope[ch_odd]),
-                   _mm_setr_ps(kHaze[ch_even], kHaze[ch_odd], kHaze[ch_even], kHaze[ch_odd])};
-  };
-  const __m128i odd = _mm_setr_epi32(0, -1, 0, -1);
-  auto channel = [&](__m128i v, __m128 a, __m128 sm, __m128 k1, __m128 hz, const Channel& ch) {
-    const __m128i ce = _mm_and_si128(_mm_srl_epi32(v, ch.shift_even), ff);
-    const __m128i co = _mm_and_si128(_mm_srl_epi32(v, ch.shift_odd), ff);
-    const __m128 c = _mm_cvtepi32_ps(_mm_or_si128(_mm_andnot_si128(odd, ce), _mm_and_si128(odd, co)));
-    __m128 val;
-    if constexpr (kWoods) {
-      const __m128 wood = _mm_add_ps(ch.base, _mm_mul_ps(ch.slope, a));
-      val = _mm_add_ps(_mm_mul_ps(_mm_add_ps(c, _mm_mul_ps(sm, _mm_sub_ps(wood, c))), k1), _mm_mul_ps(hz, ch.haze));
-    } else {
-      val = _mm_add_ps(_mm_mul_ps(c, k1), _mm_mul_ps(hz, ch.haze));
-    }
-    const __m128i q = _mm_cvttps_epi32(_mm_min_ps(_mm_add_ps(_mm_max_ps(val, f0), fhalf), f255));
-    return _mm_packus_epi16(_mm_packs_epi32(q, q), q);  // 4 bytes in the low lane
-  };
+  Lanes L(g);
+  const __m128 f0 = _mm_setzero_ps();
   const Channel red = make_channel(0, 0), green = make_channel(1, 1), blue = make_channel(2, 2);
   Channel bayer_rows[2] = {red, red};  // by row parity; bayer_channel() is -1 but for Bayer
   if constexpr (kMode == kModeBayer)
@@ -538,65 +620,44 @@ void ground_block(Image& out, PixelFormat fmt, int x0, int n, int y0, int y1, co
   for (int y = y0; y < y1; ++y) {
     std::uint8_t* const row = out.row(y);
     const Channel& bayer = bayer_rows[(y - y0) & 1];
-    __m128i sv = s_start, tv = t_start;
-    __m128 wv = w_start, kv = k_start, hv = h_start;
+    __m128i sv = L.s_start, tv = L.t_start;
+    __m128 wv = L.w_start, kv = L.k_start, hv = L.h_start;
     for (int i = 0; i < n; i += 4) {
-      const __m128i x0v = _mm_and_si128(_mm_srli_epi32(sv, 16), mask);
-      const __m128i y0v = _mm_and_si128(_mm_srli_epi32(tv, 16), mask);
-      const __m128i y1v = _mm_and_si128(_mm_add_epi32(y0v, one), mask);
-      alignas(16) std::uint32_t i0[4], i1[4];
-      const __m128i c0 = col(x0v);
-      _mm_store_si128(reinterpret_cast<__m128i*>(i0), _mm_add_epi32(row_of(y0v), c0));
-      _mm_store_si128(reinterpret_cast<__m128i*>(i1), _mm_add_epi32(row_of(y1v), c0));
-      // Texels (x0, y) and (x0 + 1, y) of the 4 pixels, as [left of 0-3] and [right of 0-3].
-      auto fetch = [tex](const std::uint32_t* ix, __m128i& left, __m128i& right) {
-        auto pair = [tex](std::uint32_t i) { return _mm_loadl_epi64(reinterpret_cast<const __m128i*>(tex + i)); };
-        const __m128i p01 = _mm_shuffle_epi32(_mm_unpacklo_epi64(pair(ix[0]), pair(ix[1])), 0xd8);
-        const __m128i p23 = _mm_shuffle_epi32(_mm_unpacklo_epi64(pair(ix[2]), pair(ix[3])), 0xd8);
-        left = _mm_unpacklo_epi64(p01, p23), right = _mm_unpackhi_epi64(p01, p23);
-      };
-      __m128i a, b, c, d;
-      fetch(i0, a, b);
-      fetch(i1, c, d);
-      __m128i wxl, wxh, wyl, wyh;
-      spread(_mm_and_si128(_mm_srli_epi32(sv, 8), ff), wxl, wxh);
-      spread(_mm_and_si128(_mm_srli_epi32(tv, 8), ff), wyl, wyh);
-      const __m128i lo = lerp16(lerp16(_mm_unpacklo_epi8(a, zero), _mm_unpacklo_epi8(b, zero), wxl),
-                                lerp16(_mm_unpacklo_epi8(c, zero), _mm_unpacklo_epi8(d, zero), wxl), wyl);
-      const __m128i hi = lerp16(lerp16(_mm_unpackhi_epi8(a, zero), _mm_unpackhi_epi8(b, zero), wxh),
-                                lerp16(_mm_unpackhi_epi8(c, zero), _mm_unpackhi_epi8(d, zero), wxh), wyh);
-      const __m128i v = _mm_packus_epi16(lo, hi);  // the 4 filtered RGBA8 texels
-      sv = _mm_add_epi32(sv, ds4), tv = _mm_add_epi32(tv, dt4);
+      const __m128i v = filtered(tex, sv, tv, mask, row_shift);
+      sv = _mm_add_epi32(sv, L.ds4), tv = _mm_add_epi32(tv, L.dt4);
       // Shading, as put_ground: woods weight from the fine texture, then each channel.
       __m128 av = f0, sm = f0;
-      if constexpr (kWoods) {
-        av = _mm_cvtepi32_ps(_mm_srli_epi32(v, 24));
-        const __m128 z = _mm_min_ps(_mm_max_ps(_mm_add_ps(wv, _mm_mul_ps(av, kwa)), f0), f1);
-        sm = _mm_mul_ps(_mm_mul_ps(z, z), _mm_sub_ps(f3, _mm_mul_ps(f2, z)));
-      }
+      if constexpr (kWoods) woods(v, wv, av, sm);
       const __m128 k1 = kv, hz = hv;
-      wv = _mm_add_ps(wv, dw4), kv = _mm_add_ps(kv, dk4), hv = _mm_add_ps(hv, dh4);
+      wv = _mm_add_ps(wv, L.dw4), kv = _mm_add_ps(kv, L.dk4), hv = _mm_add_ps(hv, L.dh4);
       const int m = std::min(4, n - i);
       if constexpr (kMode == kModeBayer) {
-        const int bytes = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, bayer));
+        const int bytes = _mm_cvtsi128_si32(channel<kWoods>(v, av, sm, k1, hz, bayer));
         if (m == 4)
           std::memcpy(row + x0 + i, &bytes, 4);
         else
           for (int j = 0; j < m; ++j) row[x0 + i + j] = static_cast<std::uint8_t>(bytes >> (8 * j));
       } else {
-        const int r = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, red));
-        const int g = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, green));
-        const int b = _mm_cvtsi128_si32(channel(v, av, sm, k1, hz, blue));
+        const int r = _mm_cvtsi128_si32(channel<kWoods>(v, av, sm, k1, hz, red));
+        const int gr = _mm_cvtsi128_si32(channel<kWoods>(v, av, sm, k1, hz, green));
+        const int b = _mm_cvtsi128_si32(channel<kWoods>(v, av, sm, k1, hz, blue));
         for (int j = 0; j < m; ++j)
           put_rgb<kMode>(row, x0 + i + j, static_cast<std::uint8_t>(r >> (8 * j)),
-                         static_cast<std::uint8_t>(g >> (8 * j)), static_cast<std::uint8_t>(b >> (8 * j)));
+                         static_cast<std::uint8_t>(gr >> (8 * j)), static_cast<std::uint8_t>(b >> (8 * j)));
       }
     }
-    s_start = _mm_add_epi32(s_start, s_next), t_start = _mm_add_epi32(t_start, t_next);
-    ds4 = _mm_add_epi32(ds4, dds4), dt4 = _mm_add_epi32(dt4, ddt4);
-    w_start = _mm_add_ps(w_start, w_next), k_start = _mm_add_ps(k_start, k_next), h_start = _mm_add_ps(h_start, h_next);
-    dw4 = _mm_add_ps(dw4, ddw4), dk4 = _mm_add_ps(dk4, ddk4), dh4 = _mm_add_ps(dh4, ddh4);
+    L.next_row();
   }
+}
+
+}  // namespace ground_sse2
+#endif
+
+template <int kMode, bool kWoods>
+void ground_block(Image& out, PixelFormat fmt, int x0, int n, int y0, int y1, const std::uint32_t* tex,
+                  int shift, const GroundBlock& g) {
+#if defined(__SSE2__)
+  ground_sse2::ground_block<kMode, kWoods>(out, fmt, x0, n, y0, y1, tex, shift, g);
 #else
   GroundBlock r = g;
   for (int y = y0; y < y1; ++y) {
@@ -1048,6 +1109,22 @@ bool same_lens(const CameraModel& a, const CameraModel& b) {
          a.cx_px == b.cx_px && a.cy_px == b.cy_px && a.distortion == b.distortion && a.coeffs == b.coeffs;
 }
 
+}  // namespace
+
+Expected<Model> load_scene_receiver(const Rig& rig, std::shared_ptr<const Model> given, bool& builtin) {
+  builtin = false;
+  if (given) return Model(*given);
+  if (rig.receiver.model.path.empty()) {
+    builtin = true;
+    return make_builtin_receiver();
+  }
+  auto m = load_model(rig.receiver.model);
+  if (!m) return make_error("SyntheticSceneRenderer::create(): ", m.error().message);
+  return std::move(*m);
+}
+
+namespace {
+
 class CpuSceneRenderer final : public SyntheticSceneRenderer {
  public:
   CpuSceneRenderer(const Rig& rig, int threads) : rig_(rig), bands_(threads) {}
@@ -1078,6 +1155,11 @@ class CpuSceneRenderer final : public SyntheticSceneRenderer {
   // a pose is not drawn).
   void render_clean(int camera, const SkyState& sky, const std::array<std::optional<Pose>, kParts>& T_body_part,
                     PixelFormat fmt, Image& out);
+  // init()'s parts: the receiver and the boom with their meshes; one camera's tables; its
+  // background nodes (rays and angular sizes every kBlock pixels) and the blocks with valid rays.
+  Status load_models(std::shared_ptr<const Model> receiver);
+  Status init_camera(std::size_t c);
+  static void init_background_nodes(CameraTables& ct, const CameraModel& cm);
   void add_mesh(const Mesh& m, bool cull, Part part, std::vector<const Texture*>& seen);
   void draw_objects(const CameraTables& ct, const RigCamera& cam, const FrameSky& f,
                     const std::array<std::optional<Pose>, kParts>& T_body_part, PixelFormat fmt, Image& out);
@@ -1164,17 +1246,33 @@ void CpuSceneRenderer::add_mesh(const Mesh& m, bool cull, Part part, std::vector
 
 Status CpuSceneRenderer::init(std::shared_ptr<const Model> receiver) {
   if (rig_.cameras.empty()) return make_error("SyntheticSceneRenderer::create(): the rig has no cameras");
-  bool builtin = false;
-  if (receiver) {
-    receiver_ = *receiver;
-  } else if (rig_.receiver.model.path.empty()) {
-    receiver_ = make_builtin_receiver();
-    builtin = true;
-  } else {
-    auto m = load_model(rig_.receiver.model);
-    if (!m) return make_error("SyntheticSceneRenderer::create(): ", m.error().message);
-    receiver_ = std::move(*m);
+  if (auto st = load_models(std::move(receiver)); !st) return st;
+  std::size_t max_samples = 0;
+  cameras_.resize(rig_.cameras.size());
+  for (std::size_t c = 0; c < rig_.cameras.size(); ++c) {
+    if (auto st = init_camera(c); !st) return st;
+    max_samples =
+        std::max(max_samples, static_cast<std::size_t>(cameras_[c].vp.width) * cameras_[c].vp.height);
   }
+  inv_z_.assign(max_samples, 0.0f);
+  ids_.assign(max_samples, 0u);
+  std::size_t max_words = 0;
+  for (const CameraTables& ct : cameras_)
+    max_words = std::max(max_words, static_cast<std::size_t>(ct.vp.height) * ((ct.vp.width + 63) / 64));
+  covered_.assign(max_words, 0u);
+
+  gauss_.resize(65536);
+  for (std::size_t i = 0; i < gauss_.size(); ++i)
+    gauss_[i] = static_cast<float>(normal_quantile((static_cast<double>(i) + 0.5) / 65536.0));
+  tile_ = ground_tile();
+  return {};
+}
+
+Status CpuSceneRenderer::load_models(std::shared_ptr<const Model> receiver) {
+  bool builtin = false;
+  auto rec = load_scene_receiver(rig_, std::move(receiver), builtin);
+  if (!rec) return rec.error();
+  receiver_ = std::move(*rec);
   // The boom as the augmenter has it (render/augmenter.cpp): the rig's model file as one rigid
   // part, or the built-in boom's two parts.
   if (rig_.boom.model.path.empty()) {
@@ -1191,81 +1289,77 @@ Status CpuSceneRenderer::init(std::shared_ptr<const Model> receiver) {
   for (const Mesh& m : receiver_.meshes) add_mesh(m, builtin, kReceiverPart, seen);
   for (const Mesh& m : boom_.fixed.meshes) add_mesh(m, false, kBoomFixedPart, seen);
   for (const Mesh& m : boom_.telescope.meshes) add_mesh(m, false, kBoomTelescopePart, seen);
-
-  std::size_t max_samples = 0;
-  cameras_.resize(rig_.cameras.size());
-  for (std::size_t c = 0; c < rig_.cameras.size(); ++c) {
-    const RigCamera& cam = rig_.cameras[c];
-    const CameraModel& cm = cam.model;
-    if (cm.width_px <= 0 || cm.height_px <= 0)
-      return make_error("SyntheticSceneRenderer::create(): camera ", c, " has no image size");
-    CameraTables& ct = cameras_[c];
-    ct.width = cm.width_px, ct.height = cm.height_px;
-    ct.near_m = cam.near_m;
-    auto vp = make_virtual_pinhole(cm, 1.0, false, cam.name);
-    if (!vp) return vp.error();
-    ct.vp = std::move(*vp);
-    const int W = ct.width, H = ct.height;
-    if (ct.vp.identity) {
-      ct.col_x.resize(W), ct.row_y.resize(H);
-      for (int u = 0; u < W; ++u) ct.col_x[u] = static_cast<float>((u - ct.vp.cx) / ct.vp.fx);
-      for (int v = 0; v < H; ++v) ct.row_y[v] = static_cast<float>((v - ct.vp.cy) / ct.vp.fy);
-    } else {
-      ct.virtual_xy.resize(static_cast<std::size_t>(W) * H);
-      for (std::size_t i = 0; i < ct.virtual_xy.size(); ++i) {
-        const Eigen::Vector2f& r = ct.vp.ray_xy[i];
-        ct.virtual_xy[i] = Eigen::Vector2f::Constant(NAN);
-        if (std::isfinite(r.x()) && std::isfinite(r.y())) ct.virtual_xy[i] = ct.vp.to_virtual(r.cast<double>()).cast<float>();
-      }
-    }
-    max_samples = std::max(max_samples, static_cast<std::size_t>(ct.vp.width) * ct.vp.height);
-    // Background nodes every kBlock pixels, the last row and column on the image's last pixel.
-    ct.nbx = (W + kBlock - 1) / kBlock, ct.nby = (H + kBlock - 1) / kBlock;
-    for (int k = 0; k <= ct.nbx; ++k) ct.node_x.push_back(std::min(k * kBlock, W - 1));
-    for (int k = 0; k <= ct.nby; ++k) ct.node_y.push_back(std::min(k * kBlock, H - 1));
-    const int nnx = ct.nbx + 1;
-    ct.node_ray.resize(static_cast<std::size_t>(nnx) * (ct.nby + 1));
-    ct.node_ang.resize(ct.node_ray.size());
-    auto unit = [&ct](int x, int y) {
-      const Eigen::Vector3d r = ct.ray(x, y);
-      return std::isfinite(r.x()) && std::isfinite(r.y()) ? Eigen::Vector3d(r.normalized()) : Eigen::Vector3d::Constant(NAN);
-    };
-    for (int j = 0; j <= ct.nby; ++j)
-      for (int i = 0; i < nnx; ++i) {
-        const int x = ct.node_x[i], y = ct.node_y[j];
-        const std::size_t n = static_cast<std::size_t>(j) * nnx + i;
-        ct.node_ray[n] = ct.ray(x, y);
-        // The angle to the neighbouring pixels: the pixel's angular size through the lens.
-        const Eigen::Vector3d d = unit(x, y), dx = unit(x > 0 ? x - 1 : x + 1, y), dy = unit(x, y > 0 ? y - 1 : y + 1);
-        double ang = std::max(std::acos(std::clamp(d.dot(dx), -1.0, 1.0)), std::acos(std::clamp(d.dot(dy), -1.0, 1.0)));
-        ct.node_ang[n] = std::isfinite(ang) ? ang : 1.0 / cm.fx_px;
-      }
-    ct.block_valid.assign(static_cast<std::size_t>(ct.nbx) * ct.nby, 1);
-    if (!ct.vp.identity)
-      for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x)
-          if (!std::isfinite(ct.vp.ray_xy[static_cast<std::size_t>(y) * W + x].x()))
-            ct.block_valid[static_cast<std::size_t>(y / kBlock) * ct.nbx + x / kBlock] = 0;
-    ct.group = static_cast<int>(c);
-    for (std::size_t o = 0; o < c; ++o)
-      if (same_lens(rig_.cameras[o].model, cm) &&
-          (rig_.cameras[o].T_body_cam.R() - cam.T_body_cam.R()).cwiseAbs().maxCoeff() < 1e-12) {
-        ct.group = static_cast<int>(o);
-        break;
-      }
-  }
-  inv_z_.assign(max_samples, 0.0f);
-  ids_.assign(max_samples, 0u);
-  std::size_t max_words = 0;
-  for (const CameraTables& ct : cameras_)
-    max_words = std::max(max_words, static_cast<std::size_t>(ct.vp.height) * ((ct.vp.width + 63) / 64));
-  covered_.assign(max_words, 0u);
-
-  gauss_.resize(65536);
-  for (std::size_t i = 0; i < gauss_.size(); ++i)
-    gauss_[i] = static_cast<float>(normal_quantile((static_cast<double>(i) + 0.5) / 65536.0));
-  tile_ = ground_tile();
   return {};
+}
+
+Status CpuSceneRenderer::init_camera(std::size_t c) {
+  const RigCamera& cam = rig_.cameras[c];
+  const CameraModel& cm = cam.model;
+  if (cm.width_px <= 0 || cm.height_px <= 0)
+    return make_error("SyntheticSceneRenderer::create(): camera ", c, " has no image size");
+  CameraTables& ct = cameras_[c];
+  ct.width = cm.width_px, ct.height = cm.height_px;
+  ct.near_m = cam.near_m;
+  auto vp = make_virtual_pinhole(cm, 1.0, false, cam.name);
+  if (!vp) return vp.error();
+  ct.vp = std::move(*vp);
+  const int W = ct.width, H = ct.height;
+  if (ct.vp.identity) {
+    ct.col_x.resize(W), ct.row_y.resize(H);
+    for (int u = 0; u < W; ++u) ct.col_x[u] = static_cast<float>((u - ct.vp.cx) / ct.vp.fx);
+    for (int v = 0; v < H; ++v) ct.row_y[v] = static_cast<float>((v - ct.vp.cy) / ct.vp.fy);
+  } else {
+    ct.virtual_xy.resize(static_cast<std::size_t>(W) * H);
+    for (std::size_t i = 0; i < ct.virtual_xy.size(); ++i) {
+      const Eigen::Vector2f& r = ct.vp.ray_xy[i];
+      ct.virtual_xy[i] = Eigen::Vector2f::Constant(NAN);
+      if (std::isfinite(r.x()) && std::isfinite(r.y()))
+        ct.virtual_xy[i] = ct.vp.to_virtual(r.cast<double>()).cast<float>();
+    }
+  }
+  init_background_nodes(ct, cm);
+  ct.group = static_cast<int>(c);
+  for (std::size_t o = 0; o < c; ++o)
+    if (same_lens(rig_.cameras[o].model, cm) &&
+        (rig_.cameras[o].T_body_cam.R() - cam.T_body_cam.R()).cwiseAbs().maxCoeff() < 1e-12) {
+      ct.group = static_cast<int>(o);
+      break;
+    }
+  return {};
+}
+
+void CpuSceneRenderer::init_background_nodes(CameraTables& ct, const CameraModel& cm) {
+  const int W = ct.width, H = ct.height;
+  // Background nodes every kBlock pixels, the last row and column on the image's last pixel.
+  ct.nbx = (W + kBlock - 1) / kBlock, ct.nby = (H + kBlock - 1) / kBlock;
+  for (int k = 0; k <= ct.nbx; ++k) ct.node_x.push_back(std::min(k * kBlock, W - 1));
+  for (int k = 0; k <= ct.nby; ++k) ct.node_y.push_back(std::min(k * kBlock, H - 1));
+  const int nnx = ct.nbx + 1;
+  ct.node_ray.resize(static_cast<std::size_t>(nnx) * (ct.nby + 1));
+  ct.node_ang.resize(ct.node_ray.size());
+  auto unit = [&ct](int x, int y) {
+    const Eigen::Vector3d r = ct.ray(x, y);
+    return std::isfinite(r.x()) && std::isfinite(r.y()) ? Eigen::Vector3d(r.normalized())
+                                                        : Eigen::Vector3d::Constant(NAN);
+  };
+  for (int j = 0; j <= ct.nby; ++j)
+    for (int i = 0; i < nnx; ++i) {
+      const int x = ct.node_x[i], y = ct.node_y[j];
+      const std::size_t n = static_cast<std::size_t>(j) * nnx + i;
+      ct.node_ray[n] = ct.ray(x, y);
+      // The angle to the neighbouring pixels: the pixel's angular size through the lens.
+      const Eigen::Vector3d d = unit(x, y), dx = unit(x > 0 ? x - 1 : x + 1, y),
+                            dy = unit(x, y > 0 ? y - 1 : y + 1);
+      double ang =
+          std::max(std::acos(std::clamp(d.dot(dx), -1.0, 1.0)), std::acos(std::clamp(d.dot(dy), -1.0, 1.0)));
+      ct.node_ang[n] = std::isfinite(ang) ? ang : 1.0 / cm.fx_px;
+    }
+  ct.block_valid.assign(static_cast<std::size_t>(ct.nbx) * ct.nby, 1);
+  if (!ct.vp.identity)
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        if (!std::isfinite(ct.vp.ray_xy[static_cast<std::size_t>(y) * W + x].x()))
+          ct.block_valid[static_cast<std::size_t>(y / kBlock) * ct.nbx + x / kBlock] = 0;
 }
 
 // Background of the block rows [by0, by1).

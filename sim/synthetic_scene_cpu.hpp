@@ -18,4 +18,8 @@ Expected<std::unique_ptr<SyntheticSceneRenderer>> make_cpu_scene_renderer(const 
 // or must take the SSE2 one; both give the same bytes. Returns whether AVX2 is now used.
 bool set_cpu_scene_avx2_for_testing(bool allowed);
 
+// The receiver both scene renderers draw: the one given, else the rig's model file, else the
+// built-in one (then `builtin` is set: its meshes are consistently wound, so they can be culled).
+Expected<Model> load_scene_receiver(const Rig& rig, std::shared_ptr<const Model> given, bool& builtin);
+
 }  // namespace augrig
