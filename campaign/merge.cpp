@@ -99,6 +99,162 @@ void scores(const eval::RunEvaluation& run, FlightLine& l) {
   }
 }
 
+// Per variant, over all its flights: the occlusion statistics, and where evaluated the
+// evaluation and its matcher.
+struct VariantTotals {
+  std::map<std::string, eval::RunEvaluation> runs;
+  std::map<std::string, std::vector<OcclusionStats>> stats;
+  std::map<std::string, eval::MatcherParams> matcher;
+};
+
+// The shards of a flight not done ("" when all are).
+std::string shards_not_done(const Manifest& m, const std::vector<const Task*>& shards, double now) {
+  std::string missing;
+  for (const Task* t : shards)
+    if (task_status(m, *t, now).state != TaskState::kDone)
+      missing += (missing.empty() ? "" : ", ") + std::to_string(t->shard.index) + " (task " +
+                 std::to_string(t->id) + ")";
+  return missing;
+}
+
+// The shards (in index order) cover the flight's frames once, in order.
+Status check_shards_join(const std::string& label, const std::vector<const Task*>& shards) {
+  for (std::size_t i = 1; i < shards.size(); ++i)
+    if (shards[i]->shard.from_frame != shards[i - 1]->shard.from_frame + shards[i - 1]->shard.frames)
+      return make_error(kWhere, label, ": shards ", shards[i - 1]->shard.index, " and ",
+                        shards[i]->shard.index, " do not join (frames ",
+                        shards[i - 1]->shard.from_frame + shards[i - 1]->shard.frames, " and ",
+                        shards[i]->shard.from_frame, ")");
+  return {};
+}
+
+// The occlusion statistics, frame by frame, and their summary; the frames added to all_stats.
+Status merge_stats(const std::vector<const Task*>& shards, const fs::path& dir, FlightLine& fl,
+                   std::vector<OcclusionStats>& all_stats) {
+  if (Status s = join_file(shards, "stats.csv", dir / "stats.csv", &fl.frames); !s) return s.error();
+  // Frames a shard left out (damaged input, no pose; each shard's task.log says which).
+  std::size_t planned = 0;
+  for (const Task* t : shards) planned += t->shard.frames;
+  if (planned > fl.frames) fl.left_out = planned - fl.frames;
+  auto stats = read_stats_csv((dir / "stats.csv").string());
+  if (!stats) return stats.error();
+  if (!stats->empty()) {
+    double l = 0, r = 0;
+    for (const auto& s : *stats) {
+      l += s.occluded_pct_left;
+      r += s.occluded_pct_right;
+    }
+    fl.occluded_left = l / static_cast<double>(stats->size());
+    fl.occluded_right = r / static_cast<double>(stats->size());
+  }
+  if (Status s = write_text(dir / "summary.txt", format_run_summary(*stats)); !s) return s.error();
+  all_stats.insert(all_stats.end(), stats->begin(), stats->end());
+  return {};
+}
+
+// The evaluation: per-frame files joined, the table from the exact sums re-added in order.
+Status merge_evaluation(const std::vector<const Task*>& shards, const fs::path& dir,
+                        const std::pair<std::string, std::string>& key, const MergeOptions& options,
+                        FlightLine& fl, VariantTotals& totals) {
+  if (Status s = join_file(shards, "evaluation.csv", dir / "evaluation.csv"); !s) return s.error();
+  if (Status s = join_file(shards, "evaluation_sums.csv", dir / "evaluation_sums.csv"); !s) return s.error();
+  auto frames = eval::load_evaluation_sums(dir / "evaluation_sums.csv");
+  if (!frames) return frames.error();
+  for (std::size_t i = 1; i < frames->size(); ++i)
+    if ((*frames)[i].frame <= (*frames)[i - 1].frame)
+      return make_error(kWhere, (dir / "evaluation_sums.csv").string(), ": frame ", (*frames)[i].frame,
+                        " follows frame ", (*frames)[i - 1].frame, ": the shards overlap");
+  eval::MatcherParams matcher;
+  if (const std::string mf = flag_value(shards.front()->argv, "--matcher"); !mf.empty()) {
+    auto p = eval::load_matcher_params(mf);
+    if (!p) return p.error();
+    matcher = *p;
+  }
+  totals.matcher[key.first] = matcher;
+  eval::RunEvaluation run;
+  std::vector<eval::EvaluationPoint> points;
+  auto& campaign_run = totals.runs[key.first];
+  for (const auto& f : *frames) {
+    run.add(f.evaluation);
+    campaign_run.add(f.evaluation);
+    points.push_back(eval::evaluation_point(f));
+  }
+  fl.evaluated = frames->size();
+  scores(run, fl);
+  const std::string title = "Stereo evaluation: flight " + key.second + ", variant " + key.first;
+  if (Status s = write_text(dir / "evaluation.txt", eval::format_evaluation_table(run, title, matcher)); !s)
+    return s.error();
+  if (options.plot && !points.empty())
+    if (Status s = eval::plot_evaluation(points, (dir / "evaluation.png").string(), title); !s)
+      return s.error();
+  return {};
+}
+
+// campaign.txt's opening: what was merged, what was left out or not merged, the columns.
+void campaign_heading(const Manifest& m, const MergeSummary& sum, std::ostream& txt) {
+  txt << "Campaign '" << m.name << "' (" << m.campaign_file.string() << "): " << sum.flights_merged
+      << " flight report(s) merged, " << sum.frames << " stereo frame(s), " << sum.evaluated << " evaluated";
+  if (sum.frames_left_out)
+    txt << "; " << sum.frames_left_out
+        << " planned frame(s) left out (damaged input, or no pose: the 'left out' column, each shard's "
+           "task.log)";
+  txt << "\n";
+  if (!sum.incomplete.empty()) {
+    txt << "Not merged (shards not done):\n";
+    for (const auto& s : sum.incomplete) txt << "  " << s << "\n";
+  }
+  txt << "\nPer flight: occlusion of the receiver by the boom (% of its pixels, mean over frames); stereo\n"
+         "bad > 3 px (%) and RMS error (px) over the receiver for the raw pair, the augmented pair, and the\n"
+         "augmented pair with the boom's pixels left out.\n\n";
+}
+
+// A line per flight and variant: campaign.txt's table and campaign.csv.
+void flight_rows(const std::vector<FlightLine>& lines, std::ostream& txt, std::ostream& csv) {
+  csv << "variant,flight,shards,frames,evaluated,occluded_pct_left_mean,occluded_pct_right_mean,"
+         "raw_bad3_pct,aug_bad3_pct,aug_noboom_bad3_pct,raw_rms_px,aug_rms_px,aug_noboom_rms_px,frames_left_"
+         "out\n";
+  char row[512];
+  std::snprintf(row, sizeof row, "%-14s %-16s %6s %8s %8s %9s %8s %8s %8s %8s %9s %8s %8s %9s\n", "variant",
+                "flight", "shards", "frames", "left out", "evaluated", "occl L", "occl R", "bad3 raw",
+                "bad3 aug", "bad3 -boom", "rms raw", "rms aug", "rms -boom");
+  txt << row;
+  for (const FlightLine& l : lines) {
+    std::snprintf(row, sizeof row, "%-14s %-16s %6zu %8zu %8zu %9zu %8s %8s %8s %8s %9s %8s %8s %9s\n",
+                  l.variant.c_str(), l.flight.c_str(), l.shards, l.frames, l.left_out, l.evaluated,
+                  pct(l.occluded_left).c_str(), pct(l.occluded_right).c_str(), pct(l.bad3[0]).c_str(),
+                  pct(l.bad3[1]).c_str(), pct(l.bad3[2]).c_str(), pct(l.rms[0]).c_str(),
+                  pct(l.rms[1]).c_str(), pct(l.rms[2]).c_str());
+    txt << row;
+    csv << l.variant << ',' << l.flight << ',' << l.shards << ',' << l.frames << ',' << l.evaluated << ','
+        << pct(l.occluded_left) << ',' << pct(l.occluded_right) << ',' << pct(l.bad3[0]) << ','
+        << pct(l.bad3[1]) << ',' << pct(l.bad3[2]) << ',' << pct(l.rms[0]) << ',' << pct(l.rms[1]) << ','
+        << pct(l.rms[2]) << ',' << l.left_out << '\n';
+  }
+}
+
+// The campaign: a line per flight and variant, and per variant the tables over all its flights.
+Status write_campaign_report(const Manifest& m, const MergeSummary& sum, const std::vector<FlightLine>& lines,
+                             VariantTotals& totals) {
+  std::ostringstream txt, csv;
+  campaign_heading(m, sum, txt);
+  flight_rows(lines, txt, csv);
+  std::vector<std::string> variants;
+  for (const FlightLine& l : lines)
+    if (std::find(variants.begin(), variants.end(), l.variant) == variants.end())
+      variants.push_back(l.variant);
+  for (const std::string& v : variants) {
+    txt << "\n==== Variant " << v << ": every merged flight ====\n\n";
+    txt << format_run_summary(totals.stats[v]);
+    if (totals.runs.count(v))
+      txt << "\n"
+          << eval::format_evaluation_table(
+                 totals.runs[v], "Stereo evaluation: variant " + v + ", every flight", totals.matcher[v]);
+  }
+  if (Status s = write_text(sum.report_dir / "campaign.txt", txt.str()); !s) return s.error();
+  if (Status s = write_text(sum.report_dir / "campaign.csv", csv.str()); !s) return s.error();
+  return {};
+}
+
 }  // namespace
 
 Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& options, std::ostream& out) {
@@ -118,21 +274,14 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
   }
   const double now = static_cast<double>(std::time(nullptr));
   std::vector<FlightLine> lines;
-  std::map<std::string, eval::RunEvaluation> variant_runs;
-  std::map<std::string, std::vector<OcclusionStats>> variant_stats;
-  std::map<std::string, eval::MatcherParams> variant_matcher;
+  VariantTotals totals;
   for (const auto& key : order) {
     auto& shards = groups[key];
     std::sort(shards.begin(), shards.end(),
               [](const Task* a, const Task* b) { return a->shard.index < b->shard.index; });
     const std::string label = key.first + "/" + key.second;
     // Every shard done, and together they cover the flight's frames once, in order.
-    std::string missing;
-    for (const Task* t : shards)
-      if (task_status(m, *t, now).state != TaskState::kDone)
-        missing += (missing.empty() ? "" : ", ") + std::to_string(t->shard.index) + " (task " +
-                   std::to_string(t->id) + ")";
-    if (!missing.empty()) {
+    if (const std::string missing = shards_not_done(m, shards, now); !missing.empty()) {
       const std::string what = label + ": shard(s) " + missing + " not done";
       if (!options.partial)
         return make_error(kWhere, what,
@@ -141,77 +290,17 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
       ++sum.flights_incomplete;
       continue;
     }
-    for (std::size_t i = 1; i < shards.size(); ++i)
-      if (shards[i]->shard.from_frame != shards[i - 1]->shard.from_frame + shards[i - 1]->shard.frames)
-        return make_error(kWhere, label, ": shards ", shards[i - 1]->shard.index, " and ",
-                          shards[i]->shard.index, " do not join (frames ",
-                          shards[i - 1]->shard.from_frame + shards[i - 1]->shard.frames, " and ",
-                          shards[i]->shard.from_frame, ")");
+    if (Status s = check_shards_join(label, shards); !s) return s.error();
 
     const fs::path dir = sum.report_dir / key.first / key.second;
     fs::create_directories(dir, ec);
     if (ec) return make_error(kWhere, dir.string(), ": ", ec.message());
     FlightLine fl{key.first, key.second};
     fl.shards = shards.size();
-
-    // The occlusion statistics, frame by frame, and their summary.
-    if (Status s = join_file(shards, "stats.csv", dir / "stats.csv", &fl.frames); !s) return s.error();
-    // Frames a shard left out (damaged input, no pose; each shard's task.log says which).
-    std::size_t planned = 0;
-    for (const Task* t : shards) planned += t->shard.frames;
-    if (planned > fl.frames) fl.left_out = planned - fl.frames;
-    auto stats = read_stats_csv((dir / "stats.csv").string());
-    if (!stats) return stats.error();
-    if (!stats->empty()) {
-      double l = 0, r = 0;
-      for (const auto& s : *stats) {
-        l += s.occluded_pct_left;
-        r += s.occluded_pct_right;
-      }
-      fl.occluded_left = l / static_cast<double>(stats->size());
-      fl.occluded_right = r / static_cast<double>(stats->size());
-    }
-    if (Status s = write_text(dir / "summary.txt", format_run_summary(*stats)); !s) return s.error();
-    auto& all_stats = variant_stats[key.first];
-    all_stats.insert(all_stats.end(), stats->begin(), stats->end());
-
-    // The evaluation: per-frame files joined, the table from the exact sums re-added in order.
+    if (Status s = merge_stats(shards, dir, fl, totals.stats[key.first]); !s) return s.error();
     const bool evaluated = shards.front()->argv.front() == "evaluate";
-    if (evaluated) {
-      if (Status s = join_file(shards, "evaluation.csv", dir / "evaluation.csv"); !s) return s.error();
-      if (Status s = join_file(shards, "evaluation_sums.csv", dir / "evaluation_sums.csv"); !s)
-        return s.error();
-      auto frames = eval::load_evaluation_sums(dir / "evaluation_sums.csv");
-      if (!frames) return frames.error();
-      for (std::size_t i = 1; i < frames->size(); ++i)
-        if ((*frames)[i].frame <= (*frames)[i - 1].frame)
-          return make_error(kWhere, (dir / "evaluation_sums.csv").string(), ": frame ", (*frames)[i].frame,
-                            " follows frame ", (*frames)[i - 1].frame, ": the shards overlap");
-      eval::MatcherParams matcher;
-      if (const std::string mf = flag_value(shards.front()->argv, "--matcher"); !mf.empty()) {
-        auto p = eval::load_matcher_params(mf);
-        if (!p) return p.error();
-        matcher = *p;
-      }
-      variant_matcher[key.first] = matcher;
-      eval::RunEvaluation run;
-      std::vector<eval::EvaluationPoint> points;
-      auto& campaign_run = variant_runs[key.first];
-      for (const auto& f : *frames) {
-        run.add(f.evaluation);
-        campaign_run.add(f.evaluation);
-        points.push_back(eval::evaluation_point(f));
-      }
-      fl.evaluated = frames->size();
-      scores(run, fl);
-      const std::string title = "Stereo evaluation: flight " + key.second + ", variant " + key.first;
-      if (Status s = write_text(dir / "evaluation.txt", eval::format_evaluation_table(run, title, matcher));
-          !s)
-        return s.error();
-      if (options.plot && !points.empty())
-        if (Status s = eval::plot_evaluation(points, (dir / "evaluation.png").string(), title); !s)
-          return s.error();
-    }
+    if (evaluated)
+      if (Status s = merge_evaluation(shards, dir, key, options, fl, totals); !s) return s.error();
     sum.frames += fl.frames;
     sum.evaluated += fl.evaluated;
     sum.frames_left_out += fl.left_out;
@@ -223,57 +312,7 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
     out << " -> " << dir.string() << "\n";
     lines.push_back(fl);
   }
-
-  // The campaign: a line per flight and variant, and per variant the tables over all its flights.
-  std::ostringstream txt, csv;
-  csv << "variant,flight,shards,frames,evaluated,occluded_pct_left_mean,occluded_pct_right_mean,"
-         "raw_bad3_pct,aug_bad3_pct,aug_noboom_bad3_pct,raw_rms_px,aug_rms_px,aug_noboom_rms_px,frames_left_"
-         "out\n";
-  txt << "Campaign '" << m.name << "' (" << m.campaign_file.string() << "): " << sum.flights_merged
-      << " flight report(s) merged, " << sum.frames << " stereo frame(s), " << sum.evaluated << " evaluated";
-  if (sum.frames_left_out)
-    txt << "; " << sum.frames_left_out
-        << " planned frame(s) left out (damaged input, or no pose: the 'left out' column, each shard's "
-           "task.log)";
-  txt << "\n";
-  if (!sum.incomplete.empty()) {
-    txt << "Not merged (shards not done):\n";
-    for (const auto& s : sum.incomplete) txt << "  " << s << "\n";
-  }
-  txt << "\nPer flight: occlusion of the receiver by the boom (% of its pixels, mean over frames); stereo\n"
-         "bad > 3 px (%) and RMS error (px) over the receiver for the raw pair, the augmented pair, and the\n"
-         "augmented pair with the boom's pixels left out.\n\n";
-  char row[512];
-  std::snprintf(row, sizeof row, "%-14s %-16s %6s %8s %8s %9s %8s %8s %8s %8s %9s %8s %8s %9s\n", "variant",
-                "flight", "shards", "frames", "left out", "evaluated", "occl L", "occl R", "bad3 raw",
-                "bad3 aug", "bad3 -boom", "rms raw", "rms aug", "rms -boom");
-  txt << row;
-  for (const FlightLine& l : lines) {
-    std::snprintf(row, sizeof row, "%-14s %-16s %6zu %8zu %8zu %9zu %8s %8s %8s %8s %9s %8s %8s %9s\n",
-                  l.variant.c_str(), l.flight.c_str(), l.shards, l.frames, l.left_out, l.evaluated,
-                  pct(l.occluded_left).c_str(), pct(l.occluded_right).c_str(), pct(l.bad3[0]).c_str(),
-                  pct(l.bad3[1]).c_str(), pct(l.bad3[2]).c_str(), pct(l.rms[0]).c_str(),
-                  pct(l.rms[1]).c_str(), pct(l.rms[2]).c_str());
-    txt << row;
-    csv << l.variant << ',' << l.flight << ',' << l.shards << ',' << l.frames << ',' << l.evaluated << ','
-        << pct(l.occluded_left) << ',' << pct(l.occluded_right) << ',' << pct(l.bad3[0]) << ','
-        << pct(l.bad3[1]) << ',' << pct(l.bad3[2]) << ',' << pct(l.rms[0]) << ',' << pct(l.rms[1]) << ','
-        << pct(l.rms[2]) << ',' << l.left_out << '\n';
-  }
-  std::vector<std::string> variants;
-  for (const FlightLine& l : lines)
-    if (std::find(variants.begin(), variants.end(), l.variant) == variants.end())
-      variants.push_back(l.variant);
-  for (const std::string& v : variants) {
-    txt << "\n==== Variant " << v << ": every merged flight ====\n\n";
-    txt << format_run_summary(variant_stats[v]);
-    if (variant_runs.count(v))
-      txt << "\n"
-          << eval::format_evaluation_table(
-                 variant_runs[v], "Stereo evaluation: variant " + v + ", every flight", variant_matcher[v]);
-  }
-  if (Status s = write_text(sum.report_dir / "campaign.txt", txt.str()); !s) return s.error();
-  if (Status s = write_text(sum.report_dir / "campaign.csv", csv.str()); !s) return s.error();
+  if (Status s = write_campaign_report(m, sum, lines, totals); !s) return s.error();
   return sum;
 }
 
