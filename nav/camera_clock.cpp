@@ -106,6 +106,28 @@ struct CameraRotationTracker::Impl {
   // The rays of the previous frame as seen from the current camera position (parallax removed).
   void remove_parallax(TimestampNs t0_ns, TimestampNs t1_ns, std::vector<Eigen::Vector3d>& rays) const;
   void track(const cv::Mat& gray, const std::vector<cv::Mat>& pyramid, TimestampNs t_ns);
+
+  // track()'s parts. The tracks followed into the current frame (forward-backward checked), with
+  // their new rays.
+  void follow(const cv::Mat& gray, const std::vector<cv::Mat>& pyramid, std::vector<Track>& kept,
+              std::vector<Eigen::Vector3d>& new_rays) const;
+  // The nav rate's rotation over the interval ending at t_ns and how far a hypothesis may lie from
+  // it (none without a nav rate).
+  struct NavGate {
+    std::optional<Eigen::Matrix3d> R21;
+    double rad = 0;
+    bool admits(const Eigen::Matrix3d& R) const {
+      return !R21 || log_so3(R * R21->transpose()).norm() <= rad;
+    }
+  };
+  NavGate nav_gate(TimestampNs t_ns) const;
+  // The rotation R21 (r2 = R21 r1) of the candidate rays: MSAC, then refined on its inliers.
+  bool fit_rotation(const std::vector<Eigen::Vector3d>& c1, const std::vector<Eigen::Vector3d>& c2,
+                    double thr_rad, const NavGate& gate, Eigen::Matrix3d& R21, std::vector<int>& inliers);
+  // Each track's exponentially weighted misfit, flagged above 4 sigma and back below half that.
+  void follow_misfits(std::vector<Track>& kept, const std::vector<Eigen::Vector3d>& r1,
+                      const std::vector<Eigen::Vector3d>& r2, const Eigen::Matrix3d& R21, double sigma,
+                      double thr_rad) const;
 };
 
 void CameraRotationTracker::Impl::replenish(const cv::Mat& gray) {
@@ -144,7 +166,9 @@ void CameraRotationTracker::Impl::remove_parallax(TimestampNs t0_ns, TimestampNs
   }
 }
 
-void CameraRotationTracker::Impl::track(const cv::Mat& gray, const std::vector<cv::Mat>& pyramid, TimestampNs t_ns) {
+void CameraRotationTracker::Impl::follow(const cv::Mat& gray, const std::vector<cv::Mat>& pyramid,
+                                         std::vector<Track>& kept,
+                                         std::vector<Eigen::Vector3d>& new_rays) const {
   std::vector<cv::Point2f> p0, p1, p0_back;
   p0.reserve(tracks.size());
   for (const Track& t : tracks) p0.push_back(t.px);
@@ -156,8 +180,6 @@ void CameraRotationTracker::Impl::track(const cv::Mat& gray, const std::vector<c
   cv::calcOpticalFlowPyrLK(pyramid, prev_pyramid, p1, p0_back, st0, err, window, opt.lk_levels, term,
                            cv::OPTFLOW_USE_INITIAL_FLOW);
   const double fb2 = opt.max_forward_backward_px * opt.max_forward_backward_px;
-  std::vector<Track> kept;
-  std::vector<Eigen::Vector3d> new_rays;
   kept.reserve(tracks.size());
   for (std::size_t i = 0; i < tracks.size(); ++i) {
     if (!st1[i] || !st0[i]) continue;
@@ -170,8 +192,108 @@ void CameraRotationTracker::Impl::track(const cv::Mat& gray, const std::vector<c
     t.px = p1[i];
     kept.push_back(t);
     new_rays.push_back(*ray);
-    kept.back().ray = tracks[i].ray;  // still the previous frame's until the fit below
+    kept.back().ray = tracks[i].ray;  // still the previous frame's until the fit
   }
+}
+
+CameraRotationTracker::Impl::NavGate CameraRotationTracker::Impl::nav_gate(TimestampNs t_ns) const {
+  NavGate g;
+  if (!omega) return g;
+  auto predicted = [&](double shift_s) -> std::optional<Eigen::Vector3d> {
+    const TimestampNs s_ns = s_to_ns(opt.prior_offset_s + shift_s);
+    const TimestampNs a = prev_t_ns - s_ns, b = t_ns - s_ns;
+    const auto wa = omega(a), wm = omega(a + (b - a) / 2), wb = omega(b);
+    if (!wa || !wm || !wb) return std::nullopt;
+    return Eigen::Vector3d(R_body_cam.transpose() * ((*wa + 4 * *wm + *wb) / 6.0) * ns_to_s(b - a));
+  };
+  const auto th0 = predicted(0), thm = predicted(-opt.search_s), thp = predicted(opt.search_s);
+  if (th0 && thm && thp) {
+    // r2 = R21 r1 with R_cam0_cam1 = Exp(theta) = R21^T.
+    g.R21 = Eigen::AngleAxisd(th0->norm(), th0->norm() > 0 ? th0->normalized() : Eigen::Vector3d::UnitX())
+                .toRotationMatrix()
+                .transpose();
+    g.rad = std::max((*thm - *th0).norm(), (*thp - *th0).norm()) + opt.nav_gate_px / focal_px;
+  }
+  return g;
+}
+
+bool CameraRotationTracker::Impl::fit_rotation(const std::vector<Eigen::Vector3d>& c1,
+                                               const std::vector<Eigen::Vector3d>& c2, double thr_rad,
+                                               const NavGate& gate, Eigen::Matrix3d& R21,
+                                               std::vector<int>& inliers) {
+  const int n = static_cast<int>(c1.size());
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  // MSAC: the truncated squared misfit, so a hypothesis between two motions (ground and the
+  // receiver, each within the threshold of it) loses to one that fits the ground tightly.
+  const double thr2 = thr_rad * thr_rad;
+  auto msac = [&](const Eigen::Matrix3d& R) {
+    double cost = 0;
+    for (int i = 0; i < n; ++i)
+      cost += std::min((c2[static_cast<std::size_t>(i)] - R * c1[static_cast<std::size_t>(i)]).squaredNorm(),
+                       thr2);
+    return cost;
+  };
+  double best = std::numeric_limits<double>::infinity();
+  Eigen::Matrix3d best_R = Eigen::Matrix3d::Identity();
+  for (int it = 0; it < opt.ransac_iterations; ++it) {
+    const int a = pick(rng);
+    int b = pick(rng);
+    if (b == a) b = (a + 1) % n;
+    // Two nearly parallel rays do not fix a rotation.
+    if (c1[static_cast<std::size_t>(a)].cross(c1[static_cast<std::size_t>(b)]).norm() < 20 * thr_rad)
+      continue;
+    const Eigen::Matrix3d R = kabsch(c1, c2, {a, b});
+    if (!gate.admits(R)) continue;
+    const double c = msac(R);
+    if (c < best) {
+      best = c;
+      best_R = R;
+    }
+  }
+  if (!std::isfinite(best)) return false;
+  R21 = best_R;
+  // Refine on the inliers, the threshold tightened to 3 sigma of their own misfit.
+  double thr = thr_rad;
+  for (int round = 0; round < 4; ++round) {
+    inliers.clear();
+    std::vector<double> res;
+    for (int i = 0; i < n; ++i) {
+      const double e = (c2[static_cast<std::size_t>(i)] - R21 * c1[static_cast<std::size_t>(i)]).norm();
+      if (e < thr) {
+        inliers.push_back(i);
+        res.push_back(e);
+      }
+    }
+    if (static_cast<int>(inliers.size()) < opt.min_inliers) break;
+    R21 = kabsch(c1, c2, inliers);
+    thr = std::clamp(3.0 * median(res) / 1.18, 0.1 / focal_px, thr_rad);
+  }
+  return static_cast<int>(inliers.size()) >= opt.min_inliers && gate.admits(R21);
+}
+
+void CameraRotationTracker::Impl::follow_misfits(std::vector<Track>& kept,
+                                                 const std::vector<Eigen::Vector3d>& r1,
+                                                 const std::vector<Eigen::Vector3d>& r2,
+                                                 const Eigen::Matrix3d& R21, double sigma,
+                                                 double thr_rad) const {
+  const double lambda = opt.track_memory;
+  const double limit = 4.0 * sigma / std::sqrt(1.0 - lambda * lambda);
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    Track& t = kept[i];
+    const Eigen::Vector3d res = r2[i] - R21 * r1[i];
+    t.misfit = lambda * (R21 * t.misfit) + res;
+    if (!t.flagged && (t.misfit.norm() > limit || res.norm() > 3 * thr_rad))
+      t.flagged = true;
+    else if (t.flagged && t.misfit.norm() < 0.5 * limit && res.norm() < thr_rad)
+      t.flagged = false;
+  }
+}
+
+void CameraRotationTracker::Impl::track(const cv::Mat& gray, const std::vector<cv::Mat>& pyramid,
+                                        TimestampNs t_ns) {
+  std::vector<Track> kept;
+  std::vector<Eigen::Vector3d> new_rays;
+  follow(gray, pyramid, kept, new_rays);
   // Every kept track's rays: r1 previous (parallax removed), r2 current. The rotation is fitted to
   // the unflagged ones; the misfit is followed for all, so a flagged track can come back.
   const int n_all = static_cast<int>(kept.size());
@@ -188,87 +310,20 @@ void CameraRotationTracker::Impl::track(const cv::Mat& gray, const std::vector<c
   // The nav rate's rotation over the interval, at the prior offset and at +-search_s: a hypothesis
   // must lie within what the offset's uncertainty allows (plus a floor), so that a large receiver
   // moving with the tanker cannot win the consensus over the ground.
-  std::optional<Eigen::Matrix3d> R21_nav;
-  double gate_rad = 0;
-  if (omega) {
-    auto predicted = [&](double shift_s) -> std::optional<Eigen::Vector3d> {
-      const TimestampNs s_ns = s_to_ns(opt.prior_offset_s + shift_s);
-      const TimestampNs a = prev_t_ns - s_ns, b = t_ns - s_ns;
-      const auto wa = omega(a), wm = omega(a + (b - a) / 2), wb = omega(b);
-      if (!wa || !wm || !wb) return std::nullopt;
-      return Eigen::Vector3d(R_body_cam.transpose() * ((*wa + 4 * *wm + *wb) / 6.0) * ns_to_s(b - a));
-    };
-    const auto th0 = predicted(0), thm = predicted(-opt.search_s), thp = predicted(opt.search_s);
-    if (th0 && thm && thp) {
-      // r2 = R21 r1 with R_cam0_cam1 = Exp(theta) = R21^T.
-      R21_nav = Eigen::AngleAxisd(th0->norm(), th0->norm() > 0 ? th0->normalized() : Eigen::Vector3d::UnitX())
-                    .toRotationMatrix()
-                    .transpose();
-      gate_rad = std::max((*thm - *th0).norm(), (*thp - *th0).norm()) + opt.nav_gate_px / focal_px;
-    }
-  }
-  auto in_gate = [&](const Eigen::Matrix3d& R) { return !R21_nav || log_so3(R * R21_nav->transpose()).norm() <= gate_rad; };
+  const NavGate gate = nav_gate(t_ns);
   Eigen::Matrix3d R21 = Eigen::Matrix3d::Identity();  // r2 = R21 r1
   bool solved = false;
   std::vector<int> inliers;  // indices into cand
-  auto ray1 = [&](int k) -> const Eigen::Vector3d& { return r1[static_cast<std::size_t>(cand[static_cast<std::size_t>(k)])]; };
-  auto ray2 = [&](int k) -> const Eigen::Vector3d& { return r2[static_cast<std::size_t>(cand[static_cast<std::size_t>(k)])]; };
-  if (n >= std::max(opt.min_inliers, 3)) {
-    std::vector<Eigen::Vector3d> c1, c2;
-    for (int k = 0; k < n; ++k) {
-      c1.push_back(ray1(k));
-      c2.push_back(ray2(k));
-    }
-    std::uniform_int_distribution<int> pick(0, n - 1);
-    // MSAC: the truncated squared misfit, so a hypothesis between two motions (ground and the
-    // receiver, each within the threshold of it) loses to one that fits the ground tightly.
-    const double thr2 = thr_rad * thr_rad;
-    auto msac = [&](const Eigen::Matrix3d& R) {
-      double cost = 0;
-      for (int i = 0; i < n; ++i)
-        cost += std::min((c2[static_cast<std::size_t>(i)] - R * c1[static_cast<std::size_t>(i)]).squaredNorm(), thr2);
-      return cost;
-    };
-    double best = std::numeric_limits<double>::infinity();
-    Eigen::Matrix3d best_R = Eigen::Matrix3d::Identity();
-    for (int it = 0; it < opt.ransac_iterations; ++it) {
-      const int a = pick(rng);
-      int b = pick(rng);
-      if (b == a) b = (a + 1) % n;
-      // Two nearly parallel rays do not fix a rotation.
-      if (c1[static_cast<std::size_t>(a)].cross(c1[static_cast<std::size_t>(b)]).norm() < 20 * thr_rad) continue;
-      const Eigen::Matrix3d R = kabsch(c1, c2, {a, b});
-      if (!in_gate(R)) continue;
-      const double c = msac(R);
-      if (c < best) {
-        best = c;
-        best_R = R;
-      }
-    }
-    if (std::isfinite(best)) {
-      R21 = best_R;
-      // Refine on the inliers, the threshold tightened to 3 sigma of their own misfit.
-      double thr = thr_rad;
-      for (int round = 0; round < 4; ++round) {
-        inliers.clear();
-        std::vector<double> res;
-        for (int i = 0; i < n; ++i) {
-          const double e = (c2[static_cast<std::size_t>(i)] - R21 * c1[static_cast<std::size_t>(i)]).norm();
-          if (e < thr) {
-            inliers.push_back(i);
-            res.push_back(e);
-          }
-        }
-        if (static_cast<int>(inliers.size()) < opt.min_inliers) break;
-        R21 = kabsch(c1, c2, inliers);
-        thr = std::clamp(3.0 * median(res) / 1.18, 0.1 / focal_px, thr_rad);
-      }
-      solved = static_cast<int>(inliers.size()) >= opt.min_inliers && in_gate(R21);
-    }
+  std::vector<Eigen::Vector3d> c1, c2;
+  for (int k = 0; k < n; ++k) {
+    c1.push_back(r1[static_cast<std::size_t>(cand[static_cast<std::size_t>(k)])]);
+    c2.push_back(r2[static_cast<std::size_t>(cand[static_cast<std::size_t>(k)])]);
   }
+  if (n >= std::max(opt.min_inliers, 3)) solved = fit_rotation(c1, c2, thr_rad, gate, R21, inliers);
   if (solved) {
     double ss = 0;
-    for (int k : inliers) ss += (ray2(k) - R21 * ray1(k)).squaredNorm();
+    for (int k : inliers)
+      ss += (c2[static_cast<std::size_t>(k)] - R21 * c1[static_cast<std::size_t>(k)]).squaredNorm();
     FrameRotation fr;
     fr.t0_camera_ns = prev_t_ns;
     fr.t1_camera_ns = t_ns;
@@ -280,17 +335,9 @@ void CameraRotationTracker::Impl::track(const cv::Mat& gray, const std::vector<c
     // Noise of one misfit, robustly, from the candidates (a 2-D misfit's median is 1.18 sigma).
     std::vector<double> m;
     m.reserve(static_cast<std::size_t>(n));
-    for (int k = 0; k < n; ++k) m.push_back((ray2(k) - R21 * ray1(k)).norm());
-    const double sigma = std::max(median(m) / 1.18, 0.02 / focal_px);
-    const double lambda = opt.track_memory;
-    const double limit = 4.0 * sigma / std::sqrt(1.0 - lambda * lambda);
-    for (int i = 0; i < n_all; ++i) {
-      Track& t = kept[static_cast<std::size_t>(i)];
-      const Eigen::Vector3d res = r2[static_cast<std::size_t>(i)] - R21 * r1[static_cast<std::size_t>(i)];
-      t.misfit = lambda * (R21 * t.misfit) + res;
-      if (!t.flagged && (t.misfit.norm() > limit || res.norm() > 3 * thr_rad)) t.flagged = true;
-      else if (t.flagged && t.misfit.norm() < 0.5 * limit && res.norm() < thr_rad) t.flagged = false;
-    }
+    for (int k = 0; k < n; ++k)
+      m.push_back((c2[static_cast<std::size_t>(k)] - R21 * c1[static_cast<std::size_t>(k)]).norm());
+    follow_misfits(kept, r1, r2, R21, std::max(median(m) / 1.18, 0.02 / focal_px), thr_rad);
   }
   for (std::size_t i = 0; i < kept.size(); ++i) kept[i].ray = new_rays[i];
   tracks = std::move(kept);
