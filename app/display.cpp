@@ -508,34 +508,8 @@ class DisplayImpl final : public Display {
     glfwGetFramebufferSize(win_, &fbw, &fbh);
     glfwGetWindowSize(win_, &ww, &wh);
 
-    // New images (or another overlay): one composition and upload per view.
-    const bool new_frame = !have_frame_id_ || in.frame_id != frame_id_;
-    if (new_frame) {
-      frame_id_ = in.frame_id;
-      have_frame_id_ = true;
-      if (in.hud.occlusion) history_.add(t_s, *in.hud.occlusion);
-    }
-    bool changed = new_frame;
-    if (new_frame || composed_overlay_ != overlay_) {
-      // Composed at the next redraw, once the layout says how large each view is shown.
-      for (int i = 0; i < 2; ++i) {
-        ViewState& v = views_[i];
-        v.pending = true;
-        const Image* im = in.images[i];
-        v.image_w = im ? im->width() : 0;  // the layout's aspect
-        v.image_h = im ? im->height() : 0;
-      }
-      composed_overlay_ = overlay_;
-      changed = true;
-    }
     const std::optional<Pose> pose = validation_ ? validation_pose(in) : std::nullopt;
-    if (validation_ && (new_frame || !lines_valid_ || !same_pose(pose, lines_pose_))) {
-      for (int i = 0; i < 2; ++i) project_validation(i, in, pose);
-      lines_pose_ = pose;
-      lines_valid_ = true;
-      changed = true;
-    }
-    if (!validation_) lines_valid_ = false;
+    const bool changed = take_input(in, pose, t_s);
     history_.trim(t_s, opt_.plot_seconds);
     while (!own_messages_.empty() && own_messages_.front().first < t_s - 10.0) own_messages_.pop_front();
 
@@ -549,13 +523,7 @@ class DisplayImpl final : public Display {
     events_ = false;
     settle_frames_ = std::max(0, settle_frames_ - 1);
     last_draw_ = now;
-    ++frames_drawn_;
-    ++fps_frames_;
-    if (const double window_s = std::chrono::duration<double>(now - fps_since_).count(); window_s >= 1.0) {
-      display_fps_ = fps_frames_ / window_s;  // frames drawn per second
-      fps_frames_ = 0;
-      fps_since_ = now;
-    }
+    count_drawn_frame(now);
     update_scale(false);
     const float fb_scale = static_cast<float>(fbw) / static_cast<float>(ww);
 
@@ -563,102 +531,25 @@ class DisplayImpl final : public Display {
     ImGui_ImplGlfw_NewFrame();
     ImGui::NewFrame();
     compute_layout(in, fbw, fbh, fb_scale);
-    // Each view at about its size on screen: recomposed for a new image or overlay, or when a
-    // resize changes the factor.
-    for (int i = 0; i < 2; ++i) {
-      ViewState& v = views_[i];
-      const Image* im = in.images[i];
-      const PixelRect& r = layout_.views[i];
-      if (!im || im->empty()) {
-        if (v.pending) compose_view(i, in, 1);
-        continue;
-      }
-      const int f = r.empty() ? std::max(1, v.factor) : v.scale.factor;
-      if (v.pending || f != v.factor || v.scale.exact != v.exact) compose_view(i, in, f);
-    }
-
+    compose_views(in);
     handle_world_mouse(fb_scale);
     // The world view is re-rendered for input (orbit, zoom, toggles) at once, else at most every
     // world_refresh_s: a new frame alone (30 Hz live) shows it again as last rendered.
     const bool world_due = input || !world_tex_ ||
                            std::chrono::duration<double>(now - last_world_).count() >= opt_.world_refresh_s;
     if (layout_.world.empty()) world_tex_ = 0;
-    if (!layout_.world.empty() && world_due) {
-      WorldViewInput wi;
-      wi.rig = in.rig;
-      wi.scene = in.scene;
-      wi.validation_T_body_receiver = pose;
-      for (int i = 0; i < 2; ++i) wi.image_textures[i] = views_[i].image_w ? views_[i].texture.id() : 0;
-      wi.frustum_rgb = {overlay_luts().overlap.colour[1], overlay_luts().overlap.colour[2]};  // left-only cyan, right-only blue
-      wi.frustum_depth_m = frustum_depth_m_;
-      const double area = static_cast<double>(layout_.world.w) * layout_.world.h;
-      const double k = std::min(1.0, std::sqrt(opt_.world_view_max_px / std::max(area, 1.0)));
-      // Within the pixel budget, at the view's size, drawn 1:1 (NEAREST: llvmpipe's row copy); else
-      // reduced, in steps of 16 px so that a window drag re-makes the target rarely.
-      const bool exact = k >= 1.0 && layout_.world.w >= 16 && layout_.world.h >= 16;
-      const int w = exact ? layout_.world.w : std::max(16, static_cast<int>(layout_.world.w * k) / 16 * 16);
-      const int h = exact ? layout_.world.h : std::max(16, static_cast<int>(layout_.world.h * k) / 16 * 16);
-      auto tex = world_->render(wi, w, h);
-      last_world_ = now;
-      if (tex) {
-        world_tex_ = *tex;
-        glBindTexture(GL_TEXTURE_2D, world_tex_);
-        const GLint filter = exact ? GL_NEAREST : GL_LINEAR;
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filter);
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filter);
-      } else {
-        world_tex_ = 0;
-        note(t_s, tex.error().message);
-      }
-    }
+    if (!layout_.world.empty() && world_due) render_world(in, pose, now, t_s);
 
-    glBindFramebuffer(GL_FRAMEBUFFER, 0);
-    glViewport(0, 0, fbw, fbh);
-    glDisable(GL_SCISSOR_TEST);
-    glDisable(GL_DEPTH_TEST);
-    glDisable(GL_BLEND);
     const std::array<float, 3> clear = {0.09f, 0.09f, 0.10f};
-    glClearColor(clear[0], clear[1], clear[2], 1.0f);
-    // Colour only: nothing here tests depth, and llvmpipe clears a depth-stencil buffer's depth
-    // alone pixel by pixel (keeping the stencil bits): 1.6 Mpx a redraw at 1600x1000.
-    glClear(GL_COLOR_BUFFER_BIT);
-    for (int i = 0; i < 2; ++i)
-      if (views_[i].image_w) draw_texture(views_[i].texture.id(), layout_.views[i], fbh, false, views_[i].uv_max);
-    if (validation_) draw_validation(in, fbh);
-    if (world_tex_) draw_texture(world_tex_, layout_.world, fbh, true);
-    glBindVertexArray(0);
-    glViewport(0, 0, fbw, fbh);
-
+    draw_views(in, fbw, fbh, clear);
     draw_hud(in, fb_scale);
     ImGui::Render();
     // The status panel: its ImGui lists drawn into a texture when due, which every redraw copies;
     // the rest of ImGui (labels, popups, the help window) drawn each time, over it.
     const bool panel_due = input || screenshot_pending_ ||
                            std::chrono::duration<double>(now - last_panel_).count() >= opt_.panel_refresh_s;
-    const ImDrawData* imgui = ImGui::GetDrawData();
-    std::vector<ImDrawList*> panel_lists, other_lists;
-    split_panel_lists(*imgui, fb_scale, panel_lists, other_lists);
-    if (const PixelRect& h = layout_.hud; !h.empty()) {
-      if (panel_due || panel_.w != h.w || panel_.h != h.h)
-        draw_panel(*imgui, panel_lists, h, fb_scale, clear);
-      draw_texture(panel_.texture, h, fbh, true);
-      glBindVertexArray(0);
-      glViewport(0, 0, fbw, fbh);
-    }
-    render_imgui_lists(*imgui, imgui->DisplayPos, imgui->DisplaySize, other_lists);
-
-    if (screenshot_pending_) {
-      screenshot_pending_ = false;
-      const std::string dir = opt_.screenshot_dir.empty() ? "." : opt_.screenshot_dir;
-      const std::string path = dir + "/augrig_" + timestamp_name() + ".png";
-      if (Status s = save_framebuffer(dir, path, fbw, fbh); s) {
-        pending_.screenshots.push_back(path);
-        last_saved_ = path;
-      } else {
-        pending_.errors.push_back(s.error().message);
-        note(t_s, s.error().message);
-      }
-    }
+    draw_imgui(panel_due, fbw, fbh, fb_scale, clear);
+    if (screenshot_pending_) take_screenshot(fbw, fbh, t_s);
     if (clip_active_) write_clip_frame(fbw, fbh, t_s);
     glfwSwapBuffers(win_);
     return true;
@@ -714,6 +605,145 @@ class DisplayImpl final : public Display {
   GLFWwindow* window() override { return win_; }
 
  private:
+  // frame()'s parts. A new frame (or overlay, or validation pose) noted: true when the views
+  // change.
+  bool take_input(const DisplayInput& in, const std::optional<Pose>& pose, double t_s) {
+    // New images (or another overlay): one composition and upload per view.
+    const bool new_frame = !have_frame_id_ || in.frame_id != frame_id_;
+    if (new_frame) {
+      frame_id_ = in.frame_id;
+      have_frame_id_ = true;
+      if (in.hud.occlusion) history_.add(t_s, *in.hud.occlusion);
+    }
+    bool changed = new_frame;
+    if (new_frame || composed_overlay_ != overlay_) {
+      // Composed at the next redraw, once the layout says how large each view is shown.
+      for (int i = 0; i < 2; ++i) {
+        ViewState& v = views_[i];
+        v.pending = true;
+        const Image* im = in.images[i];
+        v.image_w = im ? im->width() : 0;  // the layout's aspect
+        v.image_h = im ? im->height() : 0;
+      }
+      composed_overlay_ = overlay_;
+      changed = true;
+    }
+    if (validation_ && (new_frame || !lines_valid_ || !same_pose(pose, lines_pose_))) {
+      for (int i = 0; i < 2; ++i) project_validation(i, in, pose);
+      lines_pose_ = pose;
+      lines_valid_ = true;
+      changed = true;
+    }
+    if (!validation_) lines_valid_ = false;
+    return changed;
+  }
+
+  void count_drawn_frame(Clock::time_point now) {
+    ++frames_drawn_;
+    ++fps_frames_;
+    if (const double window_s = std::chrono::duration<double>(now - fps_since_).count(); window_s >= 1.0) {
+      display_fps_ = fps_frames_ / window_s;  // frames drawn per second
+      fps_frames_ = 0;
+      fps_since_ = now;
+    }
+  }
+
+  // Each view at about its size on screen: recomposed for a new image or overlay, or when a
+  // resize changes the factor.
+  void compose_views(const DisplayInput& in) {
+    for (int i = 0; i < 2; ++i) {
+      ViewState& v = views_[i];
+      const Image* im = in.images[i];
+      const PixelRect& r = layout_.views[i];
+      if (!im || im->empty()) {
+        if (v.pending) compose_view(i, in, 1);
+        continue;
+      }
+      const int f = r.empty() ? std::max(1, v.factor) : v.scale.factor;
+      if (v.pending || f != v.factor || v.scale.exact != v.exact) compose_view(i, in, f);
+    }
+  }
+
+  void render_world(const DisplayInput& in, const std::optional<Pose>& pose, Clock::time_point now,
+                    double t_s) {
+    WorldViewInput wi;
+    wi.rig = in.rig;
+    wi.scene = in.scene;
+    wi.validation_T_body_receiver = pose;
+    for (int i = 0; i < 2; ++i) wi.image_textures[i] = views_[i].image_w ? views_[i].texture.id() : 0;
+    wi.frustum_rgb = {overlay_luts().overlap.colour[1],
+                      overlay_luts().overlap.colour[2]};  // left-only cyan, right-only blue
+    wi.frustum_depth_m = frustum_depth_m_;
+    const double area = static_cast<double>(layout_.world.w) * layout_.world.h;
+    const double k = std::min(1.0, std::sqrt(opt_.world_view_max_px / std::max(area, 1.0)));
+    // Within the pixel budget, at the view's size, drawn 1:1 (NEAREST: llvmpipe's row copy); else
+    // reduced, in steps of 16 px so that a window drag re-makes the target rarely.
+    const bool exact = k >= 1.0 && layout_.world.w >= 16 && layout_.world.h >= 16;
+    const int w = exact ? layout_.world.w : std::max(16, static_cast<int>(layout_.world.w * k) / 16 * 16);
+    const int h = exact ? layout_.world.h : std::max(16, static_cast<int>(layout_.world.h * k) / 16 * 16);
+    auto tex = world_->render(wi, w, h);
+    last_world_ = now;
+    if (tex) {
+      world_tex_ = *tex;
+      glBindTexture(GL_TEXTURE_2D, world_tex_);
+      const GLint filter = exact ? GL_NEAREST : GL_LINEAR;
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filter);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filter);
+    } else {
+      world_tex_ = 0;
+      note(t_s, tex.error().message);
+    }
+  }
+
+  // The window cleared, then the two views, the validation lines and the world view.
+  void draw_views(const DisplayInput& in, int fbw, int fbh, const std::array<float, 3>& clear) {
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    glViewport(0, 0, fbw, fbh);
+    glDisable(GL_SCISSOR_TEST);
+    glDisable(GL_DEPTH_TEST);
+    glDisable(GL_BLEND);
+    glClearColor(clear[0], clear[1], clear[2], 1.0f);
+    // Colour only: nothing here tests depth, and llvmpipe clears a depth-stencil buffer's depth
+    // alone pixel by pixel (keeping the stencil bits): 1.6 Mpx a redraw at 1600x1000.
+    glClear(GL_COLOR_BUFFER_BIT);
+    for (int i = 0; i < 2; ++i)
+      if (views_[i].image_w)
+        draw_texture(views_[i].texture.id(), layout_.views[i], fbh, false, views_[i].uv_max);
+    if (validation_) draw_validation(in, fbh);
+    if (world_tex_) draw_texture(world_tex_, layout_.world, fbh, true);
+    glBindVertexArray(0);
+    glViewport(0, 0, fbw, fbh);
+  }
+
+  // ImGui's rendered lists: the status panel's through its texture (redrawn when due), the rest
+  // drawn directly.
+  void draw_imgui(bool panel_due, int fbw, int fbh, float fb_scale, const std::array<float, 3>& clear) {
+    const ImDrawData* imgui = ImGui::GetDrawData();
+    std::vector<ImDrawList*> panel_lists, other_lists;
+    split_panel_lists(*imgui, fb_scale, panel_lists, other_lists);
+    if (const PixelRect& h = layout_.hud; !h.empty()) {
+      if (panel_due || panel_.w != h.w || panel_.h != h.h)
+        draw_panel(*imgui, panel_lists, h, fb_scale, clear);
+      draw_texture(panel_.texture, h, fbh, true);
+      glBindVertexArray(0);
+      glViewport(0, 0, fbw, fbh);
+    }
+    render_imgui_lists(*imgui, imgui->DisplayPos, imgui->DisplaySize, other_lists);
+  }
+
+  void take_screenshot(int fbw, int fbh, double t_s) {
+    screenshot_pending_ = false;
+    const std::string dir = opt_.screenshot_dir.empty() ? "." : opt_.screenshot_dir;
+    const std::string path = dir + "/augrig_" + timestamp_name() + ".png";
+    if (Status s = save_framebuffer(dir, path, fbw, fbh); s) {
+      pending_.screenshots.push_back(path);
+      last_saved_ = path;
+    } else {
+      pending_.errors.push_back(s.error().message);
+      note(t_s, s.error().message);
+    }
+  }
+
   static DisplayImpl* self(GLFWwindow* w) { return static_cast<DisplayImpl*>(glfwGetWindowUserPointer(w)); }
 
   // ---- Input ------------------------------------------------------------------------------------
