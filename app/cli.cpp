@@ -6,6 +6,7 @@
 #include <cstdlib>
 
 #include "pipeline/nav_inputs.hpp"
+#include "pipeline/sinks/registry.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/recorder.hpp"
 #include "render/visualize.hpp"
@@ -113,6 +114,22 @@ OptionSpec look_option() {
   return {"look", ArgKind::kValue, "plain|camera",
           "the boom's look: camera (sun and sky, the camera's PSF and sensor noise estimated from its frames) "
           "or plain (a clean rendering under a fixed light); default camera (docs/LOOK.md)"};
+}
+
+OptionSpec sink_option() {
+  std::string help = "another output, repeatable:";
+  for (const std::string& u : pipeline::sink_usages()) help += "\n  " + u;
+  OptionSpec spec{"sink", ArgKind::kValue, "SCHEME:ARG", help};
+  spec.repeatable = true;
+  return spec;
+}
+
+void apply_sink_args(const ParsedArgs& a, pipeline::PipelineParts& parts) {
+  for (const std::string& spec : a.all("sink")) {
+    auto sink = pipeline::make_sink(spec, {parts.rig});
+    if (!sink) usage_error(sink.error().message);
+    parts.sinks.push_back(std::move(*sink));
+  }
 }
 
 void apply_look_arg(const ParsedArgs& a, const Rig& rig, AugmentOptions& options) {

@@ -117,6 +117,10 @@ OptionSpec receiver_draw_option();
 // --look plain|camera (render/camera_look.hpp) into `options`, with the rig's per-camera look keys.
 OptionSpec look_option();
 void apply_look_arg(const ParsedArgs& a, const Rig& rig, AugmentOptions& options);
+// --sink SCHEME:ARG, repeatable (pipeline/sinks/registry.hpp: video:FILE.mp4, tum:FILE.txt): each
+// made for `parts.rig` and added to `parts.sinks`; a bad one is a usage error naming it.
+OptionSpec sink_option();
+void apply_sink_args(const ParsedArgs& a, pipeline::PipelineParts& parts);
 
 std::unique_ptr<GlContext> make_gl_context();
 void make_dirs(const fs::path& dir);

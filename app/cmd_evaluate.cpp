@@ -292,8 +292,7 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   bool range_in_source = false;
   if (is_sim) {
     source_rig = opened.sim->scenario.rig;
-    if (const auto* fs = dynamic_cast<const sim::FlightSource*>(opened.sources.front().get()))
-      total_pairs = fs->frame_count() / 2;
+    total_pairs = opened.sources.front()->pair_count();
   } else if (opened.replay) {
     const recorder::RecordingReader& reader = opened.replay->reader();
     for (const std::string& p : reader.problems())
@@ -317,23 +316,22 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
       range_in_source = true;
     }
     total_pairs = opened.replay->end_frame() - opened.replay->start_frame();
-  } else if (const auto* mc = dynamic_cast<const recorder::McapSource*>(opened.sources.front().get())) {
+  } else {
+    FrameSource& source = *opened.sources.front();
     // An MCAP file from augrig export: read front to back, with the rig in its metadata.
-    if (mc->meta().count("rig_yaml"))
-      source_rig =
-          unwrap(parse_rig(mc->meta().at("rig_yaml"), src + " (metadata augrig_recording, rig_yaml)"));
-    total_pairs = mc->frame_count();
-  } else if (auto* e = dynamic_cast<recorder::EurocSource*>(opened.sources.front().get())) {
-    origin_ns = e->first_t_ns();
-    euroc_start = e->start_pair();
-    if (max_pairs) {
-      check(e->set_end_pair(e->start_pair() +
-                            std::min<std::size_t>(static_cast<std::size_t>(max_pairs), e->pair_count())));
-      range_in_source = true;
+    if (const auto meta = source.metadata(); meta.count("rig_yaml"))
+      source_rig = unwrap(parse_rig(meta.at("rig_yaml"), src + " (metadata augrig_recording, rig_yaml)"));
+    // A EuRoC folder: a range of its pairs, counted and timed from the folder's first.
+    if (source.capabilities().ranged) {
+      origin_ns = source.origin_t_ns();
+      euroc_start = source.range_start();
+      if (max_pairs) {
+        check(source.set_range_end(source.range_start() + std::min<std::size_t>(static_cast<std::size_t>(max_pairs),
+                                                                                 source.pair_count())));
+        range_in_source = true;
+      }
     }
-    total_pairs = e->pair_count();
-  } else if (const auto* f = dynamic_cast<const ImageFolderSource*>(opened.sources.front().get())) {
-    total_pairs = f->expected_pairs(opened.options.pairing.tolerance_ns);
+    total_pairs = source.pair_count();
   }
   const Rig rig = a.has("rig") ? load_rig_arg(a.get("rig")) : source_rig ? *source_rig : Rig::paper_default();
   if (rig.cameras.size() != 2)
@@ -381,8 +379,8 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
                       const FramePoses&) -> Status {
     if (seen++ == 0 && !origin_ns) origin_ns = result.stats.t_ns;
     std::uint64_t index = seen - 1;
-    if (const auto* rf = dynamic_cast<const recorder::RecordedFrame*>(raw.left.attachment.get()))
-      index = rf->index;
+    if (const std::optional<SourcePosition> at = raw.left.attachment ? raw.left.attachment->position() : std::nullopt)
+      index = at->index;
     else if (euroc_start)
       index = *euroc_start + raw.left.sequence;
     // Selected and imaged by the source's index, not by the count in this run: a part of the run

@@ -72,6 +72,7 @@ const std::vector<OptionSpec>& replay_specs() {
       pose_tolerance_option(),
       receiver_draw_option(),
       look_option(),
+      sink_option(),
       boom_option("the recorded boom; track where none was recorded"),
       {"record", ArgKind::kValue, "DIR", "record the re-augmented run (a new recording, docs/RECORDING.md)"},
       {"overwrite", ArgKind::kFlag, "", "with --record: replace a recording already in DIR"},
@@ -127,6 +128,7 @@ void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayCon
   parts.models = unwrap(load_rig_models(parts.rig));
   parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
   apply_look_arg(a, parts.rig, parts.augment);
+  apply_sink_args(a, parts);
   if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
   if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
   PoseSources ps;
@@ -190,11 +192,10 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
   const std::size_t frames = replay_frames(a);
   const std::string target = dir.rfind("euroc://", 0) == 0 ? dir.substr(8) : dir;
   OpenedSource opened = unwrap(open_sources("euroc://" + target + params));
-  auto* euroc = dynamic_cast<recorder::EurocSource*>(opened.sources.front().get());
-  if (euroc && frames)
-    check(euroc->set_end_pair(euroc->start_pair() + std::min(frames, euroc->pair_count())));
-  const std::size_t pairs = euroc ? euroc->pair_count() : 0;
-  const std::uint64_t unpaired = euroc ? euroc->unpaired() : 0;
+  FrameSource& euroc = *opened.sources.front();
+  if (frames) check(euroc.set_range_end(euroc.range_start() + std::min(frames, euroc.pair_count())));
+  const std::size_t pairs = euroc.pair_count();
+  const std::uint64_t unpaired = euroc.frames_dropped();  // before reading: the frames without a partner
   PipelineParts parts;
   configure_replay(parts, a, {"euroc://" + target, std::nullopt, true, false, ""});
   out << "replay: euroc://" << target << ", " << pairs << " stereo pairs (" << unpaired
@@ -231,12 +232,11 @@ int replay_mcap(const std::string& file, const ParsedArgs& a, std::ostream& out,
                   ": an MCAP file plays once, from its first frame, as fast as possible");
   const std::string path = file.rfind("replay://", 0) == 0 ? file.substr(9) : file;
   OpenedSource opened = unwrap(open_sources("replay://" + path + "?rate=fast"));
-  const auto* mcap = dynamic_cast<const recorder::McapSource*>(opened.sources.front().get());
-  const std::size_t frames = mcap ? mcap->frame_count() : 0;
+  const FrameSource& mcap = *opened.sources.front();
+  const std::size_t frames = mcap.pair_count();
   std::optional<Rig> recorded_rig;
-  if (mcap && mcap->meta().count("rig_yaml"))
-    recorded_rig =
-        unwrap(parse_rig(mcap->meta().at("rig_yaml"), path + " (metadata augrig_recording, rig_yaml)"));
+  if (const auto meta = mcap.metadata(); meta.count("rig_yaml"))
+    recorded_rig = unwrap(parse_rig(meta.at("rig_yaml"), path + " (metadata augrig_recording, rig_yaml)"));
   PipelineParts parts;
   configure_replay(parts, a, {path, recorded_rig, false, true, ""});
   parts.max_pairs = replay_frames(a);  // the first N augmented

@@ -87,8 +87,8 @@ std::string uri_path(const std::string& flag, const std::string& path) {
 // Each pair's images are named after its input files' stems (the source's ImageFileAttachment).
 FrameNames input_names(const StereoFrame& frame) {
   auto stem = [](const Frame& f) {
-    const auto* a = dynamic_cast<const ImageFileAttachment*>(f.attachment.get());
-    return a ? fs::path(a->path).stem().string() : std::to_string(f.sequence);
+    const std::string path = f.attachment ? f.attachment->file_path() : std::string();
+    return path.empty() ? std::to_string(f.sequence) : fs::path(path).stem().string();
   };
   return {stem(frame.left), stem(frame.right)};
 }
@@ -158,10 +158,10 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   }
   if (a.has("bayer")) parse_bayer(a.get("bayer"));  // a bad pattern is a usage error, not the URI's
   OpenedSource opened = unwrap(open_sources(uri + params));
-  const auto* files = dynamic_cast<const ImageFolderSource*>(opened.sources.front().get());
-  if (!files) runtime_error("internal error: " + uri + " did not open an image folder source");
-  const std::size_t expected_pairs = files->expected_pairs(opened.options.pairing.tolerance_ns);
-  const std::size_t frame_count = files->entries().size();
+  if (!opened.image_files) runtime_error("internal error: " + uri + " did not open an image folder source");
+  const ImageFolderSource* files = opened.image_files;
+  const std::size_t expected_pairs = files->pair_count();
+  const std::size_t frame_count = files->image_count();
 
   const RigModels receiver = unwrap(load_rig_models(rig));
   options.receiver_model = receiver.receiver_model;
@@ -297,6 +297,14 @@ const char* kTopHelp =
 
 // ---- Argument parsing ---------------------------------------------------------------------------
 
+std::vector<std::string> ParsedArgs::all(const std::string& name) const {
+  std::vector<std::string> v;
+  if (!has(name)) return v;
+  std::istringstream in(get(name));
+  for (std::string line; std::getline(in, line);) v.push_back(line);
+  return v;
+}
+
 Expected<ParsedArgs> parse_args(const std::vector<std::string>& args, const std::vector<OptionSpec>& specs) {
   ParsedArgs p;
   auto find = [&](const std::string& name) -> const OptionSpec* {
@@ -318,7 +326,7 @@ Expected<ParsedArgs> parse_args(const std::vector<std::string>& args, const std:
     const std::string name = arg.substr(2, eq == std::string::npos ? std::string::npos : eq - 2);
     const OptionSpec* spec = find(name);
     if (!spec) return make_error("unknown option '--", name, "'");
-    if (p.has(name)) return make_error("option '--", name, "' given twice");
+    if (p.has(name) && !spec->repeatable) return make_error("option '--", name, "' given twice");
     std::string value;
     if (eq != std::string::npos) {
       if (spec->kind == ArgKind::kFlag) return make_error("option '--", name, "' takes no value");
@@ -331,7 +339,7 @@ Expected<ParsedArgs> parse_args(const std::vector<std::string>& args, const std:
     if (spec->kind == ArgKind::kValue && value.empty()) {
       return make_error("option '--", name, "' needs a non-empty value: --", name, " ", spec->metavar);
     }
-    p.values[name] = value;
+    p.values[name] = p.has(name) ? p.values[name] + '\n' + value : value;  // repeatable: one per line
   }
   if (!p.help) {
     for (const auto& s : specs) {

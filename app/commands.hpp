@@ -36,12 +36,15 @@ struct OptionSpec {
   std::string metavar;  // shown in the help ("RIG.yaml")
   std::string help;
   bool required = false;
+  bool repeatable = false;  // may be given more than once (ParsedArgs::all)
 };
 
 struct ParsedArgs {
   std::map<std::string, std::string> values;  // flags map to "" (kOptionalValue without '=' too)
   bool help = false;
   bool has(const std::string& name) const { return values.count(name) != 0; }
+  // Every value of a repeatable option, in the order given.
+  std::vector<std::string> all(const std::string& name) const;
   std::string get(const std::string& name, const std::string& fallback = "") const {
     const auto it = values.find(name);
     return it == values.end() ? fallback : it->second;

@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <map>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "core/conventions.hpp"
@@ -24,11 +26,39 @@ constexpr std::string_view to_string(CameraId id) {
   return id == CameraId::kLeft ? "left" : "right";
 }
 
-// What a file source knows about a frame beyond its pixels (a recording's poses and stored image
-// bytes, a dataset's row): opaque here, read by whoever knows the type (dynamic_cast). Both Frames
-// of a stereo frame share one; it is never changed after the source made it.
+namespace recorder {
+struct RecordedFrame;
+}
+
+// Where a frame lies in a file source: its index there (a recording's frame, a dataset's pair)
+// and the loop pass (0: the first).
+struct SourcePosition {
+  std::size_t index = 0;
+  int pass = 0;
+};
+
+// A recorded pair's own pairing (a replay keeps the key, skew and sequence it was recorded with).
+struct RecordedPairing {
+  TimestampNs t_key_ns = 0;
+  std::int64_t skew_ns = 0;
+  std::uint64_t pair_sequence = 0;
+};
+
+// What a file source knows about a frame beyond its pixels, asked through these accessors (never
+// by the attachment's type). Both Frames of a stereo frame share one; it is never changed after
+// the source made it.
 struct FrameAttachment {
   virtual ~FrameAttachment() = default;
+  // Where the frame lies in its file (none: the source has no such index).
+  virtual std::optional<SourcePosition> position() const { return std::nullopt; }
+  // The file its image was read from (an image folder's); empty: none.
+  virtual std::string file_path() const { return {}; }
+  // A paced replay: CLOCK_MONOTONIC when the frame was due (0: not paced, or not a replay).
+  virtual TimestampNs due_host_ns() const { return 0; }
+  // A replayed pair's recorded pairing (none: pair it anew).
+  virtual std::optional<RecordedPairing> recorded_pairing() const { return std::nullopt; }
+  // A recording's frame (recorder/replay_source.hpp): everything recorded with it; null otherwise.
+  virtual const recorder::RecordedFrame* recorded() const { return nullptr; }
 };
 
 struct Frame {
@@ -88,6 +118,14 @@ struct SourceHealth {
   std::uint64_t transport_drops = 0;  // frames lost on the way (incomplete blocks, error flags)
 };
 
+// What a source can do beyond read(), asked instead of its type.
+struct SourceCapabilities {
+  bool finite = false;    // it ends (a file, a dataset, a simulation): pair_count() is its length
+  bool seekable = false;  // a frame can be sought and stepped to (a recording)
+  bool paced = false;     // it can play at its recorded rate, or as fast as possible
+  bool ranged = false;    // it plays a range of its file: range_start(), origin_t_ns(), set_range_end()
+};
+
 // A stream of frames from one or more cameras. Sources deliver each camera's frames in
 // sequence order; pairing into StereoFrames happens downstream (capture/stereo_pairer.hpp).
 class FrameSource {
@@ -108,6 +146,22 @@ class FrameSource {
     h.camera_drops = frames_dropped();
     return h;
   }
+
+  // ---- Capabilities (the defaults: a live source that says nothing more) ----
+  virtual SourceCapabilities capabilities() const { return {}; }
+  // Finite: the stereo pairs it delivers from its start to its end, and the images (both
+  // cameras' Frames, paired or not) it delivers (0: not known before reading).
+  virtual std::size_t pair_count() const { return 0; }
+  virtual std::size_t image_count() const { return 0; }
+  // Ranged: the index in its file of the first pair it plays (a pair's position() is this plus its
+  // sequence), and the time origin of the whole file, whatever the start (a scripted boom's t = 0).
+  virtual std::size_t range_start() const { return 0; }
+  virtual std::optional<TimestampNs> origin_t_ns() const { return std::nullopt; }
+  // Ranged: plays only up to, not including, the file's pair `end` (clamped to its last); before
+  // the first read(). An Error for a source without a range.
+  virtual Status set_range_end(std::size_t /*end*/) { return make_error(uri(), ": plays no range of a file"); }
+  // What its file stores about itself (an MCAP file's augrig_recording metadata: rig_yaml, ...).
+  virtual std::map<std::string, std::string> metadata() const { return {}; }
 };
 
 }  // namespace augrig

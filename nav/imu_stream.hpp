@@ -111,6 +111,7 @@ class UdpImuInput : public NavInput {
   Expected<NavReadStatus> read(NavEvent& out, std::chrono::nanoseconds timeout) override;
   NavInputStats stats() const override { return decoder_.stats(); }
   std::uint16_t port() const { return socket_.port(); }
+  std::uint16_t udp_port() const override { return port(); }
   const UdpReceiver& socket() const { return socket_; }
 
  private:

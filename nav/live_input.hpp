@@ -110,6 +110,8 @@ class NavInput {
   // Waits at most `timeout` (0: only what has already arrived) for the next event.
   virtual Expected<NavReadStatus> read(NavEvent& out, std::chrono::nanoseconds timeout) = 0;
   virtual NavInputStats stats() const = 0;
+  // A UDP input's bound port (useful after port 0); 0 for other inputs.
+  virtual std::uint16_t udp_port() const { return 0; }
 
   // Called with every unit of input exactly as received, before it is parsed: an NMEA line (no
   // line ending), an IMU datagram, a gpsd JSON report; with its arrival time and whether it is
@@ -212,6 +214,7 @@ class UdpNmeaInput : public NavInput {
   Expected<NavReadStatus> read(NavEvent& out, std::chrono::nanoseconds timeout) override;
   NavInputStats stats() const override { return source_.stats(); }
   std::uint16_t port() const { return socket_.port(); }
+  std::uint16_t udp_port() const override { return port(); }
   const UdpReceiver& socket() const { return socket_; }
 
  private:

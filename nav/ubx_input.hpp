@@ -74,6 +74,7 @@ class UdpUbxInput : public NavInput {
   Expected<NavReadStatus> read(NavEvent& out, std::chrono::nanoseconds timeout) override;
   NavInputStats stats() const override { return source_.stats(); }
   std::uint16_t port() const { return socket_.port(); }
+  std::uint16_t udp_port() const override { return port(); }
 
  private:
   UdpUbxInput(UdpReceiver socket, std::string uri, const UbxInputOptions& options);

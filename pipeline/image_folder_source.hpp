@@ -40,6 +40,7 @@ struct ImageFolderEntry {
 struct ImageFileAttachment final : FrameAttachment {
   std::string path;
   std::size_t line = 0;  // the index's line; 0 for folders
+  std::string file_path() const override { return path; }
 };
 
 struct ImageFolderOptions {
@@ -61,6 +62,11 @@ class ImageFolderSource final : public FrameSource {
 
   std::string uri() const override { return uri_; }
   Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
+  SourceCapabilities capabilities() const override { return {.finite = true}; }
+  // The pairs the pairing tolerance the source was opened with forms (expected_pairs()).
+  std::size_t pair_count() const override { return expected_pairs(pairing_tolerance_ns_); }
+  std::size_t image_count() const override { return entries_.size(); }
+  void set_pairing_tolerance(TimestampNs tolerance_ns) { pairing_tolerance_ns_ = tolerance_ns; }
 
   // Every image, in delivery order (by t_ns; folders: left then right per pair).
   const std::vector<ImageFolderEntry>& entries() const { return entries_; }
@@ -83,6 +89,7 @@ class ImageFolderSource final : public FrameSource {
   ClockDomain clock_ = ClockDomain::kUnknown;
   std::vector<ImageFolderEntry> entries_;
   std::size_t next_ = 0;
+  TimestampNs pairing_tolerance_ns_ = 0;
 };
 
 }  // namespace augrig::pipeline

@@ -69,11 +69,8 @@ Status NavInputs::open(const std::vector<std::pair<std::string, std::string>>& i
 }
 
 std::uint16_t NavInputs::port(const std::string& stream) const {
-  for (const Input& in : inputs_) {
-    if (in.stream != stream) continue;
-    if (const auto* u = dynamic_cast<const nav::UdpNmeaInput*>(in.input.get())) return u->port();
-    if (const auto* u = dynamic_cast<const nav::UdpImuInput*>(in.input.get())) return u->port();
-  }
+  for (const Input& in : inputs_)
+    if (in.stream == stream) return in.input->udp_port();
   return 0;
 }
 

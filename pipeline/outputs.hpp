@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -37,6 +38,15 @@ Eigen::Vector3d receptacle_of(const Rig& rig);
 struct FrameNames {
   std::string left, right;
 };
+// Per-frame image files: every `every`-th augmented pair, named by `names` when given (e.g. after
+// the input files), else by pair sequence (for a replayed recording: recorded index and pass).
+struct FrameFiles {
+  std::filesystem::path dir;
+  int every = 1;
+  std::function<FrameNames(const StereoFrame&)> names;
+  bool ground_truth = false;  // also the depth, correspondence and class files (write_ground_truth)
+};
+
 // Everything written for one stereo frame; `raw` is the frame `r` was made from (its augmented
 // images may be the changed boxes only). Creates the folders.
 Status write_frame_images(const std::filesystem::path& out, const FrameNames& n, const StereoFrame& raw,

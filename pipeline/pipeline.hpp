@@ -1,5 +1,5 @@
 // Pipeline: the runtime behind every augrig command that moves frames (run, demo's window,
-// replay). One stereo frame's path, all of it in Pipeline::process():
+// replay). One stereo frame's path (pipeline.cpp's Run::process()):
 //
 //   source    a StereoSource (capture thread per source, bounded queues, pairing) over any
 //             FrameSource by URI (sources.hpp): sim://, replay://, euroc://, aravis://, v4l2://
@@ -8,9 +8,10 @@
 //   boom      the BoomStage (boom_stage.hpp): the source's boom, fixed, scripted, tracking the
 //             receptacle, or the operator's
 //   augment   the Augmenter: masks, receiver depth, the boom composited, occlusion statistics
-//   sinks     each optional: the recorder, stats.csv, per-frame images, the live window's mailbox
-//             (LiveView), the network live view (net::FoxgloveServer), and the run's summary
-//             (PipelineReport)
+//   sinks     FrameSinks (frame_sink.hpp), each optional: the recorder, stats.csv, per-frame
+//             images, a command's own output, the network live view (net::FoxgloveServer), the
+//             live window's mailbox (LiveView), and any from the registry (a video file); the
+//             run's summary is the PipelineReport (report.hpp)
 //
 // run() reads pairs until a stop condition: the source ends, the duration or the pair count is
 // reached, the stop flag is raised (a signal), the window is closed, or something fails. Every
@@ -39,9 +40,12 @@
 #include "core/expected.hpp"
 #include "net/foxglove_server.hpp"
 #include "pipeline/boom_stage.hpp"
+#include "pipeline/frame_sink.hpp"
+#include "pipeline/live_view.hpp"
 #include "pipeline/nav_inputs.hpp"
 #include "pipeline/outputs.hpp"
 #include "pipeline/poses.hpp"
+#include "pipeline/report.hpp"
 #include "pipeline/sources.hpp"
 #include "pipeline/status.hpp"
 #include "recorder/recorder.hpp"
@@ -54,84 +58,6 @@ class ReplaySource;
 }
 
 namespace augrig::pipeline {
-
-// What the window (or any controller) asks of the running pipeline; merged until taken.
-struct PipelineCommands {
-  bool quit = false;
-  bool toggle_pause = false;
-  bool toggle_recording = false;
-  std::optional<DisplayBoomMode> boom_mode;
-  BoomNudge boom_nudge;
-  int steps = 0;                          // paused: advance this many stereo frames (replay)
-  std::optional<std::size_t> seek_frame;  // replay: jump to this recorded frame
-  std::optional<double> rate;             // replay: real rate x (0: as fast as possible)
-  void merge(const PipelineCommands& o);
-};
-
-// Where the playback of a recording stands, for the window's timeline.
-struct Playback {
-  std::size_t frame = 0;           // the recorded index of the frame shown
-  std::size_t frame_count = 0;     // frames in the recording
-  double t_s = 0, duration_s = 0;  // from the first frame
-  int pass = 0;
-  double rate = 0;  // real rate x; 0: as fast as possible
-};
-
-// The mailbox between the pipeline's thread and the window's: the newest augmented pair (by
-// swap, never copied), the HUD, the playback position, and commands back. Neither side waits.
-class LiveView {
- public:
-  // ---- The pipeline's side ----
-  // Hands over a new augmented pair (whole augmented images); `result` gets the previous buffers.
-  void publish(StereoResult& result, const SceneState& scene, TimestampNs mid_host_ns);
-  void set_hud(HudState hud, std::optional<Playback> playback);
-  PipelineCommands take_commands();
-  void finish();  // the pipeline stopped: the window closes
-  // ---- The window's side ----
-  struct Shown {
-    StereoResult result;
-    SceneState scene;
-    std::uint64_t id = 0;  // 0: nothing yet
-  };
-  // Swaps the newest pair into `shown` when there is one newer than shown.id; returns its
-  // mid-exposure on the host clock (0: no new pair or unknown).
-  TimestampNs take_newest(Shown& shown);
-  HudState hud() const;
-  std::optional<Playback> playback() const;
-  void post(const PipelineCommands& c);
-  bool finished() const;
-  // Waits until a pair newer than `shown_id` is published or the pipeline finished (true), or the
-  // timeout passed (false): the window draws a new pair as soon as it is handed over.
-  bool wait_newer(std::uint64_t shown_id, std::chrono::nanoseconds timeout) const;
-  // The window drew the pair with mid-exposure `mid_host_ns`: its latency to the screen.
-  void drawn(TimestampNs mid_host_ns);
-  // Mid-exposure to the window's draw (or, headless, to the hand-off), over the last pairs.
-  LatencyHud display_latency() const;
-  const SkewStats& display_histogram() const { return display_hist_; }
-
- private:
-  friend class Pipeline;
-  void add_latency(TimestampNs ns);
-  mutable std::mutex mutex_;
-  mutable std::condition_variable changed_;  // a new pair or the finish
-  Shown newest_;
-  TimestampNs newest_mid_host_ns_ = 0;
-  HudState hud_;
-  std::optional<Playback> playback_;
-  PipelineCommands commands_;
-  bool finished_ = false;
-  std::vector<double> recent_ms_;  // the last 300 latencies, for the HUD
-  SkewStats display_hist_;         // the whole run's, for the summary
-};
-
-// Per-frame image files: every `every`-th augmented pair, named by `names` when given (e.g. after
-// the input files), else by pair sequence (for a replayed recording: recorded index and pass).
-struct FrameFiles {
-  std::filesystem::path dir;
-  int every = 1;
-  std::function<FrameNames(const StereoFrame&)> names;
-  bool ground_truth = false;  // also the depth, correspondence and class files (write_ground_truth)
-};
 
 // Everything a pipeline is made of. The source (started or not), the poses and the rig are required.
 struct PipelineParts {
@@ -194,36 +120,9 @@ struct PipelineParts {
   std::function<void(const Error&)> on_problem;
   // Called when the run stops, before the nav inputs stop (e.g. the simulated nav streams).
   std::function<void()> on_stop;
-};
-
-// What a run did: the numbers behind its summary.
-struct PipelineReport {
-  std::uint64_t pairs = 0;               // augmented (captured, with PipelineParts::capture_only)
-  std::uint64_t failed_pairs = 0;        // augmentation failed
-  std::uint64_t no_pose_pairs = 0;       // without a pose (boom only, or skipped)
-  std::uint64_t skipped_no_pose = 0;     // of those, not augmented (skip_frames_without_pose)
-  std::uint64_t stale_pairs = 0;         // with a stale or missing pose
-  std::uint64_t seek_skipped_pairs = 0;  // read ahead of a seek and passed over
-  // Live runs stopped by the duration, a signal or the window: pairs the cameras had delivered
-  // before the stop, augmented after it (in `pairs` too).
-  std::uint64_t pairs_after_stop = 0;
-  std::uint64_t comparable = 0, reproduced = 0;  // replay: recorded statistics reproduced exactly
-  double wall_s = 0, augment_ms = 0;
-  Rasterizer rasterizer = Rasterizer::kAuto;
-  StereoSourceStats source;
-  std::optional<OcclusionStats> last_stats;  // the last augmented pair's
-  std::vector<OcclusionStats> all_stats;     // every augmented pair's, with PipelineParts::keep_all_stats
-  RunSummary summary;
-  SkewStats display_latency, recorder_latency;
-  // Time per stage for each pair: from the later frame's arrival on the host to the pipeline
-  // (capture queues and pairing; live frames only), the pose, the augmentation, the sinks.
-  SkewStats stage_queue, stage_pose, stage_augment, stage_sinks;
-  bool stopped_by_signal = false, window_closed = false, source_failed = false;
-  std::string source_error;
-  std::vector<std::string> lost_cameras;  // not connected at the end
-  std::optional<Status> recording_closed;
-  recorder::RecorderStats recorder_stats;
-  std::optional<net::ServeStats> serve;  // the network view's clients, messages sent and dropped
+  // More outputs (sinks/registry.hpp: a video file, ...), after the ones above (frame_sink.hpp
+  // gives the order).
+  std::vector<std::unique_ptr<FrameSink>> sinks;
 };
 
 class Pipeline {
@@ -243,8 +142,7 @@ class Pipeline {
   const PipelineParts& parts() const { return parts_; }
 
  private:
-  struct State;
-  void log_event(State& s, const std::string& text, std::ostream& out);
+  class Run;  // one run's state and stages (pipeline.cpp)
   PipelineParts parts_;
 };
 

@@ -48,7 +48,7 @@ class SimTruthPoses final : public PoseProvider {
     // The receiver's true pose; the boom is augrig's to fly (it tracks, as in the demo), the
     // scenario's boom only its starting point.
     const sim::FrameTruth& truth = it->second.first;
-    p.scene = SceneState{truth.boom, truth.T_body_receiver, true, it->second.second};
+    p.scene = SceneState{truth.boom, truth.T_body_receiver, true, it->second.second, {}};
     p.hud.status = "simulation truth";
     p.hud.fix = nav::FixQuality::kRtkFixed;
     p.hud.age_s = 0;
@@ -86,7 +86,7 @@ class LiveNavPoses final : public PoseProvider {
     if (fn.pose) {
       // The receiver only: the boom stage aims the boom (LiveNav's tracking is the same command).
       p.scene = SceneState{fn.pose->boom.articulation, fn.pose->body.T_a_receiver, true,
-                           sun_light(fn.pose->t_nav_ns, fn.pose->T_ecef_tanker)};
+                           sun_light(fn.pose->t_nav_ns, fn.pose->T_ecef_tanker), {}};
       p.sigma_pos_m = fn.hud.sigma_pos_m;
       p.sigma_att_deg = fn.hud.sigma_att_deg;
     }
@@ -107,7 +107,7 @@ class RecordedPoses final : public PoseProvider {
   std::string describe() const override { return "the poses recorded with each frame"; }
   FramePoses at(const StereoFrame& frame, TimestampNs) override {
     FramePoses p;
-    const auto* rf = dynamic_cast<const recorder::RecordedFrame*>(frame.left.attachment.get());
+    const recorder::RecordedFrame* rf = frame.left.attachment ? frame.left.attachment->recorded() : nullptr;
     if (!rf) {
       p.problems.push_back("the frame comes from no recording");
       p.hud.status = "no pose: " + p.problems.back();
@@ -210,7 +210,7 @@ class OfflineNavPoses final : public PoseProvider {
       return p;
     }
     p.scene = SceneState{fp->boom.articulation, fp->body.T_a_receiver, true,
-                         sun_light(fp->t_nav_ns, fp->T_ecef_tanker)};
+                         sun_light(fp->t_nav_ns, fp->T_ecef_tanker), {}};
     p.sigma_pos_m = fp->body.sigma_position_m();
     p.sigma_att_deg = rad_to_deg(fp->body.sigma_attitude_rad());
     p.hud.status = "fused from logs (smoothed)";

@@ -40,6 +40,18 @@ class SimSource final : public FrameSource {
         physical_boom_(physical_boom) {}
   std::string uri() const override { return uri_; }
   std::uint64_t frames_dropped() const override { return dropped_; }
+  SourceCapabilities capabilities() const override { return {.finite = true}; }
+  std::size_t pair_count() const override { return image_count() / 2; }
+  // The frames the flight's cameras deliver that every=K selects (as FlightSource selects them).
+  std::size_t image_count() const override {
+    if (!image_count_) {
+      std::size_t n = 0;
+      for (const sim::FrameTruth& t : sim::frame_truths(sim_->scenario, *sim_->flight, sim_->logs.cameras))
+        n += every_ <= 1 || t.sequence % static_cast<std::uint64_t>(every_) == 0;
+      image_count_ = n;
+    }
+    return *image_count_;
+  }
 
   Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds) override {
     if (!source_) {
@@ -98,6 +110,7 @@ class SimSource final : public FrameSource {
   std::unique_ptr<sim::FlightSource> source_;
   std::array<std::uint64_t, 2> next_sequence_{};  // per camera: the camera model's own drops show as gaps
   std::atomic<std::uint64_t> dropped_{0};
+  mutable std::optional<std::size_t> image_count_;
   std::uint64_t skipped_left_ = ~0ull,
                 rendered_left_ = ~0ull;  // sequences  // read by the pipeline while the capture thread counts
 };
@@ -367,6 +380,7 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
       if (!src) return src.error();
       // Each pair comes as its left Frame, then its right one.
       out.options.pairing.mode = PairingMode::kAdjacent;
+      out.image_files = src->get();
       out.sources.push_back(std::move(*src));
       return out;
     }
@@ -383,7 +397,9 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
     StereoPairerConfig& p = out.options.pairing;
     p.mode = PairingMode::kTimestamp;
     p.tolerance_ns = static_cast<std::int64_t>(*tol * 1e3);
+    (*src)->set_pairing_tolerance(p.tolerance_ns);
     p.device_clock_shared = true;  // one index, one clock: its t_ns compare directly
+    out.image_files = src->get();
     out.sources.push_back(std::move(*src));
     return out;
   }

@@ -12,6 +12,7 @@
 #include "capture/source_uri.hpp"
 #include "capture/stereo_source.hpp"
 #include "core/frame.hpp"
+#include "pipeline/image_folder_source.hpp"
 #include "render/rig.hpp"
 #include "sim/flight.hpp"
 #include "sim/flight_source.hpp"
@@ -46,6 +47,8 @@ struct OpenedSourceInfo {
   // replay://: the recording's player (owned by the source list, then by the StereoSource), for
   // pause, step and seek.
   recorder::ReplaySource* replay = nullptr;
+  // files://: the image folder or index (owned like `replay`), for its entries' names and places.
+  const ImageFolderSource* image_files = nullptr;
 };
 
 struct OpenedSource : OpenedSourceInfo {

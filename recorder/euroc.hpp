@@ -185,7 +185,11 @@ class EurocSource final : public FrameSource {
   Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
   std::uint64_t frames_dropped() const override { return unpaired_ + 2 * unreadable_; }
 
-  std::size_t pair_count() const { return pairs_.size(); }  // from the start to the end
+  SourceCapabilities capabilities() const override { return {.finite = true, .ranged = true}; }
+  std::size_t pair_count() const override { return pairs_.size(); }  // from the start to the end
+  std::size_t range_start() const override { return start_pair(); }
+  std::optional<TimestampNs> origin_t_ns() const override { return first_t_ns(); }
+  Status set_range_end(std::size_t end) override { return set_end_pair(end); }
   // The dataset's pair index of the first pair played (EurocOptions' start): the pair with
   // sequence k is the dataset's pair start_pair() + k.
   std::size_t start_pair() const { return start_; }

@@ -75,6 +75,9 @@ class McapSource final : public FrameSource {
   std::string uri() const override { return "replay://" + reader_->path(); }
   Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
   std::uint64_t frames_dropped() const override { return 2 * damaged_; }
+  SourceCapabilities capabilities() const override { return {.finite = true}; }
+  std::size_t pair_count() const override { return frame_count_; }
+  std::map<std::string, std::string> metadata() const override { return meta_; }
 
   const std::string& path() const { return reader_->path(); }
   // The recording's meta table as exported (rig_yaml, ...); empty when the file has none.

@@ -161,7 +161,7 @@ std::string validate(const FrameRecord& f) {
 // raw encoding (replay_source.hpp, RecordedFrame): size, format and t_ns must match and the
 // image's raw_fingerprint() must equal the one taken when the blob was decoded. Null otherwise.
 const StoredRawBlob* copyable_raw_blob(const Frame& fr, int c) {
-  const auto* rf = dynamic_cast<const RecordedFrame*>(fr.attachment.get());
+  const RecordedFrame* rf = fr.attachment ? fr.attachment->recorded() : nullptr;
   if (rf == nullptr) return nullptr;
   const StoredRawBlob& b = rf->raw_blobs[static_cast<std::size_t>(c)];
   const Image& im = fr.image;

@@ -82,6 +82,13 @@ struct RecordedFrame final : FrameAttachment {
   // the replayed mid-exposure on the host clock (latency runs from it, as from a camera's). 0 in
   // kFast and kStep, and while paused.
   TimestampNs released_host_ns = 0;
+
+  std::optional<SourcePosition> position() const override { return SourcePosition{index, pass}; }
+  TimestampNs due_host_ns() const override { return released_host_ns; }
+  std::optional<RecordedPairing> recorded_pairing() const override {
+    return RecordedPairing{record.raw.t_key_ns, record.raw.skew_ns, record.raw.pair_sequence};
+  }
+  const RecordedFrame* recorded() const override { return this; }
 };
 
 enum class ReplayMode : std::uint8_t { kFast, kRealRate, kStep };
@@ -129,6 +136,11 @@ class ReplaySource final : public FrameSource {
   Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
   // Frames not emitted: two per damaged stereo frame, and those drop_late skipped.
   std::uint64_t frames_dropped() const override;
+  SourceCapabilities capabilities() const override { return {true, true, true, true}; }
+  std::size_t pair_count() const override { return end_frame() - start_frame(); }  // one pass
+  std::size_t range_start() const override { return start_frame(); }
+  std::optional<TimestampNs> origin_t_ns() const override { return first_t_ns(); }
+  Status set_range_end(std::size_t end) override { return set_end_frame(end); }
 
   // ---- Control (any thread) ----
   // Releases `n` more stereo frames in kStep mode or while paused.

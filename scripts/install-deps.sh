@@ -20,6 +20,9 @@ PACKAGES=(
   libaravis-dev aravis-tools libusb-1.0-0-dev libv4l-dev libturbojpeg0-dev
   # live nav inputs: gpsd's client library; gpsd and gpsfake for the tests
   libgps-dev gpsd gpsd-clients iproute2
+  # the video sink (--sink video:FILE.mp4): H.264 through FFmpeg's libraries (x264); ffprobe
+  # reads the files back in the tests
+  libavcodec-dev libavformat-dev libavutil-dev libswscale-dev ffmpeg
   # the live display
   libimgui-dev
   # OpenGL: EGL surfaceless (Mesa llvmpipe) and GLFW windows

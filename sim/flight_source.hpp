@@ -55,6 +55,9 @@ class FlightSource final : public FrameSource {
                                                         SceneBackend backend = SceneBackend::kCpu);
   std::string uri() const override { return "sim://" + scenario_.name; }
   Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
+  SourceCapabilities capabilities() const override { return {.finite = true}; }
+  std::size_t pair_count() const override { return frames_.size() / 2; }
+  std::size_t image_count() const override { return frames_.size(); }
   // The truth of the frame read() will render next (nullptr at the end), and skipping it unrendered:
   // a real-time source that has fallen behind loses frames as a camera would.
   const FrameTruth* peek() const { return next_ < frames_.size() ? &frames_[next_] : nullptr; }

@@ -108,6 +108,12 @@ TEST(ImageFolderSource, UriPairsByTimestampWithinHalfTheMedianIntervalAndCountsT
   EXPECT_EQ(opened->options.pairing.mode, PairingMode::kTimestamp);
   // Left intervals 100, 100, 100 ms and right 200, 100 ms: median 100 ms, tolerance 50 ms.
   EXPECT_EQ(opened->options.pairing.tolerance_ns, 50'000'000);
+  // Its counts as capabilities: the pairs that tolerance forms, every image; the typed handle.
+  EXPECT_TRUE(opened->sources.front()->capabilities().finite);
+  EXPECT_FALSE(opened->sources.front()->capabilities().seekable);
+  EXPECT_EQ(opened->sources.front()->pair_count(), 3u);
+  EXPECT_EQ(opened->sources.front()->image_count(), 7u);
+  EXPECT_EQ(opened->image_files, opened->sources.front().get());
   auto stereo = start_stereo(std::move(*opened));
   ASSERT_TRUE(stereo) << stereo.error().message;
   std::vector<std::uint64_t> sequences;
@@ -119,6 +125,9 @@ TEST(ImageFolderSource, UriPairsByTimestampWithinHalfTheMedianIntervalAndCountsT
     if (*r != ReadStatus::kFrame) continue;
     EXPECT_EQ(sf.left.sequence, sf.right.sequence);
     EXPECT_EQ(sf.skew_ns, 30'000);
+    ASSERT_TRUE(sf.left.attachment);
+    EXPECT_EQ(fs::path(sf.left.attachment->file_path()).extension(), ".png");
+    EXPECT_FALSE(sf.left.attachment->position()) << "an image file has no recorded position";
     sequences.push_back(sf.left.sequence);
   }
   EXPECT_EQ(sequences, (std::vector<std::uint64_t>{0, 2, 3}));

@@ -72,37 +72,6 @@ std::size_t files_in(const fs::path& dir) {
 
 // The simulated flight into every sink at once, then its recording replayed through the same
 // pipeline with the recorded poses: every pair reproduces the recorded statistics.
-// The window waits for the next pair: woken by its hand-over (not a fixed sleep), by the finish,
-// else at the timeout; a pair already newer than the one shown returns at once.
-TEST(LiveView, WaitNewerWakesAtTheHandOver) {
-  LiveView view;
-  LiveView::Shown shown;
-  const auto t0 = std::chrono::steady_clock::now();
-  EXPECT_FALSE(view.wait_newer(shown.id, std::chrono::milliseconds(30)));  // nothing published
-  EXPECT_GE(std::chrono::steady_clock::now() - t0, std::chrono::milliseconds(30));
-
-  StereoResult r;
-  std::thread pipeline([&] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    view.publish(r, SceneState{}, 123);
-  });
-  // Woken by the publish, long before a 60 s timeout.
-  EXPECT_TRUE(view.wait_newer(shown.id, std::chrono::seconds(60)));
-  pipeline.join();
-  EXPECT_TRUE(view.wait_newer(shown.id, std::chrono::seconds(60)));  // still newer: at once
-  EXPECT_EQ(view.take_newest(shown), 123);
-  EXPECT_EQ(shown.id, 1u);
-  EXPECT_FALSE(view.wait_newer(shown.id, std::chrono::milliseconds(1)));
-
-  std::thread finisher([&] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    view.finish();
-  });
-  EXPECT_TRUE(view.wait_newer(shown.id, std::chrono::seconds(60)));
-  finisher.join();
-  EXPECT_TRUE(view.finished());
-}
-
 TEST(Pipeline, SimIntoEverySinkThenReplayReproducesIt) {
   const fs::path dir = test::output_dir("pipeline_every_sink");
   fs::remove_all(dir);

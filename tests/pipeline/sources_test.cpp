@@ -22,6 +22,14 @@ TEST(Sources, SimIsOneSourceWithBothCamerasPacedOrLockstep) {
   o = open_sources("sim://demo?rate=0&every=3");
   ASSERT_TRUE(o);
   EXPECT_TRUE(o->options.lossless);
+  // A simulation is finite and knows its length; it plays no range and cannot seek.
+  const FrameSource& sim = *o->sources.front();
+  EXPECT_TRUE(sim.capabilities().finite);
+  EXPECT_FALSE(sim.capabilities().seekable || sim.capabilities().ranged);
+  EXPECT_GT(sim.pair_count(), 0u);
+  EXPECT_EQ(sim.pair_count(), sim.image_count() / 2);
+  EXPECT_FALSE(sim.origin_t_ns());
+  EXPECT_FALSE(o->sources.front()->set_range_end(3));
 }
 
 TEST(Sources, StereoParametersSetThePairing) {

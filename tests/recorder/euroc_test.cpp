@@ -225,6 +225,23 @@ TEST(EurocExport, ReplayGivesTheRecordedImagesAndTimestampsBack) {
 
 // The receiver's pose per stereo frame in EuRoC's ground-truth folder and columns: the recorded
 // T_body_receiver, the velocity by central differences, none for the frame without a pose.
+// A EuRoC folder's range as capabilities: where it starts, its time origin, an end.
+TEST(EurocExport, SourceCapabilitiesAreARange) {
+  const Exported& e = exported();
+  EurocOptions o;
+  o.start_pair = 3;
+  auto s = EurocSource::open("euroc://" + e.out, o);
+  ASSERT_TRUE(s) << s.error().message;
+  FrameSource& src = **s;
+  EXPECT_TRUE(src.capabilities().finite && src.capabilities().ranged);
+  EXPECT_FALSE(src.capabilities().seekable);
+  EXPECT_EQ(src.range_start(), 3u);
+  EXPECT_EQ(src.origin_t_ns(), std::optional<TimestampNs>(kT0)) << "the folder's first pair, whatever the start";
+  EXPECT_EQ(src.pair_count(), static_cast<std::size_t>(kFrames - 3));
+  ASSERT_TRUE(src.set_range_end(7));
+  EXPECT_EQ(src.pair_count(), 4u);
+}
+
 TEST(EurocExport, ReceiverStateInStateGroundtruthEstimate0) {
   const Exported& e = exported();
   const fs::path dir = fs::path(e.out) / "mav0" / "state_groundtruth_estimate0";

@@ -159,9 +159,16 @@ TEST(ReplaySource, AttachmentCarriesTheStoredRawBlobs) {
     ASSERT_EQ(*s->read(right, 1s), ReadStatus::kFrame);
     EXPECT_TRUE(s->current().raw.right.image.empty());
     ASSERT_EQ(left.attachment, right.attachment) << "both Frames share their stereo frame's attachment";
-    const auto* rf = dynamic_cast<const RecordedFrame*>(left.attachment.get());
+    const RecordedFrame* rf = left.attachment->recorded();
     ASSERT_NE(rf, nullptr);
     EXPECT_EQ(rf->index, i);
+    // The same through the generic accessors the pipeline uses.
+    ASSERT_TRUE(left.attachment->position());
+    EXPECT_EQ(left.attachment->position()->index, i);
+    EXPECT_EQ(left.attachment->position()->pass, 0);
+    ASSERT_TRUE(left.attachment->recorded_pairing());
+    EXPECT_EQ(left.attachment->recorded_pairing()->t_key_ns, rf->record.raw.t_key_ns);
+    EXPECT_EQ(left.attachment->recorded_pairing()->pair_sequence, rf->record.raw.pair_sequence);
     sqlite3_bind_int64(q->get(), 1, static_cast<sqlite3_int64>(i + 1));
     ASSERT_EQ(q->step(), SQLITE_ROW);
     for (const Frame* f : {&left, &right}) {
@@ -193,6 +200,22 @@ TEST(ReplaySource, AttachmentCarriesTheStoredRawBlobs) {
   const auto* rf = dynamic_cast<const RecordedFrame*>(f.attachment.get());
   ASSERT_NE(rf, nullptr);
   EXPECT_TRUE(rf->raw_blobs[0].empty() && rf->raw_blobs[1].empty());
+}
+
+// What a recording can do, asked as capabilities rather than by its type.
+TEST(ReplaySource, CapabilitiesAreARecordingsOnes) {
+  ReplayOptions o;
+  o.start_frame = 2;
+  auto s = open_or_fail(recording10(), o);
+  ASSERT_TRUE(s);
+  const SourceCapabilities c = s->capabilities();
+  EXPECT_TRUE(c.finite && c.seekable && c.paced && c.ranged);
+  EXPECT_EQ(s->pair_count(), 8u);
+  EXPECT_EQ(s->range_start(), 2u);
+  EXPECT_EQ(s->origin_t_ns(), s->first_t_ns());
+  ASSERT_TRUE(s->set_range_end(5));
+  EXPECT_EQ(s->pair_count(), 3u);
+  EXPECT_FALSE(s->set_range_end(1));  // not after the start
 }
 
 TEST(ReplaySource, StartOptionsAndSeek) {

@@ -1,0 +1,45 @@
+#include "pipeline/sinks/registry.hpp"
+
+namespace augrig::pipeline {
+
+namespace {
+
+using Factory = Expected<std::unique_ptr<FrameSink>> (*)(const std::string&, const SinkSetup&);
+struct SinkEntry {
+  const char* scheme;
+  const char* usage;
+  Factory make;
+};
+
+// One line per sink.
+constexpr SinkEntry kSinks[] = {
+    {"video",
+     "video:FILE.mp4[,masks][,crf=N]  the augmented views side by side in H.264 (masks: their colours)",
+     make_video_sink},
+    {"tum", "tum:FILE.txt  the receiver's pose in the left camera per pair (TUM trajectory format)",
+     make_tum_sink},
+};
+
+}  // namespace
+
+Expected<std::unique_ptr<FrameSink>> make_sink(const std::string& spec, const SinkSetup& setup) {
+  const std::size_t colon = spec.find(':');
+  const std::string scheme = spec.substr(0, colon);
+  for (const SinkEntry& e : kSinks)
+    if (scheme == e.scheme) {
+      if (colon == std::string::npos || colon + 1 == spec.size())
+        return make_error("--sink ", spec, ": expected ", e.usage);
+      return e.make(spec.substr(colon + 1), setup);
+    }
+  std::string known;
+  for (const SinkEntry& e : kSinks) known += std::string(known.empty() ? "" : ", ") + e.scheme + ":";
+  return make_error("--sink ", spec, ": unknown sink (known: ", known, ")");
+}
+
+std::vector<std::string> sink_usages() {
+  std::vector<std::string> v;
+  for (const SinkEntry& e : kSinks) v.emplace_back(e.usage);
+  return v;
+}
+
+}  // namespace augrig::pipeline

@@ -1,0 +1,32 @@
+// The sink registry: further outputs chosen on the command line as "SCHEME:ARGUMENT"
+// (`--sink video:flight.mp4`), like rosbag2's storage plugins. Each sink is one file under
+// pipeline/sinks/ and one line in registry.cpp's table (its scheme, its usage, its factory);
+// nothing else names it. A sink made here follows the built-in ones (frame_sink.hpp's order).
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/expected.hpp"
+#include "pipeline/frame_sink.hpp"
+#include "render/rig.hpp"
+
+namespace augrig::pipeline {
+
+// What a sink may need to open: the rig (its cameras' sizes, their poses on the tanker).
+struct SinkSetup {
+  const Rig& rig;
+};
+
+// A sink from "SCHEME:ARGUMENT"; an unknown scheme or a bad argument is an Error naming it and
+// listing what is known.
+Expected<std::unique_ptr<FrameSink>> make_sink(const std::string& spec, const SinkSetup& setup);
+// Each registered sink's usage line, for --help and docs/CLI.md.
+std::vector<std::string> sink_usages();
+
+// The registered factories (one file each). `arg` is the part after "SCHEME:".
+Expected<std::unique_ptr<FrameSink>> make_video_sink(const std::string& arg, const SinkSetup& setup);
+Expected<std::unique_ptr<FrameSink>> make_tum_sink(const std::string& arg, const SinkSetup& setup);
+
+}  // namespace augrig::pipeline
