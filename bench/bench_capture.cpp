@@ -472,46 +472,44 @@ int usage() {
   return 2;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+// The command line; defaults as documented at the top of the file.
+struct Options {
   double seconds = 5, warmup_s = 0.5;
   std::vector<double> rates = {60, 120, 240, 300, 400, 500, 600, 800, 1000};
   bool packet_socket = true, compare_packet_socket = false;
   int socket_buffer = 0, start_tries = 20;
+};
+
+// Empty when an argument is not understood (the caller prints the usage).
+std::optional<Options> parse_options(int argc, char** argv) {
+  Options o;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const bool has_value = i + 1 < argc;
     if (a == "--seconds" && has_value)
-      seconds = std::max(0.5, std::atof(argv[++i]));
+      o.seconds = std::max(0.5, std::atof(argv[++i]));
     else if (a == "--warmup" && has_value)
-      warmup_s = std::max(0.0, std::atof(argv[++i]));
+      o.warmup_s = std::max(0.0, std::atof(argv[++i]));
     else if (a == "--rates" && has_value)
-      rates = parse_rates(argv[++i]);
+      o.rates = parse_rates(argv[++i]);
     else if (a == "--packet-socket" && has_value)
-      packet_socket = std::atoi(argv[++i]) != 0;
+      o.packet_socket = std::atoi(argv[++i]) != 0;
     else if (a == "--socket-buffer" && has_value)
-      socket_buffer = std::max(0, std::atoi(argv[++i]));
+      o.socket_buffer = std::max(0, std::atoi(argv[++i]));
     else if (a == "--start-tries" && has_value)
-      start_tries = std::max(1, std::atoi(argv[++i]));
+      o.start_tries = std::max(1, std::atoi(argv[++i]));
     else if (a == "--address" && has_value)
       g_address = argv[++i];
     else if (a == "--compare-packet-socket")
-      compare_packet_socket = true;
+      o.compare_packet_socket = true;
     else
-      return usage();
+      return std::nullopt;
   }
+  return o;
+}
 
-  // Fork first, before GLib or Aravis start any thread in this process.
-  auto* shared = static_cast<Shared*>(
-      mmap(nullptr, sizeof(Shared), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
-  if (shared == MAP_FAILED) {
-    std::perror("bench_capture: mmap");
-    return 1;
-  }
-  new (shared) Shared();
-  const std::string serial = "BENCH" + std::to_string(getpid());
-  Child child;
+// Starts the camera process, up to start_tries times 0.5 s apart (a start can fail transiently).
+bool start_camera(Child& child, Shared* shared, const std::string& serial, int start_tries) {
   std::string why;
   for (int attempt = 1; attempt <= start_tries; ++attempt) {
     why = child.start(shared, serial);
@@ -524,24 +522,28 @@ int main(int argc, char** argv) {
   if (!why.empty()) {
     std::fprintf(stderr, "bench_capture: could not start the fake camera after %d tries 0.5 s apart: %s\n",
                  start_tries, why.c_str());
-    return 1;
+    return false;
   }
+  return true;
+}
 
-  // What the camera accepts.
-  double rate_min = 0, rate_max = 0;
-  {
-    GError* e = nullptr;
-    ArvCamera* cam = arv_camera_new(g_address, &e);
-    if (!cam) {
-      std::fprintf(stderr, "bench_capture: %s: %s\n", g_address, e ? e->message : "cannot connect");
-      g_clear_error(&e);
-      return 1;
-    }
-    arv_camera_get_frame_rate_bounds(cam, &rate_min, &rate_max, &e);
+// What the camera accepts: AcquisitionFrameRate's bounds. False when the camera cannot be reached.
+bool frame_rate_bounds(double& rate_min, double& rate_max) {
+  GError* e = nullptr;
+  ArvCamera* cam = arv_camera_new(g_address, &e);
+  if (!cam) {
+    std::fprintf(stderr, "bench_capture: %s: %s\n", g_address, e ? e->message : "cannot connect");
     g_clear_error(&e);
-    g_object_unref(cam);
+    return false;
   }
+  arv_camera_get_frame_rate_bounds(cam, &rate_min, &rate_max, &e);
+  g_clear_error(&e);
+  g_object_unref(cam);
+  return true;
+}
 
+void print_setup(const Options& o, const std::string& serial, pid_t camera_pid, double rate_min,
+                 double rate_max) {
   utsname u{};
   uname(&u);
   std::printf("bench_capture: %s, %u hardware threads, Linux %s, Aravis %u.%u.%u\n",
@@ -550,70 +552,88 @@ int main(int argc, char** argv) {
   std::printf(
       "camera: Aravis fake GigE Vision camera (serial %s) in child process %d on %s, %dx%d BayerRG8; "
       "AcquisitionFrameRate accepts %.1f to %.1f fps (an integer frame period in us)\n",
-      serial.c_str(), static_cast<int>(child.pid), g_address, kW, kH, rate_min, rate_max);
+      serial.c_str(), static_cast<int>(camera_pid), g_address, kW, kH, rate_min, rate_max);
   std::printf("loopback MTU %s, net.core.rmem_max %s; %.1f s per case after %.1f s warm-up\n",
               first_line("/sys/class/net/lo/mtu").c_str(), first_line("/proc/sys/net/core/rmem_max").c_str(),
-              seconds, warmup_s);
+              o.seconds, o.warmup_s);
   std::printf("load average before: %s\n\n", load_average().c_str());
+}
 
+// The cases in the order they run; those faster than the camera allows are dropped (with a line).
+std::vector<Case> make_cases(const Options& o, double rate_max) {
   auto name = [](double rate, int size) {
     return std::to_string(static_cast<int>(rate)) + " fps, " +
            (size ? std::to_string(size) + "-byte packets" : std::string("negotiated packet size"));
   };
+  const bool ps = o.packet_socket;
+  const int sb = o.socket_buffer;
   // The fake camera cannot fire GVCP test packets (no GevSCPSFireTestPacket), so "negotiated" keeps
   // the size it has: 1400 bytes at start-up, hence that case runs first.
   std::vector<Case> cases;
-  for (int size : {0, 1400, 8000}) cases.push_back({name(30, size), 30, size, packet_socket, socket_buffer});
+  for (int size : {0, 1400, 8000}) cases.push_back({name(30, size), 30, size, ps, sb});
   std::vector<double> rates_9000 = {240, 400, 600, 1000};
-  for (double r : rates) cases.push_back({name(r, 8000), r, 8000, packet_socket, socket_buffer});
-  cases.push_back({name(30, 9000), 30, 9000, packet_socket, socket_buffer});
-  for (double r : rates_9000) cases.push_back({name(r, 9000), r, 9000, packet_socket, socket_buffer});
-  if (compare_packet_socket) {
+  for (double r : o.rates) cases.push_back({name(r, 8000), r, 8000, ps, sb});
+  cases.push_back({name(30, 9000), 30, 9000, ps, sb});
+  for (double r : rates_9000) cases.push_back({name(r, 9000), r, 9000, ps, sb});
+  if (o.compare_packet_socket) {
     // The other receive path; plain UDP sockets with Aravis' own buffer size and with 4 MiB.
-    const std::vector<int> buffers = packet_socket ? std::vector<int>{0, 4 << 20} : std::vector<int>{0};
+    const std::vector<int> buffers = ps ? std::vector<int>{0, 4 << 20} : std::vector<int>{0};
     for (int buffer : buffers)
       for (const auto& [r, size] :
            {std::pair{30.0, 1400}, std::pair{30.0, 8000}, std::pair{240.0, 8000}, std::pair{400.0, 9000}})
-        cases.push_back({name(r, size), r, size, !packet_socket, buffer});
+        cases.push_back({name(r, size), r, size, !ps, buffer});
   }
   std::erase_if(cases, [&](const Case& c) {
     if (rate_max <= 0 || c.rate_hz <= rate_max) return false;
     std::printf("(%s skipped: the camera's maximum is %.1f fps)\n", c.name.c_str(), rate_max);
     return true;
   });
+  return cases;
+}
 
+// Per receive path: the fastest case read with nothing lost, and the lowest rate that lost anything.
+struct Summary {
+  double best_fps = 0;
+  std::string best_case;
+  std::optional<std::string> first_loss;
+  double first_loss_rate = 0;
+};
+using Summaries = std::vector<std::pair<std::string, Summary>>;
+
+void add_to_summary(Summaries& summaries, const Case& c, const Result& r) {
+  const std::string path = receive_path(c, r);
+  auto it = std::find_if(summaries.begin(), summaries.end(), [&](const auto& p) { return p.first == path; });
+  if (it == summaries.end()) it = summaries.insert(summaries.end(), {path, Summary{}});
+  Summary& s = it->second;
+  if (r.drops() && (!s.first_loss || c.rate_hz < s.first_loss_rate)) {
+    s.first_loss = c.name;
+    s.first_loss_rate = c.rate_hz;
+  }
+  if (!r.drops() && r.fps > s.best_fps) {
+    s.best_fps = r.fps;
+    s.best_case = c.name;
+  }
+}
+
+// Runs every case, a table row each, then the per-path summary lines.
+void run_cases(const std::vector<Case>& cases, const Options& o, const std::string& serial, pid_t camera_pid,
+               Shared* shared) {
   print_header();
-  // Per receive path: the fastest case read with nothing lost, and the lowest rate that lost anything.
-  struct Summary {
-    double best_fps = 0;
-    std::string best_case;
-    std::optional<std::string> first_loss;
-    double first_loss_rate = 0;
-  };
-  std::vector<std::pair<std::string, Summary>> summaries;
+  Summaries summaries;
   for (const Case& c : cases) {
-    const Result r = run_case(c, seconds, warmup_s, serial, child.pid, shared);
+    const Result r = run_case(c, o.seconds, o.warmup_s, serial, camera_pid, shared);
     print_row(c, r);
-    if (!r.ok) continue;
-    const std::string path = receive_path(c, r);
-    auto it =
-        std::find_if(summaries.begin(), summaries.end(), [&](const auto& p) { return p.first == path; });
-    if (it == summaries.end()) it = summaries.insert(summaries.end(), {path, Summary{}});
-    Summary& s = it->second;
-    if (r.drops() && (!s.first_loss || c.rate_hz < s.first_loss_rate)) {
-      s.first_loss = c.name;
-      s.first_loss_rate = c.rate_hz;
-    }
-    if (!r.drops() && r.fps > s.best_fps) {
-      s.best_fps = r.fps;
-      s.best_case = c.name;
-    }
+    if (r.ok) add_to_summary(summaries, c, r);
   }
   std::printf("\nload average after: %s\n", load_average().c_str());
   for (const auto& [path, s] : summaries)
     std::printf("%s: fastest with nothing lost %.1f fps read (%s); %s\n", path.c_str(), s.best_fps,
                 s.best_case.c_str(),
                 s.first_loss ? ("first loss at " + *s.first_loss).c_str() : "no case lost anything");
+}
+
+// What the columns mean.
+void print_legend(double seconds) {
   std::printf(
       "\nreceive path: an AF_PACKET socket held by this process while streaming (Aravis' packet socket, "
       "which "
@@ -631,6 +651,33 @@ int main(int argc, char** argv) {
       "or packet ring) runs in the sender's context and is counted here, and so is the camera's busy-wait "
       "before each frame.\n",
       seconds);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::optional<Options> options = parse_options(argc, argv);
+  if (!options) return usage();
+  const Options& o = *options;
+
+  // Fork first, before GLib or Aravis start any thread in this process.
+  auto* shared = static_cast<Shared*>(
+      mmap(nullptr, sizeof(Shared), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
+  if (shared == MAP_FAILED) {
+    std::perror("bench_capture: mmap");
+    return 1;
+  }
+  new (shared) Shared();
+  const std::string serial = "BENCH" + std::to_string(getpid());
+  Child child;
+  if (!start_camera(child, shared, serial, o.start_tries)) return 1;
+
+  double rate_min = 0, rate_max = 0;
+  if (!frame_rate_bounds(rate_min, rate_max)) return 1;
+  print_setup(o, serial, child.pid, rate_min, rate_max);
+  const std::vector<Case> cases = make_cases(o, rate_max);
+  run_cases(cases, o, serial, child.pid, shared);
+  print_legend(o.seconds);
   child.stop();
   return 0;
 }
