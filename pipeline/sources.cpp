@@ -36,7 +36,10 @@ class SimSource final : public FrameSource {
  public:
   SimSource(std::string uri, std::shared_ptr<const SimulatedFlight> sim, int every,
             std::shared_ptr<sim::SimClock> clock, bool physical_boom)
-      : uri_(std::move(uri)), sim_(std::move(sim)), every_(every), clock_(std::move(clock)),
+      : uri_(std::move(uri)),
+        sim_(std::move(sim)),
+        every_(every),
+        clock_(std::move(clock)),
         physical_boom_(physical_boom) {}
   std::string uri() const override { return uri_; }
   std::uint64_t frames_dropped() const override { return dropped_; }
@@ -221,6 +224,279 @@ Expected<std::unique_ptr<FrameSource>> open_camera(const SourceUri& u, CameraId 
   return uri_error(u, "a camera source must be aravis:// or v4l2://, got " + u.scheme + "://");
 }
 
+// ---- One opener per scheme ----
+
+// sim://SCENARIO: the flight simulated once for the cameras, the nav streams and the truth.
+Expected<OpenedSource> open_sim(const SourceUri& u) {
+  OpenedSource out;
+  if (Status s = u.check_known({"every", "rate", "bayer", "boom"}); !s) return s.error();
+  auto scenario = scenario_of(u);
+  if (!scenario) return uri_error(u, scenario.error().message);
+  // bayer=RG|GR|GB|BG: the cameras deliver raw mosaics of that pattern, as GigE rigs do.
+  if (u.has("bayer")) {
+    const std::string b = u.get("bayer", "");
+    const PixelFormat f = b == "RG"   ? PixelFormat::kBayerRG8
+                          : b == "GR" ? PixelFormat::kBayerGR8
+                          : b == "GB" ? PixelFormat::kBayerGB8
+                          : b == "BG" ? PixelFormat::kBayerBG8
+                                      : PixelFormat::kMono8;
+    if (f == PixelFormat::kMono8) return uri_error(u, "bayer: expected RG, GR, GB or BG, got '" + b + "'");
+    scenario->sensors.cameras.format = f;
+  }
+  // boom=physical: the boom is in the simulated scene (the frames a real boom would give), for
+  // comparing augrig's augmentation with it (docs/LOOK.md); boom=none (default): boom-free frames.
+  const std::string boom = u.get("boom", "none");
+  if (boom != "none" && boom != "physical")
+    return uri_error(u, "boom: expected none or physical, got '" + boom + "'");
+  auto every = u.get_integer("every", 1, 1, 1'000'000);
+  auto rate = u.get_number("rate", 1.0, 0, 1e6);
+  if (!every) return every.error();
+  if (!rate) return rate.error();
+  if (*every < 1) return uri_error(u, "every: expected an integer >= 1");
+  if (*rate < 0) return uri_error(u, "rate: expected >= 0 (0: as fast as possible)");
+  out.scenario = scenario->name;
+  // The flight and every sensor, simulated once here for the cameras, the nav streams and the truth.
+  auto sim = std::make_shared<SimulatedFlight>();
+  sim->scenario = *scenario;
+  auto flight = sim::Flight::create(sim->scenario);
+  if (!flight) return uri_error(u, flight.error().message);
+  sim->flight = std::make_unique<sim::Flight>(std::move(*flight));
+  sim->logs = sim::simulate_sensors(sim->scenario, *sim->flight);
+  out.sim = sim;
+  out.sim_clock = std::make_shared<sim::SimClock>(scenario->start_gps_ns, *rate);
+  // Both cameras stamp the simulation's device clocks, which differ by their configured offsets.
+  const auto& offs = scenario->sensors.cameras.clock_offset_ns;
+  const std::int64_t skew = offs.size() >= 2 ? std::abs(offs[1] - offs[0]) : 0;
+  out.options.pairing.tolerance_ns = skew + static_cast<std::int64_t>(0.25e9 / scenario->sensors.cameras.fps);
+  out.options.lossless = *rate == 0;
+  out.sources.push_back(std::make_unique<SimSource>(u.text, out.sim, static_cast<int>(*every), out.sim_clock,
+                                                    boom == "physical"));
+  return out;
+}
+
+// replay://FILE.mcap
+Expected<OpenedSource> open_mcap(const SourceUri& u) {
+  OpenedSource out;
+  // An MCAP file from augrig export --format mcap: its frames as fast as read, once (lockstep).
+  if (Status s = u.check_known({"rate"}); !s) return s.error();
+  if (u.get("rate", "fast") != "fast")
+    return uri_error(u,
+                     "rate: an MCAP file plays as fast as it is read (rate=fast); pacing needs a recording");
+  auto src = recorder::McapSource::open(u.target);
+  if (!src) return src.error();
+  out.options.lossless = true;
+  out.options.skip_read_errors = true;  // a frame that cannot be decoded is skipped (the error says which)
+  out.options.pairing.mode = PairingMode::kAdjacent;
+  out.sources.push_back(std::move(*src));
+  return out;
+}
+
+// replay://DIR: a recording, paced or fast, looped, from a frame or a time.
+Expected<OpenedSource> open_replay(const SourceUri& u) {
+  if (recorder::is_mcap_path(u.target)) return open_mcap(u);
+  OpenedSource out;
+  if (Status s = u.check_known({"rate", "loop", "passes", "from_frame", "seek_s", "late"}); !s)
+    return s.error();
+  recorder::ReplayOptions o;
+  // The StereoSource's capture thread already reads the recording ahead of the pipeline (its
+  // queue): a decode thread of the ReplaySource's own would only add a hand-off.
+  o.read_ahead = 0;
+  const std::string rate = u.get("rate", "1");
+  if (rate == "fast") {
+    o.mode = recorder::ReplayMode::kFast;
+  } else {
+    auto r = u.get_number("rate", 1.0, 0, 1e6);
+    if (!r) return r.error();
+    if (*r <= 0) return uri_error(u, "rate: expected a number > 0 or 'fast'");
+    o.mode = recorder::ReplayMode::kRealRate;
+    o.rate = *r;
+    o.drop_late = true;  // live-like: late frames are lost, as a camera's would be
+  }
+  const std::string late = u.get("late", "drop");
+  if (late != "drop" && late != "keep")
+    return uri_error(u, "late: expected drop or keep, got '" + late + "'");
+  if (late == "keep") o.drop_late = false;  // every frame, late or not
+  // loop=1: forever; passes=N: the range N times.
+  o.passes = u.get("loop", "0") == "1" ? 0 : 1;
+  if (u.has("passes")) {
+    auto n = u.get_integer("passes", 1, 1, 1'000'000);
+    if (!n) return n.error();
+    o.passes = static_cast<int>(*n);
+  }
+  if (u.has("from_frame") && u.has("seek_s")) return uri_error(u, "from_frame and seek_s exclude each other");
+  if (u.has("from_frame")) {
+    auto n = u.get_integer("from_frame", 0, 0, 1LL << 40);
+    if (!n) return n.error();
+    o.start_frame = static_cast<std::size_t>(*n);
+  }
+  if (u.has("seek_s")) {
+    auto t = u.get_number("seek_s", 0, 0, 1e9);
+    if (!t) return t.error();
+    o.start_offset_ns = s_to_ns(*t);
+  }
+  auto src = recorder::ReplaySource::open(u.target, o);
+  if (!src) return src.error();
+  out.options.lossless = o.mode == recorder::ReplayMode::kFast || !o.drop_late;
+  // A damaged frame is skipped (the recording says which), the others play on.
+  out.options.skip_read_errors = true;
+  // A recording holds pairs already: each recorded stereo frame comes as its left Frame, then its
+  // right one, and they pair as delivered (a loop or a seek goes back in time).
+  out.options.pairing.mode = PairingMode::kAdjacent;
+  out.replay = src->get();
+  out.sources.push_back(std::move(*src));
+  return out;
+}
+
+Expected<OpenedSource> open_files(const SourceUri& u) {
+  OpenedSource out;
+  // files://INDEX.csv (a frame index: pairs by timestamp) or files://folders?left=DIR&right=DIR (two
+  // folders, or two image files: pairs by sorted name; "folders" because a URI needs a target).
+  // Lockstep: every file is read, none dropped.
+  if (Status s = u.check_known({"left", "right", "bayer", "tolerance_us"}); !s) return s.error();
+  ImageFolderOptions o;
+  o.uri = u.text;
+  if (u.has("bayer")) {
+    const std::string b = u.get("bayer");
+    o.bayer = b == "RG"   ? PixelFormat::kBayerRG8
+              : b == "GR" ? PixelFormat::kBayerGR8
+              : b == "GB" ? PixelFormat::kBayerGB8
+              : b == "BG" ? PixelFormat::kBayerBG8
+                          : PixelFormat::kMono8;
+    if (o.bayer == PixelFormat::kMono8)
+      return uri_error(u, "bayer: expected RG, GR, GB or BG, got '" + b + "'");
+  }
+  out.options.lossless = true;
+  if (u.target == "folders") {
+    if (!u.has("left") || !u.has("right"))
+      return uri_error(u, "expected files://INDEX.csv or files://folders?left=DIR&right=DIR");
+    if (u.has("tolerance_us"))
+      return uri_error(u, "tolerance_us: folders pair by sorted name, not by time (give an index for that)");
+    auto src = ImageFolderSource::open_folders(u.get("left"), u.get("right"), o);
+    if (!src) return src.error();
+    // Each pair comes as its left Frame, then its right one.
+    out.options.pairing.mode = PairingMode::kAdjacent;
+    out.image_files = src->get();
+    out.sources.push_back(std::move(*src));
+    return out;
+  }
+  if (u.has("left") || u.has("right"))
+    return uri_error(u, "left and right name folders without an index; an index names its own files");
+  auto src = ImageFolderSource::open_index(u.target, o);
+  if (!src) return src.error();
+  // Default: half the median frame interval (a frame can never pair with its neighbour's partner);
+  // without an interval (one frame per camera), the widest tolerance a rig allows.
+  const TimestampNs half = (*src)->half_median_interval_ns();
+  const double default_us = half > 0 ? static_cast<double>(half) / 1e3 : kMaxPairingToleranceUs;
+  auto tol = u.get_number("tolerance_us", default_us, 0, kMaxPairingToleranceUs);
+  if (!tol) return tol.error();
+  StereoPairerConfig& p = out.options.pairing;
+  p.mode = PairingMode::kTimestamp;
+  p.tolerance_ns = static_cast<std::int64_t>(*tol * 1e3);
+  (*src)->set_pairing_tolerance(p.tolerance_ns);
+  p.device_clock_shared = true;  // one index, one clock: its t_ns compare directly
+  out.image_files = src->get();
+  out.sources.push_back(std::move(*src));
+  return out;
+}
+
+Expected<OpenedSource> open_euroc(const SourceUri& u) {
+  OpenedSource out;
+  // A EuRoC/ASL folder: each pair's left Frame, then its right one, as fast as read (lockstep).
+  if (Status s = u.check_known({"tolerance_ns", "from_frame", "seek_s", "left", "right"}); !s)
+    return s.error();
+  recorder::EurocOptions eo;
+  auto tol = u.get_integer("tolerance_ns", 0, 0, 1LL << 40);
+  if (!tol) return tol.error();
+  eo.pair_tolerance_ns = *tol;
+  eo.left_stream = u.get("left", "cam0");
+  eo.right_stream = u.get("right", "cam1");
+  if (u.has("from_frame") && u.has("seek_s")) return uri_error(u, "from_frame and seek_s exclude each other");
+  if (u.has("from_frame")) {
+    auto n = u.get_integer("from_frame", 0, 0, 1LL << 40);
+    if (!n) return n.error();
+    eo.start_pair = static_cast<std::size_t>(*n);
+  }
+  if (u.has("seek_s")) {
+    auto t = u.get_number("seek_s", 0, 0, 1e9);
+    if (!t) return t.error();
+    eo.start_offset_ns = s_to_ns(*t);
+  }
+  auto src = recorder::EurocSource::open(u.target, eo);
+  if (!src) return src.error();
+  out.options.lossless = true;
+  out.options.skip_read_errors = true;  // an unreadable image skips its pair
+  out.options.pairing.mode = PairingMode::kAdjacent;
+  out.sources.push_back(std::move(*src));
+  return out;
+}
+
+// stereo:[PAIRING]//{LEFT}{RIGHT}: two cameras, paired as a rig's pairing section says.
+Expected<OpenedSource> open_stereo(const SourceUri& u) {
+  OpenedSource out;
+  if (Status s = u.check_known({"tolerance_us", "mode", "clock", "queue"}); !s) return s.error();
+  // The same parameters, defaults and values as a rig's `pairing` section.
+  const RigPairing defaults;
+  // The rig's pairing section takes the same ranges (render/rig.cpp).
+  auto tol = u.get_number("tolerance_us", defaults.tolerance_us, 0, kMaxPairingToleranceUs);
+  auto queue = u.get_integer("queue", defaults.queue, 1, 1024);
+  if (!tol) return tol.error();
+  if (!queue) return queue.error();
+  const std::string mode = u.get("mode", defaults.mode), clock = u.get("clock", defaults.clock);
+  if (!RigPairing::known_mode(mode))
+    return uri_error(u, "mode: expected timestamp or trigger_id, got '" + mode + "'");
+  if (!RigPairing::known_clock(clock))
+    return uri_error(
+        u, "clock: expected separate (each camera its own clock) or shared (PTP), got '" + clock + "'");
+  StereoPairerConfig& p = out.options.pairing;
+  p.mode = mode == "timestamp" ? PairingMode::kTimestamp : PairingMode::kTriggerId;
+  p.tolerance_ns = static_cast<std::int64_t>(*tol * 1e3);
+  p.device_clock_shared = clock == "shared";
+  // Separate device clocks are compared on host time, through each camera's estimated offset.
+  if (!p.device_clock_shared) p.clock_offsets = ClockOffsetConfig{};
+  out.options.queue_frames = static_cast<std::size_t>(std::max<long long>(1, *queue));
+  out.live = true;
+  for (int i = 0; i < 2; ++i) {
+    auto cam = open_camera(u.children[i], i == 0 ? CameraId::kLeft : CameraId::kRight);
+    if (!cam) return cam.error();
+    out.sources.push_back(std::move(*cam));
+  }
+  return out;
+}
+
+Expected<OpenedSource> open_single_camera(const SourceUri& u) {
+  return uri_error(u,
+                   "one camera is not a stereo rig: give both, as stereo:[..]//{LEFT}{RIGHT} or the rig's "
+                   "per-camera 'source' keys");
+}
+
+// The schemes, one opener each.
+struct Scheme {
+  const char* name;
+  Expected<OpenedSource> (*open)(const SourceUri&);
+};
+constexpr Scheme kSchemes[] = {{"sim", open_sim},           {"replay", open_replay},
+                               {"files", open_files},       {"euroc", open_euroc},
+                               {"stereo", open_stereo},     {"aravis", open_single_camera},
+                               {"v4l2", open_single_camera}};
+
+// A left and a right URI as one stereo:[..]//{L}{R} with the rig's pairing.
+SourceUri stereo_of(const SourceUri& left, const std::string& uri, const SourceUri& right,
+                    const std::string& right_uri, const RigPairing& pairing) {
+  SourceUri stereo;
+  std::ostringstream tolerance;
+  tolerance << std::setprecision(12) << pairing.tolerance_us;
+  stereo.scheme = "stereo";
+  stereo.params = {{"tolerance_us", tolerance.str()},
+                   {"mode", pairing.mode},
+                   {"clock", pairing.clock},
+                   {"queue", std::to_string(pairing.queue)}};
+  std::string params;
+  for (const auto& [key, value] : stereo.params) params += (params.empty() ? "" : ",") + key + "=" + value;
+  stereo.text = "stereo:[" + params + "]//{" + uri + "}{" + right_uri + "}";
+  stereo.children = {left, right};
+  return stereo;
+}
+
 }  // namespace
 
 Expected<OpenedSource> open_sources(const std::string& uri, const std::string& right_uri,
@@ -231,241 +507,12 @@ Expected<OpenedSource> open_sources(const std::string& uri, const std::string& r
   if (!right_uri.empty()) {
     auto right = parse_source_uri(right_uri);
     if (!right) return right.error();
-    SourceUri stereo;
-    std::ostringstream tolerance;
-    tolerance << std::setprecision(12) << pairing.tolerance_us;
-    stereo.scheme = "stereo";
-    stereo.params = {{"tolerance_us", tolerance.str()},
-                     {"mode", pairing.mode},
-                     {"clock", pairing.clock},
-                     {"queue", std::to_string(pairing.queue)}};
-    std::string params;
-    for (const auto& [key, value] : stereo.params) params += (params.empty() ? "" : ",") + key + "=" + value;
-    stereo.text = "stereo:[" + params + "]//{" + uri + "}{" + right_uri + "}";
-    stereo.children = {u, *right};
-    u = std::move(stereo);
+    u = stereo_of(u, uri, *right, right_uri, pairing);
   }
-
-  OpenedSource out;
-  if (u.scheme == "sim") {
-    if (Status s = u.check_known({"every", "rate", "bayer", "boom"}); !s) return s.error();
-    auto scenario = scenario_of(u);
-    if (!scenario) return uri_error(u, scenario.error().message);
-    // bayer=RG|GR|GB|BG: the cameras deliver raw mosaics of that pattern, as GigE rigs do.
-    if (u.has("bayer")) {
-      const std::string b = u.get("bayer", "");
-      const PixelFormat f = b == "RG"   ? PixelFormat::kBayerRG8
-                            : b == "GR" ? PixelFormat::kBayerGR8
-                            : b == "GB" ? PixelFormat::kBayerGB8
-                            : b == "BG" ? PixelFormat::kBayerBG8
-                                        : PixelFormat::kMono8;
-      if (f == PixelFormat::kMono8) return uri_error(u, "bayer: expected RG, GR, GB or BG, got '" + b + "'");
-      scenario->sensors.cameras.format = f;
-    }
-    // boom=physical: the boom is in the simulated scene (the frames a real boom would give), for
-    // comparing augrig's augmentation with it (docs/LOOK.md); boom=none (default): boom-free frames.
-    const std::string boom = u.get("boom", "none");
-    if (boom != "none" && boom != "physical") return uri_error(u, "boom: expected none or physical, got '" + boom + "'");
-    auto every = u.get_integer("every", 1, 1, 1'000'000);
-    auto rate = u.get_number("rate", 1.0, 0, 1e6);
-    if (!every) return every.error();
-    if (!rate) return rate.error();
-    if (*every < 1) return uri_error(u, "every: expected an integer >= 1");
-    if (*rate < 0) return uri_error(u, "rate: expected >= 0 (0: as fast as possible)");
-    out.scenario = scenario->name;
-    // The flight and every sensor, simulated once here for the cameras, the nav streams and the truth.
-    auto sim = std::make_shared<SimulatedFlight>();
-    sim->scenario = *scenario;
-    auto flight = sim::Flight::create(sim->scenario);
-    if (!flight) return uri_error(u, flight.error().message);
-    sim->flight = std::make_unique<sim::Flight>(std::move(*flight));
-    sim->logs = sim::simulate_sensors(sim->scenario, *sim->flight);
-    out.sim = sim;
-    out.sim_clock = std::make_shared<sim::SimClock>(scenario->start_gps_ns, *rate);
-    // Both cameras stamp the simulation's device clocks, which differ by their configured offsets.
-    const auto& offs = scenario->sensors.cameras.clock_offset_ns;
-    const std::int64_t skew = offs.size() >= 2 ? std::abs(offs[1] - offs[0]) : 0;
-    out.options.pairing.tolerance_ns =
-        skew + static_cast<std::int64_t>(0.25e9 / scenario->sensors.cameras.fps);
-    out.options.lossless = *rate == 0;
-    out.sources.push_back(std::make_unique<SimSource>(uri, out.sim, static_cast<int>(*every), out.sim_clock, boom == "physical"));
-    return out;
-  }
-  if (u.scheme == "replay" && recorder::is_mcap_path(u.target)) {
-    // An MCAP file from augrig export --format mcap: its frames as fast as read, once (lockstep).
-    if (Status s = u.check_known({"rate"}); !s) return s.error();
-    if (u.get("rate", "fast") != "fast")
-      return uri_error(u, "rate: an MCAP file plays as fast as it is read (rate=fast); pacing needs a recording");
-    auto src = recorder::McapSource::open(u.target);
-    if (!src) return src.error();
-    out.options.lossless = true;
-    out.options.skip_read_errors = true;  // a frame that cannot be decoded is skipped (the error says which)
-    out.options.pairing.mode = PairingMode::kAdjacent;
-    out.sources.push_back(std::move(*src));
-    return out;
-  }
-  if (u.scheme == "replay") {
-    if (Status s = u.check_known({"rate", "loop", "passes", "from_frame", "seek_s", "late"}); !s) return s.error();
-    recorder::ReplayOptions o;
-    // The StereoSource's capture thread already reads the recording ahead of the pipeline (its
-    // queue): a decode thread of the ReplaySource's own would only add a hand-off.
-    o.read_ahead = 0;
-    const std::string rate = u.get("rate", "1");
-    if (rate == "fast") {
-      o.mode = recorder::ReplayMode::kFast;
-    } else {
-      auto r = u.get_number("rate", 1.0, 0, 1e6);
-      if (!r) return r.error();
-      if (*r <= 0) return uri_error(u, "rate: expected a number > 0 or 'fast'");
-      o.mode = recorder::ReplayMode::kRealRate;
-      o.rate = *r;
-      o.drop_late = true;  // live-like: late frames are lost, as a camera's would be
-    }
-    const std::string late = u.get("late", "drop");
-    if (late != "drop" && late != "keep") return uri_error(u, "late: expected drop or keep, got '" + late + "'");
-    if (late == "keep") o.drop_late = false;  // every frame, late or not
-    // loop=1: forever; passes=N: the range N times.
-    o.passes = u.get("loop", "0") == "1" ? 0 : 1;
-    if (u.has("passes")) {
-      auto n = u.get_integer("passes", 1, 1, 1'000'000);
-      if (!n) return n.error();
-      o.passes = static_cast<int>(*n);
-    }
-    if (u.has("from_frame") && u.has("seek_s")) return uri_error(u, "from_frame and seek_s exclude each other");
-    if (u.has("from_frame")) {
-      auto n = u.get_integer("from_frame", 0, 0, 1LL << 40);
-      if (!n) return n.error();
-      o.start_frame = static_cast<std::size_t>(*n);
-    }
-    if (u.has("seek_s")) {
-      auto t = u.get_number("seek_s", 0, 0, 1e9);
-      if (!t) return t.error();
-      o.start_offset_ns = s_to_ns(*t);
-    }
-    auto src = recorder::ReplaySource::open(u.target, o);
-    if (!src) return src.error();
-    out.options.lossless = o.mode == recorder::ReplayMode::kFast || !o.drop_late;
-    // A damaged frame is skipped (the recording says which), the others play on.
-    out.options.skip_read_errors = true;
-    // A recording holds pairs already: each recorded stereo frame comes as its left Frame, then its
-    // right one, and they pair as delivered (a loop or a seek goes back in time).
-    out.options.pairing.mode = PairingMode::kAdjacent;
-    out.replay = src->get();
-    out.sources.push_back(std::move(*src));
-    return out;
-  }
-  if (u.scheme == "files") {
-    // files://INDEX.csv (a frame index: pairs by timestamp) or files://folders?left=DIR&right=DIR (two
-    // folders, or two image files: pairs by sorted name; "folders" because a URI needs a target).
-    // Lockstep: every file is read, none dropped.
-    if (Status s = u.check_known({"left", "right", "bayer", "tolerance_us"}); !s) return s.error();
-    ImageFolderOptions o;
-    o.uri = u.text;
-    if (u.has("bayer")) {
-      const std::string b = u.get("bayer");
-      o.bayer = b == "RG" ? PixelFormat::kBayerRG8
-                : b == "GR" ? PixelFormat::kBayerGR8
-                : b == "GB" ? PixelFormat::kBayerGB8
-                : b == "BG" ? PixelFormat::kBayerBG8
-                            : PixelFormat::kMono8;
-      if (o.bayer == PixelFormat::kMono8) return uri_error(u, "bayer: expected RG, GR, GB or BG, got '" + b + "'");
-    }
-    out.options.lossless = true;
-    if (u.target == "folders") {
-      if (!u.has("left") || !u.has("right"))
-        return uri_error(u, "expected files://INDEX.csv or files://folders?left=DIR&right=DIR");
-      if (u.has("tolerance_us"))
-        return uri_error(u, "tolerance_us: folders pair by sorted name, not by time (give an index for that)");
-      auto src = ImageFolderSource::open_folders(u.get("left"), u.get("right"), o);
-      if (!src) return src.error();
-      // Each pair comes as its left Frame, then its right one.
-      out.options.pairing.mode = PairingMode::kAdjacent;
-      out.image_files = src->get();
-      out.sources.push_back(std::move(*src));
-      return out;
-    }
-    if (u.has("left") || u.has("right"))
-      return uri_error(u, "left and right name folders without an index; an index names its own files");
-    auto src = ImageFolderSource::open_index(u.target, o);
-    if (!src) return src.error();
-    // Default: half the median frame interval (a frame can never pair with its neighbour's partner);
-    // without an interval (one frame per camera), the widest tolerance a rig allows.
-    const TimestampNs half = (*src)->half_median_interval_ns();
-    const double default_us = half > 0 ? static_cast<double>(half) / 1e3 : kMaxPairingToleranceUs;
-    auto tol = u.get_number("tolerance_us", default_us, 0, kMaxPairingToleranceUs);
-    if (!tol) return tol.error();
-    StereoPairerConfig& p = out.options.pairing;
-    p.mode = PairingMode::kTimestamp;
-    p.tolerance_ns = static_cast<std::int64_t>(*tol * 1e3);
-    (*src)->set_pairing_tolerance(p.tolerance_ns);
-    p.device_clock_shared = true;  // one index, one clock: its t_ns compare directly
-    out.image_files = src->get();
-    out.sources.push_back(std::move(*src));
-    return out;
-  }
-  if (u.scheme == "euroc") {
-    // A EuRoC/ASL folder: each pair's left Frame, then its right one, as fast as read (lockstep).
-    if (Status s = u.check_known({"tolerance_ns", "from_frame", "seek_s", "left", "right"}); !s) return s.error();
-    recorder::EurocOptions eo;
-    auto tol = u.get_integer("tolerance_ns", 0, 0, 1LL << 40);
-    if (!tol) return tol.error();
-    eo.pair_tolerance_ns = *tol;
-    eo.left_stream = u.get("left", "cam0");
-    eo.right_stream = u.get("right", "cam1");
-    if (u.has("from_frame") && u.has("seek_s")) return uri_error(u, "from_frame and seek_s exclude each other");
-    if (u.has("from_frame")) {
-      auto n = u.get_integer("from_frame", 0, 0, 1LL << 40);
-      if (!n) return n.error();
-      eo.start_pair = static_cast<std::size_t>(*n);
-    }
-    if (u.has("seek_s")) {
-      auto t = u.get_number("seek_s", 0, 0, 1e9);
-      if (!t) return t.error();
-      eo.start_offset_ns = s_to_ns(*t);
-    }
-    auto src = recorder::EurocSource::open(u.target, eo);
-    if (!src) return src.error();
-    out.options.lossless = true;
-    out.options.skip_read_errors = true;  // an unreadable image skips its pair
-    out.options.pairing.mode = PairingMode::kAdjacent;
-    out.sources.push_back(std::move(*src));
-    return out;
-  }
-  if (u.scheme == "stereo") {
-    if (Status s = u.check_known({"tolerance_us", "mode", "clock", "queue"}); !s) return s.error();
-    // The same parameters, defaults and values as a rig's `pairing` section.
-    const RigPairing defaults;
-    // The rig's pairing section takes the same ranges (render/rig.cpp).
-    auto tol = u.get_number("tolerance_us", defaults.tolerance_us, 0, kMaxPairingToleranceUs);
-    auto queue = u.get_integer("queue", defaults.queue, 1, 1024);
-    if (!tol) return tol.error();
-    if (!queue) return queue.error();
-    const std::string mode = u.get("mode", defaults.mode), clock = u.get("clock", defaults.clock);
-    if (!RigPairing::known_mode(mode))
-      return uri_error(u, "mode: expected timestamp or trigger_id, got '" + mode + "'");
-    if (!RigPairing::known_clock(clock))
-      return uri_error(
-          u, "clock: expected separate (each camera its own clock) or shared (PTP), got '" + clock + "'");
-    StereoPairerConfig& p = out.options.pairing;
-    p.mode = mode == "timestamp" ? PairingMode::kTimestamp : PairingMode::kTriggerId;
-    p.tolerance_ns = static_cast<std::int64_t>(*tol * 1e3);
-    p.device_clock_shared = clock == "shared";
-    // Separate device clocks are compared on host time, through each camera's estimated offset.
-    if (!p.device_clock_shared) p.clock_offsets = ClockOffsetConfig{};
-    out.options.queue_frames = static_cast<std::size_t>(std::max<long long>(1, *queue));
-    out.live = true;
-    for (int i = 0; i < 2; ++i) {
-      auto cam = open_camera(u.children[i], i == 0 ? CameraId::kLeft : CameraId::kRight);
-      if (!cam) return cam.error();
-      out.sources.push_back(std::move(*cam));
-    }
-    return out;
-  }
-  if (u.scheme == "aravis" || u.scheme == "v4l2")
-    return uri_error(u,
-                     "one camera is not a stereo rig: give both, as stereo:[..]//{LEFT}{RIGHT} or the rig's "
-                     "per-camera 'source' keys");
-  return uri_error(u, "unknown scheme '" + u.scheme + "'; expected aravis, v4l2, sim, replay, euroc, files or stereo");
+  for (const Scheme& scheme : kSchemes)
+    if (u.scheme == scheme.name) return scheme.open(u);
+  return uri_error(
+      u, "unknown scheme '" + u.scheme + "'; expected aravis, v4l2, sim, replay, euroc, files or stereo");
 }
 
 Expected<std::unique_ptr<StereoSource>> start_stereo(OpenedSource opened) {
