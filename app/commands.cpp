@@ -93,18 +93,9 @@ FrameNames input_names(const StereoFrame& frame) {
   return {stem(frame.left), stem(frame.right)};
 }
 
-int augment(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  const ParsedArgs a = [&] {
-    auto p = parse_args(args, augment_specs());
-    if (!p) usage_error(p.error().message);
-    return *p;
-  }();
-  if (a.help) {
-    out << format_help(kAugmentUsage, kAugmentSummary, augment_specs());
-    return kExitOk;
-  }
+// The flags that exclude or need each other, before anything is read.
+void check_augment_args(const ParsedArgs& a, bool indexed) {
   if (a.get("format", "png") != "png") usage_error("--format: expected png, got '" + a.get("format") + "'");
-  const bool indexed = a.has("frames");
   if (indexed && (a.has("left") || a.has("right")))
     usage_error("--frames and --left/--right exclude each other: give the images one way");
   if (!indexed && (!a.has("left") || !a.has("right")))
@@ -114,22 +105,12 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   if (!a.has("scene") && !a.has("poses"))
     usage_error("missing required option --scene SCENE.yaml|DIR (or --poses POSES.csv)");
   if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
-  const TimestampNs pose_tolerance_ns = parse_pose_tolerance(a);
   if (a.has("pair-tolerance-us") && !indexed)
     usage_error("--pair-tolerance-us needs --frames (folders pair by sorted name)");
-  const double status_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 0.0;
-  if (!(status_s >= 0)) usage_error("--status-every: expected seconds >= 0");
-  AugmentOptions options;
-  options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
-  options.receiver_proxy = !a.has("no-receiver");
-  options.stereo_classes = options.receiver_proxy;
+}
 
-  // Every input is read and checked before the GL context exists, so bad files fail fast.
-  const Rig rig = load_rig_arg(a.get("rig"));
-  if (rig.cameras.size() != 2)
-    runtime_error(rig.source + ": the rig needs 2 cameras, has " + std::to_string(rig.cameras.size()));
-
-  // The images: a files:// source either way (pipeline/image_folder_source.hpp).
+// The images as a files:// URI: a frame index (--frames) or two folders or files (--left/--right).
+std::string images_uri(const ParsedArgs& a, bool indexed) {
   std::string params;
   auto param = [&](const std::string& k, const std::string& v) { params += (params.empty() ? "?" : "&") + k + "=" + v; };
   std::string uri;
@@ -156,8 +137,57 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
     if (a.has("bayer")) param("bayer", a.get("bayer"));
     uri = "files://folders";
   }
+  return uri + params;
+}
+
+// The first image of each camera is read up front: the common mistakes (wrong file, size,
+// depth) show here, naming the file, before the GL context exists.
+void check_first_images(const ParsedArgs& a, const ImageFolderSource& files, const Rig& rig) {
+  for (CameraId c : {CameraId::kLeft, CameraId::kRight}) {
+    const auto e = std::find_if(files.entries().begin(), files.entries().end(),
+                                [c](const ImageFolderEntry& x) { return x.camera == c; });
+    const std::string where = files.from_index() ? files.where(*e) + ": " : std::string();
+    const std::optional<PixelFormat> bayer =
+        a.has("bayer") ? std::optional<PixelFormat>(parse_bayer(a.get("bayer"))) : std::nullopt;
+    auto im = augrig::read_image_file(e->path, bayer);
+    if (!im) runtime_error(where + user_message(im.error()));
+    const RigCamera& cam = rig.cameras[static_cast<std::size_t>(index_of(c))];
+    if (im->width() != cam.model.width_px || im->height() != cam.model.height_px)
+      runtime_error(where + e->path + ": image is " + std::to_string(im->width()) + "x" +
+                    std::to_string(im->height()) + ", the rig's " + cam.name + " camera is " +
+                    std::to_string(cam.model.width_px) + "x" + std::to_string(cam.model.height_px));
+  }
+}
+
+int augment(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  const ParsedArgs a = [&] {
+    auto p = parse_args(args, augment_specs());
+    if (!p) usage_error(p.error().message);
+    return *p;
+  }();
+  if (a.help) {
+    out << format_help(kAugmentUsage, kAugmentSummary, augment_specs());
+    return kExitOk;
+  }
+  const bool indexed = a.has("frames");
+  check_augment_args(a, indexed);
+  const TimestampNs pose_tolerance_ns = parse_pose_tolerance(a);
+  const double status_s = a.has("status-every") ? parse_real("status-every", a.get("status-every")) : 0.0;
+  if (!(status_s >= 0)) usage_error("--status-every: expected seconds >= 0");
+  AugmentOptions options;
+  options.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
+  options.receiver_proxy = !a.has("no-receiver");
+  options.stereo_classes = options.receiver_proxy;
+
+  // Every input is read and checked before the GL context exists, so bad files fail fast.
+  const Rig rig = load_rig_arg(a.get("rig"));
+  if (rig.cameras.size() != 2)
+    runtime_error(rig.source + ": the rig needs 2 cameras, has " + std::to_string(rig.cameras.size()));
+
+  // The images: a files:// source either way (pipeline/image_folder_source.hpp).
+  const std::string uri = images_uri(a, indexed);
   if (a.has("bayer")) parse_bayer(a.get("bayer"));  // a bad pattern is a usage error, not the URI's
-  OpenedSource opened = unwrap(open_sources(uri + params));
+  OpenedSource opened = unwrap(open_sources(uri));
   if (!opened.image_files) runtime_error("internal error: " + uri + " did not open an image folder source");
   const ImageFolderSource* files = opened.image_files;
   const std::size_t expected_pairs = files->pair_count();
@@ -180,22 +210,7 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   if (!a.has("poses") && fs::is_directory(a.get("scene"), ec) && scene_t_ns.size() != expected_pairs)
     runtime_error(a.get("scene") + ": has " + std::to_string(scene_t_ns.size()) +
                   " scene file(s) (.yaml), expected one per pair (" + std::to_string(expected_pairs) + ")");
-  // The first image of each camera is read up front too: the common mistakes (wrong file, size,
-  // depth) show here, naming the file, before the GL context exists.
-  for (CameraId c : {CameraId::kLeft, CameraId::kRight}) {
-    const auto e = std::find_if(files->entries().begin(), files->entries().end(),
-                                [c](const ImageFolderEntry& x) { return x.camera == c; });
-    const std::string where = files->from_index() ? files->where(*e) + ": " : std::string();
-    const std::optional<PixelFormat> bayer =
-        a.has("bayer") ? std::optional<PixelFormat>(parse_bayer(a.get("bayer"))) : std::nullopt;
-    auto im = augrig::read_image_file(e->path, bayer);
-    if (!im) runtime_error(where + user_message(im.error()));
-    const RigCamera& cam = rig.cameras[static_cast<std::size_t>(index_of(c))];
-    if (im->width() != cam.model.width_px || im->height() != cam.model.height_px)
-      runtime_error(where + e->path + ": image is " + std::to_string(im->width()) + "x" +
-                    std::to_string(im->height()) + ", the rig's " + cam.name + " camera is " +
-                    std::to_string(cam.model.width_px) + "x" + std::to_string(cam.model.height_px));
-  }
+  check_first_images(a, *files, rig);
 
   const fs::path out_dir = a.get("out");
   make_dirs(out_dir);
