@@ -288,85 +288,82 @@ void paste_crop(const Image& img, const PixelBox& box, int pad, Image& dst, int 
     }
 }
 
-}  // namespace
+// The looks compared, and a diagnostic: the camera look given the simulator's own light (its
+// fixed ambient and sun, sim/synthetic_scene_cpu.cpp) instead of measuring it, which separates
+// the light's estimation from the rest of the insertion.
+struct Variant {
+  Look look;
+  bool true_light;
+  const char* name;
+};
+constexpr Variant kVariants[] = {{Look::kPlain, false, "plain"},
+                                 {Look::kCamera, false, "camera"},
+                                 {Look::kCamera, true, "camera, the simulator's light"}};
+constexpr std::size_t kLooks = std::size(kVariants);
 
-int main(int argc, char** argv) {
-  const Args args = parse(argc, argv);
+// The scenario with the simulated camera the options ask for.
+Expected<sim::Scenario> make_scenario(const Args& args) {
   auto scenario = sim::builtin_scenario(args.scenario);
-  if (!scenario) {
-    std::fprintf(stderr, "bench_look: %s\n", scenario.error().message.c_str());
-    return 1;
-  }
+  if (!scenario) return scenario;
   sim::CameraTimingConfig& cam = scenario->sensors.cameras;
   cam.psf_sigma_px = args.psf_px, cam.noise_a = args.noise_a, cam.noise_sigma = args.noise_dn,
   cam.gain = args.gain;
   cam.exposure_ms = args.exposure_ms;  // the physical boom's motion blur (and the frames' exposure)
   if (args.bayer) cam.format = PixelFormat::kBayerRG8;
-  auto flight = sim::Flight::create(*scenario);
-  if (!flight) {
-    std::fprintf(stderr, "bench_look: %s\n", flight.error().message.c_str());
-    return 1;
-  }
-  const sim::SensorLogs logs = sim::simulate_sensors(*scenario, *flight);
-  const std::vector<sim::FrameTruth> truths = sim::frame_truths(*scenario, *flight, logs.cameras);
-  const std::vector<Step> steps = pick_steps(all_pairs(truths), args.frames, args.look_cadence_s);
-  std::vector<sim::FrameTruth> given, compared;
+  return scenario;
+}
+
+// The pairs the looks are given, the compared ones among them, and the two renderers: boom-free
+// (every pair given) and with the physical boom (the compared pairs only).
+struct Sources {
+  std::vector<Step> steps;
   std::vector<Pair> pairs;  // the compared ones
-  for (const Step& s : steps) {
+  std::unique_ptr<sim::FlightSource> free_src, phys_src;
+};
+
+bool make_sources(const Args& args, const sim::Scenario& scenario, const sim::Flight& flight,
+                  const std::vector<sim::FrameTruth>& truths, Sources& out) {
+  out.steps = pick_steps(all_pairs(truths), args.frames, args.look_cadence_s);
+  std::vector<sim::FrameTruth> given, compared;
+  for (const Step& s : out.steps) {
     given.push_back(*s.pair.left), given.push_back(*s.pair.right);
     if (!s.compared) continue;
     compared.push_back(*s.pair.left), compared.push_back(*s.pair.right);
-    pairs.push_back(s.pair);
+    out.pairs.push_back(s.pair);
   }
-  auto free_src = sim::FlightSource::create(*scenario, *flight, given);
-  auto phys_src = sim::FlightSource::create(*scenario, *flight, compared);
+  auto free_src = sim::FlightSource::create(scenario, flight, given);
+  auto phys_src = sim::FlightSource::create(scenario, flight, compared);
   if (!free_src || !phys_src) {
     std::fprintf(stderr, "bench_look: %s\n", (!free_src ? free_src : phys_src).error().message.c_str());
-    return 1;
+    return false;
   }
   (*phys_src)->set_physical_boom(true);
-  std::printf(
-      "bench_look: scenario %s, %zu stereo frames compared (the looks given %zu), %s, camera: PSF %.2f px, "
-      "noise a %.3g, read %.2f DN, gain %.2f\n",
-      args.scenario.c_str(), pairs.size(), steps.size(), args.bayer ? "BayerRG8" : "RGB8", args.psf_px,
-      args.noise_a, args.noise_dn, args.gain);
+  out.free_src = std::move(*free_src);
+  out.phys_src = std::move(*phys_src);
+  return true;
+}
 
-  auto ctx =
-      create_gl_context(GlBackend::kEglHeadless);  // the augmenter needs one, even rasterising on the CPU
-  if (!ctx) {
-    std::fprintf(stderr, "bench_look: %s\n", ctx.error().message.c_str());
-    return 1;
-  }
-  // The looks compared: each its own augmenter (CPU rasteriser: the same masks) and look stage.
-  // The looks compared, and a diagnostic: the camera look given the simulator's own light (its
-  // fixed ambient and sun, sim/synthetic_scene_cpu.cpp) instead of measuring it, which separates
-  // the light's estimation from the rest of the insertion.
-  struct Variant {
-    Look look;
-    bool true_light;
-    const char* name;
-  };
-  const Variant variants[] = {{Look::kPlain, false, "plain"},
-                              {Look::kCamera, false, "camera"},
-                              {Look::kCamera, true, "camera, the simulator's light"}};
-  std::vector<Look> looks;
-  for (const Variant& v : variants) looks.push_back(v.look);
+// Per look: its own augmenter (CPU rasteriser: the same masks) and look stage.
+struct LookRigs {
   std::vector<std::unique_ptr<Augmenter>> augmenters;
   std::vector<std::unique_ptr<pipeline::LookStage>> stages;
-  for (Look l : looks) {
+};
+
+bool make_looks(const Args& args, const sim::Scenario& scenario, LookRigs& out) {
+  for (const Variant& v : kVariants) {
     AugmentOptions o;
     o.rasterizer = Rasterizer::kCpu;
-    o.look = l;
-    auto a = Augmenter::create(scenario->rig, o);
+    o.look = v.look;
+    auto a = Augmenter::create(scenario.rig, o);
     if (!a) {
       std::fprintf(stderr, "bench_look: %s\n", a.error().message.c_str());
-      return 1;
+      return false;
     }
     pipeline::LookConfig lc;
-    lc.look = l;
-    lc.cameras.assign(scenario->rig.cameras.size(), CameraLookParams{});
+    lc.look = v.look;
+    lc.cameras.assign(scenario.rig.cameras.size(), CameraLookParams{});
     for (std::size_t c = 0; c < lc.cameras.size(); ++c) {
-      lc.cameras[c] = scenario->rig.cameras[c].look;
+      lc.cameras[c] = scenario.rig.cameras[c].look;
       if (args.true_noise) {
         // A diagnostic: the simulator's own noise (shot a I + read sigma^2), as a rig would configure it.
         NoiseLevelFunction& n = lc.cameras[c].noise;
@@ -376,83 +373,118 @@ int main(int argc, char** argv) {
     }
     lc.noise_every_s = args.look_cadence_s;  // 0: every pair given (the compared ones, seconds apart)
     auto st = std::make_unique<pipeline::LookStage>(lc);
-    if (auto s = st->configure(**a); !s) return 1;
-    augmenters.push_back(std::move(*a));
-    stages.push_back(std::move(st));
+    if (auto s = st->configure(**a); !s) return false;
+    out.augmenters.push_back(std::move(*a));
+    out.stages.push_back(std::move(st));
   }
+  return true;
+}
 
-  std::vector<LookTotals> totals(std::size(looks));
-  std::vector<StereoResult> results(std::size(looks));
-  std::vector<double> probe_ms(std::size(looks), 0.0);  // the slowest light measurement
+// The scene a look augments the pair with: the boom as flown, the sun from the ephemeris, or for
+// the diagnostic variant the simulator's own light.
+SceneState scene_for(const Pair& p, const sim::Flight& flight, const Variant& v) {
+  const Pose T_ecef_tanker = flight.tanker(p.left->t_true_s).T_ecef_body();
+  SceneState scene{p.left->boom, p.left->T_body_receiver, true,
+                   pipeline::sun_light(p.left->t_gps_ns, T_ecef_tanker),
+                   sim::boom_rate(flight, p.left->t_true_s)};  // the rate: as the physical boom moves
+  if (v.true_light) {
+    const bool sun_up = scene.light.direct.maxCoeff() > 0;
+    scene.light.direct = sun_up ? Eigen::Vector3d(0.75, 0.75 * 0.97, 0.75 * 0.92) : Eigen::Vector3d::Zero();
+    scene.light.sky = Eigen::Vector3d(0.36, 0.40, 0.46),
+    scene.light.ground = Eigen::Vector3d(0.22, 0.22, 0.20);
+    scene.light.source = LightSource::kConfigured;
+  }
+  return scene;
+}
+
+// What the run over the pairs gathers.
+struct Run {
+  std::vector<LookTotals> totals = std::vector<LookTotals>(kLooks);
+  std::vector<StereoResult> results = std::vector<StereoResult>(kLooks);
+  std::vector<double> probe_ms = std::vector<double>(kLooks, 0.0);  // the slowest light measurement
   Image crops;
+  double secs = 0;
+};
+
+// One pair through every look: augment, let the look stage measure, and (compared pairs) measure
+// the augmented views against the physical ones.
+bool augment_step(std::size_t k, const Step& step, const StereoFrame& raw, const StereoFrame& phys,
+                  const sim::Flight& flight, const sim::Scenario& scenario, LookRigs& rigs, Run& run) {
+  for (std::size_t l = 0; l < kLooks; ++l) {
+    SceneState scene = scene_for(step.pair, flight, kVariants[l]);  // the look stage may set its light
+    for (const std::string& note : rigs.stages[l]->before_augment(raw, scene, *rigs.augmenters[l]))
+      if (k == 0) std::printf("  %s\n", note.c_str());
+    if (auto s = rigs.augmenters[l]->augment(raw, scene, run.results[l]); !s) {
+      std::fprintf(stderr, "bench_look: %s\n", s.error().message.c_str());
+      return false;
+    }
+    const auto p0 = std::chrono::steady_clock::now();
+    rigs.stages[l]->after_augment(raw, scene, run.results[l], scenario.rig);
+    run.probe_ms[l] =
+        std::max(run.probe_ms[l],
+                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - p0).count());
+    // The first compared pair only warms the look up (its first noise estimate and light measurement).
+    if (!step.compared || step.index == 0) continue;
+    const bool train = step.index % 2 == 0;
+    const StereoResult& r = run.results[l];
+    measure_view(r.left.augmented, phys.left.image, r.left.mask, train, run.totals[l]);
+    measure_view(r.right.augmented, phys.right.image, r.right.mask, train, run.totals[l]);
+  }
+  return true;
+}
+
+// The crops: plain | camera | physical around the boom's box in the left view.
+Image make_crops(const Run& run, const StereoFrame& phys) {
+  const PixelBox& b = run.results[1].left.boom_box;
+  const int w = std::min(b.x1 - b.x0 + 16, 480), h = std::min(b.y1 - b.y0 + 16, 360);
+  Image crops(3 * w, h, PixelFormat::kRGB8);
+  paste_crop(run.results[0].left.augmented, b, 8, crops, 0);
+  paste_crop(run.results[1].left.augmented, b, 8, crops, w);
+  paste_crop(phys.left.image, b, 8, crops, 2 * w);
+  return crops;
+}
+
+// BENCH_LOOK_TRACE: per compared pair, the left boom's mean difference and the camera look's status.
+void trace_pair(std::size_t i, const Run& run, const StereoFrame& phys, const LookRigs& rigs) {
+  const std::string st = rigs.stages[1]->status();
+  const Image boom = bit_mask(run.results[1].left.mask, kMaskBoom);
+  const auto d1 =
+      eval::region_difference(run.results[1].left.augmented.cview(), phys.left.image.cview(), boom.view());
+  const auto d2 =
+      eval::region_difference(run.results[2].left.augmented.cview(), phys.left.image.cview(), boom.view());
+  std::fprintf(stderr, "\npair %zu: left boom diff camera %+.2f, sim light %+.2f DN; %s\n", i,
+               d1 ? d1->mean_dn : NAN, d2 ? d2->mean_dn : NAN, st.substr(0, st.find("; noise")).c_str());
+}
+
+// Every pair given, in time order, through every look.
+bool run_looks(const Args& args, const sim::Scenario& scenario, const sim::Flight& flight, Sources& src,
+               LookRigs& rigs, Run& run) {
   const auto t0 = std::chrono::steady_clock::now();
-  for (std::size_t k = 0; k < steps.size(); ++k) {
-    const Pair& p = steps[k].pair;
-    const std::size_t i = steps[k].index;
-    const StereoFrame raw = render_pair(**free_src);
-    const StereoFrame phys = steps[k].compared ? render_pair(**phys_src) : StereoFrame{};
-    const Pose T_ecef_tanker = flight->tanker(p.left->t_true_s).T_ecef_body();
-    for (std::size_t l = 0; l < std::size(looks); ++l) {
-      SceneState scene{p.left->boom, p.left->T_body_receiver, true,
-                       pipeline::sun_light(p.left->t_gps_ns, T_ecef_tanker)};
-      scene.boom_rate_per_s = sim::boom_rate(*flight, p.left->t_true_s);  // as the physical boom moves
-      if (variants[l].true_light) {
-        const bool sun_up = scene.light.direct.maxCoeff() > 0;
-        scene.light.direct =
-            sun_up ? Eigen::Vector3d(0.75, 0.75 * 0.97, 0.75 * 0.92) : Eigen::Vector3d::Zero();
-        scene.light.sky = Eigen::Vector3d(0.36, 0.40, 0.46),
-        scene.light.ground = Eigen::Vector3d(0.22, 0.22, 0.20);
-        scene.light.source = LightSource::kConfigured;
-      }
-      for (const std::string& note : stages[l]->before_augment(raw, scene, *augmenters[l]))
-        if (k == 0) std::printf("  %s\n", note.c_str());
-      if (auto s = augmenters[l]->augment(raw, scene, results[l]); !s) {
-        std::fprintf(stderr, "bench_look: %s\n", s.error().message.c_str());
-        return 1;
-      }
-      const auto p0 = std::chrono::steady_clock::now();
-      stages[l]->after_augment(raw, scene, results[l], scenario->rig);
-      probe_ms[l] =
-          std::max(probe_ms[l],
-                   std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - p0).count());
-      // The first compared pair only warms the look up (its first noise estimate and light measurement).
-      if (!steps[k].compared || i == 0) continue;
-      const bool train = i % 2 == 0;
-      measure_view(results[l].left.augmented, phys.left.image, results[l].left.mask, train, totals[l]);
-      measure_view(results[l].right.augmented, phys.right.image, results[l].right.mask, train, totals[l]);
-    }
-    std::fprintf(stderr, "\r  pair %zu/%zu", k + 1, steps.size());
-    if (!steps[k].compared) continue;
+  for (std::size_t k = 0; k < src.steps.size(); ++k) {
+    const Step& step = src.steps[k];
+    const StereoFrame raw = render_pair(*src.free_src);
+    const StereoFrame phys = step.compared ? render_pair(*src.phys_src) : StereoFrame{};
+    if (!augment_step(k, step, raw, phys, flight, scenario, rigs, run)) return false;
+    std::fprintf(stderr, "\r  pair %zu/%zu", k + 1, src.steps.size());
+    if (!step.compared) continue;
     // The crops: the frame where the boom's box is largest in the middle of the flight.
-    if (!args.out.empty() && i == pairs.size() / 2) {
-      const PixelBox& b = results[1].left.boom_box;
-      const int w = std::min(b.x1 - b.x0 + 16, 480), h = std::min(b.y1 - b.y0 + 16, 360);
-      crops = Image(3 * w, h, PixelFormat::kRGB8);
-      paste_crop(results[0].left.augmented, b, 8, crops, 0);
-      paste_crop(results[1].left.augmented, b, 8, crops, w);
-      paste_crop(phys.left.image, b, 8, crops, 2 * w);
-    }
-    if (std::getenv("BENCH_LOOK_TRACE")) {
-      const std::string st = stages[1]->status();
-      const Image boom = bit_mask(results[1].left.mask, kMaskBoom);
-      const auto d1 =
-          eval::region_difference(results[1].left.augmented.cview(), phys.left.image.cview(), boom.view());
-      const auto d2 =
-          eval::region_difference(results[2].left.augmented.cview(), phys.left.image.cview(), boom.view());
-      std::fprintf(stderr, "\npair %zu: left boom diff camera %+.2f, sim light %+.2f DN; %s\n", i,
-                   d1 ? d1->mean_dn : NAN, d2 ? d2->mean_dn : NAN, st.substr(0, st.find("; noise")).c_str());
-    }
+    if (!args.out.empty() && step.index == src.pairs.size() / 2) run.crops = make_crops(run, phys);
+    if (std::getenv("BENCH_LOOK_TRACE")) trace_pair(step.index, run, phys, rigs);
   }
   std::fprintf(stderr, "\n");
-  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  run.secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return true;
+}
 
+// The main table: differences, noise, edge and the classifiers' AUC per look.
+void print_look_table(const Run& run) {
   std::printf(
       "\n| look | boom px | mean diff DN | RMS diff DN | noise aug/phys | noise boom/bg | edge 10-90 aug px "
       "| "
       "edge phys px | edge diff px | AUC trees | AUC logistic "
       "|\n|---|---|---|---|---|---|---|---|---|---|---|\n");
-  for (std::size_t l = 0; l < std::size(looks); ++l) {
-    const LookTotals& t = totals[l];
+  for (std::size_t l = 0; l < kLooks; ++l) {
+    const LookTotals& t = run.totals[l];
     const double n = std::max<double>(1.0, static_cast<double>(t.pixels));
     const Expected<eval::ClassifierResult> cr =
         eval::classify_patches(t.train_a, t.train_b, t.test_a, t.test_b);
@@ -464,11 +496,14 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "bench_look: %s\n", cr.error().message.c_str());
     const double ea = median(t.edge_aug), ep = median(t.edge_phys);
     std::printf("| %s | %zu | %+.2f | %.2f | %.3f | %.3f | %.2f | %.2f | %+.2f | %.3f | %.3f |\n",
-                variants[l].name, t.pixels, t.diff_sum / n, std::sqrt(t.diff_sq / n), median(t.noise_ratio),
+                kVariants[l].name, t.pixels, t.diff_sum / n, std::sqrt(t.diff_sq / n), median(t.noise_ratio),
                 median(t.boom_vs_background), ea, ep, ea - ep, c.auc_random_trees, c.auc_logistic);
   }
-  // Which statistic tells them apart: per feature, the median over the patches of augmented over
-  // physical at the same place (1: alike).
+}
+
+// Which statistic tells them apart: per feature, the median over the patches of augmented over
+// physical at the same place (1: alike).
+void print_feature_table(const Run& run) {
   static constexpr const char* kFeatures[] = {"mean",          "variance",   "gradient",
                                               "laplacian var", "DCT band 0", "DCT band 1",
                                               "DCT band 2",    "DCT band 3", "noise"};
@@ -477,9 +512,9 @@ int main(int argc, char** argv) {
   std::printf("\n|---|");
   for (std::size_t k = 0; k < std::size(kFeatures); ++k) std::printf("---|");
   std::printf("\n");
-  for (std::size_t l = 0; l < std::size(looks); ++l) {
-    const LookTotals& t = totals[l];
-    std::printf("| %s |", variants[l].name);
+  for (std::size_t l = 0; l < kLooks; ++l) {
+    const LookTotals& t = run.totals[l];
+    std::printf("| %s |", kVariants[l].name);
     for (std::size_t k = 0; k < std::size(kFeatures); ++k) {
       std::vector<double> r;
       for (std::size_t i = 0; i < t.test_a.size(); ++i)
@@ -488,29 +523,80 @@ int main(int argc, char** argv) {
     }
     std::printf("\n");
   }
+}
+
+void print_shadow_table(const Run& run) {
   std::printf(
       "\nThe receiver in the boom's shadow (mask bit 2; the plain look leaves the boom-free frame there):\n\n"
       "| look | shadow px | mean diff DN | RMS diff DN | noise aug/phys |\n|---|---|---|---|---|\n");
-  for (std::size_t l = 0; l < std::size(looks); ++l) {
-    const LookTotals& t = totals[l];
+  for (std::size_t l = 0; l < kLooks; ++l) {
+    const LookTotals& t = run.totals[l];
     const double n = std::max<double>(1.0, static_cast<double>(t.shadow_pixels));
-    std::printf("| %s | %zu | %+.2f | %.2f | %.3f |\n", variants[l].name, t.shadow_pixels,
+    std::printf("| %s | %zu | %+.2f | %.2f | %.3f |\n", kVariants[l].name, t.shadow_pixels,
                 t.shadow_diff_sum / n, std::sqrt(t.shadow_diff_sq / n), median(t.shadow_noise_ratio));
   }
-  for (std::size_t l = 0; l < std::size(looks); ++l)
-    if (looks[l] == Look::kCamera && !variants[l].true_light)
+}
+
+// The measuring camera look's status, and the patch counts and time.
+void print_status(const Run& run, const LookRigs& rigs) {
+  for (std::size_t l = 0; l < kLooks; ++l)
+    if (kVariants[l].look == Look::kCamera && !kVariants[l].true_light)
       std::printf("\n%s\n(light measured on the receiver in %.2f ms at most per sampled pair)\n",
-                  stages[l]->status().c_str(), probe_ms[l]);
-  std::printf("(%zu train / %zu test patches per class; %.1f s)\n", totals[0].train_a.size(),
-              totals[0].test_a.size(), secs);
-  if (!args.out.empty() && crops.width() > 0) {
-    std::filesystem::create_directories(args.out);
-    const std::string path = args.out + "/look_crops.png";
-    if (auto s = write_png_file(path, crops); !s) {
-      std::fprintf(stderr, "bench_look: %s\n", s.error().message.c_str());
-      return 1;
-    }
-    std::printf("crops (plain | camera | physical boom): %s\n", path.c_str());
+                  rigs.stages[l]->status().c_str(), run.probe_ms[l]);
+  std::printf("(%zu train / %zu test patches per class; %.1f s)\n", run.totals[0].train_a.size(),
+              run.totals[0].test_a.size(), run.secs);
+}
+
+bool write_crops(const Args& args, const Image& crops) {
+  if (args.out.empty() || crops.width() <= 0) return true;
+  std::filesystem::create_directories(args.out);
+  const std::string path = args.out + "/look_crops.png";
+  if (auto s = write_png_file(path, crops); !s) {
+    std::fprintf(stderr, "bench_look: %s\n", s.error().message.c_str());
+    return false;
   }
-  return 0;
+  std::printf("crops (plain | camera | physical boom): %s\n", path.c_str());
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = parse(argc, argv);
+  auto scenario = make_scenario(args);
+  if (!scenario) {
+    std::fprintf(stderr, "bench_look: %s\n", scenario.error().message.c_str());
+    return 1;
+  }
+  auto flight = sim::Flight::create(*scenario);
+  if (!flight) {
+    std::fprintf(stderr, "bench_look: %s\n", flight.error().message.c_str());
+    return 1;
+  }
+  const sim::SensorLogs logs = sim::simulate_sensors(*scenario, *flight);
+  const std::vector<sim::FrameTruth> truths = sim::frame_truths(*scenario, *flight, logs.cameras);
+  Sources src;
+  if (!make_sources(args, *scenario, *flight, truths, src)) return 1;
+  std::printf(
+      "bench_look: scenario %s, %zu stereo frames compared (the looks given %zu), %s, camera: PSF %.2f px, "
+      "noise a %.3g, read %.2f DN, gain %.2f\n",
+      args.scenario.c_str(), src.pairs.size(), src.steps.size(), args.bayer ? "BayerRG8" : "RGB8",
+      args.psf_px, args.noise_a, args.noise_dn, args.gain);
+
+  auto ctx =
+      create_gl_context(GlBackend::kEglHeadless);  // the augmenter needs one, even rasterising on the CPU
+  if (!ctx) {
+    std::fprintf(stderr, "bench_look: %s\n", ctx.error().message.c_str());
+    return 1;
+  }
+  LookRigs rigs;
+  if (!make_looks(args, *scenario, rigs)) return 1;
+  Run run;
+  if (!run_looks(args, *scenario, *flight, src, rigs, run)) return 1;
+
+  print_look_table(run);
+  print_feature_table(run);
+  print_shadow_table(run);
+  print_status(run, rigs);
+  return write_crops(args, run.crops) ? 0 : 1;
 }
