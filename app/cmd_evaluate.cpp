@@ -155,110 +155,135 @@ std::string look_text(const std::string& look) {
   return "look: camera (the boom drawn in with the sun and sky, the camera's PSF and noise)";
 }
 
-int evaluate_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  std::vector<std::string> pos;
-  const ParsedArgs a = parse_with_positionals(args, evaluate_specs(), {"SOURCE"}, pos);
-  if (a.help) {
-    out << format_help(
-        "augrig evaluate SOURCE [--matcher MATCHER.yaml] [--out DIR] [--every K] [--frames N] [--images K]\n"
-        "                       [--look plain|camera|physical]",
-        "SOURCE: a recording (DIR or replay://DIR), a simulated flight (sim://SCENARIO, e.g. sim://demo), a\n"
-        "sequence (a frame index INDEX.csv as `augrig sim` writes it), or a EuRoC/ASL folder (the last two "
-        "with\n"
-        "--poses or --scene). Each stereo frame is augmented as `replay`/`run` would\n"
-        "(recorded, simulated or given poses); those whose index in the source is a multiple of K are\n"
-        "evaluated: the raw and the augmented pair are rectified, matched (OpenCV StereoSGBM or StereoBM)\n"
-        "and compared with the true disparity over the receiver, per stereo class (both, left only, right\n"
-        "only, neither), with the boom's pixels kept and left out. Prints the run's table (the seed paper's\n"
-        "Table 1 rows with the matcher's errors); --out writes it with a CSV row per frame and the plots\n"
-        "(docs/EVALUATE.md). Rows are named by the source's frame index and timed from its first frame:\n"
-        "--from-frame A --frames N writes the whole run's rows of those frames.\n"
-        "--look: the boom of the augmented pair: camera (default) or plain as `run` draws it, or physical\n"
-        "(sim:// only): the simulator's frames with the boom in the scene are the augmented pair (and the\n"
-        "raw one: both columns score the same frames); the masks, depth and classes come from the\n"
-        "augmenter as always, flying the scenario's boom (--boom scenario, which plain and camera runs of\n"
-        "a sim:// flight may give too). scripts/evaluate_looks.sh compares the three on one flight.",
-        evaluate_specs());
-    return kExitOk;
-  }
-  // Flags first: nothing is opened for a command line that cannot work.
-  const int every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 1;
-  const long long max_pairs = a.has("frames") ? parse_integer("frames", a.get("frames"), 1, 1LL << 40) : 0;
-  const int images_every =
+void print_evaluate_help(std::ostream& out) {
+  out << format_help(
+      "augrig evaluate SOURCE [--matcher MATCHER.yaml] [--out DIR] [--every K] [--frames N] [--images K]\n"
+      "                       [--look plain|camera|physical]",
+      "SOURCE: a recording (DIR or replay://DIR), a simulated flight (sim://SCENARIO, e.g. sim://demo), a\n"
+      "sequence (a frame index INDEX.csv as `augrig sim` writes it), or a EuRoC/ASL folder (the last two "
+      "with\n"
+      "--poses or --scene). Each stereo frame is augmented as `replay`/`run` would\n"
+      "(recorded, simulated or given poses); those whose index in the source is a multiple of K are\n"
+      "evaluated: the raw and the augmented pair are rectified, matched (OpenCV StereoSGBM or StereoBM)\n"
+      "and compared with the true disparity over the receiver, per stereo class (both, left only, right\n"
+      "only, neither), with the boom's pixels kept and left out. Prints the run's table (the seed paper's\n"
+      "Table 1 rows with the matcher's errors); --out writes it with a CSV row per frame and the plots\n"
+      "(docs/EVALUATE.md). Rows are named by the source's frame index and timed from its first frame:\n"
+      "--from-frame A --frames N writes the whole run's rows of those frames.\n"
+      "--look: the boom of the augmented pair: camera (default) or plain as `run` draws it, or physical\n"
+      "(sim:// only): the simulator's frames with the boom in the scene are the augmented pair (and the\n"
+      "raw one: both columns score the same frames); the masks, depth and classes come from the\n"
+      "augmenter as always, flying the scenario's boom (--boom scenario, which plain and camera runs of\n"
+      "a sim:// flight may give too). scripts/evaluate_looks.sh compares the three on one flight.",
+      evaluate_specs());
+}
+
+// The flags that need no source.
+struct EvaluateFlags {
+  int every = 1;
+  long long max_pairs = 0;  // --frames; 0: all
+  int images_every = 0;     // --images; 0: none
+  std::string look;
+  bool physical = false;
+  eval::EvaluatorOptions eo;
+};
+
+// Flags first: nothing is opened for a command line that cannot work.
+EvaluateFlags parse_evaluate_flags(const ParsedArgs& a) {
+  EvaluateFlags f;
+  f.every = a.has("every") ? static_cast<int>(parse_integer("every", a.get("every"), 1, 1000000)) : 1;
+  f.max_pairs = a.has("frames") ? parse_integer("frames", a.get("frames"), 1, 1LL << 40) : 0;
+  f.images_every =
       a.has("images") ? static_cast<int>(parse_integer("images", a.get("images"), 1, 1000000)) : 0;
-  if (images_every && !a.has("out")) usage_error("--images needs --out (where the images go)");
+  if (f.images_every && !a.has("out")) usage_error("--images needs --out (where the images go)");
   if (a.has("no-plot") && !a.has("out")) usage_error("--no-plot needs --out (the plot is written there)");
   if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
   if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
   if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
   if (a.has("full-frame") && a.has("context")) usage_error("--full-frame and --context exclude each other");
-  const std::string look = a.get("look", "camera");
-  if (look != "plain" && look != "camera" && look != "physical")
-    usage_error("--look: expected plain, camera or physical, got '" + look + "'");
-  const bool physical = look == "physical";
-  eval::EvaluatorOptions eo;
-  if (a.has("matcher")) eo.matcher = unwrap(eval::load_matcher_params(a.get("matcher")));
-  eo.full_frame = a.has("full-frame");
+  f.look = a.get("look", "camera");
+  if (f.look != "plain" && f.look != "camera" && f.look != "physical")
+    usage_error("--look: expected plain, camera or physical, got '" + f.look + "'");
+  f.physical = f.look == "physical";
+  if (a.has("matcher")) f.eo.matcher = unwrap(eval::load_matcher_params(a.get("matcher")));
+  f.eo.full_frame = a.has("full-frame");
   if (a.has("context"))
-    eo.context_px = static_cast<int>(parse_integer("context", a.get("context"), 0, 100000));
+    f.eo.context_px = static_cast<int>(parse_integer("context", a.get("context"), 0, 100000));
+  return f;
+}
 
-  // The source: a simulated flight, a EuRoC folder or a recording.
-  std::string src = pos[0];
-  const bool is_sim = src.rfind("sim://", 0) == 0;
+// What SOURCE names: a simulated flight, a frame index, a EuRoC folder or (none) a recording.
+struct SourceKind {
+  bool sim = false;
+  bool index = false;
+  bool euroc = false;
+};
+
+SourceKind classify_source(const std::string& src) {
+  SourceKind k;
+  k.sim = src.rfind("sim://", 0) == 0;
   // A sequence: a frame index (sequence,camera,t_ns,file) as `augrig sim` writes and `augment
   // --frames` reads, its frames paired by timestamp.
-  const bool is_index = !is_sim && (src.rfind("files://", 0) == 0 || fs::path(src).extension() == ".csv");
-  const bool is_euroc = !is_sim && !is_index &&
-                        (src.rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(src) / "mav0") ||
-                         fs::path(src).filename() == "mav0");
-  std::string start;  // the start parameters of a recording or dataset
-  if ((a.has("seek") || a.has("from-frame")) && is_index)
+  k.index = !k.sim && (src.rfind("files://", 0) == 0 || fs::path(src).extension() == ".csv");
+  k.euroc = !k.sim && !k.index &&
+            (src.rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(src) / "mav0") ||
+             fs::path(src).filename() == "mav0");
+  return k;
+}
+
+// --seek / --from-frame as the start parameters of a recording's or dataset's URI.
+std::string start_params(const ParsedArgs& a, const SourceKind& kind) {
+  std::string start;
+  if ((a.has("seek") || a.has("from-frame")) && kind.index)
     usage_error("--seek and --from-frame: a frame index is evaluated whole (write a shorter index)");
   if (a.has("seek")) {
-    if (is_sim) usage_error("--seek: a simulated flight starts at its beginning (use the scenario's phases)");
+    if (kind.sim)
+      usage_error("--seek: a simulated flight starts at its beginning (use the scenario's phases)");
     if (parse_real("seek", a.get("seek")) < 0)
       usage_error("--seek: expected seconds from the first frame (>= 0), got '" + a.get("seek") + "'");
     start = "&seek_s=" + a.get("seek");
   }
   if (a.has("from-frame")) {
-    if (is_sim) usage_error("--from-frame: a simulated flight starts at its beginning");
+    if (kind.sim) usage_error("--from-frame: a simulated flight starts at its beginning");
     start = "&from_frame=" + std::to_string(parse_integer("from-frame", a.get("from-frame"), 0, 1LL << 40));
   }
-  if (a.has("pair-tolerance-ns") && !is_euroc) usage_error("--pair-tolerance-ns is for EuRoC folders");
-  if (physical) {
-    if (!is_sim)
-      usage_error(
-          "--look physical: only a simulated flight (sim://SCENARIO) has frames with the boom in the "
-          "scene; '" +
-          src + "' is not one");
-    // The boom in the frames is where the simulation puts it: the augmenter's (masks, classes) must
-    // be the same one.
-    if (a.has("boom") && a.get("boom") != "scenario")
-      usage_error("--look physical and --boom " + a.get("boom") +
-                  ": the physical boom is the scenario's (--boom scenario), the masks must be of that boom");
-    for (const char* flag : {"scene", "poses"})
-      if (a.has(flag))
-        usage_error(std::string("--look physical and --") + flag +
-                    ": the physical boom and the receiver are the simulated flight's; the poses must be too");
-    const auto boom = uri_param(src, "boom");
-    if (boom && *boom != "physical")
-      usage_error("--look physical: the source says boom=" + *boom +
-                  "; leave boom= out (or give boom=physical)");
-    if (!boom) src += std::string(src.find('?') == std::string::npos ? "?" : "&") + "boom=physical";
-  }
-  // --boom scenario (--look physical's boom): the simulated flight's own, as its truth gives it.
-  const bool scenario_boom = physical || a.get("boom") == "scenario";
-  if (scenario_boom && (!is_sim || a.has("scene") || a.has("poses")))
+  return start;
+}
+
+// --look physical: checked against the other flags, and the simulated flight asked for its
+// frames with the boom in the scene (boom=physical added to `src`).
+void apply_physical_look(const ParsedArgs& a, const SourceKind& kind, std::string& src) {
+  if (!kind.sim)
     usage_error(
-        "--boom scenario: only a simulated flight (sim://SCENARIO) with its own poses has the "
-        "scenario's boom");
+        "--look physical: only a simulated flight (sim://SCENARIO) has frames with the boom in the "
+        "scene; '" +
+        src + "' is not one");
+  // The boom in the frames is where the simulation puts it: the augmenter's (masks, classes) must
+  // be the same one.
+  if (a.has("boom") && a.get("boom") != "scenario")
+    usage_error("--look physical and --boom " + a.get("boom") +
+                ": the physical boom is the scenario's (--boom scenario), the masks must be of that boom");
+  for (const char* flag : {"scene", "poses"})
+    if (a.has(flag))
+      usage_error(std::string("--look physical and --") + flag +
+                  ": the physical boom and the receiver are the simulated flight's; the poses must be too");
+  const auto boom = uri_param(src, "boom");
+  if (boom && *boom != "physical")
+    usage_error("--look physical: the source says boom=" + *boom +
+                "; leave boom= out (or give boom=physical)");
+  if (!boom) src += std::string(src.find('?') == std::string::npos ? "?" : "&") + "boom=physical";
+}
+
+// The URI that opens SOURCE for the run (`start`: start_params()).
+std::string source_uri(const ParsedArgs& a, const std::string& src, const SourceKind& kind,
+                       const std::string& start) {
   std::string uri;
-  if (is_sim) {
+  if (kind.sim) {
     // Every frame, as fast as the evaluation goes (lockstep: none dropped).
     uri = src + (src.find('?') == std::string::npos ? "?" : "&") +
           (src.find("rate=") == std::string::npos ? "rate=0" : "");
     if (uri.back() == '&' || uri.back() == '?') uri.pop_back();
-  } else if (is_index) {
+  } else if (kind.index) {
     if (!a.has("scene") && !a.has("poses"))
       usage_error(
           "a frame index has no poses of the receiver: give --poses POSES.csv (e.g. augrig nav's, or a "
@@ -266,7 +291,7 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
     const std::string path = src.rfind("files://", 0) == 0 ? src.substr(8) : src;
     if (!fs::is_regular_file(path)) runtime_error(path + ": no such frame index");
     uri = "files://" + fs::absolute(path).string();
-  } else if (is_euroc) {
+  } else if (kind.euroc) {
     if (!a.has("scene") && !a.has("poses"))
       usage_error(
           "a EuRoC folder has no poses of the receiver: give --scene SCENE.yaml or --poses POSES.csv");
@@ -282,62 +307,84 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
       usage_error("--seek and --from-frame: an MCAP file is evaluated from its first frame");
     uri = "replay://" + dir + "?rate=fast" + start;
   }
-  OpenedSource opened = unwrap(open_sources(uri));
-  std::optional<Rig> source_rig;
+  return uri;
+}
+
+// What the opened source says of itself: its rig, its length, and where its frames are counted
+// and timed from (a frame index and a simulated flight: the run's first pair, see PairScorer),
+// with --frames as the end of a recording's or EuRoC folder's range.
+struct SourceFacts {
+  std::optional<Rig> rig;
   std::uint64_t total_pairs = 0;
-  // Where the source's frames are counted and timed from (a frame index and a simulated flight:
-  // the run's first pair, below), and --frames as the end of a recording's or EuRoC folder's range.
   std::optional<TimestampNs> origin_ns;
   std::optional<std::size_t> euroc_start;  // a EuRoC folder: its pair `sequence` is frame start + sequence
   bool range_in_source = false;
-  if (is_sim) {
-    source_rig = opened.sim->scenario.rig;
-    total_pairs = opened.sources.front()->pair_count();
-  } else if (opened.replay) {
-    const recorder::RecordingReader& reader = opened.replay->reader();
-    for (const std::string& p : reader.problems())
-      err << "augrig evaluate: " << recording_problem(reader, p) << "\n";
-    if (opened.replay->frame_count() == 0)
-      runtime_error(reader.path() + ": the recording holds no readable frames");
-    if (const std::string yaml = reader.meta("rig_yaml"); !yaml.empty())
-      source_rig = unwrap(parse_rig(yaml, reader.path() + " (meta rig_yaml)"));
-    if (!source_rig && !a.has("rig"))
-      runtime_error(reader.path() +
-                    ": the recording stores no rig (meta rig_yaml is empty); give one with --rig");
-    for (const auto& t : opened.replay->frame_times())
-      if (t) {
-        origin_ns = *t;  // the first readable frame's pair time
-        break;
-      }
-    if (max_pairs) {
-      const std::size_t start = opened.replay->start_frame();
-      check(opened.replay->set_end_frame(
-          start + std::min<std::size_t>(static_cast<std::size_t>(max_pairs), opened.replay->frame_count())));
-      range_in_source = true;
-    }
-    total_pairs = opened.replay->end_frame() - opened.replay->start_frame();
-  } else {
-    FrameSource& source = *opened.sources.front();
-    // An MCAP file from augrig export: read front to back, with the rig in its metadata.
-    if (const auto meta = source.metadata(); meta.count("rig_yaml"))
-      source_rig = unwrap(parse_rig(meta.at("rig_yaml"), src + " (metadata augrig_recording, rig_yaml)"));
-    // A EuRoC folder: a range of its pairs, counted and timed from the folder's first.
-    if (source.capabilities().ranged) {
-      origin_ns = source.origin_t_ns();
-      euroc_start = source.range_start();
-      if (max_pairs) {
-        check(source.set_range_end(source.range_start() + std::min<std::size_t>(static_cast<std::size_t>(max_pairs),
-                                                                                 source.pair_count())));
-        range_in_source = true;
-      }
-    }
-    total_pairs = source.pair_count();
-  }
-  const Rig rig = a.has("rig") ? load_rig_arg(a.get("rig")) : source_rig ? *source_rig : Rig::paper_default();
-  if (rig.cameras.size() != 2)
-    runtime_error(rig.source + ": the rig needs 2 cameras, has " + std::to_string(rig.cameras.size()));
-  auto evaluator = unwrap(eval::StereoEvaluator::create(rig, eo));
+};
 
+SourceFacts recording_facts(recorder::ReplaySource& replay, const ParsedArgs& a, long long max_pairs,
+                            std::ostream& err) {
+  SourceFacts f;
+  const recorder::RecordingReader& reader = replay.reader();
+  for (const std::string& p : reader.problems())
+    err << "augrig evaluate: " << recording_problem(reader, p) << "\n";
+  if (replay.frame_count() == 0) runtime_error(reader.path() + ": the recording holds no readable frames");
+  if (const std::string yaml = reader.meta("rig_yaml"); !yaml.empty())
+    f.rig = unwrap(parse_rig(yaml, reader.path() + " (meta rig_yaml)"));
+  if (!f.rig && !a.has("rig"))
+    runtime_error(reader.path() +
+                  ": the recording stores no rig (meta rig_yaml is empty); give one with --rig");
+  for (const auto& t : replay.frame_times())
+    if (t) {
+      f.origin_ns = *t;  // the first readable frame's pair time
+      break;
+    }
+  if (max_pairs) {
+    const std::size_t start = replay.start_frame();
+    check(replay.set_end_frame(
+        start + std::min<std::size_t>(static_cast<std::size_t>(max_pairs), replay.frame_count())));
+    f.range_in_source = true;
+  }
+  f.total_pairs = replay.end_frame() - replay.start_frame();
+  return f;
+}
+
+// A source other than a recording or a simulated flight: an MCAP file, a EuRoC folder, a frame index.
+SourceFacts other_source_facts(FrameSource& source, const std::string& src, long long max_pairs) {
+  SourceFacts f;
+  // An MCAP file from augrig export: read front to back, with the rig in its metadata.
+  if (const auto meta = source.metadata(); meta.count("rig_yaml"))
+    f.rig = unwrap(parse_rig(meta.at("rig_yaml"), src + " (metadata augrig_recording, rig_yaml)"));
+  // A EuRoC folder: a range of its pairs, counted and timed from the folder's first.
+  if (source.capabilities().ranged) {
+    f.origin_ns = source.origin_t_ns();
+    f.euroc_start = source.range_start();
+    if (max_pairs) {
+      check(source.set_range_end(
+          source.range_start() +
+          std::min<std::size_t>(static_cast<std::size_t>(max_pairs), source.pair_count())));
+      f.range_in_source = true;
+    }
+  }
+  f.total_pairs = source.pair_count();
+  return f;
+}
+
+SourceFacts source_facts(OpenedSource& opened, const ParsedArgs& a, const std::string& src, bool is_sim,
+                         long long max_pairs, std::ostream& err) {
+  if (is_sim) {
+    SourceFacts f;
+    f.rig = opened.sim->scenario.rig;
+    f.total_pairs = opened.sources.front()->pair_count();
+    return f;
+  }
+  if (opened.replay) return recording_facts(*opened.replay, a, max_pairs, err);
+  return other_source_facts(*opened.sources.front(), src, max_pairs);
+}
+
+// The pipeline's rig, models, poses, boom and look (the outputs and callbacks are added later).
+PipelineParts evaluation_parts(const ParsedArgs& a, const Rig& rig, const OpenedSource& opened,
+                               const SourceFacts& facts, const SourceKind& kind, const EvaluateFlags& f,
+                               bool scenario_boom) {
   PipelineParts parts;
   parts.rig = rig;
   parts.models = unwrap(load_rig_models(rig));
@@ -346,62 +393,46 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
   ps.scene_path = a.get("scene", "");
   ps.poses_csv_path = a.get("poses", "");
   ps.pose_tolerance_ns = parse_pose_tolerance(a);
-  ps.recorded = !is_sim;  // a recording's (EuRoC folders have none: their frames are counted)
-  ps.recorded_rig = source_rig;
+  ps.recorded = !kind.sim;  // a recording's (EuRoC folders have none: their frames are counted)
+  ps.recorded_rig = facts.rig;
   ps.sim = opened.sim.get();
   parts.poses = unwrap(choose_poses(ps, rig, parts.models.receptacle_m)).provider;
   if (scenario_boom) parts.poses = std::make_unique<ScenarioBoomPoses>(std::move(parts.poses));
   // A frame without a pose (not in the poses CSV, no recorded scene) is counted, not guessed.
-  parts.skip_frames_without_pose = !is_sim && !a.has("scene");
+  parts.skip_frames_without_pose = !kind.sim && !a.has("scene");
   if (a.has("boom") && !scenario_boom) parts.boom = parse_boom_arg(a.get("boom"));
   // The physical boom: the augmenter's plain look (AugmentOptions' default) only for the masks,
   // depth, classes and statistics; its images are not scored.
-  if (!physical) apply_look_arg(a, rig, parts.augment);
-  const fs::path out_dir = a.get("out");
+  if (!f.physical) apply_look_arg(a, rig, parts.augment);
+  return parts;
+}
+
+// Each evaluated pair: scored, its CSV rows, its point on the plots, its images.
+class PairScorer {
+ public:
+  PairScorer(const EvaluateFlags& flags, eval::StereoEvaluator& evaluator, SourceFacts& facts,
+             fs::path out_dir)
+      : flags_(flags), evaluator_(evaluator), facts_(facts), out_dir_(std::move(out_dir)) {}
+
+  // The CSV writers, with --out.
   std::unique_ptr<eval::EvaluationCsvWriter> csv;
   std::unique_ptr<eval::EvaluationSumsWriter> sums;
-  if (a.has("out")) {
-    make_dirs(out_dir);
-    parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
-    csv = unwrap(eval::EvaluationCsvWriter::create(out_dir / "evaluation.csv"));
-    sums = unwrap(eval::EvaluationSumsWriter::create(out_dir / "evaluation_sums.csv"));
-    if (images_every) make_dirs(out_dir / "disparity");
-  }
-
-  // Each evaluated pair: scored, its CSV rows, its point on the plots, its images.
   eval::RunEvaluation run;
   std::vector<eval::EvaluationPoint> points;
-  std::uint64_t seen = 0;  // augmented pairs: the frame index of a frame index or simulated flight
-  // --look physical: the augmenter's result with no augmented image, so that the evaluator's
-  // augmented pair (whole_augmented()) is the source's frames, the boom in the scene.
-  StereoResult frames_as_augmented;
-  parts.on_pair = [&](const StereoFrame& raw, const StereoResult& result, const SceneState&,
-                      const FramePoses&) -> Status {
-    if (seen++ == 0 && !origin_ns) origin_ns = result.stats.t_ns;
-    std::uint64_t index = seen - 1;
-    if (const std::optional<SourcePosition> at = raw.left.attachment ? raw.left.attachment->position() : std::nullopt)
-      index = at->index;
-    else if (euroc_start)
-      index = *euroc_start + raw.left.sequence;
+
+  Status on_pair(const StereoFrame& raw, const StereoResult& result) {
+    if (seen_++ == 0 && !facts_.origin_ns) facts_.origin_ns = result.stats.t_ns;
+    const std::uint64_t index = source_index(raw);
     // Selected and imaged by the source's index, not by the count in this run: a part of the run
     // picks the frames the whole run picks in its range.
-    if (index % static_cast<std::uint64_t>(every) != 0) return {};
+    const auto every = static_cast<std::uint64_t>(flags_.every);
+    if (index % every != 0) return {};
     eval::EvaluationImages images;
     const bool want_images =
-        images_every &&
-        index % (static_cast<std::uint64_t>(every) * static_cast<std::uint64_t>(images_every)) == 0;
-    const StereoResult* scored = &result;
-    if (physical) {
-      frames_as_augmented = result;
-      for (ViewResult* v : {&frames_as_augmented.left, &frames_as_augmented.right}) {
-        v->augmented = Image();
-        v->augmented_box = PixelBox{};
-      }
-      scored = &frames_as_augmented;
-    }
-    auto fe = evaluator->evaluate(raw, *scored, want_images ? &images : nullptr);
+        flags_.images_every && index % (every * static_cast<std::uint64_t>(flags_.images_every)) == 0;
+    auto fe = evaluator_.evaluate(raw, scored(result), want_images ? &images : nullptr);
     if (!fe) return make_error("pair ", raw.pair_sequence, ": ", fe.error().message);
-    const double t_s = ns_to_s(result.stats.t_ns - *origin_ns);
+    const double t_s = ns_to_s(result.stats.t_ns - *facts_.origin_ns);
     if (csv)
       if (Status s = csv->add(index, t_s, result.stats, *fe); !s) return s;
     if (sums)
@@ -410,40 +441,74 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
           !s)
         return s;
     points.push_back(eval::evaluation_point(t_s, result.stats, *fe));
-    if (want_images) {
-      char stem[32];
-      std::snprintf(stem, sizeof stem, "%06llu", static_cast<unsigned long long>(index));
-      const fs::path d = out_dir / "disparity";
-      write_disparity_png(d / (std::string(stem) + "_true.png"), images.true_disparity);
-      write_disparity_png(d / (std::string(stem) + "_raw.png"), images.raw_disparity);
-      write_disparity_png(d / (std::string(stem) + "_augmented.png"), images.aug_disparity);
-      write_disparity_view(d / (std::string(stem) + "_view.png"), images, fe->matched);
-    }
+    if (want_images) write_images(index, images, fe->matched);
     run.add(*fe);
     return {};
-  };
-  parts.source = unwrap(start_stereo(std::move(opened)));
-  parts.stop_flag = install_stop_signals();
-  if (!range_in_source) parts.max_pairs = static_cast<std::uint64_t>(max_pairs);
-  parts.progress_total =
-      parts.max_pairs ? std::min<std::uint64_t>(total_pairs, parts.max_pairs) : total_pairs;
-  parts.on_problem = [&err](const Error& e) { err << "augrig evaluate: " << user_message(e) << "\n"; };
-  const eval::MatcherParams& m = eo.matcher;
-  out << "evaluate: " << uri << "; rig " << rig.source << "; poses from " << parts.poses->describe() << "; "
+  }
+
+ private:
+  // The frame's index in the source: its position in the recording or folder, else the count of
+  // augmented pairs (a frame index or simulated flight).
+  std::uint64_t source_index(const StereoFrame& raw) const {
+    if (const std::optional<SourcePosition> at =
+            raw.left.attachment ? raw.left.attachment->position() : std::nullopt)
+      return at->index;
+    if (facts_.euroc_start) return *facts_.euroc_start + raw.left.sequence;
+    return seen_ - 1;
+  }
+
+  // --look physical: the augmenter's result with no augmented image, so that the evaluator's
+  // augmented pair (whole_augmented()) is the source's frames, the boom in the scene.
+  const StereoResult& scored(const StereoResult& result) {
+    if (!flags_.physical) return result;
+    frames_as_augmented_ = result;
+    for (ViewResult* v : {&frames_as_augmented_.left, &frames_as_augmented_.right}) {
+      v->augmented = Image();
+      v->augmented_box = PixelBox{};
+    }
+    return frames_as_augmented_;
+  }
+
+  void write_images(std::uint64_t index, const eval::EvaluationImages& images,
+                    const cv::Rect& matched) const {
+    char stem[32];
+    std::snprintf(stem, sizeof stem, "%06llu", static_cast<unsigned long long>(index));
+    const fs::path d = out_dir_ / "disparity";
+    write_disparity_png(d / (std::string(stem) + "_true.png"), images.true_disparity);
+    write_disparity_png(d / (std::string(stem) + "_raw.png"), images.raw_disparity);
+    write_disparity_png(d / (std::string(stem) + "_augmented.png"), images.aug_disparity);
+    write_disparity_view(d / (std::string(stem) + "_view.png"), images, matched);
+  }
+
+  const EvaluateFlags& flags_;
+  eval::StereoEvaluator& evaluator_;
+  SourceFacts& facts_;  // origin_ns: set by the first pair where the source has none
+  fs::path out_dir_;
+  std::uint64_t seen_ = 0;  // augmented pairs: the frame index of a frame index or simulated flight
+  StereoResult frames_as_augmented_;
+};
+
+// The run's first line: the source, rig, poses, matcher, selection and look.
+void print_run_header(std::ostream& out, const std::string& uri, const Rig& rig, const PoseProvider& poses,
+                      const EvaluateFlags& f) {
+  const eval::MatcherParams& m = f.eo.matcher;
+  out << "evaluate: " << uri << "; rig " << rig.source << "; poses from " << poses.describe() << "; "
       << (m.algorithm == "bm" ? "StereoBM" : "StereoSGBM " + m.mode) << ", disparities " << m.min_disparity
       << ".." << m.min_disparity + m.num_disparities - 1 << ", block " << m.block_size << "; "
-      << (every == 1 ? std::string("every frame") : "every " + std::to_string(every) + "th frame") << "; "
-      << look_text(look) << "\n";
-  const auto wall0 = Clock::now();
-  Pipeline pipeline(std::move(parts));
-  const PipelineReport r = run_pipeline(pipeline, false, a.has("out") ? out_dir.string() : ".", out, err);
-  const double wall_s = ms_since(wall0) / 1000.0;
+      << (f.every == 1 ? std::string("every frame") : "every " + std::to_string(f.every) + "th frame") << "; "
+      << look_text(f.look) << "\n";
+}
 
+// The table, the timing line and, with --out, evaluation.txt and the plot.
+void report_evaluation(const ParsedArgs& a, const std::string& source, const EvaluateFlags& f,
+                       const PairScorer& scorer, const PipelineReport& r, double wall_s,
+                       const fs::path& out_dir, std::ostream& out) {
+  const eval::RunEvaluation& run = scorer.run;
   // The source as given (a physical boom's boom=physical is said by the look), the look on the
   // title line: the rest of the table is what a campaign's merge rebuilds from the sums.
-  const std::string table =
-      eval::format_evaluation_table(run, "Stereo evaluation: " + pos[0] + "; " + look_text(look), m,
-                                    look == "physical" ? "the boom in the scene" : "the boom drawn in");
+  const std::string table = eval::format_evaluation_table(
+      run, "Stereo evaluation: " + source + "; " + look_text(f.look), f.eo.matcher,
+      f.look == "physical" ? "the boom in the scene" : "the boom drawn in");
   out << "\n" << table;
   const double per = run.frames ? 1.0 / static_cast<double>(run.frames) : 0.0;
   out << "\nEvaluated " << run.frames << " of " << r.pairs << " augmented stereo frame(s) in "
@@ -452,20 +517,75 @@ int evaluate_command(const std::vector<std::string>& args, std::ostream& out, st
       << fmt_ms(run.match_ms * per) << " ms, truth and scores " << fmt_ms(run.score_ms * per) << " ms)\n";
   if (r.skipped_no_pose)
     out << r.skipped_no_pose << " frame(s) had no recorded scene and were not evaluated\n";
-  if (a.has("out")) {
-    std::ofstream t(out_dir / "evaluation.txt", std::ios::binary);
-    t << table;
-    if (!t) runtime_error((out_dir / "evaluation.txt").string() + ": cannot write the table");
-    out << "Wrote " << (out_dir / "evaluation.txt").string()
-        << ", evaluation.csv, evaluation_sums.csv and stats.csv";
-    if (!a.has("no-plot") && !points.empty()) {
-      check(eval::plot_evaluation(points, (out_dir / "evaluation.png").string(),
-                                  "Stereo evaluation: " + pos[0] + ", look " + look));
-      out << ", evaluation.png";
-    }
-    if (images_every) out << " and the disparity images of 1 in " << images_every << " evaluated frames";
-    out << "\n";
+  if (!a.has("out")) return;
+  std::ofstream t(out_dir / "evaluation.txt", std::ios::binary);
+  t << table;
+  if (!t) runtime_error((out_dir / "evaluation.txt").string() + ": cannot write the table");
+  out << "Wrote " << (out_dir / "evaluation.txt").string()
+      << ", evaluation.csv, evaluation_sums.csv and stats.csv";
+  if (!a.has("no-plot") && !scorer.points.empty()) {
+    check(eval::plot_evaluation(scorer.points, (out_dir / "evaluation.png").string(),
+                                "Stereo evaluation: " + source + ", look " + f.look));
+    out << ", evaluation.png";
   }
+  if (f.images_every) out << " and the disparity images of 1 in " << f.images_every << " evaluated frames";
+  out << "\n";
+}
+
+int evaluate_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  std::vector<std::string> pos;
+  const ParsedArgs a = parse_with_positionals(args, evaluate_specs(), {"SOURCE"}, pos);
+  if (a.help) {
+    print_evaluate_help(out);
+    return kExitOk;
+  }
+  const EvaluateFlags f = parse_evaluate_flags(a);
+
+  // The source: a simulated flight, a frame index, a EuRoC folder or a recording.
+  std::string src = pos[0];
+  const SourceKind kind = classify_source(src);
+  const std::string start = start_params(a, kind);  // the start parameters of a recording or dataset
+  if (a.has("pair-tolerance-ns") && !kind.euroc) usage_error("--pair-tolerance-ns is for EuRoC folders");
+  if (f.physical) apply_physical_look(a, kind, src);
+  // --boom scenario (--look physical's boom): the simulated flight's own, as its truth gives it.
+  const bool scenario_boom = f.physical || a.get("boom") == "scenario";
+  if (scenario_boom && (!kind.sim || a.has("scene") || a.has("poses")))
+    usage_error(
+        "--boom scenario: only a simulated flight (sim://SCENARIO) with its own poses has the "
+        "scenario's boom");
+  const std::string uri = source_uri(a, src, kind, start);
+  OpenedSource opened = unwrap(open_sources(uri));
+  SourceFacts facts = source_facts(opened, a, src, kind.sim, f.max_pairs, err);
+  const Rig rig = a.has("rig") ? load_rig_arg(a.get("rig")) : facts.rig ? *facts.rig : Rig::paper_default();
+  if (rig.cameras.size() != 2)
+    runtime_error(rig.source + ": the rig needs 2 cameras, has " + std::to_string(rig.cameras.size()));
+  auto evaluator = unwrap(eval::StereoEvaluator::create(rig, f.eo));
+
+  PipelineParts parts = evaluation_parts(a, rig, opened, facts, kind, f, scenario_boom);
+  const fs::path out_dir = a.get("out");
+  PairScorer scorer(f, *evaluator, facts, out_dir);
+  if (a.has("out")) {
+    make_dirs(out_dir);
+    parts.stats_csv = unwrap(StatsCsvWriter::create(out_dir / "stats.csv"));
+    scorer.csv = unwrap(eval::EvaluationCsvWriter::create(out_dir / "evaluation.csv"));
+    scorer.sums = unwrap(eval::EvaluationSumsWriter::create(out_dir / "evaluation_sums.csv"));
+    if (f.images_every) make_dirs(out_dir / "disparity");
+  }
+  parts.on_pair = [&scorer](const StereoFrame& raw, const StereoResult& result, const SceneState&,
+                            const FramePoses&) -> Status { return scorer.on_pair(raw, result); };
+  parts.source = unwrap(start_stereo(std::move(opened)));
+  parts.stop_flag = install_stop_signals();
+  if (!facts.range_in_source) parts.max_pairs = static_cast<std::uint64_t>(f.max_pairs);
+  parts.progress_total =
+      parts.max_pairs ? std::min<std::uint64_t>(facts.total_pairs, parts.max_pairs) : facts.total_pairs;
+  parts.on_problem = [&err](const Error& e) { err << "augrig evaluate: " << user_message(e) << "\n"; };
+  print_run_header(out, uri, rig, *parts.poses, f);
+  const auto wall0 = Clock::now();
+  Pipeline pipeline(std::move(parts));
+  const PipelineReport r = run_pipeline(pipeline, false, a.has("out") ? out_dir.string() : ".", out, err);
+  const double wall_s = ms_since(wall0) / 1000.0;
+
+  report_evaluation(a, pos[0], f, scorer, r, wall_s, out_dir, out);
   if (r.failed_pairs)
     runtime_error(std::to_string(r.failed_pairs) + " stereo frame(s) could not be augmented (above)");
   // Damage exits 1 as in `replay` (an incomplete recording too), unless --allow-damaged.
