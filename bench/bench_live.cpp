@@ -793,30 +793,43 @@ std::uint64_t dir_bytes(const fs::path& dir) {
   return n;
 }
 
-}  // namespace
+// ---- main's parts ---------------------------------------------------------------------------------
 
-int main(int argc, char** argv) {
-  const Options o = parse_options(argc, argv);
-  if (access(o.augrig.c_str(), X_OK) != 0) fail("no augrig binary at " + o.augrig + " (give --augrig PATH)");
-
-  // The scenario, read as sim:// reads it (a path when it has a '/' or ends in .yaml): its length
-  // bounds the run for the watchdog.
+// The scenario, read as sim:// reads it (a path when it has a '/' or ends in .yaml): its length
+// bounds the run for the watchdog.
+sim::Scenario load_bench_scenario(const Options& o) {
   const bool is_file = o.scenario.find('/') != std::string::npos || o.scenario.ends_with(".yaml");
   auto sc = is_file ? sim::load_scenario(o.scenario) : sim::builtin_scenario(o.scenario);
   if (!sc) fail("scenario '" + o.scenario + "': " + sc.error().message);
-  const double expected_wall_s = o.duration_s > 0 ? o.duration_s : sc->duration_s / o.rate;
-  double load_before[3] = {0, 0, 0};
-  getloadavg(load_before, 3);
+  return std::move(*sc);
+}
 
-  // A scratch directory for the log and, unless --record, the recording.
+// A scratch directory for the log and, unless --record, the recording.
+fs::path make_scratch(const Options& o) {
   std::string tmpl = (fs::temp_directory_path() / "bench_live.XXXXXX").string();
   if (!mkdtemp(tmpl.data()))
     fail("cannot create a temporary directory: " + std::string(std::strerror(errno)));
   const fs::path scratch = tmpl;
   if (!o.keep) g_scratch = scratch;
-  const fs::path record = o.record_dir.empty() ? scratch / "recording" : fs::path(o.record_dir);
-  const std::string log_path = o.log.empty() ? (scratch / "augrig.log").string() : o.log;
+  return scratch;
+}
 
+// The scenario's rig at the cameras' size (same field of view), for --gige.
+Rig resized_rig(const Rig& scenario_rig, int width, int height) {
+  Rig rig = scenario_rig;
+  for (RigCamera& c : rig.cameras) {
+    const double kx = static_cast<double>(width) / c.model.width_px;
+    const double ky = static_cast<double>(height) / c.model.height_px;
+    c.model.width_px = width, c.model.height_px = height;
+    c.model.fx_px *= kx, c.model.cx_px = (c.model.cx_px + 0.5) * kx - 0.5;
+    c.model.fy_px *= ky, c.model.cy_px = (c.model.cy_px + 0.5) * ky - 0.5;
+  }
+  return rig;
+}
+
+// augrig's --source: --source as given, the two fake cameras (--gige; without --rig it writes the
+// resized rig into the scratch directory and sets o.rig to it), or sim://.
+std::string source_uri(Options& o, const sim::Scenario& sc, const fs::path& scratch) {
   std::ostringstream uri;
   if (!o.source.empty()) {
     uri << o.source;
@@ -824,14 +837,7 @@ int main(int argc, char** argv) {
     // The scenario's rig at the cameras' size (same field of view), its cameras' sources the fake
     // cameras. Free-running with separate clocks: a tolerance of a fifth of the frame period
     // (docs/RIG_FORMAT.md).
-    Rig rig = sc->rig;
-    for (RigCamera& c : rig.cameras) {
-      const double kx = static_cast<double>(o.width) / c.model.width_px;
-      const double ky = static_cast<double>(o.height) / c.model.height_px;
-      c.model.width_px = o.width, c.model.height_px = o.height;
-      c.model.fx_px *= kx, c.model.cx_px = (c.model.cx_px + 0.5) * kx - 0.5;
-      c.model.fy_px *= ky, c.model.cy_px = (c.model.cy_px + 0.5) * ky - 0.5;
-    }
+    const Rig rig = resized_rig(sc.rig, o.width, o.height);
     std::ostringstream q;
     q << "?format=" << o.format << "&fps=" << fmt("%g", o.fps) << "&roi=0,0," << o.width << "," << o.height
       << "&packet_size=" << o.packet_size;
@@ -841,11 +847,16 @@ int main(int argc, char** argv) {
     if (o.rig.empty()) {
       const fs::path rig_path = scratch / "rig.yaml";
       std::ofstream(rig_path) << rig_to_yaml(rig);
-      const_cast<Options&>(o).rig = rig_path.string();
+      o.rig = rig_path.string();
     }
   } else {
     uri << "sim://" << o.scenario << "?rate=" << fmt("%g", o.rate) << "&every=" << o.every;
   }
+  return uri.str();
+}
+
+// The child's command line: [xvfb-run] stdbuf augrig run ...
+std::vector<std::string> augrig_command(const Options& o, const std::string& uri, const fs::path& record) {
   std::vector<std::string> args;
   if (o.display) {
     // A fresh server (-a: the first free display number), large enough for the 1600x1000 window.
@@ -854,8 +865,8 @@ int main(int argc, char** argv) {
   // Line-buffered, so that the status lines reach the log as they are printed (the stream start is
   // taken from them).
   for (const char* a : {"stdbuf", "-oL", "-eL"}) args.push_back(a);
-  for (const std::string& a : {o.augrig, std::string("run"), std::string("--source"), uri.str(),
-                               std::string("--record"), record.string()})
+  for (const std::string& a :
+       {o.augrig, std::string("run"), std::string("--source"), uri, std::string("--record"), record.string()})
     args.push_back(a);
   const std::vector<std::string> extra = split_spaces(o.extra);
   if (!o.truth && !o.live_source()) args.insert(args.end(), {"--nav", "sim"});
@@ -864,35 +875,11 @@ int main(int argc, char** argv) {
   if (o.duration_s > 0) args.insert(args.end(), {"--duration", fmt("%g", o.duration_s)});
   if (!o.display) args.push_back("--headless");
   for (const std::string& a : extra) args.push_back(a);
+  return args;
+}
 
-  std::string command;
-  for (const std::string& a : args) command += (command.empty() ? "" : " ") + a;
-  std::printf("bench_live: %s\n", command.c_str());
-  std::fflush(stdout);
-
-  std::optional<FakeCameras> cameras;
-  if (o.gige) cameras.emplace(o.camera_poll_fix);
-  const RunResult r = run_child(o, args, log_path, expected_wall_s, fs::absolute(record).parent_path(),
-                                cameras ? &*cameras : nullptr);
-  const bool cameras_fixed = cameras && !cameras->poll_fix.empty();
-  cameras.reset();
-  double load_after[3] = {0, 0, 0};
-  getloadavg(load_after, 3);
-  std::ifstream lf(log_path);
-  const std::string log((std::istreambuf_iterator<char>(lf)), std::istreambuf_iterator<char>());
-  const Summary s = parse_summary(log);
-  const std::uint64_t record_bytes = dir_bytes(record);
-  auto cleanup = [&] {
-    if (o.keep) {
-      std::printf("kept: log %s, recording %s\n", log_path.c_str(), record.string().c_str());
-      return;
-    }
-    // A --record DIR stays (it was asked for); the scratch directory, with the default recording, goes.
-    std::error_code ec;
-    fs::remove_all(scratch, ec);
-  };
-
-  // The run itself must have worked and printed its summary.
+// What the run must have done and printed; empty when all is there.
+std::vector<std::string> missing_figures(const Options& o, const RunResult& r, const Summary& s) {
   std::vector<std::string> missing;
   const bool exited_ok = WIFEXITED(r.status) && WEXITSTATUS(r.status) == 0;
   if (!exited_ok)
@@ -915,22 +902,37 @@ int main(int argc, char** argv) {
   if (o.display && !s.window)
     missing.push_back("the window (no 'run: live display open'" +
                       (s.no_window.empty() ? std::string(")") : "; " + s.no_window + ")"));
-  if (!missing.empty()) {
-    std::fprintf(stderr, "bench_live: the run failed or its output is incomplete; missing:\n");
-    for (const std::string& m : missing) std::fprintf(stderr, "  - %s\n", m.c_str());
-    if (!s.first_error.empty()) std::fprintf(stderr, "  first error: %s\n", s.first_error.c_str());
-    // The end of augrig's output says why.
-    std::istringstream in(log);
-    std::vector<std::string> lines;
-    for (std::string l; std::getline(in, l);) lines.push_back(l);
-    std::fprintf(stderr, "last lines of %s:\n", log_path.c_str());
-    for (std::size_t i = lines.size() > 15 ? lines.size() - 15 : 0; i < lines.size(); ++i)
-      std::fprintf(stderr, "  | %s\n", lines[i].c_str());
-    if (!o.keep) std::fprintf(stderr, "(rerun with --keep to keep the log)\n");
-    cleanup();
-    return 1;
-  }
+  return missing;
+}
 
+// Why the run failed: what is missing and the end of augrig's output.
+void report_failure(const Options& o, const std::vector<std::string>& missing, const Summary& s,
+                    const std::string& log, const std::string& log_path) {
+  std::fprintf(stderr, "bench_live: the run failed or its output is incomplete; missing:\n");
+  for (const std::string& m : missing) std::fprintf(stderr, "  - %s\n", m.c_str());
+  if (!s.first_error.empty()) std::fprintf(stderr, "  first error: %s\n", s.first_error.c_str());
+  // The end of augrig's output says why.
+  std::istringstream in(log);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  std::fprintf(stderr, "last lines of %s:\n", log_path.c_str());
+  for (std::size_t i = lines.size() > 15 ? lines.size() - 15 : 0; i < lines.size(); ++i)
+    std::fprintf(stderr, "  | %s\n", lines[i].c_str());
+  if (!o.keep) std::fprintf(stderr, "(rerun with --keep to keep the log)\n");
+}
+
+// The CPU and memory figures over the window measured.
+struct Figures {
+  double stream0 = 0, stream1 = 0, warm_end = 0;
+  Window steady;
+  double cpu_total_s = 0, whole_share = 0;
+  Sample after_warm, at_end;
+  double rss_max = 0, slope = 0, rss_end = 0;
+  std::size_t slope_n = 0;
+};
+
+Figures measure(const Options& o, const RunResult& r) {
+  Figures f;
   // The window measured: from the first augmented pair (before it: simulating the sensors, GL
   // set-up) plus 10 % of the streaming time (warm-up), to the end of the pipeline (after it: the
   // threads end, the recording is closed, memory is given back).
@@ -953,9 +955,23 @@ int main(int argc, char** argv) {
   std::size_t slope_n = 0;
   const double slope = rss_slope_mib_per_h(window, (after_warm.t_s + at_end.t_s) / 2, &slope_n);
   const double rss_end = at_end.rss_mib;
+  f.stream0 = stream0, f.stream1 = stream1, f.warm_end = warm_end;
+  f.steady = steady;
+  f.cpu_total_s = cpu_total_s, f.whole_share = whole_share;
+  f.after_warm = after_warm, f.at_end = at_end;
+  f.rss_max = rss_max, f.slope = slope, f.rss_end = rss_end, f.slope_n = slope_n;
+  return f;
+}
 
+// The drops split into the scenario's own, the run's edges and those the run lost.
+struct Drops {
+  Injected inj;
+  unsigned long total = 0, late = 0, pairing_run = 0, unpaired = 0, processing_run = 0, pipeline = 0;
+};
+
+Drops count_drops(const Options& o, const sim::Scenario& sc, const Summary& s) {
   // Only sim:// has the scenario's own drops.
-  const Injected inj = o.live_source() ? Injected{} : injected_drops(*sc, o.every, s.left, s.right);
+  const Injected inj = o.live_source() ? Injected{} : injected_drops(sc, o.every, s.left, s.right);
   const unsigned long total = s.camera + s.transport + s.pairing + s.processing + s.recorder;
   const unsigned long late = s.camera >= inj.camera ? s.camera - inj.camera : 0;
   if (s.camera < inj.camera)
@@ -970,7 +986,15 @@ int main(int argc, char** argv) {
   const unsigned long unpaired = pairing_run >= inj.unpaired ? pairing_run - inj.unpaired : 0;
   const unsigned long processing_run = s.processing - std::min(s.processing, s.pending);
   const unsigned long pipeline = late + s.transport + unpaired + processing_run + s.recorder;
+  return Drops{inj, total, late, pairing_run, unpaired, processing_run, pipeline};
+}
 
+// The first lines of the figures: the window, wall time, pairs, CPU by process and thread, load.
+void print_cpu(const Options& o, const RunResult& r, const Summary& s, const Figures& f, bool cameras_fixed,
+               const double (&load_before)[3], const double (&load_after)[3]) {
+  const Window& steady = f.steady;
+  const double stream0 = f.stream0, stream1 = f.stream1, warm_end = f.warm_end;
+  const double cpu_total_s = f.cpu_total_s, whole_share = f.whole_share;
   std::printf(
       "bench_live figures (%d cores; pairs from %.0f s to %.0f s; after warm-up, the first %.0f %% of that: "
       "from %.0f s)\n",
@@ -1015,6 +1039,13 @@ int main(int argc, char** argv) {
                                 (o.gige ? std::max(0.0, steady.cameras_share) : 0.0)));
   std::printf("  load average        %.2f %.2f %.2f before, %.2f %.2f %.2f after (1, 5, 15 min)\n",
               load_before[0], load_before[1], load_before[2], load_after[0], load_after[1], load_after[2]);
+}
+
+// The drops and the latencies.
+void print_drops(const Summary& s, const Drops& d) {
+  const Injected& inj = d.inj;
+  const unsigned long total = d.total, late = d.late, unpaired = d.unpaired,
+                      processing_run = d.processing_run, pipeline = d.pipeline;
   std::printf(
       "  drops               camera %lu, transport %lu, pairing %lu, processing %lu (queue %lu, failed %lu), "
       "recorder %lu: total %lu\n",
@@ -1045,6 +1076,15 @@ int main(int argc, char** argv) {
                   l != &s.display ? ""
                   : s.window      ? " (drawn in the window)"
                                   : " (hand-off; headless)");
+}
+
+// Nav, the recording, memory and the samples file.
+void print_memory(const Options& o, const RunResult& r, const Summary& s, const Figures& f,
+                  std::uint64_t record_bytes) {
+  const Sample& after_warm = f.after_warm;
+  const Sample& at_end = f.at_end;
+  const double rss_end = f.rss_end, rss_max = f.rss_max, slope = f.slope;
+  const std::size_t slope_n = f.slope_n;
   if (s.have_nav)
     std::printf("  nav                 %lu pairs without a pose, %lu with a stale or missing pose\n",
                 s.no_pose, s.stale);
@@ -1059,7 +1099,14 @@ int main(int argc, char** argv) {
       after_warm.rss_mib, after_warm.t_s, rss_end, at_end.t_s, rss_max, slope, slope_n);
   if (!o.csv.empty())
     std::printf("  samples             %s (%zu rows, one a second)\n", o.csv.c_str(), r.samples.size());
+}
 
+// The targets, PASS or FAIL each, the result and notes.
+void print_targets(const Options& o, const Summary& s, const Figures& f, const Drops& d) {
+  const Window& steady = f.steady;
+  const double slope = f.slope, rss_end = f.rss_end;
+  const Sample& after_warm = f.after_warm;
+  const unsigned long pipeline = d.pipeline, late = d.late;
   // Targets.
   int met = 0, checked = 0;
   auto target = [&](const std::string& what, const std::string& value, bool pass) {
@@ -1091,6 +1138,67 @@ int main(int argc, char** argv) {
   if (!o.soak && s.pipeline_s < 600)
     std::printf("note: %.0f s of pipeline; the issue's drop target is over 10 minutes (--duration 600)\n",
                 s.pipeline_s);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // Not const: with --gige and no --rig, source_uri sets o.rig to the resized rig it writes.
+  Options o = parse_options(argc, argv);
+  if (access(o.augrig.c_str(), X_OK) != 0) fail("no augrig binary at " + o.augrig + " (give --augrig PATH)");
+
+  const sim::Scenario sc = load_bench_scenario(o);
+  const double expected_wall_s = o.duration_s > 0 ? o.duration_s : sc.duration_s / o.rate;
+  double load_before[3] = {0, 0, 0};
+  getloadavg(load_before, 3);
+
+  const fs::path scratch = make_scratch(o);
+  const fs::path record = o.record_dir.empty() ? scratch / "recording" : fs::path(o.record_dir);
+  const std::string log_path = o.log.empty() ? (scratch / "augrig.log").string() : o.log;
+
+  const std::string uri = source_uri(o, sc, scratch);
+  const std::vector<std::string> args = augrig_command(o, uri, record);
+
+  std::string command;
+  for (const std::string& a : args) command += (command.empty() ? "" : " ") + a;
+  std::printf("bench_live: %s\n", command.c_str());
+  std::fflush(stdout);
+
+  std::optional<FakeCameras> cameras;
+  if (o.gige) cameras.emplace(o.camera_poll_fix);
+  const RunResult r = run_child(o, args, log_path, expected_wall_s, fs::absolute(record).parent_path(),
+                                cameras ? &*cameras : nullptr);
+  const bool cameras_fixed = cameras && !cameras->poll_fix.empty();
+  cameras.reset();
+  double load_after[3] = {0, 0, 0};
+  getloadavg(load_after, 3);
+  std::ifstream lf(log_path);
+  const std::string log((std::istreambuf_iterator<char>(lf)), std::istreambuf_iterator<char>());
+  const Summary s = parse_summary(log);
+  const std::uint64_t record_bytes = dir_bytes(record);
+  auto cleanup = [&] {
+    if (o.keep) {
+      std::printf("kept: log %s, recording %s\n", log_path.c_str(), record.string().c_str());
+      return;
+    }
+    // A --record DIR stays (it was asked for); the scratch directory, with the default recording, goes.
+    std::error_code ec;
+    fs::remove_all(scratch, ec);
+  };
+
+  // The run itself must have worked and printed its summary.
+  if (const std::vector<std::string> missing = missing_figures(o, r, s); !missing.empty()) {
+    report_failure(o, missing, s, log, log_path);
+    cleanup();
+    return 1;
+  }
+
+  const Figures f = measure(o, r);
+  const Drops d = count_drops(o, sc, s);
+  print_cpu(o, r, s, f, cameras_fixed, load_before, load_after);
+  print_drops(s, d);
+  print_memory(o, r, s, f, record_bytes);
+  print_targets(o, s, f, d);
   cleanup();
   if (r.disk_stop_s >= 0) {
     std::fprintf(stderr,
