@@ -469,33 +469,21 @@ class LogTail {
   std::size_t offset_ = 0;
 };
 
-// Runs argv with its output to log_path, sampling it until it exits; stops it on Ctrl-C, when it
-// overruns expected_wall_s, or when the disk holding `disk` gets full.
-RunResult run_child(const Options& o, const std::vector<std::string>& argv, const std::string& log_path,
-                    double expected_wall_s, const fs::path& disk, const FakeCameras* cameras) {
-  std::vector<char*> cargv;
-  for (const std::string& s : argv) cargv.push_back(const_cast<char*>(s.c_str()));
-  cargv.push_back(nullptr);
-  const int log_fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (log_fd < 0) fail("cannot create the log " + log_path + ": " + std::strerror(errno));
+// The --csv file with its header line; null without --csv.
+std::FILE* open_csv(const Options& o) {
+  if (o.csv.empty()) return nullptr;
+  std::FILE* csv = std::fopen(o.csv.c_str(), "we");  // e: not inherited by augrig
+  if (!csv) fail("cannot create --csv " + o.csv + ": " + std::strerror(errno));
+  std::fprintf(
+      csv,
+      "t_s,augrig_cpu_s,augrig_cpu_share_pct,augrig_rss_mib,xvfb_cpu_s,xvfb_rss_mib,machine_busy_s,pairs");
+  for (const std::string& g : thread_group_names()) std::fprintf(csv, ",cpu_%s_s", g.c_str());
+  std::fprintf(csv, "\n");
+  return csv;
+}
 
-  std::FILE* csv = nullptr;
-  if (!o.csv.empty()) {
-    csv = std::fopen(o.csv.c_str(), "we");  // e: not inherited by augrig
-    if (!csv) fail("cannot create --csv " + o.csv + ": " + std::strerror(errno));
-    std::fprintf(
-        csv,
-        "t_s,augrig_cpu_s,augrig_cpu_share_pct,augrig_rss_mib,xvfb_cpu_s,xvfb_rss_mib,machine_busy_s,pairs");
-    for (const std::string& g : thread_group_names()) std::fprintf(csv, ",cpu_%s_s", g.c_str());
-    std::fprintf(csv, "\n");
-  }
-
-  struct sigaction sa {};
-  sa.sa_handler = on_interrupt;
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-
-  const auto t0 = Clock::now();
+// Forks and runs cargv with its output to log_fd (closed here), in its own process group.
+pid_t start_child(std::vector<char*>& cargv, int log_fd) {
   const pid_t child = fork();
   if (child < 0) fail(std::string("fork: ") + std::strerror(errno));
   if (child == 0) {
@@ -512,6 +500,47 @@ RunResult run_child(const Options& o, const std::vector<std::string>& argv, cons
   }
   ::close(log_fd);
   setpgid(child, child);
+  return child;
+}
+
+// One --csv row per sample kept.
+void write_csv_row(std::FILE* csv, double t, Sample& last, double share, long pairs) {
+  std::fprintf(csv, "%.3f,%.3f,%.2f,%.2f,%.3f,%.2f,%.2f,%ld", t, last.cpu_s, share, last.rss_mib,
+               last.xvfb_cpu_s, last.xvfb_rss_mib, last.machine_busy_s, pairs);
+  for (const std::string& g : thread_group_names()) std::fprintf(csv, ",%.3f", last.threads[g]);
+  std::fprintf(csv, "\n");
+  std::fflush(csv);
+}
+
+// Progress on stderr for long runs: the share over the last progress interval.
+void print_progress(const Options& o, const RunResult& r, double t, long pairs) {
+  const Sample& b = r.samples.back();
+  auto a = std::find_if(r.samples.begin(), r.samples.end(),
+                        [&](const Sample& s) { return s.t_s >= b.t_s - o.progress_s; });
+  const double share = a->t_s < b.t_s ? (b.cpu_s - a->cpu_s) / (b.t_s - a->t_s) / o.cores : 0;
+  std::fprintf(stderr, "bench_live: %.0f s: %ld pairs, cpu %.1f %% of %d cores, rss %.1f MiB\n", t,
+               std::max(pairs, 0L), 100 * share, o.cores, b.rss_mib);
+}
+
+// Runs argv with its output to log_path, sampling it until it exits; stops it on Ctrl-C, when it
+// overruns expected_wall_s, or when the disk holding `disk` gets full.
+RunResult run_child(const Options& o, const std::vector<std::string>& argv, const std::string& log_path,
+                    double expected_wall_s, const fs::path& disk, const FakeCameras* cameras) {
+  std::vector<char*> cargv;
+  for (const std::string& s : argv) cargv.push_back(const_cast<char*>(s.c_str()));
+  cargv.push_back(nullptr);
+  const int log_fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (log_fd < 0) fail("cannot create the log " + log_path + ": " + std::strerror(errno));
+
+  std::FILE* csv = open_csv(o);
+
+  struct sigaction sa {};
+  sa.sa_handler = on_interrupt;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  const auto t0 = Clock::now();
+  const pid_t child = start_child(cargv, log_fd);
 
   RunResult r;
   pid_t augrig = o.display ? 0 : child, xvfb = 0;
@@ -567,23 +596,11 @@ RunResult run_child(const Options& o, const std::vector<std::string>& argv, cons
                                              : 100 * (last.cpu_s - r.samples.back().cpu_s) /
                                                    std::max(1e-9, t - r.samples.back().t_s) / o.cores;
       r.samples.push_back(last);
-      if (csv) {
-        std::fprintf(csv, "%.3f,%.3f,%.2f,%.2f,%.3f,%.2f,%.2f,%ld", t, last.cpu_s, share, last.rss_mib,
-                     last.xvfb_cpu_s, last.xvfb_rss_mib, last.machine_busy_s, pairs);
-        for (const std::string& g : thread_group_names()) std::fprintf(csv, ",%.3f", last.threads[g]);
-        std::fprintf(csv, "\n");
-        std::fflush(csv);
-      }
+      if (csv) write_csv_row(csv, t, last, share, pairs);
       next_sample = std::floor(t) + 1;
     }
     if (o.progress_s > 0 && t >= next_progress && r.samples.size() >= 2) {
-      // Progress on stderr for long runs: the share over the last progress interval.
-      const Sample& b = r.samples.back();
-      auto a = std::find_if(r.samples.begin(), r.samples.end(),
-                            [&](const Sample& s) { return s.t_s >= b.t_s - o.progress_s; });
-      const double share = a->t_s < b.t_s ? (b.cpu_s - a->cpu_s) / (b.t_s - a->t_s) / o.cores : 0;
-      std::fprintf(stderr, "bench_live: %.0f s: %ld pairs, cpu %.1f %% of %d cores, rss %.1f MiB\n", t,
-                   std::max(pairs, 0L), 100 * share, o.cores, b.rss_mib);
+      print_progress(o, r, t, pairs);
       next_progress += o.progress_s;
     }
     // The recording grows by several MiB a stereo frame: stop before the disk fills (it is shared).
