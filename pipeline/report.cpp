@@ -113,6 +113,7 @@ void print_report(const PipelineReport& r, const PipelineParts& parts, std::ostr
     out << "clock " << to_string(c.camera) << ": host - device " << c.offset_ns << " ns, drift "
         << std::setprecision(2) << c.drift_ppm << " ppm, +-" << fmt_us(c.uncertainty_ns) << " us ("
         << c.samples << " samples, " << c.resets << " resets)\n";
+  for (const std::string& line : r.outputs) out << "wrote " << line << "\n";
   for (std::size_t i = 0; i < parts.source->sources().size(); ++i) {
     const SourceHealth h = parts.source->health()[i];
     if (h.disconnects)

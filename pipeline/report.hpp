@@ -49,6 +49,7 @@ struct PipelineReport {
   std::optional<Status> recording_closed;
   recorder::RecorderStats recorder_stats;
   std::optional<net::ServeStats> serve;  // the network view's clients, messages sent and dropped
+  std::vector<std::string> outputs;      // what each sink wrote, a line each (their close())
 };
 
 // The summary lines of a run's report, for the parts it ran with.

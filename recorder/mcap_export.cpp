@@ -181,9 +181,158 @@ Status export_nav(const RecordingReader& reader, Channels& ch, McapExportReport&
 
 }  // namespace
 
+McapFrame mcap_frame_of(const FrameRecord& f) {
+  McapFrame m;
+  m.raw = &f.raw;
+  for (int c = 0; c < 2; ++c) {
+    if (!f.augmented[c].empty()) m.augmented[c] = f.augmented[c].cview();
+    if (!f.mask[c].empty()) m.mask[c] = f.mask[c].cview();
+  }
+  m.T_cam_receiver = f.T_cam_receiver;
+  m.T_body_receiver = f.T_body_receiver;
+  m.receiver_present = f.receiver_present;
+  m.sigma_pos_m = f.sigma_pos_m;
+  m.sigma_att_deg = f.sigma_att_deg;
+  m.boom = f.boom;
+  m.stats = f.stats ? &*f.stats : nullptr;
+  return m;
+}
+
+struct McapFrameWriter::Impl {
+  std::string out_path, part;
+  McapExportOptions options;
+  std::optional<Rig> rig;
+  McapExportReport* report = nullptr;
+  std::unique_ptr<McapWriter> writer;
+  std::optional<Channels> ch;
+  bool static_written = false;
+  bool finished = false;
+
+  Status put(const std::string& topic, const char* type, std::int64_t t_ns, const std::vector<std::uint8_t>& msg) {
+    return ch->write(topic, type, t_ns, msg, *report);
+  }
+  Status write_camera(const McapFrame& f, int c);
+};
+
+Expected<std::unique_ptr<McapFrameWriter>> McapFrameWriter::create(const std::string& out_path,
+                                                                   const McapExportOptions& options,
+                                                                   const std::map<std::string, std::string>& meta,
+                                                                   std::optional<Rig> rig,
+                                                                   McapExportReport& report) {
+  if (rig && rig->cameras.size() < 2)
+    return make_error("recorder::McapFrameWriter: ", out_path, ": the rig has fewer than 2 cameras");
+  std::unique_ptr<McapFrameWriter> w(new McapFrameWriter);
+  w->impl_ = std::make_unique<Impl>();
+  Impl& m = *w->impl_;
+  m.out_path = out_path;
+  m.part = out_path + ".part";
+  m.options = options;
+  m.rig = std::move(rig);
+  m.report = &report;
+  McapWriterOptions wo;
+  wo.chunk_size_bytes = options.chunk_size_bytes;
+  wo.zstd_level = options.zstd_level;
+  wo.library = "augrig " AUGRIG_VERSION;
+  auto writer = McapWriter::create(m.part, wo);
+  if (!writer) return writer.error();
+  m.writer = std::move(*writer);
+  // The meta table first: what a replay needs (the rig) before any frame.
+  if (Status s = m.writer->write_metadata(kMcapRecordingMetadata, meta); !s) return s.error();
+  m.ch.emplace(*m.writer);
+  return w;
+}
+
+McapFrameWriter::~McapFrameWriter() = default;
+
+Status McapFrameWriter::Impl::write_camera(const McapFrame& f, int c) {
+  const Frame& fr = c == 0 ? f.raw->left : f.raw->right;
+  const std::string cam = std::string("/") + kCameraNames[c];
+  const char* frame_id = kCameraFrames[c];
+  if (Status s = put(cam + "/image_raw", "sensor_msgs/msg/Image", fr.t_ns, ros2::image(fr.t_ns, frame_id, fr.image.cview()));
+      !s)
+    return s;
+  if (rig)
+    if (Status s = put(cam + "/camera_info", "sensor_msgs/msg/CameraInfo", fr.t_ns,
+                       ros2::camera_info(fr.t_ns, frame_id, rig->cameras[static_cast<std::size_t>(c)].model));
+        !s)
+      return s;
+  if (options.augmented && f.augmented[c].width > 0)
+    if (Status s = put(cam + "/image_augmented", "sensor_msgs/msg/Image", fr.t_ns,
+                       ros2::image(fr.t_ns, frame_id, f.augmented[c]));
+        !s)
+      return s;
+  if (options.masks && f.mask[c].width > 0)
+    if (Status s = put(cam + "/mask", "sensor_msgs/msg/Image", fr.t_ns, ros2::image(fr.t_ns, frame_id, f.mask[c]));
+        !s)
+      return s;
+  if (!f.T_cam_receiver[c]) return {};
+  const std::int64_t t = f.raw->t_key_ns;
+  return put(cam + "/receiver_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", t,
+             ros2::pose_with_covariance(t, frame_id, *f.T_cam_receiver[c],
+                                        ros2::pose_covariance(f.sigma_pos_m, f.sigma_att_deg)));
+}
+
+Status McapFrameWriter::write(const McapFrame& f, std::uint64_t index, const std::string& where) {
+  Impl& m = *impl_;
+  const StereoFrame& raw = *f.raw;
+  for (std::int64_t t : {raw.t_key_ns, raw.left.t_ns, raw.right.t_ns})
+    if (Status s = ros2::check_stamp(t); !s)
+      return make_error("recorder::export_mcap(): ", m.out_path, ": ", where, ": ", s.error().message);
+  // The cameras' poses on the tanker, once, at the first frame's time.
+  if (m.rig && !m.static_written) {
+    std::vector<ros2::Transform> tf;
+    for (int c = 0; c < 2; ++c)
+      tf.push_back({raw.t_key_ns, kBodyFrame, kCameraFrames[c], m.rig->cameras[static_cast<std::size_t>(c)].T_body_cam});
+    if (Status s = m.put("/tf_static", "tf2_msgs/msg/TFMessage", raw.t_key_ns, ros2::tf_message(tf)); !s) return s;
+    m.static_written = true;
+  }
+  // /augrig/frame first: a reader starts a stereo frame at it (McapSource).
+  ros2::StereoFrameInfo info = ros2::stereo_frame_info_of(raw, index);
+  info.receiver_present = f.receiver_present ? (*f.receiver_present ? 1 : 0) : -1;
+  info.boom = f.boom;
+  info.sigma_pos_m = f.sigma_pos_m;
+  info.sigma_att_deg = f.sigma_att_deg;
+  if (Status s = m.put("/augrig/frame", "augrig_msgs/msg/StereoFrameInfo", raw.t_key_ns,
+                       ros2::stereo_frame_info(raw.t_key_ns, info));
+      !s)
+    return s;
+  for (int c = 0; c < 2; ++c)
+    if (Status s = m.write_camera(f, c); !s) return s;
+  if (f.T_body_receiver)
+    if (Status s = m.put("/tf", "tf2_msgs/msg/TFMessage", raw.t_key_ns,
+                         ros2::tf_message({{raw.t_key_ns, kBodyFrame, kReceiverFrame, *f.T_body_receiver}}));
+        !s)
+      return s;
+  if (f.stats)
+    if (Status s = m.put("/augrig/occlusion_stats", "augrig_msgs/msg/OcclusionStats", raw.t_key_ns,
+                         ros2::occlusion_stats(raw.t_key_ns, *f.stats));
+        !s)
+      return s;
+  ++m.report->frames_written;
+  return {};
+}
+
+Status McapFrameWriter::write_nav(const RecordingReader& reader) {
+  return export_nav(reader, *impl_->ch, *impl_->report);
+}
+
+Status McapFrameWriter::finish() {
+  Impl& m = *impl_;
+  if (m.finished) return {};
+  m.finished = true;
+  if (Status s = m.writer->close(); !s) return s;
+  m.report->messages = m.writer->stats().messages;
+  m.report->chunks = m.writer->stats().chunks;
+  m.report->bytes = m.writer->stats().bytes_written;
+  std::error_code ec;
+  fs::rename(m.part, m.out_path, ec);
+  if (ec)
+    return make_error("recorder::export_mcap(): ", m.out_path, ": cannot rename ", m.part, " to it: ", ec.message());
+  return {};
+}
+
 Status export_mcap(const RecordingReader& reader, const std::string& out_path,
                    const McapExportOptions& options, McapExportReport& report) {
-  const std::string where = "recorder::export_mcap(): " + out_path + ": ";
   std::optional<Rig> rig = options.rig;
   if (!rig) {
     if (const std::string yaml = reader.meta("rig_yaml"); !yaml.empty()) {
@@ -194,120 +343,29 @@ Status export_mcap(const RecordingReader& reader, const std::string& out_path,
       report.notes.push_back("the recording stores no rig: no camera_info and no /tf_static (give --rig)");
     }
   }
-  if (rig && rig->cameras.size() < 2) return Error{where + "the rig has fewer than 2 cameras"};
+  if (rig && rig->cameras.size() < 2)
+    return make_error("recorder::export_mcap(): ", out_path, ": the rig has fewer than 2 cameras");
   for (const std::string& p : reader.problems()) report.problems.push_back(reader.path() + ": " + p);
-
-  const std::string part = out_path + ".part";
-  McapWriterOptions wo;
-  wo.chunk_size_bytes = options.chunk_size_bytes;
-  wo.zstd_level = options.zstd_level;
-  wo.library = "augrig " AUGRIG_VERSION;
-  auto writer = McapWriter::create(part, wo);
+  auto writer = McapFrameWriter::create(out_path, options, reader.meta(), rig, report);
   if (!writer) return writer.error();
-  McapWriter& w = **writer;
-  // The recording's meta table first: what a replay needs (the rig) before any frame.
-  if (Status s = w.write_metadata(kMcapRecordingMetadata, reader.meta()); !s) return s;
-  Channels ch(w);
 
   unsigned parts = kPartRaw;
   if (options.augmented) parts |= kPartAugmented;
   if (options.masks) parts |= kPartMasks;
   report.frames = reader.frame_count();
-  bool static_written = false;
   for (std::size_t i = 0; i < report.frames; ++i) {
     auto f = reader.read_frame(i, parts);
     if (!f) {
       report.problems.push_back(f.error().message + "; frame " + std::to_string(i) + " left out");
       continue;
     }
-    const StereoFrame& raw = f->raw;
-    for (std::int64_t t : {raw.t_key_ns, raw.left.t_ns, raw.right.t_ns})
-      if (Status s = ros2::check_stamp(t); !s)
-        return Error{where + reader.path() + ": frame " + std::to_string(i) + ": " + s.error().message};
-    if (rig && !static_written) {
-      std::vector<ros2::Transform> tf;
-      for (int c = 0; c < 2; ++c)
-        tf.push_back({raw.t_key_ns, kBodyFrame, kCameraFrames[c],
-                      rig->cameras[static_cast<std::size_t>(c)].T_body_cam});
-      if (Status s =
-              ch.write("/tf_static", "tf2_msgs/msg/TFMessage", raw.t_key_ns, ros2::tf_message(tf), report);
-          !s)
-        return s;
-      static_written = true;
-    }
-    ros2::StereoFrameInfo info = ros2::stereo_frame_info_of(raw, i);
-    info.receiver_present = f->receiver_present ? (*f->receiver_present ? 1 : 0) : -1;
-    info.boom = f->boom;
-    info.sigma_pos_m = f->sigma_pos_m;
-    info.sigma_att_deg = f->sigma_att_deg;
-    if (Status s = ch.write("/augrig/frame", "augrig_msgs/msg/StereoFrameInfo", raw.t_key_ns,
-                            ros2::stereo_frame_info(raw.t_key_ns, info), report);
-        !s)
+    if (Status s = (*writer)->write(mcap_frame_of(*f), i, reader.path() + ": frame " + std::to_string(i)); !s)
       return s;
-    for (int c = 0; c < 2; ++c) {
-      const Frame& fr = c == 0 ? raw.left : raw.right;
-      const std::string cam = std::string("/") + kCameraNames[c];
-      const char* frame_id = kCameraFrames[c];
-      if (Status s = ch.write(cam + "/image_raw", "sensor_msgs/msg/Image", fr.t_ns,
-                              ros2::image(fr.t_ns, frame_id, fr.image.cview()), report);
-          !s)
-        return s;
-      if (rig) {
-        if (Status s = ch.write(
-                cam + "/camera_info", "sensor_msgs/msg/CameraInfo", fr.t_ns,
-                ros2::camera_info(fr.t_ns, frame_id, rig->cameras[static_cast<std::size_t>(c)].model),
-                report);
-            !s)
-          return s;
-      }
-      if (options.augmented && !f->augmented[c].empty()) {
-        if (Status s = ch.write(cam + "/image_augmented", "sensor_msgs/msg/Image", fr.t_ns,
-                                ros2::image(fr.t_ns, frame_id, f->augmented[c].cview()), report);
-            !s)
-          return s;
-      }
-      if (options.masks && !f->mask[c].empty()) {
-        if (Status s = ch.write(cam + "/mask", "sensor_msgs/msg/Image", fr.t_ns,
-                                ros2::image(fr.t_ns, frame_id, f->mask[c].cview()), report);
-            !s)
-          return s;
-      }
-      if (f->T_cam_receiver[c]) {
-        if (Status s =
-                ch.write(cam + "/receiver_pose", "geometry_msgs/msg/PoseWithCovarianceStamped", raw.t_key_ns,
-                         ros2::pose_with_covariance(raw.t_key_ns, frame_id, *f->T_cam_receiver[c],
-                                                    ros2::pose_covariance(f->sigma_pos_m, f->sigma_att_deg)),
-                         report);
-            !s)
-          return s;
-      }
-    }
-    if (f->T_body_receiver) {
-      if (Status s = ch.write(
-              "/tf", "tf2_msgs/msg/TFMessage", raw.t_key_ns,
-              ros2::tf_message({{raw.t_key_ns, kBodyFrame, kReceiverFrame, *f->T_body_receiver}}), report);
-          !s)
-        return s;
-    }
-    if (f->stats) {
-      if (Status s = ch.write("/augrig/occlusion_stats", "augrig_msgs/msg/OcclusionStats", raw.t_key_ns,
-                              ros2::occlusion_stats(raw.t_key_ns, *f->stats), report);
-          !s)
-        return s;
-    }
-    ++report.frames_written;
     if (options.progress) options.progress(i + 1, report.frames);
   }
   if (options.nav)
-    if (Status s = export_nav(reader, ch, report); !s) return s;
-  if (Status s = w.close(); !s) return s;
-  report.messages = w.stats().messages;
-  report.chunks = w.stats().chunks;
-  report.bytes = w.stats().bytes_written;
-  std::error_code ec;
-  fs::rename(part, out_path, ec);
-  if (ec) return Error{where + "cannot rename " + part + " to it: " + ec.message()};
-  return {};
+    if (Status s = (*writer)->write_nav(reader); !s) return s;
+  return (*writer)->finish();
 }
 
 // ---- McapSource -----------------------------------------------------------------------------------

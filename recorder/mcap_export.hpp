@@ -18,6 +18,7 @@
 // the nav inputs their sensors' time of validity), so the round trip is exact.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -51,6 +52,47 @@ struct McapExportReport {
   std::map<std::string, std::uint64_t> messages_by_topic;
   std::vector<std::string> notes;     // what was left out and why
   std::vector<std::string> problems;  // damaged frames or nav inputs skipped
+};
+
+// One stereo frame as an MCAP file takes it, by view (nothing is copied): a recording's frame
+// (mcap_frame_of) or a run's pair (the mcap sink, pipeline/sinks/mcap_sink.cpp).
+struct McapFrame {
+  const StereoFrame* raw = nullptr;
+  std::array<ConstImageView, 2> augmented{}, mask{};  // whole images; an empty view is not written
+  std::array<std::optional<Pose>, 2> T_cam_receiver;
+  std::optional<Pose> T_body_receiver;
+  std::optional<bool> receiver_present;
+  double sigma_pos_m = FrameRecord::kNaN, sigma_att_deg = FrameRecord::kNaN;
+  std::optional<BoomArticulation> boom;
+  const OcclusionStats* stats = nullptr;
+};
+McapFrame mcap_frame_of(const FrameRecord& f);
+
+// The MCAP writer every MCAP output shares (export_mcap(), the mcap sink): the file is written as
+// out_path + ".part" and renamed by finish(), so that a failed export leaves no file that looks
+// finished. The meta table goes first (what a replay needs, the rig, before any frame); then each
+// stereo frame's messages (the file's header); then, from a recording, its nav inputs.
+class McapFrameWriter {
+ public:
+  // `rig`: for camera_info and /tf_static (none: neither is written). `report` collects the counts
+  // and must outlive the writer.
+  static Expected<std::unique_ptr<McapFrameWriter>> create(const std::string& out_path,
+                                                           const McapExportOptions& options,
+                                                           const std::map<std::string, std::string>& meta,
+                                                           std::optional<Rig> rig, McapExportReport& report);
+  ~McapFrameWriter();
+  // One stereo frame; `index` is its index in its stream (/augrig/frame), `where` names it in errors.
+  Status write(const McapFrame& f, std::uint64_t index, const std::string& where);
+  // The recording's nav inputs: each IMU increment as mean rates at the middle of its interval,
+  // each GPS epoch as a NavSatFix (streams neither IMU nor GPS are noted and left out).
+  Status write_nav(const RecordingReader& reader);
+  // Closes the file and renames it to out_path; the report's message, chunk and byte counts.
+  Status finish();
+
+ private:
+  McapFrameWriter() = default;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 // Writes `out_path` (through out_path + ".part", renamed at the end: a failed export leaves no

@@ -18,6 +18,8 @@ constexpr SinkEntry kSinks[] = {
      make_video_sink},
     {"tum", "tum:FILE.txt  the receiver's pose in the left camera per pair (TUM trajectory format)",
      make_tum_sink},
+    {"mcap", "mcap:FILE.mcap[,no-augmented][,no-masks]  each pair as ROS 2 messages, as export --format mcap writes them",
+     make_mcap_sink},
 };
 
 }  // namespace

@@ -4,6 +4,7 @@
 // nothing else names it. A sink made here follows the built-in ones (frame_sink.hpp's order).
 #pragma once
 
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -17,6 +18,8 @@ namespace augrig::pipeline {
 // What a sink may need to open: the rig (its cameras' sizes, their poses on the tanker).
 struct SinkSetup {
   const Rig& rig;
+  // Metadata a file sink stores with its frames (where they came from); the rig is added by it.
+  std::map<std::string, std::string> meta = {};
 };
 
 // A sink from "SCHEME:ARGUMENT"; an unknown scheme or a bad argument is an Error naming it and
@@ -28,5 +31,6 @@ std::vector<std::string> sink_usages();
 // The registered factories (one file each). `arg` is the part after "SCHEME:".
 Expected<std::unique_ptr<FrameSink>> make_video_sink(const std::string& arg, const SinkSetup& setup);
 Expected<std::unique_ptr<FrameSink>> make_tum_sink(const std::string& arg, const SinkSetup& setup);
+Expected<std::unique_ptr<FrameSink>> make_mcap_sink(const std::string& arg, const SinkSetup& setup);
 
 }  // namespace augrig::pipeline

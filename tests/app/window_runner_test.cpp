@@ -15,6 +15,7 @@
 #include "app/cli.hpp"
 #include "pipeline/sources.hpp"
 #include "tests/support/test_support.hpp"
+#include "tests/support/pipeline_parts.hpp"
 #include "tests/support/window_shot.hpp"
 
 namespace augrig::app {
@@ -22,16 +23,7 @@ namespace {
 
 // A pipeline over the short simulated approach (the simulation's truth as poses), `pairs` pairs.
 PipelineParts sim_parts(std::uint64_t pairs) {
-  auto opened = open_sources("sim://" + test::data_path("scenarios/short_approach.yaml"));
-  EXPECT_TRUE(opened) << opened.error().message;
-  PipelineParts p;
-  p.rig = opened->sim->scenario.rig;
-  p.poses = sim_truth_poses(*opened->sim);
-  p.models = *load_rig_models(p.rig);
-  p.source_info = *opened;
-  auto stereo = start_stereo(std::move(*opened));
-  EXPECT_TRUE(stereo) << stereo.error().message;
-  p.source = std::move(*stereo);
+  PipelineParts p = test::pipeline_parts("sim://" + test::data_path("scenarios/short_approach.yaml"));
   p.max_pairs = pairs;
   return p;
 }

@@ -10,25 +10,14 @@
 #include "pipeline/pipeline.hpp"
 #include "recorder/reader.hpp"
 #include "tests/support/test_support.hpp"
+#include "tests/support/pipeline_parts.hpp"
 
 namespace augrig::pipeline {
 namespace {
 
 const std::string kScenario = "sim://" + test::data_path("scenarios/short_approach.yaml") + "?every=3&rate=0";
 
-PipelineParts sim_parts() {
-  auto opened = open_sources(kScenario);
-  EXPECT_TRUE(opened) << opened.error().message;
-  PipelineParts p;
-  p.rig = opened->sim->scenario.rig;
-  p.poses = sim_truth_poses(*opened->sim);
-  p.models = *load_rig_models(p.rig);
-  p.source_info = *opened;
-  auto stereo = start_stereo(std::move(*opened));
-  EXPECT_TRUE(stereo) << stereo.error().message;
-  p.source = std::move(*stereo);
-  return p;
-}
+PipelineParts sim_parts() { return test::pipeline_parts(kScenario); }
 
 // What one probe saw, shared with the test after the pipeline took the sink.
 struct Seen {

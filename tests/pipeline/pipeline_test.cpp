@@ -16,6 +16,7 @@
 #include "recorder/replay_source.hpp"
 #include "sim/flight_source.hpp"
 #include "tests/support/test_support.hpp"
+#include "tests/support/pipeline_parts.hpp"
 
 namespace augrig::pipeline {
 namespace {
@@ -25,26 +26,7 @@ namespace fs = std::filesystem;
 const std::string kScenario = "sim://" + test::data_path("scenarios/short_approach.yaml");
 
 // A pipeline over `uri` with the simulation's truth (sim://) or the recorded poses (replay://).
-PipelineParts parts_for(const std::string& uri) {
-  auto opened = open_sources(uri);
-  EXPECT_TRUE(opened) << opened.error().message;
-  PipelineParts p;
-  if (opened->sim) {
-    p.rig = opened->sim->scenario.rig;
-    p.poses = sim_truth_poses(*opened->sim);
-  } else {
-    auto rig = parse_rig(opened->replay->reader().meta("rig_yaml"), "recorded rig");
-    EXPECT_TRUE(rig) << rig.error().message;
-    p.rig = *rig;
-    p.poses = recorded_poses(*rig);
-  }
-  p.models = *load_rig_models(p.rig);
-  p.source_info = *opened;
-  auto stereo = start_stereo(std::move(*opened));
-  EXPECT_TRUE(stereo) << stereo.error().message;
-  p.source = std::move(*stereo);
-  return p;
-}
+PipelineParts parts_for(const std::string& uri) { return test::pipeline_parts(uri); }
 
 // Every frame read is in a pair or a ledger row.
 void expect_ledger_adds_up(const PipelineReport& r) {

@@ -1,0 +1,102 @@
+// An MCAP file of ROS 2 messages as a sink (`--sink mcap:OUT.mcap`): each pair as export_mcap()
+// writes a recorded frame (recorder/mcap_export.hpp, docs/MCAP.md), through the same writer, so a
+// run, a replay with another rig, scene, boom or look, or a simulated flight gives the file
+// `augrig export --format mcap` gives, which `augrig replay OUT.mcap` plays back. The images go in
+// as views of the pair (nothing copied); the file's metadata holds the run's rig. Options after the
+// file name: `no-augmented`, `no-masks`. The file is OUT.mcap.part until the run closes it cleanly.
+#include <sstream>
+
+#include "pipeline/report.hpp"
+#include "pipeline/sinks/registry.hpp"
+#include "recorder/mcap_export.hpp"
+
+namespace augrig::pipeline {
+
+namespace {
+
+class McapSink final : public FrameSink {
+ public:
+  McapSink(std::string path, recorder::McapExportOptions options, const Rig& rig,
+           std::map<std::string, std::string> meta)
+      : path_(std::move(path)), options_(std::move(options)), rig_(rig), meta_(std::move(meta)) {}
+
+  Status open() {
+    meta_.emplace("rig_yaml", rig_to_yaml(rig_));
+    auto w = recorder::McapFrameWriter::create(path_, options_, meta_, rig_, report_);
+    if (!w) return make_error("mcap sink: ", w.error().message);
+    writer_ = std::move(*w);
+    return {};
+  }
+
+  SinkNeeds needs() const override { return {.whole_images = options_.augmented}; }
+
+  Status consume(PairContext& pair) override {
+    recorder::McapFrame f;
+    f.raw = &pair.raw;
+    if (pair.result && options_.augmented) pair.make_whole();
+    if (const StereoResult* r = pair.result) {
+      const ViewResult* views[2] = {&r->left, &r->right};
+      for (int c = 0; c < 2; ++c) {
+        if (options_.augmented && !views[c]->augmented.empty()) f.augmented[c] = views[c]->augmented.cview();
+        if (options_.masks && !views[c]->mask.empty()) f.mask[c] = views[c]->mask.cview();
+      }
+      f.stats = &r->stats;
+    }
+    // The scene it was augmented in, as a recording keeps it (recorder_sink.cpp).
+    if (const SceneState* scene = pair.scene) {
+      f.T_body_receiver = scene->T_body_receiver;
+      f.receiver_present = scene->receiver_present;
+      for (int c = 0; c < 2; ++c)
+        f.T_cam_receiver[c] = rig_.cameras[static_cast<std::size_t>(c)].T_body_cam.inverse() * scene->T_body_receiver;
+      f.sigma_pos_m = pair.poses.sigma_pos_m;
+      f.sigma_att_deg = pair.poses.sigma_att_deg;
+      if (pair.result) f.boom = scene->boom;
+    }
+    ++report_.frames;
+    return writer_->write(f, report_.frames - 1, "pair " + std::to_string(pair.pair));
+  }
+
+  Status close(PipelineReport& report) override {
+    if (!writer_) return {};
+    const Status s = writer_->finish();
+    writer_.reset();
+    if (!s) return make_error("mcap sink: ", s.error().message);
+    std::ostringstream line;
+    line << path_ << ": " << report_.frames_written << " stereo frame(s), " << report_.messages << " messages in "
+         << report_.chunks << " zstd chunk(s), " << report_.bytes << " bytes";
+    report.outputs.push_back(line.str());
+    return {};
+  }
+
+ private:
+  std::string path_;
+  recorder::McapExportOptions options_;
+  Rig rig_;  // a copy: the parts it came from move into the pipeline
+  std::map<std::string, std::string> meta_;
+  recorder::McapExportReport report_;
+  std::unique_ptr<recorder::McapFrameWriter> writer_;
+};
+
+}  // namespace
+
+Expected<std::unique_ptr<FrameSink>> make_mcap_sink(const std::string& arg, const SinkSetup& setup) {
+  std::istringstream in(arg);
+  std::string path;
+  std::getline(in, path, ',');
+  recorder::McapExportOptions o;
+  o.nav = false;  // a run's nav inputs are the recorder's (export a recording for them)
+  for (std::string opt; std::getline(in, opt, ',');) {
+    if (opt == "no-augmented")
+      o.augmented = false;
+    else if (opt == "no-masks")
+      o.masks = false;
+    else
+      return make_error("mcap sink: ", opt, ": unknown option (expected no-augmented or no-masks)");
+  }
+  if (path.empty()) return make_error("mcap sink: expected a file name (mcap:OUT.mcap)");
+  auto sink = std::make_unique<McapSink>(path, o, setup.rig, setup.meta);
+  if (Status st = sink->open(); !st) return st.error();
+  return std::unique_ptr<FrameSink>(std::move(sink));
+}
+
+}  // namespace augrig::pipeline

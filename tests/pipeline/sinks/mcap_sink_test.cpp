@@ -1,0 +1,128 @@
+// The MCAP sink: a run's pairs written as `export --format mcap` writes the recording of the same
+// run, message for message (the export being the oracle: same topics, times and bytes); its file
+// plays back through McapSource with the run's rig; its options leave topics out; bad arguments
+// and unwritable files are named.
+#include <map>
+#include <tuple>
+
+#include <gtest/gtest.h>
+
+#include "pipeline/report.hpp"
+#include "pipeline/sinks/registry.hpp"
+#include "recorder/mcap_export.hpp"
+#include "recorder/mcap_reader.hpp"
+#include "tests/support/pipeline_parts.hpp"
+#include "tests/support/test_support.hpp"
+
+namespace augrig::pipeline {
+namespace {
+
+const std::string kScenario = "sim://" + test::data_path("scenarios/short_approach.yaml") + "?every=5&rate=0";
+
+// Every message of an MCAP file as (topic, log time, bytes), in file order.
+using Message = std::tuple<std::string, std::uint64_t, std::vector<std::uint8_t>>;
+std::vector<Message> messages_of(const std::string& path) {
+  std::vector<Message> v;
+  auto r = recorder::McapReader::open(path);
+  EXPECT_TRUE(r) << r.error().message;
+  if (!r) return v;
+  recorder::McapMessage m;
+  while (true) {
+    auto more = (*r)->next(m);
+    EXPECT_TRUE(more) << more.error().message;
+    if (!more || !*more) break;
+    v.emplace_back((*r)->channels().at(m.channel_id).topic, m.log_time_ns, m.data);
+  }
+  return v;
+}
+
+std::map<std::string, int> topics_of(const std::vector<Message>& v) {
+  std::map<std::string, int> n;
+  for (const Message& m : v) ++n[std::get<0>(m)];
+  return n;
+}
+
+TEST(McapSink, WritesWhatExportWritesFromTheRecordingOfTheSameRun) {
+  const std::string out = test::output_dir("mcap_sink_same");
+  PipelineParts p = test::pipeline_parts(kScenario);
+  p.max_pairs = 4;
+  const Rig rig = p.rig;
+  auto rec = recorder::Recorder::create(out + "/rec", recorder::RecordingInfo{});
+  ASSERT_TRUE(rec) << rec.error().message;
+  p.recorder = std::move(*rec);
+  auto sink = make_sink("mcap:" + out + "/run.mcap", {p.rig});
+  ASSERT_TRUE(sink) << sink.error().message;
+  p.sinks.push_back(std::move(*sink));
+  Pipeline pipeline(std::move(p));
+  std::ostringstream o, e;
+  auto report = pipeline.run(o, e);
+  ASSERT_TRUE(report) << report.error().message;
+  ASSERT_EQ(report->pairs, 4u);
+  ASSERT_EQ(report->outputs.size(), 1u);
+  EXPECT_NE(report->outputs[0].find("run.mcap: 4 stereo frame(s)"), std::string::npos) << report->outputs[0];
+  EXPECT_FALSE(std::filesystem::exists(out + "/run.mcap.part"));
+
+  // The oracle: the recording of the same run, exported.
+  auto reader = recorder::RecordingReader::open(out + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  recorder::McapExportOptions eo;
+  eo.rig = rig;
+  recorder::McapExportReport er;
+  ASSERT_TRUE(recorder::export_mcap(**reader, out + "/export.mcap", eo, er));
+  const std::vector<Message> run = messages_of(out + "/run.mcap"), exported = messages_of(out + "/export.mcap");
+  ASSERT_EQ(run.size(), exported.size());
+  for (std::size_t i = 0; i < run.size(); ++i) {
+    EXPECT_EQ(std::get<0>(run[i]), std::get<0>(exported[i])) << "message " << i;
+    EXPECT_EQ(std::get<1>(run[i]), std::get<1>(exported[i])) << std::get<0>(run[i]);
+    EXPECT_TRUE(std::get<2>(run[i]) == std::get<2>(exported[i])) << std::get<0>(run[i]) << ", message " << i;
+  }
+  const std::map<std::string, int> n = topics_of(run);
+  for (const char* t : {"/augrig/frame", "/left/image_augmented", "/right/mask", "/left/receiver_pose", "/tf",
+                        "/augrig/occlusion_stats"})
+    EXPECT_EQ(n.count(t) ? n.at(t) : 0, 4) << t;
+
+  // It plays back with the run's rig (its metadata) and the recorded scene.
+  auto src = recorder::McapSource::open(out + "/run.mcap");
+  ASSERT_TRUE(src) << src.error().message;
+  EXPECT_EQ((*src)->frame_count(), 4u);
+  ASSERT_TRUE((*src)->meta().count("rig_yaml"));
+  auto back = parse_rig((*src)->meta().at("rig_yaml"), "mcap meta");
+  ASSERT_TRUE(back) << back.error().message;
+  EXPECT_EQ(back->cameras.size(), 2u);
+  EXPECT_EQ(back->cameras[0].model.width_px, rig.cameras[0].model.width_px);
+}
+
+TEST(McapSink, OptionsLeaveTopicsOut) {
+  const std::string out = test::output_dir("mcap_sink_options");
+  PipelineParts p = test::pipeline_parts(kScenario);
+  p.max_pairs = 2;
+  auto sink = make_sink("mcap:" + out + "/raw.mcap,no-augmented,no-masks", {p.rig});
+  ASSERT_TRUE(sink) << sink.error().message;
+  p.sinks.push_back(std::move(*sink));
+  Pipeline pipeline(std::move(p));
+  std::ostringstream o, e;
+  auto report = pipeline.run(o, e);
+  ASSERT_TRUE(report) << report.error().message;
+  const std::map<std::string, int> n = topics_of(messages_of(out + "/raw.mcap"));
+  EXPECT_EQ(n.at("/left/image_raw"), 2);
+  EXPECT_EQ(n.at("/augrig/occlusion_stats"), 2);
+  EXPECT_EQ(n.count("/left/image_augmented") + n.count("/right/image_augmented"), 0u);
+  EXPECT_EQ(n.count("/left/mask") + n.count("/right/mask"), 0u);
+}
+
+TEST(McapSink, BadArgumentsAndUnwritableFilesAreNamed) {
+  const Rig rig = Rig::paper_default();
+  auto unknown = make_sink("mcap:x.mcap,jpeg", {rig});
+  ASSERT_FALSE(unknown);
+  EXPECT_EQ(unknown.error().message, "mcap sink: jpeg: unknown option (expected no-augmented or no-masks)");
+  auto empty = make_sink("mcap:,no-masks", {rig});
+  ASSERT_FALSE(empty);
+  EXPECT_EQ(empty.error().message, "mcap sink: expected a file name (mcap:OUT.mcap)");
+  auto bad = make_sink("mcap:/nonexistent-dir/x.mcap", {rig});
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("mcap sink: "), std::string::npos) << bad.error().message;
+  EXPECT_NE(bad.error().message.find("/nonexistent-dir/x.mcap.part"), std::string::npos) << bad.error().message;
+}
+
+}  // namespace
+}  // namespace augrig::pipeline
