@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <ostream>
 #include <string>
@@ -121,6 +122,13 @@ void apply_look_arg(const ParsedArgs& a, const Rig& rig, AugmentOptions& options
 // made for `parts.rig` and added to `parts.sinks`; a bad one is a usage error naming it.
 OptionSpec sink_option();
 void apply_sink_args(const ParsedArgs& a, pipeline::PipelineParts& parts);
+
+// replay's core (cmd_recording.cpp) for a command that replays into outputs of its own (export
+// --reaugment): `input` a recording, an MCAP file or a EuRoC folder, `a` replay's options;
+// `add_sinks` is called once the replay's rig is known, to add the caller's sinks to `parts`.
+using AddSinks = std::function<void(pipeline::PipelineParts& parts)>;
+int replay_into(const std::string& input, const ParsedArgs& a, const AddSinks& add_sinks, std::ostream& out,
+                std::ostream& err);
 
 std::unique_ptr<GlContext> make_gl_context();
 void make_dirs(const fs::path& dir);

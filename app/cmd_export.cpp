@@ -15,6 +15,7 @@
 #include "app/cli.hpp"
 #include "recorder/euroc.hpp"
 #include "recorder/mcap_export.hpp"
+#include "pipeline/sinks/registry.hpp"
 #include "recorder/reader.hpp"
 
 namespace augrig::app {
@@ -40,7 +41,16 @@ const std::vector<OptionSpec>& export_specs() {
       {"ground-truth", ArgKind::kFlag, "",
        "also each frame's ground truth from its recorded receiver depth (docs/GROUND_TRUTH.md): cam0_depth, "
        "cam1_depth (.npy), cam0_depth_mm, cam1_depth_mm (16-bit PNG), cam0_right_px (.npy), cam0_stereo_class; "
-       "needs a recording made with --ground-truth"},
+       "needs a recording made with --ground-truth (or --reaugment)"},
+      {"reaugment", ArgKind::kFlag, "",
+       "augment the raw frames again through the pipeline (with --rig and the options below) instead of "
+       "exporting the recorded augmentation; DIR may then be a recording, an MCAP file or a EuRoC folder"},
+      scene_option("each frame's recorded scene; implies --reaugment"),
+      poses_option("implies --reaugment"),
+      pose_tolerance_option(),
+      boom_option("the recorded boom; implies --reaugment"),
+      look_option(),
+      receiver_draw_option(),
   };
   return specs;
 }
@@ -74,32 +84,14 @@ int export_mcap_command(const ParsedArgs& a, const std::vector<std::string>& pos
   return kExitOk;
 }
 
-int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  std::vector<std::string> pos;
-  const ParsedArgs a = parse_with_positionals(args, export_specs(), {"DIR", "OUT"}, pos);
-  if (a.help) {
-    out << format_help(
-        "augrig export DIR --format euroc OUT [options]\n       augrig export DIR --format mcap OUT.mcap [options]",
-        "Writes a recording in the EuRoC/ASL layout: OUT/mav0/cam0, cam1 (raw), cam0_augmented,\n"
-        "cam1_augmented, cam0_mask, cam1_mask (data.csv, data/<t_ns>.png, sensor.yaml) and imu0, plus\n"
-        "OUT/poses.csv (recorded T_cam_receiver), OUT/stats.csv and OUT/stats.png (gnuplot); with nav\n"
-        "inputs, OUT/nav/<aircraft>/ (gps.nmea, imu.csv, aircraft.yaml) and the frame index OUT/frames.csv\n"
-        "for augrig nav. Every timestamp is on one clock: GPS time when the recording allows it.\n"
-        "With --ground-truth, the receiver depth, the true correspondence and the stereo classes too.\n"
-        "--format mcap: one MCAP file for ros2 bag and Foxglove (ROS 2 messages in CDR, zstd chunks, indexed):\n"
-        "per camera image_raw, image_augmented, mask, camera_info, receiver_pose; /tf_static, /tf,\n"
-        "/augrig/frame, /augrig/occlusion_stats and the nav inputs (docs/MCAP.md). augrig replay OUT.mcap\n"
-        "plays it back.",
-        export_specs());
-    return kExitOk;
-  }
-  // Without --format, OUT's name says which: a .mcap file, else a EuRoC folder.
-  const bool mcap_name = fs::path(pos[1]).extension() == ".mcap";
-  const std::string format = a.has("format") ? a.get("format") : mcap_name ? "mcap" : "euroc";
-  if (format == "mcap") return export_mcap_command(a, pos, out, err);
-  if (format != "euroc") usage_error("--format: expected euroc or mcap, got '" + format + "'");
+// --format euroc: `reader`'s recording as a EuRoC/ASL folder; `nav_from` the recording whose nav
+// inputs go with it (export --reaugment), else the recording's own.
+int export_euroc_command(const ParsedArgs& a, const std::vector<std::string>& pos,
+                         const recorder::RecordingReader* reader_ptr, const recorder::RecordingReader* nav_from,
+                         std::ostream& out, std::ostream& err) {
+  const recorder::RecordingReader& r_in = *reader_ptr;
   recorder::EurocExportOptions o;
-  if (a.has("rig")) o.rig = load_rig_arg(a.get("rig"));
+  if (a.has("rig") && !nav_from) o.rig = load_rig_arg(a.get("rig"));  // re-augmented: the recording's is it
   o.imu_stream = a.get("imu-stream");
   o.augmented = !a.has("no-augmented");
   o.masks = !a.has("no-masks");
@@ -120,7 +112,7 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
       o.aircraft_yaml[who] = std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     }
   }
-  const auto reader = open_recording(pos[0]);
+  o.nav_from = nav_from;
   const fs::path out_dir = pos[1];
   // The rate line, about once a second (the library prints nothing itself).
   o.progress = [&err](const recorder::EurocExportProgress& p) {
@@ -134,9 +126,9 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
     err << line.str() << std::flush;
   };
   recorder::EurocExportReport r;
-  check(recorder::export_euroc(*reader, pos[1], o, r));
+  check(recorder::export_euroc(r_in, pos[1], o, r));
 
-  const std::string summary_frames = reader->meta("summary.frames");
+  const std::string summary_frames = r_in.meta("summary.frames");
   out << "Exported " << r.frames_written << " of "
       << (summary_frames.empty() || summary_frames == std::to_string(r.frames)
               ? std::to_string(r.frames)
@@ -177,6 +169,89 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
                   (out_dir / "INCOMPLETE").string() + ")");
   }
   return kExitOk;
+}
+
+// Whether the export augments again: --reaugment, or an option that only a new augmentation uses.
+bool reaugmenting(const ParsedArgs& a) {
+  for (const char* k : {"reaugment", "scene", "poses", "pose-tolerance-ms", "boom", "look", "receiver-draw"})
+    if (a.has(k)) return true;
+  return false;
+}
+
+// export --reaugment: the input through the pipeline again (replay_into, headless, as fast as it
+// goes) with the augmentation's options. MCAP: straight into the mcap sink, with the recording's
+// nav inputs. EuRoC: into a new recording beside OUT (the raw frames' stored blobs copied, not
+// compressed again), exported with the input recording's nav inputs, then removed.
+int export_reaugmented(const ParsedArgs& a, const std::vector<std::string>& pos, const std::string& format,
+                       std::ostream& out, std::ostream& err) {
+  ParsedArgs replay;
+  for (const char* k : {"rig", "scene", "poses", "pose-tolerance-ms", "boom", "look", "receiver-draw"})
+    if (a.has(k)) replay.values[k] = a.get(k);
+  replay.values["headless"] = "";
+  // A recording's nav inputs and meta go with the export (an MCAP file or a EuRoC folder has none).
+  const fs::path in = pos[0].rfind("replay://", 0) == 0 ? pos[0].substr(9) : pos[0];
+  std::unique_ptr<recorder::RecordingReader> nav_from;
+  if (fs::is_directory(in) && !fs::exists(in / "mav0") && in.filename() != "mav0") nav_from = open_recording(in);
+  if (format == "mcap") {
+    for (const char* flag : {"imu-stream", "aircraft", "threads", "no-plot", "ground-truth"})
+      if (a.has(flag)) usage_error(std::string("--") + flag + ": only for --format euroc");
+    std::map<std::string, std::string> meta;
+    if (nav_from) meta = nav_from->meta();
+    meta["re_augmented_from"] = pos[0];
+    const std::string spec = "mcap:" + pos[1] + (a.has("no-augmented") ? ",no-augmented" : "") +
+                             (a.has("no-masks") ? ",no-masks" : "");
+    return replay_into(pos[0], replay,
+                       [&](PipelineParts& parts) {
+                         auto sink = make_sink(spec, {parts.rig, meta, nav_from.get()});
+                         if (!sink) runtime_error(sink.error().message);
+                         parts.sinks.push_back(std::move(*sink));
+                       },
+                       out, err);
+  }
+  const fs::path staging = pos[1] + ".reaugmenting";
+  replay.values["record"] = staging.string();
+  replay.values["overwrite"] = "";
+  if (a.has("ground-truth")) replay.values["ground-truth"] = "";
+  // The staging recording goes whatever happens.
+  struct Remove {
+    fs::path p;
+    ~Remove() {
+      std::error_code ec;
+      fs::remove_all(p, ec);
+    }
+  } remove{staging};
+  if (const int rc = replay_into(pos[0], replay, nullptr, out, err); rc != kExitOk) return rc;
+  const auto reader = open_recording(staging);
+  return export_euroc_command(a, pos, reader.get(), nav_from ? nav_from.get() : reader.get(), out, err);
+}
+
+int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  std::vector<std::string> pos;
+  const ParsedArgs a = parse_with_positionals(args, export_specs(), {"DIR", "OUT"}, pos);
+  if (a.help) {
+    out << format_help(
+        "augrig export DIR --format euroc OUT [options]\n       augrig export DIR --format mcap OUT.mcap [options]",
+        "Writes a recording in the EuRoC/ASL layout: OUT/mav0/cam0, cam1 (raw), cam0_augmented,\n"
+        "cam1_augmented, cam0_mask, cam1_mask (data.csv, data/<t_ns>.png, sensor.yaml) and imu0, plus\n"
+        "OUT/poses.csv (recorded T_cam_receiver), OUT/stats.csv and OUT/stats.png (gnuplot); with nav\n"
+        "inputs, OUT/nav/<aircraft>/ (gps.nmea, imu.csv, aircraft.yaml) and the frame index OUT/frames.csv\n"
+        "for augrig nav. Every timestamp is on one clock: GPS time when the recording allows it.\n"
+        "With --ground-truth, the receiver depth, the true correspondence and the stereo classes too.\n"
+        "--format mcap: one MCAP file for ros2 bag and Foxglove (ROS 2 messages in CDR, zstd chunks, indexed):\n"
+        "per camera image_raw, image_augmented, mask, camera_info, receiver_pose; /tf_static, /tf,\n"
+        "/augrig/frame, /augrig/occlusion_stats and the nav inputs (docs/MCAP.md). augrig replay OUT.mcap\n"
+        "plays it back.",
+        export_specs());
+    return kExitOk;
+  }
+  // Without --format, OUT's name says which: a .mcap file, else a EuRoC folder.
+  const bool mcap_name = fs::path(pos[1]).extension() == ".mcap";
+  const std::string format = a.has("format") ? a.get("format") : mcap_name ? "mcap" : "euroc";
+  if (format != "euroc" && format != "mcap") usage_error("--format: expected euroc or mcap, got '" + format + "'");
+  if (reaugmenting(a)) return export_reaugmented(a, pos, format, out, err);
+  if (format == "mcap") return export_mcap_command(a, pos, out, err);
+  const auto reader = open_recording(pos[0]);
+  return export_euroc_command(a, pos, reader.get(), nullptr, out, err);
 }
 
 }  // namespace

@@ -117,6 +117,7 @@ struct ReplayConfig {
   bool paper_rig_by_default = false;  // none stored: the paper's (a EuRoC folder) rather than an error
   bool recorded_poses = true;         // the frames carry their scene (not a EuRoC folder)
   std::string clock_domains;          // for the new recording's metadata
+  const AddSinks* add_sinks = nullptr;  // the calling command's own sinks (replay_into)
 };
 void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayConfig& c) {
   if (!a.has("rig") && !c.stored_rig && !c.paper_rig_by_default)
@@ -129,6 +130,7 @@ void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayCon
   parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
   apply_look_arg(a, parts.rig, parts.augment);
   apply_sink_args(a, parts);
+  if (c.add_sinks && *c.add_sinks) (*c.add_sinks)(parts);
   if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
   if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
   PoseSources ps;
@@ -174,7 +176,8 @@ void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayCon
 // gives it; the rig is --rig (default: the paper's). Pairs by timestamp within
 // --pair-tolerance-ns; --seek and --from-frame choose the start, --loop the passes are not
 // supported (a dataset has no player).
-int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out, std::ostream& err) {
+int replay_euroc(const std::string& dir, const ParsedArgs& a, const AddSinks& add_sinks, std::ostream& out,
+                 std::ostream& err) {
   if (a.has("loop")) usage_error("--loop: a EuRoC folder plays once (replay a recording to loop)");
   if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
   std::string params =
@@ -197,7 +200,7 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
   const std::size_t pairs = euroc.pair_count();
   const std::uint64_t unpaired = euroc.frames_dropped();  // before reading: the frames without a partner
   PipelineParts parts;
-  configure_replay(parts, a, {"euroc://" + target, std::nullopt, true, false, ""});
+  configure_replay(parts, a, {"euroc://" + target, std::nullopt, true, false, "", &add_sinks});
   out << "replay: euroc://" << target << ", " << pairs << " stereo pairs (" << unpaired
       << " frames without a partner), " << replay_poses_text(a) << "\n";
   parts.source_info = opened;
@@ -225,7 +228,8 @@ int replay_euroc(const std::string& dir, const ParsedArgs& a, std::ostream& out,
 // An MCAP file written by augrig export --format mcap: its raw frames with the recorded scene
 // (poses, boom) through the same pipeline, as fast as possible, once; the rig is the one the file
 // stores (metadata augrig_recording) unless --rig gives another.
-int replay_mcap(const std::string& file, const ParsedArgs& a, std::ostream& out, std::ostream& err) {
+int replay_mcap(const std::string& file, const ParsedArgs& a, const AddSinks& add_sinks, std::ostream& out,
+                std::ostream& err) {
   for (const char* flag : {"rate", "seek", "from-frame", "loop", "pair-tolerance-ns"})
     if (a.has(flag))
       usage_error(std::string("--") + flag +
@@ -238,7 +242,7 @@ int replay_mcap(const std::string& file, const ParsedArgs& a, std::ostream& out,
   if (const auto meta = mcap.metadata(); meta.count("rig_yaml"))
     recorded_rig = unwrap(parse_rig(meta.at("rig_yaml"), path + " (metadata augrig_recording, rig_yaml)"));
   PipelineParts parts;
-  configure_replay(parts, a, {path, recorded_rig, false, true, ""});
+  configure_replay(parts, a, {path, recorded_rig, false, true, "", &add_sinks});
   parts.max_pairs = replay_frames(a);  // the first N augmented
   out << "replay: " << path << " (MCAP), " << frames << " stereo frames; rig "
       << (a.has("rig") ? parts.rig.source : std::string("as recorded")) << ", " << replay_poses_text(a)
@@ -294,12 +298,12 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (a.has("ground-truth") && !a.has("out") && !a.has("record"))
     usage_error(
         "--ground-truth needs --out DIR (where the files go) or --record DIR (stored in the new recording)");
-  if (pos[0].rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(pos[0]) / "mav0") ||
-      fs::path(pos[0]).filename() == "mav0")
-    return replay_euroc(pos[0], a, out, err);
-  if (!fs::is_directory(pos[0].rfind("replay://", 0) == 0 ? pos[0].substr(9) : pos[0]) &&
-      recorder::is_mcap_path(pos[0].rfind("replay://", 0) == 0 ? pos[0].substr(9) : pos[0]))
-    return replay_mcap(pos[0], a, out, err);
+  return replay_into(pos[0], a, nullptr, out, err);
+}
+
+// A recording (replay://DIR): the player's settings in the URI, the range in the source.
+int replay_recording(const std::string& input, const ParsedArgs& a, const AddSinks& add_sinks, std::ostream& out,
+                     std::ostream& err) {
   if (a.has("rate") && a.has("fast")) usage_error("--rate and --fast exclude each other");
   if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
   // The replay:// URI carries the player's settings (pipeline/sources.hpp, docs/REPLAY.md).
@@ -330,7 +334,7 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
   const int every = replay_every(a);
 
   // The recording, the rig and the scene are read and checked before the GL context exists.
-  const std::string dir = pos[0].rfind("replay://", 0) == 0 ? pos[0].substr(9) : pos[0];
+  const std::string dir = input.rfind("replay://", 0) == 0 ? input.substr(9) : input;
   OpenedSource opened = unwrap(open_sources("replay://" + dir + params));
   recorder::ReplaySource& source = *opened.replay;
   // The range ends in the source, not after N augmented pairs: a frame skipped (damaged, without a
@@ -356,7 +360,8 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
           " has no recorded scene (boom articulation, receiver pose); give one with --scene SCENE.yaml "
           "or --poses POSES.csv");
   PipelineParts parts;
-  configure_replay(parts, a, {reader.path(), recorded_rig, false, true, reader.meta("clock_domains")});
+  configure_replay(parts, a,
+                   {reader.path(), recorded_rig, false, true, reader.meta("clock_domains"), &add_sinks});
   parts.source_info = opened;
   const fs::path out_dir = a.get("out");
   out << "replay: " << source.uri() << ", " << source.frame_count() << " stereo frames, from frame "
@@ -403,6 +408,16 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
 }
 
 }  // namespace
+
+int replay_into(const std::string& input, const ParsedArgs& a, const AddSinks& add_sinks, std::ostream& out,
+                std::ostream& err) {
+  if (input.rfind("euroc://", 0) == 0 || fs::is_directory(fs::path(input) / "mav0") ||
+      fs::path(input).filename() == "mav0")
+    return replay_euroc(input, a, add_sinks, out, err);
+  const std::string path = input.rfind("replay://", 0) == 0 ? input.substr(9) : input;
+  if (!fs::is_directory(path) && recorder::is_mcap_path(path)) return replay_mcap(input, a, add_sinks, out, err);
+  return replay_recording(input, a, add_sinks, out, err);
+}
 
 int cmd_check(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   return guarded("check", err, [&] { return check_command(args, out); });

@@ -374,7 +374,7 @@ Status export_body(const ExportContext& cx) {
 
   const FrameInfos infos = read_frame_infos(cx.reader, report);
   NavStreams nav;
-  read_nav_streams(cx.reader, nav, report);
+  read_nav_streams(cx.options.nav_from ? *cx.options.nav_from : cx.reader, nav, report);
   const ExportClock clk = choose_export_clock(cx.reader, infos, nav, report);
 
   FrameTables tables;

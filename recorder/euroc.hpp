@@ -83,6 +83,10 @@ struct EurocExportOptions {
   // (lever arm, IMU noise, time offsets; docs/NAV_FORMATS.md). Default: the recording's meta
   // "aircraft_yaml.<aircraft>"; without either, none is written (augrig nav then uses defaults).
   std::map<std::string, std::string> aircraft_yaml;
+  // The recording whose nav inputs (imu0, OUT/nav/, the clock's GPS link) and aircraft.yaml are
+  // exported; null: the one exported. export --reaugment re-augments into a new recording of the
+  // same raw frames and exports it with the original's nav inputs.
+  const RecordingReader* nav_from = nullptr;
   bool plot = true;  // OUT/stats.png through gnuplot (recorder/plot.hpp)
   // PNG: 0 stored (no compression, fastest, largest), 1 fast (Huffman coding of the Sub-filtered
   // rows; masks run-length coded), 2..9 zlib's levels. Every setting is lossless.

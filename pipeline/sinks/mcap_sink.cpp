@@ -2,8 +2,10 @@
 // writes a recorded frame (recorder/mcap_export.hpp, docs/MCAP.md), through the same writer, so a
 // run, a replay with another rig, scene, boom or look, or a simulated flight gives the file
 // `augrig export --format mcap` gives, which `augrig replay OUT.mcap` plays back. The images go in
-// as views of the pair (nothing copied); the file's metadata holds the run's rig. Options after the
-// file name: `no-augmented`, `no-masks`. The file is OUT.mcap.part until the run closes it cleanly.
+// as views of the pair (nothing copied); the file's metadata holds the run's rig (and what the
+// setup adds: where the frames came from), and, when the setup names a recording (export
+// --reaugment), that recording's nav inputs follow the frames. Options after the file name:
+// `no-augmented`, `no-masks`. The file is OUT.mcap.part until the run closes it cleanly.
 #include <sstream>
 
 #include "pipeline/report.hpp"
@@ -16,12 +18,15 @@ namespace {
 
 class McapSink final : public FrameSink {
  public:
-  McapSink(std::string path, recorder::McapExportOptions options, const Rig& rig,
-           std::map<std::string, std::string> meta)
-      : path_(std::move(path)), options_(std::move(options)), rig_(rig), meta_(std::move(meta)) {}
+  McapSink(std::string path, recorder::McapExportOptions options, const SinkSetup& setup)
+      : path_(std::move(path)),
+        options_(std::move(options)),
+        rig_(setup.rig),
+        meta_(setup.meta),
+        nav_from_(setup.nav_from) {}
 
   Status open() {
-    meta_.emplace("rig_yaml", rig_to_yaml(rig_));
+    meta_["rig_yaml"] = rig_to_yaml(rig_);  // the rig of this run's augmentation
     auto w = recorder::McapFrameWriter::create(path_, options_, meta_, rig_, report_);
     if (!w) return make_error("mcap sink: ", w.error().message);
     writer_ = std::move(*w);
@@ -58,6 +63,8 @@ class McapSink final : public FrameSink {
 
   Status close(PipelineReport& report) override {
     if (!writer_) return {};
+    if (nav_from_)
+      if (Status s = writer_->write_nav(*nav_from_); !s) return make_error("mcap sink: ", s.error().message);
     const Status s = writer_->finish();
     writer_.reset();
     if (!s) return make_error("mcap sink: ", s.error().message);
@@ -65,6 +72,7 @@ class McapSink final : public FrameSink {
     line << path_ << ": " << report_.frames_written << " stereo frame(s), " << report_.messages << " messages in "
          << report_.chunks << " zstd chunk(s), " << report_.bytes << " bytes";
     report.outputs.push_back(line.str());
+    for (const std::string& p : report_.problems) report.outputs.push_back(path_ + ": " + p);
     return {};
   }
 
@@ -74,6 +82,7 @@ class McapSink final : public FrameSink {
   Rig rig_;  // a copy: the parts it came from move into the pipeline
   std::map<std::string, std::string> meta_;
   recorder::McapExportReport report_;
+  const recorder::RecordingReader* nav_from_;
   std::unique_ptr<recorder::McapFrameWriter> writer_;
 };
 
@@ -84,7 +93,7 @@ Expected<std::unique_ptr<FrameSink>> make_mcap_sink(const std::string& arg, cons
   std::string path;
   std::getline(in, path, ',');
   recorder::McapExportOptions o;
-  o.nav = false;  // a run's nav inputs are the recorder's (export a recording for them)
+  o.nav = setup.nav_from != nullptr;
   for (std::string opt; std::getline(in, opt, ',');) {
     if (opt == "no-augmented")
       o.augmented = false;
@@ -94,7 +103,7 @@ Expected<std::unique_ptr<FrameSink>> make_mcap_sink(const std::string& arg, cons
       return make_error("mcap sink: ", opt, ": unknown option (expected no-augmented or no-masks)");
   }
   if (path.empty()) return make_error("mcap sink: expected a file name (mcap:OUT.mcap)");
-  auto sink = std::make_unique<McapSink>(path, o, setup.rig, setup.meta);
+  auto sink = std::make_unique<McapSink>(path, o, setup);
   if (Status st = sink->open(); !st) return st.error();
   return std::unique_ptr<FrameSink>(std::move(sink));
 }

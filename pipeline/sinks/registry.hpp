@@ -13,6 +13,10 @@
 #include "pipeline/frame_sink.hpp"
 #include "render/rig.hpp"
 
+namespace augrig::recorder {
+class RecordingReader;
+}
+
 namespace augrig::pipeline {
 
 // What a sink may need to open: the rig (its cameras' sizes, their poses on the tanker).
@@ -20,6 +24,8 @@ struct SinkSetup {
   const Rig& rig;
   // Metadata a file sink stores with its frames (where they came from); the rig is added by it.
   std::map<std::string, std::string> meta = {};
+  // A recording whose nav inputs a file sink copies at its close (export --reaugment's); null: none.
+  const recorder::RecordingReader* nav_from = nullptr;
 };
 
 // A sink from "SCHEME:ARGUMENT"; an unknown scheme or a bad argument is an Error naming it and

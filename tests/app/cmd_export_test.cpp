@@ -66,6 +66,119 @@ const std::string& long_recording() {
   return test::recording_of_this_test("cmd_export_long_", 60);
 }
 
+// Every file under `dir` (relative path -> bytes), but `skip`'s.
+std::map<std::string, std::string> files_under(const fs::path& dir, const std::string& skip = "") {
+  std::map<std::string, std::string> m;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (!e.is_regular_file()) continue;
+    const std::string rel = fs::relative(e.path(), dir).string();
+    if (!skip.empty() && rel == skip) continue;
+    std::ifstream in(e.path(), std::ios::binary);
+    m[rel] = std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  }
+  return m;
+}
+
+// Every message of an MCAP file as "topic log_time" -> bytes, in file order.
+std::vector<std::pair<std::string, std::vector<std::uint8_t>>> mcap_messages(const std::string& path) {
+  std::vector<std::pair<std::string, std::vector<std::uint8_t>>> v;
+  auto r = recorder::McapReader::open(path);
+  EXPECT_TRUE(r) << r.error().message;
+  if (!r) return v;
+  recorder::McapMessage m;
+  while (true) {
+    auto more = (*r)->next(m);
+    EXPECT_TRUE(more) << more.error().message;
+    if (!more || !*more) break;
+    v.emplace_back((*r)->channels().at(m.channel_id).topic + " " + std::to_string(m.log_time_ns), m.data);
+  }
+  return v;
+}
+
+// export --reaugment goes through the pipeline: its output is what replaying the recording with the
+// same options into a new recording and exporting that gives (the oracle, made by commands that
+// existed before), and not the recorded augmentation.
+TEST(CmdExport, ReaugmentedMcapIsTheReplaysRecordingExported) {
+  const std::string dir = output_dir("cmd_export_reaugment_mcap");
+  const std::string boom = "--boom fixed:-30,5,14";
+  std::string log;
+  ASSERT_EQ(augrig("export " + recording() + " " + dir + "/re.mcap " + boom + " --look plain", &log), 0) << log;
+  EXPECT_NE(log.find("wrote " + dir + "/re.mcap: 8 stereo frame(s)"), std::string::npos) << log;
+  ASSERT_EQ(augrig("replay " + recording() + " --headless --look plain " + boom + " --record " + dir + "/rec2", &log),
+            0)
+      << log;
+  ASSERT_EQ(augrig("export " + dir + "/rec2 " + dir + "/oracle.mcap", &log), 0) << log;
+  ASSERT_EQ(augrig("export " + recording() + " " + dir + "/recorded.mcap", &log), 0) << log;
+  const auto re = mcap_messages(dir + "/re.mcap"), oracle = mcap_messages(dir + "/oracle.mcap"),
+             recorded = mcap_messages(dir + "/recorded.mcap");
+  ASSERT_EQ(re.size(), oracle.size());
+  ASSERT_EQ(re.size(), recorded.size());
+  std::size_t augmented_differ = 0;
+  for (std::size_t i = 0; i < re.size(); ++i) {
+    EXPECT_EQ(re[i].first, oracle[i].first) << "message " << i;
+    // The oracle's /tf_static comes from rec2's stored rig, one more YAML round trip of the
+    // rotation (matrix -> quaternion) away: equal to the last bits, not in them.
+    if (re[i].first.rfind("/tf_static", 0) == 0) continue;
+    EXPECT_TRUE(re[i].second == oracle[i].second) << re[i].first;
+    if (re[i].first.rfind("/left/image_augmented", 0) == 0 && re[i].second != recorded[i].second) ++augmented_differ;
+  }
+  EXPECT_GT(augmented_differ, 0u) << "the recorded augmentation came out again";
+  // Options of EuRoC alone are refused, naming the option.
+  EXPECT_EQ(augrig("export " + recording() + " " + dir + "/x.mcap --reaugment --ground-truth", &log), 2) << log;
+  EXPECT_NE(log.find("--ground-truth: only for --format euroc"), std::string::npos) << log;
+}
+
+TEST(CmdExport, ReaugmentedEurocIsTheReplaysRecordingExported) {
+  const std::string dir = output_dir("cmd_export_reaugment_euroc");
+  const std::string boom = "--boom fixed:-25,-5,13";
+  std::string log;
+  ASSERT_EQ(augrig("export " + recording() + " " + dir + "/re --no-plot " + boom, &log), 0) << log;
+  EXPECT_FALSE(fs::exists(dir + "/re.reaugmenting")) << "the staging recording was left behind";
+  ASSERT_EQ(augrig("replay " + recording() + " --headless " + boom + " --record " + dir + "/rec2", &log), 0) << log;
+  ASSERT_EQ(augrig("export " + dir + "/rec2 " + dir + "/oracle --no-plot", &log), 0) << log;
+  // rig.yaml names the rig's source file; everything else is the same, byte for byte.
+  const auto re = files_under(dir + "/re", "rig.yaml"), oracle = files_under(dir + "/oracle", "rig.yaml");
+  ASSERT_EQ(re.size(), oracle.size());
+  ASSERT_TRUE(re.count("mav0/cam0_augmented/data.csv"));
+  for (const auto& [name, bytes] : re) {
+    ASSERT_TRUE(oracle.count(name)) << name;
+    EXPECT_TRUE(bytes == oracle.at(name)) << name;
+  }
+  // ... and not the recorded augmentation.
+  ASSERT_EQ(augrig("export " + recording() + " " + dir + "/recorded --no-plot", &log), 0) << log;
+  const auto recorded = files_under(dir + "/recorded", "rig.yaml");
+  for (const auto& [name, bytes] : re) {
+    if (name.rfind("mav0/cam0/data/", 0) == 0) {
+      EXPECT_TRUE(recorded.at(name) == bytes) << "raw " << name;
+    }
+  }
+  EXPECT_FALSE(recorded.at("stats.csv") == re.at("stats.csv"));
+  std::size_t augmented_differ = 0;
+  for (const auto& [name, bytes] : re)
+    if (name.rfind("mav0/cam0_augmented/data/", 0) == 0 && recorded.at(name) != bytes) ++augmented_differ;
+  EXPECT_GT(augmented_differ, 0u) << "the recorded augmentation came out again";
+}
+
+// A recording's nav inputs go with its re-augmented export (imu0 and the nav logs, /nav topics).
+TEST(CmdExport, ReaugmentedExportsKeepTheNavInputs) {
+  const std::string dir = output_dir("cmd_export_reaugment_nav");
+  std::string log;
+  ASSERT_EQ(augrig("run --source 'sim://demo?every=30' --nav sim --record " + dir +
+                       "/rec --duration 3 --headless --status-every 0",
+                   &log),
+            0)
+      << log;
+  ASSERT_EQ(augrig("export " + dir + "/rec " + dir + "/re --reaugment --look plain --no-plot", &log), 0) << log;
+  EXPECT_NE(log.find("imu0 ("), std::string::npos) << log;
+  EXPECT_GT(lines_of(dir + "/re/mav0/imu0/data.csv"), 100u);
+  EXPECT_TRUE(fs::exists(dir + "/re/nav/tanker/gps.nmea"));
+  ASSERT_EQ(augrig("export " + dir + "/rec " + dir + "/re.mcap --reaugment", &log), 0) << log;
+  std::map<std::string, int> topics;
+  for (const auto& m : mcap_messages(dir + "/re.mcap")) ++topics[m.first.substr(0, m.first.find(' '))];
+  EXPECT_GT(topics["/nav/tanker/imu"], 100) << log;
+  EXPECT_GT(topics["/nav/receiver/gps"], 5) << log;
+}
+
 // A recording cut in half: export said "Exported 99 of 99" and exited 0 while the summary said
 // 201. It must say what is missing, exit 1 and mark its output.
 TEST(CmdExport, ATruncatedRecordingSaysWhatIsMissing) {
