@@ -97,7 +97,7 @@ FlightSpec parse_flight(const Context& c, const YAML::Node& n, const std::string
 VariantSpec parse_variant(const Context& c, const YAML::Node& n, const std::string& key,
                           const fs::path& base) {
   expect_map(c, n, key, "a variant (a map with name and what it changes)");
-  check_keys(c, n, key, {"name", "rig", "boom", "scene", "receiver_draw", "evaluate"});
+  check_keys(c, n, key, {"name", "rig", "boom", "scene", "receiver_draw", "look", "evaluate", "exports"});
   VariantSpec v;
   v.name = name_value(c, require(c, n, key, "name", "the variant's name"), join_key(key, "name"));
   if (n["rig"]) {
@@ -129,6 +129,11 @@ VariantSpec parse_variant(const Context& c, const YAML::Node& n, const std::stri
       fail(c, n["receiver_draw"], join_key(key, "receiver_draw"),
            "expected mask, wireframe or translucent, " + got(n["receiver_draw"]));
   }
+  if (n["look"]) {
+    v.look = to_string_value(c, n["look"], join_key(key, "look"), "plain or camera");
+    if (v.look != "plain" && v.look != "camera")
+      fail(c, n["look"], join_key(key, "look"), "expected plain or camera, " + got(n["look"]));
+  }
   if (const YAML::Node e = n["evaluate"]) {
     const std::string ek = join_key(key, "evaluate");
     v.evaluate = true;
@@ -157,6 +162,18 @@ VariantSpec parse_variant(const Context& c, const YAML::Node& n, const std::stri
       if (e["full_frame"]) v.full_frame = to_bool(c, e["full_frame"], join_key(ek, "full_frame"));
       if (v.full_frame && v.context_px) fail(c, e, ek, "full_frame and context_px exclude each other");
     }
+  }
+  // The re-augmented frames as files too, per shard, joined per flight by the merge.
+  if (const YAML::Node x = n["exports"]) {
+    const std::string xk = join_key(key, "exports");
+    if (!x.IsSequence()) fail(c, x, xk, "expected a list of export formats ([mcap]), " + got(x));
+    for (const YAML::Node& f : x) {
+      if (to_string_value(c, f, xk, "an export format") != "mcap")
+        fail(c, f, xk, "expected mcap (the formats a shard can write and the merge join), " + got(f));
+      v.export_mcap = true;
+    }
+    if (v.export_mcap && v.evaluate)
+      fail(c, x, xk, "exports are written by replay variants (without evaluate); give them their own variant");
   }
   return v;
 }
@@ -453,6 +470,8 @@ std::vector<std::string> task_command(const FlightSpec& flight, const VariantSpe
     a.push_back("--no-plot");  // the merge plots the whole flight
   } else {
     a.insert(a.end(), {"--fast", "--headless", "--every", "1000000"});  // the statistics, few images
+    if (!v.look.empty()) a.insert(a.end(), {"--look", v.look});
+    if (v.export_mcap) a.insert(a.end(), {"--sink", std::string("mcap:") + kTaskOut + "/" + kShardMcap});
   }
   // A frame that cannot be read is left out and counted (done.yaml, status, the report): a shard
   // of a damaged recording would otherwise fail on every run.

@@ -44,6 +44,13 @@ struct VariantSpec {
   int every = 1;        // evaluate every K-th frame of the flight
   std::optional<int> context_px;
   bool full_frame = false;
+  // exports: [mcap]: each shard's re-augmented frames as an MCAP file (--sink mcap:), joined per
+  // flight by the merge (recorder::merge_mcap) into report/VARIANT/FLIGHT/flight.mcap.
+  bool export_mcap = false;
+  // look: plain | camera (replay's --look; empty: its default). Evaluations always use plain. The
+  // camera look's estimates start over at each shard's first frame, as a restarted run's would:
+  // its augmented images are a camera's, but not bit for bit those of one unsharded run.
+  std::string look;
 };
 
 struct SlurmSpec {
@@ -123,6 +130,11 @@ struct Task {
   std::filesystem::path out;      // the shard's output folder, absolute
   std::vector<std::string> argv;  // the augrig command, without the program and without --out
 };
+
+// In a task's argv, kTaskOut stands for the folder the task writes (run_task puts it in); a shard's
+// MCAP export is kTaskOut/kShardMcap.
+inline constexpr const char* kTaskOut = "{out}";
+inline constexpr const char* kShardMcap = "flight.mcap";
 
 struct Manifest {
   std::filesystem::path file;  // manifest.yaml, absolute

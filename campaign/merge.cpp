@@ -10,6 +10,8 @@
 #include "campaign/task.hpp"
 #include "eval/matcher.hpp"
 #include "eval/report.hpp"
+#include "recorder/mcap_export.hpp"
+#include "recorder/reader.hpp"
 #include "render/stats.hpp"
 
 namespace augrig::campaign {
@@ -149,6 +151,29 @@ Status merge_stats(const std::vector<const Task*>& shards, const fs::path& dir, 
   }
   if (Status s = write_text(dir / "summary.txt", format_run_summary(*stats)); !s) return s.error();
   all_stats.insert(all_stats.end(), stats->begin(), stats->end());
+  return {};
+}
+
+// The shards' MCAP exports (a variant's exports: [mcap]) joined into DIR/flight.mcap, with the
+// flight's nav inputs when it is a recording; `mcap_frames` counts its stereo frames. Nothing when
+// the variant exports nothing.
+Status merge_exports(const std::vector<const Task*>& shards, const fs::path& dir, std::size_t& mcap_frames) {
+  const std::vector<std::string>& argv = shards.front()->argv;
+  const std::string sink = std::string("mcap:") + kTaskOut + "/" + kShardMcap;
+  if (std::find(argv.begin(), argv.end(), sink) == argv.end()) return {};
+  std::vector<std::string> inputs;
+  for (const Task* t : shards) inputs.push_back((t->out / kShardMcap).string());
+  const fs::path flight = argv.at(1);
+  std::unique_ptr<recorder::RecordingReader> nav;
+  if (fs::is_directory(flight) && !fs::exists(flight / "mav0") && flight.filename() != "mav0") {
+    auto r = recorder::RecordingReader::open(flight.string());
+    if (!r) return r.error();
+    nav = std::move(*r);
+  }
+  recorder::McapExportReport report;
+  if (Status s = recorder::merge_mcap(inputs, (dir / kShardMcap).string(), nav.get(), report); !s)
+    return make_error(kWhere, s.error().message);
+  mcap_frames = report.frames;
   return {};
 }
 
@@ -301,6 +326,8 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
     const bool evaluated = shards.front()->argv.front() == "evaluate";
     if (evaluated)
       if (Status s = merge_evaluation(shards, dir, key, options, fl, totals); !s) return s.error();
+    std::size_t mcap_frames = 0;
+    if (Status s = merge_exports(shards, dir, mcap_frames); !s) return s.error();
     sum.frames += fl.frames;
     sum.evaluated += fl.evaluated;
     sum.frames_left_out += fl.left_out;
@@ -310,6 +337,8 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
     if (fl.left_out)
       out << ", " << fl.left_out << " left out (damaged input or no pose: the shards' task.log)";
     out << " -> " << dir.string() << "\n";
+    if (mcap_frames)
+      out << "  " << (dir / kShardMcap).string() << ": " << mcap_frames << " stereo frame(s) from the shards' MCAP files\n";
     lines.push_back(fl);
   }
   if (Status s = write_campaign_report(m, sum, lines, totals); !s) return s.error();

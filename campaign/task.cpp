@@ -232,6 +232,9 @@ int run_task(const Manifest& m, std::size_t id, std::ostream& out, std::ostream&
   // The command: the manifest's augrig binary, output into the partial folder, its stdout and
   // stderr into task.log (kept with the shard).
   std::vector<std::string> args = t.argv;
+  for (std::string& a : args)
+    for (std::size_t at; (at = a.find(kTaskOut)) != std::string::npos;)
+      a.replace(at, std::string(kTaskOut).size(), partial.string());
   args.insert(args.end(), {"--out", partial.string()});
   const std::string prog = m.augrig.string();
   const fs::path log = partial / "task.log";

@@ -312,6 +312,11 @@ Status McapFrameWriter::write(const McapFrame& f, std::uint64_t index, const std
   return {};
 }
 
+Status McapFrameWriter::write_message(const std::string& topic, const std::string& type, std::int64_t log_time_ns,
+                                      const std::vector<std::uint8_t>& data) {
+  return impl_->put(topic, type.c_str(), log_time_ns, data);
+}
+
 Status McapFrameWriter::write_nav(const RecordingReader& reader) {
   return export_nav(reader, *impl_->ch, *impl_->report);
 }
@@ -369,6 +374,47 @@ Status export_mcap(const RecordingReader& reader, const std::string& out_path,
 }
 
 // ---- McapSource -----------------------------------------------------------------------------------
+
+Status merge_mcap(const std::vector<std::string>& inputs, const std::string& out_path,
+                  const RecordingReader* nav_from, McapExportReport& report) {
+  if (inputs.empty()) return make_error("recorder::merge_mcap(): ", out_path, ": no files to join");
+  std::unique_ptr<McapFrameWriter> writer;
+  bool static_written = false;  // each shard's file has its /tf_static; the flight's, one
+  for (const std::string& in : inputs) {
+    auto r = McapReader::open(in);
+    if (!r) return r.error();
+    McapReader& reader = **r;
+    if (!writer) {  // the first file's metadata stands for all
+      auto meta = reader.metadata(kMcapRecordingMetadata);
+      if (!meta) return meta.error();
+      McapExportOptions o;
+      auto w = McapFrameWriter::create(out_path, o, meta->value_or(std::map<std::string, std::string>{}),
+                                       std::nullopt, report);
+      if (!w) return w.error();
+      writer = std::move(*w);
+    }
+    McapMessage m;
+    while (true) {
+      auto more = reader.next(m);
+      if (!more) return more.error();
+      if (!*more) break;
+      const McapChannelInfo& ch = reader.channels().at(m.channel_id);
+      const McapSchemaInfo& schema = reader.schemas().at(ch.schema_id);
+      if (ch.topic == "/tf_static" && static_written && in != inputs.front()) continue;
+      if (ch.topic == "/tf_static") static_written = true;
+      if (ch.topic == "/augrig/frame") {
+        ++report.frames;
+        ++report.frames_written;
+      }
+      if (Status s = writer->write_message(ch.topic, schema.name, static_cast<std::int64_t>(m.log_time_ns), m.data);
+          !s)
+        return s;
+    }
+  }
+  if (nav_from)
+    if (Status s = writer->write_nav(*nav_from); !s) return s;
+  return writer->finish();
+}
 
 bool is_mcap_path(const std::string& path) {
   if (path.size() >= 5 && path.compare(path.size() - 5, 5, ".mcap") == 0) return true;

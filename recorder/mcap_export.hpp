@@ -83,6 +83,9 @@ class McapFrameWriter {
   ~McapFrameWriter();
   // One stereo frame; `index` is its index in its stream (/augrig/frame), `where` names it in errors.
   Status write(const McapFrame& f, std::uint64_t index, const std::string& where);
+  // One message as it is, on `topic` of ROS 2 type `type` (merge_mcap()).
+  Status write_message(const std::string& topic, const std::string& type, std::int64_t log_time_ns,
+                       const std::vector<std::uint8_t>& data);
   // The recording's nav inputs: each IMU increment as mean rates at the middle of its interval,
   // each GPS epoch as a NavSatFix (streams neither IMU nor GPS are noted and left out).
   Status write_nav(const RecordingReader& reader);
@@ -100,6 +103,14 @@ class McapFrameWriter {
 // and listed in report.problems.
 Status export_mcap(const RecordingReader& reader, const std::string& out_path, const McapExportOptions& options,
                    McapExportReport& report);
+
+// Joins MCAP files written by export_mcap() or the mcap sink for consecutive parts of one flight
+// (a campaign's shards) into one: the first file's metadata, then every file's messages in order
+// (channels and schemas by topic and type, as written), then, given `nav_from`, that recording's
+// nav inputs. A shard's frames keep their recording's indices, so the result is, message for
+// message, the file of the whole flight. Written through out_path + ".part"; `report` counts.
+Status merge_mcap(const std::vector<std::string>& inputs, const std::string& out_path,
+                  const RecordingReader* nav_from, McapExportReport& report);
 
 // The Metadata record holding the recording's meta table (rig_yaml, scene, clock_domains, ...).
 inline constexpr const char* kMcapRecordingMetadata = "augrig_recording";

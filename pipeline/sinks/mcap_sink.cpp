@@ -57,8 +57,11 @@ class McapSink final : public FrameSink {
       f.sigma_att_deg = pair.poses.sigma_att_deg;
       if (pair.result) f.boom = scene->boom;
     }
+    // A recording's frame keeps its index (as export_mcap writes it), so that the files of a
+    // flight's shards join into the file of the whole flight (merge_mcap); else the count.
+    const std::uint64_t index = pair.position ? pair.position->index : report_.frames;
     ++report_.frames;
-    return writer_->write(f, report_.frames - 1, "pair " + std::to_string(pair.pair));
+    return writer_->write(f, index, "pair " + std::to_string(pair.pair));
   }
 
   Status close(PipelineReport& report) override {

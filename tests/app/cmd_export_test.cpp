@@ -32,6 +32,7 @@
 #include "render/augmenter.hpp"
 #include "render/gl_context.hpp"
 #include "sim/scenario.hpp"
+#include "tests/support/mcap_messages.hpp"
 #include "tests/support/recording_fixture.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -79,22 +80,6 @@ std::map<std::string, std::string> files_under(const fs::path& dir, const std::s
   return m;
 }
 
-// Every message of an MCAP file as "topic log_time" -> bytes, in file order.
-std::vector<std::pair<std::string, std::vector<std::uint8_t>>> mcap_messages(const std::string& path) {
-  std::vector<std::pair<std::string, std::vector<std::uint8_t>>> v;
-  auto r = recorder::McapReader::open(path);
-  EXPECT_TRUE(r) << r.error().message;
-  if (!r) return v;
-  recorder::McapMessage m;
-  while (true) {
-    auto more = (*r)->next(m);
-    EXPECT_TRUE(more) << more.error().message;
-    if (!more || !*more) break;
-    v.emplace_back((*r)->channels().at(m.channel_id).topic + " " + std::to_string(m.log_time_ns), m.data);
-  }
-  return v;
-}
-
 // export --reaugment goes through the pipeline: its output is what replaying the recording with the
 // same options into a new recording and exporting that gives (the oracle, made by commands that
 // existed before), and not the recorded augmentation.
@@ -109,8 +94,8 @@ TEST(CmdExport, ReaugmentedMcapIsTheReplaysRecordingExported) {
       << log;
   ASSERT_EQ(augrig("export " + dir + "/rec2 " + dir + "/oracle.mcap", &log), 0) << log;
   ASSERT_EQ(augrig("export " + recording() + " " + dir + "/recorded.mcap", &log), 0) << log;
-  const auto re = mcap_messages(dir + "/re.mcap"), oracle = mcap_messages(dir + "/oracle.mcap"),
-             recorded = mcap_messages(dir + "/recorded.mcap");
+  const auto re = test::mcap_messages(dir + "/re.mcap"), oracle = test::mcap_messages(dir + "/oracle.mcap"),
+             recorded = test::mcap_messages(dir + "/recorded.mcap");
   ASSERT_EQ(re.size(), oracle.size());
   ASSERT_EQ(re.size(), recorded.size());
   std::size_t augmented_differ = 0;
@@ -174,7 +159,7 @@ TEST(CmdExport, ReaugmentedExportsKeepTheNavInputs) {
   EXPECT_TRUE(fs::exists(dir + "/re/nav/tanker/gps.nmea"));
   ASSERT_EQ(augrig("export " + dir + "/rec " + dir + "/re.mcap --reaugment", &log), 0) << log;
   std::map<std::string, int> topics;
-  for (const auto& m : mcap_messages(dir + "/re.mcap")) ++topics[m.first.substr(0, m.first.find(' '))];
+  for (const auto& m : test::mcap_messages(dir + "/re.mcap")) ++topics[m.first.substr(0, m.first.find(' '))];
   EXPECT_GT(topics["/nav/tanker/imu"], 100) << log;
   EXPECT_GT(topics["/nav/receiver/gps"], 5) << log;
 }

@@ -13,6 +13,7 @@
 
 #include "campaign/task.hpp"
 #include "tests/support/campaign_fixture.hpp"
+#include "tests/support/mcap_messages.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig::campaign {
@@ -84,6 +85,48 @@ TEST_F(MergeFixture, ShardsMergeIntoTheUnshardedRunFrameForFrame) {
       EXPECT_EQ(lines_of(whole.out / "report" / "eval" / f / file),
                 lines_of(m.out / "report" / "eval" / f / file))
           << f << "/" << file;
+}
+
+// exports: [mcap]: each shard's MCAP file joined per flight is the unsharded replay's file, message
+// for message (the shards keep the recording's frame indices; one /tf_static; the nav inputs).
+TEST_F(MergeFixture, ShardsMcapExportsJoinIntoTheUnshardedReplaysFile) {
+  const std::string text = "augrig_campaign: 1\nname: x\nout: x\nrecordings: [{path: " + rec_a +
+                           ", name: a}]\nvariants:\n  - {name: m, boom: script:boom.csv, look: plain, "
+                           "exports: [mcap]}\nshards: {seconds: 1.3}\n";
+  auto spec = parse_campaign(text, dir / "campaign.yaml");
+  ASSERT_TRUE(spec) << spec.error().message;
+  Manifest m;
+  m.file = spec->out / "manifest.yaml";
+  m.name = "x";
+  m.out = spec->out;
+  m.augrig = test::augrig_binary();
+  m.tasks = plan_tasks(*spec, {*read_flight_frames(spec->flights[0])}, {});
+  ASSERT_GE(m.tasks.size(), 3u);
+  fs::create_directories(m.out);
+  ASSERT_TRUE(write_manifest(m));
+  for (const Task& t : m.tasks) {
+    std::ostringstream out, err;
+    ASSERT_EQ(run_task(m, t.id, out, err), 0) << out.str() << err.str();
+  }
+  std::ostringstream out;
+  ASSERT_TRUE(merge_campaign(m, MergeOptions{false, false}, out));
+  EXPECT_NE(out.str().find("flight.mcap: 41 stereo frame(s)"), std::string::npos) << out.str();
+  std::string log;
+  ASSERT_EQ(test::run_augrig("replay " + rec_a + " --headless --look plain --boom script:" + (dir / "boom.csv").string() +
+                                 " --sink mcap:" + (dir / "whole.mcap").string(),
+                             &log),
+            0)
+      << log;
+  // The unsharded file has no nav (a --sink of a replay); the flight's are joined after its frames.
+  const auto merged = test::mcap_messages((m.out / "report" / "m" / "a" / "flight.mcap").string());
+  const auto whole = test::mcap_messages((dir / "whole.mcap").string());
+  ASSERT_GE(merged.size(), whole.size());
+  for (std::size_t i = 0; i < whole.size(); ++i) {
+    EXPECT_EQ(merged[i].first, whole[i].first) << "message " << i;
+    EXPECT_TRUE(merged[i].second == whole[i].second) << merged[i].first;
+  }
+  for (std::size_t i = whole.size(); i < merged.size(); ++i)
+    EXPECT_EQ(merged[i].first.rfind("/nav/", 0), 0u) << merged[i].first;
 }
 
 TEST_F(MergeFixture, AShardNotDoneStopsTheMergeUnlessPartial) {

@@ -3,14 +3,13 @@
 // plays back through McapSource with the run's rig; its options leave topics out; bad arguments
 // and unwritable files are named.
 #include <map>
-#include <tuple>
 
 #include <gtest/gtest.h>
 
 #include "pipeline/report.hpp"
 #include "pipeline/sinks/registry.hpp"
 #include "recorder/mcap_export.hpp"
-#include "recorder/mcap_reader.hpp"
+#include "tests/support/mcap_messages.hpp"
 #include "tests/support/pipeline_parts.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -19,26 +18,12 @@ namespace {
 
 const std::string kScenario = "sim://" + test::data_path("scenarios/short_approach.yaml") + "?every=5&rate=0";
 
-// Every message of an MCAP file as (topic, log time, bytes), in file order.
-using Message = std::tuple<std::string, std::uint64_t, std::vector<std::uint8_t>>;
-std::vector<Message> messages_of(const std::string& path) {
-  std::vector<Message> v;
-  auto r = recorder::McapReader::open(path);
-  EXPECT_TRUE(r) << r.error().message;
-  if (!r) return v;
-  recorder::McapMessage m;
-  while (true) {
-    auto more = (*r)->next(m);
-    EXPECT_TRUE(more) << more.error().message;
-    if (!more || !*more) break;
-    v.emplace_back((*r)->channels().at(m.channel_id).topic, m.log_time_ns, m.data);
-  }
-  return v;
-}
+using Message = std::pair<std::string, std::vector<std::uint8_t>>;  // "TOPIC LOG_TIME", bytes
+using test::mcap_messages;
 
 std::map<std::string, int> topics_of(const std::vector<Message>& v) {
   std::map<std::string, int> n;
-  for (const Message& m : v) ++n[std::get<0>(m)];
+  for (const Message& m : v) ++n[m.first.substr(0, m.first.find(' '))];
   return n;
 }
 
@@ -69,12 +54,11 @@ TEST(McapSink, WritesWhatExportWritesFromTheRecordingOfTheSameRun) {
   eo.rig = rig;
   recorder::McapExportReport er;
   ASSERT_TRUE(recorder::export_mcap(**reader, out + "/export.mcap", eo, er));
-  const std::vector<Message> run = messages_of(out + "/run.mcap"), exported = messages_of(out + "/export.mcap");
+  const std::vector<Message> run = mcap_messages(out + "/run.mcap"), exported = mcap_messages(out + "/export.mcap");
   ASSERT_EQ(run.size(), exported.size());
   for (std::size_t i = 0; i < run.size(); ++i) {
-    EXPECT_EQ(std::get<0>(run[i]), std::get<0>(exported[i])) << "message " << i;
-    EXPECT_EQ(std::get<1>(run[i]), std::get<1>(exported[i])) << std::get<0>(run[i]);
-    EXPECT_TRUE(std::get<2>(run[i]) == std::get<2>(exported[i])) << std::get<0>(run[i]) << ", message " << i;
+    EXPECT_EQ(run[i].first, exported[i].first) << "message " << i;
+    EXPECT_TRUE(run[i].second == exported[i].second) << run[i].first << ", message " << i;
   }
   const std::map<std::string, int> n = topics_of(run);
   for (const char* t : {"/augrig/frame", "/left/image_augmented", "/right/mask", "/left/receiver_pose", "/tf",
@@ -103,7 +87,7 @@ TEST(McapSink, OptionsLeaveTopicsOut) {
   std::ostringstream o, e;
   auto report = pipeline.run(o, e);
   ASSERT_TRUE(report) << report.error().message;
-  const std::map<std::string, int> n = topics_of(messages_of(out + "/raw.mcap"));
+  const std::map<std::string, int> n = topics_of(mcap_messages(out + "/raw.mcap"));
   EXPECT_EQ(n.at("/left/image_raw"), 2);
   EXPECT_EQ(n.at("/augrig/occlusion_stats"), 2);
   EXPECT_EQ(n.count("/left/image_augmented") + n.count("/right/image_augmented"), 0u);
