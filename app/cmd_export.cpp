@@ -3,7 +3,8 @@
 // clock (docs/REPLAY.md). The recording is opened (and so checked to be one) first;
 // recorder::export_euroc() keeps OUT/INCOMPLETE until it has finished cleanly. A rate line with the
 // ETA goes to stderr about once a second. --format mcap writes one MCAP file of ROS 2 messages
-// instead (recorder/mcap_export.hpp, docs/MCAP.md).
+// instead (recorder/mcap_export.hpp, docs/MCAP.md). --reaugment replays the input through the
+// pipeline into the format's writer instead of exporting the recorded augmentation.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -29,7 +30,8 @@ const std::vector<OptionSpec>& export_specs() {
        "output layout: euroc (EuRoC/ASL folder, docs/REPLAY.md) or mcap (one MCAP file of ROS 2 messages, "
        "docs/MCAP.md); default: mcap when OUT ends in .mcap, else euroc"},
       {"rig", ArgKind::kValue, "RIG.yaml|default",
-       "intrinsics and extrinsics for sensor.yaml (default: the recorded rig)"},
+       "intrinsics and extrinsics for sensor.yaml (default: the recorded rig); with --reaugment also the "
+       "augmentation's"},
       {"imu-stream", ArgKind::kValue, "NAME",
        "nav input stream exported as imu0 (default: imu, else tanker.imu)"},
       {"aircraft", ArgKind::kValue, "tanker=FILE,receiver=FILE",
@@ -230,7 +232,8 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   const ParsedArgs a = parse_with_positionals(args, export_specs(), {"DIR", "OUT"}, pos);
   if (a.help) {
     out << format_help(
-        "augrig export DIR --format euroc OUT [options]\n       augrig export DIR --format mcap OUT.mcap [options]",
+        "augrig export DIR --format euroc OUT [options]\n       augrig export DIR --format mcap OUT.mcap [options]\n"
+        "       augrig export IN OUT --reaugment [--rig R] [--scene S|--poses P] [--boom B] [--look L] [options]",
         "Writes a recording in the EuRoC/ASL layout: OUT/mav0/cam0, cam1 (raw), cam0_augmented,\n"
         "cam1_augmented, cam0_mask, cam1_mask (data.csv, data/<t_ns>.png, sensor.yaml) and imu0, plus\n"
         "OUT/poses.csv (recorded T_cam_receiver), OUT/stats.csv and OUT/stats.png (gnuplot); with nav\n"
@@ -240,7 +243,10 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
         "--format mcap: one MCAP file for ros2 bag and Foxglove (ROS 2 messages in CDR, zstd chunks, indexed):\n"
         "per camera image_raw, image_augmented, mask, camera_info, receiver_pose; /tf_static, /tf,\n"
         "/augrig/frame, /augrig/occlusion_stats and the nav inputs (docs/MCAP.md). augrig replay OUT.mcap\n"
-        "plays it back.",
+        "plays it back.\n"
+        "--reaugment (or --scene, --poses, --boom, --look, --receiver-draw): DIR (a recording, an MCAP\n"
+        "file or a EuRoC folder) is augmented again through the pipeline, with the rig and scene recorded\n"
+        "or given, into either format (docs/REPLAY.md).",
         export_specs());
     return kExitOk;
   }
