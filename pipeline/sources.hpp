@@ -1,6 +1,8 @@
-// Frame sources by URI (capture/source_uri.hpp): opens aravis://, v4l2://, sim:// and replay://
-// sources and composes them into the StereoSource the live pipeline reads. The one place that
-// knows every scheme, so capture/ needs neither the simulator nor the recorder.
+// Frame sources by URI (capture/source_uri.hpp): opens sim://, replay://, files://, euroc:// and
+// stereo://'s aravis:// or v4l2:// cameras, and composes them into the StereoSource the live
+// pipeline reads. Each scheme is one file under pipeline/sources/ (its URI syntax and parameters at
+// its top), found by its name in sources.cpp's table: the one place that knows every scheme, so
+// capture/ needs neither the simulator nor the recorder.
 #pragma once
 
 #include <functional>

@@ -1,4 +1,5 @@
-// Sources by URI: what each scheme opens into and how its parameters set pairing and queueing.
+// Sources by URI in general (pipeline/sources.cpp): per-camera URIs composed into stereo://,
+// unknown schemes and parameters. Each scheme's own tests: tests/pipeline/sources/SCHEME_scheme_test.cpp.
 #include "pipeline/sources.hpp"
 
 #include <gtest/gtest.h>
@@ -7,46 +8,6 @@
 
 namespace augrig::pipeline {
 namespace {
-
-TEST(Sources, SimIsOneSourceWithBothCamerasPacedOrLockstep) {
-  auto o = open_sources("sim://demo");
-  ASSERT_TRUE(o) << o.error().message;
-  ASSERT_EQ(o->sources.size(), 1u);
-  EXPECT_EQ(o->sources[0]->uri(), "sim://demo");
-  EXPECT_EQ(o->scenario, "demo");
-  EXPECT_FALSE(o->live);
-  EXPECT_FALSE(o->options.lossless) << "real time by default";
-  // The demo's cameras stamp clocks 50 us apart: the tolerance covers that and a quarter period.
-  EXPECT_GT(o->options.pairing.tolerance_ns, 50'000);
-  EXPECT_LT(o->options.pairing.tolerance_ns, 16'000'000);
-  o = open_sources("sim://demo?rate=0&every=3");
-  ASSERT_TRUE(o);
-  EXPECT_TRUE(o->options.lossless);
-  // A simulation is finite and knows its length; it plays no range and cannot seek.
-  const FrameSource& sim = *o->sources.front();
-  EXPECT_TRUE(sim.capabilities().finite);
-  EXPECT_FALSE(sim.capabilities().seekable || sim.capabilities().ranged);
-  EXPECT_GT(sim.pair_count(), 0u);
-  EXPECT_EQ(sim.pair_count(), sim.image_count() / 2);
-  EXPECT_FALSE(sim.origin_t_ns());
-  EXPECT_FALSE(o->sources.front()->set_range_end(3));
-}
-
-TEST(Sources, StereoParametersSetThePairing) {
-  test::FakeGvCamera fake("127.0.0.1", "SRCS");
-  ASSERT_TRUE(fake.running());
-  // One camera twice is refused by the camera (one controller), so only the configuration is
-  // checked up to opening the second.
-  auto o = open_sources(
-      "stereo:[tolerance_us=750,mode=trigger_id,clock=shared,queue=3]//{aravis://127.0.0.1}{aravis://"
-      "127.0.0.9}");
-  ASSERT_FALSE(o);
-  EXPECT_NE(o.error().message.find("aravis://127.0.0.9"), std::string::npos) << o.error().message;
-
-  auto ok = open_sources("aravis://127.0.0.1?roi=0,0,64,48", "");
-  ASSERT_FALSE(ok) << "a single camera is not a rig";
-  EXPECT_NE(ok.error().message.find("one camera is not a stereo rig"), std::string::npos);
-}
 
 TEST(Sources, PerCameraUrisComposeIntoAStereoSource) {
   std::string why;
@@ -99,15 +60,6 @@ TEST(Sources, UnknownSchemesAndParametersAreErrors) {
       EXPECT_NE(o.error().message.find("expected"), std::string::npos) << o.error().message;
     }
   }
-}
-
-// Nothing in a command sends software triggers: such a camera is refused before anything is
-// opened, rather than waiting for a frame forever.
-TEST(Sources, SoftwareTriggerIsRefused) {
-  auto o = open_sources("stereo://{aravis://127.0.0.1?trigger=software}{aravis://127.0.0.2}");
-  ASSERT_FALSE(o);
-  EXPECT_NE(o.error().message.find("trigger=software"), std::string::npos) << o.error().message;
-  EXPECT_NE(o.error().message.find("expected free, or LineN"), std::string::npos) << o.error().message;
 }
 
 }  // namespace
