@@ -315,6 +315,8 @@ TEST(Evaluate, ThePhysicalBoomIsTheSimulatorsFramesWithTheScenariosBoom) {
       augrig("evaluate 'sim://demo?every=400' --look physical --out " + dir + "/physical --no-plot", &out), 0)
       << out;
   EXPECT_NE(out.find("sim://demo?every=400&boom=physical"), std::string::npos) << out;
+  // The progress knows the simulated flight's pair count (it once took 0: no count, no ETA).
+  EXPECT_NE(out.find(" of 3 pairs, "), std::string::npos) << out;
   EXPECT_NE(out.find("the scenario's boom"), std::string::npos) << out;
   {
     std::ifstream t(dir + "/physical/evaluation.txt");

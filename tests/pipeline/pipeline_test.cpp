@@ -2,6 +2,7 @@
 // LiveView mailbox, stop conditions, and the ledger adding up (read = 2 x pairs + every row).
 #include "pipeline/pipeline.hpp"
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -122,6 +123,29 @@ TEST(Pipeline, SimIntoEverySinkThenReplayReproducesIt) {
   EXPECT_EQ(rr->reproduced, 12u) << "same pixel counts as recorded";
   EXPECT_EQ(rr->source.pairing.unpaired_left + rr->source.pairing.unpaired_right, 0u);
   expect_ledger_adds_up(*rr);
+}
+
+// The window's HUD shows the recorder's latency from mid-exposure (it was never filled: the HUD said
+// "-" all run long). A paced flight, so that its frames have host times.
+TEST(Pipeline, TheHudShowsTheRecordersLatency) {
+  const fs::path dir = test::output_dir("pipeline_hud_recorder");
+  fs::remove_all(dir);
+  PipelineParts p = parts_for(kScenario + "?every=3");
+  auto rec = recorder::Recorder::create((dir / "rec").string(), recorder::RecordingInfo{});
+  ASSERT_TRUE(rec) << rec.error().message;
+  p.recorder = std::move(*rec);
+  p.view = std::make_shared<LiveView>();
+  p.max_pairs = 6;
+  const std::shared_ptr<LiveView> view = p.view;
+  Pipeline pipeline(std::move(p));
+  std::ostringstream out, err;
+  auto r = pipeline.run(out, err);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->recorder_latency.count, 6u);
+  const LatencyHud hud = view->hud().latency_recorder;
+  ASSERT_FALSE(std::isnan(hud.p50_ms)) << "the HUD's recorder latency is filled";
+  EXPECT_GT(hud.p50_ms, 0.0);
+  EXPECT_LT(hud.p50_ms, 10'000.0);
 }
 
 // A recording played in a loop pairs again on every pass, though time goes back at each loop.
