@@ -13,8 +13,8 @@
 #include <yaml-cpp/yaml.h>
 
 #include "core/yaml_reader.hpp"
-#include "recorder/euroc.hpp"
-#include "recorder/mcap_export.hpp"
+#include "recorder/euroc_source.hpp"
+#include "recorder/mcap_source.hpp"
 #include "recorder/reader.hpp"
 
 namespace augrig::campaign {

@@ -1,7 +1,7 @@
-// The EuRoC readers (recorder/euroc.hpp): a camera's data.csv or imu0/data.csv (first byte), read
+// The EuRoC readers (recorder/euroc_source.hpp): a camera's data.csv or imu0/data.csv (first byte), read
 // from a temp file; IMU rows that read are also turned into increments.
 #include "fuzz/fuzz_common.hpp"
-#include "recorder/euroc.hpp"
+#include "recorder/euroc_source.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   augrig::fuzz::Input input(data, size);

@@ -1,6 +1,7 @@
-// MCAP for ROS 2 and Foxglove (docs/MCAP.md): export_mcap() writes a recording as one MCAP file
-// of ROS 2 messages in CDR, and McapSource plays such a file back as a FrameSource
-// (replay://OUT.mcap, `augrig replay OUT.mcap`).
+// MCAP for ROS 2 and Foxglove (docs/MCAP.md), the writer: export_mcap() writes a recording as one
+// MCAP file of ROS 2 messages in CDR through McapFrameWriter (which the mcap sink shares), and
+// merge_mcap() joins the files of a flight's shards. McapSource (mcap_source.hpp) plays such a
+// file back.
 //
 //   /augrig/frame                 augrig_msgs/msg/StereoFrameInfo    per stereo frame, first: pairing, boom, presence, sigma
 //   /left/image_raw               sensor_msgs/msg/Image              the raw image (bayer_rggb8, mono8, rgb8, ...)
@@ -19,7 +20,6 @@
 #pragma once
 
 #include <array>
-#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -29,9 +29,9 @@
 #include <vector>
 
 #include "core/frame.hpp"
-#include "recorder/mcap_reader.hpp"
+#include "recorder/mcap_names.hpp"
+#include "recorder/mcap_source.hpp"  // for now: its includers that read MCAP files compile unchanged
 #include "recorder/reader.hpp"
-#include "recorder/replay_source.hpp"
 #include "render/rig.hpp"
 
 namespace augrig::recorder {
@@ -111,50 +111,5 @@ Status export_mcap(const RecordingReader& reader, const std::string& out_path, c
 // message, the file of the whole flight. Written through out_path + ".part"; `report` counts.
 Status merge_mcap(const std::vector<std::string>& inputs, const std::string& out_path,
                   const RecordingReader* nav_from, McapExportReport& report);
-
-// The Metadata record holding the recording's meta table (rig_yaml, scene, clock_domains, ...).
-inline constexpr const char* kMcapRecordingMetadata = "augrig_recording";
-
-// Plays an MCAP file written by export_mcap(): per stereo frame its left, then its right raw Frame,
-// as fast as read() is called, each carrying a RecordedFrame (replay_source.hpp) with the recorded
-// scene: poses (/<camera>/receiver_pose, /tf), boom, receiver presence, sigma and statistics. A
-// frame whose messages cannot be decoded is an Error naming the file and the frame, and is
-// skipped; damage to the file itself (a chunk's CRC, a record past the end) ends the stream with an
-// Error naming the file and the offset.
-class McapSource final : public FrameSource {
- public:
-  // `uri_or_path`: "replay://OUT.mcap" or the path.
-  static Expected<std::unique_ptr<McapSource>> open(const std::string& uri_or_path);
-  std::string uri() const override { return "replay://" + reader_->path(); }
-  Expected<ReadStatus> read(Frame& out, std::chrono::nanoseconds timeout) override;
-  std::uint64_t frames_dropped() const override { return 2 * damaged_; }
-  SourceCapabilities capabilities() const override { return {.finite = true}; }
-  std::size_t pair_count() const override { return frame_count_; }
-  std::map<std::string, std::string> metadata() const override { return meta_; }
-
-  const std::string& path() const { return reader_->path(); }
-  // The recording's meta table as exported (rig_yaml, ...); empty when the file has none.
-  const std::map<std::string, std::string>& meta() const { return meta_; }
-  // Stereo frames in the file (the statistics' count of /augrig/frame).
-  std::size_t frame_count() const { return frame_count_; }
-  std::uint64_t damaged_frames() const { return damaged_; }
-
- private:
-  McapSource() = default;
-  // The next stereo frame's messages, up to the next /augrig/frame; false at the end.
-  Expected<bool> next_frame(std::map<std::string, std::vector<std::uint8_t>>& messages);
-
-  std::unique_ptr<McapReader> reader_;
-  std::map<std::string, std::string> meta_;
-  std::size_t frame_count_ = 0;
-  std::uint64_t damaged_ = 0;
-  bool have_pending_ = false, ended_ = false;
-  McapMessage pending_;  // the /augrig/frame that starts the next stereo frame
-  bool right_pending_ = false;
-  Frame right_;
-};
-
-// Whether `path` names an MCAP file (ends in .mcap, or starts with the MCAP magic).
-bool is_mcap_path(const std::string& path);
 
 }  // namespace augrig::recorder

@@ -13,7 +13,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "recorder/mcap_export.hpp"
+#include "recorder/mcap_source.hpp"
 #include "recorder/reader.hpp"
 #include "ros2/messages.hpp"
 #include "render/rig.hpp"

@@ -9,6 +9,7 @@
 #include "pipeline/report.hpp"
 #include "pipeline/sinks/registry.hpp"
 #include "recorder/mcap_export.hpp"
+#include "recorder/mcap_source.hpp"
 #include "tests/support/mcap_messages.hpp"
 #include "tests/support/pipeline_parts.hpp"
 #include "tests/support/test_support.hpp"
