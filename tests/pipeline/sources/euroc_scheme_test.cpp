@@ -1,5 +1,5 @@
 // euroc://DIR (pipeline/sources/euroc_scheme.cpp): what its parameters refuse before the dataset is
-// opened. Playing datasets: tests/recorder/euroc_test.cpp.
+// opened. Playing datasets: tests/recorder/euroc_source_test.cpp.
 #include <gtest/gtest.h>
 
 #include "pipeline/sources.hpp"
