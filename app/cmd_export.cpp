@@ -86,14 +86,11 @@ int export_mcap_command(const ParsedArgs& a, const std::vector<std::string>& pos
   return kExitOk;
 }
 
-// --format euroc: `reader`'s recording as a EuRoC/ASL folder; `nav_from` the recording whose nav
-// inputs go with it (export --reaugment), else the recording's own.
-int export_euroc_command(const ParsedArgs& a, const std::vector<std::string>& pos,
-                         const recorder::RecordingReader* reader_ptr, const recorder::RecordingReader* nav_from,
-                         std::ostream& out, std::ostream& err) {
-  const recorder::RecordingReader& r_in = *reader_ptr;
+// The EuRoC options the flags give (the rig: --rig, unless the export augments again, whose rig
+// is the replay's).
+recorder::EurocExportOptions euroc_options(const ParsedArgs& a, bool rig_from_flag) {
   recorder::EurocExportOptions o;
-  if (a.has("rig") && !nav_from) o.rig = load_rig_arg(a.get("rig"));  // re-augmented: the recording's is it
+  if (a.has("rig") && rig_from_flag) o.rig = load_rig_arg(a.get("rig"));
   o.imu_stream = a.get("imu-stream");
   o.augmented = !a.has("no-augmented");
   o.masks = !a.has("no-masks");
@@ -114,9 +111,18 @@ int export_euroc_command(const ParsedArgs& a, const std::vector<std::string>& po
       o.aircraft_yaml[who] = std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     }
   }
-  o.nav_from = nav_from;
-  const fs::path out_dir = pos[1];
-  // The rate line, about once a second (the library prints nothing itself).
+  return o;
+}
+
+int report_euroc(const recorder::EurocExportReport& r, const fs::path& out_dir, const std::string& summary_frames,
+                 std::ostream& out, std::ostream& err);
+
+// --format euroc: the recording as a EuRoC/ASL folder, with a rate line about once a second (the
+// library prints nothing itself).
+int export_euroc_command(const ParsedArgs& a, const std::vector<std::string>& pos, std::ostream& out,
+                         std::ostream& err) {
+  const auto reader = open_recording(pos[0]);
+  recorder::EurocExportOptions o = euroc_options(a, true);
   o.progress = [&err](const recorder::EurocExportProgress& p) {
     if (p.final) return;
     std::ostringstream line;
@@ -128,9 +134,13 @@ int export_euroc_command(const ParsedArgs& a, const std::vector<std::string>& po
     err << line.str() << std::flush;
   };
   recorder::EurocExportReport r;
-  check(recorder::export_euroc(r_in, pos[1], o, r));
+  check(recorder::export_euroc(*reader, pos[1], o, r));
+  return report_euroc(r, pos[1], reader->meta("summary.frames"), out, err);
+}
 
-  const std::string summary_frames = r_in.meta("summary.frames");
+// What an export to EuRoC wrote, and its problems (exit 1 after everything else was written).
+int report_euroc(const recorder::EurocExportReport& r, const fs::path& out_dir, const std::string& summary_frames,
+                 std::ostream& out, std::ostream& err) {
   out << "Exported " << r.frames_written << " of "
       << (summary_frames.empty() || summary_frames == std::to_string(r.frames)
               ? std::to_string(r.frames)
@@ -181,9 +191,8 @@ bool reaugmenting(const ParsedArgs& a) {
 }
 
 // export --reaugment: the input through the pipeline again (replay_into, headless, as fast as it
-// goes) with the augmentation's options. MCAP: straight into the mcap sink, with the recording's
-// nav inputs. EuRoC: into a new recording beside OUT (the raw frames' stored blobs copied, not
-// compressed again), exported with the input recording's nav inputs, then removed.
+// goes) with the augmentation's options, into the format's sink (pipeline/sinks/): the mcap sink
+// or the euroc sink, each with the input recording's nav inputs (and for EuRoC its clock).
 int export_reaugmented(const ParsedArgs& a, const std::vector<std::string>& pos, const std::string& format,
                        std::ostream& out, std::ostream& err) {
   ParsedArgs replay;
@@ -210,21 +219,18 @@ int export_reaugmented(const ParsedArgs& a, const std::vector<std::string>& pos,
                        },
                        out, err);
   }
-  const fs::path staging = pos[1] + ".reaugmenting";
-  replay.values["record"] = staging.string();
-  replay.values["overwrite"] = "";
-  if (a.has("ground-truth")) replay.values["ground-truth"] = "";
-  // The staging recording goes whatever happens.
-  struct Remove {
-    fs::path p;
-    ~Remove() {
-      std::error_code ec;
-      fs::remove_all(p, ec);
-    }
-  } remove{staging};
-  if (const int rc = replay_into(pos[0], replay, nullptr, out, err); rc != kExitOk) return rc;
-  const auto reader = open_recording(staging);
-  return export_euroc_command(a, pos, reader.get(), nav_from ? nav_from.get() : reader.get(), out, err);
+  // EuRoC: the euroc sink, with the input recording's nav inputs and its clock.
+  const recorder::EurocExportOptions o = euroc_options(a, false);
+  recorder::EurocExportReport r;
+  const int rc = replay_into(pos[0], replay,
+                             [&](PipelineParts& parts) {
+                               auto sink = make_euroc_sink(pos[1], o, {parts.rig, {}, nav_from.get()}, &r);
+                               if (!sink) runtime_error(sink.error().message);
+                               parts.sinks.push_back(std::move(*sink));
+                             },
+                             out, err);
+  if (rc != kExitOk) return rc;
+  return report_euroc(r, pos[1], "", out, err);
 }
 
 int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -256,8 +262,7 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (format != "euroc" && format != "mcap") usage_error("--format: expected euroc or mcap, got '" + format + "'");
   if (reaugmenting(a)) return export_reaugmented(a, pos, format, out, err);
   if (format == "mcap") return export_mcap_command(a, pos, out, err);
-  const auto reader = open_recording(pos[0]);
-  return export_euroc_command(a, pos, reader.get(), nullptr, out, err);
+  return export_euroc_command(a, pos, out, err);
 }
 
 }  // namespace

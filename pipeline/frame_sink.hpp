@@ -29,6 +29,7 @@
 #include "pipeline/poses.hpp"
 #include "recorder/record.hpp"
 #include "render/augmenter.hpp"
+#include "render/rig.hpp"
 
 namespace augrig::pipeline {
 
@@ -84,6 +85,21 @@ struct RunHealth {
   std::uint64_t recorder_dropped = 0;
   TimestampNs pair_t_key_ns = 0;  // the last pair's
 };
+
+// The scene a pair was augmented in, as a recording keeps it, into `r` (a recorder::FrameRecord or
+// a recorder::McapFrame): the receiver in the tanker body and in each camera, its presence, the
+// poses' sigmas, and the boom flown (none when the pair was captured only). Nothing without a scene.
+template <class Record>
+void record_scene(const PairContext& pair, const Rig& rig, Record& r) {
+  const SceneState* scene = pair.scene;
+  if (!scene) return;
+  r.T_body_receiver = scene->T_body_receiver;
+  r.receiver_present = scene->receiver_present;
+  for (std::size_t c = 0; c < 2; ++c) r.T_cam_receiver[c] = rig.cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
+  r.sigma_pos_m = pair.poses.sigma_pos_m;
+  r.sigma_att_deg = pair.poses.sigma_att_deg;
+  if (pair.result) r.boom = scene->boom;
+}
 
 class FrameSink {
  public:

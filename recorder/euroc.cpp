@@ -243,9 +243,8 @@ Status write_poses(const ExportContext& cx, const FrameTables& tables, ClockDoma
 // OUT/phases.csv: the flight's phases recorded beside the statistics ("phase: NAME" events), on
 // the export's clock; t_s from the first statistics row. Returns them for the plot's markers.
 Expected<std::vector<PhaseEvent>> write_phases(const ExportContext& cx, const ExportClock& clk,
-                                               TimestampNs t0_ns) {
-  std::vector<PhaseEvent> phases;
-  if (auto ev = cx.reader.events()) phases = phase_events(*ev);
+                                               const std::vector<EventRecord>& events, TimestampNs t0_ns) {
+  std::vector<PhaseEvent> phases = phase_events(events);
   for (PhaseEvent& ph : phases) ph.t_ns = clk.map(0, ph.t_ns);
   if (phases.empty()) return phases;
   std::ofstream pcsv(cx.out / "phases.csv", std::ios::binary);
@@ -263,8 +262,8 @@ Expected<std::vector<PhaseEvent>> write_phases(const ExportContext& cx, const Ex
 
 // OUT/stats.csv, OUT/phases.csv and the plot OUT/stats.png (a plot that fails is a problem, not
 // an error: the export's data are complete without it).
-Status write_stats(const ExportContext& cx, const ExportClock& clk,
-                   const std::vector<OcclusionStats>& stats) {
+Status write_stats(const ExportContext& cx, const ExportClock& clk, const std::vector<OcclusionStats>& stats,
+                   const std::vector<EventRecord>& events) {
   EurocExportReport& report = cx.report;
   if (stats.empty()) {
     report.notes.push_back("no occlusion statistics in the recording: stats.csv and stats.png not written");
@@ -276,11 +275,12 @@ Status write_stats(const ExportContext& cx, const ExportClock& clk,
   csv.close();
   if (!csv) return make_error((cx.out / "stats.csv").string(), ": cannot write the file");
   report.stats_rows = stats.size();
-  auto phases = write_phases(cx, clk, stats.front().t_ns);
+  auto phases = write_phases(cx, clk, events, stats.front().t_ns);
   if (!phases) return phases.error();
   if (!cx.options.plot) return {};
   StatsPlotOptions po;
-  po.title = "Occlusion statistics: " + fs::path(cx.reader.path()).parent_path().filename().string();
+  po.title = "Occlusion statistics: " +
+             (cx.reader ? fs::path(cx.reader->path()).parent_path().filename().string() : cx.from);
   po.phases = phase_markers(*phases, stats.front().t_ns, stats.back().t_ns);
   if (auto s = plot_occlusion_stats(stats, (cx.out / "stats.png").string(), po); !s)
     report.problems.push_back(strip_function(s.error().message));
@@ -289,36 +289,149 @@ Status write_stats(const ExportContext& cx, const ExportClock& clk,
   return {};
 }
 
+}  // namespace
+
+// ---- EurocWriter -----------------------------------------------------------------------------------
+
 // The export's steps in the order their files and the report's notes come: the clock from every
-// frame's metadata first, then the images, then the files made from what the frames gave.
-// Errors come back without the function's name; export_euroc() adds it.
-Status export_body(const ExportContext& cx) {
-  EurocExportReport& report = cx.report;
-  ExportProgress progress(cx.options, cx.reader.frame_count());
-  // The recording's own damage (a truncated file: frames its summary counts but no row holds).
-  for (const std::string& p : cx.reader.problems())
-    report.problems.push_back(p.rfind(cx.reader.path(), 0) == 0 ? p : cx.reader.path() + ": " + p);
-  report.frames = cx.reader.frame_count();
-
-  const FrameInfos infos = read_frame_infos(cx.reader, report);
+// frame's metadata first (create), then the images (add), then the files made from what the frames
+// gave (finish). Errors come back without the function's name; export_euroc() adds it.
+struct EurocWriter::Impl {
+  EurocExportOptions options;
+  Rig rig;
+  const RecordingReader* recording = nullptr;
+  std::string from;
+  fs::path out, mav0, marker;
+  EurocExportReport* report = nullptr;
+  std::optional<ExportContext> cx;  // refers to the members above
+  std::optional<ExportProgress> progress;
+  ExportClock clk;
   NavStreams nav;
-  read_nav_streams(cx.options.nav_from ? *cx.options.nav_from : cx.reader, nav, report);
-  const ExportClock clk = choose_export_clock(cx.reader, infos, nav, report);
-
   FrameTables tables;
-  if (auto s = export_frames(cx, clk, progress, tables); !s) return s;
-  if (nav.rows) {
-    if (auto s = write_imu0(cx, nav, clk.clock); !s) return s;
-    if (auto s = write_nav_logs(cx, nav); !s) return s;
+  std::unique_ptr<FrameWriter> frames;  // made once the clock is known
+  std::vector<TimestampNs> t_key_ns;    // a run's pair times, for the rate
+  bool done = false;
+
+  void choose_clock(const RecordingReader& r);
+  void start_frames(ClockDomain own_clock);
+  Status write_files(const std::vector<EventRecord>& events);
+};
+
+// The clock chosen over a recording's frames and its (or options.nav_from's) nav inputs.
+void EurocWriter::Impl::choose_clock(const RecordingReader& r) {
+  const FrameInfos infos = read_frame_infos(r, *report);
+  if (const RecordingReader* n = cx->nav_reader()) read_nav_streams(*n, nav, *report);
+  clk = choose_export_clock(r, infos, nav, *report);
+  frames = std::make_unique<FrameWriter>(*cx, clk, *progress, tables);
+}
+
+// A run's pairs without a recording to choose a clock over: their own.
+void EurocWriter::Impl::start_frames(ClockDomain own_clock) {
+  clk.clock = own_clock;
+  report->clock = own_clock;
+  report->clock_note = "the frames' own clock (a run's pairs)";
+  frames = std::make_unique<FrameWriter>(*cx, clk, *progress, tables);
+}
+
+Expected<std::unique_ptr<EurocWriter>> EurocWriter::create(const std::string& out_dir,
+                                                           const EurocExportOptions& options, const Rig& rig,
+                                                           const RecordingReader* recording,
+                                                           const std::string& from, EurocExportReport& report) {
+  std::unique_ptr<EurocWriter> w(new EurocWriter);
+  w->impl_ = std::make_unique<Impl>();
+  Impl& m = *w->impl_;
+  m.options = options;
+  m.rig = rig;
+  m.recording = recording;
+  m.from = from;
+  m.report = &report;
+  m.out = out_dir;
+  m.mav0 = m.out / "mav0";
+  m.marker = m.out / "INCOMPLETE";
+  std::error_code ec;
+  if (fs::exists(m.mav0, ec))
+    return make_error(m.mav0.string(), ": exists already; export into a new folder (exports never mix)");
+  fs::create_directories(m.out, ec);
+  if (ec) return make_error(m.out.string(), ": cannot create the folder (", ec.message(), ")");
+  // OUT/INCOMPLETE before OUT/mav0 and anything in it: an export killed at any moment is marked.
+  write_marker(m.marker, from, out_dir, {});
+  if (!fs::exists(m.marker, ec)) return make_error(m.marker.string(), ": cannot write the file");
+  fs::create_directories(m.mav0, ec);
+  if (ec) return make_error(m.mav0.string(), ": cannot create the folder (", ec.message(), ")");
+  m.cx.emplace(ExportContext{recording, from, m.out, m.mav0, m.options, m.rig, report});
+  m.progress.emplace(m.options, recording ? recording->frame_count() : 0);
+  if (recording) {
+    // The recording's own damage (a truncated file: frames its summary counts but no row holds).
+    for (const std::string& p : recording->problems())
+      report.problems.push_back(p.rfind(recording->path(), 0) == 0 ? p : recording->path() + ": " + p);
+    report.frames = recording->frame_count();
+    m.choose_clock(*recording);
+  } else if (m.options.nav_from) {
+    m.choose_clock(*m.options.nav_from);  // the frames replayed from it keep its times
   }
-  if (auto s = write_index_and_rig(cx, tables); !s) return s;
-  if (auto s = write_poses(cx, tables, clk.clock); !s) return s;
-  if (auto s = write_stats(cx, clk, tables.stats); !s) return s;
-  progress.update(report, tables.skipped, true);
+  return w;
+}
+
+EurocWriter::~EurocWriter() = default;
+
+unsigned EurocWriter::parts() const {
+  const EurocExportOptions& o = impl_->options;
+  unsigned p = kPartRaw;
+  if (o.augmented) p |= kPartAugmented;
+  if (o.masks) p |= kPartMasks;
+  if (o.ground_truth) p |= kPartDepth | kPartMasks;  // the ground truth: the depth and the masks
+  return p;
+}
+
+Status EurocWriter::add(std::size_t index, Expected<FrameRecord> frame) {
+  Impl& m = *impl_;
+  if (!m.recording) {
+    ++m.report->frames;
+    if (frame) m.t_key_ns.push_back(frame->raw.t_key_ns);
+  }
+  if (!m.frames) m.start_frames(frame ? frame->raw.left.clock : ClockDomain::kUnknown);
+  return m.frames->add(index, std::move(frame));
+}
+
+Status EurocWriter::Impl::write_files(const std::vector<EventRecord>& events) {
+  if (!frames) start_frames(ClockDomain::kUnknown);  // no frame came: the streams' files say so
+  if (!recording && !options.nav_from) report->rate_hz = median_rate_hz(t_key_ns);
+  if (auto s = frames->finish(); !s) return s;
+  if (cx->nav_reader() && nav.rows) {
+    if (auto s = write_imu0(*cx, nav, clk.clock); !s) return s;
+    if (auto s = write_nav_logs(*cx, nav); !s) return s;
+  }
+  if (auto s = write_index_and_rig(*cx, tables); !s) return s;
+  if (auto s = write_poses(*cx, tables, clk.clock); !s) return s;
+  if (auto s = write_stats(*cx, clk, tables.stats, events); !s) return s;
+  progress->update(*report, tables.skipped, true);
   return {};
 }
 
-}  // namespace
+Status EurocWriter::finish(const std::vector<EventRecord>& events) {
+  Impl& m = *impl_;
+  if (m.done) return {};
+  m.done = true;
+  if (Status s = m.write_files(events); !s) {
+    fail(s.error());
+    return s;
+  }
+  if (!m.report->problems.empty()) {
+    write_marker(m.marker, m.from, m.out.string(), m.report->problems);
+    return {};
+  }
+  std::error_code ec;
+  fs::remove(m.marker, ec);
+  if (ec) return make_error(m.marker.string(), ": cannot remove it (", ec.message(), ")");
+  return {};
+}
+
+void EurocWriter::fail(const Error& e) {
+  impl_->done = true;
+  write_marker(impl_->marker, impl_->from, impl_->out.string(), {e.message});
+}
+
+// ---- export_euroc ----------------------------------------------------------------------------------
 
 Status export_euroc(const RecordingReader& reader, const std::string& out_dir,
                     const EurocExportOptions& options, EurocExportReport& report) {
@@ -351,31 +464,22 @@ Status export_euroc(const RecordingReader& reader, const std::string& out_dir,
                                    .message);
     }
   }
-
-  const fs::path out(out_dir), mav0 = out / "mav0", marker = out / "INCOMPLETE";
-  std::error_code ec;
-  if (fs::exists(mav0, ec))
-    return make_error(where, mav0.string(), ": exists already; export into a new folder (exports never mix)");
-  fs::create_directories(out, ec);
-  if (ec) return make_error(where, out.string(), ": cannot create the folder (", ec.message(), ")");
-  // OUT/INCOMPLETE before OUT/mav0 and anything in it: an export killed at any moment is marked.
-  write_marker(marker, reader.path(), out_dir, {});
-  if (!fs::exists(marker, ec)) return make_error(where, marker.string(), ": cannot write the file");
-  fs::create_directories(mav0, ec);
-  if (ec) return make_error(where, mav0.string(), ": cannot create the folder (", ec.message(), ")");
-
-  Status s = export_body(ExportContext{reader, out, mav0, options, rig, report});
-  if (!s) {
-    s = make_error(where, s.error().message);
-    write_marker(marker, reader.path(), out_dir, {s.error().message});
-    return s;
+  auto writer = EurocWriter::create(out_dir, options, rig, &reader, reader.path(), report);
+  if (!writer) return make_error(where, writer.error().message);
+  EurocWriter& w = **writer;
+  for (std::size_t i = 0; i < reader.frame_count(); ++i)
+    if (Status s = w.add(i, reader.read_frame(i, w.parts())); !s) {
+      const Error e = make_error(where, s.error().message);
+      w.fail(e);
+      return e;
+    }
+  std::vector<EventRecord> events;
+  if (auto ev = reader.events()) events = std::move(*ev);
+  if (Status s = w.finish(events); !s) {
+    const Error e = make_error(where, s.error().message);
+    w.fail(e);  // the marker says it with the function's name
+    return e;
   }
-  if (!report.problems.empty()) {
-    write_marker(marker, reader.path(), out_dir, report.problems);
-    return {};
-  }
-  fs::remove(marker, ec);
-  if (ec) return make_error(where, marker.string(), ": cannot remove it (", ec.message(), ")");
   return {};
 }
 

@@ -36,6 +36,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -110,6 +111,43 @@ struct EurocExportReport {
   bool plotted = false;
   std::vector<std::string> notes;     // what was left out and why (no augmented images, ...)
   std::vector<std::string> problems;  // damaged frames skipped, a plot that failed: output incomplete
+};
+
+// The EuRoC writer both EuRoC outputs share: export_euroc() (a recording's frames) and the euroc
+// sink (a run's pairs, pipeline/sinks/euroc_sink.cpp). create() checks OUT (OUT/mav0 must not
+// exist yet), writes OUT/INCOMPLETE and makes OUT/mav0; add() queues one stereo frame to the
+// encoding threads; finish() writes what the frames gave (each stream's data.csv and sensor.yaml,
+// poses.csv, stats.csv, phases.csv and the plot, frames.csv, rig.yaml, the receiver's states) and
+// the nav inputs of options.nav_from, else of the recording exported (imu0, OUT/nav/), and removes
+// OUT/INCOMPLETE when nothing went wrong (report.problems empty).
+class EurocWriter {
+ public:
+  // `recording`: the recording exported: every timestamp goes on the clock chosen over all its
+  // frames (below, export_euroc()). Null for a run's pairs: the frames' own clock, or, when
+  // options.nav_from names the recording they were replayed from, the clock chosen over that
+  // recording's frames. `from` names the input in messages, the marker and the plot's title.
+  // `report` must outlive the writer.
+  static Expected<std::unique_ptr<EurocWriter>> create(const std::string& out_dir,
+                                                       const EurocExportOptions& options, const Rig& rig,
+                                                       const RecordingReader* recording, const std::string& from,
+                                                       EurocExportReport& report);
+  ~EurocWriter();
+  EurocWriter(const EurocWriter&) = delete;
+  EurocWriter& operator=(const EurocWriter&) = delete;
+  // The parts of a recorded frame it writes (RecordingReader::read_frame's `parts`).
+  unsigned parts() const;
+  // Stereo frame `index` (in its recording, or the run's count); an Error is a damaged frame,
+  // listed in report.problems and skipped.
+  Status add(std::size_t index, Expected<FrameRecord> frame);
+  // `events`: the run's or recording's events (its "phase: NAME" events become phases.csv).
+  Status finish(const std::vector<EventRecord>& events);
+  // An error that stopped the export: OUT/INCOMPLETE says it.
+  void fail(const Error& e);
+
+ private:
+  EurocWriter() = default;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 // Writes the layout above into `out_dir` (created; an existing OUT/mav0 is an error, so two

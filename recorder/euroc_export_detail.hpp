@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -47,11 +48,15 @@ Error no_depth_error(const RecordingReader& reader, std::size_t i, std::uint64_t
 
 // What every step of one export reads and adds to.
 struct ExportContext {
-  const RecordingReader& reader;
+  const RecordingReader* reader;  // the recording exported; null: a run's pairs (the euroc sink)
+  std::string from;               // what the frames come from, in messages (the recording's path)
   fs::path out, mav0;
   const EurocExportOptions& options;
   const Rig& rig;
   EurocExportReport& report;
+  // The recording whose nav inputs and aircraft settings are exported (options.nav_from, else the
+  // recording exported); null: none.
+  const RecordingReader* nav_reader() const { return options.nav_from ? options.nav_from : reader; }
 };
 
 // ---- The clock (euroc_clock.cpp) ------------------------------------------------------------------
@@ -131,9 +136,26 @@ class ExportProgress {
   std::chrono::steady_clock::time_point start_, last_;
 };
 
-// Every frame's images (and ground truth) into mav0/cam*/, each stream's data.csv and sensor.yaml.
-Status export_frames(const ExportContext& cx, const ExportClock& clk, ExportProgress& progress,
-                     FrameTables& tables);
+// Every frame's images (and ground truth) into mav0/cam*/, encoded on worker threads while the
+// caller reads the next frame; each stream's data.csv and sensor.yaml at the end.
+class FrameWriter {
+ public:
+  FrameWriter(const ExportContext& cx, const ExportClock& clk, ExportProgress& progress, FrameTables& tables);
+  ~FrameWriter();
+  FrameWriter(const FrameWriter&) = delete;
+  FrameWriter& operator=(const FrameWriter&) = delete;
+  // The parts of a recorded frame it writes (RecordingReader::read_frame's `parts`).
+  unsigned parts() const;
+  // Frame `i` (its index in its stream): queued; an unreadable one (an Error) is listed in the
+  // report's problems and skipped.
+  Status add(std::size_t i, Expected<FrameRecord> frame);
+  // Waits for every image, then writes each stream's data.csv and sensor.yaml.
+  Status finish();
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 // ---- Nav (euroc_nav_export.cpp) -------------------------------------------------------------------
 

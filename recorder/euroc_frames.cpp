@@ -291,16 +291,18 @@ Status create_data_folder(const fs::path& dir) {
   return {};
 }
 
+}  // namespace
+
 // The frames of one export, in order: images queued to the pool, their data.csv rows added once
 // written (drain), the tables for the later files gathered on the way.
-class FrameExporter {
+class FrameWriter::Impl {
  public:
-  FrameExporter(const ExportContext& cx, const ExportClock& clk, ExportProgress& progress,
-                FrameTables& tables);
-  Status run();
+  Impl(const ExportContext& cx, const ExportClock& clk, ExportProgress& progress, FrameTables& tables);
+  Status add_frame(std::size_t i, Expected<FrameRecord> frame);
+  Status finish();
+  unsigned parts() const { return parts_; }
 
  private:
-  Status add_frame(std::size_t i);
   Status queue_camera(std::size_t i, const std::shared_ptr<const FrameRecord>& rec, CameraId id,
                       PendingFrame& pf);
   Status check_depth(std::size_t i, const FrameRecord& r) const;
@@ -325,8 +327,8 @@ class FrameExporter {
   bool no_class_noted_ = false;
 };
 
-FrameExporter::FrameExporter(const ExportContext& cx, const ExportClock& clk, ExportProgress& progress,
-                             FrameTables& tables)
+FrameWriter::Impl::Impl(const ExportContext& cx, const ExportClock& clk, ExportProgress& progress,
+                         FrameTables& tables)
     : cx_(cx), clk_(clk), progress_(progress), tables_(tables) {
   const EurocExportOptions& o = cx.options;
   for (int k = 0; k < 3; ++k)
@@ -346,18 +348,15 @@ FrameExporter::FrameExporter(const ExportContext& cx, const ExportClock& clk, Ex
   tables_.index.metadata["content"] = "the exported raw frames (augrig export); t_ns on the export's clock";
 }
 
-Status FrameExporter::run() {
-  for (std::size_t i = 0; i < cx_.reader.frame_count(); ++i)
-    if (Status s = add_frame(i); !s) return s;
+Status FrameWriter::Impl::finish() {
   if (Status s = drain(true); !s) return s;
   if (pool_) pool_->stop();
   return write_stream_files();
 }
 
-Status FrameExporter::add_frame(std::size_t i) {
+Status FrameWriter::Impl::add_frame(std::size_t i, Expected<FrameRecord> rec) {
   PendingFrame pf;
   pf.index = i;
-  auto rec = cx_.reader.read_frame(i, parts_);
   if (!rec) {
     cx_.report.problems.push_back(strip_function(rec.error().message) + "; frame not exported");
     pending_.push_back(pf);
@@ -380,7 +379,7 @@ Status FrameExporter::add_frame(std::size_t i) {
 
 // One camera's images of frame i queued (each stream's folder made at its first image), and its
 // poses gathered.
-Status FrameExporter::queue_camera(std::size_t i, const std::shared_ptr<const FrameRecord>& rec, CameraId id,
+Status FrameWriter::Impl::queue_camera(std::size_t i, const std::shared_ptr<const FrameRecord>& rec, CameraId id,
                                    PendingFrame& pf) {
   const FrameRecord& r = *rec;
   const int c = index_of(id);
@@ -425,14 +424,15 @@ Status FrameExporter::queue_camera(std::size_t i, const std::shared_ptr<const Fr
 }
 
 // The ground truth needs both depths, each of the rig's size.
-Status FrameExporter::check_depth(std::size_t i, const FrameRecord& r) const {
+Status FrameWriter::Impl::check_depth(std::size_t i, const FrameRecord& r) const {
   if (r.receiver_depth[0].empty() || r.receiver_depth[1].empty())
-    return no_depth_error(cx_.reader, i, r.raw.pair_sequence);
+    return cx_.reader ? no_depth_error(*cx_.reader, i, r.raw.pair_sequence)
+                      : make_error(cx_.from, ": pair ", i, " has no receiver depth: the ground truth needs it");
   for (int c = 0; c < 2; ++c) {
     const RigCamera& cam = cx_.rig.cameras[static_cast<std::size_t>(c)];
     const CameraModel& m = cam.model;
     if (r.receiver_depth[c].width != m.width_px || r.receiver_depth[c].height != m.height_px)
-      return make_error(cx_.reader.path(), ": frame ", i, ": the ", c ? "right" : "left",
+      return make_error(cx_.from, ": frame ", i, ": the ", c ? "right" : "left",
                         " receiver depth is ", r.receiver_depth[c].width, "x", r.receiver_depth[c].height,
                         ", the rig's ", cam.name, " camera ", m.width_px, "x", m.height_px,
                         ": the ground truth needs the rig the recording was made with");
@@ -440,7 +440,7 @@ Status FrameExporter::check_depth(std::size_t i, const FrameRecord& r) const {
   return {};
 }
 
-Status FrameExporter::queue_ground_truth(std::size_t i, const std::shared_ptr<const FrameRecord>& rec,
+Status FrameWriter::Impl::queue_ground_truth(std::size_t i, const std::shared_ptr<const FrameRecord>& rec,
                                          PendingFrame& pf) {
   const FrameRecord& r = *rec;
   CameraJob job;
@@ -470,7 +470,7 @@ Status FrameExporter::queue_ground_truth(std::size_t i, const std::shared_ptr<co
   return any ? submit(i, std::move(job), pf) : Status{};
 }
 
-Status FrameExporter::submit(std::size_t i, CameraJob job, PendingFrame& pf) {
+Status FrameWriter::Impl::submit(std::size_t i, CameraJob job, PendingFrame& pf) {
   if (!pool_) return run_camera_job(job, *inline_enc_);
   ++pf.jobs;
   pool_->push(i, std::move(job));
@@ -478,7 +478,7 @@ Status FrameExporter::submit(std::size_t i, CameraJob job, PendingFrame& pf) {
 }
 
 // What the later files and the report take from frame `r`: skew, counts, statistics.
-void FrameExporter::gather(const FrameRecord& r) {
+void FrameWriter::Impl::gather(const FrameRecord& r) {
   EurocExportReport& report = cx_.report;
   if (!r.raw.left.image.empty() && !r.raw.right.image.empty())
     max_skew_ns_ = std::max(max_skew_ns_, std::abs(r.raw.right.t_ns - r.raw.left.t_ns));
@@ -493,7 +493,7 @@ void FrameExporter::gather(const FrameRecord& r) {
 }
 
 // Frames whose images are written: their data.csv rows, in frame order.
-Status FrameExporter::drain(bool wait) {
+Status FrameWriter::Impl::drain(bool wait) {
   while (!pending_.empty()) {
     PendingFrame& pf = pending_.front();
     if (pf.jobs > 0 && pool_) {
@@ -511,7 +511,7 @@ Status FrameExporter::drain(bool wait) {
   return {};
 }
 
-void FrameExporter::add_rows(const PendingFrame& pf) {
+void FrameWriter::Impl::add_rows(const PendingFrame& pf) {
   for (int c = 0; c < 2; ++c)
     for (int k = 0; k < 3; ++k) {
       if (!pf.write[k][c]) continue;
@@ -538,7 +538,7 @@ void FrameExporter::add_rows(const PendingFrame& pf) {
 }
 
 // data.csv and sensor.yaml of every stream written, and the notes on what was not.
-Status FrameExporter::write_stream_files() {
+Status FrameWriter::Impl::write_stream_files() {
   EurocExportReport& report = cx_.report;
   for (int k = 0; k < 3; ++k)
     for (int c = 0; c < 2; ++c) {
@@ -574,12 +574,12 @@ Status FrameExporter::write_stream_files() {
   return {};
 }
 
-}  // namespace
-
-Status export_frames(const ExportContext& cx, const ExportClock& clk, ExportProgress& progress,
-                     FrameTables& tables) {
-  FrameExporter exporter(cx, clk, progress, tables);
-  return exporter.run();
-}
+FrameWriter::FrameWriter(const ExportContext& cx, const ExportClock& clk, ExportProgress& progress,
+                         FrameTables& tables)
+    : impl_(std::make_unique<Impl>(cx, clk, progress, tables)) {}
+FrameWriter::~FrameWriter() = default;
+unsigned FrameWriter::parts() const { return impl_->parts(); }
+Status FrameWriter::add(std::size_t i, Expected<FrameRecord> frame) { return impl_->add_frame(i, std::move(frame)); }
+Status FrameWriter::finish() { return impl_->finish(); }
 
 }  // namespace augrig::recorder::euroc_detail

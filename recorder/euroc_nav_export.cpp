@@ -151,7 +151,7 @@ Status write_imu0(const ExportContext& cx, const NavStreams& nav, ClockDomain fr
   EurocExportReport& report = cx.report;
   const std::string stream = choose_imu_stream(cx.options, nav, report);
   if (stream.empty()) return {};
-  auto data = imu_stream_data(nav.by_stream.at(stream), (cx.options.nav_from ? *cx.options.nav_from : cx.reader).path() + " nav_input '" + stream + "'");
+  auto data = imu_stream_data(nav.by_stream.at(stream), cx.nav_reader()->path() + " nav_input '" + stream + "'");
   if (!data) {
     report.problems.push_back(strip_function(data.error().message) + "; imu0 not exported");
     return {};
@@ -204,7 +204,7 @@ Status write_aircraft_yaml(const ExportContext& cx, const std::string& who, cons
   if (auto it = cx.options.aircraft_yaml.find(who); it != cx.options.aircraft_yaml.end())
     yaml = it->second;
   else
-    yaml = (cx.options.nav_from ? *cx.options.nav_from : cx.reader).meta("aircraft_yaml." + who);
+    yaml = cx.nav_reader() ? cx.nav_reader()->meta("aircraft_yaml." + who) : std::string();
   if (!yaml.empty()) return write_text(dir / "aircraft.yaml", yaml);
   cx.report.notes.push_back("nav/" + who + "/aircraft.yaml not written: the recording does not hold the " +
                             who + "'s settings (give them: --aircraft " + who +
@@ -222,7 +222,7 @@ Status write_nav_log(const ExportContext& cx, const std::string& who,
   fs::create_directories(dir, ec);
   if (ec) return make_error(dir.string(), ": cannot create the folder (", ec.message(), ")");
   if (auto s = write_text(dir / "gps.nmea", nmea_text(who, gps.first, gps.second, report)); !s) return s;
-  auto data = imu_stream_data(imu.second, (cx.options.nav_from ? *cx.options.nav_from : cx.reader).path() + " nav_input '" + imu.first + "'");
+  auto data = imu_stream_data(imu.second, cx.nav_reader()->path() + " nav_input '" + imu.first + "'");
   if (!data) {
     report.problems.push_back(strip_function(data.error().message) + "; nav/" + who + "/imu.csv not written");
     return {};

@@ -47,16 +47,7 @@ class McapSink final : public FrameSink {
       }
       f.stats = &r->stats;
     }
-    // The scene it was augmented in, as a recording keeps it (recorder_sink.cpp).
-    if (const SceneState* scene = pair.scene) {
-      f.T_body_receiver = scene->T_body_receiver;
-      f.receiver_present = scene->receiver_present;
-      for (int c = 0; c < 2; ++c)
-        f.T_cam_receiver[c] = rig_.cameras[static_cast<std::size_t>(c)].T_body_cam.inverse() * scene->T_body_receiver;
-      f.sigma_pos_m = pair.poses.sigma_pos_m;
-      f.sigma_att_deg = pair.poses.sigma_att_deg;
-      if (pair.result) f.boom = scene->boom;
-    }
+    record_scene(pair, rig_, f);  // the scene it was augmented in, as a recording keeps it
     // A recording's frame keeps its index (as export_mcap writes it), so that the files of a
     // flight's shards join into the file of the whole flight (merge_mcap); else the count.
     const std::uint64_t index = pair.position ? pair.position->index : report_.frames;

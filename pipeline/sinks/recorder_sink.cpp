@@ -40,16 +40,8 @@ void RecorderSink::release(PairContext& pair) {
     if (recent_ms_.size() == 300) recent_ms_.pop_front();
     recent_ms_.push_back(static_cast<double>(ns) / 1e6);
   }
+  record_scene(pair, rig_, fr);
   fr.raw = std::move(pair.raw);
-  if (const SceneState* scene = pair.scene) {
-    fr.T_body_receiver = scene->T_body_receiver;
-    fr.receiver_present = scene->receiver_present;
-    for (int c = 0; c < 2; ++c)
-      fr.T_cam_receiver[c] = rig_.cameras[c].T_body_cam.inverse() * scene->T_body_receiver;
-    fr.sigma_pos_m = pair.poses.sigma_pos_m;
-    fr.sigma_att_deg = pair.poses.sigma_att_deg;
-    if (pair.result) fr.boom = scene->boom;  // captured only: no boom was flown
-  }
   recorder_.push(std::move(fr));
 }
 

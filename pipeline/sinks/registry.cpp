@@ -20,6 +20,10 @@ constexpr SinkEntry kSinks[] = {
      make_tum_sink},
     {"mcap", "mcap:FILE.mcap[,no-augmented][,no-masks]  each pair as ROS 2 messages, as export --format mcap writes them",
      make_mcap_sink},
+    {"euroc",
+     "euroc:DIR[,no-augmented][,no-masks][,no-plot][,ground-truth]  each pair in the EuRoC/ASL layout, as export "
+     "writes a recording",
+     make_euroc_sink},
 };
 
 }  // namespace

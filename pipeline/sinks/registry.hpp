@@ -15,6 +15,8 @@
 
 namespace augrig::recorder {
 class RecordingReader;
+struct EurocExportOptions;
+struct EurocExportReport;
 }
 
 namespace augrig::pipeline {
@@ -38,5 +40,10 @@ std::vector<std::string> sink_usages();
 Expected<std::unique_ptr<FrameSink>> make_video_sink(const std::string& arg, const SinkSetup& setup);
 Expected<std::unique_ptr<FrameSink>> make_tum_sink(const std::string& arg, const SinkSetup& setup);
 Expected<std::unique_ptr<FrameSink>> make_mcap_sink(const std::string& arg, const SinkSetup& setup);
+Expected<std::unique_ptr<FrameSink>> make_euroc_sink(const std::string& arg, const SinkSetup& setup);
+// The euroc sink with the export's every option (export --reaugment); `report`, when given, gets
+// what it wrote at its close.
+Expected<std::unique_ptr<FrameSink>> make_euroc_sink(const std::string& dir, const recorder::EurocExportOptions& options,
+                                                     const SinkSetup& setup, recorder::EurocExportReport* report);
 
 }  // namespace augrig::pipeline
