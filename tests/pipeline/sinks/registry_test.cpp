@@ -11,9 +11,11 @@ namespace {
 
 TEST(SinkRegistry, UsagesNameEveryScheme) {
   const std::vector<std::string> u = sink_usages();
-  ASSERT_EQ(u.size(), 2u);
+  ASSERT_EQ(u.size(), 4u);
   EXPECT_EQ(u[0].rfind("video:FILE.mp4", 0), 0u);
   EXPECT_EQ(u[1].rfind("tum:FILE.txt", 0), 0u);
+  EXPECT_EQ(u[2].rfind("mcap:FILE.mcap", 0), 0u);
+  EXPECT_EQ(u[3].rfind("euroc:DIR", 0), 0u);
 }
 
 TEST(SinkRegistry, MakesBySchemeAndNamesWhatIsWrong) {
@@ -23,7 +25,7 @@ TEST(SinkRegistry, MakesBySchemeAndNamesWhatIsWrong) {
   EXPECT_TRUE(tum) << tum.error().message;
   auto unknown = make_sink("kitti:" + dir, {rig});
   ASSERT_FALSE(unknown);
-  EXPECT_EQ(unknown.error().message, "--sink kitti:" + dir + ": unknown sink (known: video:, tum:)");
+  EXPECT_EQ(unknown.error().message, "--sink kitti:" + dir + ": unknown sink (known: video:, tum:, mcap:, euroc:)");
   for (const std::string spec : {"tum", "tum:"}) {
     auto missing = make_sink(spec, {rig});
     ASSERT_FALSE(missing) << spec;
