@@ -472,7 +472,7 @@ TEST(FrameIndexCsv, RoundTripAndErrors) {
                 {0, 1, 1005, "right/000000.png"},
                 {1, 0, 34334, "left/000001.png"},
                 {2, 1, 67672, "right/000002.png"}};
-  const std::string path = test::output_dir("nav_logs") + "/frame_index.csv";
+  const std::string path = test::output_dir("nav_logs_frame_index") + "/frame_index.csv";
   ASSERT_TRUE(write_frame_index_csv(path, index));
   auto back = read_frame_index_csv(path);
   ASSERT_TRUE(back) << back.error().message;
@@ -507,7 +507,7 @@ TEST(CameraPoseCsv, RoundTripBitExactAndErrors) {
   rows[0].sigma_pos_m = 0.012;
   rows[1] = {3, 1, 101, 201, 1.0 / 3.0, -2.0, 19.0, 1.0, 0.0, 0.0, 0.0};
   rows[1].boom_elevation_deg = 30.5;
-  const std::string path = test::output_dir("nav_logs") + "/poses.csv";
+  const std::string path = test::output_dir("nav_logs_poses") + "/poses.csv";
   ASSERT_TRUE(write_camera_pose_csv(path, rows));
   auto back = read_camera_pose_csv(path);
   ASSERT_TRUE(back) << back.error().message;
