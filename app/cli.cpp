@@ -111,9 +111,10 @@ OptionSpec receiver_draw_option() {
 }
 
 OptionSpec look_option() {
-  return {"look", ArgKind::kValue, "plain|camera",
-          "the boom's look: camera (sun and sky, the camera's PSF and sensor noise estimated from its frames) "
-          "or plain (a clean rendering under a fixed light); default camera (docs/LOOK.md)"};
+  return {
+      "look", ArgKind::kValue, "plain|camera",
+      "the boom's look: camera (sun and sky, the camera's PSF and sensor noise estimated from its frames) "
+      "or plain (a clean rendering under a fixed light); default camera (docs/LOOK.md)"};
 }
 
 OptionSpec sink_option() {
@@ -124,9 +125,9 @@ OptionSpec sink_option() {
   return spec;
 }
 
-void apply_sink_args(const ParsedArgs& a, pipeline::PipelineParts& parts) {
+void apply_sink_args(const ParsedArgs& a, pipeline::PipelineParts& parts, const std::string& replayed) {
   for (const std::string& spec : a.all("sink")) {
-    auto sink = pipeline::make_sink(spec, {parts.rig});
+    auto sink = pipeline::make_sink(spec, {parts.rig, {}, nullptr, replayed});
     if (!sink) usage_error(sink.error().message);
     parts.sinks.push_back(std::move(*sink));
   }

@@ -121,7 +121,7 @@ void apply_look_arg(const ParsedArgs& a, const Rig& rig, AugmentOptions& options
 // --sink SCHEME:ARG, repeatable (pipeline/sinks/registry.hpp: video:FILE.mp4, tum:FILE.txt): each
 // made for `parts.rig` and added to `parts.sinks`; a bad one is a usage error naming it.
 OptionSpec sink_option();
-void apply_sink_args(const ParsedArgs& a, pipeline::PipelineParts& parts);
+void apply_sink_args(const ParsedArgs& a, pipeline::PipelineParts& parts, const std::string& replayed = {});
 
 // replay's core (cmd_recording.cpp) for a command that replays into outputs of its own (export
 // --reaugment): `input` a recording, an MCAP file or a EuRoC folder, `a` replay's options;

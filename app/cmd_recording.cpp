@@ -111,12 +111,13 @@ std::string replay_poses_text(const ParsedArgs& a) {
 // the poses (--scene, --poses, else those recorded per frame), the boom, the receiver drawing,
 // --out's files, --record's new recording (`from` in its metadata and in messages), the window.
 struct ReplayConfig {
-  std::string from;                   // the recording's path, the MCAP file, euroc://DIR
-  std::optional<Rig> stored_rig;      // the rig stored with the frames
-  bool paper_rig_by_default = false;  // none stored: the paper's (a EuRoC folder) rather than an error
-  bool recorded_poses = true;         // the frames carry their scene (not a EuRoC folder)
-  std::string clock_domains;          // for the new recording's metadata
+  std::string from;                     // the recording's path, the MCAP file, euroc://DIR
+  std::optional<Rig> stored_rig;        // the rig stored with the frames
+  bool paper_rig_by_default = false;    // none stored: the paper's (a EuRoC folder) rather than an error
+  bool recorded_poses = true;           // the frames carry their scene (not a EuRoC folder)
+  std::string clock_domains;            // for the new recording's metadata
   const AddSinks* add_sinks = nullptr;  // the calling command's own sinks (replay_into)
+  std::string replayed = {};            // a recording replayed: its path (a sink's nav option)
 };
 void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayConfig& c) {
   if (!a.has("rig") && !c.stored_rig && !c.paper_rig_by_default)
@@ -128,7 +129,7 @@ void configure_replay(PipelineParts& parts, const ParsedArgs& a, const ReplayCon
   parts.models = unwrap(load_rig_models(parts.rig));
   parts.augment.receiver_draw = parse_receiver_draw(a.get("receiver-draw"));
   apply_look_arg(a, parts.rig, parts.augment);
-  apply_sink_args(a, parts);
+  apply_sink_args(a, parts, c.replayed);
   if (c.add_sinks && *c.add_sinks) (*c.add_sinks)(parts);
   if (a.has("scene") && a.has("poses")) usage_error("--scene and --poses are two sources of poses: give one");
   if (a.has("pose-tolerance-ms") && !a.has("poses")) usage_error("--pose-tolerance-ms needs --poses");
@@ -301,8 +302,8 @@ int replay_command(const std::vector<std::string>& args, std::ostream& out, std:
 }
 
 // A recording (replay://DIR): the player's settings in the URI, the range in the source.
-int replay_recording(const std::string& input, const ParsedArgs& a, const AddSinks& add_sinks, std::ostream& out,
-                     std::ostream& err) {
+int replay_recording(const std::string& input, const ParsedArgs& a, const AddSinks& add_sinks,
+                     std::ostream& out, std::ostream& err) {
   if (a.has("rate") && a.has("fast")) usage_error("--rate and --fast exclude each other");
   if (a.has("seek") && a.has("from-frame")) usage_error("--seek and --from-frame exclude each other");
   // The replay:// URI carries the player's settings (pipeline/sources.hpp, docs/REPLAY.md).
@@ -359,8 +360,9 @@ int replay_recording(const std::string& input, const ParsedArgs& a, const AddSin
           " has no recorded scene (boom articulation, receiver pose); give one with --scene SCENE.yaml "
           "or --poses POSES.csv");
   PipelineParts parts;
-  configure_replay(parts, a,
-                   {reader.path(), recorded_rig, false, true, reader.meta("clock_domains"), &add_sinks});
+  configure_replay(
+      parts, a,
+      {reader.path(), recorded_rig, false, true, reader.meta("clock_domains"), &add_sinks, reader.path()});
   parts.source_info = opened;
   const fs::path out_dir = a.get("out");
   out << "replay: " << source.uri() << ", " << source.frame_count() << " stereo frames, from frame "
@@ -414,7 +416,8 @@ int replay_into(const std::string& input, const ParsedArgs& a, const AddSinks& a
       fs::path(input).filename() == "mav0")
     return replay_euroc(input, a, add_sinks, out, err);
   const std::string path = input.rfind("replay://", 0) == 0 ? input.substr(9) : input;
-  if (!fs::is_directory(path) && recorder::is_mcap_path(path)) return replay_mcap(input, a, add_sinks, out, err);
+  if (!fs::is_directory(path) && recorder::is_mcap_path(path))
+    return replay_mcap(input, a, add_sinks, out, err);
   return replay_recording(input, a, add_sinks, out, err);
 }
 

@@ -166,14 +166,17 @@ VariantSpec parse_variant(const Context& c, const YAML::Node& n, const std::stri
   // The re-augmented frames as files too, per shard, joined per flight by the merge.
   if (const YAML::Node x = n["exports"]) {
     const std::string xk = join_key(key, "exports");
-    if (!x.IsSequence()) fail(c, x, xk, "expected a list of export formats ([mcap]), " + got(x));
+    if (!x.IsSequence()) fail(c, x, xk, "expected a list of export formats ([mcap, euroc]), " + got(x));
     for (const YAML::Node& f : x) {
-      if (to_string_value(c, f, xk, "an export format") != "mcap")
-        fail(c, f, xk, "expected mcap (the formats a shard can write and the merge join), " + got(f));
-      v.export_mcap = true;
+      const std::string format = to_string_value(c, f, xk, "an export format");
+      if (format != "mcap" && format != "euroc")
+        fail(c, f, xk,
+             "expected mcap or euroc (the formats a shard can write and the merge join), " + got(f));
+      (format == "mcap" ? v.export_mcap : v.export_euroc) = true;
     }
-    if (v.export_mcap && v.evaluate)
-      fail(c, x, xk, "exports are written by replay variants (without evaluate); give them their own variant");
+    if ((v.export_mcap || v.export_euroc) && v.evaluate)
+      fail(c, x, xk,
+           "exports are written by replay variants (without evaluate); give them their own variant");
   }
   return v;
 }
@@ -472,6 +475,7 @@ std::vector<std::string> task_command(const FlightSpec& flight, const VariantSpe
     a.insert(a.end(), {"--fast", "--headless", "--every", "1000000"});  // the statistics, few images
     if (!v.look.empty()) a.insert(a.end(), {"--look", v.look});
     if (v.export_mcap) a.insert(a.end(), {"--sink", std::string("mcap:") + kTaskOut + "/" + kShardMcap});
+    if (v.export_euroc) a.insert(a.end(), {"--sink", kShardEurocSink});
   }
   // A frame that cannot be read is left out and counted (done.yaml, status, the report): a shard
   // of a damaged recording would otherwise fail on every run.

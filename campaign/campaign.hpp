@@ -47,6 +47,9 @@ struct VariantSpec {
   // exports: [mcap]: each shard's re-augmented frames as an MCAP file (--sink mcap:), joined per
   // flight by the merge (recorder::merge_mcap) into report/VARIANT/FLIGHT/flight.mcap.
   bool export_mcap = false;
+  // exports: [euroc]: each shard's as a EuRoC folder on the recording's clock with its nav inputs
+  // (--sink euroc:...,nav), joined per flight (recorder::merge_euroc) into report/VARIANT/FLIGHT/euroc.
+  bool export_euroc = false;
   // look: plain | camera (replay's --look; empty: its default). Evaluations always use plain. The
   // camera look's estimates start over at each shard's first frame, as a restarted run's would:
   // its augmented images are a camera's, but not bit for bit those of one unsharded run.
@@ -132,9 +135,12 @@ struct Task {
 };
 
 // In a task's argv, kTaskOut stands for the folder the task writes (run_task puts it in); a shard's
-// MCAP export is kTaskOut/kShardMcap.
+// MCAP export is kTaskOut/kShardMcap, its EuRoC export kTaskOut/kShardEuroc.
 inline constexpr const char* kTaskOut = "{out}";
 inline constexpr const char* kShardMcap = "flight.mcap";
+// A shard's EuRoC export: kTaskOut/kShardEuroc, its sink's argument kShardEurocSink.
+inline constexpr const char* kShardEuroc = "euroc";
+inline constexpr const char* kShardEurocSink = "euroc:{out}/euroc,nav,no-plot";
 
 struct Manifest {
   std::filesystem::path file;  // manifest.yaml, absolute

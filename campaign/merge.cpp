@@ -10,6 +10,7 @@
 #include "campaign/task.hpp"
 #include "eval/matcher.hpp"
 #include "eval/report.hpp"
+#include "recorder/euroc.hpp"
 #include "recorder/mcap_export.hpp"
 #include "recorder/reader.hpp"
 #include "render/stats.hpp"
@@ -154,26 +155,52 @@ Status merge_stats(const std::vector<const Task*>& shards, const fs::path& dir, 
   return {};
 }
 
-// The shards' MCAP exports (a variant's exports: [mcap]) joined into DIR/flight.mcap, with the
-// flight's nav inputs when it is a recording; `mcap_frames` counts its stereo frames. Nothing when
-// the variant exports nothing.
-Status merge_exports(const std::vector<const Task*>& shards, const fs::path& dir, std::size_t& mcap_frames) {
+// The flight's recording, for the nav inputs of its MCAP file; null for an MCAP file or a EuRoC
+// folder.
+Expected<std::unique_ptr<recorder::RecordingReader>> flight_recording(const fs::path& flight) {
+  if (!fs::is_directory(flight) || fs::exists(flight / "mav0") || flight.filename() == "mav0")
+    return std::unique_ptr<recorder::RecordingReader>();
+  auto r = recorder::RecordingReader::open(flight.string());
+  if (!r) return r.error();
+  return std::move(*r);
+}
+
+// The shards' exports (a variant's exports: [mcap, euroc]) joined per flight: their MCAP files into
+// DIR/flight.mcap, with the flight's nav inputs when it is a recording; their EuRoC folders into
+// DIR/euroc (each shard's holds the recording's nav inputs already). Each line says what was
+// joined. Nothing when the variant exports nothing.
+Status merge_exports(const std::vector<const Task*>& shards, const fs::path& dir,
+                     std::vector<std::string>& lines) {
   const std::vector<std::string>& argv = shards.front()->argv;
-  const std::string sink = std::string("mcap:") + kTaskOut + "/" + kShardMcap;
-  if (std::find(argv.begin(), argv.end(), sink) == argv.end()) return {};
-  std::vector<std::string> inputs;
-  for (const Task* t : shards) inputs.push_back((t->out / kShardMcap).string());
+  auto has = [&](const std::string& sink) { return std::find(argv.begin(), argv.end(), sink) != argv.end(); };
   const fs::path flight = argv.at(1);
-  std::unique_ptr<recorder::RecordingReader> nav;
-  if (fs::is_directory(flight) && !fs::exists(flight / "mav0") && flight.filename() != "mav0") {
-    auto r = recorder::RecordingReader::open(flight.string());
-    if (!r) return r.error();
-    nav = std::move(*r);
+  if (has(std::string("mcap:") + kTaskOut + "/" + kShardMcap)) {
+    std::vector<std::string> inputs;
+    for (const Task* t : shards) inputs.push_back((t->out / kShardMcap).string());
+    auto nav = flight_recording(flight);
+    if (!nav) return nav.error();
+    recorder::McapExportReport report;
+    if (Status s = recorder::merge_mcap(inputs, (dir / kShardMcap).string(), nav->get(), report); !s)
+      return make_error(kWhere, s.error().message);
+    lines.push_back((dir / kShardMcap).string() + ": " + std::to_string(report.frames) +
+                    " stereo frame(s) from the shards' MCAP files");
   }
-  recorder::McapExportReport report;
-  if (Status s = recorder::merge_mcap(inputs, (dir / kShardMcap).string(), nav.get(), report); !s)
-    return make_error(kWhere, s.error().message);
-  mcap_frames = report.frames;
+  if (has(kShardEurocSink)) {
+    std::vector<std::string> inputs;
+    for (const Task* t : shards) inputs.push_back((t->out / kShardEuroc).string());
+    std::error_code ec;
+    fs::remove_all(dir / kShardEuroc, ec);  // a merge again makes it again
+    recorder::EurocMergeReport report;
+    if (Status s = recorder::merge_euroc(inputs, (dir / kShardEuroc).string(),
+                                         {true, flight.filename().string()}, report);
+        !s)
+      return make_error(kWhere, s.error().message);
+    lines.push_back((dir / kShardEuroc).string() + ": " + std::to_string(report.frames) +
+                    " stereo frame(s) from the shards' EuRoC folders (" + std::to_string(report.images) +
+                    " files linked)");
+    for (const std::string& p : report.problems)
+      lines.push_back((dir / kShardEuroc).string() + ": problem: " + p);
+  }
   return {};
 }
 
@@ -326,8 +353,8 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
     const bool evaluated = shards.front()->argv.front() == "evaluate";
     if (evaluated)
       if (Status s = merge_evaluation(shards, dir, key, options, fl, totals); !s) return s.error();
-    std::size_t mcap_frames = 0;
-    if (Status s = merge_exports(shards, dir, mcap_frames); !s) return s.error();
+    std::vector<std::string> exports;
+    if (Status s = merge_exports(shards, dir, exports); !s) return s.error();
     sum.frames += fl.frames;
     sum.evaluated += fl.evaluated;
     sum.frames_left_out += fl.left_out;
@@ -337,8 +364,7 @@ Expected<MergeSummary> merge_campaign(const Manifest& m, const MergeOptions& opt
     if (fl.left_out)
       out << ", " << fl.left_out << " left out (damaged input or no pose: the shards' task.log)";
     out << " -> " << dir.string() << "\n";
-    if (mcap_frames)
-      out << "  " << (dir / kShardMcap).string() << ": " << mcap_frames << " stereo frame(s) from the shards' MCAP files\n";
+    for (const std::string& e : exports) out << "  " << e << "\n";
     lines.push_back(fl);
   }
   if (Status s = write_campaign_report(m, sum, lines, totals); !s) return s.error();

@@ -77,6 +77,14 @@ double median_rate_hz(std::vector<TimestampNs> t) {
   return std::round(hz * 1000.0) / 1000.0;
 }
 
+Eigen::Vector3d central_difference_mps(const std::vector<TimestampNs>& t_ns,
+                                       const std::vector<Eigen::Vector3d>& p_m, std::size_t i) {
+  const std::size_t n = t_ns.size();
+  const std::size_t a = i > 0 ? i - 1 : i, b = i + 1 < n ? i + 1 : i;
+  if (b == a || t_ns[b] == t_ns[a]) return Eigen::Vector3d::Zero();
+  return (p_m[b] - p_m[a]) / (static_cast<double>(t_ns[b] - t_ns[a]) * 1e-9);
+}
+
 bool is_nmea_line(const std::string& s) {
   return !s.empty() && (s.front() == '$' || s.front() == '!');
 }
@@ -183,14 +191,15 @@ Status write_receiver_states(const fs::path& dir, const std::vector<std::pair<Ti
       "v_RS_R_x [m s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad "
       "s^-1], "
       "b_w_RS_S_z [rad s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]\n";
-  const std::size_t n = states.size();
-  for (std::size_t i = 0; i < n; ++i) {
+  std::vector<TimestampNs> times;
+  std::vector<Eigen::Vector3d> positions;
+  for (const auto& [t, T] : states) {
+    times.push_back(t);
+    positions.push_back(T.translation_m);
+  }
+  for (std::size_t i = 0; i < states.size(); ++i) {
     const auto& [t, T] = states[i];
-    const std::size_t a = i > 0 ? i - 1 : i, b = i + 1 < n ? i + 1 : i;
-    Eigen::Vector3d v = Eigen::Vector3d::Zero();
-    if (b != a && states[b].first != states[a].first)
-      v = (states[b].second.translation_m - states[a].second.translation_m) /
-          (static_cast<double>(states[b].first - states[a].first) * 1e-9);
+    const Eigen::Vector3d v = central_difference_mps(times, positions, i);
     const Eigen::Quaterniond q = T.rotation.normalized();
     csv += std::to_string(t);
     for (double x : {T.translation_m.x(), T.translation_m.y(), T.translation_m.z(), q.w(), q.x(), q.y(),
@@ -336,7 +345,8 @@ void EurocWriter::Impl::start_frames(ClockDomain own_clock) {
 Expected<std::unique_ptr<EurocWriter>> EurocWriter::create(const std::string& out_dir,
                                                            const EurocExportOptions& options, const Rig& rig,
                                                            const RecordingReader* recording,
-                                                           const std::string& from, EurocExportReport& report) {
+                                                           const std::string& from,
+                                                           EurocExportReport& report) {
   std::unique_ptr<EurocWriter> w(new EurocWriter);
   w->impl_ = std::make_unique<Impl>();
   Impl& m = *w->impl_;

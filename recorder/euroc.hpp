@@ -98,11 +98,11 @@ struct EurocExportReport {
   std::size_t frames = 0;          // in the recording
   std::size_t frames_written = 0;  // stereo frames exported (raw)
   std::size_t augmented_written = 0, masks_written = 0;
-  std::size_t ground_truth_written = 0;  // stereo frames whose ground truth was written
-  double rate_hz = 0;      // the frames' median rate
+  std::size_t ground_truth_written = 0;       // stereo frames whose ground truth was written
+  double rate_hz = 0;                         // the frames' median rate
   ClockDomain clock = ClockDomain::kUnknown;  // the clock of every exported timestamp
   std::string clock_note;                     // how the frames were put on it
-  std::string imu_stream;  // exported as imu0 ("" when none)
+  std::string imu_stream;                     // exported as imu0 ("" when none)
   std::size_t imu_samples = 0;
   std::vector<std::string> nav_logs;  // aircraft whose log folder OUT/nav/<aircraft> was written
   std::size_t frame_index_rows = 0;   // OUT/frames.csv
@@ -129,8 +129,8 @@ class EurocWriter {
   // `report` must outlive the writer.
   static Expected<std::unique_ptr<EurocWriter>> create(const std::string& out_dir,
                                                        const EurocExportOptions& options, const Rig& rig,
-                                                       const RecordingReader* recording, const std::string& from,
-                                                       EurocExportReport& report);
+                                                       const RecordingReader* recording,
+                                                       const std::string& from, EurocExportReport& report);
   ~EurocWriter();
   EurocWriter(const EurocWriter&) = delete;
   EurocWriter& operator=(const EurocWriter&) = delete;
@@ -149,6 +149,29 @@ class EurocWriter {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// Joins EuRoC folders that the euroc sink wrote over consecutive ranges of one recording (a
+// campaign's shards: `augrig replay REC --from-frame A --frames N --sink euroc:DIR,nav,no-plot`)
+// into `out_dir`, the folder one export of the whole range gives (export REC OUT --reaugment with
+// the same options): each stream's images hard-linked (copied where the file system cannot link;
+// nothing is moved, the parts stay), its data.csv joined; poses.csv, stats.csv, frames.csv joined
+// row by row under the header the parts share; what every part wrote alike (sensor.yaml, rig.yaml,
+// imu0, nav/) taken once, an error where it differs; the receiver's velocities made again over the
+// whole, phases.csv each phase once with its seconds from the whole's first statistics row, and
+// the plot. Parts that overlap (an image in two, timestamps not increasing) are an error; a part
+// left INCOMPLETE is a problem (report.problems; OUT/INCOMPLETE lists them) and its frames are kept.
+struct EurocMergeOptions {
+  bool plot = true;   // OUT/stats.png
+  std::string title;  // the plot's "Occlusion statistics: TITLE" (the recording's name)
+};
+struct EurocMergeReport {
+  std::size_t frames = 0;  // cam0's rows
+  std::size_t images = 0;  // files linked (or copied) from the parts
+  bool plotted = false;
+  std::vector<std::string> problems;
+};
+Status merge_euroc(const std::vector<std::string>& inputs, const std::string& out_dir,
+                   const EurocMergeOptions& options, EurocMergeReport& report);
 
 // Writes the layout above into `out_dir` (created; an existing OUT/mav0 is an error, so two
 // exports never mix). Damaged frames are skipped and listed in report.problems (so is the

@@ -41,6 +41,10 @@ Status write_text(const fs::path& path, const std::string& text);
 std::string matrix_row_major(const Eigen::Matrix4d& T);
 // Median interval of increasing times -> Hz (0 when fewer than two), to 1 mHz.
 double median_rate_hz(std::vector<TimestampNs> t);
+// The velocity at row i of positions over time: central differences (one-sided at the ends), 0
+// where the two times are equal (the receiver's v_RS_R, of an export and of a join of exports).
+Eigen::Vector3d central_difference_mps(const std::vector<TimestampNs>& t_ns,
+                                       const std::vector<Eigen::Vector3d>& p_m, std::size_t i);
 bool is_nmea_line(const std::string& s);
 // export --ground-truth of a frame recorded without its depth: which, and how to get it.
 Error no_depth_error(const RecordingReader& reader, std::size_t i, std::uint64_t pair_sequence,

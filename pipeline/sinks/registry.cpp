@@ -18,11 +18,14 @@ constexpr SinkEntry kSinks[] = {
      make_video_sink},
     {"tum", "tum:FILE.txt  the receiver's pose in the left camera per pair (TUM trajectory format)",
      make_tum_sink},
-    {"mcap", "mcap:FILE.mcap[,no-augmented][,no-masks]  each pair as ROS 2 messages, as export --format mcap writes them",
+    {"mcap",
+     "mcap:FILE.mcap[,no-augmented][,no-masks]  each pair as ROS 2 messages, as export --format mcap writes "
+     "them",
      make_mcap_sink},
     {"euroc",
-     "euroc:DIR[,no-augmented][,no-masks][,no-plot][,ground-truth]  each pair in the EuRoC/ASL layout, as export "
-     "writes a recording",
+     "euroc:DIR[,no-augmented][,no-masks][,no-plot][,ground-truth][,nav]  each pair in the EuRoC/ASL layout, "
+     "as "
+     "export writes a recording (nav: a replay's on the recording's clock, with its nav inputs)",
      make_euroc_sink},
 };
 

@@ -17,7 +17,7 @@ namespace augrig::recorder {
 class RecordingReader;
 struct EurocExportOptions;
 struct EurocExportReport;
-}
+}  // namespace augrig::recorder
 
 namespace augrig::pipeline {
 
@@ -28,6 +28,10 @@ struct SinkSetup {
   std::map<std::string, std::string> meta = {};
   // A recording whose nav inputs a file sink copies at its close (export --reaugment's); null: none.
   const recorder::RecordingReader* nav_from = nullptr;
+  // The recording `augrig replay REC` plays (its folder); empty for other sources. The euroc sink's
+  // `nav` option opens it for the clock and nav inputs, as export --reaugment does (a campaign
+  // shard's export).
+  std::string replayed = {};
 };
 
 // A sink from "SCHEME:ARGUMENT"; an unknown scheme or a bad argument is an Error naming it and
@@ -43,7 +47,9 @@ Expected<std::unique_ptr<FrameSink>> make_mcap_sink(const std::string& arg, cons
 Expected<std::unique_ptr<FrameSink>> make_euroc_sink(const std::string& arg, const SinkSetup& setup);
 // The euroc sink with the export's every option (export --reaugment); `report`, when given, gets
 // what it wrote at its close.
-Expected<std::unique_ptr<FrameSink>> make_euroc_sink(const std::string& dir, const recorder::EurocExportOptions& options,
-                                                     const SinkSetup& setup, recorder::EurocExportReport* report);
+Expected<std::unique_ptr<FrameSink>> make_euroc_sink(const std::string& dir,
+                                                     const recorder::EurocExportOptions& options,
+                                                     const SinkSetup& setup,
+                                                     recorder::EurocExportReport* report);
 
 }  // namespace augrig::pipeline

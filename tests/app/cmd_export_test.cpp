@@ -27,12 +27,13 @@
 #include "recorder/plot.hpp"
 #include "recorder/reader.hpp"
 #include "recorder/recorder.hpp"
-#include "ros2/messages.hpp"
 #include "recorder/store.hpp"
 #include "render/augmenter.hpp"
 #include "render/gl_context.hpp"
+#include "ros2/messages.hpp"
 #include "sim/scenario.hpp"
 #include "tests/support/mcap_messages.hpp"
+#include "tests/support/output_files.hpp"
 #include "tests/support/recording_fixture.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -67,19 +68,6 @@ const std::string& long_recording() {
   return test::recording_of_this_test("cmd_export_long_", 60);
 }
 
-// Every file under `dir` (relative path -> bytes), but `skip`'s.
-std::map<std::string, std::string> files_under(const fs::path& dir, const std::string& skip = "") {
-  std::map<std::string, std::string> m;
-  for (const auto& e : fs::recursive_directory_iterator(dir)) {
-    if (!e.is_regular_file()) continue;
-    const std::string rel = fs::relative(e.path(), dir).string();
-    if (!skip.empty() && rel == skip) continue;
-    std::ifstream in(e.path(), std::ios::binary);
-    m[rel] = std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  }
-  return m;
-}
-
 // export --reaugment goes through the pipeline: its output is what replaying the recording with the
 // same options into a new recording and exporting that gives (the oracle, made by commands that
 // existed before), and not the recorded augmentation.
@@ -87,10 +75,13 @@ TEST(CmdExport, ReaugmentedMcapIsTheReplaysRecordingExported) {
   const std::string dir = output_dir("cmd_export_reaugment_mcap");
   const std::string boom = "--boom fixed:-30,5,14";
   std::string log;
-  ASSERT_EQ(augrig("export " + recording() + " " + dir + "/re.mcap " + boom + " --look plain", &log), 0) << log;
+  ASSERT_EQ(augrig("export " + recording() + " " + dir + "/re.mcap " + boom + " --look plain", &log), 0)
+      << log;
   EXPECT_NE(log.find("wrote " + dir + "/re.mcap: 8 stereo frame(s)"), std::string::npos) << log;
-  ASSERT_EQ(augrig("replay " + recording() + " --headless --look plain " + boom + " --record " + dir + "/rec2", &log),
-            0)
+  ASSERT_EQ(
+      augrig("replay " + recording() + " --headless --look plain " + boom + " --record " + dir + "/rec2",
+             &log),
+      0)
       << log;
   ASSERT_EQ(augrig("export " + dir + "/rec2 " + dir + "/oracle.mcap", &log), 0) << log;
   ASSERT_EQ(augrig("export " + recording() + " " + dir + "/recorded.mcap", &log), 0) << log;
@@ -105,11 +96,13 @@ TEST(CmdExport, ReaugmentedMcapIsTheReplaysRecordingExported) {
     // rotation (matrix -> quaternion) away: equal to the last bits, not in them.
     if (re[i].first.rfind("/tf_static", 0) == 0) continue;
     EXPECT_TRUE(re[i].second == oracle[i].second) << re[i].first;
-    if (re[i].first.rfind("/left/image_augmented", 0) == 0 && re[i].second != recorded[i].second) ++augmented_differ;
+    if (re[i].first.rfind("/left/image_augmented", 0) == 0 && re[i].second != recorded[i].second)
+      ++augmented_differ;
   }
   EXPECT_GT(augmented_differ, 0u) << "the recorded augmentation came out again";
   // Options of EuRoC alone are refused, naming the option.
-  EXPECT_EQ(augrig("export " + recording() + " " + dir + "/x.mcap --reaugment --ground-truth", &log), 2) << log;
+  EXPECT_EQ(augrig("export " + recording() + " " + dir + "/x.mcap --reaugment --ground-truth", &log), 2)
+      << log;
   EXPECT_NE(log.find("--ground-truth: only for --format euroc"), std::string::npos) << log;
 }
 
@@ -118,7 +111,8 @@ TEST(CmdExport, ReaugmentedEurocIsTheReplaysRecordingExported) {
   const std::string boom = "--boom fixed:-25,-5,13";
   std::string log;
   ASSERT_EQ(augrig("export " + recording() + " " + dir + "/re --no-plot " + boom, &log), 0) << log;
-  ASSERT_EQ(augrig("replay " + recording() + " --headless " + boom + " --record " + dir + "/rec2", &log), 0) << log;
+  ASSERT_EQ(augrig("replay " + recording() + " --headless " + boom + " --record " + dir + "/rec2", &log), 0)
+      << log;
   // The oracle is given the recording's rig as it is (rec2 stores it after one more YAML round trip
   // of the rotation: equal to the last bits, not in them).
   {
@@ -126,10 +120,12 @@ TEST(CmdExport, ReaugmentedEurocIsTheReplaysRecordingExported) {
     ASSERT_TRUE(rec) << rec.error().message;
     std::ofstream(dir + "/rig.yaml") << (*rec)->meta("rig_yaml");
   }
-  ASSERT_EQ(augrig("export " + dir + "/rec2 " + dir + "/oracle --no-plot --rig " + dir + "/rig.yaml", &log), 0)
+  ASSERT_EQ(augrig("export " + dir + "/rec2 " + dir + "/oracle --no-plot --rig " + dir + "/rig.yaml", &log),
+            0)
       << log;
   // rig.yaml names the rig's source file; everything else is the same, byte for byte.
-  const auto re = files_under(dir + "/re", "rig.yaml"), oracle = files_under(dir + "/oracle", "rig.yaml");
+  const auto re = test::files_under(dir + "/re", "rig.yaml"),
+             oracle = test::files_under(dir + "/oracle", "rig.yaml");
   ASSERT_EQ(re.size(), oracle.size());
   ASSERT_TRUE(re.count("mav0/cam0_augmented/data.csv"));
   for (const auto& [name, bytes] : re) {
@@ -138,7 +134,7 @@ TEST(CmdExport, ReaugmentedEurocIsTheReplaysRecordingExported) {
   }
   // ... and not the recorded augmentation.
   ASSERT_EQ(augrig("export " + recording() + " " + dir + "/recorded --no-plot", &log), 0) << log;
-  const auto recorded = files_under(dir + "/recorded", "rig.yaml");
+  const auto recorded = test::files_under(dir + "/recorded", "rig.yaml");
   for (const auto& [name, bytes] : re) {
     if (name.rfind("mav0/cam0/data/", 0) == 0) {
       EXPECT_TRUE(recorded.at(name) == bytes) << "raw " << name;
@@ -160,7 +156,8 @@ TEST(CmdExport, ReaugmentedExportsKeepTheNavInputs) {
                    &log),
             0)
       << log;
-  ASSERT_EQ(augrig("export " + dir + "/rec " + dir + "/re --reaugment --look plain --no-plot", &log), 0) << log;
+  ASSERT_EQ(augrig("export " + dir + "/rec " + dir + "/re --reaugment --look plain --no-plot", &log), 0)
+      << log;
   EXPECT_NE(log.find("imu0 ("), std::string::npos) << log;
   EXPECT_GT(lines_of(dir + "/re/mav0/imu0/data.csv"), 100u);
   EXPECT_TRUE(fs::exists(dir + "/re/nav/tanker/gps.nmea"));

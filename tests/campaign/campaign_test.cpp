@@ -114,10 +114,14 @@ TEST(CampaignFile, ErrorsNameTheLineTheKeyAndWhatWasExpected) {
       {head + "recordings: [f042]\nvariants: [{name: v, boom: sideways}]\n",
        "key 'variants[0].boom': expected track, fixed:EL_DEG,AZ_DEG,EXT_M or script:FILE.csv"},
       {head + "recordings: [f042]\nvariants: [{name: 'a b'}]\n", "key 'variants[0].name': expected a name"},
-      {head + "recordings: [f042]\nvariants: [{name: v, exports: [euroc]}]\n",
-       "key 'variants[0].exports': expected mcap (the formats a shard can write and the merge join), got 'euroc'"},
+      {head + "recordings: [f042]\nvariants: [{name: v, exports: [mcap, kitti]}]\n",
+       "key 'variants[0].exports': expected mcap or euroc (the formats a shard can write and the merge "
+       "join), got "
+       "'kitti'"},
       {head + "recordings: [f042]\nvariants: [{name: v, exports: mcap}]\n",
-       "key 'variants[0].exports': expected a list of export formats ([mcap])"},
+       "key 'variants[0].exports': expected a list of export formats ([mcap, euroc])"},
+      {head + "recordings: [f042]\nvariants: [{name: v, evaluate: true, exports: [euroc]}]\n",
+       "exports are written by replay variants (without evaluate)"},
       {head + "recordings: [f042]\nvariants: [{name: v, evaluate: true, exports: [mcap]}]\n",
        "exports are written by replay variants (without evaluate)"},
       {head + "recordings: [f042]\nvariants: [{name: v, look: shiny}]\n",
@@ -254,13 +258,18 @@ TEST(Tasks, OneCommandPerShardAndVariant) {
   EXPECT_TRUE(has(e, {"--full-frame"}));
   EXPECT_TRUE(has(tasks[10], {"--poses", (fs::weakly_canonical(f.dir / "poses.csv")).string()}));
   // A variant's look, and its MCAP export into the task's folder ({out}: run_task puts it in).
-  auto x = f.parse("augrig_campaign: 1\nname: c\nout: o\nrecordings: [f042]\n"
-                   "variants: [{name: m, look: plain, exports: [mcap]}]\n");
+  auto x = f.parse(
+      "augrig_campaign: 1\nname: c\nout: o\nrecordings: [f042]\n"
+      "variants: [{name: m, look: plain, exports: [mcap]}, {name: e, exports: [euroc, mcap]}]\n");
   ASSERT_TRUE(x) << x.error().message;
   const auto xt = plan_tasks(*x, {frames_every(0.1, 10)}, {});
-  ASSERT_EQ(xt.size(), 1u);
+  ASSERT_EQ(xt.size(), 2u);
   EXPECT_TRUE(has(xt[0], {"--look", "plain"}));
   EXPECT_TRUE(has(xt[0], {"--sink", "mcap:{out}/flight.mcap"}));
+  EXPECT_FALSE(has(xt[0], {"--sink", "euroc:{out}/euroc,nav,no-plot"}));
+  // EuRoC: on the recording's clock with its nav inputs (nav), plotted once by the merge.
+  EXPECT_TRUE(has(xt[1], {"--sink", "euroc:{out}/euroc,nav,no-plot"}));
+  EXPECT_TRUE(has(xt[1], {"--sink", "mcap:{out}/flight.mcap"}));
   for (const Task& x : tasks) {
     if (x.variant == "eval") {
       EXPECT_EQ(x.shard.from_frame % 5, 0u);

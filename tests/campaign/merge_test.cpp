@@ -14,6 +14,7 @@
 #include "campaign/task.hpp"
 #include "tests/support/campaign_fixture.hpp"
 #include "tests/support/mcap_messages.hpp"
+#include "tests/support/output_files.hpp"
 #include "tests/support/test_support.hpp"
 
 namespace augrig::campaign {
@@ -24,15 +25,13 @@ namespace fs = std::filesystem;
 using test::lines_of;
 
 struct MergeFixture : test::CampaignFlights {
-  // Plans the campaign with shards of `seconds` and runs every task here.
-  Manifest run_campaign(const std::string& name, double seconds, bool run_all = true) {
+  // Plans a campaign of `recordings` and `variants` (YAML) in shards of `seconds` and runs every
+  // task here (or none).
+  Manifest plan_and_run(const std::string& name, const std::string& recordings, const std::string& variants,
+                        double seconds, bool run_all = true) {
     const std::string text = "augrig_campaign: 1\nname: " + name + "\nout: " + name +
-                             "\nrecordings: [{path: " + rec_a + ", name: a}, {path: " + rec_b +
-                             ", name: b}]\nvariants:\n"
-                             "  - {name: stats}\n"
-                             "  - {name: eval, boom: script:boom.csv, evaluate: {every: 3}}\n"
-                             "shards: {seconds: " +
-                             std::to_string(seconds) + "}\n";
+                             "\nrecordings: " + recordings + "\nvariants:\n" + variants +
+                             "shards: {seconds: " + std::to_string(seconds) + "}\n";
     auto spec = parse_campaign(text, dir / "campaign.yaml");
     EXPECT_TRUE(spec) << spec.error().message;
     Manifest m;
@@ -40,8 +39,9 @@ struct MergeFixture : test::CampaignFlights {
     m.name = name;
     m.out = spec->out;
     m.augrig = test::augrig_binary();
-    m.tasks =
-        plan_tasks(*spec, {*read_flight_frames(spec->flights[0]), *read_flight_frames(spec->flights[1])}, {});
+    std::vector<FlightFrames> frames;
+    for (const FlightSpec& f : spec->flights) frames.push_back(*read_flight_frames(f));
+    m.tasks = plan_tasks(*spec, frames, {});
     fs::create_directories(m.out);
     EXPECT_TRUE(write_manifest(m));
     if (run_all)
@@ -49,6 +49,20 @@ struct MergeFixture : test::CampaignFlights {
         std::ostringstream out, err;
         EXPECT_EQ(run_task(m, t.id, out, err), 0) << out.str() << err.str();
       }
+    return m;
+  }
+
+  // Flights a and b, a variant of statistics and one of evaluations.
+  Manifest run_campaign(const std::string& name, double seconds, bool run_all = true) {
+    return plan_and_run(name, "[{path: " + rec_a + ", name: a}, {path: " + rec_b + ", name: b}]",
+                        "  - {name: stats}\n  - {name: eval, boom: script:boom.csv, evaluate: {every: 3}}\n",
+                        seconds, run_all);
+  }
+
+  // Flight a in shards of 1.3 s (three or more), one variant.
+  Manifest run_exports(const std::string& name, const std::string& variant) {
+    Manifest m = plan_and_run(name, "[{path: " + rec_a + ", name: a}]", "  - " + variant + "\n", 1.3);
+    EXPECT_GE(m.tasks.size(), 3u);
     return m;
   }
 };
@@ -90,29 +104,13 @@ TEST_F(MergeFixture, ShardsMergeIntoTheUnshardedRunFrameForFrame) {
 // exports: [mcap]: each shard's MCAP file joined per flight is the unsharded replay's file, message
 // for message (the shards keep the recording's frame indices; one /tf_static; the nav inputs).
 TEST_F(MergeFixture, ShardsMcapExportsJoinIntoTheUnshardedReplaysFile) {
-  const std::string text = "augrig_campaign: 1\nname: x\nout: x\nrecordings: [{path: " + rec_a +
-                           ", name: a}]\nvariants:\n  - {name: m, boom: script:boom.csv, look: plain, "
-                           "exports: [mcap]}\nshards: {seconds: 1.3}\n";
-  auto spec = parse_campaign(text, dir / "campaign.yaml");
-  ASSERT_TRUE(spec) << spec.error().message;
-  Manifest m;
-  m.file = spec->out / "manifest.yaml";
-  m.name = "x";
-  m.out = spec->out;
-  m.augrig = test::augrig_binary();
-  m.tasks = plan_tasks(*spec, {*read_flight_frames(spec->flights[0])}, {});
-  ASSERT_GE(m.tasks.size(), 3u);
-  fs::create_directories(m.out);
-  ASSERT_TRUE(write_manifest(m));
-  for (const Task& t : m.tasks) {
-    std::ostringstream out, err;
-    ASSERT_EQ(run_task(m, t.id, out, err), 0) << out.str() << err.str();
-  }
+  const Manifest m = run_exports("x", "{name: m, boom: script:boom.csv, look: plain, exports: [mcap]}");
   std::ostringstream out;
   ASSERT_TRUE(merge_campaign(m, MergeOptions{false, false}, out));
   EXPECT_NE(out.str().find("flight.mcap: 41 stereo frame(s)"), std::string::npos) << out.str();
   std::string log;
-  ASSERT_EQ(test::run_augrig("replay " + rec_a + " --headless --look plain --boom script:" + (dir / "boom.csv").string() +
+  ASSERT_EQ(test::run_augrig("replay " + rec_a +
+                                 " --headless --look plain --boom script:" + (dir / "boom.csv").string() +
                                  " --sink mcap:" + (dir / "whole.mcap").string(),
                              &log),
             0)
@@ -127,6 +125,41 @@ TEST_F(MergeFixture, ShardsMcapExportsJoinIntoTheUnshardedReplaysFile) {
   }
   for (std::size_t i = whole.size(); i < merged.size(); ++i)
     EXPECT_EQ(merged[i].first.rfind("/nav/", 0), 0u) << merged[i].first;
+}
+
+// exports: [euroc]: the shards' EuRoC folders joined per flight are, file for file and byte for
+// byte, what one `augrig export FLIGHT OUT --reaugment` with the variant's options writes (the
+// recording's clock, its frame indices, the receiver's velocities and the phases across the shards'
+// joins); the shards keep their files (the join links them) and a merge again makes it again.
+TEST_F(MergeFixture, ShardsEurocExportsJoinIntoTheExportOfTheWholeFlight) {
+  const Manifest m = run_exports("e", "{name: e, boom: script:boom.csv, look: plain, exports: [euroc]}");
+  std::ostringstream out;
+  ASSERT_TRUE(merge_campaign(m, MergeOptions{false, false}, out));
+  const fs::path joined = m.out / "report" / "e" / "a" / "euroc";
+  EXPECT_NE(out.str().find(joined.string() + ": 41 stereo frame(s) from the shards' EuRoC folders"),
+            std::string::npos)
+      << out.str();
+  std::string log;
+  ASSERT_EQ(test::run_augrig("export " + rec_a + " " + (dir / "whole").string() +
+                                 " --reaugment --look plain --boom script:" + (dir / "boom.csv").string(),
+                             &log),
+            0)
+      << log;
+  const auto merged = test::files_under(joined), whole = test::files_under(dir / "whole");
+  for (const auto& [name, bytes] : whole) {
+    ASSERT_TRUE(merged.count(name)) << name;
+    if (name != "stats.png") {
+      EXPECT_TRUE(merged.at(name) == bytes) << name;
+    }
+  }
+  EXPECT_EQ(merged.size(), whole.size());
+  for (const char* f : {"mav0/cam0_augmented/data.csv", "mav0/state_groundtruth_estimate0/data.csv",
+                        "stats.csv", "frames.csv", "poses.csv", "stats.png"})
+    EXPECT_TRUE(merged.count(f)) << f;
+  for (const Task& t : m.tasks)
+    EXPECT_TRUE(fs::exists(t.out / "euroc" / "mav0" / "cam0" / "data.csv")) << t.id;
+  ASSERT_TRUE(merge_campaign(m, MergeOptions{false, false}, out));
+  EXPECT_EQ(test::files_under(joined).size(), merged.size());
 }
 
 TEST_F(MergeFixture, AShardNotDoneStopsTheMergeUnlessPartial) {

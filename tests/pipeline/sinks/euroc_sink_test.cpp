@@ -12,6 +12,7 @@
 #include "pipeline/sinks/registry.hpp"
 #include "recorder/euroc.hpp"
 #include "recorder/recorder.hpp"
+#include "tests/support/output_files.hpp"
 #include "tests/support/pipeline_parts.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -21,18 +22,6 @@ namespace {
 namespace fs = std::filesystem;
 
 const std::string kScenario = "sim://" + test::data_path("scenarios/short_approach.yaml") + "?every=4&rate=0";
-
-// Every file under `dir`: relative path -> bytes.
-std::map<std::string, std::string> files_under(const fs::path& dir) {
-  std::map<std::string, std::string> m;
-  for (const auto& e : fs::recursive_directory_iterator(dir)) {
-    if (!e.is_regular_file()) continue;
-    std::ifstream in(e.path(), std::ios::binary);
-    m[fs::relative(e.path(), dir).string()] =
-        std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  }
-  return m;
-}
 
 TEST(EurocSink, WritesWhatExportWritesFromTheRecordingOfTheSameRun) {
   const std::string out = test::output_dir("euroc_sink_same");
@@ -70,14 +59,15 @@ TEST(EurocSink, WritesWhatExportWritesFromTheRecordingOfTheSameRun) {
   eo.threads = 1;
   recorder::EurocExportReport er;
   ASSERT_TRUE(recorder::export_euroc(**reader, out + "/export", eo, er));
-  const auto run = files_under(out + "/run"), exported = files_under(out + "/export");
+  const auto run = test::files_under(out + "/run"), exported = test::files_under(out + "/export");
   ASSERT_EQ(run.size(), exported.size());
   for (const auto& [name, bytes] : exported) {
     ASSERT_TRUE(run.count(name)) << name;
     EXPECT_TRUE(run.at(name) == bytes) << name;
   }
-  for (const char* f : {"mav0/cam0_augmented/data.csv", "mav0/cam1_mask/sensor.yaml", "mav0/cam0_depth/data.csv",
-                        "poses.csv", "stats.csv", "frames.csv", "mav0/state_groundtruth_estimate0/data.csv"})
+  for (const char* f :
+       {"mav0/cam0_augmented/data.csv", "mav0/cam1_mask/sensor.yaml", "mav0/cam0_depth/data.csv", "poses.csv",
+        "stats.csv", "frames.csv", "mav0/state_groundtruth_estimate0/data.csv"})
     EXPECT_TRUE(run.count(f)) << f;
 }
 
@@ -104,16 +94,29 @@ TEST(EurocSink, BadArgumentsAndAnExistingExportAreNamed) {
   const Rig rig = Rig::paper_default();
   auto unknown = make_sink("euroc:" + out + "/x,jpeg", {rig});
   ASSERT_FALSE(unknown);
-  EXPECT_EQ(unknown.error().message,
-            "euroc sink: jpeg: unknown option (expected no-augmented, no-masks, no-plot or ground-truth)");
+  EXPECT_EQ(
+      unknown.error().message,
+      "euroc sink: jpeg: unknown option (expected no-augmented, no-masks, no-plot, ground-truth or nav)");
+  // nav: the clock and nav inputs of the recording a replay plays; none here, or one that is not there.
+  auto no_replay = make_sink("euroc:" + out + "/x,nav", {rig});
+  ASSERT_FALSE(no_replay);
+  EXPECT_EQ(no_replay.error().message,
+            "euroc sink: nav: the clock and nav inputs of the recording replayed; only `augrig replay REC` "
+            "replays one");
+  auto gone = make_sink("euroc:" + out + "/x,nav", {rig, {}, nullptr, out + "/no_such_recording"});
+  ASSERT_FALSE(gone);
+  EXPECT_EQ(gone.error().message.rfind("euroc sink: nav: ", 0), 0u) << gone.error().message;
+  EXPECT_NE(gone.error().message.find("no_such_recording"), std::string::npos) << gone.error().message;
+  EXPECT_FALSE(fs::exists(out + "/x/mav0"));
   auto empty = make_sink("euroc:,no-plot", {rig});
   ASSERT_FALSE(empty);
   EXPECT_EQ(empty.error().message, "euroc sink: expected a folder (euroc:DIR)");
   fs::create_directories(out + "/taken/mav0");
   auto taken = make_sink("euroc:" + out + "/taken", {rig});
   ASSERT_FALSE(taken);
-  EXPECT_EQ(taken.error().message,
-            "euroc sink: " + out + "/taken/mav0: exists already; export into a new folder (exports never mix)");
+  EXPECT_EQ(
+      taken.error().message,
+      "euroc sink: " + out + "/taken/mav0: exists already; export into a new folder (exports never mix)");
 }
 
 }  // namespace
