@@ -901,8 +901,10 @@ struct WebSocketServer::Impl {
         std::lock_guard<std::mutex> lock(mu);
         ++totals.connections_accepted;
       }
-      // Handshakes in progress are bounded too: a flood of idle connections cannot take every descriptor.
-      if (conns.size() >= 2 * opt.max_clients + 16) {
+      // Connections are bounded: a flood of idle ones cannot take every descriptor. At the bound the
+      // oldest handshake gives way to the new connection, so idle sockets held open cannot lock real
+      // clients out (they send their request within a round trip of connecting).
+      if (!make_room()) {
         ::close(fd);
         std::lock_guard<std::mutex> lock(mu);
         ++totals.handshakes_abandoned;
@@ -917,6 +919,25 @@ struct WebSocketServer::Impl {
       c->deadline_ns = monotonic_now_ns() + std::int64_t{opt.handshake_timeout_ms} * 1'000'000;
       conns.emplace(c->id, std::move(c));
     }
+  }
+
+  // Below the bound of connections (2 * max_clients + 16), or brought below it by closing the one
+  // that has waited longest for its request (connections are kept in accept order); false when
+  // every connection is a client's.
+  bool make_room() {
+    std::size_t live = 0;
+    Conn* oldest_handshake = nullptr;
+    for (auto& [id, c] : conns) {
+      if (c->state == ConnState::kDead) continue;
+      ++live;
+      if (!oldest_handshake && c->state == ConnState::kHandshake) oldest_handshake = c.get();
+    }
+    if (live < 2 * opt.max_clients + 16) return true;
+    if (!oldest_handshake) return false;
+    kill(
+        *oldest_handshake,
+        CloseInfo{kCloseAbnormal, "no complete request yet, and a newer connection needed its place", false});
+    return true;
   }
 
   void timers(Conn& c, std::int64_t now) {

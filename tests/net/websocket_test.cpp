@@ -724,6 +724,36 @@ TEST(WebSocketServer, AClientVanishingMidHandshakeOrIdlingIsFreed) {
   EXPECT_EQ(s.closed(), 0u);
 }
 
+// Idle sockets held open at the bound of connections (80 with 32 clients): a real client that
+// connects is answered at once, the oldest idle one making room, not after the idle ones' handshake
+// timeout (which was 4 to 9 s of no answer). Long here (30 s) so that only making room can answer.
+TEST(WebSocketServer, IdleSocketsHeldOpenDoNotLockOutARealClient) {
+  WebSocketOptions o;
+  o.handshake_timeout_ms = 30'000;
+  EchoServer s(o);
+  const std::size_t bound = 2 * o.max_clients + 16, held = bound + 20;
+  std::vector<std::unique_ptr<TestWsClient>> idle;
+  for (std::size_t i = 0; i < held; ++i) idle.push_back(std::make_unique<TestWsClient>(s.port()));
+  ASSERT_TRUE(eventually([&] { return s.server->stats().connections_accepted >= held; }));
+  for (int round = 0; round < 3; ++round) {
+    TestWsClient real(s.port());
+    const std::string head = real.handshake("", 3000);
+    ASSERT_EQ(head.rfind("HTTP/1.1 101", 0), 0u) << "round " << round << ": " << head;
+    ASSERT_TRUE(real.send_text("still here"));
+    const auto echo = real.read_frame(3000);
+    ASSERT_TRUE(echo) << "round " << round;
+    EXPECT_EQ(echo->payload, "still here");
+  }
+  // The idle ones that made room were closed, oldest first, and counted: 20 for the flood beyond the
+  // bound, and one for each real client that came before the one before it had left (1 to 3).
+  EXPECT_TRUE(idle.front()->wait_closed(3000));
+  const std::uint64_t made_room = held - bound;
+  EXPECT_TRUE(eventually([&] { return s.server->stats().handshakes_abandoned >= made_room + 1; }));
+  EXPECT_LE(s.server->stats().handshakes_abandoned, made_room + 3);
+  EXPECT_FALSE(idle.back()->wait_closed(100)) << "the newest idle connection waits for its request";
+  EXPECT_EQ(s.opened(), 3u);
+}
+
 TEST(WebSocketServer, StopSaysGoingAwayToEveryClient) {
   auto s = std::make_unique<EchoServer>();
   TestWsClient a(s->port()), b(s->port());
