@@ -12,14 +12,15 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
   targets=(fuzz_nmea fuzz_nmea_stream fuzz_imu_csv fuzz_nav_csv fuzz_imu_datagram fuzz_gpsd fuzz_ubx fuzz_rig fuzz_scene
-           fuzz_scenario fuzz_calib fuzz_model fuzz_codec fuzz_recording fuzz_euroc fuzz_source_uri)
+           fuzz_scenario fuzz_calib fuzz_model fuzz_codec fuzz_recording fuzz_euroc fuzz_source_uri
+           fuzz_websocket fuzz_foxglove_ops fuzz_mcap)
 fi
 
 # Inputs of the length real files have; larger ones only slow the search down.
 max_len() {
   case $1 in
     fuzz_source_uri) echo 512 ;;
-    fuzz_model | fuzz_recording | fuzz_calib) echo 16384 ;;
+    fuzz_model | fuzz_recording | fuzz_calib | fuzz_mcap) echo 16384 ;;
     *) echo 8192 ;;
   esac
 }

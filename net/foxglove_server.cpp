@@ -1,7 +1,7 @@
-// FoxgloveServer (foxglove_server.hpp): the channels, the JSON ops, and each frame's messages built
-// as recorder/mcap_export.cpp builds a recorded one. Locks: the server's mutex, then the
-// WebSocketServer's inside send(); the WebSocket callbacks run on its I/O thread without its lock,
-// so the order is always the same.
+// FoxgloveServer (foxglove_server.hpp): the channels, the JSON ops (parsed by foxglove_ops.cpp), and each
+// frame's messages built as recorder/mcap_export.cpp builds a recorded one. Locks: the server's mutex, then
+// the WebSocketServer's inside send(); the WebSocket callbacks run on its I/O thread without its lock, so the
+// order is always the same.
 #include "net/foxglove_server.hpp"
 
 #include <algorithm>
@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/clock.hpp"
+#include "net/foxglove_ops.hpp"
 #include "ros2/messages.hpp"
 
 namespace augrig::net {
@@ -50,30 +51,6 @@ constexpr std::uint32_t cam_channel(int camera, CamTopic t) {
 
 std::string dump(const json& j) {
   return j.dump(-1, ' ', false, json::error_handler_t::replace);
-}
-
-// Nesting deeper than this is refused before parsing: no Foxglove op needs more than 3.
-bool nesting_within(std::string_view text, int limit) {
-  int depth = 0;
-  bool in_string = false, escaped = false;
-  for (const char ch : text) {
-    if (in_string) {
-      if (escaped) {
-        escaped = false;
-      } else if (ch == '\\') {
-        escaped = true;
-      } else if (ch == '"') {
-        in_string = false;
-      }
-      continue;
-    }
-    if (ch == '"') in_string = true;
-    if (ch == '[' || ch == '{') {
-      if (++depth > limit) return false;
-    }
-    if (ch == ']' || ch == '}') --depth;
-  }
-  return true;
 }
 
 // The augmented image whole, from either AugmentedOutput: the raw image's message with the
@@ -159,63 +136,32 @@ struct FoxgloveServer::Impl {
     }
   }
 
-  void subscribe(ClientId client, Client& cl, const json& msg) {
-    const auto it = msg.find("subscriptions");
-    if (it == msg.end() || !it->is_array())
-      return status(client, 2, "subscribe: expected an array 'subscriptions'");
-    for (const json& s : *it) {
-      if (!s.is_object() || !s.contains("id") || !s.contains("channelId") || !s["id"].is_number_unsigned() ||
-          !s["channelId"].is_number_unsigned() || s["id"].get<std::uint64_t>() > 0xffffffffu) {
-        status(client, 2,
-               "subscribe: each subscription needs an 'id' (uint32) and a 'channelId', got " +
-                   dump(s).substr(0, 200));
-        continue;
-      }
-      const auto sub = s["id"].get<std::uint32_t>();
-      const auto ch = s["channelId"].get<std::uint64_t>();
-      if (ch < 1 || ch > kChannelCount) {
-        status(client, 2,
-               "subscribe: unknown channel id " + std::to_string(ch) + " (this server advertised 1 to " +
-                   std::to_string(kChannelCount) + ")");
-        continue;
-      }
-      const auto channel = static_cast<std::uint32_t>(ch);
-      if (cl.subscriptions.count(sub)) {
-        status(client, 2, "subscribe: subscription id " + std::to_string(sub) + " is already in use");
-        continue;
-      }
-      if (std::any_of(cl.subscriptions.begin(), cl.subscriptions.end(),
-                      [&](const auto& kv) { return kv.second == channel; })) {
-        status(client, 2,
-               "subscribe: already subscribed to channel " + std::to_string(channel) + " (" +
-                   channels[channel - 1].topic + ")");
-        continue;
-      }
-      cl.subscriptions.emplace(sub, channel);
-      subscribers[channel].emplace_back(client, sub);
-      on_subscribed(client, sub, channel);
-    }
+  // One well-formed subscription: to a channel this server has, by an id not in use, once per channel.
+  void subscribe(ClientId client, Client& cl, std::uint32_t sub, std::uint64_t ch) {
+    if (ch < 1 || ch > kChannelCount)
+      return status(client, 2,
+                    "subscribe: unknown channel id " + std::to_string(ch) + " (this server advertised 1 to " +
+                        std::to_string(kChannelCount) + ")");
+    const auto channel = static_cast<std::uint32_t>(ch);
+    if (cl.subscriptions.count(sub))
+      return status(client, 2, "subscribe: subscription id " + std::to_string(sub) + " is already in use");
+    if (std::any_of(cl.subscriptions.begin(), cl.subscriptions.end(),
+                    [&](const auto& kv) { return kv.second == channel; }))
+      return status(client, 2,
+                    "subscribe: already subscribed to channel " + std::to_string(channel) + " (" +
+                        channels[channel - 1].topic + ")");
+    cl.subscriptions.emplace(sub, channel);
+    subscribers[channel].emplace_back(client, sub);
+    on_subscribed(client, sub, channel);
   }
 
-  void unsubscribe(ClientId client, Client& cl, const json& msg) {
-    const auto it = msg.find("subscriptionIds");
-    if (it == msg.end() || !it->is_array())
-      return status(client, 2, "unsubscribe: expected an array 'subscriptionIds'");
-    for (const json& s : *it) {
-      if (!s.is_number_unsigned() || s.get<std::uint64_t>() > 0xffffffffu) {
-        status(client, 2, "unsubscribe: a subscription id is a uint32, got " + dump(s).substr(0, 200));
-        continue;
-      }
-      const auto sub = s.get<std::uint32_t>();
-      const auto found = cl.subscriptions.find(sub);
-      if (found == cl.subscriptions.end()) {
-        status(client, 1, "unsubscribe: no subscription with id " + std::to_string(sub));
-        continue;
-      }
-      auto& subs = subscribers[found->second];
-      subs.erase(std::remove(subs.begin(), subs.end(), std::make_pair(client, sub)), subs.end());
-      cl.subscriptions.erase(found);
-    }
+  void unsubscribe(ClientId client, Client& cl, std::uint32_t sub) {
+    const auto found = cl.subscriptions.find(sub);
+    if (found == cl.subscriptions.end())
+      return status(client, 1, "unsubscribe: no subscription with id " + std::to_string(sub));
+    auto& subs = subscribers[found->second];
+    subs.erase(std::remove(subs.begin(), subs.end(), std::make_pair(client, sub)), subs.end());
+    cl.subscriptions.erase(found);
   }
 
   void on_open(ClientId client) {
@@ -229,23 +175,17 @@ struct FoxgloveServer::Impl {
     std::lock_guard<std::mutex> lock(mu);
     const auto cit = clients.find(client);
     if (cit == clients.end()) return;
-    if (binary)
-      return status(
-          client, 2,
-          "binary client messages are not supported: this server offers no capabilities (no clientPublish, "
-          "no services)");
-    if (!nesting_within(data, 16)) return status(client, 2, "a JSON message nested deeper than 16 levels");
-    const json msg = json::parse(data, nullptr, false);
-    if (msg.is_discarded())
-      return status(client, 2, "a message that is not JSON: " + std::string(data.substr(0, 100)));
-    if (!msg.is_object() || !msg.contains("op") || !msg["op"].is_string())
-      return status(client, 2, "expected a JSON object with a string 'op'");
-    const std::string op = msg["op"].get<std::string>();
-    if (op == "subscribe") return subscribe(client, cit->second, msg);
-    if (op == "unsubscribe") return unsubscribe(client, cit->second, msg);
-    status(client, 2,
-           "op '" + op.substr(0, 64) +
-               "' is not supported by this server (it supports subscribe and unsubscribe)");
+    // The op (foxglove_ops.hpp), then each entry in order: a status for each that is wrong.
+    const ClientOp op = parse_client_op(binary, data);
+    if (op.kind == ClientOp::Kind::kError) return status(client, 2, op.error);
+    for (const ClientOp::Entry& e : op.entries) {
+      if (!e.problem.empty())
+        status(client, 2, e.problem);
+      else if (op.kind == ClientOp::Kind::kSubscribe)
+        subscribe(client, cit->second, e.id, e.channel);
+      else
+        unsubscribe(client, cit->second, e.id);
+    }
   }
 
   void on_close(ClientId client) {

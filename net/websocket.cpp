@@ -1,8 +1,8 @@
-// WebSocketServer (websocket.hpp): the handshake's SHA-1 and base64, the HTTP request parser, the
-// frame parser and writer, and the I/O thread. Each connection is a Conn, owned by the I/O thread;
-// an open client also has a Shared part (its send queue and counters) that send() reaches under
-// the server's mutex. The I/O thread moves a Shared queue into its Conn's outbox under the mutex
-// and writes the outbox without it, so a sender waits at most for a few pointer moves.
+// WebSocketServer (websocket.hpp): the handshake's SHA-1 and base64, the frame writer, and the I/O
+// thread (the request's checks and the frame decoder are websocket_protocol.cpp's). Each connection is a
+// Conn, owned by the I/O thread; an open client also has a Shared part (its send queue and counters) that
+// send() reaches under the server's mutex. The I/O thread moves a Shared queue into its Conn's outbox under
+// the mutex and writes the outbox without it, so a sender waits at most for a few pointer moves.
 #include "net/websocket.hpp"
 
 #include <algorithm>
@@ -28,6 +28,7 @@
 
 #include "core/clock.hpp"
 #include "core/thread_name.hpp"
+#include "net/websocket_protocol.hpp"
 
 namespace augrig::net {
 
@@ -211,8 +212,7 @@ SharedBytes share_bytes(std::string_view text) {
 
 namespace {
 
-constexpr std::uint8_t kOpContinuation = 0x0, kOpText = 0x1, kOpBinary = 0x2, kOpClose = 0x8, kOpPing = 0x9,
-                       kOpPong = 0xa;
+constexpr std::uint8_t kOpText = 0x1, kOpBinary = 0x2, kOpClose = 0x8, kOpPong = 0xa;
 
 // One frame on its way out: its header and prefix inline, the body shared.
 struct OutMsg {
@@ -265,41 +265,6 @@ OutMsg close_frame(std::uint16_t code, std::string_view reason) {
   return make_frame(kOpClose, share_bytes(std::move(p)), {});
 }
 
-bool valid_close_code(std::uint32_t c) {
-  return (c >= 1000 && c <= 1003) || (c >= 1007 && c <= 1014) || (c >= 3000 && c <= 4999);
-}
-
-std::string lower(std::string_view s) {
-  std::string out(s);
-  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return out;
-}
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
-  return s;
-}
-
-// The comma-separated tokens of a header value, trimmed, empty ones left out.
-std::vector<std::string> tokens(std::string_view v) {
-  std::vector<std::string> out;
-  while (!v.empty()) {
-    const auto comma = v.find(',');
-    const std::string_view t = trim(v.substr(0, comma));
-    if (!t.empty()) out.emplace_back(t);
-    if (comma == std::string_view::npos) break;
-    v.remove_prefix(comma + 1);
-  }
-  return out;
-}
-
-bool has_token(std::string_view v, std::string_view token) {
-  for (const std::string& t : tokens(v))
-    if (lower(t) == token) return true;
-  return false;
-}
-
 std::string errno_text(int e) {
   char buf[256];
   return std::string(strerror_r(e, buf, sizeof buf));
@@ -344,10 +309,9 @@ struct Conn {
   ClientId id = 0;
   std::string peer;
   ConnState state = ConnState::kHandshake;
-  std::int64_t deadline_ns = 0;  // handshake, closing, finishing or draining: when to give up
-  std::string in;                // received bytes not yet parsed
-  bool frag_active = false, frag_binary = false;
-  std::string frag;  // the fragments of a message so far
+  std::int64_t deadline_ns = 0;        // handshake, closing, finishing or draining: when to give up
+  std::string in;                      // received bytes not yet parsed
+  std::optional<FrameDecoder> frames;  // once open
   std::deque<OutMsg> outbox;
   std::optional<std::string> pending_pong;
   std::int64_t last_progress_ns = 0;
@@ -476,106 +440,16 @@ struct WebSocketServer::Impl {
     ++totals.handshakes_refused;
   }
 
-  // Parses the request in c.in[0, end); answers it. True when the connection is now open.
+  // Answers the request in c.in[0, end) (websocket_protocol.hpp checks it). True when the
+  // connection is now open.
   bool handshake(Conn& c, std::size_t end) {
-    const std::string_view req(c.in.data(), end);
-    std::size_t line_end = req.find("\r\n");
-    const std::string_view request_line = req.substr(0, line_end);
-    const auto sp1 = request_line.find(' ');
-    const auto sp2 = sp1 == std::string_view::npos ? sp1 : request_line.find(' ', sp1 + 1);
-    if (sp2 == std::string_view::npos || request_line.find(' ', sp2 + 1) != std::string_view::npos) {
-      refuse(c, 400, "Bad Request", "a malformed request line: expected 'GET /path HTTP/1.1'");
+    const HandshakeVerdict v =
+        check_handshake(std::string_view(c.in.data(), end), opt.subprotocols, opt.server_header);
+    if (!v.accepted()) {
+      refuse(c, v.status, v.status_text, v.reason, v.extra_headers);
       return false;
     }
-    const std::string_view method = request_line.substr(0, sp1);
-    const std::string_view version = request_line.substr(sp2 + 1);
-    if (version != "HTTP/1.1") {
-      refuse(c, 400, "Bad Request",
-             "HTTP/1.1 is required for a WebSocket handshake, the request is " +
-                 std::string(version.substr(0, 32)));
-      return false;
-    }
-    if (method != "GET") {
-      refuse(c, 405, "Method Not Allowed",
-             "a WebSocket handshake is a GET request, not " + std::string(method.substr(0, 32)),
-             "Allow: GET\r\n");
-      return false;
-    }
-    std::map<std::string, std::string> headers;  // lower-case names; repeated headers joined by ", "
-    std::size_t pos = line_end + 2;
-    while (pos < req.size()) {
-      std::size_t e = req.find("\r\n", pos);
-      if (e == std::string_view::npos) e = req.size();
-      const std::string_view line = req.substr(pos, e - pos);
-      pos = e + 2;
-      const auto colon = line.find(':');
-      if (line.empty() || line.front() == ' ' || line.front() == '\t' || colon == std::string_view::npos ||
-          colon == 0 || trim(line.substr(0, colon)).size() != colon) {
-        refuse(c, 400, "Bad Request", "a malformed header line: '" + std::string(line.substr(0, 64)) + "'");
-        return false;
-      }
-      std::string& v = headers[lower(line.substr(0, colon))];
-      if (!v.empty()) v += ", ";
-      v += trim(line.substr(colon + 1));
-    }
-    auto header = [&](const char* name) -> const std::string* {
-      const auto it = headers.find(name);
-      return it == headers.end() ? nullptr : &it->second;
-    };
-    if (!header("host")) {
-      refuse(c, 400, "Bad Request", "no Host header (HTTP/1.1 requires one)");
-      return false;
-    }
-    const std::string* upgrade = header("upgrade");
-    if (!upgrade || !has_token(*upgrade, "websocket")) {
-      refuse(c, 426, "Upgrade Required",
-             "this is a WebSocket server (" + opt.server_header +
-                 "): connect with a WebSocket client, e.g. Foxglove, to ws://HOST:PORT",
-             "Upgrade: websocket\r\nConnection: Upgrade\r\n");
-      return false;
-    }
-    const std::string* connection = header("connection");
-    if (!connection || !has_token(*connection, "upgrade")) {
-      refuse(c, 400, "Bad Request", "the Connection header must include 'Upgrade'");
-      return false;
-    }
-    const std::string* ws_version = header("sec-websocket-version");
-    if (!ws_version || *ws_version != "13") {
-      refuse(c, 426, "Upgrade Required",
-             "Sec-WebSocket-Version must be 13 (RFC 6455), the request has " +
-                 (ws_version ? "'" + ws_version->substr(0, 32) + "'" : std::string("none")),
-             "Sec-WebSocket-Version: 13\r\n");
-      return false;
-    }
-    const std::string* key = header("sec-websocket-key");
-    if (!key) {
-      refuse(c, 400, "Bad Request", "no Sec-WebSocket-Key header");
-      return false;
-    }
-    if (auto k = base64_decode(*key); !k || k->size() != 16) {
-      refuse(c, 400, "Bad Request",
-             "Sec-WebSocket-Key must be 16 bytes in base64, got '" + key->substr(0, 64) + "'");
-      return false;
-    }
-    std::string subprotocol;
-    if (!opt.subprotocols.empty()) {
-      const std::string* asked = header("sec-websocket-protocol");
-      const std::vector<std::string> wanted = asked ? tokens(*asked) : std::vector<std::string>{};
-      for (const std::string& offered : opt.subprotocols)
-        if (std::find(wanted.begin(), wanted.end(), offered) != wanted.end()) {
-          subprotocol = offered;
-          break;
-        }
-      if (subprotocol.empty()) {
-        std::string list;
-        for (const std::string& s : opt.subprotocols) list += (list.empty() ? "" : ", ") + s;
-        refuse(c, 400, "Bad Request",
-               "no subprotocol this server speaks: it offers " + list + "; the request asks for " +
-                   (asked ? "'" + asked->substr(0, 128) + "'" : std::string("none")) +
-                   " (Sec-WebSocket-Protocol)");
-        return false;
-      }
-    }
+    const std::string& subprotocol = v.subprotocol;
     std::shared_ptr<Shared> shared;
     {
       std::lock_guard<std::mutex> lock(mu);
@@ -597,13 +471,14 @@ struct WebSocketServer::Impl {
     }
     std::string r =
         "HTTP/1.1 101 Switching Protocols\r\nServer: " + opt.server_header +
-        "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: " + websocket_accept(*key) +
+        "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: " + websocket_accept(v.key) +
         "\r\n";
     if (!subprotocol.empty()) r += "Sec-WebSocket-Protocol: " + subprotocol + "\r\n";
     r += "\r\n";
     c.outbox.push_back(raw_bytes(r));
     c.shared = std::move(shared);
     c.state = ConnState::kOpen;
+    c.frames.emplace(opt.max_message_bytes);
     c.opened = true;
     c.last_progress_ns = monotonic_now_ns();
     c.in.erase(0, end + 4);
@@ -626,26 +501,8 @@ struct WebSocketServer::Impl {
     if (handler.on_message) handler.on_message(c.id, binary, data);
   }
 
-  void on_close_frame(Conn& c, std::string_view payload) {
-    std::uint16_t code = kCloseNoStatus;
-    std::string reason;
-    if (payload.size() == 1) {
-      protocol_error(c, kCloseProtocolError, "a close frame of 1 byte");
-      return;
-    }
-    if (payload.size() >= 2) {
-      code = static_cast<std::uint16_t>((static_cast<unsigned char>(payload[0]) << 8) |
-                                        static_cast<unsigned char>(payload[1]));
-      reason = std::string(payload.substr(2));
-      if (!valid_close_code(code)) {
-        protocol_error(c, kCloseProtocolError, "a close frame with the invalid code " + std::to_string(code));
-        return;
-      }
-      if (!valid_utf8(reason)) {
-        protocol_error(c, kCloseInvalidData, "a close frame whose reason is not valid UTF-8");
-        return;
-      }
-    }
+  // The client's close frame (checked by the decoder): `code` kCloseNoStatus when it had none.
+  void on_close_frame(Conn& c, std::uint16_t code, const std::string& reason) {
     if (c.state == ConnState::kOpen) {
       // Their close first: ours echoes the code, then the server ends the TCP connection (RFC 6455 7.1.1).
       report_close(c, CloseInfo{code, reason, false});
@@ -656,82 +513,23 @@ struct WebSocketServer::Impl {
     c.deadline_ns = monotonic_now_ns() + std::int64_t{opt.close_timeout_ms} * 1'000'000;
   }
 
-  // Parses the frames in c.in; stops at an incomplete one.
+  // Acts on the complete frames in c.in (websocket_protocol.hpp decodes them); stops at an
+  // incomplete one, a close frame or a protocol error.
   void parse_frames(Conn& c) {
     std::size_t pos = 0;
-    while (c.state == ConnState::kOpen || c.state == ConnState::kClosing) {
-      const std::size_t avail = c.in.size() - pos;
-      if (avail < 2) break;
-      const auto* p = reinterpret_cast<const std::uint8_t*>(c.in.data() + pos);
-      const bool fin = p[0] & 0x80;
-      const std::uint8_t opcode = p[0] & 0x0f;
-      const bool masked = p[1] & 0x80;
-      const std::uint8_t len7 = p[1] & 0x7f;
-      // What the first two bytes decide is decided before waiting for the rest.
-      if (p[0] & 0x70)
-        return protocol_error(c, kCloseProtocolError,
-                              "a frame with reserved bits set (no extension was negotiated)");
-      if (!masked) return protocol_error(c, kCloseProtocolError, "an unmasked client frame");
-      const bool control = opcode & 0x8;
-      if (opcode != kOpContinuation && opcode != kOpText && opcode != kOpBinary && opcode != kOpClose &&
-          opcode != kOpPing && opcode != kOpPong)
-        return protocol_error(c, kCloseProtocolError,
-                              "a frame with the unknown opcode " + std::to_string(opcode));
-      if (control && !fin) return protocol_error(c, kCloseProtocolError, "a fragmented control frame");
-      if (control && len7 > 125)
-        return protocol_error(c, kCloseProtocolError, "a control frame longer than 125 bytes");
-      if (opcode == kOpContinuation && !c.frag_active)
-        return protocol_error(c, kCloseProtocolError, "a continuation frame without a message to continue");
-      if ((opcode == kOpText || opcode == kOpBinary) && c.frag_active)
-        return protocol_error(c, kCloseProtocolError,
-                              "a new message before the last fragment of the previous one");
-      const std::size_t ext = len7 == 126 ? 2 : len7 == 127 ? 8 : 0;
-      const std::size_t header_len = 2 + ext + 4;
-      if (avail < header_len) break;
-      std::uint64_t len = len7;
-      if (ext) {
-        len = 0;
-        for (std::size_t k = 0; k < ext; ++k) len = (len << 8) | p[2 + k];
-        if (len7 == 127 && (len >> 63))
-          return protocol_error(c, kCloseProtocolError, "a frame length with its most significant bit set");
-      }
-      const std::uint64_t total = (opcode == kOpContinuation ? c.frag.size() : 0) + len;
-      if (!control && total > opt.max_message_bytes)
-        return protocol_error(c, kCloseTooBig,
-                              "a message of " + std::to_string(total) +
-                                  " bytes or more, beyond this server's limit of " +
-                                  std::to_string(opt.max_message_bytes));
-      if (avail - header_len < len) break;
-      const std::uint8_t* mask = p + 2 + ext;
-      char* payload = c.in.data() + pos + header_len;
-      for (std::size_t k = 0; k < len; ++k) payload[k] = static_cast<char>(payload[k] ^ mask[k & 3]);
-      const std::string_view data(payload, static_cast<std::size_t>(len));
-      pos += header_len + static_cast<std::size_t>(len);
-      if (opcode == kOpClose) {
-        on_close_frame(c, data);
+    while (c.frames && (c.state == ConnState::kOpen || c.state == ConnState::kClosing)) {
+      const FrameStep f =
+          c.frames->next(std::span<char>(c.in.data() + pos, c.in.size() - pos), c.state == ConnState::kOpen);
+      if (f.kind == FrameStep::Kind::kNeedMore) break;
+      if (f.kind == FrameStep::Kind::kError) return protocol_error(c, f.code, f.reason);
+      pos += f.consumed;
+      if (f.kind == FrameStep::Kind::kClose) {
+        on_close_frame(c, f.code, f.reason);
         break;
       }
-      if (opcode == kOpPing) {
-        if (c.state == ConnState::kOpen) c.pending_pong = std::string(data);
-        continue;
-      }
-      if (opcode == kOpPong) continue;
-      if (c.state != ConnState::kOpen) continue;  // closing: data is no longer delivered
-      if (opcode != kOpContinuation && fin) {
-        deliver(c, opcode == kOpBinary, data);
-      } else if (opcode != kOpContinuation) {
-        c.frag_active = true;
-        c.frag_binary = opcode == kOpBinary;
-        c.frag.assign(data);
-      } else {
-        c.frag.append(data);
-        if (fin) {
-          c.frag_active = false;
-          std::string whole = std::move(c.frag);
-          c.frag.clear();
-          deliver(c, c.frag_binary, whole);
-        }
-      }
+      if (f.kind == FrameStep::Kind::kPing && c.state == ConnState::kOpen)
+        c.pending_pong = std::string(f.data);
+      if (f.kind == FrameStep::Kind::kMessage) deliver(c, f.binary, f.data);
     }
     if (c.state == ConnState::kOpen || c.state == ConnState::kClosing)
       c.in.erase(0, pos);

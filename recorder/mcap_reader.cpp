@@ -14,6 +14,7 @@ namespace {
 // Largest uncompressed chunk accepted: far above what any writer makes (ours: about 4 MiB, or one
 // image), low enough that a damaged size field cannot ask for all the memory there is.
 constexpr std::uint64_t kMaxChunkBytes = 1ull << 32;
+constexpr std::uint64_t kZstdBlockMaxBytes = 128 * 1024;  // ZSTD_BLOCKSIZE_MAX
 constexpr std::uint64_t kFooterRecordBytes = 1 + 8 + 20;
 
 // Reads fields off a byte range; any read past its end clears ok and returns zeros.
@@ -33,7 +34,8 @@ struct Cursor {
   std::uint64_t le(int k) {
     if (!need(static_cast<std::size_t>(k))) return 0;
     std::uint64_t v = 0;
-    for (int b = 0; b < k; ++b) v |= static_cast<std::uint64_t>(p[i + static_cast<std::size_t>(b)]) << (8 * b);
+    for (int b = 0; b < k; ++b)
+      v |= static_cast<std::uint64_t>(p[i + static_cast<std::size_t>(b)]) << (8 * b);
     i += static_cast<std::size_t>(k);
     return v;
   }
@@ -97,21 +99,36 @@ McapChannelInfo parse_channel(Cursor& c) {
 
 const char* op_name(std::uint8_t op) {
   switch (static_cast<McapOp>(op)) {
-    case McapOp::kHeader: return "Header";
-    case McapOp::kFooter: return "Footer";
-    case McapOp::kSchema: return "Schema";
-    case McapOp::kChannel: return "Channel";
-    case McapOp::kMessage: return "Message";
-    case McapOp::kChunk: return "Chunk";
-    case McapOp::kMessageIndex: return "Message Index";
-    case McapOp::kChunkIndex: return "Chunk Index";
-    case McapOp::kAttachment: return "Attachment";
-    case McapOp::kAttachmentIndex: return "Attachment Index";
-    case McapOp::kStatistics: return "Statistics";
-    case McapOp::kMetadata: return "Metadata";
-    case McapOp::kMetadataIndex: return "Metadata Index";
-    case McapOp::kSummaryOffset: return "Summary Offset";
-    case McapOp::kDataEnd: return "Data End";
+    case McapOp::kHeader:
+      return "Header";
+    case McapOp::kFooter:
+      return "Footer";
+    case McapOp::kSchema:
+      return "Schema";
+    case McapOp::kChannel:
+      return "Channel";
+    case McapOp::kMessage:
+      return "Message";
+    case McapOp::kChunk:
+      return "Chunk";
+    case McapOp::kMessageIndex:
+      return "Message Index";
+    case McapOp::kChunkIndex:
+      return "Chunk Index";
+    case McapOp::kAttachment:
+      return "Attachment";
+    case McapOp::kAttachmentIndex:
+      return "Attachment Index";
+    case McapOp::kStatistics:
+      return "Statistics";
+    case McapOp::kMetadata:
+      return "Metadata";
+    case McapOp::kMetadataIndex:
+      return "Metadata Index";
+    case McapOp::kSummaryOffset:
+      return "Summary Offset";
+    case McapOp::kDataEnd:
+      return "Data End";
   }
   return "unknown";
 }
@@ -163,7 +180,8 @@ Expected<std::unique_ptr<McapReader>> McapReader::open(const std::string& path) 
   const std::uint8_t hop = hc.u8();
   const std::uint64_t hlen = hc.u64();
   if (hop != static_cast<std::uint8_t>(McapOp::kHeader) || hlen > r->size_ - 17)
-    return r->error_at(8, "expected the Header record, found " + op_text(hop) + " of " + std::to_string(hlen) + " bytes");
+    return r->error_at(
+        8, "expected the Header record, found " + op_text(hop) + " of " + std::to_string(hlen) + " bytes");
   if (Status s = r->read_at(17, hlen, b); !s) return s.error();
   Cursor h{b.data(), b.size()};
   r->summary_.profile = h.str();
@@ -178,14 +196,15 @@ Expected<std::unique_ptr<McapReader>> McapReader::open(const std::string& path) 
   const std::uint8_t fop = f.u8();
   const std::uint64_t flen = f.u64();
   if (fop != static_cast<std::uint8_t>(McapOp::kFooter) || flen != 20)
-    return r->error_at(footer_at, "expected the Footer record (op 0x02, 20 bytes), found " + op_text(fop) + " of " +
-                                      std::to_string(flen) + " bytes");
+    return r->error_at(footer_at, "expected the Footer record (op 0x02, 20 bytes), found " + op_text(fop) +
+                                      " of " + std::to_string(flen) + " bytes");
   McapSummary& sum = r->summary_;
   sum.summary_start = f.u64();
   sum.summary_offset_start = f.u64();
   const std::uint32_t summary_crc = f.u32();
   if (sum.summary_start != 0 && (sum.summary_start < r->data_start_ || sum.summary_start > footer_at))
-    return r->error_at(footer_at, "Footer: summary_start " + std::to_string(sum.summary_start) + " lies outside the file");
+    return r->error_at(
+        footer_at, "Footer: summary_start " + std::to_string(sum.summary_start) + " lies outside the file");
   if (sum.summary_offset_start != 0 &&
       (sum.summary_offset_start < sum.summary_start || sum.summary_offset_start > footer_at))
     return r->error_at(footer_at, "Footer: summary_offset_start " + std::to_string(sum.summary_offset_start) +
@@ -199,17 +218,19 @@ Expected<std::unique_ptr<McapReader>> McapReader::open(const std::string& path) 
       std::uint32_t crc = mcap_crc32(0, s.data(), s.size());
       crc = mcap_crc32(crc, b.data(), 1 + 8 + 16);  // the footer up to its CRC field
       if (crc != summary_crc)
-        return r->error_at(sum.summary_start, "summary CRC mismatch (footer says " + std::to_string(summary_crc) +
-                                                  ", the bytes give " + std::to_string(crc) + ")");
+        return r->error_at(sum.summary_start, "summary CRC mismatch (footer says " +
+                                                  std::to_string(summary_crc) + ", the bytes give " +
+                                                  std::to_string(crc) + ")");
     }
-    const std::size_t end =
-        static_cast<std::size_t>((sum.summary_offset_start ? sum.summary_offset_start : footer_at) - sum.summary_start);
+    const std::size_t end = static_cast<std::size_t>(
+        (sum.summary_offset_start ? sum.summary_offset_start : footer_at) - sum.summary_start);
     Cursor c{s.data(), end};
     while (c.i < c.n) {
       const std::uint64_t at = sum.summary_start + c.i;
       const std::uint8_t op = c.u8();
       const std::uint64_t len = c.u64();
-      if (!c.ok || len > c.n - c.i) return r->error_at(at, op_text(op) + " in the summary runs past the summary");
+      if (!c.ok || len > c.n - c.i)
+        return r->error_at(at, op_text(op) + " in the summary runs past the summary");
       Cursor rc{s.data() + c.i, static_cast<std::size_t>(len)};
       switch (static_cast<McapOp>(op)) {
         case McapOp::kSchema: {
@@ -294,7 +315,8 @@ Expected<std::optional<std::map<std::string, std::string>>> McapReader::metadata
     return error_at(it->second, "the Metadata Index of '" + name + "' points at a " + op_text(op));
   if (Status s = read_at(it->second + 9, len, b); !s) return s.error();
   Cursor c{b.data(), b.size()};
-  if (c.str() != name || !c.ok) return error_at(it->second, "Metadata record: not the one named '" + name + "'");
+  if (c.str() != name || !c.ok)
+    return error_at(it->second, "Metadata record: not the one named '" + name + "'");
   auto m = c.string_map();
   if (!c.ok) return error_at(it->second, "Metadata record '" + name + "': fields run past its length");
   return std::optional<std::map<std::string, std::string>>(std::move(m));
@@ -319,20 +341,26 @@ Expected<bool> McapReader::next(McapMessage& out) {
         out.log_time_ns = rc.u64();
         out.publish_time_ns = rc.u64();
         if (!rc.ok)
-          return error_at(chunk_offset_, "Chunk: Message record at offset " + std::to_string(at) + " is too short");
+          return error_at(chunk_offset_,
+                          "Chunk: Message record at offset " + std::to_string(at) + " is too short");
         if (!channels_.count(out.channel_id))
           return error_at(chunk_offset_, "Chunk: Message at offset " + std::to_string(at) + " on channel " +
-                                             std::to_string(out.channel_id) + ", which no Channel record defines");
+                                             std::to_string(out.channel_id) +
+                                             ", which no Channel record defines");
         out.data.assign(rc.p + rc.i, rc.p + rc.n);
         return true;
       }
       if (op == static_cast<std::uint8_t>(McapOp::kSchema)) {
         McapSchemaInfo s = parse_schema(rc);
-        if (!rc.ok) return error_at(chunk_offset_, "Chunk: Schema record at offset " + std::to_string(at) + " is damaged");
+        if (!rc.ok)
+          return error_at(chunk_offset_,
+                          "Chunk: Schema record at offset " + std::to_string(at) + " is damaged");
         schemas_[s.id] = s;
       } else if (op == static_cast<std::uint8_t>(McapOp::kChannel)) {
         McapChannelInfo ch = parse_channel(rc);
-        if (!rc.ok) return error_at(chunk_offset_, "Chunk: Channel record at offset " + std::to_string(at) + " is damaged");
+        if (!rc.ok)
+          return error_at(chunk_offset_,
+                          "Chunk: Channel record at offset " + std::to_string(at) + " is damaged");
         channels_[ch.id] = ch;
       }
       continue;
@@ -346,8 +374,9 @@ Expected<bool> McapReader::next(McapMessage& out) {
     const std::uint64_t len = h.u64();
     if (op == 0) return error_at(at, "opcode 0 is not a record: the data section is damaged");
     if (len > data_end_ - at - 9)
-      return error_at(at, op_text(op) + " of " + std::to_string(len) + " bytes runs past the data section (ends at " +
-                              std::to_string(data_end_) + ")");
+      return error_at(at, op_text(op) + " of " + std::to_string(len) +
+                              " bytes runs past the data section (ends at " + std::to_string(data_end_) +
+                              ")");
     pos_ = at + 9 + len;
     switch (static_cast<McapOp>(op)) {
       case McapOp::kDataEnd:
@@ -366,9 +395,18 @@ Expected<bool> McapReader::next(McapMessage& out) {
           return error_at(at, "Chunk: its records (" + std::to_string(csize) + " bytes) run past the record");
         if (usize > kMaxChunkBytes)
           return error_at(at, "Chunk: uncompressed size " + std::to_string(usize) + " bytes is implausible");
+        // Said before anything is allocated: stored records are as long as the uncompressed ones, and
+        // no zstd data gives more than one block (128 KiB) per 4 bytes (a block's header and a byte).
+        if (compression.empty() && csize != usize)
+          return error_at(at, "Chunk: uncompressed, but its sizes differ");
+        if (compression == "zstd" && usize > (csize / 4 + 1) * kZstdBlockMaxBytes)
+          return error_at(at, "Chunk: uncompressed size " + std::to_string(usize) +
+                                  " bytes is more than its " + std::to_string(csize) +
+                                  " bytes of zstd data can give");
         chunk_.resize(static_cast<std::size_t>(usize));
         if (compression == "zstd") {
-          const std::size_t got = ZSTD_decompress(chunk_.data(), chunk_.size(), c.p + c.i, static_cast<std::size_t>(csize));
+          const std::size_t got =
+              ZSTD_decompress(chunk_.data(), chunk_.size(), c.p + c.i, static_cast<std::size_t>(csize));
           if (ZSTD_isError(got)) {
             chunk_.clear();
             return error_at(at, std::string("Chunk: zstd: ") + ZSTD_getErrorName(got));
@@ -379,7 +417,6 @@ Expected<bool> McapReader::next(McapMessage& out) {
                                     std::to_string(usize));
           }
         } else if (compression.empty()) {
-          if (csize != usize) return error_at(at, "Chunk: uncompressed, but its sizes differ");
           std::memcpy(chunk_.data(), c.p + c.i, static_cast<std::size_t>(usize));
         } else {
           chunk_.clear();

@@ -3,6 +3,8 @@
 // statistics; any truncation or flipped byte of a file is an Error (or, for bytes no check covers,
 // a file that still reads), never a crash; images, poses and statistics through CDR bit for bit.
 // The independent readers from npm check the same files in tests/app/cmd_export_mcap_test.cpp.
+#include "recorder/mcap_writer.hpp"
+
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -13,7 +15,6 @@
 #include <gtest/gtest.h>
 
 #include "recorder/mcap_reader.hpp"
-#include "recorder/mcap_writer.hpp"
 #include "ros2/messages.hpp"
 #include "tests/support/test_support.hpp"
 
@@ -47,7 +48,8 @@ std::vector<std::uint8_t> bytes_of(const std::string& path) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 void write_bytes(const std::string& path, const std::vector<std::uint8_t>& b) {
-  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
 }
 
 // Opens and reads every message; the first Error, or "" when the file read to its Data End.
@@ -115,7 +117,8 @@ TEST(McapReader, TruncatedOrFlippedBytesAreErrorsNeverCrashes) {
   // About 300 cuts and 300 flips spread over the file (each one a file written and read).
   const std::size_t step = good.size() / 300 + 1;
   for (std::size_t len = 0; len < good.size(); len += step) {
-    write_bytes(bad, std::vector<std::uint8_t>(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(len)));
+    write_bytes(bad,
+                std::vector<std::uint8_t>(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(len)));
     const std::string e = read_all(bad);
     EXPECT_NE(e.find(bad), std::string::npos) << len << ": " << e;
   }
@@ -139,6 +142,34 @@ TEST(McapReader, TruncatedOrFlippedBytesAreErrorsNeverCrashes) {
   EXPECT_NE(read_all(bad).find(bad + ": offset 0: not an MCAP file: bad magic"), std::string::npos);
 }
 
+// A chunk that says it holds 1 GiB of records in a few hundred bytes of zstd data (found by
+// fuzz_mcap: the reader allocated the gigabyte, then zstd failed) is refused before anything is
+// allocated: no zstd data gives more than 128 KiB per 4 bytes.
+TEST(McapReader, AChunkClaimingMoreThanItsBytesCanGiveIsRefused) {
+  const std::string dir = test::output_dir("mcap_reader_chunk_size");
+  std::vector<std::uint8_t> b = bytes_of(write_sample(dir + "/good.mcap"));
+  std::size_t at = 8;  // the records after the magic: the first Chunk (opcode 0x06)
+  auto u64 = [&](std::size_t p) {
+    std::uint64_t v = 0;
+    for (int k = 7; k >= 0; --k) v = (v << 8) | b[p + static_cast<std::size_t>(k)];
+    return v;
+  };
+  while (at + 9 < b.size() && b[at] != 0x06) at += 9 + static_cast<std::size_t>(u64(at + 1));
+  ASSERT_LT(at + 9 + 24, b.size());
+  const std::size_t usize_at = at + 9 + 16;  // after the message start and end times
+  EXPECT_LT(u64(usize_at), 4096u);
+  const std::uint64_t gib = 1ull << 30;
+  for (int k = 0; k < 8; ++k)
+    b[usize_at + static_cast<std::size_t>(k)] = static_cast<std::uint8_t>(gib >> (8 * k));
+  write_bytes(dir + "/claims.mcap", b);
+  const std::string e = read_all(dir + "/claims.mcap");
+  EXPECT_NE(e.find(dir + "/claims.mcap: offset " + std::to_string(at) +
+                   ": Chunk: uncompressed size 1073741824 bytes is more than its "),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find(" bytes of zstd data can give"), std::string::npos) << e;
+}
+
 TEST(Ros2Cdr, ImagesPosesAndStatisticsRoundTripBitForBit) {
   Image im(6, 4, PixelFormat::kBayerGR8);
   for (int y = 0; y < 4; ++y)
@@ -158,7 +189,8 @@ TEST(Ros2Cdr, ImagesPosesAndStatisticsRoundTripBitForBit) {
   EXPECT_EQ(ros2::image_encoding(PixelFormat::kBayerBG8), "bayer_bggr8");
   // Truncated messages are errors.
   for (std::size_t len = 0; len < msg.size(); ++len)
-    EXPECT_FALSE(ros2::decode_image(std::vector<std::uint8_t>(msg.begin(), msg.begin() + static_cast<std::ptrdiff_t>(len))));
+    EXPECT_FALSE(ros2::decode_image(
+        std::vector<std::uint8_t>(msg.begin(), msg.begin() + static_cast<std::ptrdiff_t>(len))));
 
   const Pose p = pose_from_ypr(Eigen::Vector3d(0.1, -2.3, 45.6), 0.3, -0.2, 0.1);
   auto pose = ros2::decode_pose_with_covariance(ros2::pose_with_covariance(5, "left_camera", p, {}));
