@@ -417,7 +417,8 @@ Expected<bool> McapReader::next(McapMessage& out) {
                                     std::to_string(usize));
           }
         } else if (compression.empty()) {
-          std::memcpy(chunk_.data(), c.p + c.i, static_cast<std::size_t>(usize));
+          if (usize)
+            std::memcpy(chunk_.data(), c.p + c.i, static_cast<std::size_t>(usize));  // none: no buffer
         } else {
           chunk_.clear();
           return error_at(at, "Chunk: compression '" + compression + "' is not supported (zstd or none)");

@@ -168,6 +168,18 @@ TEST(McapReader, AChunkClaimingMoreThanItsBytesCanGiveIsRefused) {
             std::string::npos)
       << e;
   EXPECT_NE(e.find(" bytes of zstd data can give"), std::string::npos) << e;
+  // An empty chunk stored without compression (also found by fuzz_mcap: the reader copied 0 bytes
+  // from a buffer that was never allocated, which UBSan stops) reads as no records.
+  std::size_t p = usize_at;
+  auto put64 = [&](std::uint64_t v) {
+    for (int k = 0; k < 8; ++k) b[p++] = static_cast<std::uint8_t>(v >> (8 * k));
+  };
+  put64(0);                                // uncompressed size
+  for (int k = 0; k < 8; ++k) b[p++] = 0;  // CRC 0 (none), compression "" (length 0)
+  put64(0);                                // the records: none (the rest of the record is left over)
+  write_bytes(dir + "/empty.mcap", b);
+  const std::string empty = read_all(dir + "/empty.mcap");
+  EXPECT_EQ(empty.find("Chunk: uncompressed"), std::string::npos) << empty;
 }
 
 TEST(Ros2Cdr, ImagesPosesAndStatisticsRoundTripBitForBit) {
