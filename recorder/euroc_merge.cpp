@@ -158,7 +158,7 @@ Status join_states(const PartFiles& f, const fs::path& to) {
   return write_text(to, csv);
 }
 
-// OUT/phases.csv: each phase once, its seconds from the whole's first statistics row.
+// OUT/phases.csv: each change of phase once, its seconds from the whole's first statistics row.
 Expected<std::vector<PhaseEvent>> join_phases(const PartFiles& f, const fs::path& out, TimestampNs t0_ns) {
   std::vector<PhaseEvent> phases;
   for (const fs::path& p : f.paths) {
@@ -176,6 +176,10 @@ Expected<std::vector<PhaseEvent>> join_phases(const PartFiles& f, const fs::path
   }
   std::stable_sort(phases.begin(), phases.end(),
                    [](const PhaseEvent& a, const PhaseEvent& b) { return a.t_ns < b.t_ns; });
+  // A shard opens with the phase it starts in; where that goes on from the part before, it is no change.
+  phases.erase(std::unique(phases.begin(), phases.end(),
+                           [](const PhaseEvent& a, const PhaseEvent& b) { return a.name == b.name; }),
+               phases.end());
   std::string csv = "#t_ns,t_s,phase\n";
   for (const PhaseEvent& ph : phases) {
     char t_s[32];

@@ -77,7 +77,8 @@ struct MergeEurocTest : ::testing::Test {
     a = (dir / "a").string();
     b = (dir / "b").string();
     write_part(a, {100, 200}, "100,0.000000,approach\n");
-    write_part(b, {300, 400}, "100,-0.000000,approach\n350,0.000000,contact\n");
+    // b opens with the phase it starts in, as a shard's export does: no change at 300.
+    write_part(b, {300, 400}, "300,0.000000,approach\n350,0.000000,contact\n");
   }
 };
 
@@ -115,7 +116,7 @@ TEST_F(MergeEurocTest, JoinsTablesLinksImagesAndRemakesWhatSpansTheJoin) {
   ASSERT_EQ(rows.size(), 4u);
   EXPECT_EQ(rows[1], "200,2,0,0,1,0,0,0,1e+07,0,0,0,0,0,0,0,0");
   EXPECT_EQ(rows[2], "300,3,0,0,1,0,0,0,1e+07,0,0,0,0,0,0,0,0");
-  // The phases: "approach" once, seconds from the whole's first row (t = 100).
+  // The phases: each change once ("approach" not again at b's start), seconds from the whole's first row (t = 100).
   EXPECT_EQ(read(dir / "m/phases.csv"), "#t_ns,t_s,phase\n100,0.000000,approach\n350,0.000000,contact\n");
 }
 
