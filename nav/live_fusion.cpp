@@ -13,11 +13,17 @@ LiveFusion::~LiveFusion() = default;
 
 void LiveFusion::add_imu(const ImuSample& sample) {
   std::lock_guard lock(mutex_);
+  const TimestampNs t_prev_ns = engine_->imu_end_ns();
   if (Status s = engine_->append_imu(sample); !s) {
     ++status_.imu_refused;
     status_.last_error = s.error().message;
     return;
   }
+  // A silence in the stream stays known after it ends (data_before()).
+  const TimestampNs t_ns = engine_->imu_end_ns();
+  if (t_prev_ns != 0 && t_ns - t_prev_ns > kImuGapNs) imu_gaps_.emplace_back(t_prev_ns, t_ns);
+  const TimestampNs forget_before = t_ns - s_to_ns(options_.history_s);
+  while (!imu_gaps_.empty() && imu_gaps_.front().second < forget_before) imu_gaps_.pop_front();
   run_filter();
 }
 
@@ -30,8 +36,12 @@ void LiveFusion::add_fix(const GpsFix& fix) {
     status_.last_error = s.error().message;
     return;
   }
-  if (fix.quality != FixQuality::kInvalid && fix.quality != FixQuality::kDeadReckoning)
+  if (fix.quality != FixQuality::kInvalid && fix.quality != FixQuality::kDeadReckoning) {
     status_.t_valid_fix_ns = status_.t_fix_ns;
+    valid_fix_ns_.push_back(status_.t_fix_ns);
+    const TimestampNs forget_before = status_.t_fix_ns - s_to_ns(options_.history_s);
+    while (valid_fix_ns_.size() > 1 && valid_fix_ns_[1] <= forget_before) valid_fix_ns_.pop_front();
+  }
   run_filter();
 }
 
@@ -84,6 +94,23 @@ LiveFusionStatus LiveFusion::status() const {
   s.buffered_imu = engine_->buffered_imu();
   s.buffered_epochs = engine_->buffered_epochs();
   return s;
+}
+
+LiveFusionDataAt LiveFusion::data_before(TimestampNs t_ns) const {
+  std::lock_guard lock(mutex_);
+  LiveFusionDataAt d;
+  // The newest valid fix at or before t (fixes arrive in order of their time of validity).
+  const auto fix = std::upper_bound(valid_fix_ns_.begin(), valid_fix_ns_.end(), t_ns);
+  if (fix != valid_fix_ns_.begin()) d.t_valid_fix_ns = *std::prev(fix);
+  // The IMU: the newest sample if t is past it; inside a gap, the sample that opened it; else t
+  // itself (the samples around t are spaced less than a gap).
+  const TimestampNs t_end_ns = engine_->imu_end_ns();
+  if (t_end_ns == 0) return d;
+  d.t_imu_ns = std::min(t_ns, t_end_ns);
+  const auto gap = std::upper_bound(imu_gaps_.begin(), imu_gaps_.end(), t_ns,
+                                    [](TimestampNs t, const auto& g) { return t < g.second; });
+  if (gap != imu_gaps_.end() && gap->first < t_ns) d.t_imu_ns = gap->first;
+  return d;
 }
 
 }  // namespace augrig::nav

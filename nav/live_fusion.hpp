@@ -10,14 +10,19 @@
 //                      increments to t (the covariance propagated with it); a little past the
 //                      newest IMU sample the last rates are held (max_extrapolation_s). Frames
 //                      usually lie between the filter's time and the newest IMU sample.
+//   data_before(t)     the newest IMU sample and valid fix at or before t: what at(t) rests on,
+//                      however late it is asked (a frame handled a second late inside a gap is
+//                      still in the gap, though data after it have come since).
 //   status()           what a display needs to say whether to trust it: the newest fix's age and
 //                      quality, the newest IMU sample, counts of what was used and refused.
 // Memory stays bounded: epochs and IMU increments older than history_s are forgotten.
 #pragma once
 
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <utility>
 
 #include "core/conventions.hpp"
 #include "core/expected.hpp"
@@ -59,6 +64,12 @@ struct LiveFusionStatus {
   std::string last_error;  // the latest refused sample, in words
 };
 
+// The newest data at or before a time (nav clock; 0: none kept).
+struct LiveFusionDataAt {
+  TimestampNs t_imu_ns = 0;        // the IMU sample
+  TimestampNs t_valid_fix_ns = 0;  // the valid fix
+};
+
 class LiveFusion {
  public:
   explicit LiveFusion(const InsConfig& config, const LiveFusionOptions& options = {});
@@ -74,6 +85,8 @@ class LiveFusion {
   // t more than max_extrapolation_s past the newest IMU sample.
   Expected<NavState> at(TimestampNs t_ns) const;
   LiveFusionStatus status() const;
+  // Kept for history_s behind the newest sample; older times get the oldest kept (or 0).
+  LiveFusionDataAt data_before(TimestampNs t_ns) const;
   const InsConfig& config() const { return config_; }
 
  private:
@@ -84,6 +97,11 @@ class LiveFusion {
   mutable std::mutex mutex_;
   std::unique_ptr<FusionEngine> engine_;
   LiveFusionStatus status_;
+  // For data_before(): the valid fixes' times, and the IMU stream's gaps (previous sample, next
+  // sample) longer than kImuGapNs; both forgotten after history_s.
+  static constexpr TimestampNs kImuGapNs = 50'000'000;
+  std::deque<TimestampNs> valid_fix_ns_;
+  std::deque<std::pair<TimestampNs, TimestampNs>> imu_gaps_;
 };
 
 }  // namespace augrig::nav

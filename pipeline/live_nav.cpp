@@ -94,8 +94,11 @@ FrameNav LiveNav::at(int camera, TimestampNs t_nav_ns) const {
       continue;
     }
     state[a] = *s;
-    const double fix_age = ns_to_s(t_nav_ns - st[a].t_valid_fix_ns);
-    const double imu_age = ns_to_s(t_nav_ns - st[a].t_imu_ns);
+    // The ages of the data the pose at t rests on, not of the newest: a frame handled late, after a
+    // silence ended, was still taken in it.
+    const nav::LiveFusionDataAt d = fusion_[a]->data_before(t_nav_ns);
+    const double fix_age = ns_to_s(t_nav_ns - (d.t_valid_fix_ns ? d.t_valid_fix_ns : st[a].t_valid_fix_ns));
+    const double imu_age = ns_to_s(t_nav_ns - (d.t_imu_ns ? d.t_imu_ns : st[a].t_imu_ns));
     age_s = std::max(age_s, fix_age);
     if (st[a].fix_quality == nav::FixQuality::kInvalid ||
         st[a].fix_quality == nav::FixQuality::kDeadReckoning) {

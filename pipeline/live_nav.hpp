@@ -3,8 +3,9 @@
 // per aircraft. Each camera frame then asks for the receiver relative to that camera at its
 // mid-exposure time on the nav clock (GPS time), and gets, with the pose, a verdict in plain words:
 //   no pose   a filter not initialised yet, or the frame too far past the newest IMU sample;
-//   stale     the newest valid fix of either aircraft, or its newest IMU sample, older than
-//             stale_after_s at the frame's time (the pose is dead-reckoned or extrapolated);
+//   stale     the newest valid fix of either aircraft at or before the frame's time, or its
+//             newest IMU sample then, older than stale_after_s (the pose is dead-reckoned or
+//             extrapolated); a frame asked about late, after the silence ended, is still stale;
 //   good      otherwise;
 // A moving-baseline rover's vectors (on a receiver.* stream) correct the relative position where
 // they reach (docs/NAV_LIVE.md); the HUD says so.

@@ -287,5 +287,48 @@ TEST(LiveFusion, NoFixQualityIsReportedAndCoastsOnTheImu) {
   EXPECT_LT((s->p_ecef_m - k.p_ecef_m).norm(), 0.5);
 }
 
+// data_before(): what a state at t rests on, asked after everything has arrived: inside the IMU's
+// silence the sample that opened it, inside the fixes' the fix before it (an invalid fix is none),
+// for history_s (5 s) behind the newest data.
+TEST(LiveFusion, DataBeforeATimeAreTheSamplesItRestsOnHoweverLateItIsAsked) {
+  const SimData d = simulate("demo-noise-free", 10.0);
+  const TimestampNs t0 = d.scenario.start_gps_ns;
+  std::vector<ImuSample> imu;
+  for (const ImuSample& s : d.logs.tanker_imu)
+    if (s.t_ns < t0 + s_to_ns(6.0) || s.t_ns > t0 + s_to_ns(7.0)) imu.push_back(s);
+  std::vector<GpsFix> gps;
+  for (GpsFix f : d.logs.tanker_gps) {
+    if (f.t_ns > t0 + s_to_ns(5.5) && f.t_ns < t0 + s_to_ns(6.2)) continue;
+    if (f.t_ns > t0 + s_to_ns(8.5)) f.quality = FixQuality::kInvalid;
+    gps.push_back(f);
+  }
+  LiveFusion live(config_for(d.scenario.sensors.tanker));
+  feed(live, imu, gps, [](TimestampNs) {});
+  auto last_before = [](const auto& v, TimestampNs t, auto valid) {
+    TimestampNs best = 0;
+    for (const auto& x : v)
+      if (x.t_ns <= t && valid(x)) best = std::max(best, x.t_ns);
+    return best;
+  };
+  const auto any = [](const auto&) { return true; };
+  const auto valid_fix = [](const GpsFix& f) { return f.quality != FixQuality::kInvalid; };
+  for (double t_s : {5.2, 5.8, 6.5, 7.5, 9.0}) {
+    const TimestampNs t = t0 + s_to_ns(t_s);
+    const LiveFusionDataAt at = live.data_before(t);
+    // The IMU: in the silence, the last sample before it; elsewhere t itself (samples 10 ms apart).
+    if (t_s == 6.5)
+      EXPECT_EQ(at.t_imu_ns, last_before(imu, t, any)) << t_s;
+    else
+      EXPECT_EQ(at.t_imu_ns, t) << t_s;
+    EXPECT_EQ(at.t_valid_fix_ns, last_before(gps, t, valid_fix)) << t_s;
+  }
+  EXPECT_LT(live.data_before(t0 + s_to_ns(5.8)).t_valid_fix_ns, t0 + s_to_ns(5.5) + 1);
+  EXPECT_LT(live.data_before(t0 + s_to_ns(9.0)).t_valid_fix_ns, t0 + s_to_ns(8.5) + 1);
+  // Older than history_s (5 s) behind the newest: forgotten.
+  EXPECT_EQ(live.data_before(t0 + s_to_ns(2.0)).t_valid_fix_ns, 0);
+  // Past the newest sample: the newest.
+  EXPECT_EQ(live.data_before(t0 + s_to_ns(20.0)).t_imu_ns, imu.back().t_ns);
+}
+
 }  // namespace
 }  // namespace augrig::nav

@@ -289,6 +289,41 @@ TEST(LiveNav, NoFixQualityAndMissingImuAreNamed) {
   EXPECT_NE(gone.hud.status.find("no pose: receiver nav"), std::string::npos) << gone.hud.status;
 }
 
+// A busy augmenter handles frames late: by then the silence may be over. A frame taken inside it is
+// still stale, named by the data it was taken with; frames before and after it are good.
+TEST(LiveNav, FramesAskedAboutAfterASilenceEndedAreStillStale) {
+  const Flight f = simulate(9.0);
+  LiveNav nav = make_nav(f);
+  const TimestampNs t0 = f.scenario.start_gps_ns;
+  // The receiver's GPS silent 3-4.5 s, its IMU 6-7 s; everything fed before any frame is asked.
+  feed(
+      nav, f.logs, [](TimestampNs) {},
+      [&](Aircraft who, const nav::NavEvent& e) {
+        if (who != Aircraft::kReceiver) return true;
+        const TimestampNs t = e.is_gps() ? e.gps().t_ns : e.imu().t_ns;
+        if (e.is_gps()) return t < t0 + s_to_ns(3.0) || t > t0 + s_to_ns(4.5);
+        return t < t0 + s_to_ns(6.0) || t > t0 + s_to_ns(7.0);
+      });
+  auto problems = [](const FrameNav& fn) {
+    std::string all;
+    for (const std::string& p : fn.problems) all += p + "; ";
+    return all;
+  };
+  const FrameNav gps = nav.at(1, t0 + s_to_ns(4.2));
+  ASSERT_TRUE(gps.pose);
+  EXPECT_TRUE(gps.stale);
+  EXPECT_NE(problems(gps).find("receiver GPS: no data for 1."), std::string::npos) << problems(gps);
+  const FrameNav imu = nav.at(1, t0 + s_to_ns(6.8));
+  ASSERT_TRUE(imu.pose);
+  EXPECT_TRUE(imu.stale);
+  EXPECT_NE(problems(imu).find("receiver IMU: no data for 0.8 s"), std::string::npos) << problems(imu);
+  for (double t_s : {2.5, 5.0, 7.5}) {
+    const FrameNav good = nav.at(1, t0 + s_to_ns(t_s));
+    ASSERT_TRUE(good.pose) << t_s;
+    EXPECT_FALSE(good.stale) << t_s << ": " << problems(good);
+  }
+}
+
 TEST(LiveNav, WaitsInPlainWordsAndMapsHostTimeByTheFixesArrivals) {
   const Flight f = simulate(4.0);
   LiveNav nav = make_nav(f);
