@@ -3,8 +3,10 @@
 // clock (docs/REPLAY.md). The recording is opened (and so checked to be one) first;
 // recorder::export_euroc() keeps OUT/INCOMPLETE until it has finished cleanly. A rate line with the
 // ETA goes to stderr about once a second. --format mcap writes one MCAP file of ROS 2 messages
-// instead (recorder/mcap_export.hpp, docs/MCAP.md). --reaugment replays the input through the
-// pipeline into the format's writer instead of exporting the recorded augmentation.
+// instead (recorder/mcap_export.hpp, docs/MCAP.md); --format kitti|middlebury the stereo benchmarks'
+// layouts (always augmented again: pipeline/sinks/stereo_benchmark_sink.cpp). --reaugment replays
+// the input through the pipeline into the format's writer instead of exporting the recorded
+// augmentation.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -26,9 +28,11 @@ namespace {
 
 const std::vector<OptionSpec>& export_specs() {
   static const std::vector<OptionSpec> specs = {
-      {"format", ArgKind::kValue, "euroc|mcap",
-       "output layout: euroc (EuRoC/ASL folder, docs/REPLAY.md) or mcap (one MCAP file of ROS 2 messages, "
-       "docs/MCAP.md); default: mcap when OUT ends in .mcap, else euroc"},
+      {"format", ArgKind::kValue, "euroc|mcap|kitti|middlebury",
+       "output layout: euroc (EuRoC/ASL folder, docs/REPLAY.md), mcap (one MCAP file of ROS 2 messages, "
+       "docs/MCAP.md), or the stereo benchmarks' kitti and middlebury (rectified pairs with the true "
+       "disparity, always augmented again; docs/BENCHMARKS.md); default: mcap when OUT ends in .mcap, else "
+       "euroc"},
       {"rig", ArgKind::kValue, "RIG.yaml|default",
        "intrinsics and extrinsics for sensor.yaml (default: the recorded rig); with --reaugment also the "
        "augmentation's"},
@@ -190,6 +194,21 @@ bool reaugmenting(const ParsedArgs& a) {
   return false;
 }
 
+// --format kitti|middlebury: the input through the pipeline into the benchmark's sink (pipeline/
+// sinks/stereo_benchmark_sink.cpp); the EuRoC and MCAP options have no place there.
+int export_benchmark(const ParsedArgs& replay, const std::vector<std::string>& pos, const std::string& format,
+                     const ParsedArgs& a, std::ostream& out, std::ostream& err) {
+  for (const char* flag : {"imu-stream", "aircraft", "threads", "no-plot", "ground-truth", "no-augmented", "no-masks"})
+    if (a.has(flag)) usage_error(std::string("--") + flag + ": only for --format euroc or mcap");
+  return replay_into(pos[0], replay,
+                     [&](PipelineParts& parts) {
+                       auto sink = make_sink(format + ":" + pos[1], {parts.rig});
+                       if (!sink) runtime_error(sink.error().message);
+                       parts.sinks.push_back(std::move(*sink));
+                     },
+                     out, err);
+}
+
 // export --reaugment: the input through the pipeline again (replay_into, headless, as fast as it
 // goes) with the augmentation's options, into the format's sink (pipeline/sinks/): the mcap sink
 // or the euroc sink, each with the input recording's nav inputs (and for EuRoC its clock).
@@ -203,6 +222,7 @@ int export_reaugmented(const ParsedArgs& a, const std::vector<std::string>& pos,
   const fs::path in = pos[0].rfind("replay://", 0) == 0 ? pos[0].substr(9) : pos[0];
   std::unique_ptr<recorder::RecordingReader> nav_from;
   if (fs::is_directory(in) && !fs::exists(in / "mav0") && in.filename() != "mav0") nav_from = open_recording(in);
+  if (format == "kitti" || format == "middlebury") return export_benchmark(replay, pos, format, a, out, err);
   if (format == "mcap") {
     for (const char* flag : {"imu-stream", "aircraft", "threads", "no-plot", "ground-truth"})
       if (a.has(flag)) usage_error(std::string("--") + flag + ": only for --format euroc");
@@ -239,6 +259,7 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (a.help) {
     out << format_help(
         "augrig export DIR --format euroc OUT [options]\n       augrig export DIR --format mcap OUT.mcap [options]\n"
+        "       augrig export IN OUT --format kitti|middlebury [--rig R] [--scene S|--poses P] [--boom B] [--look L]\n"
         "       augrig export IN OUT --reaugment [--rig R] [--scene S|--poses P] [--boom B] [--look L] [options]",
         "Writes a recording in the EuRoC/ASL layout: OUT/mav0/cam0, cam1 (raw), cam0_augmented,\n"
         "cam1_augmented, cam0_mask, cam1_mask (data.csv, data/<t_ns>.png, sensor.yaml) and imu0, plus\n"
@@ -252,15 +273,21 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
         "plays it back.\n"
         "--reaugment (or --scene, --poses, --boom, --look, --receiver-draw): DIR (a recording, an MCAP\n"
         "file or a EuRoC folder) is augmented again through the pipeline, with the rig and scene recorded\n"
-        "or given, into either format (docs/REPLAY.md).",
+        "or given, into either format (docs/REPLAY.md).\n"
+        "--format kitti|middlebury: IN augmented again (as --reaugment), each pair rectified, raw and\n"
+        "augmented, in the stereo benchmark's layout with the receiver's true disparity, the calibration\n"
+        "files and the boom masks (docs/BENCHMARKS.md).",
         export_specs());
     return kExitOk;
   }
   // Without --format, OUT's name says which: a .mcap file, else a EuRoC folder.
   const bool mcap_name = fs::path(pos[1]).extension() == ".mcap";
   const std::string format = a.has("format") ? a.get("format") : mcap_name ? "mcap" : "euroc";
-  if (format != "euroc" && format != "mcap") usage_error("--format: expected euroc or mcap, got '" + format + "'");
-  if (reaugmenting(a)) return export_reaugmented(a, pos, format, out, err);
+  if (format != "euroc" && format != "mcap" && format != "kitti" && format != "middlebury")
+    usage_error("--format: expected euroc, mcap, kitti or middlebury, got '" + format + "'");
+  // The benchmarks' true disparity comes from the receiver depth a new augmentation draws.
+  if (reaugmenting(a) || format == "kitti" || format == "middlebury")
+    return export_reaugmented(a, pos, format, out, err);
   if (format == "mcap") return export_mcap_command(a, pos, out, err);
   return export_euroc_command(a, pos, out, err);
 }

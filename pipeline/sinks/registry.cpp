@@ -27,6 +27,14 @@ constexpr SinkEntry kSinks[] = {
      "as "
      "export writes a recording (nav: a replay's on the recording's clock, with its nav inputs)",
      make_euroc_sink},
+    {"kitti",
+     "kitti:DIR  each pair rectified, raw and augmented, in KITTI stereo 2015's layout with the receiver's "
+     "true disparity, calib_cam_to_cam.txt and the boom masks (docs/BENCHMARKS.md)",
+     make_kitti_sink},
+    {"middlebury",
+     "middlebury:DIR  each pair rectified, raw and augmented, in Middlebury's (MiddEval3) layout: im0, im1, "
+     "disp0GT.pfm, mask0nocc, calib.txt and the boom masks (docs/BENCHMARKS.md)",
+     make_middlebury_sink},
 };
 
 }  // namespace

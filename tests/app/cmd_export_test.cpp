@@ -170,6 +170,31 @@ TEST(CmdExport, ReaugmentedExportsKeepTheNavInputs) {
 
 // A recording cut in half: export said "Exported 99 of 99" and exited 0 while the summary said
 // 201. It must say what is missing, exit 1 and mark its output.
+// --format kitti|middlebury: the recording augmented again into the benchmark's layout, a file per
+// pair and tree (the files themselves: tests/pipeline/sinks/stereo_benchmark_sink_test.cpp); the
+// options of the other formats refused.
+TEST(CmdExport, BenchmarkLayoutsFromARecording) {
+  const std::string dir = output_dir("cmd_export_benchmarks");
+  fs::remove_all(dir);
+  std::string log;
+  ASSERT_EQ(augrig("export " + recording() + " " + dir + "/k --format kitti --look plain", &log), 0) << log;
+  EXPECT_NE(log.find(dir + "/k: 8 stereo pair(s) in the KITTI layout"), std::string::npos) << log;
+  EXPECT_EQ(lines_of(dir + "/k/frames.csv"), 2u + 8u);
+  for (const char* f : {"raw/training/image_2/000007_10.png", "augmented/training/image_3/000007_10.png",
+                        "augmented/training/disp_occ_0/000007_10.png", "raw/training/disp_noc_0/000007_10.png",
+                        "augmented/training/boom_mask_1/000007_10.png", "raw/training/calib_cam_to_cam/000007.txt"})
+    EXPECT_TRUE(fs::exists(dir + "/k/" + f)) << f;
+  ASSERT_EQ(augrig("export " + recording() + " " + dir + "/m --format middlebury", &log), 0) << log;
+  EXPECT_NE(log.find(dir + "/m: 8 stereo pair(s) in the Middlebury layout"), std::string::npos) << log;
+  EXPECT_TRUE(fs::exists(dir + "/m/raw/000000/disp0GT.pfm"));
+  EXPECT_TRUE(fs::exists(dir + "/m/augmented/000007/calib.txt"));
+  // Again into the same folder: named, nothing overwritten.
+  EXPECT_EQ(augrig("export " + recording() + " " + dir + "/m --format middlebury", &log), 1) << log;
+  EXPECT_NE(log.find("holds a benchmark export already"), std::string::npos) << log;
+  EXPECT_EQ(augrig("export " + recording() + " " + dir + "/x --format kitti --no-masks", &log), 2) << log;
+  EXPECT_NE(log.find("--no-masks: only for --format euroc or mcap"), std::string::npos) << log;
+}
+
 TEST(CmdExport, ATruncatedRecordingSaysWhatIsMissing) {
   const std::uintmax_t size = fs::file_size(long_recording() + "/recording.sqlite");
   const std::string half = truncated_copy(long_recording(), "cmd_export_truncated", size / 2);
@@ -214,8 +239,9 @@ TEST(CmdExport, WritesTheEurocLayout) {
 
   EXPECT_EQ(augrig("export " + recording() + " --format euroc " + out, &log), 1) << log;
   EXPECT_NE(log.find("augrig export: " + out + "/mav0: exists already"), std::string::npos) << log;
-  EXPECT_EQ(augrig("export " + recording() + " --format kitti " + out, &log), 2) << log;
-  EXPECT_NE(log.find("--format: expected euroc or mcap, got 'kitti'"), std::string::npos) << log;
+  EXPECT_EQ(augrig("export " + recording() + " --format kitty " + out, &log), 2) << log;
+  EXPECT_NE(log.find("--format: expected euroc, mcap, kitti or middlebury, got 'kitty'"), std::string::npos)
+      << log;
   // Without --format: EuRoC into a folder (here one that holds an export already), MCAP into a .mcap.
   EXPECT_EQ(augrig("export " + recording() + " " + out, &log), 1) << log;
   EXPECT_NE(log.find("augrig export: " + out + "/mav0: exists already"), std::string::npos) << log;

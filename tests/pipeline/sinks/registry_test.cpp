@@ -11,11 +11,13 @@ namespace {
 
 TEST(SinkRegistry, UsagesNameEveryScheme) {
   const std::vector<std::string> u = sink_usages();
-  ASSERT_EQ(u.size(), 4u);
+  ASSERT_EQ(u.size(), 6u);
   EXPECT_EQ(u[0].rfind("video:FILE.mp4", 0), 0u);
   EXPECT_EQ(u[1].rfind("tum:FILE.txt", 0), 0u);
   EXPECT_EQ(u[2].rfind("mcap:FILE.mcap", 0), 0u);
   EXPECT_EQ(u[3].rfind("euroc:DIR", 0), 0u);
+  EXPECT_EQ(u[4].rfind("kitti:DIR", 0), 0u);
+  EXPECT_EQ(u[5].rfind("middlebury:DIR", 0), 0u);
 }
 
 TEST(SinkRegistry, MakesBySchemeAndNamesWhatIsWrong) {
@@ -23,9 +25,10 @@ TEST(SinkRegistry, MakesBySchemeAndNamesWhatIsWrong) {
   const std::string dir = test::output_dir("sink_registry");
   auto tum = make_sink("tum:" + dir + "/t.txt", {rig});
   EXPECT_TRUE(tum) << tum.error().message;
-  auto unknown = make_sink("kitti:" + dir, {rig});
+  auto unknown = make_sink("rosbag:" + dir, {rig});
   ASSERT_FALSE(unknown);
-  EXPECT_EQ(unknown.error().message, "--sink kitti:" + dir + ": unknown sink (known: video:, tum:, mcap:, euroc:)");
+  EXPECT_EQ(unknown.error().message,
+            "--sink rosbag:" + dir + ": unknown sink (known: video:, tum:, mcap:, euroc:, kitti:, middlebury:)");
   for (const std::string spec : {"tum", "tum:"}) {
     auto missing = make_sink(spec, {rig});
     ASSERT_FALSE(missing) << spec;
