@@ -270,7 +270,7 @@ Status merge_euroc(const std::vector<std::string>& inputs, const std::string& ou
                                                     ": still running or stopped before the end\n");
       !s)
     return make_error(kWhere, s.error().message);
-  auto done = [&](Status s) -> Status {
+  auto done = [&](const Status& s) -> Status {
     if (!s) return make_error(kWhere, s.error().message);
     if (report.problems.empty()) {
       fs::remove(out / "INCOMPLETE", ec);

@@ -94,7 +94,7 @@ class StereoBenchmarkSink final : public FrameSink {
     if (!p) return make_error(name_of(layout_), " sink: ", dir_, ": ", p.error().message);
     char id[32];
     std::snprintf(id, sizeof id, "%06zu", written_);
-    const Status s = layout_ == Layout::kKitti ? write_kitti(id, *p) : write_middlebury(id, *p);
+    Status s = layout_ == Layout::kKitti ? write_kitti(id, *p) : write_middlebury(id, *p);
     if (!s) return s;
     frames_csv_ << written_ << "," << pair.raw.t_key_ns << ","
                 << (pair.position ? std::to_string(pair.position->index) : std::to_string(pair.pair - 1))
