@@ -2,7 +2,9 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <mutex>
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
@@ -16,10 +18,49 @@ std::string data_path(const std::string& relative) {
   return std::string(AUGRIG_TEST_DATA_DIR) + "/" + relative;
 }
 
+namespace {
+
+// Removes the directories output_dir() made in this process once the program has passed. CTest
+// runs one test per process, so this is the outputs of one passed test; a run of all tests leaves
+// only what failed (several GB otherwise).
+class OutputCleanup : public ::testing::EmptyTestEventListener {
+ public:
+  void add(const std::filesystem::path& dir) {
+    std::lock_guard lock(mutex_);
+    dirs_.push_back(dir);
+  }
+  void OnTestProgramEnd(const ::testing::UnitTest& unit_test) override {
+    const char* keep = std::getenv("AUGRIG_KEEP_TEST_OUTPUT");
+    if (!unit_test.Passed() || (keep && std::string(keep) != "0")) return;
+    std::lock_guard lock(mutex_);
+    for (const std::filesystem::path& d : dirs_) {
+      std::error_code ec;  // best effort: a directory a child process still writes may stay
+      std::filesystem::remove_all(d, ec);
+    }
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<std::filesystem::path> dirs_;
+};
+
+OutputCleanup& output_cleanup() {
+  // Owned by GoogleTest's listener list once appended.
+  static OutputCleanup* cleanup = [] {
+    auto* c = new OutputCleanup;
+    ::testing::UnitTest::GetInstance()->listeners().Append(c);
+    return c;
+  }();
+  return *cleanup;
+}
+
+}  // namespace
+
 std::string output_dir(const std::string& name) {
   const std::filesystem::path p = std::filesystem::path(AUGRIG_TEST_OUTPUT_DIR) / name;
   std::filesystem::remove_all(p);
   std::filesystem::create_directories(p);
+  output_cleanup().add(p);
   return p.string();
 }
 

@@ -14,7 +14,9 @@ namespace augrig::test {
 
 // Absolute path of a file under tests/data.
 std::string data_path(const std::string& relative);
-// A fresh directory under build/test-output/<name> (created, emptied).
+// A fresh directory under build/test-output/<name> (created, emptied). Removed again when the test
+// program ends with every test passed (a failed test's outputs, diff images among them, stay), so
+// that a whole run does not fill the disk; AUGRIG_KEEP_TEST_OUTPUT=1 keeps them all.
 std::string output_dir(const std::string& name);
 // Path of the built augrig binary.
 std::string augrig_binary();
