@@ -4,7 +4,8 @@
 // recorder::export_euroc() keeps OUT/INCOMPLETE until it has finished cleanly. A rate line with the
 // ETA goes to stderr about once a second. --format mcap writes one MCAP file of ROS 2 messages
 // instead (recorder/mcap_export.hpp, docs/MCAP.md); --format kitti|middlebury the stereo benchmarks'
-// layouts (always augmented again: pipeline/sinks/stereo_benchmark_sink.cpp). --reaugment replays
+// layouts (always augmented again: pipeline/sinks/stereo_benchmark_sink.cpp), --format coco|yolo the
+// keypoint labels (augmented again: pipeline/sinks/labels_sink.cpp). --reaugment replays
 // the input through the pipeline into the format's writer instead of exporting the recorded
 // augmentation.
 #include <chrono>
@@ -28,11 +29,12 @@ namespace {
 
 const std::vector<OptionSpec>& export_specs() {
   static const std::vector<OptionSpec> specs = {
-      {"format", ArgKind::kValue, "euroc|mcap|kitti|middlebury",
+      {"format", ArgKind::kValue, "euroc|mcap|kitti|middlebury|coco|yolo",
        "output layout: euroc (EuRoC/ASL folder, docs/REPLAY.md), mcap (one MCAP file of ROS 2 messages, "
        "docs/MCAP.md), or the stereo benchmarks' kitti and middlebury (rectified pairs with the true "
-       "disparity, always augmented again; docs/BENCHMARKS.md); default: mcap when OUT ends in .mcap, else "
-       "euroc"},
+       "disparity, always augmented again; docs/BENCHMARKS.md), or coco and yolo (receiver keypoints with "
+       "their occlusion, boxes and masks for pose estimation, always augmented again; docs/LABELS.md); "
+       "default: mcap when OUT ends in .mcap, else euroc"},
       {"rig", ArgKind::kValue, "RIG.yaml|default",
        "intrinsics and extrinsics for sensor.yaml (default: the recorded rig); with --reaugment also the "
        "augmentation's"},
@@ -43,6 +45,10 @@ const std::vector<OptionSpec>& export_specs() {
       {"threads", ArgKind::kValue, "N", "threads encoding the images (default: one per core)"},
       {"no-augmented", ArgKind::kFlag, "", "leave out cam0_augmented and cam1_augmented"},
       {"no-masks", ArgKind::kFlag, "", "leave out cam0_mask and cam1_mask"},
+      {"images", ArgKind::kValue, "raw|jpeg",
+       "--format mcap: the raw and augmented images as they are (raw, default) or as JPEG "
+       "(sensor_msgs/msg/CompressedImage on .../compressed; lossy, a tenth of the size; masks stay lossless)"},
+      {"jpeg-quality", ArgKind::kValue, "Q", "with --images jpeg: the JPEG quality, 1..100 (default 90)"},
       {"no-plot", ArgKind::kFlag, "", "do not plot the statistics (stats.png needs gnuplot)"},
       {"ground-truth", ArgKind::kFlag, "",
        "also each frame's ground truth from its recorded receiver depth (docs/GROUND_TRUTH.md): cam0_depth, "
@@ -61,6 +67,26 @@ const std::vector<OptionSpec>& export_specs() {
   return specs;
 }
 
+// --images raw|jpeg and --jpeg-quality Q (--format mcap only).
+void apply_image_args(const ParsedArgs& a, recorder::McapExportOptions& o) {
+  const std::string images = a.get("images", "raw");
+  if (images == "h264")
+    usage_error("--images h264: not built yet (raw or jpeg; docs/MCAP.md)");
+  if (images != "raw" && images != "jpeg") usage_error("--images: expected raw or jpeg, got '" + images + "'");
+  o.jpeg = images == "jpeg";
+  if (a.has("jpeg-quality")) {
+    if (!o.jpeg) usage_error("--jpeg-quality needs --images jpeg");
+    o.jpeg_quality = static_cast<int>(parse_integer("jpeg-quality", a.get("jpeg-quality"), 1, 100));
+  }
+}
+
+// The mcap sink's options for the same flags (export --reaugment --format mcap).
+std::string image_sink_options(const ParsedArgs& a) {
+  recorder::McapExportOptions o;
+  apply_image_args(a, o);
+  return o.jpeg ? ",jpeg=" + std::to_string(o.jpeg_quality) : "";
+}
+
 // --format mcap: the recording as one MCAP file (written as OUT.part, renamed when complete).
 int export_mcap_command(const ParsedArgs& a, const std::vector<std::string>& pos, std::ostream& out,
                         std::ostream& err) {
@@ -70,6 +96,7 @@ int export_mcap_command(const ParsedArgs& a, const std::vector<std::string>& pos
   if (a.has("rig")) o.rig = load_rig_arg(a.get("rig"));
   o.augmented = !a.has("no-augmented");
   o.masks = !a.has("no-masks");
+  apply_image_args(a, o);
   const auto reader = open_recording(pos[0]);
   auto last = std::chrono::steady_clock::now();
   o.progress = [&err, &last](std::size_t done, std::size_t total) {
@@ -187,6 +214,11 @@ int report_euroc(const recorder::EurocExportReport& r, const fs::path& out_dir, 
   return kExitOk;
 }
 
+// The formats written by a sink of their own name (export_benchmark), always augmented again.
+bool sink_format(const std::string& format) {
+  return format == "kitti" || format == "middlebury" || format == "coco" || format == "yolo";
+}
+
 // Whether the export augments again: --reaugment, or an option that only a new augmentation uses.
 bool reaugmenting(const ParsedArgs& a) {
   for (const char* k : {"reaugment", "scene", "poses", "pose-tolerance-ms", "boom", "look", "receiver-draw"})
@@ -194,8 +226,9 @@ bool reaugmenting(const ParsedArgs& a) {
   return false;
 }
 
-// --format kitti|middlebury: the input through the pipeline into the benchmark's sink (pipeline/
-// sinks/stereo_benchmark_sink.cpp); the EuRoC and MCAP options have no place there.
+// --format kitti|middlebury|coco|yolo: the input through the pipeline into that format's sink
+// (pipeline/sinks/stereo_benchmark_sink.cpp, labels_sink.cpp); the EuRoC and MCAP options have no
+// place there.
 int export_benchmark(const ParsedArgs& replay, const std::vector<std::string>& pos, const std::string& format,
                      const ParsedArgs& a, std::ostream& out, std::ostream& err) {
   for (const char* flag : {"imu-stream", "aircraft", "threads", "no-plot", "ground-truth", "no-augmented", "no-masks"})
@@ -222,7 +255,7 @@ int export_reaugmented(const ParsedArgs& a, const std::vector<std::string>& pos,
   const fs::path in = pos[0].rfind("replay://", 0) == 0 ? pos[0].substr(9) : pos[0];
   std::unique_ptr<recorder::RecordingReader> nav_from;
   if (fs::is_directory(in) && !fs::exists(in / "mav0") && in.filename() != "mav0") nav_from = open_recording(in);
-  if (format == "kitti" || format == "middlebury") return export_benchmark(replay, pos, format, a, out, err);
+  if (sink_format(format)) return export_benchmark(replay, pos, format, a, out, err);
   if (format == "mcap") {
     for (const char* flag : {"imu-stream", "aircraft", "threads", "no-plot", "ground-truth"})
       if (a.has(flag)) usage_error(std::string("--") + flag + ": only for --format euroc");
@@ -230,7 +263,7 @@ int export_reaugmented(const ParsedArgs& a, const std::vector<std::string>& pos,
     if (nav_from) meta = nav_from->meta();
     meta["re_augmented_from"] = pos[0];
     const std::string spec = "mcap:" + pos[1] + (a.has("no-augmented") ? ",no-augmented" : "") +
-                             (a.has("no-masks") ? ",no-masks" : "");
+                             (a.has("no-masks") ? ",no-masks" : "") + image_sink_options(a);
     return replay_into(pos[0], replay,
                        [&](PipelineParts& parts) {
                          auto sink = make_sink(spec, {parts.rig, meta, nav_from.get()});
@@ -259,7 +292,7 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   if (a.help) {
     out << format_help(
         "augrig export DIR --format euroc OUT [options]\n       augrig export DIR --format mcap OUT.mcap [options]\n"
-        "       augrig export IN OUT --format kitti|middlebury [--rig R] [--scene S|--poses P] [--boom B] [--look L]\n"
+        "       augrig export IN OUT --format kitti|middlebury|coco|yolo [--rig R] [--scene S|--poses P] [--boom B] [--look L]\n"
         "       augrig export IN OUT --reaugment [--rig R] [--scene S|--poses P] [--boom B] [--look L] [options]",
         "Writes a recording in the EuRoC/ASL layout: OUT/mav0/cam0, cam1 (raw), cam0_augmented,\n"
         "cam1_augmented, cam0_mask, cam1_mask (data.csv, data/<t_ns>.png, sensor.yaml) and imu0, plus\n"
@@ -276,17 +309,23 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
         "or given, into either format (docs/REPLAY.md).\n"
         "--format kitti|middlebury: IN augmented again (as --reaugment), each pair rectified, raw and\n"
         "augmented, in the stereo benchmark's layout with the receiver's true disparity, the calibration\n"
-        "files and the boom masks (docs/BENCHMARKS.md).",
+        "files and the boom masks (docs/BENCHMARKS.md).\n"
+        "--format coco|yolo: IN augmented again, each camera's augmented image with the receiver's keypoints\n"
+        "(visible, hidden by the boom or by the receiver), boxes and masks of receiver and boom, in COCO's\n"
+        "keypoint JSON or YOLO's pose layout (docs/LABELS.md).",
         export_specs());
     return kExitOk;
   }
   // Without --format, OUT's name says which: a .mcap file, else a EuRoC folder.
   const bool mcap_name = fs::path(pos[1]).extension() == ".mcap";
   const std::string format = a.has("format") ? a.get("format") : mcap_name ? "mcap" : "euroc";
-  if (format != "euroc" && format != "mcap" && format != "kitti" && format != "middlebury")
-    usage_error("--format: expected euroc, mcap, kitti or middlebury, got '" + format + "'");
-  // The benchmarks' true disparity comes from the receiver depth a new augmentation draws.
-  if (reaugmenting(a) || format == "kitti" || format == "middlebury")
+  if (format != "euroc" && format != "mcap" && !sink_format(format))
+    usage_error("--format: expected euroc, mcap, kitti, middlebury, coco or yolo, got '" + format + "'");
+  for (const char* flag : {"images", "jpeg-quality"})
+    if (a.has(flag) && format != "mcap") usage_error(std::string("--") + flag + ": only for --format mcap");
+  // The benchmarks' true disparity and the labels come from the masks and receiver depth a new
+  // augmentation draws.
+  if (reaugmenting(a) || sink_format(format))
     return export_reaugmented(a, pos, format, out, err);
   if (format == "mcap") return export_mcap_command(a, pos, out, err);
   return export_euroc_command(a, pos, out, err);

@@ -182,6 +182,8 @@ const std::vector<OptionSpec>& run_specs() {
       {"serve-queue-mb", ArgKind::kValue, "MB",
        "with --serve: each client's queue; what a slow client cannot take beyond it is dropped and counted "
        "(default 32)"},
+      {"serve-jpeg-quality", ArgKind::kValue, "Q",
+       "with --serve: the JPEG quality of the compressed image topics, 1..100 (default 80)"},
       {"headless", ArgKind::kFlag, "", "no window even when a display is present (docs/DISPLAY.md)"},
       {"screenshot-at", ArgKind::kValue, "N",
        "with the window: a screenshot once the N-th pair is shown (into --out)"},
@@ -190,11 +192,12 @@ const std::vector<OptionSpec>& run_specs() {
   return specs;
 }
 
-// --serve [ADDRESS:]PORT (and --serve-queue-mb): the Foxglove WebSocket server's options (it is
+// --serve [ADDRESS:]PORT (and --serve-queue-mb, --serve-jpeg-quality): the Foxglove WebSocket server's options (it is
 // started once the rig is known).
 std::optional<net::ServeOptions> parse_serve(const ParsedArgs& a) {
   if (!a.has("serve")) {
-    if (a.has("serve-queue-mb")) usage_error("--serve-queue-mb needs --serve");
+    for (const char* k : {"serve-queue-mb", "serve-jpeg-quality"})
+      if (a.has(k)) usage_error(std::string("--") + k + " needs --serve");
     return std::nullopt;
   }
   const std::string v = a.get("serve");
@@ -211,6 +214,8 @@ std::optional<net::ServeOptions> parse_serve(const ParsedArgs& a) {
   if (a.has("serve-queue-mb"))
     o.client_queue_bytes =
         static_cast<std::size_t>(parse_integer("serve-queue-mb", a.get("serve-queue-mb"), 1, 4096)) << 20;
+  if (a.has("serve-jpeg-quality"))
+    o.jpeg_quality = static_cast<int>(parse_integer("serve-jpeg-quality", a.get("serve-jpeg-quality"), 1, 100));
   return o;
 }
 // The frames, the outputs, the stops and the window.

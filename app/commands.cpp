@@ -64,6 +64,7 @@ const std::vector<OptionSpec>& augment_specs() {
       {"status-every", ArgKind::kValue, "S",
        "a status line (pairs, rate, drops) every S seconds (default 0: never)"},
       {"ground-truth", ArgKind::kFlag, "", kGroundTruthHelp},
+      sink_option(),
   };
   return specs;
 }
@@ -235,6 +236,7 @@ int augment(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   parts.progress_total = expected_pairs > 1 ? expected_pairs : 0;
   parts.stop_flag = install_stop_signals();
   parts.on_problem = [&err](const Error& e) { err << "augrig augment: " << user_message(e) << "\n"; };
+  apply_sink_args(a, parts);  // --sink: further outputs (coco:DIR, yolo:DIR, kitti:DIR, ...)
   const StereoPairerConfig pairing = opened.options.pairing;
   parts.source = unwrap(start_stereo(std::move(opened)));
   out << "augment: " << frame_count << " images, " << expected_pairs << " stereo pair(s) "

@@ -11,6 +11,9 @@
 // with IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY); "libpng, Sub, Huffman-only" is core/png's level 1
 // through libpng. The own writer has no 16-bit path: depth (render/ground_truth) goes through
 // OpenCV, measured here for its cost alone.
+// A second table: render/image_file's encode_jpeg (the live view's compressed topics, issue 35 §1;
+// goal: quality 80 within 8 ms a view) on the same frames, RGB and as a Bayer mosaic (demosaiced
+// first), with the decoded image's PSNR against what was encoded.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -30,6 +33,8 @@
 
 #include "core/image.hpp"
 #include "core/png.hpp"
+#include "render/cv_image.hpp"
+#include "render/image_file.hpp"
 
 using namespace augrig;
 
@@ -179,6 +184,41 @@ void run(const Row& row, int reps) {
   std::fflush(stdout);
 }
 
+// The JPEG rows: ms per view (median), the file's size, the decoded image's PSNR against the
+// BGR image encoded (a Bayer mosaic's after demosaicing: what compression loses, not demosaicing).
+int jpeg_table(const Frames& f, int reps) {
+  Image bayer(kW, kH, PixelFormat::kBayerRG8);
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) bayer.row(y)[x] = f.rgb.row(y)[3 * x + bayer_channel(bayer.format(), x, y)];
+  struct JpegRow {
+    const char* image;
+    const Image* im;
+    int quality;
+  };
+  const JpegRow rows[] = {{"RGB8", &f.rgb, 80},   {"RGB8", &f.rgb, 90},   {"RGB8", &f.rgb, 60},
+                          {"BayerRG8", &bayer, 80}, {"Mono8", &f.mono, 80}};
+  std::printf("\nencode_jpeg (render/image_file), median of %d encodes into memory, one thread\n\n", reps);
+  std::printf("| image | quality | ms / view | file MB | of raw | PSNR dB |\n|---|---:|---:|---:|---:|---:|\n");
+  for (const JpegRow& r : rows) {
+    std::vector<double> ms;
+    std::vector<std::uint8_t> file;
+    for (int i = 0; i < reps; ++i) {
+      const auto t0 = std::chrono::steady_clock::now();
+      auto e = encode_jpeg(r.im->cview(), r.quality);
+      ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      if (!e) return 1;
+      file = std::move(*e);
+    }
+    std::sort(ms.begin(), ms.end());
+    const cv::Mat decoded = cv::imdecode(file, cv::IMREAD_UNCHANGED);
+    std::printf("| %s | %d | %.2f | %.3f | %.1f %% | %.1f |\n", r.image, r.quality, ms[ms.size() / 2],
+                static_cast<double>(file.size()) / 1e6,
+                100.0 * static_cast<double>(file.size()) / static_cast<double>(r.im->size_bytes()),
+                cv::PSNR(decoded, bgr_of(r.im->cview())));
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -230,5 +270,5 @@ int main(int argc, char** argv) {
   std::printf(
       "| image | writer | ms / image | MB/s | file MB | decodes exactly |\n|---|---|---:|---:|---:|---|\n");
   for (const Row& r : rows) run(r, reps);
-  return 0;
+  return jpeg_table(f, reps);
 }

@@ -11,24 +11,6 @@
 namespace augrig::eval {
 namespace {
 
-cv::Mat wrap(ConstImageView v, int type) {
-  return cv::Mat(v.height, v.width, type, const_cast<std::uint8_t*>(v.data), v.stride_bytes);
-}
-
-// OpenCV names a Bayer pattern one row and one column on from GenICam's (render/visualize.cpp).
-int bayer_to_bgr_code(PixelFormat f) {
-  switch (f) {
-    case PixelFormat::kBayerRG8:
-      return cv::COLOR_BayerBG2BGR;
-    case PixelFormat::kBayerGR8:
-      return cv::COLOR_BayerGB2BGR;
-    case PixelFormat::kBayerGB8:
-      return cv::COLOR_BayerGR2BGR;
-    default:
-      return cv::COLOR_BayerRG2BGR;  // kBayerBG8
-  }
-}
-
 // Numbers as KITTI's files write them: %e, space separated.
 std::string row(std::initializer_list<double> v) {
   std::string s;
@@ -51,26 +33,6 @@ std::string number(double x) {
 }
 
 }  // namespace
-
-cv::Mat bgr_of(ConstImageView image) {
-  cv::Mat out;
-  if (image.empty()) return out;
-  switch (image.format) {
-    case PixelFormat::kMono8:
-      wrap(image, CV_8UC1).copyTo(out);
-      break;
-    case PixelFormat::kRGB8:
-      cv::cvtColor(wrap(image, CV_8UC3), out, cv::COLOR_RGB2BGR);
-      break;
-    case PixelFormat::kRGBA8:
-      cv::cvtColor(wrap(image, CV_8UC4), out, cv::COLOR_RGBA2BGR);
-      break;
-    default:
-      cv::cvtColor(wrap(image, CV_8UC1), out, bayer_to_bgr_code(image.format));
-      break;
-  }
-  return out;
-}
 
 cv::Mat kitti_disparity(const cv::Mat& disparity_px) {
   CV_Assert(disparity_px.type() == CV_32FC1);

@@ -16,14 +16,11 @@
 #include "core/expected.hpp"
 #include "core/image.hpp"
 #include "core/pose.hpp"
+#include "render/cv_image.hpp"  // bgr_of, for the writers of these layouts
 #include "eval/stereo_eval.hpp"
 #include "render/camera_model.hpp"
 
 namespace augrig::eval {
-
-// An image of augrig's formats as an 8-bit image OpenCV writes as it is: Mono8 gray (CV_8UC1),
-// colour and Bayer as BGR (CV_8UC3; Bayer demosaiced, OpenCV's bilinear).
-cv::Mat bgr_of(ConstImageView image);
 
 // KITTI's disparity image: CV_16UC1, round(d * 256) where d is finite and > 0 (at most 65535),
 // 0 elsewhere. `disparity_px` CV_32FC1, NaN or inf where unknown.

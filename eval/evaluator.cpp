@@ -16,27 +16,6 @@ double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-int bayer_to_gray_code(PixelFormat f) {
-  // OpenCV names a Bayer pattern one row and one column on from GenICam's (PFNC RG is OpenCV's BG),
-  // as render/visualize.cpp explains.
-  switch (f) {
-    case PixelFormat::kBayerRG8:
-      return cv::COLOR_BayerBG2GRAY;
-    case PixelFormat::kBayerGR8:
-      return cv::COLOR_BayerGB2GRAY;
-    case PixelFormat::kBayerGB8:
-      return cv::COLOR_BayerGR2GRAY;
-    case PixelFormat::kBayerBG8:
-      return cv::COLOR_BayerRG2GRAY;
-    default:
-      return -1;
-  }
-}
-
-cv::Mat wrap(ConstImageView v, int type) {
-  return cv::Mat(v.height, v.width, type, const_cast<std::uint8_t*>(v.data), v.stride_bytes);
-}
-
 // A label image (CV_8UC1) carried into the rectified region `roi` by the nearest raw pixel.
 cv::Mat rectify_labels_in(const Rectification& r, const cv::Mat& labels, const cv::Rect& roi) {
   cv::Mat out;
@@ -46,26 +25,6 @@ cv::Mat rectify_labels_in(const Rectification& r, const cv::Mat& labels, const c
 }
 
 }  // namespace
-
-cv::Mat gray_of(ConstImageView image) {
-  cv::Mat out;
-  if (image.empty()) return out;
-  switch (image.format) {
-    case PixelFormat::kMono8:
-      wrap(image, CV_8UC1).copyTo(out);
-      break;
-    case PixelFormat::kRGB8:
-      cv::cvtColor(wrap(image, CV_8UC3), out, cv::COLOR_RGB2GRAY);
-      break;
-    case PixelFormat::kRGBA8:
-      cv::cvtColor(wrap(image, CV_8UC4), out, cv::COLOR_RGBA2GRAY);
-      break;
-    default:
-      cv::cvtColor(wrap(image, CV_8UC1), out, bayer_to_gray_code(image.format));
-      break;
-  }
-  return out;
-}
 
 Expected<std::unique_ptr<StereoEvaluator>> StereoEvaluator::create(const Rig& rig,
                                                                    const EvaluatorOptions& options) {
@@ -170,7 +129,7 @@ Expected<FrameEvaluation> StereoEvaluator::evaluate(const StereoFrame& raw, cons
   // 4. Scored per stereo class, over the region (the receiver lies inside it).
   t0 = Clock::now();
   const cv::Mat classes(h, w, CV_8UC1, const_cast<std::uint8_t*>(result.stereo_classes.data()));
-  const cv::Mat mask = wrap(result.left.mask.view(), CV_8UC1);
+  const cv::Mat mask = cv_view(result.left.mask.view());
   const cv::Mat classes_r = rectify_labels_in(rect_, classes, roi);
   const cv::Mat mask_r = rectify_labels_in(rect_, mask, roi);
   const double fb = rect_.f_px * rect_.baseline_m;

@@ -21,16 +21,13 @@
 
 #include "core/expected.hpp"
 #include "core/frame.hpp"
+#include "render/cv_image.hpp"  // gray_of
 #include "eval/matcher.hpp"
 #include "eval/stereo_eval.hpp"
 #include "render/augmenter.hpp"
 #include "render/rig.hpp"
 
 namespace augrig::eval {
-
-// An image of augrig's formats as 8-bit gray (CV_8UC1, its own buffer): Bayer demosaiced
-// (OpenCV's bilinear), RGB(A) weighted as OpenCV's cvtColor, Mono8 copied.
-cv::Mat gray_of(ConstImageView image);
 
 struct EvaluatorOptions {
   MatcherParams matcher;

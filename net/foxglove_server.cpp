@@ -5,14 +5,18 @@
 #include "net/foxglove_server.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
 #include <mutex>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
 #include "core/clock.hpp"
 #include "net/foxglove_ops.hpp"
+#include "render/image_file.hpp"
 #include "ros2/messages.hpp"
 
 namespace augrig::net {
@@ -35,7 +39,8 @@ enum Ch : std::uint32_t {
   kTf,
   kStats,
   kDiagnostics,
-  kChannelCount = kDiagnostics,
+  kJpeg0,  // per camera: image_raw/compressed, image_augmented/compressed (16 to 19)
+  kChannelCount = kJpeg0 + 3,
 };
 enum CamTopic : std::uint32_t {
   kImageRaw = 0,
@@ -47,6 +52,9 @@ enum CamTopic : std::uint32_t {
 };
 constexpr std::uint32_t cam_channel(int camera, CamTopic t) {
   return kCam0 + static_cast<std::uint32_t>(camera) * kPerCamera + t;
+}
+constexpr std::uint32_t jpeg_channel(int camera, bool augmented) {
+  return kJpeg0 + 2 * static_cast<std::uint32_t>(camera) + (augmented ? 1 : 0);
 }
 
 std::string dump(const json& j) {
@@ -100,6 +108,60 @@ struct FoxgloveServer::Impl {
   TimestampNs last_health_ns = 0;
   std::uint64_t pairs = 0, healths = 0, serialised = 0, serialised_bytes = 0, client_errors = 0;
   bool stopped = false;
+
+  // ---- The JPEG topics' encoder: one thread, the newest frame per channel, channels in turn. ----
+  struct JpegJob {
+    TimestampNs t_ns = 0;
+    int camera = 0;
+    Image image;
+  };
+  std::mutex jpeg_mu;  // never held while taking `mu`
+  std::condition_variable jpeg_cv;
+  std::map<std::uint32_t, JpegJob> jpeg_pending;  // by channel
+  std::uint32_t jpeg_last = 0;                    // the channel encoded last (round robin)
+  bool jpeg_stop = false;
+  std::uint64_t jpeg_encoded = 0, jpeg_dropped = 0, jpeg_failed = 0;
+  double jpeg_ms = 0;
+  std::thread jpeg_thread;
+
+  void offer_jpeg(std::uint32_t channel, JpegJob job) {
+    std::lock_guard<std::mutex> lock(jpeg_mu);
+    if (jpeg_stop) return;
+    if (!jpeg_pending.insert_or_assign(channel, std::move(job)).second) ++jpeg_dropped;
+    jpeg_cv.notify_one();
+  }
+
+  void jpeg_loop() {
+    std::unique_lock<std::mutex> lock(jpeg_mu);
+    for (;;) {
+      jpeg_cv.wait(lock, [&] { return jpeg_stop || !jpeg_pending.empty(); });
+      if (jpeg_stop) return;
+      // The next channel after the last one encoded, so that every topic gets its turn.
+      auto it = jpeg_pending.upper_bound(jpeg_last);
+      if (it == jpeg_pending.end()) it = jpeg_pending.begin();
+      auto node = jpeg_pending.extract(it);
+      jpeg_last = node.key();
+      lock.unlock();
+      const auto t0 = std::chrono::steady_clock::now();
+      const JpegJob& job = node.mapped();
+      auto jpeg = encode_jpeg(job.image.cview(), opt.jpeg_quality);
+      SharedBytes body;
+      if (jpeg) body = share_bytes(ros2::compressed_image(job.t_ns, kCameraFrames[job.camera], "jpeg", *jpeg));
+      const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      {
+        std::lock_guard<std::mutex> l(mu);
+        if (body && !stopped) {
+          ++serialised;
+          serialised_bytes += body->size();
+          for (const auto& [client, sub] : subscribers[node.key()])
+            send_data(client, sub, log_time(job.t_ns), body, true);
+        }
+      }
+      lock.lock();
+      ++(jpeg ? jpeg_encoded : jpeg_failed);
+      jpeg_ms += ms;
+    }
+  }
 
   // Message Data: opcode, subscription id and log time before the shared CDR body.
   SendResult send_data(ClientId client, std::uint32_t sub, std::uint64_t t_ns, const SharedBytes& body,
@@ -203,6 +265,8 @@ struct FoxgloveServer::Impl {
 Expected<std::unique_ptr<FoxgloveServer>> FoxgloveServer::start(const ServeOptions& options, const Rig& rig) {
   const std::string where = "net::FoxgloveServer::start(): ";
   if (rig.cameras.size() < 2) return Error{where + "the rig has fewer than 2 cameras"};
+  if (options.jpeg_quality < 1 || options.jpeg_quality > 100)
+    return Error{where + "JPEG quality " + std::to_string(options.jpeg_quality) + ": expected 1..100"};
   std::unique_ptr<FoxgloveServer> s(new FoxgloveServer());
   s->impl_ = std::make_unique<Impl>();
   Impl& im = *s->impl_;
@@ -226,6 +290,11 @@ Expected<std::unique_ptr<FoxgloveServer>> FoxgloveServer::start(const ServeOptio
   add(kTf, "/tf", "tf2_msgs/msg/TFMessage", true);
   add(kStats, "/augrig/occlusion_stats", "augrig_msgs/msg/OcclusionStats", true);
   add(kDiagnostics, "/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", true);
+  for (int c = 0; c < 2; ++c) {
+    const std::string cam = std::string("/") + kCameraNames[c];
+    add(jpeg_channel(c, false), cam + "/image_raw/compressed", "sensor_msgs/msg/CompressedImage", true);
+    add(jpeg_channel(c, true), cam + "/image_augmented/compressed", "sensor_msgs/msg/CompressedImage", true);
+  }
   im.subscribers.resize(kChannelCount + 1);
   s->channels_ = im.channels;
 
@@ -278,6 +347,7 @@ Expected<std::unique_ptr<FoxgloveServer>> FoxgloveServer::start(const ServeOptio
     return Error{where + m};
   }
   im.ws = std::move(*ws);
+  im.jpeg_thread = std::thread([p] { p->jpeg_loop(); });
   return s;
 }
 
@@ -292,6 +362,12 @@ void FoxgloveServer::stop() {
     if (impl_->stopped) return;
     impl_->stopped = true;
   }
+  {
+    std::lock_guard<std::mutex> lock(impl_->jpeg_mu);
+    impl_->jpeg_stop = true;
+  }
+  impl_->jpeg_cv.notify_all();
+  if (impl_->jpeg_thread.joinable()) impl_->jpeg_thread.join();
   // Not under `mu`: the I/O thread's last on_close calls take it.
   if (impl_->ws) impl_->ws->stop();
 }
@@ -350,7 +426,12 @@ void FoxgloveServer::publish_pair(const StereoFrame& raw, const StereoResult* re
         put(cam_channel(c, kImageAugmented), fr.t_ns, augmented_message(fr.t_ns, frame_id, fr.image, v));
       if (wanted[cam_channel(c, kMask)] && !v.mask.empty())
         put(cam_channel(c, kMask), fr.t_ns, ros2::image(fr.t_ns, frame_id, v.mask.cview()));
+      if (wanted[jpeg_channel(c, true)] && !fr.image.empty())
+        im.offer_jpeg(jpeg_channel(c, true), {fr.t_ns, c, whole_augmented(fr.image, v)});
     }
+    // The JPEG topics: a copy for the encoder's thread (the pipeline reuses its buffers).
+    if (wanted[jpeg_channel(c, false)] && !fr.image.empty())
+      im.offer_jpeg(jpeg_channel(c, false), {fr.t_ns, c, Image::copy_of(fr.image.cview())});
     if (scene && wanted[cam_channel(c, kReceiverPose)]) {
       const Pose T_cam_receiver =
           im.rig.cameras[static_cast<std::size_t>(c)].T_body_cam.inverse() * scene->T_body_receiver;
@@ -408,6 +489,13 @@ ServeStats FoxgloveServer::stats() const {
   s.disconnects = w.disconnects;
   s.disconnects_slow = w.disconnects_overflow + w.disconnects_stalled;
   s.handshakes_refused = w.handshakes_refused;
+  {
+    std::lock_guard<std::mutex> jl(impl_->jpeg_mu);
+    s.jpeg_encoded = impl_->jpeg_encoded;
+    s.jpeg_dropped = impl_->jpeg_dropped;
+    s.jpeg_failed = impl_->jpeg_failed;
+    s.jpeg_encode_ms = impl_->jpeg_ms;
+  }
   std::lock_guard<std::mutex> lock(impl_->mu);
   s.pairs_published = impl_->pairs;
   s.health_published = impl_->healths;

@@ -3,9 +3,14 @@
 // "serverInfo" and one "advertise" of every channel: the topics, ROS 2 types, CDR messages and
 // ros2msg schemas of the MCAP export (docs/MCAP.md, ros2/messages.hpp), so Foxglove shows a
 // live run exactly as it shows an exported file, plus /diagnostics, the pipeline's health in
-// plain words. Clients "subscribe" and "unsubscribe"; each message goes to each subscriber as
+// plain words, and per camera the raw and augmented images compressed, sensor_msgs/msg/CompressedImage
+// in JPEG ("/left/image_augmented/compressed", as image_transport names them), for links that cannot
+// carry raw images. Clients "subscribe" and "unsubscribe"; each message goes to each subscriber as
 // binary Message Data (opcode 0x01, subscription id, log time in ns, the CDR message). A message is
-// serialised only when some client subscribes to its channel, once however many do. The publish
+// serialised only when some client subscribes to its channel, once however many do. The JPEG topics
+// are encoded on a thread of their own, the newest frame per topic: a frame still waiting when the
+// next comes is dropped and counted, so an encoder that falls behind costs that topic frames, never
+// the pipeline's thread nor the other topics. The publish
 // calls are made from the pipeline's thread and never block on a client: a slow client's queue
 // fills, its messages are dropped and counted (images first, being the biggest), and one that
 // stops reading altogether is disconnected (counted). A client's mistakes (bad JSON, an unknown
@@ -43,6 +48,7 @@ struct ServeOptions {
   std::map<std::string, std::string> metadata;  // added to serverInfo's metadata
   // A client that has taken nothing for this long while data waits for it is disconnected (0: never).
   int stall_timeout_ms = 30'000;
+  int jpeg_quality = 80;  // the compressed topics' JPEG quality, 1..100
 };
 
 enum class HealthLevel : std::uint8_t {
@@ -85,6 +91,9 @@ struct ServeStats {
   std::uint64_t messages_serialised = 0,
                 bytes_serialised = 0;     // CDR messages made (once per channel and call)
   std::uint64_t client_errors = 0;        // "status" errors sent to clients
+  // The JPEG topics: frames encoded, frames dropped before their turn (the encoder behind), failures.
+  std::uint64_t jpeg_encoded = 0, jpeg_dropped = 0, jpeg_failed = 0;
+  double jpeg_encode_ms = 0;  // time spent encoding, all frames
   std::vector<ServeClientStats> clients;  // the open clients, by id
 };
 

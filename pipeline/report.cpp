@@ -84,6 +84,11 @@ void print_report(const PipelineReport& r, const PipelineParts& parts, std::ostr
     out << "live view (" << (parts.serve ? parts.serve->url() : std::string()) << "): " << v.clients_ever
         << " client(s), " << v.messages_sent << " messages sent, " << v.messages_dropped
         << " dropped for slow clients, " << v.disconnects_slow << " client(s) cut off for not reading\n";
+    if (v.jpeg_encoded + v.jpeg_dropped + v.jpeg_failed)
+      out << "live view JPEG: " << v.jpeg_encoded << " frame(s) encoded ("
+          << fmt_ms(v.jpeg_encoded ? v.jpeg_encode_ms / static_cast<double>(v.jpeg_encoded) : 0.0)
+          << " ms each), " << v.jpeg_dropped << " dropped with the encoder behind, " << v.jpeg_failed
+          << " failed\n";
   }
   latency_line("recorder", r.recorder_latency);
   if (parts.live_nav) {

@@ -12,6 +12,7 @@
 #include "nav/nmea.hpp"
 #include "recorder/mcap_reader.hpp"
 #include "recorder/mcap_writer.hpp"
+#include "render/image_file.hpp"
 #include "ros2/messages.hpp"
 
 namespace augrig::recorder {
@@ -210,6 +211,14 @@ struct McapFrameWriter::Impl {
   Status put(const std::string& topic, const char* type, std::int64_t t_ns, const std::vector<std::uint8_t>& msg) {
     return ch->write(topic, type, t_ns, msg, *report);
   }
+  // An image on `topic` as it is, or with options.jpeg on topic + "/compressed" as JPEG.
+  Status put_image(const std::string& topic, std::int64_t t_ns, const char* frame_id, ConstImageView im) {
+    if (!options.jpeg) return put(topic, "sensor_msgs/msg/Image", t_ns, ros2::image(t_ns, frame_id, im));
+    auto jpeg = encode_jpeg(im, options.jpeg_quality);
+    if (!jpeg) return make_error("recorder::export_mcap(): ", out_path, ": ", topic, ": ", jpeg.error().message);
+    return put(topic + "/compressed", "sensor_msgs/msg/CompressedImage", t_ns,
+               ros2::compressed_image(t_ns, frame_id, "jpeg", *jpeg));
+  }
   Status write_camera(const McapFrame& f, int c);
 };
 
@@ -220,6 +229,9 @@ Expected<std::unique_ptr<McapFrameWriter>> McapFrameWriter::create(const std::st
                                                                    McapExportReport& report) {
   if (rig && rig->cameras.size() < 2)
     return make_error("recorder::McapFrameWriter: ", out_path, ": the rig has fewer than 2 cameras");
+  if (options.jpeg && (options.jpeg_quality < 1 || options.jpeg_quality > 100))
+    return make_error("recorder::McapFrameWriter: ", out_path, ": JPEG quality ", options.jpeg_quality,
+                      ": expected 1..100");
   std::unique_ptr<McapFrameWriter> w(new McapFrameWriter);
   w->impl_ = std::make_unique<Impl>();
   Impl& m = *w->impl_;
@@ -247,19 +259,14 @@ Status McapFrameWriter::Impl::write_camera(const McapFrame& f, int c) {
   const Frame& fr = c == 0 ? f.raw->left : f.raw->right;
   const std::string cam = std::string("/") + kCameraNames[c];
   const char* frame_id = kCameraFrames[c];
-  if (Status s = put(cam + "/image_raw", "sensor_msgs/msg/Image", fr.t_ns, ros2::image(fr.t_ns, frame_id, fr.image.cview()));
-      !s)
-    return s;
+  if (Status s = put_image(cam + "/image_raw", fr.t_ns, frame_id, fr.image.cview()); !s) return s;
   if (rig)
     if (Status s = put(cam + "/camera_info", "sensor_msgs/msg/CameraInfo", fr.t_ns,
                        ros2::camera_info(fr.t_ns, frame_id, rig->cameras[static_cast<std::size_t>(c)].model));
         !s)
       return s;
   if (options.augmented && f.augmented[c].width > 0)
-    if (Status s = put(cam + "/image_augmented", "sensor_msgs/msg/Image", fr.t_ns,
-                       ros2::image(fr.t_ns, frame_id, f.augmented[c]));
-        !s)
-      return s;
+    if (Status s = put_image(cam + "/image_augmented", fr.t_ns, frame_id, f.augmented[c]); !s) return s;
   if (options.masks && f.mask[c].width > 0)
     if (Status s = put(cam + "/mask", "sensor_msgs/msg/Image", fr.t_ns, ros2::image(fr.t_ns, frame_id, f.mask[c]));
         !s)

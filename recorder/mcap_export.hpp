@@ -7,6 +7,8 @@
 //   /left/image_raw               sensor_msgs/msg/Image              the raw image (bayer_rggb8, mono8, rgb8, ...)
 //   /left/camera_info             sensor_msgs/msg/CameraInfo         intrinsics, plumb_bob / equidistant
 //   /left/image_augmented         sensor_msgs/msg/Image              the augmented image (same encoding)
+//   /left/image_raw/compressed,   sensor_msgs/msg/CompressedImage    with images = jpeg, instead of the two
+//   /left/image_augmented/compressed                                   above: JPEG (a Bayer mosaic demosaiced)
 //   /left/mask                    sensor_msgs/msg/Image              mono8: 1 boom, 2 receiver, 3 both
 //   /left/receiver_pose           geometry_msgs/msg/PoseWithCovarianceStamped   T_cam_receiver (frame left_camera)
 //   /right/...                    the same for the right camera
@@ -41,6 +43,10 @@ struct McapExportOptions {
   bool augmented = true;   // /<camera>/image_augmented
   bool masks = true;       // /<camera>/mask
   bool nav = true;         // /nav/<stream>/imu and /fix from the recorded nav inputs
+  // The raw and augmented images as JPEG (sensor_msgs/msg/CompressedImage on .../compressed), at
+  // jpeg_quality: a file a tenth of the size, lossy (the masks stay lossless). A replay decodes them.
+  bool jpeg = false;
+  int jpeg_quality = 90;
   std::size_t chunk_size_bytes = 4u << 20;
   int zstd_level = 3;
   std::function<void(std::size_t done, std::size_t total)> progress;  // after each frame

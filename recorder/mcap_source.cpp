@@ -6,6 +6,9 @@
 #include <cstring>
 #include <fstream>
 
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include "recorder/mcap_writer.hpp"  // kMcapMagic
 #include "ros2/messages.hpp"
 
@@ -79,6 +82,31 @@ Expected<bool> McapSource::next_frame(std::map<std::string, std::vector<std::uin
   return true;
 }
 
+namespace {
+
+// A sensor_msgs/msg/CompressedImage in a format OpenCV reads (jpeg, png): RGB8, or Mono8 when gray.
+Expected<Image> decode_compressed(const std::vector<std::uint8_t>& msg) {
+  auto c = ros2::decode_compressed_image(msg);
+  if (!c) return c.error();
+  cv::Mat m;
+  try {
+    m = cv::imdecode(c->data, cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& e) {
+    return make_error("format '", c->format, "': ", e.what());
+  }
+  if (m.empty() || m.depth() != CV_8U || (m.channels() != 1 && m.channels() != 3))
+    return make_error("format '", c->format, "', ", c->data.size(), " bytes: not an 8-bit gray or colour image OpenCV can decode");
+  Image im(m.cols, m.rows, m.channels() == 1 ? PixelFormat::kMono8 : PixelFormat::kRGB8);
+  cv::Mat out(m.rows, m.cols, m.type(), im.data(), im.stride_bytes());
+  if (m.channels() == 3)
+    cv::cvtColor(m, out, cv::COLOR_BGR2RGB);
+  else
+    m.copyTo(out);
+  return im;
+}
+
+}  // namespace
+
 Expected<ReadStatus> McapSource::read(Frame& out, std::chrono::nanoseconds) {
   if (right_pending_) {
     right_pending_ = false;
@@ -119,15 +147,23 @@ Expected<ReadStatus> McapSource::read(Frame& out, std::chrono::nanoseconds) {
     const std::string cam = std::string("/") + kCameraNames[c];
     const ros2::CameraFrameInfo& ci = c == 0 ? info->left : info->right;
     Frame& fr = c == 0 ? rec.raw.left : rec.raw.right;
-    const auto it = msgs.find(cam + "/image_raw");
-    if (it == msgs.end()) return fail("no " + cam + "/image_raw message");
-    auto im = ros2::decode_image(it->second);
-    if (!im) return fail(cam + "/image_raw: " + im.error().message);
-    // The recorded PFNC name wins over the ROS encoding (they agree for what we write).
-    PixelFormat pf;
-    if (!parse_pixel_format(ci.pixel_format, pf) || bytes_per_pixel(pf) != bytes_per_pixel(im->format()))
-      return fail(cam + ": pixel format '" + ci.pixel_format + "' does not match the image's encoding");
-    fr.image = Image::copy_of({im->data(), im->width(), im->height(), im->stride_bytes(), pf});
+    if (const auto jpeg = msgs.find(cam + "/image_raw/compressed");
+        jpeg != msgs.end() && !msgs.count(cam + "/image_raw")) {
+      // A JPEG export (--images jpeg): the decoded colours (a Bayer camera's demosaiced), RGB8.
+      auto im = decode_compressed(jpeg->second);
+      if (!im) return fail(cam + "/image_raw/compressed: " + im.error().message);
+      fr.image = std::move(*im);
+    } else {
+      const auto it = msgs.find(cam + "/image_raw");
+      if (it == msgs.end()) return fail("no " + cam + "/image_raw message");
+      auto im = ros2::decode_image(it->second);
+      if (!im) return fail(cam + "/image_raw: " + im.error().message);
+      // The recorded PFNC name wins over the ROS encoding (they agree for what we write).
+      PixelFormat pf;
+      if (!parse_pixel_format(ci.pixel_format, pf) || bytes_per_pixel(pf) != bytes_per_pixel(im->format()))
+        return fail(cam + ": pixel format '" + ci.pixel_format + "' does not match the image's encoding");
+      fr.image = Image::copy_of({im->data(), im->width(), im->height(), im->stride_bytes(), pf});
+    }
     fr.t_ns = ci.t_ns;
     if (!parse_clock_domain(ci.clock, fr.clock)) fr.clock = ClockDomain::kUnknown;
     fr.t_host_ns = ci.t_host_ns;

@@ -1400,6 +1400,7 @@ Status AugmenterImpl::augment(const StereoFrame& frame, const SceneState& scene,
   set_boom(scene.boom);
   receiver_on_ = scene.receiver_present && options_.receiver_proxy;
   shadow_on_ = receiver_on_ && scene.light.sun_up;
+  out.receiver_drawn = receiver_on_;
 
   timings_.gl_clear_ms = timings_.gl_draw_ms = timings_.gl_readback_ms = 0;
   const auto t0 = Clock::now();

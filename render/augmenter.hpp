@@ -113,6 +113,9 @@ struct StereoResult {
   ViewResult right;
   OcclusionStats stats;
   std::vector<std::uint8_t> stereo_classes;  // StereoClass per left pixel (empty if not computed)
+  // The receiver was rendered (present in the scene and AugmentOptions::receiver_proxy): its mask
+  // bit and depth mean something (labels need them).
+  bool receiver_drawn = false;
 };
 
 // Wall time of each stage of the last augment() call, for bench/.

@@ -7,6 +7,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "render/cv_image.hpp"
+
 namespace augrig {
 
 Expected<Image> read_image_file(const std::string& path, std::optional<PixelFormat> bayer) {
@@ -72,6 +74,19 @@ Status write_png_file(const std::string& path, const Image& image, int compressi
     return make_error(path, ": cannot write the image (", e.what(), ")");
   }
   return {};
+}
+
+Expected<std::vector<std::uint8_t>> encode_jpeg(ConstImageView image, int quality) {
+  if (image.empty()) return make_error("encode_jpeg(): nothing to encode (empty image)");
+  if (quality < 1 || quality > 100) return make_error("encode_jpeg(): quality ", quality, ": expected 1..100");
+  std::vector<std::uint8_t> out;
+  try {
+    if (!cv::imencode(".jpg", bgr_of(image), out, {cv::IMWRITE_JPEG_QUALITY, quality}))
+      return make_error("encode_jpeg(): OpenCV could not encode the image");
+  } catch (const cv::Exception& e) {
+    return make_error("encode_jpeg(): ", e.what());
+  }
+  return out;
 }
 
 }  // namespace augrig

@@ -6,6 +6,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "core/expected.hpp"
 #include "core/image.hpp"
@@ -19,5 +20,10 @@ Expected<Image> read_image_file(const std::string& path, std::optional<PixelForm
 
 // Errors name the file. The folder must exist.
 Status write_png_file(const std::string& path, const Image& image, int compression = 1);
+
+// A JPEG file's bytes in memory (libjpeg-turbo through OpenCV), at `quality` 1..100: colour as
+// colour, a Bayer mosaic demosaiced to colour first (compressing the mosaic itself would smear
+// its colours together), Mono8 as gray. For the live view's compressed topics.
+Expected<std::vector<std::uint8_t>> encode_jpeg(ConstImageView image, int quality);
 
 }  // namespace augrig

@@ -69,6 +69,39 @@ std::vector<Keypoint> default_receiver_keypoints(const Model& receiver, const Ei
   return k;
 }
 
+std::vector<Keypoint> receiver_keypoints(const ReceiverConfig& config, const Model& receiver) {
+  if (config.keypoints.empty()) return default_receiver_keypoints(receiver, config.receptacle_m);
+  std::vector<Keypoint> k;
+  for (const NamedPoint& p : config.keypoints) k.push_back({p.name, p.p_m});
+  return k;
+}
+
+namespace {
+
+// `name` with its '_'-separated word `from` replaced by `to` (the first such word); "" if none.
+std::string swap_word(const std::string& name, const std::string& from, const std::string& to) {
+  for (std::size_t at = name.find(from); at != std::string::npos; at = name.find(from, at + 1)) {
+    const bool starts = at == 0 || name[at - 1] == '_';
+    const bool ends = at + from.size() == name.size() || name[at + from.size()] == '_';
+    if (starts && ends) return name.substr(0, at) + to + name.substr(at + from.size());
+  }
+  return "";
+}
+
+}  // namespace
+
+std::vector<int> keypoint_flip_index(const std::vector<Keypoint>& keypoints) {
+  std::vector<int> flip(keypoints.size());
+  for (std::size_t i = 0; i < keypoints.size(); ++i) {
+    flip[i] = static_cast<int>(i);
+    std::string mirror = swap_word(keypoints[i].name, "left", "right");
+    if (mirror.empty()) mirror = swap_word(keypoints[i].name, "right", "left");
+    for (std::size_t j = 0; j < keypoints.size() && !mirror.empty(); ++j)
+      if (keypoints[j].name == mirror) flip[i] = static_cast<int>(j);
+  }
+  return flip;
+}
+
 std::string_view to_string(KeypointClass c) {
   switch (c) {
     case KeypointClass::kVisible:

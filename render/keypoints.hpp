@@ -24,6 +24,7 @@
 #include "core/image.hpp"
 #include "render/camera_model.hpp"
 #include "render/mesh.hpp"
+#include "render/rig.hpp"
 #include "render/stats.hpp"
 
 namespace augrig {
@@ -39,6 +40,13 @@ struct Keypoint {
 // outermost in the aft fifth of the length), each engine nacelle's front centre (meshes named "nacelle*",
 // left or right by their side), and the receptacle. The built-in receiver's names are those.
 std::vector<Keypoint> default_receiver_keypoints(const Model& receiver, const Eigen::Vector3d& receptacle_m);
+// The rig's keypoints (`receiver.keypoints`), else the defaults of its model (`receiver`, loaded).
+std::vector<Keypoint> receiver_keypoints(const ReceiverConfig& config, const Model& receiver);
+
+// Each keypoint's mirror image for a left-right flip (YOLO's flip_idx): a name with the word `left`
+// (between '_' or at an end) pairs with the same name with `right` there, and the other way; a
+// keypoint without a partner is its own.
+std::vector<int> keypoint_flip_index(const std::vector<Keypoint>& keypoints);
 
 enum class KeypointClass : std::uint8_t {
   kOutside = 0,

@@ -389,6 +389,27 @@ RigCamera parse_camera(const Ctx& c, const YAML::Node& n, int index, const Stere
   return cam;
 }
 
+// receiver.keypoints: a map {name: [x, y, z]} in the order written. The names become file
+// fields and YOLO's flip pairs (a `left` word swaps with `right`): letters, digits and '_'.
+std::vector<NamedPoint> parse_keypoints(const Ctx& c, const YAML::Node& n) {
+  const std::string key = "receiver.keypoints";
+  expect_map(c, n, key, "a map {name: [x, y, z] in metres (receiver FRD), ...}");
+  if (n.size() == 0) fail(c, n, key, "expected at least one keypoint, got an empty map");
+  std::vector<NamedPoint> points;
+  for (const auto& kv : n) {
+    const std::string name = kv.first.as<std::string>();
+    const std::string k = join_key(key, name);
+    const bool ok = !name.empty() && std::all_of(name.begin(), name.end(), [](char ch) {
+      return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_';
+    });
+    if (!ok) fail(c, kv.first, k, "expected a name of letters, digits and '_', got '" + name + "'");
+    for (const NamedPoint& p : points)
+      if (p.name == name) fail(c, kv.first, k, "expected each name once, got '" + name + "' twice");
+    points.push_back({name, to_vec3(c, kv.second, k, "[x, y, z] in metres (receiver FRD)")});
+  }
+  return points;
+}
+
 Rig parse_root(const Ctx& c, const YAML::Node& root) {
   if (!root.IsMap())
     fail(c, root, "augrig_rig", "expected a rig map starting with 'augrig_rig: 1', " + got(root));
@@ -515,14 +536,15 @@ Rig parse_root(const Ctx& c, const YAML::Node& root) {
   // The receiver section is optional: the built-in receiver with its receptacle.
   rig.receiver.receptacle_m = Eigen::Vector3d(4.0, 0.0, -0.9);
   if (const YAML::Node rec = root["receiver"]; rec.IsDefined()) {
-    expect_map(c, rec, "receiver", "a map {model, receptacle_m}");
-    check_keys(c, rec, "receiver", {"model", "receptacle_m"});
+    expect_map(c, rec, "receiver", "a map {model, receptacle_m, keypoints}");
+    check_keys(c, rec, "receiver", {"model", "receptacle_m", "keypoints"});
     if (const YAML::Node m = rec["model"]; m.IsDefined())
       rig.receiver.model = parse_model(c, m, "receiver.model");
     if (const YAML::Node r = rec["receptacle_m"]; r.IsDefined()) {
       rig.receiver.receptacle_m =
           to_vec3(c, r, "receiver.receptacle_m", "[x, y, z] in metres (receiver FRD)");
     }
+    if (const YAML::Node k = rec["keypoints"]; k.IsDefined()) rig.receiver.keypoints = parse_keypoints(c, k);
   }
   return rig;
 }
@@ -677,6 +699,14 @@ std::string rig_to_yaml(const Rig& rig) {
   o << "  receptacle_m: ";
   write_vec(o, {rig.receiver.receptacle_m.x(), rig.receiver.receptacle_m.y(), rig.receiver.receptacle_m.z()});
   o << "\n";
+  if (!rig.receiver.keypoints.empty()) {
+    o << "  keypoints:\n";
+    for (const NamedPoint& p : rig.receiver.keypoints) {
+      o << "    " << p.name << ": ";
+      write_vec(o, {p.p_m.x(), p.p_m.y(), p.p_m.z()});
+      o << "\n";
+    }
+  }
   return o.str();
 }
 

@@ -65,9 +65,19 @@ struct BoomConfig {
   BoomLimits limits;
 };
 
+// A named point on the receiver (a keypoint for pose-estimation labels, render/keypoints.hpp).
+struct NamedPoint {
+  std::string name;
+  Eigen::Vector3d p_m = Eigen::Vector3d::Zero();  // in the receiver body frame (FRD)
+  friend bool operator==(const NamedPoint&, const NamedPoint&) = default;
+};
+
 struct ReceiverConfig {
   ModelSource model;                                       // receiver body frame (FRD)
   Eigen::Vector3d receptacle_m = Eigen::Vector3d::Zero();  // in the receiver body frame
+  // `keypoints: {name: [x, y, z], ...}`, in the order written; empty: the defaults found from the
+  // model's geometry (default_receiver_keypoints()).
+  std::vector<NamedPoint> keypoints;
 };
 
 // How the cameras' frames pair when they come from the cameras' `source` URIs: the parameters of

@@ -106,6 +106,7 @@ const std::map<std::string, MsgDef>& definitions() {
         "step\n"
         "uint8[] data\n",
         {"std_msgs/Header"}}},
+      {"sensor_msgs/CompressedImage", {"std_msgs/Header header\nstring format\nuint8[] data\n", {"std_msgs/Header"}}},
       {"sensor_msgs/RegionOfInterest",
        {"uint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify\n", {}}},
       {"sensor_msgs/CameraInfo",
@@ -214,6 +215,7 @@ std::string schema_text(const std::string& type) {
 const std::vector<std::string>& known_types() {
   static const std::vector<std::string> types = {"augrig_msgs/msg/StereoFrameInfo",
                                                  "sensor_msgs/msg/Image",
+                                                 "sensor_msgs/msg/CompressedImage",
                                                  "sensor_msgs/msg/CameraInfo",
                                                  "tf2_msgs/msg/TFMessage",
                                                  "geometry_msgs/msg/PoseWithCovarianceStamped",
@@ -328,6 +330,16 @@ std::vector<std::uint8_t> image(std::int64_t t_ns, const std::string& frame_id, 
     const std::uint8_t* p = im.data + static_cast<std::size_t>(y) * im.stride_bytes;
     b.insert(b.end(), p, p + row);
   }
+  return std::move(w.data());
+}
+
+std::vector<std::uint8_t> compressed_image(std::int64_t t_ns, const std::string& frame_id, const std::string& format,
+                                           const std::vector<std::uint8_t>& data) {
+  CdrWriter w;
+  w.data().reserve(64 + data.size());
+  header(w, t_ns, frame_id);
+  w.string(format);
+  w.bytes(data.data(), data.size());
   return std::move(w.data());
 }
 
@@ -565,6 +577,18 @@ Expected<Image> decode_image(const std::vector<std::uint8_t>& msg, std::int64_t*
     std::memcpy(im.row(static_cast<int>(y)), data + static_cast<std::size_t>(y) * step, row);
   if (stamp_ns) *stamp_ns = t;
   return im;
+}
+
+Expected<CompressedImage> decode_compressed_image(const std::vector<std::uint8_t>& msg) {
+  CdrReader r(msg.data(), msg.size());
+  CompressedImage c;
+  c.t_ns = read_header(r, &c.frame_id);
+  c.format = r.string();
+  std::size_t n = 0;
+  const std::uint8_t* data = r.bytes(n);
+  if (!r.ok()) return bad("sensor_msgs/msg/CompressedImage");
+  c.data.assign(data, data + n);
+  return c;
 }
 
 Expected<Pose> decode_pose_with_covariance(const std::vector<std::uint8_t>& msg) {

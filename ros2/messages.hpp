@@ -98,6 +98,9 @@ std::string distortion_model_name(DistortionModel d);
 Status check_stamp(std::int64_t t_ns);
 
 std::vector<std::uint8_t> image(std::int64_t t_ns, const std::string& frame_id, ConstImageView im);
+// sensor_msgs/msg/CompressedImage: `format` as image_transport names it ("jpeg"), `data` the file's bytes.
+std::vector<std::uint8_t> compressed_image(std::int64_t t_ns, const std::string& frame_id, const std::string& format,
+                                           const std::vector<std::uint8_t>& data);
 std::vector<std::uint8_t> camera_info(std::int64_t t_ns, const std::string& frame_id, const CameraModel& cm);
 
 struct Transform {
@@ -155,6 +158,12 @@ std::vector<std::uint8_t> diagnostic_array(std::int64_t t_ns, const std::vector<
 
 // Decoders of what McapSource reads back; an Error says what is wrong with the message.
 Expected<Image> decode_image(const std::vector<std::uint8_t>& msg, std::int64_t* stamp_ns = nullptr);
+struct CompressedImage {
+  std::int64_t t_ns = 0;
+  std::string frame_id, format;
+  std::vector<std::uint8_t> data;
+};
+Expected<CompressedImage> decode_compressed_image(const std::vector<std::uint8_t>& msg);
 Expected<Pose> decode_pose_with_covariance(const std::vector<std::uint8_t>& msg);
 Expected<std::vector<Transform>> decode_tf_message(const std::vector<std::uint8_t>& msg);
 Expected<OcclusionStats> decode_occlusion_stats(const std::vector<std::uint8_t>& msg);

@@ -58,6 +58,8 @@ class FoxgloveSink final : public FrameSink {
       if (h.recording == "stopped") level = net::HealthLevel::kError;
     }
     text << "; drops: camera " << h.source.camera_drops << ", pairing " << pairing << ", queue " << queue;
+    const net::ServeStats serve = server_->stats();  // the JPEG topics' encoder
+    if (serve.jpeg_dropped) text << ", JPEG " << serve.jpeg_dropped;
     if (h.pairs == 0 && level == net::HealthLevel::kOk) level = net::HealthLevel::kStale;
     server_->publish_health(h.pair_t_key_ns, level, text.str(),
                             {{"pairs", std::to_string(h.pairs)},
@@ -68,7 +70,9 @@ class FoxgloveSink final : public FrameSink {
                              {"drops_queue", std::to_string(queue)},
                              {"failed_pairs", std::to_string(h.failed_pairs)},
                              {"stale_pairs", std::to_string(h.stale_pairs)},
-                             {"recorder_dropped", std::to_string(h.recorder_dropped)}});
+                             {"recorder_dropped", std::to_string(h.recorder_dropped)},
+                             {"jpeg_encoded", std::to_string(serve.jpeg_encoded)},
+                             {"drops_jpeg", std::to_string(serve.jpeg_dropped + serve.jpeg_failed)}});
   }
 
   Status close(PipelineReport& report) override {

@@ -6,6 +6,7 @@
 // setup adds: where the frames came from), and, when the setup names a recording (export
 // --reaugment), that recording's nav inputs follow the frames. Options after the file name:
 // `no-augmented`, `no-masks`. The file is OUT.mcap.part until the run closes it cleanly.
+#include <cstdlib>
 #include <sstream>
 
 #include "pipeline/report.hpp"
@@ -93,8 +94,16 @@ Expected<std::unique_ptr<FrameSink>> make_mcap_sink(const std::string& arg, cons
       o.augmented = false;
     else if (opt == "no-masks")
       o.masks = false;
-    else
-      return make_error("mcap sink: ", opt, ": unknown option (expected no-augmented or no-masks)");
+    else if (opt == "jpeg" || opt.rfind("jpeg=", 0) == 0) {
+      o.jpeg = true;
+      const std::string q = opt == "jpeg" ? "90" : opt.substr(5);
+      char* end = nullptr;
+      const long v = std::strtol(q.c_str(), &end, 10);
+      if (*end || q.empty() || v < 1 || v > 100)
+        return make_error("mcap sink: ", opt, ": expected jpeg or jpeg=Q with Q a whole number 1..100");
+      o.jpeg_quality = static_cast<int>(v);
+    } else
+      return make_error("mcap sink: ", opt, ": unknown option (expected no-augmented, no-masks, jpeg or jpeg=Q)");
   }
   if (path.empty()) return make_error("mcap sink: expected a file name (mcap:OUT.mcap)");
   auto sink = std::make_unique<McapSink>(path, o, setup);

@@ -19,8 +19,8 @@ constexpr SinkEntry kSinks[] = {
     {"tum", "tum:FILE.txt  the receiver's pose in the left camera per pair (TUM trajectory format)",
      make_tum_sink},
     {"mcap",
-     "mcap:FILE.mcap[,no-augmented][,no-masks]  each pair as ROS 2 messages, as export --format mcap writes "
-     "them",
+     "mcap:FILE.mcap[,no-augmented][,no-masks][,jpeg[=Q]]  each pair as ROS 2 messages, as export --format "
+     "mcap writes them (jpeg: the images as JPEG, quality Q, default 90)",
      make_mcap_sink},
     {"euroc",
      "euroc:DIR[,no-augmented][,no-masks][,no-plot][,ground-truth][,nav]  each pair in the EuRoC/ASL layout, "
@@ -35,6 +35,15 @@ constexpr SinkEntry kSinks[] = {
      "middlebury:DIR  each pair rectified, raw and augmented, in Middlebury's (MiddEval3) layout: im0, im1, "
      "disp0GT.pfm, mask0nocc, calib.txt and the boom masks (docs/BENCHMARKS.md)",
      make_middlebury_sink},
+    {"coco",
+     "coco:DIR[,jpeg]  each camera's augmented image with the receiver's keypoints (visible, hidden by the "
+     "boom or by the receiver), boxes and RLE masks of receiver and boom: COCO's keypoint format "
+     "(docs/LABELS.md)",
+     make_coco_sink},
+    {"yolo",
+     "yolo:DIR[,jpeg]  the same labels in Ultralytics' YOLO pose format: images/, labels/, dataset.yaml "
+     "(docs/LABELS.md)",
+     make_yolo_sink},
 };
 
 }  // namespace

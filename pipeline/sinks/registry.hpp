@@ -47,6 +47,8 @@ Expected<std::unique_ptr<FrameSink>> make_mcap_sink(const std::string& arg, cons
 Expected<std::unique_ptr<FrameSink>> make_euroc_sink(const std::string& arg, const SinkSetup& setup);
 Expected<std::unique_ptr<FrameSink>> make_kitti_sink(const std::string& arg, const SinkSetup& setup);
 Expected<std::unique_ptr<FrameSink>> make_middlebury_sink(const std::string& arg, const SinkSetup& setup);
+Expected<std::unique_ptr<FrameSink>> make_coco_sink(const std::string& arg, const SinkSetup& setup);
+Expected<std::unique_ptr<FrameSink>> make_yolo_sink(const std::string& arg, const SinkSetup& setup);
 // The euroc sink with the export's every option (export --reaugment); `report`, when given, gets
 // what it wrote at its close.
 Expected<std::unique_ptr<FrameSink>> make_euroc_sink(const std::string& dir,

@@ -85,6 +85,13 @@ class StereoBenchmarkSink final : public FrameSink {
   SinkNeeds needs() const override { return {.whole_images = true}; }
 
   Status consume(PairContext& pair) override {
+    Status s = write_pair(pair);
+    failed_ = failed_ || !s;
+    return s;
+  }
+
+  // One pair rectified and written in the layout.
+  Status write_pair(PairContext& pair) {
     if (!pair.result) {
       ++left_out_;
       return {};
@@ -106,7 +113,7 @@ class StereoBenchmarkSink final : public FrameSink {
   }
 
   Status close(PipelineReport& report) override {
-    if (!frames_csv_.is_open()) return {};
+    if (!frames_csv_.is_open() || failed_) return {};  // a failed run's folder stays INCOMPLETE
     frames_csv_.close();
     if (!frames_csv_) return make_error(name_of(layout_), " sink: ", dir_, "/frames.csv: write failed");
     std::error_code ec;
@@ -132,17 +139,15 @@ class StereoBenchmarkSink final : public FrameSink {
     if (result.left.receiver_depth.width != w || result.left.receiver_depth.height != h)
       return make_error("the augmentation has no left receiver depth (the receiver is not drawn)");
     RectifiedPair p;
-    eval::rectify_images(rect_, eval::bgr_of(raw.left.image.view()), eval::bgr_of(raw.right.image.view()),
+    eval::rectify_images(rect_, bgr_of(raw.left.image.view()), bgr_of(raw.right.image.view()),
                          p.raw[0], p.raw[1]);
-    eval::rectify_images(rect_, eval::bgr_of(result.left.augmented.view()),
-                         eval::bgr_of(result.right.augmented.view()), p.augmented[0], p.augmented[1]);
+    eval::rectify_images(rect_, bgr_of(result.left.augmented.view()),
+                         bgr_of(result.right.augmented.view()), p.augmented[0], p.augmented[1]);
     const cv::Rect near = eval::rectified_box(rect_, rig_.left().model, result.left.receiver_box);
     p.truth = near.empty() ? cv::Mat(h, w, CV_32FC1, cv::Scalar(std::numeric_limits<float>::quiet_NaN()))
                            : eval::true_disparity(rect_, result.left.receiver_depth, near);
     for (int c = 0; c < 2; ++c) {
-      const ConstImageView m = (c ? result.right.mask : result.left.mask).view();
-      const cv::Mat wrapped(m.height, m.width, CV_8UC1, const_cast<std::uint8_t*>(m.data), m.stride_bytes);
-      cv::remap(wrapped, p.mask[c], rect_.map_x[c], rect_.map_y[c], cv::INTER_NEAREST, cv::BORDER_CONSTANT,
+      cv::remap(cv_view((c ? result.right.mask : result.left.mask).view()), p.mask[c], rect_.map_x[c], rect_.map_y[c], cv::INTER_NEAREST, cv::BORDER_CONSTANT,
                 cv::Scalar(0));
     }
     cv::Mat classes(h, w, CV_8UC1, cv::Scalar(0));
@@ -282,6 +287,7 @@ class StereoBenchmarkSink final : public FrameSink {
   std::string calib_;  // KITTI: the calibration every frame's file links to (relative to DIR)
   std::ofstream frames_csv_;
   std::size_t written_ = 0, left_out_ = 0;
+  bool failed_ = false;  // a pair could not be written: the run stops, DIR stays INCOMPLETE
 };
 
 Expected<std::unique_ptr<FrameSink>> make(Layout layout, const std::string& arg, const SinkSetup& setup) {

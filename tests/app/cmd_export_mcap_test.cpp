@@ -5,6 +5,7 @@
 // through recorder::RecordingReader; the replay of the MCAP file gives the recorded raw frames and
 // poses back bit for bit and reproduces the recorded statistics; damaged files fail clearly.
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -254,6 +255,35 @@ TEST(CmdExportMcap, ReplayGivesTheRecordedFramesBackAndReproducesTheStatistics) 
   };
   EXPECT_EQ(text(e.dir + "/from_mcap/stats.csv"), text(e.dir + "/from_rec/stats.csv"));
   EXPECT_FALSE(text(e.dir + "/from_mcap/stats.csv").empty());
+}
+
+// --images jpeg: the images on .../compressed as JPEG, a fraction of the raw file; `replay` plays it
+// (the decoded colours) and reproduces the recorded statistics, which depend on the poses only.
+TEST(CmdExportMcap, JpegImagesAFractionOfTheSizeAndReplayed) {
+  const Exported& e = exported();
+  const std::string jpeg = e.dir + "/jpeg.mcap";
+  std::string log;
+  ASSERT_EQ(test::run_augrig("export " + e.rec + " --format mcap " + jpeg + " --images jpeg --jpeg-quality 85 2>&1",
+                             &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("  /left/image_raw/compressed: 3\n"), std::string::npos) << log;
+  EXPECT_NE(log.find("  /right/image_augmented/compressed: 3\n"), std::string::npos) << log;
+  EXPECT_EQ(log.find("  /left/image_raw: "), std::string::npos) << log;
+  const double ratio = static_cast<double>(fs::file_size(jpeg)) / static_cast<double>(fs::file_size(e.mcap));
+  std::printf("  JPEG q85 MCAP: %.1f %% of the raw export's size\n", 100.0 * ratio);
+  EXPECT_LT(ratio, 0.5);
+  ASSERT_EQ(test::run_augrig("replay " + jpeg + " --headless --out " + e.dir + "/from_jpeg 2>&1", &log), 0) << log;
+  EXPECT_NE(log.find("Recorded statistics reproduced exactly (same pixel counts) in 3 of 3 frame(s)"),
+            std::string::npos)
+      << log;
+  EXPECT_EQ(test::run_augrig("export " + e.rec + " --format mcap " + e.dir + "/x.mcap --images h264 2>&1", &log), 2);
+  EXPECT_NE(log.find("--images h264: not built yet"), std::string::npos) << log;
+  EXPECT_EQ(test::run_augrig("export " + e.rec + " " + e.dir + "/x --format euroc --images jpeg 2>&1", &log), 2);
+  EXPECT_NE(log.find("--images: only for --format mcap"), std::string::npos) << log;
+  EXPECT_EQ(test::run_augrig("export " + e.rec + " --format mcap " + e.dir + "/x.mcap --jpeg-quality 50 2>&1", &log),
+            2);
+  EXPECT_NE(log.find("--jpeg-quality needs --images jpeg"), std::string::npos) << log;
 }
 
 TEST(CmdExportMcap, DamagedFilesFailClearlyWithTheFileAndOffset) {

@@ -195,6 +195,32 @@ TEST(CmdExport, BenchmarkLayoutsFromARecording) {
   EXPECT_NE(log.find("--no-masks: only for --format euroc or mcap"), std::string::npos) << log;
 }
 
+// COCO and YOLO labels from a recording (tests/pipeline/sinks/labels_sink_test.cpp checks them).
+TEST(CmdExport, PoseLabelsFromARecording) {
+  const std::string dir = output_dir("cmd_export_labels");
+  std::string log;
+  ASSERT_EQ(augrig("export " + recording() + " " + dir + "/c --format coco --look plain", &log), 0) << log;
+  EXPECT_NE(log.find(dir + "/c: 16 image(s) of 8 pair(s) labelled in COCO's keypoint format (10 keypoints: "),
+            std::string::npos)
+      << log;
+  EXPECT_TRUE(fs::exists(dir + "/c/annotations.json"));
+  EXPECT_TRUE(fs::exists(dir + "/c/images/000007_right.png"));
+  EXPECT_FALSE(fs::exists(dir + "/c/INCOMPLETE"));
+  EXPECT_EQ(lines_of(dir + "/c/keypoints.csv"), 2u + 16u * 10u);
+  ASSERT_EQ(augrig("export " + recording() + " " + dir + "/y --format yolo --look plain", &log), 0) << log;
+  EXPECT_NE(log.find("labelled in YOLO's pose format"), std::string::npos) << log;
+  EXPECT_TRUE(fs::exists(dir + "/y/labels/000000_left.txt"));
+  EXPECT_TRUE(fs::exists(dir + "/y/dataset.yaml"));
+  // Again into the same folder: named, nothing overwritten.
+  EXPECT_EQ(augrig("export " + recording() + " " + dir + "/y --format yolo", &log), 1) << log;
+  EXPECT_NE(log.find("holds labels already (dataset.yaml)"), std::string::npos) << log;
+  EXPECT_EQ(augrig("export " + recording() + " " + dir + "/z --format coco --threads 2", &log), 2) << log;
+  EXPECT_NE(log.find("--threads: only for --format euroc or mcap"), std::string::npos) << log;
+  EXPECT_EQ(augrig("export " + recording() + " " + dir + "/z --format cocoa", &log), 2) << log;
+  EXPECT_NE(log.find("expected euroc, mcap, kitti, middlebury, coco or yolo, got 'cocoa'"), std::string::npos)
+      << log;
+}
+
 TEST(CmdExport, ATruncatedRecordingSaysWhatIsMissing) {
   const std::uintmax_t size = fs::file_size(long_recording() + "/recording.sqlite");
   const std::string half = truncated_copy(long_recording(), "cmd_export_truncated", size / 2);
@@ -240,7 +266,7 @@ TEST(CmdExport, WritesTheEurocLayout) {
   EXPECT_EQ(augrig("export " + recording() + " --format euroc " + out, &log), 1) << log;
   EXPECT_NE(log.find("augrig export: " + out + "/mav0: exists already"), std::string::npos) << log;
   EXPECT_EQ(augrig("export " + recording() + " --format kitty " + out, &log), 2) << log;
-  EXPECT_NE(log.find("--format: expected euroc, mcap, kitti or middlebury, got 'kitty'"), std::string::npos)
+  EXPECT_NE(log.find("--format: expected euroc, mcap, kitti, middlebury, coco or yolo, got 'kitty'"), std::string::npos)
       << log;
   // Without --format: EuRoC into a folder (here one that holds an export already), MCAP into a .mcap.
   EXPECT_EQ(augrig("export " + recording() + " " + out, &log), 1) << log;

@@ -407,11 +407,17 @@ TEST(Augment, FoldersOfBayerPairs) {
   }
   std::string log;
   ASSERT_EQ(augrig("augment --rig default --scene " + data_path("scenes/body.yaml") + " --left " + dir +
-                       "/L --right " + dir + "/R --out " + dir + "/out --bayer RG",
+                       "/L --right " + dir + "/R --out " + dir + "/out --bayer RG --sink yolo:" + dir + "/yolo",
                    &log),
             0)
       << log;
   EXPECT_NE(log.find("Run summary over 2"), std::string::npos) << log;
+  // --sink: the labels' images debayered to colour, one label file per image.
+  EXPECT_NE(log.find(dir + "/yolo: 4 image(s) of 2 pair(s) labelled in YOLO's pose format"), std::string::npos)
+      << log;
+  const cv::Mat labelled = cv::imread(dir + "/yolo/images/000001_right.png", cv::IMREAD_UNCHANGED);
+  EXPECT_EQ(labelled.type(), CV_8UC3);
+  EXPECT_TRUE(fs::exists(dir + "/yolo/labels/000001_right.txt"));
   for (const char* f : {"f0", "f1"}) {
     const cv::Mat aug = cv::imread(dir + "/out/left/augmented/" + f + ".png", cv::IMREAD_UNCHANGED);
     EXPECT_EQ(aug.type(), CV_8UC1) << f;  // Bayer stays a raw mosaic, written as 8-bit gray

@@ -139,26 +139,5 @@ TEST(BenchmarkLayout, MiddleburyCalibHoldsTheRangeAndTheBaselineInMm) {
   EXPECT_NE(all.find("ndisp=16\n"), std::string::npos) << all;
 }
 
-TEST(BenchmarkLayout, ColourIsBgrAndBayerIsDemosaicedAsOpenCvDoes) {
-  Image rgb(2, 1, PixelFormat::kRGB8);
-  rgb.data()[0] = 10, rgb.data()[1] = 20, rgb.data()[2] = 30;
-  const cv::Mat b = bgr_of(rgb.cview());
-  ASSERT_EQ(b.type(), CV_8UC3);
-  EXPECT_EQ(b.at<cv::Vec3b>(0, 0), cv::Vec3b(30, 20, 10));
-  Image mono(3, 2, PixelFormat::kMono8);
-  mono.data()[4] = 77;
-  const cv::Mat g = bgr_of(mono.cview());
-  ASSERT_EQ(g.type(), CV_8UC1);
-  EXPECT_EQ(g.at<std::uint8_t>(1, 1), 77);
-  // GenICam's BayerRG is OpenCV's BayerBG: a red site at (0, 0).
-  Image bayer(8, 8, PixelFormat::kBayerRG8);
-  for (int y = 0; y < 8; ++y)
-    for (int x = 0; x < 8; ++x) bayer.data()[y * 8 + x] = (y % 2 == 0 && x % 2 == 0) ? 200 : 0;
-  const cv::Mat c = bgr_of(bayer.cview());
-  ASSERT_EQ(c.type(), CV_8UC3);
-  EXPECT_EQ(c.at<cv::Vec3b>(4, 4)[2], 200);  // red
-  EXPECT_EQ(c.at<cv::Vec3b>(4, 4)[0], 0);    // no blue
-}
-
 }  // namespace
 }  // namespace augrig::eval

@@ -154,35 +154,5 @@ TEST_F(EvaluatorTest, FramesThatAreNotTheRigsAreRefused) {
   EXPECT_FALSE(StereoEvaluator::create(one, {}));
 }
 
-// The Bayer pattern's phase: a uniform colour mosaicked as each PFNC pattern comes back as that
-// colour's gray (a pattern taken for another would swap red and blue).
-TEST(GrayOf, BayerPatternsAndColourFormats) {
-  const int R = 200, G = 100, B = 30;
-  const double gray = 0.299 * R + 0.587 * G + 0.114 * B;
-  for (PixelFormat f :
-       {PixelFormat::kBayerRG8, PixelFormat::kBayerGR8, PixelFormat::kBayerGB8, PixelFormat::kBayerBG8}) {
-    Image im(16, 12, f);
-    for (int y = 0; y < 12; ++y)
-      for (int x = 0; x < 16; ++x) {
-        const int ch = bayer_channel(f, x, y);
-        im.row(y)[x] = static_cast<std::uint8_t>(ch == 0 ? R : ch == 1 ? G : B);
-      }
-    const cv::Mat g = gray_of(im.cview());
-    ASSERT_EQ(g.type(), CV_8UC1);
-    EXPECT_NEAR(g.at<std::uint8_t>(6, 8), gray, 1.0) << to_string(f);
-  }
-  Image rgb(4, 2, PixelFormat::kRGB8);
-  for (int y = 0; y < 2; ++y)
-    for (int x = 0; x < 4; ++x) {
-      rgb.row(y)[3 * x] = R;
-      rgb.row(y)[3 * x + 1] = G;
-      rgb.row(y)[3 * x + 2] = B;
-    }
-  EXPECT_NEAR(gray_of(rgb.cview()).at<std::uint8_t>(1, 2), gray, 1.0);
-  Image mono(3, 3, PixelFormat::kMono8);
-  mono.row(1)[1] = 77;
-  EXPECT_EQ(gray_of(mono.cview()).at<std::uint8_t>(1, 1), 77);
-}
-
 }  // namespace
 }  // namespace augrig::eval

@@ -24,7 +24,10 @@
 #include <dirent.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
+#include "render/cv_image.hpp"
 #include "ros2/messages.hpp"
 #include "tests/support/test_support.hpp"
 #include "tests/support/ws_test_client.hpp"
@@ -336,6 +339,10 @@ TEST(FoxgloveServer, ServerInfoAndAdvertiseOnConnectAndTheSubprotocolIsRequired)
       {"/tf", "tf2_msgs/msg/TFMessage"},
       {"/augrig/occlusion_stats", "augrig_msgs/msg/OcclusionStats"},
       {"/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"},
+      {"/left/image_raw/compressed", "sensor_msgs/msg/CompressedImage"},
+      {"/left/image_augmented/compressed", "sensor_msgs/msg/CompressedImage"},
+      {"/right/image_raw/compressed", "sensor_msgs/msg/CompressedImage"},
+      {"/right/image_augmented/compressed", "sensor_msgs/msg/CompressedImage"},
   };
   std::map<std::string, std::string> got;
   std::set<std::uint32_t> ids;
@@ -397,6 +404,7 @@ TEST(FoxgloveServer, ARawClientGetsEveryTopicAsTheMcapExportWritesIt) {
   std::map<std::uint32_t, std::string> topic_of;
   std::uint32_t id = 100;
   for (const auto& [topic, ch] : c.channel) {
+    if (topic.find("/compressed") != std::string::npos) continue;  // the JPEG topics: their own tests
     subs.emplace_back(id, topic);
     topic_of[id++] = topic;
   }
@@ -464,6 +472,92 @@ TEST(FoxgloveServer, ARawClientGetsEveryTopicAsTheMcapExportWritesIt) {
   EXPECT_EQ(topics, (std::set<std::string>{"/augrig/frame", "/left/image_raw", "/left/camera_info",
                                            "/right/image_raw", "/right/camera_info"}));
   EXPECT_TRUE(c.texts.empty()) << c.texts.front().dump();
+}
+
+// The JPEG topics: each the image it names (the augmented one whole, a Bayer mosaic demosaiced)
+// compressed, decoded here by OpenCV's own reader; encoded only for a subscriber.
+TEST(FoxgloveServer, JpegTopicsAreTheImagesCompressedForSubscribersOnly) {
+  const Rig rig = Rig::paper_default();
+  ServeOptions o = test_options();
+  o.jpeg_quality = 90;
+  auto s = FoxgloveServer::start(o, rig);
+  ASSERT_TRUE(s);
+  FoxgloveServer& server = **s;
+  RawFoxglove c(server.port());
+  ASSERT_TRUE(c.open());
+  const Pair p = make_pair(rig, 5, /*changed_box=*/true);
+  server.publish_pair(p.raw, &p.result, &p.scene, p.info);
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(server.stats().jpeg_encoded + server.stats().jpeg_dropped, 0u) << "nothing encoded for no one";
+  ASSERT_TRUE(c.subscribe({{1, "/left/image_augmented/compressed"}, {2, "/right/image_raw/compressed"}}));
+  ASSERT_TRUE(wait_subscribed(server, 2));
+  server.publish_pair(p.raw, &p.result, &p.scene, p.info);
+  std::map<std::uint32_t, RawFoxglove::Data> got;
+  while (got.size() < 2) {
+    auto d = c.next_data();
+    ASSERT_TRUE(d) << "after " << got.size() << " messages";
+    got[d->subscription] = std::move(*d);
+  }
+  const std::pair<std::uint32_t, const Image*> want[] = {{1, &p.whole_augmented[0]}, {2, &p.raw.right.image}};
+  for (const auto& [sub, image] : want) {
+    auto m = ros2::decode_compressed_image(got[sub].payload);
+    ASSERT_TRUE(m) << m.error().message;
+    EXPECT_EQ(m->format, "jpeg");
+    EXPECT_EQ(m->frame_id, sub == 1 ? "left_camera" : "right_camera");
+    const TimestampNs t = sub == 1 ? p.raw.left.t_ns : p.raw.right.t_ns;
+    EXPECT_EQ(m->t_ns, t);
+    EXPECT_EQ(got[sub].log_time_ns, static_cast<std::uint64_t>(t));
+    const cv::Mat decoded = cv::imdecode(m->data, cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(decoded.type(), CV_8UC3);
+    // The test's images are sharp marks on gradients (a Bayer mosaic's demosaiced), JPEG's worst case.
+    EXPECT_GT(cv::PSNR(decoded, bgr_of(image->cview())), 22.0) << sub;
+    EXPECT_LT(m->data.size(), image->size_bytes() / 2) << "compressed";
+  }
+  const ServeStats st = server.stats();
+  EXPECT_EQ(st.jpeg_encoded, 2u);
+  EXPECT_EQ(st.jpeg_dropped, 0u);
+  EXPECT_GT(st.jpeg_encode_ms, 0.0);
+  auto bad = [&] {
+    ServeOptions b = test_options();
+    b.jpeg_quality = 101;
+    return FoxgloveServer::start(b, rig);
+  }();
+  ASSERT_FALSE(bad);
+  EXPECT_EQ(bad.error().message, "net::FoxgloveServer::start(): JPEG quality 101: expected 1..100");
+}
+
+// Frames offered faster than the encoder takes them: the JPEG topic keeps the newest and counts
+// the rest, while a topic beside it gets every pair and publishing never waits for the encoder.
+TEST(FoxgloveServer, AJpegEncoderBehindDropsThatTopicsFramesOnly) {
+  const Rig rig = Rig::paper_default();
+  ServeOptions o = test_options();
+  o.jpeg_quality = 100;  // the slowest
+  auto s = FoxgloveServer::start(o, rig);
+  ASSERT_TRUE(s);
+  FoxgloveServer& server = **s;
+  RawFoxglove c(server.port());
+  ASSERT_TRUE(c.open());
+  ASSERT_TRUE(c.subscribe({{1, "/left/image_augmented/compressed"}, {2, "/augrig/occlusion_stats"}}));
+  ASSERT_TRUE(wait_subscribed(server, 2));
+  std::vector<Pair> pairs;
+  for (int k = 0; k < 4; ++k) pairs.push_back(make_pair(rig, 10 + k));
+  const int n = 40;
+  for (int i = 0; i < n; ++i) {
+    const Pair& p = pairs[static_cast<std::size_t>(i % 4)];
+    server.publish_pair(p.raw, &p.result, &p.scene, p.info);
+  }
+  int stats = 0, jpegs = 0;
+  ASSERT_TRUE(eventually([&] {
+    const ServeStats st = server.stats();
+    return st.jpeg_encoded + st.jpeg_dropped == static_cast<std::uint64_t>(n);
+  }));
+  const ServeStats st = server.stats();
+  while (auto d = c.next_data(1000)) (d->subscription == 1 ? jpegs : stats) += 1;
+  EXPECT_EQ(stats, n) << "the other topic got every pair";
+  EXPECT_GT(st.jpeg_dropped, 0u) << "the encoder kept up with " << n << " pairs offered at once";
+  EXPECT_EQ(static_cast<std::uint64_t>(jpegs), st.jpeg_encoded);
+  EXPECT_EQ(st.jpeg_failed, 0u);
+  EXPECT_EQ(st.messages_dropped, 0u) << "nothing dropped for the client";
 }
 
 TEST(FoxgloveServer, ClientMistakesAreAnsweredWithStatusAndTheConnectionStays) {
@@ -588,6 +682,16 @@ TEST(FoxgloveServer, NpmClientSubscribesReceivesAndDecodesEverything) {
         "/left/receiver_pose", "/right/image_raw", "/right/camera_info", "/right/image_augmented",
         "/right/mask", "/right/receiver_pose", "/tf", "/augrig/occlusion_stats"})
     ASSERT_EQ(by_topic[t].size(), static_cast<std::size_t>(kFrames)) << t;
+  // The JPEG topics, as many as the encoder made before the client had every pair: each a JPEG
+  // (its SOI marker) of its camera.
+  for (const char* t : {"/left/image_raw/compressed", "/left/image_augmented/compressed",
+                        "/right/image_raw/compressed", "/right/image_augmented/compressed"})
+    for (const json& m : by_topic[t]) {
+      EXPECT_EQ(m["msg"]["format"], "jpeg") << t;
+      EXPECT_EQ(m["msg"]["soi"], json::array({255, 216})) << t;
+      EXPECT_GT(m["msg"]["bytes"].get<int>(), 1000) << t;
+      EXPECT_EQ(m["msg"]["frame_id"], std::string(t).rfind("/left", 0) == 0 ? "left_camera" : "right_camera");
+    }
   for (int k = 0; k < kFrames; ++k) {
     const Pair& p = pairs[static_cast<std::size_t>(k)];
     const std::string what = "frame " + std::to_string(k);

@@ -17,9 +17,12 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/core.hpp>
+
 #include "recorder/mcap_export.hpp"
 #include "recorder/mcap_writer.hpp"
 #include "recorder/reader.hpp"
+#include "render/cv_image.hpp"
 #include "ros2/messages.hpp"
 #include "tests/support/recording_fixture.hpp"
 #include "tests/support/test_support.hpp"
@@ -151,6 +154,53 @@ TEST(McapSource, PlaysTheExportBackAsTheRecordingReadsIt) {
   }
   EXPECT_EQ(src.damaged_frames(), 0u);
   EXPECT_EQ(src.frames_dropped(), 0u);
+}
+
+// --images jpeg: the images as JPEG on .../compressed (the masks as they are), a fraction of the
+// file; played back as the colours decoded (RGB8, a Bayer camera's demosaiced), within JPEG's loss
+// of the recording's images, every other field as exact as a raw export's.
+TEST(McapSource, PlaysAJpegExportBackAsItsDecodedColours) {
+  const Exported& e = exported();
+  auto reader = RecordingReader::open(e.recording);
+  ASSERT_TRUE(reader) << reader.error().message;
+  const RecordingReader& r = **reader;
+  const std::string jpeg = e.dir + "/rec_jpeg.mcap";
+  McapExportOptions o;
+  o.jpeg = true;
+  McapExportReport report;
+  ASSERT_TRUE(export_mcap(r, jpeg, o, report));
+  EXPECT_EQ(report.messages_by_topic.count("/left/image_raw"), 0u);
+  EXPECT_EQ(report.messages_by_topic.at("/left/image_raw/compressed"), r.frame_count());
+  EXPECT_EQ(report.messages_by_topic.at("/right/image_augmented/compressed"), r.frame_count());
+  EXPECT_EQ(report.messages_by_topic.at("/left/mask"), r.frame_count());
+  EXPECT_LT(fs::file_size(jpeg), fs::file_size(e.mcap) / 2) << "JPEG and zstd against zstd alone";
+  auto opened = McapSource::open("replay://" + jpeg);
+  ASSERT_TRUE(opened) << opened.error().message;
+  for (std::size_t i = 0; i < r.frame_count(); ++i) {
+    auto want = r.read_frame(i, kPartRaw);
+    ASSERT_TRUE(want) << want.error().message;
+    for (int c = 0; c < 2; ++c) {
+      Frame f;
+      auto st = (*opened)->read(f, 0ns);
+      ASSERT_TRUE(st && *st == ReadStatus::kFrame) << i;
+      const Frame& w = c == 0 ? want->raw.left : want->raw.right;
+      // Gray stays gray; colour and Bayer come back as RGB.
+      ASSERT_EQ(f.image.format(), w.image.format() == PixelFormat::kMono8 ? PixelFormat::kMono8 : PixelFormat::kRGB8);
+      ASSERT_EQ(f.image.width(), w.image.width());
+      EXPECT_GT(cv::PSNR(bgr_of(f.image.cview()), bgr_of(w.image.cview())), 30.0) << "frame " << i << " camera " << c;
+      EXPECT_EQ(f.t_ns, w.t_ns);
+      const auto* rf = dynamic_cast<const RecordedFrame*>(f.attachment.get());
+      ASSERT_NE(rf, nullptr);
+      ASSERT_TRUE(rf->record.stats && want->stats);
+      EXPECT_TRUE(*rf->record.stats == *want->stats);
+    }
+  }
+  EXPECT_EQ((*opened)->damaged_frames(), 0u);
+  McapExportOptions bad = o;
+  bad.jpeg_quality = 0;
+  const Status s = export_mcap(r, e.dir + "/bad.mcap", bad, report);
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("JPEG quality 0: expected 1..100"), std::string::npos) << s.error().message;
 }
 
 // A stereo frame whose /augrig/frame does not decode, and one without its images: each an Error

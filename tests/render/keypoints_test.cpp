@@ -51,6 +51,37 @@ TEST(Keypoints, BuiltInReceiversDefaultsLieWhereItsShapePutsThem) {
   EXPECT_EQ(default_receiver_keypoints(Model{}, receptacle).size(), 1u);
 }
 
+TEST(Keypoints, TheRigsOwnReplaceTheDefaults) {
+  Eigen::Vector3d receptacle;
+  const Model receiver = make_builtin_receiver(&receptacle);
+  ReceiverConfig config;
+  config.receptacle_m = receptacle;
+  EXPECT_EQ(receiver_keypoints(config, receiver).size(), 10u);
+  config.keypoints = {{"probe", {7, 0, -1}}, {"nose", {6, 0, 0}}};
+  const std::vector<Keypoint> k = receiver_keypoints(config, receiver);
+  ASSERT_EQ(k.size(), 2u);
+  EXPECT_EQ(k[0].name, "probe");
+  EXPECT_EQ(k[1].p_receiver_m, Eigen::Vector3d(6, 0, 0));
+}
+
+TEST(Keypoints, FlipPairsSwapLeftAndRightWords) {
+  auto flip = [](std::vector<std::string> names) {
+    std::vector<Keypoint> k;
+    for (const std::string& n : names) k.push_back({n, Eigen::Vector3d::Zero()});
+    return keypoint_flip_index(k);
+  };
+  EXPECT_EQ(flip({"nose", "wing_tip_left", "wing_tip_right", "tail"}), (std::vector<int>{0, 2, 1, 3}));
+  EXPECT_EQ(flip({"right_engine", "left_engine", "left"}), (std::vector<int>{1, 0, 2}));  // "left" has no "right"
+  // Words only: "leftover" and "bright" are not sides.
+  EXPECT_EQ(flip({"leftover", "rightover", "bright", "bleft"}), (std::vector<int>{0, 1, 2, 3}));
+  EXPECT_EQ(flip({"a_left_b", "a_right_b", "a_right_c"}), (std::vector<int>{1, 0, 2}));
+  // The built-in receiver's defaults pair as Ultralytics expects (a flip twice is no flip).
+  Eigen::Vector3d receptacle;
+  const auto d = keypoint_flip_index(default_receiver_keypoints(make_builtin_receiver(&receptacle), receptacle));
+  for (std::size_t i = 0; i < d.size(); ++i) EXPECT_EQ(d[static_cast<std::size_t>(d[i])], static_cast<int>(i));
+  EXPECT_EQ(d, (std::vector<int>{0, 1, 3, 2, 4, 6, 5, 8, 7, 9}));
+}
+
 TEST(Keypoints, ClassesAndCocoFlags) {
   EXPECT_EQ(coco_visibility(KeypointClass::kVisible), 2);
   EXPECT_EQ(coco_visibility(KeypointClass::kHiddenByBoom), 1);

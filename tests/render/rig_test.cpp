@@ -70,6 +70,11 @@ void expect_rig_near(const Rig& a, const Rig& b, double tol) {
   EXPECT_NEAR(la.extension_max_m, lb.extension_max_m, tol);
   expect_source_eq(a.receiver.model, b.receiver.model);
   EXPECT_LT((a.receiver.receptacle_m - b.receiver.receptacle_m).norm(), tol);
+  ASSERT_EQ(a.receiver.keypoints.size(), b.receiver.keypoints.size());
+  for (std::size_t i = 0; i < a.receiver.keypoints.size(); ++i) {
+    EXPECT_EQ(a.receiver.keypoints[i].name, b.receiver.keypoints[i].name);
+    EXPECT_LT((a.receiver.keypoints[i].p_m - b.receiver.keypoints[i].p_m).norm(), tol);
+  }
   EXPECT_NEAR(a.pairing.tolerance_us, b.pairing.tolerance_us, tol);
   EXPECT_EQ(a.pairing.mode, b.pairing.mode);
   EXPECT_EQ(a.pairing.clock, b.pairing.clock);
@@ -175,6 +180,8 @@ TEST(Rig, RoundTripEverything) {
   a.receiver.model.path = "/abs/models/receiver dir/plane.obj";
   a.receiver.model.axes = {"-z", "+x", "-y"};
   a.receiver.receptacle_m = {3.3, 0.1, -1.2};
+  // In the order written, which need not be sorted.
+  a.receiver.keypoints = {{"nose", {6.5, 0, 0.1}}, {"wing_tip_left", {-1.0, -8.3, -0.2}}, {"a_fin", {-6, 0, -3.25}}};
   a.boom.limits.elevation_min_rad = deg_to_rad(12.345);
   a.pairing = {125.5, "trigger_id", "shared", 3};
   const std::string text = rig_to_yaml(a);
@@ -425,6 +432,16 @@ TEST(Rig, BadRigsNameFileLineAndKey) {
        20, "boom.model.axes.right", "one of +x -x +y -y +z -z"},
       {"receptacle not 3", base_with(27, "  receptacle_m: [4.0, 0]"), 27, "receiver.receptacle_m",
        "a list of 3 numbers"},
+      {"keypoints not a map", base_with(27, "  receptacle_m: [4.0, 0, -0.9]\n  keypoints: [1, 2]"), 28,
+       "receiver.keypoints", "a map {name: [x, y, z] in metres (receiver FRD), ...}"},
+      {"keypoints empty", base_with(27, "  receptacle_m: [4.0, 0, -0.9]\n  keypoints: {}"), 28, "receiver.keypoints",
+       "at least one keypoint"},
+      {"keypoint name", base_with(27, "  receptacle_m: [4.0, 0, -0.9]\n  keypoints: {nose: [1, 0, 0], 'wing-tip': [0, 1, 0]}"),
+       28, "receiver.keypoints.wing-tip", "expected a name of letters, digits and '_', got 'wing-tip'"},
+      {"keypoint short", base_with(27, "  receptacle_m: [4.0, 0, -0.9]\n  keypoints:\n    nose: [1, 0]"), 29,
+       "receiver.keypoints.nose", "a list of 3 numbers"},
+      {"keypoint twice", base_with(27, "  receptacle_m: [4.0, 0, -0.9]\n  keypoints:\n    nose: [1, 0, 0]\n    nose: [2, 0, 0]"),
+       30, "receiver.keypoints.nose", "expected each name once, got 'nose' twice"},
       {"missing T_body_cam", edit({{6, "#"}, {7, "#"}, {8, "#"}}), 3, "cameras[0].T_body_cam", "missing"},
       {"calibration file missing",
        base_with(1, "augrig_rig: 1\ncalibration: {format: kalibr, file: nope.yaml}"), 2, "calibration.file",

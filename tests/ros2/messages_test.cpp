@@ -75,6 +75,32 @@ TEST(Ros2Msgs, DiagnosticArraySchemaNamesItsDependencies) {
   EXPECT_NE(std::find(types.begin(), types.end(), "diagnostic_msgs/msg/DiagnosticArray"), types.end());
 }
 
+// sensor_msgs/msg/CompressedImage in CDR, byte by byte as ROS 2 lays it out (header, format
+// string with its NUL, uint8[] with its count), and back.
+TEST(Ros2Msgs, CompressedImageLayoutAndRoundTrip) {
+  const std::vector<std::uint8_t> jpeg = {0xff, 0xd8, 0xff, 0xe0, 1, 2, 3};
+  const std::vector<std::uint8_t> msg = compressed_image(3'000'000'007, "left_camera", "jpeg", jpeg);
+  // Encapsulation (4), sec, nanosec, "left_camera\0" (4 + 12), "jpeg\0" at 4-byte alignment (4 + 5),
+  // then the count at the next 4-byte boundary and the bytes.
+  ASSERT_EQ(msg.size(), 4u + 8 + 16 + 9 + 3 + 4 + jpeg.size());
+  EXPECT_EQ(msg[8], 7);  // nanosec, little endian
+  EXPECT_EQ(std::string(reinterpret_cast<const char*>(&msg[32]), 4), "jpeg");
+  EXPECT_EQ(msg[40], jpeg.size());
+  EXPECT_TRUE(std::equal(jpeg.begin(), jpeg.end(), msg.end() - static_cast<std::ptrdiff_t>(jpeg.size())));
+  auto back = decode_compressed_image(msg);
+  ASSERT_TRUE(back) << back.error().message;
+  EXPECT_EQ(back->t_ns, 3'000'000'007);
+  EXPECT_EQ(back->frame_id, "left_camera");
+  EXPECT_EQ(back->format, "jpeg");
+  EXPECT_EQ(back->data, jpeg);
+  std::vector<std::uint8_t> cut(msg.begin(), msg.end() - 2);
+  auto bad = decode_compressed_image(cut);
+  ASSERT_FALSE(bad);
+  EXPECT_EQ(bad.error().message, "sensor_msgs/msg/CompressedImage: the message is shorter than its fields (damaged)");
+  EXPECT_EQ(schema_text("sensor_msgs/msg/CompressedImage").rfind("std_msgs/Header header\nstring format\nuint8[] data\n", 0),
+            0u);
+}
+
 TEST(Ros2Msgs, DiagnosticArrayRoundTrips) {
   DiagnosticStatus a;
   a.level = DiagnosticStatus::kWarn;

@@ -45,6 +45,8 @@ function summarise(type, msg) {
     Object.assign(out, { width: msg.width, height: msg.height, encoding: msg.encoding, step: msg.step,
                          bytes: msg.data.length });
     if (hash) out.fnv1a = fnv1a(msg.data);
+  } else if (type === "sensor_msgs/msg/CompressedImage") {
+    Object.assign(out, { format: msg.format, bytes: msg.data.length, soi: [msg.data[0], msg.data[1]] });
   } else if (type === "sensor_msgs/msg/CameraInfo") {
     Object.assign(out, { width: msg.width, height: msg.height, distortion_model: msg.distortion_model,
                          d: Array.from(msg.d), k: Array.from(msg.k) });

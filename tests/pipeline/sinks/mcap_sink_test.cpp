@@ -10,6 +10,7 @@
 #include "pipeline/sinks/registry.hpp"
 #include "recorder/mcap_export.hpp"
 #include "recorder/mcap_source.hpp"
+#include "ros2/messages.hpp"
 #include "tests/support/mcap_messages.hpp"
 #include "tests/support/pipeline_parts.hpp"
 #include "tests/support/test_support.hpp"
@@ -77,29 +78,61 @@ TEST(McapSink, WritesWhatExportWritesFromTheRecordingOfTheSameRun) {
   EXPECT_EQ(back->cameras[0].model.width_px, rig.cameras[0].model.width_px);
 }
 
-TEST(McapSink, OptionsLeaveTopicsOut) {
-  const std::string out = test::output_dir("mcap_sink_options");
+// Two pairs of the scenario into the sink "mcap:FILE" + `options`; the file's messages.
+std::vector<Message> two_pairs_into(const std::string& file, const std::string& options) {
   PipelineParts p = test::pipeline_parts(kScenario);
   p.max_pairs = 2;
-  auto sink = make_sink("mcap:" + out + "/raw.mcap,no-augmented,no-masks", {p.rig});
-  ASSERT_TRUE(sink) << sink.error().message;
+  auto sink = make_sink("mcap:" + file + options, {p.rig});
+  EXPECT_TRUE(sink) << sink.error().message;
+  if (!sink) return {};
   p.sinks.push_back(std::move(*sink));
   Pipeline pipeline(std::move(p));
   std::ostringstream o, e;
   auto report = pipeline.run(o, e);
-  ASSERT_TRUE(report) << report.error().message;
-  const std::map<std::string, int> n = topics_of(mcap_messages(out + "/raw.mcap"));
+  EXPECT_TRUE(report) << report.error().message;
+  return mcap_messages(file);
+}
+
+TEST(McapSink, OptionsLeaveTopicsOut) {
+  const std::string out = test::output_dir("mcap_sink_options");
+  const std::map<std::string, int> n = topics_of(two_pairs_into(out + "/raw.mcap", ",no-augmented,no-masks"));
   EXPECT_EQ(n.at("/left/image_raw"), 2);
   EXPECT_EQ(n.at("/augrig/occlusion_stats"), 2);
   EXPECT_EQ(n.count("/left/image_augmented") + n.count("/right/image_augmented"), 0u);
   EXPECT_EQ(n.count("/left/mask") + n.count("/right/mask"), 0u);
 }
 
+TEST(McapSink, JpegImagesOnRequest) {
+  const std::string out = test::output_dir("mcap_sink_jpeg");
+  const auto messages = two_pairs_into(out + "/j.mcap", ",jpeg=70");
+  const std::map<std::string, int> n = topics_of(messages);
+  EXPECT_EQ(n.count("/left/image_raw"), 0u);
+  EXPECT_EQ(n.at("/left/image_raw/compressed"), 2);
+  EXPECT_EQ(n.at("/right/image_augmented/compressed"), 2);
+  EXPECT_EQ(n.at("/right/mask"), 2);
+  for (const auto& [topic_time, data] : messages)
+    if (topic_time.substr(0, topic_time.find(' ')) == "/left/image_augmented/compressed") {
+      auto c = ros2::decode_compressed_image(data);
+      ASSERT_TRUE(c) << c.error().message;
+      EXPECT_EQ(c->format, "jpeg");
+      EXPECT_EQ(c->frame_id, "left_camera");
+      EXPECT_EQ(c->data.at(0), 0xff);
+      EXPECT_EQ(c->data.at(1), 0xd8);
+    }
+}
+
 TEST(McapSink, BadArgumentsAndUnwritableFilesAreNamed) {
   const Rig rig = Rig::paper_default();
-  auto unknown = make_sink("mcap:x.mcap,jpeg", {rig});
+  auto unknown = make_sink("mcap:x.mcap,png", {rig});
   ASSERT_FALSE(unknown);
-  EXPECT_EQ(unknown.error().message, "mcap sink: jpeg: unknown option (expected no-augmented or no-masks)");
+  EXPECT_EQ(unknown.error().message,
+            "mcap sink: png: unknown option (expected no-augmented, no-masks, jpeg or jpeg=Q)");
+  for (const char* q : {"jpeg=0", "jpeg=101", "jpeg=", "jpeg=8x"}) {
+    auto bad_q = make_sink(std::string("mcap:x.mcap,") + q, {rig});
+    ASSERT_FALSE(bad_q) << q;
+    EXPECT_EQ(bad_q.error().message,
+              std::string("mcap sink: ") + q + ": expected jpeg or jpeg=Q with Q a whole number 1..100");
+  }
   auto empty = make_sink("mcap:,no-masks", {rig});
   ASSERT_FALSE(empty);
   EXPECT_EQ(empty.error().message, "mcap sink: expected a file name (mcap:OUT.mcap)");

@@ -11,13 +11,15 @@ namespace {
 
 TEST(SinkRegistry, UsagesNameEveryScheme) {
   const std::vector<std::string> u = sink_usages();
-  ASSERT_EQ(u.size(), 6u);
+  ASSERT_EQ(u.size(), 8u);
   EXPECT_EQ(u[0].rfind("video:FILE.mp4", 0), 0u);
   EXPECT_EQ(u[1].rfind("tum:FILE.txt", 0), 0u);
   EXPECT_EQ(u[2].rfind("mcap:FILE.mcap", 0), 0u);
   EXPECT_EQ(u[3].rfind("euroc:DIR", 0), 0u);
   EXPECT_EQ(u[4].rfind("kitti:DIR", 0), 0u);
   EXPECT_EQ(u[5].rfind("middlebury:DIR", 0), 0u);
+  EXPECT_EQ(u[6].rfind("coco:DIR", 0), 0u);
+  EXPECT_EQ(u[7].rfind("yolo:DIR", 0), 0u);
 }
 
 TEST(SinkRegistry, MakesBySchemeAndNamesWhatIsWrong) {
@@ -28,7 +30,7 @@ TEST(SinkRegistry, MakesBySchemeAndNamesWhatIsWrong) {
   auto unknown = make_sink("rosbag:" + dir, {rig});
   ASSERT_FALSE(unknown);
   EXPECT_EQ(unknown.error().message,
-            "--sink rosbag:" + dir + ": unknown sink (known: video:, tum:, mcap:, euroc:, kitti:, middlebury:)");
+            "--sink rosbag:" + dir + ": unknown sink (known: video:, tum:, mcap:, euroc:, kitti:, middlebury:, coco:, yolo:)");
   for (const std::string spec : {"tum", "tum:"}) {
     auto missing = make_sink(spec, {rig});
     ASSERT_FALSE(missing) << spec;

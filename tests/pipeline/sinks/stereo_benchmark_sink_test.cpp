@@ -156,7 +156,7 @@ TEST(StereoBenchmarkSink, KittiFilesAreWhatKittisToolsReadAndAgreeWithTheAugment
         cv::imread((k / "augmented/training/image_2" / id).string(), cv::IMREAD_UNCHANGED);
     ASSERT_FALSE(raw_rect.empty()) << id;
     cv::Mat want;
-    cv::remap(eval::bgr_of(run.seen[i].raw.left.image.view()), want, map1, map2, cv::INTER_LINEAR);
+    cv::remap(bgr_of(run.seen[i].raw.left.image.view()), want, map1, map2, cv::INTER_LINEAR);
     cv::Mat diff;
     cv::absdiff(raw_rect, want, diff);
     EXPECT_LT(cv::mean(diff)[0], 0.5) << id;

@@ -120,7 +120,7 @@ TEST(VideoSink, BadArgumentsAreNamed) {
   expect_error("video:" + dir + "/a.notacontainer", "a.notacontainer: no container");
   expect_error("video:" + dir + "/no/such/dir/a.mp4", "a.mp4: cannot write");
   expect_error("video:", "expected video:FILE.mp4");
-  expect_error("vidoe:a.mp4", "unknown sink (known: video:, tum:, mcap:, euroc:, kitti:, middlebury:)");
+  expect_error("vidoe:a.mp4", "unknown sink (known: video:, tum:, mcap:, euroc:, kitti:, middlebury:, coco:, yolo:)");
 }
 
 TEST(VideoSink, RunWritesTheSimulatedFlight) {
