@@ -45,14 +45,20 @@ const std::vector<OptionSpec>& export_specs() {
       {"threads", ArgKind::kValue, "N", "threads encoding the images (default: one per core)"},
       {"no-augmented", ArgKind::kFlag, "", "leave out cam0_augmented and cam1_augmented"},
       {"no-masks", ArgKind::kFlag, "", "leave out cam0_mask and cam1_mask"},
-      {"images", ArgKind::kValue, "raw|jpeg",
-       "--format mcap: the raw and augmented images as they are (raw, default) or as JPEG "
-       "(sensor_msgs/msg/CompressedImage on .../compressed; lossy, a tenth of the size; masks stay lossless)"},
+      {"images", ArgKind::kValue, "raw|jpeg|h264",
+       "--format mcap: the raw and augmented images as they are (raw, default), as JPEG "
+       "(sensor_msgs/msg/CompressedImage on .../compressed; lossy, a tenth of the size) or as H.264 "
+       "(foxglove_msgs/msg/CompressedVideo on .../h264; lossy, smaller still); masks stay lossless"},
       {"jpeg-quality", ArgKind::kValue, "Q", "with --images jpeg: the JPEG quality, 1..100 (default 90)"},
+      {"h264-crf", ArgKind::kValue, "N",
+       "with --images h264: x264's quality, 0 (lossless) .. 51 (default 23)"},
+      {"keyframe-interval", ArgKind::kValue, "N",
+       "with --images h264: an IDR keyframe every N frames of each topic (default 30)"},
       {"no-plot", ArgKind::kFlag, "", "do not plot the statistics (stats.png needs gnuplot)"},
       {"ground-truth", ArgKind::kFlag, "",
        "also each frame's ground truth from its recorded receiver depth (docs/GROUND_TRUTH.md): cam0_depth, "
-       "cam1_depth (.npy), cam0_depth_mm, cam1_depth_mm (16-bit PNG), cam0_right_px (.npy), cam0_stereo_class; "
+       "cam1_depth (.npy), cam0_depth_mm, cam1_depth_mm (16-bit PNG), cam0_right_px (.npy), "
+       "cam0_stereo_class; "
        "needs a recording made with --ground-truth (or --reaugment)"},
       {"reaugment", ArgKind::kFlag, "",
        "augment the raw frames again through the pipeline (with --rig and the options below) instead of "
@@ -67,23 +73,30 @@ const std::vector<OptionSpec>& export_specs() {
   return specs;
 }
 
-// --images raw|jpeg and --jpeg-quality Q (--format mcap only).
+// --images raw|jpeg|h264, --jpeg-quality Q, --h264-crf N and --keyframe-interval N (--format mcap only).
 void apply_image_args(const ParsedArgs& a, recorder::McapExportOptions& o) {
   const std::string images = a.get("images", "raw");
-  if (images == "h264")
-    usage_error("--images h264: not built yet (raw or jpeg; docs/MCAP.md)");
-  if (images != "raw" && images != "jpeg") usage_error("--images: expected raw or jpeg, got '" + images + "'");
+  if (images != "raw" && images != "jpeg" && images != "h264")
+    usage_error("--images: expected raw, jpeg or h264, got '" + images + "'");
   o.jpeg = images == "jpeg";
+  o.h264 = images == "h264";
   if (a.has("jpeg-quality")) {
     if (!o.jpeg) usage_error("--jpeg-quality needs --images jpeg");
     o.jpeg_quality = static_cast<int>(parse_integer("jpeg-quality", a.get("jpeg-quality"), 1, 100));
   }
+  for (const char* flag : {"h264-crf", "keyframe-interval"})
+    if (a.has(flag) && !o.h264) usage_error(std::string("--") + flag + " needs --images h264");
+  if (a.has("h264-crf")) o.h264_crf = static_cast<int>(parse_integer("h264-crf", a.get("h264-crf"), 0, 51));
+  if (a.has("keyframe-interval"))
+    o.h264_gop_frames =
+        static_cast<int>(parse_integer("keyframe-interval", a.get("keyframe-interval"), 1, 100000));
 }
 
 // The mcap sink's options for the same flags (export --reaugment --format mcap).
 std::string image_sink_options(const ParsedArgs& a) {
   recorder::McapExportOptions o;
   apply_image_args(a, o);
+  if (o.h264) return ",h264=" + std::to_string(o.h264_crf) + ",gop=" + std::to_string(o.h264_gop_frames);
   return o.jpeg ? ",jpeg=" + std::to_string(o.jpeg_quality) : "";
 }
 
@@ -321,7 +334,7 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   const std::string format = a.has("format") ? a.get("format") : mcap_name ? "mcap" : "euroc";
   if (format != "euroc" && format != "mcap" && !sink_format(format))
     usage_error("--format: expected euroc, mcap, kitti, middlebury, coco or yolo, got '" + format + "'");
-  for (const char* flag : {"images", "jpeg-quality"})
+  for (const char* flag : {"images", "jpeg-quality", "h264-crf", "keyframe-interval"})
     if (a.has(flag) && format != "mcap") usage_error(std::string("--") + flag + ": only for --format mcap");
   // The benchmarks' true disparity and the labels come from the masks and receiver depth a new
   // augmentation draws.

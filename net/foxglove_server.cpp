@@ -10,12 +10,14 @@
 #include <condition_variable>
 #include <cstring>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include <nlohmann/json.hpp>
 
 #include "core/clock.hpp"
 #include "net/foxglove_ops.hpp"
+#include "net/h264_topics.hpp"
 #include "render/image_file.hpp"
 #include "ros2/messages.hpp"
 
@@ -39,8 +41,9 @@ enum Ch : std::uint32_t {
   kTf,
   kStats,
   kDiagnostics,
-  kJpeg0,  // per camera: image_raw/compressed, image_augmented/compressed (16 to 19)
-  kChannelCount = kJpeg0 + 3,
+  kJpeg0,               // per camera: image_raw/compressed, image_augmented/compressed (16 to 19)
+  kH2640 = kJpeg0 + 4,  // per camera: image_raw/h264, image_augmented/h264 (20 to 23)
+  kChannelCount = kH2640 + 3,
 };
 enum CamTopic : std::uint32_t {
   kImageRaw = 0,
@@ -55,6 +58,13 @@ constexpr std::uint32_t cam_channel(int camera, CamTopic t) {
 }
 constexpr std::uint32_t jpeg_channel(int camera, bool augmented) {
   return kJpeg0 + 2 * static_cast<std::uint32_t>(camera) + (augmented ? 1 : 0);
+}
+
+constexpr std::uint32_t h264_channel(int camera, bool augmented) {
+  return kH2640 + 2 * static_cast<std::uint32_t>(camera) + (augmented ? 1 : 0);
+}
+constexpr bool is_h264_channel(std::uint32_t channel) {
+  return channel >= kH2640 && channel <= kChannelCount;
 }
 
 std::string dump(const json& j) {
@@ -99,6 +109,9 @@ struct FoxgloveServer::Impl {
   mutable std::mutex mu;
   struct Client {
     std::map<std::uint32_t, std::uint32_t> subscriptions;  // subscription id -> channel id
+    // H.264 channels on which this client has no decodable stream yet (just subscribed, or a unit
+    // was dropped for it): it gets nothing there until the next keyframe.
+    std::set<std::uint32_t> awaiting_key;
   };
   std::map<ClientId, Client> clients;
   // Per channel id: (client, subscription id) of every subscriber.
@@ -123,6 +136,35 @@ struct FoxgloveServer::Impl {
   std::uint64_t jpeg_encoded = 0, jpeg_dropped = 0, jpeg_failed = 0;
   double jpeg_ms = 0;
   std::thread jpeg_thread;
+
+  // ---- The H.264 topics' encoder (h264_topics.hpp); its units come back through deliver_h264(). ----
+  std::unique_ptr<H264Topics> h264;
+  std::uint64_t h264_held = 0;  // units not sent to a client waiting for a keyframe
+
+  void deliver_h264(std::uint32_t channel, TimestampNs t_ns, const SharedBytes& body, bool keyframe) {
+    std::lock_guard<std::mutex> l(mu);
+    if (stopped) return;
+    ++serialised;
+    serialised_bytes += body->size();
+    bool lost = false;
+    for (const auto& [client, sub] : subscribers[channel]) {
+      const auto cl = clients.find(client);
+      if (cl == clients.end()) continue;
+      auto& awaiting = cl->second.awaiting_key;
+      if (keyframe) {
+        awaiting.erase(channel);
+      } else if (awaiting.count(channel)) {
+        ++h264_held;  // undecodable for it without the frames before
+        continue;
+      }
+      // A unit dropped for a slow client breaks its stream until the next keyframe: ask for one.
+      if (send_data(client, sub, log_time(t_ns), body, true) == SendResult::kDropped) {
+        awaiting.insert(channel);
+        lost = true;
+      }
+    }
+    if (lost) h264->request_keyframe(channel);
+  }
 
   void offer_jpeg(std::uint32_t channel, JpegJob job) {
     std::lock_guard<std::mutex> lock(jpeg_mu);
@@ -214,6 +256,12 @@ struct FoxgloveServer::Impl {
                         channels[channel - 1].topic + ")");
     cl.subscriptions.emplace(sub, channel);
     subscribers[channel].emplace_back(client, sub);
+    if (is_h264_channel(channel)) {
+      // Foxglove needs a keyframe with its parameter sets first: this client waits for the next,
+      // which is asked for now.
+      cl.awaiting_key.insert(channel);
+      h264->request_keyframe(channel);
+    }
     on_subscribed(client, sub, channel);
   }
 
@@ -223,6 +271,7 @@ struct FoxgloveServer::Impl {
       return status(client, 1, "unsubscribe: no subscription with id " + std::to_string(sub));
     auto& subs = subscribers[found->second];
     subs.erase(std::remove(subs.begin(), subs.end(), std::make_pair(client, sub)), subs.end());
+    cl.awaiting_key.erase(found->second);
     cl.subscriptions.erase(found);
   }
 
@@ -267,6 +316,14 @@ Expected<std::unique_ptr<FoxgloveServer>> FoxgloveServer::start(const ServeOptio
   if (rig.cameras.size() < 2) return Error{where + "the rig has fewer than 2 cameras"};
   if (options.jpeg_quality < 1 || options.jpeg_quality > 100)
     return Error{where + "JPEG quality " + std::to_string(options.jpeg_quality) + ": expected 1..100"};
+  // The H.264 options checked now (an encoder made and thrown away), not at the first subscriber.
+  H264Options h264_options;
+  h264_options.crf = options.h264_crf;
+  h264_options.gop_frames = options.h264_keyframe_interval;
+  h264_options.max_kbps = options.h264_max_kbps;
+  h264_options.preset = options.h264_preset;
+  if (auto probe = H264Encoder::create(16, 16, h264_options); !probe)
+    return Error{where + "H.264 topics: " + probe.error().message};
   std::unique_ptr<FoxgloveServer> s(new FoxgloveServer());
   s->impl_ = std::make_unique<Impl>();
   Impl& im = *s->impl_;
@@ -294,6 +351,11 @@ Expected<std::unique_ptr<FoxgloveServer>> FoxgloveServer::start(const ServeOptio
     const std::string cam = std::string("/") + kCameraNames[c];
     add(jpeg_channel(c, false), cam + "/image_raw/compressed", "sensor_msgs/msg/CompressedImage", true);
     add(jpeg_channel(c, true), cam + "/image_augmented/compressed", "sensor_msgs/msg/CompressedImage", true);
+  }
+  for (int c = 0; c < 2; ++c) {
+    const std::string cam = std::string("/") + kCameraNames[c];
+    add(h264_channel(c, false), cam + "/image_raw/h264", "foxglove_msgs/msg/CompressedVideo", true);
+    add(h264_channel(c, true), cam + "/image_augmented/h264", "foxglove_msgs/msg/CompressedVideo", true);
   }
   im.subscribers.resize(kChannelCount + 1);
   s->channels_ = im.channels;
@@ -348,6 +410,9 @@ Expected<std::unique_ptr<FoxgloveServer>> FoxgloveServer::start(const ServeOptio
   }
   im.ws = std::move(*ws);
   im.jpeg_thread = std::thread([p] { p->jpeg_loop(); });
+  im.h264 =
+      std::make_unique<H264Topics>(h264_options, [p](std::uint32_t ch, TimestampNs t, const SharedBytes& b,
+                                                     bool key) { p->deliver_h264(ch, t, b, key); });
   return s;
 }
 
@@ -368,6 +433,7 @@ void FoxgloveServer::stop() {
   }
   impl_->jpeg_cv.notify_all();
   if (impl_->jpeg_thread.joinable()) impl_->jpeg_thread.join();
+  if (impl_->h264) impl_->h264->stop();
   // Not under `mu`: the I/O thread's last on_close calls take it.
   if (impl_->ws) impl_->ws->stop();
 }
@@ -429,9 +495,14 @@ void FoxgloveServer::publish_pair(const StereoFrame& raw, const StereoResult* re
       if (wanted[jpeg_channel(c, true)] && !fr.image.empty())
         im.offer_jpeg(jpeg_channel(c, true), {fr.t_ns, c, whole_augmented(fr.image, v)});
     }
-    // The JPEG topics: a copy for the encoder's thread (the pipeline reuses its buffers).
+    // The JPEG and H.264 topics: a copy for the encoders' threads (the pipeline reuses its buffers).
     if (wanted[jpeg_channel(c, false)] && !fr.image.empty())
       im.offer_jpeg(jpeg_channel(c, false), {fr.t_ns, c, Image::copy_of(fr.image.cview())});
+    if (wanted[h264_channel(c, false)] && !fr.image.empty())
+      im.h264->offer(h264_channel(c, false), fr.t_ns, frame_id, Image::copy_of(fr.image.cview()));
+    if (result && wanted[h264_channel(c, true)] && !fr.image.empty())
+      im.h264->offer(h264_channel(c, true), fr.t_ns, frame_id,
+                     whole_augmented(fr.image, c == 0 ? result->left : result->right));
     if (scene && wanted[cam_channel(c, kReceiverPose)]) {
       const Pose T_cam_receiver =
           im.rig.cameras[static_cast<std::size_t>(c)].T_body_cam.inverse() * scene->T_body_receiver;
@@ -496,12 +567,22 @@ ServeStats FoxgloveServer::stats() const {
     s.jpeg_failed = impl_->jpeg_failed;
     s.jpeg_encode_ms = impl_->jpeg_ms;
   }
+  {
+    const H264TopicStats h = impl_->h264->stats();
+    s.h264_encoded = h.encoded;
+    s.h264_keyframes = h.keyframes;
+    s.h264_dropped = h.dropped;
+    s.h264_failed = h.failed;
+    s.h264_bytes = h.bytes;
+    s.h264_encode_ms = h.encode_ms;
+  }
   std::lock_guard<std::mutex> lock(impl_->mu);
   s.pairs_published = impl_->pairs;
   s.health_published = impl_->healths;
   s.messages_serialised = impl_->serialised;
   s.bytes_serialised = impl_->serialised_bytes;
   s.client_errors = impl_->client_errors;
+  s.h264_held = impl_->h264_held;
   for (const ClientStats& c : w.clients) {
     ServeClientStats cs;
     cs.id = c.id;

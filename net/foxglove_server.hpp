@@ -4,11 +4,13 @@
 // ros2msg schemas of the MCAP export (docs/MCAP.md, ros2/messages.hpp), so Foxglove shows a
 // live run exactly as it shows an exported file, plus /diagnostics, the pipeline's health in
 // plain words, and per camera the raw and augmented images compressed, sensor_msgs/msg/CompressedImage
-// in JPEG ("/left/image_augmented/compressed", as image_transport names them), for links that cannot
+// in JPEG ("/left/image_augmented/compressed", as image_transport names them) and as H.264 video,
+// foxglove_msgs/msg/CompressedVideo ("/left/image_augmented/h264", net/h264_topics.hpp: a keyframe
+// with its parameter sets to each new subscriber and every keyframe interval), for links that cannot
 // carry raw images. Clients "subscribe" and "unsubscribe"; each message goes to each subscriber as
 // binary Message Data (opcode 0x01, subscription id, log time in ns, the CDR message). A message is
 // serialised only when some client subscribes to its channel, once however many do. The JPEG topics
-// are encoded on a thread of their own, the newest frame per topic: a frame still waiting when the
+// (and, apart, the H.264 topics) are encoded on a thread of their own, the newest frame per topic: a frame still waiting when the
 // next comes is dropped and counted, so an encoder that falls behind costs that topic frames, never
 // the pipeline's thread nor the other topics. The publish
 // calls are made from the pipeline's thread and never block on a client: a slow client's queue
@@ -49,6 +51,13 @@ struct ServeOptions {
   // A client that has taken nothing for this long while data waits for it is disconnected (0: never).
   int stall_timeout_ms = 30'000;
   int jpeg_quality = 80;  // the compressed topics' JPEG quality, 1..100
+  // The H.264 topics (render/video_codec.hpp): x264's quality and preset, a keyframe at least every
+  // h264_keyframe_interval frames, and a cap per topic: 4 Mbit/s keeps both augmented views of a
+  // 30 fps rig within 8 Mbit/s.
+  int h264_crf = 23;
+  int h264_keyframe_interval = 30;
+  int h264_max_kbps = 4000;  // 0: no cap
+  std::string h264_preset = "superfast";
 };
 
 enum class HealthLevel : std::uint8_t {
@@ -94,6 +103,11 @@ struct ServeStats {
   // The JPEG topics: frames encoded, frames dropped before their turn (the encoder behind), failures.
   std::uint64_t jpeg_encoded = 0, jpeg_dropped = 0, jpeg_failed = 0;
   double jpeg_encode_ms = 0;  // time spent encoding, all frames
+  // The H.264 topics: units coded (of which keyframes), frames dropped before their turn (the encoder
+  // behind), failures, coded bytes, coding time; units held from a client waiting for a keyframe.
+  std::uint64_t h264_encoded = 0, h264_keyframes = 0, h264_dropped = 0, h264_failed = 0, h264_bytes = 0;
+  double h264_encode_ms = 0;
+  std::uint64_t h264_held = 0;
   std::vector<ServeClientStats> clients;  // the open clients, by id
 };
 

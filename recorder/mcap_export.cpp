@@ -211,13 +211,35 @@ struct McapFrameWriter::Impl {
   Status put(const std::string& topic, const char* type, std::int64_t t_ns, const std::vector<std::uint8_t>& msg) {
     return ch->write(topic, type, t_ns, msg, *report);
   }
-  // An image on `topic` as it is, or with options.jpeg on topic + "/compressed" as JPEG.
+  std::map<std::string, std::unique_ptr<H264Encoder>> h264;  // by topic, made at its first image
+
+  // An image on `topic` as it is, or with options.jpeg on topic + "/compressed" as JPEG, or with
+  // options.h264 on topic + "/h264" as the next unit of that topic's H.264 stream.
   Status put_image(const std::string& topic, std::int64_t t_ns, const char* frame_id, ConstImageView im) {
+    if (options.h264) return put_h264(topic, t_ns, frame_id, im);
     if (!options.jpeg) return put(topic, "sensor_msgs/msg/Image", t_ns, ros2::image(t_ns, frame_id, im));
     auto jpeg = encode_jpeg(im, options.jpeg_quality);
     if (!jpeg) return make_error("recorder::export_mcap(): ", out_path, ": ", topic, ": ", jpeg.error().message);
     return put(topic + "/compressed", "sensor_msgs/msg/CompressedImage", t_ns,
                ros2::compressed_image(t_ns, frame_id, "jpeg", *jpeg));
+  }
+  Status put_h264(const std::string& topic, std::int64_t t_ns, const char* frame_id, ConstImageView im) {
+    auto& enc = h264[topic];
+    // A new size (none in one recording, but a sink's source may change) starts a new stream.
+    if (!enc || enc->width() != im.width || enc->height() != im.height) {
+      H264Options o;
+      o.gop_frames = options.h264_gop_frames;
+      o.crf = options.h264_crf;
+      auto made = H264Encoder::create(im.width, im.height, o);
+      if (!made)
+        return make_error("recorder::export_mcap(): ", out_path, ": ", topic, ": ", made.error().message);
+      enc = std::move(*made);
+    }
+    auto unit = enc->encode(im, t_ns);
+    if (!unit)
+      return make_error("recorder::export_mcap(): ", out_path, ": ", topic, ": ", unit.error().message);
+    return put(topic + "/h264", "foxglove_msgs/msg/CompressedVideo", t_ns,
+               ros2::compressed_video(t_ns, frame_id, "h264", unit->data));
   }
   Status write_camera(const McapFrame& f, int c);
 };
@@ -229,6 +251,12 @@ Expected<std::unique_ptr<McapFrameWriter>> McapFrameWriter::create(const std::st
                                                                    McapExportReport& report) {
   if (rig && rig->cameras.size() < 2)
     return make_error("recorder::McapFrameWriter: ", out_path, ": the rig has fewer than 2 cameras");
+  if (options.jpeg && options.h264)
+    return make_error("recorder::McapFrameWriter: ", out_path, ": images as JPEG or as H.264, not both");
+  if (options.h264 && (options.h264_gop_frames < 1 || options.h264_crf < 0 || options.h264_crf > 51))
+    return make_error("recorder::McapFrameWriter: ", out_path, ": H.264 keyframe interval ",
+                      options.h264_gop_frames, " and quality ", options.h264_crf,
+                      ": expected >= 1 frames and crf 0..51");
   if (options.jpeg && (options.jpeg_quality < 1 || options.jpeg_quality > 100))
     return make_error("recorder::McapFrameWriter: ", out_path, ": JPEG quality ", options.jpeg_quality,
                       ": expected 1..100");

@@ -9,6 +9,8 @@
 //   /left/image_augmented         sensor_msgs/msg/Image              the augmented image (same encoding)
 //   /left/image_raw/compressed,   sensor_msgs/msg/CompressedImage    with images = jpeg, instead of the two
 //   /left/image_augmented/compressed                                   above: JPEG (a Bayer mosaic demosaiced)
+//   /left/image_raw/h264,         foxglove_msgs/msg/CompressedVideo  with images = h264, instead: H.264, each
+//   /left/image_augmented/h264                                         frame one unit, an IDR every h264_gop_frames
 //   /left/mask                    sensor_msgs/msg/Image              mono8: 1 boom, 2 receiver, 3 both
 //   /left/receiver_pose           geometry_msgs/msg/PoseWithCovarianceStamped   T_cam_receiver (frame left_camera)
 //   /right/...                    the same for the right camera
@@ -35,6 +37,7 @@
 #include "recorder/mcap_source.hpp"  // for now: its includers that read MCAP files compile unchanged
 #include "recorder/reader.hpp"
 #include "render/rig.hpp"
+#include "render/video_codec.hpp"
 
 namespace augrig::recorder {
 
@@ -47,6 +50,12 @@ struct McapExportOptions {
   // jpeg_quality: a file a tenth of the size, lossy (the masks stay lossless). A replay decodes them.
   bool jpeg = false;
   int jpeg_quality = 90;
+  // Or as H.264 (foxglove_msgs/msg/CompressedVideo on .../h264; render/video_codec.hpp): a stream per
+  // topic, an IDR keyframe every h264_gop_frames frames, x264's quality h264_crf. Smaller still; a
+  // replay decodes them from the file's start (a stream cannot be entered between keyframes).
+  bool h264 = false;
+  int h264_gop_frames = 30;
+  int h264_crf = 23;
   std::size_t chunk_size_bytes = 4u << 20;
   int zstd_level = 3;
   std::function<void(std::size_t done, std::size_t total)> progress;  // after each frame

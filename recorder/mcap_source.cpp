@@ -107,6 +107,21 @@ Expected<Image> decode_compressed(const std::vector<std::uint8_t>& msg) {
 
 }  // namespace
 
+// The next unit of camera `c`'s raw H.264 stream, cropped to the size the frame's info records.
+Expected<Image> McapSource::decode_video(int c, const std::vector<std::uint8_t>& msg,
+                                         const ros2::CameraFrameInfo& ci) {
+  auto v = ros2::decode_compressed_video(msg);
+  if (!v) return v.error();
+  if (v->format != "h264") return make_error("format '", v->format, "': expected h264");
+  auto& dec = decoders_[static_cast<std::size_t>(c)];
+  if (!dec) {
+    auto made = H264Decoder::create();
+    if (!made) return made.error();
+    dec = std::move(*made);
+  }
+  return dec->decode(v->data.data(), v->data.size(), ci.width, ci.height);
+}
+
 Expected<ReadStatus> McapSource::read(Frame& out, std::chrono::nanoseconds) {
   if (right_pending_) {
     right_pending_ = false;
@@ -147,8 +162,14 @@ Expected<ReadStatus> McapSource::read(Frame& out, std::chrono::nanoseconds) {
     const std::string cam = std::string("/") + kCameraNames[c];
     const ros2::CameraFrameInfo& ci = c == 0 ? info->left : info->right;
     Frame& fr = c == 0 ? rec.raw.left : rec.raw.right;
-    if (const auto jpeg = msgs.find(cam + "/image_raw/compressed");
-        jpeg != msgs.end() && !msgs.count(cam + "/image_raw")) {
+    if (const auto video = msgs.find(cam + "/image_raw/h264");
+        video != msgs.end() && !msgs.count(cam + "/image_raw")) {
+      // An H.264 export (--images h264): this camera's stream decoded in order, RGB8 (Mono8 for gray).
+      auto im = decode_video(c, video->second, ci);
+      if (!im) return fail(cam + "/image_raw/h264: " + im.error().message);
+      fr.image = std::move(*im);
+    } else if (const auto jpeg = msgs.find(cam + "/image_raw/compressed");
+               jpeg != msgs.end() && !msgs.count(cam + "/image_raw")) {
       // A JPEG export (--images jpeg): the decoded colours (a Bayer camera's demosaiced), RGB8.
       auto im = decode_compressed(jpeg->second);
       if (!im) return fail(cam + "/image_raw/compressed: " + im.error().message);

@@ -1,6 +1,7 @@
 // MCAP for ROS 2 and Foxglove (docs/MCAP.md), the reader: McapSource plays an MCAP file written by
 // export_mcap() or the mcap sink (mcap_export.hpp, which lists the file's topics) back as a
-// FrameSource (replay://OUT.mcap, `augrig replay OUT.mcap`): the raw images (/<camera>/image_raw)
+// FrameSource (replay://OUT.mcap, `augrig replay OUT.mcap`): the raw images (/<camera>/image_raw,
+// or as an export with compressed images wrote them: .../compressed in JPEG, .../h264 in H.264)
 // with the recorded scene (/augrig/frame, /<camera>/receiver_pose, /tf, /augrig/occlusion_stats).
 // The augmented images, masks, camera_info and nav inputs are not read back.
 //
@@ -8,6 +9,7 @@
 // the nav inputs their sensors' time of validity), so the round trip is exact.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <map>
@@ -19,6 +21,8 @@
 #include "recorder/mcap_names.hpp"
 #include "recorder/mcap_reader.hpp"
 #include "recorder/replay_source.hpp"
+#include "render/video_codec.hpp"
+#include "ros2/messages.hpp"
 
 namespace augrig::recorder {
 
@@ -57,6 +61,9 @@ class McapSource final : public FrameSource {
   std::uint64_t damaged_ = 0;
   bool have_pending_ = false, ended_ = false;
   McapMessage pending_;  // the /augrig/frame that starts the next stereo frame
+  // An H.264 file's raw image streams, one decoder per camera (made at its first unit).
+  std::array<std::unique_ptr<H264Decoder>, 2> decoders_;
+  Expected<Image> decode_video(int c, const std::vector<std::uint8_t>& msg, const ros2::CameraFrameInfo& ci);
   bool right_pending_ = false;
   Frame right_;
 };

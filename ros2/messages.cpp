@@ -106,7 +106,11 @@ const std::map<std::string, MsgDef>& definitions() {
         "step\n"
         "uint8[] data\n",
         {"std_msgs/Header"}}},
-      {"sensor_msgs/CompressedImage", {"std_msgs/Header header\nstring format\nuint8[] data\n", {"std_msgs/Header"}}},
+      {"sensor_msgs/CompressedImage",
+       {"std_msgs/Header header\nstring format\nuint8[] data\n", {"std_msgs/Header"}}},
+      {"foxglove_msgs/CompressedVideo",
+       {"builtin_interfaces/Time timestamp\nstring frame_id\nuint8[] data\nstring format\n",
+        {"builtin_interfaces/Time"}}},
       {"sensor_msgs/RegionOfInterest",
        {"uint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify\n", {}}},
       {"sensor_msgs/CameraInfo",
@@ -216,6 +220,7 @@ const std::vector<std::string>& known_types() {
   static const std::vector<std::string> types = {"augrig_msgs/msg/StereoFrameInfo",
                                                  "sensor_msgs/msg/Image",
                                                  "sensor_msgs/msg/CompressedImage",
+                                                 "foxglove_msgs/msg/CompressedVideo",
                                                  "sensor_msgs/msg/CameraInfo",
                                                  "tf2_msgs/msg/TFMessage",
                                                  "geometry_msgs/msg/PoseWithCovarianceStamped",
@@ -340,6 +345,16 @@ std::vector<std::uint8_t> compressed_image(std::int64_t t_ns, const std::string&
   header(w, t_ns, frame_id);
   w.string(format);
   w.bytes(data.data(), data.size());
+  return std::move(w.data());
+}
+
+std::vector<std::uint8_t> compressed_video(std::int64_t t_ns, const std::string& frame_id,
+                                           const std::string& format, const std::vector<std::uint8_t>& data) {
+  CdrWriter w;
+  w.data().reserve(64 + data.size());
+  header(w, t_ns, frame_id);  // timestamp, frame_id: the same bytes as a Header's
+  w.bytes(data.data(), data.size());
+  w.string(format);
   return std::move(w.data());
 }
 
@@ -588,6 +603,18 @@ Expected<CompressedImage> decode_compressed_image(const std::vector<std::uint8_t
   const std::uint8_t* data = r.bytes(n);
   if (!r.ok()) return bad("sensor_msgs/msg/CompressedImage");
   c.data.assign(data, data + n);
+  return c;
+}
+
+Expected<CompressedImage> decode_compressed_video(const std::vector<std::uint8_t>& msg) {
+  CdrReader r(msg.data(), msg.size());
+  CompressedImage c;
+  c.t_ns = read_header(r, &c.frame_id);
+  std::size_t n = 0;
+  const std::uint8_t* data = r.bytes(n);
+  if (r.ok()) c.data.assign(data, data + n);
+  c.format = r.string();
+  if (!r.ok()) return bad("foxglove_msgs/msg/CompressedVideo");
   return c;
 }
 

@@ -101,6 +101,10 @@ std::vector<std::uint8_t> image(std::int64_t t_ns, const std::string& frame_id, 
 // sensor_msgs/msg/CompressedImage: `format` as image_transport names it ("jpeg"), `data` the file's bytes.
 std::vector<std::uint8_t> compressed_image(std::int64_t t_ns, const std::string& frame_id, const std::string& format,
                                            const std::vector<std::uint8_t>& data);
+// foxglove_msgs/msg/CompressedVideo: one frame's access unit (`format` "h264": Annex B, a keyframe
+// with its SPS and PPS; render/video_codec.hpp).
+std::vector<std::uint8_t> compressed_video(std::int64_t t_ns, const std::string& frame_id, const std::string& format,
+                                           const std::vector<std::uint8_t>& data);
 std::vector<std::uint8_t> camera_info(std::int64_t t_ns, const std::string& frame_id, const CameraModel& cm);
 
 struct Transform {
@@ -164,6 +168,8 @@ struct CompressedImage {
   std::vector<std::uint8_t> data;
 };
 Expected<CompressedImage> decode_compressed_image(const std::vector<std::uint8_t>& msg);
+// foxglove_msgs/msg/CompressedVideo, in the same struct (its timestamp as t_ns).
+Expected<CompressedImage> decode_compressed_video(const std::vector<std::uint8_t>& msg);
 Expected<Pose> decode_pose_with_covariance(const std::vector<std::uint8_t>& msg);
 Expected<std::vector<Transform>> decode_tf_message(const std::vector<std::uint8_t>& msg);
 Expected<OcclusionStats> decode_occlusion_stats(const std::vector<std::uint8_t>& msg);

@@ -81,6 +81,18 @@ class McapSink final : public FrameSink {
   std::unique_ptr<recorder::McapFrameWriter> writer_;
 };
 
+// "NAME" (the default) or "NAME=V" with V a whole number lo..hi.
+Expected<int> option_number(const std::string& opt, const std::string& name, int fallback, int lo, int hi) {
+  if (opt == name) return fallback;
+  const std::string v = opt.substr(name.size() + 1);
+  char* end = nullptr;
+  const long n = std::strtol(v.c_str(), &end, 10);
+  if (v.empty() || *end || n < lo || n > hi)
+    return make_error("mcap sink: ", opt, ": expected ", name, " or ", name, "=N with N a whole number ", lo,
+                      "..", hi);
+  return static_cast<int>(n);
+}
+
 }  // namespace
 
 Expected<std::unique_ptr<FrameSink>> make_mcap_sink(const std::string& arg, const SinkSetup& setup) {
@@ -96,15 +108,23 @@ Expected<std::unique_ptr<FrameSink>> make_mcap_sink(const std::string& arg, cons
       o.masks = false;
     else if (opt == "jpeg" || opt.rfind("jpeg=", 0) == 0) {
       o.jpeg = true;
-      const std::string q = opt == "jpeg" ? "90" : opt.substr(5);
-      char* end = nullptr;
-      const long v = std::strtol(q.c_str(), &end, 10);
-      if (*end || q.empty() || v < 1 || v > 100)
-        return make_error("mcap sink: ", opt, ": expected jpeg or jpeg=Q with Q a whole number 1..100");
-      o.jpeg_quality = static_cast<int>(v);
+      auto q = option_number(opt, "jpeg", 90, 1, 100);
+      if (!q) return q.error();
+      o.jpeg_quality = *q;
+    } else if (opt == "h264" || opt.rfind("h264=", 0) == 0) {
+      o.h264 = true;
+      auto crf = option_number(opt, "h264", 23, 0, 51);
+      if (!crf) return crf.error();
+      o.h264_crf = *crf;
+    } else if (opt.rfind("gop=", 0) == 0) {
+      auto n = option_number(opt, "gop", 30, 1, 100000);
+      if (!n) return n.error();
+      o.h264_gop_frames = *n;
     } else
-      return make_error("mcap sink: ", opt, ": unknown option (expected no-augmented, no-masks, jpeg or jpeg=Q)");
+      return make_error("mcap sink: ", opt,
+                        ": unknown option (expected no-augmented, no-masks, jpeg[=Q], h264[=CRF] or gop=N)");
   }
+  if (o.jpeg && o.h264) return make_error("mcap sink: jpeg or h264, not both");
   if (path.empty()) return make_error("mcap sink: expected a file name (mcap:OUT.mcap)");
   auto sink = std::make_unique<McapSink>(path, o, setup);
   if (Status st = sink->open(); !st) return st.error();

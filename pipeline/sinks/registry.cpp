@@ -19,8 +19,9 @@ constexpr SinkEntry kSinks[] = {
     {"tum", "tum:FILE.txt  the receiver's pose in the left camera per pair (TUM trajectory format)",
      make_tum_sink},
     {"mcap",
-     "mcap:FILE.mcap[,no-augmented][,no-masks][,jpeg[=Q]]  each pair as ROS 2 messages, as export --format "
-     "mcap writes them (jpeg: the images as JPEG, quality Q, default 90)",
+     "mcap:FILE.mcap[,no-augmented][,no-masks][,jpeg[=Q]|,h264[=CRF][,gop=N]]  each pair as ROS 2 messages, as "
+     "export --format mcap writes them (jpeg: the images as JPEG, quality Q, default 90; h264: as H.264, x264's "
+     "CRF default 23, a keyframe every N frames, default 30)",
      make_mcap_sink},
     {"euroc",
      "euroc:DIR[,no-augmented][,no-masks][,no-plot][,ground-truth][,nav]  each pair in the EuRoC/ASL layout, "

@@ -277,13 +277,51 @@ TEST(CmdExportMcap, JpegImagesAFractionOfTheSizeAndReplayed) {
   EXPECT_NE(log.find("Recorded statistics reproduced exactly (same pixel counts) in 3 of 3 frame(s)"),
             std::string::npos)
       << log;
-  EXPECT_EQ(test::run_augrig("export " + e.rec + " --format mcap " + e.dir + "/x.mcap --images h264 2>&1", &log), 2);
-  EXPECT_NE(log.find("--images h264: not built yet"), std::string::npos) << log;
+  EXPECT_EQ(
+      test::run_augrig("export " + e.rec + " --format mcap " + e.dir + "/x.mcap --images png 2>&1", &log), 2);
+  EXPECT_NE(log.find("--images: expected raw, jpeg or h264, got 'png'"), std::string::npos) << log;
   EXPECT_EQ(test::run_augrig("export " + e.rec + " " + e.dir + "/x --format euroc --images jpeg 2>&1", &log), 2);
   EXPECT_NE(log.find("--images: only for --format mcap"), std::string::npos) << log;
   EXPECT_EQ(test::run_augrig("export " + e.rec + " --format mcap " + e.dir + "/x.mcap --jpeg-quality 50 2>&1", &log),
             2);
   EXPECT_NE(log.find("--jpeg-quality needs --images jpeg"), std::string::npos) << log;
+}
+
+// --images h264: each image topic an H.264 stream on .../h264 (foxglove_msgs/msg/CompressedVideo),
+// smaller than JPEG; `replay` decodes the streams in order and reproduces the recorded statistics.
+TEST(CmdExportMcap, H264ImagesSmallerStillAndReplayed) {
+  const Exported& e = exported();
+  const std::string h264 = e.dir + "/h264.mcap";
+  std::string log;
+  ASSERT_EQ(test::run_augrig("export " + e.rec + " --format mcap " + h264 +
+                                 " --images h264 --h264-crf 23 --keyframe-interval 2 2>&1",
+                             &log),
+            0)
+      << log;
+  EXPECT_NE(log.find("  /left/image_raw/h264: 3\n"), std::string::npos) << log;
+  EXPECT_NE(log.find("  /right/image_augmented/h264: 3\n"), std::string::npos) << log;
+  EXPECT_EQ(log.find("  /left/image_raw: "), std::string::npos) << log;
+  EXPECT_EQ(log.find("/compressed"), std::string::npos) << log;
+  const double ratio = static_cast<double>(fs::file_size(h264)) / static_cast<double>(fs::file_size(e.mcap));
+  std::printf("  H.264 crf 23 MCAP: %.1f %% of the raw export's size\n", 100.0 * ratio);
+  EXPECT_LT(ratio, 0.5);
+  ASSERT_EQ(test::run_augrig("replay " + h264 + " --headless --out " + e.dir + "/from_h264 2>&1", &log), 0)
+      << log;
+  EXPECT_NE(log.find("Recorded statistics reproduced exactly (same pixel counts) in 3 of 3 frame(s)"),
+            std::string::npos)
+      << log;
+  for (const std::string bad : {"--h264-crf 52", "--keyframe-interval 0"}) {
+    EXPECT_EQ(
+        test::run_augrig(
+            "export " + e.rec + " --format mcap " + e.dir + "/x.mcap --images h264 " + bad + " 2>&1", &log),
+        2)
+        << bad;
+    EXPECT_NE(log.find(bad.substr(0, bad.find(' '))), std::string::npos) << log;
+  }
+  EXPECT_EQ(
+      test::run_augrig("export " + e.rec + " --format mcap " + e.dir + "/x.mcap --h264-crf 20 2>&1", &log),
+      2);
+  EXPECT_NE(log.find("--h264-crf needs --images h264"), std::string::npos) << log;
 }
 
 TEST(CmdExportMcap, DamagedFilesFailClearlyWithTheFileAndOffset) {

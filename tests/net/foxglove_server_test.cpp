@@ -26,8 +26,10 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "render/cv_image.hpp"
+#include "render/video_codec.hpp"
 #include "ros2/messages.hpp"
 #include "tests/support/test_support.hpp"
 #include "tests/support/ws_test_client.hpp"
@@ -343,6 +345,10 @@ TEST(FoxgloveServer, ServerInfoAndAdvertiseOnConnectAndTheSubprotocolIsRequired)
       {"/left/image_augmented/compressed", "sensor_msgs/msg/CompressedImage"},
       {"/right/image_raw/compressed", "sensor_msgs/msg/CompressedImage"},
       {"/right/image_augmented/compressed", "sensor_msgs/msg/CompressedImage"},
+      {"/left/image_raw/h264", "foxglove_msgs/msg/CompressedVideo"},
+      {"/left/image_augmented/h264", "foxglove_msgs/msg/CompressedVideo"},
+      {"/right/image_raw/h264", "foxglove_msgs/msg/CompressedVideo"},
+      {"/right/image_augmented/h264", "foxglove_msgs/msg/CompressedVideo"},
   };
   std::map<std::string, std::string> got;
   std::set<std::uint32_t> ids;
@@ -404,7 +410,8 @@ TEST(FoxgloveServer, ARawClientGetsEveryTopicAsTheMcapExportWritesIt) {
   std::map<std::uint32_t, std::string> topic_of;
   std::uint32_t id = 100;
   for (const auto& [topic, ch] : c.channel) {
-    if (topic.find("/compressed") != std::string::npos) continue;  // the JPEG topics: their own tests
+    // The JPEG and H.264 topics: their own tests.
+    if (topic.find("/compressed") != std::string::npos || topic.find("/h264") != std::string::npos) continue;
     subs.emplace_back(id, topic);
     topic_of[id++] = topic;
   }
@@ -560,6 +567,84 @@ TEST(FoxgloveServer, AJpegEncoderBehindDropsThatTopicsFramesOnly) {
   EXPECT_EQ(st.messages_dropped, 0u) << "nothing dropped for the client";
 }
 
+// The H.264 topics: nothing coded without a subscriber; a subscriber's first unit is a keyframe
+// with its SPS and PPS, the units after it decode in order (FFmpeg's decoder) to pictures close
+// to the views; a second client joining mid-stream gets a keyframe at once (asked for on its
+// subscription) and nothing before it; the counts add up.
+TEST(FoxgloveServer, H264TopicsStartEachSubscriberAtAKeyframe) {
+  const Rig rig = Rig::paper_default();
+  ServeOptions o = test_options();
+  o.h264_keyframe_interval = 1000;  // no keyframe but those asked for
+  auto s = FoxgloveServer::start(o, rig);
+  ASSERT_TRUE(s) << s.error().message;
+  FoxgloveServer& server = **s;
+  std::vector<Pair> pairs;
+  for (int k = 0; k < 4; ++k) pairs.push_back(make_pair(rig, 20 + k, k % 2 == 1));
+  server.publish_pair(pairs[0].raw, &pairs[0].result, &pairs[0].scene, pairs[0].info);
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(server.stats().h264_encoded + server.stats().h264_dropped, 0u) << "nothing coded for no one";
+
+  RawFoxglove a(server.port());
+  ASSERT_TRUE(a.open());
+  ASSERT_TRUE(a.subscribe({{1, "/left/image_augmented/h264"}}));
+  ASSERT_TRUE(wait_subscribed(server, 1));
+  auto decoder = H264Decoder::create();
+  ASSERT_TRUE(decoder);
+  auto publish_and_take = [&](RawFoxglove& c, const Pair& p, H264Decoder& dec, const std::string& what) {
+    const std::uint64_t before = server.stats().h264_encoded;
+    server.publish_pair(p.raw, &p.result, &p.scene, p.info);
+    ASSERT_TRUE(eventually([&] { return server.stats().h264_encoded > before; })) << what;
+    auto d = c.next_data();
+    ASSERT_TRUE(d) << what;
+    auto m = ros2::decode_compressed_video(d->payload);
+    ASSERT_TRUE(m) << m.error().message;
+    EXPECT_EQ(m->format, "h264");
+    EXPECT_EQ(m->frame_id, "left_camera");
+    EXPECT_EQ(m->t_ns, p.raw.left.t_ns);
+    auto pic =
+        dec.decode(m->data.data(), m->data.size(), p.raw.left.image.width(), p.raw.left.image.height());
+    ASSERT_TRUE(pic) << what << ": " << pic.error().message;
+    cv::Mat rgb = cv_view(pic->cview()), bgr;
+    cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+    EXPECT_GT(cv::PSNR(bgr, bgr_of(p.whole_augmented[0].cview())), 22.0) << what;
+  };
+  for (int k = 0; k < 3; ++k)
+    publish_and_take(a, pairs[static_cast<std::size_t>(k)], **decoder, "a " + std::to_string(k));
+  EXPECT_EQ(server.stats().h264_keyframes, 1u);
+
+  // A second client mid-stream: a keyframe for it (the first client decodes it too).
+  RawFoxglove b(server.port());
+  ASSERT_TRUE(b.open());
+  ASSERT_TRUE(b.subscribe({{7, "/left/image_augmented/h264"}}));
+  ASSERT_TRUE(wait_subscribed(server, 1) && eventually([&] { return server.stats().clients.size() == 2; }));
+  ASSERT_TRUE(eventually([&] {
+    for (const ServeClientStats& c : server.stats().clients)
+      if (c.subscriptions != 1) return false;
+    return true;
+  }));
+  auto decoder_b = H264Decoder::create();
+  publish_and_take(b, pairs[3], **decoder_b, "b joins");
+  auto d = a.next_data();
+  ASSERT_TRUE(d);
+  auto m = ros2::decode_compressed_video(d->payload);
+  ASSERT_TRUE(m);
+  EXPECT_TRUE((*decoder)->decode(m->data.data(), m->data.size()));
+  const ServeStats st = server.stats();
+  EXPECT_EQ(st.h264_encoded, 4u);
+  EXPECT_EQ(st.h264_keyframes, 2u);
+  EXPECT_EQ(st.h264_failed, 0u);
+  EXPECT_GT(st.h264_bytes, 0u);
+  EXPECT_EQ(st.h264_held, 0u);
+  EXPECT_FALSE(b.next_data(200)) << "nothing more for b";
+
+  ServeOptions bad = test_options();
+  bad.h264_crf = 70;
+  auto refused = FoxgloveServer::start(bad, rig);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("net::FoxgloveServer::start(): H.264 topics: "), std::string::npos)
+      << refused.error().message;
+}
+
 TEST(FoxgloveServer, ClientMistakesAreAnsweredWithStatusAndTheConnectionStays) {
   auto s = FoxgloveServer::start(test_options(), Rig::paper_default());
   ASSERT_TRUE(s);
@@ -692,6 +777,27 @@ TEST(FoxgloveServer, NpmClientSubscribesReceivesAndDecodesEverything) {
       EXPECT_GT(m["msg"]["bytes"].get<int>(), 1000) << t;
       EXPECT_EQ(m["msg"]["frame_id"], std::string(t).rfind("/left", 0) == 0 ? "left_camera" : "right_camera");
     }
+  // The H.264 topics: the first unit a keyframe with its parameter sets (SPS 7, PPS 8, IDR 5), as
+  // Foxglove requires of a stream's start; the rest of that camera's stream after it.
+  int h264_topics_heard = 0;
+  for (const char* t : {"/left/image_raw/h264", "/left/image_augmented/h264", "/right/image_raw/h264",
+                        "/right/image_augmented/h264"}) {
+    if (by_topic[t].empty()) continue;  // its units still coming when the client had every pair
+    ++h264_topics_heard;
+    const json& first = by_topic[t][0]["msg"];
+    EXPECT_NE(std::find(first["nal"].begin(), first["nal"].end(), 7), first["nal"].end())
+        << t << first.dump();
+    EXPECT_NE(std::find(first["nal"].begin(), first["nal"].end(), 8), first["nal"].end())
+        << t << first.dump();
+    EXPECT_NE(std::find(first["nal"].begin(), first["nal"].end(), 5), first["nal"].end())
+        << t << first.dump();
+    for (const json& m : by_topic[t]) {
+      EXPECT_EQ(m["msg"]["format"], "h264") << t;
+      EXPECT_EQ(m["msg"]["frame_id"], std::string(t).rfind("/left", 0) == 0 ? "left_camera" : "right_camera");
+      EXPECT_EQ(m["msg"]["stamp_ns"], m["log_time_ns"]) << t;
+    }
+  }
+  EXPECT_GE(h264_topics_heard, 1);
   for (int k = 0; k < kFrames; ++k) {
     const Pair& p = pairs[static_cast<std::size_t>(k)];
     const std::string what = "frame " + std::to_string(k);
@@ -770,11 +876,18 @@ TEST(FoxgloveServer, ASlowClientIsDroppedFramesWhileAFastClientGetsEveryFrame) {
   FoxgloveServer& server = **s;
   RawFoxglove slow(server.port(), 64 * 1024);
   ASSERT_TRUE(slow.open());
+  // Every topic but the H.264 ones (their x264 streams would take this machine's cores from the
+  // clients; their own tests); the JPEG topics stand for the compressed ones.
   std::vector<std::pair<std::uint32_t, std::string>> all;
-  for (const auto& [topic, id] : slow.channel) all.emplace_back(id, topic);
+  std::string topics;
+  for (const auto& [topic, id] : slow.channel)
+    if (topic.find("/h264") == std::string::npos) {
+      all.emplace_back(id, topic);
+      topics += (topics.empty() ? "" : ",") + topic;
+    }
   ASSERT_TRUE(slow.subscribe(all));
   constexpr int kFrames = 30;
-  NodeRun node(script, server.url() + " " + std::to_string(kFrames) + " --no-hash");
+  NodeRun node(script, server.url() + " " + std::to_string(kFrames) + " --no-hash --topics " + topics);
   ASSERT_TRUE(eventually(
       [&] {
         std::size_t full = 0;

@@ -101,6 +101,32 @@ TEST(Ros2Msgs, CompressedImageLayoutAndRoundTrip) {
             0u);
 }
 
+// foxglove_msgs/msg/CompressedVideo: timestamp, frame_id, data, then format (Foxglove's field order).
+TEST(Ros2Msgs, CompressedVideoLayoutAndRoundTrip) {
+  const std::vector<std::uint8_t> unit = {0, 0, 0, 1, 0x67, 9, 9};
+  const std::vector<std::uint8_t> msg = compressed_video(5'000'000'011, "right_camera", "h264", unit);
+  // Encapsulation (4), sec, nanosec (8), "right_camera\0" (4 + 13), pad to 4 (3), count (4) and the
+  // 7 bytes, pad (1), "h264\0" (4 + 5).
+  ASSERT_EQ(msg.size(), 4u + 8 + 17 + 3 + 4 + 7 + 1 + 9);
+  EXPECT_EQ(msg[8], 11);
+  EXPECT_EQ(msg[32], unit.size());
+  EXPECT_EQ(msg[36 + 4], 0x67);
+  EXPECT_EQ(std::string(reinterpret_cast<const char*>(&msg[48]), 4), "h264");
+  auto back = decode_compressed_video(msg);
+  ASSERT_TRUE(back) << back.error().message;
+  EXPECT_EQ(back->t_ns, 5'000'000'011);
+  EXPECT_EQ(back->frame_id, "right_camera");
+  EXPECT_EQ(back->format, "h264");
+  EXPECT_EQ(back->data, unit);
+  std::vector<std::uint8_t> cut(msg.begin(), msg.end() - 3);
+  auto bad = decode_compressed_video(cut);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("foxglove_msgs/msg/CompressedVideo"), std::string::npos);
+  EXPECT_EQ(schema_text("foxglove_msgs/msg/CompressedVideo"),
+            "builtin_interfaces/Time timestamp\nstring frame_id\nuint8[] data\nstring format\n" +
+                std::string(80, '=') + "\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n");
+}
+
 TEST(Ros2Msgs, DiagnosticArrayRoundTrips) {
   DiagnosticStatus a;
   a.level = DiagnosticStatus::kWarn;

@@ -47,6 +47,13 @@ function summarise(type, msg) {
     if (hash) out.fnv1a = fnv1a(msg.data);
   } else if (type === "sensor_msgs/msg/CompressedImage") {
     Object.assign(out, { format: msg.format, bytes: msg.data.length, soi: [msg.data[0], msg.data[1]] });
+  } else if (type === "foxglove_msgs/msg/CompressedVideo") {
+    // The NAL unit types after each Annex B start code (7 SPS, 8 PPS, 5 IDR slice, 1 other slice).
+    const nal = [];
+    for (let i = 0; i + 3 < msg.data.length; i++)
+      if (msg.data[i] === 0 && msg.data[i + 1] === 0 && msg.data[i + 2] === 1) { nal.push(msg.data[i + 3] & 0x1f); i += 2; }
+    Object.assign(out, { stamp_ns: ns(msg.timestamp).toString(), frame_id: msg.frame_id, format: msg.format,
+                         bytes: msg.data.length, nal });
   } else if (type === "sensor_msgs/msg/CameraInfo") {
     Object.assign(out, { width: msg.width, height: msg.height, distortion_model: msg.distortion_model,
                          d: Array.from(msg.d), k: Array.from(msg.k) });

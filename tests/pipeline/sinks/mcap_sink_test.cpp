@@ -10,6 +10,7 @@
 #include "pipeline/sinks/registry.hpp"
 #include "recorder/mcap_export.hpp"
 #include "recorder/mcap_source.hpp"
+#include "render/video_codec.hpp"
 #include "ros2/messages.hpp"
 #include "tests/support/mcap_messages.hpp"
 #include "tests/support/pipeline_parts.hpp"
@@ -121,18 +122,54 @@ TEST(McapSink, JpegImagesOnRequest) {
     }
 }
 
+TEST(McapSink, H264ImagesOnRequestDecodeInOrder) {
+  const std::string out = test::output_dir("mcap_sink_h264");
+  const auto messages = two_pairs_into(out + "/h.mcap", ",h264=30,gop=1");
+  const std::map<std::string, int> n = topics_of(messages);
+  EXPECT_EQ(n.count("/left/image_raw"), 0u);
+  EXPECT_EQ(n.count("/left/image_raw/compressed"), 0u);
+  EXPECT_EQ(n.at("/left/image_raw/h264"), 2);
+  EXPECT_EQ(n.at("/right/image_augmented/h264"), 2);
+  EXPECT_EQ(n.at("/right/mask"), 2);
+  auto dec = H264Decoder::create();
+  ASSERT_TRUE(dec);
+  int decoded = 0;
+  for (const auto& [topic_time, data] : messages)
+    if (topic_time.substr(0, topic_time.find(' ')) == "/left/image_augmented/h264") {
+      auto c = ros2::decode_compressed_video(data);
+      ASSERT_TRUE(c) << c.error().message;
+      EXPECT_EQ(c->format, "h264");
+      EXPECT_EQ(c->frame_id, "left_camera");
+      auto pic = (*dec)->decode(c->data.data(), c->data.size());
+      ASSERT_TRUE(pic) << pic.error().message;
+      EXPECT_GT(pic->width(), 0);
+      ++decoded;
+    }
+  EXPECT_EQ(decoded, 2);
+}
+
 TEST(McapSink, BadArgumentsAndUnwritableFilesAreNamed) {
   const Rig rig = Rig::paper_default();
   auto unknown = make_sink("mcap:x.mcap,png", {rig});
   ASSERT_FALSE(unknown);
-  EXPECT_EQ(unknown.error().message,
-            "mcap sink: png: unknown option (expected no-augmented, no-masks, jpeg or jpeg=Q)");
+  EXPECT_EQ(
+      unknown.error().message,
+      "mcap sink: png: unknown option (expected no-augmented, no-masks, jpeg[=Q], h264[=CRF] or gop=N)");
   for (const char* q : {"jpeg=0", "jpeg=101", "jpeg=", "jpeg=8x"}) {
     auto bad_q = make_sink(std::string("mcap:x.mcap,") + q, {rig});
     ASSERT_FALSE(bad_q) << q;
     EXPECT_EQ(bad_q.error().message,
-              std::string("mcap sink: ") + q + ": expected jpeg or jpeg=Q with Q a whole number 1..100");
+              std::string("mcap sink: ") + q + ": expected jpeg or jpeg=N with N a whole number 1..100");
   }
+  for (const char* q : {"h264=52", "h264=-1", "gop=0", "gop=x"}) {
+    auto bad_q = make_sink(std::string("mcap:x.mcap,") + q, {rig});
+    ASSERT_FALSE(bad_q) << q;
+    EXPECT_NE(bad_q.error().message.find(std::string("mcap sink: ") + q + ": expected "), std::string::npos)
+        << bad_q.error().message;
+  }
+  auto both = make_sink("mcap:x.mcap,jpeg,h264", {rig});
+  ASSERT_FALSE(both);
+  EXPECT_EQ(both.error().message, "mcap sink: jpeg or h264, not both");
   auto empty = make_sink("mcap:,no-masks", {rig});
   ASSERT_FALSE(empty);
   EXPECT_EQ(empty.error().message, "mcap sink: expected a file name (mcap:OUT.mcap)");

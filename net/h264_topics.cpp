@@ -1,0 +1,88 @@
+// H264Topics (h264_topics.hpp): the worker's loop and the coding of one frame.
+#include "net/h264_topics.hpp"
+
+#include <chrono>
+
+#include "ros2/messages.hpp"
+
+namespace augrig::net {
+
+H264Topics::H264Topics(const H264Options& options, Deliver deliver)
+    : options_(options), deliver_(std::move(deliver)), thread_([this] { loop(); }) {}
+
+H264Topics::~H264Topics() {
+  stop();
+}
+
+void H264Topics::stop() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+    pending_.clear();
+  }
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void H264Topics::offer(std::uint32_t channel, TimestampNs t_ns, const char* frame_id, Image image) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (stop_) return;
+  if (!pending_.insert_or_assign(channel, Job{t_ns, frame_id, std::move(image)}).second) ++stats_.dropped;
+  cv_.notify_one();
+}
+
+void H264Topics::request_keyframe(std::uint32_t channel) {
+  std::lock_guard<std::mutex> lock(mu_);
+  want_key_.insert(channel);
+}
+
+H264TopicStats H264Topics::stats() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return stats_;
+}
+
+Expected<H264AccessUnit> H264Topics::code(std::uint32_t channel, const Job& job, bool keyframe) {
+  auto& enc = encoders_[channel];
+  // A channel's first frame, or a new size (a source that changed): a new stream, IDR first.
+  if (!enc || enc->width() != job.image.width() || enc->height() != job.image.height()) {
+    auto made = H264Encoder::create(job.image.width(), job.image.height(), options_);
+    if (!made) return made.error();
+    enc = std::move(*made);
+  }
+  return enc->encode(job.image.cview(), job.t_ns, keyframe);
+}
+
+void H264Topics::loop() {
+  std::unique_lock<std::mutex> lock(mu_);
+  for (;;) {
+    cv_.wait(lock, [&] { return stop_ || !pending_.empty(); });
+    if (stop_) return;
+    // The next channel after the last one coded, so that every topic gets its turn.
+    auto it = pending_.upper_bound(last_);
+    if (it == pending_.end()) it = pending_.begin();
+    auto node = pending_.extract(it);
+    const std::uint32_t channel = last_ = node.key();
+    const bool keyframe = want_key_.erase(channel) > 0;
+    lock.unlock();
+    const auto t0 = std::chrono::steady_clock::now();
+    const Job& job = node.mapped();
+    auto unit = code(channel, job, keyframe);
+    SharedBytes message;
+    if (unit) message = share_bytes(ros2::compressed_video(job.t_ns, job.frame_id, "h264", unit->data));
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (message) deliver_(channel, job.t_ns, message, unit->keyframe);
+    lock.lock();
+    stats_.encode_ms += ms;
+    if (!unit) {
+      ++stats_.failed;
+      want_key_.insert(channel);  // whatever comes next starts clean
+      continue;
+    }
+    ++stats_.encoded;
+    stats_.keyframes += unit->keyframe ? 1 : 0;
+    stats_.bytes += unit->data.size();
+  }
+}
+
+}  // namespace augrig::net
