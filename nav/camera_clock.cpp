@@ -362,6 +362,12 @@ const std::vector<FrameRotation>& CameraRotationTracker::rotations() const {
   return impl_->rotations;
 }
 
+std::vector<FrameRotation> CameraRotationTracker::take_rotations() {
+  std::vector<FrameRotation> out;
+  out.swap(impl_->rotations);
+  return out;
+}
+
 int CameraRotationTracker::frames() const {
   return impl_->frames;
 }

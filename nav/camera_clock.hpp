@@ -152,6 +152,9 @@ class CameraRotationTracker {
   // increase. An Error for a wrong image size or format; a frame that gives no rotation is not one.
   Status add_frame(TimestampNs t_camera_ns, ConstImageView image);
   const std::vector<FrameRotation>& rotations() const;
+  // The rotations measured since the last call (or the start), moved out: a tracker that runs for
+  // hours (pipeline/camera_clock_online.hpp) keeps none itself.
+  std::vector<FrameRotation> take_rotations();
   int frames() const;
 
  private:
