@@ -225,9 +225,10 @@ struct RawFoxglove {
 // The npm packages, installed once into build/test-output/npm-foxglove-ws (kept between runs),
 // with foxglove_ws_check.mjs copied next to them; "" and `why` set when node or npm cannot.
 std::string npm_client(std::string* why) {
-  return test::npm_script("foxglove-ws",
-                          {"@foxglove/ws-protocol@0.8", "ws@8", "@foxglove/rosmsg2-serialization@3", "@foxglove/rosmsg@5"},
-                          "foxglove_ws_check.mjs", why);
+  return test::npm_script(
+      "foxglove-ws",
+      {"@foxglove/ws-protocol@0.8", "ws@8", "@foxglove/rosmsg2-serialization@3", "@foxglove/rosmsg@5"},
+      "foxglove_ws_check.mjs", why);
 }
 
 // Runs the npm client in the background; get() gives its JSON (or an error object).
@@ -643,6 +644,70 @@ TEST(FoxgloveServer, H264TopicsStartEachSubscriberAtAKeyframe) {
   ASSERT_FALSE(refused);
   EXPECT_NE(refused.error().message.find("net::FoxgloveServer::start(): H.264 topics: "), std::string::npos)
       << refused.error().message;
+}
+
+// A client that stops reading loses H.264 units (its queue full): from then on it gets nothing on
+// that topic until a keyframe, which its loss asks for, so every unit it does get decodes on what
+// it got before. The oracle: every pair coded in order (published one at a time), so a gap in the
+// pairs the client received must be followed by a keyframe; received + held + dropped = coded.
+TEST(FoxgloveServer, AClientThatLostAnH264UnitGetsNothingUntilAKeyframe) {
+  const Rig rig = Rig::paper_default();
+  ServeOptions o = test_options();
+  o.stall_timeout_ms = 0;
+  o.client_queue_bytes = 256 * 1024;
+  o.h264_max_kbps = 0;  // big units: fresh noise every frame at a high quality
+  o.h264_crf = 24;
+  o.h264_keyframe_interval = 1000;
+  auto s = FoxgloveServer::start(o, rig);
+  ASSERT_TRUE(s) << s.error().message;
+  FoxgloveServer& server = **s;
+  RawFoxglove c(server.port(), 32 * 1024);
+  ASSERT_TRUE(c.open());
+  ASSERT_TRUE(c.subscribe({{1, "/left/image_raw/h264"}}));
+  ASSERT_TRUE(wait_subscribed(server, 1));
+  const int n = 30;
+  std::map<TimestampNs, int> index_of;
+  cv::RNG rng(11);
+  for (int k = 0; k < n; ++k) {
+    Pair p = make_pair(rig, k, false, PixelFormat::kMono8);
+    p.raw.left.t_ns += k * 33'333'333LL;
+    cv::Mat m = cv_view(p.raw.left.image.cview());
+    cv::Mat noise(m.size(), CV_8UC1);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 24);
+    m += noise;
+    index_of[p.raw.left.t_ns] = k;
+    const std::uint64_t before = server.stats().h264_encoded;
+    server.publish_pair(p.raw, nullptr, nullptr, p.info);
+    ASSERT_TRUE(eventually([&] { return server.stats().h264_encoded > before; })) << k;
+  }
+  std::vector<std::pair<int, bool>> got;  // pair index, keyframe
+  while (auto d = c.next_data(1000)) {
+    auto m = ros2::decode_compressed_video(d->payload);
+    ASSERT_TRUE(m) << m.error().message;
+    bool idr = false;
+    for (std::size_t i = 0; i + 3 < m->data.size(); ++i)
+      if (m->data[i] == 0 && m->data[i + 1] == 0 && m->data[i + 2] == 1 && (m->data[i + 3] & 0x1f) == 5)
+        idr = true;
+    got.emplace_back(index_of.at(m->t_ns), idr);
+  }
+  const ServeStats st = server.stats();
+  ASSERT_EQ(st.clients.size(), 1u);
+  EXPECT_GT(st.clients[0].messages_dropped, 0u) << "the client's queue never filled: the test did not test";
+  EXPECT_EQ(st.h264_encoded, static_cast<std::uint64_t>(n));
+  EXPECT_EQ(st.h264_dropped, 0u);
+  EXPECT_EQ(got.size() + st.h264_held + st.clients[0].messages_dropped, static_cast<std::size_t>(n));
+  ASSERT_FALSE(got.empty());
+  EXPECT_TRUE(got[0].second) << "the first unit a client gets is a keyframe";
+  for (std::size_t i = 1; i < got.size(); ++i)
+    if (got[i].first != got[i - 1].first + 1)
+      EXPECT_TRUE(got[i].second) << "pair " << got[i].first << " after " << got[i - 1].first
+                                 << ": not a keyframe";
+  EXPECT_GE(st.h264_keyframes, 2u) << "a keyframe asked for after the loss";
+  std::printf(
+      "  %zu of %d units received, %llu dropped for the client, %llu held, %llu keyframes, %.0f kB a unit\n",
+      got.size(), n, static_cast<unsigned long long>(st.clients[0].messages_dropped),
+      static_cast<unsigned long long>(st.h264_held), static_cast<unsigned long long>(st.h264_keyframes),
+      st.h264_bytes / 1e3 / n);
 }
 
 TEST(FoxgloveServer, ClientMistakesAreAnsweredWithStatusAndTheConnectionStays) {
