@@ -18,6 +18,7 @@
 #include "core/clock.hpp"
 #include "net/foxglove_ops.hpp"
 #include "net/h264_topics.hpp"
+#include "net/latest_per_channel.hpp"
 #include "render/image_file.hpp"
 #include "ros2/messages.hpp"
 
@@ -128,11 +129,8 @@ struct FoxgloveServer::Impl {
     int camera = 0;
     Image image;
   };
-  std::mutex jpeg_mu;  // never held while taking `mu`
-  std::condition_variable jpeg_cv;
-  std::map<std::uint32_t, JpegJob> jpeg_pending;  // by channel
-  std::uint32_t jpeg_last = 0;                    // the channel encoded last (round robin)
-  bool jpeg_stop = false;
+  LatestPerChannel<JpegJob> jpeg_jobs;
+  std::mutex jpeg_mu;  // the counts; never held while taking `mu`
   std::uint64_t jpeg_encoded = 0, jpeg_dropped = 0, jpeg_failed = 0;
   double jpeg_ms = 0;
   std::thread jpeg_thread;
@@ -167,25 +165,15 @@ struct FoxgloveServer::Impl {
   }
 
   void offer_jpeg(std::uint32_t channel, JpegJob job) {
+    if (jpeg_jobs.offer(channel, std::move(job))) return;
     std::lock_guard<std::mutex> lock(jpeg_mu);
-    if (jpeg_stop) return;
-    if (!jpeg_pending.insert_or_assign(channel, std::move(job)).second) ++jpeg_dropped;
-    jpeg_cv.notify_one();
+    ++jpeg_dropped;
   }
 
   void jpeg_loop() {
-    std::unique_lock<std::mutex> lock(jpeg_mu);
-    for (;;) {
-      jpeg_cv.wait(lock, [&] { return jpeg_stop || !jpeg_pending.empty(); });
-      if (jpeg_stop) return;
-      // The next channel after the last one encoded, so that every topic gets its turn.
-      auto it = jpeg_pending.upper_bound(jpeg_last);
-      if (it == jpeg_pending.end()) it = jpeg_pending.begin();
-      auto node = jpeg_pending.extract(it);
-      jpeg_last = node.key();
-      lock.unlock();
+    while (auto next = jpeg_jobs.take()) {
+      const auto& [channel, job] = *next;
       const auto t0 = std::chrono::steady_clock::now();
-      const JpegJob& job = node.mapped();
       auto jpeg = encode_jpeg(job.image.cview(), opt.jpeg_quality);
       SharedBytes body;
       if (jpeg) body = share_bytes(ros2::compressed_image(job.t_ns, kCameraFrames[job.camera], "jpeg", *jpeg));
@@ -195,11 +183,11 @@ struct FoxgloveServer::Impl {
         if (body && !stopped) {
           ++serialised;
           serialised_bytes += body->size();
-          for (const auto& [client, sub] : subscribers[node.key()])
+          for (const auto& [client, sub] : subscribers[channel])
             send_data(client, sub, log_time(job.t_ns), body, true);
         }
       }
-      lock.lock();
+      std::lock_guard<std::mutex> lock(jpeg_mu);
       ++(jpeg ? jpeg_encoded : jpeg_failed);
       jpeg_ms += ms;
     }
@@ -427,11 +415,7 @@ void FoxgloveServer::stop() {
     if (impl_->stopped) return;
     impl_->stopped = true;
   }
-  {
-    std::lock_guard<std::mutex> lock(impl_->jpeg_mu);
-    impl_->jpeg_stop = true;
-  }
-  impl_->jpeg_cv.notify_all();
+  impl_->jpeg_jobs.stop();
   if (impl_->jpeg_thread.joinable()) impl_->jpeg_thread.join();
   if (impl_->h264) impl_->h264->stop();
   // Not under `mu`: the I/O thread's last on_close calls take it.

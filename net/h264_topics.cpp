@@ -15,20 +15,14 @@ H264Topics::~H264Topics() {
 }
 
 void H264Topics::stop() {
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    stop_ = true;
-    pending_.clear();
-  }
-  cv_.notify_all();
+  jobs_.stop();
   if (thread_.joinable()) thread_.join();
 }
 
 void H264Topics::offer(std::uint32_t channel, TimestampNs t_ns, const char* frame_id, Image image) {
+  if (jobs_.offer(channel, Job{t_ns, frame_id, std::move(image)})) return;
   std::lock_guard<std::mutex> lock(mu_);
-  if (stop_) return;
-  if (!pending_.insert_or_assign(channel, Job{t_ns, frame_id, std::move(image)}).second) ++stats_.dropped;
-  cv_.notify_one();
+  ++stats_.dropped;
 }
 
 void H264Topics::request_keyframe(std::uint32_t channel) {
@@ -53,26 +47,21 @@ Expected<H264AccessUnit> H264Topics::code(std::uint32_t channel, const Job& job,
 }
 
 void H264Topics::loop() {
-  std::unique_lock<std::mutex> lock(mu_);
-  for (;;) {
-    cv_.wait(lock, [&] { return stop_ || !pending_.empty(); });
-    if (stop_) return;
-    // The next channel after the last one coded, so that every topic gets its turn.
-    auto it = pending_.upper_bound(last_);
-    if (it == pending_.end()) it = pending_.begin();
-    auto node = pending_.extract(it);
-    const std::uint32_t channel = last_ = node.key();
-    const bool keyframe = want_key_.erase(channel) > 0;
-    lock.unlock();
+  while (auto next = jobs_.take()) {
+    const auto& [channel, job] = *next;
+    bool keyframe = false;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      keyframe = want_key_.erase(channel) > 0;
+    }
     const auto t0 = std::chrono::steady_clock::now();
-    const Job& job = node.mapped();
     auto unit = code(channel, job, keyframe);
     SharedBytes message;
     if (unit) message = share_bytes(ros2::compressed_video(job.t_ns, job.frame_id, "h264", unit->data));
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     if (message) deliver_(channel, job.t_ns, message, unit->keyframe);
-    lock.lock();
+    std::lock_guard<std::mutex> lock(mu_);
     stats_.encode_ms += ms;
     if (!unit) {
       ++stats_.failed;

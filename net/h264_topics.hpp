@@ -7,7 +7,6 @@
 // unit). Each coded unit is handed to `deliver` on that thread, with no lock of this class held.
 #pragma once
 
-#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -19,6 +18,7 @@
 
 #include "core/conventions.hpp"
 #include "core/image.hpp"
+#include "net/latest_per_channel.hpp"
 #include "net/websocket.hpp"
 #include "render/video_codec.hpp"
 
@@ -63,12 +63,9 @@ class H264Topics {
 
   H264Options options_;
   Deliver deliver_;
-  mutable std::mutex mu_;
-  std::condition_variable cv_;
-  std::map<std::uint32_t, Job> pending_;  // by channel
-  std::set<std::uint32_t> want_key_;      // channels whose next frame is a keyframe
-  std::uint32_t last_ = 0;                // the channel coded last (round robin)
-  bool stop_ = false;
+  LatestPerChannel<Job> jobs_;
+  mutable std::mutex mu_;             // want_key_ and stats_
+  std::set<std::uint32_t> want_key_;  // channels whose next frame is a keyframe
   H264TopicStats stats_;
   std::map<std::uint32_t, std::unique_ptr<H264Encoder>> encoders_;  // the worker's only
   std::thread thread_;

@@ -156,6 +156,35 @@ TEST(McapSource, PlaysTheExportBackAsTheRecordingReadsIt) {
   EXPECT_EQ(src.frames_dropped(), 0u);
 }
 
+// Plays `file` (an export of `r` with compressed images) back against the recording: each frame's
+// images within the codec's loss (gray stays gray; colour and Bayer come back as RGB) at the
+// recorded size, every other field exact.
+void expect_plays_back_within_loss(const RecordingReader& r, const std::string& file, const std::string& what) {
+  auto opened = McapSource::open("replay://" + file);
+  ASSERT_TRUE(opened) << opened.error().message;
+  for (std::size_t i = 0; i < r.frame_count(); ++i) {
+    auto want = r.read_frame(i, kPartRaw);
+    ASSERT_TRUE(want) << want.error().message;
+    for (int c = 0; c < 2; ++c) {
+      Frame f;
+      auto st = (*opened)->read(f, 0ns);
+      ASSERT_TRUE(st && *st == ReadStatus::kFrame) << what << " " << i << ": " << (st ? "" : st.error().message);
+      const Frame& w = c == 0 ? want->raw.left : want->raw.right;
+      ASSERT_EQ(f.image.format(), w.image.format() == PixelFormat::kMono8 ? PixelFormat::kMono8 : PixelFormat::kRGB8);
+      ASSERT_EQ(f.image.width(), w.image.width());
+      ASSERT_EQ(f.image.height(), w.image.height());
+      EXPECT_GT(cv::PSNR(bgr_of(f.image.cview()), bgr_of(w.image.cview())), 30.0)
+          << what << ": frame " << i << " camera " << c;
+      EXPECT_EQ(f.t_ns, w.t_ns);
+      const auto* rf = dynamic_cast<const RecordedFrame*>(f.attachment.get());
+      ASSERT_NE(rf, nullptr);
+      ASSERT_TRUE(rf->record.stats && want->stats);
+      EXPECT_TRUE(*rf->record.stats == *want->stats);
+    }
+  }
+  EXPECT_EQ((*opened)->damaged_frames(), 0u);
+}
+
 // --images jpeg: the images as JPEG on .../compressed (the masks as they are), a fraction of the
 // file; played back as the colours decoded (RGB8, a Bayer camera's demosaiced), within JPEG's loss
 // of the recording's images, every other field as exact as a raw export's.
@@ -174,28 +203,7 @@ TEST(McapSource, PlaysAJpegExportBackAsItsDecodedColours) {
   EXPECT_EQ(report.messages_by_topic.at("/right/image_augmented/compressed"), r.frame_count());
   EXPECT_EQ(report.messages_by_topic.at("/left/mask"), r.frame_count());
   EXPECT_LT(fs::file_size(jpeg), fs::file_size(e.mcap) / 2) << "JPEG and zstd against zstd alone";
-  auto opened = McapSource::open("replay://" + jpeg);
-  ASSERT_TRUE(opened) << opened.error().message;
-  for (std::size_t i = 0; i < r.frame_count(); ++i) {
-    auto want = r.read_frame(i, kPartRaw);
-    ASSERT_TRUE(want) << want.error().message;
-    for (int c = 0; c < 2; ++c) {
-      Frame f;
-      auto st = (*opened)->read(f, 0ns);
-      ASSERT_TRUE(st && *st == ReadStatus::kFrame) << i;
-      const Frame& w = c == 0 ? want->raw.left : want->raw.right;
-      // Gray stays gray; colour and Bayer come back as RGB.
-      ASSERT_EQ(f.image.format(), w.image.format() == PixelFormat::kMono8 ? PixelFormat::kMono8 : PixelFormat::kRGB8);
-      ASSERT_EQ(f.image.width(), w.image.width());
-      EXPECT_GT(cv::PSNR(bgr_of(f.image.cview()), bgr_of(w.image.cview())), 30.0) << "frame " << i << " camera " << c;
-      EXPECT_EQ(f.t_ns, w.t_ns);
-      const auto* rf = dynamic_cast<const RecordedFrame*>(f.attachment.get());
-      ASSERT_NE(rf, nullptr);
-      ASSERT_TRUE(rf->record.stats && want->stats);
-      EXPECT_TRUE(*rf->record.stats == *want->stats);
-    }
-  }
-  EXPECT_EQ((*opened)->damaged_frames(), 0u);
+  expect_plays_back_within_loss(r, jpeg, "jpeg");
   McapExportOptions bad = o;
   bad.jpeg_quality = 0;
   const Status s = export_mcap(r, e.dir + "/bad.mcap", bad, report);
@@ -226,30 +234,7 @@ TEST(McapSource, PlaysAnH264ExportBackDecodingEachStreamInOrder) {
     EXPECT_EQ(report.messages_by_topic.at("/left/mask"), r.frame_count());
     // The fixture's frames are fresh noise each (no motion to predict): the gain is the transform's.
     EXPECT_LT(fs::file_size(h264), fs::file_size(e.mcap) * 2 / 3) << "H.264 against zstd alone";
-    auto opened = McapSource::open("replay://" + h264);
-    ASSERT_TRUE(opened) << opened.error().message;
-    for (std::size_t i = 0; i < r.frame_count(); ++i) {
-      auto want = r.read_frame(i, kPartRaw);
-      ASSERT_TRUE(want) << want.error().message;
-      for (int c = 0; c < 2; ++c) {
-        Frame f;
-        auto st = (*opened)->read(f, 0ns);
-        ASSERT_TRUE(st && *st == ReadStatus::kFrame) << i << ": " << (st ? "" : st.error().message);
-        const Frame& w = c == 0 ? want->raw.left : want->raw.right;
-        ASSERT_EQ(f.image.format(),
-                  w.image.format() == PixelFormat::kMono8 ? PixelFormat::kMono8 : PixelFormat::kRGB8);
-        ASSERT_EQ(f.image.width(), w.image.width());
-        ASSERT_EQ(f.image.height(), w.image.height());
-        EXPECT_GT(cv::PSNR(bgr_of(f.image.cview()), bgr_of(w.image.cview())), 30.0)
-            << "frame " << i << " camera " << c << " gop " << gop;
-        EXPECT_EQ(f.t_ns, w.t_ns);
-        const auto* rf = dynamic_cast<const RecordedFrame*>(f.attachment.get());
-        ASSERT_NE(rf, nullptr);
-        ASSERT_TRUE(rf->record.stats && want->stats);
-        EXPECT_TRUE(*rf->record.stats == *want->stats);
-      }
-    }
-    EXPECT_EQ((*opened)->damaged_frames(), 0u);
+    expect_plays_back_within_loss(r, h264, "gop " + std::to_string(gop));
   }
   McapExportOptions both;
   both.h264 = both.jpeg = true;
