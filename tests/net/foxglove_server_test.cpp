@@ -534,18 +534,20 @@ TEST(FoxgloveServer, JpegTopicsAreTheImagesCompressedForSubscribersOnly) {
   EXPECT_EQ(bad.error().message, "net::FoxgloveServer::start(): JPEG quality 101: expected 1..100");
 }
 
-// Frames offered faster than the encoder takes them: the JPEG topic keeps the newest and counts
-// the rest, while a topic beside it gets every pair and publishing never waits for the encoder.
-TEST(FoxgloveServer, AJpegEncoderBehindDropsThatTopicsFramesOnly) {
+// Frames offered faster than the encoder takes them: the JPEG (or H.264) topic keeps the newest and
+// counts the rest, while a topic beside it gets every pair and publishing never waits for the
+// encoder. Every H.264 unit the client gets decodes (a dropped frame is never coded).
+void expect_an_encoder_behind_drops_its_topics_frames_only(const std::string& topic) {
   const Rig rig = Rig::paper_default();
   ServeOptions o = test_options();
   o.jpeg_quality = 100;  // the slowest
+  o.h264_crf = 0;        // lossless: the slowest
   auto s = FoxgloveServer::start(o, rig);
   ASSERT_TRUE(s);
   FoxgloveServer& server = **s;
   RawFoxglove c(server.port());
   ASSERT_TRUE(c.open());
-  ASSERT_TRUE(c.subscribe({{1, "/left/image_augmented/compressed"}, {2, "/augrig/occlusion_stats"}}));
+  ASSERT_TRUE(c.subscribe({{1, topic}, {2, "/augrig/occlusion_stats"}}));
   ASSERT_TRUE(wait_subscribed(server, 2));
   std::vector<Pair> pairs;
   for (int k = 0; k < 4; ++k) pairs.push_back(make_pair(rig, 10 + k));
@@ -554,18 +556,36 @@ TEST(FoxgloveServer, AJpegEncoderBehindDropsThatTopicsFramesOnly) {
     const Pair& p = pairs[static_cast<std::size_t>(i % 4)];
     server.publish_pair(p.raw, &p.result, &p.scene, p.info);
   }
-  int stats = 0, jpegs = 0;
+  const bool h264 = topic.find("/h264") != std::string::npos;
+  auto coded = [&](const ServeStats& st) { return h264 ? st.h264_encoded : st.jpeg_encoded; };
+  auto dropped = [&](const ServeStats& st) { return h264 ? st.h264_dropped : st.jpeg_dropped; };
   ASSERT_TRUE(eventually([&] {
     const ServeStats st = server.stats();
-    return st.jpeg_encoded + st.jpeg_dropped == static_cast<std::uint64_t>(n);
+    return coded(st) + dropped(st) == static_cast<std::uint64_t>(n);
   }));
   const ServeStats st = server.stats();
-  while (auto d = c.next_data(1000)) (d->subscription == 1 ? jpegs : stats) += 1;
+  int stats = 0, images = 0;
+  auto decoder = H264Decoder::create();
+  while (auto d = c.next_data(1000)) {
+    (d->subscription == 1 ? images : stats) += 1;
+    if (d->subscription != 1 || !h264) continue;
+    auto m = ros2::decode_compressed_video(d->payload);
+    ASSERT_TRUE(m);
+    EXPECT_TRUE((*decoder)->decode(m->data.data(), m->data.size())) << "unit " << images;
+  }
   EXPECT_EQ(stats, n) << "the other topic got every pair";
-  EXPECT_GT(st.jpeg_dropped, 0u) << "the encoder kept up with " << n << " pairs offered at once";
-  EXPECT_EQ(static_cast<std::uint64_t>(jpegs), st.jpeg_encoded);
-  EXPECT_EQ(st.jpeg_failed, 0u);
+  EXPECT_GT(dropped(st), 0u) << "the encoder kept up with " << n << " pairs offered at once";
+  EXPECT_EQ(static_cast<std::uint64_t>(images), coded(st));
+  EXPECT_EQ(st.jpeg_failed + st.h264_failed, 0u);
   EXPECT_EQ(st.messages_dropped, 0u) << "nothing dropped for the client";
+}
+
+TEST(FoxgloveServer, AJpegEncoderBehindDropsThatTopicsFramesOnly) {
+  expect_an_encoder_behind_drops_its_topics_frames_only("/left/image_augmented/compressed");
+}
+
+TEST(FoxgloveServer, AnH264EncoderBehindDropsThatTopicsFramesOnly) {
+  expect_an_encoder_behind_drops_its_topics_frames_only("/left/image_augmented/h264");
 }
 
 // The H.264 topics: nothing coded without a subscriber; a subscriber's first unit is a keyframe
