@@ -110,8 +110,9 @@ int h264_row(const std::vector<std::array<Image, 2>>& views, const Options& o, c
   for (double m : ms) mean_ms += m / static_cast<double>(ms.size());
   for (double p : psnr) mean_psnr += p / static_cast<double>(psnr.size());
   std::printf("| H.264 %s, crf %d, cap %d kbit/s a view | %.2f | %.2f | %.0f %% | %.2f | %zu | %.1f |\n",
-              preset.c_str(), o.crf, o.kbps, median, percentile(ms, 0.99), 100.0 * mean_ms * 2 * 30 / 1000.0 / 2.0,
-              static_cast<double>(bytes) * 8 / seconds / 1e6, keys, mean_psnr);
+              preset.c_str(), o.crf, o.kbps, median, percentile(ms, 0.99),
+              100.0 * mean_ms * 2 * 30 / 1000.0 / 2.0, static_cast<double>(bytes) * 8 / seconds / 1e6, keys,
+              mean_psnr);
   return 0;
 }
 
@@ -157,7 +158,8 @@ int main(int argc, char** argv) {
     } else if (a == "--crf" && more) {
       o.crf = std::atoi(argv[++i]);
     } else {
-      std::fprintf(stderr, "usage: bench_h264 [--frames N] [--source URI] [--presets a,b] [--kbps K] [--crf N]\n");
+      std::fprintf(stderr,
+                   "usage: bench_h264 [--frames N] [--source URI] [--presets a,b] [--kbps K] [--crf N]\n");
       return 2;
     }
   }
@@ -167,8 +169,9 @@ int main(int argc, char** argv) {
   const Image& v = (*views)[0][0];
   std::printf("%zu pairs of %s, %dx%d %s, one thread, a view at a time\n\n", views->size(), o.source.c_str(),
               v.width(), v.height(), std::string(to_string(v.format())).c_str());
-  std::printf("| coding | ms / view (median) | p99 | CPU of 2 cores, both views at 30 fps | Mbit/s, both at 30 fps "
-              "| keyframes | PSNR dB |\n|---|---:|---:|---:|---:|---:|---:|\n");
+  std::printf(
+      "| coding | ms / view (median) | p99 | CPU of 2 cores, both views at 30 fps | Mbit/s, both at 30 fps "
+      "| keyframes | PSNR dB |\n|---|---:|---:|---:|---:|---:|---:|\n");
   for (const std::string& p : o.presets)
     if (int rc = h264_row(*views, o, p); rc) return rc;
   jpeg_row(*views);
