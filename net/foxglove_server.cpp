@@ -210,6 +210,7 @@ struct FoxgloveServer::Impl {
 
   SharedBytes tf_static() const {
     std::vector<ros2::Transform> tf;
+    tf.reserve(2);
     for (int c = 0; c < 2; ++c)
       tf.push_back(
           {last_key_ns, kBodyFrame, kCameraFrames[c], rig.cameras[static_cast<std::size_t>(c)].T_body_cam});
@@ -379,8 +380,8 @@ Expected<std::unique_ptr<FoxgloveServer>> FoxgloveServer::start(const ServeOptio
   wo.subprotocols = {kSubprotocol};
   wo.max_clients = options.max_clients;
   wo.queue_bytes = options.client_queue_bytes;
-  wo.control_reserve_bytes = std::max<std::size_t>(1024 * 1024, options.client_queue_bytes / 8);
-  wo.max_message_bytes = 256 * 1024;  // subscribe lists; nothing else is accepted from clients
+  wo.control_reserve_bytes = std::max<std::size_t>(std::size_t{1024} * 1024, options.client_queue_bytes / 8);
+  wo.max_message_bytes = std::size_t{256} * 1024;  // subscribe lists; nothing else is accepted from clients
   wo.stall_timeout_ms = options.stall_timeout_ms;
   wo.server_header = "augrig " AUGRIG_VERSION " (Foxglove WebSocket, " + std::string(kSubprotocol) + ")";
   WebSocketHandler h;

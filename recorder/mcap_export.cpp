@@ -315,6 +315,7 @@ Status McapFrameWriter::write(const McapFrame& f, std::uint64_t index, const std
   // The cameras' poses on the tanker, once, at the first frame's time.
   if (m.rig && !m.static_written) {
     std::vector<ros2::Transform> tf;
+    tf.reserve(2);
     for (int c = 0; c < 2; ++c)
       tf.push_back({raw.t_key_ns, kBodyFrame, kCameraFrames[c], m.rig->cameras[static_cast<std::size_t>(c)].T_body_cam});
     if (Status s = m.put("/tf_static", "tf2_msgs/msg/TFMessage", raw.t_key_ns, ros2::tf_message(tf)); !s) return s;
