@@ -109,6 +109,11 @@ PanelActions draw_status_panel(const HudState& hud, const PanelState& panel, con
   ImGui::Text("         %s, age %s s, sigma %s m %s deg", fix_name(hud.nav.fix),
               num(hud.nav.age_s, "%.2f").c_str(), num(hud.nav.sigma_pos_m, "%.3f").c_str(),
               num(hud.nav.sigma_att_deg, "%.2f").c_str());
+  // The online camera clocks (run --camera-clock online): grey until an estimate is applied.
+  for (const std::string& c : hud.camera_clocks)
+    ImGui::TextColored(
+        c.find(", applied") != std::string::npos ? ImGui::GetStyleColorVec4(ImGuiCol_Text) : kGrey,
+        "Clock    %s", c.c_str());
   ImGui::Text("Latency  display %s / %s ms (p50 / p99)", num(hud.latency_display.p50_ms).c_str(),
               num(hud.latency_display.p99_ms).c_str());
   ImGui::Text("         recorder %s / %s ms", num(hud.latency_recorder.p50_ms).c_str(),

@@ -1,7 +1,7 @@
 // The display's HUD, drawn with Dear ImGui (internal to app/display.cpp): the status panel (rates,
-// skew, drops by stage, nav, occlusion, latency, recording, boom, messages and the occlusion plot
-// over the last seconds, with buttons for the same actions as the shortcuts), the view labels and
-// the help overlay listing every shortcut. Needs a current ImGui frame.
+// skew, drops by stage, nav, the camera clocks, occlusion, latency, recording, boom, messages and
+// the occlusion plot over the last seconds, with buttons for the same actions as the shortcuts), the
+// view labels and the help overlay listing every shortcut. Needs a current ImGui frame.
 #pragma once
 
 #include <array>

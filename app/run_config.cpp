@@ -49,6 +49,8 @@ std::string fmt_us(std::int64_t ns) {
 struct RunSetup {
   PipelineParts parts;
   std::unique_ptr<LiveNav> live_nav;
+  // After live_nav: destroyed (its workers stopped) before the nav it reads.
+  std::unique_ptr<CameraClocks> camera_clocks;
   std::unique_ptr<NavInputs> nav_inputs;
   std::shared_ptr<std::unique_ptr<sim::NavStreamer>> nav_streamer;
   nav::InsConfig ins_used[2];  // the live fusion's aircraft settings (recorded for a re-fusion)
@@ -170,6 +172,22 @@ std::unique_ptr<LiveNav> make_live_nav(const RunOptions& o, const Rig& rig,
   return std::make_unique<LiveNav>(rig, BoomDimensions{}, receptacle_m, ins_used[0], ins_used[1], nopt);
 }
 
+// --camera-clock online: each camera's clock estimated from its images against the tanker's rates
+// from the live nav, applied to the poses once confident; priors as the poses map frames today.
+void make_camera_clocks(const RunOptions& o, const Rig& rig, PoseSources& ps, RunSetup& setup) {
+  CameraClockOnlineOptions co;
+  co.apply_sigma_s = o.camera_clock_apply_sigma_ms * 1e-3;
+  const LiveNav* nav = setup.live_nav.get();
+  auto host_to_nav = [nav](TimestampNs host_ns) -> std::optional<TimestampNs> {
+    const Expected<TimestampNs> t = nav->host_to_nav(host_ns);
+    return t ? std::optional<TimestampNs>(*t) : std::nullopt;
+  };
+  setup.camera_clocks = std::make_unique<CameraClocks>(rig, ps.camera_offset_ns, host_to_nav,
+                                                       nav->tanker_ground_motion(o.terrain_height_m), co);
+  setup.live_nav->feed_tanker_rates(setup.camera_clocks->rates());
+  ps.camera_clocks = setup.parts.camera_clocks = setup.camera_clocks.get();
+}
+
 // Where each frame's receiver pose comes from (pipeline/poses.hpp's order): a fixed scene, a poses
 // CSV, the live nav, the recording's own poses (replay://), or (sim://) the simulation's truth.
 void choose_run_poses(const RunOptions& o, const RunSource& s, const NavPlan& nav, RunSetup& setup) {
@@ -187,7 +205,12 @@ void choose_run_poses(const RunOptions& o, const RunSource& s, const NavPlan& na
       ps.camera_offset_ns = s.info.sim->scenario.sensors.cameras.clock_offset_ns;
       ps.camera_offset_ns.resize(2, 0);
     }
+    if (o.camera_clock_online) make_camera_clocks(o, s.rig, ps, setup);
   }
+  if (o.camera_clock_online && !setup.camera_clocks)
+    usage_error(
+        "--camera-clock online needs the live nav: --nav with streams of both aircraft (tanker.*, "
+        "receiver.*) and no --scene or --poses (the tanker's rates come from it)");
   ps.recorded = s.opened.replay != nullptr;
   ps.recorded_rig = s.recorded_rig;
   if (s.is_sim()) ps.sim = s.info.sim.get();
@@ -198,6 +221,11 @@ void choose_run_poses(const RunOptions& o, const RunSource& s, const NavPlan& na
         "aircraft (tanker.*, receiver.*)");
   parts.capture_only = s.capture_only;
   setup.poses_text = parts.poses ? parts.poses->describe() : std::string("none (capture only)");
+  if (setup.camera_clocks) {
+    std::ostringstream t;
+    t << "; camera clocks estimated online, applied at 1-sigma <= " << o.camera_clock_apply_sigma_ms << " ms";
+    setup.poses_text += t.str();
+  }
 }
 
 // The boom, the receiver's drawing, the look (with the rig's per-camera looks) and --sink's sinks.
@@ -231,6 +259,11 @@ std::unique_ptr<recorder::Recorder> make_run_recorder(const RunOptions& o, const
     rinfo.extra["aircraft_yaml.tanker"] = aircraft_config_to_yaml(setup.ins_used[0]);
     rinfo.extra["aircraft_yaml.receiver"] = aircraft_config_to_yaml(setup.ins_used[1]);
   }
+  if (setup.camera_clocks)
+    rinfo.extra["camera_clock"] =
+        "online: each camera's clock (t_gps = t_camera - offset) estimated from its images against the "
+        "tanker's rates; each fit in events 'camera_clock', state changes as events 'camera clock ...' "
+        "(docs/CLOCK_OFFSETS.md)";
   rinfo.extra["source"] = s.uri + (s.right_uri.empty() ? "" : " + " + s.right_uri);
   if (s.opened.replay) rinfo.extra["re_augmented_from"] = s.opened.replay->reader().path();
   return create_recorder(*o.record, rinfo, o.overwrite);

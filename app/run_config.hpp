@@ -40,6 +40,11 @@ struct RunOptions {
   std::vector<std::pair<std::string, std::string>> aircraft;  // --aircraft WHO=FILE, WHO checked
   std::optional<double> nav_stale_s;                          // --nav-stale, > 0
   std::vector<NavFault> nav_faults;                           // --nav-fault (with --nav sim)
+  // --camera-clock online: each camera's clock estimated from its images during the run and applied
+  // to the poses once its 1-sigma is at most --camera-clock-sigma-ms (pipeline/camera_clock_online.hpp).
+  bool camera_clock_online = false;
+  double camera_clock_apply_sigma_ms = 0.5;  // --camera-clock-sigma-ms
+  double terrain_height_m = 0;               // --terrain-height-m: the ground the cameras see
   // Augmentation and the sinks.
   std::optional<BoomArg> boom;
   std::optional<ReceiverDraw> receiver_draw;

@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "capture/stereo_source.hpp"
@@ -84,6 +85,10 @@ struct RunHealth {
   std::string recording;     // "on", "paused", "stopped"; empty: no recorder
   std::uint64_t recorder_dropped = 0;
   TimestampNs pair_t_key_ns = 0;  // the last pair's
+  // The online camera clocks (empty: off): a line each, and /diagnostics' values
+  // (camera0_clock_offset_ms, camera0_clock_sigma_ms, camera0_clock_applied, ...).
+  std::vector<std::string> camera_clocks;
+  std::vector<std::pair<std::string, std::string>> camera_clock_values;
 };
 
 // The scene a pair was augmented in, as a recording keeps it, into `r` (a recorder::FrameRecord or

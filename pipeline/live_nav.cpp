@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "nav/geodesy.hpp"
+#include "pipeline/camera_clock_online.hpp"
 
 namespace augrig::pipeline {
 
@@ -38,6 +40,13 @@ void LiveNav::add(Aircraft aircraft, const nav::NavEvent& event) {
   nav::LiveFusion& f = *fusion_[static_cast<int>(aircraft)];
   if (event.is_imu()) {
     f.add_imu(event.imu());
+    if (aircraft == Aircraft::kTanker && tanker_rates_) {
+      // On GPS time as the filter puts it: its time offset, less its IMU clock estimate.
+      const nav::ImuSample& m = event.imu();
+      const nav::LiveFusionStatus st = f.status();
+      const TimestampNs clock_ns = st.imu_clock_estimated ? s_to_ns(st.imu_clock_offset_s) : 0;
+      tanker_rates_->add_increment(m.t_ns + f.config().imu_time_offset_ns - clock_ns, m.dt_s, m.dtheta_rad);
+    }
     return;
   }
   const nav::GpsFix& fix = event.gps();
@@ -53,6 +62,20 @@ Expected<TimestampNs> LiveNav::host_to_nav(TimestampNs host_ns) const {
   if (!gps_to_host_.has_estimate())
     return make_error("LiveNav: no GPS fix yet to relate host time to GPS time");
   return host_ns - gps_to_host_.estimate().offset_ns;
+}
+
+nav::GroundMotionFunction LiveNav::tanker_ground_motion(double terrain_height_m) const {
+  return [this, terrain_height_m](TimestampNs t_gps_ns) -> std::optional<nav::GroundMotion> {
+    const auto x = fusion_[0]->at(t_gps_ns);
+    if (!x) return std::nullopt;
+    const nav::Geodetic g = nav::geodetic_from_ecef(x->p_ecef_m);
+    const Eigen::Matrix3d R_ecef_ned_m = nav::R_ecef_ned(g.lat_rad, g.lon_rad);
+    nav::GroundMotion gm;
+    gm.R_ned_body = R_ecef_ned_m.transpose() * x->q_ecef_body.toRotationMatrix();
+    gm.v_ned_mps = R_ecef_ned_m.transpose() * x->v_ecef_mps;
+    gm.height_m = g.h_m - terrain_height_m;
+    return gm;
+  };
 }
 
 nav::LiveFusionStatus LiveNav::status(Aircraft aircraft) const {

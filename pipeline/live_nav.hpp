@@ -31,10 +31,13 @@
 #include "pipeline/flight_nav.hpp"
 #include "pipeline/status.hpp"
 #include "capture/clock_offset.hpp"
+#include "nav/camera_clock.hpp"
 #include "nav/live_fusion.hpp"
 #include "nav/live_input.hpp"
 
 namespace augrig::pipeline {
+
+class TankerRates;  // pipeline/camera_clock_online.hpp
 
 enum class Aircraft : std::uint8_t { kTanker = 0, kReceiver = 1 };
 std::string_view to_string(Aircraft a);
@@ -72,6 +75,13 @@ class LiveNav {
   Expected<TimestampNs> host_to_nav(TimestampNs host_ns) const;
 
   nav::LiveFusionStatus status(Aircraft aircraft) const;
+  // The tanker's gyro increments, on GPS time, also to `rates` (the online camera clocks,
+  // pipeline/camera_clock_online.hpp). Set before the inputs start.
+  void feed_tanker_rates(std::shared_ptr<TankerRates> rates) { tanker_rates_ = std::move(rates); }
+  // The tanker's attitude, ground velocity and height above flat terrain at terrain_height_m, from
+  // its live fusion at a GPS time (within its history): the camera clocks' parallax removal.
+  nav::GroundMotionFunction tanker_ground_motion(double terrain_height_m = 0) const;
+
   // The moving baseline's live fusion (a UBX rover's NAV-RELPOSNED on a receiver.* stream): what it
   // received and used; measurements == 0 when none came.
   LiveBaselineReport baseline_report() const { return baseline_.report(); }
@@ -85,7 +95,8 @@ class LiveNav {
   // The moving baseline: the recent vectors, carried to each frame's time (pipeline/baseline_nav.hpp).
   LiveBaseline baseline_;
   mutable std::mutex clock_mutex_;
-  ClockOffsetEstimator gps_to_host_;  // "device" = GPS time, host = arrival
+  ClockOffsetEstimator gps_to_host_;
+  std::shared_ptr<TankerRates> tanker_rates_;  // "device" = GPS time, host = arrival
 };
 
 }  // namespace augrig::pipeline

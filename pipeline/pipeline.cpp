@@ -95,6 +95,7 @@ class Pipeline::Run {
   void health();
   // Events: printed, and to every sink.
   void log_event(const std::string& text);
+  void camera_clock_events();
   void sink_event(TimestampNs t_ns, ClockDomain clock, const std::string& text);
   void note_phase(const StereoFrame& frame, TimestampNs t_ns);
   void problem(const Error& e);
@@ -303,6 +304,8 @@ void Pipeline::Run::process(StereoFrame& frame) {
   const TimestampNs t_in = monotonic_now_ns();
   const TimestampNs arrived = std::max(frame.left.t_host_ns, frame.right.t_host_ns);
   if (arrived > 0 && t_in >= arrived && t_in - arrived < 10'000'000'000) rep_.stage_queue.add(t_in - arrived);
+  // The camera clocks' frames are copied to their workers, or skipped when they are busy.
+  if (p_.camera_clocks) p_.camera_clocks->offer(frame, mid_l, mid_r);
   if (p_.capture_only) return capture(frame, mid_l, mid_host, t_in);
 
   // 1. The pose (none: the pair is skipped, or augmented with the boom alone).
@@ -582,6 +585,8 @@ void Pipeline::Run::hud() {
                st.queue_drops[0] + st.queue_drops[1] + rep_.failed_pairs * 2,
                recorder_ ? recorder_->frames_dropped() : 0};
   hud.nav = poses_.hud;
+  if (p_.camera_clocks)
+    for (const CameraClockOnlineStatus& c : p_.camera_clocks->status()) hud.camera_clocks.push_back(c.text());
   for (const std::string& m : poses_.problems) hud.messages.push_back(m);
   hud.stale_pose = was_stale_;
   hud.occlusion = rep_.last_stats;
@@ -617,6 +622,7 @@ void Pipeline::Run::every_second() {
   if (now >= next_clocks_) {
     next_clocks_ += std::chrono::seconds(1);
     clocks_ = source_->stats().clocks;
+    camera_clock_events();
   }
   if (p_.progress_total && !p_.view && now >= next_progress_) {
     next_progress_ += std::chrono::seconds(1);
@@ -686,8 +692,21 @@ void Pipeline::Run::health() {
     h.recorder_dropped = recorder_->frames_dropped();
   }
   h.pair_t_key_ns = last_t_key_ns_;
+  if (p_.camera_clocks) {
+    h.camera_clock_values = p_.camera_clocks->diagnostics();
+    for (const CameraClockOnlineStatus& c : p_.camera_clocks->status()) h.camera_clocks.push_back(c.text());
+  }
   for (const auto& sink : sinks_)
     if (sink->needs().health) sink->health(h);
+}
+
+// The online camera clocks: a state change (collecting, not observable, estimated, applied) is an
+// event printed and recorded; each new fit is recorded ("camera_clock camera=left ...").
+void Pipeline::Run::camera_clock_events() {
+  if (!p_.camera_clocks) return;
+  for (const std::string& change : p_.camera_clocks->take_changes()) log_event(change);
+  for (const std::string& line : p_.camera_clocks->take_record_lines())
+    sink_event(monotonic_now_ns(), ClockDomain::kHostMonotonic, line);
 }
 
 void Pipeline::Run::log_event(const std::string& text) {
@@ -744,6 +763,7 @@ Expected<PipelineReport> Pipeline::Run::finish() {
   source_->stop();
   if (p_.on_stop) p_.on_stop();
   if (p_.nav_inputs) p_.nav_inputs->stop();
+  camera_clock_events();
   rep_.wall_s = std::chrono::duration<double>(SteadyClock::now() - t0_).count();
   rep_.source = source_->stats();
   for (std::size_t i = 0; i < source_->sources().size(); ++i) {

@@ -40,6 +40,7 @@
 #include "core/expected.hpp"
 #include "net/foxglove_server.hpp"
 #include "pipeline/boom_stage.hpp"
+#include "pipeline/camera_clock_online.hpp"
 #include "pipeline/frame_sink.hpp"
 #include "pipeline/live_view.hpp"
 #include "pipeline/nav_inputs.hpp"
@@ -108,6 +109,9 @@ struct PipelineParts {
   std::function<void(const StereoFrame&)> on_first_frame;
   // The live nav, when the poses come from it (its status goes into the report).
   const LiveNav* live_nav = nullptr;
+  // Each camera's clock estimated online (camera_clock_online.hpp; `run --camera-clock online`): fed
+  // every pair read, shown in the HUD and the health, its changes and fits recorded as events.
+  CameraClocks* camera_clocks = nullptr;
   // The live nav inputs: stopped with the pipeline, their losses in the recording's ledger.
   NavInputs* nav_inputs = nullptr;
   // Called for every augmented pair after the file sinks and before the recorder takes the frame

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "pipeline/camera_clock_online.hpp"
 #include "pipeline/look_stage.hpp"
 #include "pipeline/scene_file.hpp"
 #include "pipeline/scene_folder_poses.hpp"
@@ -63,16 +64,18 @@ class SimTruthPoses final : public PoseProvider {
 
 class LiveNavPoses final : public PoseProvider {
  public:
-  LiveNavPoses(const LiveNav& nav, std::vector<TimestampNs> offsets)
-      : nav_(nav), offsets_(std::move(offsets)) {}
+  LiveNavPoses(const LiveNav& nav, std::vector<TimestampNs> offsets, const CameraClocks* clocks)
+      : nav_(nav), offsets_(std::move(offsets)), clocks_(clocks) {}
   std::string describe() const override { return "the live nav (GPS/INS of both aircraft)"; }
   bool live() const override { return true; }
   FramePoses at(const StereoFrame& frame, TimestampNs mid_host_left_ns) override {
     // The pose at the left camera's mid-exposure on the nav clock (the right's differs by the skew).
     std::optional<TimestampNs> t_nav;
-    if (!offsets_.empty()) {
+    // The left camera's estimated clock once applied: its stamp, or its host mid-exposure.
+    if (clocks_) t_nav = clocks_->to_gps(0, clocks_->host_timed() ? mid_host_left_ns : frame.left.t_ns);
+    if (!t_nav && !offsets_.empty()) {
       t_nav = frame.left.t_ns - offsets_[0];
-    } else if (mid_host_left_ns) {
+    } else if (!t_nav && mid_host_left_ns) {
       if (auto t = nav_.host_to_nav(mid_host_left_ns)) t_nav = *t;
     }
     FrameNav fn;
@@ -99,6 +102,7 @@ class LiveNavPoses final : public PoseProvider {
  private:
   const LiveNav& nav_;
   std::vector<TimestampNs> offsets_;
+  const CameraClocks* clocks_ = nullptr;
 };
 
 class RecordedPoses final : public PoseProvider {
@@ -233,8 +237,9 @@ std::unique_ptr<PoseProvider> fixed_scene_poses(const SceneState& scene, const s
 std::unique_ptr<PoseProvider> sim_truth_poses(const SimulatedFlight& sim) {
   return std::make_unique<SimTruthPoses>(sim);
 }
-std::unique_ptr<PoseProvider> live_nav_poses(const LiveNav& nav, std::vector<TimestampNs> camera_offset_ns) {
-  return std::make_unique<LiveNavPoses>(nav, std::move(camera_offset_ns));
+std::unique_ptr<PoseProvider> live_nav_poses(const LiveNav& nav, std::vector<TimestampNs> camera_offset_ns,
+                                             const CameraClocks* clocks) {
+  return std::make_unique<LiveNavPoses>(nav, std::move(camera_offset_ns), clocks);
 }
 std::unique_ptr<PoseProvider> recorded_poses(std::optional<Rig> recorded_rig) {
   return std::make_unique<RecordedPoses>(std::move(recorded_rig));
@@ -281,7 +286,7 @@ Expected<ChosenPoses> choose_poses(const PoseSources& src, const Rig& rig,
     c.provider = std::move(*csv);
     c.may_miss_frames = true;
   } else if (src.live_nav) {
-    c.provider = live_nav_poses(*src.live_nav, src.camera_offset_ns);
+    c.provider = live_nav_poses(*src.live_nav, src.camera_offset_ns, src.camera_clocks);
   } else if (src.recorded) {
     c.provider = recorded_poses(src.recorded_rig);
     c.may_miss_frames = true;

@@ -28,6 +28,8 @@
 
 namespace augrig::pipeline {
 
+class CameraClocks;  // camera_clock_online.hpp
+
 // One frame's poses.
 struct FramePoses {
   static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -58,8 +60,10 @@ std::unique_ptr<PoseProvider> fixed_scene_poses(const SceneState& scene, const s
 // The truth of a sim:// flight, by (camera, t_ns) of its frames.
 std::unique_ptr<PoseProvider> sim_truth_poses(const SimulatedFlight& sim);
 // `camera_offset_ns`: the cameras' calibrated offsets to GPS time (the simulation's); empty: frames
-// reach the nav clock through the host clock (LiveNav::host_to_nav()).
-std::unique_ptr<PoseProvider> live_nav_poses(const LiveNav& nav, std::vector<TimestampNs> camera_offset_ns);
+// reach the nav clock through the host clock (LiveNav::host_to_nav()). `clocks` (optional): the
+// left camera's online clock estimate, used in their place once applied (camera_clock_online.hpp).
+std::unique_ptr<PoseProvider> live_nav_poses(const LiveNav& nav, std::vector<TimestampNs> camera_offset_ns,
+                                             const CameraClocks* clocks = nullptr);
 // The scene recorded with each replayed frame (Frame::attachment, recorder::RecordedFrame);
 // `recorded_rig` turns a camera-relative pose into the body frame when only that was recorded.
 std::unique_ptr<PoseProvider> recorded_poses(std::optional<Rig> recorded_rig);
@@ -82,6 +86,7 @@ struct PoseSources {
   TimestampNs pose_tolerance_ns = 0;          // --pose-tolerance-ms
   const LiveNav* live_nav = nullptr;          // --nav with streams of both aircraft
   std::vector<TimestampNs> camera_offset_ns;  // with live_nav: the cameras' offsets (live_nav_poses)
+  const CameraClocks* camera_clocks = nullptr;  // with live_nav: the online camera clocks (or none)
   bool recorded = false;                      // the frames carry their scene (a replayed recording)
   std::optional<Rig> recorded_rig;            // with recorded: the rig the poses were recorded with
   const SimulatedFlight* sim = nullptr;       // a sim:// flight

@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "nav/geodesy.hpp"
+#include "pipeline/camera_clock_online.hpp"
 #include "sim/flight.hpp"
 #include "sim/flight_source.hpp"
 #include "sim/scenario.hpp"
@@ -347,6 +349,31 @@ TEST(LiveNav, WaitsInPlainWordsAndMapsHostTimeByTheFixesArrivals) {
   ASSERT_TRUE(mapped) << mapped.error().message;
   // The lower envelope keeps the constant 30 ms latency in the offset (documented); no more.
   EXPECT_NEAR(static_cast<double>(*mapped - t_gps), -30e6, 1e6);
+}
+
+// For the online camera clocks (camera_clock_online.hpp): the tanker's gyro rates on GPS time, each
+// at its increment's middle, and its attitude, ground velocity and height from its live fusion.
+TEST(LiveNav, GivesTheTankersRatesAndGroundMotionForTheCameraClocks) {
+  const Flight f = simulate(6.0);
+  LiveNav nav = make_nav(f);
+  auto rates = std::make_shared<TankerRates>();
+  nav.feed_tanker_rates(rates);
+  feed(
+      nav, f.logs, [](TimestampNs) {}, [](Aircraft, const nav::NavEvent&) { return true; });
+  const TimestampNs t_ns = f.scenario.start_gps_ns + 4'000'000'000;
+  const double t = 4.0;
+  ASSERT_TRUE(rates->at(t_ns));
+  // The gyro's rate (w.r.t. inertial space: the Earth's rate and the gyro's errors are in it).
+  EXPECT_LT((*rates->at(t_ns) - f.flight->tanker(t).w_eb_body_radps).norm(), 2e-3);
+  const nav::GroundMotionFunction ground = nav.tanker_ground_motion(0);
+  const auto g = ground(t_ns);
+  ASSERT_TRUE(g);
+  const sim::KinematicState k = f.flight->tanker(t);
+  const nav::Geodetic geo = nav::geodetic_from_ecef(k.p_ecef_m);
+  EXPECT_NEAR(g->height_m, geo.h_m, 1.0);
+  EXPECT_LT((g->v_ned_mps - nav::R_ecef_ned(geo.lat_rad, geo.lon_rad).transpose() * k.v_ecef_mps).norm(),
+            0.2);
+  EXPECT_FALSE(ground(f.scenario.start_gps_ns - 60'000'000'000));  // outside the fusion's history
 }
 
 TEST(LiveNav, StreamNamesBelongToTheirAircraft) {

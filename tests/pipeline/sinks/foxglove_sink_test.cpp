@@ -28,6 +28,9 @@ TEST(FoxgloveSink, PublishesWithoutClientsAndReportsAtTheClose) {
   h.pairs = 1;
   h.recording = "stopped";
   h.cameras = {SourceHealth{}, SourceHealth{false, "right camera lost", 1, 0, 0, 0}};
+  // The online camera clocks' line and values go out with the rest (run --camera-clock online).
+  h.camera_clocks = {"left: +3.712 +- 0.321 ms, drift not observable, applied"};
+  h.camera_clock_values = {{"camera0_clock_offset_ms", "3.7120"}, {"camera0_clock_applied", "1"}};
   sink->health(h);
   PipelineReport report;
   report.pairs = 1;
