@@ -31,6 +31,7 @@
 #include "pipeline/outputs.hpp"
 #include "pipeline/report.hpp"
 #include "pipeline/sinks/registry.hpp"
+#include "pipeline/sinks/sink_folder.hpp"
 #include "render/cv_image.hpp"
 #include "render/keypoints.hpp"
 
@@ -118,7 +119,11 @@ std::string fixed(double v, int digits) {
 class LabelsSink final : public FrameSink {
  public:
   LabelsSink(Format format, std::string dir, bool jpeg, const Rig& rig)
-      : format_(format), dir_(std::move(dir)), jpeg_(jpeg), rig_(rig) {}
+      : format_(format),
+        dir_(std::move(dir)),
+        out_(std::string(name_of(format)) + " sink", dir_),
+        jpeg_(jpeg),
+        rig_(rig) {}
 
   Status open() {
     const std::string where = std::string(name_of(format_)) + " sink: " + dir_;
@@ -134,11 +139,10 @@ class LabelsSink final : public FrameSink {
     for (const char* f : {"annotations.json", "dataset.yaml", "keypoints.csv"})
       if (fs::exists(fs::path(dir_) / f, ec))
         return make_error(where, ": holds labels already (", f, "); expected a new folder");
-    fs::create_directories(fs::path(dir_) / "images", ec);
-    if (!ec && format_ == Format::kYolo) fs::create_directories(fs::path(dir_) / "labels", ec);
-    if (ec) return make_error(where, ": cannot create the folder: ", ec.message());
-    if (Status s = write_text("INCOMPLETE", "written by augrig; removed when the labels are complete\n"); !s)
-      return s;
+    const std::vector<std::string> subfolders = format_ == Format::kYolo
+                                                    ? std::vector<std::string>{"images", "labels"}
+                                                    : std::vector<std::string>{"images"};
+    if (Status s = out_.create(subfolders, "removed when the labels are complete"); !s) return s;
     csv_.open(fs::path(dir_) / "keypoints.csv", std::ios::binary);
     csv_
         << "# every receiver keypoint in every image; u_px, v_px: its projection (pixel centres at integers; "
@@ -162,8 +166,7 @@ class LabelsSink final : public FrameSink {
     csv_.close();
     if (!csv_) return make_error(name_of(format_), " sink: ", dir_, "/keypoints.csv: write failed");
     if (Status s = format_ == Format::kCoco ? write_coco() : write_dataset_yaml(); !s) return s;
-    std::error_code ec;
-    fs::remove(fs::path(dir_) / "INCOMPLETE", ec);
+    out_.complete();
     std::ostringstream line;
     line << dir_ << ": " << 2 * pairs_ << " image(s) of " << pairs_ << " pair(s) labelled in "
          << (format_ == Format::kCoco ? "COCO's keypoint format" : "YOLO's pose format") << " ("
@@ -393,7 +396,7 @@ class LabelsSink final : public FrameSink {
       for (std::size_t k = 0; k < keypoints_.size(); ++k) o << " 0 0 0";
       o << "\n";
     }
-    return write_text("labels/" + r.stem + ".txt", o.str());
+    return out_.write_text("labels/" + r.stem + ".txt", o.str());
   }
 
   Status write_dataset_yaml() const {
@@ -406,33 +409,18 @@ class LabelsSink final : public FrameSink {
     y << "]\nnames:\n  0: receiver\n  1: boom\naugrig_keypoints: [";
     for (std::size_t i = 0; i < keypoints_.size(); ++i) y << (i ? ", " : "") << keypoints_[i].name;
     y << "]\n";
-    return write_text("dataset.yaml", y.str());
+    return out_.write_text("dataset.yaml", y.str());
   }
 
   Status write_image(const std::string& rel, const Image& image) const {
-    const std::string path = (fs::path(dir_) / rel).string();
-    bool ok = false;
-    try {
-      const cv::Mat bgr = bgr_of(image.cview());
-      ok = jpeg_ ? cv::imwrite(path, bgr, {cv::IMWRITE_JPEG_QUALITY, 95}) : cv::imwrite(path, bgr);
-    } catch (const cv::Exception& e) {
-      return make_error(name_of(format_), " sink: ", path, ": ", e.what());
-    }
-    if (!ok) return make_error(name_of(format_), " sink: ", path, ": cannot write the file");
-    return {};
-  }
-
-  Status write_text(const std::string& rel, const std::string& text) const {
-    const std::string path = (fs::path(dir_) / rel).string();
-    std::ofstream out(path, std::ios::binary);
-    out << text;
-    out.close();
-    if (!out) return make_error(name_of(format_), " sink: ", path, ": cannot write the file");
-    return {};
+    const cv::Mat bgr = bgr_of(image.cview());
+    return out_.write_image(rel, bgr,
+                            jpeg_ ? std::vector<int>{cv::IMWRITE_JPEG_QUALITY, 95} : std::vector<int>{});
   }
 
   Format format_;
   std::string dir_;
+  SinkFolder out_;  // dir_: made, marked INCOMPLETE until the close, the files written
   bool jpeg_ = false;
   const Rig rig_;  // a copy: the setup's rig moves into the pipeline
   std::vector<Keypoint> keypoints_;

@@ -27,6 +27,7 @@
 #include "eval/stereo_eval.hpp"
 #include "pipeline/report.hpp"
 #include "pipeline/sinks/registry.hpp"
+#include "pipeline/sinks/sink_folder.hpp"
 
 namespace augrig::pipeline {
 
@@ -52,7 +53,10 @@ struct RectifiedPair {
 class StereoBenchmarkSink final : public FrameSink {
  public:
   StereoBenchmarkSink(Layout layout, std::string dir, const Rig& rig)
-      : layout_(layout), dir_(std::move(dir)), rig_(rig) {}
+      : layout_(layout),
+        dir_(std::move(dir)),
+        out_(std::string(name_of(layout)) + " sink", dir_),
+        rig_(rig) {}
 
   Status open() {
     const std::string where = std::string(name_of(layout_)) + " sink: " + dir_;
@@ -63,15 +67,12 @@ class StereoBenchmarkSink final : public FrameSink {
     std::error_code ec;
     if (fs::exists(fs::path(dir_) / "frames.csv", ec))
       return make_error(where, ": holds a benchmark export already (frames.csv); expected a new folder");
-    fs::create_directories(dir_, ec);
-    if (ec) return make_error(where, ": cannot create the folder: ", ec.message());
-    if (Status s = write_text("INCOMPLETE", "written by augrig; removed when the export has finished\n"); !s)
-      return s;
+    if (Status s = out_.create({}, "removed when the export has finished"); !s) return s;
     if (layout_ == Layout::kKitti) {
       calib_ = "calib_cam_to_cam.txt";
       if (Status s =
-              write_text(calib_, eval::kitti_calib_cam_to_cam(rect_, rig_.left().model, rig_.right().model,
-                                                              rig_.T_right_left()));
+              out_.write_text(calib_, eval::kitti_calib_cam_to_cam(rect_, rig_.left().model,
+                                                                   rig_.right().model, rig_.T_right_left()));
           !s)
         return s;
     }
@@ -116,8 +117,7 @@ class StereoBenchmarkSink final : public FrameSink {
     if (!frames_csv_.is_open() || failed_) return {};  // a failed run's folder stays INCOMPLETE
     frames_csv_.close();
     if (!frames_csv_) return make_error(name_of(layout_), " sink: ", dir_, "/frames.csv: write failed");
-    std::error_code ec;
-    fs::remove(fs::path(dir_) / "INCOMPLETE", ec);
+    out_.complete();
     std::ostringstream line;
     line << dir_ << ": " << written_ << " stereo pair(s) in the "
          << (layout_ == Layout::kKitti ? "KITTI" : "Middlebury") << " layout (raw and augmented, rectified "
@@ -181,21 +181,24 @@ class StereoBenchmarkSink final : public FrameSink {
       const bool aug = tree[0] == 'a';
       const std::string t = std::string(tree) + "/training/";
       for (int c = 0; c < 2; ++c)
-        if (Status s = write_png(t + (c ? "image_3/" : "image_2/") + png, aug ? p.augmented[c] : p.raw[c]);
+        if (Status s =
+                out_.write_image(t + (c ? "image_3/" : "image_2/") + png, aug ? p.augmented[c] : p.raw[c]);
             !s)
           return s;
       if (aug) {
-        if (Status s = write_png(t + "disp_occ_0/" + png, eval::kitti_disparity(p.truth)); !s) return s;
-        if (Status s = write_png(t + "disp_noc_0/" + png, eval::kitti_disparity(non_occluded(p))); !s)
+        if (Status s = out_.write_image(t + "disp_occ_0/" + png, eval::kitti_disparity(p.truth)); !s)
+          return s;
+        if (Status s = out_.write_image(t + "disp_noc_0/" + png, eval::kitti_disparity(non_occluded(p))); !s)
           return s;
         for (int c = 0; c < 2; ++c)
-          if (Status s = write_png(t + "boom_mask_" + std::to_string(c) + "/" + png, p.mask[c]); !s) return s;
-        if (Status s = write_png(t + "stereo_class_0/" + png, p.classes); !s) return s;
-        if (Status s = link(calib_, t + "calib_cam_to_cam/" + id + ".txt"); !s) return s;
+          if (Status s = out_.write_image(t + "boom_mask_" + std::to_string(c) + "/" + png, p.mask[c]); !s)
+            return s;
+        if (Status s = out_.write_image(t + "stereo_class_0/" + png, p.classes); !s) return s;
+        if (Status s = out_.link(calib_, t + "calib_cam_to_cam/" + id + ".txt"); !s) return s;
       } else {
         for (const char* d : {"disp_occ_0/", "disp_noc_0/"})
-          if (Status s = link("augmented/training/" + std::string(d) + png, t + d + png); !s) return s;
-        if (Status s = link(calib_, t + "calib_cam_to_cam/" + id + ".txt"); !s) return s;
+          if (Status s = out_.link("augmented/training/" + std::string(d) + png, t + d + png); !s) return s;
+        if (Status s = out_.link(calib_, t + "calib_cam_to_cam/" + id + ".txt"); !s) return s;
       }
     }
     return {};
@@ -205,12 +208,13 @@ class StereoBenchmarkSink final : public FrameSink {
     const std::string a = "augmented/" + id + "/", r = "raw/" + id + "/";
     for (int c = 0; c < 2; ++c) {
       const std::string im = c ? "im1.png" : "im0.png";
-      if (Status s = write_png(a + im, p.augmented[c]); !s) return s;
-      if (Status s = write_png(r + im, p.raw[c]); !s) return s;
-      if (Status s = write_png(a + "boom_mask" + std::to_string(c) + ".png", p.mask[c]); !s) return s;
+      if (Status s = out_.write_image(a + im, p.augmented[c]); !s) return s;
+      if (Status s = out_.write_image(r + im, p.raw[c]); !s) return s;
+      if (Status s = out_.write_image(a + "boom_mask" + std::to_string(c) + ".png", p.mask[c]); !s) return s;
     }
-    if (Status s = write_png(a + "stereo_class0.png", p.classes); !s) return s;
-    if (Status s = write_text(a + "calib.txt", eval::middlebury_calib(rect_, p.vmin, p.vmax)); !s) return s;
+    if (Status s = out_.write_image(a + "stereo_class0.png", p.classes); !s) return s;
+    if (Status s = out_.write_text(a + "calib.txt", eval::middlebury_calib(rect_, p.vmin, p.vmax)); !s)
+      return s;
     // Unknown is inf in Middlebury's files; MiddEval3's mask: 255 non-occluded, 128 occluded, 0 no
     // truth. (Loops: OpenCV's comparisons do not see NaN as IEEE does.)
     cv::Mat gt = p.truth.clone();
@@ -227,61 +231,18 @@ class StereoBenchmarkSink final : public FrameSink {
         n[x] = k[x] == static_cast<std::uint8_t>(StereoClass::kBoth) ? 255 : 128;
       }
     }
-    if (Status s = ensure_parent(a + "disp0GT.pfm"); !s) return s;
+    if (Status s = out_.ensure_parent(a + "disp0GT.pfm"); !s) return s;
     if (Status s = eval::write_pfm((fs::path(dir_) / a / "disp0GT.pfm").string(), gt); !s)
       return make_error("middlebury sink: ", s.error().message);
-    if (Status s = write_png(a + "mask0nocc.png", nocc); !s) return s;
+    if (Status s = out_.write_image(a + "mask0nocc.png", nocc); !s) return s;
     for (const char* f : {"calib.txt", "disp0GT.pfm", "mask0nocc.png"})
-      if (Status s = link(a + f, r + f); !s) return s;
-    return {};
-  }
-
-  Status ensure_parent(const std::string& rel) const {
-    std::error_code ec;
-    fs::create_directories((fs::path(dir_) / rel).parent_path(), ec);
-    if (ec)
-      return make_error(name_of(layout_), " sink: ", (fs::path(dir_) / rel).parent_path().string(),
-                        ": cannot create the folder: ", ec.message());
-    return {};
-  }
-
-  Status write_png(const std::string& rel, const cv::Mat& image) const {
-    if (Status s = ensure_parent(rel); !s) return s;
-    const std::string path = (fs::path(dir_) / rel).string();
-    bool ok = false;
-    try {
-      ok = cv::imwrite(path, image);
-    } catch (const cv::Exception& e) {
-      return make_error(name_of(layout_), " sink: ", path, ": ", e.what());
-    }
-    if (!ok) return make_error(name_of(layout_), " sink: ", path, ": cannot write the file");
-    return {};
-  }
-
-  Status write_text(const std::string& rel, const std::string& text) const {
-    if (Status s = ensure_parent(rel); !s) return s;
-    const std::string path = (fs::path(dir_) / rel).string();
-    std::ofstream out(path, std::ios::binary);
-    out << text;
-    out.close();
-    if (!out) return make_error(name_of(layout_), " sink: ", path, ": cannot write the file");
-    return {};
-  }
-
-  // `to` the same file as `from` (both under DIR): a hard link, a copy where links are refused.
-  Status link(const std::string& from, const std::string& to) const {
-    if (Status s = ensure_parent(to); !s) return s;
-    const fs::path a = fs::path(dir_) / from, b = fs::path(dir_) / to;
-    std::error_code ec;
-    fs::create_hard_link(a, b, ec);
-    if (ec) fs::copy_file(a, b, fs::copy_options::overwrite_existing, ec);
-    if (ec)
-      return make_error(name_of(layout_), " sink: ", b.string(), ": cannot write the file: ", ec.message());
+      if (Status s = out_.link(a + f, r + f); !s) return s;
     return {};
   }
 
   Layout layout_;
   std::string dir_;
+  SinkFolder out_;  // dir_: made, marked INCOMPLETE until the close, the files written
   const Rig rig_;  // a copy: the setup's rig moves into the pipeline
   eval::Rectification rect_;
   std::string calib_;  // KITTI: the calibration every frame's file links to (relative to DIR)

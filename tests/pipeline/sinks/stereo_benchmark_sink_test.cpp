@@ -320,5 +320,25 @@ TEST(StereoBenchmarkSink, BadArgumentsAndAFolderHoldingAnExportAreNamed) {
   EXPECT_FALSE(fs::exists(dir + "/k/INCOMPLETE"));
 }
 
+// A pair that cannot be written (a file stands where its folder goes) stops the run with the path,
+// and the folder keeps its INCOMPLETE marker: half a dataset is never taken for a whole one.
+TEST(StereoBenchmarkSink, AFailedRunLeavesTheFolderIncomplete) {
+  const std::string dir = test::output_dir("stereo_benchmark_failed");
+  fs::remove_all(dir);
+  PipelineParts p = test::pipeline_parts(kScenario);
+  p.max_pairs = 2;
+  auto sink = make_sink("kitti:" + dir + "/k", {p.rig});
+  ASSERT_TRUE(sink) << sink.error().message;
+  std::ofstream(dir + "/k/augmented") << "in the way";
+  p.sinks.push_back(std::move(*sink));
+  Pipeline pipeline(std::move(p));
+  std::ostringstream o, e;
+  auto report = pipeline.run(o, e);
+  ASSERT_FALSE(report);
+  EXPECT_NE(report.error().message.find("kitti sink: " + dir + "/k/augmented"), std::string::npos)
+      << report.error().message;
+  EXPECT_TRUE(fs::exists(dir + "/k/INCOMPLETE"));
+}
+
 }  // namespace
 }  // namespace augrig::pipeline
