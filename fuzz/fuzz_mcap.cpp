@@ -21,6 +21,8 @@ void decode_all(const std::vector<std::uint8_t>& msg) {
   (void)augrig::ros2::decode_tf_message(msg);
   (void)augrig::ros2::decode_occlusion_stats(msg);
   (void)augrig::ros2::decode_stereo_frame_info(msg);
+  (void)augrig::ros2::decode_compressed_image(msg);
+  (void)augrig::ros2::decode_compressed_video(msg);
 }
 
 }  // namespace
