@@ -112,7 +112,7 @@ PanelActions draw_status_panel(const HudState& hud, const PanelState& panel, con
   // The online camera clocks (run --camera-clock online): grey until an estimate is applied.
   for (const std::string& c : hud.camera_clocks)
     ImGui::TextColored(
-        c.find(", applied") != std::string::npos ? ImGui::GetStyleColorVec4(ImGuiCol_Text) : kGrey,
+        c.find("  applied") != std::string::npos ? ImGui::GetStyleColorVec4(ImGuiCol_Text) : kGrey,
         "Clock    %s", c.c_str());
   ImGui::Text("Latency  display %s / %s ms (p50 / p99)", num(hud.latency_display.p50_ms).c_str(),
               num(hud.latency_display.p99_ms).c_str());

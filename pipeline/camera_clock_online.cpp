@@ -132,6 +132,21 @@ std::string CameraClockOnlineStatus::text() const {
   return t;
 }
 
+std::string CameraClockOnlineStatus::hud_text() const {
+  std::string t = name + "  " + std::string(to_string(state));
+  if (shown(*this)) {
+    t += "  " + fmt("%+.3f", offset_ms()) + " +- " + fmt("%.3f", sigma_ms()) + " ms";
+    if (!std::isnan(drift_ppm()))
+      t += ", drift " + fmt("%+.1f", drift_ppm()) + " +- " + fmt("%.1f", drift_sigma_ppm()) + " ppm";
+    if (state != CameraClockState::kApplied) t += "; prior " + fmt("%+.3f", prior_offset_s * 1e3) + " ms";
+    return t;
+  }
+  // The reasons read "what: why"; the why is what fits.
+  const std::size_t colon = reason.rfind(": ");
+  if (!reason.empty()) t += ": " + (colon == std::string::npos ? reason : reason.substr(colon + 2));
+  return t + "; prior " + fmt("%+.3f", prior_offset_s * 1e3) + " ms";
+}
+
 // ---- CameraClockOnline -------------------------------------------------------------------------
 
 struct CameraClockOnline::Impl {
@@ -274,6 +289,8 @@ void CameraClockOnline::Impl::process(Pending& p) {
     std::lock_guard lock(status_mutex);
     if (st) ++status.frames_tracked;
     status.rotations += got.size();
+    if (status.fits == 0)
+      status.reason = "until the first fit, after " + fmt("%g", opt.refit_every_s) + " s of frames";
   }
   for (nav::FrameRotation& r : got) window.push_back(r);
   if (next_fit_ns == std::numeric_limits<TimestampNs>::min())

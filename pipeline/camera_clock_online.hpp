@@ -93,6 +93,10 @@ struct CameraClockOnlineStatus {
   double drift_sigma_ppm() const;
   // "left: +3.712 +- 0.321 ms, drift +1.2 +- 3.0 ppm, applied" / "left: not observable (...)".
   std::string text() const;
+  // The same, short enough for the window's status panel, state first: "left  applied  +3.712 +-
+  // 0.321 ms, drift -1.2 +- 3.0 ppm", "left  not observable: too little motion; prior +1.200 ms" (the prior
+  // in use).
+  std::string hud_text() const;
 };
 
 // One camera's online estimate.

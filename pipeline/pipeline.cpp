@@ -586,7 +586,7 @@ void Pipeline::Run::hud() {
                recorder_ ? recorder_->frames_dropped() : 0};
   hud.nav = poses_.hud;
   if (p_.camera_clocks)
-    for (const CameraClockOnlineStatus& c : p_.camera_clocks->status()) hud.camera_clocks.push_back(c.text());
+    for (const CameraClockOnlineStatus& c : p_.camera_clocks->status()) hud.camera_clocks.push_back(c.hud_text());
   for (const std::string& m : poses_.problems) hud.messages.push_back(m);
   hud.stale_pose = was_stale_;
   hud.occlusion = rep_.last_stats;

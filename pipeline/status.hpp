@@ -55,7 +55,7 @@ struct HudState {
   DisplayBoomMode boom_mode = DisplayBoomMode::kFixed;
   std::vector<std::string> messages;  // faults in plain words: "left camera lost 0.6 s ago"
   bool stale_pose = false;            // the receiver pose is older than the pipeline allows
-  // Each camera's online clock estimate, a line each (CameraClockOnlineStatus::text()); empty: off.
+  // Each camera's online clock estimate, a line each (CameraClockOnlineStatus::hud_text()); empty: off.
   std::vector<std::string> camera_clocks;
 };
 

@@ -296,6 +296,8 @@ TEST(CameraClocks, HostTimedFramesWaitForTheNavClockAndDiagnosticsNameEveryCamer
   EXPECT_EQ(value("camera0_clock_applied"), "0");
   EXPECT_EQ(value("camera1_clock_state"), "collecting");
   EXPECT_EQ(value("camera0_clock_offset_ms"), "nan");
+  EXPECT_EQ(st[1].hud_text(),
+            "right  collecting: until the first fit, after 5 s of frames; prior +40.000 ms");
   EXPECT_EQ(value("camera1_clock_prior_offset_ms"), "40.0000");
   EXPECT_NE(value("camera0_clock_sigma_ms"), "(missing)");
 }
