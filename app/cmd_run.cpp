@@ -4,6 +4,7 @@
 // live window on the main thread and the pipeline on a worker.
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -174,6 +175,16 @@ const std::vector<OptionSpec>& run_specs() {
       {"nav-stale", ArgKind::kValue, "S",
        "a frame's pose is stale when a fix or IMU sample of either aircraft is older than S at its "
        "mid-exposure (default 0.5)"},
+      {"camera-clock", ArgKind::kValue, "online|off",
+       "with the live nav: 'online' estimates each camera's clock offset and drift against GPS time from its "
+       "images and the tanker's rates during the run, shows them (window, /diagnostics, summary), records "
+       "them, and applies them to the poses once the offset's 1-sigma is small enough (default off; "
+       "docs/CLOCK_OFFSETS.md)"},
+      {"camera-clock-sigma-ms", ArgKind::kValue, "MS",
+       "with --camera-clock online: apply an estimate once its offset's 1-sigma is at most MS (default 0.5)"},
+      {"terrain-height-m", ArgKind::kValue, "H",
+       "with --camera-clock online: the height of the ground the cameras see, metres above the ellipsoid, "
+       "for the parallax (default 0)"},
       {"nav-fault", ArgKind::kValue, "STREAM=T0-T1,...",
        "with --nav sim: mute a simulated stream over scenario seconds [T0, T1], e.g. receiver.gps=10-13"},
       {"serve", ArgKind::kValue, "[ADDRESS:]PORT",
@@ -184,6 +195,8 @@ const std::vector<OptionSpec>& run_specs() {
        "(default 32)"},
       {"serve-jpeg-quality", ArgKind::kValue, "Q",
        "with --serve: the JPEG quality of the compressed image topics, 1..100 (default 80)"},
+      {"serve-h264-kbps", ArgKind::kValue, "K",
+       "with --serve: the H.264 topics' bit-rate cap per view, kbit/s (default 4000; 0: none)"},
       {"headless", ArgKind::kFlag, "", "no window even when a display is present (docs/DISPLAY.md)"},
       {"screenshot-at", ArgKind::kValue, "N",
        "with the window: a screenshot once the N-th pair is shown (into --out)"},
@@ -192,11 +205,11 @@ const std::vector<OptionSpec>& run_specs() {
   return specs;
 }
 
-// --serve [ADDRESS:]PORT (and --serve-queue-mb, --serve-jpeg-quality): the Foxglove WebSocket server's options (it is
+// --serve [ADDRESS:]PORT (and --serve-queue-mb, --serve-jpeg-quality, --serve-h264-kbps): the Foxglove WebSocket server's options (it is
 // started once the rig is known).
 std::optional<net::ServeOptions> parse_serve(const ParsedArgs& a) {
   if (!a.has("serve")) {
-    for (const char* k : {"serve-queue-mb", "serve-jpeg-quality"})
+    for (const char* k : {"serve-queue-mb", "serve-jpeg-quality", "serve-h264-kbps"})
       if (a.has(k)) usage_error(std::string("--") + k + " needs --serve");
     return std::nullopt;
   }
@@ -216,6 +229,8 @@ std::optional<net::ServeOptions> parse_serve(const ParsedArgs& a) {
         static_cast<std::size_t>(parse_integer("serve-queue-mb", a.get("serve-queue-mb"), 1, 4096)) << 20;
   if (a.has("serve-jpeg-quality"))
     o.jpeg_quality = static_cast<int>(parse_integer("serve-jpeg-quality", a.get("serve-jpeg-quality"), 1, 100));
+  if (a.has("serve-h264-kbps"))
+    o.h264_max_kbps = static_cast<int>(parse_integer("serve-h264-kbps", a.get("serve-h264-kbps"), 0, 1'000'000));
   return o;
 }
 // The frames, the outputs, the stops and the window.
@@ -268,6 +283,25 @@ bool streams_of_both_aircraft(const std::vector<std::pair<std::string, std::stri
   return nav_of[0] && nav_of[1];
 }
 
+// --camera-clock online|off, --camera-clock-sigma-ms, --terrain-height-m.
+void parse_camera_clock(const ParsedArgs& a, RunOptions& o) {
+  const std::string v = a.get("camera-clock", "off");
+  if (v != "online" && v != "off") usage_error("--camera-clock: expected online or off, got '" + v + "'");
+  o.camera_clock_online = v == "online";
+  if (!o.camera_clock_online && (a.has("camera-clock-sigma-ms") || a.has("terrain-height-m")))
+    usage_error("--camera-clock-sigma-ms and --terrain-height-m need --camera-clock online");
+  if (a.has("camera-clock-sigma-ms")) {
+    o.camera_clock_apply_sigma_ms = parse_real("camera-clock-sigma-ms", a.get("camera-clock-sigma-ms"));
+    if (!(o.camera_clock_apply_sigma_ms > 0 && o.camera_clock_apply_sigma_ms <= 100))
+      usage_error("--camera-clock-sigma-ms: expected milliseconds in (0, 100]");
+  }
+  if (a.has("terrain-height-m")) {
+    o.terrain_height_m = parse_real("terrain-height-m", a.get("terrain-height-m"));
+    if (!(std::abs(o.terrain_height_m) <= 10000))
+      usage_error("--terrain-height-m: expected metres in [-10000, 10000]");
+  }
+}
+
 // The pose sources: a scene, a poses CSV, the live nav's streams and its settings (read only where
 // the live nav fuses: streams of both aircraft).
 void parse_run_poses(const ParsedArgs& a, RunOptions& o) {
@@ -292,6 +326,7 @@ void parse_run_poses(const ParsedArgs& a, RunOptions& o) {
     if (o.nav_stale_s && !(*o.nav_stale_s > 0)) usage_error("--nav-stale: expected seconds > 0");
   }
   if (o.nav_sim && a.has("nav-fault")) o.nav_faults = parse_nav_faults(a.get("nav-fault"));
+  parse_camera_clock(a, o);
 }
 
 // The boom, the receiver's drawing, the look and the sinks.

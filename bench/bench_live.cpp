@@ -296,6 +296,8 @@ const std::vector<std::pair<std::string, std::string>> kThreadGroups = {
     {"recorder", "augrig-rec"},
     {"nav-input", "augrig-nav"},
     {"sim-nav", "augrig-simnav"},
+    {"jpeg", "augrig-jpeg"},  // the live view's JPEG topics' encoder
+    {"h264", "augrig-h264"},  // the live view's H.264 topics' encoder (x264 runs on it)
     {"other", ""},
 };
 

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/clock.hpp"
+#include "core/thread_name.hpp"
 #include "net/foxglove_ops.hpp"
 #include "net/h264_topics.hpp"
 #include "net/latest_per_channel.hpp"
@@ -171,6 +172,7 @@ struct FoxgloveServer::Impl {
   }
 
   void jpeg_loop() {
+    set_thread_name("augrig-jpeg");
     while (auto next = jpeg_jobs.take()) {
       const auto& [channel, job] = *next;
       const auto t0 = std::chrono::steady_clock::now();

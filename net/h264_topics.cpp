@@ -3,6 +3,7 @@
 
 #include <chrono>
 
+#include "core/thread_name.hpp"
 #include "ros2/messages.hpp"
 
 namespace augrig::net {
@@ -47,6 +48,7 @@ Expected<H264AccessUnit> H264Topics::code(std::uint32_t channel, const Job& job,
 }
 
 void H264Topics::loop() {
+  set_thread_name("augrig-h264");
   while (auto next = jobs_.take()) {
     const auto& [channel, job] = *next;
     bool keyframe = false;

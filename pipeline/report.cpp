@@ -89,6 +89,13 @@ void print_report(const PipelineReport& r, const PipelineParts& parts, std::ostr
           << fmt_ms(v.jpeg_encoded ? v.jpeg_encode_ms / static_cast<double>(v.jpeg_encoded) : 0.0)
           << " ms each), " << v.jpeg_dropped << " dropped with the encoder behind, " << v.jpeg_failed
           << " failed\n";
+    if (v.h264_encoded + v.h264_dropped + v.h264_failed)
+      out << "live view H.264: " << v.h264_encoded << " frame(s) coded (" << v.h264_keyframes << " keyframes, "
+          << fmt_ms(v.h264_encoded ? v.h264_encode_ms / static_cast<double>(v.h264_encoded) : 0.0) << " ms each, "
+          << fmt_ms(v.h264_encoded ? static_cast<double>(v.h264_bytes) / 1e3 / static_cast<double>(v.h264_encoded)
+                                   : 0.0)
+          << " kB each), " << v.h264_dropped << " dropped with the encoder behind, " << v.h264_failed << " failed, "
+          << v.h264_held << " held from clients waiting for a keyframe\n";
   }
   latency_line("recorder", r.recorder_latency);
   if (parts.live_nav) {
@@ -103,6 +110,10 @@ void print_report(const PipelineReport& r, const PipelineParts& parts, std::ostr
     }
     if (const LiveBaselineReport b = parts.live_nav->baseline_report(); b.received)
       out << "nav " << b.summary() << "\n";
+    if (parts.camera_clocks)
+      for (const CameraClockOnlineStatus& c : parts.camera_clocks->status())
+        out << "camera clock " << c.text() << " [" << c.frames_tracked << " frames tracked, "
+            << c.frames_skipped_busy << " skipped with the worker busy, " << c.fits << " fits]\n";
   } else if (r.no_pose_pairs && !r.skipped_no_pose) {
     out << "nav: " << r.no_pose_pairs << " pairs without a pose (boom only)\n";
   }

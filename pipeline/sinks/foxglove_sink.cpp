@@ -58,11 +58,13 @@ class FoxgloveSink final : public FrameSink {
       if (h.recording == "stopped") level = net::HealthLevel::kError;
     }
     text << "; drops: camera " << h.source.camera_drops << ", pairing " << pairing << ", queue " << queue;
-    const net::ServeStats serve = server_->stats();  // the JPEG topics' encoder
+    const net::ServeStats serve = server_->stats();  // the JPEG and H.264 topics' encoders
     if (serve.jpeg_dropped) text << ", JPEG " << serve.jpeg_dropped;
+    if (serve.h264_dropped) text << ", H.264 " << serve.h264_dropped;
+    for (const std::string& c : h.camera_clocks) text << "; camera clock " << c;
     if (h.pairs == 0 && level == net::HealthLevel::kOk) level = net::HealthLevel::kStale;
-    server_->publish_health(h.pair_t_key_ns, level, text.str(),
-                            {{"pairs", std::to_string(h.pairs)},
+    std::vector<std::pair<std::string, std::string>> values = {
+                             {"pairs", std::to_string(h.pairs)},
                              {"pairs_per_s", std::to_string(rate)},
                              {"drops_camera", std::to_string(h.source.camera_drops)},
                              {"drops_transport", std::to_string(h.source.transport_drops)},
@@ -72,7 +74,12 @@ class FoxgloveSink final : public FrameSink {
                              {"stale_pairs", std::to_string(h.stale_pairs)},
                              {"recorder_dropped", std::to_string(h.recorder_dropped)},
                              {"jpeg_encoded", std::to_string(serve.jpeg_encoded)},
-                             {"drops_jpeg", std::to_string(serve.jpeg_dropped + serve.jpeg_failed)}});
+                             {"drops_jpeg", std::to_string(serve.jpeg_dropped + serve.jpeg_failed)},
+                             {"h264_encoded", std::to_string(serve.h264_encoded)},
+                             {"h264_keyframes", std::to_string(serve.h264_keyframes)},
+                             {"drops_h264", std::to_string(serve.h264_dropped + serve.h264_failed)}};
+    values.insert(values.end(), h.camera_clock_values.begin(), h.camera_clock_values.end());
+    server_->publish_health(h.pair_t_key_ns, level, text.str(), values);
   }
 
   Status close(PipelineReport& report) override {

@@ -22,6 +22,7 @@
 #include "nav/nmea.hpp"
 #include "nav/udp_socket.hpp"
 #include "recorder/reader.hpp"
+#include "render/video_codec.hpp"
 #include "ros2/messages.hpp"
 #include "render/rig.hpp"
 #include "sim/flight.hpp"
@@ -422,6 +423,42 @@ TEST(CmdRun, LiveNavPosesFromTheSimulatedStreamsMatchTheTruth) {
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
 }
 
+// --camera-clock online: each camera's clock estimated during the run, in the summary and recorded
+// (every fit an event). The demo flies straight and level: nothing to estimate from, so nothing is
+// applied and the poses are those of the configured offsets (the recovery itself is
+// tests/pipeline/camera_clock_online_test.cpp's).
+TEST(CmdRun, CameraClocksOnlineAreSummarisedAndRecorded) {
+  const std::string dir = output_dir("cmd_run_camera_clock");
+  std::string out;
+  ASSERT_EQ(augrig("run --source 'sim://demo?every=3' --nav sim --camera-clock online --duration 14 --headless "
+                   "--status-every 0 --record " +
+                       dir + "/rec",
+                   &out),
+            0)
+      << out;
+  EXPECT_TRUE(contains(out, "camera clocks estimated online, applied at 1-sigma <= 0.5 ms")) << out;
+  EXPECT_TRUE(contains(out, "camera clock left: ")) << out;
+  EXPECT_TRUE(contains(out, "camera clock right: ")) << out;
+  // Nothing applied: the poses keep the scenario's configured offsets (1.2 and 1.25 ms).
+  EXPECT_TRUE(contains(out, "prior +1.200 ms in use [")) << out;
+  EXPECT_TRUE(contains(out, "prior +1.250 ms in use [")) << out;
+  auto reader = recorder::RecordingReader::open(dir + "/rec");
+  ASSERT_TRUE(reader) << reader.error().message;
+  EXPECT_TRUE(contains((*reader)->meta("camera_clock"), "t_gps = t_camera - offset"));
+  auto events = (*reader)->events();
+  ASSERT_TRUE(events);
+  int fits[2] = {0, 0};
+  for (const recorder::EventRecord& e : *events) {
+    fits[0] += contains(e.text, "camera_clock camera=left state=") ? 1 : 0;
+    fits[1] += contains(e.text, "camera_clock camera=right state=") ? 1 : 0;
+    EXPECT_FALSE(contains(e.text, "applied=1")) << e.text;
+  }
+  EXPECT_GE(fits[0], 1) << out;
+  EXPECT_GE(fits[1], 1) << out;
+  std::string check;
+  EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
+}
+
 // Nav faults while running: the receiver's GPS silent for 1.5 s, then its IMU for 1 s. The run goes
 // on, every frame is still augmented and recorded, and the stale stretches are events in plain words.
 TEST(CmdRun, StaleNavIsMarkedAndTheRunGoesOn) {
@@ -762,7 +799,8 @@ TEST(CmdRun, CaptureOnlyRigRecordsRawThenAReplayAugmentsIt) {
 // run --serve: the live view over the network while the real binary runs. A WebSocket client on
 // loopback gets the Foxglove protocol's serverInfo and advertise, subscribes, and decodes (with
 // the ROS 2 decoders, as Foxglove would with the advertised schemas) the augmented images, the
-// statistics and the health while the run goes on; the summary counts the client and what it got.
+// statistics, the health and the right augmented view's H.264 stream (FFmpeg's decoder, from its
+// first unit) while the run goes on; the summary counts the client and what it got.
 TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   const std::string dir = output_dir("cmd_run_serve");
   fs::remove_all(dir);
@@ -802,11 +840,15 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
                         {"subscriptions",
                          {{{"id", 1}, {"channelId", channel["/left/image_augmented"]}},
                           {{"id", 2}, {"channelId", channel["/augrig/occlusion_stats"]}},
-                          {{"id", 3}, {"channelId", channel["/diagnostics"]}}}}};
+                          {{"id", 3}, {"channelId", channel["/diagnostics"]}},
+                          {{"id", 4}, {"channelId", channel["/right/image_augmented/h264"]}}}}};
   ASSERT_TRUE(c.send_text(sub.dump()));
   std::map<std::uint32_t, int> got;
   std::int64_t last_image_ns = 0;
   std::string health;
+  std::map<std::string, std::string> health_values;
+  auto decoder = H264Decoder::create();
+  ASSERT_TRUE(decoder);
   // 3 s from the first message (the run may still be starting: its GL context, the flight).
   std::optional<std::chrono::steady_clock::time_point> until;
   while (!until || std::chrono::steady_clock::now() < *until) {
@@ -837,6 +879,13 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
       ASSERT_TRUE(d) << d.error().message;
       ASSERT_FALSE(d->empty());
       health = d->front().message;
+      for (const auto& [k, v] : d->front().values) health_values[k] = v;
+    } else if (sid == 4) {
+      auto v = ros2::decode_compressed_video(msg);
+      ASSERT_TRUE(v) << v.error().message;
+      auto pic = (*decoder)->decode(v->data.data(), v->data.size(), 1280, 960);
+      ASSERT_TRUE(pic) << "H.264 unit " << got[4] << ": " << pic.error().message;
+      EXPECT_EQ(pic->width(), 1280);
     }
   }
   // Up to 10 pairs a second for 3 s; a loaded machine's simulated cameras lose late frames.
@@ -844,6 +893,8 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   EXPECT_GE(got[2], 5);
   EXPECT_GE(got[3], 2) << "the health once a second";
   EXPECT_NE(health.find("pairs/s; cameras streaming"), std::string::npos) << health;
+  EXPECT_GE(got[4], 3) << "H.264 units";
+  EXPECT_TRUE(health_values.count("h264_encoded") && health_values.count("drops_h264"));
   c.close();
   for (int i = 0; i < 400 && !fs::exists(dir + "/rc"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   std::ifstream rc(dir + "/rc");
@@ -853,10 +904,13 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   std::ifstream in(log);
   const std::string out((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_TRUE(contains(out, "live view (ws://127.0.0.1:" + std::to_string(port) + "): 1 client(s)")) << out;
+  EXPECT_TRUE(contains(out, "live view H.264: ")) << out;
   // Flags: a bad address, a port in use.
   std::string err;
   EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve :x", &err), 2) << err;
   EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve-queue-mb 4", &err), 2) << err;
+  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve-h264-kbps 4000", &err), 2) << err;
+  EXPECT_TRUE(contains(err, "--serve-h264-kbps needs --serve")) << err;
   EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --frames 1 --serve 256.1.1.1:0", &err), 1) << err;
 }
 
@@ -929,6 +983,13 @@ TEST(CmdRun, BadSourcesAndFlagsSayWhatIsWrong) {
            {"run --source 'sim://demo' --nav sim --aircraft tanker=/nonexistent.yaml", 1,
             "/nonexistent.yaml"},
            {"run --source 'sim://demo' --nav sim --nav-stale 0", 2, "--nav-stale: expected seconds > 0"},
+           {"run --source 'sim://demo' --nav sim --camera-clock maybe", 2,
+            "--camera-clock: expected online or off, got 'maybe'"},
+           {"run --source 'sim://demo' --camera-clock online", 2, "--camera-clock online needs the live nav"},
+           {"run --source 'sim://demo' --nav sim --camera-clock-sigma-ms 1", 2,
+            "--camera-clock-sigma-ms and --terrain-height-m need --camera-clock online"},
+           {"run --source 'sim://demo' --nav sim --camera-clock online --camera-clock-sigma-ms 0", 2,
+            "--camera-clock-sigma-ms: expected milliseconds in (0, 100]"},
            {"run --source 'replay:///nonexistent/rec' --nav sim", 1, "/nonexistent/rec"},
            // No pose source for cameras or a dataset: refused before anything is opened.
            {"run --source 'stereo://{aravis://a}{aravis://b}'", 2, "a pose source is needed"},
