@@ -4,6 +4,7 @@
 //   augrig-pipe     the pipeline (nav pose, augmentation, statistics) when a window is open
 //   augrig-rec*     the recorder's compression workers, writer and checkpointer
 //   augrig-nav      a live nav input;  augrig-simnav  the simulated nav streams
+//   augrig-jpeg, augrig-h264  the live view's coders (at nice +10: core/thread_priority.hpp)
 #pragma once
 
 #include <string>

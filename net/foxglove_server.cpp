@@ -17,6 +17,7 @@
 
 #include "core/clock.hpp"
 #include "core/thread_name.hpp"
+#include "core/thread_priority.hpp"
 #include "net/foxglove_ops.hpp"
 #include "net/h264_topics.hpp"
 #include "net/latest_per_channel.hpp"
@@ -173,6 +174,7 @@ struct FoxgloveServer::Impl {
 
   void jpeg_loop() {
     set_thread_name("augrig-jpeg");
+    lower_thread_priority(10);  // like the H.264 coder: the pipeline first (core/thread_priority.hpp)
     while (auto next = jpeg_jobs.take()) {
       const auto& [channel, job] = *next;
       const auto t0 = std::chrono::steady_clock::now();

@@ -57,7 +57,7 @@ struct ServeOptions {
   int h264_crf = 23;
   int h264_keyframe_interval = 30;
   int h264_max_kbps = 4000;  // 0: no cap
-  std::string h264_preset = "superfast";
+  std::string h264_preset = "ultrafast";  // the cheapest (docs/PERFORMANCE.md: 2/3 of superfast's CPU)
 };
 
 enum class HealthLevel : std::uint8_t {

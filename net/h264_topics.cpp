@@ -4,6 +4,7 @@
 #include <chrono>
 
 #include "core/thread_name.hpp"
+#include "core/thread_priority.hpp"
 #include "ros2/messages.hpp"
 
 namespace augrig::net {
@@ -49,6 +50,7 @@ Expected<H264AccessUnit> H264Topics::code(std::uint32_t channel, const Job& job,
 
 void H264Topics::loop() {
   set_thread_name("augrig-h264");
+  lower_thread_priority(10);  // x264 gives way to the pipeline: a frame it cannot take in time is dropped
   while (auto next = jobs_.take()) {
     const auto& [channel, job] = *next;
     bool keyframe = false;

@@ -68,7 +68,20 @@ void quiet_ffmpeg() {
   std::call_once(once, [] { av_log_set_level(AV_LOG_ERROR); });
 }
 
+constexpr const char* kPresets[] = {"ultrafast", "superfast", "veryfast", "faster", "fast",
+                                   "medium",    "slow",      "slower",   "veryslow"};
+
 }  // namespace
+
+bool is_x264_preset(const std::string& name) {
+  return std::find(std::begin(kPresets), std::end(kPresets), name) != std::end(kPresets);
+}
+
+std::string x264_preset_names() {
+  std::string s;
+  for (const char* p : kPresets) s += (s.empty() ? "" : ", ") + std::string(p);
+  return s;
+}
 
 // ---- The encoder --------------------------------------------------------------------------------
 
@@ -111,6 +124,8 @@ Expected<std::unique_ptr<H264Encoder>> H264Encoder::create(int width_px, int hei
   if (o.max_kbps < 0)
     return make_error(where, "bit-rate cap ", o.max_kbps, " kbit/s: expected 0 (none) or more");
   if (o.threads < 1 || o.threads > 16) return make_error(where, o.threads, " threads: expected 1..16");
+  if (!is_x264_preset(o.preset))
+    return make_error(where, "preset '", o.preset, "': expected one of ", x264_preset_names());
   quiet_ffmpeg();
   const AVCodec* codec = avcodec_find_encoder_by_name("libx264");
   if (!codec)

@@ -28,6 +28,10 @@ struct H264Options {
   int threads = 1;                   // x264's slice threads (zerolatency: no frame threads, no added delay)
 };
 
+// x264's speed presets, fastest first: "ultrafast, superfast, ..., veryslow".
+bool is_x264_preset(const std::string& name);
+std::string x264_preset_names();
+
 // One frame's coded bytes.
 struct H264AccessUnit {
   std::vector<std::uint8_t> data;  // Annex B NAL units; an IDR's begins with its SPS and PPS

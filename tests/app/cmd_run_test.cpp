@@ -807,7 +807,8 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   fs::create_directories(dir);
   const std::string log = dir + "/run.log";
   ASSERT_EQ(std::system(("(" + augrig_binary() +
-                         " run --source 'sim://demo?rate=1&every=3' --headless --status-every 0 --duration 12 --serve 0 > " +
+                         " run --source 'sim://demo?rate=1&every=3' --headless --status-every 0 --duration 12 --serve 0 "
+                         "--serve-h264-preset superfast > " +
                          log + " 2>&1; echo $? > " + dir + "/rc) &")
                             .c_str()),
             0);
@@ -911,6 +912,10 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve-queue-mb 4", &err), 2) << err;
   EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve-h264-kbps 4000", &err), 2) << err;
   EXPECT_TRUE(contains(err, "--serve-h264-kbps needs --serve")) << err;
+  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve 0 --serve-h264-preset quick", &err), 2)
+      << err;
+  EXPECT_TRUE(contains(err, "--serve-h264-preset: expected one of ultrafast, superfast")) << err;
+  EXPECT_TRUE(contains(err, "got 'quick'")) << err;
   EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --frames 1 --serve 256.1.1.1:0", &err), 1) << err;
 }
 

@@ -241,7 +241,11 @@ TEST(H264, ErrorsSayWhat) {
   EXPECT_NE(H264Encoder::create(64, 48, o).error().message.find("keyframe interval"), std::string::npos);
   o = {};
   o.preset = "warp9";
-  EXPECT_FALSE(H264Encoder::create(64, 48, o));
+  const std::string bad_preset = H264Encoder::create(64, 48, o).error().message;
+  EXPECT_NE(bad_preset.find("preset 'warp9': expected one of ultrafast, superfast"), std::string::npos)
+      << bad_preset;
+  for (const char* p : {"ultrafast", "superfast", "veryslow"}) EXPECT_TRUE(is_x264_preset(p)) << p;
+  for (const char* p : {"", "Ultrafast", "placebo", "fast "}) EXPECT_FALSE(is_x264_preset(p)) << p;
   auto enc = H264Encoder::create(64, 48);
   ASSERT_TRUE(enc);
   Image small(32, 48, PixelFormat::kRGB8);

@@ -5,8 +5,10 @@
 //   @foxglove/rosmsg                parses each advertised ros2msg schema
 //   @foxglove/rosmsg2-serialization decodes every message (CDR) with its channel's schema
 // It subscribes to every advertised channel (or those of --topics), decodes every message, and
-// stops after FRAMES messages on /augrig/occlusion_stats (0: when the server closes the
-// connection; the timeout in either case). It prints one JSON
+// stops after FRAMES messages on /augrig/occlusion_stats and, those in, once each coded topic
+// subscribed to (.../compressed, .../h264: coded on the server's own threads, behind the rest) has
+// given a message, or 5 s later (0: when the server closes the connection; the timeout in either
+// case). It prints one JSON
 // object: serverInfo, the channels, the statuses, and each message summarised (images by size,
 // encoding and FNV-1a hash, unless --no-hash; the rest as decoded). Run from the folder where the
 // packages are installed (the test copies this file there). Exit 0 when done, 2 on timeout.
@@ -142,5 +144,16 @@ client.on("message", ({ subscriptionId, timestamp, data }) => {
     entry.decodeError = String(e.message ?? e);
   }
   result.messages.push(entry);
-  if (s.ch.topic === "/augrig/occlusion_stats" && frames > 0 && ++statsSeen >= frames) finish(0);
+  if (s.ch.topic === "/augrig/occlusion_stats" && frames > 0 && ++statsSeen === frames) {
+    setTimeout(() => finish(0), 5000);  // the coded topics' grace
+  }
+  if (frames > 0 && statsSeen >= frames && codedTopicsHeard()) finish(0);
 });
+
+// Each subscribed coded topic (the newest frame is always coded in the end) has given a message.
+function codedTopicsHeard() {
+  const heard = new Set(result.messages.map((m) => m.topic));
+  for (const { ch } of bySub.values())
+    if (/\/(compressed|h264)$/.test(ch.topic) && !heard.has(ch.topic)) return false;
+  return true;
+}
