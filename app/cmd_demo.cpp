@@ -192,8 +192,7 @@ DemoNav simulate_and_fuse(const sim::Scenario& scenario, const sim::Flight& flig
   out << "demo: scenario '" << scenario.name << "', " << scenario.duration_s << " s; "
       << describe("tanker nav", tk.report()) << "\n  " << describe("receiver nav", rx.report()) << "\n";
   // The cameras' clock offsets to GPS time are calibration, known here from the scenario.
-  n.offsets = scenario.sensors.cameras.clock_offset_ns;
-  n.offsets.resize(2, 0);
+  n.offsets = scenario.sensors.cameras.assumed_clock_offsets_ns(2);
   n.rel = std::make_shared<const RelativeNav>(std::move(tk), std::move(rx), scenario.rig, scenario.boom,
                                               flight.receptacle_m(), n.offsets);
   return n;

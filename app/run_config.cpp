@@ -202,8 +202,7 @@ void choose_run_poses(const RunOptions& o, const RunSource& s, const NavPlan& na
                                    o.nav_sim ? s.info.sim.get() : nullptr, setup.ins_used);
     ps.live_nav = parts.live_nav = setup.live_nav.get();
     if (o.nav_sim) {
-      ps.camera_offset_ns = s.info.sim->scenario.sensors.cameras.clock_offset_ns;
-      ps.camera_offset_ns.resize(2, 0);
+      ps.camera_offset_ns = s.info.sim->scenario.sensors.cameras.assumed_clock_offsets_ns(2);
     }
     if (o.camera_clock_online) make_camera_clocks(o, s.rig, ps, setup);
   }

@@ -629,7 +629,8 @@ void parse_cameras(const Ctx& c, const YAML::Node& parent, Scenario& s) {
   const YAML::Node n = optional_map(
       c, parent, "sensors", "cameras",
       "a map {fps, clock_offset_ns, jitter_ns, drop_probability, bayer, noise, ...}",
-      {"fps", "clock_offset_ns", "clock_drift_ppm", "exposure_offset_ns", "jitter_ns", "drop_probability",
+      {"fps", "clock_offset_ns", "clock_drift_ppm", "clock_offset_assumed_ns", "exposure_offset_ns",
+       "jitter_ns", "drop_probability",
        "bayer", "noise", "noise_a", "psf_sigma_px", "gain", "gamma", "exposure_ms"});
   CameraTimingConfig& cam = s.sensors.cameras;
   cam = CameraTimingConfig{};
@@ -639,6 +640,8 @@ void parse_cameras(const Ctx& c, const YAML::Node& parent, Scenario& s) {
   cam.clock_offset_ns = per_camera<std::int64_t>(c, n, path, "clock_offset_ns", count, true, "ns");
   cam.clock_drift_ppm = per_camera<double>(c, n, path, "clock_drift_ppm", count, false, "ppm");
   cam.exposure_offset_ns = per_camera<std::int64_t>(c, n, path, "exposure_offset_ns", count, true, "ns");
+  cam.clock_offset_assumed_ns =
+      per_camera<std::int64_t>(c, n, path, "clock_offset_assumed_ns", count, true, "ns");
   cam.jitter_ns = number(c, n, path, "jitter_ns", cam.jitter_ns, kNonNegative, "ns");
   cam.drop_probability = number(c, n, path, "drop_probability", cam.drop_probability, {0.0, 1.0}, "");
   if (const YAML::Node b = n["bayer"]; b.IsDefined()) {

@@ -247,6 +247,10 @@ struct CameraTimingConfig {
   std::vector<std::int64_t> clock_offset_ns;
   std::vector<double> clock_drift_ppm;
   std::vector<std::int64_t> exposure_offset_ns;
+  // What the rig's calibration says the offsets are (the poses from the live nav map frames with
+  // them until `run --camera-clock online` applies its own estimate); empty: the true offsets above
+  // (a calibrated rig). assumed_clock_offsets_ns() gives the values in use.
+  std::vector<std::int64_t> clock_offset_assumed_ns;
   double jitter_ns = 0.0;         // 1-sigma Gaussian timestamp jitter
   double drop_probability = 0.0;  // per frame, independent
   // For the image renderer (not used by the timing model).
@@ -262,6 +266,13 @@ struct CameraTimingConfig {
   // boom) is integrated over it (motion blur); the frames carry it (Frame::exposure_ns).
   double exposure_ms = 0.0;
   bool operator==(const CameraTimingConfig&) const = default;
+
+  // The calibrated offsets, one per camera (`cameras` of them, missing ones 0).
+  std::vector<std::int64_t> assumed_clock_offsets_ns(std::size_t cameras) const {
+    std::vector<std::int64_t> v = clock_offset_assumed_ns.empty() ? clock_offset_ns : clock_offset_assumed_ns;
+    v.resize(cameras, 0);
+    return v;
+  }
 };
 
 struct CameraFrameTime {

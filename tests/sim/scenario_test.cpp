@@ -163,6 +163,39 @@ sensors:
   EXPECT_TRUE(s->sensors.tanker == AircraftSensors{});
 }
 
+// The cameras' clocks as the rig's calibration has them (what the live nav's poses assume) apart
+// from the truth: the true offsets by default, a list or one value for all otherwise.
+TEST(ScenarioTest, CameraClockOffsetsAssumedApartFromTheTruth) {
+  auto s = parse_scenario(R"(augrig_scenario: 1
+sensors:
+  cameras: {clock_offset_ns: [3700000, -2400000], clock_offset_assumed_ns: 0}
+)",
+                          "inline.yaml");
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_EQ(s->sensors.cameras.clock_offset_ns, (std::vector<std::int64_t>{3'700'000, -2'400'000}));
+  EXPECT_EQ(s->sensors.cameras.assumed_clock_offsets_ns(2), (std::vector<std::int64_t>{0, 0}));
+  auto calibrated = parse_scenario(R"(augrig_scenario: 1
+sensors:
+  cameras: {clock_offset_ns: [3700000, -2400000]}
+)",
+                                   "inline.yaml");
+  ASSERT_TRUE(calibrated) << calibrated.error().message;
+  EXPECT_EQ(calibrated->sensors.cameras.assumed_clock_offsets_ns(2),
+            (std::vector<std::int64_t>{3'700'000, -2'400'000}));
+  EXPECT_EQ(calibrated->sensors.cameras.assumed_clock_offsets_ns(3),
+            (std::vector<std::int64_t>{3'700'000, -2'400'000, 0}));
+  auto bad = parse_scenario(R"(augrig_scenario: 1
+sensors:
+  cameras: {clock_offset_assumed_ns: [1, 2, 3]}
+)",
+                            "inline.yaml");
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.error().message.find("inline.yaml:3"), std::string::npos) << bad.error().message;
+  EXPECT_NE(bad.error().message.find("sensors.cameras.clock_offset_assumed_ns"), std::string::npos)
+      << bad.error().message;
+  EXPECT_NE(bad.error().message.find("one per rig camera (2)"), std::string::npos) << bad.error().message;
+}
+
 // Each aircraft's IMU clock against GPS time: parsed, bounded like the other keys, 0 by default,
 // and kept by noise_free (it is a clock, not noise).
 TEST(ScenarioTest, ImuClockOffsetAndDrift) {
