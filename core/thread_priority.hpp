@@ -3,6 +3,8 @@
 // that the pipeline, the window and the recorder are never kept waiting for a core by them: on a
 // busy machine a coder falls behind and drops frames for its own topics (counted), and the frames
 // the pipeline draws and records keep their latency. Raising one's nice value needs no privilege.
+// Not SCHED_IDLE: tried, it starved the coders outright beside two CPU-bound processes (no frame
+// coded in 10 s), and bench_live showed no gain over nice +10 beyond the machine's noise.
 #pragma once
 
 #include <algorithm>
