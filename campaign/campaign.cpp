@@ -166,15 +166,22 @@ VariantSpec parse_variant(const Context& c, const YAML::Node& n, const std::stri
   // The re-augmented frames as files too, per shard, joined per flight by the merge.
   if (const YAML::Node x = n["exports"]) {
     const std::string xk = join_key(key, "exports");
-    if (!x.IsSequence()) fail(c, x, xk, "expected a list of export formats ([mcap, euroc]), " + got(x));
+    if (!x.IsSequence())
+      fail(c, x, xk, "expected a list of export formats ([mcap, euroc, recording]), " + got(x));
     for (const YAML::Node& f : x) {
       const std::string format = to_string_value(c, f, xk, "an export format");
-      if (format != "mcap" && format != "euroc")
+      if (format == "mcap")
+        v.export_mcap = true;
+      else if (format == "euroc")
+        v.export_euroc = true;
+      else if (format == "recording")
+        v.export_recording = true;
+      else
         fail(c, f, xk,
-             "expected mcap or euroc (the formats a shard can write and the merge join), " + got(f));
-      (format == "mcap" ? v.export_mcap : v.export_euroc) = true;
+             "expected mcap, euroc or recording (the formats a shard can write and the merge join), " +
+                 got(f));
     }
-    if ((v.export_mcap || v.export_euroc) && v.evaluate)
+    if ((v.export_mcap || v.export_euroc || v.export_recording) && v.evaluate)
       fail(c, x, xk,
            "exports are written by replay variants (without evaluate); give them their own variant");
   }
@@ -476,6 +483,7 @@ std::vector<std::string> task_command(const FlightSpec& flight, const VariantSpe
     if (!v.look.empty()) a.insert(a.end(), {"--look", v.look});
     if (v.export_mcap) a.insert(a.end(), {"--sink", std::string("mcap:") + kTaskOut + "/" + kShardMcap});
     if (v.export_euroc) a.insert(a.end(), {"--sink", kShardEurocSink});
+    if (v.export_recording) a.insert(a.end(), {"--record", std::string(kTaskOut) + "/" + kShardRecording});
   }
   // A frame that cannot be read is left out and counted (done.yaml, status, the report): a shard
   // of a damaged recording would otherwise fail on every run.

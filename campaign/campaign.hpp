@@ -50,6 +50,10 @@ struct VariantSpec {
   // exports: [euroc]: each shard's as a EuRoC folder on the recording's clock with its nav inputs
   // (--sink euroc:...,nav), joined per flight (recorder::merge_euroc) into report/VARIANT/FLIGHT/euroc.
   bool export_euroc = false;
+  // exports: [recording]: each shard's re-augmented frames recorded (--record {out}/recording),
+  // joined per flight (recorder::merge_recordings, with the flight's nav inputs) into
+  // report/VARIANT/FLIGHT/recording.
+  bool export_recording = false;
   // look: plain | camera (replay's --look; empty: its default). Evaluations always use plain. The
   // camera look's estimates start over at each shard's first frame, as a restarted run's would:
   // its augmented images are a camera's, but not bit for bit those of one unsharded run.
@@ -141,6 +145,8 @@ inline constexpr const char* kShardMcap = "flight.mcap";
 // A shard's EuRoC export: kTaskOut/kShardEuroc, its sink's argument kShardEurocSink.
 inline constexpr const char* kShardEuroc = "euroc";
 inline constexpr const char* kShardEurocSink = "euroc:{out}/euroc,nav,no-plot";
+// A shard's re-augmented recording: kTaskOut/kShardRecording.
+inline constexpr const char* kShardRecording = "recording";
 
 struct Manifest {
   std::filesystem::path file;  // manifest.yaml, absolute

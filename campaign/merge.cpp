@@ -13,6 +13,7 @@
 #include "recorder/euroc.hpp"
 #include "recorder/mcap_export.hpp"
 #include "recorder/reader.hpp"
+#include "recorder/recording_merge.hpp"
 #include "render/stats.hpp"
 
 namespace augrig::campaign {
@@ -165,10 +166,10 @@ Expected<std::unique_ptr<recorder::RecordingReader>> flight_recording(const fs::
   return std::move(*r);
 }
 
-// The shards' exports (a variant's exports: [mcap, euroc]) joined per flight: their MCAP files into
-// DIR/flight.mcap, with the flight's nav inputs when it is a recording; their EuRoC folders into
-// DIR/euroc (each shard's holds the recording's nav inputs already). Each line says what was
-// joined. Nothing when the variant exports nothing.
+// The shards' exports (a variant's exports: [mcap, euroc, recording]) joined per flight: their MCAP
+// files into DIR/flight.mcap and their recordings into DIR/recording, with the flight's nav inputs
+// when it is a recording; their EuRoC folders into DIR/euroc (each shard's holds the recording's
+// nav inputs already). Each line says what was joined. Nothing when the variant exports nothing.
 Status merge_exports(const std::vector<const Task*>& shards, const fs::path& dir,
                      std::vector<std::string>& lines) {
   const std::vector<std::string>& argv = shards.front()->argv;
@@ -184,6 +185,18 @@ Status merge_exports(const std::vector<const Task*>& shards, const fs::path& dir
       return make_error(kWhere, s.error().message);
     lines.push_back((dir / kShardMcap).string() + ": " + std::to_string(report.frames) +
                     " stereo frame(s) from the shards' MCAP files");
+  }
+  if (has(std::string(kTaskOut) + "/" + kShardRecording)) {
+    std::vector<std::string> inputs;
+    for (const Task* t : shards) inputs.push_back((t->out / kShardRecording).string());
+    auto nav = flight_recording(flight);
+    if (!nav) return nav.error();
+    recorder::RecordingMergeReport report;
+    if (Status s = recorder::merge_recordings(inputs, (dir / kShardRecording).string(), nav->get(), report); !s)
+      return make_error(kWhere, s.error().message);
+    lines.push_back((dir / kShardRecording).string() + ": " + std::to_string(report.frames) +
+                    " stereo frame(s) from the shards' recordings, " + std::to_string(report.nav_inputs) +
+                    " nav input(s) of the flight");
   }
   if (has(kShardEurocSink)) {
     std::vector<std::string> inputs;

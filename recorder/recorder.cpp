@@ -172,16 +172,6 @@ const StoredRawBlob* copyable_raw_blob(const Frame& fr, int c) {
   return &b;
 }
 
-std::string utc_now_iso8601() {
-  const auto now = std::chrono::system_clock::now();
-  const std::time_t t = std::chrono::system_clock::to_time_t(now);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[64];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
-
 TimestampNs clock_ns(clockid_t id) {
   timespec ts{};
   clock_gettime(id, &ts);

@@ -1,5 +1,8 @@
 #include "recorder/store.hpp"
 
+#include <chrono>
+#include <ctime>
+
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -95,6 +98,16 @@ std::string describe_sqlite_error(sqlite3* db, int rc) {
     s += ", errno " + std::to_string(sys) + ": " + std::strerror(sys);
   s += ")";
   return s;
+}
+
+std::string utc_now_iso8601() {
+  const auto now = std::chrono::system_clock::now();
+  const std::time_t t = std::chrono::system_clock::to_time_t(now);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[64];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
 }
 
 Database& Database::operator=(Database&& o) noexcept {

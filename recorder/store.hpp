@@ -27,6 +27,9 @@ namespace augrig::recorder {
 inline constexpr int kSchemaVersion = 3;
 inline constexpr std::string_view kDatabaseFile = "recording.sqlite";
 
+// Now in UTC, "2026-12-07T21:30:00Z" (meta created_utc, summary.closed_utc).
+std::string utc_now_iso8601();
+
 // DIR/recording.sqlite for a folder; a path that is not a folder is returned as it is.
 std::string database_path(const std::string& dir_or_file);
 

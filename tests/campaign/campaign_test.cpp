@@ -115,11 +115,12 @@ TEST(CampaignFile, ErrorsNameTheLineTheKeyAndWhatWasExpected) {
        "key 'variants[0].boom': expected track, fixed:EL_DEG,AZ_DEG,EXT_M or script:FILE.csv"},
       {head + "recordings: [f042]\nvariants: [{name: 'a b'}]\n", "key 'variants[0].name': expected a name"},
       {head + "recordings: [f042]\nvariants: [{name: v, exports: [mcap, kitti]}]\n",
-       "key 'variants[0].exports': expected mcap or euroc (the formats a shard can write and the merge "
-       "join), got "
-       "'kitti'"},
+       "key 'variants[0].exports': expected mcap, euroc or recording (the formats a shard can write and the "
+       "merge join), got 'kitti'"},
       {head + "recordings: [f042]\nvariants: [{name: v, exports: mcap}]\n",
-       "key 'variants[0].exports': expected a list of export formats ([mcap, euroc])"},
+       "key 'variants[0].exports': expected a list of export formats ([mcap, euroc, recording])"},
+      {head + "recordings: [f042]\nvariants: [{name: v, evaluate: true, exports: [recording]}]\n",
+       "exports are written by replay variants (without evaluate)"},
       {head + "recordings: [f042]\nvariants: [{name: v, evaluate: true, exports: [euroc]}]\n",
        "exports are written by replay variants (without evaluate)"},
       {head + "recordings: [f042]\nvariants: [{name: v, evaluate: true, exports: [mcap]}]\n",
@@ -260,16 +261,19 @@ TEST(Tasks, OneCommandPerShardAndVariant) {
   // A variant's look, and its MCAP export into the task's folder ({out}: run_task puts it in).
   auto x = f.parse(
       "augrig_campaign: 1\nname: c\nout: o\nrecordings: [f042]\n"
-      "variants: [{name: m, look: plain, exports: [mcap]}, {name: e, exports: [euroc, mcap]}]\n");
+      "variants: [{name: m, look: plain, exports: [mcap]}, {name: e, exports: [euroc, mcap, recording]}]\n");
   ASSERT_TRUE(x) << x.error().message;
   const auto xt = plan_tasks(*x, {frames_every(0.1, 10)}, {});
   ASSERT_EQ(xt.size(), 2u);
   EXPECT_TRUE(has(xt[0], {"--look", "plain"}));
   EXPECT_TRUE(has(xt[0], {"--sink", "mcap:{out}/flight.mcap"}));
   EXPECT_FALSE(has(xt[0], {"--sink", "euroc:{out}/euroc,nav,no-plot"}));
+  EXPECT_FALSE(has(xt[0], {"--record", "{out}/recording"}));
   // EuRoC: on the recording's clock with its nav inputs (nav), plotted once by the merge.
   EXPECT_TRUE(has(xt[1], {"--sink", "euroc:{out}/euroc,nav,no-plot"}));
   EXPECT_TRUE(has(xt[1], {"--sink", "mcap:{out}/flight.mcap"}));
+  // The re-augmented frames recorded into the task's folder, joined per flight by the merge.
+  EXPECT_TRUE(has(xt[1], {"--record", "{out}/recording"}));
   for (const Task& x : tasks) {
     if (x.variant == "eval") {
       EXPECT_EQ(x.shard.from_frame % 5, 0u);

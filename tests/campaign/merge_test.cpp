@@ -12,6 +12,8 @@
 #include <gtest/gtest.h>
 
 #include "campaign/task.hpp"
+#include "recorder/reader.hpp"
+#include "recorder/store.hpp"
 #include "tests/support/campaign_fixture.hpp"
 #include "tests/support/mcap_messages.hpp"
 #include "tests/support/output_files.hpp"
@@ -160,6 +162,51 @@ TEST_F(MergeFixture, ShardsEurocExportsJoinIntoTheExportOfTheWholeFlight) {
     EXPECT_TRUE(fs::exists(t.out / "euroc" / "mav0" / "cam0" / "data.csv")) << t.id;
   ASSERT_TRUE(merge_campaign(m, MergeOptions{false, false}, out));
   EXPECT_EQ(test::files_under(joined).size(), merged.size());
+}
+
+// exports: [recording]: the shards' recordings joined per flight hold, column for column and blob
+// for blob, the frames one unsharded `augrig replay FLIGHT --record` with the variant's options
+// records, with the flight's nav inputs; `augrig check` finds nothing wrong with it.
+TEST_F(MergeFixture, ShardsRecordingsJoinIntoTheUnshardedReplaysRecording) {
+  const Manifest m = run_exports("r", "{name: r, boom: script:boom.csv, look: plain, exports: [recording]}");
+  std::ostringstream out;
+  ASSERT_TRUE(merge_campaign(m, MergeOptions{false, false}, out));
+  const fs::path joined = m.out / "report" / "r" / "a" / "recording";
+  EXPECT_NE(out.str().find(joined.string() + ": 41 stereo frame(s) from the shards' recordings"),
+            std::string::npos)
+      << out.str();
+  std::string log;
+  ASSERT_EQ(test::run_augrig("replay " + rec_a + " --headless --fast --look plain --boom script:" +
+                                 (dir / "boom.csv").string() + " --record " + (dir / "whole").string(),
+                             &log),
+            0)
+      << log;
+  auto frames_of = [](const fs::path& rec) {
+    std::vector<std::string> rows;
+    auto db = recorder::Database::open(recorder::database_path(rec.string()), SQLITE_OPEN_READONLY);
+    EXPECT_TRUE(db) << db.error().message;
+    if (!db) return rows;
+    auto st = recorder::Statement::prepare(db->get(), "SELECT * FROM frames ORDER BY id");
+    while (st && st->step() == SQLITE_ROW) {
+      std::string row;
+      for (int c = 0; c < sqlite3_column_count(st->get()); ++c) {
+        const auto* p = static_cast<const char*>(sqlite3_column_blob(st->get(), c));
+        row += (p ? std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(st->get(), c))) : "NULL") + '\x1f';
+      }
+      rows.push_back(row);
+    }
+    return rows;
+  };
+  const auto whole = frames_of(dir / "whole"), merged = frames_of(joined);
+  ASSERT_EQ(whole.size(), 41u);
+  ASSERT_EQ(merged.size(), whole.size());
+  for (std::size_t i = 0; i < whole.size(); ++i) EXPECT_TRUE(merged[i] == whole[i]) << "frame " << i;
+  auto flight = recorder::RecordingReader::open(rec_a);
+  auto reader = recorder::RecordingReader::open(joined.string());
+  ASSERT_TRUE(flight && reader);
+  EXPECT_EQ((*reader)->meta("summary.nav_inputs"), (*flight)->meta("summary.nav_inputs"));
+  EXPECT_EQ((*reader)->meta("summary.frames"), "41");
+  ASSERT_EQ(test::run_augrig("check " + joined.string(), &log), 0) << log;
 }
 
 TEST_F(MergeFixture, AShardNotDoneStopsTheMergeUnlessPartial) {
