@@ -218,7 +218,7 @@ struct GltfContext {
   const tinygltf::Model& gm;
   const std::string& path;
   std::map<int, std::shared_ptr<const Texture>> textures;  // by image index, shared between primitives
-  std::set<int> noted_materials;  // materials whose ignored metallicRoughnessTexture was noted
+  std::set<int> noted_materials;  // materials whose averaged metallicRoughnessTexture was noted
 };
 
 int component_size(int type) {
@@ -347,12 +347,14 @@ double read_component(const AccessorView& v, std::size_t i, int c) {
   }
 }
 
-Expected<std::shared_ptr<const Texture>> gltf_texture(GltfContext& ctx, int texture_index,
-                                                      const std::string& what) {
+// Texture `texture_index` (a material's `role`: "baseColorTexture", "metallicRoughnessTexture") as
+// 8-bit RGBA, decoded once per image.
+Expected<std::shared_ptr<const Texture>> gltf_texture(GltfContext& ctx, int texture_index, const std::string& what,
+                                                      const std::string& role = "baseColorTexture") {
   const auto& gm = ctx.gm;
   auto fail = [&](const std::string& why) { return make_error(kWhere, ctx.path, ": ", what, ": ", why); };
   if (texture_index < 0 || texture_index >= static_cast<int>(gm.textures.size())) {
-    return fail("baseColorTexture " + std::to_string(texture_index) + " does not exist");
+    return fail(role + " " + std::to_string(texture_index) + " does not exist");
   }
   const int image_index = gm.textures[texture_index].source;
   if (image_index < 0 || image_index >= static_cast<int>(gm.images.size())) {
@@ -413,6 +415,20 @@ const char* mode_name(int mode) {
   }
 }
 
+// glTF's metallicRoughnessTexture: roughness in its green channel, metallic in its blue, each
+// multiplied by its factor. One finish per mesh: the texels' mean (linear values, as the spec has
+// them), so a texture that varies over the surface gives its average finish rather than none.
+SurfaceFinish averaged_finish(const Texture& t, const SurfaceFinish& factors) {
+  double green = 0, blue = 0;
+  const std::size_t n = static_cast<std::size_t>(t.width) * static_cast<std::size_t>(t.height);
+  for (std::size_t i = 0; i < n; ++i) {
+    green += t.rgba[i * 4 + 1];
+    blue += t.rgba[i * 4 + 2];
+  }
+  const double scale = 1.0 / (255.0 * static_cast<double>(std::max<std::size_t>(n, 1)));
+  return SurfaceFinish{factors.metallic * blue * scale, factors.roughness * green * scale};
+}
+
 // A primitive's material into `mesh`: base colour factor and texture, metallic and roughness
 // (tinygltf gives the spec's defaults, 1 and 1, for factors the file leaves out). Returns the
 // TEXCOORD set the base colour texture names.
@@ -437,11 +453,17 @@ Expected<int> gltf_material(GltfContext& ctx, int index, const std::string& what
   mesh.finish_from_file = true;
   if (const std::string why = finish_problem(mesh.finish, "metallicFactor", "roughnessFactor"); !why.empty())
     return make_error(kWhere, ctx.path, ": ", name, ": pbrMetallicRoughness: ", why);
-  // The texture would vary them over the surface; the factors alone are a uniform finish. Said
-  // once per material.
-  if (pbr.metallicRoughnessTexture.index >= 0 && ctx.noted_materials.insert(index).second)
-    std::fprintf(stderr, "%s%s: warning: %s: metallicRoughnessTexture ignored (its factors are used)\n",
-                 kWhere, ctx.path.c_str(), name.c_str());
+  if (pbr.metallicRoughnessTexture.index >= 0) {
+    auto tex = gltf_texture(ctx, pbr.metallicRoughnessTexture.index, what, "metallicRoughnessTexture");
+    if (!tex) return tex.error();
+    mesh.finish = averaged_finish(**tex, mesh.finish);
+    // The renderers shade a mesh with one finish: the texture's mean, said once per material.
+    if (ctx.noted_materials.insert(index).second)
+      std::fprintf(stderr,
+                   "%s%s: note: %s: metallicRoughnessTexture averaged over its image: metallic %.3f, "
+                   "roughness %.3f for the whole mesh\n",
+                   kWhere, ctx.path.c_str(), name.c_str(), mesh.finish.metallic, mesh.finish.roughness);
+  }
   return texcoord_set;
 }
 

@@ -9,6 +9,7 @@
 #include <tuple>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "tests/support/test_support.hpp"
 
@@ -321,12 +322,14 @@ TEST(LoadModel, BadScaleAndEmptyPath) {
 
 // A glTF with one triangle drawn by one primitive per material in `materials` (a JSON array's
 // contents) plus one primitive without a material; written to a test folder, its path returned.
-std::string write_gltf(const std::string& name, const std::string& materials, int n_materials) {
+// `extra`: more top-level members, each followed by a comma ("textures": [...], ...).
+std::string write_gltf(const std::string& name, const std::string& materials, int n_materials,
+                       const std::string& extra = "") {
   std::string prims;
   for (int i = 0; i < n_materials; ++i)
     prims += R"({"attributes": {"POSITION": 0}, "material": )" + std::to_string(i) + "}, ";
   prims += R"({"attributes": {"POSITION": 0}})";
-  const std::string json = R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+  const std::string json = R"({"asset": {"version": "2.0"}, )" + extra + R"("scene": 0, "scenes": [{"nodes": [0]}],
   "nodes": [{"mesh": 0}], "meshes": [{"primitives": [)" +
                            prims + R"(]}],
   "materials": [)" + materials +
@@ -362,6 +365,40 @@ TEST(LoadGltf, MetallicAndRoughnessFromEachMaterialAndTheSpecsDefaults) {
   // No material: the built-in paint until the rig's boom.material says otherwise.
   EXPECT_FALSE(model->meshes[4].finish_from_file);
   EXPECT_EQ(model->meshes[4].finish, kPaintedBoom);
+}
+
+// A metallicRoughnessTexture (green: roughness, blue: metallic) scales the factors by its mean over
+// the image: the renderers shade a mesh with one finish. A texture that does not exist is an error
+// naming it.
+TEST(LoadGltf, MetallicRoughnessTextureScalesTheFactorsByItsMean) {
+  const std::string material =
+      R"({"name": "worn", "pbrMetallicRoughness": {"metallicFactor": 0.8, "roughnessFactor": 1.0,
+          "metallicRoughnessTexture": {"index": 0}}})";
+  const std::string path = write_gltf("textured_finish.gltf", material, 1,
+                                      R"("textures": [{"source": 0}], "images": [{"uri": "mr.png"}], )");
+  // 2x2 texels: green 64, 128, 192, 255 (mean 159.75); blue 0, 255, 255, 0 (mean 127.5); red unused.
+  cv::Mat texels(2, 2, CV_8UC3);
+  texels.at<cv::Vec3b>(0, 0) = {0, 64, 200};  // OpenCV's order: blue, green, red
+  texels.at<cv::Vec3b>(0, 1) = {255, 128, 10};
+  texels.at<cv::Vec3b>(1, 0) = {255, 192, 30};
+  texels.at<cv::Vec3b>(1, 1) = {0, 255, 90};
+  ASSERT_TRUE(cv::imwrite((std::filesystem::path(path).parent_path() / "mr.png").string(), texels));
+  auto model = load_model(ModelSource{path, ModelAxes::gltf(), 1.0});
+  ASSERT_TRUE(model) << model.error().message;
+  ASSERT_EQ(model->meshes.size(), 2u);
+  EXPECT_TRUE(model->meshes[0].finish_from_file);
+  EXPECT_NEAR(model->meshes[0].finish.metallic, 0.8 * 127.5 / 255.0, 1e-12);
+  EXPECT_NEAR(model->meshes[0].finish.roughness, 159.75 / 255.0, 1e-12);
+
+  const std::string bad = write_gltf(
+      "bad_texture.gltf",
+      R"({"name": "lost", "pbrMetallicRoughness": {"metallicRoughnessTexture": {"index": 3}}})", 1,
+      R"("textures": [{"source": 0}], "images": [{"uri": "mr.png"}], )");
+  auto refused = load_model(ModelSource{bad, ModelAxes::gltf(), 1.0});
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find(bad), std::string::npos) << refused.error().message;
+  EXPECT_NE(refused.error().message.find("metallicRoughnessTexture 3 does not exist"), std::string::npos)
+      << refused.error().message;
 }
 
 TEST(LoadGltf, MetallicOrRoughnessOutOfRangeNamesTheFileAndMaterial) {
