@@ -12,7 +12,9 @@
 // Two scenes: "boom" (the receiver absent: SceneState::receiver_present false, so no receiver,
 // no stereo classes) and "receiver" (boom + receiver + stereo classes, as the demo).
 //   build/bench_pipeline [--frames N] [--png-frames M] [--format bayer|rgb8] [--reuse-input]
-//                        [--read-ahead K] [--augrig PATH|none] [--command-only]
+//                        [--read-ahead K] [--augrig PATH|none] [--command-only] [--look plain|camera]
+// (--look: the command rows' `augrig replay --look`; default its own default, the camera look. The
+// in-process rows augment with the plain look.)
 // The input recording is made first (not timed) from the built-in demo flight's cameras: the
 // synthetic renderer's last N stereo frames, with the boom and receiver of the scenario's truth.
 // --reuse-input keeps it in /tmp/augrig_bench_pipeline and uses it again (for profiling).
@@ -215,6 +217,7 @@ struct Bench {
   Rig rig;
   std::optional<std::size_t> read_ahead;  // ReplayOptions::read_ahead; default: the library's
   std::string augrig;                     // the augrig binary for the kCommand rows
+  std::string look;                       // their --look; empty: replay's default
 
   // `augrig replay` of the whole input and of its last frame alone; the difference over N - 1 frames.
   Figures run_command(bool with_receiver, std::size_t frames) {
@@ -223,6 +226,7 @@ struct Bench {
     auto cmd = [&](std::size_t from) {
       std::vector<std::string> a = {augrig, "replay", in.string(), "--record", out.string(), "--overwrite", "--headless"};
       if (from) a.insert(a.end(), {"--from-frame", std::to_string(from)});
+      if (!look.empty()) a.insert(a.end(), {"--look", look});
       return run_child(a, dir / "command.log");
     };
     const ChildRun one = cmd(frames - 1);
@@ -378,6 +382,7 @@ int main(int argc, char** argv) {
   bool reuse = false, command_only = false;
   std::optional<std::size_t> read_ahead;
   std::string augrig = (fs::read_symlink("/proc/self/exe").parent_path() / "augrig").string();
+  std::string look;
   PixelFormat format = PixelFormat::kBayerRG8;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -394,6 +399,8 @@ int main(int argc, char** argv) {
       augrig = argv[++i];
     } else if (a == "--command-only") {
       command_only = true;
+    } else if (a == "--look" && has_value) {
+      look = argv[++i];
     } else if (a == "--format" && has_value) {
       const std::string f = argv[++i];
       if (f == "bayer")
@@ -407,7 +414,8 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: bench_pipeline [--frames N] [--png-frames M] [--format bayer|rgb8] [--reuse-input]\n"
-                   "                      [--read-ahead K] [--augrig PATH|none] [--command-only]\n");
+                   "                      [--read-ahead K] [--augrig PATH|none] [--command-only]\n"
+                   "                      [--look plain|camera]\n");
       return 2;
     }
   }
@@ -421,6 +429,7 @@ int main(int argc, char** argv) {
 
   Bench b;
   b.read_ahead = read_ahead;
+  b.look = look;
   if (augrig != "none" && access(augrig.c_str(), X_OK) != 0) {
     std::printf("no augrig binary at %s: the augrig replay rows are left out (--augrig PATH)\n", augrig.c_str());
     augrig = "none";
