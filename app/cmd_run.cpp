@@ -43,7 +43,8 @@ void write_rig_template(const std::string& path, const std::vector<AravisDeviceI
        << "#     aft 25 deg down); use your installation's,\n"
        << "#   - the boom and receiver sections: a KC-135-class boom and the built-in receiver.\n"
        << "# The left camera is the first found (" << usable[0]->serial << "), the right the second ("
-       << usable[1]->serial << "): swap them if the rig has them the other way. Check it: augrig rig show FILE\n";
+       << usable[1]->serial
+       << "): swap them if the rig has them the other way. Check it: augrig rig show FILE\n";
   for (int c = 0; c < 2; ++c) {
     const AravisDeviceInfo& d = *usable[static_cast<std::size_t>(c)];
     RigCamera& cam = rig.cameras[static_cast<std::size_t>(c)];
@@ -51,7 +52,8 @@ void write_rig_template(const std::string& path, const std::vector<AravisDeviceI
     std::string uri = "aravis://" + d.serial;
     std::string params;
     if (!d.pixel_format.empty()) params += "format=" + d.pixel_format;
-    if (d.frame_rate_hz > 0) params += std::string(params.empty() ? "" : "&") + "fps=" + fmt_ms(d.frame_rate_hz);
+    if (d.frame_rate_hz > 0)
+      params += std::string(params.empty() ? "" : "&") + "fps=" + fmt_ms(d.frame_rate_hz);
     cam.source_uri = params.empty() ? uri : uri + "?" + params;
   }
   std::ofstream f(path, std::ios::binary);
@@ -76,7 +78,8 @@ int cameras_command(const std::vector<std::string>& args, std::ostream& out) {
         specs);
     return kExitOk;
   }
-  if (a.has("rig") && a.has("no-open")) usage_error("--rig needs each camera opened (its size, format, rate)");
+  if (a.has("rig") && a.has("no-open"))
+    usage_error("--rig needs each camera opened (its size, format, rate)");
   const std::vector<AravisDeviceInfo> gige = list_aravis_devices(!a.has("no-open"));
   out << "Aravis (GigE Vision, USB3 Vision): " << gige.size() << " camera(s)\n";
   for (const AravisDeviceInfo& d : gige) {
@@ -138,8 +141,9 @@ namespace {
 
 const std::vector<OptionSpec>& run_specs() {
   static const std::vector<OptionSpec> specs = {
-      rig_option("the sim scenario's for sim://, the recording's for replay://, else the paper's; its cameras' "
-                 "'source' keys name the sources"),
+      rig_option(
+          "the sim scenario's for sim://, the recording's for replay://, else the paper's; its cameras' "
+          "'source' keys name the sources"),
       {"source", ArgKind::kValue, "URI",
        "frame source: sim://SCENARIO, replay://DIR, stereo:[..]//{L}{R} (docs/CAPTURE.md); overrides the "
        "rig's"},
@@ -162,7 +166,8 @@ const std::vector<OptionSpec>& run_specs() {
       {"every", ArgKind::kValue, "K", "with --out: write the images of every K-th stereo frame"},
       {"ground-truth", ArgKind::kFlag, "",
        "with --every: " + std::string(kGroundTruthHelp) +
-           "; with --record: store each frame's receiver depth in the recording (export --ground-truth writes "
+           "; with --record: store each frame's receiver depth in the recording (export --ground-truth "
+           "writes "
            "the rest from it)"},
       {"nav", ArgKind::kValue, "STREAM=URI,...|sim",
        "live nav inputs, recorded as received and, for streams named tanker.* and receiver.*, fused in "
@@ -232,9 +237,11 @@ std::optional<net::ServeOptions> parse_serve(const ParsedArgs& a) {
     o.client_queue_bytes =
         static_cast<std::size_t>(parse_integer("serve-queue-mb", a.get("serve-queue-mb"), 1, 4096)) << 20;
   if (a.has("serve-jpeg-quality"))
-    o.jpeg_quality = static_cast<int>(parse_integer("serve-jpeg-quality", a.get("serve-jpeg-quality"), 1, 100));
+    o.jpeg_quality =
+        static_cast<int>(parse_integer("serve-jpeg-quality", a.get("serve-jpeg-quality"), 1, 100));
   if (a.has("serve-h264-kbps"))
-    o.h264_max_kbps = static_cast<int>(parse_integer("serve-h264-kbps", a.get("serve-h264-kbps"), 0, 1'000'000));
+    o.h264_max_kbps =
+        static_cast<int>(parse_integer("serve-h264-kbps", a.get("serve-h264-kbps"), 0, 1'000'000));
   if (a.has("serve-h264-preset")) {
     o.h264_preset = a.get("serve-h264-preset");
     if (!is_x264_preset(o.h264_preset))
@@ -351,7 +358,8 @@ int run_command(const std::vector<std::string>& args, std::ostream& out, std::os
   const ParsedArgs a = parse_or_usage(args, run_specs());
   if (a.help) {
     out << format_help(
-        "augrig run [--rig RIG] [--source URI] [--scene SCENE.yaml|--poses POSES.csv|--nav ...] [--record DIR] "
+        "augrig run [--rig RIG] [--source URI] [--scene SCENE.yaml|--poses POSES.csv|--nav ...] [--record "
+        "DIR] "
         "[--duration S] [--headless]",
         "Runs the live pipeline: each camera captured on its own thread, frames paired by timestamp (each\n"
         "camera's clock related to host time continuously) or trigger id, the boom rendered into both\n"

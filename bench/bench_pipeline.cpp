@@ -30,11 +30,6 @@
 // other N - 1 frames; "pipeline /s" is the rate the pipeline's own summary prints (from its first
 // pair read, which the capture thread may have read ahead while the GL context was made), and its
 // "fps incl. close" is N over the whole child's wall time, start-up included.
-#include <fcntl.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -45,6 +40,11 @@
 #include <string>
 #include <thread>
 #include <vector>
+
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "core/clock.hpp"
 #include "recorder/reader.hpp"
@@ -71,7 +71,9 @@ double seconds_since(Clock::time_point t0) {
 double rusage_cpu_ms() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
-  auto ms = [](const timeval& t) { return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_usec) * 1e-3; };
+  auto ms = [](const timeval& t) {
+    return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_usec) * 1e-3;
+  };
   return ms(u.ru_utime) + ms(u.ru_stime);
 }
 
@@ -155,14 +157,17 @@ ChildRun run_child(const std::vector<std::string>& args, const fs::path& log) {
   }
   ChildRun r;
   r.wall_s = seconds_since(t0);
-  auto sec = [](const timeval& t) { return static_cast<double>(t.tv_sec) + static_cast<double>(t.tv_usec) * 1e-6; };
+  auto sec = [](const timeval& t) {
+    return static_cast<double>(t.tv_sec) + static_cast<double>(t.tv_usec) * 1e-6;
+  };
   r.cpu_s = sec(ru.ru_utime) + sec(ru.ru_stime);
   std::ifstream in(log);
   std::stringstream ss;
   ss << in.rdbuf();
   r.output = ss.str();
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    std::fprintf(stderr, "bench_pipeline: %s failed (status %d):\n%s\n", args[0].c_str(), status, r.output.c_str());
+    std::fprintf(stderr, "bench_pipeline: %s failed (status %d):\n%s\n", args[0].c_str(), status,
+                 r.output.c_str());
     std::exit(1);
   }
   return r;
@@ -179,7 +184,8 @@ void make_input(int frames, const fs::path& input, const fs::path& boom_input, s
   std::map<std::uint64_t, int> cams;
   for (const auto& f : truths) cams[f.sequence] |= 1 << f.camera;
   std::erase_if(truths, [&](const sim::FrameTruth& f) { return cams[f.sequence] != 3; });
-  if (truths.size() > 2 * static_cast<std::size_t>(frames)) truths.erase(truths.begin(), truths.end() - 2 * frames);
+  if (truths.size() > 2 * static_cast<std::size_t>(frames))
+    truths.erase(truths.begin(), truths.end() - 2 * frames);
   auto source = need(sim::FlightSource::create(scenario, flight, truths), "flight source");
   recorder::RecordingInfo info;
   info.rig_yaml = rig_to_yaml(scenario.rig);
@@ -187,7 +193,8 @@ void make_input(int frames, const fs::path& input, const fs::path& boom_input, s
   ro.overwrite = true;
   auto rec = need(recorder::Recorder::create(input.string(), info, ro), "input recording");
   std::unique_ptr<recorder::Recorder> boom_rec;
-  if (!boom_input.empty()) boom_rec = need(recorder::Recorder::create(boom_input.string(), info, ro), "boom input");
+  if (!boom_input.empty())
+    boom_rec = need(recorder::Recorder::create(boom_input.string(), info, ro), "boom input");
   for (std::size_t i = 0; i + 1 < truths.size(); i += 2) {
     recorder::FrameRecord fr;
     need(source->read(fr.raw.left, {}), "render");
@@ -224,7 +231,8 @@ struct Bench {
     const fs::path in = with_receiver ? input : boom_input;
     const fs::path out = dir / "command_output";
     auto cmd = [&](std::size_t from) {
-      std::vector<std::string> a = {augrig, "replay", in.string(), "--record", out.string(), "--overwrite", "--headless"};
+      std::vector<std::string> a = {augrig,       "replay",      in.string(), "--record",
+                                    out.string(), "--overwrite", "--headless"};
       if (from) a.insert(a.end(), {"--from-frame", std::to_string(from)});
       if (!look.empty()) a.insert(a.end(), {"--look", look});
       return run_child(a, dir / "command.log");
@@ -239,15 +247,18 @@ struct Bench {
     g.cpu_ms = 1e3 * (all.cpu_s - one.cpu_s) / k;
     // "run: 90 stereo frames augmented in 1.2 s (75.3/s"
     if (const auto p = all.output.find("stereo frames augmented in "); p != std::string::npos)
-      if (const auto q = all.output.find(" (", p); q != std::string::npos) g.pipeline_fps = std::atof(all.output.c_str() + q + 2);
+      if (const auto q = all.output.find(" (", p); q != std::string::npos)
+        g.pipeline_fps = std::atof(all.output.c_str() + q + 2);
     if (all.output.find("Recorded " + std::to_string(frames) + " stereo frame(s)") == std::string::npos) {
-      std::fprintf(stderr, "bench_pipeline: augrig replay did not record %zu frames:\n%s\n", frames, all.output.c_str());
+      std::fprintf(stderr, "bench_pipeline: augrig replay did not record %zu frames:\n%s\n", frames,
+                   all.output.c_str());
       std::exit(1);
     }
     auto rd = need(recorder::RecordingReader::open(out.string()), "reopen the command's recording");
     const recorder::CheckReport report = rd->check();
     if (!report.ok() || report.frames != frames) {
-      std::fprintf(stderr, "bench_pipeline: the command's recording does not check:\n%s\n", report.to_string().c_str());
+      std::fprintf(stderr, "bench_pipeline: the command's recording does not check:\n%s\n",
+                   report.to_string().c_str());
       std::exit(1);
     }
     g.stored_mb = static_cast<double>(report.stored_bytes) / 1e6;
@@ -311,7 +322,8 @@ struct Bench {
         fr.T_body_receiver = scene.T_body_receiver;
         fr.receiver_present = with_receiver;
         // Wait for room first: a refused push would count a drop and lose the frame.
-        while (out->stats().frames_in_flight >= 60) std::this_thread::sleep_for(std::chrono::microseconds(200));
+        while (out->stats().frames_in_flight >= 60)
+          std::this_thread::sleep_for(std::chrono::microseconds(200));
         if (!out->push(std::move(fr))) {
           std::fprintf(stderr, "bench_pipeline: a frame was dropped\n");
           std::exit(1);
@@ -412,10 +424,11 @@ int main(int argc, char** argv) {
         return 2;
       }
     } else {
-      std::fprintf(stderr,
-                   "usage: bench_pipeline [--frames N] [--png-frames M] [--format bayer|rgb8] [--reuse-input]\n"
-                   "                      [--read-ahead K] [--augrig PATH|none] [--command-only]\n"
-                   "                      [--look plain|camera]\n");
+      std::fprintf(
+          stderr,
+          "usage: bench_pipeline [--frames N] [--png-frames M] [--format bayer|rgb8] [--reuse-input]\n"
+          "                      [--read-ahead K] [--augrig PATH|none] [--command-only]\n"
+          "                      [--look plain|camera]\n");
       return 2;
     }
   }
@@ -431,13 +444,15 @@ int main(int argc, char** argv) {
   b.read_ahead = read_ahead;
   b.look = look;
   if (augrig != "none" && access(augrig.c_str(), X_OK) != 0) {
-    std::printf("no augrig binary at %s: the augrig replay rows are left out (--augrig PATH)\n", augrig.c_str());
+    std::printf("no augrig binary at %s: the augrig replay rows are left out (--augrig PATH)\n",
+                augrig.c_str());
     augrig = "none";
   }
   if (augrig != "none") b.augrig = augrig;
   b.dir = fs::temp_directory_path() / "augrig_bench_pipeline";
   b.input = b.dir / (std::string("input_") + std::string(to_string(format)) + "_" + std::to_string(frames));
-  b.boom_input = b.dir / (std::string("input_boom_") + std::string(to_string(format)) + "_" + std::to_string(frames));
+  b.boom_input =
+      b.dir / (std::string("input_boom_") + std::string(to_string(format)) + "_" + std::to_string(frames));
   sim::Scenario scenario = need(sim::builtin_scenario("demo"), "scenario");
   scenario.sensors.cameras.format = format;
   b.rig = scenario.rig;
@@ -454,8 +469,8 @@ int main(int argc, char** argv) {
   options.receiver_model = std::make_shared<const Model>(make_builtin_receiver(&receptacle));
   auto augmenter = need(Augmenter::create(scenario.rig, options), "augmenter");
   b.augmenter = augmenter.get();
-  std::printf("rasteriser: %s; ReplaySource read-ahead %zu stereo frame(s)\n", to_string(augmenter->rasterizer()),
-              read_ahead.value_or(recorder::ReplayOptions{}.read_ahead));
+  std::printf("rasteriser: %s; ReplaySource read-ahead %zu stereo frame(s)\n",
+              to_string(augmenter->rasterizer()), read_ahead.value_or(recorder::ReplayOptions{}.read_ahead));
 
   const std::size_t n = static_cast<std::size_t>(frames);
   const std::size_t m = static_cast<std::size_t>(png_frames);
@@ -484,24 +499,28 @@ int main(int argc, char** argv) {
   }
   if (!reuse) fs::remove_all(b.dir);
 
-  std::printf("\n%d stereo frames %s 1280x960 of the demo flight; boom: receiver absent; receiver: boom + "
-              "receiver + stereo classes\n\n",
-              frames, to_string(format).data());
   std::printf(
-      "| scene | pipeline | frames | stereo fps | fps incl. close | CPU ms/frame (all threads) | replay CPU ms | read() ms (wall) | augment ms (wall) | "
+      "\n%d stereo frames %s 1280x960 of the demo flight; boom: receiver absent; receiver: boom + "
+      "receiver + stereo classes\n\n",
+      frames, to_string(format).data());
+  std::printf(
+      "| scene | pipeline | frames | stereo fps | fps incl. close | CPU ms/frame (all threads) | replay CPU "
+      "ms | read() ms (wall) | augment ms (wall) | "
       "encode CPU ms | insert CPU ms | raw blobs copied | stored MB | pipeline /s |\n");
   std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const Row& r : rows) {
     const Figures& g = r.g;
     if (r.sink == Sink::kCommand) {
-      std::printf("| %s | %s | %zu | %.1f | %.1f | %.1f | - | - | - | - | - | - | %.1f | %.1f |\n", r.scene, sink_name(r.sink),
-                  g.frames, g.fps, g.fps_incl_close, g.cpu_ms, g.stored_mb, g.pipeline_fps);
+      std::printf("| %s | %s | %zu | %.1f | %.1f | %.1f | - | - | - | - | - | - | %.1f | %.1f |\n", r.scene,
+                  sink_name(r.sink), g.frames, g.fps, g.fps_incl_close, g.cpu_ms, g.stored_mb,
+                  g.pipeline_fps);
       continue;
     }
-    std::printf("| %s | %s | %zu | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %llu | %.1f | - |\n", r.scene,
-                sink_name(r.sink), g.frames, g.fps, g.fps_incl_close, g.cpu_ms, g.replay_cpu_ms, g.read_wall_ms, g.augment_ms,
-                g.encode_cpu_ms, g.insert_cpu_ms,
-                static_cast<unsigned long long>(g.raw_copied), g.stored_mb);
+    std::printf(
+        "| %s | %s | %zu | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %llu | %.1f | - |\n",
+        r.scene, sink_name(r.sink), g.frames, g.fps, g.fps_incl_close, g.cpu_ms, g.replay_cpu_ms,
+        g.read_wall_ms, g.augment_ms, g.encode_cpu_ms, g.insert_cpu_ms,
+        static_cast<unsigned long long>(g.raw_copied), g.stored_mb);
   }
   std::printf("\n");
   for (const char* scene : {"boom", "receiver"}) {
@@ -516,8 +535,8 @@ int main(int argc, char** argv) {
     std::printf("%s: copy / recompress %.2f x fps, %.2f x CPU per frame", scene, copy->fps / re->fps,
                 copy->cpu_ms / re->cpu_ms);
     if (png) std::printf("; copy / PNG %.1f x fps", copy->fps / png->fps);
-    std::printf("; target %d stereo fps (%.1f CPU ms per frame on 2 cores)\n", scene == std::string("boom") ? 120 : 60,
-                2000.0 / (scene == std::string("boom") ? 120 : 60));
+    std::printf("; target %d stereo fps (%.1f CPU ms per frame on 2 cores)\n",
+                scene == std::string("boom") ? 120 : 60, 2000.0 / (scene == std::string("boom") ? 120 : 60));
   }
   return 0;
 }

@@ -192,7 +192,8 @@ Status merge_exports(const std::vector<const Task*>& shards, const fs::path& dir
     auto nav = flight_recording(flight);
     if (!nav) return nav.error();
     recorder::RecordingMergeReport report;
-    if (Status s = recorder::merge_recordings(inputs, (dir / kShardRecording).string(), nav->get(), report); !s)
+    if (Status s = recorder::merge_recordings(inputs, (dir / kShardRecording).string(), nav->get(), report);
+        !s)
       return make_error(kWhere, s.error().message);
     lines.push_back((dir / kShardRecording).string() + ": " + std::to_string(report.frames) +
                     " stereo frame(s) from the shards' recordings, " + std::to_string(report.nav_inputs) +

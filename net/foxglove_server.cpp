@@ -180,8 +180,10 @@ struct FoxgloveServer::Impl {
       const auto t0 = std::chrono::steady_clock::now();
       auto jpeg = encode_jpeg(job.image.cview(), opt.jpeg_quality);
       SharedBytes body;
-      if (jpeg) body = share_bytes(ros2::compressed_image(job.t_ns, kCameraFrames[job.camera], "jpeg", *jpeg));
-      const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      if (jpeg)
+        body = share_bytes(ros2::compressed_image(job.t_ns, kCameraFrames[job.camera], "jpeg", *jpeg));
+      const double ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       {
         std::lock_guard<std::mutex> l(mu);
         if (body && !stopped) {

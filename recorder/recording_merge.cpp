@@ -60,7 +60,8 @@ Expected<Part> open_part(const std::string& dir_or_file) {
   if (value_of(p.meta, "summary.status").empty())
     return make_error(kWhere, p.path,
                       ": not closed (no summary): a shard still running or stopped; see `augrig check`");
-  auto st = Statement::prepare(db->get(), "SELECT count(*), min(id), max(id), min(t_ns), max(t_ns) FROM frames");
+  auto st =
+      Statement::prepare(db->get(), "SELECT count(*), min(id), max(id), min(t_ns), max(t_ns) FROM frames");
   if (!st) return make_error(kWhere, p.path, ": ", st.error().message);
   if (st->step() != SQLITE_ROW) return make_error(kWhere, p.path, ": the frames table cannot be read");
   p.frames = static_cast<std::size_t>(sqlite3_column_int64(st->get(), 0));
@@ -146,7 +147,7 @@ Status in_part_transaction(Database& db, const std::string& path, Work work) {
   if (s) s = work();
   if (s) s = db.exec("COMMIT");
   if (!s) static_cast<void>(db.exec("ROLLBACK"));  // the first error is the one to tell
-  const Status detached = db.exec("DETACH DATABASE part");
+  Status detached = db.exec("DETACH DATABASE part");
   if (!s) return make_error(path, ": ", s.error().message);
   return detached;
 }
@@ -212,7 +213,8 @@ Status write_merged(const std::string& tmp, const std::vector<Part>& parts, cons
   std::int64_t next_id = 1;  // frames numbered on from the previous part's
   for (const Part& p : parts) {
     const std::int64_t shift = p.frames > 0 ? next_id - p.first_id : 0;
-    if (Status s = in_part_transaction(*db, p.path, [&] { return copy_part(*db, shift, nav_from == nullptr); });
+    if (Status s =
+            in_part_transaction(*db, p.path, [&] { return copy_part(*db, shift, nav_from == nullptr); });
         !s)
       return s;
     if (p.frames > 0) next_id = p.last_id + shift + 1;
@@ -253,7 +255,8 @@ Status merge_recordings(const std::vector<std::string>& paths, const std::string
   // An earlier merge's database and its WAL go; the new one takes their place whole.
   for (const char* suffix : {"-wal", "-shm"}) fs::remove(final_path + suffix, ec);
   fs::rename(tmp, final_path, ec);
-  if (ec) return make_error(kWhere, final_path, ": cannot rename the merged database into place: ", ec.message());
+  if (ec)
+    return make_error(kWhere, final_path, ": cannot rename the merged database into place: ", ec.message());
   report.parts = parts->size();
   return {};
 }

@@ -1,11 +1,10 @@
 #include "recorder/store.hpp"
 
-#include <chrono>
-#include <ctime>
-
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <iterator>
 #include <limits>
@@ -622,7 +621,8 @@ constexpr const char* kDepthColumns =
 }  // namespace
 
 std::string depth_insert_sql() {
-  return std::string("INSERT INTO depth (frame_id, ") + kDepthColumns + ") VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)";
+  return std::string("INSERT INTO depth (frame_id, ") + kDepthColumns +
+         ") VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)";
 }
 
 Status bind_depth_row(sqlite3_stmt* st, const DepthRow& row) {
@@ -657,14 +657,16 @@ Status read_depth_row(sqlite3_stmt* st, DepthRow& row) {
     const int col = 1 + 5 * c;
     const std::string p = c ? "right_" : "left_";
     if (sqlite3_column_type(st, col + 4) == SQLITE_NULL) continue;
-    if (sqlite3_column_type(st, col + 4) != SQLITE_BLOB) return make_error("column ", p, "depth: expected a blob");
+    if (sqlite3_column_type(st, col + 4) != SQLITE_BLOB)
+      return make_error("column ", p, "depth: expected a blob");
     int v[4];
     const char* names[4] = {"x0", "y0", "x1", "y1"};
     for (int k = 0; k < 4; ++k) {
       if (sqlite3_column_type(st, col + k) != SQLITE_INTEGER)
         return make_error("column ", p, names[k], ": expected an integer");
       const sqlite3_int64 x = sqlite3_column_int64(st, col + k);
-      if (x < 0 || x > 65535) return make_error("column ", p, names[k], ": ", x, " is not a pixel coordinate");
+      if (x < 0 || x > 65535)
+        return make_error("column ", p, names[k], ": ", x, " is not a pixel coordinate");
       v[k] = static_cast<int>(x);
     }
     row.box[c] = PixelBox{v[0], v[1], v[2], v[3]};
@@ -766,7 +768,8 @@ struct LookReader {
       return lo;
     }
     const std::int64_t v = sqlite3_column_int64(st, col);
-    if (v < lo || v > hi) fail(col, std::to_string(v) + " is outside " + std::to_string(lo) + ".." + std::to_string(hi));
+    if (v < lo || v > hi)
+      fail(col, std::to_string(v) + " is outside " + std::to_string(lo) + ".." + std::to_string(hi));
     return v;
   }
   // `nullable`: NULL reads as NaN (stored from a NaN).
@@ -814,7 +817,8 @@ struct LookReader {
     l.direct = rgb(kLookDirect);
     l.sky = rgb(kLookSky);
     l.ground = rgb(kLookGround);
-    l.samples = static_cast<std::uint64_t>(integer(kLookSamples, 0, std::numeric_limits<std::int64_t>::max()));
+    l.samples =
+        static_cast<std::uint64_t>(integer(kLookSamples, 0, std::numeric_limits<std::int64_t>::max()));
     l.rms = real(kLookRms, true);
     l.sun_up = integer(kLookSunUp, 0, 1) != 0;
     l.towards_sun_body = rgb(kLookSun);
@@ -827,7 +831,8 @@ struct LookReader {
 Status read_look_row(sqlite3_stmt* st, LookRecord& row) {
   row = LookRecord{};
   LookReader r{st, {}};
-  row.t_ns = r.integer(kLookT, std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::max());
+  row.t_ns =
+      r.integer(kLookT, std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::max());
   const std::string clock = r.text(kLookClock);
   if (r.error.empty() && !parse_clock_domain(clock, row.clock))
     r.fail(kLookClock, "unknown clock domain \"" + clock + "\"");

@@ -349,7 +349,8 @@ double read_component(const AccessorView& v, std::size_t i, int c) {
 
 // Texture `texture_index` (a material's `role`: "baseColorTexture", "metallicRoughnessTexture") as
 // 8-bit RGBA, decoded once per image.
-Expected<std::shared_ptr<const Texture>> gltf_texture(GltfContext& ctx, int texture_index, const std::string& what,
+Expected<std::shared_ptr<const Texture>> gltf_texture(GltfContext& ctx, int texture_index,
+                                                      const std::string& what,
                                                       const std::string& role = "baseColorTexture") {
   const auto& gm = ctx.gm;
   auto fail = [&](const std::string& why) { return make_error(kWhere, ctx.path, ": ", what, ": ", why); };

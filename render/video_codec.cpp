@@ -68,8 +68,8 @@ void quiet_ffmpeg() {
   std::call_once(once, [] { av_log_set_level(AV_LOG_ERROR); });
 }
 
-constexpr const char* kPresets[] = {"ultrafast", "superfast", "veryfast", "faster", "fast",
-                                   "medium",    "slow",      "slower",   "veryslow"};
+constexpr const char* kPresets[] = {"ultrafast", "superfast", "veryfast", "faster",  "fast",
+                                    "medium",    "slow",      "slower",   "veryslow"};
 
 }  // namespace
 

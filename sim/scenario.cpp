@@ -511,7 +511,8 @@ std::vector<GpsOutage> outages(const Ctx& c, const YAML::Node& n, const std::str
   const std::string key = path + ".outages";
   if (!o.IsSequence()) fail(c, o, key, "expected a list of [t0_s, t1_s] intervals, " + got(o));
   for (std::size_t i = 0; i < o.size(); ++i) {
-    const auto v = to_numbers(c, o[i], key + "[" + std::to_string(i) + "]", 2, "[t0_s, t1_s] with t0_s <= t1_s");
+    const auto v =
+        to_numbers(c, o[i], key + "[" + std::to_string(i) + "]", 2, "[t0_s, t1_s] with t0_s <= t1_s");
     if (!(v[0] <= v[1]))
       fail(c, o[i], key + "[" + std::to_string(i) + "]",
            "expected [t0_s, t1_s] with t0_s <= t1_s, got [" + fmt(v[0]) + ", " + fmt(v[1]) + "]");
@@ -523,8 +524,9 @@ std::vector<GpsOutage> outages(const Ctx& c, const YAML::Node& n, const std::str
 // A slowly wandering GPS error {sigma_horizontal_m, sigma_vertical_m, tau_s} under PARENT.KEY.
 void gps_error(const Ctx& c, const YAML::Node& parent, const std::string& parent_path, const char* key,
                CommonGpsErrorConfig& e) {
-  const YAML::Node g = optional_map(c, parent, parent_path, key, "a map {sigma_horizontal_m, sigma_vertical_m, tau_s}",
-                                    {"sigma_horizontal_m", "sigma_vertical_m", "tau_s"});
+  const YAML::Node g =
+      optional_map(c, parent, parent_path, key, "a map {sigma_horizontal_m, sigma_vertical_m, tau_s}",
+                   {"sigma_horizontal_m", "sigma_vertical_m", "tau_s"});
   if (!g.IsDefined()) return;
   const std::string p = join_key(parent_path, key);
   e.sigma_horizontal_m = number(c, g, p, "sigma_horizontal_m", e.sigma_horizontal_m, kNonNegative, "metres");
@@ -534,12 +536,12 @@ void gps_error(const Ctx& c, const YAML::Node& parent, const std::string& parent
 
 void parse_gps(const Ctx& c, const YAML::Node& parent, const std::string& parent_path, GpsConfig& gps) {
   const std::string path = join_key(parent_path, "gps");
-  const YAML::Node n = optional_map(
-      c, parent, parent_path, "gps", "a map {rate_hz, lever_arm_m, latency_s, mode, ...}",
-      {"rate_hz", "lever_arm_m", "latency_s", "mode", "sigma_horizontal_m", "sigma_vertical_m",
-       "float_sigma_horizontal_m", "float_sigma_vertical_m", "fixed_to_float_per_s", "float_to_fixed_per_s",
-       "start_fixed", "outages", "velocity_sigma_mps", "heading", "heading_sigma_deg", "satellites", "hdop",
-       "own_error"});
+  const YAML::Node n =
+      optional_map(c, parent, parent_path, "gps", "a map {rate_hz, lever_arm_m, latency_s, mode, ...}",
+                   {"rate_hz", "lever_arm_m", "latency_s", "mode", "sigma_horizontal_m", "sigma_vertical_m",
+                    "float_sigma_horizontal_m", "float_sigma_vertical_m", "fixed_to_float_per_s",
+                    "float_to_fixed_per_s", "start_fixed", "outages", "velocity_sigma_mps", "heading",
+                    "heading_sigma_deg", "satellites", "hdop", "own_error"});
   gps = GpsConfig{};
   if (!n.IsDefined()) return;
   gps.rate_hz = number(c, n, path, "rate_hz", gps.rate_hz, {1.0, 20.0}, "Hz");
@@ -591,8 +593,10 @@ std::optional<MovingBaselineConfig> parse_moving_baseline(const Ctx& c, const YA
                         {"float_bias_sigma_horizontal_m", &m.float_bias_sigma_horizontal_m},
                         {"float_bias_sigma_vertical_m", &m.float_bias_sigma_vertical_m}})
     *v = number(c, n, path, key, *v, kNonNegative, "metres");
-  m.fixed_to_float_per_s = number(c, n, path, "fixed_to_float_per_s", m.fixed_to_float_per_s, kNonNegative, "1/s");
-  m.float_to_fixed_per_s = number(c, n, path, "float_to_fixed_per_s", m.float_to_fixed_per_s, kNonNegative, "1/s");
+  m.fixed_to_float_per_s =
+      number(c, n, path, "fixed_to_float_per_s", m.fixed_to_float_per_s, kNonNegative, "1/s");
+  m.float_to_fixed_per_s =
+      number(c, n, path, "float_to_fixed_per_s", m.float_to_fixed_per_s, kNonNegative, "1/s");
   m.start_fixed = boolean(c, n, path, "start_fixed", m.start_fixed);
   m.outages = outages(c, n, path);
   m.version = static_cast<int>(integer(c, n, path, "version", m.version, 0, 1, "0 (M8P) or 1 (F9P)"));
@@ -626,12 +630,12 @@ std::vector<T> per_camera(const Ctx& c, const YAML::Node& map, const std::string
 
 void parse_cameras(const Ctx& c, const YAML::Node& parent, Scenario& s) {
   const std::string path = "sensors.cameras";
-  const YAML::Node n = optional_map(
-      c, parent, "sensors", "cameras",
-      "a map {fps, clock_offset_ns, jitter_ns, drop_probability, bayer, noise, ...}",
-      {"fps", "clock_offset_ns", "clock_drift_ppm", "clock_offset_assumed_ns", "exposure_offset_ns",
-       "jitter_ns", "drop_probability",
-       "bayer", "noise", "noise_a", "psf_sigma_px", "gain", "gamma", "exposure_ms"});
+  const YAML::Node n =
+      optional_map(c, parent, "sensors", "cameras",
+                   "a map {fps, clock_offset_ns, jitter_ns, drop_probability, bayer, noise, ...}",
+                   {"fps", "clock_offset_ns", "clock_drift_ppm", "clock_offset_assumed_ns",
+                    "exposure_offset_ns", "jitter_ns", "drop_probability", "bayer", "noise", "noise_a",
+                    "psf_sigma_px", "gain", "gamma", "exposure_ms"});
   CameraTimingConfig& cam = s.sensors.cameras;
   cam = CameraTimingConfig{};
   if (!n.IsDefined()) return;
@@ -671,7 +675,8 @@ void parse_cameras(const Ctx& c, const YAML::Node& parent, Scenario& s) {
 
 void parse_sensors(const Ctx& c, const YAML::Node& root, Scenario& s) {
   const YAML::Node n =
-      optional_map(c, root, "", "sensors", "a map {tanker, receiver, common_gps_error, moving_baseline, cameras, noise_free}",
+      optional_map(c, root, "", "sensors",
+                   "a map {tanker, receiver, common_gps_error, moving_baseline, cameras, noise_free}",
                    {"tanker", "receiver", "common_gps_error", "moving_baseline", "cameras", "noise_free"});
   s.sensors = SensorsConfig{};
   if (!n.IsDefined()) return;

@@ -83,8 +83,9 @@ struct ImuErrorModel {
   bool operator==(const ImuErrorModel&) const = default;
 };
 
-// "noise_free", "navigation" (a tanker's EGI: gyro 0.003 deg/h, accel 25 ug), "tactical" (gyro: ARW 0.1 deg/sqrt(h), bias instability 1 deg/h; accel: VRW
-// 0.05 m/s/sqrt(h), bias instability 0.5 mg) or "consumer" (MEMS). docs/SIMULATION.md lists them.
+// "noise_free", "navigation" (a tanker's EGI: gyro 0.003 deg/h, accel 25 ug), "tactical" (gyro: ARW 0.1
+// deg/sqrt(h), bias instability 1 deg/h; accel: VRW 0.05 m/s/sqrt(h), bias instability 0.5 mg) or "consumer"
+// (MEMS). docs/SIMULATION.md lists them.
 Expected<ImuErrorModel> imu_preset(std::string_view name);
 
 struct ImuConfig {
@@ -174,7 +175,7 @@ class CommonGpsError {
   CommonGpsErrorConfig config_;
   Rng rng_;
   double step_s_ = 1.0;
-  std::vector<Eigen::Vector3d> grid_;  // the smoothed process / sqrt(2), on the grid
+  std::vector<Eigen::Vector3d> grid_;                // the smoothed process / sqrt(2), on the grid
   Eigen::Vector3d drive_ = Eigen::Vector3d::Zero();  // the first-order process driving it
 };
 

@@ -2,10 +2,10 @@
 // pipeline into a recording that checks clean; two GigE Vision cameras (arv-fake-gv-camera-0.8
 // processes on two loopback addresses) named by the rig's per-camera source URIs; bad sources and
 // flags with their exit codes and messages.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
-#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -22,9 +22,9 @@
 #include "nav/nmea.hpp"
 #include "nav/udp_socket.hpp"
 #include "recorder/reader.hpp"
+#include "render/rig.hpp"
 #include "render/video_codec.hpp"
 #include "ros2/messages.hpp"
-#include "render/rig.hpp"
 #include "sim/flight.hpp"
 #include "sim/flight_source.hpp"
 #include "sim/scenario.hpp"
@@ -91,10 +91,13 @@ TEST(CmdRun, SimulatedFlightThroughThePipelineIntoARecording) {
 TEST(CmdRun, GroundTruthIsStoredInTheRecording) {
   const std::string dir = output_dir("cmd_run_ground_truth");
   std::string out;
-  ASSERT_EQ(augrig("run --source 'sim://demo?rate=0&every=90' --frames 2 --headless --status-every 0 --ground-truth "
-                   "--record " + dir + "/rec 2>&1",
-                   &out),
-            0)
+  ASSERT_EQ(
+      augrig(
+          "run --source 'sim://demo?rate=0&every=90' --frames 2 --headless --status-every 0 --ground-truth "
+          "--record " +
+              dir + "/rec 2>&1",
+          &out),
+      0)
       << out;
   auto rd = recorder::RecordingReader::open(dir + "/rec");
   ASSERT_TRUE(rd) << rd.error().message;
@@ -430,11 +433,12 @@ TEST(CmdRun, LiveNavPosesFromTheSimulatedStreamsMatchTheTruth) {
 TEST(CmdRun, CameraClocksOnlineAreSummarisedAndRecorded) {
   const std::string dir = output_dir("cmd_run_camera_clock");
   std::string out;
-  ASSERT_EQ(augrig("run --source 'sim://demo?every=3' --nav sim --camera-clock online --duration 14 --headless "
-                   "--status-every 0 --record " +
-                       dir + "/rec",
-                   &out),
-            0)
+  ASSERT_EQ(
+      augrig("run --source 'sim://demo?every=3' --nav sim --camera-clock online --duration 14 --headless "
+             "--status-every 0 --record " +
+                 dir + "/rec",
+             &out),
+      0)
       << out;
   EXPECT_TRUE(contains(out, "camera clocks estimated online, applied at 1-sigma <= 0.5 ms")) << out;
   EXPECT_TRUE(contains(out, "camera clock left: ")) << out;
@@ -478,8 +482,7 @@ TEST(CmdRun, CameraClocksOnlineConvergeWithinOneMillisecondInSixtySecondsOfManoe
 name: clock-racetrack
 duration_s: 60
 seed: 3
-start: {gps_time_ns: )" << kStartGpsNs
-                                         << R"(, lat_deg: 51.0, lon_deg: -1.0, alt_m: 7000}
+start: {gps_time_ns: )" << kStartGpsNs << R"(, lat_deg: 51.0, lon_deg: -1.0, alt_m: 7000}
 rig: rig.yaml
 tanker: {pattern: racetrack, heading_deg: 90, speed_mps: 120, bank_deg: 45, leg_length_m: 600, roll_in_s: 4}
 receiver:
@@ -505,8 +508,10 @@ sensors:
     noise: 2
 )";
   std::string out;
-  ASSERT_EQ(augrig("run --source 'sim://" + dir + "/racetrack.yaml' --nav sim --camera-clock online --headless "
-                   "--status-every 0 --record " + dir + "/rec",
+  ASSERT_EQ(augrig("run --source 'sim://" + dir +
+                       "/racetrack.yaml' --nav sim --camera-clock online --headless "
+                       "--status-every 0 --record " +
+                       dir + "/rec",
                    &out),
             0)
       << out;
@@ -675,7 +680,8 @@ TEST(CmdRun, FullDiskRecordingIsClosedWithTheTrueLedger) {
     EXPECT_TRUE(contains(out, "recording stopped:")) << out;
     // The recorder's drops: frames, and nav inputs or events (a phase event after the disk filled).
     static const std::regex dropped(
-        "recorded ([0-9]+) stereo frames to .* \\(([0-9]+) dropped by the recorder(, and ([0-9]+) nav inputs or "
+        "recorded ([0-9]+) stereo frames to .* \\(([0-9]+) dropped by the recorder(, and ([0-9]+) nav inputs "
+        "or "
         "events)?\\)");
     std::smatch m;
     ASSERT_TRUE(std::regex_search(out, m, dropped)) << out;
@@ -770,8 +776,9 @@ TEST(CmdRun, DemoOpensTheLiveWindowWhenADisplayIsPresent) {
   if (run_command("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run is not installed";
   const std::string dir = output_dir("cmd_run_demo_window");
   std::string out;
-  ASSERT_EQ(run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir + " --every 15 --duration 4 --record " +
-                            dir + "/recording --receiver-draw wireframe --screenshot-at 3 2>&1",
+  ASSERT_EQ(run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir +
+                            " --every 15 --duration 4 --record " + dir +
+                            "/recording --receiver-draw wireframe --screenshot-at 3 2>&1",
                         &out),
             0)
       << out;
@@ -801,8 +808,8 @@ TEST(CmdRun, DemoOpensTheLiveWindowWhenADisplayIsPresent) {
   EXPECT_FALSE(contains(out, "recorded ")) << out;
   EXPECT_TRUE(contains(out, "bayer=RG")) << out;  // --bayer reaches the simulated cameras
   EXPECT_TRUE(contains(out, "run: 3 stereo frames augmented")) << out;  // --frames: stop after 3
-  EXPECT_EQ(run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir + " --every 15 --duration 2 --record " +
-                            dir + "/recording 2>&1",
+  EXPECT_EQ(run_command("xvfb-run -a " + augrig_binary() + " demo --out " + dir +
+                            " --every 15 --duration 2 --record " + dir + "/recording 2>&1",
                         &out),
             1)
       << out;
@@ -817,9 +824,10 @@ TEST(CmdRun, WindowScreenshotShowsTheBoomWhereTheMasksSay) {
   if (run_command("command -v xvfb-run > /dev/null") != 0) GTEST_SKIP() << "xvfb-run is not installed";
   const std::string dir = output_dir("cmd_run_window_shot");
   std::string out;
-  ASSERT_EQ(run_command("xvfb-run -a " + augrig_binary() + " run --source 'sim://demo?every=30&rate=0' --frames 4 " +
-                            "--screenshot-at 2 --status-every 0 --out " + dir + " --record " + dir + "/rec 2>&1",
-                        &out),
+  ASSERT_EQ(run_command(
+                "xvfb-run -a " + augrig_binary() + " run --source 'sim://demo?every=30&rate=0' --frames 4 " +
+                    "--screenshot-at 2 --status-every 0 --out " + dir + " --record " + dir + "/rec 2>&1",
+                &out),
             0)
       << out;
   const auto shot = test::parse_window_shot(out);
@@ -876,8 +884,8 @@ TEST(CmdRun, CaptureOnlyRigRecordsRawThenAReplayAugmentsIt) {
   EXPECT_TRUE(contains(out, "give one with --rig")) << out;
   // The export's poses.csv (the recorded T_cam_receiver) and a rig with a boom: augmented.
   ASSERT_EQ(augrig("export " + dir + "/rec " + dir + "/x --no-plot", &out), 0) << out;
-  ASSERT_EQ(augrig("replay " + dir + "/rec --rig " + dir + "/full.yaml --poses " + dir + "/x/poses.csv --record " +
-                       dir + "/rec2 --headless",
+  ASSERT_EQ(augrig("replay " + dir + "/rec --rig " + dir + "/full.yaml --poses " + dir +
+                       "/x/poses.csv --record " + dir + "/rec2 --headless",
                    &out),
             0)
       << out;
@@ -891,7 +899,8 @@ TEST(CmdRun, CaptureOnlyRigRecordsRawThenAReplayAugmentsIt) {
     EXPECT_GT(f->stats->receiver_px_left, 0) << i;
   }
   // --poses and --scene are two sources of poses.
-  EXPECT_EQ(augrig("replay " + dir + "/rec --poses " + dir + "/x/poses.csv --scene " + dir + "/s.yaml", &out), 2)
+  EXPECT_EQ(augrig("replay " + dir + "/rec --poses " + dir + "/x/poses.csv --scene " + dir + "/s.yaml", &out),
+            2)
       << out;
 }
 
@@ -905,12 +914,14 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::string log = dir + "/run.log";
-  ASSERT_EQ(std::system(("(" + augrig_binary() +
-                         " run --source 'sim://demo?rate=1&every=3' --headless --status-every 0 --duration 12 --serve 0 "
-                         "--serve-h264-preset superfast > " +
-                         log + " 2>&1; echo $? > " + dir + "/rc) &")
-                            .c_str()),
-            0);
+  ASSERT_EQ(
+      std::system(
+          ("(" + augrig_binary() +
+           " run --source 'sim://demo?rate=1&every=3' --headless --status-every 0 --duration 12 --serve 0 "
+           "--serve-h264-preset superfast > " +
+           log + " 2>&1; echo $? > " + dir + "/rc) &")
+              .c_str()),
+      0);
   // The port it took, from its first lines.
   int port = 0;
   for (int i = 0; i < 300 && !port; ++i) {
@@ -932,9 +943,11 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
     ASSERT_TRUE(f && f->opcode == 0x1);
     const nlohmann::json j = nlohmann::json::parse(f->payload);
     if (j["op"] == "advertise")
-      for (const auto& ch : j["channels"]) channel[ch["topic"].get<std::string>()] = ch["id"].get<std::uint32_t>();
+      for (const auto& ch : j["channels"])
+        channel[ch["topic"].get<std::string>()] = ch["id"].get<std::uint32_t>();
   }
-  for (const char* t : {"/left/image_augmented", "/augrig/occlusion_stats", "/diagnostics", "/right/mask", "/tf"})
+  for (const char* t :
+       {"/left/image_augmented", "/augrig/occlusion_stats", "/diagnostics", "/right/mask", "/tf"})
     ASSERT_TRUE(channel.count(t)) << t;
   nlohmann::json sub = {{"op", "subscribe"},
                         {"subscriptions",
@@ -996,7 +1009,8 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   EXPECT_GE(got[4], 3) << "H.264 units";
   EXPECT_TRUE(health_values.count("h264_encoded") && health_values.count("drops_h264"));
   c.close();
-  for (int i = 0; i < 400 && !fs::exists(dir + "/rc"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  for (int i = 0; i < 400 && !fs::exists(dir + "/rc"); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
   std::ifstream rc(dir + "/rc");
   int code = -1;
   rc >> code;
@@ -1011,11 +1025,13 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve-queue-mb 4", &err), 2) << err;
   EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve-h264-kbps 4000", &err), 2) << err;
   EXPECT_TRUE(contains(err, "--serve-h264-kbps needs --serve")) << err;
-  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve 0 --serve-h264-preset quick", &err), 2)
+  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --serve 0 --serve-h264-preset quick", &err),
+            2)
       << err;
   EXPECT_TRUE(contains(err, "--serve-h264-preset: expected one of ultrafast, superfast")) << err;
   EXPECT_TRUE(contains(err, "got 'quick'")) << err;
-  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --frames 1 --serve 256.1.1.1:0", &err), 1) << err;
+  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0' --headless --frames 1 --serve 256.1.1.1:0", &err), 1)
+      << err;
 }
 
 TEST(CmdRun, FrameSizeNotTheRigsFailsAtOnce) {
@@ -1027,8 +1043,8 @@ TEST(CmdRun, FrameSizeNotTheRigsFailsAtOnce) {
     f << rig_to_yaml(small);
   }
   std::string out;
-  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0&every=30' --rig " + dir + "/small.yaml --headless --record " +
-                       dir + "/rec",
+  EXPECT_EQ(augrig("run --source 'sim://demo?rate=0&every=30' --rig " + dir +
+                       "/small.yaml --headless --record " + dir + "/rec",
                    &out),
             1)
       << out;
@@ -1049,9 +1065,10 @@ TEST(CmdRun, UnreadableModelFailsBeforeTheRecordingIsCreated) {
     std::ofstream(rig_file) << rig_to_yaml(rig);
     const std::string rec = dir + "/rec_" + part;
     std::string out;
-    EXPECT_EQ(augrig("run --source 'sim://demo?rate=0&every=30' --rig " + rig_file + " --headless --record " + rec,
-                     &out),
-              1)
+    EXPECT_EQ(
+        augrig("run --source 'sim://demo?rate=0&every=30' --rig " + rig_file + " --headless --record " + rec,
+               &out),
+        1)
         << out;
     EXPECT_TRUE(contains(out, std::string(part) + " model: ")) << out;
     EXPECT_TRUE(contains(out, dir + "/broken.glb")) << out;

@@ -191,7 +191,8 @@ TEST_F(MergeFixture, ShardsRecordingsJoinIntoTheUnshardedReplaysRecording) {
       std::string row;
       for (int c = 0; c < sqlite3_column_count(st->get()); ++c) {
         const auto* p = static_cast<const char*>(sqlite3_column_blob(st->get(), c));
-        row += (p ? std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(st->get(), c))) : "NULL") + '\x1f';
+        row += (p ? std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(st->get(), c))) : "NULL") +
+               '\x1f';
       }
       rows.push_back(row);
     }

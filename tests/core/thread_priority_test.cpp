@@ -2,9 +2,9 @@
 // the thread that started it (and the process as `ps` shows it) keeps its value.
 #include "core/thread_priority.hpp"
 
-#include <gtest/gtest.h>
-
 #include <thread>
+
+#include <gtest/gtest.h>
 
 namespace augrig {
 namespace {

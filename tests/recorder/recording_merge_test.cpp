@@ -5,11 +5,11 @@
 // asked; parts that overlap, of another rig, not closed or not recordings are refused by name.
 #include "recorder/recording_merge.hpp"
 
-#include <gtest/gtest.h>
-
 #include <filesystem>
 #include <string>
 #include <vector>
+
+#include <gtest/gtest.h>
 
 #include "recorder/reader.hpp"
 #include "recorder/store.hpp"
@@ -33,7 +33,8 @@ std::vector<std::vector<std::string>> rows(const std::string& db_path, const std
     std::vector<std::string> row;
     for (int c = 0; c < sqlite3_column_count(st->get()); ++c) {
       const auto* p = static_cast<const char*>(sqlite3_column_blob(st->get(), c));
-      row.emplace_back(p ? std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(st->get(), c))) : "NULL");
+      row.emplace_back(p ? std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(st->get(), c)))
+                         : "NULL");
     }
     out.push_back(std::move(row));
   }
@@ -61,7 +62,8 @@ class RecordingMerge : public ::testing::Test {
   // look's estimates start over in each shard; docs/CAMPAIGN.md).
   void replay(const std::string& range, const std::string& out) {
     std::string log;
-    ASSERT_EQ(test::run_augrig("replay " + flight + " " + range + " --look plain --headless --fast --record " + out, &log),
+    ASSERT_EQ(test::run_augrig(
+                  "replay " + flight + " " + range + " --look plain --headless --fast --record " + out, &log),
               0)
         << log;
   }
@@ -107,7 +109,8 @@ TEST_F(RecordingMerge, ShardsJoinedEqualTheWholeReplay) {
   EXPECT_EQ((*reader)->meta("summary.events"), std::to_string(events));
   EXPECT_NE((*reader)->meta("merged_from").find("3 part(s), in order: " + database_path(parts[0])),
             std::string::npos);
-  EXPECT_EQ((*reader)->meta("rig_yaml"), rows(dir + "/whole", "SELECT value FROM meta WHERE key = 'rig_yaml'")[0][0]);
+  EXPECT_EQ((*reader)->meta("rig_yaml"),
+            rows(dir + "/whole", "SELECT value FROM meta WHERE key = 'rig_yaml'")[0][0]);
   const CheckReport check = (*reader)->check();
   EXPECT_TRUE(check.ok()) << check.to_string();
   EXPECT_EQ(check.frames_ok, 41u);

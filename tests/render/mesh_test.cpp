@@ -329,7 +329,8 @@ std::string write_gltf(const std::string& name, const std::string& materials, in
   for (int i = 0; i < n_materials; ++i)
     prims += R"({"attributes": {"POSITION": 0}, "material": )" + std::to_string(i) + "}, ";
   prims += R"({"attributes": {"POSITION": 0}})";
-  const std::string json = R"({"asset": {"version": "2.0"}, )" + extra + R"("scene": 0, "scenes": [{"nodes": [0]}],
+  const std::string json = R"({"asset": {"version": "2.0"}, )" + extra +
+                           R"("scene": 0, "scenes": [{"nodes": [0]}],
   "nodes": [{"mesh": 0}], "meshes": [{"primitives": [)" +
                            prims + R"(]}],
   "materials": [)" + materials +
@@ -390,10 +391,10 @@ TEST(LoadGltf, MetallicRoughnessTextureScalesTheFactorsByItsMean) {
   EXPECT_NEAR(model->meshes[0].finish.metallic, 0.8 * 127.5 / 255.0, 1e-12);
   EXPECT_NEAR(model->meshes[0].finish.roughness, 159.75 / 255.0, 1e-12);
 
-  const std::string bad = write_gltf(
-      "bad_texture.gltf",
-      R"({"name": "lost", "pbrMetallicRoughness": {"metallicRoughnessTexture": {"index": 3}}})", 1,
-      R"("textures": [{"source": 0}], "images": [{"uri": "mr.png"}], )");
+  const std::string bad =
+      write_gltf("bad_texture.gltf",
+                 R"({"name": "lost", "pbrMetallicRoughness": {"metallicRoughnessTexture": {"index": 3}}})", 1,
+                 R"("textures": [{"source": 0}], "images": [{"uri": "mr.png"}], )");
   auto refused = load_model(ModelSource{bad, ModelAxes::gltf(), 1.0});
   ASSERT_FALSE(refused);
   EXPECT_NE(refused.error().message.find(bad), std::string::npos) << refused.error().message;
