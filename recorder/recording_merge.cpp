@@ -2,9 +2,14 @@
 // blobs never leaving SQLite, in one transaction.
 #include "recorder/recording_merge.hpp"
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <system_error>
+
+#include <fcntl.h>
+#include <unistd.h>
 
 #include "recorder/reader.hpp"
 #include "recorder/store.hpp"
@@ -231,8 +236,19 @@ Status write_merged(const std::string& tmp, const std::vector<Part>& parts, cons
   }
   if (Status s = db->exec("BEGIN"); !s) return s;
   if (Status s = write_meta(*db, parts, report); !s) return s;
-  if (Status s = db->exec("COMMIT"); !s) return s;
-  return db->exec("PRAGMA synchronous = FULL; VACUUM");  // on disk before the rename makes it the recording
+  return db->exec("COMMIT");  // the database closes as this returns, before the sync
+}
+
+// The file's bytes on disk before the rename makes it the recording (the writes above are not
+// synced: synchronous is off).
+Status sync_file(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return make_error("cannot open to sync: ", std::strerror(errno));
+  const int rc = ::fsync(fd);
+  const int err = errno;
+  ::close(fd);
+  if (rc != 0) return make_error("fsync failed: ", std::strerror(err));
+  return {};
 }
 
 }  // namespace
@@ -248,7 +264,9 @@ Status merge_recordings(const std::vector<std::string>& paths, const std::string
   const std::string final_path = database_path(out_dir);
   const std::string tmp = final_path + ".merging";
   fs::remove(tmp, ec);
-  if (Status s = write_merged(tmp, *parts, nav_from, report); !s) {
+  Status written = write_merged(tmp, *parts, nav_from, report);
+  if (written) written = sync_file(tmp);
+  if (Status s = written; !s) {
     fs::remove(tmp, ec);
     return make_error(kWhere, tmp, ": ", s.error().message);
   }
