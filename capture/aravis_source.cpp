@@ -1,9 +1,9 @@
 #include "capture/aravis_source.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
-#include <atomic>
 #include <cstring>
 #include <mutex>
 #include <thread>
@@ -167,7 +167,11 @@ std::vector<AravisDeviceInfo> list_aravis_devices(bool open_each) {
   std::vector<AravisDeviceInfo> out;
   for (const DeviceEntry& d : discover()) {
     AravisDeviceInfo info;
-    info.id = d.id, info.vendor = d.vendor, info.model = d.model, info.serial = d.serial, info.address = d.address;
+    info.id = d.id;
+    info.vendor = d.vendor;
+    info.model = d.model;
+    info.serial = d.serial;
+    info.address = d.address;
     info.protocol = d.protocol;
     if (open_each) {
       GError* e = nullptr;
@@ -231,9 +235,11 @@ struct AravisSource::Impl {
   bool have_last_id = false;
   std::uint64_t last_id = 0;
   std::uint64_t sequence = 0;
-  std::atomic<TimestampNs> trigger_pending_since_ns{0};
-  TimestampNs counters_read_ns = 0;  // when Aravis' stream counters were last copied into stats  // software
-                                     // trigger sent, frame not yet seen
+  // Frames lost in transport since the last good one: the frame id gap they leave is theirs, not
+  // the camera's (each lost frame is counted once, as a transport drop).
+  std::uint64_t transport_lost_since_good = 0;
+  std::atomic<TimestampNs> trigger_pending_since_ns{0};  // software trigger sent, frame not yet seen
+  TimestampNs counters_read_ns = 0;  // when Aravis' stream counters were last copied into stats
 
   mutable std::mutex mutex;  // guards what other threads read: stats, health, info
   AravisStats stats;
@@ -476,6 +482,7 @@ void AravisSource::Impl::declare_lost(const std::string& why, TimestampNs now) {
   next_attempt_ns = now;
   attempts = 0;
   have_last_id = false;  // a restarted camera counts its frames anew
+  transport_lost_since_good = 0;
   trigger_pending_since_ns = 0;
 }
 
@@ -613,6 +620,7 @@ Expected<ReadStatus> AravisSource::read(Frame& out, std::chrono::nanoseconds tim
     if (arv_buffer_get_status(buffer) != ARV_BUFFER_STATUS_SUCCESS) {
       // Incomplete or failed block: the frame is lost in transport.
       arv_stream_push_buffer(m.stream.get(), buffer);
+      m.transport_lost_since_good++;
       std::lock_guard lock(m.mutex);
       m.stats.transport_drops++;
       continue;
@@ -626,6 +634,7 @@ Expected<ReadStatus> AravisSource::read(Frame& out, std::chrono::nanoseconds tim
     const TimestampNs t_device = static_cast<TimestampNs>(arv_buffer_get_timestamp(buffer));
     arv_stream_push_buffer(m.stream.get(), buffer);
     if (!ok) {
+      m.transport_lost_since_good++;
       std::lock_guard lock(m.mutex);
       m.stats.transport_drops++;
       continue;
@@ -638,6 +647,7 @@ Expected<ReadStatus> AravisSource::read(Frame& out, std::chrono::nanoseconds tim
       if (d <= 0 && m.last_id <= 0xFFFF && m.last_id - id > 0x8000) d += 0xFFFF;
       if (d > 0) {
         gap = static_cast<std::uint64_t>(d - 1);
+        gap -= std::min(gap, m.transport_lost_since_good);
         m.sequence += static_cast<std::uint64_t>(d);
       } else {
         m.sequence += 1;  // the camera restarted its count
@@ -647,6 +657,7 @@ Expected<ReadStatus> AravisSource::read(Frame& out, std::chrono::nanoseconds tim
     }
     m.have_last_id = true;
     m.last_id = id;
+    m.transport_lost_since_good = 0;
 
     out.sequence = m.sequence;
     out.camera = m.options.camera;

@@ -152,12 +152,20 @@ TEST(AravisSource, FreeRunningCameraStartsAtTheFirstRead) {
   std::this_thread::sleep_for(1500ms);  // 45 frame periods: far more than the buffers hold
   const std::vector<Frame> got = read_frames(**src, 10);
   ASSERT_EQ(got.size(), 10u);
-  for (std::size_t k = 1; k < got.size(); ++k)
-    EXPECT_EQ(got[k].sequence, got[k - 1].sequence + 1) << "frame " << k << ": a frame was lost";
-  // Consecutive frames one period apart on the camera's clock: no stale burst from before the read.
-  EXPECT_LT(got.back().t_ns - got.front().t_ns, 9 * 33'333'333 + 20'000'000);
   const AravisStats st = (*src)->stats();
-  EXPECT_EQ(st.camera_drops, 0u);
+  // No stale burst: the frames follow on, one period apart on the camera's clock. A loopback
+  // packet lost in a loaded CTest run (the socket's buffer overruns while the stream thread waits
+  // for a core) loses its frame: counted as a transport drop, leaving a gap of one.
+  std::uint64_t gaps = 0;
+  for (std::size_t k = 1; k < got.size(); ++k) {
+    ASSERT_GT(got[k].sequence, got[k - 1].sequence);
+    gaps += got[k].sequence - got[k - 1].sequence - 1;
+  }
+  EXPECT_LE(gaps, st.transport_drops) << "every frame missing was lost in transport, counted";
+  EXPECT_LE(st.transport_drops, 2u);
+  const auto periods = static_cast<std::int64_t>(got.back().sequence - got.front().sequence);
+  EXPECT_LT(got.back().t_ns - got.front().t_ns, periods * 33'333'333 + 20'000'000);
+  EXPECT_EQ(st.camera_drops, 0u) << "a frame lost in transport is not also a camera drop";
   EXPECT_EQ(st.underruns, 0u);
 }
 
