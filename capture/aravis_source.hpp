@@ -4,11 +4,13 @@
 // default device picks the wrong interface there), configures pixel format, region, exposure, gain,
 // frame rate, trigger and PTP, negotiates the GVSP packet size and sizes the socket buffer, then
 // streams into a pool of buffers: a free-running camera from the first read() (so that nothing
-// piles up while the rest of the pipeline sets up), a triggered one from open(). Each Frame carries the device timestamp (ClockDomain::kDevice,
-// moved to mid-exposure) and the host CLOCK_MONOTONIC time it became available.
+// piles up while the rest of the pipeline sets up), a triggered one from open(). Each Frame carries the
+// device timestamp (ClockDomain::kDevice, moved to mid-exposure) and the host CLOCK_MONOTONIC time it became
+// available.
 //
-// Nothing is lost silently: frame-id gaps count as camera drops, incomplete or failed buffers as
-// transport drops, and Aravis' stream statistics (missing packets, resends, underruns) are kept.
+// Nothing is lost silently, and nothing twice: incomplete or failed buffers count as transport
+// drops, frame-id gaps they do not explain as camera drops, and Aravis' stream statistics (missing
+// packets, resends, underruns) are kept.
 // A camera that stops delivering (or whose control channel is lost) is reported within
 // `lost_after`; the source then tears down and reconnects whenever the camera answers again, while
 // read() keeps returning kTimeout, so a stereo partner in another thread goes on meanwhile.
@@ -79,7 +81,7 @@ std::vector<AravisDeviceInfo> list_aravis_devices(bool open_each = true);
 
 struct AravisStats {
   std::uint64_t frames = 0;           // delivered by read()
-  std::uint64_t camera_drops = 0;     // frame-id gaps
+  std::uint64_t camera_drops = 0;     // frame-id gaps not explained by transport drops
   std::uint64_t transport_drops = 0;  // buffers with a status other than success
   std::uint64_t underruns = 0;        // the pool was empty when a frame came in (Aravis)
   std::uint64_t missing_packets = 0;  // Aravis stream statistics, summed over reconnects

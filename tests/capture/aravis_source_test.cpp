@@ -169,6 +169,36 @@ TEST(AravisSource, FreeRunningCameraStartsAtTheFirstRead) {
   EXPECT_EQ(st.underruns, 0u);
 }
 
+// Packets lost on the link lose their frames: each is counted once, as a transport drop, and the
+// frame id gap it leaves is not counted again as a frame the camera dropped; the frames that do
+// arrive are whole and follow on by their ids.
+TEST(AravisSource, PacketsLostOnTheLinkAreTransportDropsCountedOnce) {
+  FakeGvCamera fake("127.0.0.1", "AUGLOSS");
+  ASSERT_TRUE(fake.running());
+  fake.set_lost_packet_ratio(0.002);  // 0.2 %: about a quarter of the frames lose a packet
+  AravisOptions o;
+  o.device = "127.0.0.1";
+  o.frame_rate_hz = 30;
+  auto src = AravisSource::open(o);
+  ASSERT_TRUE(src) << src.error().message;
+  const std::vector<Frame> first = read_frames(**src, 1);
+  ASSERT_EQ(first.size(), 1u);
+  const AravisStats before = (*src)->stats();
+  const std::vector<Frame> got = read_frames(**src, 40);
+  ASSERT_EQ(got.size(), 40u);
+  const AravisStats st = (*src)->stats();
+  std::uint64_t gaps = got.front().sequence - first.front().sequence - 1;
+  for (std::size_t k = 1; k < got.size(); ++k) {
+    ASSERT_GT(got[k].sequence, got[k - 1].sequence);
+    gaps += got[k].sequence - got[k - 1].sequence - 1;
+  }
+  EXPECT_GT(st.transport_drops, before.transport_drops) << "the link lost no frame: the test shows nothing";
+  EXPECT_EQ(gaps, st.transport_drops - before.transport_drops) << "each missing frame is a transport drop";
+  EXPECT_EQ(st.camera_drops, 0u) << "a frame lost on the link is not also a camera drop";
+  EXPECT_EQ((*src)->frames_dropped(), st.transport_drops);
+  for (const Frame& f : got) EXPECT_FALSE(f.image.empty());
+}
+
 TEST(AravisSource, StreamsSimulatedFlightFramesBitExact) {
   const std::vector<ServedFrame> sent = sim_frames(0, 6, PixelFormat::kBayerRG8);
   ASSERT_EQ(sent.size(), 6u);

@@ -34,6 +34,10 @@ FakeGvCamera::FakeGvCamera(const std::string& address, const std::string& serial
     arv_fake_camera_set_fill_pattern(arv_gv_fake_camera_get_fake_camera(camera_), &fill_trampoline, this);
 }
 
+void FakeGvCamera::set_lost_packet_ratio(double ratio) {
+  if (camera_) g_object_set(camera_, "gvsp-lost-ratio", ratio, nullptr);
+}
+
 FakeGvCamera::~FakeGvCamera() {
   if (camera_) g_object_unref(camera_);
 }

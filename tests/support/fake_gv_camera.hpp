@@ -36,6 +36,9 @@ class FakeGvCamera {
   FakeGvCamera& operator=(const FakeGvCamera&) = delete;
   // Serving, and answering discovery at its address with its own serial number.
   bool running() const;
+  // Each GVSP packet (leader, payload, trailer) is left unsent with this probability (0..1): the
+  // fake camera's own loss simulation, as a congested link loses packets. It answers no resend.
+  void set_lost_packet_ratio(double ratio);
 
   // Frames to send, in order, one per frame the camera streams; after the last, the camera sends
   // them again from the first (with their timestamps advanced by `loop_period_ns` per lap).
