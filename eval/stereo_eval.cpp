@@ -1,7 +1,9 @@
 #include "eval/stereo_eval.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
@@ -16,6 +18,65 @@ cv::Mat to_cv(const Eigen::Matrix3d& m) {
   return out;
 }
 
+bool fisheye(const CameraModel& c) {
+  return c.distortion == DistortionModel::kEquidistant;
+}
+
+// The rectified pinhole's intrinsics for a pair OpenCV rectifies with one function only (one
+// fisheye and one radtan or pinhole camera), from the rig's own lens models: the rotations R1,
+// R2 as OpenCV gives them (they depend on the extrinsics alone), then, as stereoRectify with
+// alpha 0, the largest centred rectified image whose every pixel sees into both raw images:
+// each raw image's border is carried through its lens and rotation, and the rectangle inside
+// both bounds the normalised coordinates. Then the maps from each model's project().
+Status rectify_with_models(const CameraModel& left, const CameraModel& right, Rectification& r) {
+  const char* where = "eval::rectify_rig(): ";
+  double x0 = -1e300, x1 = 1e300, y0 = -1e300, y1 = 1e300;
+  for (int i = 0; i < 2; ++i) {
+    const CameraModel& cam = i == 0 ? left : right;
+    const int W = cam.width_px, H = cam.height_px;
+    // The border's image in the rectified normalised plane; a pixel whose ray does not reach it
+    // (behind the rectified camera, or off the lens) leaves the rectangle at that side unbounded.
+    auto at = [&](int x, int y) -> std::optional<Eigen::Vector2d> {
+      const auto ray = cam.ray(Eigen::Vector2d(x, y));
+      if (!ray) return std::nullopt;
+      const Eigen::Vector3d p = r.R_rect_raw[i] * *ray;
+      if (!(p.z() > 1e-6)) return std::nullopt;
+      return Eigen::Vector2d(p.x() / p.z(), p.y() / p.z());
+    };
+    for (int y = 0; y < H; ++y) {
+      if (const auto q = at(0, y)) x0 = std::max(x0, q->x());
+      if (const auto q = at(W - 1, y)) x1 = std::min(x1, q->x());
+    }
+    for (int x = 0; x < W; ++x) {
+      if (const auto q = at(x, 0)) y0 = std::max(y0, q->y());
+      if (const auto q = at(x, H - 1)) y1 = std::min(y1, q->y());
+    }
+  }
+  const int W = left.width_px, H = left.height_px;
+  if (!(x1 > x0) || !(y1 > y0) || !(x1 - x0 < 1e6) || !(y1 - y0 < 1e6))
+    return make_error(where, "the cameras' rectified views do not overlap");
+  r.f_px = std::max((W - 1) / (x1 - x0), (H - 1) / (y1 - y0));
+  r.cx_px = 0.5 * (W - 1) - r.f_px * 0.5 * (x0 + x1);
+  r.cy_px = 0.5 * (H - 1) - r.f_px * 0.5 * (y0 + y1);
+  for (int i = 0; i < 2; ++i) {
+    const CameraModel& cam = i == 0 ? left : right;
+    const Eigen::Matrix3d R_raw_rect = r.R_rect_raw[i].transpose();
+    r.map_x[i].create(H, W, CV_32FC1);
+    r.map_y[i].create(H, W, CV_32FC1);
+    for (int v = 0; v < H; ++v) {
+      auto* mx = r.map_x[i].ptr<float>(v);
+      auto* my = r.map_y[i].ptr<float>(v);
+      for (int u = 0; u < W; ++u) {
+        const Eigen::Vector3d d((u - r.cx_px) / r.f_px, (v - r.cy_px) / r.f_px, 1.0);
+        const auto q = cam.project(R_raw_rect * d);
+        mx[u] = q ? static_cast<float>(q->x()) : -1.0f;  // outside: remap's constant border
+        my[u] = q ? static_cast<float>(q->y()) : -1.0f;
+      }
+    }
+  }
+  return {};
+}
+
 }  // namespace
 
 Expected<Rectification> rectify_rig(const CameraModel& left, const CameraModel& right,
@@ -24,14 +85,6 @@ Expected<Rectification> rectify_rig(const CameraModel& left, const CameraModel& 
   if (left.width_px != right.width_px || left.height_px != right.height_px)
     return make_error(where, "the cameras' images differ in size (", left.width_px, "x", left.height_px,
                       " and ", right.width_px, "x", right.height_px, "); expected one size");
-  if (left.distortion == DistortionModel::kEquidistant) {
-    if (right.distortion != DistortionModel::kEquidistant)
-      return make_error(where, "a fisheye (equidistant) and a ", right.distortion_name(),
-                        " camera; expected both fisheye or neither");
-  } else if (right.distortion == DistortionModel::kEquidistant) {
-    return make_error(where, "a ", left.distortion_name(),
-                      " and a fisheye (equidistant) camera; expected both fisheye or neither");
-  }
   const double baseline = T_right_left.translation_m.norm();
   if (!(baseline > 1e-6)) return make_error(where, "the cameras share their centre: no stereo baseline");
   const cv::Size size(left.width_px, left.height_px);
@@ -47,7 +100,18 @@ Expected<Rectification> rectify_rig(const CameraModel& left, const CameraModel& 
   r.width = left.width_px;
   r.height = left.height_px;
   try {
-    if (left.distortion == DistortionModel::kEquidistant) {
+    if (fisheye(left) != fisheye(right)) {
+      // One lens of each kind: OpenCV's rotations (no distortion needed for them), the rest from
+      // the models.
+      cv::stereoRectify(K1, cv::Mat(), K2, cv::Mat(), size, R, T, R1, R2, P1, P2, Q, cv::CALIB_ZERO_DISPARITY,
+                        0.0, size);
+      cv::cv2eigen(R1, r.R_rect_raw[0]);
+      cv::cv2eigen(R2, r.R_rect_raw[1]);
+      if (Status st = rectify_with_models(left, right, r); !st) return st.error();
+      r.baseline_m = baseline;
+      return r;
+    }
+    if (fisheye(left)) {
       cv::fisheye::stereoRectify(K1, D1, K2, D2, size, R, T, R1, R2, P1, P2, Q, cv::CALIB_ZERO_DISPARITY,
                                  size, 0.0, 1.0);
       cv::fisheye::initUndistortRectifyMap(K1, D1, R1, P1, size, CV_32FC1, r.map_x[0], r.map_y[0]);
@@ -101,8 +165,10 @@ cv::Rect rectified_box(const Rectification& r, const CameraModel& left, const Pi
     if (!visit(x, y0) || !visit(x, y1)) return whole;
   for (int y = y0; y <= y1; ++y)
     if (!visit(x0, y) || !visit(x1, y)) return whole;
-  const int a = std::max(0, static_cast<int>(std::floor(u0)) - 2), b = std::max(0, static_cast<int>(std::floor(v0)) - 2);
-  const int c = std::min(r.width, static_cast<int>(std::ceil(u1)) + 3), d = std::min(r.height, static_cast<int>(std::ceil(v1)) + 3);
+  const int a = std::max(0, static_cast<int>(std::floor(u0)) - 2),
+            b = std::max(0, static_cast<int>(std::floor(v0)) - 2);
+  const int c = std::min(r.width, static_cast<int>(std::ceil(u1)) + 3),
+            d = std::min(r.height, static_cast<int>(std::ceil(v1)) + 3);
   if (c <= a || d <= b) return {};
   return cv::Rect(a, b, c - a, d - b);
 }
@@ -115,7 +181,8 @@ cv::Mat true_disparity(const Rectification& r, const DepthImage& depth_left, con
   auto z_at = [&](int x, int y) {
     return static_cast<double>(depth_left.z_m[static_cast<std::size_t>(y) * w + x]);
   };
-  const cv::Rect roi = roi_in.empty() ? cv::Rect(0, 0, r.width, r.height) : roi_in & cv::Rect(0, 0, r.width, r.height);
+  const cv::Rect roi =
+      roi_in.empty() ? cv::Rect(0, 0, r.width, r.height) : roi_in & cv::Rect(0, 0, r.width, r.height);
   for (int v = roi.y; v < roi.y + roi.height; ++v) {
     const float* mx = r.map_x[0].ptr<float>(v);
     const float* my = r.map_y[0].ptr<float>(v);

@@ -31,8 +31,11 @@ struct Rectification {
   double baseline_m = 0;                  // distance between the camera centres
 };
 
-// The rectification of a rig (left model, right model, T_right_left). Errors when the cameras
-// have other sizes, share their centre, or OpenCV fails.
+// The rectification of a rig (left model, right model, T_right_left): OpenCV's stereoRectify
+// (alpha 0: every rectified pixel sees into both raw images) and its maps for two radtan (or
+// pinhole) cameras or two fisheyes; a pair of one each (a Kalibr rig with a wide and a narrow
+// lens) gets OpenCV's rotations and the same alpha-0 image from each camera's own model. Errors
+// when the cameras have other sizes, share their centre, do not overlap, or OpenCV fails.
 Expected<Rectification> rectify_rig(const CameraModel& left, const CameraModel& right,
                                     const Pose& T_right_left);
 
