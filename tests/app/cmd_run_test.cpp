@@ -30,6 +30,7 @@
 #include "sim/scenario.hpp"
 #include "sim/sensors.hpp"
 #include "tests/support/fake_gv_camera.hpp"
+#include "tests/support/sanitizer.hpp"
 #include "tests/support/test_support.hpp"
 #include "tests/support/tmpfs.hpp"
 #include "tests/support/window_shot.hpp"
@@ -457,8 +458,13 @@ TEST(CmdRun, CameraClocksOnlineAreSummarisedAndRecorded) {
     fits[1] += contains(e.text, "camera_clock camera=right state=") ? 1 : 0;
     EXPECT_FALSE(contains(e.text, "applied=1")) << e.text;
   }
-  EXPECT_GE(fits[0], 1) << out;
-  EXPECT_GE(fits[1], 1) << out;
+  // A fit needs rotations between frames tracked close together: a sanitizer's build augments
+  // 1280x960 pairs about once a second in real time, too far apart (the 480x360 flight of the
+  // next test is fitted there too).
+  if (!test::kSanitized) {
+    EXPECT_GE(fits[0], 1) << out;
+    EXPECT_GE(fits[1], 1) << out;
+  }
   std::string check;
   EXPECT_EQ(augrig("check " + dir + "/rec", &check), 0) << check;
 }
@@ -551,12 +557,14 @@ sensors:
     std::printf("  %s: %d fits applied, the last %+.3f ms from the truth (1-sigma %.3f ms)\n",
                 c == 0 ? "left" : "right", applied_fits[c], last_error_ms[c], last_sigma_ms[c]);
   }
-  // The summary: both applied, each within 1 ms of its truth (the right one's mid-flight value).
+  // The summary: both applied, each within 1 ms of its truth (the right one's mid-flight value);
+  // a later fit not confident enough to apply is shown beside it ("applied (latest fit: ...)").
   const double truth_mid_ms[2] = {3.7, -2.4 - 3e-6 * 30e3};
   for (int c = 0; c < 2; ++c) {
     std::smatch m;
-    const std::regex line(std::string("\ncamera clock ") + (c == 0 ? "left" : "right") +
-                          R"(: ([-+]\d+\.\d+) \+- (\S+) ms, .*, applied \[(\d+) frames tracked)");
+    const std::regex line(
+        std::string("\ncamera clock ") + (c == 0 ? "left" : "right") +
+        R"(: ([-+]\d+\.\d+) \+- (\S+) ms, .*, applied(?: \([^)]*\))? \[(\d+) frames tracked)");
     ASSERT_TRUE(std::regex_search(out, m, line)) << out;
     EXPECT_NEAR(std::stod(m[1]), truth_mid_ms[c], 1.0) << m[0];
     EXPECT_GT(std::stoi(m[3]), 300) << m[0];  // about 15 frames/s a camera tracked (900) on an idle machine
@@ -914,14 +922,14 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::string log = dir + "/run.log";
-  ASSERT_EQ(
-      std::system(
-          ("(" + augrig_binary() +
-           " run --source 'sim://demo?rate=1&every=3' --headless --status-every 0 --duration 12 --serve 0 "
-           "--serve-h264-preset superfast > " +
-           log + " 2>&1; echo $? > " + dir + "/rc) &")
-              .c_str()),
-      0);
+  ASSERT_EQ(std::system(("(" + augrig_binary() +
+                         " run --source 'sim://demo?rate=1&every=3' --headless --status-every 0 --duration " +
+                         std::to_string(test::kSanitized ? 30 : 12) +
+                         " --serve 0 "
+                         "--serve-h264-preset superfast > " +
+                         log + " 2>&1; echo $? > " + dir + "/rc) &")
+                            .c_str()),
+            0);
   // The port it took, from its first lines.
   int port = 0;
   for (int i = 0; i < 300 && !port; ++i) {
@@ -962,12 +970,13 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   std::map<std::string, std::string> health_values;
   auto decoder = H264Decoder::create();
   ASSERT_TRUE(decoder);
-  // 3 s from the first message (the run may still be starting: its GL context, the flight).
+  // 3 s from the first message (the run may still be starting: its GL context, the flight); 12 s
+  // under a sanitizer, whose build augments a pair a second.
   std::optional<std::chrono::steady_clock::time_point> until;
   while (!until || std::chrono::steady_clock::now() < *until) {
     auto f = c.read_frame(until ? 2000 : 8000);
     ASSERT_TRUE(f) << "the server went quiet";
-    if (!until) until = std::chrono::steady_clock::now() + std::chrono::seconds(3);
+    if (!until) until = std::chrono::steady_clock::now() + std::chrono::seconds(3 * test::kSlowdown);
     if (f->opcode != 0x2) continue;
     ASSERT_GE(f->payload.size(), 13u);
     ASSERT_EQ(static_cast<unsigned char>(f->payload[0]), 0x01) << "Message Data";
@@ -1009,7 +1018,7 @@ TEST(CmdRun, ServesTheLiveViewOverFoxgloveWebSocket) {
   EXPECT_GE(got[4], 3) << "H.264 units";
   EXPECT_TRUE(health_values.count("h264_encoded") && health_values.count("drops_h264"));
   c.close();
-  for (int i = 0; i < 400 && !fs::exists(dir + "/rc"); ++i)
+  for (int i = 0; i < 400 * test::kSlowdown && !fs::exists(dir + "/rc"); ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   std::ifstream rc(dir + "/rc");
   int code = -1;
