@@ -32,21 +32,26 @@ struct Rig2 {
       Eigen::Vector3d(-0.5, 0.01, 0.004));
 };
 
+// Points projected by hand through R1 and R2: rectified rows agree and disparity = f B / z > 0.
+void expect_rows_and_disparity(const Rectification& r, const Pose& T_right_left) {
+  EXPECT_NEAR(r.baseline_m, T_right_left.translation_m.norm(), 1e-9);
+  for (const Eigen::Vector3d& p :
+       {Eigen::Vector3d(0.3, -0.2, 8.0), Eigen::Vector3d(-1.5, 0.7, 20.0), Eigen::Vector3d(0.0, 0.0, 3.0)}) {
+    const Eigen::Vector3d a = r.R_rect_raw[0] * p;
+    const Eigen::Vector3d b = r.R_rect_raw[1] * (T_right_left * p);
+    const double u1 = r.f_px * a.x() / a.z() + r.cx_px, v1 = r.f_px * a.y() / a.z() + r.cy_px;
+    const double u2 = r.f_px * b.x() / b.z() + r.cx_px, v2 = r.f_px * b.y() / b.z() + r.cy_px;
+    EXPECT_NEAR(v1, v2, 1e-6) << "rectified rows";
+    EXPECT_NEAR(u1 - u2, r.f_px * r.baseline_m / a.z(), 1e-6) << "disparity";
+    EXPECT_GT(u1 - u2, 0);
+  }
+}
+
 TEST(StereoEval, RectifiedRowsAgreeAndDisparityIsFocalTimesBaselineOverDepth) {
   const Rig2 rig;
   auto r = rectify_rig(rig.left, rig.right, rig.T_right_left);
   ASSERT_TRUE(r) << r.error().message;
-  EXPECT_NEAR(r->baseline_m, rig.T_right_left.translation_m.norm(), 1e-9);
-  for (const Eigen::Vector3d& p :
-       {Eigen::Vector3d(0.3, -0.2, 8.0), Eigen::Vector3d(-1.5, 0.7, 20.0), Eigen::Vector3d(0.0, 0.0, 3.0)}) {
-    const Eigen::Vector3d a = r->R_rect_raw[0] * p;
-    const Eigen::Vector3d b = r->R_rect_raw[1] * (rig.T_right_left * p);
-    const double u1 = r->f_px * a.x() / a.z() + r->cx_px, v1 = r->f_px * a.y() / a.z() + r->cy_px;
-    const double u2 = r->f_px * b.x() / b.z() + r->cx_px, v2 = r->f_px * b.y() / b.z() + r->cy_px;
-    EXPECT_NEAR(v1, v2, 1e-6) << "rectified rows";
-    EXPECT_NEAR(u1 - u2, r->f_px * r->baseline_m / a.z(), 1e-6) << "disparity";
-    EXPECT_GT(u1 - u2, 0);
-  }
+  expect_rows_and_disparity(*r, rig.T_right_left);
 }
 
 TEST(StereoEval, TrueDisparityOfAPlaneThroughDistortedCameras) {
@@ -144,16 +149,7 @@ TEST(StereoEval, ARadtanAndAFisheyeCameraAreRectifiedTogether) {
     const CameraModel right = fisheye_left ? rig.left : rig.right;
     auto r = rectify_rig(left, right, rig.T_right_left);
     ASSERT_TRUE(r) << r.error().message;
-    EXPECT_NEAR(r->baseline_m, rig.T_right_left.translation_m.norm(), 1e-9);
-    for (const Eigen::Vector3d& p : {Eigen::Vector3d(0.3, -0.2, 8.0), Eigen::Vector3d(-1.5, 0.7, 20.0),
-                                     Eigen::Vector3d(0.0, 0.0, 3.0)}) {
-      const Eigen::Vector3d a = r->R_rect_raw[0] * p;
-      const Eigen::Vector3d b = r->R_rect_raw[1] * (rig.T_right_left * p);
-      const double u1 = r->f_px * a.x() / a.z() + r->cx_px, v1 = r->f_px * a.y() / a.z() + r->cy_px;
-      const double u2 = r->f_px * b.x() / b.z() + r->cx_px, v2 = r->f_px * b.y() / b.z() + r->cy_px;
-      EXPECT_NEAR(v1, v2, 1e-6) << "rectified rows";
-      EXPECT_NEAR(u1 - u2, r->f_px * r->baseline_m / a.z(), 1e-6) << "disparity";
-    }
+    expect_rows_and_disparity(*r, rig.T_right_left);
     const cv::Mat P = (cv::Mat_<double>(3, 3) << r->f_px, 0, r->cx_px, 0, r->f_px, r->cy_px, 0, 0, 1);
     std::size_t outside = 0;
     double worst = 0;
